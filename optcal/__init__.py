@@ -1,0 +1,32 @@
+"""optcal: triaxial MEMS accelerometer calibration posed as optimisation problems.
+
+The lumped model ``ā = T (a − o)`` (Lu et al. 2017) is fitted by an algebraic ellipsoid fit
+(SVD, or a constrained convex problem in cvxpy), refined by maximum likelihood (IPOPT in
+CasADi), and compared with the paper's gradient-descent baseline.  See :mod:`optcal.model`
+for the conventions.
+"""
+
+from optcal.errors import IdentifiabilityError, InputError, OptcalError, SolverError
+from optcal.model import LumpedModel, lu2017_reference_model
+from optcal.poses import PoseTable
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "IdentifiabilityError",
+    "InputError",
+    "LumpedModel",
+    "OptcalError",
+    "PoseTable",
+    "SolverError",
+    "lu2017_reference_model",
+    "calibrate",
+    "__version__",
+]
+
+
+def calibrate(poses, method: str = "default", **options):
+    """Calibrate a :class:`PoseTable`; see :func:`optcal.calibration.calibrate`."""
+    from optcal.calibration import calibrate as _calibrate
+
+    return _calibrate(poses, method=method, **options)

@@ -1,0 +1,1 @@
+"""The ``optcal`` command line (click); each command lives in its own module."""

@@ -1,0 +1,387 @@
+"""The calibration result: parameters with uncertainty, residuals, solver record, JSON I/O.
+
+Modelled on imucal (result kept apart from the algorithm, JSON with a format version and
+units in fields) and lmfit (parameters with standard errors and covariance, AIC/BIC, a
+text :meth:`CalibrationResult.report` and a JSON-safe :meth:`CalibrationResult.summary`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from optcal.errors import InputError
+from optcal.model import TRIL_INDEX, LumpedModel
+
+#: Version of the JSON format written by :meth:`CalibrationResult.save`.
+FORMAT_VERSION: int = 1
+
+
+@dataclass
+class SolverInfo:
+    """What the solver did.
+
+    Attributes
+    ----------
+    name : str
+        Solver (``"IPOPT"``, ``"CLARABEL"``, ``"numpy.linalg.svd"``, ``"gradient descent"``).
+    status : str
+        The solver's own status word.
+    success : bool
+        Whether the solver reports convergence to an optimum.
+    iterations : int
+        Iterations used (0 for direct methods).
+    solve_time_s : float
+        Wall time of the solve, seconds.
+    message : str
+        Anything else worth saying.
+    """
+
+    name: str
+    status: str
+    success: bool
+    iterations: int
+    solve_time_s: float
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "status": self.status,
+            "success": bool(self.success),
+            "iterations": int(self.iterations),
+            "solve_time_s": float(self.solve_time_s),
+            "message": self.message,
+        }
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def jsonable(x: Any) -> Any:
+    """Convert numpy values (and non-finite floats → ``None``) for :func:`json.dumps`."""
+    return _jsonable(x)
+
+
+def dA_dtheta(T: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Jacobian of the 6 unique entries of ``A = TᵀT`` w.r.t. the 6 entries of lower-triangular T.
+
+    Rows follow :data:`A_INDEX` (upper triangle of A, row-major); columns follow
+    :data:`optcal.model.TRIL_INDEX`.
+    """
+    J = np.zeros((6, 6))
+    for c, (i, j) in enumerate(TRIL_INDEX):
+        E = np.zeros((3, 3))
+        E[i, j] = 1.0
+        dA = E.T @ T + T.T @ E
+        J[:, c] = [dA[a, b] for a, b in A_INDEX]
+    return J
+
+
+A_INDEX: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+@dataclass
+class CalibrationResult:
+    """A fitted calibration ``ā = T (a − o)`` with its uncertainty and solver record.
+
+    Attributes
+    ----------
+    method : str
+        Estimator that produced it (``svd``, ``convex``, ``mle``, ``exact``, ``gd``, ...).
+    T : ndarray, shape (3, 3)
+        Canonical lower-triangular calibration matrix, g per raw unit (see
+        :mod:`optcal.model`).
+    o : ndarray, shape (3,)
+        Bias, raw units.
+    units : str
+        Units of the raw input (``g``, ``m/s^2`` or ``counts``); output is always g.
+    params, param_names : ndarray, list of str
+        Estimated parameters: θ = (6 entries of T, 3 of o) followed by the parameters
+        of any model extension.
+    covariance : ndarray or None
+        Covariance of ``params`` from the Fisher information (``None`` when not available).
+    residuals : ndarray, shape (n,)
+        Norm residuals ``‖T(a_k − o)‖ − 1`` in g, one per pose.
+    weights : ndarray, shape (n,)
+        The weights ``1/σ_r,k²`` used in the cost (ones when no noise was given).
+    sigma_known : bool
+        Whether the covariance is absolute (per-pose noise given) or scaled by the
+        reduced chi-square (noise estimated from the residuals).
+    solver : SolverInfo
+    rows : list of int
+        File rows (or interval numbers) of the poses, in order.
+    exclusions : dict
+        Everything excluded before the fit, counted.
+    identifiability : dict
+        Rank and conditioning of the Fisher information (see :mod:`optcal.identifiability`).
+    notes : list of str
+        Warnings and remarks for the report.
+    extra : dict
+        Method-specific additions (e.g. model-extension terms, gradient-descent step).
+    """
+
+    method: str
+    T: NDArray[np.float64]
+    o: NDArray[np.float64]
+    units: str
+    params: NDArray[np.float64]
+    param_names: list[str]
+    covariance: NDArray[np.float64] | None
+    residuals: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    sigma_known: bool
+    solver: SolverInfo
+    rows: list[int] = field(default_factory=list)
+    exclusions: dict[str, int] = field(default_factory=dict)
+    identifiability: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+    format_version: int = FORMAT_VERSION
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def A(self) -> NDArray[np.float64]:
+        """``A = Tᵀ T`` (Lu 2017, eq. 19)."""
+        return self.T.T @ self.T
+
+    @property
+    def C(self) -> NDArray[np.float64]:
+        """``C = T⁻¹`` (raw units per g)."""
+        return np.linalg.inv(self.T)
+
+    @property
+    def model(self) -> LumpedModel:
+        """The fitted lumped model."""
+        return LumpedModel.from_T(self.T, self.o)
+
+    @property
+    def n_poses(self) -> int:
+        return int(self.residuals.size)
+
+    @property
+    def n_params(self) -> int:
+        return int(len(self.params))
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom ``n − p``."""
+        return self.n_poses - self.n_params
+
+    @property
+    def chisqr(self) -> float:
+        """Weighted sum of squared norm residuals."""
+        return float(np.sum(self.weights * self.residuals**2))
+
+    @property
+    def redchi(self) -> float:
+        return self.chisqr / self.dof if self.dof > 0 else float("nan")
+
+    @property
+    def rms_norm_residual_g(self) -> float:
+        """rms of ``‖ā_k‖ − 1`` over the poses, g."""
+        return float(np.sqrt(np.mean(self.residuals**2)))
+
+    @property
+    def aic(self) -> float:
+        """Akaike information criterion, ``n ln(χ²/n) + 2p`` (lmfit's convention)."""
+        n = self.n_poses
+        return float(n * np.log(max(self.chisqr, 1e-300) / n) + 2 * self.n_params)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion, ``n ln(χ²/n) + p ln n``."""
+        n = self.n_poses
+        return float(n * np.log(max(self.chisqr, 1e-300) / n) + np.log(n) * self.n_params)
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        """Standard error of each parameter (NaN where no covariance is available)."""
+        if self.covariance is None:
+            return {k: float("nan") for k in self.param_names}
+        d = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+        return dict(zip(self.param_names, map(float, d)))
+
+    @property
+    def A_stderr(self) -> NDArray[np.float64]:
+        """Standard errors of the entries of ``A`` (delta method), shape (3, 3)."""
+        out = np.full((3, 3), np.nan)
+        if self.covariance is None:
+            return out
+        J = dA_dtheta(self.T)
+        cov_A = J @ self.covariance[:6, :6] @ J.T
+        se = np.sqrt(np.clip(np.diag(cov_A), 0, None))
+        for k, (i, j) in enumerate(A_INDEX):
+            out[i, j] = out[j, i] = se[k]
+        return out
+
+    # -------------------------------------------------------------- application
+    def correct(self, raw: ArrayLike) -> NDArray[np.float64]:
+        """Calibrated specific force ``T (a − o)`` in g for raw samples of shape (..., 3)."""
+        a = np.asarray(raw, dtype=float)
+        if a.shape[-1] != 3:
+            raise InputError(f"raw samples must have 3 columns, got shape {a.shape}")
+        return (a - self.o) @ self.T.T
+
+    # ------------------------------------------------------------------ output
+    def summary(self) -> dict[str, Any]:
+        """JSON-safe dictionary of the result (what ``optcal calibrate --json`` prints)."""
+        se = self.stderr
+        return jsonable(
+            {
+                "format_version": self.format_version,
+                "method": self.method,
+                "units": {"input": self.units, "output": "g", "T": f"g per {self.units}", "o": self.units},
+                "T": self.T,
+                "o": self.o,
+                "A": self.A,
+                "params": dict(zip(self.param_names, self.params)),
+                "stderr": se,
+                "A_stderr": self.A_stderr,
+                "covariance": self.covariance,
+                "sigma_known": self.sigma_known,
+                "rms_norm_residual_g": self.rms_norm_residual_g,
+                "max_abs_norm_residual_g": float(np.max(np.abs(self.residuals))) if self.n_poses else None,
+                "n_poses": self.n_poses,
+                "n_params": self.n_params,
+                "chisqr": self.chisqr,
+                "aic": self.aic,
+                "bic": self.bic,
+                "solver": self.solver.to_dict(),
+                "identifiability": self.identifiability,
+                "exclusions": self.exclusions,
+                "notes": self.notes,
+            }
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything needed to rebuild the result (summary plus residuals, weights, rows)."""
+        d = self.summary()
+        d.update(
+            jsonable(
+                {
+                    "params_vector": self.params,
+                    "param_names": list(self.param_names),
+                    "residuals": self.residuals,
+                    "weights": self.weights,
+                    "rows": [int(r) for r in self.rows],
+                    "extra": self.extra,
+                }
+            )
+        )
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "CalibrationResult":
+        """Rebuild a result written by :meth:`to_dict`."""
+        try:
+            version = int(d.get("format_version", 0))
+            if version > FORMAT_VERSION or version < 1:
+                raise InputError(
+                    f"calibration file has format version {version}; this optcal reads "
+                    f"versions 1..{FORMAT_VERSION} (upgrade optcal)"
+                )
+            cov = d.get("covariance")
+            return cls(
+                method=str(d["method"]),
+                T=np.asarray(d["T"], dtype=float).reshape(3, 3),
+                o=np.asarray(d["o"], dtype=float).reshape(3),
+                units=str(d["units"]["input"]),
+                params=np.asarray(d["params_vector"], dtype=float),
+                param_names=list(d["param_names"]),
+                covariance=None if cov is None else np.asarray(cov, dtype=float),
+                residuals=np.asarray(d["residuals"], dtype=float),
+                weights=np.asarray(d["weights"], dtype=float),
+                sigma_known=bool(d["sigma_known"]),
+                solver=SolverInfo(**d["solver"]),
+                rows=list(d.get("rows", [])),
+                exclusions=dict(d.get("exclusions", {})),
+                identifiability=dict(d.get("identifiability") or {}),
+                notes=list(d.get("notes", [])),
+                extra=dict(d.get("extra", {})),
+                format_version=version,
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, InputError):
+                raise
+            raise InputError(f"not an optcal calibration file ({exc.__class__.__name__}: {exc})") from exc
+
+    def save(self, path: str | Path) -> None:
+        """Write the result as JSON."""
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: str | Path) -> "CalibrationResult":
+        """Read a result written by :meth:`save`."""
+        p = Path(path)
+        if not p.exists():
+            raise InputError(f"{p}: no such calibration file")
+        try:
+            d = json.loads(p.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{p}: not a JSON calibration file ({exc})") from exc
+        if not isinstance(d, dict):
+            raise InputError(f"{p}: not an optcal calibration file")
+        return cls.from_dict(d)
+
+    def report(self) -> str:
+        """Readable text report (parameters ± standard error, fit statistics, solver)."""
+        se = self.stderr
+        lines = [
+            f"[[Calibration: method {self.method}]]",
+            f"    poses              = {self.n_poses}",
+            f"    parameters         = {self.n_params}",
+            f"    units              = {self.units} in, g out",
+            f"    rms |a|-1          = {self.rms_norm_residual_g * 1e3:.4f} mg",
+            f"    max ||a|-1|        = {np.max(np.abs(self.residuals)) * 1e3:.4f} mg" if self.n_poses else "",
+            f"    chi-square         = {self.chisqr:.6g}",
+            f"    reduced chi-square = {self.redchi:.6g}",
+            f"    Akaike info crit   = {self.aic:.4f}",
+            f"    Bayesian info crit = {self.bic:.4f}",
+            f"    covariance         = {'absolute (noise given)' if self.sigma_known else 'scaled by reduced chi-square'}",
+            f"[[Solver]]",
+            f"    {self.solver.name}: {self.solver.status}, {self.solver.iterations} iterations, "
+            f"{self.solver.solve_time_s * 1e3:.2f} ms" + (f" ({self.solver.message})" if self.solver.message else ""),
+            "[[Parameters]]",
+        ]
+        for name, value in zip(self.param_names, self.params):
+            e = se.get(name, float("nan"))
+            rel = f"({abs(e / value) * 100:.2f}%)" if value != 0 and np.isfinite(e) else ""
+            lines.append(f"    {name:<12s} = {value: .8g} +/- {e:.3g} {rel}")
+        lines.append("[[A = T'T]]")
+        for i in range(3):
+            lines.append("    " + "  ".join(f"{self.A[i, j]: .6f}" for j in range(3)))
+        if self.identifiability:
+            idf = self.identifiability
+            lines.append("[[Identifiability]]")
+            lines.append(
+                f"    Fisher rank {idf.get('rank')}/{idf.get('n_params')}, condition number {idf.get('condition_number', float('nan')):.3g}"
+            )
+        if self.exclusions:
+            lines.append("[[Excluded before the fit]]")
+            lines.extend(f"    {k}: {v}" for k, v in self.exclusions.items())
+        if self.notes:
+            lines.append("[[Notes]]")
+            lines.extend(f"    - {n}" for n in self.notes)
+        return "\n".join(line for line in lines if line != "")
+
