@@ -32,3 +32,7 @@ class IdentifiabilityError(InputError):
 
 class SolverError(OptcalError, RuntimeError):
     """A numerical solver failed in a way the caller should know about."""
+
+
+class FitError(InputError):
+    """The data do not determine a calibration by the chosen method (e.g. a hyperboloid)."""

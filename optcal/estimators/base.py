@@ -1,0 +1,149 @@
+"""What every static estimator shares: data normalisation, noise weights, result assembly.
+
+All estimators work on normalised data ``u' = (a − m)/s`` (``m`` the mean pose, ``s`` the rms
+distance to it), so that raw counts, m/s² and g give equally well-scaled problems.  A fit
+``(T', o')`` in normalised coordinates maps back exactly by ``T = T'/s``, ``o = m + s o'``;
+being linear in θ, the map carries the covariance exactly too.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import IdentifiabilityError, InputError
+from optcal.identifiability import analyse, norm_residual_jacobian, norm_residuals, normal_gain
+from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
+from optcal.poses import PoseTable
+from optcal.result import CalibrationResult, SolverInfo
+
+WEIGHTINGS = ("propagated", "paper")
+
+
+@dataclass(frozen=True)
+class Normaliser:
+    """Affine normalisation of the measurements, ``u' = (a − centre)/scale``."""
+
+    centre: NDArray[np.float64]
+    scale: float
+
+    @classmethod
+    def of(cls, acc: NDArray) -> "Normaliser":
+        centre = acc.mean(axis=0)
+        scale = float(np.sqrt(np.mean(np.sum((acc - centre) ** 2, axis=1))))
+        if not np.isfinite(scale) or scale <= 0:
+            raise InputError("all poses are identical; rotate the sensor between poses")
+        return cls(centre, scale)
+
+    def forward(self, acc: NDArray) -> NDArray[np.float64]:
+        return (acc - self.centre) / self.scale
+
+    def theta_to_raw(self, theta_n: NDArray) -> NDArray[np.float64]:
+        """θ in normalised coordinates → θ in raw units."""
+        T, o = unpack_theta(theta_n)
+        return theta_from(T / self.scale, self.centre + self.scale * o)
+
+    def theta_to_normalised(self, theta: NDArray) -> NDArray[np.float64]:
+        T, o = unpack_theta(theta)
+        return theta_from(T * self.scale, (o - self.centre) / self.scale)
+
+    def jacobian(self) -> NDArray[np.float64]:
+        """d θ_raw / d θ_normalised (diagonal)."""
+        return np.diag([1 / self.scale] * 6 + [self.scale] * 3)
+
+
+def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated") -> tuple[NDArray, bool]:
+    """Weights of the norm residuals and whether they are absolute (noise known).
+
+    ``paper``: ``1/σ_k²`` (Lu 2017, eq. 14).  ``propagated`` (default): ``1/(σ_k ‖Tᵀā_k‖)²``,
+    the first-order variance of the norm residual, which makes the cost the maximum-likelihood
+    cost of the norm residuals whatever the units (it equals ``paper`` when T ≈ I in g).
+    Without per-pose noise all weights are 1 and the covariance is scaled by the fit.
+    """
+    if weighting not in WEIGHTINGS:
+        raise InputError(f"unknown weighting {weighting!r}; use one of {', '.join(WEIGHTINGS)}")
+    if poses.sigma is None:
+        return np.ones(poses.n), False
+    if weighting == "paper":
+        return 1.0 / poses.sigma**2, True
+    return 1.0 / (poses.sigma * normal_gain(T, o, poses.acc)) ** 2, True
+
+
+def finish(
+    *,
+    method: str,
+    poses: PoseTable,
+    theta: NDArray,
+    solver: SolverInfo,
+    weighting: str = "propagated",
+    allow_degenerate: bool = False,
+    notes: list[str] | None = None,
+    extra: dict[str, Any] | None = None,
+    covariance_scale: str = "auto",
+) -> CalibrationResult:
+    """Assemble a :class:`CalibrationResult` from θ in raw units.
+
+    Computes the norm residuals, the Fisher information at θ (with directions
+    eliminated, see :mod:`optcal.identifiability`), its inverse as covariance (scaled by the
+    reduced chi-square when the noise is not known) and the identifiability report; refuses
+    a rank-deficient pose set unless ``allow_degenerate``.
+    """
+    T, o = unpack_theta(theta)
+    T = canonicalise(T)  # no-op for lower-triangular T with positive diagonal
+    theta = theta_from(T, o)
+    notes = list(notes or [])
+    w, known = pose_weights(poses, T, o, weighting)
+    r = norm_residuals(T, o, poses.acc)
+    J = norm_residual_jacobian(T, o, poses.acc)
+    F = J.T @ (J * w[:, None])
+    ident = analyse(T, o, poses.acc, None if poses.sigma is None else poses.sigma)
+    if not ident.identifiable:
+        msg = ident.describe()
+        if not allow_degenerate:
+            raise IdentifiabilityError(
+                msg + ". Add poses that tilt the sensor about other axes (or pass --allow-degenerate "
+                "to proceed with a minimum-norm answer along the undetermined combinations)",
+                ident,
+            )
+        notes.append("DEGENERATE POSE SET: " + msg)
+    cov = np.linalg.pinv(F, rcond=1e-12, hermitian=True)
+    dof = poses.n - len(theta)
+    if not known and covariance_scale == "auto":
+        chi2 = float(np.sum(w * r**2))
+        cov = cov * (chi2 / dof) if dof > 0 else np.full_like(cov, np.nan)
+    if dof <= 0:
+        notes.append(f"no degrees of freedom left ({poses.n} poses, {len(theta)} parameters)")
+    return CalibrationResult(
+        method=method,
+        T=T,
+        o=o,
+        units=poses.units,
+        params=theta,
+        param_names=list(PARAM_NAMES),
+        covariance=cov,
+        residuals=r,
+        weights=w,
+        sigma_known=known,
+        solver=solver,
+        rows=[int(x) for x in poses.rows],
+        exclusions=dict(poses.exclusions),
+        identifiability=ident.to_dict(),
+        notes=notes,
+        extra=dict(extra or {}),
+    )
+
+
+class Stopwatch:
+    """``with Stopwatch() as sw: ...; sw.seconds``."""
+
+    def __enter__(self) -> "Stopwatch":
+        self._t0 = time.perf_counter()
+        self.seconds = 0.0
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.seconds = time.perf_counter() - self._t0

@@ -1,0 +1,215 @@
+"""Algebraic ellipsoid fits: the paper's SVD fit and the same fit as a constrained convex problem.
+
+Both fit the quadric ``aᵀ A a + bᵀ a + c = 0`` through the poses (Lu 2017, eq. 18) by
+minimising the algebraic residuals ``J η`` (eq. 22-24).  With ``A`` symmetric, ``J``'s rows
+are ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (the paper's Kronecker form ``a ⊗ a`` would
+leave the antisymmetric part of A free).  The scale ``α`` follows from eq. 19-21 (eq. 27),
+``o = −½ A⁻¹ b`` (eq. 20) and ``T`` from ``A = Tᵀ T`` (eq. 29-30; optcal takes the
+lower-triangular factor, eq. 30's symmetric square root differs from it by a rotation).
+
+* :class:`SVDEllipsoidFit`: η is the right singular vector of ``J`` for the smallest singular
+  value (``‖η‖ = 1`` excludes the zero solution).  Nothing forces ``A ≻ 0``: with poses
+  covering only a cap of the sphere, or with much noise, the answer can be a hyperboloid,
+  and then there is no calibration to return.
+* :class:`ConvexEllipsoidFit`: ``min ‖J η‖²`` subject to ``A ⪰ ε I`` (semidefinite constraint,
+  so the answer is always an ellipsoid) and ``tr A = 3`` (a linear normalisation that
+  excludes the zero solution), solved by cvxpy with Clarabel by default.  The problem is
+  built once and re-solved with the data as a parameter: ``‖J η‖² = ‖R η‖²`` with ``R``
+  the 10×10 triangular factor of ``J``, so the problem size does not depend on the number of
+  poses.  When the semidefinite constraint is inactive at the solution, the equality-
+  constrained least-squares problem it then solves is re-solved exactly by its KKT system
+  ("polish"), which gives the interior-point answer to machine precision.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import FitError, InputError
+from optcal.estimators.base import Normaliser, Stopwatch, finish
+from optcal.model import canonical_T, theta_from
+from optcal.poses import PoseTable
+from optcal.result import CalibrationResult, SolverInfo
+
+
+def design_matrix(u: NDArray) -> NDArray[np.float64]:
+    """Rows ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (Lu 2017, eq. 23, A symmetric)."""
+    x, y, z = u.T
+    return np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, x, y, z, np.ones_like(x)])
+
+
+def unpack_quadric(eta: NDArray) -> tuple[NDArray, NDArray, float]:
+    """η → (A, b, c) for η ordered as in :func:`design_matrix`."""
+    a11, a22, a33, a12, a13, a23 = eta[:6]
+    A = np.array([[a11, a12, a13], [a12, a22, a23], [a13, a23, a33]])
+    return A, np.asarray(eta[6:9], float), float(eta[9])
+
+
+def quadric_to_calibration(eta: NDArray) -> tuple[NDArray, NDArray]:
+    """Scale the quadric to ``‖T(a − o)‖ = 1`` and return (T, o) (Lu 2017, eq. 19-21, 27-30).
+
+    Raises
+    ------
+    FitError
+        When the quadric is not a real ellipsoid.
+    """
+    A_s, b_s, c_s = unpack_quadric(eta)
+    eig = np.linalg.eigvalsh(A_s)
+    if eig[0] * eig[-1] <= 0:
+        raise FitError(
+            f"the algebraic fit is not an ellipsoid (eigenvalues of A: {', '.join(f'{e:.3g}' for e in eig)}: "
+            "a hyperboloid); this happens when the poses cover only part of the sphere or the noise is "
+            "large; use --method convex, which constrains A to be positive definite"
+        )
+    o = -0.5 * np.linalg.solve(A_s, b_s)  # Lu 2017, eq. 20
+    alpha = 1.0 / (0.25 * b_s @ np.linalg.solve(A_s, b_s) - c_s)  # eq. 27
+    A = alpha * A_s  # eq. 28
+    if np.linalg.eigvalsh(A)[0] <= 0:
+        raise FitError("the algebraic fit is an imaginary ellipsoid (no real points); check the data")
+    return canonical_T(A), o
+
+
+class SVDEllipsoidFit:
+    """Lu 2017's algebraic ellipsoid fit by singular value decomposition (eq. 18-30).
+
+    Parameters
+    ----------
+    allow_degenerate : bool
+        Return a result (with a warning note) for pose sets that do not identify every parameter.
+    """
+
+    name = "svd"
+
+    def __init__(self, allow_degenerate: bool = False) -> None:
+        self.allow_degenerate = allow_degenerate
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        poses.validate()
+        norm = Normaliser.of(poses.acc)
+        with Stopwatch() as sw:
+            J = design_matrix(norm.forward(poses.acc))
+            _, s, vt = np.linalg.svd(J, full_matrices=False)
+            eta = vt[-1]  # right singular vector of the smallest singular value
+            T_n, o_n = quadric_to_calibration(eta)
+        solver = SolverInfo("numpy.linalg.svd", "solved", True, 0, sw.seconds, f"smallest singular value {s[-1]:.3g}")
+        return finish(
+            method=self.name,
+            poses=poses,
+            theta=norm.theta_to_raw(theta_from(T_n, o_n)),
+            solver=solver,
+            allow_degenerate=self.allow_degenerate,
+        )
+
+
+class ConvexEllipsoidFit:
+    """The algebraic ellipsoid fit as a semidefinite-constrained convex problem in cvxpy.
+
+    Parameters
+    ----------
+    solver : str
+        cvxpy solver name; ``"CLARABEL"`` by default (``"SCS"`` also works).
+    eps : float
+        Lower bound on the eigenvalues of the normalised ``A`` (whose trace is 3).
+    polish : bool
+        Re-solve exactly by the KKT system when the semidefinite constraint is inactive.
+    allow_degenerate : bool
+        Return a result for pose sets that do not identify every parameter.
+    solver_options : dict, optional
+        Passed to ``problem.solve``.
+    """
+
+    name = "convex"
+    _problems: dict[tuple[str, float], Any] = {}
+
+    def __init__(
+        self,
+        solver: str = "CLARABEL",
+        eps: float = 1e-3,
+        polish: bool = True,
+        allow_degenerate: bool = False,
+        solver_options: dict[str, Any] | None = None,
+    ) -> None:
+        self.solver = solver.upper()
+        self.eps = float(eps)
+        self.polish = polish
+        self.allow_degenerate = allow_degenerate
+        self.solver_options = dict(solver_options or {})
+
+    @classmethod
+    def _problem(cls, eps: float) -> Any:
+        """The cvxpy problem, built once per ``eps`` and re-solved with R as a parameter."""
+        key = ("ellipsoid", eps)
+        if key not in cls._problems:
+            import cvxpy as cp
+
+            A = cp.Variable((3, 3), symmetric=True)
+            b = cp.Variable(3)
+            c = cp.Variable()
+            R = cp.Parameter((10, 10))
+            eta = cp.hstack([A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[0, 2], A[1, 2], b, c])
+            constraints = [A >> eps * np.eye(3), cp.trace(A) == 3.0]
+            prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ eta)), constraints)
+            cls._problems[key] = (prob, R, A, b, c, eta)
+        return cls._problems[key]
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        import cvxpy as cp
+
+        poses.validate()
+        if self.solver not in cp.installed_solvers():
+            raise InputError(f"cvxpy solver {self.solver} is not installed (installed: {', '.join(cp.installed_solvers())})")
+        norm = Normaliser.of(poses.acc)
+        J = design_matrix(norm.forward(poses.acc))
+        R = np.linalg.qr(J, mode="r")
+        prob, R_par, A, b, c, eta = self._problem(self.eps)
+        R_par.value = R
+        notes: list[str] = []
+        with Stopwatch() as sw:
+            try:
+                prob.solve(solver=self.solver, **self.solver_options)
+            except cp.error.SolverError as exc:
+                raise FitError(f"the convex ellipsoid fit failed in {self.solver}: {exc}") from exc
+        status = prob.status
+        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or eta.value is None:
+            raise FitError(f"the convex ellipsoid fit ended with status {status!r} in {self.solver}")
+        eta_v = np.asarray(eta.value, float)
+        iters = int(prob.solver_stats.num_iters or 0)
+        message = ""
+        min_eig = float(np.linalg.eigvalsh(A.value)[0])
+        active = min_eig < 2 * self.eps
+        if active:
+            notes.append(
+                "the semidefinite constraint A ⪰ εI is active: the unconstrained algebraic fit is not an "
+                "ellipsoid (poses on part of the sphere or large noise); the answer is the nearest ellipsoid"
+            )
+        elif self.polish:
+            eta_v = self._kkt_polish(R)
+            message = "polished by KKT solve (semidefinite constraint inactive)"
+        try:
+            T_n, o_n = quadric_to_calibration(eta_v)
+        except FitError as exc:
+            raise FitError(f"the convex fit returned a degenerate ellipsoid ({exc})") from exc
+        solver = SolverInfo(self.solver, status, status == cp.OPTIMAL, iters, sw.seconds, message)
+        return finish(
+            method=self.name,
+            poses=poses,
+            theta=norm.theta_to_raw(theta_from(T_n, o_n)),
+            solver=solver,
+            allow_degenerate=self.allow_degenerate,
+            notes=notes,
+            extra={"min_eigenvalue_normalised_A": min_eig, "psd_constraint_active": active},
+        )
+
+    @staticmethod
+    def _kkt_polish(R: NDArray) -> NDArray[np.float64]:
+        """Exact solution of ``min ‖R η‖²`` s.t. ``tr A = 3`` (KKT system)."""
+        H = R.T @ R
+        g = np.zeros(10)
+        g[:3] = 1.0
+        K = np.block([[2 * H, g[:, None]], [g[None, :], np.zeros((1, 1))]])
+        rhs = np.concatenate([np.zeros(10), [3.0]])
+        sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
+        return sol[:10]

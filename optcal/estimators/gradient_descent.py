@@ -1,0 +1,142 @@
+"""The paper's baseline: plain gradient descent on the ML cost (Lu 2017, eq. 14-17).
+
+The parameter vector is ``x = [vec(T)ᵀ, oᵀ]ᵀ`` with the full 3×3 T (row-major vec, as in
+the paper), the cost ``f(x) = Σ_k w_k (‖T u_k‖ − 1)²`` with ``u_k = a_k − o`` (eq. 14), its
+gradient (eq. 15-16, with ``c_T = 1 − ‖T u_k‖⁻¹``)::
+
+    ∇_T f = Σ_k 2 w_k c_T (T u_k) u_kᵀ          ∇_o f = −Σ_k 2 w_k c_T Tᵀ T u_k
+
+and the iteration ``x_k = x_{k−1} − μ ∇f`` (eq. 17), stopped when ``‖x_k − x_{k−1}‖ ≤ ε``.
+It runs on the same normalised data and weights as :mod:`optcal.estimators.mle`, so the
+two minimise the same cost and can be compared iteration for iteration.  With
+``step="auto"`` the step is ``μ = 1/L``, ``L`` the largest eigenvalue of the Gauss–Newton
+Hessian at the starting point (a fixed step, as in the paper, chosen so that it converges).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import InputError
+from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
+from optcal.model import canonicalise, theta_from
+from optcal.poses import PoseTable
+from optcal.result import CalibrationResult, SolverInfo
+
+
+def cost_and_gradient(x: NDArray, u: NDArray, w: NDArray) -> tuple[float, NDArray[np.float64]]:
+    """f(x) (Lu 2017, eq. 14) and its gradient (eq. 15-16) for x = [vec(T), o]."""
+    T = x[:9].reshape(3, 3)
+    uk = u - x[9:12]
+    v = uk @ T.T
+    nv = np.linalg.norm(v, axis=1)
+    r = nv - 1.0
+    cT = 1.0 - 1.0 / nv  # eq. 15, c_T
+    k = 2.0 * w * cT
+    grad_T = (v * k[:, None]).T @ uk  # Σ 2 w c_T (T u)(u)ᵀ
+    grad_o = -((v * k[:, None]) @ T).sum(axis=0)  # eq. 16: −Σ 2 w c_T Tᵀ T u
+    return float(np.sum(w * r * r)), np.concatenate([grad_T.ravel(), grad_o])
+
+
+class GradientDescent:
+    """Plain gradient descent with a fixed step (Lu 2017, eq. 17): the baseline.
+
+    Parameters
+    ----------
+    step : float or "auto"
+        The step μ (in the normalised coordinates); ``auto`` = 1/L (module docstring).
+    tol : float
+        ε of the stopping rule ``‖x_k − x_{k−1}‖ ≤ ε``.
+    max_iter : int
+        Iteration limit (reported as not converged when reached).
+    target_cost : float, optional
+        Also stop as soon as the cost is at or below this value (for speed comparisons
+        "to the same cost").
+    init : {"svd", "convex"}
+        Starting point (eq. 18-30).
+    allow_degenerate : bool
+        Proceed (with a warning) when the poses do not identify every parameter.
+    """
+
+    name = "gd"
+
+    def __init__(
+        self,
+        step: float | str = "auto",
+        tol: float = 1e-10,
+        max_iter: int = 1_000_000,
+        target_cost: float | None = None,
+        init: str = "svd",
+        weighting: str = "propagated",
+        allow_degenerate: bool = False,
+    ) -> None:
+        if step != "auto" and not (isinstance(step, (int, float)) and step > 0):
+            raise InputError("step must be a positive number or 'auto'")
+        self.step = step
+        self.tol = float(tol)
+        self.max_iter = int(max_iter)
+        self.target_cost = target_cost
+        self.init = init
+        self.weighting = weighting
+        self.allow_degenerate = allow_degenerate
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        from optcal.estimators.mle import MaximumLikelihood
+
+        poses.validate()
+        start = MaximumLikelihood(init=self.init, allow_degenerate=True).initial(poses)
+        norm = Normaliser.of(poses.acc)
+        u = norm.forward(poses.acc)
+        w, _ = pose_weights(poses, start.T, start.o, self.weighting)
+        w_n = w / np.mean(w)
+        T0 = start.T * norm.scale
+        o0 = (start.o - norm.centre) / norm.scale
+        x = np.concatenate([T0.ravel(), o0])
+        mu = self._auto_step(x, u, w_n) if self.step == "auto" else float(self.step)
+        target = None if self.target_cost is None else self.target_cost / np.mean(w)
+        converged = False
+        it = 0
+        with Stopwatch() as sw:
+            f, g = cost_and_gradient(x, u, w_n)
+            while it < self.max_iter:
+                step = mu * g
+                x = x - step  # Lu 2017, eq. 17
+                it += 1
+                f, g = cost_and_gradient(x, u, w_n)
+                if not np.isfinite(f):
+                    break
+                if np.linalg.norm(step) <= self.tol or (target is not None and f <= target):
+                    converged = True
+                    break
+        status = "converged" if converged else ("diverged" if not np.isfinite(f) else "max_iter reached")
+        T_n = canonicalise(x[:9].reshape(3, 3)) if np.all(np.isfinite(x)) else np.eye(3)
+        theta = norm.theta_to_raw(theta_from(T_n, x[9:12]))
+        solver = SolverInfo("gradient descent", status, converged, it, sw.seconds, f"step μ = {mu:.4g} (normalised)")
+        notes = [] if converged else [f"gradient descent {status} after {it} iterations"]
+        return finish(
+            method=self.name,
+            poses=poses,
+            theta=theta,
+            solver=solver,
+            weighting=self.weighting,
+            allow_degenerate=self.allow_degenerate,
+            notes=notes,
+            extra={"step": mu, "final_cost": f * np.mean(w), "init": start.method},
+        )
+
+    @staticmethod
+    def _auto_step(x: NDArray, u: NDArray, w: NDArray) -> float:
+        """μ = 1/L with L the largest eigenvalue of the Gauss–Newton Hessian 2JᵀWJ at x."""
+        T = x[:9].reshape(3, 3)
+        uk = u - x[9:12]
+        v = uk @ T.T
+        ab = v / np.linalg.norm(v, axis=1, keepdims=True)
+        J = np.column_stack([np.einsum("ni,nj->nij", ab, uk).reshape(len(u), 9), -(ab @ T)])
+        L = float(np.linalg.eigvalsh(2 * J.T @ (J * w[:, None]))[-1])
+        return 1.0 / L
+
+
+__all__ = ["GradientDescent", "cost_and_gradient"]

@@ -1,0 +1,206 @@
+"""Fisher information, identifiability and the Cramér–Rao bound of a pose set.
+
+For static poses ``a_k = C ā_k + o + n_k`` with ``n_k ~ N(0, σ_k² I)`` and unknown unit
+directions ``ā_k`` (nuisance parameters), eliminating the directions from the Fisher
+information (Schur complement over the two tangent directions of each ``ā_k``) leaves, per
+pose, only the component of the noise along the ellipsoid normal ``Tᵀ ā_k``::
+
+    F = Σ_k  g_k g_kᵀ / (σ_k² ‖Tᵀ ā_k‖²),      g_k = ∂ r_k / ∂θ,   r_k = ‖T(a_k − o)‖ − 1
+
+which is the Gauss–Newton matrix of the norm-residual cost (Lu 2017, eq. 14) with the noise
+propagated to the norm.  ``F⁻¹`` is the Cramér–Rao bound of θ; a rank-deficient ``F`` means
+that some combination of the parameters is not determined by the pose set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from optcal.model import PARAM_NAMES, LumpedModel, theta_from, unpack_theta
+from optcal.result import A_INDEX, dA_dtheta
+
+#: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
+RANK_TOL: float = 1e-9
+
+
+def norm_residuals(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
+    """``r_k = ‖T(a_k − o)‖ − 1`` (Lu 2017, eq. 13), shape (n,)."""
+    return np.linalg.norm((acc - o) @ T.T, axis=1) - 1.0
+
+
+def norm_residual_jacobian(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
+    """Jacobian of the norm residuals w.r.t. θ (lower-triangular T entries, then o), shape (n, 9).
+
+    ``∂r/∂T_ij = ā_i u_j`` and ``∂r/∂o = −Tᵀ ā`` with ``u = a − o``, ``ā = T u / ‖T u‖``.
+    """
+    u = acc - o
+    v = u @ T.T
+    abar = v / np.linalg.norm(v, axis=1, keepdims=True)
+    cols = [abar[:, i] * u[:, j] for i, j in ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))]
+    return np.column_stack(cols + [-(abar @ T)])
+
+
+def normal_gain(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
+    """``‖Tᵀ ā_k‖``: how raw noise (per axis) propagates to the norm residual, shape (n,)."""
+    v = (acc - o) @ T.T
+    abar = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return np.linalg.norm(abar @ T, axis=1)
+
+
+def fisher_information(
+    T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """Fisher information of θ with the directions eliminated (module docstring).
+
+    ``sigma`` is the raw per-axis noise of each pose (scalar or (n,)); ``None`` means 1.
+    """
+    J = norm_residual_jacobian(T, o, acc)
+    s = np.ones(len(acc)) if sigma is None else np.broadcast_to(np.asarray(sigma, float), (len(acc),))
+    w = 1.0 / (s * normal_gain(T, o, acc)) ** 2
+    return J.T @ (J * w[:, None])
+
+
+def cramer_rao_bound(model: LumpedModel, directions: ArrayLike, sigma: float | ArrayLike) -> NDArray[np.float64]:
+    """Cramér–Rao bound on the covariance of θ for a design of true directions.
+
+    Parameters
+    ----------
+    model : LumpedModel
+        The true sensor.
+    directions : array_like, shape (n, 3)
+        True unit directions of the poses.
+    sigma : float or array_like
+        Per-axis white noise of each pose measurement, raw units.
+
+    Returns
+    -------
+    ndarray, shape (9, 9)
+        ``F⁻¹`` with the unknown directions as nuisance parameters (pseudo-inverse when
+        ``F`` is singular, in which case the bound is infinite along the null space).
+    """
+    d = np.asarray(directions, float)
+    T = model.T_canonical
+    acc = model.measure(d)
+    F = fisher_information(T, model.o, acc, sigma)
+    return np.linalg.pinv(F, rcond=1e-14, hermitian=True)
+
+
+@dataclass
+class IdentifiabilityReport:
+    """Rank and conditioning of the Fisher information of a pose set.
+
+    Attributes
+    ----------
+    rank : int
+        Numerical rank of the scaled Fisher matrix (out of ``n_params``).
+    n_params : int
+    condition_number : float
+        Ratio of the extreme eigenvalues of the scaled (correlation-form) Fisher matrix.
+    unidentified : list of dict
+        One entry per null direction: ``entry`` (the entry of A or o it moves),
+        ``combination`` (change of each entry of A and o), ``text`` (readable).
+    """
+
+    rank: int
+    n_params: int
+    condition_number: float
+    eigenvalues: list[float] = field(default_factory=list)
+    unidentified: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def identifiable(self) -> bool:
+        return self.rank == self.n_params
+
+    def describe(self) -> str:
+        if self.identifiable:
+            return (
+                f"all {self.n_params} parameters identifiable (Fisher condition number "
+                f"{self.condition_number:.3g})"
+            )
+        parts = "; ".join(u["text"] for u in self.unidentified)
+        return (
+            f"the pose set identifies only {self.rank} of {self.n_params} parameter combinations; "
+            f"not determined: {parts}"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "rank": self.rank,
+            "n_params": self.n_params,
+            "identifiable": self.identifiable,
+            "condition_number": self.condition_number,
+            "unidentified": self.unidentified,
+            "description": self.describe(),
+        }
+
+
+def _describe_null_space(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
+    """Express null directions of θ as changes of the entries of A and o.
+
+    The basis is rotated so that each direction moves one entry of (A, o) by 1 and the other
+    pivot entries by 0, which makes it readable ("A_xy is not determined").
+    """
+    axes = "xyz"
+    names = [f"A_{axes[i]}{axes[j]}" for i, j in A_INDEX] + ["o_x", "o_y", "o_z"]
+    M = np.vstack([dA_dtheta(T) @ vectors[:6], vectors[6:9]])  # (9, k) change of (A, o)
+    k = vectors.shape[1]
+    _, _, piv = scipy.linalg.qr(M.T, pivoting=True)
+    pivots = piv[:k]
+    B = M @ np.linalg.inv(M[pivots, :])  # each column: unit change of one pivot entry
+    out = []
+    for c in range(k):
+        col = B[:, c]
+        combo = {names[i]: float(col[i]) for i in np.flatnonzero(np.abs(col) > 1e-3)}
+        lead = names[pivots[c]]
+        others = [f"{v:+.3g}·{n}" for n, v in combo.items() if n != lead]
+        text = lead + (f" (together with {' '.join(others)})" if others else "")
+        out.append({"entry": lead, "combination": combo, "text": text})
+    return out
+
+
+def analyse(T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None, tol: float = RANK_TOL) -> IdentifiabilityReport:
+    """Identifiability of θ at (T, o) for measurements ``acc``.
+
+    The Fisher matrix is scaled to correlation form (unit diagonal) so that rank and
+    condition number do not depend on units.
+    """
+    F = fisher_information(T, o, acc, sigma)
+    d = np.sqrt(np.clip(np.diag(F), 1e-300, None))
+    S = F / np.outer(d, d)
+    evals, evecs = np.linalg.eigh(S)
+    top = max(evals[-1], 1e-300)
+    null = evals < tol * top
+    unid = _describe_null_space(evecs[:, null] / d[:, None], T) if np.any(null) else []
+    cond = float(top / evals[0]) if evals[0] > 0 else float("inf")
+    return IdentifiabilityReport(
+        rank=int(np.sum(~null)),
+        n_params=len(evals),
+        condition_number=cond,
+        eigenvalues=[float(e / top) for e in evals],
+        unidentified=unid,
+    )
+
+
+def analyse_design(model: LumpedModel, directions: ArrayLike, tol: float = RANK_TOL) -> IdentifiabilityReport:
+    """Identifiability of a noise-free design (true model and true directions)."""
+    d = np.asarray(directions, float)
+    return analyse(model.T_canonical, model.o, model.measure(d), None, tol)
+
+
+__all__ = [
+    "IdentifiabilityReport",
+    "analyse",
+    "analyse_design",
+    "cramer_rao_bound",
+    "fisher_information",
+    "norm_residual_jacobian",
+    "norm_residuals",
+    "normal_gain",
+    "theta_from",
+    "unpack_theta",
+]
