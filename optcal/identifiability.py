@@ -26,6 +26,12 @@ from optcal.result import A_INDEX, dA_dtheta
 
 #: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
 RANK_TOL: float = 1e-9
+#: Standard error (normalised units: T relative to 1, o relative to the 1 g radius) above which a
+#: parameter combination counts as not determined by the data, however full the rank: 5 % of
+#: full scale.  With noise, an exactly degenerate design is no longer numerically singular
+#: (the fitted directions leave the degenerate set by the noise), but the standard error
+#: along the missing direction stays of order one whatever the noise level.
+WEAK_STDERR: float = 0.05
 
 
 def norm_residuals(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
@@ -111,10 +117,11 @@ class IdentifiabilityReport:
     condition_number: float
     eigenvalues: list[float] = field(default_factory=list)
     unidentified: list[dict[str, Any]] = field(default_factory=list)
+    weak: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def identifiable(self) -> bool:
-        return self.rank == self.n_params
+        return self.rank == self.n_params and not self.weak
 
     def describe(self) -> str:
         if self.identifiable:
@@ -122,11 +129,14 @@ class IdentifiabilityReport:
                 f"all {self.n_params} parameters identifiable (Fisher condition number "
                 f"{self.condition_number:.3g})"
             )
-        parts = "; ".join(u["text"] for u in self.unidentified)
-        return (
-            f"the pose set identifies only {self.rank} of {self.n_params} parameter combinations; "
-            f"not determined: {parts}"
-        )
+        if self.rank < self.n_params:
+            parts = "; ".join(u["text"] for u in self.unidentified)
+            return (
+                f"the pose set identifies only {self.rank} of {self.n_params} parameter combinations; "
+                f"not determined: {parts}"
+            )
+        parts = "; ".join(f"{u['text']} (standard error {u['stderr']:.2g} of full scale)" for u in self.weak)
+        return f"the pose set does not determine {len(self.weak)} parameter combination(s): {parts}"
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -135,6 +145,7 @@ class IdentifiabilityReport:
             "identifiable": self.identifiable,
             "condition_number": self.condition_number,
             "unidentified": self.unidentified,
+            "weak": self.weak,
             "description": self.describe(),
         }
 
@@ -184,6 +195,23 @@ def analyse(T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None
         eigenvalues=[float(e / top) for e in evals],
         unidentified=unid,
     )
+
+
+def add_weak_directions(report: IdentifiabilityReport, cov_normalised: NDArray, T_normalised: NDArray,
+                        threshold: float = WEAK_STDERR) -> IdentifiabilityReport:
+    """Record in ``report`` the combinations whose standard error exceeds ``threshold``.
+
+    ``cov_normalised`` is the covariance of θ in the normalised coordinates of
+    :class:`optcal.estimators.base.Normaliser` (T ≈ rotation, o in units of the radius).
+    """
+    evals, evecs = np.linalg.eigh(0.5 * (cov_normalised + cov_normalised.T))
+    big = evals > threshold**2
+    if np.any(big):
+        described = _describe_null_space(evecs[:, big], T_normalised)
+        for item, lam in zip(described, evals[big]):
+            item["stderr"] = float(np.sqrt(lam))
+        report.weak = described
+    return report
 
 
 def analyse_design(model: LumpedModel, directions: ArrayLike, tol: float = RANK_TOL) -> IdentifiabilityReport:

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 
+from typing import Any
+
 import click
 
 from optcal.calibration import METHOD_CHOICES
+from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
 
 
 def echo_json(obj: dict) -> None:
@@ -17,7 +20,7 @@ def echo_json(obj: dict) -> None:
 
 
 @click.command()
-@click.argument("data", type=click.Path(dir_okay=False))
+@click.argument("data", type=DATA_PATH)
 @click.option("--method", type=click.Choice(METHOD_CHOICES), default="default", show_default=True,
               help="Estimator: convex+mle (default), svd, convex, mle, exact, gd, sixpos.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
@@ -27,15 +30,14 @@ def echo_json(obj: dict) -> None:
               help="Loss of the mle fit; huber/cauchy down-weight corrupt poses.")
 @click.option("--scale-range", nargs=2, type=float, default=None, metavar="LOW HIGH",
               help="Known range of the scale factors (raw units per g), a bound in the mle fit.")
-@click.option("--units", type=click.Choice(["g", "m/s^2", "counts"]), default=None, help="Units of the data (guessed when omitted).")
+@data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
-              loss: str, scale_range: tuple[float, float] | None, units: str | None) -> None:
-    """Calibrate the accelerometer from the static poses in DATA (CSV with ax, ay, az)."""
+              loss: str, scale_range: tuple[float, float] | None, **data_opts: Any) -> None:
+    """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording."""
     from optcal.calibration import calibrate as run_calibration
-    from optcal.data import load
     from optcal.errors import InputError
 
-    poses = load(data, units=units)
+    poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
     if method in ("default", "mle"):
         settings["loss"] = loss
@@ -48,10 +50,10 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         result.save(output)
     if as_json:
         summary = result.summary()
-        summary["data"] = {"path": data, "kind": poses.source, "units": poses.units}
+        summary["data"] = data_summary(data, poses)
         echo_json(summary)
         return
-    click.echo(f"DATA: {data} read as a {poses.source} ({poses.n} poses, units {poses.units})")
+    click.echo(data_line(data, poses))
     click.echo(result.report())
     if output:
         click.echo(f"saved to {output}")

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.identifiability import analyse, norm_residual_jacobian, norm_residuals, normal_gain
+from optcal.identifiability import add_weak_directions, analyse, norm_residual_jacobian, norm_residuals, normal_gain
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
@@ -101,20 +101,24 @@ def finish(
     J = norm_residual_jacobian(T, o, poses.acc)
     F = J.T @ (J * w[:, None])
     ident = analyse(T, o, poses.acc, None if poses.sigma is None else poses.sigma)
-    if not ident.identifiable:
-        msg = ident.describe()
-        if not allow_degenerate:
-            raise IdentifiabilityError(
-                msg + ". Add poses that tilt the sensor about other axes (or pass --allow-degenerate "
-                "to proceed with a minimum-norm answer along the undetermined combinations)",
-                ident,
-            )
-        notes.append("DEGENERATE POSE SET: " + msg)
     cov = np.linalg.pinv(F, rcond=1e-12, hermitian=True)
     dof = poses.n - len(theta)
     if not known and covariance_scale == "auto":
         chi2 = float(np.sum(w * r**2))
         cov = cov * (chi2 / dof) if dof > 0 else np.full_like(cov, np.nan)
+    if ident.rank == ident.n_params and np.all(np.isfinite(cov)):
+        norm = Normaliser.of(poses.acc)
+        to_n = np.diag([norm.scale] * 6 + [1 / norm.scale] * 3)
+        add_weak_directions(ident, to_n @ cov @ to_n, T * norm.scale)
+    if not ident.identifiable:
+        msg = ident.describe()
+        if not allow_degenerate:
+            raise IdentifiabilityError(
+                msg + ". Add poses that tilt the sensor about other axes (or pass --allow-degenerate "
+                "to proceed anyway: the undetermined combinations are then arbitrary)",
+                ident,
+            )
+        notes.append("DEGENERATE POSE SET: " + msg)
     if dof <= 0:
         notes.append(f"no degrees of freedom left ({poses.n} poses, {len(theta)} parameters)")
     return CalibrationResult(

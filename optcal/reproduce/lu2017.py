@@ -10,7 +10,9 @@ quadric ``ā_x ā_y = 0`` vanishes, so ``A_xy`` (in the directions' frame) is no
 This module shows that (Fisher rank 8 of 9) and runs the Monte Carlo on the same three sweeps
 started from tilted attitudes (:func:`optcal.simulate.tilted_sweeps`), which identify all
 nine parameters.  The paper does not state its noise level; ``sigma`` (per averaged pose, in
-g) is a setting, 5 mg by default.
+g) is a setting, 1 mg by default (about what 10 s of averaging leaves of a consumer MEMS
+part's noise, generously).  Table 1 is printed to four decimals, so agreement below 5e-5
+cannot be judged; 200 runs at 1 mg give a standard error of the mean of about 8e-5 on A.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from optcal.simulate import lu2017_sweeps, simulate_poses, tilted_sweeps
 METHODS = ("svd", "convex", "mle", "exact", "gd")
 
 
-def literal_schedule_finding(n_per_axis: int = 40, sigma: float = 0.005, seed: int = 0) -> dict[str, Any]:
+def literal_schedule_finding(n_per_axis: int = 40, sigma: float = 0.001, seed: int = 0) -> dict[str, Any]:
     """Identifiability of the paper's schedule as written, and what a fit on it does."""
     model = lu2017_reference_model()
     d = lu2017_sweeps(n_per_axis)
@@ -70,7 +72,7 @@ def literal_schedule_finding(n_per_axis: int = 40, sigma: float = 0.005, seed: i
     }
 
 
-def monte_carlo(runs: int = 100, n_per_axis: int = 40, sigma: float = 0.005, seed: int = 0,
+def monte_carlo(runs: int = 200, n_per_axis: int = 40, sigma: float = 0.001, seed: int = 0,
                 methods: tuple[str, ...] = METHODS, progress: bool = True) -> dict[str, Any]:
     """Table 1 by Monte Carlo on the identifying (tilted) sweeps, every method on the same data."""
     from tqdm import tqdm
@@ -131,7 +133,7 @@ def monte_carlo(runs: int = 100, n_per_axis: int = 40, sigma: float = 0.005, see
     }
 
 
-def run(runs: int = 100, seed: int = 0, sigma: float = 0.005, n_per_axis: int = 40, progress: bool = True) -> dict[str, Any]:
+def run(runs: int = 200, seed: int = 0, sigma: float = 0.001, n_per_axis: int = 40, progress: bool = True) -> dict[str, Any]:
     """The whole reproduction: Table 1 by Monte Carlo, and the literal-schedule finding."""
     t0 = time.perf_counter()
     mc = monte_carlo(runs=runs, n_per_axis=n_per_axis, sigma=sigma, seed=seed, progress=progress)
@@ -194,8 +196,8 @@ def format_report(res: dict[str, Any]) -> str:
 
 @click.command("lu2017")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-@click.option("--runs", type=click.IntRange(1), default=100, show_default=True, help="Monte Carlo runs.")
-@click.option("--sigma", type=click.FloatRange(0, min_open=True), default=0.005, show_default=True, help="Noise per pose, g.")
+@click.option("--runs", type=click.IntRange(1), default=200, show_default=True, help="Monte Carlo runs.")
+@click.option("--sigma", type=click.FloatRange(0, min_open=True), default=0.001, show_default=True, help="Noise per pose, g.")
 @click.option("--seed", type=int, default=0, show_default=True)
 def command(as_json: bool, runs: int, sigma: float, seed: int) -> None:
     """Lu 2017 Table 1 by Monte Carlo with every method, and the literal schedule's identifiability."""

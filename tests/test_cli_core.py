@@ -1,0 +1,103 @@
+"""The command line: calibrate, simulate, reproduce lu2017; bad input gives one line and exit 2."""
+
+import json
+
+import numpy as np
+import pytest
+
+from optcal.cli.main import main
+from optcal.simulate import simulate_poses, tilted_sweeps
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def pose_csv(tmp_path, lu_model):
+    poses = simulate_poses(lu_model, tilted_sweeps(10), 0.002, rng=np.random.default_rng(3))
+    path = tmp_path / "poses.csv"
+    lines = ["ax,ay,az"] + [",".join(f"{v:.10g}" for v in row) for row in poses.acc]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("method", ["default", "svd", "convex", "mle", "exact", "gd"])
+def test_calibrate_json(capsys, pose_csv, method, lu_model):
+    code, out, err = run(capsys, "calibrate", str(pose_csv), "--method", method, "--json")
+    assert code == 0, err
+    d = json.loads(out)  # exactly one JSON object
+    for key in ("method", "T", "o", "A", "stderr", "rms_norm_residual_g", "n_poses", "solver"):
+        assert key in d
+    assert d["n_poses"] == 30
+    assert set(d["solver"]) >= {"name", "status", "iterations", "solve_time_s"}
+    assert np.max(np.abs(np.array(d["A"]) - lu_model.A)) < 0.01
+    assert d["data"]["kind"] == "pose table"
+
+
+def test_calibrate_text_and_save(capsys, pose_csv, tmp_path):
+    out_json = tmp_path / "cal.json"
+    code, out, err = run(capsys, "calibrate", str(pose_csv), "-o", str(out_json))
+    assert code == 0, err
+    assert "pose table" in out and "T_xx" in out
+    saved = json.loads(out_json.read_text())
+    assert saved["method"] == "mle"
+
+
+def test_simulate_then_calibrate(capsys, tmp_path):
+    path = tmp_path / "sim.csv"
+    code, _, err = run(capsys, "simulate", "--schedule", "uniform", "-n", "60", "--sigma", "0.001", "-o", str(path))
+    assert code == 0, err
+    code, out, err = run(capsys, "calibrate", str(path), "--json")
+    assert code == 0, err
+    assert json.loads(out)["solver"]["status"] == "Solve_Succeeded"
+    code, _, err = run(capsys, "simulate", "--schedule", "lu2017", "-n", "60", "-o", str(path))
+    code, out, err = run(capsys, "calibrate", str(path))
+    assert code == 2 and "A_xy" in err and "Traceback" not in err
+
+
+def bad_files():
+    good = "\n".join(f"{np.cos(a):.6f},{np.sin(a):.6f},{0.3 * np.sin(3 * a):.6f}" for a in np.linspace(0, 6, 12))
+    return {
+        "nan": ("ax,ay,az\n" + good + "\n0.5,nan,0.5\n", "NaN"),
+        "inf": ("ax,ay,az\n" + good + "\n0.5,inf,0.5\n", "infinite"),
+        "few": ("ax,ay,az\n1,0,0\n0,1,0\n0,0,1\n-1,0,0\n0,-1,0\n", "at least 9"),
+        "missing": ("ax,ay\n1,0\n0,1\n", "az"),
+        "text": ("ax,ay,az\n" + good.replace("0.", "abc", 1) + "\n", "non-numeric"),
+        "identical": ("ax,ay,az\n" + "0.1,0.2,0.97\n" * 12, "distinct"),
+        "coplanar": ("ax,ay,az\n" + "\n".join(f"{np.cos(a):.6f},{np.sin(a):.6f},0" for a in np.linspace(0, 6, 12)) + "\n", "plane"),
+        "empty": ("", "empty"),
+    }
+
+
+@pytest.mark.parametrize("case", sorted(bad_files()))
+def test_calibrate_bad_input(capsys, tmp_path, case):
+    text, needle = bad_files()[case]
+    path = tmp_path / f"{case}.csv"
+    path.write_text(text)
+    code, out, err = run(capsys, "calibrate", str(path), "--format", "poses")
+    assert code == 2
+    assert needle.lower() in err.lower(), err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert out == ""
+
+
+def test_missing_file(capsys, tmp_path):
+    code, _, err = run(capsys, "calibrate", str(tmp_path / "nope.csv"))
+    assert code == 2 and "no such file" in err.lower()
+
+
+def test_unknown_option_is_usage_error(capsys, pose_csv):
+    code, _, err = run(capsys, "calibrate", str(pose_csv), "--method", "magic")
+    assert code == 2 and "Traceback" not in err
+
+
+def test_reproduce_lu2017_json(capsys):
+    code, out, err = run(capsys, "reproduce", "lu2017", "--runs", "3", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["literal_schedule"]["fisher_rank"] == 8
+    assert set(d["monte_carlo"]["methods"]) == {"svd", "convex", "mle", "exact", "gd"}
