@@ -204,3 +204,19 @@ def test_nan_pose_rejected(lu_model):
 def test_unknown_method():
     with pytest.raises(InputError, match="unknown method"):
         calibrate(PoseTable(acc=np.eye(3)), method="magic")
+
+
+def test_nine_poses_convex_does_not_crash(lu_model):
+    """Fewer than 10 poses: the convex fit pads its triangular factor (regression)."""
+    poses = simulate_poses(lu_model, uniform_directions(9, np.random.default_rng([4, 1])), 0.0)
+    res = ConvexEllipsoidFit(allow_degenerate=True).fit(poses)
+    np.testing.assert_allclose(res.A, lu_model.A, atol=1e-8)
+
+
+def test_counts_covariance_is_well_scaled(lu_model):
+    """Standard errors of o in counts are of the size of the noise, not ~1e-15 (regression)."""
+    model = LumpedModel(lu_model.C * 16384, lu_model.o * 16384 + 500)
+    poses = simulate_poses(model, tilted_sweeps(20), 16.0, rng=np.random.default_rng(3), units="counts")
+    res = calibrate(poses, method="mle")
+    se = res.stderr
+    assert 1.0 < se["o_x"] < 20.0, se

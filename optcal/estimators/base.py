@@ -99,17 +99,19 @@ def finish(
     w, known = pose_weights(poses, T, o, weighting)
     r = norm_residuals(T, o, poses.acc)
     J = norm_residual_jacobian(T, o, poses.acc)
-    F = J.T @ (J * w[:, None])
+    # invert in normalised coordinates: in raw counts the T and o blocks of F differ by ~1e16
+    norm = Normaliser.of(poses.acc)
+    D = norm.jacobian()  # dθ_raw/dθ_normalised
+    F_n = D @ (J.T @ (J * w[:, None])) @ D
     ident = analyse(T, o, poses.acc, None if poses.sigma is None else poses.sigma)
-    cov = np.linalg.pinv(F, rcond=1e-12, hermitian=True)
+    cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
     dof = poses.n - len(theta)
     if not known and covariance_scale == "auto":
         chi2 = float(np.sum(w * r**2))
-        cov = cov * (chi2 / dof) if dof > 0 else np.full_like(cov, np.nan)
-    if ident.rank == ident.n_params and np.all(np.isfinite(cov)):
-        norm = Normaliser.of(poses.acc)
-        to_n = np.diag([norm.scale] * 6 + [1 / norm.scale] * 3)
-        add_weak_directions(ident, to_n @ cov @ to_n, T * norm.scale)
+        cov_n = cov_n * (chi2 / dof) if dof > 0 else np.full_like(cov_n, np.nan)
+    cov = D @ cov_n @ D
+    if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
+        add_weak_directions(ident, cov_n, T * norm.scale)
     if not ident.identifiable:
         msg = ident.describe()
         if not allow_degenerate:

@@ -163,7 +163,9 @@ class ConvexEllipsoidFit:
             raise InputError(f"cvxpy solver {self.solver} is not installed (installed: {', '.join(cp.installed_solvers())})")
         norm = Normaliser.of(poses.acc)
         J = design_matrix(norm.forward(poses.acc))
-        R = np.linalg.qr(J, mode="r")
+        R = np.zeros((10, 10))
+        R_qr = np.linalg.qr(J, mode="r")  # (min(n, 10), 10): pad for fewer than 10 poses
+        R[: R_qr.shape[0]] = R_qr
         prob, R_par, A, b, c, eta = self._problem(self.eps)
         R_par.value = R
         notes: list[str] = []
