@@ -1,4 +1,10 @@
-"""Reading pose tables: one row per static pose, columns by header name."""
+"""Pose tables: one row per static pose, columns by header name.
+
+A pose table has the accelerometer columns (``ax, ay, az`` or any name
+:mod:`optcal.data.readers` recognises, or ``--columns``) and optionally ``t``, ``temp``,
+``gx, gy, gz``, ``sigma`` (standard deviation of each pose mean) and ``n_samples``.  Any
+other all-numeric column is kept as a per-pose extra column.
+"""
 
 from __future__ import annotations
 
@@ -7,102 +13,81 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from optcal.data.readers import ACC, GYRO, Source, read_delimited, read_source, source_from_frame
+from optcal.data.units import decide_units
 from optcal.errors import InputError
 from optcal.poses import PoseTable
 
-ACC_COLUMNS = ("ax", "ay", "az")
-GYRO_COLUMNS = ("gx", "gy", "gz")
+ACC_COLUMNS = ACC
+GYRO_COLUMNS = GYRO
 
 
 def read_csv_frame(path: str | Path) -> pd.DataFrame:
-    """Read a CSV file with a header row, with clear errors for unreadable files."""
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{p}: no such file")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, expected a CSV file")
-    try:
-        frame = pd.read_csv(p, skipinitialspace=True)
-    except pd.errors.EmptyDataError as exc:
-        raise InputError(f"{p}: the file is empty; expected a CSV with a header row") from exc
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: not a readable CSV file ({str(exc).splitlines()[0]})") from exc
-    frame.columns = [str(c).strip() for c in frame.columns]
-    return frame
+    """Read a CSV file with a header row (after any metadata lines), with clear errors."""
+    return read_delimited(path)[0]
 
 
-def numeric_column(frame: pd.DataFrame, name: str, source: str) -> np.ndarray:
-    """Return a column as floats, naming the first non-numeric cell if there is one."""
-    col = frame[name]
-    values = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(np.isnan(values) & col.notna().to_numpy())
-    if bad.size:
-        r = int(bad[0])
-        raise InputError(
-            f"{source}: column {name!r} has a non-numeric value {str(col.iloc[r])!r} "
-            f"on data row {r + 1}; every cell must be a number"
-        )
-    return values
+def pose_table_from_source(src: Source, units: str | None = None) -> PoseTable:
+    """Build a :class:`PoseTable` from a tabular :class:`Source` read as a pose table.
 
-
-def load_pose_table(path: str | Path, units: str | None = None) -> PoseTable:
-    """Read a pose table CSV (``ax, ay, az`` required; ``t, temp, gx, gy, gz, sigma, n_samples`` optional).
-
-    Parameters
-    ----------
-    path : str or Path
-        CSV file with a header row and one row per static pose.
-    units : {"g", "m/s^2", "counts"}, optional
-        Units of the acceleration columns; guessed from the mean norm when omitted.
+    Raises
+    ------
+    InputError
+        For a cell that is not a number (naming the column and row).
     """
-    frame = read_csv_frame(path)
-    src = str(path)
-    missing = [c for c in ACC_COLUMNS if c not in frame.columns]
-    if missing:
+    for canon, (count, row, value) in src.non_numeric.items():
         raise InputError(
-            f"{src}: missing column(s) {', '.join(missing)}; a pose table needs a header with "
-            f"ax, ay, az (found: {', '.join(map(str, frame.columns)) or 'none'})"
+            f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
+            f"{value!r} on data row {row} ({count} such cell(s)); every cell must be a number"
         )
-    if len(frame) == 0:
-        raise InputError(f"{src}: no data rows")
-    acc = np.column_stack([numeric_column(frame, c, src) for c in ACC_COLUMNS])
-    opt = {c: numeric_column(frame, c, src) for c in ("t", "temp", "sigma", "n_samples") if c in frame.columns}
-    gyro = None
-    if all(c in frame.columns for c in GYRO_COLUMNS):
-        gyro = np.column_stack([numeric_column(frame, c, src) for c in GYRO_COLUMNS])
-    known = set(ACC_COLUMNS) | set(GYRO_COLUMNS) | set(opt)
-    extra = {}
-    for c in frame.columns:
-        if c not in known:
-            vals = pd.to_numeric(frame[c], errors="coerce")
-            if vals.notna().all():
-                extra[c] = vals.to_numpy(dtype=float)
-    if units is None:
-        units = guess_units(acc)
-    table = PoseTable(
+    acc = np.column_stack([src.column(c) for c in ACC])
+    gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
+    opt = {c: src.column(c) for c in ("t", "temp", "sigma", "n_samples") if src.has(c)}
+    decision = decide_units(acc, units, src.units_hint, src.units_reason)
+    meta = {
+        "path": src.path,
+        "file_type": src.file_type,
+        "columns": src.describe_columns(),
+        "units_reason": decision.reason,
+    }
+    if src.ignored_columns:
+        meta["ignored_columns"] = list(src.ignored_columns)
+    return PoseTable(
         acc=acc,
         sigma=opt.get("sigma"),
         n_samples=opt.get("n_samples"),
         t=opt.get("t"),
         temp=opt.get("temp"),
         gyro=gyro,
-        rows=np.arange(1, len(frame) + 1),
-        units=units,
+        rows=np.arange(1, src.n_rows + 1),
+        units=decision.units,
         source="pose table",
-        extra=extra,
-        meta={"path": src},
+        extra=dict(src.extra),
+        meta=meta,
     )
-    return table
+
+
+def load_pose_table(path: str | Path, units: str | None = None, columns: str | dict[str, str] | None = None) -> PoseTable:
+    """Read a pose table (CSV or Parquet), one row per static pose.
+
+    Parameters
+    ----------
+    path : str or Path
+        File with a header row and one row per static pose.
+    units : {"g", "m/s^2", "counts"}, optional
+        Units of the acceleration columns; from the column names or the mean norm when omitted.
+    columns : str or dict, optional
+        Mapping of canonical names to the file's columns (``"ax=acc1,ay=acc2,az=acc3"``).
+    """
+    src = read_source(path, columns=columns)
+    if src.always_raw:
+        raise InputError(f"{path}: a {src.file_type} holds a raw recording, not a pose table")
+    return pose_table_from_source(src, units)
 
 
 def guess_units(acc: np.ndarray) -> str:
-    """Guess the units from the typical norm: ≈1 → g, ≈9.8 → m/s², large → counts."""
-    finite = acc[np.all(np.isfinite(acc), axis=1)]
-    if finite.size == 0:
-        return "g"
-    norm = float(np.median(np.linalg.norm(finite, axis=1)))
-    if 0.3 < norm < 3.0:
-        return "g"
-    if 3.0 <= norm < 30.0:
-        return "m/s^2"
-    return "counts"
+    """Guess the units from the typical norm (see :func:`optcal.data.units.decide_units`)."""
+    return decide_units(acc).units
+
+
+__all__ = ["load_pose_table", "pose_table_from_source", "read_csv_frame", "guess_units", "source_from_frame"]

@@ -1,0 +1,120 @@
+"""``optcal segment DATA``: show the static intervals found in a raw recording."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+import numpy as np
+
+from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
+
+
+@click.command()
+@click.argument("data", type=DATA_PATH)
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="Save a figure of |a|, the detector's statistics and the intervals (PNG, PDF, SVG).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
+@data_options
+def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -> None:
+    """Find the static intervals of a raw recording and the pose each one gives.
+
+    DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
+    file (sensor_accel).  A pose table is recognised and reported as such.
+    """
+    from optcal.result import jsonable
+
+    loaded = load_data_detailed(data, **data_opts)
+    poses, seg = loaded.poses, loaded.segmentation
+    if plot_path is not None:
+        if seg is None:
+            click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
+        else:
+            plot_segmentation(seg, plot_path)
+    if as_json:
+        out = {"data": data_summary(data, poses)}
+        if seg is not None:
+            out["segmentation"] = poses.meta["segmentation"]
+        else:
+            out["poses"] = {"acc": poses.acc, "rows": poses.rows}
+        if plot_path is not None and seg is not None:
+            out["plot"] = plot_path
+        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        return
+    click.echo(data_line(data, poses))
+    if seg is None:
+        click.echo(f"nothing to segment: {poses.n} poses, one per row")
+        return
+    click.echo(segmentation_report(poses.meta, seg))
+    if plot_path is not None:
+        click.echo(f"figure saved to {plot_path}")
+
+
+def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
+    """Text report: how time and units were read, thresholds, the interval table, exclusions."""
+    rec = seg.recording
+    s = seg.settings
+    lines = [
+        f"time: {meta.get('time')}; units: {rec.units} ({rec.units_reason})",
+        f"detector: window {s.window_s:g} s ({seg.trace['window_samples']} samples), "
+        f"gates at {s.threshold:g}× the noise floor"
+        + (f", gyro rate at {s.gyro_threshold:g}× the gyro floor" if rec.gyro is not None else ", no gyro columns")
+        + f", minimum dwell {s.min_dwell_s:g} s, trim {s.trim_s:g} s",
+        "noise floor / threshold ("
+        + rec.units
+        + "): "
+        + "; ".join(f"{k} {seg.noise_floor[k]:.4g} / {seg.thresholds[k]:.4g}" for k in seg.noise_floor),
+        "",
+        f"{'#':>3} {'rows':>13} {'t start':>9} {'dur s':>6} {'n':>6} {'mean x':>11} {'mean y':>11} {'mean z':>11}"
+        f" {'std':>8} {'σ mean':>9}" + (f" {'temp':>6}" if rec.temp is not None else ""),
+    ]
+    for iv in seg.intervals:
+        lines.append(
+            f"{iv.number:>3} {iv.first_row:>6}-{iv.last_row:<6} {iv.t_start:>9.2f} {iv.duration_s:>6.2f} {iv.n_samples:>6}"
+            f" {iv.mean[0]:>11.5g} {iv.mean[1]:>11.5g} {iv.mean[2]:>11.5g} {float(np.sqrt(np.mean(iv.std**2))):>8.3g}"
+            f" {iv.sigma:>9.3g}" + (f" {iv.temp_mean:>6.2f}" if iv.temp_mean is not None else "")
+        )
+    lines.append("")
+    lines.append(f"{len(seg.intervals)} static intervals, {seg.n_used} of {rec.n} samples in poses")
+    for note in meta.get("notes", []):
+        lines.append(f"note: {note}")
+    if seg.exclusions:
+        lines.append("excluded: " + "; ".join(f"{k}: {v}" for k, v in seg.exclusions.items()))
+    return "\n".join(lines)
+
+
+def plot_segmentation(seg: Any, path: str) -> None:
+    """Figure: |a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tr = seg.trace
+    t = tr["t"]
+    has_gyro = "gyro_rate" in tr
+    fig, axes = plt.subplots(3 if has_gyro else 2, 1, sharex=True, figsize=(11, 7 if has_gyro else 5))
+    ax = axes[0]
+    ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
+    for iv in seg.intervals:
+        for a in axes:
+            a.axvspan(iv.t_start, iv.t_end, color="tab:green", alpha=0.15, lw=0)
+    ax.set_ylabel("|a| (nominal g)")
+    ax.set_title(f"{seg.recording.path}: {len(seg.intervals)} static intervals")
+    ax = axes[1]
+    ax.semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
+    ax.semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
+    ax.axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
+    ax.axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
+    ax.set_ylabel(f"std ({seg.recording.units})")
+    ax.legend(loc="upper right", fontsize=8)
+    if has_gyro:
+        ax = axes[2]
+        ax.semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
+        ax.axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
+        ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
+    axes[-1].set_xlabel("t (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,143 @@
+"""The DATA reading options shared by every command that takes DATA.
+
+Usage in a command module::
+
+    @click.command()
+    @click.argument("data", type=DATA_PATH)
+    @data_options
+    def calibrate(data: str, ..., **data_opts: Any) -> None:
+        poses = load_data(data, **data_opts)
+        click.echo(data_line(data, poses), err=...)
+
+:func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--format``
+(pose table or raw recording) and the static-detection settings ``--static-window``,
+``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``.
+:func:`load_data` passes them to :func:`optcal.data.load`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from optcal.poses import PoseTable
+
+#: Type of the DATA argument: a file, or a directory (a ROS 2 bag); existence is checked by
+#: the readers, with one clear error line.
+DATA_PATH = click.Path(dir_okay=True, file_okay=True)
+
+#: Keyword names that :func:`data_options` adds to a command.
+DATA_OPTION_NAMES: tuple[str, ...] = (
+    "columns", "units", "topic", "rate", "data_format",
+    "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim",
+)
+
+_POSITIVE = click.FloatRange(min=0, min_open=True)
+_NON_NEGATIVE = click.FloatRange(min=0)
+
+_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+    click.option("--columns", metavar="NAME=COLUMN,...", default=None,
+                 help="Map the file's column names: e.g. ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts,t=t_s "
+                      "(names: t ax ay az gx gy gz temp sigma n_samples index). Common names are recognised without it."),
+    click.option("--units", type=click.Choice(["g", "m/s^2", "counts"]), default=None,
+                 help="Units of the accelerometer data (default: from the column names or file format, else from the norm)."),
+    click.option("--topic", default=None,
+                 help="ROS bag: the sensor_msgs/Imu topic; ULog: sensor_accel[:INSTANCE] (default sensor_accel:0)."),
+    click.option("--rate", type=_POSITIVE, default=None, metavar="HZ",
+                 help="Sampling rate of a recording without a time column (time = row / rate)."),
+    click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
+                 help="Read DATA as a pose table (one row per static pose) or a raw recording (a time series); auto decides and says why."),
+    click.option("--static-window", type=_POSITIVE, default=None, metavar="S",
+                 help="Static detection: moving-window width, seconds [1.0]."),
+    click.option("--static-threshold", type=_POSITIVE, default=None, metavar="K",
+                 help="Static detection: accelerometer gates at K times the measured noise floor [3]."),
+    click.option("--gyro-threshold", type=_POSITIVE, default=None, metavar="K",
+                 help="Static detection: mean gyro rate below K times the gyro noise floor [3]."),
+    click.option("--drift-threshold", type=_POSITIVE, default=None, metavar="K",
+                 help="Static detection: the two halves of each window agree within K times the noise of their means [6]."),
+    click.option("--min-dwell", type=_NON_NEGATIVE, default=None, metavar="S",
+                 help="Static detection: shortest static interval kept, seconds [0.5]."),
+    click.option("--trim", type=_NON_NEGATIVE, default=None, metavar="S",
+                 help="Static detection: cut this much from both ends of every interval, seconds [0]."),
+)
+
+
+def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Click decorator adding the DATA reading options (see the module docstring)."""
+    for option in reversed(_OPTIONS):
+        func = option(func)
+    return func
+
+
+def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
+    unknown = set(opts) - set(DATA_OPTION_NAMES)
+    if unknown:
+        raise TypeError(f"not DATA options: {', '.join(sorted(unknown))}")
+    return {
+        "columns": opts.get("columns"),
+        "units": opts.get("units"),
+        "topic": opts.get("topic"),
+        "rate": opts.get("rate"),
+        "kind": opts.get("data_format") or "auto",
+        "window_s": opts.get("static_window"),
+        "threshold": opts.get("static_threshold"),
+        "gyro_threshold": opts.get("gyro_threshold"),
+        "drift_threshold": opts.get("drift_threshold"),
+        "min_dwell_s": opts.get("min_dwell"),
+        "trim_s": opts.get("trim"),
+    }
+
+
+def load_data(path: str, **opts: Any) -> PoseTable:
+    """Load DATA with the options collected by :func:`data_options`."""
+    from optcal.data import load
+
+    return load(path, **_load_kwargs(opts))
+
+
+def load_data_detailed(path: str, **opts: Any) -> Any:
+    """Like :func:`load_data`, returning :class:`optcal.data.LoadedData` (with the segmentation)."""
+    from optcal.data import load_with_segmentation
+
+    return load_with_segmentation(path, **_load_kwargs(opts))
+
+
+def data_line(path: str, poses: PoseTable) -> str:
+    """One line saying what DATA was read as (every command prints it)."""
+    why = poses.meta.get("kind_reason", "")
+    if poses.source == "raw recording":
+        seg = poses.meta.get("segmentation", {})
+        what = (
+            f"a raw recording ({seg.get('n_samples', '?')} samples, {poses.meta.get('duration_s', 0):.1f} s at "
+            f"{poses.meta.get('rate_hz', float('nan')):.4g} Hz) → {poses.n} static poses"
+        )
+    else:
+        what = f"a pose table ({poses.n} poses)"
+    return f"DATA: {path} read as {what}, units {poses.units}" + (f" [{why}]" if why else "")
+
+
+def data_summary(path: str, poses: PoseTable) -> dict[str, Any]:
+    """JSON-safe description of what DATA was read as (for ``--json`` output)."""
+    out: dict[str, Any] = {
+        "path": path,
+        "kind": poses.source,
+        "kind_reason": poses.meta.get("kind_reason"),
+        "units": poses.units,
+        "units_reason": poses.meta.get("units_reason"),
+        "n_poses": poses.n,
+        "exclusions": dict(poses.exclusions),
+    }
+    if poses.source == "raw recording":
+        seg = poses.meta.get("segmentation", {})
+        out.update(
+            {
+                "n_samples": seg.get("n_samples"),
+                "rate_hz": poses.meta.get("rate_hz"),
+                "duration_s": poses.meta.get("duration_s"),
+                "time": poses.meta.get("time"),
+                "thresholds": seg.get("thresholds"),
+            }
+        )
+    return out

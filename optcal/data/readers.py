@@ -1,0 +1,680 @@
+"""Readers: CSV (by header names), Parquet, ROS 1/ROS 2 bags and PX4 ULog into one tabular form.
+
+Every reader returns a :class:`Source`: the data under optcal's canonical column names
+(:data:`CANONICAL`), with what the file itself says about units, sampling rate and
+saturation.  Deciding whether the data are a pose table or a raw recording, and turning
+them into a :class:`~optcal.poses.PoseTable`, happens in :mod:`optcal.data`.
+
+Column names are matched case-insensitively after removing a unit word
+(``acc_x_counts`` → ``acc_x`` in counts, ``t_s`` → ``t`` in seconds, ``gyr_x`` → ``gx``);
+``--columns ax=ACC1,ay=ACC2,...`` maps any other names.  The file type is recognised from
+its first bytes (ULog, ROS 1 bag, Parquet, SQLite/MCAP ROS 2 bag) or, for a directory, from
+its ROS 2 ``metadata.yaml``; everything else is read as delimited text.  ROS bags need
+``pip install optcal[ros]`` (the ``rosbags`` library), ULog files ``pip install optcal[px4]``
+(``pyulog``); both are imported only when such a file is read.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from optcal.errors import InputError
+from optcal.data.units import UNIT_ALIASES, normalise_units
+
+#: optcal's column names: time, accelerometer, gyro, temperature, and the pose-table-only
+#: ``sigma`` (noise of each pose mean) and ``n_samples`` (samples averaged per pose).
+CANONICAL: tuple[str, ...] = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp", "sigma", "n_samples")
+ACC: tuple[str, str, str] = ("ax", "ay", "az")
+GYRO: tuple[str, str, str] = ("gx", "gy", "gz")
+
+#: Normalised column names recognised for each canonical column (after a unit word is removed).
+ALIASES: dict[str, tuple[str, ...]] = {
+    "t": ("t", "time", "timestamp", "timestamps", "stamp", "time_stamp", "sec", "seconds", "elapsed"),
+    "temp": ("temp", "temperature", "tmp", "imu_temp", "imu_temperature"),
+    "sigma": ("sigma", "noise", "std_mean"),
+    "n_samples": ("n_samples", "samples", "nsamples", "count"),
+}
+for _axis in "xyz":
+    ALIASES["a" + _axis] = tuple(
+        f.format(_axis)
+        for f in ("a{}", "acc{}", "acc_{}", "accel_{}", "accel{}", "accelerometer_{}", "a_{}",
+                  "acceleration_{}", "linear_acceleration_{}", "accelerometer_m_s2_{}")
+    )
+    ALIASES["g" + _axis] = tuple(
+        f.format(_axis)
+        for f in ("g{}", "gyr{}", "gyr_{}", "gyro_{}", "gyro{}", "gyroscope_{}", "omega_{}", "w{}",
+                  "w_{}", "angular_velocity_{}", "gyro_rad_{}")
+    )
+#: Names of a sample-index column (time then comes from --rate or the file header).
+INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n")
+
+#: Time unit words and their factor to seconds.
+TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: Gyro unit words.
+GYRO_UNITS: dict[str, str] = {
+    "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
+    "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
+    "counts": "counts", "lsb": "counts", "raw": "counts",
+}
+TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
+_UNIT_WORDS = sorted(
+    set(UNIT_ALIASES) | set(TIME_UNITS) | set(GYRO_UNITS) | set(TEMP_UNITS) | {"m_s_2"},
+    key=len,
+    reverse=True,
+)
+#: Keys of a metadata line before the header that give the sampling rate in Hz.
+RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq")
+
+ROS_IMU_TYPE = "sensor_msgs/msg/Imu"
+ROS_TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
+
+
+@dataclass
+class Source:
+    """Data read from a file, under canonical column names.
+
+    Attributes
+    ----------
+    path : str
+    file_type : str
+        ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"`` or ``"ulog"``.
+    frame : pandas.DataFrame
+        Canonical columns (a subset of :data:`CANONICAL` plus ``index``) as floats; cells
+        that were not numbers are NaN and counted in :attr:`non_numeric`.
+    extra : dict of str to ndarray
+        Further numeric columns of the file, under their own names.
+    column_map : dict of str to str
+        Canonical name → the file's column name.
+    ignored_columns : list of str
+        Columns neither mapped nor numeric (e.g. a text label column).
+    units_hint, units_reason : str or None, str
+        Accelerometer units stated by the file (a unit word in the column names, or the
+        format's convention), and where that came from.
+    gyro_units : str or None
+    rate_hint, rate_reason : float or None, str
+        Sampling rate stated by the file (e.g. an ``Fs,100`` metadata line).
+    time_reason : str
+        How the time column was read (unit and scale).
+    header : dict of str to str
+        Metadata lines found above the header row.
+    non_numeric : dict of str to tuple
+        Canonical column → (number of non-numeric cells, first data row, first value).
+    saturated : ndarray of bool or None
+        Per-row saturation flags stated by the file (ULog clip counters).
+    always_raw : bool
+        The format holds time series only (bags, ULog).
+    notes : list of str
+    exclusions : dict of str to int
+        What the reader could not use, counted (e.g. a message cut off by truncation).
+    """
+
+    path: str
+    file_type: str
+    frame: pd.DataFrame
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    column_map: dict[str, str] = field(default_factory=dict)
+    ignored_columns: list[str] = field(default_factory=list)
+    units_hint: str | None = None
+    units_reason: str = ""
+    gyro_units: str | None = None
+    rate_hint: float | None = None
+    rate_reason: str = ""
+    time_reason: str = ""
+    header: dict[str, str] = field(default_factory=dict)
+    non_numeric: dict[str, tuple[int, int, str]] = field(default_factory=dict)
+    saturated: np.ndarray | None = None
+    always_raw: bool = False
+    notes: list[str] = field(default_factory=list)
+    exclusions: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def n_rows(self) -> int:
+        return int(len(self.frame))
+
+    def has(self, *names: str) -> bool:
+        """Whether every canonical column in ``names`` is present."""
+        return all(n in self.frame.columns for n in names)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.frame[name].to_numpy(dtype=float)
+
+    def describe_columns(self) -> str:
+        """``ax←acc_x_counts, ...`` for reports."""
+        return ", ".join(f"{k}←{v}" for k, v in self.column_map.items() if k != v) or "as named"
+
+
+# ----------------------------------------------------------------------------- file types
+def detect_file_type(path: str | Path) -> str:
+    """Recognise the file type from its first bytes (or a directory's ROS 2 metadata)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file or directory")
+    if p.is_dir():
+        if (p / "metadata.yaml").exists():
+            return "ros2 bag"
+        raise InputError(f"{p}: is a directory but not a ROS 2 bag (no metadata.yaml); give a data file")
+    with p.open("rb") as fh:
+        head = fh.read(16)
+    if head.startswith(b"ULog"):
+        return "ulog"
+    if head.startswith(b"#ROSBAG V2.0"):
+        return "ros1 bag"
+    if head.startswith(b"PAR1") or p.suffix.lower() in (".parquet", ".pq"):
+        return "parquet"
+    if head.startswith(b"SQLite format 3") or head.startswith(b"\x89MCAP"):
+        return "ros2 bag"
+    if p.suffix.lower() in (".bag", ".ulg", ".db3", ".mcap"):
+        raise InputError(f"{p}: the file is truncated or corrupt (its header is not a valid {p.suffix} header)")
+    return "csv"
+
+
+def read_source(
+    path: str | Path,
+    columns: str | dict[str, str] | None = None,
+    topic: str | None = None,
+) -> Source:
+    """Read any supported file into a :class:`Source`.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``), or
+        PX4 ULog file.
+    columns : str or dict, optional
+        ``"ax=acc1,ay=acc2,az=acc3,t=time"``: the file's names for canonical columns
+        (tabular files only).
+    topic : str, optional
+        ROS topic of ``sensor_msgs/Imu`` messages, or the ULog topic (``sensor_accel`` or
+        ``sensor_accel:1`` for the second instance).
+    """
+    kind = detect_file_type(path)
+    if kind in ("csv", "parquet"):
+        if topic is not None:
+            raise InputError(f"--topic applies to ROS bags and ULog files, not to a {kind} file")
+        frame, header = (read_delimited(path) if kind == "csv" else (read_parquet(path), {}))
+        return source_from_frame(frame, str(path), kind, parse_columns_option(columns), header)
+    if columns:
+        raise InputError(f"--columns applies to CSV and Parquet files, not to a {kind}")
+    if kind == "ulog":
+        return read_ulog(path, topic)
+    return read_rosbag(path, topic, kind)
+
+
+# ----------------------------------------------------------------------------- tabular
+def read_delimited(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
+    """Read a delimited text file with a header row, after any metadata lines.
+
+    Metadata lines (``key,value`` pairs or ``#`` comments before the header, as in the
+    MPU-6050 logs' ``Fs,100`` / ``Logging Type,0`` preamble) are returned as a dict.
+    """
+    p = Path(path)
+    try:
+        with p.open("r", encoding="utf-8-sig", errors="strict") as fh:
+            head = [fh.readline() for _ in range(64)]
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{p}: not a text file (and not a recognised binary format)") from exc
+    lines = [ln.rstrip("\r\n") for ln in head]
+    if not any(ln.strip() for ln in lines):
+        raise InputError(f"{p}: the file is empty; expected a header row and data rows")
+    header_at, sep = _find_header(lines)
+    if header_at is None:
+        raise InputError(
+            f"{p}: no header row found (expected a row of column names such as t,ax,ay,az "
+            "followed by data rows)"
+        )
+    meta = _metadata(lines[:header_at])
+    try:
+        frame = pd.read_csv(
+            p,
+            skiprows=header_at,
+            sep=sep,
+            engine="c" if sep != r"\s+" else "python",
+            skipinitialspace=True,
+            encoding="utf-8-sig",
+            on_bad_lines="error",
+        )
+    except pd.errors.EmptyDataError as exc:
+        raise InputError(f"{p}: the file is empty; expected a header row and data rows") from exc
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{p}: not a readable CSV file ({str(exc).splitlines()[0]})") from exc
+    frame.columns = [str(c).strip() for c in frame.columns]
+    if len(frame) == 0:
+        raise InputError(f"{p}: no data rows after the header")
+    return frame, meta
+
+
+def _split(line: str, sep: str) -> list[str]:
+    return line.split() if sep == r"\s+" else line.split(sep)
+
+
+def _find_header(lines: list[str]) -> tuple[int | None, str]:
+    """Index of the header row and the separator.
+
+    The header is the first row of at least two fields, all of them names (not numbers),
+    with as many fields as the row after it; rows above it are metadata.
+    """
+    rows = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith("#")]
+    for k, (i, s) in enumerate(rows):
+        sep = next((c for c in (",", ";", "\t") if c in s), r"\s+")
+        fields = [f.strip() for f in _split(s, sep)]
+        if len(fields) < 2 or not all(_is_name(f) for f in fields if f):
+            if len(fields) >= 3:  # data rows before any header
+                return None, sep
+            continue
+        following = rows[k + 1][1] if k + 1 < len(rows) else None
+        if following is None or len(_split(following, sep)) == len(fields):
+            return i, sep
+    return None, ","
+
+
+def _is_name(field_: str) -> bool:
+    try:
+        float(field_)
+        return False
+    except ValueError:
+        return bool(field_)
+
+
+def _metadata(lines: list[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for line in lines:
+        s = line.strip().lstrip("#").strip()
+        if not s:
+            continue
+        m = re.match(r"^([^,;:=\t]+)[,;:=\t]\s*(.*)$", s)
+        if m:
+            out[m.group(1).strip()] = m.group(2).strip().rstrip(",;")
+        else:
+            out[s] = ""
+    return out
+
+
+def read_parquet(path: str | Path) -> pd.DataFrame:
+    """Read a Parquet file (pyarrow) into a frame."""
+    try:
+        frame = pd.read_parquet(path)
+    except ImportError as exc:
+        raise InputError("reading Parquet files needs pyarrow: pip install optcal[parquet]") from exc
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise InputError(f"{path}: not a readable Parquet file, truncated or corrupt ({exc.__class__.__name__}: {str(exc).splitlines()[0]})") from exc
+    frame.columns = [str(c).strip() for c in frame.columns]
+    if len(frame) == 0:
+        raise InputError(f"{path}: no data rows")
+    return frame
+
+
+def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]:
+    """Parse ``--columns "ax=acc1,ay=acc2,t=time"`` into {canonical: file column}."""
+    if columns is None or columns == "":
+        return {}
+    if isinstance(columns, dict):
+        pairs = list(columns.items())
+    else:
+        pairs = []
+        for item in str(columns).split(","):
+            if not item.strip():
+                continue
+            if "=" not in item:
+                raise InputError(
+                    f"--columns item {item.strip()!r} is not NAME=COLUMN; write e.g. "
+                    "--columns ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts"
+                )
+            k, v = item.split("=", 1)
+            pairs.append((k.strip(), v.strip()))
+    out = {}
+    for k, v in pairs:
+        if k not in CANONICAL and k != "index":
+            raise InputError(f"--columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
+        out[k] = v
+    return out
+
+
+def _normalise_name(name: str) -> str:
+    s = re.sub(r"[^0-9a-z]+", "_", str(name).lower()).strip("_")
+    return s
+
+
+def _strip_unit(norm: str) -> tuple[str, str | None]:
+    for word in _UNIT_WORDS:
+        key = re.sub(r"[^0-9a-z]+", "_", word.lower()).strip("_")
+        if key and norm.endswith("_" + key) and len(norm) > len(key) + 1:
+            return norm[: -len(key) - 1], key
+    return norm, None
+
+
+def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], dict[str, str | None]]:
+    """Match the file's column names to canonical names.
+
+    Returns
+    -------
+    column_map : dict
+        canonical → file column.
+    unit_words : dict
+        canonical → the unit word found in its name (or None).
+    """
+    column_map: dict[str, str] = {}
+    units: dict[str, str | None] = {}
+    for canon, col in mapping.items():
+        if col not in names:
+            raise InputError(
+                f"--columns {canon}={col}: there is no column {col!r} "
+                f"(the file has: {', '.join(names)})"
+            )
+        column_map[canon] = col
+        units[canon] = _strip_unit(_normalise_name(col))[1]
+    taken = set(column_map.values())
+    for col in names:
+        if col in taken:
+            continue
+        norm = _normalise_name(col)
+        for candidate, unit in ((norm, None), _strip_unit(norm)):
+            if candidate in INDEX_ALIASES:
+                canon = "index_or_count"
+            else:
+                canon = next((c for c, al in ALIASES.items() if candidate in al), None)
+            if canon is not None:
+                break
+        if canon is None:
+            continue
+        if canon == "index_or_count":
+            # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a
+            # recording; which one is decided from the values in source_from_frame.
+            canon = "index"
+        if canon not in column_map:
+            column_map[canon] = col
+            units[canon] = unit
+            taken.add(col)
+    return column_map, units
+
+
+def source_from_frame(
+    frame: pd.DataFrame,
+    path: str,
+    file_type: str,
+    mapping: dict[str, str] | None = None,
+    header: dict[str, str] | None = None,
+) -> Source:
+    """Map a frame read from CSV or Parquet to canonical columns."""
+    names = [str(c) for c in frame.columns]
+    column_map, unit_words = resolve_columns(names, mapping or {})
+    missing = [c for c in ACC if c not in column_map]
+    if missing:
+        raise InputError(
+            f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: "
+            f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
+            "with --columns ax=NAME,ay=NAME,az=NAME"
+        )
+    out = pd.DataFrame(index=frame.index)
+    non_numeric: dict[str, tuple[int, int, str]] = {}
+    for canon, col in column_map.items():
+        raw = frame[col]
+        values = raw.astype(float) if pd.api.types.is_numeric_dtype(raw) else pd.to_numeric(raw, errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy() & raw.notna().to_numpy())
+        if bad.size:
+            non_numeric[canon] = (int(bad.size), int(bad[0]) + 1, str(raw.iloc[bad[0]]))
+        out[canon] = values.to_numpy(dtype=float)
+    if "index" in out.columns:
+        idx = out["index"].to_numpy()
+        idx = idx[np.isfinite(idx)]
+        steps = np.diff(idx)
+        is_index = steps.size > 0 and float(np.median(steps)) == 1.0
+        if not is_index and "n_samples" not in out.columns:
+            out = out.rename(columns={"index": "n_samples"})
+            column_map["n_samples"] = column_map.pop("index")
+    extra: dict[str, np.ndarray] = {}
+    ignored: list[str] = []
+    used = set(column_map.values())
+    for col in names:
+        if col in used:
+            continue
+        vals = pd.to_numeric(frame[col], errors="coerce")
+        if vals.notna().all():
+            extra[col] = vals.to_numpy(dtype=float)
+        else:
+            ignored.append(col)
+    src = Source(
+        path=path,
+        file_type=file_type,
+        frame=out,
+        extra=extra,
+        column_map=column_map,
+        ignored_columns=ignored,
+        header=dict(header or {}),
+        non_numeric=non_numeric,
+    )
+    acc_units = {unit_words.get(c) for c in ACC}
+    if len(acc_units) == 1 and None not in acc_units and next(iter(acc_units)) in UNIT_ALIASES:
+        word = next(iter(acc_units))
+        src.units_hint = normalise_units(word)
+        src.units_reason = f"unit word {word!r} in the column names"
+    if src.has(*GYRO):
+        words = {unit_words.get(c) for c in GYRO}
+        if len(words) == 1 and next(iter(words)) in GYRO_UNITS:
+            src.gyro_units = GYRO_UNITS[next(iter(words))]
+    if "t" in out.columns:
+        _scale_time(src, unit_words.get("t"))
+    for key, value in src.header.items():
+        if _normalise_name(key) in RATE_KEYS:
+            try:
+                rate = float(value)
+            except ValueError:
+                continue
+            if rate > 0:
+                src.rate_hint = rate
+                src.rate_reason = f"'{key},{value}' in the file header"
+    return src
+
+
+def _scale_time(src: Source, unit_word: str | None) -> None:
+    t = src.frame["t"].to_numpy()
+    name = src.column_map["t"]
+    if unit_word in TIME_UNITS:
+        factor, why = TIME_UNITS[unit_word], f"column {name!r} in {unit_word}"
+    else:
+        finite = t[np.isfinite(t)]
+        step = float(np.median(np.abs(np.diff(finite)))) if finite.size > 1 else 0.0
+        # 2 Hz .. 2 kHz recordings: steps of 0.5 ms .. 0.5 s, 0.5 .. 500 ms, 500 µs .. 0.5 s, ...
+        if step == 0.0 or step < 0.5:
+            factor, unit = 1.0, "s"
+        elif step < 500:
+            factor, unit = 1e-3, "ms"
+        elif step < 5e5:
+            factor, unit = 1e-6, "us"
+        else:
+            factor, unit = 1e-9, "ns"
+        why = f"column {name!r}, unit {unit} (from the median time step; name it t_s, t_ms, t_us or t_ns to say so)"
+    if factor != 1.0:
+        src.frame["t"] = t * factor
+    src.time_reason = why
+
+
+# ----------------------------------------------------------------------------- ROS bags
+def _import_rosbags() -> Any:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as exc:
+        raise InputError("reading ROS bags needs the rosbags library: pip install optcal[ros]") from exc
+    return AnyReader, Stores, get_typestore
+
+
+def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
+    """Read ``sensor_msgs/Imu`` messages of one topic from a ROS 1 or ROS 2 bag.
+
+    Time is the message header stamp (the bag's receive time when the stamp is zero);
+    acceleration in m/s² and angular rate in rad/s (ROS REP 103/145).  A single
+    ``sensor_msgs/Temperature`` topic, when present, is interpolated onto the IMU times.
+    """
+    AnyReader, Stores, get_typestore = _import_rosbags()
+    p = Path(path)
+    if kind == "ros2 bag" and p.is_file():
+        p = p.parent
+    try:
+        reader = AnyReader([p], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as exc:  # rosbags raises its own error classes per format
+        raise InputError(f"{path}: not a readable ROS bag, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    try:
+        imu = [c for c in reader.connections if c.msgtype == ROS_IMU_TYPE]
+        topics = sorted({c.topic for c in imu})
+        if not topics:
+            found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "none"
+            raise InputError(f"{path}: no sensor_msgs/Imu topic in the bag (topics: {found})")
+        if topic is None:
+            if len(topics) > 1:
+                raise InputError(f"{path}: several sensor_msgs/Imu topics ({', '.join(topics)}); choose one with --topic")
+            topic = topics[0]
+        elif topic not in topics:
+            raise InputError(f"{path}: no sensor_msgs/Imu topic {topic!r} (Imu topics: {', '.join(topics)})")
+        conns = [c for c in imu if c.topic == topic]
+        rows = []
+        try:
+            for conn, logtime, raw in reader.messages(connections=conns):
+                m = reader.deserialize(raw, conn.msgtype)
+                stamp = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                la, av = m.linear_acceleration, m.angular_velocity
+                rows.append((stamp if stamp > 0 else logtime * 1e-9, la.x, la.y, la.z, av.x, av.y, av.z))
+            temps = [c for c in reader.connections if c.msgtype == ROS_TEMPERATURE_TYPE]
+            temp_series = None
+            if len({c.topic for c in temps}) == 1:
+                tt = []
+                for conn, logtime, raw in reader.messages(connections=temps):
+                    m = reader.deserialize(raw, conn.msgtype)
+                    stamp = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                    tt.append((stamp if stamp > 0 else logtime * 1e-9, m.temperature))
+                temp_series = np.array(tt, dtype=float) if tt else None
+        except InputError:
+            raise
+        except Exception as exc:
+            raise InputError(f"{path}: the bag is truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    finally:
+        reader.close()
+    if not rows:
+        raise InputError(f"{path}: topic {topic!r} has no messages")
+    data = np.array(rows, dtype=float)
+    frame = pd.DataFrame(data, columns=["t", "ax", "ay", "az", "gx", "gy", "gz"])
+    notes = []
+    if temp_series is not None and len(temp_series) >= 1:
+        order = np.argsort(temp_series[:, 0])
+        frame["temp"] = np.interp(frame["t"].to_numpy(), temp_series[order, 0], temp_series[order, 1])
+        notes.append(f"temperature interpolated from the one sensor_msgs/Temperature topic")
+    return Source(
+        path=str(path),
+        file_type=kind,
+        frame=frame,
+        column_map={"t": "header.stamp", "ax": "linear_acceleration.x", "ay": "linear_acceleration.y",
+                    "az": "linear_acceleration.z", "gx": "angular_velocity.x", "gy": "angular_velocity.y",
+                    "gz": "angular_velocity.z"},
+        units_hint="m/s^2",
+        units_reason="sensor_msgs/Imu is in m/s^2 (ROS REP 103)",
+        gyro_units="rad/s",
+        time_reason=f"header stamps of topic {topic}",
+        always_raw=True,
+        notes=notes,
+        header={"topic": topic},
+    )
+
+
+# ----------------------------------------------------------------------------- PX4 ULog
+def _import_pyulog() -> Any:
+    try:
+        from pyulog import ULog
+    except ImportError as exc:
+        raise InputError("reading PX4 ULog files needs pyulog: pip install optcal[px4]") from exc
+    return ULog
+
+
+def read_ulog(path: str | Path, topic: str | None) -> Source:
+    """Read PX4 ``sensor_accel`` (m/s², with temperature and clip counters) from a ULog file.
+
+    ``topic`` is ``sensor_accel`` (instance 0) or ``sensor_accel:N``.  The matching
+    ``sensor_gyro`` instance, when logged, is interpolated onto the accelerometer times.
+    Samples whose ``clip_counter`` is non-zero are flagged as saturated.
+    """
+    ULog = _import_pyulog()
+    name, instance = (topic or "sensor_accel"), 0
+    if ":" in name:
+        name, inst = name.split(":", 1)
+        try:
+            instance = int(inst)
+        except ValueError as exc:
+            raise InputError(f"--topic {topic!r}: the instance after ':' must be a number") from exc
+    gyro_name = name.replace("accel", "gyro")
+    try:
+        log = ULog(str(path), message_name_filter_list=[name, gyro_name])
+    except Exception as exc:
+        raise InputError(f"{path}: not a readable ULog file, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    try:
+        ds = log.get_dataset(name, instance)
+    except (KeyError, IndexError, ValueError) as exc:
+        have = sorted({f"{d.name}:{d.multi_id}" for d in log.data_list}) or ["none"]
+        raise InputError(f"{path}: no ULog topic {name} instance {instance} (logged: {', '.join(have)}); choose one with --topic") from exc
+    d = ds.data
+    missing = [k for k in ("x", "y", "z") if k not in d]
+    if missing:
+        raise InputError(f"{path}: ULog topic {name} has no fields {', '.join(missing)}; use --topic sensor_accel")
+    stamp_key = "timestamp_sample" if "timestamp_sample" in d else "timestamp"
+    t = d[stamp_key].astype(float) * 1e-6
+    frame = pd.DataFrame({"t": t, "ax": d["x"].astype(float), "ay": d["y"].astype(float), "az": d["z"].astype(float)})
+    if "temperature" in d:
+        frame["temp"] = d["temperature"].astype(float)
+    notes = []
+    gyro_units = None
+    try:
+        g = log.get_dataset(gyro_name, instance).data
+        gk = "timestamp_sample" if "timestamp_sample" in g else "timestamp"
+        tg = g[gk].astype(float) * 1e-6
+        order = np.argsort(tg)
+        for axis in "xyz":
+            frame["g" + axis] = np.interp(t, tg[order], g[axis].astype(float)[order])
+        gyro_units = "rad/s"
+        notes.append(f"{gyro_name} instance {instance} interpolated onto the {name} times")
+    except (KeyError, IndexError, ValueError):
+        pass
+    clip = [d[k] for k in ("clip_counter[0]", "clip_counter[1]", "clip_counter[2]") if k in d]
+    saturated = np.any(np.column_stack(clip) > 0, axis=1) if clip else None
+    exclusions = {}
+    if log.file_corruption:
+        notes.append("the ULog file is corrupt; the readable part was used")
+    if ulog_is_cut(path):
+        notes.append("the ULog file is truncated (its last message is cut off); the data before it were used")
+        exclusions[TRUNCATED_MESSAGE] = 1
+    return Source(
+        path=str(path),
+        file_type="ulog",
+        frame=frame,
+        column_map={"t": f"{name}.{stamp_key}", "ax": f"{name}.x", "ay": f"{name}.y", "az": f"{name}.z"},
+        units_hint="m/s^2",
+        units_reason="PX4 sensor_accel is in m/s^2",
+        gyro_units=gyro_units,
+        time_reason=f"{name}.{stamp_key} in µs",
+        saturated=saturated,
+        always_raw=True,
+        notes=notes,
+        header={"topic": f"{name}:{instance}"},
+        exclusions=exclusions,
+    )
+
+
+TRUNCATED_MESSAGE = "messages cut off at the end of a truncated file"
+
+
+def ulog_is_cut(path: str | Path) -> bool:
+    """Whether the last message of a ULog file extends past the end of the file.
+
+    Walks the message chain (16-byte file header, then ``uint16 size, uint8 type, payload``).
+    """
+    data = Path(path).read_bytes()
+    pos, end = 16, len(data)
+    unpack = struct.Struct("<HB").unpack_from
+    while pos + 3 <= end:
+        size, _ = unpack(data, pos)
+        pos += 3 + size
+    return pos != end

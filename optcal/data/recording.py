@@ -1,0 +1,238 @@
+"""A raw recording: a time series of accelerometer (and gyro, temperature) samples.
+
+:func:`recording_from_source` turns what a reader found into a :class:`Recording`: time in
+seconds (from a time column, or from the sample index and the sampling rate), units
+decided, and every unusable sample flagged and counted (non-finite cells, duplicated
+samples and repeated timestamps, saturated samples).  Time running backwards is an
+error, because it means the file is two logs glued together or its clock is broken, and
+sorting it would silently interleave them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.data.readers import ACC, GYRO, Source
+from optcal.data.units import UnitsDecision, decide_units, nominal_conversion
+from optcal.errors import InputError
+
+#: Exclusion counters of :class:`Recording` (also used as keys of ``PoseTable.exclusions``).
+NON_FINITE = "non-finite samples (empty, non-numeric or truncated cells)"
+DUPLICATED = "duplicated samples (same time and values as the previous one)"
+REPEATED_TIME = "samples with a repeated timestamp (the first one kept)"
+SATURATED = "saturated samples"
+#: An axis's extreme value reached by this many samples marks a saturation rail.
+SATURATION_MIN_COUNT: int = 2
+#: Full-scale limits of integer converters: a sample at one of these is saturated.
+INTEGER_RAILS: tuple[tuple[float, float], ...] = ((-32768.0, 32767.0), (0.0, 65535.0))
+#: A rail lies at least this far (in g, by the nominal conversion) from the axis's zero.
+SATURATION_MIN_G: float = 1.5
+
+
+@dataclass
+class Recording:
+    """A raw time series in the units of the file.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Time of each sample, seconds.
+    acc : ndarray, shape (n, 3)
+        Accelerometer samples, raw units.
+    gyro : ndarray, shape (n, 3) or None
+        Gyro samples in the file's units.
+    temp : ndarray, shape (n,) or None
+        Temperature, °C.
+    row : ndarray of int, shape (n,)
+        Data row (1-based) or message number of each sample in the file.
+    usable : ndarray of bool, shape (n,)
+        Samples that may enter a static interval (finite, not duplicated, not saturated).
+    units : str
+    units_reason : str
+    gyro_units : str or None
+    rate_hz : float
+        Median sampling rate.
+    time_reason : str
+    path, file_type : str
+    exclusions : dict of str to int
+        The samples flagged as unusable, by reason.
+    meta : dict
+    """
+
+    t: NDArray[np.float64]
+    acc: NDArray[np.float64]
+    gyro: NDArray[np.float64] | None
+    temp: NDArray[np.float64] | None
+    row: NDArray[np.int64]
+    usable: NDArray[np.bool_]
+    units: str
+    units_reason: str
+    gyro_units: str | None
+    rate_hz: float
+    time_reason: str
+    path: str
+    file_type: str
+    exclusions: dict[str, int] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t[-1] - self.t[0]) if self.n > 1 else 0.0
+
+
+def recording_from_source(
+    src: Source,
+    units: str | None = None,
+    rate: float | None = None,
+) -> Recording:
+    """Build a :class:`Recording` from a reader's :class:`Source`.
+
+    Parameters
+    ----------
+    src : Source
+    units : str, optional
+        The user's ``--units``.
+    rate : float, optional
+        The user's ``--rate`` in Hz: the sampling rate when the file has no time column
+        (overrides a rate in the file header).
+
+    Raises
+    ------
+    InputError
+        No time and no rate, time running backwards, or no usable sample.
+    """
+    n = src.n_rows
+    acc = np.column_stack([src.column(c) for c in ACC])
+    gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
+    temp = src.column("temp") if src.has("temp") else None
+    row = np.arange(1, n + 1)
+    if rate is not None and rate <= 0:
+        raise InputError(f"--rate must be positive, got {rate}")
+    if src.has("t") and rate is None:
+        t = src.column("t")
+        time_reason = src.time_reason
+    else:
+        rate_used = rate if rate is not None else src.rate_hint
+        if rate_used is None:
+            raise InputError(
+                f"{src.path}: no time column and no sampling rate; pass --rate HZ "
+                "(or add a time column t_s)"
+            )
+        base = src.column("index") if src.has("index") else np.arange(n, dtype=float)
+        t = (base - base[0]) / rate_used
+        why = "--rate" if rate is not None else src.rate_reason
+        what = f"column {src.column_map['index']!r}" if src.has("index") else "row number"
+        time_reason = f"{what} / {rate_used:g} Hz ({why})"
+    exclusions: dict[str, int] = dict(src.exclusions)
+    finite = np.isfinite(t) & np.all(np.isfinite(acc), axis=1)
+    if gyro is not None:
+        finite &= np.all(np.isfinite(gyro), axis=1)
+    if temp is not None:
+        finite &= np.isfinite(temp)
+    _count(exclusions, NON_FINITE, int(np.sum(~finite)))
+    usable = finite.copy()
+    idx = np.flatnonzero(finite)
+    if idx.size == 0:
+        raise InputError(f"{src.path}: no sample has finite values in every column")
+    dt = np.diff(t[idx])
+    back = np.flatnonzero(dt < 0)
+    if back.size:
+        i, j = idx[back[0]], idx[back[0] + 1]
+        raise InputError(
+            f"{src.path}: time runs backwards at data row {row[j]} (t = {t[j]:.6g} s after "
+            f"{t[i]:.6g} s on row {row[i]}; {back.size} such step(s)); the file may be several "
+            "logs joined together: split or sort it"
+        )
+    same = np.flatnonzero(dt == 0)
+    if same.size:
+        later = idx[same + 1]
+        earlier = idx[same]
+        identical = np.all(acc[later] == acc[earlier], axis=1)
+        if gyro is not None:
+            identical &= np.all(gyro[later] == gyro[earlier], axis=1)
+        usable[later] = False
+        _count(exclusions, DUPLICATED, int(np.sum(identical)))
+        _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
+    decision: UnitsDecision = decide_units(acc[usable], units, src.units_hint, src.units_reason)
+    sat = saturated_samples(acc, usable, decision.units, src.saturated)
+    _count(exclusions, SATURATED, int(np.sum(sat & usable)))
+    usable &= ~sat
+    if not usable.any():
+        raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
+    tu = t[usable]
+    steps = np.diff(tu)
+    rate_hz = float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else float("nan")
+    meta = {
+        "columns": src.describe_columns(),
+        "ignored_columns": list(src.ignored_columns),
+        "header": dict(src.header),
+        "notes": list(src.notes),
+    }
+    return Recording(
+        t=t,
+        acc=acc,
+        gyro=gyro,
+        temp=temp,
+        row=row,
+        usable=usable,
+        units=decision.units,
+        units_reason=decision.reason,
+        gyro_units=src.gyro_units,
+        rate_hz=rate_hz,
+        time_reason=time_reason,
+        path=src.path,
+        file_type=src.file_type,
+        exclusions=exclusions,
+        meta=meta,
+    )
+
+
+def _count(d: dict[str, int], key: str, value: int) -> None:
+    if value:
+        d[key] = d.get(key, 0) + int(value)
+
+
+def saturated_samples(
+    acc: NDArray[np.float64],
+    usable: NDArray[np.bool_],
+    units: str,
+    flagged: NDArray[np.bool_] | None = None,
+) -> NDArray[np.bool_]:
+    """Samples with an axis at a saturation rail.
+
+    A rail is an extreme value (minimum or maximum of an axis over the usable samples)
+    whose magnitude at least :data:`SATURATION_MIN_COUNT` samples reach exactly on any
+    axis (a clipped signal keeps hitting the same full scale, the same on every axis and
+    in both directions; an unclipped one does not) and which lies at least
+    :data:`SATURATION_MIN_G` g from the axis's zero, beyond anything gravity alone produces
+    (so that the extreme of a coarsely quantised static pose is never taken for a rail);
+    or a full-scale value of a 16-bit converter (:data:`INTEGER_RAILS`) reached by
+    integer-valued data.  ``flagged`` adds the file's own saturation flags (ULog clip
+    counters).
+    """
+    sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
+    a = acc[usable]
+    if a.shape[0] == 0:
+        return sat
+    nominal = nominal_conversion(units, a)
+    integer = bool(np.all(a == np.round(a)))
+    magnitude = np.abs(np.where(usable[:, None], acc, np.nan))
+    for axis in range(3):
+        for extreme in (a[:, axis].min(), a[:, axis].max()):
+            at_int_rail = integer and any(extreme in rail for rail in INTEGER_RAILS)
+            beyond_gravity = abs(extreme - nominal.offset[axis]) >= SATURATION_MIN_G * nominal.sensitivity
+            if at_int_rail:
+                sat |= usable & (acc[:, axis] == extreme)
+            elif beyond_gravity:
+                on = np.any(magnitude == abs(extreme), axis=1)
+                if int(np.sum(magnitude == abs(extreme))) >= SATURATION_MIN_COUNT:
+                    sat |= on
+    return sat

@@ -1,0 +1,522 @@
+"""Static detection: a raw recording in, static intervals and one pose per interval out.
+
+A sample is static when the centred moving window around it (``window_s``) is quiet:
+
+* the moving standard deviation of the norm ``‖a − o_nom‖`` (``o_nom`` the nominal
+  zero, :func:`optcal.data.units.nominal_conversion`) stays below ``threshold`` times
+  its noise floor, **and**
+* the moving standard deviation summed over the three axes (IMU-TK's statistic,
+  Tedaldi et al. 2014) stays below ``threshold`` times its floor: the norm alone is blind
+  to a rotation, the axes are not;
+* the means of the two halves of the window differ by less than ``drift_threshold``
+  times the noise of that difference (``2 σ_axes/√window``, from the axes floor): a slow
+  creep that hides in the moving variance moves the mean;
+* when gyro columns exist, the windowed mean rate ``‖mean(ω) − b_ω‖`` (``b_ω`` the gyro
+  bias, the median gyro reading over the accelerometer-static samples) stays below
+  ``gyro_threshold`` times the gyro's per-sample noise floor (the floor of its moving
+  standard deviation, summed over the axes).  This is what catches a slow turn, above
+  all one about the vertical, which no accelerometer statistic can see.  The gyro's
+  spread itself is not gated: a hand-held pose trembles (the MPU-6050 log's poses show
+  5× the table-top gyro spread) without moving its mean.
+
+Each noise floor is measured on the recording itself: the ``floor_quantile`` quantile of
+the statistic over all windows (a calibration recording is mostly at rest, so the low
+quantiles are windows at rest), never below the resolution of the data; the axes floor
+is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, so that a recording that never
+rests (its quietest windows still turn) is not taken for one at rest.  Static runs are
+split at time gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from
+both ends of each remaining run, and every sample that does not end in a pose is counted
+by reason.  Each interval gives one pose: the mean, the per-axis standard deviation, the
+standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights, Lu 2017
+eq. 14; by batch means, :func:`sigma_of_mean`, since sensor noise is not white), the
+sample count, the mid time, the mean temperature and the mean gyro reading.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.data.recording import Recording
+from optcal.data.units import nominal_conversion
+from optcal.errors import InputError
+from optcal.poses import PoseTable
+
+MOVING = "samples in non-static stretches"
+SHORT = "samples in static stretches shorter than the minimum dwell"
+SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
+TRIMMED = "samples trimmed at the ends of static intervals"
+#: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
+#: isotropic noise; twice that allows for axes of unequal noise).
+AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
+
+
+@dataclass(frozen=True)
+class StaticSettings:
+    """Settings of the static detector.
+
+    Attributes
+    ----------
+    window_s : float
+        Width of the centred moving window, seconds.
+    threshold : float
+        Accelerometer gates, in multiples of the measured noise floor.
+    gyro_threshold : float
+        Gate on the windowed mean rate, in multiples of the gyro's per-sample noise floor.
+    drift_threshold : float
+        Gate on the difference between the means of the two window halves, in multiples of
+        its noise (from the accelerometer noise floor).
+    min_dwell_s : float
+        Shortest static interval kept, seconds (after the window, before trimming).
+    trim_s : float
+        Cut from each end of every interval, seconds.
+    floor_quantile : float
+        Quantile of each windowed statistic taken as its noise floor.
+    max_gap_s : float or None
+        A time step longer than this splits an interval (default: 5 sample periods).
+    sigma_blocks : int
+        Blocks for the batch-means standard deviation of each pose mean (0: white noise
+        only, ``σ/√n``).
+    """
+
+    window_s: float = 1.0
+    threshold: float = 3.0
+    gyro_threshold: float = 3.0
+    drift_threshold: float = 6.0
+    min_dwell_s: float = 0.5
+    trim_s: float = 0.0
+    floor_quantile: float = 0.1
+    max_gap_s: float | None = None
+    sigma_blocks: int = 10
+
+    def __post_init__(self) -> None:
+        for name in ("window_s", "threshold", "gyro_threshold"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"static detection: {name} must be positive, got {getattr(self, name)}")
+        if self.min_dwell_s < 0 or self.trim_s < 0:
+            raise InputError("static detection: the minimum dwell and the trim must not be negative")
+        if self.sigma_blocks < 0 or self.sigma_blocks == 1:
+            raise InputError("static detection: sigma_blocks must be 0 (white noise) or at least 2")
+        if not 0 < self.floor_quantile < 1:
+            raise InputError("static detection: floor_quantile must lie between 0 and 1")
+
+    @classmethod
+    def from_options(cls, **options: Any) -> "StaticSettings":
+        """Settings from keyword options, ignoring those left as ``None``."""
+        return cls(**{k: v for k, v in options.items() if v is not None})
+
+
+@dataclass
+class StaticInterval:
+    """One static interval and its pose.
+
+    Attributes
+    ----------
+    number : int
+        1-based interval number (the pose's ``rows`` entry).
+    start, stop : int
+        Sample range in the recording, ``stop`` exclusive.
+    first_row, last_row : int
+        Data rows of the file.
+    t_start, t_end : float
+        Seconds.
+    n_samples : int
+    mean, std : ndarray, shape (3,)
+        Mean and per-axis standard deviation of the samples, raw units.
+    sigma : float
+        Standard deviation of the mean (pooled over the axes), raw units.
+    gyro_mean : ndarray, shape (3,) or None
+    temp_mean : float or None
+    """
+
+    number: int
+    start: int
+    stop: int
+    first_row: int
+    last_row: int
+    t_start: float
+    t_end: float
+    n_samples: int
+    mean: NDArray[np.float64]
+    std: NDArray[np.float64]
+    sigma: float
+    gyro_mean: NDArray[np.float64] | None
+    temp_mean: float | None
+
+    @property
+    def duration_s(self) -> float:
+        return self.t_end - self.t_start
+
+    @property
+    def t_mid(self) -> float:
+        return 0.5 * (self.t_start + self.t_end)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {
+            "number": self.number,
+            "first_row": self.first_row,
+            "last_row": self.last_row,
+            "sample_start": self.start,
+            "sample_stop": self.stop,
+            "t_start": self.t_start,
+            "t_end": self.t_end,
+            "duration_s": self.duration_s,
+            "n_samples": self.n_samples,
+            "mean": self.mean.tolist(),
+            "std": self.std.tolist(),
+            "sigma_mean": self.sigma,
+        }
+        if self.gyro_mean is not None:
+            d["gyro_mean"] = self.gyro_mean.tolist()
+        if self.temp_mean is not None:
+            d["temp_mean"] = self.temp_mean
+        return d
+
+
+@dataclass
+class Segmentation:
+    """What static detection found in a recording.
+
+    Attributes
+    ----------
+    recording : Recording
+    settings : StaticSettings
+    intervals : list of StaticInterval
+    noise_floor, thresholds : dict of str to float
+        Per statistic (``acc_norm_std``, ``acc_axes_std``, ``acc_drift``, ``gyro_rate``), raw units.
+    gyro_bias : ndarray or None
+    exclusions : dict of str to int
+        Everything excluded, from reading to trimming.
+    trace : dict of str to ndarray
+        Per usable sample: ``t``, the statistics and the static mask (for plots).
+    """
+
+    recording: Recording
+    settings: StaticSettings
+    intervals: list[StaticInterval]
+    noise_floor: dict[str, float]
+    thresholds: dict[str, float]
+    gyro_bias: NDArray[np.float64] | None
+    exclusions: dict[str, int]
+    trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+
+    @property
+    def n_used(self) -> int:
+        return int(sum(iv.n_samples for iv in self.intervals))
+
+    def meta(self) -> dict[str, Any]:
+        """JSON-safe description for ``PoseTable.meta``."""
+        rec = self.recording
+        return {
+            "settings": asdict(self.settings),
+            "window_samples": int(self.trace.get("window_samples", 0)),
+            "noise_floor": dict(self.noise_floor),
+            "thresholds": dict(self.thresholds),
+            "gyro_bias": None if self.gyro_bias is None else self.gyro_bias.tolist(),
+            "gyro_units": rec.gyro_units,
+            "n_samples": rec.n,
+            "n_samples_in_poses": self.n_used,
+            "intervals": [iv.to_dict() for iv in self.intervals],
+        }
+
+    def pose_table(self) -> PoseTable:
+        """One pose per interval (``source="raw recording"``)."""
+        rec = self.recording
+        if not self.intervals:
+            raise InputError(no_static_message(self))
+        ivs = self.intervals
+        acc = np.array([iv.mean for iv in ivs])
+        gyro = np.array([iv.gyro_mean for iv in ivs]) if rec.gyro is not None else None
+        temp = np.array([iv.temp_mean for iv in ivs]) if rec.temp is not None else None
+        return PoseTable(
+            acc=acc,
+            sigma=np.array([iv.sigma for iv in ivs]),
+            n_samples=np.array([iv.n_samples for iv in ivs], dtype=float),
+            t=np.array([iv.t_mid for iv in ivs]),
+            temp=temp,
+            gyro=gyro,
+            rows=np.array([iv.number for iv in ivs]),
+            units=rec.units,
+            source="raw recording",
+            exclusions=dict(self.exclusions),
+            meta={"segmentation": self.meta()},
+        )
+
+
+def no_static_message(seg: Segmentation) -> str:
+    rec = seg.recording
+    thr = seg.thresholds
+    return (
+        f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
+        f"windows of {seg.settings.window_s:g} s must stay below {seg.settings.threshold:g}× the noise floor "
+        f"(|a| std ≤ {thr.get('acc_norm_std', float('nan')):.3g} {rec.units}) for at least "
+        f"{seg.settings.min_dwell_s:g} s; check that the sensor rests between moves, or loosen "
+        "--static-threshold / shorten --min-dwell"
+    )
+
+
+# ----------------------------------------------------------------------------- statistics
+def centred_window_sums(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Sums of ``x`` (m, k) over the centred window at each sample and the window sizes.
+
+    Windows are clipped at the ends.  Interior windows are differences of slices of one
+    cumulative sum (no gather), so this is O(n) and fast on 10⁶ samples.
+    """
+    m = x.shape[0]
+    c = np.empty((m + 1, x.shape[1]))
+    c[0] = 0.0
+    np.cumsum(x, axis=0, out=c[1:])
+    h = window // 2
+    sums = np.empty_like(x)
+    count = np.empty(m)
+    full = m - window + 1
+    if full > 0:
+        sums[h:h + full] = c[window:] - c[:full]
+        count[h:h + full] = window
+        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
+    else:
+        edge = np.arange(m)
+    lo = np.clip(edge - h, 0, m)
+    hi = np.clip(edge - h + window, 0, m)
+    sums[edge] = c[hi] - c[lo]
+    count[edge] = hi - lo
+    return sums, count
+
+
+def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centred moving mean and variance (windows clipped at the ends), columnwise.
+
+    Uses cumulative sums of the data centred on its median, so it is O(n) and exact
+    enough for raw counts with a large offset.
+    """
+    x = np.asarray(x, dtype=float)
+    squeeze = x.ndim == 1
+    if squeeze:
+        x = x[:, None]
+    centre = np.median(x, axis=0)
+    xc = x - centre
+    s1, count = centred_window_sums(xc, window)
+    s2, _ = centred_window_sums(xc * xc, window)
+    mean = s1 / count[:, None]
+    var = np.clip(s2 / count[:, None] - mean * mean, 0.0, None)
+    mean += centre
+    return (mean[:, 0], var[:, 0]) if squeeze else (mean, var)
+
+
+def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64]:
+    """‖mean of the next half window − mean of the previous half window‖ at each sample.
+
+    A rotation at rate ω moves the specific force by about ``ω · window/2`` between the two
+    halves, while at rest the difference is the noise of two means; this sees slow turns
+    that the moving variance misses.  Zero within half a window of the ends.
+    """
+    x = np.asarray(x, dtype=float)
+    m = x.shape[0]
+    h = max(1, window // 2)
+    out = np.zeros(m)
+    if m < 2 * h + 1:
+        return out
+    c = np.empty((m + 1, x.shape[1]))
+    c[0] = 0.0
+    np.cumsum(x - np.median(x, axis=0), axis=0, out=c[1:])
+    # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
+    centre = c[h:m - h + 1]
+    diff = (c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])
+    out[h:m - h + 1] = np.sqrt(np.einsum("ij,ij->i", diff, diff)) / h
+    return out
+
+
+def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
+    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution."""
+    return float(max(np.quantile(stat, quantile), resolution))
+
+
+def _resolution(x: NDArray[np.float64]) -> float:
+    """Smallest standard deviation the data can resolve.
+
+    The quantisation noise ``q/√12`` of the smallest non-zero step, and at least the
+    rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − median|``.
+    """
+    if x.size == 0:
+        return 0.0
+    d = np.abs(np.diff(x, axis=0)).ravel()
+    d = d[d > 0]
+    step = float(d.min() / np.sqrt(12.0)) if d.size else 0.0
+    spread = float(np.max(np.abs(x - np.median(x, axis=0))))
+    return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
+
+
+def _runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return edges[::2], edges[1::2]
+
+
+# ----------------------------------------------------------------------------- detection
+def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Segmentation:
+    """Find the static intervals of a recording.
+
+    Parameters
+    ----------
+    rec : Recording
+    settings : StaticSettings, optional
+
+    Returns
+    -------
+    Segmentation
+        The intervals (possibly none: :meth:`Segmentation.pose_table` then raises
+        :class:`InputError`), thresholds, noise floors and every exclusion counted.
+    """
+    s = settings or StaticSettings()
+    use = np.flatnonzero(rec.usable)
+    t = rec.t[use]
+    acc = rec.acc[use]
+    gyro = rec.gyro[use] if rec.gyro is not None else None
+    m = use.size
+    rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
+    window = max(3, int(round(s.window_s * rate)))
+    nominal = nominal_conversion(rec.units, acc)
+    norm = np.linalg.norm(acc - nominal.offset, axis=1)
+
+    _, var_norm = moving_mean_var(norm, window)
+    _, var_axes = moving_mean_var(acc, window)
+    sd_norm = np.sqrt(var_norm)
+    sd_axes = np.sqrt(var_axes.sum(axis=1))
+    res_acc = _resolution(acc)
+    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
+    # At rest the three axes carry the noise of the norm about √3 times over; a much larger
+    # axes floor means the quietest windows still rotate (the norm does not see rotation),
+    # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
+    floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
+    floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
+    thresholds = {k: s.threshold * v for k, v in floors.items()}
+    # drift: the two halves of the window must agree within the noise of their means
+    drift = half_window_drift(acc, window)
+    floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
+    thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
+    static = (
+        (sd_norm <= thresholds["acc_norm_std"])
+        & (sd_axes <= thresholds["acc_axes_std"])
+        & (drift <= thresholds["acc_drift"])
+    )
+    trace: dict[str, Any] = {
+        "t": t,
+        "norm_g": norm / nominal.sensitivity,
+        "acc_norm_std": sd_norm,
+        "acc_axes_std": sd_axes,
+        "acc_drift": drift,
+        "window_samples": window,
+    }
+
+    gyro_bias = None
+    if gyro is not None:
+        mean_g, var_g = moving_mean_var(gyro, window)
+        sd_gyro = np.sqrt(var_g.sum(axis=1))
+        base = static if static.any() else np.ones(m, dtype=bool)
+        gyro_bias = np.median(gyro[base], axis=0)
+        rate_dev = np.linalg.norm(mean_g - gyro_bias, axis=1)
+        res_g = _resolution(gyro)
+        # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
+        floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
+        thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
+        static &= rate_dev <= thresholds["gyro_rate"]
+        trace["gyro_rate"] = rate_dev
+
+    # split at time gaps: a step longer than max_gap_s ends a run
+    max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
+    starts, stops = _runs(static)
+    gap_after = np.flatnonzero(np.diff(t) > max_gap)
+    if gap_after.size:
+        starts, stops = _split_runs(starts, stops, gap_after + 1)
+
+    exclusions = dict(rec.exclusions)
+    in_pose = np.zeros(m, dtype=bool)
+    n_short_samples = n_short = n_trim = 0
+    trim = int(round(s.trim_s * rate))
+    intervals: list[StaticInterval] = []
+    for a, b in zip(starts, stops):
+        duration = t[b - 1] - t[a] + 1.0 / rate
+        if duration < s.min_dwell_s:
+            n_short += 1
+            n_short_samples += b - a
+            continue
+        a2, b2 = a + trim, b - trim
+        if b2 - a2 < 2:
+            n_short += 1
+            n_short_samples += b - a
+            continue
+        n_trim += (a2 - a) + (b - b2)
+        in_pose[a2:b2] = True
+        intervals.append(_interval(len(intervals) + 1, rec, use, a2, b2, gyro, s.sigma_blocks))
+    _add(exclusions, MOVING, int(np.sum(~static)))
+    _add(exclusions, SHORT, n_short_samples)
+    _add(exclusions, SHORT_STRETCHES, n_short)
+    _add(exclusions, TRIMMED, n_trim)
+    trace["static"] = in_pose
+    return Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
+
+
+def _split_runs(
+    starts: NDArray[np.int64], stops: NDArray[np.int64], breaks: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Split runs ``[a, b)`` at the sample indices ``breaks`` (a new run starts there)."""
+    out_a, out_b = [], []
+    for a, b in zip(starts, stops):
+        inner = breaks[(breaks > a) & (breaks < b)]
+        edges = [a, *inner.tolist(), b]
+        out_a.extend(edges[:-1])
+        out_b.extend(edges[1:])
+    return np.asarray(out_a, dtype=int), np.asarray(out_b, dtype=int)
+
+
+def _add(d: dict[str, int], key: str, value: int) -> None:
+    if value:
+        d[key] = d.get(key, 0) + int(value)
+
+
+def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
+    """Standard deviation of the mean of the samples ``x`` (n, 3), pooled over the axes.
+
+    White noise gives ``σ/√n``; sensor noise is not white (flicker, drift: the block means
+    of the IMU-TK Xsens rest scatter 1.2-3× more than ``σ/√n`` predicts), so the batch-means
+    estimate ``std(block means)/√blocks`` over ``blocks`` consecutive blocks is taken when it
+    is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
+    """
+    n = x.shape[0]
+    white = float(np.sqrt(np.mean(x.var(axis=0, ddof=1))) / np.sqrt(n)) if n > 1 else 0.0
+    if blocks < 2 or n < 4 * blocks:
+        return white
+    size = n // blocks
+    means = x[: size * blocks].reshape(blocks, size, 3).mean(axis=1)
+    batch = float(np.sqrt(np.mean(means.var(axis=0, ddof=1))) / np.sqrt(blocks))
+    return max(white, batch)
+
+
+def _interval(
+    number: int, rec: Recording, use: NDArray[np.int64], a: int, b: int,
+    gyro: NDArray[np.float64] | None, sigma_blocks: int,
+) -> StaticInterval:
+    idx = use[a:b]
+    x = rec.acc[idx]
+    n = x.shape[0]
+    mean = x.mean(axis=0)
+    std = x.std(axis=0, ddof=1)
+    sigma = sigma_of_mean(x, sigma_blocks)
+    return StaticInterval(
+        number=number,
+        start=int(idx[0]),
+        stop=int(idx[-1]) + 1,
+        first_row=int(rec.row[idx[0]]),
+        last_row=int(rec.row[idx[-1]]),
+        t_start=float(rec.t[idx[0]]),
+        t_end=float(rec.t[idx[-1]]),
+        n_samples=int(n),
+        mean=mean,
+        std=std,
+        sigma=sigma,
+        gyro_mean=None if gyro is None else gyro[a:b].mean(axis=0),
+        temp_mean=None if rec.temp is None else float(rec.temp[idx].mean()),
+    )

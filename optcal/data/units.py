@@ -1,0 +1,185 @@
+"""Units of measured specific force: raw counts, g and m/s².
+
+optcal calibrates in the raw units of the data (``T`` in g per raw unit, ``o`` in raw
+units) and always outputs g.  This module decides the units of a data set (the user's
+``--units``, a unit word in the column names, the file format, or, when none of these
+says, the typical norm of the data) and provides the *nominal* conversion to g that
+serves as the "before calibration" baseline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from optcal.errors import InputError
+from optcal.model import STANDARD_GRAVITY
+from optcal.poses import UNITS
+
+#: Accepted spellings of each unit, for ``--units`` and for unit words in column names.
+UNIT_ALIASES: dict[str, str] = {
+    "g": "g",
+    "m/s^2": "m/s^2",
+    "m/s2": "m/s^2",
+    "m/s²": "m/s^2",
+    "mps2": "m/s^2",
+    "ms2": "m/s^2",
+    "m_s2": "m/s^2",
+    "m_s_2": "m/s^2",
+    "ms_2": "m/s^2",
+    "counts": "counts",
+    "count": "counts",
+    "lsb": "counts",
+    "raw": "counts",
+    "adc": "counts",
+}
+
+#: Norm ranges (median ‖a‖ over the data) in which the units are unambiguous.
+G_NORM_RANGE: tuple[float, float] = (0.5, 2.0)
+MS2_NORM_RANGE: tuple[float, float] = (5.0, 20.0)
+COUNTS_MIN_NORM: float = 50.0
+
+
+def normalise_units(units: str) -> str:
+    """Map a spelling of a unit (``"m/s2"``, ``"LSB"``, ...) to one of :data:`optcal.poses.UNITS`."""
+    key = str(units).strip().lower()
+    if key not in UNIT_ALIASES:
+        raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
+    return UNIT_ALIASES[key]
+
+
+@dataclass(frozen=True)
+class UnitsDecision:
+    """The units of a data set and how they were decided.
+
+    Attributes
+    ----------
+    units : str
+        ``"g"``, ``"m/s^2"`` or ``"counts"``.
+    reason : str
+        Where the decision came from (reported by ``optcal segment`` and in ``PoseTable.meta``).
+    """
+
+    units: str
+    reason: str
+
+
+def median_norm(acc: ArrayLike) -> float:
+    """Median of ‖a‖ over the finite rows of ``acc`` (NaN when there is none)."""
+    a = np.asarray(acc, dtype=float).reshape(-1, 3)
+    a = a[np.all(np.isfinite(a), axis=1)]
+    return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
+
+
+def decide_units(
+    acc: ArrayLike,
+    requested: str | None = None,
+    hint: str | None = None,
+    hint_reason: str = "",
+) -> UnitsDecision:
+    """Decide the units of ``acc``.
+
+    Parameters
+    ----------
+    acc : array_like, shape (n, 3)
+        Measurements (raw samples or pose means).
+    requested : str, optional
+        The user's ``--units``; always wins.
+    hint : str, optional
+        Units stated by the file (a unit word in the column names, or the file format, e.g.
+        ``m/s^2`` for ROS ``sensor_msgs/Imu``).
+    hint_reason : str
+        Where ``hint`` came from, for the report.
+
+    Raises
+    ------
+    InputError
+        When nothing states the units and the norm is ambiguous.
+    """
+    if requested is not None:
+        return UnitsDecision(normalise_units(requested), "given with --units")
+    if hint is not None:
+        return UnitsDecision(normalise_units(hint), hint_reason or "stated by the file")
+    norm = median_norm(acc)
+    if not np.isfinite(norm):
+        raise InputError("no finite acceleration values; cannot tell the units")
+    if G_NORM_RANGE[0] <= norm <= G_NORM_RANGE[1]:
+        return UnitsDecision("g", f"median |a| = {norm:.4g} ≈ 1 (g)")
+    if MS2_NORM_RANGE[0] <= norm <= MS2_NORM_RANGE[1]:
+        return UnitsDecision("m/s^2", f"median |a| = {norm:.4g} ≈ 9.8 (m/s^2)")
+    if norm >= COUNTS_MIN_NORM:
+        return UnitsDecision("counts", f"median |a| = {norm:.4g} ≫ 9.8 (raw counts)")
+    raise InputError(
+        f"cannot tell the units from the data (median |a| = {norm:.4g} is neither ≈ 1 g, "
+        f"≈ 9.8 m/s^2 nor a raw count scale); pass --units g, m/s^2 or counts"
+    )
+
+
+def to_g_factor(units: str) -> float | None:
+    """Factor converting ``units`` to g (``None`` for counts, whose scale is what calibration finds)."""
+    units = normalise_units(units)
+    if units == "g":
+        return 1.0
+    if units == "m/s^2":
+        return 1.0 / STANDARD_GRAVITY
+    return None
+
+
+@dataclass(frozen=True)
+class NominalConversion:
+    """The uncalibrated conversion ``a_g = (a − offset) / sensitivity`` used as the baseline.
+
+    Attributes
+    ----------
+    offset : ndarray, shape (3,)
+        Raw units.
+    sensitivity : float
+        Raw units per g.
+    description : str
+        How it was chosen (reported next to every "before calibration" figure).
+    """
+
+    offset: NDArray[np.float64]
+    sensitivity: float
+    description: str
+
+    def apply(self, raw: ArrayLike) -> NDArray[np.float64]:
+        """Raw samples (..., 3) in g by the nominal conversion."""
+        return (np.asarray(raw, dtype=float) - self.offset) / self.sensitivity
+
+
+#: Mid-scale of unsigned 16-bit converters (e.g. the Xsens MTi raw counts of IMU-TK).
+UNSIGNED_16_MIDSCALE: float = 32768.0
+
+
+def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
+    """The "before calibration" conversion to g for data in ``units``.
+
+    ``g`` and ``m/s^2`` use their exact unit factors with no offset.  Counts have no
+    stated sensitivity: optcal takes no offset (or mid-scale 32768 for unsigned 16-bit
+    data, whose values all lie in 0..65535 around it) and the sensitivity that makes the
+    median norm of ``acc`` equal to 1 g, so that the baseline shows bias, scale-factor
+    mismatch and non-orthogonality, not an arbitrary overall scale.
+
+    Parameters
+    ----------
+    units : str
+    acc : array_like, shape (n, 3)
+        Pose means (or samples) used to choose the counts baseline.
+    """
+    units = normalise_units(units)
+    factor = to_g_factor(units)
+    if factor is not None:
+        name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
+        return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
+    a = np.asarray(acc, dtype=float).reshape(-1, 3)
+    a = a[np.all(np.isfinite(a), axis=1)]
+    offset = np.zeros(3)
+    what = "no offset"
+    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(np.median(a, axis=0) - UNSIGNED_16_MIDSCALE) < 16384):
+        offset = np.full(3, UNSIGNED_16_MIDSCALE)
+        what = "offset 32768 (unsigned 16-bit mid-scale)"
+    sens = float(np.median(np.linalg.norm(a - offset, axis=1))) if a.size else 1.0
+    return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")

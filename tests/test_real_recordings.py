@@ -1,0 +1,126 @@
+"""The shared real recordings (../shared/data; read each PROVENANCE.md): static intervals found,
+calibration and held-out validation.  Skipped when the shared data are absent."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from optcal.data import load, load_with_segmentation
+from optcal.data.readers import source_from_frame
+from optcal.data.recording import recording_from_source
+from optcal.data.static import detect_static
+from optcal.errors import IdentifiabilityError, InputError
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+XSENS = DATA / "imutk-xsens" / "xsens_imutk.csv"
+MPU = DATA / "mpu6050-imucalibration"
+FERRARIS = DATA / "imucal-ferraris"
+
+
+def need(path: Path) -> Path:
+    if not path.exists():
+        pytest.skip(f"shared data not available: {path}")
+    return path
+
+
+@pytest.fixture(scope="module")
+def xsens():
+    return load_with_segmentation(need(XSENS))
+
+
+@pytest.fixture(scope="module")
+def xsens_calibration(xsens):
+    from optcal.calibration import calibrate
+
+    return calibrate(xsens.poses)
+
+
+# ----------------------------------------------------------------------------- Xsens (IMU-TK)
+def test_xsens_is_read_as_raw_counts(xsens):
+    p = xsens.poses
+    assert p.source == "raw recording" and p.units == "counts"
+    assert p.meta["rate_hz"] == pytest.approx(100.0, rel=1e-3)
+    assert p.gyro is not None
+    # nothing saturated, non-finite or duplicated: only motion and a few short rests excluded
+    assert all("stretches" in k for k in p.exclusions)
+
+
+def test_xsens_static_intervals_as_imu_tk(xsens):
+    """IMU-TK (Tedaldi et al. 2014) finds 38 static intervals, the first the ≈ 50 s initial rest."""
+    ivs = xsens.segmentation.intervals
+    assert len(ivs) == 38
+    assert ivs[0].t_start < 1.0 and 49.0 < ivs[0].duration_s < 53.0
+    assert all(2.0 < iv.duration_s < 12.0 for iv in ivs[1:])
+    # the accounting is complete
+    seg = xsens.segmentation
+    excluded = sum(v for k, v in seg.exclusions.items() if k.startswith("samples"))
+    assert seg.n_used + excluded == seg.recording.n
+
+
+def test_xsens_calibrated_norm_error_below_0_2_mg(xsens, xsens_calibration):
+    from optcal.data.validation import check_calibration
+
+    check = check_calibration(xsens_calibration, xsens.poses)
+    assert check.rms_after <= 0.2e-3
+    assert check.rms_before > 100 * check.rms_after
+
+
+def test_xsens_held_out_below_0_3_mg(xsens):
+    """Lu 2017, section 3.2.2: calibrate on part of the poses, test on the rest (5-fold)."""
+    from optcal.data.validation import held_out_validation
+
+    h = held_out_validation(xsens.poses, folds=5, rng=0)
+    assert np.all(np.isfinite(h.residuals))
+    assert h.rms_held_out <= 0.3e-3
+    assert h.rms_held_out >= h.rms_in_sample  # held-out is never better than in-sample here
+
+
+# ----------------------------------------------------------------------------- MPU-6050
+def test_mpu6050_intervals_match_the_upstream_ones():
+    """Ten static intervals, in order within 0.3 s of the upstream project's ten (some of which
+    are only 2-12 samples long)."""
+    loaded = load_with_segmentation(need(MPU / "example_data_calibration.csv"))
+    assert loaded.kind.kind == "raw recording" and "Fs,100" in loaded.kind.reason
+    ivs = loaded.segmentation.intervals
+    assert len(ivs) == 10
+    upstream = np.loadtxt(MPU / "upstream_static_intervals.csv", delimiter=",")  # row 0 starts, row 1 ends (samples)
+    for iv, (start, end) in zip(ivs, upstream.T):
+        gap = max(iv.start, start) - min(iv.stop, end)  # negative when they overlap
+        assert gap <= 30
+
+
+def test_mpu6050_long_static_logs_are_one_pose():
+    for name in ("example_data_tinit_calc.csv", "imu_static_test.csv"):
+        p = load(need(MPU / name))
+        assert p.source == "raw recording" and p.n == 1
+        assert p.n_samples[0] > 0.95 * p.meta["segmentation"]["n_samples"]
+
+
+def test_mpu6050_rotation_test_has_few_long_rests():
+    p = load(need(MPU / "imu_90_x_rot.csv"))
+    assert 2 <= p.n <= 6  # rests before, between and after the 90° turns
+
+
+# ----------------------------------------------------------------------------- imucal
+def test_ferraris_session_has_six_orientations_and_is_not_identifiable():
+    from optcal.calibration import calibrate
+
+    p = load(need(FERRARIS / "example_ferraris_session.csv"), rate=102.4)
+    assert p.units == "m/s^2" and p.n == 13
+    axes = {(int(np.argmax(np.abs(a))), int(np.sign(a[np.argmax(np.abs(a))]))) for a in p.acc}
+    assert len(axes) == 6  # ±x, ±y, ±z: the six Ferraris positions, visited again around the rotations
+    with pytest.raises(IdentifiabilityError):
+        calibrate(p)
+
+
+def test_annotated_session_is_out_of_order():
+    path = need(FERRARIS / "annotated_session.csv")
+    with pytest.raises(InputError, match="time runs backwards"):
+        load(path, rate=204.8)
+    frame = pd.read_csv(path).sort_values("samples")
+    seg = detect_static(recording_from_source(source_from_frame(frame, str(path), "csv"), rate=204.8))
+    assert len(seg.intervals) == 6 and seg.recording.units == "counts"
