@@ -20,6 +20,8 @@ COMMANDS: dict[str, str] = {
     "simulate": "optcal.cli.cmd_simulate:simulate",
     "demo": "optcal.cli.cmd_demo:demo",
     "reproduce": "optcal.cli.cmd_reproduce:reproduce",
+    "segment": "optcal.cli.cmd_segment:segment",
+    "check": "optcal.cli.cmd_check:check",
 }
 
 
