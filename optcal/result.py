@@ -99,6 +99,7 @@ def dA_dtheta(T: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 A_INDEX: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+AXES_STR = "xyz"
 
 
 @dataclass
@@ -184,13 +185,22 @@ class CalibrationResult:
         return int(len(self.params))
 
     @property
+    def n_observations(self) -> int:
+        """Scalar observations behind the fit: one norm per pose, or ``extra["n_observations"]``
+        for methods that fit vector residuals (``sixpos``: three per pose)."""
+        return int(self.extra.get("n_observations", self.n_poses))
+
+    @property
     def dof(self) -> int:
-        """Degrees of freedom ``n − p``."""
-        return self.n_poses - self.n_params
+        """Degrees of freedom ``n_observations − p``."""
+        return self.n_observations - self.n_params
 
     @property
     def chisqr(self) -> float:
-        """Weighted sum of squared norm residuals."""
+        """Weighted sum of squared residuals of the fitted cost (norm residuals unless the method
+        records its own in ``extra["chisqr"]``)."""
+        if "chisqr" in self.extra:
+            return float(self.extra["chisqr"])
         return float(np.sum(self.weights * self.residuals**2))
 
     @property
@@ -205,13 +215,13 @@ class CalibrationResult:
     @property
     def aic(self) -> float:
         """Akaike information criterion, ``n ln(χ²/n) + 2p`` (lmfit's convention)."""
-        n = self.n_poses
+        n = self.n_observations
         return float(n * np.log(max(self.chisqr, 1e-300) / n) + 2 * self.n_params)
 
     @property
     def bic(self) -> float:
         """Bayesian information criterion, ``n ln(χ²/n) + p ln n``."""
-        n = self.n_poses
+        n = self.n_observations
         return float(n * np.log(max(self.chisqr, 1e-300) / n) + np.log(n) * self.n_params)
 
     @property
@@ -228,8 +238,19 @@ class CalibrationResult:
         out = np.full((3, 3), np.nan)
         if self.covariance is None:
             return out
-        J = dA_dtheta(self.T)
-        cov_A = J @ self.covariance[:6, :6] @ J.T
+        # the entries of T among the parameters: canonical "T_ij" (lower triangle) or full "W_ij"
+        idx, J_cols = [], []
+        for k, name in enumerate(self.param_names):
+            if len(name) == 4 and name[0] in "TW" and name[1] == "_" and name[2] in AXES_STR and name[3] in AXES_STR:
+                E = np.zeros((3, 3))
+                E[AXES_STR.index(name[2]), AXES_STR.index(name[3])] = 1.0
+                dA = E.T @ self.T + self.T.T @ E
+                idx.append(k)
+                J_cols.append([dA[a, b] for a, b in A_INDEX])
+        if not idx:
+            return out
+        J = np.array(J_cols).T
+        cov_A = J @ self.covariance[np.ix_(idx, idx)] @ J.T
         se = np.sqrt(np.clip(np.diag(cov_A), 0, None))
         for k, (i, j) in enumerate(A_INDEX):
             out[i, j] = out[j, i] = se[k]
@@ -264,6 +285,7 @@ class CalibrationResult:
                 "max_abs_norm_residual_g": float(np.max(np.abs(self.residuals))) if self.n_poses else None,
                 "n_poses": self.n_poses,
                 "n_params": self.n_params,
+                "n_observations": self.n_observations,
                 "chisqr": self.chisqr,
                 "aic": self.aic,
                 "bic": self.bic,
@@ -355,7 +377,7 @@ class CalibrationResult:
             f"    rms |a|-1          = {self.rms_norm_residual_g * 1e3:.4f} mg",
             f"    max ||a|-1|        = {np.max(np.abs(self.residuals)) * 1e3:.4f} mg" if self.n_poses else "",
             f"    chi-square         = {self.chisqr:.6g}",
-            f"    reduced chi-square = {self.redchi:.6g}",
+            f"    reduced chi-square = {self.redchi:.6g}" if self.dof > 0 else "    reduced chi-square = n/a (no degrees of freedom)",
             f"    Akaike info crit   = {self.aic:.4f}",
             f"    Bayesian info crit = {self.bic:.4f}",
             f"    covariance         = {'absolute (noise given)' if self.sigma_known else 'scaled by reduced chi-square'}",

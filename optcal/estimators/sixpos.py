@@ -2,6 +2,16 @@
 
 Reconstruction of the lost equations
 ------------------------------------
+The measurement error model (eq. 1, after Farrell 2008, the paper's [8], higher-order terms
+dropped) relates the sensor output ``a^b`` to the platform's true specific force ``a^p``::
+
+    a^b = (I + S + M) a^p + b + w                                                       (1)
+
+with S the diagonal scale-factor errors, M the misalignment and cross-coupling (off-diagonal),
+b the bias — a constant plus a slow drift (bias instability, rate random walk) — and w white
+noise (velocity random walk).  Eq. 3 below is its deterministic part, inverted; the random
+part is what :mod:`optcal.noise` and :mod:`optcal.ekf` deal with.
+
 The platform's roll φ (about x) and pitch θ (about y) are known (a levelled cube placed on
 each of its six faces, Yin 2014, Table 2).  The true specific force in the sensor frame is
 (eq. 2, ``a^p = C_n^p a^n`` with ``a^n = −g^n``)::
@@ -16,7 +26,7 @@ convention, and this one matches what accelerometers report.)  G = 1: the refere
 
 The deterministic calibration model (eq. 3) maps the measurement ``a`` of a pose to the true
 specific force through a full calibration matrix W (scale, misalignment, cross-coupling)
-and a bias vector V::
+and a bias vector V (``W = (I + S + M)⁻¹``, ``V = −W b`` for the constant part of b)::
 
     f_k = W a_k + V,         k = 1 … n                                                  (3)
 
@@ -63,7 +73,7 @@ from optcal.result import CalibrationResult, SolverInfo
 ANGLE_COLUMNS: tuple[str, str] = ("roll_deg", "pitch_deg")
 #: Columns with the reference specific force in the sensor frame, g.
 REFERENCE_COLUMNS: tuple[str, str, str] = ("gx_ref", "gy_ref", "gz_ref")
-#: Six positions are the paper's design; eq. 4 needs at least 4 (5 for a residual variance).
+#: Six positions are the paper's design (eq. 4 alone would need 4, and 5 for a residual variance).
 MIN_POSES: int = 6
 #: Parameter names: W row-major, then V.
 PARAM_NAMES: tuple[str, ...] = tuple(f"W_{r}{c}" for r in AXES for c in AXES) + tuple(f"V_{r}" for r in AXES)
@@ -127,9 +137,14 @@ class SixPositionLeastSquares:
         Take the residual covariance from the fit residuals (True) or from the per-pose noise
         ``sigma`` (False).  Default: from ``sigma`` when the pose table has it, else from the
         residuals.
+    allow_degenerate : bool
+        Accepted for the uniform interface of ``optcal calibrate`` (which passes it to every
+        method) and ignored: with known orientations, every pose set that passes
+        :meth:`~optcal.poses.PoseTable.validate` (measurements not in one plane) determines W
+        and V, and any other is refused.
     """
 
-    def __init__(self, scale_covariance: bool | None = None) -> None:
+    def __init__(self, scale_covariance: bool | None = None, allow_degenerate: bool = False) -> None:
         self.scale_covariance = scale_covariance
 
     def fit(self, poses: PoseTable) -> CalibrationResult:
@@ -145,24 +160,17 @@ class SixPositionLeastSquares:
         reference, source, notes = reference_specific_force(poses)
         known = poses.sigma is not None
         scale = (not known) if self.scale_covariance is None else bool(self.scale_covariance)
-        if scale and poses.n <= 4:
-            raise InputError(f"{poses.n} poses leave no residual degrees of freedom; give at least 5 or per-pose sigma")
         if not scale and not known:
             raise InputError("scale_covariance=False needs the per-pose noise column sigma")
 
         with Stopwatch() as watch:
             weights = 1.0 / poses.sigma**2 if known else np.ones(poses.n)
             X1 = np.vstack([poses.acc.T, np.ones(poses.n)])  # X̃, 4×n
-            # eq. 4 scaled for conditioning: columns of X̃ in units of their rms
+            # eq. 4, with the rows of X̃ scaled to unit rms for conditioning (X̃ has rank 4: validated)
             col_scale = np.sqrt(np.mean(X1**2, axis=1))
             Xs = X1 / col_scale[:, None]
             sw = np.sqrt(weights)
             design = (Xs * sw).T  # n×4
-            if np.linalg.matrix_rank(design) < 4:
-                raise InputError(
-                    "the poses do not determine W and V (the measurements lie in one plane); "
-                    "use orientations that point each axis up and down"
-                )
             beta_s, *_ = np.linalg.lstsq(design, (reference * sw[:, None]), rcond=None)  # 4×3
             beta = beta_s / col_scale[:, None]  # rows: coefficients of a_x, a_y, a_z, 1
             W = beta[:3].T
@@ -195,6 +203,9 @@ class SixPositionLeastSquares:
             "vector_residuals_g": residual,
             "residual_covariance_g2": S,
             "reduced_chi_square_from_sigma": redchi,
+            # the fit has three scalar observations per pose (eq. 4 is a vector equation)
+            "n_observations": 3 * poses.n,
+            "chisqr": float(np.sum(weights[:, None] * residual**2)),
         }
         condition = float(np.linalg.cond(design.T @ design))
         return CalibrationResult(
