@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "reproduce": "optcal.cli.cmd_reproduce:reproduce",
     "segment": "optcal.cli.cmd_segment:segment",
     "check": "optcal.cli.cmd_check:check",
+    "allan": "optcal.cli.cmd_allan:allan",
 }
 
 
