@@ -95,7 +95,8 @@ class PoseTable:
         self.rows = np.arange(n) if self.rows is None else np.asarray(self.rows, dtype=int).reshape(n)
         if self.units not in UNITS:
             raise InputError(f"unknown units {self.units!r}; use one of {', '.join(UNITS)}")
-        self.extra = {k: np.asarray(v, dtype=float).reshape(n, *np.shape(v)[1:]) for k, v in self.extra.items()}
+        # copies: a table never shares (and so never corrupts) the caller's arrays
+        self.extra = {k: np.array(v, dtype=float).reshape(n, *np.shape(v)[1:]) for k, v in self.extra.items()}
 
     @property
     def n(self) -> int:

@@ -72,3 +72,12 @@ def test_load_rejects_bad_files(tmp_path):
     bad.write_text('{"format_version": 1}')
     with pytest.raises(InputError, match="not an optcal calibration"):
         CalibrationResult.load(bad)
+
+
+def test_pose_table_copies_extra_columns():
+    from optcal.poses import PoseTable
+
+    col = np.arange(9.0)
+    table = PoseTable(acc=np.eye(3)[np.arange(9) % 3], extra={"roll_deg": col})
+    table.extra["roll_deg"][0] = 99.0
+    assert col[0] == 0.0
