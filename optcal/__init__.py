@@ -21,6 +21,7 @@ __all__ = [
     "SolverError",
     "lu2017_reference_model",
     "calibrate",
+    "cramer_rao_bound",
     "__version__",
 ]
 
@@ -30,3 +31,10 @@ def calibrate(poses, method: str = "default", **options):
     from optcal.calibration import calibrate as _calibrate
 
     return _calibrate(poses, method=method, **options)
+
+
+def cramer_rao_bound(model, directions, sigma):
+    """Cramér–Rao bound of θ, directions as nuisance; see :func:`optcal.identifiability.cramer_rao_bound`."""
+    from optcal.identifiability import cramer_rao_bound as _crlb
+
+    return _crlb(model, directions, sigma)

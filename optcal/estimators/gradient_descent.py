@@ -41,6 +41,32 @@ def cost_and_gradient(x: NDArray, u: NDArray, w: NDArray) -> tuple[float, NDArra
     return float(np.sum(w * r * r)), np.concatenate([grad_T.ravel(), grad_o])
 
 
+def descend(
+    x: NDArray, u: NDArray, w: NDArray, mu: float, tol: float, max_iter: int, target: float | None = None
+) -> tuple[NDArray[np.float64], float, int, str]:
+    """Iterate ``x_k = x_{k−1} − μ ∇f`` (Lu 2017, eq. 17) on normalised data.
+
+    Stops when ``‖x_k − x_{k−1}‖ ≤ tol``, or when ``f ≤ target`` if a target is given.
+
+    Returns
+    -------
+    x, f, iterations, status
+        ``status`` is ``"converged"``, ``"diverged"`` or ``"max_iter reached"``.
+    """
+    it = 0
+    f, g = cost_and_gradient(x, u, w)
+    while it < max_iter:
+        step = mu * g
+        x = x - step  # Lu 2017, eq. 17
+        it += 1
+        f, g = cost_and_gradient(x, u, w)
+        if not np.isfinite(f):
+            return x, f, it, "diverged"
+        if np.linalg.norm(step) <= tol or (target is not None and f <= target):
+            return x, f, it, "converged"
+    return x, f, it, "max_iter reached"
+
+
 class GradientDescent:
     """Plain gradient descent with a fixed step (Lu 2017, eq. 17): the baseline.
 
@@ -95,23 +121,11 @@ class GradientDescent:
         T0 = start.T * norm.scale
         o0 = (start.o - norm.centre) / norm.scale
         x = np.concatenate([T0.ravel(), o0])
-        mu = self._auto_step(x, u, w_n) if self.step == "auto" else float(self.step)
+        mu = self.auto_step(x, u, w_n) if self.step == "auto" else float(self.step)
         target = None if self.target_cost is None else self.target_cost / np.mean(w)
-        converged = False
-        it = 0
         with Stopwatch() as sw:
-            f, g = cost_and_gradient(x, u, w_n)
-            while it < self.max_iter:
-                step = mu * g
-                x = x - step  # Lu 2017, eq. 17
-                it += 1
-                f, g = cost_and_gradient(x, u, w_n)
-                if not np.isfinite(f):
-                    break
-                if np.linalg.norm(step) <= self.tol or (target is not None and f <= target):
-                    converged = True
-                    break
-        status = "converged" if converged else ("diverged" if not np.isfinite(f) else "max_iter reached")
+            x, f, it, status = descend(x, u, w_n, mu, self.tol, self.max_iter, target)
+        converged = status == "converged"
         T_n = canonicalise(x[:9].reshape(3, 3)) if np.all(np.isfinite(x)) else np.eye(3)
         theta = norm.theta_to_raw(theta_from(T_n, x[9:12]))
         solver = SolverInfo("gradient descent", status, converged, it, sw.seconds, f"step μ = {mu:.4g} (normalised)")
@@ -128,7 +142,7 @@ class GradientDescent:
         )
 
     @staticmethod
-    def _auto_step(x: NDArray, u: NDArray, w: NDArray) -> float:
+    def auto_step(x: NDArray, u: NDArray, w: NDArray) -> float:
         """μ = 1/L with L the largest eigenvalue of the Gauss–Newton Hessian 2JᵀWJ at x."""
         T = x[:9].reshape(3, 3)
         uk = u - x[9:12]
@@ -139,4 +153,4 @@ class GradientDescent:
         return 1.0 / L
 
 
-__all__ = ["GradientDescent", "cost_and_gradient"]
+__all__ = ["GradientDescent", "cost_and_gradient", "descend"]

@@ -4,14 +4,20 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 
 1. :func:`residual_function` — the per-pose norm residual ``r_k = ‖T(a_k − o)‖ − 1``
    (eq. 13) as a CasADi ``Function`` of θ and one measurement, with exact derivatives.
-2. :class:`MLProblem` — the cost ``Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²)
-   mapped over n poses, with the measurements, weights and loss scale as *parameters*;
-   only the nine identifiable parameters are free (T lower-triangular, o).  Built once per
-   (n, loss) and cached, then re-solved with new data: a Monte Carlo study builds nothing.
+2. The NLP ``min_θ c Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²) over the nine
+   identifiable parameters (T lower-triangular, o), with the measurements, weights, loss
+   scale and cost scale ``c`` (:func:`cost_scale`) as data, in one of two forms, both solved by
+   IPOPT through ``nlpsol`` and both built once and re-solved with new data:
+
+   * :class:`MLProblem` (up to :attr:`MLProblem.SX_LIMIT` poses): the cost mapped over n poses
+     and expanded into one SX graph with the exact Hessian; built once per (n, loss).
+   * :class:`VectorisedMLProblem` (more poses): cost, gradient and Gauss–Newton Hessian
+     evaluated column-wise in numpy (:class:`NormResidualCost`) and handed to IPOPT as
+     CasADi callbacks; built once per loss, whatever n (10⁶ poses in about a second).
 3. :class:`MaximumLikelihood` — the estimator: starting point from an algebraic fit
-   (``convex`` by default, eq. 18-30), weights ``1/σ_r,k²`` when per-pose noise is known,
-   optional robust loss (Huber, Cauchy) and bounds on named parameters (for example a known
-   scale range), covariance from the Fisher information.
+   (``convex`` by default, eq. 18-30), weights ``1/σ_r,k²`` when per-pose noise is known
+   (re-propagated until they settle), optional robust loss (Huber, Cauchy) and bounds on
+   named parameters (for example a known scale range), covariance from the Fisher information.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import FitError, InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
-from optcal.model import PARAM_NAMES, unpack_theta
+from optcal.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
@@ -78,52 +84,175 @@ def robust_loss(z: Any, loss: str, delta: Any) -> Any:
     raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
 
 
-class MLProblem:
-    """The NLP ``min_θ Σ ρ(√w_k r_k(θ))`` for n poses, data as parameters (built once).
+def robust_loss_terms(z: NDArray, loss: str, delta: float) -> tuple[NDArray, NDArray, NDArray]:
+    """ρ(z), ρ'(z) and the IRLS weight ρ'(z)/z of a standardised residual, in numpy.
 
-    Up to :attr:`SX_LIMIT` poses the cost is expanded into one CasADi SX graph (fastest
-    derivatives).  Beyond it, the per-pose residual is mapped over the poses (MX, evaluated
-    on both cores) and, for the squared loss, IPOPT receives the Gauss–Newton Hessian
-    ``2 Jᵀ W J`` through ``hess_lag`` (exact at a zero-residual optimum, and the standard choice
-    for nonlinear least squares), which keeps each iteration linear in n with a small constant.
+    The IRLS weight (2 for the squared loss) is the Gauss–Newton curvature of ρ: it gives the
+    positive semi-definite Hessian approximation ``Σ ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` used for
+    large problems (exact in the limit of zero residuals for the squared loss).
+    """
+    if loss == "squared":
+        return z * z, 2.0 * z, np.full_like(z, 2.0)
+    if loss == "huber":
+        az = np.abs(z)
+        inside = az <= delta
+        rho = np.where(inside, z * z, 2.0 * delta * az - delta * delta)
+        drho = np.where(inside, 2.0 * z, 2.0 * delta * np.sign(z))
+        return rho, drho, np.where(inside, 2.0, 2.0 * delta / np.maximum(az, 1e-300))
+    if loss == "cauchy":
+        q = 1.0 + (z / delta) ** 2
+        return delta * delta * np.log(q), 2.0 * z / q, 2.0 / q
+    raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
+
+
+class NormResidualCost:
+    """The ML cost ``c Σ ρ(√w_k r_k(θ))`` with its gradient and Gauss–Newton Hessian, in numpy.
+
+    The measurements are held as three contiguous columns and every quantity is formed
+    column by column (T is lower-triangular), so one evaluation is a few dozen vector
+    operations of length n plus one 9×n by n×9 product.  The residuals and their Jacobian
+    at the last θ are cached: IPOPT asks for the cost, the gradient and the Hessian at the
+    same point.
     """
 
-    SX_LIMIT = 20_000
-    _cache: dict[tuple[int, str, tuple[tuple[str, Any], ...]], "MLProblem"] = {}
+    def __init__(self, u: NDArray, w: NDArray, loss: str = "squared", delta: float = 1.0, scale: float = 1.0) -> None:
+        self.ux, self.uy, self.uz = (np.ascontiguousarray(u[:, i], dtype=float) for i in range(3))
+        self.w = np.asarray(w, dtype=float)
+        self.sqrt_w = np.sqrt(self.w)
+        self.loss, self.delta, self.scale = loss, float(delta), float(scale)
+        self._x: NDArray | None = None
+        self._jx: NDArray | None = None
+
+    def residuals(self, x: NDArray) -> NDArray[np.float64]:
+        """``r_k = ‖T(u_k − o)‖ − 1`` (Lu 2017, eq. 13)."""
+        self._evaluate(x, jacobian=False)
+        return self._r
+
+    def _evaluate(self, x: NDArray, jacobian: bool) -> None:
+        x = np.asarray(x, dtype=float).ravel()
+        if self._x is None or not np.array_equal(x, self._x):
+            t00, t10, t11, t20, t21, t22 = x[:6]
+            dx, dy, dz = self.ux - x[6], self.uy - x[7], self.uz - x[8]
+            vx = t00 * dx
+            vy = t10 * dx + t11 * dy
+            vz = t20 * dx + t21 * dy + t22 * dz
+            nv = np.sqrt(vx * vx + vy * vy + vz * vz)
+            self._x, self._jx = x.copy(), None
+            self._r = nv - 1.0
+            self._parts = (dx, dy, dz, vx, vy, vz, nv)
+        if jacobian and self._jx is None:
+            t00, t10, t11, t20, t21, t22 = x[:6]
+            dx, dy, dz, vx, vy, vz, nv = self._parts
+            ax, ay, az = vx / nv, vy / nv, vz / nv
+            J = np.empty((9, len(nv)))  # ∂r/∂θ, one row per parameter
+            J[0], J[1], J[2] = ax * dx, ay * dx, ay * dy  # ∂r/∂T_ij = ā_i u_j
+            J[3], J[4], J[5] = az * dx, az * dy, az * dz
+            J[6] = -(t00 * ax + t10 * ay + t20 * az)  # ∂r/∂o = −Tᵀ ā
+            J[7] = -(t11 * ay + t21 * az)
+            J[8] = -t22 * az
+            self._J, self._jx = J, x.copy()
+
+    def jacobian(self, x: NDArray) -> NDArray[np.float64]:
+        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter)."""
+        self._evaluate(x, jacobian=True)
+        return self._J
+
+    def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
+        """``‖Tᵀ ā_k‖`` in normalised units (``= −∂r_k/∂o``, see :func:`optcal.identifiability.normal_gain`)."""
+        J = self.jacobian(x)
+        return np.sqrt(np.einsum("ij,ij->j", J[6:9], J[6:9]))
+
+    def value(self, x: NDArray) -> float:
+        self._evaluate(x, jacobian=False)
+        rho, _, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
+        return self.scale * float(np.sum(rho))
+
+    def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
+        self._evaluate(x, jacobian=True)
+        rho, drho, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
+        return self.scale * float(np.sum(rho)), self.scale * (self._J @ (drho * self.sqrt_w))
+
+    def gauss_newton_hessian(self, x: NDArray) -> NDArray[np.float64]:
+        """``c Σ_k ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` (``2 c JᵀWJ`` for the squared loss)."""
+        self._evaluate(x, jacobian=True)
+        _, _, irls = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
+        Js = self._J * np.sqrt(irls * self.w)
+        return self.scale * (Js @ Js.T)
+
+
+#: Floor of the residual scale in :func:`cost_scale` (normalised units, ≈ g): 10 ng per g, far
+#: below the noise of any accelerometer and far above rounding (≈ 1e-16).
+MIN_RESIDUAL_RMS: float = 1e-8
+
+
+def cost_scale(n: int, start_rms: float) -> float:
+    """Factor ``c = 1/(n s₀)`` applied to the cost Σ ρ (``s₀`` the rms standardised residual at the start).
+
+    IPOPT stops on the absolute size of the gradient, while the cost can only resolve a
+    decrease of about ``eps·f``: with the raw cost a tolerance is either too loose for small
+    residuals or out of floating-point reach for large ones (IPOPT then backtracks for tens of
+    iterations on a solution that is already exact).  With ``f ≈ n s²`` and a Hessian
+    ``≈ 2n``·O(1), scaling by ``1/(n s₀)`` makes ``f·λ(H)`` of order one whatever n, noise or
+    units, so one tolerance (:data:`ML_IPOPT_DEFAULTS`) sits just above the rounding floor and
+    leaves the parameters within ~1e-7·√n standard errors of the exact optimum.  ``s₀`` is
+    floored at :data:`MIN_RESIDUAL_RMS` so that noise-free data (residuals at rounding level)
+    are not scaled up into a spurious gradient.
+    """
+    return 1.0 / (n * max(float(start_rms), MIN_RESIDUAL_RMS))
+
+
+#: IPOPT options of the ML problems: :data:`IPOPT_DEFAULTS` with the tolerance on the scaled
+#: cost of :func:`cost_scale`.  That scaling keeps the gradient at the start of order one, below
+#: IPOPT's gradient-based scaling threshold (100), so that step is switched off (it would only
+#: cost a gradient evaluation); the multipliers of the parameters are not needed.
+ML_IPOPT_DEFAULTS: dict[str, Any] = {
+    **IPOPT_DEFAULTS,
+    "ipopt.tol": 1e-7,
+    "ipopt.acceptable_tol": 1e-5,
+    "ipopt.acceptable_iter": 3,
+    "ipopt.nlp_scaling_method": "none",
+    "calc_lam_p": False,
+}
+
+
+class MLProblem:
+    """The NLP ``min_θ c Σ ρ(√w_k r_k(θ))`` for n poses, data as parameters (built once).
+
+    The cost is expanded into one CasADi SX graph with the exact Hessian (fastest
+    derivatives for small and moderate n).  Building it takes about 0.4 ms per pose, so
+    beyond :attr:`SX_LIMIT` poses :meth:`get` returns a :class:`VectorisedMLProblem` instead.
+    ``c`` is the scale of :func:`cost_scale`, a parameter like the data.
+    """
+
+    SX_LIMIT = 200
+    _cache: dict[tuple[Any, ...], Any] = {}
 
     def __init__(self, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
 
         self.n, self.loss = n, loss
         r = residual_function()
-        opts = dict(IPOPT_DEFAULTS)
-        large = n > self.SX_LIMIT
-        sym = ca.MX if large else ca.SX
-        x = sym.sym("theta", 9)
-        data = sym.sym("a", 3, n)
-        w = sym.sym("w", 1, n)
-        delta = sym.sym("delta")
-        mapped = (r.map(n, "thread", 2) if large else r.map(n)) if n > 1 else r
-        res = mapped(x, data)  # 1 x n
-        cost = ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
-        p = ca.vertcat(ca.vec(data), ca.vec(w), delta)
-        if large and loss == "squared":
-            lam_f = ca.MX.sym("lam_f")
-            lam_g = ca.MX.sym("lam_g", 0, 1)
-            J = ca.jacobian(res, x)  # n x 9, forward mode through the map
-            H = 2 * lam_f * ca.mtimes(J.T, J * ca.repmat(w.T, 1, 9))
-            opts["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(H)],
-                                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
-        opts.update(ipopt_options or {})
+        x = ca.SX.sym("theta", 9)
+        data = ca.SX.sym("a", 3, n)
+        w = ca.SX.sym("w", 1, n)
+        delta = ca.SX.sym("delta")
+        scale = ca.SX.sym("scale")
+        res = (r.map(n) if n > 1 else r)(x, data)  # 1 x n
+        cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
+        p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
+        opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
         self.solver = ca.nlpsol("ml_calibration", "ipopt", {"x": x, "p": p, "f": cost}, opts)
 
     @classmethod
-    def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> "MLProblem":
-        key = (n, loss, tuple(sorted((ipopt_options or {}).items())))
+    def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> "MLProblem | VectorisedMLProblem":
+        """The problem for n poses, built on first use and cached (SX up to :attr:`SX_LIMIT`)."""
+        options = tuple(sorted((ipopt_options or {}).items()))
+        large = n > cls.SX_LIMIT
+        key = ("vectorised", loss, options) if large else (n, loss, options)
         if key not in cls._cache:
             if len(cls._cache) > 32:
                 cls._cache.clear()
-            cls._cache[key] = cls(n, loss, ipopt_options)
+            cls._cache[key] = VectorisedMLProblem(loss, ipopt_options) if large else cls(n, loss, ipopt_options)
         return cls._cache[key]
 
     def solve(
@@ -136,13 +265,156 @@ class MLProblem:
         ubx: NDArray | None = None,
     ) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
-        p = np.concatenate([u.ravel(), w, [delta]])  # vec() is column-major: a_k stacked
+        start = NormResidualCost(u, w, self.loss, delta)
+        scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
+        p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
         args: dict[str, Any] = {"x0": theta0, "p": p}
         if lbx is not None:
             args["lbx"] = lbx
         if ubx is not None:
             args["ubx"] = ubx
         sol = self.solver(**args)
+        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+
+
+class VectorisedMLProblem:
+    """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
+
+    The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
+    losses, :func:`robust_loss_terms`) of :class:`NormResidualCost` are CasADi
+    ``Callback`` s handed to ``nlpsol`` (the gradient as the cost's reverse derivative and
+    as ``grad_f``, the Hessian as ``hess_lag``).  Nothing is built per n: the data of the
+    current solve sit in the callbacks, so one problem per loss serves every n, and one
+    IPOPT iteration on 10⁶ poses costs a few dozen vector operations.
+    """
+
+    def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
+        import casadi as ca
+
+        self.loss = loss
+        self.cost: NormResidualCost | None = None
+        problem = self
+
+        def current() -> NormResidualCost:
+            assert problem.cost is not None, "solve() sets the data"
+            return problem.cost
+
+        dense9 = ca.Sparsity.dense(9, 1)
+        scalar = ca.Sparsity.dense(1, 1)
+        empty = ca.Sparsity(0, 1)
+
+        class Gradient(ca.Callback):
+            def __init__(self) -> None:
+                ca.Callback.__init__(self)
+                self.construct("ml_grad_f", {})
+
+            def get_n_in(self) -> int:
+                return 2
+
+            def get_n_out(self) -> int:
+                return 2
+
+            def get_name_in(self, i: int) -> str:
+                return ("x", "p")[i]
+
+            def get_name_out(self, i: int) -> str:
+                return ("f", "grad_f")[i]
+
+            def get_sparsity_in(self, i: int) -> Any:
+                return (dense9, empty)[i]
+
+            def get_sparsity_out(self, i: int) -> Any:
+                return (scalar, dense9)[i]
+
+            def eval(self, arg: list) -> list:
+                f, g = current().gradient(np.asarray(arg[0]).ravel())
+                return [f, g]
+
+        class Cost(ca.Callback):
+            def __init__(self, gradient: Any) -> None:
+                ca.Callback.__init__(self)
+                self.gradient = gradient
+                self.construct("ml_f", {})
+
+            def get_n_in(self) -> int:
+                return 1
+
+            def get_n_out(self) -> int:
+                return 1
+
+            def get_sparsity_in(self, i: int) -> Any:
+                return dense9
+
+            def get_sparsity_out(self, i: int) -> Any:
+                return scalar
+
+            def eval(self, arg: list) -> list:
+                return [current().value(np.asarray(arg[0]).ravel())]
+
+            def has_reverse(self, nadj: int) -> bool:
+                return nadj == 1
+
+            def get_reverse(self, nadj: int, name: str, inames: list, onames: list, opts: dict) -> Any:
+                x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
+                _, g = self.gradient(x, ca.MX(0, 1))
+                return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
+
+        class Hessian(ca.Callback):
+            def __init__(self) -> None:
+                ca.Callback.__init__(self)
+                self.construct("ml_hess_lag", {})
+
+            def get_n_in(self) -> int:
+                return 4
+
+            def get_n_out(self) -> int:
+                return 1
+
+            def get_name_in(self, i: int) -> str:
+                return ("x", "p", "lam_f", "lam_g")[i]
+
+            def get_name_out(self, i: int) -> str:
+                return "triu_hess_gamma_x_x"
+
+            def get_sparsity_in(self, i: int) -> Any:
+                return (dense9, empty, scalar, empty)[i]
+
+            def get_sparsity_out(self, i: int) -> Any:
+                return ca.Sparsity.upper(9)
+
+            def eval(self, arg: list) -> list:
+                H = current().gauss_newton_hessian(np.asarray(arg[0]).ravel()) * float(arg[2])
+                return [ca.triu(ca.DM(H))]
+
+        self._gradient = Gradient()
+        self._cost = Cost(self._gradient)
+        self._hessian = Hessian()
+        x = ca.MX.sym("theta", 9)
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian, **(ipopt_options or {})}
+        self.solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+
+    def solve(
+        self,
+        theta0: NDArray,
+        u: NDArray,
+        w: NDArray,
+        delta: float = 1.0,
+        lbx: NDArray | None = None,
+        ubx: NDArray | None = None,
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
+        cost = NormResidualCost(u, w, self.loss, delta)
+        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+        self.cost = cost
+        args: dict[str, Any] = {"x0": theta0}
+        if lbx is not None:
+            args["lbx"] = lbx
+        if ubx is not None:
+            args["ubx"] = ubx
+        try:
+            sol = self.solver(**args)
+        finally:
+            self.cost = None  # do not keep the data alive
         return np.asarray(sol["x"]).ravel(), self.solver.stats()
 
 
@@ -191,11 +463,18 @@ class MaximumLikelihood:
     scale_range : (float, float), optional
         Known range of the scale factors (raw units per g), applied to the diagonal of T.
     reweight : int
-        Passes recomputing the propagated weights at the new estimate.
+        At most this many extra passes recomputing the propagated weights at the new
+        estimate; the passes stop as soon as no weight changes by more than
+        ``reweight_rtol`` (relative), i.e. when the weights are consistent with the estimate.
+    reweight_rtol : float
+        Relative weight change below which the weights count as settled.  A relative change
+        ε of the weights moves θ by about ε standard errors, so 1e-3 is far below noise (and
+        usually saves the third IPOPT pass).
     allow_degenerate : bool
         Proceed (with a warning) when the poses do not identify every parameter.
     ipopt_options : dict, optional
-        Extra CasADi/IPOPT options (``{"ipopt.tol": 1e-10}``).
+        Extra CasADi/IPOPT options (``{"ipopt.tol": 1e-9}``, on the scaled cost of
+        :func:`cost_scale`).
     """
 
     name = "mle"
@@ -209,11 +488,14 @@ class MaximumLikelihood:
         bounds: dict[str, tuple[float, float]] | None = None,
         scale_range: tuple[float, float] | None = None,
         reweight: int = 2,
+        reweight_rtol: float = 1e-3,
         allow_degenerate: bool = False,
         ipopt_options: dict[str, Any] | None = None,
     ) -> None:
         if loss not in LOSSES:
             raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
+        if not (isinstance(init, CalibrationResult) or init in ("convex", "svd")):
+            raise InputError("init must be 'convex', 'svd' or a CalibrationResult")
         self.init = init
         self.weighting = weighting
         self.loss = loss
@@ -221,6 +503,7 @@ class MaximumLikelihood:
         self.bounds = bounds
         self.scale_range = scale_range
         self.reweight = int(reweight)
+        self.reweight_rtol = float(reweight_rtol)
         self.allow_degenerate = allow_degenerate
         self.ipopt_options = dict(ipopt_options or {})
 
@@ -235,16 +518,57 @@ class MaximumLikelihood:
                 return SVDEllipsoidFit(allow_degenerate=True).fit(poses)
             except FitError:
                 pass
-        elif self.init != "convex":
-            raise InputError("init must be 'convex', 'svd' or a CalibrationResult")
         return ConvexEllipsoidFit(allow_degenerate=True).fit(poses)
+
+    def initial_normalised(self, poses: PoseTable, norm: Normaliser, u: NDArray) -> tuple[NDArray[np.float64], str]:
+        """The starting θ in normalised coordinates and the name of the fit that gave it.
+
+        The same algebraic fits as :meth:`initial`, without assembling a result: the
+        quadric comes from the 10×10 triangular factor ``R`` of the design matrix (eq. 23),
+        whose right singular vectors are those of the design matrix (``svd``), and whose
+        equality-constrained least-squares solution (``tr A = 3``) *is* the convex fit's
+        answer whenever the semidefinite constraint is inactive (checked here; otherwise the
+        cvxpy problem is solved).
+        """
+        from optcal.estimators.ellipsoid import ConvexEllipsoidFit, design_matrix, quadric_to_calibration, unpack_quadric
+
+        if isinstance(self.init, CalibrationResult):
+            return norm.theta_to_normalised(self.init.params[:9]), self.init.method
+        D = design_matrix(u)
+        if poses.n <= MLProblem.SX_LIMIT:
+            R = np.linalg.qr(D, mode="r")
+        else:  # a factor of the Gram matrix: same singular vectors, 20x cheaper than QR for 10⁶ poses
+            lam, V = np.linalg.eigh(D.T @ D)
+            R = np.sqrt(np.clip(lam, 0.0, None))[:, None] * V.T
+        if self.init == "svd":
+            try:
+                T_n, o_n = quadric_to_calibration(np.linalg.svd(R)[2][-1])  # Lu 2017, eq. 24-30
+                return theta_from(T_n, o_n), "svd"
+            except FitError:
+                pass
+        convex = ConvexEllipsoidFit(allow_degenerate=True)
+        eta = ConvexEllipsoidFit._kkt_polish(R)
+        if np.linalg.eigvalsh(unpack_quadric(eta)[0])[0] >= 2 * convex.eps:
+            try:
+                T_n, o_n = quadric_to_calibration(eta)
+                return theta_from(T_n, o_n), "convex"
+            except FitError:
+                pass
+        return norm.theta_to_normalised(convex.fit(poses).params[:9]), "convex"
+
+    def weights(self, poses: PoseTable, norm: Normaliser, u: NDArray, theta_n: NDArray) -> NDArray[np.float64]:
+        """:func:`~optcal.estimators.base.pose_weights` at θ, the normal gain computed column-wise."""
+        if poses.sigma is None or self.weighting != "propagated":
+            T, o = unpack_theta(norm.theta_to_raw(theta_n))
+            return pose_weights(poses, T, o, self.weighting)[0]
+        gain = NormResidualCost(u, np.ones(poses.n)).normal_gain(theta_n) / norm.scale  # raw units
+        return 1.0 / (poses.sigma * gain) ** 2
 
     def fit(self, poses: PoseTable) -> CalibrationResult:
         poses.validate()
-        start = self.initial(poses)
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
-        theta_n = norm.theta_to_normalised(start.params[:9])
+        theta_n, init_method = self.initial_normalised(poses, norm, u)
         raw_bounds = _bounds_vectors(self.bounds, self.scale_range)
         lbx = ubx = None
         if raw_bounds is not None:
@@ -254,32 +578,32 @@ class MaximumLikelihood:
             ubx = np.where(np.isfinite(raw_bounds[1]), hi_n, np.inf)
             theta_n = np.clip(theta_n, lbx, ubx)
         problem = MLProblem.get(poses.n, self.loss, self.ipopt_options)
-        total_iter, total_time = 0, 0.0
+        total_iter, total_time, passes = 0, 0.0, 0
         stats: dict[str, Any] = {}
-        passes = 1 + (self.reweight if poses.sigma is not None and self.weighting == "propagated" else 0)
         residual_scale = None
         if poses.sigma is None and self.loss != "squared":
             # no noise given: standardise by a robust scale of the starting point's residuals
-            residual_scale = max(1.4826 * float(np.median(np.abs(start.residuals))), 1e-12)
-        for _ in range(passes):
-            T, o = unpack_theta(norm.theta_to_raw(theta_n))
-            w, _known = pose_weights(poses, T, o, self.weighting)
+            start_r = NormResidualCost(u, np.ones(poses.n)).residuals(theta_n)
+            residual_scale = max(1.4826 * float(np.median(np.abs(start_r))), 1e-12)
+        w_used: NDArray | None = None
+        for _ in range(1 + max(self.reweight, 0)):
+            w = self.weights(poses, norm, u, theta_n)
+            if w_used is not None and np.max(np.abs(w / w_used - 1.0)) <= self.reweight_rtol:
+                break  # the weights are consistent with the estimate
             w_n = w / np.mean(w)  # scale-free weights: same optimum, better-scaled NLP
             # threshold of the robust loss on the residuals as weighted by w_n
             delta_n = self.loss_scale * (residual_scale if residual_scale else 1.0 / np.sqrt(np.mean(w)))
             with Stopwatch() as sw:
-                new, stats = problem.solve(theta_n, u, w_n, delta_n, lbx, ubx)
+                theta_n, stats = problem.solve(theta_n, u, w_n, delta_n, lbx, ubx)
             total_iter += int(stats.get("iter_count", 0))
             total_time += sw.seconds
-            step = float(np.max(np.abs(new - theta_n)))
-            theta_n = new
-            if step < 1e-12:
-                break
+            passes += 1
+            w_used = w
         status = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False))
         theta = norm.theta_to_raw(theta_n)
         notes = [] if success else [f"IPOPT did not report success: {status}"]
-        extra: dict[str, Any] = {"init": start.method, "loss": self.loss}
+        extra: dict[str, Any] = {"init": init_method, "loss": self.loss, "passes": passes}
         if self.loss != "squared":
             T, o = unpack_theta(theta)
             w, _ = pose_weights(poses, T, o, self.weighting)
@@ -287,7 +611,7 @@ class MaximumLikelihood:
 
             r = norm_residuals(T, o, poses.acc)
             z = r * np.sqrt(w) if residual_scale is None else r / residual_scale
-            robust_w = _irls_weight(z, self.loss, self.loss_scale)
+            robust_w = 0.5 * robust_loss_terms(z, self.loss, self.loss_scale)[2]  # ψ(z)/(2z), 1 inside
             down = np.flatnonzero(robust_w < 0.5)
             extra["robust_weights"] = robust_w.tolist()
             extra["downweighted_rows"] = [int(r) for r in poses.rows[down]]
@@ -296,7 +620,11 @@ class MaximumLikelihood:
                     f"{down.size} pose(s) down-weighted below 0.5 by the {self.loss} loss "
                     f"(rows {', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
                 )
-        solver = SolverInfo("IPOPT", status, success, total_iter, total_time, f"CasADi nlpsol, {self.loss} loss")
+        form = "SX, exact Hessian" if isinstance(problem, MLProblem) else "numpy callbacks, Gauss-Newton Hessian"
+        solver = SolverInfo(
+            "IPOPT", status, success, total_iter, total_time,
+            f"CasADi nlpsol ({form}), {self.loss} loss, {passes} pass(es)",
+        )
         return finish(
             method=self.name,
             poses=poses,
@@ -308,12 +636,3 @@ class MaximumLikelihood:
             extra=extra,
         )
 
-
-def _irls_weight(z: NDArray, loss: str, delta: float) -> NDArray[np.float64]:
-    """IRLS weight ψ(z)/(2z) of a robust loss for standardised residuals ``z``."""
-    az = np.abs(z)
-    if loss == "huber":
-        return np.where(az <= delta, 1.0, delta / np.maximum(az, 1e-300))
-    if loss == "cauchy":
-        return 1.0 / (1.0 + (z / delta) ** 2)
-    return np.ones_like(z)
