@@ -18,6 +18,7 @@ from optcal.errors import InputError
 COMMANDS: dict[str, str] = {
     "calibrate": "optcal.cli.cmd_calibrate:calibrate",
     "simulate": "optcal.cli.cmd_simulate:simulate",
+    "diagnose": "optcal.cli.cmd_diagnose:diagnose",
     "demo": "optcal.cli.cmd_demo:demo",
     "reproduce": "optcal.cli.cmd_reproduce:reproduce",
     "segment": "optcal.cli.cmd_segment:segment",

@@ -1,0 +1,91 @@
+"""``optcal diagnose`` and ``optcal demo`` on the command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from diagnosis_cases import make_case
+
+from optcal.cli.main import main
+
+
+def write_table(case, path: Path, temp: bool = True) -> Path:
+    p = case.poses
+    frame = pd.DataFrame({"ax": p.acc[:, 0], "ay": p.acc[:, 1], "az": p.acc[:, 2], "sigma": p.sigma, "t": p.t})
+    if temp:
+        frame["temp"] = p.temp
+    frame.to_csv(path, index=False, float_format="%.10g")
+    return path
+
+
+def test_json_is_exactly_one_object_with_the_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    case = make_case("temperature_bias", 21)
+    path = write_table(case, tmp_path / "poses.csv")
+    code = main(["diagnose", str(path), "--json", "--simulations", "20", "--plot", str(tmp_path / "fig")])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    obj = json.loads(out.out)  # exactly one JSON object on stdout
+    assert obj["n_poses"] == case.poses.n and obj["data"]["kind"] == "pose table"
+    assert [f["effect"] for f in obj["findings"]] == ["temperature_bias"]
+    f = obj["findings"][0]
+    assert f["axes"] == [case.axis] and f["estimate"][case.axis] == pytest.approx(case.value, rel=0.3)
+    assert obj["final"]["gain"] > 1 and obj["final"]["heldout_rms_g"] < obj["baseline"]["heldout_rms_g"]
+    assert {Path(p).name for p in obj["figures"]} == {"residuals.png", "simulation_check.png"}
+    assert all(Path(p).stat().st_size > 1000 for p in obj["figures"])
+
+
+def test_text_report(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    case = make_case(None, 22)
+    path = write_table(case, tmp_path / "poses.csv")
+    assert main(["diagnose", str(path), "--simulations", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "read as a pose table" in out and "Simulation check" in out
+    assert "none: the paper's model explains these data" in out and "gain 1×" in out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--effects", "temperature_bias"], "temperature_bias: no temperature column"),
+        (["--effects", "wind"], "unknown effect"),
+    ],
+)
+def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], message: str) -> None:
+    path = write_table(make_case(None, 23), tmp_path / "poses.csv", temp=False)
+    assert main(["diagnose", str(path), *args]) == 2
+    err = capsys.readouterr().err
+    assert "error: " in err and message in err and "Traceback" not in err
+
+
+def test_constant_temperature_and_too_few_poses(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    case = make_case(None, 24)
+    case.poses.temp = np.full(case.poses.n, 25.0)
+    path = write_table(case, tmp_path / "poses.csv")
+    assert main(["diagnose", str(path), "--effects", "temperature_scale"]) == 2
+    assert "temperature is constant" in capsys.readouterr().err
+    small = make_case(None, 25, n_range=(20, 20))
+    path = write_table(small, tmp_path / "small.csv")
+    assert main(["diagnose", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "20 poses are too few" in err and "--effects" in err
+
+
+def test_demo_needs_no_files_and_reveals_the_truth_at_the_end(capsys: pytest.CaptureFixture) -> None:
+    assert main(["demo", "--hidden", "temperature_bias", "--seed", "4", "--simulations", "20"]) == 0
+    out = capsys.readouterr().out
+    reveal = out.index("6. The reveal")
+    hidden_axis_line = out[reveal:]
+    assert "temperature_bias on axis" in hidden_axis_line
+    assert "named the right effect on the right axis" in hidden_axis_line
+    assert "gain of" in out[:reveal] and "Hidden in the recording" not in out[:reveal]
+
+
+def test_demo_with_data(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    path = write_table(make_case("scale_nonlinearity", 26), tmp_path / "poses.csv")
+    assert main(["demo", "--data", str(path), "--simulations", "10"]) == 0
+    out = capsys.readouterr().out
+    assert "scale_nonlinearity" in out and "6. The reveal" not in out
