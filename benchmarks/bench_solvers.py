@@ -18,12 +18,11 @@ import numpy as np
 import pytest
 
 from optcal.calibration import calibrate
-from optcal.estimators.base import Normaliser, pose_weights
 from optcal.estimators.gradient_descent import GradientDescent, descend
-from optcal.estimators.mle import MaximumLikelihood, MLProblem, NormResidualCost
+from optcal.estimators.mle import MLProblem, NormResidualCost
 from optcal.estimators.scipy_ls import solve_least_squares
 from optcal.model import unpack_theta
-from optcal.reproduce.solvers import monte_carlo, speed_to_same_cost, table1_design, throughput, uniform_design
+from optcal.reproduce.solvers import comparison_start, monte_carlo, speed_to_same_cost, table1_design, throughput, uniform_design
 
 QUICK = os.environ.get("OPTCAL_BENCH_QUICK", "") not in ("", "0")
 STRICT = os.environ.get("OPTCAL_BENCH_STRICT", "") not in ("", "0")
@@ -36,12 +35,7 @@ GD_EPS = 1e-9
 def table1_problem():
     """One Table 1 pose table in normalised form, SVD start, propagated weights at the start."""
     poses = table1_design().poses(SEED, 0)
-    norm = Normaliser.of(poses.acc)
-    u = norm.forward(poses.acc)
-    theta0, _ = MaximumLikelihood(init="svd").initial_normalised(poses, norm, u)
-    T0, o0 = unpack_theta(norm.theta_to_raw(theta0))
-    w, _ = pose_weights(poses, T0, o0)
-    w = w / np.mean(w)
+    u, w, theta0 = comparison_start(poses)
     problem = MLProblem.get(poses.n)
     x_star, _ = problem.solve(theta0, u, w)
     return {"u": u, "w": w, "theta0": theta0, "problem": problem, "f_star": NormResidualCost(u, w).value(x_star)}

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import OptcalError
-from optcal.estimators.base import Normaliser, pose_weights
+from optcal.estimators.base import Normaliser
 from optcal.estimators.ellipsoid import ConvexEllipsoidFit, SVDEllipsoidFit
 from optcal.estimators.exact import ExactMaximumLikelihood
 from optcal.estimators.gradient_descent import GradientDescent, descend
@@ -190,6 +190,18 @@ def _best_of(repeats: int, fn: Callable[[], Any]) -> tuple[float, Any]:
     return best, out
 
 
+def comparison_start(poses: PoseTable) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The common ground of the speed comparison: normalised data ``u``, the propagated weights
+    at the SVD start (scaled to mean 1) and that start θ₀, so that every solver minimises the
+    same cost from the same point."""
+    ml = MaximumLikelihood(init="svd")
+    norm = Normaliser.of(poses.acc)
+    u = norm.forward(poses.acc)
+    theta0, _ = ml.initial_normalised(poses, norm, u)
+    w = ml.weights(poses, norm, u, theta0)
+    return u, w / np.mean(w), theta0
+
+
 def speed_to_same_cost(design: Design, runs: int, seed: int, progress: bool = True, repeats: int = 3) -> dict[str, Any]:
     """IPOPT (the ``mle`` problem) against gradient descent and scipy, same start, weights, cost.
 
@@ -205,12 +217,7 @@ def speed_to_same_cost(design: Design, runs: int, seed: int, progress: bool = Tr
     problem = MLProblem.get(len(design.directions))
     for run in _progress(range(runs), f"speed: {design.label}", progress):
         poses = design.poses(seed, 1000 + run)
-        norm = Normaliser.of(poses.acc)
-        u = norm.forward(poses.acc)
-        theta0, _ = MaximumLikelihood(init="svd").initial_normalised(poses, norm, u)
-        T0, o0 = unpack_theta(norm.theta_to_raw(theta0))
-        w, _ = pose_weights(poses, T0, o0)
-        w = w / np.mean(w)
+        u, w, theta0 = comparison_start(poses)
         cost = NormResidualCost(u, w)
         elapsed, (x_ml, stats) = _best_of(repeats, lambda: problem.solve(theta0, u, w))
         times["mle"].append(elapsed)
