@@ -21,7 +21,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.model import PARAM_NAMES, LumpedModel, theta_from, unpack_theta
+from optcal.model import LumpedModel
 from optcal.result import A_INDEX, dA_dtheta
 
 #: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
@@ -59,13 +59,14 @@ def normal_gain(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
 
 
 def fisher_information(
-    T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None
+    T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None, jacobian: NDArray | None = None
 ) -> NDArray[np.float64]:
     """Fisher information of θ with the directions eliminated (module docstring).
 
     ``sigma`` is the raw per-axis noise of each pose (scalar or (n,)); ``None`` means 1.
+    ``jacobian`` is :func:`norm_residual_jacobian` at (T, o) when the caller already has it.
     """
-    J = norm_residual_jacobian(T, o, acc)
+    J = norm_residual_jacobian(T, o, acc) if jacobian is None else jacobian
     s = np.ones(len(acc)) if sigma is None else np.broadcast_to(np.asarray(sigma, float), (len(acc),))
     w = 1.0 / (s * normal_gain(T, o, acc)) ** 2
     return J.T @ (J * w[:, None])
@@ -174,13 +175,20 @@ def _describe_null_space(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
     return out
 
 
-def analyse(T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None, tol: float = RANK_TOL) -> IdentifiabilityReport:
+def analyse(
+    T: NDArray,
+    o: NDArray,
+    acc: NDArray,
+    sigma: ArrayLike | None = None,
+    tol: float = RANK_TOL,
+    jacobian: NDArray | None = None,
+) -> IdentifiabilityReport:
     """Identifiability of θ at (T, o) for measurements ``acc``.
 
     The Fisher matrix is scaled to correlation form (unit diagonal) so that rank and
-    condition number do not depend on units.
+    condition number do not depend on units.  ``jacobian``: see :func:`fisher_information`.
     """
-    F = fisher_information(T, o, acc, sigma)
+    F = fisher_information(T, o, acc, sigma, jacobian)
     d = np.sqrt(np.clip(np.diag(F), 1e-300, None))
     S = F / np.outer(d, d)
     evals, evecs = np.linalg.eigh(S)
@@ -229,6 +237,4 @@ __all__ = [
     "norm_residual_jacobian",
     "norm_residuals",
     "normal_gain",
-    "theta_from",
-    "unpack_theta",
 ]

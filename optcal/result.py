@@ -381,7 +381,7 @@ class CalibrationResult:
             f"    Akaike info crit   = {self.aic:.4f}",
             f"    Bayesian info crit = {self.bic:.4f}",
             f"    covariance         = {'absolute (noise given)' if self.sigma_known else 'scaled by reduced chi-square'}",
-            f"[[Solver]]",
+            "[[Solver]]",
             f"    {self.solver.name}: {self.solver.status}, {self.solver.iterations} iterations, "
             f"{self.solver.solve_time_s * 1e3:.2f} ms" + (f" ({self.solver.message})" if self.solver.message else ""),
             "[[Parameters]]",

@@ -564,7 +564,7 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
     if temp_series is not None and len(temp_series) >= 1:
         order = np.argsort(temp_series[:, 0])
         frame["temp"] = np.interp(frame["t"].to_numpy(), temp_series[order, 0], temp_series[order, 1])
-        notes.append(f"temperature interpolated from the one sensor_msgs/Temperature topic")
+        notes.append("temperature interpolated from the one sensor_msgs/Temperature topic")
     return Source(
         path=str(path),
         file_type=kind,

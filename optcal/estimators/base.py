@@ -103,7 +103,7 @@ def finish(
     norm = Normaliser.of(poses.acc)
     D = norm.jacobian()  # dθ_raw/dθ_normalised
     F_n = D @ (J.T @ (J * w[:, None])) @ D
-    ident = analyse(T, o, poses.acc, None if poses.sigma is None else poses.sigma)
+    ident = analyse(T, o, poses.acc, poses.sigma, jacobian=J)
     cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
     dof = poses.n - len(theta)
     if not known and covariance_scale == "auto":

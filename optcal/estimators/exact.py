@@ -18,7 +18,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish

@@ -15,8 +15,6 @@ Hessian at the starting point (a fixed step, as in the paper, chosen so that it 
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 

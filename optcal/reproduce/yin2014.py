@@ -27,7 +27,6 @@ logs in ``shared/data/mpu6050-imucalibration``:
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
