@@ -86,6 +86,22 @@ def test_speedup_to_same_cost(benchmark):
         assert ratio_scipy >= 3, ratio_scipy
 
 
+def test_speedup_large(benchmark):
+    """The same ratios on 10⁶ poses (10⁵ in quick mode), where the data term dominates IPOPT's
+    fixed cost: IPOPT's 2 Gauss–Newton iterations against MINPACK's QR of the n×9 Jacobian."""
+    n = 100_000 if QUICK else 1_000_000
+    res = benchmark.pedantic(speed_to_same_cost, args=(uniform_design(n, 0.005, SEED), 3, SEED, False, 1),
+                             rounds=1, iterations=1)
+    ratio_gd = res["speedup_vs_gd"][f"{GD_EPS:g}"]
+    ratio_scipy = res["speedup_vs_scipy"][res["fastest_scipy"]]
+    benchmark.extra_info.update({"n_poses": n, "mle_vs_gd": ratio_gd, "mle_vs_scipy": ratio_scipy})
+    print(f"\nuniform, {n} poses: mle vs gd ×{ratio_gd:.1f}, mle vs {res['fastest_scipy']} ×{ratio_scipy:.2f}")
+    assert res["gd_failures"] == 0
+    assert max(res["max_relative_cost_gap"][k] for k in ("scipy-lm", "scipy-trf")) < 1e-9
+    if STRICT and n == 1_000_000:
+        assert ratio_scipy >= 3, ratio_scipy
+
+
 def test_mle_throughput(benchmark):
     """Complete default mle fits per second, problem built once (issue 7: ≥ 200)."""
     fits = 100 if QUICK else 500

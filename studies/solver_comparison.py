@@ -269,6 +269,9 @@ lines = [
     f"**{h['speedup']['mle_vs_gd']:.1f}×** (gd to f ≤ f*·(1+1e-9)) |",
     f"| mle vs scipy least_squares ({h['speedup']['scipy_method']}, the faster), same design | ≥ 3× | "
     f"**{h['speedup']['mle_vs_scipy']:.2f}×** |",
+    f"| the same two ratios at {h['speedup_large']['n_poses']:,} poses (uniform, 5 mg) | ≥ 20×, ≥ 3× | "
+    f"**{h['speedup_large']['mle_vs_gd']:.1f}×** vs gd (1e-9), **{h['speedup_large']['mle_vs_scipy']:.2f}×** vs "
+    f"{h['speedup_large']['scipy_method']} |",
     f"| complete mle fits per second, problem built once | ≥ 200 | **{h['throughput_fits_per_s']:.0f}** |",
     f"| {h['large']['n_poses']:,} poses through `calibrate(method=\"mle\")` | ≤ 5 s | **{h['large']['mle_s']:.2f} s** "
     f"(IPOPT {big['ipopt_s']:.2f} s, {big['iterations']} iterations; max |error|/stderr {big['max_abs_error_over_stderr']:.2f}) |",
@@ -400,7 +403,13 @@ lines += [
     "thousands on a poorly conditioned one (a hemisphere), so the ratio against gd depends mostly on the "
     "design's conditioning.  scipy's MINPACK Levenberg–Marquardt has almost no per-call overhead and needs "
     "3-5 evaluations of the same numpy residuals: on this small, unconstrained least-squares problem it is "
-    "faster than IPOPT, until the data term dominates (10⁴ poses) and both are limited by the same evaluations.",
+    "faster than IPOPT, until the data term dominates (10⁴ poses) and both are limited by the same evaluations.  "
+    "Beyond that IPOPT pulls ahead: its 2 iterations cost one 9×n by n×9 product for the (Gauss–Newton) "
+    "Hessian and a 9×9 solve, while MINPACK factors the n×9 Jacobian by QR at every iteration, so at "
+    "10⁵-10⁶ poses `mle` is several times faster than LM.  So the issue's two speed targets are met on large "
+    "designs and missed on the 120-pose Table 1 design, where IPOPT's fixed cost alone is about half of "
+    "its time; a trivial 9-variable IPOPT problem takes 0.40 ms on this machine, so against gd's ≈ 8 ms at "
+    "ε = 1e-9 no IPOPT solve could reach 20× there.",
     "",
     f"## Throughput and 10⁶ poses",
     "",

@@ -143,6 +143,7 @@ def test_reproduce_solvers_quick_json(capsys):
     assert res["speedup"]["mle_vs_gd"] > 0 and res["speedup"]["mle_vs_scipy"] > 0
     assert res["throughput_fits_per_s"] > 0
     assert res["large"]["n_poses"] == 100_000 and res["large"]["mle_s"] > 0
+    assert res["speedup_large"]["n_poses"] == 100_000 and res["speedup_large"]["mle_vs_scipy"] > 0
     assert "NaN" not in out
     table1 = res["details"]["experiments"]["table1"]["methods"]
     assert set(table1) == {"svd", "convex-clarabel", "convex-scs", "mle", "exact", "gd", "scipy-lm", "scipy-trf"}
