@@ -292,6 +292,7 @@ def test_no_static_interval_is_one_error(tmp_path, capsys):
         ("1,2,3\n4,5,6\n", "no header row found"),
         ("x,y,z\n1,2,3\n4,5,6\n", "no accelerometer column(s) for ax, ay, az"),
         ("ax,ay,az\n", "no data rows"),
+        ("ax,ay,az\n1,2\n", "line 1 looks like the header (3 columns: ax, ay, az) but line 2 has 2 fields"),
     ],
 )
 def test_bad_csv_files(tmp_path, capsys, content, message):

@@ -220,3 +220,17 @@ def test_counts_covariance_is_well_scaled(lu_model):
     res = calibrate(poses, method="mle")
     se = res.stderr
     assert 1.0 < se["o_x"] < 20.0, se
+
+
+def test_collapsed_ml_fit_is_a_fit_error_with_the_right_advice():
+    """On a 30° cap the norm-residual cost can fall into a degenerate minimum (T singular):
+    that is reported as a collapsed fit, not as "not an ellipsoid, use convex"."""
+    from optcal.model import lu2017_reference_model
+
+    model = lu2017_reference_model()
+    poses = simulate_poses(model, cap_directions(120, 30.0, np.random.default_rng(31)), 0.02,
+                           rng=np.random.default_rng(131))
+    with pytest.raises(FitError, match="collapsed to a singular T.*--scale-range"):
+        calibrate(poses, method="mle", allow_degenerate=True)
+    bounded = calibrate(poses, method="mle", allow_degenerate=True, scale_range=(0.7, 1.4))
+    assert np.all(np.abs(np.diag(bounded.T)) > 0.5)

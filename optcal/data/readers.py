@@ -223,9 +223,10 @@ def read_delimited(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
     lines = [ln.rstrip("\r\n") for ln in head]
     if not any(ln.strip() for ln in lines):
         raise InputError(f"{p}: the file is empty; expected a header row and data rows")
-    header_at, sep = _find_header(lines)
+    header_at, sep, mismatch = _find_header(lines)
     if header_at is None:
         raise InputError(
+            f"{p}: {mismatch}" if mismatch else
             f"{p}: no header row found (expected a row of column names such as t,ax,ay,az "
             "followed by data rows)"
         )
@@ -254,24 +255,30 @@ def _split(line: str, sep: str) -> list[str]:
     return line.split() if sep == r"\s+" else line.split(sep)
 
 
-def _find_header(lines: list[str]) -> tuple[int | None, str]:
-    """Index of the header row and the separator.
+def _find_header(lines: list[str]) -> tuple[int | None, str, str | None]:
+    """Index of the header row, the separator, and why no header was accepted (or None).
 
     The header is the first row of at least two fields, all of them names (not numbers),
     with as many fields as the row after it; rows above it are metadata.
     """
     rows = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith("#")]
+    mismatch = None
     for k, (i, s) in enumerate(rows):
         sep = next((c for c in (",", ";", "\t") if c in s), r"\s+")
         fields = [f.strip() for f in _split(s, sep)]
         if len(fields) < 2 or not all(_is_name(f) for f in fields if f):
             if len(fields) >= 3:  # data rows before any header
-                return None, sep
+                return None, sep, mismatch
             continue
         following = rows[k + 1][1] if k + 1 < len(rows) else None
         if following is None or len(_split(following, sep)) == len(fields):
-            return i, sep
-    return None, ","
+            return i, sep, None
+        if mismatch is None and len(fields) >= 3:
+            mismatch = (
+                f"line {i + 1} looks like the header ({len(fields)} columns: {', '.join(fields)}) but line "
+                f"{rows[k + 1][0] + 1} has {len(_split(following, sep))} fields; every data row needs one value per column"
+            )
+    return None, ",", mismatch
 
 
 def _is_name(field_: str) -> bool:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import IdentifiabilityError, InputError
+from optcal.errors import FitError, IdentifiabilityError, InputError
 from optcal.identifiability import add_weak_directions, analyse, norm_residual_jacobian, norm_residuals, normal_gain
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.poses import PoseTable
@@ -93,6 +93,13 @@ def finish(
     a rank-deficient pose set unless ``allow_degenerate``.
     """
     T, o = unpack_theta(theta)
+    diag = np.abs(np.diag(T))
+    if not np.all(np.isfinite(theta)) or diag.min() <= 1e-6 * max(diag.max(), 1e-300):
+        raise FitError(
+            f"the {method} fit collapsed to a singular T (|diagonal| = {', '.join(f'{d:.3g}' for d in diag)}): "
+            "the poses do not pin the ellipsoid down, so the cost has a degenerate minimum; "
+            "record more orientations spread over the sphere, or bound the scale (mle: --scale-range LOW HIGH)"
+        )
     T = canonicalise(T)  # no-op for lower-triangular T with positive diagonal
     theta = theta_from(T, o)
     notes = list(notes or [])
