@@ -234,3 +234,23 @@ def test_collapsed_ml_fit_is_a_fit_error_with_the_right_advice():
         calibrate(poses, method="mle", allow_degenerate=True)
     bounded = calibrate(poses, method="mle", allow_degenerate=True, scale_range=(0.7, 1.4))
     assert np.all(np.abs(np.diag(bounded.T)) > 0.5)
+
+
+def test_exact_problem_hessian_matches_automatic_differentiation():
+    """The per-pose assembly of the eq. 8 Lagrangian Hessian equals CasADi's own (upper triangle)."""
+    import casadi as ca
+
+    from optcal.estimators.exact import ExactProblem
+    from optcal.estimators.mle import lower_triangular
+
+    n = 7
+    x, p = ca.SX.sym("x", 9 + 3 * n), ca.SX.sym("p", 4 * n)
+    lam_f, lam_g = ca.SX.sym("lf"), ca.SX.sym("lg", n)
+    d, a, w = ca.reshape(x[9:], 3, n), ca.reshape(p[: 3 * n], 3, n), p[3 * n:].T
+    e = a - ca.repmat(x[6:9], 1, n) - ca.mtimes(lower_triangular(x[:6]), d)
+    lagrangian = lam_f * ca.sum2(w * ca.sum1(e * e)) + ca.dot(lam_g, ca.sum1(d * d).T - 1.0)
+    reference = ca.Function("ref", [x, p, lam_f, lam_g], [ca.triu(ca.hessian(lagrangian, x)[0])])
+    mine = ExactProblem._hessian(x, p, n)
+    rng = np.random.default_rng(0)
+    args = [rng.normal(size=9 + 3 * n), rng.normal(size=4 * n), 0.7, rng.normal(size=n)]
+    np.testing.assert_allclose(np.array(ca.densify(mine(*args))), np.array(ca.densify(reference(*args))), atol=1e-12)

@@ -28,29 +28,63 @@ from optcal.result import CalibrationResult, SolverInfo
 
 
 class ExactProblem:
-    """The errors-in-variables NLP for n poses, data as parameters (built once, cached)."""
+    """The errors-in-variables NLP for n poses, data as parameters (built once, cached).
+
+    The Hessian of the Lagrangian is handed to IPOPT assembled from per-pose 12×12 blocks
+    (C, o and that pose's direction), so CasADi never has to discover its sparsity: colouring
+    a Hessian whose 9 calibration rows are dense costs O(n²), about 35 s at 10⁴ poses, against
+    a few seconds for this assembly.
+    """
 
     _cache: dict[tuple[int, tuple[tuple[str, Any], ...]], "ExactProblem"] = {}
 
     def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
 
-        c = ca.SX.sym("c", 6)  # lower-triangular C
-        o = ca.SX.sym("o", 3)
-        d = ca.SX.sym("d", 3, n)  # latent unit directions
-        a = ca.SX.sym("a", 3, n)
-        w = ca.SX.sym("w", 1, n)
-        C = lower_triangular(c)
+        nx = 9 + 3 * n
+        x = ca.SX.sym("x", nx)  # lower-triangular C (6), o (3), latent unit directions (3n)
+        p = ca.SX.sym("p", 4 * n)  # measurements (column-major 3×n), weights
+        C, o = lower_triangular(x[:6]), x[6:9]
+        d = ca.reshape(x[9:], 3, n)
+        a = ca.reshape(p[: 3 * n], 3, n)
+        w = p[3 * n:].T
         e = a - ca.repmat(o, 1, n) - ca.mtimes(C, d)  # Lu 2017, eq. 8 residuals
         cost = ca.sum2(w * ca.sum1(e * e))
         g = ca.sum1(d * d).T - 1.0  # ‖ā_k‖² = 1
-        x = ca.vertcat(c, o, ca.vec(d))
-        p = ca.vertcat(ca.vec(a), w.T)
         opts = dict(IPOPT_DEFAULTS)
-        opts.update({"ipopt.tol": 1e-10, "ipopt.max_iter": 500})
+        opts.update({"ipopt.tol": 1e-10, "ipopt.max_iter": 500, "hess_lag": self._hessian(x, p, n)})
         opts.update(ipopt_options or {})
         self.n = n
         self.solver = ca.nlpsol("exact_ml_calibration", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+
+    @staticmethod
+    def _hessian(x: Any, p: Any, n: int) -> Any:
+        """``∇²(λ_f f + Σ λ_k g_k)`` (upper triangle) from the per-pose blocks."""
+        import casadi as ca
+
+        z = ca.SX.sym("z", 12)  # c, o, d_k
+        ak, wk, lf, lg = ca.SX.sym("a", 3), ca.SX.sym("w"), ca.SX.sym("lf"), ca.SX.sym("lg")
+        ek = ak - z[6:9] - ca.mtimes(lower_triangular(z[:6]), z[9:12])
+        block = ca.hessian(lf * wk * ca.dot(ek, ek) + lg * (ca.dot(z[9:12], z[9:12]) - 1.0), z)[0]
+        blocks = ca.Function("pose_hessian", [z, ak, wk, lf, lg], [ca.densify(block)]).map(n, "serial")
+        lam_f, lam_g = ca.SX.sym("lam_f"), ca.SX.sym("lam_g", n)
+        z_all = ca.vertcat(ca.repmat(x[:9], 1, n), ca.reshape(x[9:], 3, n))
+        H = ca.reshape(blocks(z_all, ca.reshape(p[: 3 * n], 3, n), p[3 * n:].T, lam_f, lam_g.T), 144, n)  # vec(H_k)
+        H_sum = ca.sum2(H)
+        # triplets of the upper triangle: the calibration block (summed over poses), then per
+        # pose its column of couplings and its own 3×3 block; entry (i, j) of H_k is row 12j + i
+        g_ij = [(i, j) for j in range(9) for i in range(j + 1)]
+        local = [(i, 9 + j) for j in range(3) for i in range(9)] + [(9 + i, 9 + j) for j in range(3) for i in range(j + 1)]
+        li, lj = (np.array(v) for v in zip(*local))
+        shift = 3 * np.repeat(np.arange(n), len(local))  # pose k's direction starts at 9 + 3k
+        rows = np.concatenate([[i for i, _ in g_ij], np.tile(li, n) + np.where(np.tile(li, n) >= 9, shift, 0)])
+        cols = np.concatenate([[j for _, j in g_ij], np.tile(lj, n) + shift])
+        flat = np.tile(12 * lj + li, n) + 48 * shift  # positions in vec([H_1 … H_n]): 144 per pose
+        values = ca.vertcat(H_sum[[12 * j + i for i, j in g_ij]], ca.vec(H)[flat.tolist()])
+        nx = 9 + 3 * n
+        H_triu = ca.SX.triplet(rows.tolist(), cols.tolist(), values, nx, nx)
+        return ca.Function("hess_lag", [x, p, lam_f, lam_g], [H_triu],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
 
     @classmethod
     def get(cls, n: int, ipopt_options: dict[str, Any] | None = None) -> "ExactProblem":
