@@ -22,6 +22,7 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -277,6 +278,57 @@ class MLProblem:
         return np.asarray(sol["x"]).ravel(), self.solver.stats()
 
 
+def numpy_callback(
+    name: str,
+    inputs: list[tuple[str, Any]],
+    outputs: list[tuple[str, Any]],
+    evaluate: Callable[[list], list],
+    reverse: Callable[[str, list, list, dict], Any] | None = None,
+) -> Any:
+    """A CasADi ``Callback`` evaluated in Python.
+
+    ``inputs`` and ``outputs`` are ``(name, sparsity)`` pairs; ``evaluate`` maps the list of
+    input values to the list of outputs; ``reverse(name, inames, onames, opts)``, if given,
+    returns the Function of the first-order reverse derivative.
+    """
+    import casadi as ca
+
+    class NumpyCallback(ca.Callback):
+        def __init__(self) -> None:
+            ca.Callback.__init__(self)
+            self.construct(name, {})
+
+        def get_n_in(self) -> int:
+            return len(inputs)
+
+        def get_n_out(self) -> int:
+            return len(outputs)
+
+        def get_name_in(self, i: int) -> str:
+            return inputs[i][0]
+
+        def get_name_out(self, i: int) -> str:
+            return outputs[i][0]
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return inputs[i][1]
+
+        def get_sparsity_out(self, i: int) -> Any:
+            return outputs[i][1]
+
+        def eval(self, arg: list) -> list:
+            return evaluate(arg)
+
+        def has_reverse(self, nadj: int) -> bool:
+            return reverse is not None and nadj == 1
+
+        def get_reverse(self, nadj: int, fname: str, inames: list, onames: list, opts: dict) -> Any:
+            assert reverse is not None
+            return reverse(fname, inames, onames, opts)
+
+    return NumpyCallback()
+
+
 class VectorisedMLProblem:
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
@@ -303,92 +355,28 @@ class VectorisedMLProblem:
         scalar = ca.Sparsity.dense(1, 1)
         empty = ca.Sparsity(0, 1)
 
-        class Gradient(ca.Callback):
-            def __init__(self) -> None:
-                ca.Callback.__init__(self)
-                self.construct("ml_grad_f", {})
+        def theta(arg: list) -> NDArray:
+            return np.asarray(arg[0]).ravel()
 
-            def get_n_in(self) -> int:
-                return 2
+        self._gradient = numpy_callback(
+            "ml_grad_f", [("x", dense9), ("p", empty)], [("f", scalar), ("grad_f", dense9)],
+            lambda arg: list(current().gradient(theta(arg))),
+        )
 
-            def get_n_out(self) -> int:
-                return 2
+        def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
+            x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
+            _, g = self._gradient(x, ca.MX(0, 1))
+            return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
-            def get_name_in(self, i: int) -> str:
-                return ("x", "p")[i]
-
-            def get_name_out(self, i: int) -> str:
-                return ("f", "grad_f")[i]
-
-            def get_sparsity_in(self, i: int) -> Any:
-                return (dense9, empty)[i]
-
-            def get_sparsity_out(self, i: int) -> Any:
-                return (scalar, dense9)[i]
-
-            def eval(self, arg: list) -> list:
-                f, g = current().gradient(np.asarray(arg[0]).ravel())
-                return [f, g]
-
-        class Cost(ca.Callback):
-            def __init__(self, gradient: Any) -> None:
-                ca.Callback.__init__(self)
-                self.gradient = gradient
-                self.construct("ml_f", {})
-
-            def get_n_in(self) -> int:
-                return 1
-
-            def get_n_out(self) -> int:
-                return 1
-
-            def get_sparsity_in(self, i: int) -> Any:
-                return dense9
-
-            def get_sparsity_out(self, i: int) -> Any:
-                return scalar
-
-            def eval(self, arg: list) -> list:
-                return [current().value(np.asarray(arg[0]).ravel())]
-
-            def has_reverse(self, nadj: int) -> bool:
-                return nadj == 1
-
-            def get_reverse(self, nadj: int, name: str, inames: list, onames: list, opts: dict) -> Any:
-                x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-                _, g = self.gradient(x, ca.MX(0, 1))
-                return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
-
-        class Hessian(ca.Callback):
-            def __init__(self) -> None:
-                ca.Callback.__init__(self)
-                self.construct("ml_hess_lag", {})
-
-            def get_n_in(self) -> int:
-                return 4
-
-            def get_n_out(self) -> int:
-                return 1
-
-            def get_name_in(self, i: int) -> str:
-                return ("x", "p", "lam_f", "lam_g")[i]
-
-            def get_name_out(self, i: int) -> str:
-                return "triu_hess_gamma_x_x"
-
-            def get_sparsity_in(self, i: int) -> Any:
-                return (dense9, empty, scalar, empty)[i]
-
-            def get_sparsity_out(self, i: int) -> Any:
-                return ca.Sparsity.upper(9)
-
-            def eval(self, arg: list) -> list:
-                H = current().gauss_newton_hessian(np.asarray(arg[0]).ravel()) * float(arg[2])
-                return [ca.triu(ca.DM(H))]
-
-        self._gradient = Gradient()
-        self._cost = Cost(self._gradient)
-        self._hessian = Hessian()
+        self._cost = numpy_callback(
+            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [current().value(theta(arg))], reverse=cost_reverse
+        )
+        self._hessian = numpy_callback(
+            "ml_hess_lag",
+            [("x", dense9), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
+            [("triu_hess_gamma_x_x", ca.Sparsity.upper(9))],
+            lambda arg: [ca.triu(ca.DM(current().gauss_newton_hessian(theta(arg)) * float(arg[2])))],
+        )
         x = ca.MX.sym("theta", 9)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian, **(ipopt_options or {})}
         self.solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": self._cost(x)}, opts)

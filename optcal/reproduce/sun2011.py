@@ -357,20 +357,14 @@ def format_report(res: dict[str, Any]) -> str:
     L.append(f"  {n} Monte Carlo runs, {res['settings']['time_per_position_s']:g} s per position, filter step "
              f"{res['filter']['step_s']:g} s; estimate = Monte Carlo mean, spread = its standard deviation")
     L.append("")
-    L.append("Table 2: accelerometer biases, m/s²")
-    L.append(f"  {'':7s}{'set':>11s}{'estimate':>11s}{'spread':>10s}{'error':>9s}   {'paper (1 run)':>13s}{'error':>9s}")
-    for k, v in res["table2"].items():
-        p = res["paper_table2"][k]
-        L.append(f"  {k:7s}{v['set']:11.3e}{v['estimate']:11.3e}{v['spread']:10.2e}{_pct(v['estimate'], v['set']):>9s}"
-                 f"   {p:13.3e}{_pct(p, v['set']):>9s}")
-    L.append("")
-    L.append("Table 3: installation errors, rad")
-    L.append(f"  {'':7s}{'set':>11s}{'estimate':>11s}{'spread':>10s}{'error':>9s}   {'paper (1 run)':>13s}{'error':>9s}")
-    for k, v in res["table3"].items():
-        p = res["paper_table3"][k]
-        L.append(f"  {k:7s}{v['set']:11.3e}{v['estimate']:11.3e}{v['spread']:10.2e}{_pct(v['estimate'], v['set']):>9s}"
-                 f"   {p:13.3e}{_pct(p, v['set']):>9s}")
-    L.append("")
+    for table, title in (("table2", "Table 2: accelerometer biases, m/s²"), ("table3", "Table 3: installation errors, rad")):
+        L.append(title)
+        L.append(f"  {'':7s}{'set':>11s}{'estimate':>11s}{'spread':>10s}{'error':>9s}   {'paper (1 run)':>13s}{'error':>9s}")
+        for k, v in res[table].items():
+            p = res[f"paper_{table}"][k]
+            L.append(f"  {k:7s}{v['set']:11.3e}{v['estimate']:11.3e}{v['spread']:10.2e}{_pct(v['estimate'], v['set']):>9s}"
+                     f"   {p:13.3e}{_pct(p, v['set']):>9s}")
+        L.append("")
     L.append("Table 4: step 3 on different turntable paths (the paper's read-out, eq. 23; joint solve of eq. 18 for comparison)")
     L.append(f"  {'β1, β2':>10s} {'b_z est':>10s}{'spread':>10s}{'error':>9s} {'τ_zx est':>10s}{'spread':>10s}{'error':>9s}"
              f"  {'paper b_z':>10s}{'paper τ_zx':>11s}  {'joint b_z sd':>12s}")
