@@ -241,7 +241,7 @@ def test_exact_problem_hessian_matches_automatic_differentiation():
     import casadi as ca
 
     from optcal.estimators.exact import ExactProblem
-    from optcal.estimators.mle import lower_triangular
+    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
 
     n = 7
     x, p = ca.SX.sym("x", 9 + 3 * n), ca.SX.sym("p", 4 * n)

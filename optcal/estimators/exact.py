@@ -21,8 +21,9 @@ import numpy as np
 
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish
-from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood, lower_triangular
-from optcal.model import theta_from
+from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood
+from optcal.model import theta_from, unpack_theta
+from optcal.norm_residual import casadi_lower_triangular
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
@@ -44,7 +45,7 @@ class ExactProblem:
         nx = 9 + 3 * n
         x = ca.SX.sym("x", nx)  # lower-triangular C (6), o (3), latent unit directions (3n)
         p = ca.SX.sym("p", 4 * n)  # measurements (column-major 3×n), weights
-        C, o = lower_triangular(x[:6]), x[6:9]
+        C, o = casadi_lower_triangular(x[:6]), x[6:9]
         d = ca.reshape(x[9:], 3, n)
         a = ca.reshape(p[: 3 * n], 3, n)
         w = p[3 * n:].T
@@ -64,7 +65,7 @@ class ExactProblem:
 
         z = ca.SX.sym("z", 12)  # c, o, d_k
         ak, wk, lf, lg = ca.SX.sym("a", 3), ca.SX.sym("w"), ca.SX.sym("lf"), ca.SX.sym("lg")
-        ek = ak - z[6:9] - ca.mtimes(lower_triangular(z[:6]), z[9:12])
+        ek = ak - z[6:9] - ca.mtimes(casadi_lower_triangular(z[:6]), z[9:12])
         block = ca.hessian(lf * wk * ca.dot(ek, ek) + lg * (ca.dot(z[9:12], z[9:12]) - 1.0), z)[0]
         blocks = ca.Function("pose_hessian", [z, ak, wk, lf, lg], [ca.densify(block)]).map(n, "serial")
         lam_f, lam_g = ca.SX.sym("lam_f"), ca.SX.sym("lam_g", n)
@@ -132,7 +133,7 @@ class ExactMaximumLikelihood:
         C_n = np.linalg.inv(T_n)
         xi = (u - o_n) @ T_n.T
         d0 = xi / np.linalg.norm(xi, axis=1, keepdims=True)  # Lu 2017, eq. 10
-        x0 = np.concatenate([[C_n[i, j] for i, j in ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))], o_n, d0.ravel()])
+        x0 = np.concatenate([theta_from(C_n, o_n), d0.ravel()])  # C packed like T in θ
         w = np.ones(poses.n) if poses.sigma is None else 1.0 / poses.sigma**2
         w = w / np.mean(w)
         lbx = np.full(x0.size, -np.inf)
@@ -142,11 +143,8 @@ class ExactMaximumLikelihood:
             sol = problem.solver(x0=x0, p=np.concatenate([u.ravel(), w]), lbg=0.0, ubg=0.0, lbx=lbx)
         stats = problem.solver.stats()
         x = np.asarray(sol["x"]).ravel()
-        C = np.zeros((3, 3))
-        for k, (i, j) in enumerate(((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))):
-            C[i, j] = x[k]
-        T_n_new = np.linalg.inv(C)
-        theta = norm.theta_to_raw(theta_from(T_n_new, x[6:9]))
+        C, o_fit = unpack_theta(x[:9])
+        theta = norm.theta_to_raw(theta_from(np.linalg.inv(C), o_fit))
         success = bool(stats.get("success", False))
         status = str(stats.get("return_status", "unknown"))
         solver = SolverInfo("IPOPT", status, success, int(stats.get("iter_count", 0)), sw.seconds, f"errors-in-variables NLP, {x.size} variables")

@@ -2,8 +2,8 @@
 
 Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py`` example):
 
-1. :func:`residual_function` — the per-pose norm residual ``r_k = ‖T(a_k − o)‖ − 1``
-   (eq. 13) as a CasADi ``Function`` of θ and one measurement, with exact derivatives.
+1. :func:`optcal.norm_residual.casadi_norm_residual` — the per-pose norm residual
+   ``r_k = ‖T(a_k − o)‖ − 1`` (eq. 13) as a CasADi ``Function`` of θ and one measurement.
 2. The NLP ``min_θ c Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²) over the nine
    identifiable parameters (T lower-triangular, o), with the measurements, weights, loss
    scale and cost scale ``c`` (:func:`cost_scale`) as data, in one of two forms, both solved by
@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from optcal.errors import FitError, InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
+from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
@@ -47,28 +48,6 @@ IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.max_iter": 200,
     "ipopt.mu_strategy": "adaptive",
 }
-
-
-def lower_triangular(x: Any) -> Any:
-    """CasADi 3×3 lower-triangular matrix from the first six entries of θ."""
-    import casadi as ca
-
-    z = ca.DM(0) if isinstance(x, ca.DM) else 0
-    return ca.vertcat(
-        ca.horzcat(x[0], z, z),
-        ca.horzcat(x[1], x[2], z),
-        ca.horzcat(x[3], x[4], x[5]),
-    )
-
-
-def residual_function() -> Any:
-    """``r(θ, a) = ‖T(a − o)‖ − 1`` (Lu 2017, eq. 13) as a CasADi Function."""
-    import casadi as ca
-
-    x = ca.SX.sym("theta", 9)
-    a = ca.SX.sym("a", 3)
-    v = ca.mtimes(lower_triangular(x), a - x[6:9])
-    return ca.Function("norm_residual", [x, a], [ca.norm_2(v) - 1.0])
 
 
 def robust_loss(z: Any, loss: str, delta: Any) -> Any:
@@ -109,75 +88,56 @@ def robust_loss_terms(z: NDArray, loss: str, delta: float) -> tuple[NDArray, NDA
 class NormResidualCost:
     """The ML cost ``c Σ ρ(√w_k r_k(θ))`` with its gradient and Gauss–Newton Hessian, in numpy.
 
-    The measurements are held as three contiguous columns and every quantity is formed
-    column by column (T is lower-triangular), so one evaluation is a few dozen vector
-    operations of length n plus one 9×n by n×9 product.  The residuals and their Jacobian
-    at the last θ are cached: IPOPT asks for the cost, the gradient and the Hessian at the
-    same point.
+    The residuals and their Jacobian come from :class:`optcal.norm_residual.NormResidualKernel`
+    (column by column, T lower-triangular).  The kernel's evaluation at the last θ is kept:
+    IPOPT asks for the cost, the gradient and the Hessian at the same point.  One instance
+    serves one solve (it is never shared between threads).
     """
 
     def __init__(self, u: NDArray, w: NDArray, loss: str = "squared", delta: float = 1.0, scale: float = 1.0) -> None:
-        self.ux, self.uy, self.uz = (np.ascontiguousarray(u[:, i], dtype=float) for i in range(3))
+        self.kernel = NormResidualKernel(u)
         self.w = np.asarray(w, dtype=float)
         self.sqrt_w = np.sqrt(self.w)
         self.loss, self.delta, self.scale = loss, float(delta), float(scale)
         self._x: NDArray | None = None
-        self._jx: NDArray | None = None
+        self._point: NormResidualPoint | None = None
+        self._J: NDArray | None = None
+
+    def _at(self, x: NDArray) -> NormResidualPoint:
+        x = np.asarray(x, dtype=float).ravel()
+        if self._point is None or self._x is None or not np.array_equal(x, self._x):
+            self._x, self._point, self._J = x.copy(), self.kernel.at_theta(x), None
+        return self._point
 
     def residuals(self, x: NDArray) -> NDArray[np.float64]:
         """``r_k = ‖T(u_k − o)‖ − 1`` (Lu 2017, eq. 13)."""
-        self._evaluate(x, jacobian=False)
-        return self._r
-
-    def _evaluate(self, x: NDArray, jacobian: bool) -> None:
-        x = np.asarray(x, dtype=float).ravel()
-        if self._x is None or not np.array_equal(x, self._x):
-            t00, t10, t11, t20, t21, t22 = x[:6]
-            dx, dy, dz = self.ux - x[6], self.uy - x[7], self.uz - x[8]
-            vx = t00 * dx
-            vy = t10 * dx + t11 * dy
-            vz = t20 * dx + t21 * dy + t22 * dz
-            nv = np.sqrt(vx * vx + vy * vy + vz * vz)
-            self._x, self._jx = x.copy(), None
-            self._r = nv - 1.0
-            self._parts = (dx, dy, dz, vx, vy, vz, nv)
-        if jacobian and self._jx is None:
-            t00, t10, t11, t20, t21, t22 = x[:6]
-            dx, dy, dz, vx, vy, vz, nv = self._parts
-            ax, ay, az = vx / nv, vy / nv, vz / nv
-            J = np.empty((9, len(nv)))  # ∂r/∂θ, one row per parameter
-            J[0], J[1], J[2] = ax * dx, ay * dx, ay * dy  # ∂r/∂T_ij = ā_i u_j
-            J[3], J[4], J[5] = az * dx, az * dy, az * dz
-            J[6] = -(t00 * ax + t10 * ay + t20 * az)  # ∂r/∂o = −Tᵀ ā
-            J[7] = -(t11 * ay + t21 * az)
-            J[8] = -t22 * az
-            self._J, self._jx = J, x.copy()
+        return self._at(x).residuals
 
     def jacobian(self, x: NDArray) -> NDArray[np.float64]:
-        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter)."""
-        self._evaluate(x, jacobian=True)
+        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter; Lu 2017, eq. 15-16)."""
+        point = self._at(x)
+        if self._J is None:
+            self._J = point.jacobian()
         return self._J
 
     def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
-        """``‖Tᵀ ā_k‖`` in normalised units (``= −∂r_k/∂o``, see :func:`optcal.identifiability.normal_gain`)."""
-        J = self.jacobian(x)
-        return np.sqrt(np.einsum("ij,ij->j", J[6:9], J[6:9]))
+        """``‖Tᵀ ā_k‖`` in normalised units (see :func:`optcal.norm_residual.normal_gain`)."""
+        return self._at(x).normal_gain()
 
     def value(self, x: NDArray) -> float:
-        self._evaluate(x, jacobian=False)
-        rho, _, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
+        rho, _, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
         return self.scale * float(np.sum(rho))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
-        self._evaluate(x, jacobian=True)
-        rho, drho, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
-        return self.scale * float(np.sum(rho)), self.scale * (self._J @ (drho * self.sqrt_w))
+        J = self.jacobian(x)
+        rho, drho, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
+        return self.scale * float(np.sum(rho)), self.scale * (J @ (drho * self.sqrt_w))
 
     def gauss_newton_hessian(self, x: NDArray) -> NDArray[np.float64]:
         """``c Σ_k ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` (``2 c JᵀWJ`` for the squared loss)."""
-        self._evaluate(x, jacobian=True)
-        _, _, irls = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
-        Js = self._J * np.sqrt(irls * self.w)
+        J = self.jacobian(x)
+        _, _, irls = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
+        Js = J * np.sqrt(irls * self.w)
         return self.scale * (Js @ Js.T)
 
 
@@ -232,7 +192,7 @@ class MLProblem:
         import casadi as ca
 
         self.n, self.loss = n, loss
-        r = residual_function()
+        r = casadi_norm_residual()
         x = ca.SX.sym("theta", 9)
         data = ca.SX.sym("a", 3, n)
         w = ca.SX.sym("w", 1, n)
@@ -595,8 +555,6 @@ class MaximumLikelihood:
         if self.loss != "squared":
             T, o = unpack_theta(theta)
             w, _ = pose_weights(poses, T, o, self.weighting)
-            from optcal.identifiability import norm_residuals
-
             r = norm_residuals(T, o, poses.acc)
             z = r * np.sqrt(w) if residual_scale is None else r / residual_scale
             robust_w = 0.5 * robust_loss_terms(z, self.loss, self.loss_scale)[2]  # ψ(z)/(2z), 1 inside
