@@ -170,14 +170,15 @@ def test_mle_bounds_respected(lu_model):
 
 
 def test_mle_reuses_problem(lu_model):
-    from optcal.estimators.mle import MLProblem
+    from optcal.estimators.mle import ML_PROBLEMS
 
     poses = simulate_poses(lu_model, tilted_sweeps(20), 0.01, rng=np.random.default_rng(9))
     calibrate(poses, method="mle")
-    n_before = len(MLProblem._cache)
+    problem = ML_PROBLEMS.get(poses.n, "squared", ())
+    n_before = len(ML_PROBLEMS)
     for k in range(3):
         calibrate(simulate_poses(lu_model, tilted_sweeps(20), 0.01, rng=np.random.default_rng(k)), method="mle")
-    assert len(MLProblem._cache) == n_before
+    assert len(ML_PROBLEMS) == n_before and ML_PROBLEMS.get(poses.n, "squared", ()) is problem
 
 
 @pytest.mark.parametrize(

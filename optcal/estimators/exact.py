@@ -10,14 +10,16 @@ Unlike eq. 13/14, which replaces the latent directions by the radial projection
 measurement model and attains the Cramér–Rao bound of :mod:`optcal.identifiability`
 asymptotically.  The NLP has ``9 + 3n`` variables and ``n`` equality constraints with a
 sparse (block-diagonal plus border) KKT system, which IPOPT's sparse solver exploits.  It is
-built once per n, with the measurements and weights as parameters.
+built once per n (kept in :data:`EXACT_PROBLEMS`), with the measurements and weights as parameters.
 """
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish
@@ -25,6 +27,7 @@ from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood
 from optcal.model import theta_from, unpack_theta
 from optcal.norm_residual import casadi_lower_triangular
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 
@@ -36,8 +39,6 @@ class ExactProblem:
     a Hessian whose 9 calibration rows are dense costs O(n²), about 35 s at 10⁴ poses, against
     a few seconds for this assembly.
     """
-
-    _cache: dict[tuple[int, tuple[tuple[str, Any], ...]], "ExactProblem"] = {}
 
     def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
@@ -57,6 +58,7 @@ class ExactProblem:
         opts.update(ipopt_options or {})
         self.n = n
         self.solver = ca.nlpsol("exact_ml_calibration", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+        self._lock = threading.Lock()
 
     @staticmethod
     def _hessian(x: Any, p: Any, n: int) -> Any:
@@ -89,12 +91,19 @@ class ExactProblem:
 
     @classmethod
     def get(cls, n: int, ipopt_options: dict[str, Any] | None = None) -> "ExactProblem":
-        key = (n, tuple(sorted((ipopt_options or {}).items())))
-        if key not in cls._cache:
-            if len(cls._cache) > 16:
-                cls._cache.clear()
-            cls._cache[key] = cls(n, ipopt_options)
-        return cls._cache[key]
+        """The problem for n poses, built on first use and kept in :data:`EXACT_PROBLEMS`."""
+        return EXACT_PROBLEMS.get(n, freeze_options(ipopt_options))
+
+    def solve(self, x0: NDArray, acc: NDArray, weights: NDArray, lbx: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``x0`` (C, o, directions) for normalised measurements (n, 3) and weights (n,)."""
+        with self._lock:  # the solver keeps the statistics of its last call
+            sol = self.solver(x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
+            stats = self.solver.stats()
+        return np.asarray(sol["x"]).ravel(), stats
+
+
+#: The errors-in-variables problems, keyed by (n, frozen IPOPT options).
+EXACT_PROBLEMS: ProblemCache[ExactProblem] = problem_cache(lambda n, options: ExactProblem(n, dict(options)), maxsize=16)
 
 
 class ExactMaximumLikelihood:
@@ -140,9 +149,7 @@ class ExactMaximumLikelihood:
         lbx[[0, 2, 5]] = 1e-9  # positive diagonal of C: the canonical identifiable form
         problem = ExactProblem.get(poses.n, self.ipopt_options)
         with Stopwatch() as sw:
-            sol = problem.solver(x0=x0, p=np.concatenate([u.ravel(), w]), lbg=0.0, ubg=0.0, lbx=lbx)
-        stats = problem.solver.stats()
-        x = np.asarray(sol["x"]).ravel()
+            x, stats = problem.solve(x0, u, w, lbx)
         C, o_fit = unpack_theta(x[:9])
         theta = norm.theta_to_raw(theta_from(np.linalg.inv(C), o_fit))
         success = bool(stats.get("success", False))

@@ -7,13 +7,14 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 2. The NLP ``min_θ c Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²) over the nine
    identifiable parameters (T lower-triangular, o), with the measurements, weights, loss
    scale and cost scale ``c`` (:func:`cost_scale`) as data, in one of two forms, both solved by
-   IPOPT through ``nlpsol`` and both built once and re-solved with new data:
+   IPOPT through ``nlpsol``:
 
    * :class:`MLProblem` (up to :attr:`MLProblem.SX_LIMIT` poses): the cost mapped over n poses
-     and expanded into one SX graph with the exact Hessian; built once per (n, loss).
+     and expanded into one SX graph with the exact Hessian; built once per (n, loss, options)
+     and kept in :data:`ML_PROBLEMS` (:func:`optcal.problem_cache.problem_cache`).
    * :class:`VectorisedMLProblem` (more poses): cost, gradient and Gauss–Newton Hessian
-     evaluated column-wise in numpy (:class:`NormResidualCost`) and handed to IPOPT as
-     CasADi callbacks; built once per loss, whatever n (10⁶ poses in about a second).
+     evaluated in numpy (:class:`NormResidualCost`) and handed to IPOPT as CasADi callbacks,
+     built per solve in milliseconds whatever n (10⁶ poses in about a second).
 3. :class:`MaximumLikelihood` — the estimator: starting point from an algebraic fit
    (``convex`` by default, eq. 18-30), weights ``1/σ_r,k²`` when per-pose noise is known
    (re-propagated until they settle), optional robust loss (Huber, Cauchy) and bounds on
@@ -22,6 +23,7 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -33,6 +35,7 @@ from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 LOSSES = ("squared", "huber", "cauchy")
@@ -186,7 +189,6 @@ class MLProblem:
     """
 
     SX_LIMIT = 200
-    _cache: dict[tuple[Any, ...], Any] = {}
 
     def __init__(self, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
@@ -203,18 +205,15 @@ class MLProblem:
         p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
         opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
         self.solver = ca.nlpsol("ml_calibration", "ipopt", {"x": x, "p": p, "f": cost}, opts)
+        self._lock = threading.Lock()
 
     @classmethod
     def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> "MLProblem | VectorisedMLProblem":
-        """The problem for n poses, built on first use and cached (SX up to :attr:`SX_LIMIT`)."""
-        options = tuple(sorted((ipopt_options or {}).items()))
-        large = n > cls.SX_LIMIT
-        key = ("vectorised", loss, options) if large else (n, loss, options)
-        if key not in cls._cache:
-            if len(cls._cache) > 32:
-                cls._cache.clear()
-            cls._cache[key] = VectorisedMLProblem(loss, ipopt_options) if large else cls(n, loss, ipopt_options)
-        return cls._cache[key]
+        """The problem for n poses: the SX problem up to :attr:`SX_LIMIT` poses, built once and
+        kept in :data:`ML_PROBLEMS`; beyond, a :class:`VectorisedMLProblem` (nothing to keep)."""
+        if n > cls.SX_LIMIT:
+            return VectorisedMLProblem(loss, ipopt_options)
+        return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
 
     def solve(
         self,
@@ -229,13 +228,10 @@ class MLProblem:
         start = NormResidualCost(u, w, self.loss, delta)
         scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
         p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
-        args: dict[str, Any] = {"x0": theta0, "p": p}
-        if lbx is not None:
-            args["lbx"] = lbx
-        if ubx is not None:
-            args["ubx"] = ubx
-        sol = self.solver(**args)
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+        with self._lock:  # the solver keeps the statistics of its last call
+            sol = self.solver(**_solve_arguments(theta0, lbx, ubx, p=p))
+            stats = self.solver.stats()
+        return np.asarray(sol["x"]).ravel(), stats
 
 
 def numpy_callback(
@@ -293,23 +289,22 @@ class VectorisedMLProblem:
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
     The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
-    losses, :func:`robust_loss_terms`) of :class:`NormResidualCost` are CasADi
+    losses, :func:`robust_loss_terms`) of a :class:`NormResidualCost` are CasADi
     ``Callback`` s handed to ``nlpsol`` (the gradient as the cost's reverse derivative and
-    as ``grad_f``, the Hessian as ``hess_lag``).  Nothing is built per n: the data of the
-    current solve sit in the callbacks, so one problem per loss serves every n, and one
-    IPOPT iteration on 10⁶ poses costs a few dozen vector operations.
+    as ``grad_f``, the Hessian as ``hess_lag``).  Nothing depends on n, and building the
+    callbacks and the NLP takes a few milliseconds, so each :meth:`solve` builds its own,
+    bound to that solve's data: the object holds only the loss and the options, and any
+    number of threads can solve with it at once.  One IPOPT iteration on 10⁶ poses costs a
+    few dozen vector operations.
     """
 
     def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
-        import casadi as ca
-
         self.loss = loss
-        self.cost: NormResidualCost | None = None
-        problem = self
+        self.ipopt_options = dict(ipopt_options or {})
 
-        def current() -> NormResidualCost:
-            assert problem.cost is not None, "solve() sets the data"
-            return problem.cost
+    def _solver(self, cost: NormResidualCost) -> tuple[Any, list[Any]]:
+        """The NLP of ``cost`` and the callbacks it calls (kept alive by the caller during the solve)."""
+        import casadi as ca
 
         dense9 = ca.Sparsity.dense(9, 1)
         scalar = ca.Sparsity.dense(1, 1)
@@ -318,28 +313,29 @@ class VectorisedMLProblem:
         def theta(arg: list) -> NDArray:
             return np.asarray(arg[0]).ravel()
 
-        self._gradient = numpy_callback(
+        gradient = numpy_callback(
             "ml_grad_f", [("x", dense9), ("p", empty)], [("f", scalar), ("grad_f", dense9)],
-            lambda arg: list(current().gradient(theta(arg))),
+            lambda arg: list(cost.gradient(theta(arg))),
         )
 
         def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
             x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-            _, g = self._gradient(x, ca.MX(0, 1))
+            _, g = gradient(x, ca.MX(0, 1))
             return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
-        self._cost = numpy_callback(
-            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [current().value(theta(arg))], reverse=cost_reverse
+        value = numpy_callback(
+            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [cost.value(theta(arg))], reverse=cost_reverse
         )
-        self._hessian = numpy_callback(
+        hessian = numpy_callback(
             "ml_hess_lag",
             [("x", dense9), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
             [("triu_hess_gamma_x_x", ca.Sparsity.upper(9))],
-            lambda arg: [ca.triu(ca.DM(current().gauss_newton_hessian(theta(arg)) * float(arg[2])))],
+            lambda arg: [ca.triu(ca.DM(cost.gauss_newton_hessian(theta(arg)) * float(arg[2])))],
         )
         x = ca.MX.sym("theta", 9)
-        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian, **(ipopt_options or {})}
-        self.solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": gradient, "hess_lag": hessian, **self.ipopt_options}
+        solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": value(x)}, opts)
+        return solver, [gradient, value, hessian]
 
     def solve(
         self,
@@ -353,17 +349,27 @@ class VectorisedMLProblem:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
         cost = NormResidualCost(u, w, self.loss, delta)
         cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
-        self.cost = cost
-        args: dict[str, Any] = {"x0": theta0}
-        if lbx is not None:
-            args["lbx"] = lbx
-        if ubx is not None:
-            args["ubx"] = ubx
-        try:
-            sol = self.solver(**args)
-        finally:
-            self.cost = None  # do not keep the data alive
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+        solver, callbacks = self._solver(cost)
+        sol = solver(**_solve_arguments(theta0, lbx, ubx))
+        stats = solver.stats()
+        del callbacks  # only now may the callbacks go
+        return np.asarray(sol["x"]).ravel(), stats
+
+
+def _solve_arguments(theta0: NDArray, lbx: NDArray | None, ubx: NDArray | None, **data: Any) -> dict[str, Any]:
+    """Keyword arguments of an ``nlpsol`` call: the start, the bounds given, the data."""
+    args: dict[str, Any] = {"x0": theta0, **data}
+    if lbx is not None:
+        args["lbx"] = lbx
+    if ubx is not None:
+        args["ubx"] = ubx
+    return args
+
+
+#: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
+ML_PROBLEMS: ProblemCache[MLProblem] = problem_cache(
+    lambda n, loss, options: MLProblem(n, loss, dict(options)), maxsize=32
+)
 
 
 def _bounds_vectors(
