@@ -57,6 +57,8 @@ class AppliedFile:
         What lies outside the validity range, and by how much.
     header : dict of str to str
         Metadata lines above the CSV header, written back above it.
+    time_reason : str
+        How the time column was read (unit and scale), when there is one.
     """
 
     frame: Any
@@ -69,6 +71,7 @@ class AppliedFile:
     exclusions: dict[str, int] = field(default_factory=dict)
     range_notes: list[str] = field(default_factory=list)
     header: dict[str, str] = field(default_factory=dict)
+    time_reason: str = ""
 
     @property
     def n_rows(self) -> int:
@@ -138,6 +141,7 @@ def apply_to_file(
     else:
         rec = recording_from_source(src, units=units, rate=rate)
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
+        src.time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
     for column in cal.needs:
         if (temp if column == "temp" else t) is None:
@@ -181,7 +185,8 @@ def apply_to_file(
     frame[STATUS_COLUMN] = status
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
     return AppliedFile(
-        frame, decision.kind, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header
+        frame, decision.kind, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
+        src.time_reason if t is not None else "",
     )
 
 

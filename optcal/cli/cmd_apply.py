@@ -42,6 +42,8 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     click.echo(f"calibration: {calibration}: {cal.describe()}")
     click.echo(f"DATA: {data} read as a {applied.kind} [{applied.kind_reason}], units {applied.units_in} "
                f"[{applied.units_reason}]")
+    if applied.time_reason and "t" in cal.needs:
+        click.echo(f"time: {applied.time_reason}")
     if applied.units_in != cal.units:
         click.echo(f"DATA converted from {applied.units_in} to {cal.units}")
     click.echo(f"wrote {applied.n_rows} rows to {output} ({fmt}), accelerations in {units_out}")
