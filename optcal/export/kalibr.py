@@ -6,7 +6,7 @@ ConfigReader.py``, ``ImuParameters``; the IMU-Noise-Model wiki page): keys ``ros
 Kalibr uses ``density · √update_rate`` per sample) and ``accelerometer_random_walk`` (m/s³/√Hz,
 bias diffusion); both must be positive.  optcal's Allan result gives the velocity random walk
 ``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
-(Yin 2014; :mod:`optcal.noise`): the largest over the axes is written, each axis in a comment.
+(Yin 2014; :mod:`optcal.yin2014.allan`): the largest over the axes is written, each axis in a comment.
 The gyroscope keys are not optcal's to fill in (an accelerometer calibration) and are left as
 comments.
 """
