@@ -24,11 +24,17 @@ from numpy.polynomial import Polynomial
 
 from optcal.caltypes.base import Calibration
 from optcal.export import ExportOptions, ExportResult
-from optcal.export.firmware import THERMAL_ORDER, diagonal_model, measure_loss
+from optcal.export.firmware import THERMAL_ORDER, begin_export, per_axis
 
 #: ArduPilot's fixed reference temperature and coefficient scale (AP_InertialSensor_tempcal.cpp).
 TEMP_REFERENCE_C: float = 35.0
 COEFFICIENT_SCALE: float = 1e6
+#: First lines of the file.
+HEADER: tuple[str, ...] = (
+    "# ArduPilot accelerometer calibration (first IMU) exported by optcal from {source}",
+    "# applied upstream as accel = (raw - INS_ACCOFFS) * INS_ACCSCAL per axis, raw in m/s^2",
+    "# (AP_InertialSensor_Backend.cpp, _rotate_and_correct_accel; after the IMU orientation rotation)",
+)
 
 
 def tcal_coefficients(coefficients: np.ndarray, temp_ref: float) -> np.ndarray:
@@ -45,19 +51,9 @@ def tcal_coefficients(coefficients: np.ndarray, temp_ref: float) -> np.ndarray:
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The ArduPilot parameters of ``cal`` (first IMU) in Mission Planner's ``NAME,VALUE`` format."""
-    model = diagonal_model(cal, options.counts_per_g)
-    loss = measure_loss(cal, model, options, "ardupilot")
-    lines = [
-        f"# ArduPilot accelerometer calibration (first IMU) exported by optcal from {options.source}",
-        "# applied upstream as accel = (raw - INS_ACCOFFS) * INS_ACCSCAL per axis, raw in m/s^2",
-        "# (AP_InertialSensor_Backend.cpp, _rotate_and_correct_accel; after the IMU orientation rotation)",
-        f"# {loss.describe()}",
-    ]
-    lines += [f"# not exported: {d}" for d in model.dropped]
-    for k, axis in enumerate("XYZ"):
-        lines.append(f"INS_ACCOFFS_{axis},{model.offset_ms2[k]:.9g}")
-    for k, axis in enumerate("XYZ"):
-        lines.append(f"INS_ACCSCAL_{axis},{model.scale[k]:.9g}")
+    model, loss, lines = begin_export(
+        cal, options, "ardupilot", HEADER, "INS_ACCOFFS_{axis},{value:.9g}", "INS_ACCSCAL_{axis},{value:.9g}"
+    )
     notes = ["the offsets and scales apply to the axes of the calibration data; log them in the IMU's own orientation"]
     if model.thermal is not None:
         th = model.thermal
@@ -70,7 +66,6 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
             f"INS_ACC1_CALTEMP,{th.temp_ref:.9g}",
         ]
         for n in range(THERMAL_ORDER):
-            for k, axis in enumerate("XYZ"):
-                lines.append(f"INS_TCAL1_ACC{n + 1}_{axis},{c[k, n]:.9g}")
+            lines += per_axis(f"INS_TCAL1_ACC{n + 1}_{{axis}},{{value:.9g}}", c[:, n])
         notes.append("INS_TCAL1_ENABLE=1 also enables the gyro thermal terms INS_TCAL1_GYR*, which this file leaves as they are")
     return ExportResult("ardupilot", "\n".join(lines) + "\n", loss, list(model.mapped), list(model.dropped), notes)

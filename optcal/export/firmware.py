@@ -170,3 +170,24 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
             + ". Raise max_loss_g to export anyway, or use the c exporter, which keeps the whole model"
         )
     return report
+
+
+def begin_export(
+    cal: Calibration, options: ExportOptions, firmware: str, header: tuple[str, ...], offset_line: str, scale_line: str
+) -> tuple[DiagonalModel, LossReport, list[str]]:
+    """The firmware model of ``cal``, its loss (refused above ``options.max_loss_g``) and the file's lines so far.
+
+    The lines are ``header`` (``{source}`` filled in), the loss figures and every term the model
+    cannot hold as comments, then the offsets and scales written with :func:`per_axis` templates.
+    """
+    model = diagonal_model(cal, options.counts_per_g)
+    loss = measure_loss(cal, model, options, firmware)
+    lines = [line.format(source=options.source) for line in header] + [f"# {loss.describe()}"]
+    lines += [f"# not exported: {d}" for d in model.dropped]
+    lines += per_axis(offset_line, model.offset_ms2) + per_axis(scale_line, model.scale)
+    return model, loss, lines
+
+
+def per_axis(template: str, values: ArrayLike) -> list[str]:
+    """One line per axis: ``template`` with ``{axis}`` (X, Y, Z) and ``{value}`` filled in."""
+    return [template.format(axis=axis, value=float(v)) for axis, v in zip("XYZ", np.asarray(values, dtype=float))]

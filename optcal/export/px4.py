@@ -20,25 +20,22 @@ from __future__ import annotations
 
 from optcal.caltypes.base import Calibration
 from optcal.export import ExportOptions, ExportResult
-from optcal.export.firmware import THERMAL_ORDER, diagonal_model, measure_loss
+from optcal.export.firmware import THERMAL_ORDER, begin_export
+
+#: First lines of the file.
+HEADER: tuple[str, ...] = (
+    "# PX4 accelerometer calibration (instance 0) exported by optcal from {source}",
+    "# applied upstream as (data - thermal_offset - CAL_ACC0_xOFF) * CAL_ACC0_xSCALE per axis, data in m/s^2",
+    "# (src/lib/sensor_calibration/Accelerometer.hpp, Accelerometer::Correct; sensor frame)",
+    "# set CAL_ACC0_ID (and TC_A0_ID) to the device id of your sensor: PX4 ignores a calibration for another id",
+)
 
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The PX4 parameters of ``cal`` (instance 0) as NSH/MAVLink-console ``param set`` commands."""
-    model = diagonal_model(cal, options.counts_per_g)
-    loss = measure_loss(cal, model, options, "px4")
-    lines = [
-        f"# PX4 accelerometer calibration (instance 0) exported by optcal from {options.source}",
-        "# applied upstream as (data - thermal_offset - CAL_ACC0_xOFF) * CAL_ACC0_xSCALE per axis, data in m/s^2",
-        "# (src/lib/sensor_calibration/Accelerometer.hpp, Accelerometer::Correct; sensor frame)",
-        f"# {loss.describe()}",
-        "# set CAL_ACC0_ID (and TC_A0_ID) to the device id of your sensor: PX4 ignores a calibration for another id",
-    ]
-    lines += [f"# not exported: {d}" for d in model.dropped]
-    for k, axis in enumerate("XYZ"):
-        lines.append(f"param set CAL_ACC0_{axis}OFF {model.offset_ms2[k]:.9g}")
-    for k, axis in enumerate("XYZ"):
-        lines.append(f"param set CAL_ACC0_{axis}SCALE {model.scale[k]:.9g}")
+    model, loss, lines = begin_export(
+        cal, options, "px4", HEADER, "param set CAL_ACC0_{axis}OFF {value:.9g}", "param set CAL_ACC0_{axis}SCALE {value:.9g}"
+    )
     notes = ["CAL_ACC0_ID and TC_A0_ID must be set to the sensor's device id (optcal does not know it)"]
     if model.thermal is not None:
         th = model.thermal
