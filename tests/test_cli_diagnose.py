@@ -71,7 +71,7 @@ def test_constant_temperature_and_too_few_poses(tmp_path: Path, capsys: pytest.C
     path = write_table(small, tmp_path / "small.csv")
     assert main(["diagnose", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "20 poses are too few" in err and "--effects" in err
+    assert "20 poses are too few" in err and "effects" in err
 
 
 def test_demo_needs_no_files_and_reveals_the_truth_at_the_end(capsys: pytest.CaptureFixture) -> None:
@@ -89,3 +89,23 @@ def test_demo_with_data(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["demo", "--data", str(path), "--simulations", "10"]) == 0
     out = capsys.readouterr().out
     assert "scale_nonlinearity" in out and "6. The reveal" not in out
+
+
+def test_baseline_method_and_saved_calibration(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """--method gd and --baseline cal.json start the diagnosis from that calibration and say so."""
+    case = make_case("temperature_bias", 27)
+    path = write_table(case, tmp_path / "poses.csv")
+    assert main(["calibrate", str(path), "--method", "convex", "-o", str(tmp_path / "cal.json")]) == 0
+    capsys.readouterr()
+    runs = {}
+    for args in (["--method", "gd"], ["--baseline", str(tmp_path / "cal.json")], []):
+        assert main(["diagnose", str(path), "--json", "--quiet", "--simulations", "0", *args]) == 0
+        out = capsys.readouterr()
+        assert out.err == ""  # --quiet: no progress
+        runs[tuple(args[:1])] = json.loads(out.out)
+    assert runs[("--method",)]["baseline"]["calibration"] == "the gd calibration"
+    assert runs[("--baseline",)]["baseline"]["calibration"] == "the given calibration"
+    # the refit reaches the same maximum-likelihood baseline and the same finding from every start
+    for obj in runs.values():
+        assert obj["baseline"]["rms_g"] == pytest.approx(runs[()]["baseline"]["rms_g"], rel=1e-4)  # weights are taken at the start
+        assert [f["effect"] for f in obj["findings"]] == ["temperature_bias"]

@@ -1,0 +1,157 @@
+"""The result of a diagnosis: numbers, the extended model, and the JSON shape of ``optcal diagnose --json``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.diagnosis.findings import Finding
+from optcal.diagnosis.fitting import BASELINE_MODEL, Fit, rms
+from optcal.diagnosis.regressors import Regressors
+from optcal.diagnosis.selection import Step, TemperatureTimeDecision
+from optcal.diagnosis.simulation import SimulationCheck
+from optcal.extended_model import ExtendedModel
+from optcal.poses import PoseTable
+
+if TYPE_CHECKING:
+    from optcal.diagnosis.diagnoser import DiagnosisSettings
+
+
+@dataclass
+class Diagnosis:
+    """Everything a diagnosis found (text with :meth:`report`, JSON with :meth:`to_dict`).
+
+    Attributes
+    ----------
+    poses : PoseTable
+    regressors : Regressors
+    settings : DiagnosisSettings
+    baseline_source : str
+        Where the baseline calibration came from (a method name, or ``"given calibration"``).
+    effects_tested : tuple of str
+    skipped : dict of str to str
+        Effects not tested, and why.
+    notes : list of str
+    baseline, final : Fit
+        The paper's model and the final extended model (maximum likelihood, norm residuals).
+    baseline_heldout, final_heldout : ndarray, shape (n,)
+        k-fold held-out residuals (g).
+    simulation, simulation_after : SimulationCheck, SimulationCheck or None
+        The simulation check of the baseline, and of the final model when something was found.
+    steps : list of Step
+    findings : list of Finding
+    decisions : list of TemperatureTimeDecision
+    model : ExtendedModel
+        The final model in physical units.
+    fitted_directions : ndarray, shape (n, 3)
+        Unit specific-force directions of the poses under the final model.
+    given_rms_g : float or None
+        rms norm residual of a given calibration as it was given (before the refit).
+    """
+
+    poses: PoseTable
+    regressors: Regressors
+    settings: "DiagnosisSettings"
+    baseline_source: str
+    effects_tested: tuple[str, ...]
+    skipped: dict[str, str]
+    notes: list[str]
+    baseline: Fit
+    baseline_heldout: NDArray[np.float64]
+    final: Fit
+    final_heldout: NDArray[np.float64]
+    simulation: SimulationCheck
+    simulation_after: SimulationCheck | None
+    steps: list[Step]
+    findings: list[Finding]
+    decisions: list[TemperatureTimeDecision]
+    model: ExtendedModel
+    fitted_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    given_rms_g: float | None = None
+
+    @property
+    def n(self) -> int:
+        return self.poses.n
+
+    @property
+    def kept(self) -> NDArray[np.bool_]:
+        """Poses that are not outliers of the final model."""
+        return self.final.kept(self.n)
+
+    def baseline_rms(self) -> float:
+        return rms(self.baseline.residuals)
+
+    def baseline_heldout_rms(self, mask: NDArray[np.bool_] | None = None) -> float:
+        return rms(self.baseline_heldout, mask)
+
+    def final_rms(self) -> float:
+        return rms(self.final.residuals, self.kept)
+
+    def final_heldout_rms(self) -> float:
+        return rms(self.final_heldout, self.kept)
+
+    def gain(self) -> float:
+        """Baseline held-out rms over the final model's."""
+        return self.baseline_heldout_rms() / self.final_heldout_rms()
+
+    def finding(self, effect: str) -> Finding | None:
+        """The finding of ``effect`` (``None`` when not found)."""
+        return next((f for f in self.findings if f.effect == effect), None)
+
+    def validity(self) -> dict[str, list[float] | None]:
+        """Ranges of the fitted (kept) poses: temperature (°C), time (s) and |a| of the calibrated poses (g)."""
+        kept = self.kept
+        temp = self.poses.temp[kept] if self.poses.temp is not None else None
+        t = self.poses.t[kept] if self.poses.t is not None else None
+        norm = np.linalg.norm(self.model.correct(self.poses.acc[kept], temp if self.regressors.has_temp else None,
+                                                 t if self.regressors.has_time else None), axis=1)
+        return {
+            "temp_c": None if temp is None else [float(temp.min()), float(temp.max())],
+            "t_s": None if t is None else [float(t.min()), float(t.max())],
+            "norm_g": [float(norm.min()), float(norm.max())],
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The one JSON object of ``optcal diagnose --json``."""
+        kept = self.kept
+        baseline: dict[str, Any] = {
+            "model": BASELINE_MODEL,
+            "calibration": self.baseline_source,
+            "rms_g": self.baseline_rms(),
+            "heldout_rms_g": self.baseline_heldout_rms(),
+        }
+        if self.given_rms_g is not None:
+            baseline["given_rms_g"] = self.given_rms_g
+        return {
+            "n_poses": self.n,
+            "baseline": baseline,
+            "simulation_check": {
+                **self.simulation.to_dict(),
+                "after": None if self.simulation_after is None else self.simulation_after.to_dict(),
+            },
+            "findings": [f.to_dict() for f in self.findings],
+            "final": {
+                "model": self.final.describe(),
+                "rms_g": self.final_rms(),
+                "heldout_rms_g": self.final_heldout_rms(),
+                "gain": self.gain(),
+                "heldout_poses": int(kept.sum()),
+                "gain_on_kept_poses": self.baseline_heldout_rms(kept) / self.final_heldout_rms(),
+                "validity": self.validity(),
+            },
+            "effects_tested": list(self.effects_tested),
+            "effects_skipped": dict(self.skipped),
+            "temperature_time_decisions": [d.to_dict() for d in self.decisions],
+            "selection": [s.to_dict() for s in self.steps],
+            "settings": self.settings.to_dict(),
+            "notes": list(self.notes),
+        }
+
+    def report(self) -> str:
+        """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
+        from optcal.diagnosis.report import diagnosis_report
+
+        return diagnosis_report(self)
