@@ -67,11 +67,11 @@ def test_constant_temperature_and_too_few_poses(tmp_path: Path, capsys: pytest.C
     path = write_table(case, tmp_path / "poses.csv")
     assert main(["diagnose", str(path), "--effects", "temperature_scale"]) == 2
     assert "temperature is constant" in capsys.readouterr().err
-    small = make_case(None, 25, n_range=(20, 20))
+    small = make_case(None, 25, n_range=(11, 11))
     path = write_table(small, tmp_path / "small.csv")
     assert main(["diagnose", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "20 poses are too few" in err and "effects" in err
+    assert "11 poses are too few for a diagnosis" in err
 
 
 def test_demo_needs_no_files_and_reveals_the_truth_at_the_end(capsys: pytest.CaptureFixture) -> None:

@@ -185,13 +185,26 @@ def test_drift_without_time() -> None:
         diagnose(clean_table(t=False), effects="bias_drift")
 
 
-def test_too_few_poses_for_the_candidate_set() -> None:
+def test_small_sessions_test_one_candidate_at_a_time_and_state_detection_limits() -> None:
+    """25 poses: every candidate is tested (one at a time), and the limits of what was not found are stated."""
     temp = np.linspace(20, 40, 25)
-    with pytest.raises(InputError, match=r"25 poses are too few to test 12 candidate effect coefficients.*at least 31"):
-        diagnose(clean_table(25, temp=temp), simulations=0)
-    # fewer candidates fit in the same poses
-    diag = diagnose(clean_table(25, temp=temp), effects="temperature_bias", simulations=0)
+    diag = diagnose(clean_table(25, temp=temp), simulations=0)
     assert diag.findings == []
+    assert {(lim.effect, lim.axis) for lim in diag.detection_limits} == {
+        (e, a) for e in ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity") for a in "xyz"}
+    lim = next(x for x in diag.detection_limits if x.effect == "temperature_bias" and x.axis == "z")
+    assert 0 < lim.limit < 1e-3 and "detection limits" in diag.report()
+    # 11 poses are below the baseline's own minimum (9 parameters + 3 degrees of freedom)
+    with pytest.raises(InputError, match=r"11 poses are too few for a diagnosis: at least 12"):
+        diagnose(clean_table(11), simulations=0)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_22_pose_session_names_an_effect_above_its_detection_limit(seed: int) -> None:
+    """A hand-held session of 22 poses (mikoff-mpu9150 size) with a temperature bias at 3× the smallest acceptance size."""
+    case = make_case("temperature_bias", 300 + seed, scale=(3.0, 3.0), n_range=(22, 22), sigma_range=(0.3e-3, 0.3e-3))
+    diag = diagnose(case.poses, simulations=0)
+    check_named(diag, case)
 
 
 def test_unknown_effect() -> None:

@@ -28,15 +28,12 @@ from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fitter, rms
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
-from optcal.diagnosis.selection import ForwardSelection
+from optcal.diagnosis.limits import detection_limits
+from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
 from optcal.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.model import canonicalise
 from optcal.poses import PoseTable
-
-#: Degrees of freedom that must remain with every candidate term in the model.
-MIN_DOF: int = 10
-
 
 class LumpedCalibration(Protocol):
     """Anything with a scale-and-skew matrix ``T`` and a bias ``o`` (a calibration result or file)."""
@@ -119,23 +116,12 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
     return asked, skipped
 
 
-def check_size(n: int, effects: tuple[str, ...], q: int) -> None:
-    """Refuse a pose table too small for the candidate set (``q`` candidate coefficients)."""
-    if not effects:  # baseline and simulation check only: a few residual degrees of freedom
-        if n < 9 + 3:
-            raise InputError(
-                f"{n} poses are too few for a diagnosis: at least 12 are needed (9 calibration parameters "
-                "and 3 residual degrees of freedom)"
-            )
-        return
-    need = 9 + q + MIN_DOF
-    if n < need:
-        what = (f"{q} candidate effect coefficients ({', '.join(e for e in effects if e in PARAMETRIC)} on x, y, z)"
-                if q else "outliers")
+def check_size(n: int) -> None:
+    """Refuse a pose table below the baseline's own minimum (candidates are tested one at a time)."""
+    if n < 9 + 3:
         raise InputError(
-            f"{n} poses are too few to test {what}: at least {need} poses are needed (9 calibration "
-            f"parameters + {q} effect coefficients + {MIN_DOF} degrees of freedom left for the tests); record more "
-            "poses, or test fewer effects (effects='none': the baseline and its simulation check only)"
+            f"{n} poses are too few for a diagnosis: at least 12 are needed (9 calibration parameters "
+            "and 3 residual degrees of freedom)"
         )
 
 
@@ -187,7 +173,7 @@ class Diagnoser:
 
         effects, skipped = choose_effects(s.effects, reg)
         candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
-        check_size(poses.n, effects, len(candidates))
+        check_size(poses.n)
         fitter, source = self.prepare(poses, baseline, reg)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
@@ -199,6 +185,7 @@ class Diagnoser:
         selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note).run(base)
         final = selection.final
         findings = build_findings(fitter, final, selection.steps)
+        limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
@@ -211,7 +198,7 @@ class Diagnoser:
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
-            given_rms_g=rms(given.residuals),
+            given_rms_g=rms(given.residuals), detection_limits=limits,
         )
 
 

@@ -17,6 +17,7 @@ from scipy import stats as sps
 from optcal.diagnosis.effects import UNITS, describe_term
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
+from optcal.diagnosis.selection import MIN_DOF
 from optcal.extended_model import format_value
 from optcal.model import AXES
 
@@ -57,11 +58,14 @@ class DetectionLimit:
 
 
 def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], level: float) -> list[DetectionLimit]:
-    """Limits of the ``candidates`` not in ``fit``, each added alone to ``fit`` (module docstring)."""
+    """Limits of the ``candidates`` not in ``fit``, each added alone to ``fit`` (module docstring).
+
+    Candidates the data have no room to test (fewer than ``MIN_DOF`` degrees of freedom left) get none.
+    """
     z = float(sps.norm.isf(level / 2))
     out = []
     for effect, axis in candidates:
-        if (effect, axis) in fit.terms or fitter.n - fit.n_params - 1 < 1:
+        if (effect, axis) in fit.terms or fitter.n - fit.n_params - 1 < MIN_DOF:
             continue
         terms = dict(fit.terms)
         terms[(effect, axis)] = 1

@@ -87,6 +87,10 @@ def diagnosis_report(diag: "Diagnosis") -> str:
             f"      evidence: ΔBIC {f.evidence.delta_bic:+.1f}, p = {f.evidence.p_value:.2g}; held-out rms "
             f"{f.heldout_rms_g_before * MG:.3g} → {f.heldout_rms_g_after * MG:.3g} mg"
         )
+    if diag.detection_limits:
+        level = diag.detection_limits[0].level
+        lines.append(f"   detection limits (smallest effect a test at level {level:.2g} would name, about half the time):")
+        lines += [f"      {lim.text()}" for lim in diag.detection_limits]
     lines += [
         "",
         "5. Final model: " + diag.final.describe(),

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from optcal.diagnosis.findings import Finding
 from optcal.diagnosis.fitting import BASELINE_MODEL, Fit, rms
+from optcal.diagnosis.limits import DetectionLimit
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.selection import Step, TemperatureTimeDecision
 from optcal.diagnosis.simulation import SimulationCheck
@@ -50,6 +51,8 @@ class Diagnosis:
         Unit specific-force directions of the poses under the final model.
     given_rms_g : float or None
         rms norm residual of a given calibration as it was given (before the refit).
+    detection_limits : list of DetectionLimit
+        For every candidate not in the final model, the smallest effect the last step would have named.
     """
 
     poses: PoseTable
@@ -71,6 +74,7 @@ class Diagnosis:
     model: ExtendedModel
     fitted_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     given_rms_g: float | None = None
+    detection_limits: list[DetectionLimit] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -145,6 +149,7 @@ class Diagnosis:
             "effects_tested": list(self.effects_tested),
             "effects_skipped": dict(self.skipped),
             "temperature_time_decisions": [d.to_dict() for d in self.decisions],
+            "detection_limits": [lim.to_dict() for lim in self.detection_limits],
             "selection": [s.to_dict() for s in self.steps],
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),

@@ -35,6 +35,8 @@ from optcal.model import AXES
 
 #: ΔBIC difference below which two competing explanations count as indistinguishable (Kass & Raftery).
 BIC_TIE: float = 6.0
+#: Residual degrees of freedom a candidate's test must keep (the current model plus the candidate).
+MIN_DOF: int = 10
 
 
 @dataclass
@@ -120,11 +122,12 @@ class TemperatureTimeDecision:
 
 @dataclass
 class SelectionResult:
-    """The final fit, the steps that led to it, and the temperature/time decisions."""
+    """The final fit, the steps that led to it, the temperature/time decisions, and the last step's level."""
 
     final: Fit
     steps: list[Step]
     decisions: list[TemperatureTimeDecision]
+    last_level: float
 
 
 class ForwardSelection:
@@ -153,9 +156,20 @@ class ForwardSelection:
         self.alpha_outliers = alpha / 2
         self.note = note
 
+    def room(self, fit: Fit) -> bool:
+        """Whether one more parameter leaves :data:`MIN_DOF` residual degrees of freedom."""
+        return self.fitter.n - fit.n_params - 1 >= MIN_DOF
+
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
         """New terms at order 1, and the next order of every term in ``fit`` the data can carry."""
         reg = self.fitter.reg
+        if not self.room(fit):
+            if self.candidates or self.with_outliers:
+                self.note(
+                    f"{self.fitter.n} poses leave too few degrees of freedom to test another term after "
+                    f"{fit.describe()} (a test needs {MIN_DOF} left: at least {fit.n_params + 1 + MIN_DOF} poses)"
+                )
+            return []
         out = [(e, a, 1) for (e, a) in self.candidates if (e, a) not in fit.terms]
         for (e, a), order in fit.terms.items():
             if order < MAX_ORDER[e]:
@@ -186,7 +200,7 @@ class ForwardSelection:
                 delta = fitter.bic(cand) - bic0
                 tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
                                        self.alpha_terms / m, bool(p < self.alpha_terms / m and delta < 0), fit=cand))
-            if self.with_outliers:
+            if self.with_outliers and self.room(current):
                 found = detect_outliers(fitter, current, self.alpha_outliers)
                 if found is not None:
                     delta = fitter.bic(found.fit) - bic0
@@ -212,7 +226,8 @@ class ForwardSelection:
             if accepted is None or accepted.fit is None:
                 break
             current = accepted.fit
-        return SelectionResult(current, steps, self.explain(current, rivalries))
+        level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
+        return SelectionResult(current, steps, self.explain(current, rivalries), level)
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one."""
