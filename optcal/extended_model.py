@@ -56,6 +56,14 @@ from optcal.model import AXES, LumpedModel
 PARAMETRIC: tuple[str, ...] = ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity")
 #: Highest polynomial order of each term.
 MAX_ORDER: dict[str, int] = {"temperature_bias": 3, "temperature_scale": 2, "bias_drift": 3, "scale_nonlinearity": 1}
+#: Column each term needs (``None``: none).
+NEEDS: dict[str, str | None] = {
+    "temperature_bias": "temp", "temperature_scale": "temp", "bias_drift": "t", "scale_nonlinearity": None,
+}
+#: Units of each term's first-order coefficient.
+UNITS: dict[str, str] = {
+    "temperature_bias": "g/°C", "temperature_scale": "1/°C", "bias_drift": "g/s", "scale_nonlinearity": "g/g²",
+}
 
 
 def axis_number(axis: str | int) -> int:

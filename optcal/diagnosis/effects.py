@@ -11,6 +11,8 @@ from collections.abc import Iterable
 
 from optcal.errors import InputError
 from optcal.extended_model import MAX_ORDER, PARAMETRIC
+from optcal.extended_model import NEEDS as MODEL_NEEDS
+from optcal.extended_model import UNITS as MODEL_UNITS
 from optcal.model import AXES
 
 __all__ = ["EFFECTS", "PARAMETRIC", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "CAUSES",
@@ -19,21 +21,9 @@ __all__ = ["EFFECTS", "PARAMETRIC", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TE
 #: The vocabulary of model extensions, in the order they are reported.
 EFFECTS: tuple[str, ...] = (*PARAMETRIC, "outliers")
 #: Column each effect needs (``None``: none).
-NEEDS: dict[str, str | None] = {
-    "temperature_bias": "temp",
-    "temperature_scale": "temp",
-    "bias_drift": "t",
-    "scale_nonlinearity": None,
-    "outliers": None,
-}
-#: Units of the first-order coefficient (JSON ``estimate``).
-UNITS: dict[str, str] = {
-    "temperature_bias": "g/°C",
-    "temperature_scale": "1/°C",
-    "bias_drift": "g/s",
-    "scale_nonlinearity": "g/g²",
-    "outliers": "rows",
-}
+NEEDS: dict[str, str | None] = {**MODEL_NEEDS, "outliers": None}
+#: Units of the first-order coefficient (JSON ``estimate``; ``rows`` for outliers).
+UNITS: dict[str, str] = {**MODEL_UNITS, "outliers": "rows"}
 #: The regressor each effect adds to output axis i (for reports).
 REGRESSOR_TEXT: dict[str, str] = {
     "temperature_bias": "ΔT",
