@@ -58,8 +58,12 @@ def progress_printer(quiet: bool) -> Any:
 @click.option("--baseline", "baseline_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Start from this saved calibration (JSON) instead of calibrating with --method.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
+              help="Save the final model as a calibration file (extended when effects were found, else lumped), "
+                   "with the temperature, time and |a| ranges it was fitted on.")
 def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-             plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, **data_opts: Any) -> None:
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, output: str | None,
+             **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads).  The paper's
@@ -70,22 +74,29 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     are reported.
     """
     from optcal.cli.data_options import data_line, data_summary, load_data
+    from optcal.caltypes import load as load_calibration
     from optcal.diagnosis import Diagnoser, save_figures
-    from optcal.result import CalibrationResult, jsonable
+    from optcal.result import jsonable
 
     settings = settings_from(effects, folds, simulations, alpha, seed, method)
-    baseline = CalibrationResult.load(baseline_path) if baseline_path else None
+    baseline = load_calibration(baseline_path) if baseline_path else None
     poses = load_data(data, **data_opts)
     if not as_json:
         click.echo(data_line(data, poses))
     diag = Diagnoser(settings, progress_printer(quiet)).run(poses, baseline)
     paths = save_figures(diag, plot_dir) if plot_dir else []
+    calibration = diag.calibration() if output else None
+    if calibration is not None:
+        calibration.save(output)
     if as_json:
         out = diag.to_dict()
         out["data"] = data_summary(data, poses)
         out["figures"] = paths
+        out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
     click.echo(diag.report())
     for path in paths:
         click.echo(f"figure: {path}")
+    if calibration is not None:
+        click.echo(f"saved: {output} ({calibration.describe()})")

@@ -18,6 +18,7 @@ from optcal.extended_model import ExtendedModel
 from optcal.poses import PoseTable
 
 if TYPE_CHECKING:
+    from optcal.caltypes.base import Calibration
     from optcal.diagnosis.diagnoser import DiagnosisSettings
 
 
@@ -105,18 +106,24 @@ class Diagnosis:
         """The finding of ``effect`` (``None`` when not found)."""
         return next((f for f in self.findings if f.effect == effect), None)
 
-    def validity(self) -> dict[str, list[float] | None]:
-        """Ranges of the fitted (kept) poses: temperature (°C), time (s) and |a| of the calibrated poses (g)."""
+    def calibration(self) -> "Calibration":
+        """The final model as a calibration: ``extended`` when terms were found, else ``lumped``.
+
+        Fitted on the kept poses (outliers excluded); the validity range is their temperature,
+        time and ``|ā|`` ranges.  Columns the data could not use (no or constant temperature)
+        carry no term, so they are not needed to apply it.
+        """
+        from optcal.caltypes.base import FitPoses
+        from optcal.caltypes.extended import ExtendedCalibration
+        from optcal.caltypes.lumped import LumpedCalibration
+
         kept = self.kept
-        temp = self.poses.temp[kept] if self.poses.temp is not None else None
-        t = self.poses.t[kept] if self.poses.t is not None else None
-        norm = np.linalg.norm(self.model.correct(self.poses.acc[kept], temp if self.regressors.has_temp else None,
-                                                 t if self.regressors.has_time else None), axis=1)
-        return {
-            "temp_c": None if temp is None else [float(temp.min()), float(temp.max())],
-            "t_s": None if t is None else [float(t.min()), float(t.max())],
-            "norm_g": [float(norm.min()), float(norm.max())],
-        }
+        temp = self.poses.temp[kept] if self.poses.temp is not None and self.regressors.has_temp else None
+        t = self.poses.t[kept] if self.poses.t is not None and self.regressors.has_time else None
+        fitted_on = FitPoses(self.poses.acc[kept].copy(), temp, t)
+        if not self.final.terms:
+            return LumpedCalibration.from_model(self.model.base, self.poses.units, fitted_on)
+        return ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
 
     def to_dict(self) -> dict[str, Any]:
         """The one JSON object of ``optcal diagnose --json``."""
@@ -144,7 +151,6 @@ class Diagnosis:
                 "gain": self.gain(),
                 "heldout_poses": int(kept.sum()),
                 "gain_on_kept_poses": self.baseline_heldout_rms(kept) / self.final_heldout_rms(),
-                "validity": self.validity(),
             },
             "effects_tested": list(self.effects_tested),
             "effects_skipped": dict(self.skipped),
