@@ -129,6 +129,8 @@ class HiddenEffect:
     corrupt_radial_g: list[float] = field(default_factory=list)
 
     def describe(self) -> str:
+        if self.effect == "none":
+            return "no effect"
         if self.effect == "outliers":
             return f"outliers: {len(self.corrupt_times)} poses shifted by 15-40 mg while the sensor rested"
         return f"{self.effect} on axis {self.axis}: {format_value(self.effect, float(self.value))}"
@@ -140,8 +142,23 @@ class HiddenEffect:
         return [int(r) for r, t in zip(poses.rows, poses.t) if any(a <= t <= b for a, b in self.corrupt_times)]
 
 
+def gauss_markov(shape: tuple[int, int], dt: float, sigma: float, correlation_s: float,
+                 rng: np.random.Generator) -> NDArray[np.float64]:
+    """First-order Gauss–Markov noise (stationary, standard deviation ``sigma``) along axis 0.
+
+    ``x_{k+1} = φ x_k + σ √(1 − φ²) w_k`` with ``φ = exp(−dt/τ_c)`` (the discretised
+    exponentially correlated process; IEEE Std 952, annex C), started in its stationary law.
+    """
+    from scipy.signal import lfilter
+
+    phi = float(np.exp(-dt / correlation_s))
+    w = rng.standard_normal(shape) * sigma * np.sqrt(1 - phi**2)
+    w[0] = rng.standard_normal(shape[1]) * sigma
+    return lfilter([1.0], [1.0, -phi], w, axis=0)
+
+
 def recording_with_effect(
-    effect: str,
+    effect: str | None,
     axis: str | None = None,
     value: float | None = None,
     *,
@@ -150,6 +167,8 @@ def recording_with_effect(
     transition_s: float = 2.0,
     rate_hz: float = 100.0,
     noise_g: float = 0.004,
+    gauss_markov_g: float = 0.0,
+    correlation_s: float = 4.0,
     seed: int | None = 0,
 ) -> tuple[Any, HiddenEffect]:
     """A measured-like raw recording (counts, 100 Hz, warm-up then cool-down) with one hidden effect.
@@ -161,8 +180,8 @@ def recording_with_effect(
 
     Parameters
     ----------
-    effect : str
-        One of :data:`HIDDEN_EFFECTS`.
+    effect : str or None
+        One of :data:`HIDDEN_EFFECTS`, or ``None`` for none (a clean recording).
     axis : {"x", "y", "z"}, optional
         Axis of the effect (drawn at random when omitted; ignored for outliers).
     value : float, optional
@@ -170,6 +189,10 @@ def recording_with_effect(
         :data:`DEMO_MAGNITUDE` spread over the recording; for ``outliers`` the number of poses.
     noise_g : float
         White noise per sample and axis, g.
+    gauss_markov_g, correlation_s : float
+        A first-order Gauss–Markov noise added to every axis (:func:`gauss_markov`): its standard
+        deviation (g) and correlation time (s).  At the time scale of a pose it does not average
+        down like white noise, so the pose means scatter more than ``σ/√n`` says.
     seed : int, optional
 
     Returns
@@ -181,7 +204,7 @@ def recording_with_effect(
     from optcal.data.synthetic import synthesize_recording
     from optcal.simulate import uniform_directions
 
-    if effect not in HIDDEN_EFFECTS:
+    if effect is not None and effect not in HIDDEN_EFFECTS:
         raise InputError(f"unknown effect {effect!r}; choose from {', '.join(HIDDEN_EFFECTS)}")
     rng = np.random.default_rng(seed)
     base = demo_sensor()
@@ -194,9 +217,15 @@ def recording_with_effect(
     frame = rec.frame.copy()
     t = frame["t"].to_numpy()
     frame["temp"] = warmup_cooldown(t) + 0.05 * rng.standard_normal(len(t))
+    if gauss_markov_g > 0:
+        coloured = gauss_markov((len(t), 3), 1.0 / rate_hz, gauss_markov_g, correlation_s, rng)
+        for i, c in enumerate(("ax", "ay", "az")):
+            frame[c] = frame[c].to_numpy() + S[i] * coloured[:, i]
     axis_name = AXES[int(rng.integers(3))] if axis is None else AXES[axis_number(axis)]
     corrupt: list[tuple[float, float]] = []
-    if effect == "outliers":
+    if effect is None:
+        truth = HiddenEffect("none", None, None, [], ExtendedModel(base, temp_ref=30.0, t_ref=float(t.mean())))
+    elif effect == "outliers":
         count = int(value if value is not None else DEMO_MAGNITUDE["outliers"])
         model = ExtendedModel(base, temp_ref=30.0, t_ref=float(t.mean()))
         acc = frame[["ax", "ay", "az"]].to_numpy(dtype=float, copy=True)

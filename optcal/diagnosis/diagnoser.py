@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 
 from optcal.diagnosis.effects import EFFECTS, PARAMETRIC, parse_effects
 from optcal.diagnosis.findings import build_findings
-from optcal.diagnosis.fitting import Fitter, rms
+from optcal.diagnosis.fitting import Fit, Fitter, rms
+from optcal.diagnosis.noise_model import check_noise_model
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
@@ -34,6 +35,10 @@ from optcal.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.model import canonicalise
 from optcal.poses import PoseTable
+
+#: Parametric-bootstrap replications of the noise-model check (at most; fewer when fewer simulations are asked for).
+NOISE_SIMULATIONS: int = 100
+
 
 class LumpedCalibration(Protocol):
     """Anything with a scale-and-skew matrix ``T`` and a bias ``o`` (a calibration result or file)."""
@@ -174,7 +179,8 @@ class Diagnoser:
         effects, skipped = choose_effects(s.effects, reg)
         candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
         check_size(poses.n)
-        fitter, source = self.prepare(poses, baseline, reg)
+        T, o, source = self.start(poses, baseline)
+        fitter = Fitter(poses, reg, T, o, s.folds)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
         self.progress("k-fold held-out error of the baseline")
@@ -186,6 +192,13 @@ class Diagnoser:
         final = selection.final
         findings = build_findings(fitter, final, selection.steps)
         limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
+
+        def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
+            other = Fitter(widened, reg, T, o, s.folds)
+            return other, other.fit(final.terms, final.outliers, final.x)
+
+        self.progress("checking the noise model")
+        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
@@ -198,7 +211,7 @@ class Diagnoser:
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
-            given_rms_g=rms(given.residuals), detection_limits=limits,
+            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise,
         )
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from optcal.diagnosis.simulation import SimulationCheck
 from optcal.extended_model import format_value
 
@@ -37,6 +39,29 @@ def simulation_text(sim: SimulationCheck, indent: str = "", after: bool = False)
     return "\n".join(lines)
 
 
+def noise_model_lines(diag: "Diagnosis") -> list[str]:
+    """The noise-model explanation (never a finding), when the given σ understates the scatter."""
+    check = diag.noise_model
+    if check is None or not check.tested or not check.named:
+        return []
+    unit = diag.poses.units
+    lines = [
+        f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
+        f"(reduced χ² {check.reduced_chi2:.3g}, p = {check.p_value:.2g})",
+        f"      named cause: {check.cause}",
+        f"      extension: an extra pose-to-pose noise of {check.extra_noise:.3g} {unit} ({check.extra_noise_g * MG:.3g} mg) "
+        f"per pose; σ/√n understated the pose noise {check.understated_by:.3g}× (median); reduced χ² "
+        f"{check.reduced_chi2:.3g} → {check.reduced_chi2_after:.3g}",
+    ]
+    if check.coverage_extended is not None and check.coverage_given_sigma is not None:
+        lines.append(
+            f"      calibrated standard errors: {check.nominal_coverage * 100:g} % intervals cover "
+            f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
+            f"extended noise model ({check.simulations} simulations)"
+        )
+    return lines
+
+
 def diagnosis_report(diag: "Diagnosis") -> str:
     """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
     settings = diag.settings
@@ -65,8 +90,11 @@ def diagnosis_report(diag: "Diagnosis") -> str:
     for decision in diag.decisions:
         lines.append("   " + decision.text)
     lines += ["", "4. Findings"]
+    noise_named = diag.noise_model is not None and diag.noise_model.named
     if not diag.findings:
-        if "rms_g" in diag.simulation.outside_band:
+        if noise_named:
+            lines.append("   no physical effect: the excess scatter is explained by the noise model (see 3)")
+        elif "rms_g" in diag.simulation.outside_band:
             lines.append(
                 "   none: no candidate effect passes the tests, although the residuals are larger than the given "
                 "per-pose noise predicts (see 2): the excess is not one of the tested effects"
@@ -87,6 +115,7 @@ def diagnosis_report(diag: "Diagnosis") -> str:
             f"      evidence: ΔBIC {f.evidence.delta_bic:+.1f}, p = {f.evidence.p_value:.2g}; held-out rms "
             f"{f.heldout_rms_g_before * MG:.3g} → {f.heldout_rms_g_after * MG:.3g} mg"
         )
+    lines += noise_model_lines(diag)
     if diag.detection_limits:
         level = diag.detection_limits[0].level
         lines.append(f"   detection limits (smallest effect a test at level {level:.2g} would name, about half the time):")

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from optcal.diagnosis.findings import Finding
 from optcal.diagnosis.fitting import BASELINE_MODEL, Fit, rms
 from optcal.diagnosis.limits import DetectionLimit
+from optcal.diagnosis.noise_model import NoiseModelCheck
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.selection import Step, TemperatureTimeDecision
 from optcal.diagnosis.simulation import SimulationCheck
@@ -54,6 +55,8 @@ class Diagnosis:
         rms norm residual of a given calibration as it was given (before the refit).
     detection_limits : list of DetectionLimit
         For every candidate not in the final model, the smallest effect the last step would have named.
+    noise_model : NoiseModelCheck or None
+        Whether the given per-pose σ describes the scatter, and the extended noise model when not.
     """
 
     poses: PoseTable
@@ -76,6 +79,7 @@ class Diagnosis:
     fitted_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     given_rms_g: float | None = None
     detection_limits: list[DetectionLimit] = field(default_factory=list)
+    noise_model: NoiseModelCheck | None = None
 
     @property
     def n(self) -> int:
@@ -156,6 +160,7 @@ class Diagnosis:
             "effects_skipped": dict(self.skipped),
             "temperature_time_decisions": [d.to_dict() for d in self.decisions],
             "detection_limits": [lim.to_dict() for lim in self.detection_limits],
+            "noise_model": None if self.noise_model is None else self.noise_model.to_dict(),
             "selection": [s.to_dict() for s in self.steps],
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),
