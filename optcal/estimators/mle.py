@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
+from optcal.errors import FitError, InputError, SolverError
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
@@ -41,6 +41,11 @@ from optcal.result import CalibrationResult, SolverInfo
 LOSSES = ("squared", "huber", "cauchy")
 #: Default loss scales (in standard deviations): 95 % efficiency at the Gaussian.
 DEFAULT_LOSS_SCALE = {"squared": 1.0, "huber": 1.345, "cauchy": 2.385}
+#: What to change when IPOPT stops early or fails (the ML problems of this module and of ``exact``).
+IPOPT_REMEDY = Remedy(
+    stopped_early="raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)",
+    failed='check ipopt_options, or use method="convex"',
+)
 #: IPOPT options used unless overridden.
 IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.print_level": 0,
@@ -204,7 +209,7 @@ class MLProblem:
         cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
         p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
         opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
-        self.solver = ca.nlpsol("ml_calibration", "ipopt", {"x": x, "p": p, "f": cost}, opts)
+        self.solver = ipopt_nlpsol("ml_calibration", {"x": x, "p": p, "f": cost}, opts)
         self._lock = threading.Lock()
 
     @classmethod
@@ -229,9 +234,7 @@ class MLProblem:
         scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
         p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
         with self._lock:  # the solver keeps the statistics of its last call
-            sol = self.solver(**_solve_arguments(theta0, lbx, ubx, p=p))
-            stats = self.solver.stats()
-        return np.asarray(sol["x"]).ravel(), stats
+            return run_nlpsol(self.solver, **_solve_arguments(theta0, lbx, ubx, p=p))
 
 
 def numpy_callback(
@@ -334,7 +337,7 @@ class VectorisedMLProblem:
         )
         x = ca.MX.sym("theta", 9)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": gradient, "hess_lag": hessian, **self.ipopt_options}
-        solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": value(x)}, opts)
+        solver = ipopt_nlpsol("ml_calibration_vectorised", {"x": x, "f": value(x)}, opts)
         return solver, [gradient, value, hessian]
 
     def solve(
@@ -350,10 +353,30 @@ class VectorisedMLProblem:
         cost = NormResidualCost(u, w, self.loss, delta)
         cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
         solver, callbacks = self._solver(cost)
-        sol = solver(**_solve_arguments(theta0, lbx, ubx))
-        stats = solver.stats()
+        result = run_nlpsol(solver, **_solve_arguments(theta0, lbx, ubx))
         del callbacks  # only now may the callbacks go
-        return np.asarray(sol["x"]).ravel(), stats
+        return result
+
+
+def ipopt_nlpsol(name: str, nlp: dict[str, Any], options: dict[str, Any]) -> Any:
+    """``casadi.nlpsol(name, "ipopt", nlp, options)``; options CasADi or IPOPT refuse are an :class:`InputError`."""
+    import casadi as ca
+
+    try:
+        return ca.nlpsol(name, "ipopt", nlp, options)
+    except RuntimeError as exc:
+        reason = str(exc).strip().splitlines()[-1].split(": ")[-1]  # CasADi's last line says why
+        raise InputError(f"IPOPT refused the options ({reason}); check ipopt_options") from exc
+
+
+def run_nlpsol(solver: Any, **args: Any) -> tuple[NDArray[np.float64], dict[str, Any]]:
+    """Call a CasADi ``nlpsol`` and read its statistics; an exception inside the solver is a :class:`SolverError`."""
+    try:
+        sol = solver(**args)
+    except RuntimeError as exc:
+        reason = str(exc).strip().splitlines()[-1]
+        raise SolverError(f"IPOPT raised an error in {solver.name()}: {reason}") from exc
+    return np.asarray(sol["x"]).ravel(), solver.stats()
 
 
 def _solve_arguments(theta0: NDArray, lbx: NDArray | None, ubx: NDArray | None, **data: Any) -> dict[str, Any]:
@@ -557,7 +580,7 @@ class MaximumLikelihood:
         status = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False))
         theta = norm.theta_to_raw(theta_n)
-        notes = [] if success else [f"IPOPT did not report success: {status}"]
+        notes: list[str] = []
         extra: dict[str, Any] = {"init": init_method, "loss": self.loss, "passes": passes}
         if self.loss != "squared":
             T, o = unpack_theta(theta)
@@ -587,5 +610,6 @@ class MaximumLikelihood:
             allow_degenerate=self.allow_degenerate,
             notes=notes,
             extra=extra,
+            remedy=IPOPT_REMEDY,
         )
 
