@@ -80,8 +80,8 @@ class GradientDescent:
     target_cost : float, optional
         Also stop as soon as the cost is at or below this value (for speed comparisons
         "to the same cost").
-    init : {"svd", "convex"}
-        Starting point (eq. 18-30).
+    init : {"svd", "convex"} or CalibrationResult
+        Starting point: an algebraic fit (eq. 18-30) or a given result.
     allow_degenerate : bool
         Proceed (with a warning) when the poses do not identify every parameter.
     """
@@ -94,7 +94,7 @@ class GradientDescent:
         tol: float = 1e-10,
         max_iter: int = 1_000_000,
         target_cost: float | None = None,
-        init: str = "svd",
+        init: str | CalibrationResult = "svd",
         weighting: str = "propagated",
         allow_degenerate: bool = False,
     ) -> None:
