@@ -12,7 +12,6 @@ command line's flags in their place (:data:`CLI_SPELLING`).
 from __future__ import annotations
 
 import functools
-import importlib
 import sys
 import warnings
 from collections.abc import Callable
@@ -20,6 +19,7 @@ from typing import Any
 
 import click
 
+from optcal.cli.lazy_group import LazyGroup
 from optcal.errors import ConvergenceWarning, InputError, SolverError
 
 #: Exit codes: bad input (the user can fix the data or options) and a solver failure.
@@ -48,21 +48,7 @@ COMMANDS: dict[str, str] = {
 }
 
 
-class LazyGroup(click.Group):
-    """A click group whose sub-commands are imported on first use."""
-
-    def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(COMMANDS)
-
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        target = COMMANDS.get(cmd_name)
-        if target is None:
-            return None
-        module, attr = target.split(":")
-        return getattr(importlib.import_module(module), attr)
-
-
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, lazy_commands=COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="optcal")
 def cli() -> None:
     """optcal: calibrate triaxial accelerometers as optimisation problems, and diagnose the model."""

@@ -24,6 +24,7 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 from __future__ import annotations
 
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
 
@@ -184,7 +185,36 @@ ML_IPOPT_DEFAULTS: dict[str, Any] = {
 }
 
 
-class MLProblem:
+class _MLSolve(ABC):
+    """What both forms of the ML problem share: one solve from a start, for data and weights."""
+
+    loss: str
+
+    def solve(
+        self,
+        theta0: NDArray,
+        u: NDArray,
+        w: NDArray,
+        delta: float = 1.0,
+        lbx: NDArray | None = None,
+        ubx: NDArray | None = None,
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,); θ and IPOPT's statistics."""
+        cost = NormResidualCost(u, w, self.loss, delta)
+        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+        args: dict[str, Any] = {"x0": theta0}
+        if lbx is not None:
+            args["lbx"] = lbx
+        if ubx is not None:
+            args["ubx"] = ubx
+        return self._solve(cost, args)
+
+    @abstractmethod
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Run IPOPT on ``cost`` with the start and bounds in ``args``."""
+
+
+class MLProblem(_MLSolve):
     """The NLP ``min_θ c Σ ρ(√w_k r_k(θ))`` for n poses, data as parameters (built once).
 
     The cost is expanded into one CasADi SX graph with the exact Hessian (fastest
@@ -220,21 +250,11 @@ class MLProblem:
             return VectorisedMLProblem(loss, ipopt_options)
         return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
 
-    def solve(
-        self,
-        theta0: NDArray,
-        u: NDArray,
-        w: NDArray,
-        delta: float = 1.0,
-        lbx: NDArray | None = None,
-        ubx: NDArray | None = None,
-    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
-        start = NormResidualCost(u, w, self.loss, delta)
-        scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
-        p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        u = cost.kernel.data.T  # (n, 3): vec() is column-major, so p holds a_1, a_2, ... stacked
+        p = np.concatenate([u.ravel(), cost.w, [cost.delta, cost.scale]])
         with self._lock:  # the solver keeps the statistics of its last call
-            return run_nlpsol(self.solver, **_solve_arguments(theta0, lbx, ubx, p=p))
+            return run_nlpsol(self.solver, p=p, **args)
 
 
 def numpy_callback(
@@ -288,7 +308,7 @@ def numpy_callback(
     return NumpyCallback()
 
 
-class VectorisedMLProblem:
+class VectorisedMLProblem(_MLSolve):
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
     The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
@@ -340,20 +360,9 @@ class VectorisedMLProblem:
         solver = ipopt_nlpsol("ml_calibration_vectorised", {"x": x, "f": value(x)}, opts)
         return solver, [gradient, value, hessian]
 
-    def solve(
-        self,
-        theta0: NDArray,
-        u: NDArray,
-        w: NDArray,
-        delta: float = 1.0,
-        lbx: NDArray | None = None,
-        ubx: NDArray | None = None,
-    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
-        cost = NormResidualCost(u, w, self.loss, delta)
-        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
         solver, callbacks = self._solver(cost)
-        result = run_nlpsol(solver, **_solve_arguments(theta0, lbx, ubx))
+        result = run_nlpsol(solver, **args)
         del callbacks  # only now may the callbacks go
         return result
 
@@ -377,16 +386,6 @@ def run_nlpsol(solver: Any, **args: Any) -> tuple[NDArray[np.float64], dict[str,
         reason = str(exc).strip().splitlines()[-1]
         raise SolverError(f"IPOPT raised an error in {solver.name()}: {reason}") from exc
     return np.asarray(sol["x"]).ravel(), solver.stats()
-
-
-def _solve_arguments(theta0: NDArray, lbx: NDArray | None, ubx: NDArray | None, **data: Any) -> dict[str, Any]:
-    """Keyword arguments of an ``nlpsol`` call: the start, the bounds given, the data."""
-    args: dict[str, Any] = {"x0": theta0, **data}
-    if lbx is not None:
-        args["lbx"] = lbx
-    if ubx is not None:
-        args["ubx"] = ubx
-    return args
 
 
 #: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
