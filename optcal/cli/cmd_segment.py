@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @click.command()
@@ -31,7 +34,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
         if seg is None:
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
         else:
-            plot_segmentation(seg, plot_path)
+            segmentation_figure(seg).savefig(plot_path, dpi=120)
     if as_json:
         out = {"data": data_summary(data, poses)}
         if seg is not None:
@@ -84,17 +87,18 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     return "\n".join(lines)
 
 
-def plot_segmentation(seg: Any, path: str) -> None:
-    """Figure: |a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate."""
-    import matplotlib
+def segmentation_figure(seg: Any) -> "Figure":
+    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
+    """
+    from matplotlib.figure import Figure
 
     tr = seg.trace
     t = tr["t"]
     has_gyro = "gyro_rate" in tr
-    fig, axes = plt.subplots(3 if has_gyro else 2, 1, sharex=True, figsize=(11, 7 if has_gyro else 5))
+    fig = Figure(figsize=(11, 7 if has_gyro else 5))
+    axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
     ax = axes[0]
     ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
     for iv in seg.intervals:
@@ -116,5 +120,4 @@ def plot_segmentation(seg: Any, path: str) -> None:
         ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
     axes[-1].set_xlabel("t (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig
