@@ -84,7 +84,7 @@ def test_mpu6050_intervals_match_the_upstream_ones():
     """Ten static intervals, in order within 0.3 s of the upstream project's ten (some of which
     are only 2-12 samples long)."""
     loaded = load_with_segmentation(need(MPU / "example_data_calibration.csv"))
-    assert loaded.kind.kind == "raw recording" and "Fs,100" in loaded.kind.reason
+    assert loaded.kind.value == "raw recording" and "Fs,100" in loaded.kind.reason
     ivs = loaded.segmentation.intervals
     assert len(ivs) == 10
     upstream = np.loadtxt(MPU / "upstream_static_intervals.csv", delimiter=",")  # row 0 starts, row 1 ends (samples)
@@ -119,7 +119,7 @@ def test_ferraris_session_has_six_orientations_and_is_not_identifiable():
 
 def test_annotated_session_is_out_of_order():
     path = need(FERRARIS / "annotated_session.csv")
-    with pytest.raises(InputError, match="time runs backwards"):
+    with pytest.raises(InputError, match="column 'samples' runs backwards"):
         load(path, rate=204.8)
     frame = pd.read_csv(path).sort_values("samples")
     seg = detect_static(recording_from_source(source_from_frame(frame, str(path), "csv"), rate=204.8))
