@@ -73,9 +73,9 @@ fer = load_with_segmentation(FERRARIS / "example_ferraris_session.csv", rate=102
 ann_frame = pd.read_csv(FERRARIS / "annotated_session.csv").sort_values("samples")
 ann_rec = recording_from_source(source_from_frame(ann_frame, "annotated_session.csv (sorted by samples)", "csv"), rate=204.8)
 ann = detect_static(ann_rec)
-plot_segmentation(xs.segmentation, FIG / "real_xsens_segments.png")
-plot_segmentation(mpu.segmentation, FIG / "real_mpu6050_segments.png")
-plot_segmentation(fer.segmentation, FIG / "real_ferraris_segments.png")
+plot_segmentation(xs.segmentation).savefig(FIG / "real_xsens_segments.png", dpi=120)
+plot_segmentation(mpu.segmentation).savefig(FIG / "real_mpu6050_segments.png", dpi=120)
+plot_segmentation(fer.segmentation).savefig(FIG / "real_ferraris_segments.png", dpi=120)
 
 rows = []
 for name, loaded in (("Xsens MTi (IMU-TK)", xs), ("MPU-6050 calibration log", mpu), ("imucal Ferraris session", fer)):

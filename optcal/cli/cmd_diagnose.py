@@ -27,9 +27,9 @@ def diagnosis_options(func: Any) -> Any:
         click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=0.02, show_default=True,
                      help="Family-wise false-finding level of each selection step."),
         click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulations."),
-        click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
-                     help="Write figures (residuals against temperature, time and each axis, before and after; "
-                          "the simulation check) into DIR."),
+        click.option("--plot", "plot_dir", type=click.Path(), default=None, metavar="PATH",
+                     help="Write the figures (residuals against temperature, time and each axis, before and after; "
+                          "the simulation check) into the folder PATH (created when missing)."),
     )):
         func = option(func)
     return func
@@ -55,6 +55,9 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     from optcal.diagnosis import save_figures
     from optcal.result import jsonable
 
+    from optcal.cli.outputs import plot_folder
+
+    figures_into = plot_folder(plot_dir) if plot_dir else None
     poses = load_data(data, **data_opts)
     if not as_json:
         click.echo(data_line(data, poses))
@@ -62,7 +65,7 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
         poses, effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed,
         progress=lambda msg: click.echo(f"... {msg}", err=True),
     )
-    paths = save_figures(diag, plot_dir) if plot_dir else []
+    paths = save_figures(diag, figures_into) if figures_into else []
     if as_json:
         out = diag.to_json()
         out["data"] = data_summary(data, poses)

@@ -9,7 +9,8 @@ Usage in a command module::
         poses = load_data(data, **data_opts)
         click.echo(data_line(data, poses), err=...)
 
-:func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--format``
+:func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--time-unit``,
+``--timing``, ``--gyro-file`` (:func:`read_options`, the reading options alone), ``--format``
 (pose table or raw recording) and the static-detection settings ``--static-window``,
 ``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``.
 :func:`load_data` passes them to :func:`optcal.data.load`.
@@ -37,7 +38,7 @@ DATA_OPTION_NAMES: tuple[str, ...] = (
 _POSITIVE = click.FloatRange(min=0, min_open=True)
 _NON_NEGATIVE = click.FloatRange(min=0)
 
-_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+_READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--columns", metavar="NAME=COLUMN,...", default=None,
                  help="Map the file's columns by name or 1-based position: e.g. ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts,t=t_s "
                       "or t=1,ax=2,ay=3,az=4 (names: t ax ay az gx gy gz temp sigma n_samples index). "
@@ -55,6 +56,9 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
                       "(auto does so for bursty or coarse stamps, and says so)."),
     click.option("--gyro-file", type=click.Path(dir_okay=False), default=None, metavar="PATH",
                  help="A second text file 't gx gy gz' merged on time (imu_tk writes acc and gyro in two files)."),
+)
+_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+    *_READ_OPTIONS,
     click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
                  help="Read DATA as a pose table (one row per static pose) or a raw recording (a time series); auto decides and says why."),
     click.option("--static-window", type=_POSITIVE, default=None, metavar="S",
@@ -77,6 +81,25 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
     for option in reversed(_OPTIONS):
         func = option(func)
     return func
+
+
+#: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
+READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file")
+
+
+def read_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Click decorator adding the options that read a recording (``--columns`` ... ``--gyro-file``)."""
+    for option in reversed(_READ_OPTIONS):
+        func = option(func)
+    return func
+
+
+def reading_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
+    """Keywords of :func:`optcal.data.load_recording` from the options of :func:`read_options`."""
+    unknown = set(opts) - set(READ_OPTION_NAMES)
+    if unknown:
+        raise TypeError(f"not reading options: {', '.join(sorted(unknown))}")
+    return {k: opts.get(k) for k in READ_OPTION_NAMES} | {"timing": opts.get("timing") or "auto"}
 
 
 def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
