@@ -138,7 +138,8 @@ def load_with_segmentation(
     decisions = decide(src, evidence, kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing)
     if decisions.kind.value == POSE_TABLE:
         return LoadedData(pose_table_from_source(src, decisions), decisions)  # conversion
-    rec = recording_from_source(src, decisions)  # conversion
+    rec = recording_from_source(src, decisions, evidence=evidence)  # conversion
+    del src, evidence  # the recording holds its own arrays: free the file's columns before segmenting
     seg = detect_static(rec, settings)  # segmentation
     table = seg.pose_table()
     table.meta.update(recording_meta(rec, decisions))

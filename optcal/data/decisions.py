@@ -155,13 +155,14 @@ def gather_evidence(src: Source) -> Evidence:
     ok = finite & ~zero
     with np.errstate(over="ignore", invalid="ignore"):
         # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        med = float(np.median(np.linalg.norm(acc[ok], axis=1))) if ok.any() else float("nan")
+        norm = np.sqrt(np.einsum("ij,ij->i", acc, acc))
+        med = float(np.median(norm[ok])) if ok.any() else float("nan")
         absurd = ok & np.any(np.abs(acc) > ABSURD_G * med, axis=1) if np.isfinite(med) and med > 0 else np.zeros(n, bool)
     usable = ok & ~absurd
-    a = acc[usable]
-    if a.shape[0]:
-        median_norm = float(np.median(np.linalg.norm(a, axis=1)))
-        median_step = float(np.median(np.linalg.norm(np.diff(a, axis=0), axis=1))) if a.shape[0] > 1 else 0.0
+    if usable.any():
+        median_norm = float(np.median(norm[usable]))
+        step = np.diff(acc[usable], axis=0)
+        median_step = float(np.median(np.sqrt(np.einsum("ij,ij->i", step, step)))) if step.size else 0.0
     else:
         median_norm = median_step = float("nan")
     time = time_evidence(src.column("t")[usable]) if src.has("t") and usable.sum() > 1 else None

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, decide, gather_evidence
+from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
 from optcal.data.readers import ACC, GYRO, Source
 from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
@@ -96,6 +96,7 @@ def recording_from_source(
     src: Source,
     decisions: DataDecisions | None = None,
     *,
+    evidence: Evidence | None = None,
     units: str | None = None,
     rate: float | None = None,
     time_unit: str | None = None,
@@ -109,6 +110,8 @@ def recording_from_source(
     decisions : DataDecisions, optional
         Made by :func:`optcal.data.decisions.decide`; made here (as a raw recording, with the
         keyword options) when omitted.
+    evidence : Evidence, optional
+        The evidence the decisions were made from (gathered here when omitted).
     units, rate, time_unit, timing
         Options of :func:`optcal.data.decisions.decide` when ``decisions`` is omitted.
 
@@ -117,7 +120,7 @@ def recording_from_source(
     InputError
         No time and no rate, time running backwards, or no usable sample.
     """
-    ev = gather_evidence(src)
+    ev = evidence if evidence is not None else gather_evidence(src)
     if decisions is None:
         decisions = decide(src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing)
     n = src.n_rows

@@ -361,12 +361,19 @@ def _resolution(x: NDArray[np.float64]) -> float:
 
 
 def quantum(x: NDArray[np.float64]) -> float | None:
-    """The quantisation step of data whose steps are all multiples of one step (else ``None``)."""
+    """The converter step of quantised data, else ``None``.
+
+    Data are quantised when their steps are multiples of one step and their range spans at
+    most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
+    have a common step too, but span far more of them.
+    """
     d = np.abs(np.diff(x, axis=0)).ravel()
     d = d[d > 0]
     if d.size < 10:
         return None
     q = float(d.min())
+    if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
+        return None
     ratio = d / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
@@ -394,9 +401,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     """
     s = settings or StaticSettings()
     use = np.flatnonzero(rec.usable)
-    t = rec.t[use]
-    acc = rec.acc[use]
-    gyro = rec.gyro[use] if rec.gyro is not None else None
+    every = use.size == rec.n  # no copies when every sample is usable
+    t = rec.t if every else rec.t[use]
+    acc = rec.acc if every else rec.acc[use]
+    gyro = (rec.gyro if every else rec.gyro[use]) if rec.gyro is not None else None
     m = use.size
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
