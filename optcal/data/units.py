@@ -70,7 +70,8 @@ def median_norm(acc: ArrayLike) -> float:
     """Median of ‖a‖ over the finite rows of ``acc`` (NaN when there is none)."""
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
-    return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
+    with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit: an infinite norm
+        return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
 
 
 def decide_units(
