@@ -124,7 +124,7 @@ def allan(
     confidence intervals (allantools); the noise parameters are read from the fitted
     −1/2, 0 and +1/2 slope lines as in Yin 2014.
     """
-    from optcal.noise import analyse_static_log, plot_allan, si_per_unit
+    from optcal.yin2014.allan import analyse_static_log, plot_allan, si_per_unit
     from optcal.result import jsonable
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None

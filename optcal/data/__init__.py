@@ -35,6 +35,10 @@ from optcal.poses import PoseTable
 
 __all__ = [
     "KINDS",
+    "POSE_TABLE",
+    "RAW_RECORDING",
+    "decide",
+    "gather_evidence",
     "DataDecisions",
     "Decision",
     "Evidence",

@@ -26,13 +26,9 @@ GYRO_COLUMNS = GYRO
 
 def read_csv_frame(path: str | Path) -> Any:
     """Read a delimited text file (any layout :mod:`optcal.data.text` recognises) as a pandas frame."""
-    import pandas as pd
+    from optcal.data.text import read_frame
 
-    from optcal.data.text import parse_numbers, sniff_layout
-
-    layout = sniff_layout(path)
-    parsed = parse_numbers(path, layout)
-    return pd.DataFrame(dict(zip(layout.names, parsed.columns)))
+    return read_frame(path)[0]
 
 
 def pose_table_from_source(src: Source, decisions: DataDecisions | str | None = None) -> PoseTable:

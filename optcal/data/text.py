@@ -16,6 +16,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -264,6 +265,25 @@ def iter_number_chunks(path: str | Path, layout: TextLayout, chunk_rows: int = C
     """Stream a file's data rows as lists of float columns, ``chunk_rows`` rows at a time."""
     for cols, _ in _pandas_chunks(Path(path), layout, chunk_rows):
         yield cols
+
+
+def read_frame(path: str | Path) -> tuple[Any, dict[str, str]]:
+    """The whole file as a pandas frame (its own dtypes: text columns stay text) and its metadata lines."""
+    import pandas as pd
+
+    p = Path(path)
+    layout = sniff_layout(p)
+    try:
+        frame = pd.read_csv(
+            p, sep=r"\s+" if layout.delimiter == " " else layout.delimiter, header=None, names=layout.names,
+            skiprows=layout.first_data_line, decimal="," if layout.decimal_comma else ".", comment="#",
+            skipinitialspace=True, encoding="utf-8-sig", encoding_errors="replace", skip_blank_lines=True,
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise InputError(f"{p}: not a readable {_NAMES[layout.delimiter]}-separated file ({str(exc).splitlines()[0]})") from exc
+    if len(frame) == 0:
+        raise InputError(f"{p}: no data rows after the header")
+    return frame, layout.metadata
 
 
 def _numpy_read(p: Path, layout: TextLayout) -> NDArray[np.float64]:
