@@ -9,15 +9,18 @@ the next best pose after the poses taken so far (:func:`next_pose`).
 
 from optcal.plan.candidates import Cap, CandidateSet, given_candidates, sphere_candidates, turntable_candidates
 from optcal.plan.information import Criterion, Prior
+from optcal.plan.next_pose import NextPose, next_pose
 from optcal.plan.planner import PosePlan, plan_poses
 
 __all__ = [
     "CandidateSet",
     "Cap",
     "Criterion",
+    "NextPose",
     "PosePlan",
     "Prior",
     "given_candidates",
+    "next_pose",
     "plan_poses",
     "sphere_candidates",
     "turntable_candidates",

@@ -4,8 +4,9 @@ The direction ``d`` is the specific force in the sensor frame (the reading of a 
 accelerometer at rest, +1 g along the axis that points up).  The description names the axis
 closest to vertical ("x up", "z down" for ``−z`` up), the tilt angle from it and the axis the
 tilt leans toward: "x up, tilted 35° toward −y" means start with x pointing up and turn the
-device so that −y rises by 35° (``d = cos35°·x̂ − sin35°·ŷ``).  A tilt toward a diagonal names
-both axes with the angle from the first ("toward +y, 20° toward +z").
+device so that −y rises by 35° (``d = cos35°·x̂ − sin35°·ŷ``).  A tilt out of a coordinate plane
+is given as two tilts in the two vertical planes through the main axis ("z up, tilted 35° toward
++x and 35° toward +y": ``d ∝ (tan35°, tan35°, 1)``), the larger first.
 """
 
 from __future__ import annotations
@@ -29,19 +30,13 @@ def describe_direction(direction: ArrayLike) -> str:
     d = d / np.linalg.norm(d)
     main = int(np.argmax(np.abs(d)))
     head = f"{AXES[main]} {'up' if d[main] > 0 else 'down'}"
-    tilt = float(np.rad2deg(np.arccos(np.clip(abs(d[main]), -1.0, 1.0))))
-    if tilt < NEGLIGIBLE_DEG:
-        return head
-    others = [i for i in range(3) if i != main]
-    lean = d[others]
-    first = int(np.argmax(np.abs(lean)))
-    second = 1 - first
-    toward = _signed(others[first], lean[first])
-    azimuth = float(np.rad2deg(np.arctan2(abs(lean[second]), abs(lean[first]))))
-    text = f"{head}, tilted {tilt:.0f}° toward {toward}"
-    if azimuth >= NEGLIGIBLE_DEG:
-        text += f", {azimuth:.0f}° toward {_signed(others[second], lean[second])}"
-    return text
+    parts = []
+    for other in sorted((i for i in range(3) if i != main), key=lambda i: -abs(d[i])):
+        # tilt in the vertical plane of the main axis and this axis
+        angle = float(np.rad2deg(np.arctan2(abs(d[other]), abs(d[main]))))
+        if angle >= NEGLIGIBLE_DEG:
+            parts.append(f"{angle:.0f}° toward {_signed(other, d[other])}")
+    return head if not parts else f"{head}, tilted " + " and ".join(parts)
 
 
 def describe_directions(directions: ArrayLike) -> list[str]:

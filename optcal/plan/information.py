@@ -95,7 +95,7 @@ class Prior:
 
     def information_vectors(self, directions: ArrayLike) -> NDArray[np.float64]:
         """``h`` of each direction (rows), normalised coordinates, unit noise; shape (n, 9)."""
-        return self.measurement_vectors(self.model.measure(user_directions(directions)))
+        return self.measurement_vectors(self.model.measure(user_directions(np.asarray(directions, float).reshape(-1, 3))))
 
     def measurement_vectors(self, acc: ArrayLike) -> NDArray[np.float64]:
         """``h`` of measured poses (raw units, shape (n, 3)) at the prior; shape (n, 9)."""
@@ -106,7 +106,7 @@ class Prior:
 
     def stderr_raw(self, M: NDArray, sigma: float) -> NDArray[np.float64]:
         """Standard error of θ in raw units at pose noise ``sigma`` (raw units); inf where undetermined."""
-        return np.sqrt(np.diag(self.to_raw @ covariance(M, 1.0) @ self.to_raw)) * sigma
+        return np.sqrt(np.diag(covariance(M, sigma))) * np.diag(self.to_raw)
 
 
 def information(H: NDArray, weights: ArrayLike | None = None, base: NDArray | None = None) -> NDArray[np.float64]:
