@@ -139,8 +139,9 @@ def turntable_candidates(step_deg: float = 45.0, cap: Cap | None = None) -> Cand
     angles = np.deg2rad(np.arange(0.0, 360.0, step_deg))
     pitch, roll = (a.ravel() for a in np.meshgrid(angles, angles, indexing="ij"))
     # Sun 2011, eq. 1: f^b = C_n^b [0, 0, 1]ᵀ, the third row of C_b^n
-    f_b = attitude_matrix(pitch, roll, np.zeros_like(pitch))[:, 2, :]
-    _, first = np.unique(np.round(f_b, 9), axis=0, return_index=True)
+    # rounded so that exact zeros stay zeros (cos 90° is 6e-17, which would fake information)
+    f_b = np.round(attitude_matrix(pitch, roll, np.zeros_like(pitch))[:, 2, :], 12) + 0.0
+    _, first = np.unique(f_b, axis=0, return_index=True)
     first = np.sort(first)
     labels = [f"pitch {np.rad2deg(pitch[k]):.0f}°, roll {np.rad2deg(roll[k]):.0f}°" for k in first]
     d, labels, excluded = _apply_cap(f_b[first], cap, labels)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,6 +27,9 @@ from optcal.errors import InputError
 from optcal.identifiability import norm_residual_jacobian, normal_gain
 from optcal.model import N_PARAMS, PARAM_NAMES, LumpedModel
 from optcal.simulate import user_directions
+
+if TYPE_CHECKING:
+    from optcal.poses import PoseTable
 
 
 class Criterion(str, Enum):
@@ -81,6 +85,33 @@ class Prior:
 
         cal = CalibrationResult.load(path)
         return cls(cal.model, cal.units, f"{path} (method {cal.method}, {cal.n_poses} poses)")
+
+    @classmethod
+    def of_poses(cls, poses: "PoseTable", label: str = "the poses") -> "Prior":
+        """The prior for planning after ``poses``: their convex ellipsoid fit when they determine
+        it (9 poses or more), else the nominal calibration in their units.
+
+        Raises
+        ------
+        InputError
+            Poses in counts that do not determine a fit (no nominal calibration exists).
+        """
+        from optcal.calibration import calibrate
+
+        reason = f"{poses.n} poses, fewer than {N_PARAMS}"
+        if poses.n >= N_PARAMS:
+            try:
+                cal = calibrate(poses, method="convex")
+                return cls(cal.model, poses.units, f"convex ellipsoid fit of {label} ({poses.n} poses)")
+            except InputError as exc:
+                reason = str(exc)
+        try:
+            nominal = cls.nominal(poses.units)
+        except InputError:
+            raise InputError(
+                f"{label} are in counts and do not determine a calibration ({reason}); pass a saved calibration as prior"
+            ) from None
+        return cls(nominal.model, nominal.units, f"{nominal.source}; {label} do not determine a fit: {reason}")
 
     @property
     def scale(self) -> float:

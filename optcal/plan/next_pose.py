@@ -20,7 +20,7 @@ This is the step of a guided capture loop::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -78,6 +78,7 @@ class NextPose:
     sigma: float
     units: str
     prior_source: str
+    given_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def stop_message(self) -> str:
@@ -192,6 +193,7 @@ def next_pose(
         sigma=sigma,
         units=prior.units,
         prior_source=prior.source,
+        given_directions=given.directions,
     )
 
 
