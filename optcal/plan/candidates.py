@@ -67,6 +67,14 @@ class Cap:
         """Which unit directions lie in the cap."""
         return directions @ self.axis >= self.cos_half_angle - slack
 
+    def boundary(self, n: int) -> NDArray[np.float64]:
+        """``n`` directions evenly spaced on the cap's edge, shape (n, 3)."""
+        e1 = np.linalg.svd(self.axis[None, :])[2][1]  # a unit vector orthogonal to the axis
+        e2 = np.cross(self.axis, e1)
+        t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)[:, None]
+        alpha = np.deg2rad(self.half_angle_deg)
+        return np.cos(alpha) * self.axis + np.sin(alpha) * (np.cos(t) * e1 + np.sin(t) * e2)
+
     def describe(self) -> str:
         name = next((k for k, v in _AXIS_NAMES.items() if np.allclose(v, self.axis)), np.array2string(self.axis, precision=3))
         return f"within {self.half_angle_deg:g}° of {name} up"
@@ -122,6 +130,11 @@ def sphere_candidates(n: int = DEFAULT_GRID, cap: Cap | None = None) -> Candidat
         return CandidateSet(fibonacci_sphere(n), True, None, [], f"free orientations (grid of {n})")
     area_fraction = (1.0 - cap.cos_half_angle) / 2.0
     d, _, _ = _apply_cap(fibonacci_sphere(int(np.ceil(n / max(area_fraction, 1e-6)))), cap, [])
+    if cap.half_angle_deg < 180.0:
+        # the boundary circle at the grid's spacing: optimal designs in a cap sit on its edge
+        spacing = np.sqrt(4.0 * np.pi * area_fraction / max(len(d), 1))
+        alpha = np.deg2rad(cap.half_angle_deg)
+        d = np.vstack([d, cap.boundary(max(int(np.ceil(2.0 * np.pi * np.sin(alpha) / spacing)), 3))])
     return CandidateSet(d, True, cap, [], f"free orientations {cap.describe()} (grid of {len(d)})")
 
 

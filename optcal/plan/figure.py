@@ -47,13 +47,7 @@ def sphere_figure(planned: ArrayLike, given: ArrayLike | None = None, candidates
     given = np.zeros((0, 3)) if given is None else np.asarray(given, float).reshape(-1, 3)
     fig = Figure(figsize=(9.0, 4.8), layout="constrained")
     axes = fig.subplots(1, 2)
-    boundary = None
-    if cap is not None:
-        e1 = np.linalg.svd(cap.axis[None, :])[2][1]
-        e2 = np.cross(cap.axis, e1)
-        t = np.linspace(0, 2 * np.pi, 361)[:, None]
-        a = np.deg2rad(cap.half_angle_deg)
-        boundary = np.cos(a) * cap.axis + np.sin(a) * (np.cos(t) * e1 + np.sin(t) * e2)
+    boundary = cap.boundary(360) if cap is not None else None
     for ax, hemisphere, name in zip(axes, (1, -1), ("z up (upper hemisphere)", "z down (lower hemisphere)")):
         ax.add_patch(_circle())
         for label, pts, style in (("candidates", candidates, dict(s=2, c="0.8", marker=".")),

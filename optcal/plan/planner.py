@@ -321,12 +321,19 @@ def plan_poses(
     rng = np.random.default_rng(seed)
     starts = [apportion(relaxation.weights, n_poses), sequential(H, n_poses, crit, given_poses.information)]
     starts += [rng.choice(len(H), n_poses, replace=len(H) < n_poses) for _ in range(random_starts)]
+    designs = [exchange(H, start, crit, given_poses.information) for start in starts]
+    if crit is not Criterion.D:
+        # the D-optimal design as one more start: single swaps stall at the multiple eigenvalues
+        # of A- and E-optimal designs, and D-optimal designs are usually good for both
+        designs.append(exchange(H, starts[0], Criterion.D, given_poses.information))
     best_value, best_dirs, refinement, best_index = -np.inf, None, "not refined: a fixed set of directions", None
-    for start in starts:
-        index = exchange(H, start, crit, given_poses.information)
-        dirs = candidates.directions[index]
-        status = refinement
-        if candidates.continuous:
+    for k, index in enumerate(designs):
+        dirs, status = candidates.directions[index], refinement
+        if candidates.continuous and k == len(starts) and crit is not Criterion.D:
+            dirs = refine(prior.information_vectors, dirs, Criterion.D, given_poses.information, candidates.cap)[0]
+        if candidates.continuous and crit is Criterion.E:
+            status = "not refined: λ_min is not differentiable at an E-optimal design (multiple eigenvalue)"
+        elif candidates.continuous:
             dirs, status = refine(prior.information_vectors, dirs, crit, given_poses.information, candidates.cap)
         value = criterion_value(information(prior.information_vectors(dirs), base=given_poses.information), crit)
         if value > best_value:

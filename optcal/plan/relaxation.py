@@ -70,18 +70,27 @@ def solve_relaxation(H: NDArray, n_poses: int, criterion: Criterion, base: NDArr
 
     n, p = H.shape
     M0 = np.zeros((p, p)) if base is None else base
+    # Whitening by the uniform design's information M_u (congruence M' = S M Sᵀ, S = M_u^(−1/2))
+    # keeps each criterion exact and the conic problem well conditioned when the feasible set
+    # is narrow: log det M' = log det M + const, tr M⁻¹ = tr(Sᵀ M'⁻¹ S), M ⪰ tI ⟺ M' ⪰ t S Sᵀ.
+    evals, evecs = np.linalg.eigh(M0 + n_poses * (H.T @ H) / n)
+    S = (evecs / np.sqrt(np.clip(evals, evals[-1] * 1e-15, None))) @ evecs.T
+    Hw, M0w = H @ S, S @ M0 @ S
     # vec(h_i h_iᵀ) as columns: M(w) is affine in w
-    outer = np.einsum("ni,nj->ijn", H, H).reshape(p * p, n)
+    outer = np.einsum("ni,nj->ijn", Hw, Hw).reshape(p * p, n)
     w = cp.Variable(n, nonneg=True)
-    M = cp.reshape(outer @ w, (p, p), order="C") * n_poses + M0
+    M = cp.reshape(outer @ w, (p, p), order="C") * n_poses + M0w
     M = (M + M.T) / 2
+    constraints = [cp.sum(w) == 1]
     if criterion is Criterion.D:
         objective = cp.Maximize(cp.log_det(M))
     elif criterion is Criterion.A:
-        objective = cp.Minimize(cp.matrix_frac(np.eye(p), M))
+        objective = cp.Minimize(cp.matrix_frac(S, M))
     else:
-        objective = cp.Maximize(cp.lambda_min(M))
-    problem = cp.Problem(objective, [cp.sum(w) == 1])
+        t = cp.Variable()
+        objective = cp.Maximize(t)
+        constraints.append(M - t * (S @ S) >> 0)
+    problem = cp.Problem(objective, constraints)
     failures = []
     for solver in ("CLARABEL", "SCS"):
         try:
@@ -130,6 +139,38 @@ def maximise_on_set(function: Callable[[NDArray], NDArray], candidates: Candidat
     return best
 
 
+def _weakest_subspace_weight(M: NDArray, H: NDArray, rtol: float = 1e-3) -> NDArray[np.float64]:
+    """``Z = V W Vᵀ`` for the E bound: ``V`` spans the eigenvectors of λ_min (within ``rtol``), and
+    ``W ⪰ 0``, ``tr W = 1`` minimises the largest sensitivity over the candidates.
+
+    At an E-optimal design the smallest eigenvalue is usually multiple, and a single
+    eigenvector (a valid but loose supergradient) overstates the bound.
+    """
+    import cvxpy as cp
+
+    evals, evecs = np.linalg.eigh(0.5 * (M + M.T))
+    V = evecs[:, evals <= evals[0] + rtol * max(abs(evals[0]), 1e-300)]
+    m = V.shape[1]
+    if m == 1:
+        return np.outer(V[:, 0], V[:, 0])
+    P = H @ V
+    W = cp.Variable((m, m), PSD=True)
+    t = cp.Variable()
+    problem = cp.Problem(cp.Minimize(t), [cp.trace(W) == 1, cp.sum(cp.multiply(P @ W, P), axis=1) <= t])
+    for solver in ("CLARABEL", "SCS"):
+        try:
+            problem.solve(solver=solver)
+        except cp.error.SolverError:
+            continue
+        if W.value is not None:
+            Wv = 0.5 * (W.value + W.value.T)
+            e, U = np.linalg.eigh(Wv)
+            Wv = (U * np.clip(e, 0, None)) @ U.T
+            Wv /= np.trace(Wv)
+            return V @ Wv @ V.T
+    return np.outer(V[:, 0], V[:, 0])
+
+
 def relax(H: NDArray, n_poses: int, criterion: Criterion, candidates: CandidateSet,
           vectors: Callable[[NDArray], NDArray], base: NDArray | None = None) -> Relaxation:
     """Solve the relaxation and certify it (module docstring).
@@ -141,14 +182,18 @@ def relax(H: NDArray, n_poses: int, criterion: Criterion, candidates: CandidateS
     weights, solver = solve_relaxation(H, n_poses, criterion, M0)
     M = M0 + n_poses * (H.T @ (H * weights[:, None]))
     value = criterion_value(M, criterion)
-    G = criterion_gradient(M, criterion)
+    G = criterion_gradient(M, criterion) if criterion is not Criterion.E else _weakest_subspace_weight(M, H)
 
     def sensitivity(d: NDArray) -> NDArray:
         h = vectors(d)
         return np.einsum("ni,ij,nj->n", h, G, h)
 
     top = maximise_on_set(sensitivity, candidates)
-    bound = value + n_poses * top - float(np.sum(G * (M - M0)))
+    if criterion is Criterion.E:
+        # λ_min(M(ξ)) ≤ ⟨Z, M(ξ)⟩ = ⟨Z, M₀⟩ + K E_ξ[hᵀ Z h] for every Z ⪰ 0 with tr Z = 1
+        bound = float(np.sum(G * M0)) + n_poses * top
+    else:
+        bound = value + n_poses * top - float(np.sum(G * (M - M0)))
     return Relaxation(weights, M, value, max(bound, value), solver)
 
 

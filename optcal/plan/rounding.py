@@ -28,8 +28,10 @@ IPOPT_OPTIONS: dict[str, Any] = {
     "print_time": False,
     "ipopt.sb": "yes",
     "ipopt.hessian_approximation": "limited-memory",
-    "ipopt.tol": 1e-10,
-    "ipopt.max_iter": 300,
+    "ipopt.tol": 1e-9,
+    "ipopt.acceptable_tol": 1e-7,
+    "ipopt.acceptable_iter": 3,
+    "ipopt.max_iter": 60,
 }
 
 
