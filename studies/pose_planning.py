@@ -34,7 +34,7 @@ from optcal.plan import Prior, plan_poses
 from optcal.plan.figure import sphere_figure
 from optcal.plan.information import covariance, information
 from optcal.simulate import lu2017_sweeps, simulate_poses, six_position, tilted_sweeps, uniform_directions
-from optcal.turntable import ten_position_scheme
+from optcal.sun2011.turntable import ten_position_scheme
 
 ROOT = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
 OUT = ROOT / "results"

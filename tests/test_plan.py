@@ -11,7 +11,8 @@ from scipy.optimize import minimize
 
 from optcal.cli.main import main
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.identifiability import cramer_rao_bound, fisher_information, norm_residual_jacobian, normal_gain
+from optcal.identifiability import cramer_rao_bound, fisher_information
+from optcal.norm_residual import norm_residual_jacobian, normal_gain
 from optcal.model import LumpedModel, lu2017_reference_model
 from optcal.plan import (
     Cap,
@@ -24,7 +25,7 @@ from optcal.plan import (
 )
 from optcal.plan.describe import describe_direction
 from optcal.simulate import lu2017_sweeps, simulate_poses, uniform_directions
-from optcal.turntable import attitude_matrix
+from optcal.sun2011.turntable import attitude_matrix
 
 NOMINAL = LumpedModel(np.eye(3), np.zeros(3))
 
@@ -266,3 +267,18 @@ def test_cli_next_on_a_pose_table(tmp_path, capsys):
     assert main(["plan", "--next", str(path), "--prior", "nominal", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["prior"].startswith("nominal") and result["n_poses"] == 40
+
+
+def test_cli_plan_with_a_saved_calibration_as_prior(tmp_path, capsys):
+    from optcal.calibration import calibrate
+
+    model = lu2017_reference_model()
+    cal = calibrate(simulate_poses(model, uniform_directions(30, rng=4), 1e-3, rng=5))
+    path = tmp_path / "cal.json"
+    cal.save(path)
+    assert main(["plan", "--poses", "9", "--prior", str(path), "--sigma", "0.002", "--grid", "300", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["prior"].startswith(str(path))
+    d = np.array([p["direction"] for p in out["poses"]])
+    crb = np.sqrt(np.diag(cramer_rao_bound(cal.model, d, 0.002)))
+    np.testing.assert_allclose(list(out["stderr"].values()), crb, rtol=1e-6)

@@ -141,11 +141,11 @@ def sphere_candidates(n: int = DEFAULT_GRID, cap: Cap | None = None) -> Candidat
 def turntable_candidates(step_deg: float = 45.0, cap: Cap | None = None) -> CandidateSet:
     """Directions a three-axis turntable reaches with pitch and roll on multiples of ``step_deg``.
 
-    The gimbal convention is Sun 2011's (:func:`optcal.turntable.attitude_matrix`); the heading
+    The gimbal convention is Sun 2011's (:func:`optcal.sun2011.turntable.attitude_matrix`); the heading
     (outer, vertical axis) does not move gravity in the body frame.  Each direction keeps the
     first (pitch, roll) pair that reaches it as its label.
     """
-    from optcal.turntable import attitude_matrix
+    from optcal.sun2011.turntable import attitude_matrix
 
     if not 0 < step_deg <= 180 or abs(360.0 / step_deg - round(360.0 / step_deg)) > 1e-9:
         raise InputError(f"the turntable step must divide 360°, not {step_deg:g}°")

@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
-from optcal.identifiability import norm_residual_jacobian, normal_gain
 from optcal.model import N_PARAMS, PARAM_NAMES, LumpedModel
+from optcal.norm_residual import NormResidualKernel
 from optcal.simulate import user_directions
 
 if TYPE_CHECKING:
@@ -80,11 +80,16 @@ class Prior:
 
     @classmethod
     def load(cls, path: str) -> "Prior":
-        """A saved calibration (JSON written by ``optcal calibrate -o``)."""
-        from optcal.result import CalibrationResult
+        """A saved lumped calibration (``optcal calibrate -o``; read by :func:`optcal.caltypes.load`)."""
+        from optcal.caltypes import LumpedCalibration, load
 
-        cal = CalibrationResult.load(path)
-        return cls(cal.model, cal.units, f"{path} (method {cal.method}, {cal.n_poses} poses)")
+        cal = load(path)
+        if not isinstance(cal, LumpedCalibration):
+            raise InputError(
+                f"{path}: a {cal.cal_type} calibration; poses are planned for the lumped model, so give a lumped "
+                "calibration (optcal calibrate -o cal.json) or none for the nominal sensor"
+            )
+        return cls(cal.model, cal.units, f"{path}: {cal.describe()}")
 
     @classmethod
     def of_poses(cls, poses: "PoseTable", label: str = "the poses") -> "Prior":
@@ -131,9 +136,8 @@ class Prior:
     def measurement_vectors(self, acc: ArrayLike) -> NDArray[np.float64]:
         """``h`` of measured poses (raw units, shape (n, 3)) at the prior; shape (n, 9)."""
         a = np.asarray(acc, float).reshape(-1, 3)
-        T, o = self.model.T_canonical, self.model.o
-        H = norm_residual_jacobian(T, o, a) / normal_gain(T, o, a)[:, None]
-        return H @ self.to_raw
+        point = NormResidualKernel(a).at(self.model.T_canonical, self.model.o)
+        return (point.jacobian() / point.normal_gain()).T @ self.to_raw
 
     def stderr_raw(self, M: NDArray, sigma: float) -> NDArray[np.float64]:
         """Standard error of θ in raw units at pose noise ``sigma`` (raw units); inf where undetermined."""
