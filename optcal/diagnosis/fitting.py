@@ -7,7 +7,7 @@ the data's size.  The selection, the outlier test, the simulation check and the 
 fit through it, so the work is shared and every number comes from the same formulas.
 
 Weights are ``1/(σ_k ‖Tᵀ ā_k‖)²`` (Lu 2017, eq. 14: the norm residual's variance to first
-order, :func:`optcal.identifiability.normal_gain`), relative to their mean; the noise scale of
+order, :func:`optcal.norm_residual.normal_gain`), relative to their mean; the noise scale of
 a fit is estimated from its residuals, so a wrong σ claim cannot manufacture findings.
 """
 
@@ -106,7 +106,7 @@ class Fitter:
     """
 
     def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int) -> None:
-        from optcal.identifiability import normal_gain
+        from optcal.norm_residual import normal_gain
 
         self.poses = poses
         self.n = poses.n
