@@ -99,8 +99,6 @@ def simulate_imu(
         motion, integrated by DOP853).
     rng : seed or Generator
     """
-    from scipy.integrate import solve_ivp
-
     if n_poses < 3:
         raise InputError("n_poses must be at least 3")
     gen = np.random.default_rng(rng)
@@ -128,10 +126,15 @@ def simulate_imu(
         speed = angle / move_s * (1 - np.cos(2 * np.pi * tau))
         if wobble == 0.0:
             s = angle * (tau - np.sin(2 * np.pi * tau) / (2 * np.pi))
-            Rs = [R @ small_rotation(axis * si) for si in s]
+            # f = exp(−s [n]×) Rᵀ z in closed form (Rodrigues' rotation of a vector)
+            v = R.T @ z
+            c, sn = np.cos(s)[:, None], np.sin(s)[:, None]
+            forces = v * c - np.cross(axis, v) * sn + np.outer(1 - c.ravel(), axis) * (axis @ v)
             omega = speed[:, None] * axis
             R = R @ small_rotation(axis * angle)
         else:
+            from scipy.integrate import solve_ivp
+
             perp = np.cross(axis, gen.normal(size=3))
             perp /= np.linalg.norm(perp)
 
@@ -147,12 +150,12 @@ def simulate_imu(
             sol = solve_ivp(deriv, (0.0, move_s), R.ravel(), method="DOP853", rtol=1e-12, atol=1e-13,
                             t_eval=np.concatenate([tau * move_s, [move_s]]))
             mats = sol.y.T.reshape(-1, 3, 3)
-            Rs = list(mats[:-1])
+            forces = mats[:-1].transpose(0, 2, 1) @ z
             omega = np.array([rate(x * move_s) for x in tau])
             U, _, Vt = np.linalg.svd(mats[-1])
             R = U @ Vt
         t_all.append((n + np.arange(nmove - 1)) * dt)
-        f_all.append(np.array([Ri.T @ z for Ri in Rs]))
+        f_all.append(forces)
         w_all.append(omega)
         n += nmove - 1
     t = np.concatenate(t_all)
