@@ -41,19 +41,6 @@ from optcal.model import TRIL_INDEX, theta_from
 from optcal.result import CalibrationResult, SolverInfo
 
 ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
-IPOPT_DEFAULTS: dict[str, Any] = {
-    "ipopt.print_level": 0,
-    "ipopt.sb": "yes",
-    "print_time": False,
-    # the Gauss–Newton steps stall at rounding level once the gradient is ~1e-9 (line searches
-    # then cannot decrease the cost): stop after two iterations at that level
-    "ipopt.tol": 1e-12,
-    "ipopt.acceptable_tol": 1e-8,
-    "ipopt.acceptable_iter": 2,
-    "ipopt.max_iter": 100,
-}
-
-
 @dataclass(frozen=True)
 class GyroSettings:
     """Settings of :func:`calibrate_gyro`.
@@ -142,15 +129,18 @@ class GyroProblem:
     ``x = (vec X, y)`` with the accelerometer's ``y`` of :func:`accelerometer_directions`.
     Residuals and Jacobian come from the CasADi integrator :class:`GravityPredictor` (built
     once per recording layout, the samples as inputs) and are handed to ``nlpsol`` as
-    callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate.
+    callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate,
+    with the options and cost scaling of the accelerometer's ML problem
+    (:data:`optcal.estimators.mle.ML_IPOPT_DEFAULTS`).
     """
 
     def __init__(self, predictor: GravityPredictor, nx: int, ipopt_options: dict[str, Any]) -> None:
         import casadi as ca
 
-        from optcal.estimators.mle import numpy_callback
+        from optcal.estimators.mle import ML_IPOPT_DEFAULTS, numpy_callback
 
         self.nx = nx
+        self.scale = 1.0  # the cost factor of cost_scale(), set by solve()
         self.evaluate: Any = None  # x -> (r, J), set by solve()
         self._cache: tuple[bytes, NDArray, NDArray] | None = None
         problem = self
@@ -169,7 +159,7 @@ class GyroProblem:
 
         def grad(arg: list) -> list:
             r, J = rj(arg)
-            return [0.5 * float(r @ r), J.T @ r]
+            return [0.5 * problem.scale * float(r @ r), problem.scale * (J.T @ r)]
 
         self._grad = numpy_callback("gyro_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)], grad)
 
@@ -179,21 +169,29 @@ class GyroProblem:
             return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
         self._cost = numpy_callback("gyro_f", [("x", dense)], [("f", scalar)],
-                                    lambda arg: [0.5 * float(np.sum(rj(arg)[0] ** 2))], reverse=cost_reverse)
+                                    lambda arg: [0.5 * problem.scale * float(np.sum(rj(arg)[0] ** 2))], reverse=cost_reverse)
 
         def hessian(arg: list) -> list:
             _, J = rj(arg)
-            return [ca.triu(ca.DM(J.T @ J * float(arg[2])))]
+            return [ca.triu(ca.DM(J.T @ J * (problem.scale * float(arg[2]))))]
 
         self._hess = numpy_callback("gyro_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
                                     [("triu_hess_gamma_x_x", ca.Sparsity.upper(nx))], hessian)
         x = ca.MX.sym("x", nx)
-        opts = {**IPOPT_DEFAULTS, "grad_f": self._grad, "hess_lag": self._hess, **ipopt_options}
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._grad, "hess_lag": self._hess, **ipopt_options}
         self.solver = ca.nlpsol("gyro_calibration", "ipopt", {"x": x, "f": self._cost(x)}, opts)
 
     def solve(self, evaluate: Any, x0: NDArray) -> tuple[NDArray[np.float64], dict[str, Any], float]:
-        """Solve from ``x0`` with ``evaluate(x) -> (r, J)``; the solution, IPOPT's stats, seconds."""
+        """Solve from ``x0`` with ``evaluate(x) -> (r, J)``; the solution, IPOPT's stats, seconds.
+
+        The cost is scaled by :func:`optcal.estimators.mle.cost_scale` (one tolerance for any
+        number of moves, noise level or units, as in the accelerometer's ML problem).
+        """
+        from optcal.estimators.mle import cost_scale
+
         self.evaluate, self._cache = evaluate, None
+        r0, _ = evaluate(np.asarray(x0, float))
+        self.scale = cost_scale(r0.size, float(np.sqrt(np.mean(r0**2))))
         t0 = time.perf_counter()
         try:
             sol = self.solver(x0=x0)
