@@ -47,7 +47,9 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         raise InputError("--loss and --scale-range apply to the mle method only")
     result = run_calibration(poses, method=method, **settings)
     if output:
-        result.save(output)
+        from optcal.cli.outputs import output_file
+
+        result.save(output_file(output))
     if as_json:
         summary = result.summary()
         summary["data"] = data_summary(data, poses)

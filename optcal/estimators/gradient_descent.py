@@ -19,26 +19,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
 from optcal.model import canonicalise, theta_from
+from optcal.norm_residual import NormResidualKernel
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
 
-def cost_and_gradient(x: NDArray, u: NDArray, w: NDArray) -> tuple[float, NDArray[np.float64]]:
-    """f(x) (Lu 2017, eq. 14) and its gradient (eq. 15-16) for x = [vec(T), o]."""
-    T = x[:9].reshape(3, 3)
-    uk = u - x[9:12]
-    v = uk @ T.T
-    nv = np.linalg.norm(v, axis=1)
-    r = nv - 1.0
-    cT = 1.0 - 1.0 / nv  # eq. 15, c_T
-    k = 2.0 * w * cT
-    grad_T = (v * k[:, None]).T @ uk  # Σ 2 w c_T (T u)(u)ᵀ
-    grad_o = -((v * k[:, None]) @ T).sum(axis=0)  # eq. 16: −Σ 2 w c_T Tᵀ T u
-    return float(np.sum(w * r * r)), np.concatenate([grad_T.ravel(), grad_o])
+def cost_and_gradient(x: NDArray, u: NDArray | NormResidualKernel, w: NDArray) -> tuple[float, NDArray[np.float64]]:
+    """f(x) (Lu 2017, eq. 14) and its gradient (eq. 15-16) for x = [vec(T), o].
+
+    ``∇f = Σ_k 2 w_k r_k ∂r_k/∂x`` with ``r_k ∂r_k/∂T = c_T (T u_k) u_kᵀ`` (eq. 15) and
+    ``r_k ∂r_k/∂o = −c_T Tᵀ T u_k`` (eq. 16); ``u`` may be the kernel of the data already built.
+    """
+    kernel = u if isinstance(u, NormResidualKernel) else NormResidualKernel(u)
+    point = kernel.at_full(x)
+    r = point.residuals
+    return float(np.sum(w * r * r)), point.jacobian_full() @ (2.0 * w * r)
 
 
+@np.errstate(over="ignore", invalid="ignore")  # a divergence is reported in the status
 def descend(
     x: NDArray, u: NDArray, w: NDArray, mu: float, tol: float, max_iter: int, target: float | None = None
 ) -> tuple[NDArray[np.float64], float, int, str]:
@@ -52,12 +52,13 @@ def descend(
         ``status`` is ``"converged"``, ``"diverged"`` or ``"max_iter reached"``.
     """
     it = 0
-    f, g = cost_and_gradient(x, u, w)
+    kernel = NormResidualKernel(u)
+    f, g = cost_and_gradient(x, kernel, w)
     while it < max_iter:
         step = mu * g
         x = x - step  # Lu 2017, eq. 17
         it += 1
-        f, g = cost_and_gradient(x, u, w)
+        f, g = cost_and_gradient(x, kernel, w)
         if not np.isfinite(f):
             return x, f, it, "diverged"
         if np.linalg.norm(step) <= tol or (target is not None and f <= target):
@@ -79,8 +80,8 @@ class GradientDescent:
     target_cost : float, optional
         Also stop as soon as the cost is at or below this value (for speed comparisons
         "to the same cost").
-    init : {"svd", "convex"}
-        Starting point (eq. 18-30).
+    init : {"svd", "convex"} or CalibrationResult
+        Starting point: an algebraic fit (eq. 18-30) or a given result.
     allow_degenerate : bool
         Proceed (with a warning) when the poses do not identify every parameter.
     """
@@ -93,7 +94,7 @@ class GradientDescent:
         tol: float = 1e-10,
         max_iter: int = 1_000_000,
         target_cost: float | None = None,
-        init: str = "svd",
+        init: str | CalibrationResult = "svd",
         weighting: str = "propagated",
         allow_degenerate: bool = False,
     ) -> None:
@@ -124,10 +125,9 @@ class GradientDescent:
         with Stopwatch() as sw:
             x, f, it, status = descend(x, u, w_n, mu, self.tol, self.max_iter, target)
         converged = status == "converged"
-        T_n = canonicalise(x[:9].reshape(3, 3)) if np.all(np.isfinite(x)) else np.eye(3)
-        theta = norm.theta_to_raw(theta_from(T_n, x[9:12]))
+        finite = status != "diverged" and np.all(np.isfinite(x))
+        theta = norm.theta_to_raw(theta_from(canonicalise(x[:9].reshape(3, 3)), x[9:12])) if finite else np.full(9, np.nan)
         solver = SolverInfo("gradient descent", status, converged, it, sw.seconds, f"step μ = {mu:.4g} (normalised)")
-        notes = [] if converged else [f"gradient descent {status} after {it} iterations"]
         return finish(
             method=self.name,
             poses=poses,
@@ -135,19 +135,18 @@ class GradientDescent:
             solver=solver,
             weighting=self.weighting,
             allow_degenerate=self.allow_degenerate,
-            notes=notes,
+            remedy=Remedy(
+                stopped_early="pass a larger max_iter or a looser tol",
+                failed="pass step='auto' (μ = 1/L) or a smaller step",
+            ),
             extra={"step": mu, "final_cost": f * np.mean(w), "init": start.method},
         )
 
     @staticmethod
     def auto_step(x: NDArray, u: NDArray, w: NDArray) -> float:
         """μ = 1/L with L the largest eigenvalue of the Gauss–Newton Hessian 2JᵀWJ at x."""
-        T = x[:9].reshape(3, 3)
-        uk = u - x[9:12]
-        v = uk @ T.T
-        ab = v / np.linalg.norm(v, axis=1, keepdims=True)
-        J = np.column_stack([np.einsum("ni,nj->nij", ab, uk).reshape(len(u), 9), -(ab @ T)])
-        L = float(np.linalg.eigvalsh(2 * J.T @ (J * w[:, None]))[-1])
+        J = NormResidualKernel(u).at_full(x).jacobian_full()  # (12, n)
+        L = float(np.linalg.eigvalsh(2 * (J * w) @ J.T)[-1])
         return 1.0 / L
 
 
