@@ -36,7 +36,7 @@ from optcal.gyro.moves import MoveSet
 from optcal.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 from optcal.gyro.result import ImuCalibration
 from optcal.gyro.units import GyroUnitsDecision
-from optcal.identifiability import norm_residuals
+from optcal.norm_residual import norm_residuals
 from optcal.model import TRIL_INDEX, theta_from
 from optcal.result import CalibrationResult, SolverInfo
 
@@ -111,7 +111,7 @@ def accelerometer_directions() -> Any:
     """
     import casadi as ca
 
-    from optcal.estimators.mle import lower_triangular
+    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
 
     y, a, o0 = ca.SX.sym("y", 9), ca.SX.sym("a", 3), ca.SX.sym("o0", 3)
     Ta0, r0 = ca.SX.sym("Ta0", 3, 3), ca.SX.sym("r0")
@@ -336,6 +336,8 @@ def calibrate_gyro(
         identifiability=ident.to_dict(),
         exclusions=dict(moves.exclusions),
         notes=notes,
+        units=accelerometer.units,
+        fitted_on=accelerometer.calibration.fitted_on,
     )
 
 

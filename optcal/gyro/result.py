@@ -1,43 +1,57 @@
-"""The whole-IMU calibration: accelerometer and gyroscope from one recording (``cal_type`` ``imu``)."""
+"""The whole-IMU calibration: accelerometer and gyroscope from one recording (``cal_type`` ``imu``).
+
+Parameters, units and equation
+------------------------------
+=========  =====================  ===========================================================
+``T``, o   g per raw unit, raw    the accelerometer's lumped calibration (:mod:`optcal.model`)
+``Tg``     rad/s per gyro unit    3×3 full: scale and misalignment relative to the
+                                  accelerometer frame (:mod:`optcal.gyro.model`)
+``bg``     gyro units             bias
+``Gg``     gyro units per g       g-sensitivity (optional)
+=========  =====================  ===========================================================
+
+::
+
+    ā = T (a − o)                          Lu 2017, eq. 6
+    ω = T_g (g − b_g − G_g ā)              Tedaldi 2014, eq. 9 (rad/s, accelerometer frame)
+"""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.caltypes.base import Calibration, FitPoses, as_samples, read_matrix
+from optcal.caltypes.lumped import LumpedCalibration
 from optcal.errors import InputError
-from optcal.gyro.model import G_NAMES, GyroModel
+from optcal.gyro.model import GyroModel
 from optcal.gyro.propagation import rms
-from optcal.result import CalibrationResult, SolverInfo, jsonable
+from optcal.result import CalibrationResult, SolverInfo
 
 CAL_TYPE: str = "imu"
-FORMAT_VERSION: int = 1
 
 
-@dataclass
-class ImuCalibration:
-    """Accelerometer and gyroscope calibrated together.
+@dataclass(eq=False)
+class ImuCalibration(Calibration):
+    """Accelerometer and gyroscope calibrated together (module docstring).
 
     Attributes
     ----------
     accelerometer : CalibrationResult
-        ``ā = T (a − o)`` in g (fixed, or re-estimated jointly with the gyro).
+        The accelerometer fit (fixed, or re-estimated jointly with the gyro).
     gyro : GyroModel
-        ``ω = T_g (g − b_g − G_g f)`` in rad/s in the accelerometer frame.
     gyro_units : str
-        Units of the raw gyro input (``counts``, ``rad/s``, ``deg/s``).
+        Units of the raw gyro input (``counts``, ``rad/s``, ``deg/s``); output rad/s.
     gyro_units_reason : str
     param_names : list of str
         Names of :attr:`params` (θ_g of :mod:`optcal.gyro.model`, then ``G_g`` if modelled).
     params : ndarray
     covariance : ndarray
-        Covariance of :attr:`params` (T_g from the Gauss–Newton matrix scaled by the residual
-        variance; bias and ``G_g`` from the still intervals).
+        Covariance of :attr:`params` (``T_g`` from the Gauss–Newton matrix scaled by the
+        residual variance; bias and ``G_g`` from the still intervals).
     angles_before_deg, angles_after_deg : ndarray, shape (m,)
         Angle between the gravity direction predicted across each move and the one measured
         at the next pose, before (bias removed, nominal scale) and after calibration.
@@ -46,10 +60,13 @@ class ImuCalibration:
     accelerometer_mode : str
         ``fixed`` or ``joint``.
     solver : SolverInfo
-    identifiability : dict
-    exclusions : dict of str to int
-    notes : list of str
+    identifiability, exclusions, notes
+    units : str
+        Accelerometer input units.
+    fitted_on : FitPoses, optional
     """
+
+    cal_type: ClassVar[str] = CAL_TYPE
 
     accelerometer: CalibrationResult
     gyro: GyroModel
@@ -66,12 +83,12 @@ class ImuCalibration:
     identifiability: dict[str, Any] = field(default_factory=dict)
     exclusions: dict[str, int] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    cal_type: str = CAL_TYPE
-    format_version: int = FORMAT_VERSION
+    units: str = "g"
+    fitted_on: FitPoses | None = None
 
     @property
     def stderr(self) -> dict[str, float]:
-        """Standard error of each parameter."""
+        """Standard error of each gyro parameter."""
         return dict(zip(self.param_names, np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)).tolist()))
 
     @property
@@ -82,35 +99,42 @@ class ImuCalibration:
     def rms_angle_after_deg(self) -> float:
         return rms(self.angles_after_deg)
 
-    def correct(self, acc: ArrayLike, gyro: ArrayLike | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-        """Calibrated specific force (g) and body rate (rad/s, accelerometer frame) for raw samples."""
-        f = self.accelerometer.correct(acc)
-        if gyro is None:
-            return f, None
-        return f, self.gyro.correct(gyro, f if self.gyro.g_sensitivity is not None else None)
+    # ------------------------------------------------------------ Calibration
+    def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
+        """Calibrated specific force ``T (a − o)`` in g (Lu 2017, eq. 6)."""
+        return (as_samples(acc) - self.accelerometer.o) @ self.accelerometer.T.T
 
-    def summary(self) -> dict[str, Any]:
-        """JSON-safe dictionary (``optcal calibrate --imu --json``)."""
+    def correct_gyro(self, gyro: ArrayLike, acc: ArrayLike | None = None) -> NDArray[np.float64]:
+        """Body rate in rad/s in the accelerometer frame for raw gyro samples (and raw ``acc`` for ``G_g``)."""
+        f = None
+        if self.gyro.g_sensitivity is not None:
+            if acc is None:
+                raise InputError("this gyro calibration has a g-sensitivity: pass the raw accelerometer samples (acc=)")
+            f = self.correct(acc)
+        return self.gyro.correct(as_samples(gyro, "gyro"), f)
+
+    def parameters(self) -> dict[str, Any]:
+        acc = self.accelerometer.to_dict()
+        acc.pop("fitted_on", None)
         phys = self.gyro.physical()
-        return jsonable({
-            "cal_type": self.cal_type,
-            "format_version": self.format_version,
-            "accelerometer_mode": self.accelerometer_mode,
-            "accelerometer": self.accelerometer.to_dict(),
-            "gyro": {
-                "units": {"input": self.gyro_units, "output": "rad/s", "T": f"rad/s per {self.gyro_units}",
-                          "bias": self.gyro_units, "reason": self.gyro_units_reason},
-                "T": self.gyro.T,
-                "bias": self.gyro.bias,
-                "g_sensitivity": self.gyro.g_sensitivity,
-                "scale": phys.scale,
-                "axes": phys.axes,
-                "misalignment_deg": phys.misalignment_deg,
-                "params": dict(zip(self.param_names, self.params)),
+        return {
+            "T": self.accelerometer.T,
+            "o": self.accelerometer.o,
+            "Tg": self.gyro.T,
+            "bg": self.gyro.bias,
+            "Gg": self.gyro.g_sensitivity,
+            "gyro_units": {"input": self.gyro_units, "output": "rad/s", "reason": self.gyro_units_reason},
+            "gyro_physical": {"scale": phys.scale, "axes": phys.axes, "misalignment_deg": phys.misalignment_deg},
+            "gyro_fit": {
+                "param_names": self.param_names,
+                "params": self.params,
                 "stderr": self.stderr,
                 "covariance": self.covariance,
-                "param_names": self.param_names,
-                "params_vector": self.params,
+                "accelerometer_mode": self.accelerometer_mode,
+                "solver": self.solver.to_dict(),
+                "identifiability": self.identifiability,
+                "exclusions": self.exclusions,
+                "notes": self.notes,
             },
             "gravity_prediction": {
                 "n_moves": int(self.angles_after_deg.size),
@@ -120,67 +144,50 @@ class ImuCalibration:
                 "angles_deg_after": self.angles_after_deg,
                 "before": self.before,
             },
-            "solver": self.solver.to_dict(),
-            "identifiability": self.identifiability,
-            "exclusions": self.exclusions,
-            "notes": self.notes,
-        })
-
-    to_dict = summary
+            "accelerometer_fit": acc,
+        }
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "ImuCalibration":
-        """Rebuild a calibration written by :meth:`to_dict`."""
-        try:
-            if d.get("cal_type") != CAL_TYPE:
-                raise InputError(f"not an IMU calibration (cal_type {d.get('cal_type')!r}, expected {CAL_TYPE!r})")
-            version = int(d["format_version"])
-            if not 1 <= version <= FORMAT_VERSION:
-                raise InputError(f"IMU calibration format version {version}; this optcal reads 1..{FORMAT_VERSION}")
-            g = d["gyro"]
-            gs = g.get("g_sensitivity")
-            gp = d["gravity_prediction"]
-            return cls(
-                accelerometer=CalibrationResult.from_dict(d["accelerometer"]),
-                gyro=GyroModel(np.asarray(g["T"], float), np.asarray(g["bias"], float),
-                               None if gs is None else np.asarray(gs, float)),
-                gyro_units=str(g["units"]["input"]),
-                gyro_units_reason=str(g["units"].get("reason", "")),
-                param_names=list(g["param_names"]),
-                params=np.asarray(g["params_vector"], float),
-                covariance=np.asarray(g["covariance"], float),
-                angles_before_deg=np.asarray(gp["angles_deg_before"], float),
-                angles_after_deg=np.asarray(gp["angles_deg_after"], float),
-                before=str(gp["before"]),
-                accelerometer_mode=str(d["accelerometer_mode"]),
-                solver=SolverInfo(**d["solver"]),
-                identifiability=dict(d.get("identifiability") or {}),
-                exclusions=dict(d.get("exclusions") or {}),
-                notes=list(d.get("notes") or []),
-                format_version=version,
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            if isinstance(exc, InputError):
-                raise
-            raise InputError(f"not an optcal IMU calibration ({exc.__class__.__name__}: {exc})") from exc
+    def from_parameters(cls, d: dict[str, Any], units: str, fitted_on: FitPoses | None) -> "ImuCalibration":
+        fit, gp = d["gyro_fit"], d["gravity_prediction"]
+        gs = d.get("Gg")
+        return cls(
+            accelerometer=CalibrationResult.from_dict(d["accelerometer_fit"]),
+            gyro=GyroModel(read_matrix(d, "Tg", (3, 3)), read_matrix(d, "bg", (3,)),
+                           None if gs is None else np.asarray(gs, float).reshape(3, 3)),
+            gyro_units=str(d["gyro_units"]["input"]),
+            gyro_units_reason=str(d["gyro_units"].get("reason", "")),
+            param_names=list(fit["param_names"]),
+            params=np.asarray(fit["params"], float),
+            covariance=np.asarray(fit["covariance"], float),
+            angles_before_deg=np.asarray(gp["angles_deg_before"], float),
+            angles_after_deg=np.asarray(gp["angles_deg_after"], float),
+            before=str(gp["before"]),
+            accelerometer_mode=str(fit["accelerometer_mode"]),
+            solver=SolverInfo(**fit["solver"]),
+            identifiability=dict(fit.get("identifiability") or {}),
+            exclusions=dict(fit.get("exclusions") or {}),
+            notes=list(fit.get("notes") or []),
+            units=units,
+            fitted_on=fitted_on,
+        )
 
-    def save(self, path: str | Path) -> None:
-        """Write the calibration as JSON."""
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+    def unit_fields(self) -> dict[str, str]:
+        return {"T": f"g per {self.units}", "o": self.units, "Tg": f"rad/s per {self.gyro_units}",
+                "bg": self.gyro_units, "Gg": f"{self.gyro_units} per g"}
+
+    def lumped(self) -> LumpedCalibration:
+        return LumpedCalibration.from_any_T(self.accelerometer.T, self.accelerometer.o, self.units, self.fitted_on)
 
     @classmethod
-    def load(cls, path: str | Path) -> "ImuCalibration":
-        """Read a calibration written by :meth:`save`."""
-        p = Path(path)
-        if not p.exists():
-            raise InputError(f"{p}: no such calibration file")
-        try:
-            d = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{p}: not a JSON calibration file ({exc})") from exc
-        if not isinstance(d, dict):
-            raise InputError(f"{p}: not an optcal calibration file")
-        return cls.from_dict(d)
+    def load(cls, path: str) -> "ImuCalibration":
+        """Read a file written by :meth:`save` (``optcal.caltypes.load`` reads it too)."""
+        from optcal.caltypes import load
+
+        cal = load(path)
+        if not isinstance(cal, cls):
+            raise InputError(f"{path}: a {cal.cal_type!r} calibration, not an IMU calibration (cal_type 'imu')")
+        return cal
 
     def report(self) -> str:
         """Readable report: the accelerometer's, then the gyro's parameters and the gravity-prediction residual."""
@@ -209,4 +216,4 @@ class ImuCalibration:
         return "\n".join(lines)
 
 
-__all__ = ["CAL_TYPE", "G_NAMES", "ImuCalibration"]
+__all__ = ["CAL_TYPE", "ImuCalibration"]
