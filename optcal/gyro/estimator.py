@@ -424,14 +424,27 @@ def calibrate_imu(
         Passed to :func:`optcal.data.load_with_segmentation` (``columns=``, ``units=``,
         ``rate=``, static-detection settings, ...).
     """
-    from optcal.calibration import calibrate
     from optcal.data import load_with_segmentation
+
+    return calibrate_imu_loaded(load_with_segmentation(path, **load_options), gyro_units=gyro_units, method=method,
+                                settings=settings, acc_settings=acc_settings)
+
+
+def calibrate_imu_loaded(
+    loaded: Any,
+    *,
+    gyro_units: str | None = None,
+    method: str = "default",
+    settings: GyroSettings | None = None,
+    acc_settings: dict[str, Any] | None = None,
+) -> ImuCalibration:
+    """:func:`calibrate_imu` on what :func:`optcal.data.load_with_segmentation` read."""
+    from optcal.calibration import calibrate
     from optcal.gyro.moves import moves_from_segmentation
     from optcal.gyro.units import decide_gyro_units
 
-    loaded = load_with_segmentation(path, **load_options)
     if loaded.segmentation is None:
-        raise InputError(f"{path} was read as a pose table ({loaded.kind.reason}); a gyro calibration needs the raw "
+        raise InputError(f"DATA was read as a pose table ({loaded.kind.reason}); a gyro calibration needs the raw "
                          "recording with the moves between the poses (kind='raw')")
     seg = loaded.segmentation
     moves = moves_from_segmentation(seg)
