@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "segment": "optcal.cli.cmd_segment:segment",
     "check": "optcal.cli.cmd_check:check",
     "allan": "optcal.cli.cmd_allan:allan",
+    "fleet": "optcal.cli.cmd_fleet:fleet",
 }
 
 
