@@ -145,6 +145,9 @@ class PriorMLProblem:
 
         n = len(u)
         pad = self.n - n
+        # weights scaled to mean 1 and the prior with them (same optimum): the conditioning of mle
+        w_mean = float(np.mean(w))
+        w, L = w / w_mean, L / np.sqrt(w_mean)
         u_p = np.vstack([u, np.repeat(u[:1], pad, axis=0)])
         w_p = np.concatenate([w, np.zeros(pad)])
         start = NormResidualCost(u, w).value(theta0) + float(np.sum((L @ (theta0 - mu)) ** 2))
