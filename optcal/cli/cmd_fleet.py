@@ -37,11 +37,13 @@ from optcal.cli.data_options import data_options
               help="Flag a unit when a parameter lies outside median ± K·1.4826·MAD of the population [3.5].")
 @click.option("--plot", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Write a figure per parameter and a one-page summary figure (PNG) into DIR.")
+@click.option("--chunk", type=click.IntRange(1), default=None, metavar="N",
+              help="Units per Dask task [about eight tasks per worker, at most 64 units].")
 @click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on standard error.")
 @data_options
 def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | None, scheduler: str | None,
           tls_ca_file: str | None, tls_cert: str | None, tls_key: str | None, dask_config: str | None,
-          dashboard: bool, prior: str, flag_threshold: float | None, plot: str | None, progress: bool,
+          dashboard: bool, prior: str, flag_threshold: float | None, plot: str | None, chunk: int | None, progress: bool,
           **data_opts: Any) -> None:
     """Calibrate every unit of a fleet on Dask, flag the odd ones, borrow strength from the population.
 
@@ -66,7 +68,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         board = f"dashboard {fc.dashboard_link}" if fc.dashboard_link else "dashboard off"
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
         result = run_fleet(units, fc.client, engine=fc.engine, load_options=_load_kwargs(data_opts),
-                           flag_threshold=threshold, prior=prior, progress=progress)
+                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress)
     result.write_parquet(output)
     if plot:
         _write_figures(result, Path(plot))

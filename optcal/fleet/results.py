@@ -65,6 +65,8 @@ class FleetResult:
         The cluster it ran on.
     seconds : float
         Wall time of the run (cluster start not included).
+    chunk : int
+        Units per Dask task.
     """
 
     outcomes: list[UnitOutcome]
@@ -73,6 +75,7 @@ class FleetResult:
     prior_note: str
     engine: str
     seconds: float
+    chunk: int = 1
 
     def count(self, status: str) -> int:
         """Units with ``status``."""
@@ -112,6 +115,7 @@ class FleetResult:
                        "sd": dict(zip(PARAM_NAMES, np.sqrt(np.diag(self.prior.covariance)).tolist()))}
                       if self.prior else {"note": self.prior_note}),
             "seconds": self.seconds,
+            "units_per_task": self.chunk,
         }
         if self.stats:
             out["population"] = {b.name: {"median": b.median, "robust_sd": b.spread} for b in self.stats.bands}
@@ -119,7 +123,7 @@ class FleetResult:
 
     def report(self) -> str:
         """The one-page text summary."""
-        lines = [f"Fleet of {len(self.outcomes)} units on {self.engine}, {self.seconds:.1f} s"]
+        lines = [f"Fleet of {len(self.outcomes)} units on {self.engine} ({self.chunk} units per task), {self.seconds:.1f} s"]
         lines.append("  " + ", ".join(f"{s} {self.count(s)}" for s in STATUSES))
         if self.stats:
             lines += ["", f"Population ({self.stats.bands[0].n_units} units calibrated by their own data, {self.stats.units}):",
