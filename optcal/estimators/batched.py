@@ -41,7 +41,7 @@ from optcal.poses import PoseTable
 
 #: Units per IPOPT problem: large enough to amortise IPOPT's fixed cost, small enough that one
 #: hard unit does not hold many others in extra iterations.
-DEFAULT_BATCH: int = 256
+DEFAULT_BATCH: int = 512
 
 
 class BatchedNormResidualCost:
@@ -61,8 +61,8 @@ class BatchedNormResidualCost:
     def n_units(self) -> int:
         return int(self.w.shape[0])
 
-    def evaluate(self, x: NDArray) -> tuple[NDArray, NDArray]:
-        """Residuals ``r`` (K, n) and their Jacobian (K, 9, n) at ``x`` (cached)."""
+    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
+        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached)."""
         x = np.asarray(x, dtype=float).ravel()
         if self._x is None or not np.array_equal(x, self._x):
             th = x.reshape(-1, 9)
@@ -72,6 +72,11 @@ class BatchedNormResidualCost:
             vy = t10 * dx + t11 * dy
             vz = t20 * dx + t21 * dy + t22 * dz
             nv = np.sqrt(vx * vx + vy * vy + vz * vz)
+            self._x, self._r, self._J = x.copy(), nv - 1.0, None  # eq. 13
+            self._parts = (th, dx, dy, dz, vx, vy, vz, nv)
+        if jacobian and self._J is None:
+            th, dx, dy, dz, vx, vy, vz, nv = self._parts
+            t00, t10, t11, t20, t21, t22 = (th[:, i:i + 1] for i in range(6))
             ax, ay, az = vx / nv, vy / nv, vz / nv
             J = np.empty((th.shape[0], 9, nv.shape[1]))
             J[:, 0], J[:, 1], J[:, 2] = ax * dx, ay * dx, ay * dy  # ∂r/∂T_ij = ā_i u_j
@@ -79,11 +84,11 @@ class BatchedNormResidualCost:
             J[:, 6] = -(t00 * ax + t10 * ay + t20 * az)  # ∂r/∂o = −Tᵀ ā
             J[:, 7] = -(t11 * ay + t21 * az)
             J[:, 8] = -t22 * az
-            self._x, self._r, self._J = x.copy(), nv - 1.0, J  # eq. 13
+            self._J = J
         return self._r, self._J
 
     def value(self, x: NDArray) -> float:
-        r, _ = self.evaluate(x)
+        r, _ = self.evaluate(x, jacobian=False)
         return float(np.sum(self.scale * np.sum(self.w * r * r, axis=1)))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
@@ -163,7 +168,7 @@ class BatchedMLProblem:
     def solve(self, theta0: NDArray, u: NDArray, w: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve all K units from ``theta0`` (K, 9) for data ``u`` (K, n, 3) and mean-1 weights ``w`` (K, n)."""
         cost = BatchedNormResidualCost(u, w, np.ones(len(u)))
-        r, _ = cost.evaluate(theta0.ravel())
+        r, _ = cost.evaluate(theta0.ravel(), jacobian=False)
         start_rms = np.sqrt(np.mean(w * r * r, axis=1))
         cost.scale = 1.0 / (u.shape[1] * np.maximum(start_rms, MIN_RESIDUAL_RMS))  # cost_scale() per unit
         self.cost = cost
