@@ -358,7 +358,7 @@ class Diagnoser:
         progress: Callable[[str], None] | None = None,
     ) -> None:
         from optcal.calibration import calibrate
-        from optcal.identifiability import normal_gain
+        from optcal.norm_residual import normal_gain
 
         poses.validate()
         if not 0 < alpha < 1:

@@ -427,7 +427,7 @@ def extended_residual_function() -> Any:
     """
     import casadi as ca
 
-    from optcal.estimators.mle import lower_triangular
+    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
 
     x = ca.SX.sym("x", N_X)
     a = ca.SX.sym("a", 3)

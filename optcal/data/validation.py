@@ -21,16 +21,11 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
+from optcal.norm_residual import norm_residuals, normal_gain
 from optcal.poses import MIN_POSES, PoseTable
 from optcal.result import CalibrationResult, jsonable
 
 G_TO_MS2 = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
-
-
-def norm_residuals(T: ArrayLike, o: ArrayLike, acc: ArrayLike) -> NDArray[np.float64]:
-    """``‖T (a_k − o)‖ − 1`` for each row of ``acc`` (Lu 2017, eq. 6 and 13), g."""
-    a = np.asarray(acc, dtype=float).reshape(-1, 3)
-    return np.linalg.norm((a - np.asarray(o, float)) @ np.asarray(T, float).T, axis=1) - 1.0
 
 
 def norm_noise(T: ArrayLike, o: ArrayLike, acc: ArrayLike, sigma: ArrayLike) -> NDArray[np.float64]:
@@ -38,10 +33,7 @@ def norm_noise(T: ArrayLike, o: ArrayLike, acc: ArrayLike, sigma: ArrayLike) -> 
 
     First order: ``σ_k ‖Tᵀ v_k‖`` with ``v_k`` the unit calibrated vector.
     """
-    T = np.asarray(T, float)
-    y = (np.asarray(acc, float).reshape(-1, 3) - np.asarray(o, float)) @ T.T
-    v = y / np.linalg.norm(y, axis=1, keepdims=True)
-    return np.asarray(sigma, float) * np.linalg.norm(v @ T, axis=1)
+    return np.asarray(sigma, float) * normal_gain(T, o, acc)
 
 
 def _rms(x: NDArray[np.float64]) -> float:
