@@ -27,6 +27,7 @@ The squared loss without bounds only (the default ``optcal calibrate``); use
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +39,7 @@ from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLi
 from optcal.identifiability import RANK_TOL, WEAK_STDERR
 from optcal.model import PARAM_NAMES
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, problem_cache
 
 #: Units per IPOPT problem: large enough to amortise IPOPT's fixed cost, small enough that one
 #: hard unit does not hold many others in extra iterations.
@@ -108,10 +110,7 @@ class BatchedNormResidualCost:
 
 
 class BatchedMLProblem:
-    """The NLP of K separable units, IPOPT through CasADi callbacks; built once per K."""
-
-    _cache: dict[int, "BatchedMLProblem"] = {}
-    CACHE_SIZE = 16
+    """The NLP of K separable units, IPOPT through CasADi callbacks; built once per K, one solve at a time."""
 
     def __init__(self, n_units: int) -> None:
         import casadi as ca
@@ -155,15 +154,12 @@ class BatchedMLProblem:
         x = ca.MX.sym("theta", 9 * K)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian}
         self.solver = ca.nlpsol("ml_calibration_batched", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+        self._lock = threading.Lock()
 
-    @classmethod
-    def get(cls, n_units: int) -> "BatchedMLProblem":
-        """The problem for ``n_units`` units, built on first use (a bounded cache)."""
-        if n_units not in cls._cache:
-            if len(cls._cache) >= cls.CACHE_SIZE:
-                cls._cache.pop(next(iter(cls._cache)))
-            cls._cache[n_units] = cls(n_units)
-        return cls._cache[n_units]
+    @staticmethod
+    def get(n_units: int) -> "BatchedMLProblem":
+        """The problem for ``n_units`` units, built on first use (:data:`BATCHED_PROBLEMS`)."""
+        return BATCHED_PROBLEMS.get(n_units)
 
     def solve(self, theta0: NDArray, u: NDArray, w: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve all K units from ``theta0`` (K, 9) for data ``u`` (K, n, 3) and mean-1 weights ``w`` (K, n)."""
@@ -171,12 +167,17 @@ class BatchedMLProblem:
         r, _ = cost.evaluate(theta0.ravel(), jacobian=False)
         start_rms = np.sqrt(np.mean(w * r * r, axis=1))
         cost.scale = 1.0 / (u.shape[1] * np.maximum(start_rms, MIN_RESIDUAL_RMS))  # cost_scale() per unit
-        self.cost = cost
-        try:
-            sol = self.solver(x0=theta0.ravel())
-        finally:
-            self.cost = None
-        return np.asarray(sol["x"]).reshape(-1, 9), self.solver.stats()
+        with self._lock:  # the callbacks read the data of this solve; the solver keeps its statistics
+            self.cost = cost
+            try:
+                sol = self.solver(x0=theta0.ravel())
+                return np.asarray(sol["x"]).reshape(-1, 9), self.solver.stats()
+            finally:
+                self.cost = None
+
+
+#: Built :class:`BatchedMLProblem` s by number of units (:func:`optcal.problem_cache.problem_cache`).
+BATCHED_PROBLEMS: ProblemCache[BatchedMLProblem] = problem_cache(BatchedMLProblem, maxsize=16)
 
 
 @dataclass

@@ -7,7 +7,7 @@
    ``C̄`` the mean of their covariances), kept between ``PRIOR_FLOOR · S`` and ``S`` in the
    Loewner order (whitened by ``S``, the eigenvalues are clipped to ``[PRIOR_FLOOR, 1]``).
 2. :class:`PriorMLProblem` — the maximum-likelihood problem of Lu 2017 (eq. 13-14, the norm
-   residual of :func:`optcal.estimators.mle.residual_function`) with the Gaussian prior as a
+   residual of :func:`optcal.norm_residual.casadi_norm_residual`) with the Gaussian prior as a
    penalty: ``min_θ Σ_k w_k r_k(θ)² + (θ − μ)ᵀ P⁻¹ (θ − μ)``, i.e. −2 log posterior, in CasADi
    and solved by IPOPT; the squared loss only.
 3. :func:`fit_with_prior` — one unit refitted: start at its own fit (or at μ), absolute
@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +32,7 @@ from numpy.typing import NDArray
 from optcal.errors import InputError
 from optcal.fleet.unit import UnitOutcome
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, problem_cache
 
 #: Fewest well-determined units for a prior (a 9 × 9 covariance needs well over 9).
 MIN_PRIOR_UNITS: int = 20
@@ -108,13 +110,11 @@ class PriorMLProblem:
     the cost scale ``c`` are parameters of the NLP.
     """
 
-    _cache: dict[int, "PriorMLProblem"] = {}
-    CACHE_SIZE = 8
-
     def __init__(self, n: int) -> None:
         import casadi as ca
 
-        from optcal.estimators.mle import ML_IPOPT_DEFAULTS, residual_function
+        from optcal.estimators.mle import ML_IPOPT_DEFAULTS
+        from optcal.norm_residual import casadi_norm_residual
 
         self.n = n
         x = ca.SX.sym("theta", 9)
@@ -123,21 +123,17 @@ class PriorMLProblem:
         mu = ca.SX.sym("mu", 9)
         L = ca.SX.sym("L", 9, 9)
         scale = ca.SX.sym("scale")
-        r = residual_function().map(n)(x, data)  # Lu 2017, eq. 13
+        r = casadi_norm_residual().map(n)(x, data)  # Lu 2017, eq. 13
         penalty = ca.sumsqr(ca.mtimes(L, x - mu))
         cost = scale * (ca.sum2(w * r**2) + penalty)  # eq. 14 plus −2 log prior
         p = ca.vertcat(ca.vec(data), ca.vec(w), mu, ca.vec(L), scale)
         self.solver = ca.nlpsol("ml_with_prior", "ipopt", {"x": x, "p": p, "f": cost}, dict(ML_IPOPT_DEFAULTS))
+        self._lock = threading.Lock()  # nlpsol keeps the statistics of its last call
 
-    @classmethod
-    def get(cls, n: int) -> "PriorMLProblem":
-        """The problem serving n poses (size :func:`padded_size`), built on first use."""
-        size = padded_size(n)
-        if size not in cls._cache:
-            if len(cls._cache) >= cls.CACHE_SIZE:
-                cls._cache.pop(next(iter(cls._cache)))
-            cls._cache[size] = cls(size)
-        return cls._cache[size]
+    @staticmethod
+    def get(n: int) -> "PriorMLProblem":
+        """The problem serving n poses (size :func:`padded_size`), built on first use (:data:`PRIOR_PROBLEMS`)."""
+        return PRIOR_PROBLEMS.get(padded_size(n))
 
     def solve(self, theta0: NDArray, u: NDArray, w: NDArray, mu: NDArray, L: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) with absolute weights ``w``."""
@@ -153,8 +149,13 @@ class PriorMLProblem:
         start = NormResidualCost(u, w).value(theta0) + float(np.sum((L @ (theta0 - mu)) ** 2))
         scale = cost_scale(n, np.sqrt(start / n))
         p = np.concatenate([u_p.ravel(), w_p, mu, L.ravel(order="F"), [scale]])
-        sol = self.solver(x0=theta0, p=p)
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+        with self._lock:
+            sol = self.solver(x0=theta0, p=p)
+            return np.asarray(sol["x"]).ravel(), self.solver.stats()
+
+
+#: Built :class:`PriorMLProblem` s by padded size (:func:`optcal.problem_cache.problem_cache`).
+PRIOR_PROBLEMS: ProblemCache[PriorMLProblem] = problem_cache(PriorMLProblem, maxsize=8)
 
 
 @dataclass
@@ -186,7 +187,7 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     """
     from optcal.estimators.base import Normaliser, Stopwatch, finish
     from optcal.estimators.mle import MaximumLikelihood
-    from optcal.identifiability import norm_residual_jacobian
+    from optcal.norm_residual import norm_residual_jacobian
     from optcal.model import unpack_theta
     from optcal.result import SolverInfo
 

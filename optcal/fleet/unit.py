@@ -154,7 +154,7 @@ def heldout_residuals(residuals: NDArray, jacobian: NDArray, weights: NDArray) -
 
 def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: str = "calibrated") -> UnitOutcome:
     """A :class:`UnitOutcome` from a :class:`~optcal.result.CalibrationResult` of the unit's poses."""
-    from optcal.identifiability import norm_residual_jacobian
+    from optcal.norm_residual import norm_residual_jacobian
 
     r = np.asarray(result.residuals, dtype=float)
     heldout = heldout_residuals(r, norm_residual_jacobian(result.T, result.o, poses.acc), np.asarray(result.weights))
