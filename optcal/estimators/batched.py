@@ -38,6 +38,7 @@ from optcal.errors import InputError
 from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLikelihood, numpy_callback
 from optcal.identifiability import RANK_TOL, WEAK_STDERR
 from optcal.model import PARAM_NAMES
+from optcal.norm_residual import TRIL_COLS, TRIL_ROWS
 from optcal.poses import PoseTable
 from optcal.problem_cache import ProblemCache, problem_cache
 
@@ -54,7 +55,7 @@ class BatchedNormResidualCost:
     """
 
     def __init__(self, u: NDArray, w: NDArray, scale: NDArray) -> None:
-        self.ux, self.uy, self.uz = (np.ascontiguousarray(u[..., i]) for i in range(3))
+        self.u = np.ascontiguousarray(np.swapaxes(np.asarray(u, dtype=float), 1, 2))  # (K, 3, n)
         self.w = np.asarray(w, dtype=float)
         self.scale = np.asarray(scale, dtype=float)
         self._x: NDArray | None = None
@@ -64,29 +65,25 @@ class BatchedNormResidualCost:
         return int(self.w.shape[0])
 
     def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
-        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached)."""
+        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached).
+
+        The stacked form of :class:`optcal.norm_residual.NormResidualPoint`: the same formulas
+        (Lu 2017, eq. 13, 15-16) with a leading unit axis.
+        """
         x = np.asarray(x, dtype=float).ravel()
         if self._x is None or not np.array_equal(x, self._x):
             th = x.reshape(-1, 9)
-            t00, t10, t11, t20, t21, t22, ox, oy, oz = (th[:, i:i + 1] for i in range(9))
-            dx, dy, dz = self.ux - ox, self.uy - oy, self.uz - oz
-            vx = t00 * dx  # v = T (u − o), Lu 2017 eq. 6
-            vy = t10 * dx + t11 * dy
-            vz = t20 * dx + t21 * dy + t22 * dz
-            nv = np.sqrt(vx * vx + vy * vy + vz * vz)
+            T = np.zeros((th.shape[0], 3, 3))
+            T[:, TRIL_ROWS, TRIL_COLS] = th[:, :6]
+            d = self.u - th[:, 6:9, None]  # a_k − o, (K, 3, n)
+            v = np.einsum("kij,kjn->kin", T, d)  # T (a_k − o)
+            nv = np.sqrt(np.sum(v * v, axis=1))
             self._x, self._r, self._J = x.copy(), nv - 1.0, None  # eq. 13
-            self._parts = (th, dx, dy, dz, vx, vy, vz, nv)
+            self._parts = (T, d, v / nv[:, None, :])
         if jacobian and self._J is None:
-            th, dx, dy, dz, vx, vy, vz, nv = self._parts
-            t00, t10, t11, t20, t21, t22 = (th[:, i:i + 1] for i in range(6))
-            ax, ay, az = vx / nv, vy / nv, vz / nv
-            J = np.empty((th.shape[0], 9, nv.shape[1]))
-            J[:, 0], J[:, 1], J[:, 2] = ax * dx, ay * dx, ay * dy  # ∂r/∂T_ij = ā_i u_j
-            J[:, 3], J[:, 4], J[:, 5] = az * dx, az * dy, az * dz
-            J[:, 6] = -(t00 * ax + t10 * ay + t20 * az)  # ∂r/∂o = −Tᵀ ā
-            J[:, 7] = -(t11 * ay + t21 * az)
-            J[:, 8] = -t22 * az
-            self._J = J
+            T, d, direction = self._parts
+            self._J = np.concatenate([direction[:, TRIL_ROWS] * d[:, TRIL_COLS],  # ∂r/∂T_ij = ā_i u_j, eq. 15
+                                      -np.einsum("kji,kjn->kin", T, direction)], axis=1)  # ∂r/∂o = −Tᵀ ā, eq. 16
         return self._r, self._J
 
     def value(self, x: NDArray) -> float:
