@@ -165,6 +165,9 @@ def test_cli_usage_errors_are_one_line(tmp_path, capsys):
     code = main(["fleet", str(tmp_path / "d"), "-o", str(tmp_path / "r.parquet"), "--tls-key", str(key)])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error:") and "scheduler" in err and len(err.strip().splitlines()) == 1
+    code = main(["fleet", str(tmp_path / "d"), "-o", str(tmp_path / "missing" / "r.parquet")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("error:") and "folder does not exist" in err
     with pytest.raises(InputError, match="workers"):
         ClusterSettings(workers=2, scheduler="tcp://127.0.0.1:1")
 

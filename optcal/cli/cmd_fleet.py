@@ -59,6 +59,10 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
     from optcal.fleet.inputs import expand_inputs
     from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD
 
+    from optcal.errors import InputError
+
+    if not Path(output).resolve().parent.is_dir():
+        raise InputError(f"{output}: its folder does not exist; create it or give another -o path")
     units = expand_inputs(list(inputs))
     settings = ClusterSettings(workers=workers, scheduler=scheduler, dashboard=dashboard, tls_ca_file=tls_ca_file,
                                tls_cert=tls_cert, tls_key=tls_key, dask_config=dask_config)
