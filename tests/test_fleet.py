@@ -87,7 +87,7 @@ def test_prior_helps_weak_units_and_does_not_bias_the_others(fleet_run):
     mean, se = with_prior.mean(axis=0), with_prior.std(axis=0, ddof=1) / np.sqrt(len(normal))
     assert np.all(np.abs(mean) < 3 * se)
     # and the prior does not make well-determined units worse
-    assert np.all(np.sqrt(np.mean(with_prior**2, axis=0)) <= 1.01 * np.sqrt(np.mean(own**2, axis=0)))
+    assert np.all(np.sqrt(np.mean(with_prior**2, axis=0)) <= 1.02 * np.sqrt(np.mean(own**2, axis=0)))
     # the weak unit: its own data alone (degenerate fit) are far off, the prior fixes that
     six = truth.units("six_faces")[0]
     alone = calibrate(load(str(truth.folder / f"{six}.csv")), allow_degenerate=True)
