@@ -40,10 +40,12 @@ import numpy as np
 
 from optcal.calibration import calibrate
 from optcal.estimators.batched import BatchedMaximumLikelihood
+from optcal.fleet.engine import refit_unit
+from optcal.fleet.inputs import expand_inputs
 from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD, flag_units, population_stats
 from optcal.fleet.prior import estimate_prior, fit_with_prior
 from optcal.fleet.synthetic import unit_model, write_fleet
-from optcal.fleet.unit import UnitOutcome
+from optcal.fleet.unit import UnitOutcome, fit_unit, read_unit
 from optcal.model import LumpedModel
 from optcal.simulate import cap_directions, simulate_poses, six_position, uniform_directions
 
@@ -179,4 +181,33 @@ RESULTS["run"] = {
     "parquet_bytes": size, "load_average_1min": os.getloadavg()[0],
 }
 print(json.dumps(RESULTS["run"], indent=1))
+
+# %% [markdown]
+# ## 4. Cost of each stage of a unit, in one process
+#
+# The per-unit CPU time of reading (``optcal.data.load``), the own fit (``optcal calibrate``'s
+# code path) and the refit with the prior, on 120 units, and the file size: the inputs of the
+# scale plan.
+
+# %%
+with tempfile.TemporaryDirectory() as tmp:
+    write_fleet(tmp, 120, SEED + 5, scale_error_units=0, six_face_units=0, unreadable_units=0)
+    units = expand_inputs([tmp])
+    fit_unit(units[0], read_unit(units[0], {}))  # imports, problem built
+    t0 = time.perf_counter()
+    tables = [read_unit(u, {}) for u in units]
+    read_ms = (time.perf_counter() - t0) / len(units) * 1e3
+    t0 = time.perf_counter()
+    own = [fit_unit(u, p) for u, p in zip(units, tables)]
+    fit_ms = (time.perf_counter() - t0) / len(units) * 1e3
+    flag_units(own, population_stats(own))
+    unit_prior = estimate_prior(own)
+    refit_unit(own[0], tables[0], unit_prior)
+    t0 = time.perf_counter()
+    for o, p in zip(own, tables):
+        refit_unit(o, p, unit_prior)
+    refit_ms = (time.perf_counter() - t0) / len(units) * 1e3
+    RESULTS["stages"] = {"read_ms": read_ms, "fit_ms": fit_ms, "prior_refit_ms": refit_ms,
+                         "file_bytes": Path(units[0].path).stat().st_size, "load_average_1min": os.getloadavg()[0]}
+print(RESULTS["stages"])
 (HERE / "results" / "fleet_scale.json").write_text(json.dumps(RESULTS, indent=1, default=float))
