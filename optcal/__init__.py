@@ -8,7 +8,7 @@ for the conventions.
 
 from typing import Any
 
-from optcal.errors import IdentifiabilityError, InputError, OptcalError, SolverError
+from optcal.errors import ConvergenceWarning, IdentifiabilityError, InputError, OptcalError, SolverError
 
 __version__ = "0.1.0"
 
@@ -28,6 +28,7 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'optcal' has no attribute {name!r}")
 
 __all__ = [
+    "ConvergenceWarning",
     "IdentifiabilityError",
     "InputError",
     "LumpedModel",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -13,6 +13,9 @@ from optcal.cli.outputs import plot_file, plot_option
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "segments.png"
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @click.command()
@@ -36,7 +39,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
             figure = None
         else:
-            plot_segmentation(seg).savefig(figure, dpi=120)
+            segmentation_figure(seg).savefig(figure, dpi=120)
     if as_json:
         out = {"data": data_summary(data, poses)}
         if seg is not None:
@@ -90,8 +93,11 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     return "\n".join(lines)
 
 
-def plot_segmentation(seg: Any) -> Any:
-    """Figure: |a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate."""
+def segmentation_figure(seg: Any) -> "Figure":
+    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
+
+    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
+    """
     from matplotlib.figure import Figure
 
     tr = seg.trace
