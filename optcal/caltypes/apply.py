@@ -120,7 +120,7 @@ def apply_to_file(
         calibration needs and DATA lacks.
     """
     from optcal.data import POSE_TABLE, decide, gather_evidence
-    from optcal.data.readers import ACC, read_parquet, read_source
+    from optcal.data.readers import ACC, GYRO, read_parquet, read_source
     from optcal.data.recording import recording_from_source
     from optcal.data.text import read_frame
 
@@ -184,6 +184,19 @@ def apply_to_file(
     frame = frame.drop(columns=names)
     for k, axis in enumerate("xyz"):
         frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
+    correct_gyro = getattr(cal, "correct_gyro", None)  # cal_type imu: gyro columns to rad/s as well
+    if correct_gyro is not None and src.has(*GYRO):
+        from optcal.gyro.units import normalise_gyro_units
+
+        if src.gyro_units is not None and normalise_gyro_units(src.gyro_units) != cal.gyro_units:
+            raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
+        gyro = np.full(raw.shape, np.nan)
+        gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
+        gnames = [src.column_map.get(c, c) for c in GYRO]
+        gpos = min(list(frame.columns).index(n) for n in gnames)
+        frame = frame.drop(columns=gnames)
+        for k, axis in enumerate("xyz"):
+            frame.insert(gpos + k, f"g{axis}_rad_s", gyro[:, k])
     frame[STATUS_COLUMN] = status
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
     return AppliedFile(
