@@ -13,7 +13,7 @@ from optcal.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibratio
 from optcal.caltypes.apply import STATUS_COLUMN
 from optcal.cli.main import main
 from optcal.data import load
-from optcal.effects import recording_with_effect
+from optcal.simulate_effects import recording_with_effect
 from optcal.model import STANDARD_GRAVITY
 
 #: 1 mg/°C on z over the 16 °C warm-up and cool-down of the generator: ±8 mg, far above the noise.
@@ -116,7 +116,8 @@ def test_apply_refuses_in_one_line(files, tmp_path, capsys):
     code, _, err = run(["apply", d / "lumped.json", d / "rec.csv", "-o", tmp_path / "x.txt"], capsys)
     assert code == 2 and ".csv or .parquet" in err
     code, _, err = run(["apply", d / "lumped.json", d / "rec.csv", "-o", tmp_path / "x.csv", "--data-units", "g"], capsys)
-    assert code == 2 and "takes counts but DATA is in g" in err
+    # g declared on data in counts is refused when DATA is read (the norm contradicts it, issue 11)
+    assert code == 2 and "units g (given with --units) contradict the data" in err
 
 
 def test_check_accepts_every_cal_type(files, capsys):
