@@ -130,18 +130,8 @@ def test_help_as_a_new_process():
         assert ours <= HELP_BUDGET_S
 
 
-@pytest.fixture(scope="module")
-def million_sample_csv(tmp_path_factory):
-    from optcal.data.synthetic import synthesize_recording
-    from optcal.model import LumpedModel
-    from optcal.simulate import uniform_directions
-
-    model = LumpedModel.from_physical([16300, 16400, 16700], 0.01, -0.005, 0.008, [700, -360, -1800])
-    syn = synthesize_recording(model, uniform_directions(400, rng=1), dwell_s=20.0, transition_s=5.0, sigma=60.0,
-                               quantum=1.0, units="counts", rng=2, temperature=(25.0, 0.001))
-    path = tmp_path_factory.mktemp("bench") / "million.csv"
-    syn.to_csv(str(path), float_format="%.6f")
-    return path, syn
+# the 10⁶-sample MPU-6050-like CSV of bench_segment_calibrate.py (7 columns, 61 MB)
+from bench_segment_calibrate import million_sample_csv  # noqa: E402,F401  (a pytest fixture)
 
 
 def test_million_samples_read_and_segmented(million_sample_csv):

@@ -282,3 +282,15 @@ def test_cli_plan_with_a_saved_calibration_as_prior(tmp_path, capsys):
     d = np.array([p["direction"] for p in out["poses"]])
     crb = np.sqrt(np.diag(cramer_rao_bound(cal.model, d, 0.002)))
     np.testing.assert_allclose(list(out["stderr"].values()), crb, rtol=1e-6)
+
+
+def test_counts_prior_normalised_stderr_and_weak_check_use_the_raw_noise():
+    """A sensor in counts (400 counts/g, offset 32768): the target is compared in g-relative units."""
+    model = LumpedModel(400.0 * np.eye(3), np.full(3, 32768.0))
+    prior = Prior(model, "counts", "test")
+    acc = model.measure(uniform_directions(30, rng=6))
+    step = next_pose(acc, prior=prior, sigma=0.4, candidates=sphere_candidates(300))  # 1 mg in counts
+    assert step.stderr_normalised["o_x"] == pytest.approx(step.stderr_before["o_x"] / 400, rel=1e-9)
+    assert step.stderr_normalised["T_xx"] == pytest.approx(step.stderr_before["T_xx"] * 400, rel=1e-9)
+    same_in_g = next_pose(NOMINAL.measure(uniform_directions(30, rng=6)), sigma=1e-3, candidates=sphere_candidates(300))
+    np.testing.assert_allclose(list(step.stderr_normalised.values()), list(same_in_g.stderr_normalised.values()), rtol=1e-6)

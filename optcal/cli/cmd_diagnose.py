@@ -33,7 +33,8 @@ def diagnosis_options(func: Any) -> Any:
         click.option("--plot", "plot_dir", type=click.Path(), default=None, metavar="PATH",
                      help="Write the figures (residuals against temperature, time and each axis, before and after; "
                           "the simulation check) into the folder PATH (created when missing)."),
-        click.option("--quiet", is_flag=True, help="No progress messages on stderr."),
+        click.option("--quiet", is_flag=True,
+                     help="No progress on stderr (bars in a terminal, stage messages otherwise)."),
     )):
         func = option(func)
     return func
@@ -47,8 +48,10 @@ def settings_from(effects: str | None, folds: int, simulations: int, alpha: floa
 
 
 def progress_printer(quiet: bool) -> Any:
-    """Progress messages on stderr (``None`` when quiet)."""
-    return None if quiet else (lambda message: click.echo(f"... {message}", err=True))
+    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet``."""
+    from optcal.diagnosis.progress import Progress
+
+    return Progress.for_terminal(quiet)
 
 
 @click.command()

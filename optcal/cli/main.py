@@ -46,6 +46,7 @@ COMMANDS: dict[str, str] = {
     "apply": "optcal.cli.cmd_apply:apply",
     "export": "optcal.cli.cmd_export:export",
     "plan": "optcal.cli.cmd_plan:plan",
+    "fleet": "optcal.cli.cmd_fleet:fleet",
 }
 
 

@@ -144,25 +144,28 @@ class Evidence:
 def gather_evidence(src: Source) -> Evidence:
     """The statistics every decision is made from, in one pass over the columns."""
     n = src.n_rows
-    acc = np.column_stack([src.column(c) for c in ACC])
-    finite = np.all(np.isfinite(acc), axis=1)
-    for name in ("t", *GYRO, "temp"):
+    acc = [src.column(c) for c in ACC]  # column by column: no copy of the file's data
+    finite = np.ones(n, dtype=bool)
+    for name in (*ACC, "t", *GYRO, "temp"):
         if src.has(name):
             finite &= np.isfinite(src.column(name))
-    zero = finite & np.all(acc == 0.0, axis=1)
-    if src.has(*GYRO):
-        zero &= np.all(np.column_stack([src.column(c) for c in GYRO]) == 0.0, axis=1)
+    zero = finite.copy()
+    for name in (*ACC, *(GYRO if src.has(*GYRO) else ())):
+        zero &= src.column(name) == 0.0
     ok = finite & ~zero
     with np.errstate(over="ignore", invalid="ignore"):
         # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        norm = np.sqrt(np.einsum("ij,ij->i", acc, acc))
+        norm = np.sqrt(sum(a * a for a in acc))
         med = float(np.median(norm[ok])) if ok.any() else float("nan")
-        absurd = ok & np.any(np.abs(acc) > ABSURD_G * med, axis=1) if np.isfinite(med) and med > 0 else np.zeros(n, bool)
+        absurd = np.zeros(n, dtype=bool)
+        if np.isfinite(med) and med > 0:
+            for a in acc:
+                absurd |= ok & (np.abs(a) > ABSURD_G * med)
     usable = ok & ~absurd
     if usable.any():
         median_norm = float(np.median(norm[usable]))
-        step = np.diff(acc[usable], axis=0)
-        median_step = float(np.median(np.sqrt(np.einsum("ij,ij->i", step, step)))) if step.size else 0.0
+        step = np.sqrt(sum(np.diff(a[usable]) ** 2 for a in acc))
+        median_step = float(np.median(step)) if step.size else 0.0
     else:
         median_norm = median_step = float("nan")
     time = time_evidence(src.column("t")[usable]) if src.has("t") and usable.sum() > 1 else None

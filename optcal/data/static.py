@@ -330,13 +330,15 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
     out = np.zeros(m)
     if m < 2 * h + 1:
         return out
-    c = np.empty((m + 1, x.shape[1]))
-    c[0] = 0.0
-    np.cumsum(x - np.median(x, axis=0), axis=0, out=c[1:])
-    # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
-    centre = c[h:m - h + 1]
-    diff = (c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])
-    out[h:m - h + 1] = np.sqrt(np.einsum("ij,ij->i", diff, diff)) / h
+    sq = np.zeros(m - 2 * h + 1)
+    c = np.empty(m + 1)
+    for j in range(x.shape[1]):  # column by column: temporaries of one column
+        c[0] = 0.0
+        np.cumsum(x[:, j] - np.median(x[:, j]), out=c[1:])
+        # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
+        centre = c[h:m - h + 1]
+        sq += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+    out[h:m - h + 1] = np.sqrt(sq) / h
     return out
 
 
@@ -412,9 +414,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     norm = np.linalg.norm(acc - nominal.offset, axis=1)
 
     _, var_norm = moving_mean_var(norm, window)
-    _, var_axes = moving_mean_var(acc, window)
     sd_norm = np.sqrt(var_norm)
-    sd_axes = np.sqrt(var_axes.sum(axis=1))
+    # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
+    sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
     res_acc = _resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
@@ -443,11 +445,16 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
 
     gyro_bias = None
     if gyro is not None:
-        mean_g, var_g = moving_mean_var(gyro, window)
-        sd_gyro = np.sqrt(var_g.sum(axis=1))
         base = static if static.any() else np.ones(m, dtype=bool)
         gyro_bias = np.median(gyro[base], axis=0)
-        rate_dev = np.linalg.norm(mean_g - gyro_bias, axis=1)
+        var_sum = np.zeros(m)
+        dev2 = np.zeros(m)
+        for j in range(3):
+            mean_j, var_j = moving_mean_var(gyro[:, j], window)
+            var_sum += var_j
+            dev2 += (mean_j - gyro_bias[j]) ** 2
+        sd_gyro = np.sqrt(var_sum)
+        rate_dev = np.sqrt(dev2)
         res_g = _resolution(gyro)
         # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
         floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))

@@ -257,7 +257,11 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
         parts.append(cols)
     if not parts or offset == 0:
         raise InputError(f"{p}: no data rows after the header")
-    columns = [np.concatenate([c[j] for c in parts]) if len(parts) > 1 else parts[0][j] for j in range(len(parts[0]))]
+    columns: list[NDArray[np.float64]] = []
+    for j in range(len(parts[0])):
+        columns.append(np.concatenate([c[j] for c in parts]) if len(parts) > 1 else parts[0][j])
+        for c in parts:  # free each chunk's column once joined: one copy of the data at a time
+            c[j] = columns[-1][:0]
     return ParsedNumbers(columns, non_numeric, "pandas")
 
 

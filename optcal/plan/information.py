@@ -8,10 +8,10 @@ parameter (:func:`optcal.identifiability.fisher_information`)::
 
 evaluated at the prior ``(T, o)`` and the noise-free measurement ``a = C d + o``.  The planner
 works in the normalised coordinates of :class:`optcal.estimators.base.Normaliser` (``T``
-relative to the sensor's scale, ``o`` in units of the 1 g radius) and at unit pose noise, so
-that the A and E criteria do not depend on the raw units and the D criterion differs from its
-raw-unit value by a constant only.  ``M = Σ_k h_k h_kᵀ`` (normalised, unit noise) is the
-information matrix of a design; its covariance at pose noise σ is ``σ² M⁻¹``.
+relative to the sensor's scale, ``o`` in units of the 1 g radius) and at a pose noise of one raw
+unit, so that the A and E criteria do not depend on the raw units and the D criterion differs from
+its raw-unit value by a constant only.  ``M = Σ_k h_k h_kᵀ`` is the information matrix of a
+design; the covariance of the normalised parameters at pose noise σ (raw units) is ``σ² M⁻¹``.
 """
 
 from __future__ import annotations

@@ -175,7 +175,7 @@ def next_pose(
     M1 = information(prior.information_vectors(direction), base=M0)
     rank = [int(np.linalg.matrix_rank(M, tol=1e-10 * max(np.abs(M).max(), 1e-300))) for M in (M0, M1)]
     gain = criterion_value(M1, Criterion.D) - criterion_value(M0, Criterion.D) if full_before else math.inf
-    normalised = np.sqrt(np.diag(covariance(M0, sigma / prior.scale)))
+    normalised = np.sqrt(np.diag(covariance(M0, sigma)))
     stop = target_stderr is not None and bool(np.all(normalised < target_stderr))
     return NextPose(
         direction=direction,

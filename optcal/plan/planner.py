@@ -214,7 +214,7 @@ def refuse_if_undetermined(prior: Prior, acc: NDArray, sigma_ratio: NDArray, sig
     report: IdentifiabilityReport = analyse(T, o, acc, sigma_ratio)
     if report.rank == report.n_params:
         M = information(prior.measurement_vectors(acc), 1.0 / sigma_ratio**2)
-        add_weak_directions(report, covariance(M, sigma / prior.scale), T * prior.scale)
+        add_weak_directions(report, covariance(M, sigma), T * prior.scale)
     if not report.identifiable:
         raise IdentifiabilityError(f"{what} cannot determine the calibration: {report.describe()}", report)
 
