@@ -10,6 +10,7 @@ import click
 
 from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.report_option import command_line, report_options, write_report
 
 
 def echo_json(obj: dict) -> None:
@@ -30,12 +31,14 @@ def echo_json(obj: dict) -> None:
               help="Loss of the mle fit; huber/cauchy down-weight corrupt poses.")
 @click.option("--scale-range", nargs=2, type=float, default=None, metavar="LOW HIGH",
               help="Known range of the scale factors (raw units per g), a bound in the mle fit.")
+@report_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
-              loss: str, scale_range: tuple[float, float] | None, **data_opts: Any) -> None:
+              loss: str, scale_range: tuple[float, float] | None, report_path: str | None, tolerance: float,
+              **data_opts: Any) -> None:
     """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording."""
     from optcal.calibration import calibrate as run_calibration
-    from optcal.errors import InputError
+    from optcal.errors import IdentifiabilityError, InputError
 
     poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
@@ -45,9 +48,22 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             settings["scale_range"] = tuple(scale_range)
     elif loss != "squared" or scale_range:
         raise InputError("--loss and --scale-range apply to the mle method only")
-    result = run_calibration(poses, method=method, **settings)
+    try:
+        result = run_calibration(poses, method=method, **settings)
+    except IdentifiabilityError:
+        if report_path:  # the report says what is missing and which poses would fix it; the error still ends the command
+            from optcal.report.document import calibration_document
+
+            forced = {**settings, "allow_degenerate": True}
+            refused = run_calibration(poses, method=method, **forced)
+            write_report(calibration_document(refused, poses, data, command_line(), method, forced, tolerance), report_path)
+        raise
     if output:
         result.save(output)
+    if report_path:
+        from optcal.report.document import calibration_document
+
+        write_report(calibration_document(result, poses, data, command_line(), method, settings, tolerance), report_path)
     if as_json:
         summary = result.summary()
         summary["data"] = data_summary(data, poses)

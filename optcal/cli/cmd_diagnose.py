@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from optcal.cli.data_options import DATA_PATH, data_options
+from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.effects import EFFECTS
 
 EFFECTS_HELP = (
@@ -40,8 +41,9 @@ def diagnosis_options(func: Any) -> Any:
 @data_options
 @diagnosis_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
+@report_options
 def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int,
-             plot_dir: str | None, as_json: bool, **data_opts: Any) -> None:
+             plot_dir: str | None, as_json: bool, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads).  The paper's
@@ -63,6 +65,10 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
         progress=lambda msg: click.echo(f"... {msg}", err=True),
     )
     paths = save_figures(diag, plot_dir) if plot_dir else []
+    if report_path:
+        from optcal.report.document import diagnosis_document
+
+        write_report(diagnosis_document(diag, poses, data, command_line(), tolerance), report_path)
     if as_json:
         out = diag.to_json()
         out["data"] = data_summary(data, poses)

@@ -9,6 +9,7 @@ import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
+from optcal.cli.report_option import command_line, write_report
 
 
 @click.command()
@@ -16,8 +17,10 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Save a figure of |a|, the detector's statistics and the intervals (PNG, PDF, SVG).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
+              help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
 @data_options
-def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -> None:
+def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | None, **data_opts: Any) -> None:
     """Find the static intervals of a raw recording and the pose each one gives.
 
     DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
@@ -32,6 +35,11 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
         else:
             plot_segmentation(seg, plot_path)
+    if report_path is not None:
+        from optcal.report.document import segmentation_document
+
+        text = segmentation_report(poses.meta, seg) if seg is not None else f"nothing to segment: {poses.n} poses, one per row"
+        write_report(segmentation_document(poses, seg, data, command_line(), text), report_path)
     if as_json:
         out = {"data": data_summary(data, poses)}
         if seg is not None:
@@ -85,36 +93,10 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
 
 
 def plot_segmentation(seg: Any, path: str) -> None:
-    """Figure: |a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate."""
-    import matplotlib
+    """Save the figure of |a| (nominal g) with the intervals shaded, the detector's statistics and gyro rate."""
+    from optcal.report.figures import segmentation_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    tr = seg.trace
-    t = tr["t"]
-    has_gyro = "gyro_rate" in tr
-    fig, axes = plt.subplots(3 if has_gyro else 2, 1, sharex=True, figsize=(11, 7 if has_gyro else 5))
-    ax = axes[0]
-    ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
-    for iv in seg.intervals:
-        for a in axes:
-            a.axvspan(iv.t_start, iv.t_end, color="tab:green", alpha=0.15, lw=0)
-    ax.set_ylabel("|a| (nominal g)")
-    ax.set_title(f"{seg.recording.path}: {len(seg.intervals)} static intervals")
-    ax = axes[1]
-    ax.semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
-    ax.semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
-    ax.axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
-    ax.axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
-    ax.set_ylabel(f"std ({seg.recording.units})")
-    ax.legend(loc="upper right", fontsize=8)
-    if has_gyro:
-        ax = axes[2]
-        ax.semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
-        ax.axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
-        ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
-    axes[-1].set_xlabel("t (s)")
-    fig.tight_layout()
+    fig = segmentation_figure(seg)
+    fig.suptitle(str(seg.recording.path), fontsize=9)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+

@@ -50,7 +50,8 @@ def cli() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code (2 for bad input)."""
     try:
-        cli.main(args=argv, prog_name="optcal", standalone_mode=False)
+        cli.main(args=argv, prog_name="optcal", standalone_mode=False,
+                 obj={"argv": list(sys.argv[1:] if argv is None else argv)})
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         return 2

@@ -263,13 +263,14 @@ def noise_floor(result: CalibrationResult, poses: PoseTable) -> NDArray[np.float
     return norm_noise(result.T, result.o, poses.acc, poses.sigma)
 
 
-def held_out_error(poses: PoseTable, method: str, settings: dict[str, Any], in_sample_g: float) -> HeldOut:
+def held_out_error(poses: PoseTable, method: str, settings: dict[str, Any], in_sample_g: float,
+                   method_name: str | None = None) -> HeldOut:
     """k-fold held-out rms of ``method`` with ``settings`` (the failure in words if a fold cannot be fitted)."""
     from optcal.data.validation import held_out_validation
     from optcal.poses import MIN_POSES
 
     folds = min(HELDOUT_FOLDS, poses.n)
-    source = f"{folds}-fold over poses, method {method}"
+    source = f"{folds}-fold over poses, method {method_name or method}"
     if poses.n - int(np.ceil(poses.n / folds)) < MIN_POSES:
         return HeldOut(float("nan"), in_sample_g, folds, source,
                        f"{poses.n} poses leave fewer than {MIN_POSES} to fit in each fold")
@@ -316,18 +317,23 @@ def _sphere_grid(n: int = 2000) -> NDArray[np.float64]:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
+def distinct_orientations(directions: NDArray[np.float64]) -> int:
+    """Number of unit directions more than ``SAME_ORIENTATION_DEG`` from every earlier kept one."""
+    cos_same = np.cos(np.deg2rad(SAME_ORIENTATION_DEG))
+    centres: list[NDArray[np.float64]] = []
+    for v in directions:
+        if all(float(v @ c) < cos_same for c in centres):
+            centres.append(v)
+    return len(centres)
+
+
 def coverage(result: CalibrationResult, poses: PoseTable) -> Coverage:
     """Calibrated pose directions, distinct orientations and the largest empty cap."""
     d = result.correct(poses.acc)
     d = d / np.linalg.norm(d, axis=1, keepdims=True)
-    cos_same = np.cos(np.deg2rad(SAME_ORIENTATION_DEG))
-    centres: list[NDArray[np.float64]] = []
-    for v in d:
-        if all(float(v @ c) < cos_same for c in centres):
-            centres.append(v)
     nearest = np.max(_sphere_grid() @ d.T, axis=1)
     gap = float(np.rad2deg(np.arccos(np.clip(nearest.min(), -1, 1))))
-    return Coverage(d, len(centres), gap)
+    return Coverage(d, distinct_orientations(d), gap)
 
 
 def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
@@ -473,7 +479,7 @@ def gather(
                             "the diagnosis's robust fit and deleted-residual test")
         effects = effect_sizes(diagnosis.findings, poses)
     else:
-        held = held_out_error(poses, method or result.method, dict(settings or {}), result.rms_norm_residual_g)
+        held = held_out_error(poses, method or result.method, dict(settings or {}), result.rms_norm_residual_g, result.method)
         check = chi_square_check(result)
         outliers = robust_outliers(result, poses)
         effects = []

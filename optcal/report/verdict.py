@@ -223,4 +223,46 @@ def judge(evidence: Evidence, tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> Ver
     return Verdict(level, reasons, tolerance_mg)
 
 
-__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge"]
+def judge_check(rms_after_g: float, rms_noise_g: float, n_poses: int,
+                tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> Verdict:
+    """Verdict on a saved calibration applied to other data (``optcal check``).
+
+    The rms of |a| − 1 g after calibration on poses the calibration never saw is a held-out
+    error: judged like the held-out error of :func:`judge` (tolerance, ``NOT_USABLE_FACTOR``).
+    """
+    tol_g = tolerance_mg * 1e-3
+    floor = (f", {rms_after_g / rms_noise_g:.3g}× the noise floor of {_mg(rms_noise_g)}"
+             if np.isfinite(rms_noise_g) and rms_noise_g > 0 else "")
+    head = f"On these {n_poses} poses the rms error of |a| after calibration is {_mg(rms_after_g)}{floor}"
+    if rms_after_g > NOT_USABLE_FACTOR * tol_g:
+        reason = Reason("not usable", "error on new data", f"{head}: more than {NOT_USABLE_FACTOR:g}× the tolerance of {_mg(tol_g)}.")
+    elif rms_after_g > tol_g:
+        reason = Reason("usable with care", "error on new data", f"{head}: above the tolerance of {_mg(tol_g)}.")
+    else:
+        reason = Reason("good", "error on new data", f"{head}: within the tolerance of {_mg(tol_g)}.")
+    return Verdict(reason.level, [reason], tolerance_mg)
+
+
+def judge_segmentation(n_poses: int, distinct: int) -> Verdict:
+    """Verdict on the static poses found in a recording (``optcal segment``): can they make a calibration?
+
+    Nine parameters need at least nine poses (:data:`optcal.poses.MIN_POSES`) in at least nine
+    distinct orientations; fewer distinct orientations may leave combinations undetermined
+    (``optcal calibrate`` tells which).
+    """
+    from optcal.model import N_PARAMS
+    from optcal.poses import MIN_POSES
+
+    text = f"{n_poses} static poses in {distinct} distinct orientations (more than 15° apart)"
+    if n_poses < MIN_POSES:
+        reason = Reason("not usable", "static poses", f"{text}: a calibration needs at least {MIN_POSES} poses.")
+    elif distinct < N_PARAMS:
+        reason = Reason("usable with care", "static poses",
+                        f"{text}: fewer orientations than the {N_PARAMS} parameters, so some may not be determined "
+                        "(optcal calibrate names them).")
+    else:
+        reason = Reason("good", "static poses", f"{text}: enough for the {N_PARAMS} parameters.")
+    return Verdict(reason.level, [reason])
+
+
+__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_segmentation"]
