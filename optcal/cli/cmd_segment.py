@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
-from optcal.cli.report_option import command_line, write_report
+from optcal.cli.report_option import check_report_path, command_line, write_report
 
 
 @click.command()
@@ -18,7 +18,7 @@ from optcal.cli.report_option import command_line, write_report
               help="Save a figure of |a|, the detector's statistics and the intervals (PNG, PDF, SVG).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
-              help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
+              callback=check_report_path, help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
 @data_options
 def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | None, **data_opts: Any) -> None:
     """Find the static intervals of a raw recording and the pose each one gives.

@@ -29,7 +29,24 @@ def report_options(func: Callable[..., Any]) -> Callable[..., Any]:
                         show_default=True, metavar="MG",
                         help="Accuracy asked of the calibrated norm, mg: the verdict of --report is judged against it.")(func)
     return click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
+                        callback=check_report_path,
                         help="Write a self-contained HTML report with a verdict (good / usable with care / not usable).")(func)
+
+
+def check_report_path(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """Refuse a report path that is not an ``.html`` file in an existing directory, before any work is done."""
+    from pathlib import Path
+
+    from optcal.errors import InputError
+
+    if value is None:
+        return None
+    path = Path(value)
+    if path.suffix.lower() not in (".html", ".htm"):
+        raise InputError(f"--report {value}: the report is an HTML file; give a name ending in .html")
+    if not path.parent.is_dir():
+        raise InputError(f"--report {value}: the directory {path.parent} does not exist")
+    return value
 
 
 def command_line() -> str:

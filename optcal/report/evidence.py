@@ -170,6 +170,8 @@ class Outliers:
         Names of the flagged poses (``"pose 12"``).
     z : list of float
         Their standardised residuals.
+    residuals_g : list of float
+        Their norm residuals, g.
     bound : float
         The bound on ``|z|``.
     source : str
@@ -178,6 +180,7 @@ class Outliers:
 
     poses: list[str]
     z: list[float]
+    residuals_g: list[float]
     bound: float
     source: str
 
@@ -337,22 +340,31 @@ def coverage(result: CalibrationResult, poses: PoseTable) -> Coverage:
 
 
 def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
-    """Poses whose residual, standardised by its noise and a robust scale (MAD), exceeds the
-    Bonferroni bound ``Φ⁻¹(1 − α/(2n))``."""
+    """Poses whose residual under a Cauchy-loss refit (which one bad pose cannot drag towards
+    itself), standardised by its noise and a robust scale (MAD), exceeds the Bonferroni bound
+    ``Φ⁻¹(1 − α/(2n))``."""
     from scipy import stats
 
+    from optcal.calibration import calibrate
+
+    try:
+        robust = calibrate(poses, method="mle", loss="cauchy", allow_degenerate=True)
+        residuals, how = robust.residuals, "Cauchy-loss refit"
+    except InputError:
+        residuals, how = result.residuals, "the fit itself"
     sigma_r = noise_floor(result, poses)
-    e = result.residuals / sigma_r if sigma_r is not None else result.residuals.copy()
+    e = residuals / sigma_r if sigma_r is not None else residuals.copy()
     scale = 1.4826 * float(np.median(np.abs(e - np.median(e))))
     n = e.size
     bound = float(stats.norm.isf(OUTLIER_ALPHA / (2 * n)))
     if scale <= 0 or n <= result.n_params:
-        return Outliers([], [], bound, "not tested (too few poses for a robust scale)")
+        return Outliers([], [], [], bound, "not tested (too few poses for a robust scale)")
     z = e / scale
     flagged = np.flatnonzero(np.abs(z) > bound)
     return Outliers(
-        [pose_name(poses, int(k)) for k in flagged], [float(z[k]) for k in flagged], bound,
-        f"standardised residual (robust scale) beyond ±{bound:.2f}, the {OUTLIER_ALPHA:g} level over {n} poses",
+        [pose_name(poses, int(k)) for k in flagged], [float(z[k]) for k in flagged],
+        [float(residuals[k]) for k in flagged], bound,
+        f"standardised residual of the {how} beyond ±{bound:.2f}, the {OUTLIER_ALPHA:g} level over {n} poses",
     )
 
 
@@ -475,7 +487,9 @@ def gather(
                        f"{diagnosis.settings['folds']}-fold over poses, the paper's model by maximum likelihood")
         check = simulation_check(diagnosis.simulation)
         outlier_rows = next((f["rows"] for f in diagnosis.findings if f["effect"] == "outliers"), [])
-        outliers = Outliers(names_of_rows(poses, outlier_rows), [], float("nan"),
+        index = {int(r): k for k, r in enumerate(poses.rows)}
+        outliers = Outliers(names_of_rows(poses, outlier_rows), [],
+                            [float(diagnosis.baseline.residuals[index[int(r)]]) for r in outlier_rows], float("nan"),
                             "the diagnosis's robust fit and deleted-residual test")
         effects = effect_sizes(diagnosis.findings, poses)
     else:

@@ -9,9 +9,9 @@ not usable                  a parameter combination is not determined by the pos
                             ``NOT_USABLE_FACTOR`` × the tolerance
 usable with care            a combination is only weakly determined; the held-out error exceeds the
                             tolerance, or it cannot be measured; the residuals exceed what the model
-                            predicts by more than the tolerance; outlier poses; an effect found by
+                            predicts by more than the tolerance; an effect found by
                             the diagnosis that changes the output by more than the tolerance over the
-                            recorded range
+                            recorded range; an outlier pose off by more than the tolerance
 good                        none of the above
 ==========================  ==========================================================================
 
@@ -159,13 +159,18 @@ def _model_check(ev: Evidence, tol_g: float) -> Reason:
                   f"{_mg(excess)} rms, {judgement} the tolerance of {_mg(tol_g)}.")
 
 
-def _outliers(ev: Evidence) -> Reason:
+def _outliers(ev: Evidence, tol_g: float) -> Reason:
     o = ev.outliers
-    if o.poses:
+    if not o.poses:
+        return Reason("good", "outliers", f"No outlier poses ({o.source}).")
+    sizes = ", ".join(f"{name} ({r * 1e3:+.3g} mg)" for name, r in zip(o.poses, o.residuals_g))
+    if max(abs(r) for r in o.residuals_g) > tol_g:
         return Reason("usable with care", "outliers",
-                      f"{len(o.poses)} pose(s) do not fit the others: {', '.join(o.poses)} ({o.source}). "
-                      "Check whether the sensor moved; repeat or drop them.")
-    return Reason("good", "outliers", f"No outlier poses ({o.source}).")
+                      f"{len(o.poses)} pose(s) do not fit the others: {sizes} ({o.source}), more than the tolerance "
+                      f"of {_mg(tol_g)}. Check whether the sensor moved; repeat or drop them.")
+    return Reason("good", "outliers",
+                  f"{len(o.poses)} pose(s) stand out from their noise: {sizes} ({o.source}), but by less than the "
+                  f"tolerance of {_mg(tol_g)}.")
 
 
 def _coverage(ev: Evidence) -> Reason:
@@ -216,7 +221,7 @@ def judge(evidence: Evidence, tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> Ver
     if not evidence.solver_ok:
         reasons.append(Reason("not usable", "solver",
                               f"The solver did not converge ({evidence.solver_text}): the numbers below are not an optimum."))
-    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), _outliers(evidence), _coverage(evidence)]
+    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), _outliers(evidence, tol_g), _coverage(evidence)]
     reasons += _effects(evidence, tol_g)
     reasons.sort(key=lambda r: -LEVELS.index(r.level))
     level = max((r.level for r in reasons), key=LEVELS.index)
