@@ -70,13 +70,13 @@ class Verdict:
     level : str
         ``good``, ``usable with care`` or ``not usable``.
     reasons : list of Reason
-    tolerance_mg : float
-        The tolerance the calibration was judged against.
+    tolerance_mg : float or None
+        The tolerance the calibration was judged against (``None`` when no tolerance applies).
     """
 
     level: Level
     reasons: list[Reason] = field(default_factory=list)
-    tolerance_mg: float = DEFAULT_TOLERANCE_MG
+    tolerance_mg: float | None = DEFAULT_TOLERANCE_MG
 
     @property
     def css_class(self) -> str:
@@ -267,7 +267,7 @@ def judge_segmentation(n_poses: int, distinct: int) -> Verdict:
                         "(optcal calibrate names them).")
     else:
         reason = Reason("good", "static poses", f"{text}: enough for the {N_PARAMS} parameters.")
-    return Verdict(reason.level, [reason])
+    return Verdict(reason.level, [reason], None)
 
 
 __all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_segmentation"]
