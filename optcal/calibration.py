@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from optcal.caltypes.base import FitPoses
 from optcal.errors import InputError
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult
@@ -62,7 +63,10 @@ def calibrate(poses: PoseTable, method: str = "default", **settings: Any) -> Cal
     Returns
     -------
     CalibrationResult
+        With ``fitted_on`` set to the poses; ``result.calibration`` is the typed calibration.
     """
     if not isinstance(poses, PoseTable):
         raise InputError("calibrate() takes a PoseTable; build one with optcal.PoseTable(acc=...)")
-    return make_estimator(method, **settings).fit(poses)
+    result = make_estimator(method, **settings).fit(poses)
+    result.fitted_on = FitPoses.of(poses)  # saved with the calibration, for the exporters' loss figures
+    return result

@@ -98,6 +98,30 @@ class PoseTable:
         # copies: a table never shares (and so never corrupts) the caller's arrays
         self.extra = {k: np.array(v, dtype=float).reshape(n, *np.shape(v)[1:]) for k, v in self.extra.items()}
 
+    def __eq__(self, other: object) -> bool:
+        """Value equality: the same columns (NaN equal to NaN), units, source and exclusions.
+
+        ``meta`` (free-form provenance: file name, thresholds) is not compared.
+        """
+        if not isinstance(other, PoseTable):
+            return NotImplemented
+        arrays = ("acc", "sigma", "n_samples", "t", "temp", "gyro", "rows")
+        same_arrays = all(
+            (getattr(self, k) is None) == (getattr(other, k) is None)
+            and (getattr(self, k) is None or np.array_equal(getattr(self, k), getattr(other, k), equal_nan=True))
+            for k in arrays
+        )
+        same_extra = self.extra.keys() == other.extra.keys() and all(
+            np.array_equal(v, other.extra[k], equal_nan=True) for k, v in self.extra.items()
+        )
+        return (
+            same_arrays
+            and same_extra
+            and (self.units, self.source, self.exclusions) == (other.units, other.source, other.exclusions)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
     @property
     def n(self) -> int:
         """Number of poses."""

@@ -1,5 +1,11 @@
 """The calibration result: parameters with uncertainty, residuals, solver record, JSON I/O.
 
+:attr:`CalibrationResult.calibration` is the fitted calibration as a typed
+:mod:`optcal.caltypes` object (``lumped`` for the self-calibrating methods, ``sixpos_full`` for
+``sixpos``): ``params`` keep each method's own parameter layout, the calibration says what it
+means.  The saved file is that calibration (``cal_type``, ``format_version`` "2.0") with the fit's
+statistics attached, so :func:`optcal.caltypes.load` reads it; format-1 files still load.
+
 Modelled on imucal (result kept apart from the algorithm, JSON with a format version and
 units in fields) and lmfit (parameters with standard errors and covariance, AIC/BIC, a
 text :meth:`CalibrationResult.report` and a JSON-safe :meth:`CalibrationResult.summary`).
@@ -8,7 +14,6 @@ text :meth:`CalibrationResult.report` and a JSON-safe :meth:`CalibrationResult.s
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,11 +21,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.caltypes import Calibration, FitPoses, LumpedCalibration, SixPositionCalibration, check_version, read_json
+from optcal.caltypes.base import FORMAT_VERSION, jsonable
 from optcal.errors import InputError
 from optcal.model import TRIL_INDEX, LumpedModel
 
-#: Version of the JSON format written by :meth:`CalibrationResult.save`.
-FORMAT_VERSION: int = 1
+__all__ = ["FORMAT_VERSION", "CalibrationResult", "SolverInfo", "jsonable"]
 
 
 @dataclass
@@ -59,28 +65,6 @@ class SolverInfo:
             "solve_time_s": float(self.solve_time_s),
             "message": self.message,
         }
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def jsonable(x: Any) -> Any:
-    """Convert numpy values (and non-finite floats → ``None``) for :func:`json.dumps`."""
-    return _jsonable(x)
 
 
 def dA_dtheta(T: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -140,6 +124,9 @@ class CalibrationResult:
         Warnings and remarks for the report.
     extra : dict
         Method-specific additions (e.g. model-extension terms, gradient-descent step).
+    fitted_on : FitPoses, optional
+        The poses of the fit (set by :func:`optcal.calibration.calibrate`), saved with the
+        calibration so that exporters can evaluate simpler models on them.
     """
 
     method: str
@@ -158,9 +145,17 @@ class CalibrationResult:
     identifiability: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
-    format_version: int = FORMAT_VERSION
+    fitted_on: FitPoses | None = None
 
     # ------------------------------------------------------------------ derived
+    @property
+    def calibration(self) -> Calibration:
+        """The fitted calibration: :class:`~optcal.caltypes.SixPositionCalibration` (``W``, ``V``)
+        for ``sixpos``, else :class:`~optcal.caltypes.LumpedCalibration` (canonical ``T``, ``o``)."""
+        if self.param_names[:1] == ["W_xx"] and "W" in self.extra and "V" in self.extra:
+            return SixPositionCalibration(np.asarray(self.extra["W"]), np.asarray(self.extra["V"]), self.units, self.fitted_on)
+        return LumpedCalibration.from_any_T(self.T, self.o, self.units, self.fitted_on)
+
     @property
     def A(self) -> NDArray[np.float64]:
         """``A = Tᵀ T`` (Lu 2017, eq. 19)."""
@@ -258,19 +253,20 @@ class CalibrationResult:
 
     # -------------------------------------------------------------- application
     def correct(self, raw: ArrayLike) -> NDArray[np.float64]:
-        """Calibrated specific force ``T (a − o)`` in g for raw samples of shape (..., 3)."""
+        """Calibrated specific force in g for raw samples of shape (..., 3) (:attr:`calibration` applied)."""
         a = np.asarray(raw, dtype=float)
-        if a.shape[-1] != 3:
+        if a.ndim == 0 or a.shape[-1] != 3:
             raise InputError(f"raw samples must have 3 columns, got shape {a.shape}")
-        return (a - self.o) @ self.T.T
+        return self.calibration.correct(a.reshape(-1, 3)).reshape(a.shape)
 
     # ------------------------------------------------------------------ output
     def summary(self) -> dict[str, Any]:
         """JSON-safe dictionary of the result (what ``optcal calibrate --json`` prints)."""
         se = self.stderr
-        return jsonable(
+        calibration = self.calibration.to_dict()
+        calibration.pop("fitted_on", None)
+        out = jsonable(
             {
-                "format_version": self.format_version,
                 "method": self.method,
                 "units": {"input": self.units, "output": "g", "T": f"g per {self.units}", "o": self.units},
                 "T": self.T,
@@ -295,10 +291,16 @@ class CalibrationResult:
                 "notes": self.notes,
             }
         )
+        out["units"].update(calibration["units"])
+        merged = {**calibration, **out}  # cal_type and format_version first
+        merged.update({k: v for k, v in calibration.items() if k != "units"})
+        return merged
 
     def to_dict(self) -> dict[str, Any]:
-        """Everything needed to rebuild the result (summary plus residuals, weights, rows)."""
+        """Everything needed to rebuild the result (summary plus residuals, weights, rows, fit poses)."""
         d = self.summary()
+        if self.fitted_on is not None:
+            d["fitted_on"] = self.fitted_on.to_dict()
         d.update(
             jsonable(
                 {
@@ -317,13 +319,9 @@ class CalibrationResult:
     def from_dict(cls, d: dict[str, Any]) -> "CalibrationResult":
         """Rebuild a result written by :meth:`to_dict`."""
         try:
-            version = int(d.get("format_version", 0))
-            if version > FORMAT_VERSION or version < 1:
-                raise InputError(
-                    f"calibration file has format version {version}; this optcal reads "
-                    f"versions 1..{FORMAT_VERSION} (upgrade optcal)"
-                )
+            check_version(d.get("format_version", 0))
             cov = d.get("covariance")
+            fitted = d.get("fitted_on")
             return cls(
                 method=str(d["method"]),
                 T=np.asarray(d["T"], dtype=float).reshape(3, 3),
@@ -341,7 +339,7 @@ class CalibrationResult:
                 identifiability=dict(d.get("identifiability") or {}),
                 notes=list(d.get("notes", [])),
                 extra=dict(d.get("extra", {})),
-                format_version=version,
+                fitted_on=None if fitted is None else FitPoses.from_dict(fitted),
             )
         except (KeyError, TypeError, ValueError) as exc:
             if isinstance(exc, InputError):
@@ -355,16 +353,13 @@ class CalibrationResult:
     @classmethod
     def load(cls, path: str | Path) -> "CalibrationResult":
         """Read a result written by :meth:`save`."""
-        p = Path(path)
-        if not p.exists():
-            raise InputError(f"{p}: no such calibration file")
-        try:
-            d = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{p}: not a JSON calibration file ({exc})") from exc
-        if not isinstance(d, dict):
-            raise InputError(f"{p}: not an optcal calibration file")
-        return cls.from_dict(d)
+        return cls.from_dict(read_json(path))
+
+    def __eq__(self, other: object) -> bool:
+        """Value equality: the same numbers, solver record and notes (what the saved file holds)."""
+        return isinstance(other, CalibrationResult) and self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
 
     def report(self) -> str:
         """Readable text report (parameters ± standard error, fit statistics, solver)."""

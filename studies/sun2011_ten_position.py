@@ -34,10 +34,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from optcal.alignment import FilterTuning
+from optcal.sun2011.alignment import FilterTuning
 from optcal.reproduce.sun2011 import conclusion, format_report, run
-from optcal.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
-from optcal.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
+from optcal.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
+from optcal.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
 
 ROOT = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
 FIG = ROOT / "results" / "figures"

@@ -29,9 +29,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from optcal.data import load_recording
-from optcal.ekf import YinEKF
+from optcal.yin2014.ekf import YinEKF
 from optcal.model import AXES, STANDARD_GRAVITY
-from optcal.noise import analyse_static_log, plot_allan
+from optcal.yin2014.allan import analyse_static_log, plot_allan
 from optcal.reproduce import yin2014
 
 OUT = Path(__file__).resolve().parent / "results"

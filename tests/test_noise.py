@@ -11,7 +11,7 @@ import pytest
 from optcal.cli.main import main
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
-from optcal.noise import (
+from optcal.yin2014.allan import (
     FLICKER_FACTOR,
     MIN_CLUSTERS,
     allan_deviation,

@@ -5,7 +5,9 @@ import json
 import numpy as np
 import pytest
 
+import optcal.caltypes as caltypes
 from optcal import calibrate
+from optcal.caltypes import LumpedCalibration
 from optcal.errors import InputError
 from optcal.result import CalibrationResult
 from optcal.simulate import simulate_poses, tilted_sweeps
@@ -27,7 +29,51 @@ def test_json_round_trip(result, tmp_path):
     np.testing.assert_array_equal(back.residuals, result.residuals)
     assert back.solver == result.solver
     assert back.summary() == result.summary()
-    assert json.loads(path.read_text())["format_version"] == 1
+    assert back == result
+    data = json.loads(path.read_text())
+    assert data["format_version"] == "2.0" and data["cal_type"] == "lumped"
+    # the file is a calibration of its type with the fit's statistics attached
+    cal = caltypes.load(path)
+    assert cal == result.calibration
+    np.testing.assert_array_equal(cal.correct(result.fitted_on.acc), result.correct(result.fitted_on.acc))
+
+
+def test_equality_compares_values(result):
+    other = CalibrationResult.from_dict(json.loads(json.dumps(result.to_dict())))
+    assert other == result
+    other.o = other.o + 1e-12
+    assert other != result
+
+
+def test_format_1_files_still_load(result, tmp_path):
+    """A file as optcal 0.1 wrote it: integer version, no cal_type, no fitted poses."""
+    old = {
+        "format_version": 1,
+        "method": result.method,
+        "units": {"input": "g", "output": "g", "T": "g per g", "o": "g"},
+        "T": result.T.tolist(),
+        "o": result.o.tolist(),
+        "params_vector": result.params.tolist(),
+        "param_names": result.param_names,
+        "covariance": result.covariance.tolist(),
+        "residuals": result.residuals.tolist(),
+        "weights": result.weights.tolist(),
+        "sigma_known": result.sigma_known,
+        "solver": result.solver.to_dict(),
+        "rows": [int(r) for r in result.rows],
+    }
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(old))
+    back = CalibrationResult.load(path)
+    np.testing.assert_array_equal(back.T, result.T)
+    assert back.calibration == LumpedCalibration(result.T, result.o, "g")
+    assert caltypes.load(path) == LumpedCalibration(result.T, result.o, "g")
+
+
+def test_calibration_is_typed(result):
+    assert isinstance(result.calibration, LumpedCalibration)
+    assert result.fitted_on is not None and result.fitted_on.n == result.n_poses
+    np.testing.assert_array_equal(result.calibration.theta, result.params)
 
 
 def test_summary_is_strict_json(result):
@@ -81,3 +127,16 @@ def test_pose_table_copies_extra_columns():
     table = PoseTable(acc=np.eye(3)[np.arange(9) % 3], extra={"roll_deg": col})
     table.extra["roll_deg"][0] = 99.0
     assert col[0] == 0.0
+
+
+def test_pose_tables_compare_values():
+    from optcal.poses import PoseTable
+
+    acc = np.eye(3)[np.arange(9) % 3] + 0.01 * np.arange(27).reshape(9, 3)
+    a = PoseTable(acc=acc, temp=np.arange(9.0), extra={"roll_deg": np.arange(9.0)})
+    b = PoseTable(acc=acc.copy(), temp=np.arange(9.0), extra={"roll_deg": np.arange(9.0)}, meta={"path": "x"})
+    assert a == b
+    assert a != b.subset(np.arange(8))
+    assert a != PoseTable(acc=acc, extra={"roll_deg": np.arange(9.0)})
+    b.extra["roll_deg"][0] = 5.0
+    assert a != b

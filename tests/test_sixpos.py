@@ -110,6 +110,45 @@ def test_result_survives_a_json_round_trip(tmp_path) -> None:
     np.testing.assert_allclose(back.T, r.T)
     np.testing.assert_allclose(back.params, r.params)
     np.testing.assert_allclose(np.asarray(back.extra["W"]), r.extra["W"])
+    assert back == r
+
+
+def test_result_holds_a_sixpos_full_calibration() -> None:
+    from optcal.caltypes import SixPositionCalibration
+
+    r = SixPositionLeastSquares().fit(six_poses(1e-4, np.random.default_rng(8)))
+    cal = r.calibration
+    assert isinstance(cal, SixPositionCalibration)
+    np.testing.assert_array_equal(cal.W, r.extra["W"])
+    raw = C_TRUE @ [0.0, 0.6, 0.8] + O_TRUE
+    np.testing.assert_allclose(cal.correct(raw), r.correct(raw[None]), atol=1e-15)
+    # its lumped form has the same norms (A = WᵀW) and optcal's canonical T
+    lumped = cal.lumped()
+    np.testing.assert_allclose(lumped.T.T @ lumped.T, cal.W.T @ cal.W, atol=1e-12)
+    np.testing.assert_allclose(lumped.o, r.o, atol=1e-12)
+
+
+def test_mle_started_from_a_sixpos_result_starts_at_its_calibration() -> None:
+    """MaximumLikelihood(init=<sixpos result>) starts from θ of W, V (not from W's first nine numbers)."""
+    from optcal.estimators.base import Normaliser
+    from optcal.estimators.mle import MaximumLikelihood
+    from optcal.model import theta_from
+
+    rng = np.random.default_rng(3)
+    dirs = rng.standard_normal((30, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    angles = np.degrees(np.column_stack([np.arctan2(dirs[:, 1], dirs[:, 2]), -np.arcsin(dirs[:, 0])]))
+    poses = six_poses(1e-4, rng, angles=angles)
+    r = SixPositionLeastSquares().fit(poses)
+    mle = MaximumLikelihood(init=r)
+    norm = Normaliser.of(poses.acc)
+    theta_n, source = mle.initial_normalised(poses, norm, norm.forward(poses.acc))
+    lumped = r.calibration.lumped()
+    np.testing.assert_allclose(norm.theta_to_raw(theta_n), theta_from(lumped.T, lumped.o), atol=1e-12)
+    assert source == "sixpos"
+    fitted = mle.fit(poses)
+    default = MaximumLikelihood().fit(poses)
+    np.testing.assert_allclose(fitted.params, default.params, atol=1e-8)
 
 
 def test_missing_orientation_is_refused() -> None:

@@ -12,13 +12,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from optcal.alignment import FilterTuning, align, discretise, error_dynamics
+from optcal.sun2011.alignment import FilterTuning, align, discretise, error_dynamics
 from optcal.cli.main import main
 from optcal.errors import InputError
 from optcal.identifiability import analyse_design
 from optcal.model import LumpedModel
 from optcal.reproduce.sun2011 import _BUDGET_OFF, PAPER_TABLE2, PAPER_TABLE3, run
-from optcal.tenposition import (
+from optcal.sun2011.tenposition import (
     coupling_bias,
     decoupled_estimate,
     error_rates,
@@ -33,7 +33,7 @@ from optcal.tenposition import (
     step3_closed_form,
     step4_closed_form,
 )
-from optcal.turntable import (
+from optcal.sun2011.turntable import (
     PARAM_NAMES,
     AccelerometerErrors,
     SimulationSettings,

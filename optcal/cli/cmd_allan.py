@@ -76,7 +76,7 @@ def allan(
     confidence intervals (allantools); the noise parameters are read from the fitted
     −1/2, 0 and +1/2 slope lines as in Yin 2014.
     """
-    from optcal.noise import analyse_static_log, plot_allan, si_per_unit
+    from optcal.yin2014.allan import analyse_static_log, plot_allan, si_per_unit
     from optcal.result import jsonable
 
     samples, rate_hz, units_used, units_reason, exclusions = static_log(data, columns, units, topic, rate)

@@ -521,7 +521,8 @@ class MaximumLikelihood:
         from optcal.estimators.ellipsoid import ConvexEllipsoidFit, design_matrix, quadric_to_calibration, unpack_quadric
 
         if isinstance(self.init, CalibrationResult):
-            return norm.theta_to_normalised(self.init.params[:9]), self.init.method
+            # θ of the result's calibration (a sixpos result's params are W and V, not θ)
+            return norm.theta_to_normalised(self.init.calibration.lumped().theta), self.init.method
         D = design_matrix(u)
         if poses.n <= MLProblem.SX_LIMIT:
             R = np.linalg.qr(D, mode="r")

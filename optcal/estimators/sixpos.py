@@ -10,7 +10,7 @@ dropped) relates the sensor output ``a^b`` to the platform's true specific force
 with S the diagonal scale-factor errors, M the misalignment and cross-coupling (off-diagonal),
 b the bias — a constant plus a slow drift (bias instability, rate random walk) — and w white
 noise (velocity random walk).  Eq. 3 below is its deterministic part, inverted; the random
-part is what :mod:`optcal.noise` and :mod:`optcal.ekf` deal with.
+part is what :mod:`optcal.yin2014.allan` and :mod:`optcal.yin2014.ekf` deal with.
 
 The platform's roll φ (about x) and pitch θ (about y) are known (a levelled cube placed on
 each of its six faces, Yin 2014, Table 2).  The true specific force in the sensor frame is

@@ -1,8 +1,8 @@
 """Reproduction of Sun & Cao 2011, section 3 and Tables 2-4, by Monte Carlo.
 
-One simulated turntable session per Monte Carlo run (:mod:`optcal.turntable`), the
-10-state fine-alignment filter at each position (:mod:`optcal.alignment`), the four-step
-scheme with compensation and the closed forms of eq. 28-30 (:mod:`optcal.tenposition`):
+One simulated turntable session per Monte Carlo run (:mod:`optcal.sun2011.turntable`), the
+10-state fine-alignment filter at each position (:mod:`optcal.sun2011.alignment`), the four-step
+scheme with compensation and the closed forms of eq. 28-30 (:mod:`optcal.sun2011.tenposition`):
 
 * Table 2 and 3 analogues: set value, Monte Carlo mean ("estimate") and standard deviation
   ("spread") of every bias and installation error; the paper's single-run values beside them;
@@ -27,13 +27,13 @@ import click
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.alignment import FilterTuning
+from optcal.sun2011.alignment import FilterTuning
 from optcal.errors import InputError, SolverError
 from optcal.identifiability import analyse_design
 from optcal.model import LumpedModel
 from optcal.poses import PoseTable
 from optcal.result import jsonable
-from optcal.tenposition import (
+from optcal.sun2011.tenposition import (
     STEP_PARAMS,
     TABLE4_PATHS_DEG,
     coupling_bias,
@@ -43,7 +43,7 @@ from optcal.tenposition import (
     path_estimates,
     run_scheme,
 )
-from optcal.turntable import (
+from optcal.sun2011.turntable import (
     ARCSEC,
     PARAM_NAMES,
     TAU_NAMES,

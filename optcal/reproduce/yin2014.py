@@ -35,10 +35,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.calibration import calibrate
-from optcal.ekf import YinEKF, sum_squared_errors
+from optcal.yin2014.ekf import YinEKF, sum_squared_errors
 from optcal.estimators.sixpos import SixPositionLeastSquares, reference_from_angles
 from optcal.model import AXES, STANDARD_GRAVITY, lumped_matrix
-from optcal.noise import AllanAnalysis, analyse_static_log, simulate_noise
+from optcal.yin2014.allan import AllanAnalysis, analyse_static_log, simulate_noise
 from optcal.poses import PoseTable
 from optcal.result import jsonable
 

@@ -32,7 +32,7 @@ the filter attributes almost all of a constant sum to the tilt (prior (1°·g)²
 (100 µg)² for ∇: a fraction 3·10⁻⁵ goes to ∇), so after convergence
 ``φ̂_n = φ_n − V̄_e/g`` and ``φ̂_e = φ_e + V̄_n/g``: eq. 7-8, ``Δφ_e = V̄_n/g``,
 ``Δφ_n = −V̄_e/g``.  The accelerometer errors are not states of their own: they are what the
-calibration of :mod:`optcal.tenposition` reads out of the differences of φ̂ between positions.
+calibration of :mod:`optcal.sun2011.tenposition` reads out of the differences of φ̂ between positions.
 
 Discretisation and step
 -----------------------

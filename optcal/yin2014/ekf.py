@@ -60,7 +60,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
 from optcal.model import AXES
-from optcal.noise import NoiseParameters
+from optcal.yin2014.allan import NoiseParameters
 
 #: Default attitude random walk of a nominally still platform, rad/√s.
 ATTITUDE_RANDOM_WALK: float = 1e-4
@@ -168,7 +168,7 @@ class YinEKF:
         noise: Mapping[str, NoiseParameters] | Sequence[NoiseParameters],
         **settings: float,
     ) -> "YinEKF":
-        """Build the filter from per-axis :class:`~optcal.noise.NoiseParameters` in raw units.
+        """Build the filter from per-axis :class:`~optcal.yin2014.allan.NoiseParameters` in raw units.
 
         The bias correlation time is the median of the axes' τ at the Allan minimum; an
         absent rate random walk counts as zero; a bias instability that is only an upper bound

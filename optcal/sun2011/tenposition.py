@@ -2,9 +2,9 @@
 
 Derivation (the parts lost or garbled in the extracted text are re-derived here)
 -------------------------------------------------------------------------------
-Conventions are those of :mod:`optcal.turntable` (ENU, body x right/y forward/z up,
+Conventions are those of :mod:`optcal.sun2011.turntable` (ENU, body x right/y forward/z up,
 ``C = C_b^n = R_z(−ψ) R_x(θ) R_y(γ)``, which reproduces eq. 14) and of
-:mod:`optcal.alignment`.
+:mod:`optcal.sun2011.alignment`.
 
 *Eq. 3-6, 12-13.*  With ``f^b = g [C31, C32, C33]ᵀ`` (eq. 1) and
 ``V̄^b = b_a + ΔC_b^a f^b`` (eq. 2 without the scale factors, which eq. 11 makes
@@ -13,7 +13,7 @@ linear in the nine parameters p = [b_x, b_y, b_z, τ_xy, τ_yx, τ_xz, τ_zx, τ
 ``[V̄_e, V̄_n]ᵀ = D(C) p`` (:func:`horizontal_design`).
 
 *Eq. 7-10.*  After fine alignment ``φ̂_e = φ_e + V̄_n/g`` and ``φ̂_n = φ_n − V̄_e/g``
-(:mod:`optcal.alignment` explains why).  If the true misalignment φ is the same at two
+(:mod:`optcal.sun2011.alignment` explains why).  If the true misalignment φ is the same at two
 positions, the differences of φ̂ depend on p only (eq. 9-10)::
 
     g (φ̂_e(t2) − φ̂_e(t1)) = V̄_n(t2) − V̄_n(t1),    −g (φ̂_n(t2) − φ̂_n(t1)) = V̄_e(t2) − V̄_e(t1)
@@ -90,9 +90,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.alignment import AlignmentResult, FilterTuning, align
+from optcal.sun2011.alignment import AlignmentResult, FilterTuning, align
 from optcal.errors import InputError
-from optcal.turntable import (
+from optcal.sun2011.turntable import (
     PARAM_NAMES,
     TAU_ENTRIES,
     AccelerometerErrors,
