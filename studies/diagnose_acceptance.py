@@ -34,7 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
+from study_mode import QUICK  # noqa: E402
+
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from diagnosis_cases import make_case  # noqa: E402
@@ -42,10 +45,8 @@ from diagnosis_cases import make_case  # noqa: E402
 from optcal.diagnosis import Diagnoser, diagnose  # noqa: E402
 from optcal.effects import EFFECTS  # noqa: E402
 
-OUT = HERE / "results"
-OUT.mkdir(parents=True, exist_ok=True)
-# sizes (a smoke run: SMOKE=1 python studies/diagnose_acceptance.py)
-SMOKE = bool(int(os.environ.get("SMOKE", "0")))
+# sizes (a smoke run: SMOKE=1 or OPTCAL_STUDY_QUICK=1 python studies/diagnose_acceptance.py)
+SMOKE = bool(int(os.environ.get("SMOKE", "0"))) or QUICK
 #: The selection's level per candidate term: α_terms = 0.01 over 4 effects × 3 axes.
 PER_CANDIDATE_LEVEL = 0.01 / 12
 N_NULL = 4 if SMOKE else 400

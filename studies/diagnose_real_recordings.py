@@ -34,10 +34,12 @@ from optcal.diagnosis import Diagnoser, diagnose, save_figures
 from optcal.effects import format_value
 from optcal.errors import InputError
 
-HERE = Path(__file__).resolve().parent
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
+from study_mode import size  # noqa: E402
+
 DATA = HERE.parents[1] / "shared" / "data"
-OUT = HERE / "results"
-FIG = OUT / "figures"
 FIG.mkdir(parents=True, exist_ok=True)
 
 
@@ -96,14 +98,14 @@ for title, key, loader in RECORDINGS:
                     f"{dict(poses.exclusions) or 'nothing'}.")
     diag = None
     try:
-        diag = diagnose(poses, simulations=200)
+        diag = diagnose(poses, simulations=size(200, 10))
         how = "full diagnosis"
         sections += ["", "How large an effect would have been found (forward selection's first step):", ""]
         sections += detection_limits(poses)
     except InputError as exc:
         sections += ["", f"Full diagnosis refused: `{exc}`", ""]
         try:
-            diag = diagnose(poses, effects="none", simulations=200)
+            diag = diagnose(poses, effects="none", simulations=size(200, 10))
             how = "baseline and simulation check only (--effects none)"
             sections.append("Ran the baseline and its simulation check only (`--effects none`):")
         except InputError as exc2:

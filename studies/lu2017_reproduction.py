@@ -29,16 +29,15 @@ from optcal import calibrate
 from optcal.model import lu2017_reference_model
 from optcal.reproduce.lu2017 import format_report, run
 from optcal.simulate import simulate_poses, tilted_sweeps
-
-OUT = Path(__file__).resolve().parent / "results"
-FIG = OUT / "figures"
-FIG.mkdir(parents=True, exist_ok=True)
+from study_mode import FIGURES as FIG
+from study_mode import RESULTS as OUT
+from study_mode import size
 
 # %% [markdown]
 # ## Table 1 by Monte Carlo (200 runs, 1 mg per pose) and the literal schedule
 
 # %%
-res = run(runs=200, seed=0, sigma=0.001, progress=False)
+res = run(runs=size(200, 10), seed=0, sigma=0.001, progress=False)
 text = format_report(res)
 print(text)
 

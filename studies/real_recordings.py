@@ -39,10 +39,11 @@ from optcal.data.units import NominalConversion
 from optcal.data.validation import check_calibration, displacement_integration, held_out_validation
 from optcal.errors import InputError
 
-HERE = Path(__file__).resolve().parent
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
+
 DATA = HERE.parents[1] / "shared" / "data"
-OUT = HERE / "results"
-FIG = OUT / "figures"
 FIG.mkdir(parents=True, exist_ok=True)
 XSENS = DATA / "imutk-xsens" / "xsens_imutk.csv"
 MPU = DATA / "mpu6050-imucalibration"
@@ -123,7 +124,7 @@ xsens_sheet = NominalConversion(np.array([33123.0, 33276.0, 32360.0]), 414.33 * 
                                 "Xsens offsets (33123, 33276, 32360) and scale ≈ 414 counts per m/s² (imu_tk_matlab)")
 mpu_sheet = NominalConversion(np.zeros(3), 16384.0, "MPU-6050 ±2 g: 16384 counts/g, no offset (datasheet)")
 cal_x = calibrate(xs.poses)
-cal_m = calibrate(mpu.poses)
+cal_m = calibrate(mpu.poses, allow_degenerate=True)  # 10 hand-held poses: A_xy only weakly determined (optcal refuses without this)
 rows = []
 checks = {}
 for name, loaded, cal, sheet in (("Xsens", xs, cal_x, xsens_sheet), ("MPU-6050", mpu, cal_m, mpu_sheet)):

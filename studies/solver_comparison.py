@@ -48,10 +48,10 @@ import numpy as np  # noqa: E402
 from optcal.model import PARAM_NAMES  # noqa: E402
 from optcal.reproduce.solvers import run  # noqa: E402
 
-HERE = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
-QUICK = os.environ.get("OPTCAL_STUDY_QUICK", "") not in ("", "0")
-OUT = HERE / "results" / ("quick" if QUICK else "")
-FIG = OUT / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import QUICK  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 
 if os.environ.get("OPTCAL_STUDY_REUSE", "") not in ("", "0"):  # only re-draw tables and figures

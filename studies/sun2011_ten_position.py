@@ -39,8 +39,9 @@ from optcal.reproduce.sun2011 import conclusion, format_report, run
 from optcal.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
 from optcal.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
 
-ROOT = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
-FIG = ROOT / "results" / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS  # noqa: E402
+from study_mode import size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 RUNS, SEED = 500, 0
 settings = SimulationSettings()
@@ -189,7 +190,7 @@ fig.savefig(FIG / "sun2011_paths.png", dpi=120)
 # ## 4. Tables 2-4 analogues (`optcal reproduce sun2011`) and the results file
 
 # %%
-rep = run(runs=1000, seed=SEED)
+rep = run(runs=size(1000, 20), seed=SEED)
 text = format_report(rep)
 print(text)
 
@@ -262,5 +263,5 @@ md += ["", "## Figures", "",
        "![convergence](figures/sun2011_misalignment_convergence.png)", "",
        "![alignment at 1a](figures/sun2011_alignment_1a.png)", "",
        "![paths](figures/sun2011_paths.png)", ""]
-(ROOT / "results" / "sun2011.md").write_text("\n".join(md), encoding="utf-8")
-print("wrote", ROOT / "results" / "sun2011.md")
+(RESULTS / "sun2011.md").write_text("\n".join(md), encoding="utf-8")
+print("wrote", RESULTS / "sun2011.md")

@@ -34,8 +34,9 @@ from optcal.model import AXES, STANDARD_GRAVITY
 from optcal.yin2014.allan import analyse_static_log, plot_allan
 from optcal.reproduce import yin2014
 
-OUT = Path(__file__).resolve().parent / "results"
-FIG = OUT / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 SEED = 2014
 UG = 1e6 / STANDARD_GRAVITY  # µg per m/s²
@@ -106,7 +107,7 @@ plt.close(fig)
 # ## Robustness: the acceptance over ten further seeds
 
 # %%
-seeds = range(10)
+seeds = range(size(10, 2))
 runs = [yin2014.run(seed=s, data_dir=OUT / "no-shared-data") for s in seeds]
 worst = {
     name: max(abs(r["allan"][a][name]["relative_error"]) for r in runs for a in AXES)
