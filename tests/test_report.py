@@ -203,3 +203,18 @@ def test_report_path_must_be_html(tmp_path: Path, capsys: pytest.CaptureFixture)
     code = main(["calibrate", str(csv), "--report", str(tmp_path / "out.txt")])
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error: ") and ".html" in err and "Traceback" not in err
+
+
+# ----------------------------------------------------------------------------- the text report
+def test_text_report_of_counts_data_prints_every_number() -> None:
+    from optcal.effects import demo_sensor
+
+    poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)  # counts, 2 counts of noise
+    text = calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")).report()
+    block = text[text.index("[[A = T'T"):text.index("[[Identifiability]]")]
+    numbers = [float(x) for x in re.findall(r"[-+]?\d\.\d+e[-+]\d+", block.split("]]", 1)[1])]
+    assert len(numbers) == 18 and all(x != 0 for x in numbers[::2])  # 9 entries of A and their standard errors
+    assert "0.000000" not in text and "(0.00%)" not in text
+    scale = re.search(r"S_x\s+=\s+(\d+\.?\d*)\s+\+/-\s+\S+\s+counts/g", text)
+    assert scale and float(scale.group(1)) == pytest.approx(16300, rel=1e-3)
+    assert re.search(r"ρ\s+=\s+0\.3\d*\s+\+/-\s+\S+\s+°", text)  # demo sensor: ρ = 0.3°
