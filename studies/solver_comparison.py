@@ -24,6 +24,9 @@
 #     OPTCAL_STUDY_QUICK=1 python studies/solver_comparison.py   # quick check (into results/quick, not kept)
 #     OPTCAL_STUDY_REUSE=1 python studies/solver_comparison.py   # redraw tables/figures from the saved JSON
 #
+# CI executes this notebook with both set (tests/test_notebooks.py): it redraws from the saved full
+# run; the computation itself is exercised by `benchmarks/run_quick.sh` and `tests/test_solvers.py`.
+#
 # The computation is `optcal.reproduce.solvers.run` (also `optcal reproduce solvers [--json]`).
 
 # %%
@@ -54,8 +57,8 @@ from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 
-if os.environ.get("OPTCAL_STUDY_REUSE", "") not in ("", "0"):  # only re-draw tables and figures
-    res = json.loads((OUT / "solver_comparison.json").read_text())
+if os.environ.get("OPTCAL_STUDY_REUSE", "") not in ("", "0"):  # only re-draw tables and figures from the full run's JSON
+    res = json.loads((HERE / "results" / "solver_comparison.json").read_text())
 else:
     res = run(quick=QUICK, seed=0, progress=sys.stderr.isatty())
     (OUT / "solver_comparison.json").write_text(json.dumps(res, indent=1, allow_nan=False))

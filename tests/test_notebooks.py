@@ -1,8 +1,9 @@
 """Every study in ``studies/`` is a notebook: paired with its percent script, committed executed, and run here.
 
 The studies are discovered by glob (every ``studies/*.py`` with a jupytext header), so a new study is
-covered as soon as it is added.  Each one is executed in quick mode (``OPTCAL_STUDY_QUICK=1``) with
-nbclient from its script: a notebook that fails, fails this test.
+covered as soon as it is added.  Each one is executed in quick mode (``OPTCAL_STUDY_QUICK=1``; with
+``OPTCAL_STUDY_REUSE=1`` a study that saves its full run redraws from it) with nbclient from its
+script: a notebook that fails, fails this test.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ def test_study_is_paired_and_committed_executed(script: Path) -> None:
 @pytest.mark.parametrize("script", studies(), ids=lambda p: p.stem)
 def test_study_runs_in_quick_mode(script: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("OPTCAL_STUDY_QUICK", "1")
+    monkeypatch.setenv("OPTCAL_STUDY_REUSE", "1")  # studies with a saved full run redraw from it (solver_comparison)
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", os.environ.get("OPENBLAS_NUM_THREADS", "1"))
     root = str(STUDIES.parent)
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p))
