@@ -33,7 +33,7 @@ def test_diagnose_120_poses(benchmark: pytest.FixtureRequest) -> None:
     case = make_case("temperature_bias", 3, n_range=(120, 120))
     diagnose(case.poses, simulations=5)  # build the CasADi problems for n = 120 once
     result = benchmark.pedantic(lambda: diagnose(case.poses, simulations=200), rounds=3, iterations=1)
-    assert [f["effect"] for f in result.findings] == ["temperature_bias"]
+    assert [f.effect for f in result.findings] == ["temperature_bias"]
     assert benchmark.stats.stats.max < DIAGNOSE_BUDGET_S
 
 

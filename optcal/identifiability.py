@@ -22,6 +22,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.model import LumpedModel
+from optcal.norm_residual import NormResidualKernel
 from optcal.result import A_INDEX, dA_dtheta
 
 #: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
@@ -34,41 +35,19 @@ RANK_TOL: float = 1e-9
 WEAK_STDERR: float = 0.05
 
 
-def norm_residuals(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
-    """``r_k = ‖T(a_k − o)‖ − 1`` (Lu 2017, eq. 13), shape (n,)."""
-    return np.linalg.norm((acc - o) @ T.T, axis=1) - 1.0
-
-
-def norm_residual_jacobian(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
-    """Jacobian of the norm residuals w.r.t. θ (lower-triangular T entries, then o), shape (n, 9).
-
-    ``∂r/∂T_ij = ā_i u_j`` and ``∂r/∂o = −Tᵀ ā`` with ``u = a − o``, ``ā = T u / ‖T u‖``.
-    """
-    u = acc - o
-    v = u @ T.T
-    abar = v / np.linalg.norm(v, axis=1, keepdims=True)
-    cols = [abar[:, i] * u[:, j] for i, j in ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))]
-    return np.column_stack(cols + [-(abar @ T)])
-
-
-def normal_gain(T: NDArray, o: NDArray, acc: NDArray) -> NDArray[np.float64]:
-    """``‖Tᵀ ā_k‖``: how raw noise (per axis) propagates to the norm residual, shape (n,)."""
-    v = (acc - o) @ T.T
-    abar = v / np.linalg.norm(v, axis=1, keepdims=True)
-    return np.linalg.norm(abar @ T, axis=1)
-
-
 def fisher_information(
     T: NDArray, o: NDArray, acc: NDArray, sigma: ArrayLike | None = None, jacobian: NDArray | None = None
 ) -> NDArray[np.float64]:
     """Fisher information of θ with the directions eliminated (module docstring).
 
     ``sigma`` is the raw per-axis noise of each pose (scalar or (n,)); ``None`` means 1.
-    ``jacobian`` is :func:`norm_residual_jacobian` at (T, o) when the caller already has it.
+    ``jacobian`` is :func:`optcal.norm_residual.norm_residual_jacobian` at (T, o) when the
+    caller already has it.
     """
-    J = norm_residual_jacobian(T, o, acc) if jacobian is None else jacobian
+    point = NormResidualKernel(acc).at(T, o)
+    J = point.jacobian().T if jacobian is None else jacobian
     s = np.ones(len(acc)) if sigma is None else np.broadcast_to(np.asarray(sigma, float), (len(acc),))
-    w = 1.0 / (s * normal_gain(T, o, acc)) ** 2
+    w = 1.0 / (s * point.normal_gain()) ** 2
     return J.T @ (J * w[:, None])
 
 
@@ -234,7 +213,4 @@ __all__ = [
     "analyse_design",
     "cramer_rao_bound",
     "fisher_information",
-    "norm_residual_jacobian",
-    "norm_residuals",
-    "normal_gain",
 ]

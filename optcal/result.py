@@ -364,10 +364,10 @@ class CalibrationResult:
     def _engineering_text(self) -> str:
         """The block of scale factors, non-orthogonality angles and biases (:mod:`optcal.report.parameters`)."""
         from optcal.data.units import nominal_conversion
-        from optcal.report.parameters import engineering_parameters
+        from optcal.report.parameters import result_parameters
 
         zero = nominal_conversion(self.units, self.fitted_on.acc).offset if self.fitted_on is not None else None
-        params = engineering_parameters(self, zero)
+        params = result_parameters(self, zero)
         lines = ["[[Scale factors, non-orthogonality, bias]]"]
         for q in params.rows:
             lines.append(f"    {q.symbol:<5s} = {q.value:>13.7g} +/- {q.stderr:<8.2g} {q.unit:<9s} {q.name}")

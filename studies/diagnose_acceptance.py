@@ -17,7 +17,7 @@
 #   300 ppm/°C, 3 mg of drift over the recording, 4 mg/g², 8 % outlier poses; 40-120 poses;
 #   0.2-0.8 mg of noise per pose: diagnose must name the effect and the axis, and the estimate must be
 #   within 30 % of the truth.  The temperature warms up and cools down (15-30 °C span, 20 min).
-# * Raw 100 Hz recordings in counts (`optcal.effects.recording_with_effect`).
+# * Raw 100 Hz recordings in counts (`optcal.simulate_effects.recording_with_effect`).
 #
 # Data sets come from `tests/diagnosis_cases.py`.  Regenerate with
 # `python studies/diagnose_acceptance.py` (about 10 minutes on 2 cores); writes
@@ -43,8 +43,8 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from diagnosis_cases import make_case  # noqa: E402
 
-from optcal.diagnosis import Diagnoser, diagnose  # noqa: E402
-from optcal.effects import EFFECTS  # noqa: E402
+from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
+from optcal.diagnosis.effects import EFFECTS  # noqa: E402
 
 # sizes (a smoke run: SMOKE=1 python studies/diagnose_acceptance.py; smaller still: OPTCAL_STUDY_QUICK=1)
 SMOKE = bool(int(os.environ.get("SMOKE", "0"))) or QUICK
@@ -69,26 +69,26 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def judge(effect, case, diag) -> dict:
     """Named (only finding, right axis), within 30 %, held-out falls; oracle evidence when missed."""
-    names = [f["effect"] for f in diag.findings]
+    names = [f.effect for f in diag.findings]
     out = {"findings": names, "named": False, "within": False, "only": names == [effect] if effect else names == [],
-           "heldout_falls": all(f["heldout_rms_g_after"] < f["heldout_rms_g_before"] for f in diag.findings),
+           "heldout_falls": all(f.heldout_rms_g_after < f.heldout_rms_g_before for f in diag.findings),
            "gain": diag.gain()}
     if effect is None:
         return out
-    f = next((f for f in diag.findings if f["effect"] == effect), None)
+    f = next((f for f in diag.findings if f.effect == effect), None)
     if effect == "outliers":
-        rows = set(f["rows"]) if f else set()
+        rows = set(f.rows or []) if f else set()
         truth = set(case.outlier_rows)
         out["named"] = truth <= rows
         out["within"] = out["named"] and len(rows - truth) <= 0.3 * len(truth)
         out["error"] = len(rows ^ truth)
     else:
-        out["named"] = f is not None and case.axis in f["axes"]
+        out["named"] = f is not None and case.axis in f.axes
         if out["named"]:
-            err = (f["estimate"][case.axis] - case.value) / abs(case.value)
+            err = (f.estimate[case.axis] - case.value) / abs(case.value)
             out["within"] = abs(err) < 0.3
             out["error"] = err
-            out["z"] = (f["estimate"][case.axis] - case.value) / f["stderr"][case.axis]
+            out["z"] = (f.estimate[case.axis] - case.value) / f.stderr[case.axis]
         out.update(oracle(effect, case))
     return out
 
@@ -104,7 +104,7 @@ def oracle(effect, case) -> dict:
     """
     from scipy.stats import norm as normal
 
-    d = Diagnoser(case.poses, simulations=0)
+    d, _ = Diagnoser(DiagnosisSettings(simulations=0)).prepare(case.poses)
     axis = "xyz".index(case.axis)
     base, true_fit = d.fit({}), d.fit({(effect, axis): 1})
     cov = d.covariance(true_fit)
@@ -126,7 +126,7 @@ def run_case(args: tuple) -> dict:
 
 def run_raw(args: tuple) -> dict:
     from optcal.data import load
-    from optcal.effects import recording_with_effect
+    from optcal.simulate_effects import recording_with_effect
 
     effect, seed = args
     frame, truth = recording_with_effect(effect, seed=seed)
@@ -135,13 +135,13 @@ def run_raw(args: tuple) -> dict:
         frame.to_csv(path, index=False, float_format="%.6f")
         poses = load(path)
     diag = diagnose(poses, simulations=0)
-    names = [f["effect"] for f in diag.findings]
-    f = next((f for f in diag.findings if f["effect"] == effect), None)
+    names = [f.effect for f in diag.findings]
+    f = next((f for f in diag.findings if f.effect == effect), None)
     if effect == "outliers":
         visible = {r for r, g in zip(truth.corrupt_rows(poses), truth.corrupt_radial_g) if abs(g) > 2e-3}
-        ok = f is not None and visible <= set(f["rows"]) <= set(truth.corrupt_rows(poses))
+        ok = f is not None and visible <= set(f.rows or []) <= set(truth.corrupt_rows(poses))
     else:
-        ok = f is not None and f["axes"] == [truth.axis] and abs(f["estimate"][truth.axis] / truth.value - 1) < 0.3
+        ok = f is not None and f.axes == [truth.axis] and abs(f.estimate[truth.axis] / truth.value - 1) < 0.3
     return {"effect": effect, "seed": seed, "ok": bool(ok and names == [effect]), "findings": names, "gain": diag.gain()}
 
 
@@ -241,7 +241,7 @@ report += ["## 5. Temperature or time (warm-up then cool-down)", "",
 # %%
 raw = pool_map(run_raw, [(e, 50 + s) for e in EFFECTS for s in range(N_RAW)])
 report += ["## 6. Raw 100 Hz recordings (counts, 48 poses, static detection)", "",
-           "`optcal.effects.recording_with_effect` with its default magnitudes (0.8 mg/°C, 400 ppm/°C, 5 mg drift, "
+           "`optcal.simulate_effects.recording_with_effect` with its default magnitudes (0.8 mg/°C, 400 ppm/°C, 5 mg drift, "
            "6 mg/g², 4 corrupted poses); success = the effect alone named, right axis, within 30 % (outliers: every "
            "corrupted pose whose shift along its own direction exceeds 2 mg flagged, nothing else).", "",
            "| effect | recordings | success | median gain |", "|---|---|---|---|"]

@@ -28,10 +28,12 @@ from optcal.data import load
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
 from optcal.data.static import detect_static
-from scipy import stats as sps
 
-from optcal.diagnosis import Diagnoser, diagnose, save_figures
-from optcal.effects import format_value
+from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose, save_figures
+from optcal.diagnosis.diagnoser import choose_effects
+from optcal.diagnosis.effects import PARAMETRIC
+from optcal.diagnosis.limits import detection_limits
+from optcal.extended_model import format_value
 from optcal.errors import InputError
 
 from study_mode import FIGURES as FIG  # noqa: E402
@@ -44,19 +46,16 @@ FIG.mkdir(parents=True, exist_ok=True)
 
 
 def detection_limits(poses) -> list[str]:
-    """Smallest effect of each candidate term the selection would have found (z at its level × stderr)."""
-    d = Diagnoser(poses, simulations=0)
-    base = d.fit({})
-    z = float(sps.norm.isf(d.alpha_terms / len(d.candidates) / 2))
+    """Smallest effect of each candidate term the selection's first step would have found."""
+    d = Diagnoser(DiagnosisSettings(simulations=0))
+    fitter, _ = d.prepare(poses)
+    effects, _ = choose_effects(None, fitter.reg)
+    candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
+    level = d.settings.alpha / 2 / len(candidates)
     rows = ["| term | detection limit (z × standard error) |", "|---|---|"]
-    for effect, axis in d.candidates:
-        fit = d.fit({(effect, axis): 1}, x0=base.x)
-        se = float(np.sqrt(d.covariance(fit)[9, 9])) / d.reg.half_span(effect)
-        text = format_value(effect, z * se).lstrip("+")
-        if effect == "bias_drift":
-            text += f" = {z * se * 2 * d.reg.t_half * 1e3:.2g} mg over the recording"
-        rows.append(f"| {effect}({'xyz'[axis]}) | {text} |")
-    return rows + ["", f"(z = {z:.2f}: the two-sided normal quantile at α/2 per step over {len(d.candidates)} candidates.)", ""]
+    rows += [f"| {lim.term} | {lim.text().split(': ', 1)[1]} |"
+             for lim in detection_limits(fitter, fitter.fit({}), candidates, level)]
+    return rows + ["", f"(z: the two-sided normal quantile at α/2 per step over {len(candidates)} candidates.)", ""]
 
 
 def annotated_session():
@@ -116,16 +115,16 @@ for title, key, loader in RECORDINGS:
     paths = save_figures(diag, str(FIG / f"diagnose_{key}"))
     sections += [f"Figures: {', '.join('`' + str(Path(p).relative_to(OUT)) + '`' for p in paths)}", ""]
     found = "; ".join(
-        (f"{f['effect']} rows {f['rows']}" if f["effect"] == "outliers" else
-         f"{f['effect']} " + ", ".join(f"{a}: {format_value(f['effect'], f['estimate'][a], f['stderr'][a])}" for a in f["axes"]))
+        (f"{f.effect} rows {f.rows}" if f.rows is not None else
+         f"{f.effect} " + ", ".join(f"{a}: {format_value(f.effect, f.estimate[a], f.stderr[a])}" for a in f.axes))
         for f in diag.findings
     ) or "none"
     summary.append(f"| {title} | {poses.n} | {how} | {diag.baseline_rms() * 1e3:.3f} / {diag.baseline_heldout_rms() * 1e3:.3f} | "
                    f"{found} | {diag.gain():.2f} |")
-    out = diag.simulation["outside_band"]
+    out = [diag.simulation.statistics[k].meaning for k in diag.simulation.outside_band]
     sections.append("Outside the simulated band: " + (", ".join(out) if out else "nothing") + ".")
-    if diag.simulation.get("noise_scale") is not None:
-        sections.append(f"Measured residuals are {diag.simulation['noise_scale']:.2f}× what the per-pose σ "
+    if diag.simulation.noise_scale is not None:
+        sections.append(f"Measured residuals are {diag.simulation.noise_scale:.2f}× what the per-pose σ "
                         "(from the static detection) predicts.")
     sections.append("")
 

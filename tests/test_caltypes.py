@@ -18,7 +18,8 @@ from optcal.caltypes import (
     ValidityRange,
     ValidityRangeWarning,
 )
-from optcal.effects import ExtendedModel, demo_sensor
+from optcal.extended_model import ExtendedModel
+from optcal.simulate_effects import demo_sensor
 from optcal.errors import InputError
 from optcal.model import lu2017_reference_model
 from optcal.simulate import uniform_directions

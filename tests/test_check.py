@@ -16,10 +16,10 @@ from optcal.data.validation import (
     held_out_validation,
     kfold_masks,
     levelling_rotation,
-    norm_residuals,
 )
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY, LumpedModel
+from optcal.norm_residual import norm_residuals
 from optcal.simulate import uniform_directions
 
 SIGMA = 0.003

@@ -5,22 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.effects import (
-    EFFECTS,
-    MAX_ORDER,
-    PARAMETRIC,
-    ExtendedModel,
-    PoseData,
-    ExtendedProblem,
-    Regressors,
-    active_mask,
-    demo_sensor,
-    parse_effects,
-    recording_with_effect,
-    simulate_extended,
-    to_model,
-    warmup_cooldown,
-)
+from optcal.diagnosis.effects import EFFECTS, parse_effects
+from optcal.diagnosis.problem import ExtendedProblem, PoseData, active_mask, to_model
+from optcal.diagnosis.regressors import Regressors
+from optcal.extended_model import MAX_ORDER, PARAMETRIC, ExtendedModel
+from optcal.simulate_effects import demo_sensor, recording_with_effect, simulate_extended, warmup_cooldown
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser
 from optcal.model import lu2017_reference_model, theta_from

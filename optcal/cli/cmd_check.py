@@ -1,4 +1,4 @@
-"""``optcal check CAL.json DATA``: evaluate a saved calibration on other data."""
+"""``optcal check CAL.json DATA``: evaluate a saved calibration (any ``cal_type``) on other data."""
 
 from __future__ import annotations
 
@@ -20,16 +20,18 @@ from optcal.cli.report_option import command_line, report_options, write_report
 @data_options
 def check(calibration: str, data: str, as_json: bool, report_path: str | None, tolerance: float,
           **data_opts: Any) -> None:
-    """Apply the calibration in CAL.json to the static poses of DATA and report |a|−1 before and after.
+    """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.
 
     DATA is a pose table or a raw recording (its static intervals are found as by
     ``optcal segment``).  "Before" is the nominal conversion to g (exact unit factors for g
     and m/s²; for counts, mid-scale offset if unsigned and one sensitivity from the median norm).
     """
+    import optcal.caltypes as caltypes
     from optcal.data.validation import check_calibration
-    from optcal.result import CalibrationResult, jsonable
+    from optcal.result import jsonable
 
-    cal = CalibrationResult.load(calibration)
+    cal = caltypes.load(calibration)
+    fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     poses = load_data(data, **data_opts)
     result = check_calibration(cal, poses)
     if report_path:
@@ -40,13 +42,13 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
                                     tolerance), report_path)
     if as_json:
         out = {
-            "calibration": {"path": calibration, "method": cal.method, "units": cal.units, "n_poses": cal.n_poses},
+            "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units, "n_poses": fitted},
             "data": data_summary(data, poses),
             **result.summary(),
         }
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
-    click.echo(f"calibration: {calibration} (method {cal.method}, {cal.units} in, g out, fitted on {cal.n_poses} poses)")
+    click.echo(f"calibration: {calibration}: {cal.describe()}")
     click.echo(data_line(data, poses))
     if poses.units != cal.units:
         click.echo(f"DATA converted from {poses.units} to {cal.units}")

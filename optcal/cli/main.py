@@ -24,6 +24,8 @@ COMMANDS: dict[str, str] = {
     "segment": "optcal.cli.cmd_segment:segment",
     "check": "optcal.cli.cmd_check:check",
     "allan": "optcal.cli.cmd_allan:allan",
+    "apply": "optcal.cli.cmd_apply:apply",
+    "export": "optcal.cli.cmd_export:export",
 }
 
 

@@ -21,16 +21,12 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
+from optcal.norm_residual import norm_residuals, normal_gain
 from optcal.poses import MIN_POSES, PoseTable
+from optcal.caltypes import Calibration
 from optcal.result import CalibrationResult, jsonable
 
 G_TO_MS2 = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
-
-
-def norm_residuals(T: ArrayLike, o: ArrayLike, acc: ArrayLike) -> NDArray[np.float64]:
-    """``‖T (a_k − o)‖ − 1`` for each row of ``acc`` (Lu 2017, eq. 6 and 13), g."""
-    a = np.asarray(acc, dtype=float).reshape(-1, 3)
-    return np.linalg.norm((a - np.asarray(o, float)) @ np.asarray(T, float).T, axis=1) - 1.0
 
 
 def norm_noise(T: ArrayLike, o: ArrayLike, acc: ArrayLike, sigma: ArrayLike) -> NDArray[np.float64]:
@@ -38,10 +34,7 @@ def norm_noise(T: ArrayLike, o: ArrayLike, acc: ArrayLike, sigma: ArrayLike) -> 
 
     First order: ``σ_k ‖Tᵀ v_k‖`` with ``v_k`` the unit calibrated vector.
     """
-    T = np.asarray(T, float)
-    y = (np.asarray(acc, float).reshape(-1, 3) - np.asarray(o, float)) @ T.T
-    v = y / np.linalg.norm(y, axis=1, keepdims=True)
-    return np.asarray(sigma, float) * np.linalg.norm(v @ T, axis=1)
+    return np.asarray(sigma, float) * normal_gain(T, o, acc)
 
 
 def _rms(x: NDArray[np.float64]) -> float:
@@ -128,23 +121,28 @@ def convert_to_units(poses: PoseTable, units: str) -> PoseTable:
 
 
 def check_calibration(
-    cal: CalibrationResult, poses: PoseTable, nominal: NominalConversion | None = None
+    cal: Calibration | CalibrationResult, poses: PoseTable, nominal: NominalConversion | None = None
 ) -> NormCheck:
     """Evaluate a calibration on poses: norm errors before and after, per pose.
 
     Parameters
     ----------
-    cal : CalibrationResult
+    cal : Calibration or CalibrationResult
+        Any ``cal_type`` (:mod:`optcal.caltypes`); an extended calibration uses the poses'
+        temperature and time.
     poses : PoseTable
         In the calibration's units (g and m/s² are converted).
     nominal : NominalConversion, optional
         The "before" baseline (default: :func:`optcal.data.units.nominal_conversion`).
     """
+    if isinstance(cal, CalibrationResult):
+        cal = cal.calibration
     poses = convert_to_units(poses, cal.units)
     nominal = nominal or nominal_conversion(poses.units, poses.acc)
     before = np.linalg.norm(nominal.apply(poses.acc), axis=1) - 1.0
-    after = norm_residuals(cal.T, cal.o, poses.acc)
-    noise = norm_noise(cal.T, cal.o, poses.acc, poses.sigma) if poses.sigma is not None else None
+    after = cal.norm_errors(poses.acc, poses.temp, poses.t)
+    lumped = cal.lumped()  # the noise gain of the linear part (first order)
+    noise = norm_noise(lumped.T, lumped.o, poses.acc, poses.sigma) if poses.sigma is not None else None
     return NormCheck(poses.rows.copy(), poses.t, poses.n_samples, before, after, noise, nominal)
 
 

@@ -16,8 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import FitError, IdentifiabilityError, InputError
-from optcal.identifiability import add_weak_directions, analyse, norm_residual_jacobian, norm_residuals, normal_gain
+from optcal.identifiability import add_weak_directions, analyse
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
+from optcal.norm_residual import NormResidualKernel, normal_gain
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
@@ -104,8 +105,9 @@ def finish(
     theta = theta_from(T, o)
     notes = list(notes or [])
     w, known = pose_weights(poses, T, o, weighting)
-    r = norm_residuals(T, o, poses.acc)
-    J = norm_residual_jacobian(T, o, poses.acc)
+    point = NormResidualKernel(poses.acc).at(T, o)
+    r = point.residuals
+    J = point.jacobian().T
     # invert in normalised coordinates: in raw counts the T and o blocks of F differ by ~1e16
     norm = Normaliser.of(poses.acc)
     D = norm.jacobian()  # dθ_raw/dθ_normalised

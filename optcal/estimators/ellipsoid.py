@@ -23,6 +23,8 @@ lower-triangular factor, eq. 30's symmetric square root differs from it by a rot
 
 from __future__ import annotations
 
+import threading
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,6 +34,7 @@ from optcal.errors import FitError, InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish
 from optcal.model import canonical_T, theta_from
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 
@@ -104,6 +107,63 @@ class SVDEllipsoidFit:
         )
 
 
+@dataclass(frozen=True)
+class ConvexSolution:
+    """What one solve of :class:`ConvexEllipsoidProblem` returned.
+
+    Attributes
+    ----------
+    status : str
+        cvxpy's status (``optimal``, ``optimal_inaccurate``, ...).
+    eta : ndarray or None, shape (10,)
+        The quadric, ordered as in :func:`design_matrix`.
+    A : ndarray or None, shape (3, 3)
+    iterations : int
+    """
+
+    status: str
+    eta: NDArray[np.float64] | None
+    A: NDArray[np.float64] | None
+    iterations: int
+
+
+class ConvexEllipsoidProblem:
+    """``min ‖R η‖²`` s.t. ``A ⪰ εI``, ``tr A = 3`` in cvxpy, built once per ε, ``R`` a parameter.
+
+    Solving sets the parameter and reads the variables: one step, under the problem's lock.
+    """
+
+    def __init__(self, eps: float) -> None:
+        import cvxpy as cp
+
+        A = cp.Variable((3, 3), symmetric=True)
+        b = cp.Variable(3)
+        c = cp.Variable()
+        self._R = cp.Parameter((10, 10))
+        self._A = A
+        self._eta = cp.hstack([A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[0, 2], A[1, 2], b, c])
+        constraints = [A >> eps * np.eye(3), cp.trace(A) == 3.0]
+        self._problem = cp.Problem(cp.Minimize(cp.sum_squares(self._R @ self._eta)), constraints)
+        self._lock = threading.Lock()
+
+    def solve(self, R: NDArray, solver: str, options: dict[str, Any]) -> ConvexSolution:
+        """Solve for the triangular factor ``R`` (10×10) of the design matrix."""
+        with self._lock:
+            self._R.value = R
+            self._problem.solve(solver=solver, **options)
+            eta, A = self._eta.value, self._A.value
+            return ConvexSolution(
+                status=str(self._problem.status),
+                eta=None if eta is None else np.asarray(eta, dtype=float),
+                A=None if A is None else np.asarray(A, dtype=float),
+                iterations=int(self._problem.solver_stats.num_iters or 0),
+            )
+
+
+#: The convex problems, keyed by ε.
+CONVEX_PROBLEMS: ProblemCache[ConvexEllipsoidProblem] = problem_cache(ConvexEllipsoidProblem, maxsize=8)
+
+
 class ConvexEllipsoidFit:
     """The algebraic ellipsoid fit as a semidefinite-constrained convex problem in cvxpy.
 
@@ -122,7 +182,6 @@ class ConvexEllipsoidFit:
     """
 
     name = "convex"
-    _problems: dict[tuple[str, float], Any] = {}
 
     def __init__(
         self,
@@ -138,23 +197,6 @@ class ConvexEllipsoidFit:
         self.allow_degenerate = allow_degenerate
         self.solver_options = dict(solver_options or {})
 
-    @classmethod
-    def _problem(cls, eps: float) -> Any:
-        """The cvxpy problem, built once per ``eps`` and re-solved with R as a parameter."""
-        key = ("ellipsoid", eps)
-        if key not in cls._problems:
-            import cvxpy as cp
-
-            A = cp.Variable((3, 3), symmetric=True)
-            b = cp.Variable(3)
-            c = cp.Variable()
-            R = cp.Parameter((10, 10))
-            eta = cp.hstack([A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[0, 2], A[1, 2], b, c])
-            constraints = [A >> eps * np.eye(3), cp.trace(A) == 3.0]
-            prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ eta)), constraints)
-            cls._problems[key] = (prob, R, A, b, c, eta)
-        return cls._problems[key]
-
     def fit(self, poses: PoseTable) -> CalibrationResult:
         import cvxpy as cp
 
@@ -166,21 +208,19 @@ class ConvexEllipsoidFit:
         R = np.zeros((10, 10))
         R_qr = np.linalg.qr(J, mode="r")  # (min(n, 10), 10): pad for fewer than 10 poses
         R[: R_qr.shape[0]] = R_qr
-        prob, R_par, A, b, c, eta = self._problem(self.eps)
-        R_par.value = R
         notes: list[str] = []
         with Stopwatch() as sw:
             try:
-                prob.solve(solver=self.solver, **self.solver_options)
+                solution = CONVEX_PROBLEMS.get(self.eps).solve(R, self.solver, self.solver_options)
             except cp.error.SolverError as exc:
                 raise FitError(f"the convex ellipsoid fit failed in {self.solver}: {exc}") from exc
-        status = prob.status
-        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or eta.value is None:
+        status = solution.status
+        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or solution.eta is None or solution.A is None:
             raise FitError(f"the convex ellipsoid fit ended with status {status!r} in {self.solver}")
-        eta_v = np.asarray(eta.value, float)
-        iters = int(prob.solver_stats.num_iters or 0)
+        eta_v = solution.eta
+        iters = solution.iterations
         message = ""
-        min_eig = float(np.linalg.eigvalsh(A.value)[0])
+        min_eig = float(np.linalg.eigvalsh(solution.A)[0])
         active = min_eig < 2 * self.eps
         if active:
             notes.append(

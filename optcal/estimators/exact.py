@@ -10,20 +10,24 @@ Unlike eq. 13/14, which replaces the latent directions by the radial projection
 measurement model and attains the Cramér–Rao bound of :mod:`optcal.identifiability`
 asymptotically.  The NLP has ``9 + 3n`` variables and ``n`` equality constraints with a
 sparse (block-diagonal plus border) KKT system, which IPOPT's sparse solver exploits.  It is
-built once per n, with the measurements and weights as parameters.
+built once per n (kept in :data:`EXACT_PROBLEMS`), with the measurements and weights as parameters.
 """
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish
-from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood, lower_triangular
-from optcal.model import theta_from
+from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood
+from optcal.model import theta_from, unpack_theta
+from optcal.norm_residual import casadi_lower_triangular
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 
@@ -36,15 +40,13 @@ class ExactProblem:
     a few seconds for this assembly.
     """
 
-    _cache: dict[tuple[int, tuple[tuple[str, Any], ...]], "ExactProblem"] = {}
-
     def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
 
         nx = 9 + 3 * n
         x = ca.SX.sym("x", nx)  # lower-triangular C (6), o (3), latent unit directions (3n)
         p = ca.SX.sym("p", 4 * n)  # measurements (column-major 3×n), weights
-        C, o = lower_triangular(x[:6]), x[6:9]
+        C, o = casadi_lower_triangular(x[:6]), x[6:9]
         d = ca.reshape(x[9:], 3, n)
         a = ca.reshape(p[: 3 * n], 3, n)
         w = p[3 * n:].T
@@ -56,6 +58,7 @@ class ExactProblem:
         opts.update(ipopt_options or {})
         self.n = n
         self.solver = ca.nlpsol("exact_ml_calibration", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+        self._lock = threading.Lock()
 
     @staticmethod
     def _hessian(x: Any, p: Any, n: int) -> Any:
@@ -64,7 +67,7 @@ class ExactProblem:
 
         z = ca.SX.sym("z", 12)  # c, o, d_k
         ak, wk, lf, lg = ca.SX.sym("a", 3), ca.SX.sym("w"), ca.SX.sym("lf"), ca.SX.sym("lg")
-        ek = ak - z[6:9] - ca.mtimes(lower_triangular(z[:6]), z[9:12])
+        ek = ak - z[6:9] - ca.mtimes(casadi_lower_triangular(z[:6]), z[9:12])
         block = ca.hessian(lf * wk * ca.dot(ek, ek) + lg * (ca.dot(z[9:12], z[9:12]) - 1.0), z)[0]
         blocks = ca.Function("pose_hessian", [z, ak, wk, lf, lg], [ca.densify(block)]).map(n, "serial")
         lam_f, lam_g = ca.SX.sym("lam_f"), ca.SX.sym("lam_g", n)
@@ -88,12 +91,19 @@ class ExactProblem:
 
     @classmethod
     def get(cls, n: int, ipopt_options: dict[str, Any] | None = None) -> "ExactProblem":
-        key = (n, tuple(sorted((ipopt_options or {}).items())))
-        if key not in cls._cache:
-            if len(cls._cache) > 16:
-                cls._cache.clear()
-            cls._cache[key] = cls(n, ipopt_options)
-        return cls._cache[key]
+        """The problem for n poses, built on first use and kept in :data:`EXACT_PROBLEMS`."""
+        return EXACT_PROBLEMS.get(n, freeze_options(ipopt_options))
+
+    def solve(self, x0: NDArray, acc: NDArray, weights: NDArray, lbx: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``x0`` (C, o, directions) for normalised measurements (n, 3) and weights (n,)."""
+        with self._lock:  # the solver keeps the statistics of its last call
+            sol = self.solver(x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
+            stats = self.solver.stats()
+        return np.asarray(sol["x"]).ravel(), stats
+
+
+#: The errors-in-variables problems, keyed by (n, frozen IPOPT options).
+EXACT_PROBLEMS: ProblemCache[ExactProblem] = problem_cache(lambda n, options: ExactProblem(n, dict(options)), maxsize=16)
 
 
 class ExactMaximumLikelihood:
@@ -132,21 +142,16 @@ class ExactMaximumLikelihood:
         C_n = np.linalg.inv(T_n)
         xi = (u - o_n) @ T_n.T
         d0 = xi / np.linalg.norm(xi, axis=1, keepdims=True)  # Lu 2017, eq. 10
-        x0 = np.concatenate([[C_n[i, j] for i, j in ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))], o_n, d0.ravel()])
+        x0 = np.concatenate([theta_from(C_n, o_n), d0.ravel()])  # C packed like T in θ
         w = np.ones(poses.n) if poses.sigma is None else 1.0 / poses.sigma**2
         w = w / np.mean(w)
         lbx = np.full(x0.size, -np.inf)
         lbx[[0, 2, 5]] = 1e-9  # positive diagonal of C: the canonical identifiable form
         problem = ExactProblem.get(poses.n, self.ipopt_options)
         with Stopwatch() as sw:
-            sol = problem.solver(x0=x0, p=np.concatenate([u.ravel(), w]), lbg=0.0, ubg=0.0, lbx=lbx)
-        stats = problem.solver.stats()
-        x = np.asarray(sol["x"]).ravel()
-        C = np.zeros((3, 3))
-        for k, (i, j) in enumerate(((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))):
-            C[i, j] = x[k]
-        T_n_new = np.linalg.inv(C)
-        theta = norm.theta_to_raw(theta_from(T_n_new, x[6:9]))
+            x, stats = problem.solve(x0, u, w, lbx)
+        C, o_fit = unpack_theta(x[:9])
+        theta = norm.theta_to_raw(theta_from(np.linalg.inv(C), o_fit))
         success = bool(stats.get("success", False))
         status = str(stats.get("return_status", "unknown"))
         solver = SolverInfo("IPOPT", status, success, int(stats.get("iter_count", 0)), sw.seconds, f"errors-in-variables NLP, {x.size} variables")

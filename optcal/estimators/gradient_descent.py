@@ -21,22 +21,21 @@ from numpy.typing import NDArray
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
 from optcal.model import canonicalise, theta_from
+from optcal.norm_residual import NormResidualKernel
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 
 
-def cost_and_gradient(x: NDArray, u: NDArray, w: NDArray) -> tuple[float, NDArray[np.float64]]:
-    """f(x) (Lu 2017, eq. 14) and its gradient (eq. 15-16) for x = [vec(T), o]."""
-    T = x[:9].reshape(3, 3)
-    uk = u - x[9:12]
-    v = uk @ T.T
-    nv = np.linalg.norm(v, axis=1)
-    r = nv - 1.0
-    cT = 1.0 - 1.0 / nv  # eq. 15, c_T
-    k = 2.0 * w * cT
-    grad_T = (v * k[:, None]).T @ uk  # Σ 2 w c_T (T u)(u)ᵀ
-    grad_o = -((v * k[:, None]) @ T).sum(axis=0)  # eq. 16: −Σ 2 w c_T Tᵀ T u
-    return float(np.sum(w * r * r)), np.concatenate([grad_T.ravel(), grad_o])
+def cost_and_gradient(x: NDArray, u: NDArray | NormResidualKernel, w: NDArray) -> tuple[float, NDArray[np.float64]]:
+    """f(x) (Lu 2017, eq. 14) and its gradient (eq. 15-16) for x = [vec(T), o].
+
+    ``∇f = Σ_k 2 w_k r_k ∂r_k/∂x`` with ``r_k ∂r_k/∂T = c_T (T u_k) u_kᵀ`` (eq. 15) and
+    ``r_k ∂r_k/∂o = −c_T Tᵀ T u_k`` (eq. 16); ``u`` may be the kernel of the data already built.
+    """
+    kernel = u if isinstance(u, NormResidualKernel) else NormResidualKernel(u)
+    point = kernel.at_full(x)
+    r = point.residuals
+    return float(np.sum(w * r * r)), point.jacobian_full() @ (2.0 * w * r)
 
 
 def descend(
@@ -52,12 +51,13 @@ def descend(
         ``status`` is ``"converged"``, ``"diverged"`` or ``"max_iter reached"``.
     """
     it = 0
-    f, g = cost_and_gradient(x, u, w)
+    kernel = NormResidualKernel(u)
+    f, g = cost_and_gradient(x, kernel, w)
     while it < max_iter:
         step = mu * g
         x = x - step  # Lu 2017, eq. 17
         it += 1
-        f, g = cost_and_gradient(x, u, w)
+        f, g = cost_and_gradient(x, kernel, w)
         if not np.isfinite(f):
             return x, f, it, "diverged"
         if np.linalg.norm(step) <= tol or (target is not None and f <= target):
@@ -142,12 +142,8 @@ class GradientDescent:
     @staticmethod
     def auto_step(x: NDArray, u: NDArray, w: NDArray) -> float:
         """μ = 1/L with L the largest eigenvalue of the Gauss–Newton Hessian 2JᵀWJ at x."""
-        T = x[:9].reshape(3, 3)
-        uk = u - x[9:12]
-        v = uk @ T.T
-        ab = v / np.linalg.norm(v, axis=1, keepdims=True)
-        J = np.column_stack([np.einsum("ni,nj->nij", ab, uk).reshape(len(u), 9), -(ab @ T)])
-        L = float(np.linalg.eigvalsh(2 * J.T @ (J * w[:, None]))[-1])
+        J = NormResidualKernel(u).at_full(x).jacobian_full()  # (12, n)
+        L = float(np.linalg.eigvalsh(2 * (J * w) @ J.T)[-1])
         return 1.0 / L
 
 

@@ -2,18 +2,19 @@
 
 Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py`` example):
 
-1. :func:`residual_function` — the per-pose norm residual ``r_k = ‖T(a_k − o)‖ − 1``
-   (eq. 13) as a CasADi ``Function`` of θ and one measurement, with exact derivatives.
+1. :func:`optcal.norm_residual.casadi_norm_residual` — the per-pose norm residual
+   ``r_k = ‖T(a_k − o)‖ − 1`` (eq. 13) as a CasADi ``Function`` of θ and one measurement.
 2. The NLP ``min_θ c Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²) over the nine
    identifiable parameters (T lower-triangular, o), with the measurements, weights, loss
    scale and cost scale ``c`` (:func:`cost_scale`) as data, in one of two forms, both solved by
-   IPOPT through ``nlpsol`` and both built once and re-solved with new data:
+   IPOPT through ``nlpsol``:
 
    * :class:`MLProblem` (up to :attr:`MLProblem.SX_LIMIT` poses): the cost mapped over n poses
-     and expanded into one SX graph with the exact Hessian; built once per (n, loss).
+     and expanded into one SX graph with the exact Hessian; built once per (n, loss, options)
+     and kept in :data:`ML_PROBLEMS` (:func:`optcal.problem_cache.problem_cache`).
    * :class:`VectorisedMLProblem` (more poses): cost, gradient and Gauss–Newton Hessian
-     evaluated column-wise in numpy (:class:`NormResidualCost`) and handed to IPOPT as
-     CasADi callbacks; built once per loss, whatever n (10⁶ poses in about a second).
+     evaluated in numpy (:class:`NormResidualCost`) and handed to IPOPT as CasADi callbacks,
+     built per solve in milliseconds whatever n (10⁶ poses in about a second).
 3. :class:`MaximumLikelihood` — the estimator: starting point from an algebraic fit
    (``convex`` by default, eq. 18-30), weights ``1/σ_r,k²`` when per-pose noise is known
    (re-propagated until they settle), optional robust loss (Huber, Cauchy) and bounds on
@@ -22,6 +23,7 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -31,7 +33,9 @@ from numpy.typing import NDArray
 from optcal.errors import FitError, InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
+from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 LOSSES = ("squared", "huber", "cauchy")
@@ -47,28 +51,6 @@ IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.max_iter": 200,
     "ipopt.mu_strategy": "adaptive",
 }
-
-
-def lower_triangular(x: Any) -> Any:
-    """CasADi 3×3 lower-triangular matrix from the first six entries of θ."""
-    import casadi as ca
-
-    z = ca.DM(0) if isinstance(x, ca.DM) else 0
-    return ca.vertcat(
-        ca.horzcat(x[0], z, z),
-        ca.horzcat(x[1], x[2], z),
-        ca.horzcat(x[3], x[4], x[5]),
-    )
-
-
-def residual_function() -> Any:
-    """``r(θ, a) = ‖T(a − o)‖ − 1`` (Lu 2017, eq. 13) as a CasADi Function."""
-    import casadi as ca
-
-    x = ca.SX.sym("theta", 9)
-    a = ca.SX.sym("a", 3)
-    v = ca.mtimes(lower_triangular(x), a - x[6:9])
-    return ca.Function("norm_residual", [x, a], [ca.norm_2(v) - 1.0])
 
 
 def robust_loss(z: Any, loss: str, delta: Any) -> Any:
@@ -109,75 +91,56 @@ def robust_loss_terms(z: NDArray, loss: str, delta: float) -> tuple[NDArray, NDA
 class NormResidualCost:
     """The ML cost ``c Σ ρ(√w_k r_k(θ))`` with its gradient and Gauss–Newton Hessian, in numpy.
 
-    The measurements are held as three contiguous columns and every quantity is formed
-    column by column (T is lower-triangular), so one evaluation is a few dozen vector
-    operations of length n plus one 9×n by n×9 product.  The residuals and their Jacobian
-    at the last θ are cached: IPOPT asks for the cost, the gradient and the Hessian at the
-    same point.
+    The residuals and their Jacobian come from :class:`optcal.norm_residual.NormResidualKernel`
+    (column by column, T lower-triangular).  The kernel's evaluation at the last θ is kept:
+    IPOPT asks for the cost, the gradient and the Hessian at the same point.  One instance
+    serves one solve (it is never shared between threads).
     """
 
     def __init__(self, u: NDArray, w: NDArray, loss: str = "squared", delta: float = 1.0, scale: float = 1.0) -> None:
-        self.ux, self.uy, self.uz = (np.ascontiguousarray(u[:, i], dtype=float) for i in range(3))
+        self.kernel = NormResidualKernel(u)
         self.w = np.asarray(w, dtype=float)
         self.sqrt_w = np.sqrt(self.w)
         self.loss, self.delta, self.scale = loss, float(delta), float(scale)
         self._x: NDArray | None = None
-        self._jx: NDArray | None = None
+        self._point: NormResidualPoint | None = None
+        self._J: NDArray | None = None
+
+    def _at(self, x: NDArray) -> NormResidualPoint:
+        x = np.asarray(x, dtype=float).ravel()
+        if self._point is None or self._x is None or not np.array_equal(x, self._x):
+            self._x, self._point, self._J = x.copy(), self.kernel.at_theta(x), None
+        return self._point
 
     def residuals(self, x: NDArray) -> NDArray[np.float64]:
         """``r_k = ‖T(u_k − o)‖ − 1`` (Lu 2017, eq. 13)."""
-        self._evaluate(x, jacobian=False)
-        return self._r
-
-    def _evaluate(self, x: NDArray, jacobian: bool) -> None:
-        x = np.asarray(x, dtype=float).ravel()
-        if self._x is None or not np.array_equal(x, self._x):
-            t00, t10, t11, t20, t21, t22 = x[:6]
-            dx, dy, dz = self.ux - x[6], self.uy - x[7], self.uz - x[8]
-            vx = t00 * dx
-            vy = t10 * dx + t11 * dy
-            vz = t20 * dx + t21 * dy + t22 * dz
-            nv = np.sqrt(vx * vx + vy * vy + vz * vz)
-            self._x, self._jx = x.copy(), None
-            self._r = nv - 1.0
-            self._parts = (dx, dy, dz, vx, vy, vz, nv)
-        if jacobian and self._jx is None:
-            t00, t10, t11, t20, t21, t22 = x[:6]
-            dx, dy, dz, vx, vy, vz, nv = self._parts
-            ax, ay, az = vx / nv, vy / nv, vz / nv
-            J = np.empty((9, len(nv)))  # ∂r/∂θ, one row per parameter
-            J[0], J[1], J[2] = ax * dx, ay * dx, ay * dy  # ∂r/∂T_ij = ā_i u_j
-            J[3], J[4], J[5] = az * dx, az * dy, az * dz
-            J[6] = -(t00 * ax + t10 * ay + t20 * az)  # ∂r/∂o = −Tᵀ ā
-            J[7] = -(t11 * ay + t21 * az)
-            J[8] = -t22 * az
-            self._J, self._jx = J, x.copy()
+        return self._at(x).residuals
 
     def jacobian(self, x: NDArray) -> NDArray[np.float64]:
-        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter)."""
-        self._evaluate(x, jacobian=True)
+        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter; Lu 2017, eq. 15-16)."""
+        point = self._at(x)
+        if self._J is None:
+            self._J = point.jacobian()
         return self._J
 
     def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
-        """``‖Tᵀ ā_k‖`` in normalised units (``= −∂r_k/∂o``, see :func:`optcal.identifiability.normal_gain`)."""
-        J = self.jacobian(x)
-        return np.sqrt(np.einsum("ij,ij->j", J[6:9], J[6:9]))
+        """``‖Tᵀ ā_k‖`` in normalised units (see :func:`optcal.norm_residual.normal_gain`)."""
+        return self._at(x).normal_gain()
 
     def value(self, x: NDArray) -> float:
-        self._evaluate(x, jacobian=False)
-        rho, _, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
+        rho, _, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
         return self.scale * float(np.sum(rho))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
-        self._evaluate(x, jacobian=True)
-        rho, drho, _ = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
-        return self.scale * float(np.sum(rho)), self.scale * (self._J @ (drho * self.sqrt_w))
+        J = self.jacobian(x)
+        rho, drho, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
+        return self.scale * float(np.sum(rho)), self.scale * (J @ (drho * self.sqrt_w))
 
     def gauss_newton_hessian(self, x: NDArray) -> NDArray[np.float64]:
         """``c Σ_k ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` (``2 c JᵀWJ`` for the squared loss)."""
-        self._evaluate(x, jacobian=True)
-        _, _, irls = robust_loss_terms(self.sqrt_w * self._r, self.loss, self.delta)
-        Js = self._J * np.sqrt(irls * self.w)
+        J = self.jacobian(x)
+        _, _, irls = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
+        Js = J * np.sqrt(irls * self.w)
         return self.scale * (Js @ Js.T)
 
 
@@ -226,13 +189,12 @@ class MLProblem:
     """
 
     SX_LIMIT = 200
-    _cache: dict[tuple[Any, ...], Any] = {}
 
     def __init__(self, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
 
         self.n, self.loss = n, loss
-        r = residual_function()
+        r = casadi_norm_residual()
         x = ca.SX.sym("theta", 9)
         data = ca.SX.sym("a", 3, n)
         w = ca.SX.sym("w", 1, n)
@@ -243,18 +205,15 @@ class MLProblem:
         p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
         opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
         self.solver = ca.nlpsol("ml_calibration", "ipopt", {"x": x, "p": p, "f": cost}, opts)
+        self._lock = threading.Lock()
 
     @classmethod
     def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> "MLProblem | VectorisedMLProblem":
-        """The problem for n poses, built on first use and cached (SX up to :attr:`SX_LIMIT`)."""
-        options = tuple(sorted((ipopt_options or {}).items()))
-        large = n > cls.SX_LIMIT
-        key = ("vectorised", loss, options) if large else (n, loss, options)
-        if key not in cls._cache:
-            if len(cls._cache) > 32:
-                cls._cache.clear()
-            cls._cache[key] = VectorisedMLProblem(loss, ipopt_options) if large else cls(n, loss, ipopt_options)
-        return cls._cache[key]
+        """The problem for n poses: the SX problem up to :attr:`SX_LIMIT` poses, built once and
+        kept in :data:`ML_PROBLEMS`; beyond, a :class:`VectorisedMLProblem` (nothing to keep)."""
+        if n > cls.SX_LIMIT:
+            return VectorisedMLProblem(loss, ipopt_options)
+        return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
 
     def solve(
         self,
@@ -269,13 +228,10 @@ class MLProblem:
         start = NormResidualCost(u, w, self.loss, delta)
         scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
         p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
-        args: dict[str, Any] = {"x0": theta0, "p": p}
-        if lbx is not None:
-            args["lbx"] = lbx
-        if ubx is not None:
-            args["ubx"] = ubx
-        sol = self.solver(**args)
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+        with self._lock:  # the solver keeps the statistics of its last call
+            sol = self.solver(**_solve_arguments(theta0, lbx, ubx, p=p))
+            stats = self.solver.stats()
+        return np.asarray(sol["x"]).ravel(), stats
 
 
 def numpy_callback(
@@ -333,23 +289,22 @@ class VectorisedMLProblem:
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
     The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
-    losses, :func:`robust_loss_terms`) of :class:`NormResidualCost` are CasADi
+    losses, :func:`robust_loss_terms`) of a :class:`NormResidualCost` are CasADi
     ``Callback`` s handed to ``nlpsol`` (the gradient as the cost's reverse derivative and
-    as ``grad_f``, the Hessian as ``hess_lag``).  Nothing is built per n: the data of the
-    current solve sit in the callbacks, so one problem per loss serves every n, and one
-    IPOPT iteration on 10⁶ poses costs a few dozen vector operations.
+    as ``grad_f``, the Hessian as ``hess_lag``).  Nothing depends on n, and building the
+    callbacks and the NLP takes a few milliseconds, so each :meth:`solve` builds its own,
+    bound to that solve's data: the object holds only the loss and the options, and any
+    number of threads can solve with it at once.  One IPOPT iteration on 10⁶ poses costs a
+    few dozen vector operations.
     """
 
     def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
-        import casadi as ca
-
         self.loss = loss
-        self.cost: NormResidualCost | None = None
-        problem = self
+        self.ipopt_options = dict(ipopt_options or {})
 
-        def current() -> NormResidualCost:
-            assert problem.cost is not None, "solve() sets the data"
-            return problem.cost
+    def _solver(self, cost: NormResidualCost) -> tuple[Any, list[Any]]:
+        """The NLP of ``cost`` and the callbacks it calls (kept alive by the caller during the solve)."""
+        import casadi as ca
 
         dense9 = ca.Sparsity.dense(9, 1)
         scalar = ca.Sparsity.dense(1, 1)
@@ -358,28 +313,29 @@ class VectorisedMLProblem:
         def theta(arg: list) -> NDArray:
             return np.asarray(arg[0]).ravel()
 
-        self._gradient = numpy_callback(
+        gradient = numpy_callback(
             "ml_grad_f", [("x", dense9), ("p", empty)], [("f", scalar), ("grad_f", dense9)],
-            lambda arg: list(current().gradient(theta(arg))),
+            lambda arg: list(cost.gradient(theta(arg))),
         )
 
         def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
             x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-            _, g = self._gradient(x, ca.MX(0, 1))
+            _, g = gradient(x, ca.MX(0, 1))
             return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
-        self._cost = numpy_callback(
-            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [current().value(theta(arg))], reverse=cost_reverse
+        value = numpy_callback(
+            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [cost.value(theta(arg))], reverse=cost_reverse
         )
-        self._hessian = numpy_callback(
+        hessian = numpy_callback(
             "ml_hess_lag",
             [("x", dense9), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
             [("triu_hess_gamma_x_x", ca.Sparsity.upper(9))],
-            lambda arg: [ca.triu(ca.DM(current().gauss_newton_hessian(theta(arg)) * float(arg[2])))],
+            lambda arg: [ca.triu(ca.DM(cost.gauss_newton_hessian(theta(arg)) * float(arg[2])))],
         )
         x = ca.MX.sym("theta", 9)
-        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian, **(ipopt_options or {})}
-        self.solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": gradient, "hess_lag": hessian, **self.ipopt_options}
+        solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": value(x)}, opts)
+        return solver, [gradient, value, hessian]
 
     def solve(
         self,
@@ -393,17 +349,27 @@ class VectorisedMLProblem:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
         cost = NormResidualCost(u, w, self.loss, delta)
         cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
-        self.cost = cost
-        args: dict[str, Any] = {"x0": theta0}
-        if lbx is not None:
-            args["lbx"] = lbx
-        if ubx is not None:
-            args["ubx"] = ubx
-        try:
-            sol = self.solver(**args)
-        finally:
-            self.cost = None  # do not keep the data alive
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+        solver, callbacks = self._solver(cost)
+        sol = solver(**_solve_arguments(theta0, lbx, ubx))
+        stats = solver.stats()
+        del callbacks  # only now may the callbacks go
+        return np.asarray(sol["x"]).ravel(), stats
+
+
+def _solve_arguments(theta0: NDArray, lbx: NDArray | None, ubx: NDArray | None, **data: Any) -> dict[str, Any]:
+    """Keyword arguments of an ``nlpsol`` call: the start, the bounds given, the data."""
+    args: dict[str, Any] = {"x0": theta0, **data}
+    if lbx is not None:
+        args["lbx"] = lbx
+    if ubx is not None:
+        args["ubx"] = ubx
+    return args
+
+
+#: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
+ML_PROBLEMS: ProblemCache[MLProblem] = problem_cache(
+    lambda n, loss, options: MLProblem(n, loss, dict(options)), maxsize=32
+)
 
 
 def _bounds_vectors(
@@ -596,8 +562,6 @@ class MaximumLikelihood:
         if self.loss != "squared":
             T, o = unpack_theta(theta)
             w, _ = pose_weights(poses, T, o, self.weighting)
-            from optcal.identifiability import norm_residuals
-
             r = norm_residuals(T, o, poses.acc)
             z = r * np.sqrt(w) if residual_scale is None else r / residual_scale
             robust_w = 0.5 * robust_loss_terms(z, self.loss, self.loss_scale)[2]  # ψ(z)/(2z), 1 inside

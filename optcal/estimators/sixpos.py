@@ -64,8 +64,8 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.base import Stopwatch
-from optcal.identifiability import norm_residuals
 from optcal.model import AXES, STANDARD_GRAVITY
+from optcal.norm_residual import norm_residuals
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
 

@@ -23,13 +23,11 @@ from optcal.report.figures import (
     before_after_figure,
     direction_vectors,
     embed,
-    regressor_figure,
     residual_figure,
     segmentation_figure,
-    simulation_band_figure,
     sphere_map_figure,
 )
-from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters
+from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters, result_parameters
 from optcal.report.verdict import DEFAULT_TOLERANCE_MG, Verdict, judge, judge_check, judge_segmentation
 from optcal.result import CalibrationResult
 
@@ -139,8 +137,12 @@ def _quantity_rows(quantities: list[Quantity], digits: int = 6) -> list[list[str
     return rows
 
 
-def parameters_section(params: EngineeringParameters, result: CalibrationResult) -> Section:
-    """The calibration as scale factors, angles and biases with 95 % confidence intervals."""
+def parameters_section(params: EngineeringParameters, T: np.ndarray, errors_from: str) -> Section:
+    """The calibration as scale factors, angles and biases with 95 % confidence intervals.
+
+    ``T`` is the calibration matrix printed below the tables; ``errors_from`` says where the
+    standard errors come from.
+    """
     header = ["parameter", "symbol", "value", "standard error", "95 % interval", "unit"]
     zero = params.zero
     zero_text = "0" if not np.any(zero) else ", ".join(_g(z, 6) for z in zero) + f" {params.units}"
@@ -150,15 +152,21 @@ def parameters_section(params: EngineeringParameters, result: CalibrationResult)
         "determined by static poses (any rotation of the sensor frame fits equally well), so the calibrated frame "
         "is defined by the sensor's own x axis and xy plane.",
         f"Bias in mg is measured from the raw reading that nominally means zero ({zero_text}).",
-        f"Standard errors: {'absolute, from the per-pose noise' if result.sigma_known else 'scaled by the reduced χ² (no per-pose noise given)'}; "
-        "intervals are ±1.96 standard errors.",
+        f"Standard errors: {errors_from}; intervals are ±1.96 standard errors.",
     ]
     tables = [Table(header, _quantity_rows(params.scale + params.scale_error), "Scale factors"),
               Table(header, _quantity_rows(params.angles, 4), "Non-orthogonality"),
               Table(header, _quantity_rows(params.bias_raw + params.bias_mg), "Bias")]
-    matrix = "\n".join("  ".join(f"{result.T[i, j]: .6e}" for j in range(3)) for i in range(3))
+    matrix = "\n".join("  ".join(f"{T[i, j]: .6e}" for j in range(3)) for i in range(3))
     return Section("Calibration parameters", paragraphs, tables,
-                   preformatted=f"ā = T (a − o), T ({'g per ' + result.units}):\n{matrix}")
+                   preformatted=f"ā = T (a − o), T (g per {params.units}):\n{matrix}")
+
+
+def result_parameters_section(result: CalibrationResult, poses: PoseTable) -> Section:
+    """:func:`parameters_section` of a fit, bias in mg from the nominal zero of ``poses``."""
+    errors_from = ("absolute, from the per-pose noise" if result.sigma_known
+                   else "scaled by the reduced χ² (no per-pose noise given)")
+    return parameters_section(result_parameters(result, _zero_of(poses)), result.T, errors_from)
 
 
 def _pose_table(result: CalibrationResult, poses: PoseTable, noise: np.ndarray | None, residuals: np.ndarray) -> Table:
@@ -242,8 +250,7 @@ def calibration_document(
     """
     ev = gather(result, poses, method, settings)
     verdict = judge(ev, tolerance_mg)
-    sections = [parameters_section(engineering_parameters(result, _zero_of(poses)), result),
-                *_evidence_sections(ev, poses), data_section(data_path, poses),
+    sections = [result_parameters_section(result, poses), *_evidence_sections(ev, poses), data_section(data_path, poses),
                 Section("Text report", preformatted=result.report())]
     return ReportDocument(f"Calibration of {data_path}", data_path, verdict, sections, command, versions(), _now())
 
@@ -258,18 +265,14 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
     verdict = judge(ev, tolerance_mg)
     findings_rows = [[e.effect, e.axis or "", e.coefficient, _g(e.size_mg, 3) if np.isfinite(e.size_mg) else "", e.over]
                      for e in ev.effects]
-    kept = diag.final.kept(diag.n)
-    columns: list[tuple[str, np.ndarray]] = []
-    if poses.temp is not None:
-        columns.append(("temperature (°C)", poses.temp))
-    if poses.t is not None:
-        columns.append(("time (s)", poses.t))
-    columns += [(f"force along {a} (g)", diag.fitted_directions[:, i]) for i, a in enumerate("xyz")]
-    figures = [embed(regressor_figure(columns, diag.baseline.residuals, diag.final.residuals, kept),
-                     "Norm residuals against temperature, time and each axis: the paper's model (top) and the final model (bottom)")]
-    if diag.simulation["simulations"]:
-        figures.append(embed(simulation_band_figure(diag.simulation["statistics"], diag.simulation["band"]),
-                             "Simulation check of the paper's model: each residual statistic against its simulated band"))
+    from optcal.diagnosis.figures import residual_figure as diagnosis_residual_figure
+    from optcal.diagnosis.figures import simulation_figure
+
+    figures = [embed(diagnosis_residual_figure(diag),
+                     "Norm residuals against temperature, time and each axis: the paper's model and the final model")]
+    sim_fig = simulation_figure(diag)
+    if sim_fig is not None:
+        figures.append(embed(sim_fig, "Simulation check of the paper's model: each residual statistic against its simulated band"))
     gain = diag.gain()
     diagnosis = Section(
         "Diagnosis",
@@ -280,15 +283,18 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
         if findings_rows else [],
         figures,
     )
-    sections = [diagnosis, parameters_section(engineering_parameters(result, _zero_of(poses)), result),
-                *_evidence_sections(ev, poses), data_section(data_path, poses),
+    sections = [diagnosis, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
+                data_section(data_path, poses),
                 Section("Text report", preformatted=diag.report())]
     return ReportDocument(f"Diagnosis of {data_path}", data_path, verdict, sections, command, versions(), _now())
 
 
-def check_document(cal: CalibrationResult, cal_path: str, poses: PoseTable, check: Any, data_path: str, command: str,
+def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_path: str, command: str,
                    tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> ReportDocument:
-    """Report of ``optcal check``: a saved calibration on other data, before and after."""
+    """Report of ``optcal check``: a saved calibration (any :mod:`optcal.caltypes` type) on other data, before and after.
+
+    ``poses`` are in the calibration's units; ``check`` is :func:`optcal.data.validation.check_calibration`'s result.
+    """
     verdict = judge_check(check.rms_after, check.rms_noise, check.rows.size, tolerance_mg)
     labels = [str(int(r)) for r in check.rows]
     table = Table(
@@ -298,7 +304,7 @@ def check_document(cal: CalibrationResult, cal_path: str, poses: PoseTable, chec
     )
     section = Section(
         "Before and after",
-        [f"Calibration {cal_path} (method {cal.method}, fitted on {cal.n_poses} poses, {cal.units} in, g out).",
+        [f"Calibration {cal_path}: {cal.describe()}.",
          f"Before: {check.nominal.description}.",
          f"rms of |a| − 1 g over {check.rows.size} poses: before {check.rms_before * 1e3:.4g} mg, after "
          f"{check.rms_after * 1e3:.4g} mg" + (f" (pose noise alone: {check.rms_noise * 1e3:.4g} mg)." if np.isfinite(check.rms_noise) else ".")],
@@ -306,7 +312,9 @@ def check_document(cal: CalibrationResult, cal_path: str, poses: PoseTable, chec
         [embed(before_after_figure(labels, check.before, check.after, check.noise),
                "Norm error of each pose before (nominal conversion) and after calibration")],
     )
-    params = parameters_section(engineering_parameters(cal, _zero_of(poses) if poses.units == cal.units else None), cal)
+    lumped = cal.lumped()
+    params = parameters_section(engineering_parameters(lumped.model, cal.units, None, _zero_of(poses)),
+                                lumped.model.T_canonical, "not stored in the calibration file (see the report of its fit)")
     return ReportDocument(f"Check of {cal_path} on {data_path}", f"{cal_path} on {data_path}", verdict,
                           [section, params, data_section(data_path, poses)], command, versions(), _now())
 

@@ -299,15 +299,14 @@ def chi_square_check(result: CalibrationResult) -> BandCheck:
     return BandCheck(what, result.chisqr, float(lo), float(hi), source)
 
 
-def simulation_check(simulation: dict[str, Any]) -> BandCheck:
-    """The rms statistic of a diagnosis's simulation check as a :class:`BandCheck`."""
-    st = simulation["statistics"]["rms_g"]
-    lo, hi = st["band"]
-    known = "per-pose σ given" in simulation.get("noise", "")
+def simulation_check(simulation: Any) -> BandCheck:
+    """The rms statistic of a diagnosis's :class:`~optcal.diagnosis.simulation.SimulationCheck` as a :class:`BandCheck`."""
+    st = simulation.statistics["rms_g"]
+    lo, hi = st.band
     return BandCheck(
-        "rms of the norm residuals (g)", float(st["measured"]), float(lo), float(hi),
-        f"{simulation['band'] * 100:g} % band of {simulation['simulations']} simulations of the fitted model",
-        bool(simulation["simulations"]) and known,
+        "rms of the norm residuals (g)", float(st.measured), float(lo), float(hi),
+        f"{simulation.band * 100:g} % band of {simulation.simulations} simulations of the fitted model",
+        bool(simulation.simulations) and simulation.noise_scale is not None,
     )
 
 
@@ -427,22 +426,23 @@ def names_of_rows(poses: PoseTable, rows: list[int]) -> list[str]:
     return [pose_name(poses, index[int(r)]) for r in rows]
 
 
-def effect_sizes(findings: list[dict[str, Any]], poses: PoseTable) -> list[EffectSize]:
-    """Size of each finding of a diagnosis over the recorded temperature or time range, mg."""
-    from optcal.effects import CAUSES, format_value
+def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
+    """Size of each :class:`~optcal.diagnosis.findings.Finding` over the recorded temperature or time range, mg."""
+    from optcal.extended_model import format_value
 
     out: list[EffectSize] = []
     for f in findings:
-        effect = f["effect"]
+        effect = f.effect
         if effect == "outliers":
-            out.append(EffectSize(effect, "", f"{len(f['rows'])} poses given zero weight", float("nan"),
-                                  ", ".join(names_of_rows(poses, f["rows"])), CAUSES[effect]))
+            rows = list(f.rows or [])
+            out.append(EffectSize(effect, "", f"{len(rows)} poses given zero weight", float("nan"),
+                                  ", ".join(names_of_rows(poses, rows)), f.cause))
             continue
-        for axis in f["axes"]:
-            coefs = np.asarray(f["coefficients"][axis], dtype=float)
+        for axis in f.axes:
+            coefs = np.asarray(f.coefficients[axis], dtype=float)
             if effect.startswith("temperature") or effect == "bias_drift":
                 column = poses.temp if effect.startswith("temperature") else poses.t
-                ref = f["reference"].get("temp_ref_c" if effect.startswith("temperature") else "t_ref_s", 0.0)
+                ref = f.reference.get("temp_ref_c" if effect.startswith("temperature") else "t_ref_s", 0.0)
                 lo, hi = float(np.min(column)), float(np.max(column))
                 x = np.linspace(lo - ref, hi - ref, 201)
                 unit = "°C" if effect.startswith("temperature") else "s"
@@ -452,8 +452,8 @@ def effect_sizes(findings: list[dict[str, Any]], poses: PoseTable) -> list[Effec
                 over = "±1 g"
             change = sum(c * x ** (p + 1) for p, c in enumerate(coefs))
             size_g = float(np.max(change) - np.min(change)) if effect != "scale_nonlinearity" else float(np.max(np.abs(change)))
-            out.append(EffectSize(effect, axis, format_value(effect, f["estimate"][axis], f["stderr"][axis]),
-                                  1e3 * size_g, over, CAUSES[effect]))
+            out.append(EffectSize(effect, axis, format_value(effect, f.estimate[axis], f.stderr[axis]),
+                                  1e3 * size_g, over, f.cause))
     return out
 
 
@@ -483,10 +483,12 @@ def gather(
     sigma_r = noise_floor(result, poses)
     floor = float(np.sqrt(np.mean(sigma_r**2))) if sigma_r is not None else float("nan")
     if diagnosis is not None:
-        held = HeldOut(diagnosis.baseline_heldout_rms(), diagnosis.baseline_rms(), int(diagnosis.settings["folds"]),
-                       f"{diagnosis.settings['folds']}-fold over poses, the paper's model by maximum likelihood")
+        folds = int(diagnosis.settings.folds)
+        held = HeldOut(diagnosis.baseline_heldout_rms(), diagnosis.baseline_rms(), folds,
+                       f"{folds}-fold over poses, the paper's model by maximum likelihood")
         check = simulation_check(diagnosis.simulation)
-        outlier_rows = next((f["rows"] for f in diagnosis.findings if f["effect"] == "outliers"), [])
+        found = diagnosis.finding("outliers")
+        outlier_rows = list(found.rows or []) if found is not None else []
         index = {int(r): k for k, r in enumerate(poses.rows)}
         outliers = Outliers(names_of_rows(poses, outlier_rows), [],
                             [float(diagnosis.baseline.residuals[index[int(r)]]) for r in outlier_rows], float("nan"),

@@ -127,51 +127,6 @@ def before_after_figure(labels: list[str], before_g: NDArray[np.float64], after_
     return fig
 
 
-def regressor_figure(columns: list[tuple[str, NDArray[np.float64]]], before_g: NDArray[np.float64],
-                     after_g: NDArray[np.float64], kept: NDArray[np.bool_]) -> Any:
-    """Norm residuals against temperature, time and each axis: the paper's model and the final model."""
-    fig = _figure(4.6)
-    grid = fig.subplots(2, len(columns), sharey="row", squeeze=False)
-    for col, (label, x) in enumerate(columns):
-        for row, (name, r, colour) in enumerate((("paper's model", before_g, "C0"), ("final model", after_g, "C2"))):
-            ax = grid[row][col]
-            ax.axhline(0, color="0.6", lw=0.8)
-            ax.plot(x[kept], 1e3 * r[kept], "o", ms=3, color=colour)
-            if (~kept).any():
-                ax.plot(x[~kept], 1e3 * r[~kept], "x", ms=6, color="C3")
-            ax.set_xlabel(label, fontsize=8)
-            ax.tick_params(labelsize=7)
-            if col == 0:
-                ax.set_ylabel(f"{name}\nresidual (mg)", fontsize=8)
-    return fig
-
-
-def _short_meaning(meaning: str) -> str:
-    """A statistic's meaning short enough for an axis label (``correlation with temperature on z``)."""
-    if meaning.startswith("partial correlation") and "(" in meaning:
-        return "correlation with " + meaning[meaning.index("(") + 1:meaning.rindex(")")]
-    return meaning.split(" (")[0]
-
-
-def simulation_band_figure(statistics: dict[str, dict[str, Any]], band: float) -> Any:
-    """Each residual statistic against its simulated band (scaled so the band is [−1, 1])."""
-    names = [k for k, v in statistics.items() if np.all(np.isfinite(v["band"]))]
-    fig = _figure(0.28 * len(names) + 1.0)
-    ax = fig.add_subplot()
-    for k, name in enumerate(names):
-        st = statistics[name]
-        lo, hi = st["band"]
-        mid, half = 0.5 * (lo + hi), max(0.5 * (hi - lo), 1e-300)
-        ax.plot([-1, 1], [k, k], color="0.75", lw=6, solid_capstyle="butt")
-        z = (st["measured"] - mid) / half
-        ax.plot(np.clip(z, -4, 4), k, "o", color="C3" if st["outside"] else "C0")
-    ax.set_yticks(range(len(names)), [_short_meaning(statistics[n]["meaning"]) for n in names], fontsize=7)
-    ax.set_xlim(-4.2, 4.2)
-    ax.set_xlabel(f"measured value, scaled so that the simulated {band * 100:g} % band (grey) is [−1, 1]; red: outside",
-                  fontsize=8)
-    return fig
-
-
 def segmentation_figure(seg: Any) -> Any:
     """|a| (nominal g) with the static intervals shaded, the detector's statistics and the gyro rate."""
     tr = seg.trace

@@ -96,20 +96,30 @@ def _physical_vector(theta: NDArray[np.float64], zero: NDArray[np.float64]) -> N
     return np.concatenate([phys.scale, np.rad2deg([phys.rho, phys.phi, phys.lam]), 1e3 * bias_g])
 
 
-def _theta_covariance(result: CalibrationResult) -> NDArray[np.float64] | None:
-    """Covariance of the nine lumped-model parameters, when the result has it in θ order."""
+def theta_covariance(result: CalibrationResult) -> NDArray[np.float64] | None:
+    """Covariance of the nine lumped-model parameters θ, when the result has it in θ order."""
     if result.covariance is None or tuple(result.param_names[:9]) != PARAM_NAMES:
         return None
     return np.asarray(result.covariance, dtype=float)[:9, :9]
 
 
-def engineering_parameters(result: CalibrationResult, zero: ArrayLike | None = None) -> EngineeringParameters:
-    """The calibration of ``result`` as scale factors, angles and biases with standard errors.
+def result_parameters(result: CalibrationResult, zero: ArrayLike | None = None) -> EngineeringParameters:
+    """:func:`engineering_parameters` of a fit, with the standard errors of its covariance."""
+    return engineering_parameters(result.model, result.units, theta_covariance(result), zero)
+
+
+def engineering_parameters(model: LumpedModel, units: str, covariance: ArrayLike | None = None,
+                           zero: ArrayLike | None = None) -> EngineeringParameters:
+    """A lumped calibration as scale factors, angles and biases with standard errors.
 
     Parameters
     ----------
-    result : CalibrationResult
-        Any fitted calibration; standard errors are NaN when it carries no covariance of θ.
+    model : LumpedModel
+        The calibration (``CalibrationResult.model``, ``LumpedCalibration.model``).
+    units : str
+        Raw units of the data.
+    covariance : array_like, shape (9, 9), optional
+        Covariance of θ (:data:`optcal.model.PARAM_NAMES` order); without it the standard errors are NaN.
     zero : array_like, shape (3,), optional
         The raw reading that nominally means zero force (e.g. mid-scale 32768 of unsigned
         16-bit counts, :func:`optcal.data.units.nominal_conversion`); the bias in mg is
@@ -120,9 +130,9 @@ def engineering_parameters(result: CalibrationResult, zero: ArrayLike | None = N
     EngineeringParameters
     """
     zero_raw = np.zeros(3) if zero is None else np.asarray(zero, dtype=float).reshape(3)
-    theta = LumpedModel.from_T(result.T, result.o).theta
+    theta = model.theta
     values = _physical_vector(theta, zero_raw)
-    cov = _theta_covariance(result)
+    cov = None if covariance is None else np.asarray(covariance, dtype=float)
     if cov is None:
         stderr = np.full(values.size, np.nan)
     else:
@@ -133,7 +143,6 @@ def engineering_parameters(result: CalibrationResult, zero: ArrayLike | None = N
             e[k] = h
             J[:, k] = (_physical_vector(theta + e, zero_raw) - _physical_vector(theta - e, zero_raw)) / (2 * h)
         stderr = np.sqrt(np.clip(np.diag(J @ cov @ J.T), 0.0, None))
-    units = result.units
     scale = [Quantity(f"scale factor {a}", f"S_{a}", values[i], stderr[i], f"{units}/g") for i, a in enumerate(AXES)]
     nominal = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}.get(units)
     scale_error = (
@@ -148,9 +157,9 @@ def engineering_parameters(result: CalibrationResult, zero: ArrayLike | None = N
     )
     angles = [Quantity(words, sym, values[3 + k], stderr[3 + k], "°") for k, (sym, words) in enumerate(angle_words)]
     se_o = np.sqrt(np.clip(np.diag(cov)[6:9], 0.0, None)) if cov is not None else np.full(3, np.nan)
-    bias_raw = [Quantity(f"bias {a}", f"o_{a}", float(result.o[i]), float(se_o[i]), units) for i, a in enumerate(AXES)]
+    bias_raw = [Quantity(f"bias {a}", f"o_{a}", float(model.o[i]), float(se_o[i]), units) for i, a in enumerate(AXES)]
     bias_mg = [Quantity(f"bias {a} in g", f"b_{a}", values[6 + i], stderr[6 + i], "mg") for i, a in enumerate(AXES)]
     return EngineeringParameters(units, scale, scale_error, angles, bias_raw, bias_mg, zero_raw)
 
 
-__all__ = ["EngineeringParameters", "Quantity", "Z95", "engineering_parameters"]
+__all__ = ["EngineeringParameters", "Quantity", "Z95", "engineering_parameters", "result_parameters", "theta_covariance"]
