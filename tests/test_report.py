@@ -15,7 +15,7 @@ from optcal.cli.main import main
 from optcal.model import LumpedModel
 from optcal.poses import PoseTable
 from optcal.report.evidence import HeldOut, gather
-from optcal.report.parameters import engineering_parameters
+from optcal.report.parameters import result_parameters
 from optcal.report.verdict import judge, judge_check, judge_segmentation
 from optcal.simulate import simulate_poses, uniform_directions
 
@@ -46,7 +46,7 @@ SENSOR = LumpedModel.from_physical(scale=[1.02, 0.97, 1.05], rho=np.deg2rad(0.5)
 
 def test_engineering_parameters_recover_a_noise_free_sensor() -> None:
     poses = simulate_poses(SENSOR, uniform_directions(40, 3), 0.0, rng=1)
-    params = engineering_parameters(calibrate(poses, method="mle"))
+    params = result_parameters(calibrate(poses, method="mle"))
     np.testing.assert_allclose([q.value for q in params.scale], [1.02, 0.97, 1.05], atol=1e-8)
     np.testing.assert_allclose([q.value for q in params.scale_error], [2.0, -3.0, 5.0], atol=1e-6)
     np.testing.assert_allclose([q.value for q in params.angles], [0.5, -0.3, 0.8], atol=1e-6)
@@ -58,7 +58,7 @@ def test_engineering_parameters_recover_a_noise_free_sensor() -> None:
 def test_engineering_standard_errors_follow_the_covariance() -> None:
     poses = simulate_poses(SENSOR, uniform_directions(60, 4), 0.002, rng=5)
     result = calibrate(poses, method="mle")
-    params = engineering_parameters(result)
+    params = result_parameters(result)
     se = result.stderr
     # row x of C = T⁻¹ is (1/T_xx, 0, 0): S_x = 1/T_xx, so se(S_x) = se(T_xx)/T_xx² exactly to first order
     assert params.scale[0].stderr == pytest.approx(se["T_xx"] / result.T[0, 0] ** 2, rel=1e-4)
@@ -207,7 +207,7 @@ def test_report_path_must_be_html(tmp_path: Path, capsys: pytest.CaptureFixture)
 
 # ----------------------------------------------------------------------------- the text report
 def test_text_report_of_counts_data_prints_every_number() -> None:
-    from optcal.effects import demo_sensor
+    from optcal.simulate_effects import demo_sensor
 
     poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)  # counts, 2 counts of noise
     text = calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")).report()

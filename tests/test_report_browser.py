@@ -52,7 +52,7 @@ def open_in_browser(page: Path, screenshot: Path, profile: Path, width: int = 41
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Reports of calibrate, check, diagnose and segment on a measured-like recording with a hidden drift."""
-    from optcal.effects import recording_with_effect
+    from optcal.simulate_effects import recording_with_effect
 
     out = tmp_path_factory.mktemp("reports")
     frame, _ = recording_with_effect("bias_drift", "y", n_poses=30, seed=4)
