@@ -345,6 +345,7 @@ def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
     from scipy import stats
 
     from optcal.calibration import calibrate
+    from optcal.diagnosis.outliers import robust_scale
 
     try:
         robust = calibrate(poses, method="mle", loss="cauchy", allow_degenerate=True)
@@ -353,10 +354,10 @@ def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
         residuals, how = result.residuals, "the fit itself"
     sigma_r = noise_floor(result, poses)
     e = residuals / sigma_r if sigma_r is not None else residuals.copy()
-    scale = 1.4826 * float(np.median(np.abs(e - np.median(e))))
+    scale = robust_scale(e)
     n = e.size
     bound = float(stats.norm.isf(OUTLIER_ALPHA / (2 * n)))
-    if scale <= 0 or n <= result.n_params:
+    if scale <= 1e-12 or n <= result.n_params:
         return Outliers([], [], [], bound, "not tested (too few poses for a robust scale)")
     z = e / scale
     flagged = np.flatnonzero(np.abs(z) > bound)
