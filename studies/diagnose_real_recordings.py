@@ -45,7 +45,7 @@ DATA = HERE.parents[1] / "shared" / "data"
 FIG.mkdir(parents=True, exist_ok=True)
 
 
-def detection_limits(poses) -> list[str]:
+def detection_limit_rows(poses) -> list[str]:
     """Smallest effect of each candidate term the selection's first step would have found."""
     d = Diagnoser(DiagnosisSettings(simulations=0))
     fitter, _ = d.prepare(poses)
@@ -100,7 +100,7 @@ for title, key, loader in RECORDINGS:
         diag = diagnose(poses, simulations=size(200, 10))
         how = "full diagnosis"
         sections += ["", "How large an effect would have been found (forward selection's first step):", ""]
-        sections += detection_limits(poses)
+        sections += detection_limit_rows(poses)
     except InputError as exc:
         sections += ["", f"Full diagnosis refused: `{exc}`", ""]
         try:
