@@ -6,13 +6,14 @@ CasADi), and compared with the paper's gradient-descent baseline.  See :mod:`opt
 for the conventions.
 """
 
-from optcal.errors import IdentifiabilityError, InputError, OptcalError, SolverError
+from optcal.errors import ConvergenceWarning, IdentifiabilityError, InputError, OptcalError, SolverError
 from optcal.model import LumpedModel, lu2017_reference_model
 from optcal.poses import PoseTable
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "ConvergenceWarning",
     "IdentifiabilityError",
     "InputError",
     "LumpedModel",

@@ -13,7 +13,7 @@ from optcal.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibratio
 from optcal.caltypes.apply import STATUS_COLUMN
 from optcal.cli.main import main
 from optcal.data import load
-from optcal.effects import recording_with_effect
+from optcal.simulate_effects import recording_with_effect
 from optcal.model import STANDARD_GRAVITY
 
 #: 1 mg/°C on z over the 16 °C warm-up and cool-down of the generator: ±8 mg, far above the noise.

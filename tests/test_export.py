@@ -14,7 +14,7 @@ import yaml
 import optcal.caltypes as caltypes
 from optcal.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
 from optcal.cli.main import main
-from optcal.effects import ExtendedModel
+from optcal.extended_model import ExtendedModel
 from optcal.model import STANDARD_GRAVITY as G
 from optcal.model import LumpedModel, lu2017_reference_model
 from optcal.simulate import uniform_directions

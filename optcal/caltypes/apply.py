@@ -131,6 +131,7 @@ def apply_to_file(
     acc = np.column_stack([src.column(c) for c in ACC])
     temp = src.column("temp") if src.has("temp") else None
     exclusions: dict[str, int] = {}
+    time_reason = src.time_reason
     if decision.kind == POSE_TABLE:
         if rate is not None:
             raise InputError(f"rate applies to raw recordings; {path} was read as a pose table ({decision.reason})")
@@ -141,7 +142,7 @@ def apply_to_file(
     else:
         rec = recording_from_source(src, units=units, rate=rate)
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
-        src.time_reason = rec.time_reason
+        time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
     for column in cal.needs:
         if (temp if column == "temp" else t) is None:
@@ -186,7 +187,7 @@ def apply_to_file(
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
     return AppliedFile(
         frame, decision.kind, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
-        src.time_reason if t is not None else "",
+        time_reason if t is not None else "",
     )
 
 

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
 from optcal.cli.report_option import check_report_path, command_line, write_report
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @click.command()
@@ -34,7 +37,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
         if seg is None:
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
         else:
-            plot_segmentation(seg, plot_path)
+            segmentation_figure(seg).savefig(plot_path, dpi=120)
     if report_path is not None:
         from optcal.report.document import segmentation_document
 
@@ -92,11 +95,37 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     return "\n".join(lines)
 
 
-def plot_segmentation(seg: Any, path: str) -> None:
-    """Save the figure of |a| (nominal g) with the intervals shaded, the detector's statistics and gyro rate."""
-    from optcal.report.figures import segmentation_figure
+def segmentation_figure(seg: Any) -> "Figure":
+    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
 
-    fig = segmentation_figure(seg)
-    fig.suptitle(str(seg.recording.path), fontsize=9)
-    fig.savefig(path, dpi=120)
+    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
+    """
+    from matplotlib.figure import Figure
 
+    tr = seg.trace
+    t = tr["t"]
+    has_gyro = "gyro_rate" in tr
+    fig = Figure(figsize=(11, 7 if has_gyro else 5))
+    axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
+    ax = axes[0]
+    ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
+    for iv in seg.intervals:
+        for a in axes:
+            a.axvspan(iv.t_start, iv.t_end, color="tab:green", alpha=0.15, lw=0)
+    ax.set_ylabel("|a| (nominal g)")
+    ax.set_title(f"{seg.recording.path}: {len(seg.intervals)} static intervals")
+    ax = axes[1]
+    ax.semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
+    ax.semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
+    ax.axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
+    ax.axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
+    ax.set_ylabel(f"std ({seg.recording.units})")
+    ax.legend(loc="upper right", fontsize=8)
+    if has_gyro:
+        ax = axes[2]
+        ax.semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
+        ax.axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
+        ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
+    axes[-1].set_xlabel("t (s)")
+    fig.tight_layout()
+    return fig

@@ -4,7 +4,7 @@
 :meth:`Calibration.correct <optcal.caltypes.base.Calibration.correct>` (and so ``optcal apply``)
 to round-off: ``T (raw − o)`` for ``lumped``, ``W raw + V`` for ``sixpos_full``.  For
 ``extended`` the header also declares ``optcal_apply_accel_tt(raw, temp_c, t_s, out_g)``, the
-per-axis closed-form inversion of :func:`optcal.effects.invert_axis` followed by ``T y``;
+per-axis closed-form inversion of :func:`optcal.extended_model.invert_axis` followed by ``T y``;
 ``optcal_apply_accel`` then applies it at the reference temperature and time.  The functions
 are ``static inline`` so that the header can be included in several translation units.  No
 validity-range check is made in C: the range is written in a comment.
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from optcal.caltypes.base import Calibration, ValidityRangeWarning
 from optcal.caltypes.extended import ExtendedCalibration
 from optcal.caltypes.sixpos import SixPositionCalibration
-from optcal.effects import MAX_ORDER
+from optcal.extended_model import MAX_ORDER
 from optcal.export import ExportOptions, ExportResult
 
 GUARD = "OPTCAL_ACCEL_CALIBRATION_H"
@@ -96,7 +96,7 @@ def extended_body(cal: ExtendedCalibration) -> list[str]:
     c = model.coefficients
     pad = lambda effect: np.pad(c[effect], ((0, 0), (0, 3 - MAX_ORDER[effect])))  # noqa: E731
     return [
-        "/* per axis i (optcal.effects.invert_axis): dT = temp_c - T_REF, dt = t_s - t_REF,",
+        "/* per axis i (optcal.extended_model.invert_axis): dT = temp_c - T_REF, dt = t_s - t_REF,",
         " *   bias = sum_p KB[i][p] dT^p + sum_p KD[i][p] dt^p   (g),  scale = sum_p KS[i][p] dT^p,",
         " *   w = (raw[i] - O[i] - S[i] bias) / (1 + scale),  y[i] = 2 w / (1 + sqrt(max(1 + 4 K2[i] w / S[i], 1e-6)));",
         " * then out_g = T y (Lu 2017, eq. 6).  Orders p = 1, 2, 3. */",

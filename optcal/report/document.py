@@ -24,7 +24,6 @@ from optcal.report.figures import (
     direction_vectors,
     embed,
     residual_figure,
-    segmentation_figure,
     sphere_map_figure,
 )
 from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters, result_parameters
@@ -329,6 +328,8 @@ def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, c
 
     distinct = distinct_orientations(directions)
     verdict = judge_segmentation(poses.n, distinct)
+    from optcal.cli.cmd_segment import segmentation_figure
+
     figures = []
     if segmentation is not None:
         figures.append(embed(segmentation_figure(segmentation), "The recording: |a|, the detector's statistics and the static intervals",

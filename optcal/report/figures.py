@@ -127,33 +127,6 @@ def before_after_figure(labels: list[str], before_g: NDArray[np.float64], after_
     return fig
 
 
-def segmentation_figure(seg: Any) -> Any:
-    """|a| (nominal g) with the static intervals shaded, the detector's statistics and the gyro rate."""
-    tr = seg.trace
-    t = tr["t"]
-    has_gyro = "gyro_rate" in tr
-    fig = _figure(6.0 if has_gyro else 4.5)
-    axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
-    axes[0].plot(t, tr["norm_g"], lw=0.5, color="0.3")
-    for iv in seg.intervals:
-        for a in axes:
-            a.axvspan(iv.t_start, iv.t_end, color="tab:green", alpha=0.15, lw=0)
-    axes[0].set_ylabel("|a| (nominal g)")
-    axes[0].set_title(f"{len(seg.intervals)} static intervals (shaded)", fontsize=10)
-    axes[1].semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
-    axes[1].semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
-    axes[1].axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
-    axes[1].axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
-    axes[1].set_ylabel(f"std ({seg.recording.units})")
-    axes[1].legend(loc="upper right", fontsize=7)
-    if has_gyro:
-        axes[2].semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
-        axes[2].axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
-        axes[2].set_ylabel(f"|ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
-    axes[-1].set_xlabel("t (s)")
-    return fig
-
-
 def direction_vectors(names: list[str]) -> NDArray[np.float64]:
     """Unit vectors of orientation names such as ``+x−z`` (the names of :func:`optcal.report.evidence.suggest_poses`)."""
     out = []
