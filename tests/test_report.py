@@ -218,3 +218,18 @@ def test_text_report_of_counts_data_prints_every_number() -> None:
     scale = re.search(r"S_x\s+=\s+(\d+\.?\d*)\s+\+/-\s+\S+\s+counts/g", text)
     assert scale and float(scale.group(1)) == pytest.approx(16300, rel=1e-3)
     assert re.search(r"ρ\s+=\s+0\.3\d*\s+\+/-\s+\S+\s+°", text)  # demo sensor: ρ = 0.3°
+
+
+def test_rendered_page_escapes_user_text_and_is_printable(tmp_path: Path) -> None:
+    from optcal.report.document import calibration_document
+    from optcal.report.render import render_html, write_html
+
+    poses = simulate_poses(SENSOR, uniform_directions(24, 9), 5e-4, rng=9)
+    doc = calibration_document(calibrate(poses), poses, "<script>x</script>.csv", "optcal calibrate '<x>.csv'")
+    html = render_html(doc)
+    assert "<script>x</script>" not in html and "&lt;script&gt;x&lt;/script&gt;.csv" in html
+    assert_self_contained(html)
+    assert "@media print" in html and 'name="viewport"' in html and "Content-Security-Policy" in html
+    assert html.count("<svg") >= 2  # residuals and sphere map, inline
+    with pytest.raises(Exception, match=r"\.html"):
+        write_html(doc, tmp_path / "report.pdf")
