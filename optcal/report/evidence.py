@@ -19,6 +19,7 @@ Everything here is measured, nothing is judged (that is :mod:`optcal.report.verd
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from itertools import product
 from typing import Any
@@ -26,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import InputError
+from optcal.errors import ConvergenceWarning, InputError
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult
 
@@ -278,7 +279,9 @@ def held_out_error(poses: PoseTable, method: str, settings: dict[str, Any], in_s
         return HeldOut(float("nan"), in_sample_g, folds, source,
                        f"{poses.n} poses leave fewer than {MIN_POSES} to fit in each fold")
     try:
-        ho = held_out_validation(poses, folds=folds, method=method, **settings)
+        with warnings.catch_warnings():  # a fold's fit that stops early still gives its held-out residuals
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            ho = held_out_validation(poses, folds=folds, method=method, **settings)
     except InputError as exc:
         return HeldOut(float("nan"), in_sample_g, folds, source, f"a fold could not be fitted: {exc}")
     return HeldOut(ho.rms_held_out, in_sample_g, folds, source)
@@ -348,7 +351,9 @@ def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
     from optcal.diagnosis.outliers import robust_scale
 
     try:
-        robust = calibrate(poses, method="mle", loss="cauchy", allow_degenerate=True)
+        with warnings.catch_warnings():  # only its residuals are used
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            robust = calibrate(poses, method="mle", loss="cauchy", allow_degenerate=True)
         residuals, how = robust.residuals, "Cauchy-loss refit"
     except InputError:
         residuals, how = result.residuals, "the fit itself"
