@@ -254,3 +254,13 @@ if fails:
 report += ["", f"Run time {time.time() - t0:.0f} s.", ""]
 (OUT / "diagnose_acceptance.md").write_text("\n".join(report))
 print("\n".join(report))
+
+# %% [markdown]
+# ## The full run's tables
+#
+# A quick run (`OPTCAL_STUDY_QUICK=1`, as CI executes this notebook) writes into `results/quick/`; the tables of
+# the last full run are in `results/diagnose_acceptance.md`:
+
+# %%
+if QUICK:  # a full run has just printed them above
+    print((HERE / "results" / "diagnose_acceptance.md").read_text())
