@@ -39,7 +39,7 @@ from optcal.errors import InputError
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
-from study_mode import size  # noqa: E402
+from study_mode import show, size  # noqa: E402
 
 DATA = HERE.parents[1] / "shared" / "data"
 FIG.mkdir(parents=True, exist_ok=True)
@@ -113,6 +113,8 @@ for title, key, loader in RECORDINGS:
             continue
     sections += ["", "```", diag.report(), "```", ""]
     paths = save_figures(diag, str(FIG / f"diagnose_{key}"))
+    for path in paths:
+        show(Path(path))
     sections += [f"Figures: {', '.join('`' + str(Path(p).relative_to(OUT)) + '`' for p in paths)}", ""]
     found = "; ".join(
         (f"{f.effect} rows {f.rows}" if f.rows is not None else

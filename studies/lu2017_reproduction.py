@@ -30,6 +30,7 @@ from optcal.model import lu2017_reference_model
 from optcal.reproduce.lu2017 import format_report, run
 from optcal.simulate import simulate_poses, tilted_sweeps
 from study_mode import FIGURES as FIG
+from study_mode import show  # noqa: E402
 from study_mode import RESULTS as OUT
 from study_mode import size
 
@@ -62,6 +63,7 @@ ax.set_title("Lu 2017 Fig. 2 analogue: norm of the measured specific force")
 ax.legend()
 fig.tight_layout()
 fig.savefig(FIG / "lu2017_fig2_norm.png", dpi=120)
+show(FIG / "lu2017_fig2_norm.png")
 
 fig = plt.figure(figsize=(9, 4.2))
 for k, (pts, title) in enumerate(((poses.acc, "before calibration"), (cal, "after calibration"))):
@@ -74,6 +76,7 @@ for k, (pts, title) in enumerate(((poses.acc, "before calibration"), (cal, "afte
 fig.suptitle("Lu 2017 Fig. 3 analogue: measured gravity vectors and the unit sphere")
 fig.tight_layout()
 fig.savefig(FIG / "lu2017_fig3_cloud.png", dpi=120)
+show(FIG / "lu2017_fig3_cloud.png")
 
 # %%
 rms_before = float(np.sqrt(np.mean((raw_norm - 1) ** 2)))

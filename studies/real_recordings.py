@@ -40,6 +40,7 @@ from optcal.data.validation import check_calibration, displacement_integration, 
 from optcal.errors import InputError
 
 from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
 
@@ -168,6 +169,7 @@ for ax, (name, c) in zip(axes, checks.items()):
     ax.legend(fontsize=8)
 fig.tight_layout()
 fig.savefig(FIG / "real_norm_residuals.png", dpi=120)
+show(FIG / "real_norm_residuals.png")
 plt.close(fig)
 
 # %% [markdown]
@@ -274,6 +276,7 @@ for ax, (name, (before, after)) in zip(np.atleast_1d(axes), curves.items()):
     ax.legend(fontsize=8)
 fig.tight_layout()
 fig.savefig(FIG / "real_displacement.png", dpi=120)
+show(FIG / "real_displacement.png")
 plt.close(fig)
 
 # %% [markdown]

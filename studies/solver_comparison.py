@@ -52,6 +52,7 @@ from optcal.model import PARAM_NAMES  # noqa: E402
 from optcal.reproduce.solvers import run  # noqa: E402
 
 from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
 from study_mode import QUICK  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
@@ -139,6 +140,7 @@ def efficiency_plot(blocks: list[dict], x: list[float], xlabel: str, name: str, 
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(FIG / f"{name}.png", dpi=120)
+    show(FIG / f"{name}.png")
     plt.close(fig)
 
 
@@ -165,6 +167,7 @@ ax.legend(fontsize=8)
 ax.grid(True, which="both", alpha=0.3)
 fig.tight_layout()
 fig.savefig(FIG / "solvers_time_vs_poses.png", dpi=120)
+show(FIG / "solvers_time_vs_poses.png")
 plt.close(fig)
 
 # coverage: failures of svd and convex over caps and noise
@@ -189,6 +192,7 @@ for ax, m in zip(axes, ("svd", "convex-clarabel", "mle")):
 axes[0].set_ylabel("cap half-angle (coverage)")
 fig.colorbar(im, ax=axes, shrink=0.8)
 fig.savefig(FIG / "solvers_coverage_failures.png", dpi=120, bbox_inches="tight")
+show(FIG / "solvers_coverage_failures.png")
 plt.close(fig)
 
 # speed to the same cost
@@ -206,6 +210,7 @@ ax.legend(fontsize=7)
 ax.grid(True, axis="y", which="both", alpha=0.3)
 fig.tight_layout()
 fig.savefig(FIG / "solvers_speed.png", dpi=120)
+show(FIG / "solvers_speed.png")
 plt.close(fig)
 
 # %% [markdown]

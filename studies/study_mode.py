@@ -28,3 +28,15 @@ FIGURES.mkdir(parents=True, exist_ok=True)
 def size(full: T, quick: T) -> T:
     """``full`` normally, ``quick`` in quick mode (number of runs, seeds, simulations)."""
     return quick if QUICK else full
+
+
+def show(path: Path) -> Path:
+    """Show a saved figure inline when running as a notebook (a script just keeps the file); returns ``path``."""
+    try:
+        from IPython import get_ipython
+        from IPython.display import Image, display
+    except ImportError:
+        return path
+    if get_ipython() is not None:
+        display(Image(filename=str(path)))
+    return path

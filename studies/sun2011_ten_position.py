@@ -41,6 +41,7 @@ from optcal.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_de
 from optcal.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
 
 from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
 from study_mode import RESULTS  # noqa: E402
 from study_mode import size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
@@ -88,6 +89,7 @@ axes[0, 0].legend(fontsize=8, loc="lower right")
 fig.suptitle(f"Horizontal misalignment estimates at the ten positions ({RUNS} runs, mean ± 1σ); dashed: eq. 7 limit")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_misalignment_convergence.png", dpi=120)
+show(FIG / "sun2011_misalignment_convergence.png")
 
 # %% [markdown]
 # The filter reaches the limit of eq. 7 within a few seconds at every position; the dashed
@@ -118,6 +120,7 @@ axes[0].legend(fontsize=8)
 fig.suptitle("Fine alignment at position 1a (one run): horizontal angles converge, the azimuth does not in 60 s")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_alignment_1a.png", dpi=120)
+show(FIG / "sun2011_alignment_1a.png")
 
 # %% [markdown]
 # ## 2. Filter step: 1 s against 0.1 s
@@ -178,6 +181,7 @@ a2.grid(alpha=0.3, axis="y")
 fig.suptitle("Step 3: path analysis")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_paths.png", dpi=120)
+show(FIG / "sun2011_paths.png")
 
 # %% [markdown]
 # The Monte Carlo spreads follow the shape of eq. 26 (b_z falls and τ_zx rises with β), but

@@ -35,6 +35,7 @@ from optcal.yin2014.allan import analyse_static_log, plot_allan
 from optcal.reproduce import yin2014
 
 from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import QUICK, size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
@@ -62,13 +63,15 @@ truth_text = "; ".join(
     f"{label} " + "/".join(f"{yin2014.TRUE_NOISE_G[a][name] * 1e6:g}" for a in AXES) + f" {unit}"
     for label, name, unit in (("VRW", "velocity_random_walk", "µg/√Hz"), ("BI", "bias_instability", "µg"), ("RRW", "rate_random_walk", "µg/√s"))
 )
-plot_allan(sim_analysis, FIG / "yin2014_allan_simulated.png", title=f"Simulated 12 h static log at 100 Hz; truth (x/y/z): {truth_text}")
+plot_allan(sim_analysis, FIG / "yin2014_allan_simulated.png", title=f"Simulated {HOURS:g} h static log at 100 Hz; truth (x/y/z): {truth_text}")
+show(FIG / "yin2014_allan_simulated.png")
 
 real_dir = yin2014.default_data_dir()
 real_name = yin2014.REAL_STATIC_LOGS[0]
 rec = load_recording(real_dir / real_name)
 real_analysis = analyse_static_log(rec.acc[rec.usable], rec.rate_hz, "counts", yin2014.REAL_COUNTS_PER_G)
 plot_allan(real_analysis, FIG / "yin2014_allan_mpu6050.png", title=f"MPU-6050 static log {real_name} ({real_analysis.duration_s:.0f} s)")
+show(FIG / "yin2014_allan_mpu6050.png")
 
 # %% [markdown]
 # ## Figs. 3-4 analogue: the EKF on the first (z-up) pose of the six-position run
@@ -103,6 +106,7 @@ ax.legend()
 fig.suptitle("Yin 2014 EKF on the simulated z-up pose (10,000 samples at 100 Hz)")
 fig.tight_layout()
 fig.savefig(FIG / "yin2014_ekf.png", dpi=110)
+show(FIG / "yin2014_ekf.png")
 plt.close(fig)
 
 # %% [markdown]
