@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from optcal.calibration import calibrate
-from optcal.cli.cmd_segment import plot_segmentation
+from optcal.cli.cmd_segment import segmentation_figure
 from optcal.data import StaticSettings, load, load_recording, load_with_segmentation
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
@@ -75,9 +75,9 @@ fer = load_with_segmentation(FERRARIS / "example_ferraris_session.csv", rate=102
 ann_frame = pd.read_csv(FERRARIS / "annotated_session.csv").sort_values("samples")
 ann_rec = recording_from_source(source_from_frame(ann_frame, "annotated_session.csv (sorted by samples)", "csv"), rate=204.8)
 ann = detect_static(ann_rec)
-plot_segmentation(xs.segmentation, FIG / "real_xsens_segments.png")
-plot_segmentation(mpu.segmentation, FIG / "real_mpu6050_segments.png")
-plot_segmentation(fer.segmentation, FIG / "real_ferraris_segments.png")
+segmentation_figure(xs.segmentation).savefig(FIG / "real_xsens_segments.png", dpi=120)
+segmentation_figure(mpu.segmentation).savefig(FIG / "real_mpu6050_segments.png", dpi=120)
+segmentation_figure(fer.segmentation).savefig(FIG / "real_ferraris_segments.png", dpi=120)
 
 rows = []
 for name, loaded in (("Xsens MTi (IMU-TK)", xs), ("MPU-6050 calibration log", mpu), ("imucal Ferraris session", fer)):

@@ -60,6 +60,7 @@ CAL_TYPES: dict[str, str] = {
     "lumped": "optcal.caltypes.lumped:LumpedCalibration",
     "sixpos_full": "optcal.caltypes.sixpos:SixPositionCalibration",
     "extended": "optcal.caltypes.extended:ExtendedCalibration",
+    "imu": "optcal.gyro.result:ImuCalibration",
 }
 
 

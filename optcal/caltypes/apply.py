@@ -119,28 +119,27 @@ def apply_to_file(
         Unreadable DATA, units that cannot be converted, or a temperature or time column the
         calibration needs and DATA lacks.
     """
-    from optcal.data import POSE_TABLE, decide_kind
-    from optcal.data.readers import ACC, read_delimited, read_parquet, read_source
+    from optcal.data import POSE_TABLE, decide, gather_evidence
+    from optcal.data.readers import ACC, GYRO, read_parquet, read_source
     from optcal.data.recording import recording_from_source
-    from optcal.data.units import decide_units
+    from optcal.data.text import read_frame
 
     if units_out not in OUTPUT_UNITS:
         raise InputError(f"unknown output units {units_out!r}; use g or m/s^2")
     src = read_source(path, columns=columns, topic=topic)
-    decision = decide_kind(src, kind)
+    evidence = gather_evidence(src)
+    decisions = decide(src, evidence, kind=kind, units=units, rate=rate)
+    decision = decisions.kind
     acc = np.column_stack([src.column(c) for c in ACC])
     temp = src.column("temp") if src.has("temp") else None
     exclusions: dict[str, int] = {}
     time_reason = src.time_reason
-    if decision.kind == POSE_TABLE:
-        if rate is not None:
-            raise InputError(f"rate applies to raw recordings; {path} was read as a pose table ({decision.reason})")
+    if decision.value == POSE_TABLE:
         t = src.column("t") if src.has("t") else None
         usable = np.ones(len(acc), dtype=bool)
-        found = decide_units(acc[np.all(np.isfinite(acc), axis=1)], units, src.units_hint, src.units_reason)
-        units_in, units_reason = found.units, found.reason
+        units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
-        rec = recording_from_source(src, units=units, rate=rate)
+        rec = recording_from_source(src, decisions, evidence=evidence)
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
         time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
@@ -171,9 +170,11 @@ def apply_to_file(
     factor, word = OUTPUT_UNITS[units_out]
 
     if src.file_type in ("csv", "parquet"):
-        frame, header = read_delimited(path) if src.file_type == "csv" else (read_parquet(path), {})
+        frame, header = read_frame(path) if src.file_type == "csv" else (read_parquet(path), {})
     else:
-        frame, header = src.frame.copy(), {}
+        import pandas as pd
+
+        frame, header = pd.DataFrame(src.data), {}
         for name, values in src.extra.items():
             frame[name] = values
     if len(frame) != len(raw):
@@ -183,10 +184,23 @@ def apply_to_file(
     frame = frame.drop(columns=names)
     for k, axis in enumerate("xyz"):
         frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
+    correct_gyro = getattr(cal, "correct_gyro", None)  # cal_type imu: gyro columns to rad/s as well
+    if correct_gyro is not None and src.has(*GYRO):
+        from optcal.gyro.units import normalise_gyro_units
+
+        if src.gyro_units is not None and normalise_gyro_units(src.gyro_units) != cal.gyro_units:
+            raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
+        gyro = np.full(raw.shape, np.nan)
+        gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
+        gnames = [src.column_map.get(c, c) for c in GYRO]
+        gpos = min(list(frame.columns).index(n) for n in gnames)
+        frame = frame.drop(columns=gnames)
+        for k, axis in enumerate("xyz"):
+            frame.insert(gpos + k, f"g{axis}_rad_s", gyro[:, k])
     frame[STATUS_COLUMN] = status
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
     return AppliedFile(
-        frame, decision.kind, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
+        frame, decision.value, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
         time_reason if t is not None else "",
     )
 

@@ -40,11 +40,17 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
 
         write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
                                     tolerance), report_path)
+    gyro_lines, gyro_out = [], {}
+    if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
+        from optcal.gyro.cli import gravity_check_lines
+
+        gyro_lines, gyro_out = gravity_check_lines(cal, data, data_opts)
     if as_json:
         out = {
             "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units, "n_poses": fitted},
             "data": data_summary(data, poses),
             **result.summary(),
+            **gyro_out,
         }
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
@@ -58,6 +64,8 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
         f"after {result.rms_after * 1e3:.4f} mg"
         + (f" (pose noise alone: {result.rms_noise * 1e3:.4f} mg)" if np.isfinite(result.rms_noise) else "")
     )
+    for line in gyro_lines:
+        click.echo(line)
     click.echo(
         f"max ||a|-1|: before {np.max(np.abs(result.before)) * 1e3:.4f} mg, after {np.max(np.abs(result.after)) * 1e3:.4f} mg"
     )

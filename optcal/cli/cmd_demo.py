@@ -127,7 +127,9 @@ def demo(data: str | None, hidden: str, effects: str | None, folds: int, simulat
                + f" (with {len(stats)} statistics checked at {diag.simulation_after.band * 100:g} %, one may fall "
                "outside by chance)."), indent=3)
     if plot_dir:
-        for p in save_figures(diag, plot_dir):
+        from optcal.cli.outputs import plot_folder
+
+        for p in save_figures(diag, plot_folder(plot_dir)):
             say(f"figure: {p}", indent=3)
     if truth is not None:
         say()

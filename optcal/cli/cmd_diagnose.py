@@ -31,10 +31,11 @@ def diagnosis_options(func: Any) -> Any:
         click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulations."),
         click.option("--method", type=click.Choice(METHOD_CHOICES), default="mle", show_default=True,
                      help="Calibration method of the baseline (the start of the maximum-likelihood refit)."),
-        click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
-                     help="Write figures (residuals against temperature, time and each axis, before and after; "
-                          "the simulation check) into DIR."),
-        click.option("--quiet", is_flag=True, help="No progress messages on stderr."),
+        click.option("--plot", "plot_dir", type=click.Path(), default=None, metavar="PATH",
+                     help="Write the figures (residuals against temperature, time and each axis, before and after; "
+                          "the simulation check) into the folder PATH (created when missing)."),
+        click.option("--quiet", is_flag=True,
+                     help="No progress on stderr (bars in a terminal, stage messages otherwise)."),
     )):
         func = option(func)
     return func
@@ -48,8 +49,10 @@ def settings_from(effects: str | None, folds: int, simulations: int, alpha: floa
 
 
 def progress_printer(quiet: bool) -> Any:
-    """Progress messages on stderr (``None`` when quiet)."""
-    return None if quiet else (lambda message: click.echo(f"... {message}", err=True))
+    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet``."""
+    from optcal.diagnosis.progress import Progress
+
+    return Progress.for_terminal(quiet)
 
 
 @click.command()
@@ -80,16 +83,19 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     from optcal.diagnosis import Diagnoser, save_figures
     from optcal.result import jsonable
 
+    from optcal.cli.outputs import output_file, plot_folder
+
     settings = settings_from(effects, folds, simulations, alpha, seed, method)
+    figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path) if baseline_path else None
     poses = load_data(data, **data_opts)
     if not as_json:
         click.echo(data_line(data, poses))
     diag = Diagnoser(settings, progress_printer(quiet)).run(poses, baseline)
-    paths = save_figures(diag, plot_dir) if plot_dir else []
+    paths = save_figures(diag, figures_into) if figures_into else []
     calibration = diag.calibration() if output else None
     if calibration is not None:
-        calibration.save(output)
+        calibration.save(output_file(output))
     if report_path:
         from optcal.report.document import diagnosis_document
 

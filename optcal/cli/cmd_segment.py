@@ -10,6 +10,10 @@ import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
 from optcal.cli.report_option import check_report_path, command_line, write_report
+from optcal.cli.outputs import plot_file, plot_option
+
+#: File name of the figure when ``--plot`` names a folder.
+FIGURE_NAME = "segments.png"
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -17,8 +21,7 @@ if TYPE_CHECKING:
 
 @click.command()
 @click.argument("data", type=DATA_PATH)
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="Save a figure of |a|, the detector's statistics and the intervals (PNG, PDF, SVG).")
+@plot_option(f"a figure of |a|, the detector's statistics and the intervals ({FIGURE_NAME})")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
               callback=check_report_path, help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
@@ -31,13 +34,15 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
     """
     from optcal.result import jsonable
 
+    figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     loaded = load_data_detailed(data, **data_opts)
     poses, seg = loaded.poses, loaded.segmentation
-    if plot_path is not None:
+    if figure is not None:
         if seg is None:
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
+            figure = None
         else:
-            segmentation_figure(seg).savefig(plot_path, dpi=120)
+            segmentation_figure(seg).savefig(figure, dpi=120)
     if report_path is not None:
         from optcal.report.document import segmentation_document
 
@@ -49,8 +54,8 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
             out["segmentation"] = poses.meta["segmentation"]
         else:
             out["poses"] = {"acc": poses.acc, "rows": poses.rows}
-        if plot_path is not None and seg is not None:
-            out["plot"] = plot_path
+        if figure is not None:
+            out["plot"] = str(figure)
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
     click.echo(data_line(data, poses))
@@ -58,8 +63,8 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
         click.echo(f"nothing to segment: {poses.n} poses, one per row")
         return
     click.echo(segmentation_report(poses.meta, seg))
-    if plot_path is not None:
-        click.echo(f"figure saved to {plot_path}")
+    if figure is not None:
+        click.echo(f"figure saved to {figure}")
 
 
 def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
@@ -87,7 +92,8 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
             f" {iv.sigma:>9.3g}" + (f" {iv.temp_mean:>6.2f}" if iv.temp_mean is not None else "")
         )
     lines.append("")
-    lines.append(f"{len(seg.intervals)} static intervals, {seg.n_used} of {rec.n} samples in poses")
+    lines.append(f"{len(seg.intervals)} static intervals, {seg.n_used} of {rec.n} samples in poses"
+                 + (f" ({seg.joined} interrupted stretch(es) joined to the pose before)" if seg.joined else ""))
     for note in meta.get("notes", []):
         lines.append(f"note: {note}")
     if seg.exclusions:

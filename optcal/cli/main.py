@@ -45,6 +45,8 @@ COMMANDS: dict[str, str] = {
     "allan": "optcal.cli.cmd_allan:allan",
     "apply": "optcal.cli.cmd_apply:apply",
     "export": "optcal.cli.cmd_export:export",
+    "plan": "optcal.cli.cmd_plan:plan",
+    "fleet": "optcal.cli.cmd_fleet:fleet",
 }
 
 

@@ -22,7 +22,8 @@ _EXPORTS = {
     "Diagnosis": "result", "Finding": "findings", "Evidence": "findings", "Step": "selection",
     "Candidate": "selection", "TemperatureTimeDecision": "selection", "SimulationCheck": "simulation",
     "StatisticBand": "simulation", "save_figures": "figures", "residual_figure": "figures",
-    "simulation_figure": "figures", "EFFECTS": "effects",
+    "simulation_figure": "figures", "EFFECTS": "effects", "Progress": "progress", "NoiseModelCheck": "noise_model",
+    "DetectionLimit": "limits",
 }
 __all__ = sorted(_EXPORTS)
 

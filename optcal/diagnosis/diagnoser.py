@@ -27,6 +27,7 @@ from optcal.diagnosis.effects import EFFECTS, PARAMETRIC, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model
+from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
@@ -136,13 +137,19 @@ class Diagnoser:
     Parameters
     ----------
     settings : DiagnosisSettings, optional
-    progress : callable, optional
-        Called with a short message at each stage.
+    progress : Progress or callable, optional
+        How to report progress (:class:`~optcal.diagnosis.progress.Progress`), or a callable
+        receiving a short message at each stage.  Silent by default.
     """
 
-    def __init__(self, settings: DiagnosisSettings | None = None, progress: Callable[[str], None] | None = None) -> None:
+    def __init__(self, settings: DiagnosisSettings | None = None,
+                 progress: Progress | Callable[[str], None] | None = None) -> None:
         self.settings = settings or DiagnosisSettings()
-        self.progress = progress or (lambda message: None)
+        self.reporter = progress if isinstance(progress, Progress) else Progress(message=progress)
+
+    def progress(self, text: str) -> None:
+        """Report a stage."""
+        self.reporter.say(text)
 
     def start(self, poses: PoseTable, baseline: LumpedCalibration | None) -> tuple[Any, Any, str]:
         """``T``, ``o`` of the baseline calibration and where it came from."""
@@ -186,9 +193,10 @@ class Diagnoser:
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
-        sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed)
+        loop = self.reporter.loop
+        sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
-        selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note).run(base)
+        selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
         final = selection.final
         findings = build_findings(fitter, final, selection.steps)
         limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
@@ -198,11 +206,11 @@ class Diagnoser:
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
-        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit)
+        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
-            sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed)
+            sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed, loop)
         model = fitter.model(final)
         d = model.correct(poses.acc, *fitter.columns())
         d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -216,6 +224,6 @@ class Diagnoser:
 
 
 def diagnose(poses: PoseTable, baseline: LumpedCalibration | None = None,
-             progress: Callable[[str], None] | None = None, **settings: Any) -> Diagnosis:
+             progress: Progress | Callable[[str], None] | None = None, **settings: Any) -> Diagnosis:
     """``Diagnoser(DiagnosisSettings(**settings), progress).run(poses, baseline)`` in one call."""
     return Diagnoser(DiagnosisSettings(**settings), progress).run(poses, baseline)

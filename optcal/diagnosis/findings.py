@@ -53,6 +53,10 @@ class Finding:
         ``temp_ref_c`` or ``t_ref_s``: where the polynomial is centred.
     rows : list of int or None
         For outliers, the rows given zero weight.
+    change_over_data : dict of str to float
+        Peak-to-peak change of the term over the fitted poses per axis: g for a bias term,
+        relative for a scale term, g at 1 g for the nonlinearity (what the polynomial does,
+        whatever its order).
     """
 
     effect: str
@@ -68,6 +72,7 @@ class Finding:
     coefficients: dict[str, list[float]] = field(default_factory=dict)
     reference: dict[str, float] = field(default_factory=dict)
     rows: list[int] | None = None
+    change_over_data: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -83,6 +88,16 @@ def reference_of(fitter: Fitter, effect: str) -> dict[str, float]:
     if effect == "bias_drift":
         return {"t_ref_s": fitter.reg.t_ref}
     return {}
+
+
+def change_over_data(fitter: Fitter, fit: Fit, effect: str, axis: int) -> float:
+    """Peak-to-peak of a term's polynomial over the kept poses (normalised regressor, so no unit juggling)."""
+    if effect == "scale_nonlinearity":
+        return abs(float(fit.x[9 + BETA_INDEX[(effect, axis, 1)]]))
+    values = (fitter.reg.tau if effect.startswith("temperature") else fitter.reg.s)[fit.kept(fitter.n)]
+    order = fit.terms[(effect, axis)]
+    term = sum(fit.x[9 + BETA_INDEX[(effect, axis, p)]] * values**p for p in range(1, order + 1))
+    return float(np.ptp(term))
 
 
 def build_findings(fitter: Fitter, final: Fit, steps: list[Step]) -> list[Finding]:
@@ -113,6 +128,7 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step]) -> list[Findin
             finding.coefficients[AXES[a]] = [
                 float(final.x[9 + BETA_INDEX[(effect, a, p)]] / h**p) for p in range(1, final.terms[(effect, a)] + 1)
             ]
+            finding.change_over_data[AXES[a]] = change_over_data(fitter, final, effect, a)
         out.append(finding)
     if final.outliers:
         without = fitter.fit(final.terms, frozenset(), final.x)

@@ -33,6 +33,7 @@ from scipy import optimize, stats as sps
 
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import PoseData
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.poses import PoseTable
 
 #: The named cause, in plain words.
@@ -116,7 +117,7 @@ def covariance_absolute(fitter: Fitter, fit: Fit, data: PoseData | None = None) 
 
 
 def check_noise_model(fitter: Fitter, final: Fit, alpha: float, simulations: int, seed: int,
-                      refit: Callable[[PoseTable], tuple[Fitter, Fit]]) -> NoiseModelCheck:
+                      refit: Callable[[PoseTable], tuple[Fitter, Fit]], loop: Loop = plain_loop) -> NoiseModelCheck:
     """Test, extend and check the noise model of ``final`` (module docstring).
 
     ``refit(poses) -> (Fitter, Fit)`` refits the final model's terms to a pose table with other
@@ -152,11 +153,12 @@ def check_noise_model(fitter: Fitter, final: Fit, alpha: float, simulations: int
     if simulations:
         check.simulations = simulations
         check.coverage_given_sigma, check.coverage_extended = bootstrap_coverage(
-            fitter, fitter2, fit2, simulations, seed)
+            fitter, fitter2, fit2, simulations, seed, loop)
     return check
 
 
-def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: int, seed: int) -> tuple[float, float]:
+def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: int, seed: int,
+                       loop: Loop = plain_loop) -> tuple[float, float]:
     """Coverage of nominal 95 % intervals of θ, simulated with ``σ'`` and judged with σ and with ``σ'``."""
     rng = np.random.default_rng(seed)
     n = extended.n
@@ -170,7 +172,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     sigma = np.asarray(extended.poses.sigma, float)
     hits = {"given": 0, "extended": 0}
     count = 0
-    for _ in range(simulations):
+    for _ in loop(range(simulations), "noise-model coverage", simulations):
         acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
         data = PoseData(extended.norm.forward(acc), extended.reg.tau, extended.reg.s)
         sim = extended.fit(fit.terms, fit.outliers, fit.x, data)

@@ -108,9 +108,12 @@ def diagnosis_report(diag: "Diagnosis") -> str:
             lines.append(f"      {named} {', '.join(str(r) for r in f.rows)} given zero weight")
         for ax in f.axes:
             order = f.order[ax]
+            change = f.change_over_data[ax]
+            size = f"{change * 1e6:.3g} ppm" if f.effect == "temperature_scale" else f"{change * MG:.3g} mg"
             lines.append(
                 f"      axis {ax}: {format_value(f.effect, f.estimate[ax], f.stderr[ax])}"
                 + (f" (polynomial order {order} supported by the data; slope at the reference shown)" if order > 1 else "")
+                + f"; changes by {size} over the data"
             )
         lines.append(
             f"      evidence: ΔBIC {f.evidence.delta_bic:+.1f}, p = {f.evidence.p_value:.2g}; held-out rms "

@@ -31,10 +31,15 @@ import numpy as np
 from optcal.diagnosis.effects import MAX_ORDER, describe_term
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.outliers import detect_outliers
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.model import AXES
 
 #: ΔBIC difference below which two competing explanations count as indistinguishable (Kass & Raftery).
 BIC_TIE: float = 6.0
+#: Effects whose higher polynomial orders may enter directly (not only after order 1): a bias that
+#: rises and falls again in time (warm-up then cooling, bias instability at the scale of minutes)
+#: has almost no linear part.  Every order counts as a candidate of the step (honest multiplicity).
+DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
 #: Residual degrees of freedom a candidate's test must keep (the current model plus the candidate).
 MIN_DOF: int = 10
 
@@ -144,10 +149,12 @@ class ForwardSelection:
         Family-wise false-finding level of a step (split in two when outliers are a candidate).
     note : callable
         Receives notes for the report (terms not identifiable from the poses).
+    loop : callable, optional
+        Wraps the loop over a step's candidates (a progress bar).
     """
 
     def __init__(self, fitter: Fitter, candidates: list[tuple[str, int]], with_outliers: bool, alpha: float,
-                 note: Callable[[str], None]) -> None:
+                 note: Callable[[str], None], loop: Loop = plain_loop) -> None:
         self.fitter = fitter
         self.candidates = candidates
         self.with_outliers = with_outliers
@@ -155,14 +162,17 @@ class ForwardSelection:
         self.alpha_terms = alpha / 2 if with_outliers else alpha
         self.alpha_outliers = alpha / 2
         self.note = note
+        self.loop = loop
 
     def room(self, fit: Fit) -> bool:
         """Whether one more parameter leaves :data:`MIN_DOF` residual degrees of freedom."""
         return self.fitter.n - fit.n_params - 1 >= MIN_DOF
 
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
-        """New terms at order 1, and the next order of every term in ``fit`` the data can carry."""
-        reg = self.fitter.reg
+        """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
+
+        Only orders the regressor can carry and that leave :data:`MIN_DOF` degrees of freedom.
+        """
         if not self.room(fit):
             if self.candidates or self.with_outliers:
                 self.note(
@@ -170,13 +180,23 @@ class ForwardSelection:
                     f"{fit.describe()} (a test needs {MIN_DOF} left: at least {fit.n_params + 1 + MIN_DOF} poses)"
                 )
             return []
-        out = [(e, a, 1) for (e, a) in self.candidates if (e, a) not in fit.terms]
+        out = []
+        for e, a in self.candidates:
+            if (e, a) not in fit.terms:
+                top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
+                out += [(e, a, order) for order in range(1, top + 1)
+                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= MIN_DOF]
         for (e, a), order in fit.terms.items():
-            if order < MAX_ORDER[e]:
-                values = reg.tau if e.startswith("temperature") else reg.s
-                if np.unique(np.round(values, 6)).size >= order + 3:
-                    out.append((e, a, order + 1))
+            if order < MAX_ORDER[e] and self.supports_order(e, order + 1):
+                out.append((e, a, order + 1))
         return out
+
+    def supports_order(self, effect: str, order: int) -> bool:
+        """Whether the regressor takes enough distinct values for a polynomial of ``order``."""
+        if order == 1:
+            return True
+        values = self.fitter.reg.tau if effect.startswith("temperature") else self.fitter.reg.s
+        return bool(np.unique(np.round(values, 6)).size >= order + 2)
 
     def run(self, baseline: Fit) -> SelectionResult:
         """Forward selection from ``baseline``."""
@@ -189,7 +209,7 @@ class ForwardSelection:
             term_cands = self.term_candidates(current)
             m = max(len(term_cands), 1)
             tried: list[Candidate] = []
-            for effect, axis, order in term_cands:
+            for effect, axis, order in self.loop(term_cands, f"selection step {len(steps) + 1}", len(term_cands)):
                 if not fitter.identifiable(current, effect, axis, order):
                     self.note(f"{describe_term(effect, axis, order)} is not identifiable from these poses; not tested")
                     continue

@@ -20,6 +20,7 @@ from scipy import stats as sps
 from optcal.diagnosis.effects import REGRESSOR_WORDS
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, PoseData
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.model import AXES
 
 #: Plain-words meaning of each residual statistic (the correlations are named per candidate).
@@ -177,7 +178,8 @@ def residual_statistics(
 
 
 def simulation_check(
-    fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], simulations: int, band: float, seed: int
+    fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], simulations: int, band: float, seed: int,
+    loop: Loop = plain_loop,
 ) -> SimulationCheck:
     """Parametric bootstrap of ``fit``: measured residual statistics against simulated bands."""
     n = fitter.n
@@ -199,7 +201,7 @@ def simulation_check(
     G, J = fitter.jacobians(fit, w)
     measured = residual_statistics(fitter, fit, fit.residuals, J, G, candidates)
     sims: dict[str, list[float]] = {k: [] for k in measured}
-    for _ in range(simulations):
+    for _ in loop(range(simulations), "simulation check", simulations):
         acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
         data = PoseData(fitter.norm.forward(acc), fitter.reg.tau, fitter.reg.s)
         sim_fit = fitter.fit(fit.terms, fit.outliers, fit.x, data)

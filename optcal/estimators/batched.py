@@ -1,0 +1,401 @@
+"""Many independent maximum-likelihood calibrations in one IPOPT problem (throughput).
+
+IPOPT has a fixed cost per solve (≈ 0.4 ms on the reference machine: problem set-up, the
+first factorisation, the bookkeeping of every iteration), which caps one-at-a-time ``mle``
+fits at a few hundred per second however small the problem.  :class:`BatchedMaximumLikelihood`
+solves K units of the same pose count as **one NLP with K separable 9-parameter blocks**:
+
+* the cost is ``Σ_j c_j Σ_k w_jk r_jk(θ_j)²`` (Lu 2017, eq. 13-14, each unit with its own
+  cost scale ``c_j`` of :func:`optcal.estimators.mle.cost_scale` and mean-1 weights, as in
+  ``mle``), evaluated for all K units at once on (K, n) numpy arrays, and handed to IPOPT
+  with its gradient and its block-diagonal Gauss–Newton Hessian (upper triangles of K 9 × 9
+  blocks) as CasADi callbacks (:func:`optcal.estimators.mle.numpy_callback`);
+* IPOPT's convergence test is the largest scaled gradient entry, so every block meets the
+  tolerance it would meet alone: each unit lands on its own optimum (to the solver
+  tolerance, ≪ 10⁻⁴ standard errors; tested against :class:`~optcal.estimators.mle.MaximumLikelihood`);
+* everything around the solve is vectorised too, with the same rules as ``mle``: the convex
+  starting point (Lu 2017 eq. 18-30 with ``tr A = 3``; the KKT solution of the
+  equality-constrained fit, checked against the semidefinite constraint, otherwise the
+  unit's own ``mle`` start), the propagated weights re-computed until they settle
+  (the units whose weights settled leave the next pass), the covariance from the Fisher
+  information and the identifiability check of :mod:`optcal.identifiability` (rank of the
+  correlation-form Fisher matrix, weak directions of the covariance).
+
+The squared loss without bounds only (the default ``optcal calibrate``); use
+:class:`~optcal.estimators.mle.MaximumLikelihood` for robust losses and bounds.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import InputError
+from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLikelihood, numpy_callback
+from optcal.identifiability import RANK_TOL, WEAK_STDERR
+from optcal.model import PARAM_NAMES
+from optcal.norm_residual import TRIL_COLS, TRIL_ROWS
+from optcal.poses import PoseTable
+from optcal.problem_cache import ProblemCache, problem_cache
+
+#: Units per IPOPT problem: large enough to amortise IPOPT's fixed cost, small enough that one
+#: hard unit does not hold many others in extra iterations.
+DEFAULT_BATCH: int = 512
+
+
+class BatchedNormResidualCost:
+    """``Σ_j c_j Σ_k w_jk r_jk²`` of K units with n poses each, its gradient and GN Hessian blocks.
+
+    ``u`` is (K, n, 3) normalised data, ``w`` (K, n) weights, ``scale`` (K,) the cost scales;
+    ``x`` is the 9K vector of the stacked θ_j.
+    """
+
+    def __init__(self, u: NDArray, w: NDArray, scale: NDArray) -> None:
+        self.u = np.ascontiguousarray(np.swapaxes(np.asarray(u, dtype=float), 1, 2))  # (K, 3, n)
+        self.w = np.asarray(w, dtype=float)
+        self.scale = np.asarray(scale, dtype=float)
+        self._x: NDArray | None = None
+
+    @property
+    def n_units(self) -> int:
+        return int(self.w.shape[0])
+
+    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
+        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached).
+
+        The stacked form of :class:`optcal.norm_residual.NormResidualPoint`: the same formulas
+        (Lu 2017, eq. 13, 15-16) with a leading unit axis.
+        """
+        x = np.asarray(x, dtype=float).ravel()
+        if self._x is None or not np.array_equal(x, self._x):
+            th = x.reshape(-1, 9)
+            T = np.zeros((th.shape[0], 3, 3))
+            T[:, TRIL_ROWS, TRIL_COLS] = th[:, :6]
+            d = self.u - th[:, 6:9, None]  # a_k − o, (K, 3, n)
+            v = np.einsum("kij,kjn->kin", T, d)  # T (a_k − o)
+            nv = np.sqrt(np.sum(v * v, axis=1))
+            self._x, self._r, self._J = x.copy(), nv - 1.0, None  # eq. 13
+            self._parts = (T, d, v / nv[:, None, :])
+        if jacobian and self._J is None:
+            T, d, direction = self._parts
+            self._J = np.concatenate([direction[:, TRIL_ROWS] * d[:, TRIL_COLS],  # ∂r/∂T_ij = ā_i u_j, eq. 15
+                                      -np.einsum("kji,kjn->kin", T, direction)], axis=1)  # ∂r/∂o = −Tᵀ ā, eq. 16
+        return self._r, self._J
+
+    def value(self, x: NDArray) -> float:
+        r, _ = self.evaluate(x, jacobian=False)
+        return float(np.sum(self.scale * np.sum(self.w * r * r, axis=1)))
+
+    def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
+        r, J = self.evaluate(x)
+        g = 2.0 * self.scale[:, None] * np.einsum("kpn,kn->kp", J, self.w * r)
+        return self.value(x), g.ravel()
+
+    def hessian_blocks(self, x: NDArray) -> NDArray[np.float64]:
+        """``2 c_j J_j W_j J_jᵀ`` per unit, (K, 9, 9)."""
+        _, J = self.evaluate(x)
+        return 2.0 * self.scale[:, None, None] * np.einsum("kpn,kqn->kpq", J * self.w[:, None, :], J)
+
+    def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
+        """``‖Tᵀ ā_jk‖`` in normalised units (K, n) (= −∂r/∂o, as :meth:`NormResidualCost.normal_gain`)."""
+        _, J = self.evaluate(x)
+        return np.sqrt(np.sum(J[:, 6:9] ** 2, axis=1))
+
+
+class BatchedMLProblem:
+    """The NLP of K separable units, IPOPT through CasADi callbacks; built once per K, one solve at a time."""
+
+    def __init__(self, n_units: int) -> None:
+        import casadi as ca
+
+        self.n_units = K = n_units
+        self.cost: BatchedNormResidualCost | None = None
+        problem = self
+
+        def current() -> BatchedNormResidualCost:
+            assert problem.cost is not None, "solve() sets the data"
+            return problem.cost
+
+        # upper triangle of each 9 × 9 block, in CasADi's column-major nonzero order
+        blk, col, row = np.array([(k, c, r) for k in range(K) for c in range(9) for r in range(c + 1)]).T
+        self._flat = blk * 81 + row * 9 + col
+        hess_sp = ca.Sparsity.triplet(9 * K, 9 * K, (9 * blk + row).tolist(), (9 * blk + col).tolist())
+        dense = ca.Sparsity.dense(9 * K, 1)
+        scalar = ca.Sparsity.dense(1, 1)
+        empty = ca.Sparsity(0, 1)
+
+        def theta(arg: list) -> NDArray:
+            return np.asarray(arg[0]).ravel()
+
+        self._gradient = numpy_callback(
+            "batched_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)],
+            lambda arg: list(current().gradient(theta(arg))),
+        )
+
+        def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
+            x, out, adj = ca.MX.sym("x", 9 * K), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
+            _, g = self._gradient(x, ca.MX(0, 1))
+            return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
+
+        self._cost = numpy_callback("batched_f", [("x", dense)], [("f", scalar)],
+                                    lambda arg: [current().value(theta(arg))], reverse=cost_reverse)
+        self._hessian = numpy_callback(
+            "batched_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
+            [("triu_hess_gamma_x_x", hess_sp)],
+            lambda arg: [ca.DM(hess_sp, current().hessian_blocks(theta(arg)).ravel()[self._flat] * float(arg[2]))],
+        )
+        x = ca.MX.sym("theta", 9 * K)
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian}
+        self.solver = ca.nlpsol("ml_calibration_batched", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def get(n_units: int) -> "BatchedMLProblem":
+        """The problem for ``n_units`` units, built on first use (:data:`BATCHED_PROBLEMS`)."""
+        return BATCHED_PROBLEMS.get(n_units)
+
+    def solve(self, theta0: NDArray, u: NDArray, w: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve all K units from ``theta0`` (K, 9) for data ``u`` (K, n, 3) and mean-1 weights ``w`` (K, n)."""
+        cost = BatchedNormResidualCost(u, w, np.ones(len(u)))
+        r, _ = cost.evaluate(theta0.ravel(), jacobian=False)
+        start_rms = np.sqrt(np.mean(w * r * r, axis=1))
+        cost.scale = 1.0 / (u.shape[1] * np.maximum(start_rms, MIN_RESIDUAL_RMS))  # cost_scale() per unit
+        with self._lock:  # the callbacks read the data of this solve; the solver keeps its statistics
+            self.cost = cost
+            try:
+                sol = self.solver(x0=theta0.ravel())
+                return np.asarray(sol["x"]).reshape(-1, 9), self.solver.stats()
+            finally:
+                self.cost = None
+
+
+#: Built :class:`BatchedMLProblem` s by number of units (:func:`optcal.problem_cache.problem_cache`).
+BATCHED_PROBLEMS: ProblemCache[BatchedMLProblem] = problem_cache(BatchedMLProblem, maxsize=16)
+
+
+@dataclass
+class BatchedFit:
+    """K calibrations from :meth:`BatchedMaximumLikelihood.fit_many` (raw units, order of the input).
+
+    Attributes
+    ----------
+    theta : ndarray, shape (K, 9)
+        θ of :data:`optcal.model.PARAM_NAMES`.
+    covariance : ndarray, shape (K, 9, 9)
+    rms_g : ndarray, shape (K,)
+        Rms norm residual, g.
+    identifiable : ndarray of bool, shape (K,)
+        Whether the unit's poses identify every parameter (``mle`` refuses the others).
+    success : ndarray of bool, shape (K,)
+        Whether IPOPT reported success for the unit's last solve.
+    passes : ndarray of int, shape (K,)
+        Solves until the weights settled.
+    """
+
+    theta: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    rms_g: NDArray[np.float64]
+    identifiable: NDArray[np.bool_]
+    success: NDArray[np.bool_]
+    passes: NDArray[np.int64]
+
+    @property
+    def stderr(self) -> NDArray[np.float64]:
+        """Standard errors (K, 9)."""
+        return np.sqrt(np.clip(np.diagonal(self.covariance, axis1=1, axis2=2), 0.0, None))
+
+    def summary(self, k: int) -> dict[str, float]:
+        """Unit k's parameters by name."""
+        return dict(zip(PARAM_NAMES, self.theta[k].tolist()))
+
+
+class BatchedMaximumLikelihood:
+    """The default ``mle`` calibration of many pose tables, K units per IPOPT problem.
+
+    Parameters
+    ----------
+    batch : int
+        Units per IPOPT problem (:data:`DEFAULT_BATCH`).
+    reweight, reweight_rtol : int, float
+        As :class:`~optcal.estimators.mle.MaximumLikelihood` (the same defaults).
+    """
+
+    def __init__(self, batch: int = DEFAULT_BATCH, reweight: int = 2, reweight_rtol: float = 1e-3) -> None:
+        if batch < 1:
+            raise InputError(f"batch must be at least 1, got {batch}")
+        self.batch = int(batch)
+        defaults = MaximumLikelihood()
+        self.reweight = int(reweight if reweight is not None else defaults.reweight)
+        self.reweight_rtol = float(reweight_rtol)
+
+    def fit_many(self, tables: list[PoseTable]) -> BatchedFit:
+        """Calibrate every table (grouped by pose count, ``batch`` units per problem)."""
+        K = len(tables)
+        out = BatchedFit(np.zeros((K, 9)), np.zeros((K, 9, 9)), np.zeros(K), np.zeros(K, bool), np.zeros(K, bool),
+                         np.zeros(K, np.int64))
+        by_n: dict[int, list[int]] = {}
+        for j, t in enumerate(tables):
+            by_n.setdefault(t.n, []).append(j)
+        for idx in by_n.values():
+            validate_many([tables[j] for j in idx], idx)
+            for s in range(0, len(idx), self.batch):
+                part = idx[s:s + self.batch]
+                fit = self._fit_group([tables[j] for j in part])
+                for name in ("theta", "covariance", "rms_g", "identifiable", "success", "passes"):
+                    getattr(out, name)[part] = getattr(fit, name)
+        return out
+
+    def _fit_group(self, tables: list[PoseTable]) -> BatchedFit:
+        acc = np.stack([t.acc for t in tables])  # (K, n, 3)
+        K, n, _ = acc.shape
+        centre = acc.mean(axis=1)  # Normaliser.of, per unit
+        scale = np.sqrt(np.mean(np.sum((acc - centre[:, None]) ** 2, axis=2), axis=1))
+        u = (acc - centre[:, None]) / scale[:, None, None]
+        theta = convex_start(u)
+        for j in np.flatnonzero(~np.all(np.isfinite(theta), axis=1)):  # the PSD constraint is active: mle's own start
+            from optcal.estimators.base import Normaliser
+
+            theta[j] = MaximumLikelihood().initial_normalised(tables[j], Normaliser(centre[j], float(scale[j])), u[j])[0]
+        sigma = np.stack([t.sigma if t.sigma is not None else np.full(n, np.nan) for t in tables])
+        known = np.all(np.isfinite(sigma), axis=1)
+
+        def weights(th: NDArray) -> NDArray:
+            gain = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K)).normal_gain(th.ravel()) / scale[:, None]
+            return np.where(known[:, None], 1.0 / (np.where(known[:, None], sigma, 1.0) * gain) ** 2, 1.0)
+
+        w_used = np.full((K, n), np.nan)
+        active = np.ones(K, bool)
+        passes = np.zeros(K, np.int64)
+        success = np.zeros(K, bool)
+        for p in range(1 + max(self.reweight, 0)):
+            w = weights(theta)
+            if p > 0:
+                active &= ~(np.max(np.abs(w / w_used - 1.0), axis=1) <= self.reweight_rtol)
+            if not active.any():
+                break
+            a = np.flatnonzero(active)
+            w_n = w[a] / np.mean(w[a], axis=1, keepdims=True)
+            theta[a], stats = BatchedMLProblem.get(len(a)).solve(theta[a], u[a], w_n)
+            success[a] = bool(stats.get("success", False))
+            passes[a] += 1
+            w_used[a] = w[a]
+        return self._finish(theta, u, scale, centre, sigma, known, success, passes)
+
+    @staticmethod
+    def _finish(theta_n: NDArray, u: NDArray, scale: NDArray, centre: NDArray, sigma: NDArray, known: NDArray,
+                success: NDArray, passes: NDArray) -> BatchedFit:
+        """Covariance and identifiability as :func:`optcal.estimators.base.finish`, for every unit at once."""
+        K, n, _ = u.shape
+        theta_n = theta_n.copy()
+        flip = theta_n[:, [0, 2, 5]] < 0  # canonical form: positive diagonal of T (a row sign of T is free)
+        for j in np.flatnonzero(flip.any(axis=1)):
+            from optcal.model import canonicalise, theta_from, unpack_theta
+
+            T, o = unpack_theta(theta_n[j])
+            theta_n[j] = theta_from(canonicalise(T), o)
+        cost = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K))
+        r, J = cost.evaluate(theta_n.ravel())
+        gain = cost.normal_gain(theta_n.ravel()) / scale[:, None]
+        s = np.where(known[:, None], sigma, 1.0)
+        w = np.where(known[:, None], 1.0 / (s * gain) ** 2, 1.0)
+        F_n = np.einsum("kpn,kqn->kpq", J * w[:, None, :], J)  # Fisher information, normalised θ
+        cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
+        dof = n - 9
+        chi2 = np.sum(w * r * r, axis=1)
+        cov_n = np.where(known[:, None, None], cov_n, cov_n * (chi2 / dof if dof > 0 else np.nan)[:, None, None])
+        # identifiability (optcal.identifiability.analyse): rank of the correlation-form Fisher matrix
+        w_id = 1.0 / (s * gain) ** 2
+        F_id = np.einsum("kpn,kqn->kpq", J * w_id[:, None, :], J)
+        d = np.sqrt(np.clip(np.diagonal(F_id, axis1=1, axis2=2), 1e-300, None))
+        ev = np.linalg.eigvalsh(F_id / (d[:, :, None] * d[:, None, :]))
+        full_rank = np.all(ev >= RANK_TOL * np.maximum(ev[:, -1:], 1e-300), axis=1)
+        weak = np.linalg.eigvalsh(0.5 * (cov_n + np.swapaxes(cov_n, 1, 2)))[:, -1] > WEAK_STDERR**2
+        D = np.concatenate([np.repeat(1.0 / scale[:, None], 6, axis=1), np.repeat(scale[:, None], 3, axis=1)], axis=1)
+        theta = theta_n * D
+        theta[:, 6:9] += centre  # Normaliser.theta_to_raw
+        cov = cov_n * D[:, :, None] * D[:, None, :]
+        return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes)
+
+
+def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
+    """:meth:`PoseTable.validate` for tables of one pose count, vectorised; the first failure raised.
+
+    The checks (finite values, positive noise, enough poses, enough distinct poses, not
+    coplanar) run on the stacked (K, n, 3) array; a table that fails any of them is validated
+    on its own so that the error is exactly :meth:`PoseTable.validate`'s, prefixed with its
+    position in ``tables`` (or ``index``).
+    """
+    from optcal.poses import MIN_POSES
+
+    index = list(range(len(tables))) if index is None else index
+    acc = np.stack([t.acc for t in tables])
+    n = acc.shape[1]
+    bad = ~np.all(np.isfinite(acc), axis=(1, 2)) | (n < MIN_POSES)
+    for j, t in enumerate(tables):
+        for v in (t.sigma, t.t, t.temp):
+            if v is not None and not np.all(np.isfinite(v)):
+                bad[j] = True
+        if t.sigma is not None and np.any(t.sigma <= 0):
+            bad[j] = True
+    ok = ~bad
+    if n >= MIN_POSES and ok.any():
+        a = acc[ok]
+        full = np.max(np.abs(a), axis=(1, 2))
+        q = np.round(a / (np.where(full > 0, full, 1.0) * 1e-9)[:, None, None])
+        order = np.lexsort((q[..., 2], q[..., 1], q[..., 0]), axis=-1)
+        q = np.take_along_axis(q, order[..., None], axis=1)
+        distinct = 1 + np.sum(np.any(np.diff(q, axis=1) != 0, axis=2), axis=1)
+        sv = np.linalg.svd(a - a.mean(axis=1, keepdims=True), compute_uv=False)
+        flat = (sv[:, 0] == 0) | (sv[:, -1] < 1e-6 * sv[:, 0])
+        bad[np.flatnonzero(ok)[(distinct < MIN_POSES) | flat]] = True
+    for j in np.flatnonzero(bad):
+        try:
+            tables[j].validate()
+        except InputError as exc:
+            raise InputError(f"tables[{index[j]}]: {exc}") from exc
+
+
+def convex_start(u: NDArray) -> NDArray[np.float64]:
+    """The convex algebraic fit of every unit (K, 9) in normalised coordinates; NaN where it does not apply.
+
+    As :meth:`MaximumLikelihood.initial_normalised` with ``init="convex"``: the triangular factor
+    R of the design matrix (Lu 2017, eq. 23), the solution of ``min ‖Rη‖²`` with ``tr A = 3``
+    from its KKT system (:meth:`ConvexEllipsoidFit._kkt_polish`), accepted when its A clears the
+    semidefinite constraint ``A ⪰ 2ε I`` and is a real ellipsoid (eq. 19-21, 27-30), the
+    lower-triangular T from a Cholesky factor (:func:`optcal.model.canonical_T`).
+    """
+    from optcal.estimators.ellipsoid import ConvexEllipsoidFit
+
+    x, y, z = u[..., 0], u[..., 1], u[..., 2]
+    Dm = np.stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, x, y, z, np.ones_like(x)], axis=-1)
+    R = np.linalg.qr(Dm, mode="r")
+    K = len(u)
+    H = np.swapaxes(R, 1, 2) @ R
+    g = np.zeros(10)
+    g[:3] = 1.0
+    kkt = np.zeros((K, 11, 11))
+    kkt[:, :10, :10] = 2 * H
+    kkt[:, :10, 10] = kkt[:, 10, :10] = g
+    rhs = np.zeros((K, 11, 1))
+    rhs[:, 10] = 3.0
+    eta = np.linalg.solve(kkt, rhs)[:, :10, 0]
+    a11, a22, a33, a12, a13, a23 = (eta[:, i] for i in range(6))
+    A_s = np.stack([np.stack([a11, a12, a13], -1), np.stack([a12, a22, a23], -1), np.stack([a13, a23, a33], -1)], 1)
+    b, c = eta[:, 6:9], eta[:, 9]
+    ok = np.linalg.eigvalsh(A_s)[:, 0] >= 2 * ConvexEllipsoidFit(allow_degenerate=True).eps
+    A_s[~ok] = np.eye(3)
+    Ainv_b = np.linalg.solve(A_s, b[..., None])[..., 0]
+    o = -0.5 * Ainv_b  # Lu 2017, eq. 20
+    alpha = 1.0 / (0.25 * np.sum(b * Ainv_b, axis=1) - c)  # eq. 27
+    ok &= alpha > 0
+    A = A_s * np.where(ok, alpha, 1.0)[:, None, None]  # eq. 28
+    P = np.eye(3)[::-1]
+    L = np.linalg.cholesky(P @ A @ P)  # canonical_T: P A P = L Lᵀ, T = P Lᵀ P
+    T = P @ np.swapaxes(L, 1, 2) @ P
+    theta = np.concatenate([T[:, [0, 1, 1, 2, 2, 2], [0, 0, 1, 0, 1, 2]], o], axis=1)
+    theta[~ok] = np.nan
+    return theta

@@ -1,0 +1,200 @@
+"""One unit of a fleet: read on a worker, calibrated exactly as ``optcal calibrate`` does.
+
+The task functions here are what Dask runs; they take and return small typed objects
+(:class:`~optcal.fleet.inputs.UnitInput`, :class:`~optcal.poses.PoseTable`,
+:class:`UnitOutcome`), never a user file.  :func:`fit_unit` calls the same code path as the
+``calibrate`` command (:func:`optcal.data.load`, then :func:`optcal.calibration.calibrate`
+with the default method and settings), so a unit's numbers are identical to
+``optcal calibrate`` on the same file.  No exception escapes: an unreadable file becomes a
+``failed`` outcome, a pose set that does not identify the calibration a ``refused`` one,
+each with its reason.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import FitError, IdentifiabilityError, InputError, OptcalError
+from optcal.fleet.inputs import UnitInput, is_url
+from optcal.poses import PoseTable
+
+#: Unit statuses, in the order of the report.
+STATUSES: tuple[str, ...] = ("calibrated", "calibrated_with_prior", "refused", "failed")
+#: Fewest poses a refused unit needs to be refitted with the population prior.
+MIN_PRIOR_POSES: int = 3
+
+
+@dataclass
+class UnitOutcome:
+    """What happened to one unit.
+
+    Attributes
+    ----------
+    unit, path : str
+        Identifier and where the data were read from.
+    status : str
+        ``calibrated`` (by its own data, as ``optcal calibrate``), ``calibrated_with_prior``
+        (its data alone do not identify the calibration; the population prior completes it),
+        ``refused`` (data read, no calibration) or ``failed`` (unreadable, or an error).
+    reason : str
+        Why the unit is not ``calibrated`` (empty otherwise), or the solver's remark.
+    theta, stderr : ndarray, shape (9,), or None
+        The calibration θ (:data:`optcal.model.PARAM_NAMES`, raw units) and its standard errors.
+    covariance : ndarray, shape (9, 9), or None
+    rms_g, heldout_rms_g : float
+        Rms norm residual in g, and its leave-one-out counterpart (:func:`heldout_residuals`).
+    n_poses : int
+        Poses used.
+    exclusions : dict of str to int
+        Everything excluded while reading, counted.
+    units : str
+        Units of the raw data.
+    sigma_known : bool
+        Whether the data carried per-pose noise.
+    prior_candidate : bool
+        Whether the data were read and the unit may be refitted with the population prior.
+    theta_with_prior, stderr_with_prior, prior_weight : ndarray, shape (9,), or None
+        The refit with the population prior (:mod:`optcal.fleet.prior`) and, per parameter, the
+        share of the estimate that comes from the prior (0 = the data alone, 1 = the prior alone).
+    flag : str
+        Why the population statistics flag the unit (empty when not flagged).
+    metadata : dict of str to str
+        Manifest columns.
+    """
+
+    unit: str
+    path: str
+    status: str
+    reason: str = ""
+    theta: NDArray[np.float64] | None = None
+    stderr: NDArray[np.float64] | None = None
+    covariance: NDArray[np.float64] | None = None
+    rms_g: float = float("nan")
+    heldout_rms_g: float = float("nan")
+    n_poses: int = 0
+    exclusions: dict[str, int] = field(default_factory=dict)
+    units: str = ""
+    sigma_known: bool = False
+    prior_candidate: bool = False
+    theta_with_prior: NDArray[np.float64] | None = None
+    stderr_with_prior: NDArray[np.float64] | None = None
+    prior_weight: NDArray[np.float64] | None = None
+    flag: str = ""
+    metadata: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the unit has a calibration (by its data, or with the prior)."""
+        return self.status in ("calibrated", "calibrated_with_prior")
+
+
+@dataclass
+class ReadFailure:
+    """A unit whose data could not be read (the task's return value instead of a table)."""
+
+    unit: UnitInput
+    error: str
+
+
+def _local_copy(url: str) -> str:
+    """Copy an fsspec URL's bytes to a temporary local file with the same suffix."""
+    import fsspec
+
+    suffix = Path(url.split("?", 1)[0]).suffix
+    fd, local = tempfile.mkstemp(suffix=suffix, prefix="optcal-fleet-")
+    with os.fdopen(fd, "wb") as out, fsspec.open(url, "rb") as src:
+        out.write(src.read())
+    return local
+
+
+def read_unit(unit: UnitInput, load_options: dict[str, Any]) -> PoseTable | ReadFailure:
+    """Read a unit's data with :func:`optcal.data.load` (a local path or an fsspec URL)."""
+    from optcal.data import load
+
+    local = None
+    try:
+        path = unit.path
+        if is_url(path):
+            local = path = _local_copy(path)
+        poses = load(path, **load_options)
+        poses.meta["fleet_path"] = unit.path
+        return poses
+    except OptcalError as exc:
+        return ReadFailure(unit, str(exc))
+    except Exception as exc:  # noqa: BLE001 - one bad file never stops the run; the reason is kept
+        return ReadFailure(unit, f"{type(exc).__name__}: {exc}")
+    finally:
+        if local is not None:
+            os.unlink(local)
+
+
+def heldout_residuals(residuals: NDArray, jacobian: NDArray, weights: NDArray) -> NDArray[np.float64]:
+    """Leave-one-out norm residuals ``r_k / (1 − h_kk)`` (the PRESS residuals).
+
+    ``h_kk`` is the leverage of pose k, the diagonal of the hat matrix
+    ``W½J (JᵀWJ)⁻¹ JᵀW½`` of the linearised fit: exact for a linear least-squares problem and
+    first-order for the norm residual, it predicts each pose's residual under the fit made
+    without it at the cost of one QR decomposition.  Columns are scaled first (the hat matrix
+    does not depend on the parametrisation) and a rank-deficient J is handled by its range.
+    """
+    Js = jacobian * np.sqrt(weights)[:, None]
+    Js = Js / np.maximum(np.linalg.norm(Js, axis=0), 1e-300)
+    U, s, _ = np.linalg.svd(Js, full_matrices=False)
+    U = U[:, s > s[0] * 1e-10]
+    h = np.clip(np.sum(U * U, axis=1), 0.0, 1.0 - 1e-12)
+    return residuals / (1.0 - h)
+
+
+def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: str = "calibrated") -> UnitOutcome:
+    """A :class:`UnitOutcome` from a :class:`~optcal.result.CalibrationResult` of the unit's poses."""
+    from optcal.norm_residual import norm_residual_jacobian
+
+    r = np.asarray(result.residuals, dtype=float)
+    heldout = heldout_residuals(r, norm_residual_jacobian(result.T, result.o, poses.acc), np.asarray(result.weights))
+    cov = None if result.covariance is None else np.asarray(result.covariance)[:9, :9]
+    return UnitOutcome(
+        unit=unit.unit,
+        path=unit.path,
+        status=status,
+        reason="" if result.solver.success else f"solver: {result.solver.status}",
+        theta=np.asarray(result.params[:9], dtype=float),
+        stderr=None if cov is None else np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+        covariance=cov,
+        rms_g=float(np.sqrt(np.mean(r**2))),
+        heldout_rms_g=float(np.sqrt(np.mean(heldout**2))),
+        n_poses=poses.n,
+        exclusions=dict(poses.exclusions),
+        units=poses.units,
+        sigma_known=bool(result.sigma_known),
+        metadata=dict(unit.metadata),
+    )
+
+
+def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
+    """Calibrate one unit as ``optcal calibrate`` does (default method and settings).
+
+    Never raises: a read failure or an unexpected error gives status ``failed``; a pose set
+    that does not identify the calibration (or too few poses, or a collapsed fit) gives
+    ``refused``, marked as a candidate for the population prior.
+    """
+    from optcal.calibration import calibrate
+
+    if isinstance(data, ReadFailure):
+        return UnitOutcome(unit.unit, unit.path, "failed", data.error, metadata=dict(unit.metadata))
+    try:
+        return outcome_from_result(unit, data, calibrate(data))
+    except (IdentifiabilityError, FitError, InputError) as exc:
+        usable = data.n >= MIN_PRIOR_POSES and bool(np.all(np.isfinite(data.acc)))
+        return UnitOutcome(unit.unit, unit.path, "refused", str(exc), n_poses=data.n, exclusions=dict(data.exclusions),
+                           units=data.units, sigma_known=data.sigma is not None, prior_candidate=usable,
+                           metadata=dict(unit.metadata))
+    except Exception as exc:  # noqa: BLE001 - one bad unit never stops the run; the reason is kept
+        return UnitOutcome(unit.unit, unit.path, "failed", f"{type(exc).__name__}: {exc}", n_poses=data.n,
+                           metadata=dict(unit.metadata))
