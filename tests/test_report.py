@@ -157,7 +157,7 @@ def test_ferraris_session_is_not_usable_and_names_o_z(shared_data: Path, tmp_pat
     assert verdict_of(html) == "not usable"
     reasons = reasons_of(html)
     assert "do not determine o_z" in reasons
-    assert re.search(r"Poses with [+−][xyz]", reasons)  # the orientations that would fix it
+    assert re.search(r"next poses: 1\) [xyz] (up|down)", reasons)  # the pose planner's orientations that would fix it
 
 
 def test_hand_held_mpu6050_is_at_best_usable_with_care(shared_data: Path, tmp_path: Path,
@@ -167,7 +167,7 @@ def test_hand_held_mpu6050_is_at_best_usable_with_care(shared_data: Path, tmp_pa
     assert code == 0, err
     assert verdict_of(html) in ("usable with care", "not usable")
     reasons = reasons_of(html)
-    assert "only weakly: A_xy" in reasons and "Poses with" in reasons
+    assert "only weakly: A_xy" in reasons and "next poses: 1)" in reasons
 
 
 def test_diagnosis_with_a_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -21,7 +21,6 @@ from optcal.report.evidence import Evidence, gather, pose_name
 from optcal.report.figures import (
     EmbeddedFigure,
     before_after_figure,
-    direction_vectors,
     embed,
     residual_figure,
     sphere_map_figure,
@@ -103,8 +102,15 @@ def _g(x: float, digits: int = 4) -> str:
 
 
 def data_section(data_path: str, poses: PoseTable) -> Section:
-    """The data decisions: kind, units, rate, what was excluded (each counted)."""
+    """The data decisions: kind, columns, units, rate, what was excluded (each counted), and the flag that overrides each."""
     meta = poses.meta
+    if poses.decisions is not None:  # the data layer's typed decisions, each with its reason and its flag
+        rows = [["file", data_path]]
+        rows += [line.split(": ", 1) if ": " in line else ["", line] for line in poses.decisions.lines()]
+        rows.append(["static poses", str(poses.n)])
+        rows.append(["temperature", "recorded" if poses.temp is not None else "not recorded"])
+        rows += [[f"excluded: {k}", str(v)] for k, v in poses.exclusions.items()] or [["excluded", "nothing"]]
+        return Section("Data decisions", [str(n) for n in meta.get("notes", [])], [Table(["decision", "value"], rows)])
     rows = [
         ["file", data_path],
         ["read as", poses.source + (f" ({meta['kind_reason']})" if meta.get("kind_reason") else "")],
@@ -190,7 +196,7 @@ def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
     noise = noise_floor(result, poses)
     flagged_names = set(ev.outliers.poses)
     flagged = [k for k in range(poses.n) if pose_name(poses, k) in flagged_names]
-    suggestions = direction_vectors(ev.determination.suggestions) if ev.determination.suggestions else None
+    suggestions = ev.determination.suggestion_directions if ev.determination.suggestions else None
     fit = Section(
         "Fit",
         [
@@ -210,7 +216,8 @@ def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
         "Orientation coverage",
         [f"{ev.coverage.distinct} distinct orientations (directions more than 15° apart); the largest region "
          f"without a pose has a radius of {ev.coverage.largest_gap_deg:.0f}°."
-         + (f" Suggested next poses (gravity along): {', '.join(ev.determination.suggestions)}." if suggestions is not None else "")],
+         + (" The pose planner's next poses (stars): " + "; ".join(ev.determination.suggestions) + "."
+            if suggestions is not None else "")],
         figures=[embed(sphere_map_figure(ev.coverage.directions, suggestions),
                        "Sphere map of the poses: direction of gravity in sensor axes")],
     )

@@ -11,7 +11,8 @@ Everything here is measured, nothing is judged (that is :mod:`optcal.report.verd
   distribution with the fit's degrees of freedom when the per-pose noise is given), or the
   residual rms against the band of the diagnosis's simulations;
 * **determination**: the parameter combinations the poses do not determine or determine only
-  weakly (:mod:`optcal.identifiability`) and the orientations that would determine them;
+  weakly (:mod:`optcal.identifiability`) and the next poses the pose planner recommends
+  (:func:`optcal.plan.next_pose`);
 * **coverage**: where the poses point on the sphere;
 * **outliers**: poses whose standardised residual exceeds a Bonferroni bound;
 * **effects**: what the diagnosis found and its size over the recorded temperature/time range.
@@ -21,7 +22,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from itertools import product
 from typing import Any
 
 import numpy as np
@@ -131,7 +131,9 @@ class Determination:
     condition_number : float
     undetermined, weak : list of Combination
     suggestions : list of str
-        Orientations (gravity direction in sensor axes) that would determine them best, in order.
+        How to hold the device for the next poses the pose planner recommends, in order.
+    suggestion_directions : ndarray, shape (k, 3)
+        Their gravity directions in sensor axes.
     """
 
     rank: int
@@ -140,6 +142,7 @@ class Determination:
     undetermined: list[Combination] = field(default_factory=list)
     weak: list[Combination] = field(default_factory=list)
     suggestions: list[str] = field(default_factory=list)
+    suggestion_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 @dataclass(frozen=True)
@@ -373,45 +376,25 @@ def robust_outliers(result: CalibrationResult, poses: PoseTable) -> Outliers:
     )
 
 
-def _candidate_directions() -> tuple[NDArray[np.float64], list[str]]:
-    """The 26 orientations of a cube's faces, edges and corners, and their names (``+x``, ``+x−z``, ...)."""
-    dirs, names = [], []
-    for v in product((-1, 0, 1), repeat=3):
-        if v == (0, 0, 0):
-            continue
-        dirs.append(np.asarray(v, float) / np.linalg.norm(v))
-        names.append("".join(f"{'+' if c > 0 else '−'}{a}" for c, a in zip(v, "xyz") if c))
-    return np.asarray(dirs), names
+def suggest_poses(result: CalibrationResult, poses: PoseTable,
+                  count: int = MAX_SUGGESTIONS) -> tuple[list[str], NDArray[np.float64]]:
+    """The next poses the pose planner recommends after these (:func:`optcal.plan.next_pose`, D criterion,
+    planned for this calibration), one after another; their descriptions and gravity directions."""
+    from optcal.plan import Prior, next_pose
 
-
-def suggest_poses(result: CalibrationResult, poses: PoseTable, count: int = MAX_SUGGESTIONS) -> list[str]:
-    """Orientations whose addition best determines the weakest parameter combination (greedy).
-
-    Each candidate (a cube face, edge or corner pointing up) is added as a pose of median noise
-    measured by the fitted model; the one that most raises the smallest eigenvalue of the
-    Fisher information (:func:`optcal.identifiability.fisher_information`, in normalised units:
-    ``T`` relative to its scale, ``o`` relative to the radius) is kept, and so on.
-    """
-    from optcal.identifiability import fisher_information
-
-    model = result.model
-    sigma = poses.sigma if poses.sigma is not None else np.ones(poses.n)
-    s_med = float(np.median(sigma))
-    scale_T = float(np.mean(np.abs(np.diag(result.T))))
-    D = np.diag([1 / scale_T] * 6 + [scale_T] * 3)  # dθ_normalised = D⁻¹ dθ → F_normalised = D⁻¹ F D⁻¹
-    Dinv = np.linalg.inv(D)
-    F = Dinv @ fisher_information(result.T, result.o, poses.acc, sigma) @ Dinv
-    dirs, names = _candidate_directions()
-    per_candidate = [Dinv @ fisher_information(result.T, result.o, model.measure(d[None, :]), s_med) @ Dinv for d in dirs]
-    chosen: list[str] = []
+    prior = Prior(result.model, result.units, "this calibration")
+    acc = poses.acc.copy()
+    sigma = None if poses.sigma is None else poses.sigma.copy()
+    descriptions: list[str] = []
+    directions: list[NDArray[np.float64]] = []
     for _ in range(count):
-        gains = [np.linalg.eigvalsh(F + Fc)[0] for Fc in per_candidate]
-        best = int(np.argmax(gains))
-        if names[best] in chosen:
-            break
-        chosen.append(names[best])
-        F = F + per_candidate[best]
-    return chosen
+        nxt = next_pose(PoseTable(acc=acc, sigma=sigma, units=poses.units), prior=prior)
+        descriptions.append(nxt.description)
+        directions.append(np.asarray(nxt.direction, dtype=float))
+        acc = np.vstack([acc, result.model.measure(nxt.direction[None, :])])
+        if sigma is not None:
+            sigma = np.append(sigma, np.median(sigma))
+    return descriptions, np.asarray(directions).reshape(-1, 3)
 
 
 def determination(result: CalibrationResult, poses: PoseTable) -> Determination:
@@ -419,10 +402,10 @@ def determination(result: CalibrationResult, poses: PoseTable) -> Determination:
     idf = result.identifiability or {}
     undetermined = [Combination(u["entry"], u["text"], float("inf")) for u in idf.get("unidentified", [])]
     weak = [Combination(u["entry"], u["text"], float(u.get("stderr", float("nan")))) for u in idf.get("weak", [])]
-    suggestions = suggest_poses(result, poses) if (undetermined or weak) else []
+    suggestions, directions = suggest_poses(result, poses) if (undetermined or weak) else ([], np.zeros((0, 3)))
     return Determination(
         int(idf.get("rank", result.n_params)), int(idf.get("n_params", result.n_params)),
-        float(idf.get("condition_number", float("nan"))), undetermined, weak, suggestions,
+        float(idf.get("condition_number", float("nan"))), undetermined, weak, suggestions, directions,
     )
 
 

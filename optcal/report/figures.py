@@ -14,7 +14,6 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.model import AXES
 
 #: Width of every report figure, inches (it scales to the page width in the HTML).
 WIDTH_IN: float = 7.0
@@ -125,14 +124,3 @@ def before_after_figure(labels: list[str], before_g: NDArray[np.float64], after_
     ax.set_title("Norm error of each pose before and after calibration", fontsize=10)
     ax.legend(fontsize=7)
     return fig
-
-
-def direction_vectors(names: list[str]) -> NDArray[np.float64]:
-    """Unit vectors of orientation names such as ``+x−z`` (the names of :func:`optcal.report.evidence.suggest_poses`)."""
-    out = []
-    for name in names:
-        v = np.zeros(3)
-        for sign, axis in zip(name[::2], name[1::2]):
-            v[AXES.index(axis)] = 1.0 if sign == "+" else -1.0
-        out.append(v / np.linalg.norm(v))
-    return np.asarray(out).reshape(-1, 3)

@@ -97,7 +97,8 @@ def _mg(x: float) -> str:
 def _determination(ev: Evidence) -> list[Reason]:
     det = ev.determination
     out: list[Reason] = []
-    fix = f" Poses with {', '.join(det.suggestions)} up would determine it best." if det.suggestions else ""
+    fix = (" The pose planner's next poses: " + "; ".join(f"{k}) {d}" for k, d in enumerate(det.suggestions, 1)) + "."
+           if det.suggestions else "")
     if det.undetermined:
         names = ", ".join(c.entry for c in det.undetermined)
         combos = "; ".join(c.text for c in det.undetermined)
