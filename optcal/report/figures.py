@@ -100,7 +100,7 @@ def sphere_map_figure(directions: NDArray[np.float64], suggestions: NDArray[np.f
                 ms=13, color="C1", label="suggested pose")
     ax.set_xticklabels([])
     ax.grid(True, lw=0.4)
-    ax.set_title("Direction of gravity in sensor axes, one mark per pose", fontsize=10)
+    ax.set_title("Direction of gravity in sensor axes, one mark per pose", fontsize=10, pad=16)
     ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.05, -0.12))
     return fig
 
