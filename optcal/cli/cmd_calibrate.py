@@ -29,7 +29,7 @@ def echo_json(obj: dict) -> None:
 @click.option("--allow-degenerate", is_flag=True, help="Proceed (with a warning) when the poses do not identify every parameter.")
 @click.option("--loss", type=click.Choice(["squared", "huber", "cauchy"]), default="squared", show_default=True,
               help="Loss of the mle fit; huber/cauchy down-weight corrupt poses.")
-@click.option("--scale-range", nargs=2, type=float, default=None, metavar="LOW HIGH",
+@click.option("--scale-range", nargs=2, type=click.FloatRange(min=0, min_open=True), default=None, metavar="LOW HIGH",
               help="Known range of the scale factors (raw units per g), a bound in the mle fit.")
 @click.option("--imu", is_flag=True, help="Calibrate the gyroscope too, from the moves between the poses (Tedaldi 2014): cal_type imu.")
 @click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,

@@ -63,6 +63,15 @@ def cli_message(message: str) -> str:
     return message
 
 
+def usage_message(exc: click.ClickException) -> str:
+    """A click usage error as one line that points to the command's ``--help``."""
+    message = " ".join(exc.format_message().split())
+    context = getattr(exc, "ctx", None)
+    if context is not None:
+        message = f"{message.rstrip('.')}; see '{context.command_path} --help'"
+    return message
+
+
 def _show_warning(python_show: Callable[..., None], message: Warning | str, category: type[Warning],
                   *args: Any, **kwargs: Any) -> None:
     """optcal's warnings as one ``warning: ...`` line; any other warning as Python shows it."""
@@ -88,9 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         return 1
-    except click.ClickException as exc:  # usage errors: bad option, missing argument
-        exc.show()
-        return 2
+    except click.ClickException as exc:  # usage errors: bad option, missing argument, invalid value
+        click.echo(f"error: {usage_message(exc)}", err=True)
+        return EXIT_INPUT_ERROR
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
     except (BrokenPipeError, KeyboardInterrupt):
