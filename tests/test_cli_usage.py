@@ -40,3 +40,70 @@ def test_usage_errors_are_one_error_line_with_exit_2(capsys, pose_csv, tmp_path,
     assert code == 2
     assert len(lines) == 1 and lines[0].startswith("error: ") and expected in lines[0], err
     assert "--help" in lines[0] and "Usage:" not in err
+
+
+# ----------------------------------------------------------------------------- library messages in CLI words
+@pytest.fixture
+def counts_cal(tmp_path):
+    """A lumped calibration in counts (fitted on 30 noise-free poses) and a recording in m/s²."""
+    from optcal.caltypes import FitPoses, LumpedCalibration
+    from optcal.model import LumpedModel, lu2017_reference_model
+    from optcal.simulate import uniform_directions
+
+    model = LumpedModel(np.diag([16300.0, 16450.0, 16700.0]) @ lu2017_reference_model().C,
+                        np.array([700.0, -360.0, -1830.0]))
+    d = uniform_directions(30, rng=2)
+    LumpedCalibration.from_model(model, "counts", FitPoses(model.measure(d))).save(tmp_path / "cal.json")
+    n = 400
+    acc = np.repeat(uniform_directions(20, rng=3), n // 20, axis=0) * 9.80665
+    lines = ["t_s,ax_m_s2,ay_m_s2,az_m_s2"] + [f"{i / 100:.2f},{a:.6f},{b:.6f},{c:.6f}" for i, (a, b, c) in enumerate(acc)]
+    (tmp_path / "ms2.csv").write_text("\n".join(lines) + "\n")
+    return tmp_path / "cal.json", tmp_path / "ms2.csv"
+
+
+def one_error(code, err):
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: "), err
+    return err
+
+
+def test_export_messages_name_the_flags(capsys, counts_cal):
+    cal, _ = counts_cal
+    err = one_error(*run(capsys, "export", str(cal), "--format", "ardupilot")[::2])
+    assert "give --counts-per-g (" in err and "counts_per_g" not in err
+    err = one_error(*run(capsys, "export", str(cal), "--format", "kalibr")[::2])
+    assert "pass --allan FILE (an optcal allan --json result)" in err
+    err = one_error(*run(capsys, "export", str(cal), "--format", "px4", "--counts-per-g", "16384",
+                         "--counts-zero", "0", "--max-loss", "0.5")[::2])
+    assert "more than --max-loss 0.5 mg" in err and "Raise --max-loss to export anyway" in err
+    assert "max_loss_g" not in err
+
+
+def test_apply_names_data_units_and_columns(capsys, counts_cal, tmp_path):
+    cal, ms2 = counts_cal
+    err = one_error(*run(capsys, "apply", str(cal), str(ms2), "-o", str(tmp_path / "out.csv"))[::2])
+    assert "(or pass --data-units counts if that is what it is)" in err and "units=" not in err
+    from optcal.caltypes import ExtendedCalibration, FitPoses
+    from optcal.extended_model import ExtendedModel
+    from optcal.model import LumpedModel
+
+    model = ExtendedModel(LumpedModel(np.eye(3), np.zeros(3)), {"temperature_bias": np.array([1e-3, 0, 0])}, temp_ref=25.0)
+    ExtendedCalibration.from_model(model, "g", fitted_on=None).save(tmp_path / "ext.json")
+    err = one_error(*run(capsys, "apply", str(tmp_path / "ext.json"), str(ms2), "-o", str(tmp_path / "out.csv"))[::2])
+    assert "map it with --columns temp=NAME" in err
+
+
+def test_calibrate_names_time_unit(capsys, counts_cal):
+    _, ms2 = counts_cal
+    err = one_error(*run(capsys, "calibrate", str(ms2), "--time-unit", "ms")[::2])
+    assert "--time-unit ms contradicts the column name" in err and " time_unit " not in err
+
+
+def test_ipopt_advice_says_what_a_cli_user_can_do(capsys, pose_csv, monkeypatch):
+    from optcal.estimators import mle
+
+    monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
+    code, _, err = run(capsys, "calibrate", str(pose_csv), "--method", "mle")
+    assert code == 0
+    warning = next(line for line in err.splitlines() if line.startswith("warning: "))
+    assert "the mle fit did not converge" in warning and "try --method convex" in warning
+    assert "ipopt_options" not in warning and "init=" not in warning

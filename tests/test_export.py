@@ -99,7 +99,7 @@ def test_ardupilot_loss_is_measured_on_the_poses_and_refused_above_max_loss(tmp_
     cal.save(tmp_path / "lu.json")
     code, out, err = run(["export", tmp_path / "lu.json", "--format", "ardupilot"], capsys)
     assert code == 2 and out == "" and err.count("\n") == 1
-    assert "more than max_loss_g = 5 mg" in err and "cross-axis terms" in err
+    assert "more than --max-loss 5 mg" in err and "cross-axis terms" in err
     code, out, err = run(["export", tmp_path / "lu.json", "--format", "ardupilot", "--max-loss", "1000"], capsys)
     assert code == 0, err
     firmware_g = ardupilot_correct(read_params(out, ","), model.measure(d) * G, np.zeros(len(d))) / G
@@ -147,7 +147,34 @@ def test_px4_reproduces_the_thermal_offsets_and_lists_what_it_drops(tmp_path, ca
 def test_firmware_formats_need_counts_per_g_for_counts(tmp_path, capsys):
     extended_file(tmp_path / "cal.json", axis_aligned_sensor())
     code, _, err = run(["export", tmp_path / "cal.json", "--format", "px4"], capsys)
-    assert code == 2 and "give counts_per_g" in err
+    assert code == 2 and "give --counts-per-g" in err
+
+
+def test_firmware_export_of_unsigned_counts_subtracts_mid_scale(tmp_path, capsys):
+    # an unsigned 16-bit sensor: zero force reads 32768 + bias; the driver outputs (counts - 32768) g/16384
+    base = axis_aligned_sensor().base
+    model = LumpedModel(base.C, base.o + 32768.0)
+    d = uniform_directions(30, rng=4)
+    raw = model.measure(d)
+    LumpedCalibration.from_model(model, "counts", FitPoses(raw)).save(tmp_path / "cal.json")
+    argv = ["export", tmp_path / "cal.json", "--format", "ardupilot", "--counts-per-g", COUNTS_PER_G]
+    code, out, err = run(argv, capsys)
+    assert code == 0, err
+    assert "note: the poses are unsigned 16-bit counts around mid-scale 32768" in err and "--counts-zero VALUE" in err
+    p = read_params(out, ",")
+    k = G / COUNTS_PER_G
+    offsets = np.array([p[f"INS_ACCOFFS_{a}"] for a in "XYZ"])
+    np.testing.assert_allclose(offsets, k * base.o, rtol=1e-8)  # 700 counts, not 33468 counts (8 g)
+    firmware_g = ardupilot_correct(p, (raw - 32768.0) * k, np.zeros(len(d))) / G
+    np.testing.assert_allclose(np.linalg.norm(firmware_g, axis=1), 1.0, atol=1e-8)  # diagonal sensor: exact
+    # a driver that does not subtract mid-scale: --counts-zero 0 keeps the offsets as fitted, without the note
+    code, out, err = run(argv + ["--counts-zero", 0], capsys)
+    assert code == 0 and "mid-scale" not in err
+    np.testing.assert_allclose(read_params(out, ",")["INS_ACCOFFS_X"], k * (base.o[0] + 32768.0), rtol=1e-8)
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4", "--counts-per-g", COUNTS_PER_G,
+                          "--counts-zero", 32000], capsys)
+    assert code == 0 and "counts zero 32000 (given)" in out + err
+    np.testing.assert_allclose(read_params(out, " ")["CAL_ACC0_XOFF"], k * (base.o[0] + 768.0), rtol=1e-8)
 
 
 # ----------------------------------------------------------------------------- Kalibr and ROS

@@ -86,7 +86,7 @@ def convert_samples(acc: NDArray[np.float64], units: str, to_units: str) -> NDAr
         return acc * (_G_FACTOR[to_units] / _G_FACTOR[units])
     raise InputError(
         f"the calibration takes {to_units} but DATA is in {units}; give DATA in {to_units} "
-        f"(or units= / --units {to_units} if that is what it is)"
+        f"(or pass units=\"{to_units}\" if that is what it is)"
     )
 
 
@@ -148,7 +148,7 @@ def apply_to_file(
             what = "temperature column (temp, °C)" if column == "temp" else "time column (t, s) or rate"
             raise InputError(
                 f"{path}: has no {what}, and the {cal.cal_type} calibration needs it (its terms depend on "
-                f"{'temperature' if column == 'temp' else 'time'}); add the column or map it with columns="
+                f"{'temperature' if column == 'temp' else 'time'}); add the column or map it with columns=\"{column}=NAME\""
             )
     raw = convert_samples(acc, units_in, cal.units)
     finite = np.all(np.isfinite(raw), axis=1)

@@ -17,6 +17,9 @@ from optcal.cli.data_options import DATA_PATH
               help="Write the file here (default: standard output, with the report on standard error).")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None,
               help="ardupilot/px4 with a calibration in counts: the driver's sensitivity (counts per g, from the datasheet).")
+@click.option("--counts-zero", type=click.FloatRange(min=0), default=None, metavar="COUNTS",
+              help="ardupilot/px4 with a calibration in counts: the reading the driver subtracts before scaling "
+                   "(e.g. 32768 for unsigned 16-bit; default: 32768 when the poses are unsigned around mid-scale, else 0).")
 @click.option("--max-loss", type=click.FloatRange(min=0), default=5.0, show_default=True, metavar="MG",
               help="ardupilot/px4: refuse when the per-axis model's rms |a|-1 exceeds the full model's by more (mg).")
 @click.option("--poses", type=DATA_PATH, default=None,
@@ -26,16 +29,19 @@ from optcal.cli.data_options import DATA_PATH
 @click.option("--rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
               help="kalibr/ros: the IMU topic's rate (default: the Allan log's).")
 @click.option("--rostopic", default="/imu0", show_default=True, help="kalibr: the IMU topic.")
-def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, max_loss: float,
+def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
+           max_loss: float,
            poses: str | None, allan: str | None, rate: float | None, rostopic: str) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
     the loss of that model on the calibration's own poses is reported next to the full model's
     and the export is refused above --max-loss.  Their parameters are in m/s² of the driver's
-    output, so a calibration in counts needs --counts-per-g.
+    output, so a calibration in counts needs --counts-per-g (and --counts-zero when the driver
+    subtracts a zero reading that optcal cannot see in the poses).
     """
     import optcal.caltypes as caltypes
+    from optcal.cli.main import cli_message
     from optcal.caltypes.apply import convert_samples
     from optcal.export import ExportOptions, export as run_export, read_allan
 
@@ -49,6 +55,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
     options = ExportOptions(
         counts_per_g=counts_per_g,
+        counts_zero=counts_zero,
         max_loss_g=max_loss * 1e-3,
         poses=fit_poses,
         allan=read_allan(allan) if allan else None,
@@ -62,7 +69,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         report.append(result.loss.describe())
     report += [f"exported: {m}" for m in result.mapped]
     report += [f"not exported: {d}" for d in result.dropped]
-    report += [f"note: {n}" for n in result.notes]
+    report += [f"note: {cli_message(n, 'export')}" for n in result.notes]
     if output is None:
         click.echo(result.text, nl=False)
         for line in report:

@@ -12,6 +12,7 @@ command line's flags in their place (:data:`CLI_SPELLING`).
 from __future__ import annotations
 
 import functools
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -26,11 +27,33 @@ from optcal.errors import ConvergenceWarning, InputError, SolverError
 EXIT_INPUT_ERROR = 2
 EXIT_SOLVER_ERROR = 3
 
-#: How a library message's Python argument reads on the command line.
+#: How a library message's Python wording reads on the command line: regular expression ->
+#: replacement, applied in order after the command's own table (:data:`COMMAND_SPELLING`).
 CLI_SPELLING: dict[str, str] = {
-    'method="convex"': "--method convex",
-    "allow_degenerate=True": "--allow-degenerate",
-    "scale_range=(low, high)": "--scale-range LOW HIGH",
+    # IPOPT's advice (optcal.estimators.mle.IPOPT_REMEDY): the command line sets no IPOPT options
+    re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)"):
+        "on the command line, try --method convex (the convex fit alone, no IPOPT) or add poses in orientations "
+        "not yet covered",
+    re.escape('check ipopt_options, or use method="convex"'): "use --method convex",
+    re.escape("raise the solver's iteration limit (solver_options) or try solver='SCS'"): "try --method mle",
+    re.escape("pass a larger max_iter or a looser tol"): "use --method default instead",
+    re.escape('method="convex"'): "--method convex",
+    re.escape("allow_degenerate=True"): "--allow-degenerate",
+    re.escape("scale_range=(low, high)"): "--scale-range LOW HIGH",
+    r'\bunits="([^"]*)"': r"--units \1",
+    r'\bcolumns="([^"]*)"': r"--columns \1",
+    r"\bcolumns=": "--columns",
+    r"\btime_unit\b": "--time-unit",
+    r"\bcounts_per_g\b": "--counts-per-g",
+    r"\bcounts_zero=(\S+)": r"--counts-zero \1",
+    r"\ballan=": "--allan FILE",
+    r"\bmax_loss_g( =)?": "--max-loss",
+}
+
+#: Per command: wording that reads differently there (the same Python argument, another flag).
+COMMAND_SPELLING: dict[str, dict[str, str]] = {
+    "apply": {r'\bunits="([^"]*)"': r"--data-units \1"},  # apply's --units is the output unit
+    "export": {r' \(or pass units="[^"]*" if that is what it is\)': ""},  # export reads --poses in their own units
 }
 
 #: name -> "module:attribute" of a click command.  Add one line per command.
@@ -56,11 +79,24 @@ def cli() -> None:
     """optcal: calibrate triaxial accelerometers as optimisation problems, and diagnose the model."""
 
 
-def cli_message(message: str) -> str:
-    """A library message with the command line's flags in place of Python arguments."""
-    for python, flag in CLI_SPELLING.items():
-        message = message.replace(python, flag)
+def cli_message(message: str, command: str | None = None) -> str:
+    """A library message with the command line's flags in place of Python arguments.
+
+    Parameters
+    ----------
+    message : str
+        The library's message (Python wording).
+    command : str, optional
+        The optcal command that ran (``"apply"``); its :data:`COMMAND_SPELLING` is applied first.
+    """
+    for pattern, flag in (*COMMAND_SPELLING.get(command or "", {}).items(), *CLI_SPELLING.items()):
+        message = re.sub(pattern, flag, message)
     return message
+
+
+def command_name(argv: list[str]) -> str | None:
+    """The optcal command in ``argv`` (its first word that is not an option)."""
+    return next((word for word in argv if not word.startswith("-")), None)
 
 
 def usage_message(exc: click.ClickException) -> str:
@@ -72,27 +108,28 @@ def usage_message(exc: click.ClickException) -> str:
     return message
 
 
-def _show_warning(python_show: Callable[..., None], message: Warning | str, category: type[Warning],
-                  *args: Any, **kwargs: Any) -> None:
+def _show_warning(python_show: Callable[..., None], command: str | None, message: Warning | str,
+                  category: type[Warning], *args: Any, **kwargs: Any) -> None:
     """optcal's warnings as one ``warning: ...`` line; any other warning as Python shows it."""
     if issubclass(category, ConvergenceWarning):
-        click.echo(f"warning: {cli_message(str(message))}", err=True)
+        click.echo(f"warning: {cli_message(str(message), command)}", err=True)
     else:
         python_show(message, category, *args, **kwargs)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code (2 for bad input, 3 for a solver failure)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    command = command_name(args)
     try:
         with warnings.catch_warnings():
-            warnings.showwarning = functools.partial(_show_warning, warnings.showwarning)
-            cli.main(args=argv, prog_name="optcal", standalone_mode=False,
-                     obj={"argv": list(sys.argv[1:] if argv is None else argv)})
+            warnings.showwarning = functools.partial(_show_warning, warnings.showwarning, command)
+            cli.main(args=argv, prog_name="optcal", standalone_mode=False, obj={"argv": args})
     except InputError as exc:
-        click.echo(f"error: {cli_message(str(exc))}", err=True)
+        click.echo(f"error: {cli_message(str(exc), command)}", err=True)
         return EXIT_INPUT_ERROR
     except SolverError as exc:
-        click.echo(f"error: {cli_message(str(exc))}", err=True)
+        click.echo(f"error: {cli_message(str(exc), command)}", err=True)
         return EXIT_SOLVER_ERROR
     except click.exceptions.Abort:
         click.echo("aborted", err=True)

@@ -47,6 +47,10 @@ class ExportOptions:
     counts_per_g : float, optional
         The driver's sensitivity (counts per g) for a calibration in counts: firmware
         parameters are in m/s² of the driver's output.
+    counts_zero : float, optional
+        The raw reading the driver subtracts before scaling (e.g. 32768, the mid-scale of an
+        unsigned 16-bit converter; 0 for signed counts).  Default: 32768 when the poses are
+        unsigned 16-bit counts around mid-scale (the test of ``optcal check``), else 0.
     max_loss_g : float
         Refuse a diagonal firmware model whose rms ``|a|`` error exceeds the full model's by more.
     poses : FitPoses, optional
@@ -62,6 +66,7 @@ class ExportOptions:
     """
 
     counts_per_g: float | None = None
+    counts_zero: float | None = None
     max_loss_g: float = DEFAULT_MAX_LOSS_G
     poses: FitPoses | None = None
     allan: dict[str, Any] | None = None

@@ -55,6 +55,8 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         cal, options, "ardupilot", HEADER, "INS_ACCOFFS_{axis},{value:.9g}", "INS_ACCSCAL_{axis},{value:.9g}"
     )
     notes = ["the offsets and scales apply to the axes of the calibration data; log them in the IMU's own orientation"]
+    if model.zero_reason:
+        notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
     if model.thermal is not None:
         th = model.thermal
         c = tcal_coefficients(th.coefficients, th.temp_ref)

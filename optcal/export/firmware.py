@@ -12,9 +12,11 @@ From optcal's ``ā = T (a − o)`` (g out, raw units in) the model keeps the bia
 axis, the scale ``s_i = √A_ii`` (``A = TᵀT``): the norm of column i of ``T``, so that a force
 along one sensor axis keeps its magnitude; the cross-axis terms of ``A`` (non-orthogonality)
 are lost.  With ``k`` the factor from raw units to m/s² (1 for m/s², g for g, g/counts_per_g for
-counts) and ``g`` standard gravity::
+counts), ``z`` the raw reading the driver subtracts before scaling (counts only: 32768 for
+unsigned 16-bit data around mid-scale, else 0; :func:`driver_zero`) and ``g`` standard gravity,
+the driver's output is ``raw_ms2 = k (a − z)`` and::
 
-    offset_i = k o_i,     scale_i = g s_i / k
+    offset_i = k (o_i − z),     scale_i = g s_i / k
 
 An extended calibration's ``temperature_bias`` terms are exact offset polynomials: optcal adds
 ``S_i Σ_p k_ip (T − T_ref)^p`` (raw units, ``S_i`` the axis sensitivity) to output i, so
@@ -32,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.caltypes.base import Calibration, FitPoses
 from optcal.caltypes.extended import ExtendedCalibration
+from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
 from optcal.export import ExportOptions, LossReport
 from optcal.model import AXES, STANDARD_GRAVITY
@@ -89,6 +92,10 @@ class DiagonalModel:
     thermal : ThermalOffset or None
     ms2_per_raw : float
         ``k``: raw units of the calibration → m/s².
+    raw_zero : float
+        ``z``: the raw reading the driver subtracts before scaling (counts; 0 otherwise).
+    zero_reason : str or None
+        Why ``raw_zero`` is not 0 (given, or found in the poses).
     mapped, dropped : tuple of str
         optcal terms kept, and terms the model cannot hold (with the reason).
     """
@@ -97,8 +104,14 @@ class DiagonalModel:
     scale: NDArray[np.float64]
     thermal: ThermalOffset | None
     ms2_per_raw: float
+    raw_zero: float
+    zero_reason: str | None
     mapped: tuple[str, ...]
     dropped: tuple[str, ...]
+
+    def raw_to_ms2(self, raw: ArrayLike) -> NDArray[np.float64]:
+        """The driver's output ``k (a − z)``, m/s², of samples ``raw`` in the calibration's units."""
+        return (np.asarray(raw, dtype=float) - self.raw_zero) * self.ms2_per_raw
 
     def correct_ms2(self, raw_ms2: ArrayLike, temp: ArrayLike | None = None) -> NDArray[np.float64]:
         """``(raw − thermal(T) − offset) · scale`` per axis, m/s²."""
@@ -110,9 +123,32 @@ class DiagonalModel:
         return (a - self.offset_ms2) * self.scale
 
 
-def diagonal_model(cal: Calibration, counts_per_g: float | None) -> DiagonalModel:
+def driver_zero(cal: Calibration, options: ExportOptions) -> tuple[float, str | None]:
+    """``z``, the raw reading the driver subtracts before scaling, and why it is not 0.
+
+    ``options.counts_zero`` when given; else, for a calibration in counts whose poses are
+    unsigned 16-bit counts around mid-scale (:func:`optcal.data.units.nominal_conversion`, the
+    test of ``optcal check``), the mid-scale 32768: a driver that outputs m/s² has removed it.
+    """
+    if cal.units != "counts":
+        if options.counts_zero:
+            raise InputError(f"counts_zero applies to a calibration in counts; this one is in {cal.units}")
+        return 0.0, None
+    if options.counts_zero is not None:
+        z = float(options.counts_zero)
+        return z, (f"counts zero {z:g} (given): subtracted from the offsets, as the driver subtracts it" if z else None)
+    mid_scale = nominal_conversion("counts", loss_poses(cal, options).acc).offset
+    if not np.any(mid_scale):
+        return 0.0, None
+    z = float(mid_scale[0])
+    return z, (f"the poses are unsigned 16-bit counts around mid-scale {z:g} (as optcal check finds); a driver that "
+               f"outputs m/s² has removed it, so it is subtracted from the offsets")
+
+
+def diagonal_model(cal: Calibration, options: ExportOptions) -> DiagonalModel:
     """The per-axis firmware model of ``cal`` (module docstring)."""
-    k = ms2_per_raw_unit(cal.units, counts_per_g)
+    k = ms2_per_raw_unit(cal.units, options.counts_per_g)
+    z, zero_reason = driver_zero(cal, options)
     lumped = cal.lumped()
     A = lumped.T.T @ lumped.T
     s = np.sqrt(np.diag(A))
@@ -139,7 +175,8 @@ def diagonal_model(cal: Calibration, counts_per_g: float | None) -> DiagonalMode
             if cal.validity.temp is None or cal.temp_ref is None:
                 raise InputError("the calibration has temperature terms but no fitted temperature range (validity.temp)")
             thermal = ThermalOffset(c, float(cal.temp_ref), *cal.validity.temp)
-    return DiagonalModel(k * lumped.o, STANDARD_GRAVITY * s / k, thermal, k, tuple(mapped), tuple(dropped))
+    return DiagonalModel(k * (lumped.o - z), STANDARD_GRAVITY * s / k, thermal, k, z, zero_reason, tuple(mapped),
+                         tuple(dropped))
 
 
 def loss_poses(cal: Calibration, options: ExportOptions) -> FitPoses:
@@ -160,7 +197,7 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
     """rms ``|a| − 1`` of ``cal`` and of ``model`` on the poses; refused above ``options.max_loss_g``."""
     poses = loss_poses(cal, options)
     full = cal.norm_errors(poses.acc, poses.temp, poses.t)
-    exported = np.linalg.norm(model.correct_ms2(poses.acc * model.ms2_per_raw, poses.temp), axis=1) / STANDARD_GRAVITY - 1.0
+    exported = np.linalg.norm(model.correct_ms2(model.raw_to_ms2(poses.acc), poses.temp), axis=1) / STANDARD_GRAVITY - 1.0
     report = LossReport(poses.n, float(np.sqrt(np.mean(full**2))), float(np.sqrt(np.mean(exported**2))))
     if report.loss_g > options.max_loss_g:
         raise InputError(
@@ -180,9 +217,11 @@ def begin_export(
     The lines are ``header`` (``{source}`` filled in), the loss figures and every term the model
     cannot hold as comments, then the offsets and scales written with :func:`per_axis` templates.
     """
-    model = diagonal_model(cal, options.counts_per_g)
+    model = diagonal_model(cal, options)
     loss = measure_loss(cal, model, options, firmware)
     lines = [line.format(source=options.source) for line in header] + [f"# {loss.describe()}"]
+    if model.zero_reason:
+        lines.append(f"# {model.zero_reason}")
     lines += [f"# not exported: {d}" for d in model.dropped]
     lines += per_axis(offset_line, model.offset_ms2) + per_axis(scale_line, model.scale)
     return model, loss, lines
