@@ -89,6 +89,9 @@ class IdentifiabilityReport:
     unidentified : list of dict
         One entry per null direction: ``entry`` (the entry of A or o it moves),
         ``combination`` (change of each entry of A and o), ``text`` (readable).
+    weak : list of dict
+        With full rank, the combinations determined only weakly (standard error above
+        :data:`WEAK_STDERR`): as ``unidentified``, plus ``stderr`` (fraction of full scale).
     """
 
     rank: int
@@ -114,8 +117,12 @@ class IdentifiabilityReport:
                 f"the pose set identifies only {self.rank} of {self.n_params} parameter combinations; "
                 f"not determined: {parts}"
             )
-        parts = "; ".join(f"{u['text']} (standard error {u['stderr']:.2g} of full scale)" for u in self.weak)
-        return f"the pose set does not determine {len(self.weak)} parameter combination(s): {parts}"
+        parts = "; ".join(f"{u['text']} weakly determined (standard error {u['stderr']:.2g} of full scale)"
+                          for u in self.weak)
+        return (
+            f"the pose set determines {len(self.weak)} parameter combination(s) only weakly (Fisher rank "
+            f"{self.rank}/{self.n_params}, but a standard error above {WEAK_STDERR:.0%} of full scale): {parts}"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -107,3 +107,34 @@ def test_ipopt_advice_says_what_a_cli_user_can_do(capsys, pose_csv, monkeypatch)
     warning = next(line for line in err.splitlines() if line.startswith("warning: "))
     assert "the mle fit did not converge" in warning and "try --method convex" in warning
     assert "ipopt_options" not in warning and "init=" not in warning
+
+
+# ----------------------------------------------------------------------------- identifiability: wording and order
+def test_weakly_determined_pose_set_is_refused_with_consistent_wording(capsys, shared_data):
+    path = shared_data / "mpu6050-imucalibration" / "example_data_calibration.csv"
+    if not path.exists():
+        pytest.skip(f"shared data not available: {path}")
+    code, out, err = run(capsys, "calibrate", str(path))
+    err = one_error(code, err)
+    assert "only weakly (Fisher rank 9/9" in err and "weakly determined (standard error 0.0" in err
+    assert "does not determine" not in err and "--allow-degenerate" in err
+    code, out, err = run(capsys, "calibrate", str(path), "--allow-degenerate")
+    assert code == 0, err
+    assert "Fisher rank 9/9" in out and "WEAKLY DETERMINED POSE SET" in out and "does not determine" not in out
+
+
+def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, monkeypatch):
+    from optcal.estimators import mle
+    from optcal.model import lu2017_reference_model
+    from optcal.simulate import simulate_poses
+
+    # six cube faces: rank 6 of 9 whatever the noise; an IPOPT limit of 1 iteration would warn if it ran
+    monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
+    faces = np.repeat(np.vstack([np.eye(3), -np.eye(3)]), 3, axis=0)
+    poses = simulate_poses(lu2017_reference_model(), faces, 0.002, rng=np.random.default_rng(1))
+    path = tmp_path / "faces.csv"
+    path.write_text("ax,ay,az\n" + "\n".join(",".join(f"{v:.10g}" for v in row) for row in poses.acc) + "\n")
+    for method in ("default", "mle", "exact", "gd"):
+        code, _, err = run(capsys, "calibrate", str(path), "--method", method, "--format", "poses")
+        err = one_error(code, err)
+        assert "warning" not in err and ("identifies only" in err or "only weakly" in err), (method, err)

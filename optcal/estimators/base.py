@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
-from optcal.identifiability import add_weak_directions, analyse
+from optcal.identifiability import IdentifiabilityReport, add_weak_directions, analyse
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, normal_gain
 from optcal.poses import PoseTable
@@ -117,6 +117,85 @@ def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy
         )
 
 
+@dataclass(frozen=True)
+class FisherAtFit:
+    """The Fisher information of a pose set at a fit, as :func:`finish` needs it.
+
+    Attributes
+    ----------
+    identifiability : IdentifiabilityReport
+        Rank, conditioning, and the combinations not determined or only weakly determined.
+    covariance : ndarray, shape (9, 9)
+        Covariance of θ in raw units (scaled by the reduced chi-square when the noise is not known).
+    residuals, weights : ndarray, shape (n,)
+        Norm residuals and their weights at the fit.
+    sigma_known : bool
+        Whether the weights are absolute (per-pose noise given).
+    """
+
+    identifiability: IdentifiabilityReport
+    covariance: NDArray[np.float64]
+    residuals: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    sigma_known: bool
+
+
+def fisher_at_fit(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated",
+                  covariance_scale: str = "auto") -> FisherAtFit:
+    """Covariance and identifiability of θ at ``(T, o)`` (see :mod:`optcal.identifiability`).
+
+    The weak-direction test needs the covariance, so both come from one Fisher matrix:
+    inverted in normalised coordinates (in raw counts the T and o blocks differ by ~1e16).
+    """
+    w, known = pose_weights(poses, T, o, weighting)
+    point = NormResidualKernel(poses.acc).at(T, o)
+    r = point.residuals
+    J = point.jacobian().T
+    norm = Normaliser.of(poses.acc)
+    D = norm.jacobian()  # dθ_raw/dθ_normalised
+    F_n = D @ (J.T @ (J * w[:, None])) @ D
+    ident = analyse(T, o, poses.acc, poses.sigma, jacobian=J)
+    cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
+    dof = poses.n - len(PARAM_NAMES)
+    if not known and covariance_scale == "auto":
+        chi2 = float(np.sum(w * r**2))
+        cov_n = cov_n * (chi2 / dof) if dof > 0 else np.full_like(cov_n, np.nan)
+    if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
+        add_weak_directions(ident, cov_n, T * norm.scale)
+    return FisherAtFit(ident, D @ cov_n @ D, r, w, known)
+
+
+def degenerate_note(ident: IdentifiabilityReport, allow_degenerate: bool) -> str | None:
+    """The note for a pose set that does not identify θ, or :class:`IdentifiabilityError` without ``allow_degenerate``."""
+    if ident.identifiable:
+        return None
+    msg = ident.describe()
+    if not allow_degenerate:
+        consequence = ("the undetermined combinations are then arbitrary" if ident.rank < ident.n_params
+                       else "the weakly determined combinations then carry these large standard errors")
+        raise IdentifiabilityError(
+            msg + ". Add poses that tilt the sensor about other axes (or pass allow_degenerate=True "
+            f"to proceed anyway: {consequence})",
+            ident,
+        )
+    return ("DEGENERATE POSE SET: " if ident.rank < ident.n_params else "WEAKLY DETERMINED POSE SET: ") + msg
+
+
+def check_pose_set(poses: PoseTable, theta: NDArray, weighting: str = "propagated", allow_degenerate: bool = False) -> None:
+    """Refuse, before an iterative fit, a pose set that does not identify θ at the start ``theta`` (raw units).
+
+    The same test as :func:`finish` applies after the fit; run first, it spares the user an
+    iterative solve (and its convergence warnings) that would end in that refusal.
+    """
+    if allow_degenerate or not np.all(np.isfinite(theta)):
+        return
+    T, o = unpack_theta(theta)
+    diag = np.abs(np.diag(T))
+    if diag.min() <= 1e-6 * max(diag.max(), 1e-300):
+        return  # a collapsed start: the fit may still recover; finish() judges its answer
+    degenerate_note(fisher_at_fit(poses, canonicalise(T), o, weighting).identifiability, allow_degenerate)
+
+
 def finish(
     *,
     method: str,
@@ -132,13 +211,16 @@ def finish(
 ) -> CalibrationResult:
     """Assemble a :class:`CalibrationResult` from θ in raw units.
 
-    Checks the solver's outcome first (:func:`check_solver`; ``remedy`` says which argument
-    to change), then computes the norm residuals, the Fisher information at θ (with directions
-    eliminated, see :mod:`optcal.identifiability`), its inverse as covariance (scaled by the
-    reduced chi-square when the noise is not known) and the identifiability report; refuses
-    a rank-deficient pose set unless ``allow_degenerate``.
+    Checks that the solver returned an answer (:func:`check_solver`; ``remedy`` says which
+    argument to change), then computes the norm residuals, the Fisher information at θ (with
+    directions eliminated, see :mod:`optcal.identifiability`), its inverse as covariance
+    (scaled by the reduced chi-square when the noise is not known) and the identifiability
+    report; refuses a pose set that does not identify θ unless ``allow_degenerate``.  An early
+    stop of the solver is warned about only for a pose set that is not refused.
     """
-    check_solver(method, solver, theta, remedy)
+    finite = bool(np.all(np.isfinite(theta)))
+    if solver.status in SOLVER_FAILURES or not finite:
+        check_solver(method, solver, theta, remedy)  # raises SolverError
     T, o = unpack_theta(theta)
     diag = np.abs(np.diag(T))
     if diag.min() <= 1e-6 * max(diag.max(), 1e-300):
@@ -150,33 +232,13 @@ def finish(
     T = canonicalise(T)  # no-op for lower-triangular T with positive diagonal
     theta = theta_from(T, o)
     notes = list(notes or [])
-    w, known = pose_weights(poses, T, o, weighting)
-    point = NormResidualKernel(poses.acc).at(T, o)
-    r = point.residuals
-    J = point.jacobian().T
-    # invert in normalised coordinates: in raw counts the T and o blocks of F differ by ~1e16
-    norm = Normaliser.of(poses.acc)
-    D = norm.jacobian()  # dθ_raw/dθ_normalised
-    F_n = D @ (J.T @ (J * w[:, None])) @ D
-    ident = analyse(T, o, poses.acc, poses.sigma, jacobian=J)
-    cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
-    dof = poses.n - len(theta)
-    if not known and covariance_scale == "auto":
-        chi2 = float(np.sum(w * r**2))
-        cov_n = cov_n * (chi2 / dof) if dof > 0 else np.full_like(cov_n, np.nan)
-    cov = D @ cov_n @ D
-    if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
-        add_weak_directions(ident, cov_n, T * norm.scale)
-    if not ident.identifiable:
-        msg = ident.describe()
-        if not allow_degenerate:
-            raise IdentifiabilityError(
-                msg + ". Add poses that tilt the sensor about other axes (or pass allow_degenerate=True "
-                "to proceed anyway: the undetermined combinations are then arbitrary)",
-                ident,
-            )
-        notes.append("DEGENERATE POSE SET: " + msg)
-    if dof <= 0:
+    fisher = fisher_at_fit(poses, T, o, weighting, covariance_scale)
+    ident = fisher.identifiability
+    note = degenerate_note(ident, allow_degenerate)
+    if note:
+        notes.append(note)
+    check_solver(method, solver, theta, remedy)  # warns of an early stop
+    if poses.n <= len(theta):
         notes.append(f"no degrees of freedom left ({poses.n} poses, {len(theta)} parameters)")
     return CalibrationResult(
         method=method,
@@ -185,10 +247,10 @@ def finish(
         units=poses.units,
         params=theta,
         param_names=list(PARAM_NAMES),
-        covariance=cov,
-        residuals=r,
-        weights=w,
-        sigma_known=known,
+        covariance=fisher.covariance,
+        residuals=fisher.residuals,
+        weights=fisher.weights,
+        sigma_known=fisher.sigma_known,
         solver=solver,
         rows=[int(x) for x in poses.rows],
         exclusions=dict(poses.exclusions),

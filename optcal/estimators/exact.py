@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish
+from optcal.estimators.base import Normaliser, Stopwatch, check_pose_set, finish
 from optcal.estimators.mle import IPOPT_DEFAULTS, IPOPT_REMEDY, MaximumLikelihood, ipopt_nlpsol, run_nlpsol
 from optcal.model import theta_from, unpack_theta
 from optcal.norm_residual import casadi_lower_triangular
@@ -130,9 +130,10 @@ class ExactMaximumLikelihood:
     def fit(self, poses: PoseTable) -> CalibrationResult:
         poses.validate()
         if self.init == "mle":
-            start = MaximumLikelihood(allow_degenerate=True).fit(poses)
+            start = MaximumLikelihood(allow_degenerate=self.allow_degenerate).fit(poses)  # refuses as exact would
         else:
             start = MaximumLikelihood(init=self.init, allow_degenerate=True).initial(poses)
+            check_pose_set(poses, start.calibration.lumped().theta, allow_degenerate=self.allow_degenerate)
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
         T_n = start.T * norm.scale

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish, pose_weights
 from optcal.model import canonicalise, theta_from
 from optcal.norm_residual import NormResidualKernel
 from optcal.poses import PoseTable
@@ -113,6 +113,7 @@ class GradientDescent:
 
         poses.validate()
         start = MaximumLikelihood(init=self.init, allow_degenerate=True).initial(poses)
+        check_pose_set(poses, start.calibration.lumped().theta, self.weighting, self.allow_degenerate)
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
         w, _ = pose_weights(poses, start.T, start.o, self.weighting)

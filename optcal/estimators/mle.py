@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import FitError, InputError, SolverError
-from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
@@ -546,6 +546,7 @@ class MaximumLikelihood:
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
         theta_n, init_method = self.initial_normalised(poses, norm, u)
+        check_pose_set(poses, norm.theta_to_raw(theta_n), self.weighting, self.allow_degenerate)
         raw_bounds = _bounds_vectors(self.bounds, self.scale_range)
         lbx = ubx = None
         if raw_bounds is not None:

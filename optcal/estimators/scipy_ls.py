@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult, least_squares
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish
 from optcal.estimators.mle import MaximumLikelihood, NormResidualCost
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
@@ -84,6 +84,7 @@ class ScipyLeastSquares:
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
         theta_n, init_method = self._ml.initial_normalised(poses, norm, u)
+        check_pose_set(poses, norm.theta_to_raw(theta_n), self._ml.weighting, self.allow_degenerate)
         total_time, nfev, passes = 0.0, 0, 0
         res: OptimizeResult | None = None
         w_used: NDArray | None = None
