@@ -140,6 +140,19 @@ def user_directions(values: ArrayLike, kind: str = "directions") -> NDArray[np.f
     raise InputError(f"unknown orientation kind {kind!r}")
 
 
+def angles_from_directions(directions: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Roll and pitch in degrees of unit specific-force directions: the inverse of ``user_directions(..., "euler_deg")``.
+
+    ``f = [−sin θ, cos θ sin φ, cos θ cos φ]`` (Yin 2014, eq. 2) gives ``θ = asin(−f_x)`` and
+    ``φ = atan2(f_y, f_z)`` (φ = 0 when the x axis points straight up or down).
+    """
+    d = np.asarray(directions, dtype=float).reshape(-1, 3)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    pitch = np.degrees(np.arcsin(np.clip(-d[:, 0], -1.0, 1.0))) + 0.0  # + 0.0: no "-0" in the table
+    roll = np.degrees(np.arctan2(d[:, 1], d[:, 2]))
+    return roll, pitch
+
+
 SCHEDULES = ("lu2017", "tilted", "uniform", "sixpos")
 
 

@@ -22,14 +22,18 @@ from optcal.simulate import SCHEDULES
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output CSV.")
 def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samples: int | None,
              sensor: str, seed: int, output: str) -> None:
-    """Simulate static poses a = C ā + o + noise and write them as a pose table (CSV)."""
+    """Simulate static poses a = C ā + o + noise and write them as a pose table (CSV).
+
+    With --schedule sixpos the table also holds each pose's known orientation (roll_deg,
+    pitch_deg), which `optcal calibrate --method sixpos` needs.
+    """
     import pandas as pd
 
     from optcal.data.tables import read_csv_frame
     from optcal.errors import InputError
     from optcal.model import lu2017_reference_model
     from optcal.simulate import schedule as make_schedule
-    from optcal.simulate import simulate_poses, user_directions
+    from optcal.simulate import angles_from_directions, simulate_poses, user_directions
 
     model = lu2017_reference_model()
     rng_dirs, rng_noise = np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2])
@@ -51,6 +55,8 @@ def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samp
     frame = pd.DataFrame(poses.acc, columns=["ax", "ay", "az"])
     if poses.sigma is not None:
         frame["sigma"] = poses.sigma
+    if schedule == "sixpos" and not orientations:  # the known orientations of the six-position method
+        frame["roll_deg"], frame["pitch_deg"] = angles_from_directions(directions)
     from optcal.cli.outputs import output_file
 
     frame.to_csv(output_file(output), index=False, float_format="%.10g")

@@ -1,4 +1,4 @@
-"""Command-line usage errors and messages: one ``error: ...`` line, exit 2, flags rather than Python arguments."""
+"""The command line as a new user meets it: usage errors, messages in flags, export, identifiability, simulate."""
 
 import numpy as np
 import pytest
@@ -138,3 +138,22 @@ def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, m
         code, _, err = run(capsys, "calibrate", str(path), "--method", method, "--format", "poses")
         err = one_error(code, err)
         assert "warning" not in err and ("identifies only" in err or "only weakly" in err), (method, err)
+
+
+# ----------------------------------------------------------------------------- simulate -> calibrate --method sixpos
+def test_simulated_six_positions_calibrate_with_sixpos(capsys, tmp_path):
+    import optcal.caltypes as caltypes
+    from optcal.data import load
+    from optcal.simulate import six_position, user_directions
+
+    path = tmp_path / "six.csv"
+    code, _, err = run(capsys, "simulate", "--schedule", "sixpos", "--sigma", "0", "-o", str(path))
+    assert code == 0, err
+    table = load(path)
+    angles = np.column_stack([table.extra["roll_deg"], table.extra["pitch_deg"]])
+    np.testing.assert_allclose(user_directions(angles, "euler_deg"), six_position(), atol=1e-12)
+    code, out, err = run(capsys, "calibrate", str(path), "--method", "sixpos", "-o", str(tmp_path / "cal.json"))
+    assert code == 0, err
+    cal = caltypes.load(tmp_path / "cal.json")
+    # noise-free: the fitted W, V map every simulated pose onto its true direction
+    np.testing.assert_allclose(cal.correct(table.acc), six_position(), atol=1e-8)
