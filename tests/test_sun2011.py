@@ -312,3 +312,24 @@ def test_cli_rejects_zero_runs(capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["reproduce", "sun2011", "--runs", "0"])
     assert code == 2
     assert "--runs" in capsys.readouterr().err
+
+
+def test_cli_failed_acceptance_exits_1_with_one_line(capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
+    from optcal.reproduce import sun2011
+
+    real_run = sun2011.run
+
+    def run_with_a_failed_check(**kwargs):
+        res = real_run(**kwargs)
+        res["acceptance"][0]["met"] = False  # as if the b_x, b_y check had failed on these numbers
+        return res
+
+    monkeypatch.setattr(sun2011, "run", run_with_a_failed_check)
+    code = main(["reproduce", "sun2011", "--runs", "4", "--seed", "1"])
+    out, err = capsys.readouterr()
+    assert code == 1
+    last = err.splitlines()[-1]  # after any solver warnings of the Monte Carlo fits
+    assert last.startswith("acceptance failed: b_x, b_y within 10% of the set value") and err.count("acceptance failed") == 1
+    assert "--method convex" not in err
+    assert "  [FAILED] b_x, b_y within 10%" in out and "[ok] paths (30°, 50°)" in out
+    assert "{" not in out and "(30, 50) yes" in out

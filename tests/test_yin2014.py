@@ -84,3 +84,16 @@ def test_cli_quick_json_prints_one_object(capsys) -> None:
     for axis in "xyz":  # the white-noise level is well determined even by a 2 h log
         assert abs(out["allan"][axis]["velocity_random_walk"]["relative_error"]) < 0.10
     assert len(out["ekf"]["sse_filtered"]) == 3
+
+
+def test_text_report_prints_the_acceptance_as_plain_lines(full_run: dict) -> None:
+    text = yin2014._text_report(full_run)
+    tail = text[text.index("Acceptance:"):].splitlines()[1:]
+    assert len(tail) == 3 and all(line.startswith("  [ok] ") for line in tail), tail
+    assert "{" not in text and "'" not in text.replace("'s", "")
+
+
+def test_quick_run_tolerances_widen_with_the_shorter_log() -> None:
+    quick = yin2014.tolerance_for(yin2014.QUICK_STATIC_LOG_HOURS)
+    assert quick["rate_random_walk"] == pytest.approx(0.25 * np.sqrt(6.0))
+    assert yin2014.tolerance_for(yin2014.STATIC_LOG_HOURS) == yin2014.TOLERANCE

@@ -29,9 +29,11 @@ EXIT_SOLVER_ERROR = 3
 
 #: How a library message's Python wording reads on the command line: regular expression ->
 #: replacement, applied in order after the command's own table (:data:`COMMAND_SPELLING`).
+#: IPOPT's advice when it stops early (optcal.estimators.mle.IPOPT_REMEDY), which names Python arguments.
+IPOPT_ADVICE = re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)")
 CLI_SPELLING: dict[str, str] = {
-    # IPOPT's advice (optcal.estimators.mle.IPOPT_REMEDY): the command line sets no IPOPT options
-    re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)"):
+    # the command line sets no IPOPT options
+    IPOPT_ADVICE:
         "on the command line, try --method convex (the convex fit alone, no IPOPT) or add poses in orientations "
         "not yet covered",
     re.escape('check ipopt_options, or use method="convex"'): "use --method convex",
@@ -54,6 +56,7 @@ CLI_SPELLING: dict[str, str] = {
 COMMAND_SPELLING: dict[str, dict[str, str]] = {
     "apply": {r'\bunits="([^"]*)"': r"--data-units \1"},  # apply's --units is the output unit
     "export": {r' \(or pass units="[^"]*" if that is what it is\)': ""},  # export reads --poses in their own units
+    "reproduce": {IPOPT_ADVICE: "the reproduction keeps that fit and reports it"},  # its fits are fixed by the paper
 }
 
 #: name -> "module:attribute" of a click command.  Add one line per command.
@@ -124,7 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = functools.partial(_show_warning, warnings.showwarning, command)
-            cli.main(args=argv, prog_name="optcal", standalone_mode=False, obj={"argv": args})
+            # without standalone mode click returns the code of a click.exceptions.Exit (e.g. a failed acceptance)
+            exit_code = cli.main(args=argv, prog_name="optcal", standalone_mode=False, obj={"argv": args})
     except InputError as exc:
         click.echo(f"error: {cli_message(str(exc), command)}", err=True)
         return EXIT_INPUT_ERROR
@@ -141,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(exc.exit_code)
     except (BrokenPipeError, KeyboardInterrupt):
         return 1
-    return 0
+    return exit_code if isinstance(exit_code, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

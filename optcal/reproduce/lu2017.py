@@ -34,6 +34,7 @@ from optcal.model import (
     LU2017_TABLE1_O_REF,
     lu2017_reference_model,
 )
+from optcal.reproduce.command_output import show_progress
 from optcal.result import jsonable
 from optcal.simulate import lu2017_sweeps, simulate_poses, tilted_sweeps
 
@@ -201,7 +202,7 @@ def format_report(res: dict[str, Any]) -> str:
 @click.option("--seed", type=int, default=0, show_default=True)
 def command(as_json: bool, runs: int, sigma: float, seed: int) -> None:
     """Lu 2017 Table 1 by Monte Carlo with every method, and the literal schedule's identifiability."""
-    res = run(runs=runs, seed=seed, sigma=sigma, progress=True)
+    res = run(runs=runs, seed=seed, sigma=sigma, progress=show_progress())
     if as_json:
         click.echo(json.dumps(res, allow_nan=False))
     else:

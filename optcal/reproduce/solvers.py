@@ -48,6 +48,7 @@ from optcal.estimators.scipy_ls import ScipyLeastSquares, solve_least_squares
 from optcal.identifiability import analyse_design, cramer_rao_bound
 from optcal.model import PARAM_NAMES, LumpedModel, lu2017_reference_model, unpack_theta
 from optcal.poses import PoseTable
+from optcal.reproduce.command_output import show_progress
 from optcal.result import jsonable
 from optcal.simulate import cap_directions, simulate_poses, tilted_sweeps, uniform_directions
 
@@ -433,7 +434,7 @@ def run(quick: bool = False, runs: int | None = None, seed: int = 0, progress: b
 def format_report(res: dict[str, Any]) -> str:
     """The headline figures as readable text."""
     d = res["details"]
-    lines = ["Solver comparison (issue 7)" + (" — quick run" if res["quick"] else ""), ""]
+    lines = ["Solver comparison" + (" — quick run" if res["quick"] else ""), ""]
     eff = d["experiments"]["efficiency_140_10mg"]
     lines.append(f"Efficiency Σ MSE / Σ CRLB, {eff['design']}, {eff['runs']} runs:")
     lines += [f"  {m:<16s} {v:8.3f}" if v is not None else f"  {m:<16s}   failed" for m, v in res["efficiency"].items()]
@@ -468,7 +469,7 @@ def format_report(res: dict[str, Any]) -> str:
 @click.option("--seed", type=int, default=0, show_default=True)
 def command(as_json: bool, quick: bool, runs: int | None, seed: int) -> None:
     """Solver comparison: Cramér–Rao efficiency, speed against gd and scipy, scaling to 10⁶ poses."""
-    res = run(quick=quick, runs=runs, seed=seed, progress=True)
+    res = run(quick=quick, runs=runs, seed=seed, progress=show_progress())
     if as_json:
         click.echo(json.dumps(res, allow_nan=False))
     else:

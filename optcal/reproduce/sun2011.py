@@ -32,6 +32,7 @@ from optcal.errors import InputError, SolverError
 from optcal.identifiability import analyse_design
 from optcal.model import LumpedModel
 from optcal.poses import PoseTable
+from optcal.reproduce.command_output import acceptance_lines, exit_if_acceptance_failed, show_progress
 from optcal.result import jsonable
 from optcal.sun2011.tenposition import (
     STEP_PARAMS,
@@ -408,11 +409,22 @@ def format_report(res: dict[str, Any]) -> str:
     L.append("Conclusion")
     L.extend("  " + line for line in conclusion(res))
     L.append("")
-    for a in res["acceptance"]:
-        val = a["value"] if isinstance(a["value"], dict) else f"{a['value'] * 100:.1f}% (limit {a['limit'] * 100:.0f}%)"
-        L.append(f"  [{'ok' if a['met'] else 'NOT MET'}] {a['check']}: {val}")
+    L.append("Acceptance:")
+    L.extend(acceptance_lines(acceptance_checks(res)))
     L.append(f"  runtime {res['runtime_s']:.1f} s")
     return "\n".join(L)
+
+
+def acceptance_checks(res: dict[str, Any]) -> dict[str, bool]:
+    """The acceptance of a :func:`run` result in words (with its figures): check → met."""
+    checks = {}
+    for a in res["acceptance"]:
+        if isinstance(a["value"], dict):  # one verdict per path
+            value = ", ".join(f"{path} {'yes' if met else 'no'}" for path, met in a["value"].items())
+        else:
+            value = f"{a['value'] * 100:.1f}% (limit {a['limit'] * 100:.0f}%)"
+        checks[f"{a['check']}: {value}"] = bool(a["met"])
+    return checks
 
 
 def conclusion(res: dict[str, Any]) -> list[str]:
@@ -462,8 +474,9 @@ def conclusion(res: dict[str, Any]) -> list[str]:
 @click.option("--seed", type=int, default=0, show_default=True)
 def command(as_json: bool, runs: int, seed: int) -> None:
     """Sun 2011 Tables 2-4 by Monte Carlo, and the static ML calibration of the same data."""
-    res = run(runs=runs, seed=seed, progress=True)
+    res = run(runs=runs, seed=seed, progress=show_progress())
     if as_json:
         click.echo(json.dumps(res, allow_nan=False))
     else:
         click.echo(format_report(res))
+    exit_if_acceptance_failed(acceptance_checks(res))

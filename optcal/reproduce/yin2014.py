@@ -40,6 +40,7 @@ from optcal.estimators.sixpos import SixPositionLeastSquares, reference_from_ang
 from optcal.model import AXES, STANDARD_GRAVITY, lumped_matrix
 from optcal.yin2014.allan import AllanAnalysis, analyse_static_log, simulate_noise
 from optcal.poses import PoseTable
+from optcal.reproduce.command_output import acceptance_lines, exit_if_acceptance_failed
 from optcal.result import jsonable
 
 PAPER = 'Yin H., Zhang W., Yuan L. 2014, "An error analysis and calibration method of MEMS accelerometer", Chinese J. Sensors and Actuators 27(7)'
@@ -63,7 +64,7 @@ TRUE_NOISE_G: dict[str, dict[str, float]] = {
     "y": {"velocity_random_walk": 200e-6, "bias_instability": 100e-6, "rate_random_walk": 10e-6},
     "z": {"velocity_random_walk": 220e-6, "bias_instability": 110e-6, "rate_random_walk": 11e-6},
 }
-#: Acceptance of the issue: relative error of each noise parameter.
+#: Acceptance: relative error of each noise parameter on the STATIC_LOG_HOURS (12 h) log.
 TOLERANCE: dict[str, float] = {"velocity_random_walk": 0.10, "bias_instability": 0.10, "rate_random_walk": 0.25}
 #: Real MPU-6050 data (shared/data/mpu6050-imucalibration, see its PROVENANCE.md).
 REAL_STATIC_LOGS: tuple[str, ...] = ("example_data_tinit_calc.csv", "imu_static_test.csv")
@@ -103,8 +104,21 @@ def simulate_axes(n_samples: int, rng: np.random.Generator) -> NDArray[np.float6
 
 
 # --------------------------------------------------------------------------- 2. Allan
-def allan_against_truth(analysis: AllanAnalysis) -> dict[str, Any]:
-    """Each estimated noise parameter (SI) next to its truth, with the relative error."""
+def tolerance_for(hours: float) -> dict[str, float]:
+    """:data:`TOLERANCE` for a static log of ``hours`` instead of :data:`STATIC_LOG_HOURS`.
+
+    The relative error of an Allan deviation at a given τ falls as 1/√(number of clusters),
+    i.e. as 1/√(log length), so the same confidence on a log 6× shorter (the 2 h quick run)
+    needs tolerances √6 ≈ 2.45× wider: the rate random walk, read from the few longest clusters,
+    then legitimately misses the truth by ±40 % (seen at seed 0), outside the 12 h run's 25 %.
+    """
+    widen = float(np.sqrt(STATIC_LOG_HOURS / hours)) if hours < STATIC_LOG_HOURS else 1.0
+    return {name: tol * widen for name, tol in TOLERANCE.items()}
+
+
+def allan_against_truth(analysis: AllanAnalysis, hours: float = STATIC_LOG_HOURS) -> dict[str, Any]:
+    """Each estimated noise parameter (SI) next to its truth, with the relative error (tolerance: :func:`tolerance_for`)."""
+    tolerance = tolerance_for(hours)
     si = analysis.si_parameters()
     summary = analysis.summary()
     out: dict[str, Any] = {"units": summary["units"], "log": summary["log"]}
@@ -116,7 +130,7 @@ def allan_against_truth(analysis: AllanAnalysis) -> dict[str, Any]:
             true_si = TRUE_NOISE_G[axis][name] * STANDARD_GRAVITY
             estimate = getattr(p, name)
             rel = None if estimate is None else estimate / true_si - 1.0
-            within = rel is not None and abs(rel) <= TOLERANCE[name]
+            within = rel is not None and abs(rel) <= tolerance[name]
             ok &= within
             entry[name] = {
                 "true": true_si,
@@ -130,7 +144,7 @@ def allan_against_truth(analysis: AllanAnalysis) -> dict[str, Any]:
             p.min_reading / (TRUE_NOISE_G[axis]["bias_instability"] * STANDARD_GRAVITY) - 1.0
         )
         out[axis] = entry
-    out["tolerance"] = TOLERANCE
+    out["tolerance"] = tolerance
     out["within_tolerance"] = ok
     return out
 
@@ -298,7 +312,7 @@ def run(seed: int = 0, quick: bool = False, data_dir: str | Path | None = None) 
     hours = QUICK_STATIC_LOG_HOURS if quick else STATIC_LOG_HOURS
     static = simulate_axes(int(round(hours * 3600 * RATE_HZ)), rng)
     analysis = analyse_static_log(static, RATE_HZ, "g")
-    allan = allan_against_truth(analysis)
+    allan = allan_against_truth(analysis, hours)
 
     logs, reference, mean_noise = six_position_logs(rng)
     pose_tau = SAMPLES_PER_POSE / RATE_HZ
@@ -374,14 +388,28 @@ def _text_report(d: dict[str, Any]) -> str:
         )
     else:
         lines.append(f"Real data: {r.get('reason')}")
-    lines.append(f"Acceptance: {d['acceptance']}")
+    lines.append("Acceptance:")
+    lines += acceptance_lines(acceptance_checks(d))
     return "\n".join(lines)
+
+
+def acceptance_checks(d: dict[str, Any]) -> dict[str, bool]:
+    """The acceptance of a :func:`run` result in words: check → met."""
+    tol = d["allan"]["tolerance"]
+    limits = ", ".join(f"{name.replace('_', ' ')} ±{100 * t:.0f} %" for name, t in tol.items())
+    a = d["acceptance"]
+    return {
+        f"noise parameters within tolerance of the truth ({limits}; "
+        f"{d['settings']['static_log_hours']:g} h log)": a["noise_parameters_within_tolerance"],
+        "six-position W and V within 3 standard errors of the truth": a["W_V_within_3_stderr"],
+        "the EKF reduces the sum of squared errors on x and y": a["ekf_reduces_sse_on_x_and_y"],
+    }
 
 
 @click.command("yin2014")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulation.")
-@click.option("--quick", is_flag=True, help="2 h static log instead of 12 h (faster, looser).")
+@click.option("--quick", is_flag=True, help="2 h static log instead of 12 h (faster; tolerances √6 wider).")
 def command(as_json: bool, seed: int, quick: bool) -> None:
     """Yin 2014: six-position least squares, Allan noise parameters and the EKF, on a known truth and real data."""
     result = run(seed=seed, quick=quick)
@@ -389,3 +417,4 @@ def command(as_json: bool, seed: int, quick: bool) -> None:
         click.echo(json.dumps(result))
     else:
         click.echo(_text_report(result))
+    exit_if_acceptance_failed(acceptance_checks(result))
