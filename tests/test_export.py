@@ -214,7 +214,7 @@ def test_kalibr_imu_yaml_from_an_allan_result(allan_json, tmp_path, capsys):
     assert code == 2 and "needs the noise model" in err
 
 
-def test_ros_covariance_from_the_residual_noise(allan_json, tmp_path, capsys):
+def test_ros_covariance_from_the_allan_noise_else_the_residual(allan_json, tmp_path, capsys):
     model = lu2017_reference_model()
     d = uniform_directions(20, rng=3)
     acc = model.measure(d) + 2e-3 * np.random.default_rng(4).standard_normal((20, 3))
@@ -232,7 +232,39 @@ def test_ros_covariance_from_the_residual_noise(allan_json, tmp_path, capsys):
     assert code == 0, err
     cov = np.array(yaml.safe_load(out)["linear_acceleration_covariance"]).reshape(3, 3)
     white = np.array([allan[a]["velocity_random_walk"] ** 2 * 100.0 for a in "xyz"])
-    np.testing.assert_allclose(np.diag(cov), sigma**2 + white, rtol=1e-8)
+    # the Allan noise is preferred: the per-sample sensor noise, the residual (systematic) left out and said so
+    np.testing.assert_allclose(cov, np.diag(white), rtol=1e-8)
+    assert "is a systematic error and is not included" in out
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "ros"], capsys)
+    assert "NOT the sensor's sample noise" in out and "note: no Allan result given" in err and "--allan FILE" in err
+
+
+def test_kalibr_writes_a_labelled_random_walk_bound_only_when_asked(tmp_path, capsys):
+    # white noise only (1e-3 g per sample at 100 Hz): no +1/2 slope, so no rate random walk in the Allan result
+    rate, n = 100.0, 20_000
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * np.random.default_rng(9).standard_normal((n, 3))
+    pd.DataFrame({"t_s": np.arange(n) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2]}).to_csv(
+        tmp_path / "white.csv", index=False)
+    assert main(["allan", str(tmp_path / "white.csv"), "--json"]) == 0
+    allan = json.loads(capsys.readouterr().out)
+    assert all(allan[a]["rate_random_walk"] is None for a in "xyz")
+    (tmp_path / "allan.json").write_text(json.dumps(allan))
+    LumpedCalibration(np.eye(3), np.zeros(3)).save(tmp_path / "cal.json")
+    argv = ["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "allan.json"]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and "pass --random-walk-bound to write the upper bound" in err
+    code, out, err = run(argv + ["--random-walk-bound"], capsys)
+    assert code == 0, err
+    imu = yaml.safe_load(out)
+    bound = max(allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    assert imu["accelerometer_random_walk"] == pytest.approx(bound, rel=1e-8)
+    assert "UPPER BOUND" in out and "note: accelerometer_random_walk is an upper bound, not a measurement" in err
+    # white noise σ(τ) = N/√τ: the bound min σ(τ)√(3/τ) is N√3/τ at the longest τ of the curve
+    for a in "xyz":
+        tau = allan[a]["rate_random_walk_bound_tau_s"]
+        assert tau > 0.05 * n / rate
+        expected = allan[a]["velocity_random_walk"] * np.sqrt(3.0) / tau
+        assert allan[a]["rate_random_walk_upper_bound"] == pytest.approx(expected, rel=0.5)
 
 
 # ----------------------------------------------------------------------------- C header

@@ -49,6 +49,7 @@ CLI_SPELLING: dict[str, str] = {
     r"\bcounts_per_g\b": "--counts-per-g",
     r"\bcounts_zero=(\S+)": r"--counts-zero \1",
     r"\ballan=": "--allan FILE",
+    re.escape("random_walk_bound=True"): "--random-walk-bound",
     r"\bmax_loss_g( =)?": "--max-loss",
 }
 

@@ -57,6 +57,9 @@ class ExportOptions:
         Poses to measure the loss on, when the calibration file has none (``fitted_on``).
     allan : dict, optional
         An ``optcal allan --json`` result (``kalibr``, ``ros``).
+    random_walk_bound : bool
+        ``kalibr``: write the Allan result's upper bound of the rate random walk on axes where
+        the log shows none (labelled as a bound), instead of refusing.
     rate_hz : float, optional
         Sample rate of the IMU topic (``kalibr``; default: the Allan log's rate).
     rostopic : str
@@ -70,6 +73,7 @@ class ExportOptions:
     max_loss_g: float = DEFAULT_MAX_LOSS_G
     poses: FitPoses | None = None
     allan: dict[str, Any] | None = None
+    random_walk_bound: bool = False
     rate_hz: float | None = None
     rostopic: str = "/imu0"
     source: str = "a calibration"

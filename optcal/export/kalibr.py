@@ -7,6 +7,9 @@ Kalibr uses ``density · √update_rate`` per sample) and ``accelerometer_random
 bias diffusion); both must be positive.  optcal's Allan result gives the velocity random walk
 ``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
 (Yin 2014; :mod:`optcal.yin2014.allan`): the largest over the axes is written, each axis in a comment.
+A log too short to show the rate random walk's +1/2 slope has no ``K``; with
+``ExportOptions.random_walk_bound`` the Allan result's upper bound ``K ≤ min_τ σ(τ)·√(3/τ)``
+(reached near the longest τ) is written instead, labelled as a bound in the file and the notes.
 The gyroscope keys are not optcal's to fill in (an accelerometer calibration) and are left as
 comments.
 """
@@ -41,11 +44,20 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     walk = axis_values(options.allan, "rate_random_walk")
     if not density:
         raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
-    if not walk:
+    bounded = [a for a in AXIS_NAMES if a not in walk]
+    if bounded and options.random_walk_bound:
+        bounds = axis_values(options.allan, "rate_random_walk_upper_bound")
+        if any(a not in bounds for a in bounded):
+            raise InputError("the Allan result has no rate_random_walk_upper_bound; run optcal allan again to get one")
+        walk.update({a: bounds[a] for a in bounded})
+    elif not walk:
         raise InputError(
             "the Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
-            "Kalibr needs accelerometer_random_walk > 0: record a longer static log"
+            "Kalibr needs accelerometer_random_walk > 0: record a longer static log, or pass random_walk_bound=True "
+            "to write the upper bound the log allows"
         )
+    else:
+        bounded = []
     rate = update_rate(options.allan, options)
 
     def per_axis(values: dict[str, float]) -> str:
@@ -55,14 +67,22 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         f"# Kalibr IMU noise model exported by optcal (calibration: {options.source}, {cal.describe()})",
         "# keys as read by kalibr_common/ConfigReader.py (ImuParameters); the largest axis is written",
         f"# velocity random walk per axis, m/s^2/sqrt(Hz): {per_axis(density)}",
-        f"# rate random walk per axis, m/s^3/sqrt(Hz): {per_axis(walk)}",
+        f"# rate random walk per axis, m/s^3/sqrt(Hz): {per_axis(walk)}"
+        + (f" (UPPER BOUND on {', '.join(bounded)}: no +1/2 slope in the log)" if bounded else ""),
         f"rostopic: {options.rostopic}",
         f"update_rate: {rate:.9g}",
         f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
-        f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]",
+        f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]"
+        + (" UPPER BOUND" if max(walk, key=walk.get) in bounded else ""),
         "# gyroscope_noise_density: not measured by an accelerometer calibration; fill in (rad/s/sqrt(Hz))",
         "# gyroscope_random_walk: not measured by an accelerometer calibration; fill in (rad/s^2/sqrt(Hz))",
     ]
     notes = ["Kalibr also needs gyroscope_noise_density and gyroscope_random_walk, which optcal leaves to you"]
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
+    if bounded:
+        taus = ", ".join(f"{a} at tau {options.allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
+        notes.append(
+            f"accelerometer_random_walk is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
+            f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it"
+        )
     return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)

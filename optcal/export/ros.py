@@ -1,11 +1,12 @@
-"""ROS: the ``linear_acceleration_covariance`` of ``sensor_msgs/Imu`` from the calibration's residual noise.
+"""ROS: the ``linear_acceleration_covariance`` of ``sensor_msgs/Imu``.
 
 Upstream definition (``sensor_msgs/msg/Imu.msg``): ``float64[9] linear_acceleration_covariance``,
 row-major about x, y, z, in (m/s²)²; all zeros means "unknown".  optcal writes a diagonal
-covariance: the calibration's residual error ``σ_cal`` (rms ``|ā| − 1`` of the full model on its
-own poses, in m/s²) squared on every axis, plus, when an ``optcal allan --json`` result is given,
-the white noise of one sample on each axis, ``N_i² · rate`` (``N_i`` the velocity random walk,
-the same density-to-sample conversion Kalibr uses).
+covariance.  With an ``optcal allan --json`` result it is the sensor's noise per sample on each
+axis, ``N_i² · rate`` (``N_i`` the velocity random walk; the density-to-sample conversion Kalibr
+uses).  Without one, the only figure optcal has is the calibration's residual error ``σ_cal``
+(rms ``|ā| − 1`` of the full model on its own poses, in m/s²), squared on every axis: a
+systematic error of pose means, not the noise of a sample, and the notes say so.
 """
 
 from __future__ import annotations
@@ -28,18 +29,26 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     lines = [
         f"# sensor_msgs/Imu linear_acceleration_covariance exported by optcal from {options.source}",
         "# row-major 3x3 about x, y, z in (m/s^2)^2 (sensor_msgs/msg/Imu.msg)",
-        f"# calibration residual: rms |a|-1 = {rms_g * 1e3:.4f} mg on its {poses.n} poses, squared on each axis",
     ]
-    mapped = ["rms |a|-1 of the calibration on its poses (residual error)"]
+    residual = f"rms |a|-1 = {rms_g * 1e3:.4f} mg on its {poses.n} poses"
+    notes: list[str] = []
     if options.allan is not None:
         density = axis_values(options.allan, "velocity_random_walk")
         if len(density) < 3:
             raise InputError("the Allan result lacks the velocity random walk of an axis; it is needed for every axis")
         rate = update_rate(options.allan, options)
-        white = np.array([density[a] ** 2 * rate for a in AXIS_NAMES])
-        variance = variance + white
-        lines.append(f"# + white noise per sample: N^2 * {rate:g} Hz = {', '.join(f'{v:.4g}' for v in white)} (m/s^2)^2")
-        mapped.append("Allan velocity random walk (white noise per sample)")
+        variance = np.array([density[a] ** 2 * rate for a in AXIS_NAMES])
+        lines.append(f"# sensor noise per sample from the Allan result: N^2 * {rate:g} Hz on each axis")
+        lines.append(f"# (the calibration residual, {residual}, is a systematic error and is not included)")
+        mapped = ["Allan velocity random walk (white noise per sample)"]
+    else:
+        variance = np.full(3, (rms_g * STANDARD_GRAVITY) ** 2)
+        lines.append(f"# calibration residual: {residual}, squared on each axis (NOT the sensor's sample noise)")
+        mapped = ["rms |a|-1 of the calibration on its poses (residual error)"]
+        notes.append(
+            f"no Allan result given: the covariance is the calibration's residual error ({residual}), not the "
+            "noise of one sample; pass allan= (an optcal allan --json result of a static log) for the sensor noise"
+        )
     covariance = np.diag(variance).ravel()
     lines.append("linear_acceleration_covariance: [" + ", ".join(f"{v:.9g}" for v in covariance) + "]")
-    return ExportResult("ros", "\n".join(lines) + "\n", None, mapped, [], [])
+    return ExportResult("ros", "\n".join(lines) + "\n", None, mapped, [], notes)

@@ -462,16 +462,24 @@ class AllanAnalysis:
         One object ``{"units": {...}, "log": {...}, "x": {...}, "y": {...}, "z": {...}}``;
         each axis has ``velocity_random_walk``, ``bias_instability``, ``rate_random_walk`` (or
         None), ``ci`` and ``notes``; ``log`` gives the rate, sample count and duration.
+        ``rate_random_walk_upper_bound`` (with ``rate_random_walk_bound_tau_s``) is the largest
+        K the measured curve allows: every term of σ²(τ) is non-negative, so K²τ/3 ≤ σ²(τ) at
+        every τ and K ≤ min_τ σ(τ)·√(3/τ), reached near the longest τ.
         """
         out: dict[str, Any] = {
             "units": {**SI_UNITS, "input": self.units, "si_per_input_unit": self.si_per_unit},
             "log": {"rate_hz": self.rate_hz, "n_samples": self.n_samples, "duration_s": self.duration_s},
         }
         for axis, p in self.si_parameters().items():
+            curve = self.curves[axis]
+            k_bound = curve.adev * np.sqrt(3.0 / curve.taus)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
+            at = int(np.argmin(k_bound))
             out[axis] = {
                 "velocity_random_walk": p.velocity_random_walk,
                 "bias_instability": p.bias_instability,
                 "rate_random_walk": p.rate_random_walk,
+                "rate_random_walk_upper_bound": float(k_bound[at]) * self.si_per_unit,
+                "rate_random_walk_bound_tau_s": float(curve.taus[at]),
                 "ci": {**p.ci, "bias_instability_is_upper_bound": p.bias_instability_bound},
                 "notes": p.notes,
             }
