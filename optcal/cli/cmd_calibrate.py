@@ -69,6 +69,8 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     try:
         result = run_calibration(poses, method=method, **settings)
     except IdentifiabilityError:
+        if not as_json:  # what was read, so that the refusal can be judged against it
+            click.echo(data_line(data, poses))
         if report_path:  # the report says what is missing and which poses would fix it; the error still ends the command
             from optcal.report.document import calibration_document
 
