@@ -3,23 +3,7 @@
 import numpy as np
 import pytest
 
-from optcal.cli.main import main
-from optcal.simulate import simulate_poses, tilted_sweeps
-
-
-def run(capsys, *args):
-    code = main(list(args))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-@pytest.fixture
-def pose_csv(tmp_path, lu_model):
-    poses = simulate_poses(lu_model, tilted_sweeps(10), 0.002, rng=np.random.default_rng(3))
-    path = tmp_path / "poses.csv"
-    lines = ["ax,ay,az"] + [",".join(f"{v:.10g}" for v in row) for row in poses.acc]
-    path.write_text("\n".join(lines) + "\n")
-    return path
+from test_cli_core import pose_csv, run  # noqa: F401 (pose_csv is a fixture)
 
 
 @pytest.mark.parametrize("args, expected", [
