@@ -82,10 +82,18 @@ def test_calibrate_names_time_unit(capsys, counts_cal):
     assert "--time-unit ms contradicts the column name" in err and " time_unit " not in err
 
 
-def test_ipopt_advice_says_what_a_cli_user_can_do(capsys, pose_csv, monkeypatch):
+@pytest.fixture
+def one_ipopt_iteration(monkeypatch):
+    """IPOPT limited to one iteration; the problems built meanwhile are not kept for other tests."""
     from optcal.estimators import mle
 
     monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
+    mle.ML_PROBLEMS.clear()
+    yield
+    mle.ML_PROBLEMS.clear()
+
+
+def test_ipopt_advice_says_what_a_cli_user_can_do(capsys, pose_csv, one_ipopt_iteration):
     code, _, err = run(capsys, "calibrate", str(pose_csv), "--method", "mle")
     assert code == 0
     warning = next(line for line in err.splitlines() if line.startswith("warning: "))
@@ -108,13 +116,11 @@ def test_weakly_determined_pose_set_is_refused_with_consistent_wording(capsys, s
     assert "Fisher rank 9/9" in out and "WEAKLY DETERMINED POSE SET" in out and "does not determine" not in out
 
 
-def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, monkeypatch):
-    from optcal.estimators import mle
+def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, one_ipopt_iteration):
     from optcal.model import lu2017_reference_model
     from optcal.simulate import simulate_poses
 
     # six cube faces: rank 6 of 9 whatever the noise; an IPOPT limit of 1 iteration would warn if it ran
-    monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
     faces = np.repeat(np.vstack([np.eye(3), -np.eye(3)]), 3, axis=0)
     poses = simulate_poses(lu2017_reference_model(), faces, 0.002, rng=np.random.default_rng(1))
     path = tmp_path / "faces.csv"
