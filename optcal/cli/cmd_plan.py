@@ -64,8 +64,8 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         raise InputError("--turntable and --candidates both fix the orientations; give one")
     if target_stderr is not None and next_data is None:
         raise InputError("--target-stderr goes with --next DATA")
-    if n_poses is not None and criterion.upper() != "D" and next_data is not None:
-        raise InputError("--next always uses the D criterion")
+    if next_data is not None and criterion.upper() != "D":
+        raise InputError("--next always uses the D criterion (the largest gain in log det); drop --criterion")
 
     data_path = next_data or given_data
     poses = load_data(data_path, **data_opts) if data_path else None
