@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -32,10 +32,12 @@ from optcal.diagnosis import diagnose, save_figures
 from optcal.errors import InputError
 from optcal.extended_model import format_value
 
-HERE = Path(__file__).resolve().parent
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
+from study_mode import show, size  # noqa: E402
+
 DATA = HERE.parents[1] / "shared" / "data"
-OUT = HERE / "results"
-FIG = OUT / "figures"
 FIG.mkdir(parents=True, exist_ok=True)
 
 
@@ -90,7 +92,7 @@ for title, key, loader in RECORDINGS:
     sections.append(f"Read as a {poses.source}: {poses.n} poses, units {poses.units}; excluded: "
                     f"{dict(poses.exclusions) or 'nothing'}.")
     try:
-        diag = diagnose(poses, simulations=200)
+        diag = diagnose(poses, simulations=size(200, 10))
     except InputError as exc:
         sections += ["", f"Refused: `{exc}`", ""]
         summary.append(f"| {title} | {poses.n} | refused: {str(exc).split(':')[0]} | | | |")
@@ -98,6 +100,8 @@ for title, key, loader in RECORDINGS:
     results[key] = diag
     sections += ["", "```", diag.report(), "```", ""]
     paths = save_figures(diag, str(FIG / f"diagnose_{key}"))
+    for path in paths:
+        show(Path(path))
     sections += [f"Figures: {', '.join('`' + str(Path(p).relative_to(OUT)) + '`' for p in paths)}", ""]
     found = "; ".join(finding_text(f) for f in diag.findings) or "none"
     nm = diag.noise_model

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -30,6 +30,7 @@ import numpy as np
 
 from optcal.calibration import calibrate
 from optcal.errors import IdentifiabilityError
+from optcal.identifiability import analyse_design
 from optcal.model import PARAM_NAMES
 from optcal.plan import Prior, plan_poses
 from optcal.plan.figure import sphere_figure
@@ -37,10 +38,10 @@ from optcal.plan.information import covariance, information
 from optcal.simulate import lu2017_sweeps, simulate_poses, six_position, tilted_sweeps, uniform_directions
 from optcal.sun2011.turntable import ten_position_scheme
 
-ROOT = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
-OUT = ROOT / "results"
-FIG = OUT / "figures"
-FIG.mkdir(parents=True, exist_ok=True)
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as ROOT  # noqa: E402
+from study_mode import show, size  # noqa: E402
 SHARED = ROOT.parents[1] / "shared" / "data"
 SIGMA = 1e-3  # g per axis, per pose
 SEED = 15
@@ -95,7 +96,7 @@ for k, plan in plans.items():
 rng = np.random.default_rng(SEED)
 random_rows = []
 for n in (9, 12, 24, 36, 120):
-    draws = [scores(uniform_directions(n, rng)) for _ in range(200)]
+    draws = [scores(uniform_directions(n, rng)) for _ in range(size(200, 10))]
     eff = np.array([d_efficiency(ld, n) for ld, _ in draws])
     worst = np.array([se.max() for _, se in draws])
     random_rows.append((n, eff, worst))
@@ -128,7 +129,13 @@ lines += ["## Schedules against the best design of the same size", "",
 for name, n, eff, se in rows:
     cells = " | ".join("∞" if not np.isfinite(v) or v > 1e3 else f"{v * 1e4:.2f}" for v in se)
     lines.append(f"| {name} | {n} | {eff:.3f} | {cells} |")
-lines += ["", xsens_note, ""]
+lines += ["", xsens_note, "", "Why the zeros (optcal.identifiability on the noise-free design):", ""]
+for name, d in schedules.items():
+    report = analyse_design(NOMINAL.model, d)
+    if not report.identifiable:
+        distinct = len(np.unique(np.round(d, 9), axis=0))
+        lines.append(f"- {name}: {distinct} distinct gravity directions; {report.describe()}")
+lines.append("")
 print("\n".join(lines))
 
 # %% [markdown]
@@ -143,12 +150,12 @@ K = 12
 plan_worst = float(np.max(list(plans[K].stderr.values())))
 N = K
 while True:
-    worst = np.median([scores(uniform_directions(N, rng))[1].max() for _ in range(200)])
+    worst = np.median([scores(uniform_directions(N, rng))[1].max() for _ in range(size(200, 10))])
     if worst <= plan_worst:
         break
     N += 1
 
-runs = 300
+runs = size(300, 10)
 truth = NOMINAL.model.theta
 
 
@@ -186,6 +193,7 @@ print("\n".join(lines[-8:]))
 # %%
 fig = sphere_figure(plans[K].directions, title=f"D-optimal plan, K = {K} (efficiency {100 * plans[K].efficiency:.2f} %)")
 fig.savefig(FIG / "pose_planning_sphere_k12.png", dpi=110)
+show(FIG / "pose_planning_sphere_k12.png")
 
 from matplotlib.figure import Figure
 
@@ -204,6 +212,7 @@ ax.set_ylim(-0.03, 1.03)
 ax.legend(fontsize=7, loc="lower right")
 ax.set_title("random sets (boxes, 200 draws) against schedules and plans", fontsize=10)
 fig.savefig(FIG / "pose_planning_efficiency.png", dpi=110)
+show(FIG / "pose_planning_efficiency.png")
 
 (OUT / "pose_planning.md").write_text("\n".join(lines + [
     "Figures: `figures/pose_planning_sphere_k12.png` (the 12-pose plan on the sphere), "

@@ -9,14 +9,17 @@ import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.report_option import command_line, report_options, write_report
 
 
 @click.command()
 @click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL.json")
 @click.argument("data", type=DATA_PATH)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
+@report_options
 @data_options
-def check(calibration: str, data: str, as_json: bool, **data_opts: Any) -> None:
+def check(calibration: str, data: str, as_json: bool, report_path: str | None, tolerance: float,
+          **data_opts: Any) -> None:
     """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.
 
     DATA is a pose table or a raw recording (its static intervals are found as by
@@ -31,6 +34,12 @@ def check(calibration: str, data: str, as_json: bool, **data_opts: Any) -> None:
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     poses = load_data(data, **data_opts)
     result = check_calibration(cal, poses)
+    if report_path:
+        from optcal.data.validation import convert_to_units
+        from optcal.report.document import check_document
+
+        write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
+                                    tolerance), report_path)
     gyro_lines, gyro_out = [], {}
     if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
         from optcal.gyro.cli import gravity_check_lines

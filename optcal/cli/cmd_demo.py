@@ -109,7 +109,7 @@ def demo(data: str | None, hidden: str, effects: str | None, folds: int, simulat
 
     for f in diag.findings:
         if f.rows is not None:
-            say(f"- outliers: rows {', '.join(map(str, f.rows))} do not fit: {f.cause}.", indent=3)
+            say(f"- outliers: poses {', '.join(map(str, f.rows))} do not fit: {f.cause}.", indent=3)
         else:
             values = "; ".join(f"axis {a}: {format_value(f.effect, f.estimate[a], f.stderr[a])}" for a in f.axes)
             say(f"- {f.effect} ({values}): {f.cause}.", indent=3)
@@ -143,8 +143,8 @@ def _verdict(diag: Any, truth: Any) -> str:
     if truth.effect == "outliers":
         rows = truth.corrupt_rows(diag.poses)
         got = set(found["outliers"].rows or []) if "outliers" in found else set()
-        sideways = [f"row {r} ({abs(g) * 1e3:.1f} mg)" for r, g in zip(rows, truth.corrupt_radial_g) if r not in got]
-        text = (f"The diagnosis flagged rows {sorted(got) if got else 'none'}; the corrupted poses were rows {rows}: "
+        sideways = [f"pose {r} ({abs(g) * 1e3:.1f} mg)" for r, g in zip(rows, truth.corrupt_radial_g) if r not in got]
+        text = (f"The diagnosis flagged poses {sorted(got) if got else 'none'}; the corrupted poses were poses {rows}: "
                 f"{len(got & set(rows))} of {len(rows)} found, {len(got - set(rows))} flagged wrongly.")
         if sideways:
             text += (" Missed: " + ", ".join(sideways) + " — the part of the shift along the pose's own direction, the "

@@ -9,6 +9,7 @@ import click
 
 from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
+from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.diagnosis.effects import EFFECTS
 
 EFFECTS_HELP = (
@@ -64,9 +65,10 @@ def progress_printer(quiet: bool) -> Any:
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
                    "with the temperature, time and |a| ranges it was fitted on.")
+@report_options
 def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, output: str | None,
-             **data_opts: Any) -> None:
+             report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads).  The paper's
@@ -94,6 +96,10 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     calibration = diag.calibration() if output else None
     if calibration is not None:
         calibration.save(output_file(output))
+    if report_path:
+        from optcal.report.document import diagnosis_document
+
+        write_report(diagnosis_document(diag, poses, data, command_line(), tolerance), report_path)
     if as_json:
         out = diag.to_dict()
         out["data"] = data_summary(data, poses)

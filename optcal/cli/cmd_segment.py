@@ -9,6 +9,7 @@ import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
+from optcal.cli.report_option import check_report_path, command_line, write_report
 from optcal.cli.outputs import plot_file, plot_option
 
 #: File name of the figure when ``--plot`` names a folder.
@@ -22,8 +23,10 @@ if TYPE_CHECKING:
 @click.argument("data", type=DATA_PATH)
 @plot_option(f"a figure of |a|, the detector's statistics and the intervals ({FIGURE_NAME})")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
+              callback=check_report_path, help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
 @data_options
-def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -> None:
+def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | None, **data_opts: Any) -> None:
     """Find the static intervals of a raw recording and the pose each one gives.
 
     DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
@@ -40,6 +43,11 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
             figure = None
         else:
             segmentation_figure(seg).savefig(figure, dpi=120)
+    if report_path is not None:
+        from optcal.report.document import segmentation_document
+
+        text = segmentation_report(poses.meta, seg) if seg is not None else f"nothing to segment: {poses.n} poses, one per row"
+        write_report(segmentation_document(poses, seg, data, command_line(), text), report_path)
     if as_json:
         out = {"data": data_summary(data, poses)}
         if seg is not None:

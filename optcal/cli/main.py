@@ -77,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = functools.partial(_show_warning, warnings.showwarning)
-            cli.main(args=argv, prog_name="optcal", standalone_mode=False)
+            cli.main(args=argv, prog_name="optcal", standalone_mode=False,
+                     obj={"argv": list(sys.argv[1:] if argv is None else argv)})
     except InputError as exc:
         click.echo(f"error: {cli_message(str(exc))}", err=True)
         return EXIT_INPUT_ERROR

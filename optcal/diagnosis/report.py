@@ -104,7 +104,8 @@ def diagnosis_report(diag: "Diagnosis") -> str:
     for f in diag.findings:
         lines.append(f"   {f.effect}: {f.cause}")
         if f.rows is not None:
-            lines.append(f"      rows {', '.join(str(r) for r in f.rows)} given zero weight")
+            named = "poses" if diag.poses.source == "raw recording" else "poses in file rows"
+            lines.append(f"      {named} {', '.join(str(r) for r in f.rows)} given zero weight")
         for ax in f.axes:
             order = f.order[ax]
             change = f.change_over_data[ax]

@@ -123,7 +123,7 @@ class SimulationCheck:
             return None
         return (
             f"({len(self.statistics)} statistics at {self.band * 100:g} % each: about "
-            f"{len(self.statistics) * (1 - self.band):.2g} would fall outside by chance; the selection below is the test)"
+            f"{len(self.statistics) * (1 - self.band):.2g} would fall outside by chance: a band alone names no effect; the forward selection tests them)"
         )
 
     def to_dict(self) -> dict[str, Any]:

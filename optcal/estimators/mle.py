@@ -593,7 +593,8 @@ class MaximumLikelihood:
             if down.size:
                 notes.append(
                     f"{down.size} pose(s) down-weighted below 0.5 by the {self.loss} loss "
-                    f"(rows {', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
+                    f"({'poses' if poses.source == 'raw recording' else 'file rows'} "
+                    f"{', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
                 )
         form = "SX, exact Hessian" if isinstance(problem, MLProblem) else "numpy callbacks, Gauss-Newton Hessian"
         solver = SolverInfo(
