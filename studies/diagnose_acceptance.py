@@ -65,7 +65,7 @@ N_HIDDEN = int(os.environ.get("N_HIDDEN", "1" if QUICK else "2" if SMOKE else "6
 N_CORNER = int(os.environ.get("N_CORNER", "0" if QUICK else "1" if SMOKE else "40"))
 N_RAW = int(os.environ.get("N_RAW", "1" if SMOKE else "6"))
 #: Issue 13's families (seeds per effect; override with N13=... for a longer run).
-N13 = int(os.environ.get("N13", "1" if SMOKE else "20"))
+N13 = int(os.environ.get("N13", "0" if QUICK else "1" if SMOKE else "20"))
 XSENS = HERE.parents[1] / "shared" / "data" / "imutk-xsens" / "xsens_imutk.csv"
 
 
@@ -400,7 +400,7 @@ for effect in ("none", *EFFECTS):
     report.append(f"| {effect} | {len(rs)} | {rate_line(rs)} | {sum(r['noise_named'] for r in rs)} | "
                   f"{np.median([r['chi2_after'] for r in rs]):.2f} |")
 report.append("")
-units = pool_map(run_units, [(e, 6000 + s, u) for e in EFFECTS[:4] for s in range(max(N13 // 2, 1)) for u in ("counts", "m/s^2")])
+units = pool_map(run_units, [(e, 6000 + s, u) for e in EFFECTS[:4] for s in range(max(N13 // 2, min(N13, 1))) for u in ("counts", "m/s^2")])
 report += ["## 10. Counts and m/s² inputs (the same recordings read in either unit)", "",
            "| effect | counts | m/s² |", "|---|---|---|"]
 for effect in EFFECTS[:4]:
@@ -408,7 +408,7 @@ for effect in EFFECTS[:4]:
     report.append(f"| {effect} | {cells[0]} | {cells[1]} |")
 report.append("")
 if XSENS.exists():
-    xs = pool_map(run_xsens, [(e, 7000 + s) for e in EFFECTS[:4] for s in range(max(N13 // 2, 1))])
+    xs = pool_map(run_xsens, [(e, 7000 + s) for e in EFFECTS[:4] for s in range(max(N13 // 2, min(N13, 1)))])
     report += ["## 11. Effects planted in the real Xsens recording", "",
                "Base model: the recording's own maximum-likelihood calibration; synthetic warm-up/cool-down "
                "temperature channel; 0.3-0.45 mg/°C, 200-300 ppm/°C, 2-3 mg drift over 512 s, 3-4.5 mg/g²; the "
