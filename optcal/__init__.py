@@ -6,13 +6,29 @@ CasADi), and compared with the paper's gradient-descent baseline.  See :mod:`opt
 for the conventions.
 """
 
-from optcal.errors import IdentifiabilityError, InputError, OptcalError, SolverError
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.poses import PoseTable
+from typing import Any
+
+from optcal.errors import ConvergenceWarning, IdentifiabilityError, InputError, OptcalError, SolverError
 
 __version__ = "0.1.0"
 
+#: Names imported on first use (PEP 562), so that ``optcal --help`` does not import numpy.
+_LAZY: dict[str, str] = {
+    "LumpedModel": "optcal.model",
+    "lu2017_reference_model": "optcal.model",
+    "PoseTable": "optcal.poses",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'optcal' has no attribute {name!r}")
+
 __all__ = [
+    "ConvergenceWarning",
     "IdentifiabilityError",
     "InputError",
     "LumpedModel",

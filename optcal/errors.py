@@ -1,8 +1,17 @@
-"""Exceptions raised by optcal.
+"""Exceptions and warnings raised by optcal.
 
-Every problem with the user's input raises :class:`InputError` (or a subclass) with a
-message that says what is wrong and how to fix it.  The command line turns these into a
-single ``error: ...`` line on standard error and exit code 2, without a traceback.
+* :class:`InputError` (and its subclasses :class:`IdentifiabilityError`, :class:`FitError`):
+  the data or the options cannot be used as they are; the message says what is wrong and
+  which argument fixes it.  Command line: one ``error: ...`` line, exit code 2.
+* :class:`SolverError`: a numerical solver failed (it raised, returned an error status or a
+  non-finite answer) on input that was acceptable.  Command line: one ``error: ...`` line,
+  exit code 3.
+* :class:`ConvergenceWarning`: a solver stopped before its convergence test passed (an
+  iteration limit, a stalled line search); the result is returned, its solver record says
+  so (``result.solver.success`` is false).  Command line: one ``warning: ...`` line.
+
+Messages name Python arguments (``allow_degenerate=True``); the command line translates them
+into its flags (:data:`optcal.cli.main.CLI_SPELLING`).
 """
 
 from __future__ import annotations
@@ -31,8 +40,12 @@ class IdentifiabilityError(InputError):
 
 
 class SolverError(OptcalError, RuntimeError):
-    """A numerical solver failed in a way the caller should know about."""
+    """A numerical solver failed: it raised, returned an error status or a non-finite answer."""
 
 
 class FitError(InputError):
     """The data do not determine a calibration by the chosen method (e.g. a hyperboloid)."""
+
+
+class ConvergenceWarning(UserWarning):
+    """A solver stopped before converging; the returned result is its last iterate."""

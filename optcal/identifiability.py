@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.model import LumpedModel
@@ -139,6 +138,8 @@ def _describe_null_space(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
     axes = "xyz"
     names = [f"A_{axes[i]}{axes[j]}" for i, j in A_INDEX] + ["o_x", "o_y", "o_z"]
     M = np.vstack([dA_dtheta(T) @ vectors[:6], vectors[6:9]])  # (9, k) change of (A, o)
+    import scipy.linalg  # only for a degenerate pose set: keeps scipy out of every fit's start-up
+
     k = vectors.shape[1]
     _, _, piv = scipy.linalg.qr(M.T, pivoting=True)
     pivots = piv[:k]

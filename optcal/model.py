@@ -108,7 +108,7 @@ def canonical_T(A: ArrayLike) -> NDArray[np.float64]:
     except np.linalg.LinAlgError as exc:
         raise InputError(
             "the fitted quadric is not an ellipsoid (A is not positive definite); "
-            "use --method convex, which constrains A to be positive definite"
+            'use method="convex", which constrains A to be positive definite'
         ) from exc
     U = L.T  # upper, Uᵀ U = P A P
     return P @ U @ P  # lower, Tᵀ T = A

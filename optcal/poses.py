@@ -10,12 +10,15 @@ non-static poses, non-finite rows, ...) is counted in :attr:`PoseTable.exclusion
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
+
+if TYPE_CHECKING:
+    from optcal.data.decisions import DataDecisions
 
 #: Minimum number of poses for the nine identifiable parameters.
 MIN_POSES: int = 9
@@ -66,6 +69,9 @@ class PoseTable:
         Further per-pose columns (e.g. ``roll_deg``, ``gx_ref``), each of length n.
     meta : dict
         Free-form provenance (file name, detected segments, thresholds, ...).
+    decisions : optcal.data.decisions.DataDecisions or None
+        How the data file was read (kind, columns, units, time base, rate, exclusions, each
+        with its reason), for tables loaded from a file.
     """
 
     acc: NDArray[np.float64]
@@ -80,6 +86,7 @@ class PoseTable:
     exclusions: dict[str, int] = field(default_factory=dict)
     extra: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    decisions: DataDecisions | None = None
 
     def __post_init__(self) -> None:
         acc = np.asarray(self.acc, dtype=float)

@@ -361,8 +361,23 @@ class CalibrationResult:
 
     __hash__ = None  # type: ignore[assignment]
 
+    def _engineering_text(self) -> str:
+        """The block of scale factors, non-orthogonality angles and biases (:mod:`optcal.report.parameters`)."""
+        from optcal.data.units import nominal_conversion
+        from optcal.report.parameters import result_parameters
+
+        zero = nominal_conversion(self.units, self.fitted_on.acc).offset if self.fitted_on is not None else None
+        params = result_parameters(self, zero)
+        lines = ["[[Scale factors, non-orthogonality, bias]]"]
+        for q in params.rows:
+            lines.append(f"    {q.symbol:<5s} = {q.value:>13.7g} +/- {q.stderr:<8.2g} {q.unit:<9s} {q.name}")
+        if np.any(params.zero):
+            lines.append(f"    (bias in mg measured from the nominal zero reading {', '.join(f'{z:g}' for z in params.zero)} {self.units})")
+        lines.append("    (mounting misalignment: not determined by static poses; the frame is the sensor's x axis and xy plane)")
+        return "\n".join(lines)
+
     def report(self) -> str:
-        """Readable text report (parameters ± standard error, fit statistics, solver)."""
+        """Readable text report (parameters ± standard error, scale factors and angles, fit statistics, solver)."""
         se = self.stderr
         lines = [
             f"[[Calibration: method {self.method}]]",
@@ -383,17 +398,24 @@ class CalibrationResult:
         ]
         for name, value in zip(self.param_names, self.params):
             e = se.get(name, float("nan"))
-            rel = f"({abs(e / value) * 100:.2f}%)" if value != 0 and np.isfinite(e) else ""
+            rel = f"({abs(e / value) * 100:.2g} %)" if value != 0 and np.isfinite(e) else ""
             lines.append(f"    {name:<12s} = {value: .8g} +/- {e:.3g} {rel}")
-        lines.append("[[A = T'T]]")
+        lines.append(self._engineering_text())
+        lines.append(f"[[A = T'T, g² per {self.units}²]]")
+        A_se = self.A_stderr
         for i in range(3):
-            lines.append("    " + "  ".join(f"{self.A[i, j]: .6f}" for j in range(3)))
+            lines.append("    " + "  ".join(
+                f"{self.A[i, j]: .6e}" + (f" +/- {A_se[i, j]:.2g}" if np.isfinite(A_se[i, j]) else "") for j in range(3)))
         if self.identifiability:
             idf = self.identifiability
             lines.append("[[Identifiability]]")
             lines.append(
                 f"    Fisher rank {idf.get('rank')}/{idf.get('n_params')}, condition number {idf.get('condition_number', float('nan')):.3g}"
             )
+            for item in idf.get("unidentified", []):
+                lines.append(f"    not determined: {item['text']}")
+            for item in idf.get("weak", []):
+                lines.append(f"    weakly determined: {item['text']} (standard error {item['stderr'] * 100:.2g} % of full scale)")
         if self.exclusions:
             lines.append("[[Excluded before the fit]]")
             lines.extend(f"    {k}: {v}" for k, v in self.exclusions.items())

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -49,7 +49,8 @@ from optcal.fleet.unit import UnitOutcome, fit_unit, read_unit
 from optcal.model import LumpedModel
 from optcal.simulate import cap_directions, simulate_poses, six_position, uniform_directions
 
-HERE = Path(__file__).resolve().parent
+from study_mode import size as full_or_quick  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
 SEED = 2026
 SIGMA = 0.002
 N_POSES = 120
@@ -76,7 +77,7 @@ def clean_fleet(n_units: int, seed: int, scale_error: int = 0) -> tuple[list[Uni
 # %%
 t0 = time.perf_counter()
 flag_rows = []
-for n_units, n_fleets in ((50, 40), (100, 20), (300, 10), (1000, 4)):
+for n_units, n_fleets in full_or_quick(((50, 40), (100, 20), (300, 10), (1000, 4)), ((30, 1),)):
     flagged = total = detected = 0
     for f in range(n_fleets):
         outcomes, _ = clean_fleet(n_units + 1, SEED + 1000 * n_units + f, scale_error=1)
@@ -101,7 +102,7 @@ for r in flag_rows:
 
 # %%
 t0 = time.perf_counter()
-population, _ = clean_fleet(300, SEED + 7)
+population, _ = clean_fleet(full_or_quick(300, 40), SEED + 7)
 stats = population_stats(population)
 flag_units(population, stats)
 prior = estimate_prior(population)
@@ -115,7 +116,7 @@ weak_rows = {}
 for label, make_dirs in (("six faces ×4 (24 poses)", lambda rng: np.repeat(six_position(), 4, axis=0)),
                          ("60° cap, 30 poses", lambda rng: cap_directions(30, 60.0, rng))):
     alone, with_prior, share = [], [], []
-    for k in range(40):
+    for k in range(full_or_quick(40, 3)):
         rng = np.random.default_rng([SEED, 99, k, len(label)])
         model = unit_model(rng)
         poses = simulate_poses(model, make_dirs(rng), SIGMA, rng=rng)
@@ -127,13 +128,13 @@ for label, make_dirs in (("six faces ×4 (24 poses)", lambda rng: np.repeat(six_
         with_prior.append(a_error(fit.result.params[:9], model.theta))
         share.append(fit.prior_weight)
     alone_arr, prior_arr = np.array(alone), np.array(with_prior)
-    weak_rows[label] = {"units": 40, "alone_median": float(np.median(alone_arr)), "alone_p90": float(np.quantile(alone_arr, 0.9)),
+    weak_rows[label] = {"units": len(alone), "alone_median": float(np.median(alone_arr)), "alone_p90": float(np.quantile(alone_arr, 0.9)),
                         "alone_failed": int(np.sum(~np.isfinite(alone_arr))), "prior_median": float(np.median(prior_arr)),
                         "prior_p90": float(np.quantile(prior_arr, 0.9)), "prior_max": float(prior_arr.max()),
                         "mean_prior_share": np.mean(share, axis=0).round(3).tolist()}
 
 own_err, prior_err = [], []
-for k in range(100):
+for k in range(full_or_quick(100, 5)):
     rng = np.random.default_rng([SEED, 55, k])
     model = unit_model(rng)
     poses = simulate_poses(model, uniform_directions(N_POSES, rng), SIGMA, rng=rng)
@@ -155,7 +156,7 @@ print(json.dumps(RESULTS["prior"], indent=1))
 # ## 3. A measured run of 10⁴ synthetic units
 
 # %%
-N_RUN = int(os.environ.get("OPTCAL_FLEET_UNITS", "10000"))
+N_RUN = int(os.environ.get("OPTCAL_FLEET_UNITS", full_or_quick("10000", "40")))
 with tempfile.TemporaryDirectory() as tmp:
     t0 = time.perf_counter()
     fleet = write_fleet(Path(tmp) / "units", N_RUN, seed=SEED, scale_error_units=2, six_face_units=5, unreadable_units=5)
@@ -199,7 +200,7 @@ def per_unit_ms(step, items) -> tuple[float, float]:
 
 
 with tempfile.TemporaryDirectory() as tmp:
-    write_fleet(tmp, 120, SEED + 5, scale_error_units=0, six_face_units=0, unreadable_units=0)
+    write_fleet(tmp, full_or_quick(120, 10), SEED + 5, scale_error_units=0, six_face_units=0, unreadable_units=0)
     units = expand_inputs([tmp])
     tables = [read_unit(u, {}) for u in units]
     own = [fit_unit(u, p) for u, p in zip(units, tables)]
@@ -213,4 +214,4 @@ with tempfile.TemporaryDirectory() as tmp:
     RESULTS["stages"] = {"wall_ms": {k: v[0] for k, v in stages.items()}, "cpu_ms": {k: v[1] for k, v in stages.items()},
                          "file_bytes": Path(units[0].path).stat().st_size, "load_average_1min": os.getloadavg()[0]}
 print(RESULTS["stages"])
-(HERE / "results" / "fleet_scale.json").write_text(json.dumps(RESULTS, indent=1, default=float))
+(OUT / "fleet_scale.json").write_text(json.dumps(RESULTS, indent=1, default=float))

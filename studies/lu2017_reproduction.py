@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -29,16 +29,16 @@ from optcal import calibrate
 from optcal.model import lu2017_reference_model
 from optcal.reproduce.lu2017 import format_report, run
 from optcal.simulate import simulate_poses, tilted_sweeps
-
-OUT = Path(__file__).resolve().parent / "results"
-FIG = OUT / "figures"
-FIG.mkdir(parents=True, exist_ok=True)
+from study_mode import FIGURES as FIG
+from study_mode import show  # noqa: E402
+from study_mode import RESULTS as OUT
+from study_mode import size
 
 # %% [markdown]
 # ## Table 1 by Monte Carlo (200 runs, 1 mg per pose) and the literal schedule
 
 # %%
-res = run(runs=200, seed=0, sigma=0.001, progress=False)
+res = run(runs=size(200, 10), seed=0, sigma=0.001, progress=False)
 text = format_report(res)
 print(text)
 
@@ -63,6 +63,7 @@ ax.set_title("Lu 2017 Fig. 2 analogue: norm of the measured specific force")
 ax.legend()
 fig.tight_layout()
 fig.savefig(FIG / "lu2017_fig2_norm.png", dpi=120)
+show(FIG / "lu2017_fig2_norm.png")
 
 fig = plt.figure(figsize=(9, 4.2))
 for k, (pts, title) in enumerate(((poses.acc, "before calibration"), (cal, "after calibration"))):
@@ -75,6 +76,7 @@ for k, (pts, title) in enumerate(((poses.acc, "before calibration"), (cal, "afte
 fig.suptitle("Lu 2017 Fig. 3 analogue: measured gravity vectors and the unit sphere")
 fig.tight_layout()
 fig.savefig(FIG / "lu2017_fig3_cloud.png", dpi=120)
+show(FIG / "lu2017_fig3_cloud.png")
 
 # %%
 rms_before = float(np.sqrt(np.mean((raw_norm - 1) ** 2)))

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from optcal.calibration import calibrate
-from optcal.cli.cmd_segment import plot_segmentation
+from optcal.cli.cmd_segment import segmentation_figure
 from optcal.data import StaticSettings, load, load_recording, load_with_segmentation
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
@@ -39,10 +39,12 @@ from optcal.data.units import NominalConversion
 from optcal.data.validation import check_calibration, displacement_integration, held_out_validation
 from optcal.errors import InputError
 
-HERE = Path(__file__).resolve().parent
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
+
 DATA = HERE.parents[1] / "shared" / "data"
-OUT = HERE / "results"
-FIG = OUT / "figures"
 FIG.mkdir(parents=True, exist_ok=True)
 XSENS = DATA / "imutk-xsens" / "xsens_imutk.csv"
 MPU = DATA / "mpu6050-imucalibration"
@@ -73,9 +75,9 @@ fer = load_with_segmentation(FERRARIS / "example_ferraris_session.csv", rate=102
 ann_frame = pd.read_csv(FERRARIS / "annotated_session.csv").sort_values("samples")
 ann_rec = recording_from_source(source_from_frame(ann_frame, "annotated_session.csv (sorted by samples)", "csv"), rate=204.8)
 ann = detect_static(ann_rec)
-plot_segmentation(xs.segmentation, FIG / "real_xsens_segments.png")
-plot_segmentation(mpu.segmentation, FIG / "real_mpu6050_segments.png")
-plot_segmentation(fer.segmentation, FIG / "real_ferraris_segments.png")
+segmentation_figure(xs.segmentation).savefig(FIG / "real_xsens_segments.png", dpi=120)
+segmentation_figure(mpu.segmentation).savefig(FIG / "real_mpu6050_segments.png", dpi=120)
+segmentation_figure(fer.segmentation).savefig(FIG / "real_ferraris_segments.png", dpi=120)
 
 rows = []
 for name, loaded in (("Xsens MTi (IMU-TK)", xs), ("MPU-6050 calibration log", mpu), ("imucal Ferraris session", fer)):
@@ -123,7 +125,7 @@ xsens_sheet = NominalConversion(np.array([33123.0, 33276.0, 32360.0]), 414.33 * 
                                 "Xsens offsets (33123, 33276, 32360) and scale ≈ 414 counts per m/s² (imu_tk_matlab)")
 mpu_sheet = NominalConversion(np.zeros(3), 16384.0, "MPU-6050 ±2 g: 16384 counts/g, no offset (datasheet)")
 cal_x = calibrate(xs.poses)
-cal_m = calibrate(mpu.poses)
+cal_m = calibrate(mpu.poses, allow_degenerate=True)  # 10 hand-held poses: A_xy only weakly determined (optcal refuses without this)
 rows = []
 checks = {}
 for name, loaded, cal, sheet in (("Xsens", xs, cal_x, xsens_sheet), ("MPU-6050", mpu, cal_m, mpu_sheet)):
@@ -167,6 +169,7 @@ for ax, (name, c) in zip(axes, checks.items()):
     ax.legend(fontsize=8)
 fig.tight_layout()
 fig.savefig(FIG / "real_norm_residuals.png", dpi=120)
+show(FIG / "real_norm_residuals.png")
 plt.close(fig)
 
 # %% [markdown]
@@ -273,6 +276,7 @@ for ax, (name, (before, after)) in zip(np.atleast_1d(axes), curves.items()):
     ax.legend(fontsize=8)
 fig.tight_layout()
 fig.savefig(FIG / "real_displacement.png", dpi=120)
+show(FIG / "real_displacement.png")
 plt.close(fig)
 
 # %% [markdown]

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -23,6 +23,9 @@
 #     python studies/solver_comparison.py            # full study (~8 min on 2 cores)
 #     OPTCAL_STUDY_QUICK=1 python studies/solver_comparison.py   # quick check (into results/quick, not kept)
 #     OPTCAL_STUDY_REUSE=1 python studies/solver_comparison.py   # redraw tables/figures from the saved JSON
+#
+# CI executes this notebook with both set (tests/test_notebooks.py): it redraws from the saved full
+# run; the computation itself is exercised by `benchmarks/run_quick.sh` and `tests/test_solvers.py`.
 #
 # The computation is `optcal.reproduce.solvers.run` (also `optcal reproduce solvers [--json]`).
 
@@ -48,14 +51,15 @@ import numpy as np  # noqa: E402
 from optcal.model import PARAM_NAMES  # noqa: E402
 from optcal.reproduce.solvers import run  # noqa: E402
 
-HERE = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
-QUICK = os.environ.get("OPTCAL_STUDY_QUICK", "") not in ("", "0")
-OUT = HERE / "results" / ("quick" if QUICK else "")
-FIG = OUT / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
+from study_mode import QUICK  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES as HERE  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 
-if os.environ.get("OPTCAL_STUDY_REUSE", "") not in ("", "0"):  # only re-draw tables and figures
-    res = json.loads((OUT / "solver_comparison.json").read_text())
+if os.environ.get("OPTCAL_STUDY_REUSE", "") not in ("", "0"):  # only re-draw tables and figures from the full run's JSON
+    res = json.loads((HERE / "results" / "solver_comparison.json").read_text())
 else:
     res = run(quick=QUICK, seed=0, progress=sys.stderr.isatty())
     (OUT / "solver_comparison.json").write_text(json.dumps(res, indent=1, allow_nan=False))
@@ -136,6 +140,7 @@ def efficiency_plot(blocks: list[dict], x: list[float], xlabel: str, name: str, 
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(FIG / f"{name}.png", dpi=120)
+    show(FIG / f"{name}.png")
     plt.close(fig)
 
 
@@ -162,6 +167,7 @@ ax.legend(fontsize=8)
 ax.grid(True, which="both", alpha=0.3)
 fig.tight_layout()
 fig.savefig(FIG / "solvers_time_vs_poses.png", dpi=120)
+show(FIG / "solvers_time_vs_poses.png")
 plt.close(fig)
 
 # coverage: failures of svd and convex over caps and noise
@@ -186,6 +192,7 @@ for ax, m in zip(axes, ("svd", "convex-clarabel", "mle")):
 axes[0].set_ylabel("cap half-angle (coverage)")
 fig.colorbar(im, ax=axes, shrink=0.8)
 fig.savefig(FIG / "solvers_coverage_failures.png", dpi=120, bbox_inches="tight")
+show(FIG / "solvers_coverage_failures.png")
 plt.close(fig)
 
 # speed to the same cost
@@ -203,6 +210,7 @@ ax.legend(fontsize=7)
 ax.grid(True, axis="y", which="both", alpha=0.3)
 fig.tight_layout()
 fig.savefig(FIG / "solvers_speed.png", dpi=120)
+show(FIG / "solvers_speed.png")
 plt.close(fig)
 
 # %% [markdown]

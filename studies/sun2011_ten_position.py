@@ -1,6 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -39,8 +40,10 @@ from optcal.reproduce.sun2011 import conclusion, format_report, run
 from optcal.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
 from optcal.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
 
-ROOT = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
-FIG = ROOT / "results" / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
+from study_mode import RESULTS  # noqa: E402
+from study_mode import size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 RUNS, SEED = 500, 0
 settings = SimulationSettings()
@@ -86,6 +89,7 @@ axes[0, 0].legend(fontsize=8, loc="lower right")
 fig.suptitle(f"Horizontal misalignment estimates at the ten positions ({RUNS} runs, mean ± 1σ); dashed: eq. 7 limit")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_misalignment_convergence.png", dpi=120)
+show(FIG / "sun2011_misalignment_convergence.png")
 
 # %% [markdown]
 # The filter reaches the limit of eq. 7 within a few seconds at every position; the dashed
@@ -116,6 +120,7 @@ axes[0].legend(fontsize=8)
 fig.suptitle("Fine alignment at position 1a (one run): horizontal angles converge, the azimuth does not in 60 s")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_alignment_1a.png", dpi=120)
+show(FIG / "sun2011_alignment_1a.png")
 
 # %% [markdown]
 # ## 2. Filter step: 1 s against 0.1 s
@@ -176,6 +181,7 @@ a2.grid(alpha=0.3, axis="y")
 fig.suptitle("Step 3: path analysis")
 fig.tight_layout()
 fig.savefig(FIG / "sun2011_paths.png", dpi=120)
+show(FIG / "sun2011_paths.png")
 
 # %% [markdown]
 # The Monte Carlo spreads follow the shape of eq. 26 (b_z falls and τ_zx rises with β), but
@@ -189,7 +195,7 @@ fig.savefig(FIG / "sun2011_paths.png", dpi=120)
 # ## 4. Tables 2-4 analogues (`optcal reproduce sun2011`) and the results file
 
 # %%
-rep = run(runs=1000, seed=SEED)
+rep = run(runs=size(1000, 20), seed=SEED)
 text = format_report(rep)
 print(text)
 
@@ -262,5 +268,5 @@ md += ["", "## Figures", "",
        "![convergence](figures/sun2011_misalignment_convergence.png)", "",
        "![alignment at 1a](figures/sun2011_alignment_1a.png)", "",
        "![paths](figures/sun2011_paths.png)", ""]
-(ROOT / "results" / "sun2011.md").write_text("\n".join(md), encoding="utf-8")
-print("wrote", ROOT / "results" / "sun2011.md")
+(RESULTS / "sun2011.md").write_text("\n".join(md), encoding="utf-8")
+print("wrote", RESULTS / "sun2011.md")

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -34,17 +34,21 @@ from optcal.model import AXES, STANDARD_GRAVITY
 from optcal.yin2014.allan import analyse_static_log, plot_allan
 from optcal.reproduce import yin2014
 
-OUT = Path(__file__).resolve().parent / "results"
-FIG = OUT / "figures"
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import show  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import QUICK, size  # noqa: E402
 FIG.mkdir(parents=True, exist_ok=True)
 SEED = 2014
 UG = 1e6 / STANDARD_GRAVITY  # µg per m/s²
+#: Length of the simulated static log (quick mode: the runner's short log; its tolerances are for 12 h).
+HOURS = yin2014.QUICK_STATIC_LOG_HOURS if QUICK else yin2014.STATIC_LOG_HOURS
 
 # %% [markdown]
 # ## The reproduction (seed 2014, 12 h static log)
 
 # %%
-result = yin2014.run(seed=SEED)
+result = yin2014.run(seed=SEED, quick=QUICK)
 print(yin2014._text_report(result))
 
 # %% [markdown]
@@ -53,26 +57,28 @@ print(yin2014._text_report(result))
 
 # %%
 rng = np.random.default_rng(SEED)
-static = yin2014.simulate_axes(int(round(yin2014.STATIC_LOG_HOURS * 3600 * yin2014.RATE_HZ)), rng)
+static = yin2014.simulate_axes(int(round(HOURS * 3600 * yin2014.RATE_HZ)), rng)
 sim_analysis = analyse_static_log(static, yin2014.RATE_HZ, "g")
 truth_text = "; ".join(
     f"{label} " + "/".join(f"{yin2014.TRUE_NOISE_G[a][name] * 1e6:g}" for a in AXES) + f" {unit}"
     for label, name, unit in (("VRW", "velocity_random_walk", "µg/√Hz"), ("BI", "bias_instability", "µg"), ("RRW", "rate_random_walk", "µg/√s"))
 )
-plot_allan(sim_analysis, FIG / "yin2014_allan_simulated.png", title=f"Simulated 12 h static log at 100 Hz; truth (x/y/z): {truth_text}")
+plot_allan(sim_analysis, FIG / "yin2014_allan_simulated.png", title=f"Simulated {HOURS:g} h static log at 100 Hz; truth (x/y/z): {truth_text}")
+show(FIG / "yin2014_allan_simulated.png")
 
 real_dir = yin2014.default_data_dir()
 real_name = yin2014.REAL_STATIC_LOGS[0]
 rec = load_recording(real_dir / real_name)
 real_analysis = analyse_static_log(rec.acc[rec.usable], rec.rate_hz, "counts", yin2014.REAL_COUNTS_PER_G)
 plot_allan(real_analysis, FIG / "yin2014_allan_mpu6050.png", title=f"MPU-6050 static log {real_name} ({real_analysis.duration_s:.0f} s)")
+show(FIG / "yin2014_allan_mpu6050.png")
 
 # %% [markdown]
 # ## Figs. 3-4 analogue: the EKF on the first (z-up) pose of the six-position run
 
 # %%
 rng = np.random.default_rng(SEED)
-yin2014.simulate_axes(int(round(yin2014.STATIC_LOG_HOURS * 3600 * yin2014.RATE_HZ)), rng)  # same stream as run()
+yin2014.simulate_axes(int(round(HOURS * 3600 * yin2014.RATE_HZ)), rng)  # same stream as run()
 logs, reference, _ = yin2014.six_position_logs(rng)
 W = np.array(result["sixpos"]["W_estimate"])
 V = np.array(result["sixpos"]["V_estimate"])
@@ -100,14 +106,15 @@ ax.legend()
 fig.suptitle("Yin 2014 EKF on the simulated z-up pose (10,000 samples at 100 Hz)")
 fig.tight_layout()
 fig.savefig(FIG / "yin2014_ekf.png", dpi=110)
+show(FIG / "yin2014_ekf.png")
 plt.close(fig)
 
 # %% [markdown]
 # ## Robustness: the acceptance over ten further seeds
 
 # %%
-seeds = range(10)
-runs = [yin2014.run(seed=s, data_dir=OUT / "no-shared-data") for s in seeds]
+seeds = range(size(10, 1))
+runs = [yin2014.run(seed=s, quick=QUICK, data_dir=OUT / "no-shared-data") for s in seeds]
 worst = {
     name: max(abs(r["allan"][a][name]["relative_error"]) for r in runs for a in AXES)
     for name in ("velocity_random_walk", "bias_instability", "rate_random_walk")

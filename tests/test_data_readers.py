@@ -133,7 +133,7 @@ def test_metadata_header_gives_the_rate(tmp_path):
     body = syn.frame[["ax", "ay", "az"]].astype(int).to_csv(index=False)
     (tmp_path / "mpu.csv").write_text("Fs,100\nLogging Type,0\nInitialization time,36.5\nWaiting time,3\n" + body)
     loaded = load_with_segmentation(tmp_path / "mpu.csv")
-    assert loaded.kind.kind == "raw recording" and "Fs,100" in loaded.kind.reason
+    assert loaded.kind.value == "raw recording" and "Fs,100" in loaded.kind.reason
     assert "100 Hz" in loaded.poses.meta["time"]
     assert loaded.poses.n == 10
     assert loaded.poses.units == "counts"
@@ -162,7 +162,7 @@ def test_pose_table_and_recording_are_told_apart(recording, tmp_path):
     r = load_with_segmentation(tmp_path / "raw.csv")
     assert p.poses.source == "pose table" and p.segmentation is None
     assert "as different poses do" in p.kind.reason
-    assert r.poses.source == "raw recording" and "time series" in r.kind.reason
+    assert r.poses.source == "raw recording" and "regular time column" in r.kind.reason
     forced = load(tmp_path / "raw.csv", kind="poses")
     assert forced.source == "pose table" and forced.n == len(recording.frame)
     assert load(tmp_path / "poses.csv", kind="poses").n == 40
@@ -289,7 +289,7 @@ def test_no_static_interval_is_one_error(tmp_path, capsys):
     ("content", "message"),
     [
         ("", "the file is empty"),
-        ("1,2,3\n4,5,6\n", "no header row found"),
+        ("1,2,3,4,5\n4,5,6,7,8\n", "has no header row (comma-separated, no header, 5 columns), and 5 unnamed columns fit no common layout; name them by 1-based position, e.g. --columns t=1,ax=2,ay=3,az=4"),
         ("x,y,z\n1,2,3\n4,5,6\n", "no accelerometer column(s) for ax, ay, az"),
         ("ax,ay,az\n", "no data rows"),
         ("ax,ay,az\n1,2\n", "line 1 looks like the header (3 columns: ax, ay, az) but line 2 has 2 fields"),

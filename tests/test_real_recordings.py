@@ -84,7 +84,7 @@ def test_mpu6050_intervals_match_the_upstream_ones():
     """Ten static intervals, in order within 0.3 s of the upstream project's ten (some of which
     are only 2-12 samples long)."""
     loaded = load_with_segmentation(need(MPU / "example_data_calibration.csv"))
-    assert loaded.kind.kind == "raw recording" and "Fs,100" in loaded.kind.reason
+    assert loaded.kind.value == "raw recording" and "Fs,100" in loaded.kind.reason
     ivs = loaded.segmentation.intervals
     assert len(ivs) == 10
     upstream = np.loadtxt(MPU / "upstream_static_intervals.csv", delimiter=",")  # row 0 starts, row 1 ends (samples)
@@ -119,8 +119,58 @@ def test_ferraris_session_has_six_orientations_and_is_not_identifiable():
 
 def test_annotated_session_is_out_of_order():
     path = need(FERRARIS / "annotated_session.csv")
-    with pytest.raises(InputError, match="time runs backwards"):
+    with pytest.raises(InputError, match="column 'samples' runs backwards"):
         load(path, rate=204.8)
     frame = pd.read_csv(path).sort_values("samples")
     seg = detect_static(recording_from_source(source_from_frame(frame, str(path), "csv"), rate=204.8))
     assert len(seg.intervals) == 6 and seg.recording.units == "counts"
+
+
+# ----------------------------------------------------------------------------- sunsided MPU-6050 (bursty host stamps)
+SUNSIDED = DATA / "sunsided-mpu6050"
+UNMOVED = [
+    "set-1/unmoved-x-pointing-forward", "set-1/unmoved-x-pointing-up", "set-1/unmoved-z-pointing-left",
+    "set-2/unmoved-with-x-pointing-forward", "set-2/unmoved-with-x-pointing-forward-10min",
+    "set-2/unmoved-with-z-pointing-front-and-x-up", "set-2/unmoved-with-z-pointing-front-and-y-down",
+]
+NEVER_STILL = [
+    "set-2/full-sphere", "set-1/tilt-sphere", "set-1/rotate-360ccw-around-x-pointing-forward",
+    "set-1/rotate-360ccw-around-y-pointing-left", "set-1/rotate-360ccw-around-z-pointing-up",
+    "set-2/rotate-ccw-around-z-pointing-up",
+]
+
+
+@pytest.mark.parametrize("folder", UNMOVED)
+def test_sunsided_unmoved_logs_are_one_pose(folder):
+    """Bursty host stamps (median step 1-2 ms) re-timed at (N−1)/duration ≈ 100 Hz: one pose each;
+    set-1/unmoved-z-pointing-left's 720 all-zero trailing rows are excluded and counted."""
+    loaded = load_with_segmentation(need(SUNSIDED / folder / "mpu6050.csv"))
+    assert loaded.poses.source == "raw recording" and loaded.poses.n == 1
+    assert loaded.decisions.time_base.value == "uniform" and "bursts" in loaded.decisions.time_base.reason
+    assert 98.5 <= loaded.segmentation.recording.rate_hz <= 101.5
+    rec = loaded.segmentation.recording
+    assert loaded.segmentation.n_used >= 0.95 * rec.usable.sum()
+    if folder.endswith("z-pointing-left"):
+        assert loaded.poses.exclusions["all-zero rows (an unfilled buffer)"] == 720
+
+
+@pytest.mark.parametrize("folder", NEVER_STILL)
+def test_sunsided_motion_logs_have_no_static_pose(folder):
+    """Continuous motion (the full sphere: 106 s of slow rotation): the gyro gate, whose floor is
+    capped at the converter's resting noise, finds no static pose, and the data are not a pose table."""
+    with pytest.raises(InputError, match="no static interval found"):
+        load(need(SUNSIDED / folder / "mpu6050.csv"))
+
+
+# ----------------------------------------------------------------------------- mikoff MPU-9150 (headerless)
+@pytest.mark.parametrize("unit", range(5))
+def test_mikoff_logs_give_22_poses(unit):
+    """'ax ay az wx wy wz', whitespace, no header, no time: read by position at the stated 100 Hz;
+    a hand-held pose interrupted by a twitch is one pose."""
+    path = need(DATA / "mikoff-mpu9150" / f"imu{unit}.log")
+    with pytest.raises(InputError, match="no time column and no sampling rate; pass --rate HZ"):
+        load(path)
+    loaded = load_with_segmentation(path, rate=100.0)
+    assert loaded.poses.n == 22
+    assert loaded.poses.units == "m/s^2" and loaded.poses.gyro is not None
+    assert "no header" in loaded.decisions.columns.reason

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
+from optcal.poses import UNITS
 
 #: Major version of the calibration file format written by this optcal.
 FORMAT_MAJOR: int = 2
@@ -273,8 +274,8 @@ class Calibration(ABC):
         check_version(d.get("format_version"))
         units = d.get("units")
         units = units.get("input") if isinstance(units, dict) else units
-        if units not in ("g", "m/s^2", "counts"):
-            raise InputError(f"the calibration's input units {units!r} are not one of g, m/s^2, counts")
+        if units not in UNITS:
+            raise InputError(f"the calibration's input units {units!r} are not one of {', '.join(UNITS)}")
         fitted = d.get("fitted_on")
         try:
             return cls.from_parameters(d, str(units), None if fitted is None else FitPoses.from_dict(fitted))

@@ -13,14 +13,14 @@ Parameters, units and equation
 
 Term coefficients of order ``p``: ``temperature_bias`` g/°C^p, ``temperature_scale`` 1/°C^p,
 ``bias_drift`` g/s^p, ``scale_nonlinearity`` g/g² (order 1 only).  The forward model (written once
-in :mod:`optcal.effects`, :class:`~optcal.effects.ExtendedModel`), with ``C = T⁻¹``,
+in :mod:`optcal.extended_model`, :class:`~optcal.extended_model.ExtendedModel`), with ``C = T⁻¹``,
 ``S_i = ‖row i of C‖``, ``y = C ā`` and ``f_i = y_i / S_i``::
 
     a_i = (1 + Σ_p s_ip ΔT^p) · S_i (f_i + k2_i f_i²) + o_i + S_i (Σ_p k_ip ΔT^p + Σ_p d_ip Δt^p)
     ΔT = temp − T_ref,   Δt = t − t_ref
 
 and :meth:`ExtendedCalibration.correct` inverts it per axis in closed form
-(:func:`optcal.effects.invert_axis`), then ``ā = T y`` (Lu 2017, eq. 6).
+(:func:`optcal.extended_model.invert_axis`), then ``ā = T y`` (Lu 2017, eq. 6).
 
 Validity range
 --------------
@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.caltypes.base import Calibration, FitPoses, ValidityRangeWarning, as_column, as_samples, jsonable, read_matrix
 from optcal.caltypes.lumped import LumpedCalibration
-from optcal.effects import MAX_ORDER, NEEDS, PARAMETRIC, UNITS, ExtendedModel, axis_number
+from optcal.extended_model import MAX_ORDER, NEEDS, PARAMETRIC, UNITS, ExtendedModel, axis_number
 from optcal.errors import InputError
 from optcal.model import AXES, LumpedModel
 
@@ -277,7 +277,7 @@ class ExtendedCalibration(Calibration):
         validity: ValidityRange | None = None,
         fitted_on: FitPoses | None = None,
     ) -> "ExtendedCalibration":
-        """The calibration of an :class:`~optcal.effects.ExtendedModel` (its non-zero terms).
+        """The calibration of an :class:`~optcal.extended_model.ExtendedModel` (its non-zero terms).
 
         ``model.base`` must have a canonical (lower-triangular) ``T``, as the extended fit
         returns; without ``validity``, the range is taken from ``fitted_on`` (else left open).
@@ -308,7 +308,7 @@ class ExtendedCalibration(Calibration):
 
     @property
     def model(self) -> ExtendedModel:
-        """The forward model (:class:`~optcal.effects.ExtendedModel`) of this calibration."""
+        """The forward model (:class:`~optcal.extended_model.ExtendedModel`) of this calibration."""
         coefficients = {effect: np.zeros((3, MAX_ORDER[effect])) for effect in PARAMETRIC}
         for term in self.terms:
             coefficients[term.effect][axis_number(term.axis), : term.order] = term.coefficients

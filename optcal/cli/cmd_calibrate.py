@@ -10,6 +10,7 @@ import click
 
 from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.report_option import command_line, report_options, write_report
 
 
 def echo_json(obj: dict) -> None:
@@ -30,13 +31,33 @@ def echo_json(obj: dict) -> None:
               help="Loss of the mle fit; huber/cauchy down-weight corrupt poses.")
 @click.option("--scale-range", nargs=2, type=float, default=None, metavar="LOW HIGH",
               help="Known range of the scale factors (raw units per g), a bound in the mle fit.")
+@click.option("--imu", is_flag=True, help="Calibrate the gyroscope too, from the moves between the poses (Tedaldi 2014): cal_type imu.")
+@click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
+              help="--imu: units of the gyro columns (default: from the column names or file, else from the data).")
+@click.option("--joint", is_flag=True, help="--imu: re-estimate the accelerometer jointly with the gyro.")
+@click.option("--g-sensitivity", is_flag=True, help="--imu: model the gyro's g-sensitivity.")
+@report_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
-              loss: str, scale_range: tuple[float, float] | None, **data_opts: Any) -> None:
-    """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording."""
-    from optcal.calibration import calibrate as run_calibration
-    from optcal.errors import InputError
+              loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
+              joint: bool, g_sensitivity: bool, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
+    """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording.
 
+    With --imu, DATA is a raw recording with gyro columns and the gyroscope is calibrated too.
+    """
+    from optcal.calibration import calibrate as run_calibration
+    from optcal.errors import IdentifiabilityError, InputError
+
+    if not imu and (gyro_units or joint or g_sensitivity):
+        raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
+    if imu:
+        from optcal.gyro.cli import calibrate_imu_command
+
+        if report_path:
+            raise InputError("--report covers the accelerometer calibration; it is not available with --imu yet")
+
+        calibrate_imu_command(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts)
+        return
     poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
     if method in ("default", "mle"):
@@ -45,9 +66,24 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             settings["scale_range"] = tuple(scale_range)
     elif loss != "squared" or scale_range:
         raise InputError("--loss and --scale-range apply to the mle method only")
-    result = run_calibration(poses, method=method, **settings)
+    try:
+        result = run_calibration(poses, method=method, **settings)
+    except IdentifiabilityError:
+        if report_path:  # the report says what is missing and which poses would fix it; the error still ends the command
+            from optcal.report.document import calibration_document
+
+            forced = {**settings, "allow_degenerate": True}
+            refused = run_calibration(poses, method=method, **forced)
+            write_report(calibration_document(refused, poses, data, command_line(), method, forced, tolerance), report_path)
+        raise
     if output:
-        result.save(output)
+        from optcal.cli.outputs import output_file
+
+        result.save(output_file(output))
+    if report_path:
+        from optcal.report.document import calibration_document
+
+        write_report(calibration_document(result, poses, data, command_line(), method, settings, tolerance), report_path)
     if as_json:
         summary = result.summary()
         summary["data"] = data_summary(data, poses)

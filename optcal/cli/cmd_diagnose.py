@@ -7,8 +7,10 @@ from typing import Any
 
 import click
 
+from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
-from optcal.effects import EFFECTS
+from optcal.cli.report_option import command_line, report_options, write_report
+from optcal.diagnosis.effects import EFFECTS
 
 EFFECTS_HELP = (
     "Candidate effects, comma-separated, from: " + ", ".join(EFFECTS)
@@ -27,48 +29,86 @@ def diagnosis_options(func: Any) -> Any:
         click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=0.02, show_default=True,
                      help="Family-wise false-finding level of each selection step."),
         click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulations."),
-        click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
-                     help="Write figures (residuals against temperature, time and each axis, before and after; "
-                          "the simulation check) into DIR."),
+        click.option("--method", type=click.Choice(METHOD_CHOICES), default="mle", show_default=True,
+                     help="Calibration method of the baseline (the start of the maximum-likelihood refit)."),
+        click.option("--plot", "plot_dir", type=click.Path(), default=None, metavar="PATH",
+                     help="Write the figures (residuals against temperature, time and each axis, before and after; "
+                          "the simulation check) into the folder PATH (created when missing)."),
+        click.option("--quiet", is_flag=True,
+                     help="No progress on stderr (bars in a terminal, stage messages otherwise)."),
     )):
         func = option(func)
     return func
+
+
+def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str) -> Any:
+    """The :class:`~optcal.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
+    from optcal.diagnosis import DiagnosisSettings
+
+    return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method)
+
+
+def progress_printer(quiet: bool) -> Any:
+    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet``."""
+    from optcal.diagnosis.progress import Progress
+
+    return Progress.for_terminal(quiet)
 
 
 @click.command()
 @click.argument("data", type=DATA_PATH)
 @data_options
 @diagnosis_options
+@click.option("--baseline", "baseline_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
+              help="Start from this saved calibration (JSON) instead of calibrating with --method.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
-def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int,
-             plot_dir: str | None, as_json: bool, **data_opts: Any) -> None:
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
+              help="Save the final model as a calibration file (extended when effects were found, else lumped), "
+                   "with the temperature, time and |a| ranges it was fitted on.")
+@report_options
+def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, output: str | None,
+             report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads).  The paper's
-    model is fitted by maximum likelihood and simulated many times on the same poses; the
-    candidate effects (temperature_bias, temperature_scale, bias_drift, scale_nonlinearity,
-    outliers) are tried per axis by forward selection (likelihood-ratio test, BIC and k-fold
-    held-out error); the findings, the final model and its gain on held-out poses are reported.
+    model is fitted (by --method, or taken from --baseline) and simulated many times on the same
+    poses; the candidate effects (temperature_bias, temperature_scale, bias_drift,
+    scale_nonlinearity, outliers) are tried per axis by forward selection (likelihood-ratio test,
+    BIC and k-fold held-out error); the findings, the final model and its gain on held-out poses
+    are reported.
     """
     from optcal.cli.data_options import data_line, data_summary, load_data
-    from optcal.diagnosis import diagnose as run_diagnosis
-    from optcal.diagnosis import save_figures
+    from optcal.caltypes import load as load_calibration
+    from optcal.diagnosis import Diagnoser, save_figures
     from optcal.result import jsonable
 
+    from optcal.cli.outputs import output_file, plot_folder
+
+    settings = settings_from(effects, folds, simulations, alpha, seed, method)
+    figures_into = plot_folder(plot_dir) if plot_dir else None
+    baseline = load_calibration(baseline_path) if baseline_path else None
     poses = load_data(data, **data_opts)
     if not as_json:
         click.echo(data_line(data, poses))
-    diag = run_diagnosis(
-        poses, effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed,
-        progress=lambda msg: click.echo(f"... {msg}", err=True),
-    )
-    paths = save_figures(diag, plot_dir) if plot_dir else []
+    diag = Diagnoser(settings, progress_printer(quiet)).run(poses, baseline)
+    paths = save_figures(diag, figures_into) if figures_into else []
+    calibration = diag.calibration() if output else None
+    if calibration is not None:
+        calibration.save(output_file(output))
+    if report_path:
+        from optcal.report.document import diagnosis_document
+
+        write_report(diagnosis_document(diag, poses, data, command_line(), tolerance), report_path)
     if as_json:
-        out = diag.to_json()
+        out = diag.to_dict()
         out["data"] = data_summary(data, poses)
         out["figures"] = paths
+        out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
     click.echo(diag.report())
     for path in paths:
         click.echo(f"figure: {path}")
+    if calibration is not None:
+        click.echo(f"saved: {output} ({calibration.describe()})")

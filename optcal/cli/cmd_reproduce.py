@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
-
 import click
+
+from optcal.cli.lazy_group import LazyGroup
 
 #: reproduction name -> "module:attribute" of its click command.  One line each.
 REPRODUCTIONS: dict[str, str] = {
@@ -15,18 +15,6 @@ REPRODUCTIONS: dict[str, str] = {
 }
 
 
-class _LazyReproductions(click.Group):
-    def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(REPRODUCTIONS)
-
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        target = REPRODUCTIONS.get(cmd_name)
-        if target is None:
-            return None
-        module, attr = target.split(":")
-        return getattr(importlib.import_module(module), attr)
-
-
-@click.group(cls=_LazyReproductions)
+@click.group(cls=LazyGroup, lazy_commands=REPRODUCTIONS)
 def reproduce() -> None:
     """Reproduce a source paper (lu2017, yin2014, sun2011) or the solver comparison."""

@@ -3,21 +3,30 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
+from optcal.cli.report_option import check_report_path, command_line, write_report
+from optcal.cli.outputs import plot_file, plot_option
+
+#: File name of the figure when ``--plot`` names a folder.
+FIGURE_NAME = "segments.png"
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @click.command()
 @click.argument("data", type=DATA_PATH)
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="Save a figure of |a|, the detector's statistics and the intervals (PNG, PDF, SVG).")
+@plot_option(f"a figure of |a|, the detector's statistics and the intervals ({FIGURE_NAME})")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the table.")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
+              callback=check_report_path, help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
 @data_options
-def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -> None:
+def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | None, **data_opts: Any) -> None:
     """Find the static intervals of a raw recording and the pose each one gives.
 
     DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
@@ -25,21 +34,28 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
     """
     from optcal.result import jsonable
 
+    figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     loaded = load_data_detailed(data, **data_opts)
     poses, seg = loaded.poses, loaded.segmentation
-    if plot_path is not None:
+    if figure is not None:
         if seg is None:
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
+            figure = None
         else:
-            plot_segmentation(seg, plot_path)
+            segmentation_figure(seg).savefig(figure, dpi=120)
+    if report_path is not None:
+        from optcal.report.document import segmentation_document
+
+        text = segmentation_report(poses.meta, seg) if seg is not None else f"nothing to segment: {poses.n} poses, one per row"
+        write_report(segmentation_document(poses, seg, data, command_line(), text), report_path)
     if as_json:
         out = {"data": data_summary(data, poses)}
         if seg is not None:
             out["segmentation"] = poses.meta["segmentation"]
         else:
             out["poses"] = {"acc": poses.acc, "rows": poses.rows}
-        if plot_path is not None and seg is not None:
-            out["plot"] = plot_path
+        if figure is not None:
+            out["plot"] = str(figure)
         click.echo(json.dumps(jsonable(out), allow_nan=False))
         return
     click.echo(data_line(data, poses))
@@ -47,8 +63,8 @@ def segment(data: str, plot_path: str | None, as_json: bool, **data_opts: Any) -
         click.echo(f"nothing to segment: {poses.n} poses, one per row")
         return
     click.echo(segmentation_report(poses.meta, seg))
-    if plot_path is not None:
-        click.echo(f"figure saved to {plot_path}")
+    if figure is not None:
+        click.echo(f"figure saved to {figure}")
 
 
 def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
@@ -76,7 +92,8 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
             f" {iv.sigma:>9.3g}" + (f" {iv.temp_mean:>6.2f}" if iv.temp_mean is not None else "")
         )
     lines.append("")
-    lines.append(f"{len(seg.intervals)} static intervals, {seg.n_used} of {rec.n} samples in poses")
+    lines.append(f"{len(seg.intervals)} static intervals, {seg.n_used} of {rec.n} samples in poses"
+                 + (f" ({seg.joined} interrupted stretch(es) joined to the pose before)" if seg.joined else ""))
     for note in meta.get("notes", []):
         lines.append(f"note: {note}")
     if seg.exclusions:
@@ -84,17 +101,18 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     return "\n".join(lines)
 
 
-def plot_segmentation(seg: Any, path: str) -> None:
-    """Figure: |a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate."""
-    import matplotlib
+def segmentation_figure(seg: Any) -> "Figure":
+    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
+    """
+    from matplotlib.figure import Figure
 
     tr = seg.trace
     t = tr["t"]
     has_gyro = "gyro_rate" in tr
-    fig, axes = plt.subplots(3 if has_gyro else 2, 1, sharex=True, figsize=(11, 7 if has_gyro else 5))
+    fig = Figure(figsize=(11, 7 if has_gyro else 5))
+    axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
     ax = axes[0]
     ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
     for iv in seg.intervals:
@@ -116,5 +134,4 @@ def plot_segmentation(seg: Any, path: str) -> None:
         ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
     axes[-1].set_xlabel("t (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig

@@ -51,6 +51,8 @@ def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samp
     frame = pd.DataFrame(poses.acc, columns=["ax", "ay", "az"])
     if poses.sigma is not None:
         frame["sigma"] = poses.sigma
-    frame.to_csv(output, index=False, float_format="%.10g")
+    from optcal.cli.outputs import output_file
+
+    frame.to_csv(output_file(output), index=False, float_format="%.10g")
     click.echo(f"wrote {poses.n} poses ({'schedule ' + schedule if not orientations else orientations}, "
                f"sigma {sigma:g} g) to {output}", err=True)

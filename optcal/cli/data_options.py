@@ -9,7 +9,8 @@ Usage in a command module::
         poses = load_data(data, **data_opts)
         click.echo(data_line(data, poses), err=...)
 
-:func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--format``
+:func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--time-unit``,
+``--timing``, ``--gyro-file`` (:func:`read_options`, the reading options alone), ``--format``
 (pose table or raw recording) and the static-detection settings ``--static-window``,
 ``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``.
 :func:`load_data` passes them to :func:`optcal.data.load`.
@@ -30,23 +31,34 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 
 #: Keyword names that :func:`data_options` adds to a command.
 DATA_OPTION_NAMES: tuple[str, ...] = (
-    "columns", "units", "topic", "rate", "data_format",
+    "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
 _NON_NEGATIVE = click.FloatRange(min=0)
 
-_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+_READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--columns", metavar="NAME=COLUMN,...", default=None,
-                 help="Map the file's column names: e.g. ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts,t=t_s "
-                      "(names: t ax ay az gx gy gz temp sigma n_samples index). Common names are recognised without it."),
+                 help="Map the file's columns by name or 1-based position: e.g. ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts,t=t_s "
+                      "or t=1,ax=2,ay=3,az=4 (names: t ax ay az gx gy gz temp sigma n_samples index). "
+                      "Common names, and the common layouts of files without a header, are recognised without it."),
     click.option("--units", type=click.Choice(["g", "m/s^2", "counts"]), default=None,
                  help="Units of the accelerometer data (default: from the column names or file format, else from the norm)."),
     click.option("--topic", default=None,
                  help="ROS bag: the sensor_msgs/Imu topic; ULog: sensor_accel[:INSTANCE] (default sensor_accel:0)."),
     click.option("--rate", type=_POSITIVE, default=None, metavar="HZ",
                  help="Sampling rate of a recording without a time column (time = row / rate)."),
+    click.option("--time-unit", type=click.Choice(["s", "ms", "us", "ns"]), default=None,
+                 help="Unit of a time column whose name does not say it [s, as documented]."),
+    click.option("--timing", type=click.Choice(["auto", "stamps", "uniform"]), default="auto", show_default=True,
+                 help="Keep the time stamps, or spread the samples evenly over the stamped span "
+                      "(auto does so for bursty or coarse stamps, and says so)."),
+    click.option("--gyro-file", type=click.Path(dir_okay=False), default=None, metavar="PATH",
+                 help="A second text file 't gx gy gz' merged on time (imu_tk writes acc and gyro in two files)."),
+)
+_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+    *_READ_OPTIONS,
     click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
                  help="Read DATA as a pose table (one row per static pose) or a raw recording (a time series); auto decides and says why."),
     click.option("--static-window", type=_POSITIVE, default=None, metavar="S",
@@ -71,6 +83,25 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
+#: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
+READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file")
+
+
+def read_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Click decorator adding the options that read a recording (``--columns`` ... ``--gyro-file``)."""
+    for option in reversed(_READ_OPTIONS):
+        func = option(func)
+    return func
+
+
+def reading_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
+    """Keywords of :func:`optcal.data.load_recording` from the options of :func:`read_options`."""
+    unknown = set(opts) - set(READ_OPTION_NAMES)
+    if unknown:
+        raise TypeError(f"not reading options: {', '.join(sorted(unknown))}")
+    return {k: opts.get(k) for k in READ_OPTION_NAMES} | {"timing": opts.get("timing") or "auto"}
+
+
 def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
     unknown = set(opts) - set(DATA_OPTION_NAMES)
     if unknown:
@@ -81,6 +112,9 @@ def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
         "topic": opts.get("topic"),
         "rate": opts.get("rate"),
         "kind": opts.get("data_format") or "auto",
+        "time_unit": opts.get("time_unit"),
+        "timing": opts.get("timing") or "auto",
+        "gyro_file": opts.get("gyro_file"),
         "window_s": opts.get("static_window"),
         "threshold": opts.get("static_threshold"),
         "gyro_threshold": opts.get("gyro_threshold"),
@@ -105,8 +139,7 @@ def load_data_detailed(path: str, **opts: Any) -> Any:
 
 
 def data_line(path: str, poses: PoseTable) -> str:
-    """One line saying what DATA was read as (every command prints it)."""
-    why = poses.meta.get("kind_reason", "")
+    """What DATA was read as, and every decision with its reason (every command prints it)."""
     if poses.source == "raw recording":
         seg = poses.meta.get("segmentation", {})
         what = (
@@ -115,7 +148,10 @@ def data_line(path: str, poses: PoseTable) -> str:
         )
     else:
         what = f"a pose table ({poses.n} poses)"
-    return f"DATA: {path} read as {what}, units {poses.units}" + (f" [{why}]" if why else "")
+    head = f"DATA: {path} read as {what}, units {poses.units}"
+    if poses.decisions is None:
+        return head
+    return "\n".join([head, *("  " + line for line in poses.decisions.lines())])
 
 
 def data_summary(path: str, poses: PoseTable) -> dict[str, Any]:
@@ -128,6 +164,7 @@ def data_summary(path: str, poses: PoseTable) -> dict[str, Any]:
         "units_reason": poses.meta.get("units_reason"),
         "n_poses": poses.n,
         "exclusions": dict(poses.exclusions),
+        "decisions": None if poses.decisions is None else poses.decisions.to_dict(),
     }
     if poses.source == "raw recording":
         seg = poses.meta.get("segmentation", {})

@@ -1,12 +1,13 @@
-"""Measured data in: pose tables and raw recordings, readers, units and static detection.
+"""Measured data in: pose tables and raw recordings, readers, evidence, decisions, static detection.
 
-:func:`load` is the one entry point every command uses for DATA.  It reads any supported
-file (:mod:`optcal.data.readers`), decides whether it is a **pose table** (one row per
-static pose) or a **raw recording** (a time series), and returns a
-:class:`~optcal.poses.PoseTable` whose ``source`` says which it saw and whose ``meta``
-records how: for a recording, the static intervals found (:mod:`optcal.data.static`),
-thresholds and per-interval statistics; every excluded sample is counted in
-``exclusions``.
+:func:`load` is the one entry point every command uses for DATA.  It runs the steps of
+:mod:`optcal.data.decisions` in order: **read** any supported file
+(:mod:`optcal.data.readers`), gather the **evidence** (one pass of statistics), make the
+**decisions** (pose table or raw recording, columns, units, time base, rate, exclusions;
+each with its reason), **convert** (a pose table, or a :class:`Recording`), and for a
+recording **segment** it into static poses (:mod:`optcal.data.static`).  The returned
+:class:`~optcal.poses.PoseTable` carries the :class:`DataDecisions` (``decisions``), and
+every excluded sample is counted in ``exclusions``.
 """
 
 from __future__ import annotations
@@ -15,18 +16,32 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from optcal.data.readers import ACC, Source, read_source
+from optcal.data.decisions import (
+    KINDS,
+    POSE_TABLE,
+    RAW_RECORDING,
+    DataDecisions,
+    Decision,
+    Evidence,
+    decide,
+    gather_evidence,
+)
+from optcal.data.readers import Source, read_source
 from optcal.data.recording import Recording, recording_from_source
 from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.data.tables import load_pose_table, pose_table_from_source, read_csv_frame
-from optcal.data.units import decide_units, nominal_conversion
 from optcal.errors import InputError
 from optcal.poses import PoseTable
 
 __all__ = [
     "KINDS",
+    "POSE_TABLE",
+    "RAW_RECORDING",
+    "decide",
+    "gather_evidence",
+    "DataDecisions",
+    "Decision",
+    "Evidence",
     "KindDecision",
     "LoadedData",
     "Recording",
@@ -41,64 +56,13 @@ __all__ = [
     "segment",
 ]
 
-#: ``--format`` choices: decide automatically, or force a pose table or a raw recording.
-KINDS: tuple[str, ...] = ("auto", "poses", "raw")
-POSE_TABLE = "pose table"
-RAW_RECORDING = "raw recording"
-#: Consecutive rows of a raw recording differ by less than this fraction of 1 g (median).
-RAW_STEP_RATIO: float = 0.02
+#: The kind decision (``value`` is ``"pose table"`` or ``"raw recording"``).
+KindDecision = Decision
 
 
-@dataclass(frozen=True)
-class KindDecision:
-    """Pose table or raw recording, and why."""
-
-    kind: str
-    reason: str
-
-
-def decide_kind(src: Source, requested: str = "auto") -> KindDecision:
-    """Tell a pose table from a raw recording.
-
-    A raw recording is a time series: consecutive rows are samples of the same (or nearly
-    the same) orientation and differ by the noise, a small fraction of ‖a‖.  A pose
-    table's consecutive rows are different orientations.  ``sigma`` or a per-pose
-    ``n_samples`` column mark a pose table; bags, ULog files and files with a sampling
-    rate in their header are recordings.
-    """
-    if requested not in KINDS:
-        raise InputError(f"unknown --format {requested!r}; use one of {', '.join(KINDS)}")
-    if requested == "poses":
-        if src.always_raw:
-            raise InputError(f"{src.path}: a {src.file_type} holds a raw recording; it cannot be read with --format poses")
-        return KindDecision(POSE_TABLE, "given with --format poses")
-    if requested == "raw":
-        return KindDecision(RAW_RECORDING, "given with --format raw")
-    if src.always_raw:
-        return KindDecision(RAW_RECORDING, f"a {src.file_type} is a time series")
-    if src.has("sigma") or src.has("n_samples"):
-        return KindDecision(POSE_TABLE, "it has per-pose columns (sigma / n_samples)")
-    if src.rate_hint is not None:
-        return KindDecision(RAW_RECORDING, f"its header gives a sampling rate ({src.rate_reason})")
-    acc = np.column_stack([src.column(c) for c in ACC])
-    acc = acc[np.all(np.isfinite(acc), axis=1)]
-    if acc.shape[0] < 3:
-        return KindDecision(POSE_TABLE, "too few rows for a recording")
-    step = float(np.median(np.linalg.norm(np.diff(acc, axis=0), axis=1)))
-    try:
-        one_g = nominal_conversion(decide_units(acc, None, src.units_hint, src.units_reason).units, acc).sensitivity
-    except InputError:
-        one_g = float(np.median(np.linalg.norm(acc, axis=1)))
-    ratio = step / one_g if one_g > 0 else 0.0
-    if ratio < RAW_STEP_RATIO:
-        return KindDecision(
-            RAW_RECORDING,
-            f"consecutive rows differ by {100 * ratio:.2g} % of 1 g (median), as samples of a time series do",
-        )
-    return KindDecision(
-        POSE_TABLE,
-        f"consecutive rows differ by {100 * ratio:.2g} % of 1 g (median), as different poses do",
-    )
+def decide_kind(src: Source, requested: str = "auto", units: str | None = None) -> Decision:
+    """Tell a pose table from a raw recording (see :func:`optcal.data.decisions.decide`)."""
+    return decide(src, gather_evidence(src), kind=requested, units=units).kind
 
 
 def load_recording(
@@ -108,9 +72,13 @@ def load_recording(
     units: str | None = None,
     topic: str | None = None,
     rate: float | None = None,
+    time_unit: str | None = None,
+    timing: str = "auto",
+    gyro_file: str | Path | None = None,
 ) -> Recording:
-    """Read a raw recording (any supported file) as a :class:`Recording`."""
-    return recording_from_source(read_source(path, columns=columns, topic=topic), units=units, rate=rate)
+    """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how)."""
+    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)
+    return recording_from_source(src, units=units, rate=rate, time_unit=time_unit, timing=timing)
 
 
 def segment(
@@ -121,9 +89,11 @@ def segment(
     topic: str | None = None,
     rate: float | None = None,
     settings: StaticSettings | None = None,
+    **read_options: Any,
 ) -> Segmentation:
     """Read a raw recording and find its static intervals."""
-    return detect_static(load_recording(path, columns=columns, units=units, topic=topic, rate=rate), settings)
+    rec = load_recording(path, columns=columns, units=units, topic=topic, rate=rate, **read_options)
+    return detect_static(rec, settings)
 
 
 @dataclass
@@ -133,14 +103,19 @@ class LoadedData:
     Attributes
     ----------
     poses : PoseTable
-    kind : KindDecision
+    decisions : DataDecisions
     segmentation : Segmentation or None
         The static detection (raw recordings only).
     """
 
     poses: PoseTable
-    kind: KindDecision
+    decisions: DataDecisions
     segmentation: Segmentation | None = None
+
+    @property
+    def kind(self) -> Decision:
+        """The kind decision (pose table or raw recording) and its reason."""
+        return self.decisions.kind
 
 
 def load_with_segmentation(
@@ -151,27 +126,29 @@ def load_with_segmentation(
     topic: str | None = None,
     rate: float | None = None,
     kind: str = "auto",
+    time_unit: str | None = None,
+    timing: str = "auto",
+    gyro_file: str | Path | None = None,
     settings: StaticSettings | None = None,
     **static_options: Any,
 ) -> LoadedData:
-    """Like :func:`load`, also returning the kind decision and the static detection."""
+    """Like :func:`load`, also returning the decisions and the static detection."""
     if settings is None:
         settings = StaticSettings.from_options(**static_options)
     elif static_options:
         raise InputError("give static-detection settings either as settings= or as keywords, not both")
-    src = read_source(path, columns=columns, topic=topic)
-    decision = decide_kind(src, kind)
-    if decision.kind == POSE_TABLE:
-        if rate is not None:
-            raise InputError(f"--rate applies to raw recordings; {path} was read as a pose table ({decision.reason})")
-        table = pose_table_from_source(src, units)
-        table.meta["kind_reason"] = decision.reason
-        return LoadedData(table, decision)
-    rec = recording_from_source(src, units=units, rate=rate)
-    seg = detect_static(rec, settings)
+    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)  # read
+    evidence = gather_evidence(src)  # evidence
+    decisions = decide(src, evidence, kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing)
+    if decisions.kind.value == POSE_TABLE:
+        return LoadedData(pose_table_from_source(src, decisions), decisions)  # conversion
+    rec = recording_from_source(src, decisions, evidence=evidence)  # conversion
+    del src, evidence  # the recording holds its own arrays: free the file's columns before segmenting
+    seg = detect_static(rec, settings)  # segmentation
     table = seg.pose_table()
-    table.meta.update(recording_meta(rec, decision.reason))
-    return LoadedData(table, decision, seg)
+    table.meta.update(recording_meta(rec, decisions))
+    table.decisions = decisions
+    return LoadedData(table, decisions, seg)
 
 
 def load(
@@ -182,6 +159,9 @@ def load(
     topic: str | None = None,
     rate: float | None = None,
     kind: str = "auto",
+    time_unit: str | None = None,
+    timing: str = "auto",
+    gyro_file: str | Path | None = None,
     settings: StaticSettings | None = None,
     **static_options: Any,
 ) -> PoseTable:
@@ -194,7 +174,8 @@ def load(
     path : str or Path
         CSV/text, Parquet, ROS 1 bag, ROS 2 bag (directory), or PX4 ULog file.
     columns : str or dict, optional
-        ``"ax=NAME,ay=NAME,az=NAME,t=NAME,..."`` for columns with other names.
+        ``"ax=NAME,ay=NAME,az=NAME,t=NAME,..."`` for columns with other names, or 1-based
+        positions (``"t=1,ax=2,ay=3,az=4"``), e.g. for a file without a header.
     units : {"g", "m/s^2", "counts"}, optional
         Units of the accelerometer data; decided from the file when omitted.
     topic : str, optional
@@ -203,6 +184,13 @@ def load(
         Sampling rate (Hz) of a recording without a time column.
     kind : {"auto", "poses", "raw"}
         Force the reading as a pose table or a raw recording (``auto`` decides and says why).
+    time_unit : {"s", "ms", "us", "ns"}, optional
+        Unit of a time column whose name does not say it (default: seconds, as documented).
+    timing : {"auto", "stamps", "uniform"}
+        Keep the time stamps, or spread the samples evenly over the stamped span (``auto``
+        does so for bursty or coarse stamps, and says so).
+    gyro_file : str or Path, optional
+        A second text file ``t gx gy gz`` merged on time (imu_tk's pair of files).
     settings : StaticSettings, optional
         Static-detection settings for raw recordings; or give them as keywords
         (``window_s=``, ``threshold=``, ``min_dwell_s=``, ...).
@@ -210,8 +198,9 @@ def load(
     Returns
     -------
     PoseTable
-        ``source`` is ``"pose table"`` or ``"raw recording"``; ``meta["kind_reason"]`` says
-        why; for a recording ``meta["segmentation"]`` lists the intervals.
+        ``source`` is ``"pose table"`` or ``"raw recording"``; ``decisions`` says why and
+        how (also ``meta["decisions"]``); for a recording ``meta["segmentation"]`` lists the
+        intervals.
 
     Raises
     ------
@@ -219,19 +208,21 @@ def load(
         Unreadable file, unknown columns, time running backwards, no static interval, ...
     """
     return load_with_segmentation(
-        path, columns=columns, units=units, topic=topic, rate=rate, kind=kind, settings=settings, **static_options
+        path, columns=columns, units=units, topic=topic, rate=rate, kind=kind, time_unit=time_unit,
+        timing=timing, gyro_file=gyro_file, settings=settings, **static_options
     ).poses
 
 
-def recording_meta(rec: Recording, kind_reason: str) -> dict[str, Any]:
+def recording_meta(rec: Recording, decisions: DataDecisions) -> dict[str, Any]:
     """Provenance of a recording for ``PoseTable.meta``."""
     return {
         "path": rec.path,
         "file_type": rec.file_type,
-        "kind_reason": kind_reason,
+        "kind_reason": decisions.kind.reason,
         "units_reason": rec.units_reason,
         "time": rec.time_reason,
         "rate_hz": rec.rate_hz,
         "duration_s": rec.duration_s,
+        "decisions": decisions.to_dict(),
         **rec.meta,
     }

@@ -1,10 +1,12 @@
-"""Readers: CSV (by header names), Parquet, ROS 1/ROS 2 bags and PX4 ULog into one tabular form.
+"""Readers (the *read* step): delimited text, Parquet, ROS 1/ROS 2 bags and PX4 ULog into one form.
 
 Every reader returns a :class:`Source`: the data under optcal's canonical column names
 (:data:`CANONICAL`), with what the file itself says about units, sampling rate and
 saturation.  Deciding whether the data are a pose table or a raw recording, and turning
 them into a :class:`~optcal.poses.PoseTable`, happens in :mod:`optcal.data`.
 
+Text files are laid out by :mod:`optcal.data.text` (any delimiter, decimal commas, with or
+without a header: a headerless file's columns are taken by position, :data:`HEADERLESS_LAYOUTS`).
 Column names are matched case-insensitively after removing a unit word
 (``acc_x_counts`` → ``acc_x`` in counts, ``t_s`` → ``t`` in seconds, ``gyr_x`` → ``gx``);
 ``--columns ax=ACC1,ay=ACC2,...`` maps any other names.  The file type is recognised from
@@ -20,13 +22,16 @@ import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
+from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.data.units import UNIT_ALIASES, normalise_units
+
+if TYPE_CHECKING:
+    from optcal.data.text import TextLayout
 
 #: optcal's column names: time, accelerometer, gyro, temperature, and the pose-table-only
 #: ``sigma`` (noise of each pose mean) and ``n_samples`` (samples averaged per pose).
@@ -36,7 +41,9 @@ GYRO: tuple[str, str, str] = ("gx", "gy", "gz")
 
 #: Normalised column names recognised for each canonical column (after a unit word is removed).
 ALIASES: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time", "timestamp", "timestamps", "stamp", "time_stamp", "sec", "seconds", "elapsed"),
+    "t": ("t", "time", "timestamp", "timestamps", "stamp", "time_stamp", "sec", "seconds", "elapsed",
+          "t_idx", "t_header", "t_sample", "t_host", "time_sample", "timestamp_sample", "header_stamp",
+          "host_time", "sensor_time", "time_idx", "epoch"),
     "temp": ("temp", "temperature", "tmp", "imu_temp", "imu_temperature"),
     "sigma": ("sigma", "noise", "std_mean"),
     "n_samples": ("n_samples", "samples", "nsamples", "count"),
@@ -78,20 +85,23 @@ ROS_TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
 
 @dataclass
 class Source:
-    """Data read from a file, under canonical column names.
+    """Data read from a file, under canonical column names (the *read* step).
 
     Attributes
     ----------
     path : str
     file_type : str
         ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"`` or ``"ulog"``.
-    frame : pandas.DataFrame
+    data : dict of str to ndarray
         Canonical columns (a subset of :data:`CANONICAL` plus ``index``) as floats; cells
         that were not numbers are NaN and counted in :attr:`non_numeric`.
     extra : dict of str to ndarray
         Further numeric columns of the file, under their own names.
     column_map : dict of str to str
-        Canonical name → the file's column name.
+        Canonical name → the file's column name (or ``#N`` for the N-th field of a file
+        without a header).
+    columns_reason : str
+        How the columns were matched (header names, positions, ``--columns``).
     ignored_columns : list of str
         Columns neither mapped nor numeric (e.g. a text label column).
     units_hint, units_reason : str or None, str
@@ -100,16 +110,21 @@ class Source:
     gyro_units : str or None
     rate_hint, rate_reason : float or None, str
         Sampling rate stated by the file (e.g. an ``Fs,100`` metadata line).
-    time_reason : str
-        How the time column was read (unit and scale).
+    time_unit, time_reason : str or None, str
+        Unit of the time column as the file states it (a unit word, or the format), and
+        how it was read; ``None`` when nothing states it (decided in :mod:`optcal.data.decisions`).
     header : dict of str to str
         Metadata lines found above the header row.
+    layout : str
+        How a text file is laid out (delimiter, decimal mark, header), for reports.
     non_numeric : dict of str to tuple
         Canonical column → (number of non-numeric cells, first data row, first value).
     saturated : ndarray of bool or None
         Per-row saturation flags stated by the file (ULog clip counters).
     always_raw : bool
         The format holds time series only (bags, ULog).
+    size_bytes : int
+        Size of the file (evidence for the kind of data).
     notes : list of str
     exclusions : dict of str to int
         What the reader could not use, counted (e.g. a message cut off by truncation).
@@ -117,33 +132,37 @@ class Source:
 
     path: str
     file_type: str
-    frame: pd.DataFrame
-    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    data: dict[str, NDArray[np.float64]]
+    extra: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     column_map: dict[str, str] = field(default_factory=dict)
+    columns_reason: str = "header names"
     ignored_columns: list[str] = field(default_factory=list)
     units_hint: str | None = None
     units_reason: str = ""
     gyro_units: str | None = None
     rate_hint: float | None = None
     rate_reason: str = ""
+    time_unit: str | None = None
     time_reason: str = ""
     header: dict[str, str] = field(default_factory=dict)
+    layout: str = ""
     non_numeric: dict[str, tuple[int, int, str]] = field(default_factory=dict)
-    saturated: np.ndarray | None = None
+    saturated: NDArray[np.bool_] | None = None
     always_raw: bool = False
+    size_bytes: int = 0
     notes: list[str] = field(default_factory=list)
     exclusions: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
-        return int(len(self.frame))
+        return int(next(iter(self.data.values())).size) if self.data else 0
 
     def has(self, *names: str) -> bool:
         """Whether every canonical column in ``names`` is present."""
-        return all(n in self.frame.columns for n in names)
+        return all(n in self.data for n in names)
 
-    def column(self, name: str) -> np.ndarray:
-        return self.frame[name].to_numpy(dtype=float)
+    def column(self, name: str) -> NDArray[np.float64]:
+        return self.data[name]
 
     def describe_columns(self) -> str:
         """``ax←acc_x_counts, ...`` for reports."""
@@ -179,6 +198,7 @@ def read_source(
     path: str | Path,
     columns: str | dict[str, str] | None = None,
     topic: str | None = None,
+    gyro_file: str | Path | None = None,
 ) -> Source:
     """Read any supported file into a :class:`Source`.
 
@@ -188,123 +208,105 @@ def read_source(
         CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``), or
         PX4 ULog file.
     columns : str or dict, optional
-        ``"ax=acc1,ay=acc2,az=acc3,t=time"``: the file's names for canonical columns
-        (tabular files only).
+        ``"ax=acc1,ay=acc2,az=acc3,t=time"``: the file's names (or 1-based positions,
+        ``"t=1,ax=2"``) for canonical columns (tabular files only).
     topic : str, optional
         ROS topic of ``sensor_msgs/Imu`` messages, or the ULog topic (``sensor_accel`` or
         ``sensor_accel:1`` for the second instance).
+    gyro_file : str or Path, optional
+        A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
+        files): merged onto the accelerometer's times.
     """
     kind = detect_file_type(path)
     if kind in ("csv", "parquet"):
         if topic is not None:
-            raise InputError(f"--topic applies to ROS bags and ULog files, not to a {kind} file")
-        frame, header = (read_delimited(path) if kind == "csv" else (read_parquet(path), {}))
-        return source_from_frame(frame, str(path), kind, parse_columns_option(columns), header)
+            raise InputError(f"topic applies to ROS bags and ULog files, not to a {kind} file")
+        mapping = parse_columns_option(columns)
+        if kind == "csv":
+            src = read_text(path, mapping)
+        else:
+            src = source_from_frame(read_parquet(path), str(path), kind, mapping)
+        if gyro_file is not None:
+            merge_gyro_file(src, gyro_file)
+        return src
     if columns:
-        raise InputError(f"--columns applies to CSV and Parquet files, not to a {kind}")
+        raise InputError(f"columns applies to CSV and Parquet files, not to a {kind}")
+    if gyro_file is not None:
+        raise InputError(f"gyro_file applies to text files, not to a {kind} (it holds its own gyro)")
     if kind == "ulog":
         return read_ulog(path, topic)
     return read_rosbag(path, topic, kind)
 
 
 # ----------------------------------------------------------------------------- tabular
-def read_delimited(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
-    """Read a delimited text file with a header row, after any metadata lines.
+#: Canonical columns of a file without a header, by its number of fields (the layouts
+#: loggers write: imu_tk's ``t ax ay az``, ``ax ay az gx gy gz``, ...).  Layouts with a
+#: leading time column apply only when that column increases.
+HEADERLESS_LAYOUTS: dict[int, tuple[str, ...]] = {
+    3: ("ax", "ay", "az"),
+    4: ("t", "ax", "ay", "az"),
+    6: ("ax", "ay", "az", "gx", "gy", "gz"),
+    7: ("t", "ax", "ay", "az", "gx", "gy", "gz"),
+}
 
-    Metadata lines (``key,value`` pairs or ``#`` comments before the header, as in the
-    MPU-6050 logs' ``Fs,100`` / ``Logging Type,0`` preamble) are returned as a dict.
-    """
+
+def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source:
+    """Read a delimited text file (any delimiter, with or without a header) into a :class:`Source`."""
+    from optcal.data.text import parse_numbers, sniff_layout
+
     p = Path(path)
-    try:
-        with p.open("r", encoding="utf-8-sig", errors="strict") as fh:
-            head = [fh.readline() for _ in range(64)]
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{p}: not a text file (and not a recognised binary format)") from exc
-    lines = [ln.rstrip("\r\n") for ln in head]
-    if not any(ln.strip() for ln in lines):
-        raise InputError(f"{p}: the file is empty; expected a header row and data rows")
-    header_at, sep, mismatch = _find_header(lines)
-    if header_at is None:
-        raise InputError(
-            f"{p}: {mismatch}" if mismatch else
-            f"{p}: no header row found (expected a row of column names such as t,ax,ay,az "
-            "followed by data rows)"
-        )
-    meta = _metadata(lines[:header_at])
-    try:
-        frame = pd.read_csv(
-            p,
-            skiprows=header_at,
-            sep=sep,
-            engine="c" if sep != r"\s+" else "python",
-            skipinitialspace=True,
-            encoding="utf-8-sig",
-            on_bad_lines="error",
-        )
-    except pd.errors.EmptyDataError as exc:
-        raise InputError(f"{p}: the file is empty; expected a header row and data rows") from exc
-    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{p}: not a readable CSV file ({str(exc).splitlines()[0]})") from exc
-    frame.columns = [str(c).strip() for c in frame.columns]
-    if len(frame) == 0:
+    layout = sniff_layout(p)
+    parsed = parse_numbers(p, layout)
+    if parsed.n_rows == 0:
         raise InputError(f"{p}: no data rows after the header")
-    return frame, meta
-
-
-def _split(line: str, sep: str) -> list[str]:
-    return line.split() if sep == r"\s+" else line.split(sep)
-
-
-def _find_header(lines: list[str]) -> tuple[int | None, str, str | None]:
-    """Index of the header row, the separator, and why no header was accepted (or None).
-
-    The header is the first row of at least two fields, all of them names (not numbers),
-    with as many fields as the row after it; rows above it are metadata.
-    """
-    rows = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith("#")]
-    mismatch = None
-    for k, (i, s) in enumerate(rows):
-        sep = next((c for c in (",", ";", "\t") if c in s), r"\s+")
-        fields = [f.strip() for f in _split(s, sep)]
-        if len(fields) < 2 or not all(_is_name(f) for f in fields if f):
-            if len(fields) >= 3:  # data rows before any header
-                return None, sep, mismatch
-            continue
-        following = rows[k + 1][1] if k + 1 < len(rows) else None
-        if following is None or len(_split(following, sep)) == len(fields):
-            return i, sep, None
-        if mismatch is None and len(fields) >= 3:
-            mismatch = (
-                f"line {i + 1} looks like the header ({len(fields)} columns: {', '.join(fields)}) but line "
-                f"{rows[k + 1][0] + 1} has {len(_split(following, sep))} fields; every data row needs one value per column"
-            )
-    return None, ",", mismatch
-
-
-def _is_name(field_: str) -> bool:
-    try:
-        float(field_)
-        return False
-    except ValueError:
-        return bool(field_)
-
-
-def _metadata(lines: list[str]) -> dict[str, str]:
-    out: dict[str, str] = {}
-    for line in lines:
-        s = line.strip().lstrip("#").strip()
-        if not s:
-            continue
-        m = re.match(r"^([^,;:=\t]+)[,;:=\t]\s*(.*)$", s)
-        if m:
-            out[m.group(1).strip()] = m.group(2).strip().rstrip(",;")
+    names = layout.names
+    mapping = dict(mapping or {})
+    reason = "header names"
+    if not layout.has_header:
+        if mapping:
+            reason = "no header; columns by position from --columns"
         else:
-            out[s] = ""
-    return out
+            mapping, reason = _headerless_mapping(p, layout, parsed.columns)
+    src = source_from_columns(
+        names, parsed.columns, str(p), "csv", mapping, layout.metadata,
+        {names[j]: v for j, v in parsed.non_numeric.items()},
+    )
+    if not layout.has_header:
+        src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
+        src.columns_reason = reason
+    elif any(v.isdigit() and v not in names for v in mapping.values()):
+        src.columns_reason = "header names and positions from --columns"
+    src.layout = layout.describe()
+    src.size_bytes = p.stat().st_size
+    return src
 
 
-def read_parquet(path: str | Path) -> pd.DataFrame:
+def _headerless_mapping(p: Path, layout: TextLayout, columns: list[NDArray[np.float64]]) -> tuple[dict[str, str], str]:
+    width = len(columns)
+    canon = HEADERLESS_LAYOUTS.get(width)
+    if canon is not None and canon[0] == "t":
+        t = columns[0][np.isfinite(columns[0])]
+        if t.size < 2 or not np.all(np.diff(t) >= 0):
+            canon = None
+    example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
+    if canon is None:
+        raise InputError(
+            f"{p}: the file has no header row ({layout.describe()}), and {width} unnamed columns fit no "
+            f"common layout; name them by 1-based position, e.g. {example}"
+        )
+    mapping = {c: str(j + 1) for j, c in enumerate(canon)}
+    what = " ".join(canon)
+    return mapping, (
+        f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
+        + ("; the first column increases" if canon[0] == "t" else "")
+        + f"); name them by position to change it, e.g. {example}"
+    )
+
+
+def read_parquet(path: str | Path) -> Any:
     """Read a Parquet file (pyarrow) into a frame."""
+    import pandas as pd
+
     try:
         frame = pd.read_parquet(path)
     except ImportError as exc:
@@ -318,11 +320,11 @@ def read_parquet(path: str | Path) -> pd.DataFrame:
 
 
 def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]:
-    """Parse ``--columns "ax=acc1,ay=acc2,t=time"`` into {canonical: file column}."""
+    """Parse ``"ax=acc1,ay=acc2,t=time"`` (names, or 1-based positions) into {canonical: file column}."""
     if columns is None or columns == "":
         return {}
     if isinstance(columns, dict):
-        pairs = list(columns.items())
+        pairs = [(str(k), str(v)) for k, v in columns.items()]
     else:
         pairs = []
         for item in str(columns).split(","):
@@ -330,15 +332,15 @@ def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]
                 continue
             if "=" not in item:
                 raise InputError(
-                    f"--columns item {item.strip()!r} is not NAME=COLUMN; write e.g. "
-                    "--columns ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts"
+                    f"columns item {item.strip()!r} is not NAME=COLUMN; write e.g. "
+                    "ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts, or by 1-based position t=1,ax=2,ay=3,az=4"
                 )
             k, v = item.split("=", 1)
             pairs.append((k.strip(), v.strip()))
     out = {}
     for k, v in pairs:
         if k not in CANONICAL and k != "index":
-            raise InputError(f"--columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
+            raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
         out[k] = v
     return out
 
@@ -359,6 +361,9 @@ def _strip_unit(norm: str) -> tuple[str, str | None]:
 def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], dict[str, str | None]]:
     """Match the file's column names to canonical names.
 
+    ``mapping`` values are column names, or 1-based positions (``"2"``) when no column has
+    that name.
+
     Returns
     -------
     column_map : dict
@@ -370,10 +375,13 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
     units: dict[str, str | None] = {}
     for canon, col in mapping.items():
         if col not in names:
-            raise InputError(
-                f"--columns {canon}={col}: there is no column {col!r} "
-                f"(the file has: {', '.join(names)})"
-            )
+            if col.isdigit() and 1 <= int(col) <= len(names):
+                col = names[int(col) - 1]
+            else:
+                raise InputError(
+                    f"columns {canon}={col}: there is no column {col!r} "
+                    f"(the file has: {', '.join(names)}; or give a 1-based position 1..{len(names)})"
+                )
         column_map[canon] = col
         units[canon] = _strip_unit(_normalise_name(col))[1]
     taken = set(column_map.values())
@@ -381,6 +389,7 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
         if col in taken:
             continue
         norm = _normalise_name(col)
+        canon = None
         for candidate, unit in ((norm, None), _strip_unit(norm)):
             if candidate in INDEX_ALIASES:
                 canon = "index_or_count"
@@ -392,7 +401,7 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
             continue
         if canon == "index_or_count":
             # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a
-            # recording; which one is decided from the values in source_from_frame.
+            # recording; which one is decided from the values in source_from_columns.
             canon = "index"
         if canon not in column_map:
             column_map[canon] = col
@@ -402,59 +411,63 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
 
 
 def source_from_frame(
-    frame: pd.DataFrame,
+    frame: Any,
     path: str,
     file_type: str,
     mapping: dict[str, str] | None = None,
     header: dict[str, str] | None = None,
 ) -> Source:
-    """Map a frame read from CSV or Parquet to canonical columns."""
+    """Map a pandas frame (Parquet, or made in memory) to canonical columns."""
+    import pandas as pd
+
     names = [str(c) for c in frame.columns]
+    columns: list[NDArray[np.float64]] = []
+    non_numeric: dict[str, tuple[int, int, str]] = {}
+    for name, col in zip(names, frame.columns):
+        raw = frame[col]
+        values = raw.astype(float) if pd.api.types.is_numeric_dtype(raw) else pd.to_numeric(raw, errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy() & raw.notna().to_numpy())
+        if bad.size:
+            non_numeric[name] = (int(bad.size), int(bad[0]) + 1, str(raw.iloc[bad[0]]))
+        columns.append(values.to_numpy(dtype=float))
+    return source_from_columns(names, columns, path, file_type, mapping, header, non_numeric)
+
+
+def source_from_columns(
+    names: list[str],
+    columns: list[NDArray[np.float64]],
+    path: str,
+    file_type: str,
+    mapping: dict[str, str] | None = None,
+    header: dict[str, str] | None = None,
+    non_numeric_by_name: dict[str, tuple[int, int, str]] | None = None,
+) -> Source:
+    """Map named float columns to canonical columns (units and time unit as the names state them)."""
     column_map, unit_words = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
     if missing:
         raise InputError(
             f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: "
             f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
-            "with --columns ax=NAME,ay=NAME,az=NAME"
+            "with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4)"
         )
-    out = pd.DataFrame(index=frame.index)
-    non_numeric: dict[str, tuple[int, int, str]] = {}
-    for canon, col in column_map.items():
-        raw = frame[col]
-        values = raw.astype(float) if pd.api.types.is_numeric_dtype(raw) else pd.to_numeric(raw, errors="coerce")
-        bad = np.flatnonzero(values.isna().to_numpy() & raw.notna().to_numpy())
-        if bad.size:
-            non_numeric[canon] = (int(bad.size), int(bad[0]) + 1, str(raw.iloc[bad[0]]))
-        out[canon] = values.to_numpy(dtype=float)
-    if "index" in out.columns:
-        idx = out["index"].to_numpy()
-        idx = idx[np.isfinite(idx)]
+    by_name = dict(zip(names, columns))
+    bad_by_name = non_numeric_by_name or {}
+    data = {canon: by_name[col] for canon, col in column_map.items()}
+    non_numeric = {canon: bad_by_name[col] for canon, col in column_map.items() if col in bad_by_name}
+    if "index" in data:
+        idx = data["index"][np.isfinite(data["index"])]
         steps = np.diff(idx)
         is_index = steps.size > 0 and float(np.median(steps)) == 1.0
-        if not is_index and "n_samples" not in out.columns:
-            out = out.rename(columns={"index": "n_samples"})
+        if not is_index and "n_samples" not in data:
+            data["n_samples"] = data.pop("index")
             column_map["n_samples"] = column_map.pop("index")
-    extra: dict[str, np.ndarray] = {}
-    ignored: list[str] = []
     used = set(column_map.values())
-    for col in names:
-        if col in used:
-            continue
-        vals = pd.to_numeric(frame[col], errors="coerce")
-        if vals.notna().all():
-            extra[col] = vals.to_numpy(dtype=float)
-        else:
-            ignored.append(col)
+    extra = {c: v for c, v in by_name.items() if c not in used and c not in bad_by_name and not np.isnan(v).all()}
+    ignored = [c for c in names if c not in used and c not in extra]
     src = Source(
-        path=path,
-        file_type=file_type,
-        frame=out,
-        extra=extra,
-        column_map=column_map,
-        ignored_columns=ignored,
-        header=dict(header or {}),
-        non_numeric=non_numeric,
+        path=path, file_type=file_type, data=data, extra=extra, column_map=column_map,
+        ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric,
     )
     acc_units = {unit_words.get(c) for c in ACC}
     if len(acc_units) == 1 and None not in acc_units and next(iter(acc_units)) in UNIT_ALIASES:
@@ -465,12 +478,21 @@ def source_from_frame(
         words = {unit_words.get(c) for c in GYRO}
         if len(words) == 1 and next(iter(words)) in GYRO_UNITS:
             src.gyro_units = GYRO_UNITS[next(iter(words))]
-    if "t" in out.columns:
-        _scale_time(src, unit_words.get("t"))
+    if "t" in data:
+        word = unit_words.get("t")
+        name = column_map["t"]
+        if word in TIME_UNITS:
+            factor = TIME_UNITS[word]
+            if factor != 1.0:
+                data["t"] = data["t"] * factor
+            src.time_unit = "s" if word == "sec" else word
+            src.time_reason = f"column {name!r} in {word} (its name says so)"
+        else:
+            src.time_reason = f"column {name!r}"
     for key, value in src.header.items():
         if _normalise_name(key) in RATE_KEYS:
             try:
-                rate = float(value)
+                rate = float(value.replace(",", "."))
             except ValueError:
                 continue
             if rate > 0:
@@ -479,27 +501,32 @@ def source_from_frame(
     return src
 
 
-def _scale_time(src: Source, unit_word: str | None) -> None:
-    t = src.frame["t"].to_numpy()
-    name = src.column_map["t"]
-    if unit_word in TIME_UNITS:
-        factor, why = TIME_UNITS[unit_word], f"column {name!r} in {unit_word}"
-    else:
-        finite = t[np.isfinite(t)]
-        step = float(np.median(np.abs(np.diff(finite)))) if finite.size > 1 else 0.0
-        # 2 Hz .. 2 kHz recordings: steps of 0.5 ms .. 0.5 s, 0.5 .. 500 ms, 500 µs .. 0.5 s, ...
-        if step == 0.0 or step < 0.5:
-            factor, unit = 1.0, "s"
-        elif step < 500:
-            factor, unit = 1e-3, "ms"
-        elif step < 5e5:
-            factor, unit = 1e-6, "us"
-        else:
-            factor, unit = 1e-9, "ns"
-        why = f"column {name!r}, unit {unit} (from the median time step; name it t_s, t_ms, t_us or t_ns to say so)"
-    if factor != 1.0:
-        src.frame["t"] = t * factor
-    src.time_reason = why
+def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
+    """Add ``gx, gy, gz`` from a second text file ``t gx gy gz``, interpolated onto ``src``'s times.
+
+    imu_tk writes the accelerometer and the gyroscope of one recording in two files with
+    their own time columns; samples of the gyro file are matched to the accelerometer's by
+    time (linear interpolation; accelerometer samples outside the gyro file's time span
+    get NaN and are counted as non-finite).
+    """
+    if not src.has("t"):
+        raise InputError(f"{src.path}: merging a gyro file needs a time column in both files")
+    if src.has(*GYRO):
+        raise InputError(f"{src.path}: already has gyro columns; give gyro_file only for accelerometer-only files")
+    g = read_text(gyro_file)
+    tg = g.column("t")
+    ok = np.isfinite(tg)
+    if ok.sum() < 2 or np.any(np.diff(tg[ok]) < 0):
+        raise InputError(f"{gyro_file}: the gyro file's time column must increase")
+    if (src.time_unit or "s") != (g.time_unit or "s"):
+        raise InputError(f"{gyro_file}: its time unit ({g.time_unit}) differs from {src.path}'s ({src.time_unit})")
+    t = src.column("t")
+    cols = ("ax", "ay", "az") if not g.has(*GYRO) else GYRO
+    for name, c in zip(GYRO, cols):
+        v = np.interp(t, tg[ok], g.column(c)[ok], left=np.nan, right=np.nan)
+        src.data[name] = v
+    src.column_map.update({name: f"{Path(gyro_file).name}:{g.column_map[c]}" for name, c in zip(GYRO, cols)})
+    src.notes.append(f"gyro from {gyro_file}, interpolated onto the accelerometer times")
 
 
 # ----------------------------------------------------------------------------- ROS bags
@@ -566,22 +593,23 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
     if not rows:
         raise InputError(f"{path}: topic {topic!r} has no messages")
     data = np.array(rows, dtype=float)
-    frame = pd.DataFrame(data, columns=["t", "ax", "ay", "az", "gx", "gy", "gz"])
+    frame = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(("t", "ax", "ay", "az", "gx", "gy", "gz"))}
     notes = []
     if temp_series is not None and len(temp_series) >= 1:
         order = np.argsort(temp_series[:, 0])
-        frame["temp"] = np.interp(frame["t"].to_numpy(), temp_series[order, 0], temp_series[order, 1])
+        frame["temp"] = np.interp(frame["t"], temp_series[order, 0], temp_series[order, 1])
         notes.append("temperature interpolated from the one sensor_msgs/Temperature topic")
     return Source(
         path=str(path),
         file_type=kind,
-        frame=frame,
+        data=frame,
         column_map={"t": "header.stamp", "ax": "linear_acceleration.x", "ay": "linear_acceleration.y",
                     "az": "linear_acceleration.z", "gx": "angular_velocity.x", "gy": "angular_velocity.y",
                     "gz": "angular_velocity.z"},
         units_hint="m/s^2",
         units_reason="sensor_msgs/Imu is in m/s^2 (ROS REP 103)",
         gyro_units="rad/s",
+        time_unit="s",
         time_reason=f"header stamps of topic {topic}",
         always_raw=True,
         notes=notes,
@@ -629,7 +657,7 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
         raise InputError(f"{path}: ULog topic {name} has no fields {', '.join(missing)}; use --topic sensor_accel")
     stamp_key = "timestamp_sample" if "timestamp_sample" in d else "timestamp"
     t = d[stamp_key].astype(float) * 1e-6
-    frame = pd.DataFrame({"t": t, "ax": d["x"].astype(float), "ay": d["y"].astype(float), "az": d["z"].astype(float)})
+    frame = {"t": t, "ax": d["x"].astype(float), "ay": d["y"].astype(float), "az": d["z"].astype(float)}
     if "temperature" in d:
         frame["temp"] = d["temperature"].astype(float)
     notes = []
@@ -656,11 +684,12 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
     return Source(
         path=str(path),
         file_type="ulog",
-        frame=frame,
+        data=frame,
         column_map={"t": f"{name}.{stamp_key}", "ax": f"{name}.x", "ay": f"{name}.y", "az": f"{name}.z"},
         units_hint="m/s^2",
         units_reason="PX4 sensor_accel is in m/s^2",
         gyro_units=gyro_units,
+        time_unit="s",
         time_reason=f"{name}.{stamp_key} in µs",
         saturated=saturated,
         always_raw=True,

@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
 from optcal.data.readers import ACC, GYRO, Source
-from optcal.data.units import UnitsDecision, decide_units, nominal_conversion
+from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
 
-#: Exclusion counters of :class:`Recording` (also used as keys of ``PoseTable.exclusions``).
-NON_FINITE = "non-finite samples (empty, non-numeric or truncated cells)"
+#: Exclusion counters of :class:`Recording` (also used as keys of ``PoseTable.exclusions``);
+#: :data:`NON_FINITE` and the other reading exclusions are in :mod:`optcal.data.decisions`.
 DUPLICATED = "duplicated samples (same time and values as the previous one)"
 REPEATED_TIME = "samples with a repeated timestamp (the first one kept)"
 SATURATED = "saturated samples"
@@ -61,6 +62,8 @@ class Recording:
     exclusions : dict of str to int
         The samples flagged as unusable, by reason.
     meta : dict
+    decisions : DataDecisions or None
+        Every decision about the file, with its reason.
     """
 
     t: NDArray[np.float64]
@@ -78,6 +81,7 @@ class Recording:
     file_type: str
     exclusions: dict[str, int] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    decisions: DataDecisions | None = None
 
     @property
     def n(self) -> int:
@@ -90,67 +94,53 @@ class Recording:
 
 def recording_from_source(
     src: Source,
+    decisions: DataDecisions | None = None,
+    *,
+    evidence: Evidence | None = None,
     units: str | None = None,
     rate: float | None = None,
+    time_unit: str | None = None,
+    timing: str = "auto",
 ) -> Recording:
-    """Build a :class:`Recording` from a reader's :class:`Source`.
+    """Build a :class:`Recording` from a reader's :class:`Source` (the conversion step).
 
     Parameters
     ----------
     src : Source
-    units : str, optional
-        The user's ``--units``.
-    rate : float, optional
-        The user's ``--rate`` in Hz: the sampling rate when the file has no time column
-        (overrides a rate in the file header).
+    decisions : DataDecisions, optional
+        Made by :func:`optcal.data.decisions.decide`; made here (as a raw recording, with the
+        keyword options) when omitted.
+    evidence : Evidence, optional
+        The evidence the decisions were made from (gathered here when omitted).
+    units, rate, time_unit, timing
+        Options of :func:`optcal.data.decisions.decide` when ``decisions`` is omitted.
 
     Raises
     ------
     InputError
         No time and no rate, time running backwards, or no usable sample.
     """
+    ev = evidence if evidence is not None else gather_evidence(src)
+    if decisions is None:
+        decisions = decide(src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing)
     n = src.n_rows
     acc = np.column_stack([src.column(c) for c in ACC])
     gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
     row = np.arange(1, n + 1)
-    if rate is not None and rate <= 0:
-        raise InputError(f"--rate must be positive, got {rate}")
-    if src.has("t") and rate is None:
-        t = src.column("t")
-        time_reason = src.time_reason
-    else:
-        rate_used = rate if rate is not None else src.rate_hint
-        if rate_used is None:
-            raise InputError(
-                f"{src.path}: no time column and no sampling rate; pass --rate HZ "
-                "(or add a time column t_s)"
-            )
+    if decisions.time_base.value == "rate":
         base = src.column("index") if src.has("index") else np.arange(n, dtype=float)
-        t = (base - base[0]) / rate_used
-        why = "--rate" if rate is not None else src.rate_reason
-        what = f"column {src.column_map['index']!r}" if src.has("index") else "row number"
-        time_reason = f"{what} / {rate_used:g} Hz ({why})"
+        t = (base - base[0]) / float(decisions.rate.value)
+    else:
+        t = src.column("t")
     exclusions: dict[str, int] = dict(src.exclusions)
-    finite = np.isfinite(t) & np.all(np.isfinite(acc), axis=1)
-    if gyro is not None:
-        finite &= np.all(np.isfinite(gyro), axis=1)
-    if temp is not None:
-        finite &= np.isfinite(temp)
-    _count(exclusions, NON_FINITE, int(np.sum(~finite)))
-    usable = finite.copy()
-    idx = np.flatnonzero(finite)
-    if idx.size == 0:
-        raise InputError(f"{src.path}: no sample has finite values in every column")
+    for k, v in decisions.exclusions.items():
+        _count(exclusions, k, v)
+    usable = ev.usable.copy()
+    if decisions.time_base.value == "rate":
+        usable &= np.isfinite(t)
+    idx = np.flatnonzero(usable)
     dt = np.diff(t[idx])
-    back = np.flatnonzero(dt < 0)
-    if back.size:
-        i, j = idx[back[0]], idx[back[0] + 1]
-        raise InputError(
-            f"{src.path}: time runs backwards at data row {row[j]} (t = {t[j]:.6g} s after "
-            f"{t[i]:.6g} s on row {row[i]}; {back.size} such step(s)); the file may be several "
-            "logs joined together: split or sort it"
-        )
     same = np.flatnonzero(dt == 0)
     if same.size:
         later = idx[same + 1]
@@ -161,15 +151,19 @@ def recording_from_source(
         usable[later] = False
         _count(exclusions, DUPLICATED, int(np.sum(identical)))
         _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
-    decision: UnitsDecision = decide_units(acc[usable], units, src.units_hint, src.units_reason)
-    sat = saturated_samples(acc, usable, decision.units, src.saturated)
+    sat = saturated_samples(acc, usable, str(decisions.units.value), src.saturated)
     _count(exclusions, SATURATED, int(np.sum(sat & usable)))
     usable &= ~sat
     if not usable.any():
         raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
     tu = t[usable]
     steps = np.diff(tu)
-    rate_hz = float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else float("nan")
+    if decisions.time_base.value == "stamps":
+        rate_hz = float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else float("nan")
+        decisions.rate = Decision(rate_hz, decisions.rate.reason, decisions.rate.flag)
+    else:
+        rate_hz = float(decisions.rate.value)
+    decisions.exclusions = dict(exclusions)
     meta = {
         "columns": src.describe_columns(),
         "ignored_columns": list(src.ignored_columns),
@@ -183,15 +177,16 @@ def recording_from_source(
         temp=temp,
         row=row,
         usable=usable,
-        units=decision.units,
-        units_reason=decision.reason,
+        units=str(decisions.units.value),
+        units_reason=decisions.units.reason,
         gyro_units=src.gyro_units,
         rate_hz=rate_hz,
-        time_reason=time_reason,
+        time_reason=decisions.time_base.reason,
         path=src.path,
         file_type=src.file_type,
         exclusions=exclusions,
         meta=meta,
+        decisions=decisions,
     )
 
 

@@ -22,11 +22,13 @@ A sample is static when the centred moving window around it (``window_s``) is qu
 Each noise floor is measured on the recording itself: the ``floor_quantile`` quantile of
 the statistic over all windows (a calibration recording is mostly at rest, so the low
 quantiles are windows at rest), never below the resolution of the data; the axes floor
-is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, so that a recording that never
-rests (its quietest windows still turn) is not taken for one at rest.  Static runs are
-split at time gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from
-both ends of each remaining run, and every sample that does not end in a pose is counted
-by reason.  Each interval gives one pose: the mean, the per-axis standard deviation, the
+is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, and the floor of quantised gyro
+data at :data:`GYRO_FLOOR_MAX_QUANTA` steps, so that a recording that never rests (its
+quietest windows still turn) is not taken for one at rest.  Static runs are split at time
+gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
+each remaining run, runs of one orientation interrupted for less than a window by a hand's
+twitch are joined into one pose (:func:`join_interrupted`), and every sample that does not
+end in a pose is counted by reason.  Each interval gives one pose: the mean, the per-axis standard deviation, the
 standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights, Lu 2017
 eq. 14; by batch means, :func:`sigma_of_mean`, since sensor noise is not white), the
 sample count, the mid time, the mean temperature and the mean gyro reading.
@@ -52,6 +54,11 @@ TRIMMED = "samples trimmed at the ends of static intervals"
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
+#: Largest gyro noise floor (per-sample std, norm over the axes) of quantised gyro data, in
+#: quantisation steps: a resting 16-bit MEMS gyro shows tens of steps (MPU-6050: 22-24, the
+#: Xsens MTi: 44); a floor of hundreds (the sunsided motion logs: 413-5245) means that the
+#: recording never rests and its quietest windows still turn.
+GYRO_FLOOR_MAX_QUANTA: float = 100.0
 
 
 @dataclass(frozen=True)
@@ -192,6 +199,8 @@ class Segmentation:
         Everything excluded, from reading to trimming.
     trace : dict of str to ndarray
         Per usable sample: ``t``, the statistics and the static mask (for plots).
+    joined : int
+        Static stretches joined to the previous one as the same pose (:func:`join_interrupted`).
     """
 
     recording: Recording
@@ -202,6 +211,7 @@ class Segmentation:
     gyro_bias: NDArray[np.float64] | None
     exclusions: dict[str, int]
     trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    joined: int = 0
 
     @property
     def n_used(self) -> int:
@@ -219,6 +229,7 @@ class Segmentation:
             "gyro_units": rec.gyro_units,
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
+            "stretches_joined": self.joined,
             "intervals": [iv.to_dict() for iv in self.intervals],
         }
 
@@ -319,13 +330,15 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
     out = np.zeros(m)
     if m < 2 * h + 1:
         return out
-    c = np.empty((m + 1, x.shape[1]))
-    c[0] = 0.0
-    np.cumsum(x - np.median(x, axis=0), axis=0, out=c[1:])
-    # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
-    centre = c[h:m - h + 1]
-    diff = (c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])
-    out[h:m - h + 1] = np.sqrt(np.einsum("ij,ij->i", diff, diff)) / h
+    sq = np.zeros(m - 2 * h + 1)
+    c = np.empty(m + 1)
+    for j in range(x.shape[1]):  # column by column: temporaries of one column
+        c[0] = 0.0
+        np.cumsum(x[:, j] - np.median(x[:, j]), out=c[1:])
+        # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
+        centre = c[h:m - h + 1]
+        sq += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+    out[h:m - h + 1] = np.sqrt(sq) / h
     return out
 
 
@@ -347,6 +360,24 @@ def _resolution(x: NDArray[np.float64]) -> float:
     step = float(d.min() / np.sqrt(12.0)) if d.size else 0.0
     spread = float(np.max(np.abs(x - np.median(x, axis=0))))
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
+
+
+def quantum(x: NDArray[np.float64]) -> float | None:
+    """The converter step of quantised data, else ``None``.
+
+    Data are quantised when their steps are multiples of one step and their range spans at
+    most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
+    have a common step too, but span far more of them.
+    """
+    d = np.abs(np.diff(x, axis=0)).ravel()
+    d = d[d > 0]
+    if d.size < 10:
+        return None
+    q = float(d.min())
+    if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
+        return None
+    ratio = d / q
+    return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
 
 def _runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -372,9 +403,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     """
     s = settings or StaticSettings()
     use = np.flatnonzero(rec.usable)
-    t = rec.t[use]
-    acc = rec.acc[use]
-    gyro = rec.gyro[use] if rec.gyro is not None else None
+    every = use.size == rec.n  # no copies when every sample is usable
+    t = rec.t if every else rec.t[use]
+    acc = rec.acc if every else rec.acc[use]
+    gyro = (rec.gyro if every else rec.gyro[use]) if rec.gyro is not None else None
     m = use.size
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
@@ -382,9 +414,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     norm = np.linalg.norm(acc - nominal.offset, axis=1)
 
     _, var_norm = moving_mean_var(norm, window)
-    _, var_axes = moving_mean_var(acc, window)
     sd_norm = np.sqrt(var_norm)
-    sd_axes = np.sqrt(var_axes.sum(axis=1))
+    # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
+    sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
     res_acc = _resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
@@ -413,14 +445,23 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
 
     gyro_bias = None
     if gyro is not None:
-        mean_g, var_g = moving_mean_var(gyro, window)
-        sd_gyro = np.sqrt(var_g.sum(axis=1))
         base = static if static.any() else np.ones(m, dtype=bool)
         gyro_bias = np.median(gyro[base], axis=0)
-        rate_dev = np.linalg.norm(mean_g - gyro_bias, axis=1)
+        var_sum = np.zeros(m)
+        dev2 = np.zeros(m)
+        for j in range(3):
+            mean_j, var_j = moving_mean_var(gyro[:, j], window)
+            var_sum += var_j
+            dev2 += (mean_j - gyro_bias[j]) ** 2
+        sd_gyro = np.sqrt(var_sum)
+        rate_dev = np.sqrt(dev2)
         res_g = _resolution(gyro)
         # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
         floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
+        q = quantum(gyro)
+        if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
+            # the quietest windows of a recording that never rests still turn
+            floors["gyro_rate"] = GYRO_FLOOR_MAX_QUANTA * q
         thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
         static &= rate_dev <= thresholds["gyro_rate"]
         trace["gyro_rate"] = rate_dev
@@ -437,6 +478,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     n_short_samples = n_short = n_trim = 0
     trim = int(round(s.trim_s * rate))
     intervals: list[StaticInterval] = []
+    kept: list[tuple[int, int]] = []
     for a, b in zip(starts, stops):
         duration = t[b - 1] - t[a] + 1.0 / rate
         if duration < s.min_dwell_s:
@@ -450,13 +492,52 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             continue
         n_trim += (a2 - a) + (b - b2)
         in_pose[a2:b2] = True
-        intervals.append(_interval(len(intervals) + 1, rec, use, a2, b2, gyro, s.sigma_blocks))
+        kept.append((a2, b2))
+    groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    for group in groups:
+        pos = np.concatenate([np.arange(a, b) for a, b in group])
+        intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
     _add(exclusions, MOVING, int(np.sum(~static)))
     _add(exclusions, SHORT, n_short_samples)
     _add(exclusions, SHORT_STRETCHES, n_short)
     _add(exclusions, TRIMMED, n_trim)
     trace["static"] = in_pose
-    return Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
+    seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
+    seg.joined = len(kept) - len(groups)
+    return seg
+
+
+def join_interrupted(
+    ranges: list[tuple[int, int]],
+    t: NDArray[np.float64],
+    acc: NDArray[np.float64],
+    window_s: float,
+    tolerance: float,
+) -> list[list[tuple[int, int]]]:
+    """Group static stretches that are one pose interrupted by a twitch.
+
+    Consecutive stretches ``[a, b)`` separated by less than one window in time whose means
+    differ by less than ``tolerance`` (the accelerometer gate, raw units) are the same
+    orientation held by hand through a brief tremor: one pose, the samples between them
+    left out (and counted as moving).
+    """
+    groups: list[list[tuple[int, int]]] = []
+    last_mean: NDArray[np.float64] | None = None
+    for a, b in ranges:
+        mean = acc[a:b].mean(axis=0)
+        if (
+            groups
+            and last_mean is not None
+            and t[a] - t[groups[-1][-1][1] - 1] < window_s
+            and float(np.linalg.norm(mean - last_mean)) < tolerance
+        ):
+            groups[-1].append((a, b))
+            n = sum(y - x for x, y in groups[-1])
+            last_mean = np.sum([acc[x:y].sum(axis=0) for x, y in groups[-1]], axis=0) / n
+        else:
+            groups.append([(a, b)])
+            last_mean = mean
+    return groups
 
 
 def _split_runs(
@@ -496,10 +577,10 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
 
 
 def _interval(
-    number: int, rec: Recording, use: NDArray[np.int64], a: int, b: int,
+    number: int, rec: Recording, use: NDArray[np.int64], pos: NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
-    idx = use[a:b]
+    idx = use[pos]
     x = rec.acc[idx]
     n = x.shape[0]
     mean = x.mean(axis=0)
@@ -517,6 +598,6 @@ def _interval(
         mean=mean,
         std=std,
         sigma=sigma,
-        gyro_mean=None if gyro is None else gyro[a:b].mean(axis=0),
+        gyro_mean=None if gyro is None else gyro[pos].mean(axis=0),
         temp_mean=None if rec.temp is None else float(rec.temp[idx].mean()),
     )

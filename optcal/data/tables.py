@@ -10,10 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
+from typing import Any
 
-from optcal.data.readers import ACC, GYRO, Source, read_delimited, read_source, source_from_frame
+import numpy as np
+
+from optcal.data.decisions import DataDecisions, decide, gather_evidence
+from optcal.data.readers import ACC, GYRO, Source, read_source, source_from_frame
 from optcal.data.units import decide_units
 from optcal.errors import InputError
 from optcal.poses import PoseTable
@@ -22,13 +24,22 @@ ACC_COLUMNS = ACC
 GYRO_COLUMNS = GYRO
 
 
-def read_csv_frame(path: str | Path) -> pd.DataFrame:
-    """Read a CSV file with a header row (after any metadata lines), with clear errors."""
-    return read_delimited(path)[0]
+def read_csv_frame(path: str | Path) -> Any:
+    """Read a delimited text file (any layout :mod:`optcal.data.text` recognises) as a pandas frame."""
+    from optcal.data.text import read_frame
+
+    return read_frame(path)[0]
 
 
-def pose_table_from_source(src: Source, units: str | None = None) -> PoseTable:
-    """Build a :class:`PoseTable` from a tabular :class:`Source` read as a pose table.
+def pose_table_from_source(src: Source, decisions: DataDecisions | str | None = None) -> PoseTable:
+    """Build a :class:`PoseTable` from a tabular :class:`Source` read as a pose table (conversion step).
+
+    Parameters
+    ----------
+    src : Source
+    decisions : DataDecisions or str, optional
+        The decisions (:func:`optcal.data.decisions.decide`), or just the user's units (then
+        the decisions are made here, as a pose table).
 
     Raises
     ------
@@ -40,15 +51,18 @@ def pose_table_from_source(src: Source, units: str | None = None) -> PoseTable:
             f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
             f"{value!r} on data row {row} ({count} such cell(s)); every cell must be a number"
         )
+    if not isinstance(decisions, DataDecisions):
+        decisions = decide(src, gather_evidence(src), kind="poses", units=decisions)
     acc = np.column_stack([src.column(c) for c in ACC])
     gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
     opt = {c: src.column(c) for c in ("t", "temp", "sigma", "n_samples") if src.has(c)}
-    decision = decide_units(acc, units, src.units_hint, src.units_reason)
     meta = {
         "path": src.path,
         "file_type": src.file_type,
         "columns": src.describe_columns(),
-        "units_reason": decision.reason,
+        "units_reason": decisions.units.reason,
+        "kind_reason": decisions.kind.reason,
+        "decisions": decisions.to_dict(),
     }
     if src.ignored_columns:
         meta["ignored_columns"] = list(src.ignored_columns)
@@ -60,10 +74,11 @@ def pose_table_from_source(src: Source, units: str | None = None) -> PoseTable:
         temp=opt.get("temp"),
         gyro=gyro,
         rows=np.arange(1, src.n_rows + 1),
-        units=decision.units,
+        units=str(decisions.units.value),
         source="pose table",
         extra=dict(src.extra),
         meta=meta,
+        decisions=decisions,
     )
 
 

@@ -70,7 +70,8 @@ def median_norm(acc: ArrayLike) -> float:
     """Median of ‖a‖ over the finite rows of ``acc`` (NaN when there is none)."""
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
-    return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
+    with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit: an infinite norm
+        return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
 
 
 def decide_units(
@@ -78,6 +79,7 @@ def decide_units(
     requested: str | None = None,
     hint: str | None = None,
     hint_reason: str = "",
+    norm: float | None = None,
 ) -> UnitsDecision:
     """Decide the units of ``acc``.
 
@@ -92,17 +94,19 @@ def decide_units(
         ``m/s^2`` for ROS ``sensor_msgs/Imu``).
     hint_reason : str
         Where ``hint`` came from, for the report.
+    norm : float, optional
+        The median ‖a‖ of ``acc`` when already known (saves a pass over the data).
 
     Raises
     ------
     InputError
         When nothing states the units and the norm is ambiguous.
     """
+    norm = median_norm(acc) if norm is None else norm
     if requested is not None:
-        return UnitsDecision(normalise_units(requested), "given with --units")
+        return check_units(UnitsDecision(normalise_units(requested), "given with --units"), norm)
     if hint is not None:
-        return UnitsDecision(normalise_units(hint), hint_reason or "stated by the file")
-    norm = median_norm(acc)
+        return check_units(UnitsDecision(normalise_units(hint), hint_reason or "stated by the file"), norm)
     if not np.isfinite(norm):
         raise InputError("no finite acceleration values; cannot tell the units")
     if G_NORM_RANGE[0] <= norm <= G_NORM_RANGE[1]:
@@ -114,6 +118,34 @@ def decide_units(
     raise InputError(
         f"cannot tell the units from the data (median |a| = {norm:.4g} is neither ≈ 1 g, "
         f"≈ 9.8 m/s^2 nor a raw count scale); pass --units g, m/s^2 or counts"
+    )
+
+
+#: Median norms that each unit allows (a wide margin for calibration errors and motion).
+PLAUSIBLE_NORM: dict[str, tuple[float, float]] = {
+    "g": G_NORM_RANGE,
+    "m/s^2": MS2_NORM_RANGE,
+    "counts": (MS2_NORM_RANGE[1], float("inf")),
+}
+
+
+def check_units(decision: UnitsDecision, norm: float) -> UnitsDecision:
+    """Refuse a declared or stated unit that the measured norm contradicts, with both numbers.
+
+    A calibration corrects the scale by a few percent; data whose median ‖a‖ lies outside
+    :data:`PLAUSIBLE_NORM` of the declared unit are in another unit.
+    """
+    if not np.isfinite(norm):
+        return decision
+    lo, hi = PLAUSIBLE_NORM[decision.units]
+    if lo <= norm <= hi:
+        return decision
+    likely = next((u for u, (a, b) in PLAUSIBLE_NORM.items() if a <= norm <= b), None)
+    expect = {"g": "≈ 1", "m/s^2": "≈ 9.8", "counts": f"> {MS2_NORM_RANGE[1]:g}"}[decision.units]
+    hint = f"; the data look like {likely}: pass --units {likely}" if likely else "; pass the right --units"
+    raise InputError(
+        f"units {decision.units} ({decision.reason}) contradict the data: the median |a| is {norm:.4g}, "
+        f"while data at rest in {decision.units} have |a| {expect} ({lo:g}–{hi:g}){hint}"
     )
 
 

@@ -23,6 +23,7 @@ from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
 from optcal.norm_residual import norm_residuals, normal_gain
 from optcal.poses import MIN_POSES, PoseTable
+from optcal.caltypes import Calibration
 from optcal.result import CalibrationResult, jsonable
 
 G_TO_MS2 = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
@@ -120,23 +121,28 @@ def convert_to_units(poses: PoseTable, units: str) -> PoseTable:
 
 
 def check_calibration(
-    cal: CalibrationResult, poses: PoseTable, nominal: NominalConversion | None = None
+    cal: Calibration | CalibrationResult, poses: PoseTable, nominal: NominalConversion | None = None
 ) -> NormCheck:
     """Evaluate a calibration on poses: norm errors before and after, per pose.
 
     Parameters
     ----------
-    cal : CalibrationResult
+    cal : Calibration or CalibrationResult
+        Any ``cal_type`` (:mod:`optcal.caltypes`); an extended calibration uses the poses'
+        temperature and time.
     poses : PoseTable
         In the calibration's units (g and m/s² are converted).
     nominal : NominalConversion, optional
         The "before" baseline (default: :func:`optcal.data.units.nominal_conversion`).
     """
+    if isinstance(cal, CalibrationResult):
+        cal = cal.calibration
     poses = convert_to_units(poses, cal.units)
     nominal = nominal or nominal_conversion(poses.units, poses.acc)
     before = np.linalg.norm(nominal.apply(poses.acc), axis=1) - 1.0
-    after = norm_residuals(cal.T, cal.o, poses.acc)
-    noise = norm_noise(cal.T, cal.o, poses.acc, poses.sigma) if poses.sigma is not None else None
+    after = cal.norm_errors(poses.acc, poses.temp, poses.t)
+    lumped = cal.lumped()  # the noise gain of the linear part (first order)
+    noise = norm_noise(lumped.T, lumped.o, poses.acc, poses.sigma) if poses.sigma is not None else None
     return NormCheck(poses.rows.copy(), poses.t, poses.n_samples, before, after, noise, nominal)
 
 

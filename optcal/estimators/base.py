@@ -9,13 +9,14 @@ being linear in θ, the map carries the covariance exactly too.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, IdentifiabilityError, InputError
+from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
 from optcal.identifiability import add_weak_directions, analyse
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, normal_gain
@@ -74,6 +75,48 @@ def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "pro
     return 1.0 / (poses.sigma * normal_gain(T, o, poses.acc)) ** 2, True
 
 
+#: Solver statuses that mean a failure (no usable answer), not an early stop: IPOPT's error
+#: return codes (``ApplicationReturnStatus`` of IpReturnCodes.h, as CasADi names them) and the
+#: gradient descent's divergence.
+SOLVER_FAILURES: frozenset[str] = frozenset({
+    "Infeasible_Problem_Detected", "Diverging_Iterates", "Error_In_Step_Computation",
+    "Not_Enough_Degrees_Of_Freedom", "Invalid_Problem_Definition", "Invalid_Option", "Invalid_Number_Detected",
+    "Unrecoverable_Exception", "NonIpopt_Exception_Thrown", "Insufficient_Memory", "Internal_Error",
+    "diverged",
+})
+
+
+@dataclass(frozen=True)
+class Remedy:
+    """What to tell the user when an estimator's solver stops early or fails (Python arguments)."""
+
+    stopped_early: str
+    failed: str
+
+
+def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy | None = None) -> None:
+    """Raise :class:`SolverError` for a failed solve; warn :class:`ConvergenceWarning` for an early stop.
+
+    A failure: a status in :data:`SOLVER_FAILURES` or a non-finite θ.  An early stop: the
+    solver does not report success but returned a finite answer (kept, its record says so).
+    """
+    finite = bool(np.all(np.isfinite(theta)))
+    if solver.status in SOLVER_FAILURES or not finite:
+        raise SolverError(
+            f"the {method} fit failed: {solver.name} ended with {solver.status!r}"
+            + ("" if finite else " and a non-finite answer")
+            + (f"; {remedy.failed}" if remedy else "")
+        )
+    if not solver.success:
+        warnings.warn(
+            f"the {method} fit did not converge: {solver.name} stopped with {solver.status!r} after "
+            f"{solver.iterations} iterations; the result is its last iterate"
+            + (f"; {remedy.stopped_early}" if remedy else ""),
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+
+
 def finish(
     *,
     method: str,
@@ -85,21 +128,24 @@ def finish(
     notes: list[str] | None = None,
     extra: dict[str, Any] | None = None,
     covariance_scale: str = "auto",
+    remedy: Remedy | None = None,
 ) -> CalibrationResult:
     """Assemble a :class:`CalibrationResult` from θ in raw units.
 
-    Computes the norm residuals, the Fisher information at θ (with directions
+    Checks the solver's outcome first (:func:`check_solver`; ``remedy`` says which argument
+    to change), then computes the norm residuals, the Fisher information at θ (with directions
     eliminated, see :mod:`optcal.identifiability`), its inverse as covariance (scaled by the
     reduced chi-square when the noise is not known) and the identifiability report; refuses
     a rank-deficient pose set unless ``allow_degenerate``.
     """
+    check_solver(method, solver, theta, remedy)
     T, o = unpack_theta(theta)
     diag = np.abs(np.diag(T))
-    if not np.all(np.isfinite(theta)) or diag.min() <= 1e-6 * max(diag.max(), 1e-300):
+    if diag.min() <= 1e-6 * max(diag.max(), 1e-300):
         raise FitError(
             f"the {method} fit collapsed to a singular T (|diagonal| = {', '.join(f'{d:.3g}' for d in diag)}): "
             "the poses do not pin the ellipsoid down, so the cost has a degenerate minimum; "
-            "record more orientations spread over the sphere, or bound the scale (mle: --scale-range LOW HIGH)"
+            "record more orientations spread over the sphere, or bound the scale (mle: scale_range=(low, high))"
         )
     T = canonicalise(T)  # no-op for lower-triangular T with positive diagonal
     theta = theta_from(T, o)
@@ -125,7 +171,7 @@ def finish(
         msg = ident.describe()
         if not allow_degenerate:
             raise IdentifiabilityError(
-                msg + ". Add poses that tilt the sensor about other axes (or pass --allow-degenerate "
+                msg + ". Add poses that tilt the sensor about other axes (or pass allow_degenerate=True "
                 "to proceed anyway: the undetermined combinations are then arbitrary)",
                 ident,
             )

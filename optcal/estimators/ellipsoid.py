@@ -24,17 +24,18 @@ lower-triangular factor, eq. 30's symmetric square root differs from it by a rot
 from __future__ import annotations
 
 import threading
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish
+from optcal.errors import FitError, InputError, SolverError
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish
 from optcal.model import canonical_T, theta_from
 from optcal.poses import PoseTable
-from optcal.problem_cache import ProblemCache, problem_cache
+from optcal.problem_cache import FrozenOptions, ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 
@@ -65,7 +66,7 @@ def quadric_to_calibration(eta: NDArray) -> tuple[NDArray, NDArray]:
         raise FitError(
             f"the algebraic fit is not an ellipsoid (eigenvalues of A: {', '.join(f'{e:.3g}' for e in eig)}: "
             "a hyperboloid); this happens when the poses cover only part of the sphere or the noise is "
-            "large; use --method convex, which constrains A to be positive definite"
+            "large; use method=\"convex\", which constrains A to be positive definite"
         )
     o = -0.5 * np.linalg.solve(A_s, b_s)  # Lu 2017, eq. 20
     alpha = 1.0 / (0.25 * b_s @ np.linalg.solve(A_s, b_s) - c_s)  # eq. 27
@@ -128,12 +129,14 @@ class ConvexSolution:
 
 
 class ConvexEllipsoidProblem:
-    """``min ‖R η‖²`` s.t. ``A ⪰ εI``, ``tr A = 3`` in cvxpy, built once per ε, ``R`` a parameter.
+    """``min ‖R η‖²`` s.t. ``A ⪰ εI``, ``tr A = 3`` in cvxpy, ``R`` a parameter.
 
+    Built once per (ε, solver, solver options): cvxpy keeps the solver it set up on the first
+    solve and re-uses it, settings included, so one problem serves one set of settings.
     Solving sets the parameter and reads the variables: one step, under the problem's lock.
     """
 
-    def __init__(self, eps: float) -> None:
+    def __init__(self, eps: float, solver: str, options: FrozenOptions) -> None:
         import cvxpy as cp
 
         A = cp.Variable((3, 3), symmetric=True)
@@ -144,13 +147,16 @@ class ConvexEllipsoidProblem:
         self._eta = cp.hstack([A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[0, 2], A[1, 2], b, c])
         constraints = [A >> eps * np.eye(3), cp.trace(A) == 3.0]
         self._problem = cp.Problem(cp.Minimize(cp.sum_squares(self._R @ self._eta)), constraints)
+        self.solver, self.options = solver, dict(options)
         self._lock = threading.Lock()
 
-    def solve(self, R: NDArray, solver: str, options: dict[str, Any]) -> ConvexSolution:
+    def solve(self, R: NDArray) -> ConvexSolution:
         """Solve for the triangular factor ``R`` (10×10) of the design matrix."""
         with self._lock:
             self._R.value = R
-            self._problem.solve(solver=solver, **options)
+            with warnings.catch_warnings():  # optcal says it itself (ConvergenceWarning), with what to change
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                self._problem.solve(solver=self.solver, **self.options)
             eta, A = self._eta.value, self._A.value
             return ConvexSolution(
                 status=str(self._problem.status),
@@ -160,7 +166,7 @@ class ConvexEllipsoidProblem:
             )
 
 
-#: The convex problems, keyed by ε.
+#: The convex problems, keyed by (ε, solver, frozen solver options).
 CONVEX_PROBLEMS: ProblemCache[ConvexEllipsoidProblem] = problem_cache(ConvexEllipsoidProblem, maxsize=8)
 
 
@@ -211,12 +217,13 @@ class ConvexEllipsoidFit:
         notes: list[str] = []
         with Stopwatch() as sw:
             try:
-                solution = CONVEX_PROBLEMS.get(self.eps).solve(R, self.solver, self.solver_options)
+                solution = CONVEX_PROBLEMS.get(self.eps, self.solver, freeze_options(self.solver_options)).solve(R)
             except cp.error.SolverError as exc:
-                raise FitError(f"the convex ellipsoid fit failed in {self.solver}: {exc}") from exc
+                raise SolverError(f"the convex ellipsoid fit failed in {self.solver}: {exc}; try solver='SCS'") from exc
         status = solution.status
-        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or solution.eta is None or solution.A is None:
-            raise FitError(f"the convex ellipsoid fit ended with status {status!r} in {self.solver}")
+        if status not in cp.settings.SOLUTION_PRESENT or solution.eta is None or solution.A is None:
+            # the problem is always feasible (A = I) and bounded below (by 0): any other end is the solver's
+            raise SolverError(f"the convex ellipsoid fit ended with status {status!r} in {self.solver}; try solver='SCS'")
         eta_v = solution.eta
         iters = solution.iterations
         message = ""
@@ -243,6 +250,8 @@ class ConvexEllipsoidFit:
             allow_degenerate=self.allow_degenerate,
             notes=notes,
             extra={"min_eigenvalue_normalised_A": min_eig, "psd_constraint_active": active},
+            remedy=Remedy(stopped_early="raise the solver's iteration limit (solver_options) or try solver='SCS'",
+                          failed="try solver='SCS'"),
         )
 
     @staticmethod

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.base import Normaliser, Stopwatch, finish
-from optcal.estimators.mle import IPOPT_DEFAULTS, MaximumLikelihood
+from optcal.estimators.mle import IPOPT_DEFAULTS, IPOPT_REMEDY, MaximumLikelihood, ipopt_nlpsol, run_nlpsol
 from optcal.model import theta_from, unpack_theta
 from optcal.norm_residual import casadi_lower_triangular
 from optcal.poses import PoseTable
@@ -57,7 +57,7 @@ class ExactProblem:
         opts.update({"ipopt.tol": 1e-10, "ipopt.max_iter": 500, "hess_lag": self._hessian(x, p, n)})
         opts.update(ipopt_options or {})
         self.n = n
-        self.solver = ca.nlpsol("exact_ml_calibration", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+        self.solver = ipopt_nlpsol("exact_ml_calibration", {"x": x, "p": p, "f": cost, "g": g}, opts)
         self._lock = threading.Lock()
 
     @staticmethod
@@ -97,9 +97,7 @@ class ExactProblem:
     def solve(self, x0: NDArray, acc: NDArray, weights: NDArray, lbx: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``x0`` (C, o, directions) for normalised measurements (n, 3) and weights (n,)."""
         with self._lock:  # the solver keeps the statistics of its last call
-            sol = self.solver(x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
-            stats = self.solver.stats()
-        return np.asarray(sol["x"]).ravel(), stats
+            return run_nlpsol(self.solver, x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
 
 
 #: The errors-in-variables problems, keyed by (n, frozen IPOPT options).
@@ -162,6 +160,6 @@ class ExactMaximumLikelihood:
             theta=theta,
             solver=solver,
             allow_degenerate=self.allow_degenerate,
-            notes=[] if success else [f"IPOPT did not report success: {status}"],
+            remedy=IPOPT_REMEDY,
             extra={"init": start.method, "latent_directions": directions.tolist()},
         )

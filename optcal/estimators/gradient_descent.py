@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
 from optcal.model import canonicalise, theta_from
 from optcal.norm_residual import NormResidualKernel
 from optcal.poses import PoseTable
@@ -38,6 +38,7 @@ def cost_and_gradient(x: NDArray, u: NDArray | NormResidualKernel, w: NDArray) -
     return float(np.sum(w * r * r)), point.jacobian_full() @ (2.0 * w * r)
 
 
+@np.errstate(over="ignore", invalid="ignore")  # a divergence is reported in the status
 def descend(
     x: NDArray, u: NDArray, w: NDArray, mu: float, tol: float, max_iter: int, target: float | None = None
 ) -> tuple[NDArray[np.float64], float, int, str]:
@@ -79,8 +80,8 @@ class GradientDescent:
     target_cost : float, optional
         Also stop as soon as the cost is at or below this value (for speed comparisons
         "to the same cost").
-    init : {"svd", "convex"}
-        Starting point (eq. 18-30).
+    init : {"svd", "convex"} or CalibrationResult
+        Starting point: an algebraic fit (eq. 18-30) or a given result.
     allow_degenerate : bool
         Proceed (with a warning) when the poses do not identify every parameter.
     """
@@ -93,7 +94,7 @@ class GradientDescent:
         tol: float = 1e-10,
         max_iter: int = 1_000_000,
         target_cost: float | None = None,
-        init: str = "svd",
+        init: str | CalibrationResult = "svd",
         weighting: str = "propagated",
         allow_degenerate: bool = False,
     ) -> None:
@@ -124,10 +125,9 @@ class GradientDescent:
         with Stopwatch() as sw:
             x, f, it, status = descend(x, u, w_n, mu, self.tol, self.max_iter, target)
         converged = status == "converged"
-        T_n = canonicalise(x[:9].reshape(3, 3)) if np.all(np.isfinite(x)) else np.eye(3)
-        theta = norm.theta_to_raw(theta_from(T_n, x[9:12]))
+        finite = status != "diverged" and np.all(np.isfinite(x))
+        theta = norm.theta_to_raw(theta_from(canonicalise(x[:9].reshape(3, 3)), x[9:12])) if finite else np.full(9, np.nan)
         solver = SolverInfo("gradient descent", status, converged, it, sw.seconds, f"step μ = {mu:.4g} (normalised)")
-        notes = [] if converged else [f"gradient descent {status} after {it} iterations"]
         return finish(
             method=self.name,
             poses=poses,
@@ -135,7 +135,10 @@ class GradientDescent:
             solver=solver,
             weighting=self.weighting,
             allow_degenerate=self.allow_degenerate,
-            notes=notes,
+            remedy=Remedy(
+                stopped_early="pass a larger max_iter or a looser tol",
+                failed="pass step='auto' (μ = 1/L) or a smaller step",
+            ),
             extra={"step": mu, "final_cost": f * np.mean(w), "init": start.method},
         )
 

@@ -24,14 +24,15 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
 from __future__ import annotations
 
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish, pose_weights
+from optcal.errors import FitError, InputError, SolverError
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish, pose_weights
 from optcal.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.poses import PoseTable
@@ -41,6 +42,11 @@ from optcal.result import CalibrationResult, SolverInfo
 LOSSES = ("squared", "huber", "cauchy")
 #: Default loss scales (in standard deviations): 95 % efficiency at the Gaussian.
 DEFAULT_LOSS_SCALE = {"squared": 1.0, "huber": 1.345, "cauchy": 2.385}
+#: What to change when IPOPT stops early or fails (the ML problems of this module and of ``exact``).
+IPOPT_REMEDY = Remedy(
+    stopped_early="raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)",
+    failed='check ipopt_options, or use method="convex"',
+)
 #: IPOPT options used unless overridden.
 IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.print_level": 0,
@@ -179,7 +185,36 @@ ML_IPOPT_DEFAULTS: dict[str, Any] = {
 }
 
 
-class MLProblem:
+class _MLSolve(ABC):
+    """What both forms of the ML problem share: one solve from a start, for data and weights."""
+
+    loss: str
+
+    def solve(
+        self,
+        theta0: NDArray,
+        u: NDArray,
+        w: NDArray,
+        delta: float = 1.0,
+        lbx: NDArray | None = None,
+        ubx: NDArray | None = None,
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,); θ and IPOPT's statistics."""
+        cost = NormResidualCost(u, w, self.loss, delta)
+        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+        args: dict[str, Any] = {"x0": theta0}
+        if lbx is not None:
+            args["lbx"] = lbx
+        if ubx is not None:
+            args["ubx"] = ubx
+        return self._solve(cost, args)
+
+    @abstractmethod
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Run IPOPT on ``cost`` with the start and bounds in ``args``."""
+
+
+class MLProblem(_MLSolve):
     """The NLP ``min_θ c Σ ρ(√w_k r_k(θ))`` for n poses, data as parameters (built once).
 
     The cost is expanded into one CasADi SX graph with the exact Hessian (fastest
@@ -204,7 +239,7 @@ class MLProblem:
         cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
         p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
         opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
-        self.solver = ca.nlpsol("ml_calibration", "ipopt", {"x": x, "p": p, "f": cost}, opts)
+        self.solver = ipopt_nlpsol("ml_calibration", {"x": x, "p": p, "f": cost}, opts)
         self._lock = threading.Lock()
 
     @classmethod
@@ -215,23 +250,11 @@ class MLProblem:
             return VectorisedMLProblem(loss, ipopt_options)
         return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
 
-    def solve(
-        self,
-        theta0: NDArray,
-        u: NDArray,
-        w: NDArray,
-        delta: float = 1.0,
-        lbx: NDArray | None = None,
-        ubx: NDArray | None = None,
-    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
-        start = NormResidualCost(u, w, self.loss, delta)
-        scale = cost_scale(len(u), np.sqrt(start.value(theta0) / len(u)))
-        p = np.concatenate([u.ravel(), w, [delta, scale]])  # vec() is column-major: a_k stacked
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        u = cost.kernel.data.T  # (n, 3): vec() is column-major, so p holds a_1, a_2, ... stacked
+        p = np.concatenate([u.ravel(), cost.w, [cost.delta, cost.scale]])
         with self._lock:  # the solver keeps the statistics of its last call
-            sol = self.solver(**_solve_arguments(theta0, lbx, ubx, p=p))
-            stats = self.solver.stats()
-        return np.asarray(sol["x"]).ravel(), stats
+            return run_nlpsol(self.solver, p=p, **args)
 
 
 def numpy_callback(
@@ -285,7 +308,7 @@ def numpy_callback(
     return NumpyCallback()
 
 
-class VectorisedMLProblem:
+class VectorisedMLProblem(_MLSolve):
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
     The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
@@ -334,36 +357,35 @@ class VectorisedMLProblem:
         )
         x = ca.MX.sym("theta", 9)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": gradient, "hess_lag": hessian, **self.ipopt_options}
-        solver = ca.nlpsol("ml_calibration_vectorised", "ipopt", {"x": x, "f": value(x)}, opts)
+        solver = ipopt_nlpsol("ml_calibration_vectorised", {"x": x, "f": value(x)}, opts)
         return solver, [gradient, value, hessian]
 
-    def solve(
-        self,
-        theta0: NDArray,
-        u: NDArray,
-        w: NDArray,
-        delta: float = 1.0,
-        lbx: NDArray | None = None,
-        ubx: NDArray | None = None,
-    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,)."""
-        cost = NormResidualCost(u, w, self.loss, delta)
-        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+    def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
         solver, callbacks = self._solver(cost)
-        sol = solver(**_solve_arguments(theta0, lbx, ubx))
-        stats = solver.stats()
+        result = run_nlpsol(solver, **args)
         del callbacks  # only now may the callbacks go
-        return np.asarray(sol["x"]).ravel(), stats
+        return result
 
 
-def _solve_arguments(theta0: NDArray, lbx: NDArray | None, ubx: NDArray | None, **data: Any) -> dict[str, Any]:
-    """Keyword arguments of an ``nlpsol`` call: the start, the bounds given, the data."""
-    args: dict[str, Any] = {"x0": theta0, **data}
-    if lbx is not None:
-        args["lbx"] = lbx
-    if ubx is not None:
-        args["ubx"] = ubx
-    return args
+def ipopt_nlpsol(name: str, nlp: dict[str, Any], options: dict[str, Any]) -> Any:
+    """``casadi.nlpsol(name, "ipopt", nlp, options)``; options CasADi or IPOPT refuse are an :class:`InputError`."""
+    import casadi as ca
+
+    try:
+        return ca.nlpsol(name, "ipopt", nlp, options)
+    except RuntimeError as exc:
+        reason = str(exc).strip().splitlines()[-1].split(": ")[-1]  # CasADi's last line says why
+        raise InputError(f"IPOPT refused the options ({reason}); check ipopt_options") from exc
+
+
+def run_nlpsol(solver: Any, **args: Any) -> tuple[NDArray[np.float64], dict[str, Any]]:
+    """Call a CasADi ``nlpsol`` and read its statistics; an exception inside the solver is a :class:`SolverError`."""
+    try:
+        sol = solver(**args)
+    except RuntimeError as exc:
+        reason = str(exc).strip().splitlines()[-1]
+        raise SolverError(f"IPOPT raised an error in {solver.name()}: {reason}") from exc
+    return np.asarray(sol["x"]).ravel(), solver.stats()
 
 
 #: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
@@ -557,7 +579,7 @@ class MaximumLikelihood:
         status = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False))
         theta = norm.theta_to_raw(theta_n)
-        notes = [] if success else [f"IPOPT did not report success: {status}"]
+        notes: list[str] = []
         extra: dict[str, Any] = {"init": init_method, "loss": self.loss, "passes": passes}
         if self.loss != "squared":
             T, o = unpack_theta(theta)
@@ -571,7 +593,8 @@ class MaximumLikelihood:
             if down.size:
                 notes.append(
                     f"{down.size} pose(s) down-weighted below 0.5 by the {self.loss} loss "
-                    f"(rows {', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
+                    f"({'poses' if poses.source == 'raw recording' else 'file rows'} "
+                    f"{', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
                 )
         form = "SX, exact Hessian" if isinstance(problem, MLProblem) else "numpy callbacks, Gauss-Newton Hessian"
         solver = SolverInfo(
@@ -587,5 +610,6 @@ class MaximumLikelihood:
             allow_degenerate=self.allow_degenerate,
             notes=notes,
             extra=extra,
+            remedy=IPOPT_REMEDY,
         )
 

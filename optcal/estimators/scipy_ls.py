@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult, least_squares
 
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser, Stopwatch, finish
+from optcal.estimators.base import Normaliser, Remedy, Stopwatch, finish
 from optcal.estimators.mle import MaximumLikelihood, NormResidualCost
 from optcal.poses import PoseTable
 from optcal.result import CalibrationResult, SolverInfo
@@ -110,6 +110,7 @@ class ScipyLeastSquares:
             solver=solver,
             weighting=self.weighting,
             allow_degenerate=self.allow_degenerate,
-            notes=[] if success else [f"least_squares did not converge: {res.message}"],
+            remedy=Remedy(stopped_early="loosen tol or use the other method ('lm' or 'trf')",
+                          failed="use the other method ('lm' or 'trf')"),
             extra={"init": init_method, "passes": passes},
         )

@@ -25,7 +25,7 @@ import click
 import numpy as np
 
 from optcal.calibration import calibrate
-from optcal.errors import FitError, IdentifiabilityError
+from optcal.errors import FitError, IdentifiabilityError, SolverError
 from optcal.identifiability import analyse_design
 from optcal.model import (
     LU2017_TABLE1_A_PAPER,
@@ -87,7 +87,7 @@ def monte_carlo(runs: int = 200, n_per_axis: int = 40, sigma: float = 0.001, see
         for m in methods:
             try:
                 r = calibrate(poses, method=m)
-            except FitError:
+            except (FitError, SolverError):
                 failures[m] += 1
                 continue
             e = est[m]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -37,7 +38,7 @@ import click
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import OptcalError
+from optcal.errors import ConvergenceWarning, OptcalError
 from optcal.estimators.base import Normaliser
 from optcal.estimators.ellipsoid import ConvexEllipsoidFit, SVDEllipsoidFit
 from optcal.estimators.exact import ExactMaximumLikelihood
@@ -119,7 +120,9 @@ def monte_carlo(design: Design, methods: tuple[str, ...], runs: int, seed: int, 
         for m in methods:
             t0 = time.perf_counter()
             try:
-                res = estimators[m].fit(poses)
+                with warnings.catch_warnings():  # a run that does not converge is counted below
+                    warnings.simplefilter("ignore", ConvergenceWarning)
+                    res = estimators[m].fit(poses)
             except OptcalError as exc:
                 key = type(exc).__name__
                 failures[m][key] = failures[m].get(key, 0) + 1

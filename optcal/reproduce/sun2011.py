@@ -254,7 +254,7 @@ def run(runs: int = DEFAULT_RUNS, seed: int = 0, quick: bool = False, progress: 
         Runs also calibrated by the static ML (default 100, 3 when quick).
     """
     if runs < 1:
-        raise InputError("--runs must be at least 1")
+        raise InputError("runs must be at least 1")
     t0 = time.perf_counter()
     if quick:
         runs = min(runs, QUICK_RUNS)

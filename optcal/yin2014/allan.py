@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import allantools
 import numpy as np
@@ -56,6 +56,9 @@ from scipy.stats import norm
 
 from optcal.errors import InputError
 from optcal.model import AXES, STANDARD_GRAVITY
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Yin 2014, section 2.2: grow τ only while at least 9 clusters remain.
 MIN_CLUSTERS: int = 9
@@ -568,17 +571,16 @@ def simulate_noise(
 
 
 # --------------------------------------------------------------------------- plot
-def plot_allan(analysis: AllanAnalysis, path: str | Path, title: str | None = None) -> Path:
+def allan_figure(analysis: AllanAnalysis, title: str | None = None) -> "Figure":
     """Log-log Allan deviation of each axis with confidence intervals and the fitted lines.
 
     Values are drawn in the input units; the legend gives the parameters in conventional units.
+    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
     """
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
+    fig = Figure(figsize=(15, 4.8))
+    axes = fig.subplots(1, 3)
     for ax, (axis, curve) in zip(axes, analysis.curves.items()):
         p = analysis.parameters[axis]
         si = p.scaled(analysis.si_per_unit)
@@ -605,8 +607,12 @@ def plot_allan(analysis: AllanAnalysis, path: str | Path, title: str | None = No
     axes[0].set_ylabel(f"Allan deviation σ(τ) ({analysis.units})")
     fig.suptitle(title or f"Allan deviation, {analysis.duration_s / 3600:.3g} h at {analysis.rate_hz:g} Hz")
     fig.tight_layout()
+    return fig
+
+
+def plot_allan(analysis: AllanAnalysis, path: str | Path, title: str | None = None) -> Path:
+    """Save :func:`allan_figure` to ``path`` (parent folders created); returns the path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    allan_figure(analysis, title).savefig(out, dpi=120)
     return out

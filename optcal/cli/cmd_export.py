@@ -1,0 +1,76 @@
+"""``optcal export CAL --format ardupilot|px4|kalibr|ros|c``: a calibration in another tool's format."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from optcal.cli.data_options import DATA_PATH
+
+
+@click.command()
+@click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL")
+@click.option("--format", "fmt", required=True, type=click.Choice(["ardupilot", "px4", "kalibr", "ros", "c"]),
+              help="ardupilot (param file), px4 (param set lines), kalibr (imu.yaml), ros (Imu covariance), c (C99 header).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Write the file here (default: standard output, with the report on standard error).")
+@click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="ardupilot/px4 with a calibration in counts: the driver's sensitivity (counts per g, from the datasheet).")
+@click.option("--max-loss", type=click.FloatRange(min=0), default=5.0, show_default=True, metavar="MG",
+              help="ardupilot/px4: refuse when the per-axis model's rms |a|-1 exceeds the full model's by more (mg).")
+@click.option("--poses", type=DATA_PATH, default=None,
+              help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures).")
+@click.option("--allan", type=click.Path(dir_okay=False), default=None,
+              help="kalibr (required), ros (optional): an `optcal allan --json` result.")
+@click.option("--rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+              help="kalibr/ros: the IMU topic's rate (default: the Allan log's).")
+@click.option("--rostopic", default="/imu0", show_default=True, help="kalibr: the IMU topic.")
+def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, max_loss: float,
+           poses: str | None, allan: str | None, rate: float | None, rostopic: str) -> None:
+    """Write the calibration CAL (any cal_type) in the format another tool reads.
+
+    ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
+    the loss of that model on the calibration's own poses is reported next to the full model's
+    and the export is refused above --max-loss.  Their parameters are in m/s² of the driver's
+    output, so a calibration in counts needs --counts-per-g.
+    """
+    import optcal.caltypes as caltypes
+    from optcal.caltypes.apply import convert_samples
+    from optcal.export import ExportOptions, export as run_export, read_allan
+
+    cal = caltypes.load(calibration)
+    fit_poses = None
+    if poses is not None:
+        from optcal.caltypes import FitPoses
+        from optcal.data import load
+
+        table = load(poses)
+        fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
+    options = ExportOptions(
+        counts_per_g=counts_per_g,
+        max_loss_g=max_loss * 1e-3,
+        poses=fit_poses,
+        allan=read_allan(allan) if allan else None,
+        rate_hz=rate,
+        rostopic=rostopic,
+        source=Path(calibration).name,
+    )
+    result = run_export(cal, fmt, options)
+    report = [f"calibration: {calibration}: {cal.describe()}"]
+    if result.loss is not None:
+        report.append(result.loss.describe())
+    report += [f"exported: {m}" for m in result.mapped]
+    report += [f"not exported: {d}" for d in result.dropped]
+    report += [f"note: {n}" for n in result.notes]
+    if output is None:
+        click.echo(result.text, nl=False)
+        for line in report:
+            click.echo(line, err=True)
+        return
+    from optcal.cli.outputs import output_file
+
+    output_file(output).write_text(result.text)
+    for line in report:
+        click.echo(line)
+    click.echo(f"wrote {fmt} file {output}")

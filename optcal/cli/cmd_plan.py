@@ -1,0 +1,118 @@
+"""``optcal plan``: which orientations to take (``--poses K``), or which one next (``--next DATA``)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+
+
+@click.command()
+@click.option("--poses", "n_poses", type=int, default=None, metavar="K", help="Plan K orientations.")
+@click.option("--next", "next_data", type=DATA_PATH, default=None, metavar="DATA",
+              help="Recommend the one orientation that adds the most to the poses in DATA (pose table or raw recording).")
+@click.option("--criterion", type=click.Choice(["D", "A", "E"], case_sensitive=False), default="D", show_default=True,
+              help="D: maximise det of the Fisher information; A: minimise the sum of parameter variances; "
+                   "E: maximise the information of the worst-determined combination.")
+@click.option("--prior", default=None, metavar="CAL.json|nominal",
+              help="Plan for this saved calibration; 'nominal' for T = I, o = 0. Default: nominal, or with "
+                   "--given/--next the convex fit of that DATA when it determines one.")
+@click.option("--sigma", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Pose noise per axis, in the prior's units, for the expected standard errors [1 mg].")
+@click.option("--turntable", is_flag=True, help="Only orientations of a three-axis turntable (Sun 2011) with gimbal steps of --turntable-step.")
+@click.option("--turntable-step", type=float, default=45.0, show_default=True, metavar="DEG", help="Gimbal step of --turntable.")
+@click.option("--within", type=float, default=None, metavar="DEG", help="Only orientations within DEG of --axis up (a device that cannot be turned over).")
+@click.option("--axis", default="+z", show_default=True, help="Axis of --within: +x, -x, +y, -y, +z, -z.")
+@click.option("--candidates", "candidates_file", type=click.Path(dir_okay=False), default=None,
+              help="Choose only from the orientations in this CSV (dx,dy,dz or qw,qx,qy,qz or roll_deg,pitch_deg).")
+@click.option("--given", "given_data", type=DATA_PATH, default=None, metavar="DATA",
+              help="Poses already taken (pose table or raw recording): plan K more.")
+@click.option("--target-stderr", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="With --next: say 'stop' once every standard error is below this (T relative to 1, o in g).")
+@click.option("--grid", type=click.IntRange(100, 100_000), default=2000, show_default=True,
+              help="Candidate directions on the sphere (or in the cap) for the relaxation.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random rounding start.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
+@click.option("--plot", type=click.Path(), default=None, metavar="PATH",
+              help="Save the orientation sphere into the folder PATH (plan.png; created when missing), or to PATH "
+                   "itself when it ends in .png, .pdf or .svg.")
+@data_options
+def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
+         turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
+         given_data: str | None, target_stderr: float | None, grid: int, seed: int, as_json: bool,
+         plot: str | None, **data_opts: Any) -> None:
+    """Plan calibration poses before taking them (optimal experiment design for the lumped model).
+
+    --poses K: the K orientations that determine the nine parameters best (convex relaxation
+    in cvxpy over a grid of gravity directions, rounding, refinement on the sphere in IPOPT),
+    with the efficiency against the relaxation's bound and the expected standard errors.
+    --next DATA: the next best orientation after the poses in DATA.
+    """
+    from optcal.errors import InputError
+    from optcal.plan import Cap, Prior, given_candidates, sphere_candidates, turntable_candidates
+    from optcal.plan.candidates import read_orientations
+    from optcal.result import jsonable
+
+    if (n_poses is None) == (next_data is None):
+        raise InputError("give either --poses K (plan K poses) or --next DATA (the next pose after DATA)")
+    if next_data is not None and given_data is not None:
+        raise InputError("--next DATA already gives the poses taken; drop --given")
+    if turntable and candidates_file:
+        raise InputError("--turntable and --candidates both fix the orientations; give one")
+    if target_stderr is not None and next_data is None:
+        raise InputError("--target-stderr goes with --next DATA")
+    if next_data is not None and criterion.upper() != "D":
+        raise InputError("--next always uses the D criterion (the largest gain in log det); drop --criterion")
+
+    data_path = next_data or given_data
+    poses = load_data(data_path, **data_opts) if data_path else None
+    if poses is not None and not as_json:
+        click.echo(data_line(data_path, poses))
+    if prior is None or prior == "nominal":
+        prior_model = (Prior.of_poses(poses, data_path) if prior is None and poses is not None
+                       else Prior.nominal(poses.units if poses is not None else "g"))
+    else:
+        prior_model = Prior.load(prior)
+
+    cap = Cap(axis, within) if within is not None else None
+    if turntable:
+        candidates = turntable_candidates(turntable_step, cap)
+    elif candidates_file:
+        candidates = given_candidates(read_orientations(candidates_file), cap, candidates_file)
+    else:
+        candidates = sphere_candidates(grid, cap)
+
+    if next_data is not None:
+        from optcal.plan import next_pose
+
+        result: Any = next_pose(poses, prior=prior_model, sigma=sigma, candidates=candidates,
+                                target_stderr=target_stderr)
+        planned, given_dirs = result.direction[None, :], result.given_directions
+    else:
+        from optcal.plan import plan_poses
+
+        result = plan_poses(n_poses, criterion, prior=prior_model, sigma=sigma, candidates=candidates,
+                            given=poses, seed=seed)
+        planned, given_dirs = result.directions, result.given_directions
+    if plot:
+        from optcal.plan.figure import sphere_figure
+
+        shown = None if candidates.continuous else candidates.directions
+        from optcal.cli.outputs import plot_file
+
+        plot = str(plot_file(plot, "plan.png"))
+        sphere_figure(planned, given_dirs, shown, cap).savefig(plot, dpi=120)
+    if as_json:
+        out = result.to_dict()
+        if poses is not None:
+            out["data"] = data_summary(data_path, poses)
+        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        return
+    click.echo(result.report())
+    if poses is not None and poses.exclusions:
+        click.echo("excluded from DATA: " + "; ".join(f"{k}: {v}" for k, v in poses.exclusions.items()))
+    if plot:
+        click.echo(f"figure: {plot}")

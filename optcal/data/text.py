@@ -1,0 +1,353 @@
+"""Delimited text: find the layout of a file from its first lines, then parse its numbers.
+
+The layout (:class:`TextLayout`) is sniffed from the first :data:`SNIFF_LINES` lines: the
+delimiter (comma, semicolon, tab, ``|`` or whitespace), a decimal comma, the header row
+(or none), and the metadata lines above it (``Fs,100``, ``# comments``).  The numbers are
+then parsed in one place, :func:`parse_numbers`: numpy's C reader for small files (it
+needs no pandas import, which costs more than reading a file of 10⁵ rows), pandas' C
+parser in chunks for large files, for decimal commas and for files with non-numeric
+cells (which are counted, not fatal).  :func:`iter_number_chunks` streams a file of any
+size chunk by chunk.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import InputError
+
+#: Lines read to find the layout.
+SNIFF_LINES: int = 64
+#: Files up to this size are parsed by numpy (no pandas import); larger ones by pandas.
+SMALL_FILE_BYTES: int = 16 * 2**20
+#: Rows per chunk when streaming.
+CHUNK_ROWS: int = 1_000_000
+#: Delimiters tried, in order of preference when several fit.
+DELIMITERS: tuple[str, ...] = ("\t", ";", "|", ",", " ")
+_NAMES = {"\t": "tab", ";": "semicolon", "|": "'|'", ",": "comma", " ": "whitespace"}
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
+_COMMA_NUMBER = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
+
+
+@dataclass(frozen=True)
+class TextLayout:
+    """How a delimited text file is laid out.
+
+    Attributes
+    ----------
+    delimiter : str
+        ``","``, ``";"``, ``"\\t"``, ``"|"``, or ``" "`` for any run of whitespace.
+    decimal_comma : bool
+        Numbers are written with a decimal comma (``9,81``).
+    header_line : int or None
+        0-based line of the header row; ``None`` when the file has no header.
+    first_data_line : int
+        0-based line of the first data row.
+    names : list of str
+        The header's column names, or ``"1"``, ``"2"``, ... (1-based positions) without one.
+    metadata : dict of str to str
+        ``key,value`` lines and comments above the header.
+    """
+
+    delimiter: str
+    decimal_comma: bool
+    header_line: int | None
+    first_data_line: int
+    names: list[str]
+    metadata: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def has_header(self) -> bool:
+        return self.header_line is not None
+
+    def describe(self) -> str:
+        """``comma-separated, header on line 5`` / ``whitespace-separated, no header``."""
+        what = f"{_NAMES[self.delimiter]}-separated"
+        if self.decimal_comma:
+            what += " with decimal commas"
+        head = f"header on line {self.header_line + 1}" if self.header_line is not None else "no header"
+        return f"{what}, {head}, {len(self.names)} columns"
+
+
+def _is_number(s: str, decimal_comma: bool) -> bool:
+    s = s.strip()
+    if _NUMBER.match(s):
+        return True
+    return decimal_comma and bool(_COMMA_NUMBER.match(s))
+
+
+def _numbers(row: list[str], decimal_comma: bool) -> int:
+    return sum(1 for f in row if f and _is_number(f, decimal_comma))
+
+
+def _split(line: str, delimiter: str) -> list[str]:
+    return line.split() if delimiter == " " else [f.strip() for f in line.split(delimiter)]
+
+
+def read_head(path: Path) -> list[str]:
+    """The first :data:`SNIFF_LINES` lines of a text file (refusing binary files)."""
+    try:
+        with path.open("rb") as fh:
+            raw = [fh.readline() for _ in range(SNIFF_LINES)]
+    except IsADirectoryError as exc:  # pragma: no cover - detect_file_type catches directories
+        raise InputError(f"{path}: is a directory; give a data file") from exc
+    blob = b"".join(raw)
+    if b"\x00" in blob:
+        raise InputError(f"{path}: not a text file (and not a recognised binary format: ULog, ROS bag, Parquet)")
+    try:
+        text = blob.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        try:
+            text = blob.decode("latin-1")
+        except UnicodeDecodeError as exc:  # pragma: no cover - latin-1 decodes every byte
+            raise InputError(f"{path}: not a text file") from exc
+        if sum(not (c.isprintable() or c.isspace()) for c in text) > 0.05 * max(1, len(text)):
+            raise InputError(f"{path}: not a text file (and not a recognised binary format: ULog, ROS bag, Parquet)")
+    return [ln.rstrip("\r\n") for ln in text.splitlines()]
+
+
+def sniff_layout(path: str | Path) -> TextLayout:
+    """Find the delimiter, decimal mark, header row and metadata of a delimited text file.
+
+    The data rows are the longest run of lines at the end of the sniffed head whose fields
+    are all numbers (empty cells allowed) with one field count; the line just above them is
+    the header when all its fields are names and it has as many fields.
+
+    Raises
+    ------
+    InputError
+        Empty file, binary file, a header whose field count differs from the data rows', or
+        no delimiter giving at least one column.
+    """
+    p = Path(path)
+    lines = read_head(p)
+    content = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith("#")]
+    if not content:
+        raise InputError(f"{p}: the file is empty; expected data rows (with or without a header row)")
+    best: tuple[int, int, TextLayout] | None = None
+    mismatch: str | None = None
+    for rank, delim in enumerate(DELIMITERS):
+        layout, why = _layout_for(p, lines, content, delim)
+        if layout is None:
+            if why and mismatch is None:
+                mismatch = why
+            continue
+        n_data = sum(1 for i, _ in content if i >= layout.first_data_line)
+        score = (n_data * (len(layout.names) >= 2), -rank)
+        if best is None or score > best[:2]:
+            best = (score[0], score[1], layout)
+    if best is None or best[0] == 0:
+        if mismatch:
+            raise InputError(f"{p}: {mismatch}")
+        if best is not None:
+            return best[2]
+        raise InputError(
+            f"{p}: no data rows found (expected rows of numbers, comma-, semicolon-, tab-, '|'- or "
+            "whitespace-separated, optionally below a header row such as t,ax,ay,az)"
+        )
+    return best[2]
+
+
+def _layout_for(
+    p: Path, lines: list[str], content: list[tuple[int, str]], delim: str
+) -> tuple[TextLayout | None, str | None]:
+    fields = [_split(s, delim) for _, s in content]
+    decimal_comma = delim != "," and any(_COMMA_NUMBER.match(f) for row in fields for f in row)
+    # a data row: more numbers than other fields (a text label column may sit among them)
+    numeric = [_numbers(row, decimal_comma) > sum(1 for f in row if f) - _numbers(row, decimal_comma) for row in fields]
+    # the data block: the run of numeric rows ending at the last sniffed row (a truncated
+    # last row, shorter than the others, still counts)
+    end = len(content)
+    k = end
+    while k > 0 and numeric[k - 1]:
+        k -= 1
+    if k == end:
+        return None, None
+    counts = [len(fields[j]) for j in range(k, end)]
+    width = max(set(counts), key=counts.count)
+    # extend upwards only through rows of the data width
+    while k < end and len(fields[k]) != width:
+        k += 1
+    if width < 1 or k == end:
+        return None, None
+    first_data = content[k][0]
+    header_line = None
+    names = [str(j + 1) for j in range(width)]
+    if k > 0:
+        above = fields[k - 1]
+        if len(above) >= 2 and all(f and not _is_number(f, decimal_comma) for f in above):
+            if len(above) == width:
+                header_line = content[k - 1][0]
+                names = [f.strip().strip('"').strip("'") for f in above]
+            elif len(above) >= 3:
+                return None, (
+                    f"line {content[k - 1][0] + 1} looks like the header ({len(above)} columns: {', '.join(above)}) "
+                    f"but line {first_data + 1} has {width} fields; every data row needs one value per column"
+                )
+    meta_end = header_line if header_line is not None else first_data
+    return TextLayout(delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end])), None
+
+
+def _metadata(lines: list[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for line in lines:
+        s = line.strip().lstrip("#").strip()
+        if not s:
+            continue
+        m = re.match(r"^([^,;:=\t|]+)[,;:=\t|]\s*(.*)$", s)
+        if m:
+            out[m.group(1).strip()] = m.group(2).strip().rstrip(",;")
+        else:
+            out[s] = ""
+    return out
+
+
+@dataclass
+class ParsedNumbers:
+    """The numbers of a delimited file, one float column per field.
+
+    Attributes
+    ----------
+    columns : list of ndarray
+        One float array per field (NaN where a cell is empty, missing or not a number).
+    non_numeric : dict of int to tuple
+        Field index → (number of non-numeric cells, first data row (1-based), first value).
+    engine : str
+        ``"numpy"`` or ``"pandas"``: which parser read the file.
+    """
+
+    columns: list[NDArray[np.float64]]
+    non_numeric: dict[int, tuple[int, int, str]]
+    engine: str
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.columns[0].size) if self.columns else 0
+
+
+def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_ROWS) -> ParsedNumbers:
+    """Parse every data row of a file laid out as ``layout``.
+
+    Small files with plain numbers are read by numpy; large files, decimal commas and any
+    file with a non-numeric or missing cell by pandas (in chunks of ``chunk_rows``), which
+    turns such cells into NaN and counts them per column.
+    """
+    p = Path(path)
+    if p.stat().st_size <= SMALL_FILE_BYTES and not layout.decimal_comma:
+        try:
+            data = _numpy_read(p, layout)
+            return ParsedNumbers([np.ascontiguousarray(data[:, j]) for j in range(data.shape[1])], {}, "numpy")
+        except ValueError:
+            pass  # a ragged, empty or non-numeric cell: pandas reads it cell by cell
+    parts: list[list[NDArray[np.float64]]] = []
+    non_numeric: dict[int, tuple[int, int, str]] = {}
+    offset = 0
+    for cols, bad in _pandas_chunks(p, layout, chunk_rows):
+        for j, (count, row, value) in bad.items():
+            old = non_numeric.get(j)
+            non_numeric[j] = (count + (old[0] if old else 0), old[1] if old else row + offset, old[2] if old else value)
+        offset += cols[0].size if cols else 0
+        parts.append(cols)
+    if not parts or offset == 0:
+        raise InputError(f"{p}: no data rows after the header")
+    columns: list[NDArray[np.float64]] = []
+    for j in range(len(parts[0])):
+        columns.append(np.concatenate([c[j] for c in parts]) if len(parts) > 1 else parts[0][j])
+        for c in parts:  # free each chunk's column once joined: one copy of the data at a time
+            c[j] = columns[-1][:0]
+    return ParsedNumbers(columns, non_numeric, "pandas")
+
+
+def iter_number_chunks(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_ROWS) -> Iterator[list[NDArray[np.float64]]]:
+    """Stream a file's data rows as lists of float columns, ``chunk_rows`` rows at a time."""
+    for cols, _ in _pandas_chunks(Path(path), layout, chunk_rows):
+        yield cols
+
+
+def read_frame(path: str | Path) -> tuple[Any, dict[str, str]]:
+    """The whole file as a pandas frame (its own dtypes: text columns stay text) and its metadata lines."""
+    import pandas as pd
+
+    p = Path(path)
+    layout = sniff_layout(p)
+    try:
+        frame = pd.read_csv(
+            p, sep=r"\s+" if layout.delimiter == " " else layout.delimiter, header=None, names=layout.names,
+            skiprows=layout.first_data_line, decimal="," if layout.decimal_comma else ".", comment="#",
+            skipinitialspace=True, encoding="utf-8-sig", encoding_errors="replace", skip_blank_lines=True,
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise InputError(f"{p}: not a readable {_NAMES[layout.delimiter]}-separated file ({str(exc).splitlines()[0]})") from exc
+    if len(frame) == 0:
+        raise InputError(f"{p}: no data rows after the header")
+    return frame, layout.metadata
+
+
+def _numpy_read(p: Path, layout: TextLayout) -> NDArray[np.float64]:
+    data = np.loadtxt(
+        p,
+        delimiter=None if layout.delimiter == " " else layout.delimiter,
+        skiprows=layout.first_data_line,
+        comments="#",
+        ndmin=2,
+        encoding="utf-8-sig",
+    )
+    if data.shape[1] != len(layout.names) or data.shape[0] == 0:
+        raise ValueError("column count differs")
+    return data
+
+
+def _pandas_chunks(
+    p: Path, layout: TextLayout, chunk_rows: int
+) -> Iterator[tuple[list[NDArray[np.float64]], dict[int, tuple[int, int, str]]]]:
+    import pandas as pd
+
+    width = len(layout.names)
+    try:
+        reader = pd.read_csv(
+            p,
+            sep=r"\s+" if layout.delimiter == " " else layout.delimiter,
+            header=None,
+            names=list(range(width)),
+            skiprows=layout.first_data_line,
+            decimal="," if layout.decimal_comma else ".",
+            comment="#",
+            skipinitialspace=True,
+            encoding="utf-8-sig",
+            encoding_errors="replace",
+            chunksize=chunk_rows,
+            low_memory=False,
+            on_bad_lines="error",
+            skip_blank_lines=True,
+        )
+        with reader:
+            offset = 0
+            for chunk in reader:
+                cols: list[NDArray[np.float64]] = []
+                bad: dict[int, tuple[int, int, str]] = {}
+                for j in range(width):
+                    raw = chunk[j]
+                    if pd.api.types.is_numeric_dtype(raw):
+                        cols.append(raw.to_numpy(dtype=float))
+                        continue
+                    values = pd.to_numeric(raw, errors="coerce")
+                    idx = np.flatnonzero(values.isna().to_numpy() & raw.notna().to_numpy())
+                    if idx.size:
+                        bad[j] = (int(idx.size), offset + int(idx[0]) + 1, str(raw.iloc[idx[0]]))
+                    cols.append(values.to_numpy(dtype=float))
+                offset += len(chunk)
+                yield cols, bad
+    except pd.errors.EmptyDataError as exc:
+        raise InputError(f"{p}: no data rows after the header") from exc
+    except pd.errors.ParserError as exc:
+        raise InputError(
+            f"{p}: not a readable {_NAMES[layout.delimiter]}-separated file ({str(exc).splitlines()[0]}); "
+            "every data row needs one value per column"
+        ) from exc

@@ -1,0 +1,229 @@
+"""The diagnosis: where the calibrated model's simulation disagrees with the measurements, why, and the gain.
+
+``Diagnoser(settings).run(poses) -> Diagnosis`` runs four steps:
+
+1. **Baseline** — the paper's model ``a = C ā + o + n`` (Lu 2017, eq. 5), started from the
+   calibration of the chosen method (default ``mle``, eq. 13-14) or from a given calibration,
+   refitted by maximum likelihood on the norm residuals (the tests compare nested models at
+   their optimum), with its held-out error (k-fold over poses).
+2. **Simulation check** (:mod:`optcal.diagnosis.simulation`) — what the simulation of the
+   fitted model gets wrong.
+3. **Selection** (:mod:`optcal.diagnosis.selection`) — forward selection over the effects of
+   :mod:`optcal.diagnosis.effects`, per axis, each fitted jointly with ``T`` and ``o``.
+4. **Findings** (:mod:`optcal.diagnosis.findings`) — every effect of the final model with
+   estimates, standard errors, evidence and the held-out gain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.diagnosis.effects import EFFECTS, PARAMETRIC, parse_effects
+from optcal.diagnosis.findings import build_findings
+from optcal.diagnosis.fitting import Fit, Fitter, rms
+from optcal.diagnosis.noise_model import check_noise_model
+from optcal.diagnosis.progress import Progress
+from optcal.diagnosis.regressors import Regressors
+from optcal.diagnosis.result import Diagnosis
+from optcal.diagnosis.limits import detection_limits
+from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
+from optcal.diagnosis.simulation import simulation_check
+from optcal.errors import InputError
+from optcal.model import canonicalise
+from optcal.poses import PoseTable
+
+#: Parametric-bootstrap replications of the noise-model check (at most; fewer when fewer simulations are asked for).
+NOISE_SIMULATIONS: int = 100
+
+
+class LumpedCalibration(Protocol):
+    """Anything with a scale-and-skew matrix ``T`` and a bias ``o`` (a calibration result or file)."""
+
+    T: NDArray[np.float64]
+    o: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Settings of a diagnosis.
+
+    Attributes
+    ----------
+    effects : str, tuple of str or None
+        Candidate effects (names from :data:`~optcal.diagnosis.effects.EFFECTS`, or
+        ``"none"``); ``None``: every effect the data's columns support.  Asking for an effect
+        the data cannot support raises :class:`~optcal.errors.InputError`.
+    folds : int
+        k of the k-fold held-out error.
+    simulations : int
+        Parametric-bootstrap replications of the simulation check.
+    alpha : float
+        Family-wise false-finding level of a selection step.
+    band : float
+        Coverage of the simulated bands.
+    seed : int
+        Seed of the simulations.
+    method : str
+        Calibration method of the baseline (any of :func:`optcal.calibrate`'s).
+    """
+
+    effects: str | tuple[str, ...] | None = None
+    folds: int = 10
+    simulations: int = 200
+    alpha: float = 0.02
+    band: float = 0.99
+    seed: int = 0
+    method: str = "mle"
+
+    def __post_init__(self) -> None:
+        if not 0 < self.alpha < 1:
+            raise InputError(f"alpha must be between 0 and 1, got {self.alpha}")
+        if not 0 < self.band < 1:
+            raise InputError(f"band must be between 0 and 1, got {self.band}")
+        if self.folds < 2:
+            raise InputError(f"folds must be at least 2, got {self.folds}")
+        if self.simulations < 0:
+            raise InputError(f"simulations must be non-negative, got {self.simulations}")
+        if self.effects is not None and not isinstance(self.effects, str):
+            object.__setattr__(self, "effects", tuple(self.effects))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"folds": self.folds, "simulations": self.simulations, "alpha": self.alpha, "band": self.band,
+                "seed": self.seed, "min_dof": MIN_DOF, "method": self.method,
+                "effects": None if self.effects is None else (
+                    self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
+
+
+def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The effects to test and the ones skipped with the reason."""
+    asked = parse_effects(asked_text)
+    skipped: dict[str, str] = {}
+    if asked is None:
+        chosen = []
+        for e in EFFECTS:
+            if reg.supports(e):
+                chosen.append(e)
+            else:
+                skipped[e] = reg.reason_unsupported(e)
+        return tuple(chosen), skipped
+    if not asked:
+        return (), {e: "not asked for (effects 'none')" for e in EFFECTS}
+    bad = [f"{e}: {reg.reason_unsupported(e)}" for e in asked if not reg.supports(e)]
+    if bad:
+        raise InputError(
+            "cannot test " + "; ".join(bad) + ". Give data with a varying temp column (°C) and a time column, "
+            "or leave those effects out of the candidate effects"
+        )
+    return asked, skipped
+
+
+def check_size(n: int) -> None:
+    """Refuse a pose table below the baseline's own minimum (candidates are tested one at a time)."""
+    if n < 9 + 3:
+        raise InputError(
+            f"{n} poses are too few for a diagnosis: at least 12 are needed (9 calibration parameters "
+            "and 3 residual degrees of freedom)"
+        )
+
+
+class Diagnoser:
+    """Runs diagnoses with fixed settings (module docstring).
+
+    Parameters
+    ----------
+    settings : DiagnosisSettings, optional
+    progress : Progress or callable, optional
+        How to report progress (:class:`~optcal.diagnosis.progress.Progress`), or a callable
+        receiving a short message at each stage.  Silent by default.
+    """
+
+    def __init__(self, settings: DiagnosisSettings | None = None,
+                 progress: Progress | Callable[[str], None] | None = None) -> None:
+        self.settings = settings or DiagnosisSettings()
+        self.reporter = progress if isinstance(progress, Progress) else Progress(message=progress)
+
+    def progress(self, text: str) -> None:
+        """Report a stage."""
+        self.reporter.say(text)
+
+    def start(self, poses: PoseTable, baseline: LumpedCalibration | None) -> tuple[Any, Any, str]:
+        """``T``, ``o`` of the baseline calibration and where it came from."""
+        if baseline is not None:
+            T, o = getattr(baseline, "T", None), getattr(baseline, "o", None)
+            if T is None or o is None:
+                raise InputError("baseline must be a calibration with a T matrix and a bias o (e.g. optcal.calibrate's result)")
+            return canonicalise(T), np.asarray(o, float), "the given calibration"
+        from optcal.calibration import calibrate
+
+        self.progress(f"fitting the paper's model ({self.settings.method})")
+        result = calibrate(poses, self.settings.method)
+        return canonicalise(result.T), np.asarray(result.o, float), f"the {self.settings.method} calibration"
+
+    def prepare(self, poses: PoseTable, baseline: LumpedCalibration | None = None,
+                regressors: Regressors | None = None) -> tuple[Fitter, str]:
+        """The :class:`Fitter` of ``poses`` started from the baseline calibration, and where that came from."""
+        T, o, source = self.start(poses, baseline)
+        return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds), source
+
+    def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None) -> Diagnosis:
+        """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration."""
+        if not isinstance(poses, PoseTable):
+            raise InputError("Diagnoser.run() takes a PoseTable; load data with optcal.data.load")
+        poses.validate()
+        s = self.settings
+        reg = Regressors.of(poses)
+        notes: list[str] = []
+
+        def note(text: str) -> None:
+            if text not in notes:
+                notes.append(text)
+
+        effects, skipped = choose_effects(s.effects, reg)
+        candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
+        check_size(poses.n)
+        T, o, source = self.start(poses, baseline)
+        fitter = Fitter(poses, reg, T, o, s.folds)
+        given = fitter.evaluate(fitter.x_start)
+        base = fitter.fit({}, frozenset(), fitter.x_start)
+        self.progress("k-fold held-out error of the baseline")
+        base_heldout = fitter.heldout(base)
+        self.progress(f"simulating the fitted model {s.simulations} times")
+        loop = self.reporter.loop
+        sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
+        self.progress("forward selection over the candidate effects")
+        selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
+        final = selection.final
+        findings = build_findings(fitter, final, selection.steps)
+        limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
+
+        def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
+            other = Fitter(widened, reg, T, o, s.folds)
+            return other, other.fit(final.terms, final.outliers, final.x)
+
+        self.progress("checking the noise model")
+        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop)
+        sim_after = None
+        if findings:
+            self.progress("simulating the extended model")
+            sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed, loop)
+        model = fitter.model(final)
+        d = model.correct(poses.acc, *fitter.columns())
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        return Diagnosis(
+            poses=poses, regressors=reg, settings=s, baseline_source=source, effects_tested=effects,
+            skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
+            final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
+            findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
+            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise,
+        )
+
+
+def diagnose(poses: PoseTable, baseline: LumpedCalibration | None = None,
+             progress: Progress | Callable[[str], None] | None = None, **settings: Any) -> Diagnosis:
+    """``Diagnoser(DiagnosisSettings(**settings), progress).run(poses, baseline)`` in one call."""
+    return Diagnoser(DiagnosisSettings(**settings), progress).run(poses, baseline)

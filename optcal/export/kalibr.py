@@ -1,0 +1,68 @@
+"""Kalibr: an ``imu.yaml`` noise model from an ``optcal allan --json`` result.
+
+Upstream definition (ethz-asl/kalibr, ``aslam_offline_calibration/kalibr/python/kalibr_common/
+ConfigReader.py``, ``ImuParameters``; the IMU-Noise-Model wiki page): keys ``rostopic``,
+``update_rate`` (Hz), ``accelerometer_noise_density`` (m/s²/√Hz, continuous-time white noise;
+Kalibr uses ``density · √update_rate`` per sample) and ``accelerometer_random_walk`` (m/s³/√Hz,
+bias diffusion); both must be positive.  optcal's Allan result gives the velocity random walk
+``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
+(Yin 2014; :mod:`optcal.yin2014.allan`): the largest over the axes is written, each axis in a comment.
+The gyroscope keys are not optcal's to fill in (an accelerometer calibration) and are left as
+comments.
+"""
+
+from __future__ import annotations
+
+from optcal.caltypes.base import Calibration
+from optcal.errors import InputError
+from optcal.export import ExportOptions, ExportResult
+
+AXIS_NAMES: tuple[str, str, str] = ("x", "y", "z")
+
+
+def axis_values(allan: dict, key: str) -> dict[str, float]:
+    """The per-axis value of ``key`` in an Allan result, axes without it left out."""
+    return {a: float(allan[a][key]) for a in AXIS_NAMES if allan[a].get(key) is not None}
+
+
+def update_rate(allan: dict, options: ExportOptions) -> float:
+    """The IMU rate: ``options.rate_hz``, else the Allan log's."""
+    rate = options.rate_hz if options.rate_hz is not None else allan.get("log", {}).get("rate_hz")
+    if rate is None or not rate > 0:
+        raise InputError("no update rate: give rate_hz (the IMU topic's rate, Hz)")
+    return float(rate)
+
+
+def export(cal: Calibration, options: ExportOptions) -> ExportResult:
+    """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
+    if options.allan is None:
+        raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
+    density = axis_values(options.allan, "velocity_random_walk")
+    walk = axis_values(options.allan, "rate_random_walk")
+    if not density:
+        raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
+    if not walk:
+        raise InputError(
+            "the Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            "Kalibr needs accelerometer_random_walk > 0: record a longer static log"
+        )
+    rate = update_rate(options.allan, options)
+
+    def per_axis(values: dict[str, float]) -> str:
+        return ", ".join(f"{a} {v:.4g}" for a, v in values.items())
+
+    lines = [
+        f"# Kalibr IMU noise model exported by optcal (calibration: {options.source}, {cal.describe()})",
+        "# keys as read by kalibr_common/ConfigReader.py (ImuParameters); the largest axis is written",
+        f"# velocity random walk per axis, m/s^2/sqrt(Hz): {per_axis(density)}",
+        f"# rate random walk per axis, m/s^3/sqrt(Hz): {per_axis(walk)}",
+        f"rostopic: {options.rostopic}",
+        f"update_rate: {rate:.9g}",
+        f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
+        f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]",
+        "# gyroscope_noise_density: not measured by an accelerometer calibration; fill in (rad/s/sqrt(Hz))",
+        "# gyroscope_random_walk: not measured by an accelerometer calibration; fill in (rad/s^2/sqrt(Hz))",
+    ]
+    notes = ["Kalibr also needs gyroscope_noise_density and gyroscope_random_walk, which optcal leaves to you"]
+    mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
+    return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)

@@ -1,0 +1,455 @@
+"""Gyroscope calibration by IPOPT nonlinear least squares in CasADi (Tedaldi, Pretto, Menegatti, ICRA 2014).
+
+1. **Bias** from the still intervals (Tedaldi 2014, section IV-B: the mean rate at rest):
+   the sample-weighted mean of the interval means, or, with the g-sensitivity, the linear
+   regression ``ḡ_i = b_g + G_g f_i`` of the interval means on the calibrated specific force.
+2. **Scale and misalignment**: ``T_g = s₀ (I + X)`` (nine free numbers in ``X``, ``s₀`` the
+   nominal scale) minimises ``½ Σ_i ‖Φ_i(T_g)ᵀ u_i − u_{i+1}‖²`` over the moves (eq. 13),
+   ``Φ_i`` the rotation integrated from the corrected gyro across move ``i`` (eq. 14, by
+   the exponential map of :mod:`optcal.gyro.propagation`) and ``u_i`` the gravity direction
+   of the calibrated accelerometer at pose ``i``.  The integrator and its sensitivities
+   ``∂u/∂T_g`` are one CasADi function built once per recording layout (the samples are
+   its inputs); IPOPT solves the problem with the Gauss–Newton Hessian ``JᵀJ``
+   (``hess_lag``), as imu_tk solves it by Levenberg–Marquardt in Ceres.
+3. **Accelerometer**: fixed (its gravity directions as data), or ``joint``: its nine
+   parameters re-estimated with the gyro's, the norm residuals of the poses (Lu 2017,
+   eq. 13) and the gravity-prediction residuals each scaled to unit variance.
+4. **Covariance** ``σ̂² (JᵀJ)⁻¹`` with ``σ̂²`` from the residuals (two effective degrees of
+   freedom per move: the component along the gravity direction is second order); the
+   identifiability from the excited rotation axes and the rank of ``JᵀJ``
+   (:mod:`optcal.gyro.identifiability`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import IdentifiabilityError, InputError
+from optcal.gyro.identifiability import GyroIdentifiability, excitation, fisher_rank
+from optcal.gyro.model import BIAS_NAMES, G_NAMES, T_NAMES, GyroModel
+from optcal.gyro.moves import MoveSet
+from optcal.gyro.propagation import GravityPredictor, angles_deg, unit_rows
+from optcal.gyro.result import ImuCalibration
+from optcal.gyro.units import GyroUnitsDecision
+from optcal.norm_residual import norm_residuals
+from optcal.model import TRIL_INDEX, theta_from
+from optcal.result import CalibrationResult, SolverInfo
+
+ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
+@dataclass(frozen=True)
+class GyroSettings:
+    """Settings of :func:`calibrate_gyro`.
+
+    Attributes
+    ----------
+    accelerometer : {"fixed", "joint"}
+        Keep the accelerometer calibration, or re-estimate it jointly with the gyro.
+    g_sensitivity : bool
+        Model the gyro's g-sensitivity ``G_g`` (9 more parameters, from the still intervals).
+    allow_degenerate : bool
+        Proceed (with a note) when the moves do not excite three rotation axes.
+    ipopt_options : dict
+    """
+
+    accelerometer: str = "fixed"
+    g_sensitivity: bool = False
+    allow_degenerate: bool = False
+    ipopt_options: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.accelerometer not in ACCELEROMETER_MODES:
+            raise InputError(f"accelerometer must be one of {', '.join(ACCELEROMETER_MODES)}, got {self.accelerometer!r}")
+
+
+@dataclass(frozen=True)
+class StaticGyro:
+    """Bias (and g-sensitivity) from the still intervals, with covariance."""
+
+    bias: NDArray[np.float64]
+    g_sensitivity: NDArray[np.float64] | None
+    covariance: NDArray[np.float64]  # of (bias, row-major G)
+
+
+def static_gyro(moves: MoveSet, f_static: NDArray, g_sensitivity: bool) -> StaticGyro:
+    """Tedaldi 2014 section IV-B: the gyro at rest reads its bias (plus ``G_g f`` if modelled).
+
+    Weighted least squares over the interval means (weights: sample counts); the
+    covariance from the within-interval noise (white, ``σ²/n`` per mean).
+    """
+    n = moves.n_static
+    var_mean = moves.gyro_static_std**2 / n[:, None]  # (p, 3)
+    if not g_sensitivity:
+        w = n / n.sum()
+        bias = w @ moves.gyro_means
+        cov = np.diag(np.sum(w[:, None] ** 2 * var_mean, axis=0))
+        return StaticGyro(bias, None, cov)
+    X = np.column_stack([np.ones(len(n)), f_static])
+    if np.linalg.matrix_rank(X) < 4:
+        raise InputError("the g-sensitivity needs still poses with gravity along at least three non-coplanar directions")
+    sw = np.sqrt(n)
+    coef, *_ = np.linalg.lstsq(X * sw[:, None], moves.gyro_means * sw[:, None], rcond=None)  # (4, 3)
+    XtWX_inv = np.linalg.inv((X * n[:, None]).T @ X)
+    s2 = np.mean(var_mean * n[:, None], axis=0)  # per-axis sample variance
+    cov = np.zeros((12, 12))
+    for axis in range(3):  # bias_axis = coef[0, axis], G[axis, :] = coef[1:, axis]
+        idx = [axis] + [3 + 3 * axis + j for j in range(3)]
+        cov[np.ix_(idx, idx)] = s2[axis] * XtWX_inv
+    return StaticGyro(coef[0], coef[1:].T.copy(), cov)
+
+
+@lru_cache(maxsize=1)
+def accelerometer_directions() -> Any:
+    """CasADi ``(y, a, T_a0, o₀, r₀) → (u, ‖v‖ − 1, ∂u/∂y, ∂(‖v‖ − 1)/∂y)`` for one pose.
+
+    ``v = T_a (a − o)`` with ``T_a = T_a0 (I + lower(y₀..y₅))`` and ``o = o₀ + r₀ (y₆, y₇, y₈)``
+    (Lu 2017, eq. 6 and 13), ``u = v / ‖v‖`` the gravity direction.
+    """
+    import casadi as ca
+
+    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
+
+    y, a, o0 = ca.SX.sym("y", 9), ca.SX.sym("a", 3), ca.SX.sym("o0", 3)
+    Ta0, r0 = ca.SX.sym("Ta0", 3, 3), ca.SX.sym("r0")
+    v = Ta0 @ (ca.SX.eye(3) + lower_triangular(y[:6])) @ (a - o0 - r0 * y[6:9])
+    norm = ca.norm_2(v)
+    u = v / norm
+    return ca.Function("accelerometer_directions", [y, a, Ta0, o0, r0],
+                       [u, norm - 1, ca.jacobian(u, y), ca.jacobian(norm, y)])
+
+
+class GyroProblem:
+    """The NLP ``min_x ½‖r(x)‖²`` of one recording layout, solved by IPOPT with ``hess_lag = JᵀJ``.
+
+    ``x = vec(X)`` (9, row-major) with ``T_g = s₀ (I + X)`` for a fixed accelerometer; jointly
+    ``x = (vec X, y)`` with the accelerometer's ``y`` of :func:`accelerometer_directions`.
+    Residuals and Jacobian come from the CasADi integrator :class:`GravityPredictor` (built
+    once per recording layout, the samples as inputs) and are handed to ``nlpsol`` as
+    callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate,
+    with the options and cost scaling of the accelerometer's ML problem
+    (:data:`optcal.estimators.mle.ML_IPOPT_DEFAULTS`).
+    """
+
+    def __init__(self, predictor: GravityPredictor, nx: int, ipopt_options: dict[str, Any]) -> None:
+        import casadi as ca
+
+        from optcal.estimators.mle import ML_IPOPT_DEFAULTS, numpy_callback
+
+        self.nx = nx
+        self.scale = 1.0  # the cost factor of cost_scale(), set by solve()
+        self.evaluate: Any = None  # x -> (r, J), set by solve()
+        self._cache: tuple[bytes, NDArray, NDArray] | None = None
+        problem = self
+
+        def rj(arg: list) -> tuple[NDArray, NDArray]:
+            x = np.asarray(arg[0], float).ravel()
+            key = x.tobytes()
+            if problem._cache is None or problem._cache[0] != key:
+                r, J = problem.evaluate(x)
+                problem._cache = (key, r, J)
+            return problem._cache[1], problem._cache[2]
+
+        dense = ca.Sparsity.dense(nx, 1)
+        scalar = ca.Sparsity.dense(1, 1)
+        empty = ca.Sparsity(0, 1)
+
+        def grad(arg: list) -> list:
+            r, J = rj(arg)
+            return [0.5 * problem.scale * float(r @ r), problem.scale * (J.T @ r)]
+
+        self._grad = numpy_callback("gyro_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)], grad)
+
+        def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
+            x, out, adj = ca.MX.sym("x", nx), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
+            _, g = self._grad(x, ca.MX(0, 1))
+            return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
+
+        self._cost = numpy_callback("gyro_f", [("x", dense)], [("f", scalar)],
+                                    lambda arg: [0.5 * problem.scale * float(np.sum(rj(arg)[0] ** 2))], reverse=cost_reverse)
+
+        def hessian(arg: list) -> list:
+            _, J = rj(arg)
+            return [ca.triu(ca.DM(J.T @ J * (problem.scale * float(arg[2]))))]
+
+        self._hess = numpy_callback("gyro_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
+                                    [("triu_hess_gamma_x_x", ca.Sparsity.upper(nx))], hessian)
+        x = ca.MX.sym("x", nx)
+        opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._grad, "hess_lag": self._hess, **ipopt_options}
+        self.solver = ca.nlpsol("gyro_calibration", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+
+    def solve(self, evaluate: Any, x0: NDArray) -> tuple[NDArray[np.float64], dict[str, Any], float]:
+        """Solve from ``x0`` with ``evaluate(x) -> (r, J)``; the solution, IPOPT's stats, seconds.
+
+        The cost is scaled by :func:`optcal.estimators.mle.cost_scale` (one tolerance for any
+        number of moves, noise level or units, as in the accelerometer's ML problem).
+        """
+        from optcal.estimators.mle import cost_scale
+
+        self.evaluate, self._cache = evaluate, None
+        r0, _ = evaluate(np.asarray(x0, float))
+        self.scale = cost_scale(r0.size, float(np.sqrt(np.mean(r0**2))))
+        t0 = time.perf_counter()
+        try:
+            sol = self.solver(x0=x0)
+        finally:
+            self.evaluate, self._cache = None, None
+        return np.asarray(sol["x"]).ravel(), self.solver.stats(), time.perf_counter() - t0
+
+
+def _solver_info(stats: dict[str, Any], seconds: float) -> SolverInfo:
+    return SolverInfo(
+        name="ipopt (CasADi, Gauss-Newton Hessian)",
+        status=str(stats.get("return_status", "")),
+        success=bool(stats.get("success", False)),
+        iterations=int(stats.get("iter_count", 0)),
+        solve_time_s=float(seconds),
+        message="",
+    )
+
+
+def initial_scale(moves: MoveSet, w: NDArray, u: NDArray) -> float:
+    """Overall rad/s per raw unit that best matches the turn angles of the moves.
+
+    Each move turns gravity by ``α_i = ∠(u_i, u_{i+1})`` and the bias-free raw rate by
+    ``β_i = ‖Σ_k w_k dt_k‖``; for a turn about one axis perpendicular to gravity
+    ``α_i = s β_i``; a turn partly about gravity makes ``α`` smaller, never larger, so the
+    90th percentile of the ratio over moves turned by 20°-160° is the start the fit refines.
+    """
+    ends = np.concatenate([[0], moves.last_step + 1])
+    beta = np.array([np.linalg.norm((w[a:b] * moves.dt[a:b, None]).sum(axis=0)) for a, b in zip(ends[:-1], ends[1:])])
+    alpha = np.radians(angles_deg(u[moves.move_from], u[moves.move_to]))
+    keep = (alpha > np.radians(20)) & (alpha < np.radians(160)) & (beta > 0)
+    if not np.any(keep):
+        keep = beta > 0
+    if not np.any(keep):
+        raise InputError("the gyro reads the same in every move: the sensor was not rotated between the poses")
+    return float(np.percentile((alpha / np.where(beta > 0, beta, np.inf))[keep], 90))
+
+
+def calibrate_gyro(
+    moves: MoveSet,
+    accelerometer: CalibrationResult,
+    units: GyroUnitsDecision,
+    settings: GyroSettings | None = None,
+) -> ImuCalibration:
+    """Calibrate the gyro from the moves of a recording, given its accelerometer calibration.
+
+    Parameters
+    ----------
+    moves : MoveSet
+        From :func:`optcal.gyro.moves.moves_from_segmentation` (or ``moves_from_arrays``).
+    accelerometer : CalibrationResult
+        The accelerometer calibration of the same recording (raw units → g).
+    units : GyroUnitsDecision
+        Units of the raw gyro samples.
+    settings : GyroSettings, optional
+
+    Returns
+    -------
+    ImuCalibration
+
+    Raises
+    ------
+    IdentifiabilityError
+        The moves excite fewer than three rotation axes (unless ``allow_degenerate``).
+    """
+    settings = settings or GyroSettings()
+    notes: list[str] = []
+    f_static = accelerometer.correct(moves.acc_means)
+    u = unit_rows(f_static)
+    f_mid = accelerometer.correct(moves.acc_mid)
+    static = static_gyro(moves, f_static, settings.g_sensitivity)
+    w = moves.gyro_mid() - static.bias
+    if static.g_sensitivity is not None:
+        w = w - f_mid @ static.g_sensitivity.T
+    exc = excitation(w, moves.dt)
+    if not exc.sufficient:
+        msg = exc.describe()
+        if not settings.allow_degenerate:
+            report = GyroIdentifiability(0, 9, float("inf"), exc, [])
+            raise IdentifiabilityError(msg + ". Record moves that also turn the sensor about that axis "
+                                       "(or pass allow_degenerate=True: the combination is then arbitrary)", report)
+        notes.append("DEGENERATE MOVES: " + msg)
+    nominal = units.rad_per_unit
+    s_fit = initial_scale(moves, w, u)
+    scale0 = nominal if nominal is not None else s_fit
+    before = (f"bias removed, nominal {units.units} scale" if nominal is not None
+              else f"bias removed, one scale {s_fit:.6g} rad/s per count from the turn angles")
+    predictor = GravityPredictor(moves.first_step, moves.last_step)
+    u0, u1 = u[moves.move_from], u[moves.move_to]
+    angles_before = angles_deg(predictor(w * scale0, moves.dt, u0), u1)
+    m = moves.n_moves
+
+    def fixed_residuals(x: NDArray) -> tuple[NDArray, NDArray]:
+        v, S, _ = predictor.evaluate(scale0 * (np.eye(3) + x.reshape(3, 3)), w, moves.dt, u0)
+        return (v - u1).ravel(), scale0 * S.reshape(3 * m, 9)
+
+    x, stats, seconds = GyroProblem(predictor, 9, settings.ipopt_options).solve(fixed_residuals, np.zeros(9))
+    iterations = int(stats.get("iter_count", 0))
+    r, J = fixed_residuals(x)
+    dof = 2 * m - 9
+    sigma_g = float(np.sqrt(np.sum(r**2) / dof)) if dof > 0 else float("nan")
+    acc_result = accelerometer
+    if settings.accelerometer == "joint":
+        acc_result, x, J, stats, extra_s = _joint(moves, accelerometer, w, scale0, x, sigma_g, predictor, settings)
+        seconds += extra_s
+        iterations += int(stats.get("iter_count", 0))
+        u = unit_rows(acc_result.correct(moves.acc_means))
+        u0, u1 = u[moves.move_from], u[moves.move_to]
+        cov_x = np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)[:9, :9]
+    else:
+        cov_x = sigma_g**2 * np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)
+    Tg = scale0 * (np.eye(3) + x[:9].reshape(3, 3))
+    ident = fisher_rank(J[: 3 * m, :9], list(T_NAMES), exc)
+    if not ident.identifiable and ident.rank < ident.n_params:
+        msg = ident.describe()
+        if not settings.allow_degenerate:
+            raise IdentifiabilityError(msg + ". Record moves about more axes", ident)
+        notes.append("DEGENERATE MOVES: " + msg)
+    model = GyroModel(Tg, static.bias, static.g_sensitivity)
+    angles_after = angles_deg(predictor(w @ Tg.T, moves.dt, u0), u1)
+    names = list(T_NAMES) + list(BIAS_NAMES) + (list(G_NAMES) if static.g_sensitivity is not None else [])
+    params = np.concatenate([Tg.ravel(), static.bias] + ([static.g_sensitivity.ravel()] if static.g_sensitivity is not None else []))
+    k = len(names)
+    cov = np.zeros((k, k))
+    cov[:9, :9] = scale0**2 * cov_x
+    cov[9:, 9:] = static.covariance
+    notes.append("bias from the still intervals with white-noise standard errors; the Earth rate "
+                 "(≤ 7.3e-5 rad/s) is part of the bias")
+    return ImuCalibration(
+        accelerometer=acc_result,
+        gyro=model,
+        gyro_units=units.units,
+        gyro_units_reason=units.reason,
+        param_names=names,
+        params=params,
+        covariance=cov,
+        angles_before_deg=angles_before,
+        angles_after_deg=angles_after,
+        before=before,
+        accelerometer_mode=settings.accelerometer,
+        solver=replace(_solver_info(stats, seconds), iterations=iterations),
+        identifiability=ident.to_dict(),
+        exclusions=dict(moves.exclusions),
+        notes=notes,
+        units=accelerometer.units,
+        fitted_on=accelerometer.calibration.fitted_on,
+    )
+
+
+def _joint(
+    moves: MoveSet, acc: CalibrationResult, w: NDArray, scale0: float, x_gyro: NDArray, sigma_g: float,
+    predictor: GravityPredictor, settings: GyroSettings,
+) -> tuple[CalibrationResult, NDArray, NDArray, dict[str, Any], float]:
+    """Re-estimate the accelerometer with the gyro (both residual kinds at unit variance).
+
+    Returns the accelerometer result, ``x``, the Jacobian scaled so that ``(JᵀJ)⁻¹`` is the
+    covariance of ``x``, IPOPT's stats and the solve time.
+    """
+    P = moves.acc_means.shape[0]
+    # per-pose noise of the norm residual, from the accelerometer fit (scaled by its reduced chi-square)
+    redchi = acc.redchi if acc.dof > 0 and np.isfinite(acc.redchi) and acc.redchi > 0 else 1.0
+    w_acc = acc.weights if acc.weights.size == P else np.ones(P)
+    sig_a = np.sqrt(redchi / w_acc)
+    r0 = float(np.mean(1.0 / np.abs(np.diag(acc.T))))
+    directions = accelerometer_directions().map(P)
+    m = moves.n_moves
+    frm, to = moves.move_from, moves.move_to
+
+    def joint_residuals(x: NDArray) -> tuple[NDArray, NDArray]:
+        u, rn, du, drn = (np.asarray(z) for z in directions(x[9:], moves.acc_means.T, acc.T, acc.o, r0))
+        u = u.T  # (P, 3)
+        du = du.reshape(3, P, 9).transpose(1, 0, 2)  # (P, 3, 9)
+        v, S, Phi = predictor.evaluate(scale0 * (np.eye(3) + x[:9].reshape(3, 3)), w, moves.dt, u[frm])
+        Jy = np.einsum("mji,mjk->mik", Phi, du[frm]) - du[to]  # ∂(Φᵀu₀ − u₁)/∂y
+        r = np.concatenate([(v - u[to]).ravel() / sigma_g, rn.ravel() / sig_a])
+        J = np.block([[scale0 * S.reshape(3 * m, 9) / sigma_g, Jy.reshape(3 * m, 9) / sigma_g],
+                      [np.zeros((P, 9)), drn.reshape(P, 9) / sig_a[:, None]]])
+        return r, J
+
+    x, stats, seconds = GyroProblem(predictor, 18, settings.ipopt_options).solve(
+        joint_residuals, np.concatenate([x_gyro, np.zeros(9)]))
+    r, J = joint_residuals(x)
+    dof = 2 * m + P - 18
+    chi2 = float(np.sum(r**2))
+    L = np.zeros((3, 3))
+    for k, (i, j) in enumerate(TRIL_INDEX):
+        L[i, j] = x[9 + k]
+    Ta = acc.T @ (np.eye(3) + L)
+    o = acc.o + r0 * x[15:18]
+    factor = chi2 / dof if dof > 0 and chi2 > 0 else 1.0
+    cov = np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True) * factor
+    D = np.zeros((9, 9))  # ∂θ_acc/∂y: T_a entries change by T_a0 E_ij, o by r₀
+    for k, (i, j) in enumerate(TRIL_INDEX):
+        E = np.zeros((3, 3))
+        E[i, j] = 1.0
+        dT = acc.T @ E
+        D[:6, k] = [dT[p, q] for p, q in TRIL_INDEX]
+    D[6:, 6:] = r0 * np.eye(3)
+    acc_joint = replace(
+        acc, method=f"{acc.method}+gyro-joint", T=Ta, o=o, params=theta_from(Ta, o),
+        covariance=D @ cov[9:, 9:] @ D.T, residuals=norm_residuals(Ta, o, moves.acc_means),
+        notes=[*acc.notes, "re-estimated jointly with the gyroscope (gravity directions across the moves)"],
+    )
+    return acc_joint, x, J / np.sqrt(factor), stats, seconds
+
+
+def calibrate_imu(
+    path: str,
+    *,
+    gyro_units: str | None = None,
+    method: str = "default",
+    settings: GyroSettings | None = None,
+    acc_settings: dict[str, Any] | None = None,
+    **load_options: Any,
+) -> ImuCalibration:
+    """Calibrate accelerometer and gyroscope from one raw recording with gyro channels.
+
+    Parameters
+    ----------
+    path : str
+        A raw recording (see :func:`optcal.data.load`).
+    gyro_units : {"counts", "rad/s", "deg/s"}, optional
+        Units of the gyro samples (decided from the file and the data when omitted).
+    method : str
+        Accelerometer estimator (:func:`optcal.calibrate`).
+    settings : GyroSettings, optional
+    acc_settings : dict, optional
+        Settings of the accelerometer estimator (e.g. ``allow_degenerate=True``).
+    **load_options
+        Passed to :func:`optcal.data.load_with_segmentation` (``columns=``, ``units=``,
+        ``rate=``, static-detection settings, ...).
+    """
+    from optcal.data import load_with_segmentation
+
+    return calibrate_imu_loaded(load_with_segmentation(path, **load_options), gyro_units=gyro_units, method=method,
+                                settings=settings, acc_settings=acc_settings)
+
+
+def calibrate_imu_loaded(
+    loaded: Any,
+    *,
+    gyro_units: str | None = None,
+    method: str = "default",
+    settings: GyroSettings | None = None,
+    acc_settings: dict[str, Any] | None = None,
+) -> ImuCalibration:
+    """:func:`calibrate_imu` on what :func:`optcal.data.load_with_segmentation` read."""
+    from optcal.calibration import calibrate
+    from optcal.gyro.moves import moves_from_segmentation
+    from optcal.gyro.units import decide_gyro_units
+
+    if loaded.segmentation is None:
+        raise InputError(f"DATA was read as a pose table ({loaded.kind.reason}); a gyro calibration needs the raw "
+                         "recording with the moves between the poses (kind='raw')")
+    seg = loaded.segmentation
+    moves = moves_from_segmentation(seg)
+    acc = calibrate(loaded.poses, method=method, **(acc_settings or {}))
+    rec = seg.recording
+    decision = decide_gyro_units(rec.gyro[rec.usable], moves.gyro_means.mean(axis=0), gyro_units, rec.gyro_units)
+    return calibrate_gyro(moves, acc, decision, settings)

@@ -1,0 +1,10 @@
+"""Reports people can read: a verdict on a calibration and a self-contained HTML page.
+
+* :mod:`optcal.report.evidence` gathers the measured facts (held-out error, noise floor, model
+  check, determination, coverage, outliers, the diagnosis's effects);
+* :mod:`optcal.report.verdict` judges them: ``good``, ``usable with care`` or ``not usable``,
+  with the reasons in plain words and numbers;
+* :mod:`optcal.report.parameters` states the calibration in engineers' units with confidence intervals;
+* :mod:`optcal.report.document` assembles the content of a report per command, and
+  :mod:`optcal.report.render` renders it with Jinja2 into one HTML file (figures inline).
+"""

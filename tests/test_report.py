@@ -1,0 +1,235 @@
+"""The verdict, the engineering parameters and the HTML report (issue 16)."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optcal.calibration import calibrate
+from optcal.cli.main import main
+from optcal.model import LumpedModel
+from optcal.poses import PoseTable
+from optcal.report.evidence import HeldOut, gather
+from optcal.report.parameters import result_parameters
+from optcal.report.verdict import judge, judge_check, judge_segmentation
+from optcal.simulate import simulate_poses, uniform_directions
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+
+def verdict_of(html: str) -> str:
+    match = re.search(r"Verdict: <strong>([^<]+)</strong>", html)
+    assert match, "no verdict in the report"
+    return match.group(1)
+
+
+def reasons_of(html: str) -> str:
+    start = html.index('aria-label="verdict"')
+    return html[start:html.index("</section>", start)]
+
+
+def assert_self_contained(html: str) -> None:
+    assert "<script" not in html
+    assert not re.search(r"""(src|href)\s*=\s*["'](https?:)?//""", html), "a resource that needs the network"
+    assert "@import" not in html and "url(http" not in html
+
+
+# ----------------------------------------------------------------------------- parameters
+SENSOR = LumpedModel.from_physical(scale=[1.02, 0.97, 1.05], rho=np.deg2rad(0.5), phi=np.deg2rad(-0.3),
+                                   lam=np.deg2rad(0.8), bias=[0.03, -0.02, 0.05])
+
+
+def test_engineering_parameters_recover_a_noise_free_sensor() -> None:
+    poses = simulate_poses(SENSOR, uniform_directions(40, 3), 0.0, rng=1)
+    params = result_parameters(calibrate(poses, method="mle"))
+    np.testing.assert_allclose([q.value for q in params.scale], [1.02, 0.97, 1.05], atol=1e-8)
+    np.testing.assert_allclose([q.value for q in params.scale_error], [2.0, -3.0, 5.0], atol=1e-6)
+    np.testing.assert_allclose([q.value for q in params.angles], [0.5, -0.3, 0.8], atol=1e-6)
+    np.testing.assert_allclose([q.value for q in params.bias_raw], [0.03, -0.02, 0.05], atol=1e-9)
+    # bias referred to the output: T o, in mg
+    np.testing.assert_allclose([q.value for q in params.bias_mg], 1e3 * SENSOR.T_canonical @ SENSOR.o, atol=1e-6)
+
+
+def test_engineering_standard_errors_follow_the_covariance() -> None:
+    poses = simulate_poses(SENSOR, uniform_directions(60, 4), 0.002, rng=5)
+    result = calibrate(poses, method="mle")
+    params = result_parameters(result)
+    se = result.stderr
+    # row x of C = T⁻¹ is (1/T_xx, 0, 0): S_x = 1/T_xx, so se(S_x) = se(T_xx)/T_xx² exactly to first order
+    assert params.scale[0].stderr == pytest.approx(se["T_xx"] / result.T[0, 0] ** 2, rel=1e-4)
+    assert [q.stderr for q in params.bias_raw] == pytest.approx([se["o_x"], se["o_y"], se["o_z"]], rel=1e-12)
+    lo, hi = params.angles[0].ci95
+    assert hi - lo == pytest.approx(2 * 1.959964 * params.angles[0].stderr, rel=1e-6)
+
+
+# ----------------------------------------------------------------------------- verdict rules
+@pytest.fixture(scope="module")
+def good_evidence():
+    poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
+    return gather(calibrate(poses), poses)
+
+
+def test_a_well_designed_calibration_is_good(good_evidence) -> None:
+    verdict = judge(good_evidence)
+    assert verdict.level == "good", verdict.summary()
+    assert good_evidence.held_out.available and good_evidence.held_out.rms_g < 1e-3
+    assert good_evidence.model_check.position == "inside"
+    assert 20 <= good_evidence.coverage.distinct <= 30 and good_evidence.coverage.largest_gap_deg < 60
+
+
+def test_orientation_counting() -> None:
+    from optcal.report.evidence import distinct_orientations
+
+    faces = np.vstack([np.eye(3), -np.eye(3)])
+    nudged = faces + 0.05 * np.roll(faces, 1, axis=1)  # ~3° away from each face
+    both = np.vstack([faces, nudged / np.linalg.norm(nudged, axis=1, keepdims=True)])
+    assert distinct_orientations(both) == 6
+
+
+def test_held_out_error_against_the_tolerance(good_evidence) -> None:
+    def with_held_out(rms_g: float):
+        return dataclasses.replace(good_evidence, held_out=HeldOut(rms_g, 1e-4, 10, "10-fold"))
+
+    assert judge(with_held_out(5e-4)).level == "good"
+    care = judge(with_held_out(3e-3))
+    assert care.level == "usable with care" and "3 mg" in care.reasons[0].text and "tolerance of 1 mg" in care.reasons[0].text
+    assert judge(with_held_out(3e-3), tolerance_mg=5).level == "good"
+    assert judge(with_held_out(0.02)).level == "not usable"
+    failed = dataclasses.replace(good_evidence, held_out=HeldOut(float("nan"), 1e-4, 10, "10-fold", "too few poses"))
+    assert judge(failed).level == "usable with care"
+
+
+def test_check_and_segmentation_verdicts() -> None:
+    assert judge_check(4e-4, 1e-4, 20).level == "good"
+    assert judge_check(4e-3, 1e-4, 20).level == "usable with care"
+    assert judge_check(4e-2, 1e-4, 20).level == "not usable"
+    assert judge_segmentation(8, 8).level == "not usable"
+    assert judge_segmentation(14, 6).level == "usable with care"
+    assert judge_segmentation(30, 20).level == "good"
+
+
+def test_an_outlier_pose_is_named(good_evidence) -> None:
+    poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
+    acc = poses.acc.copy()
+    acc[11] *= 1.01  # 10 mg along the pose's own direction
+    bumped = PoseTable(acc=acc, sigma=poses.sigma, units=poses.units)
+    ev = gather(calibrate(bumped), bumped)
+    assert ev.outliers.poses == ["pose 12 (row 11)"]
+    verdict = judge(ev)
+    assert verdict.level == "usable with care"
+    assert any("pose 12 (row 11)" in r.text for r in verdict.reasons)
+
+
+# ----------------------------------------------------------------------------- acceptance: real recordings
+def run_report(tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], name: str) -> tuple[int, str, str]:
+    path = tmp_path / name
+    code = main([*args, "--report", str(path)])
+    err = capsys.readouterr().err
+    html = path.read_text(encoding="utf-8")
+    assert_self_contained(html)
+    return code, html, err
+
+
+def test_xsens_calibration_is_good(shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    code, html, err = run_report(tmp_path, capsys, ["calibrate", str(shared_data / "imutk-xsens" / "xsens_imutk.csv")],
+                                 "xsens.html")
+    assert code == 0, err
+    assert verdict_of(html) == "good"
+    assert "report: " in err and "(verdict: good)" in err
+    reasons = reasons_of(html)
+    assert "determine all 9 parameters" in reasons and "noise floor" in reasons
+    # parameters in engineers' units: about 4070 counts/g, bias from the unsigned mid-scale
+    assert re.search(r"<td>S_x</td><td>40\d\d\.\d+</td>", html)
+    assert "32768" in html and "counts/g" in html and "°" in html
+    assert "optcal calibrate" in html and "numpy" in html  # the command and the versions
+
+
+def test_ferraris_session_is_not_usable_and_names_o_z(shared_data: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    data = shared_data / "imucal-ferraris" / "example_ferraris_session.csv"
+    code, html, err = run_report(tmp_path, capsys, ["calibrate", str(data), "--rate", "102.4"], "ferraris.html")
+    assert code == 2 and err.strip().splitlines()[-1].startswith("error: ")  # the fit is still refused
+    assert verdict_of(html) == "not usable"
+    reasons = reasons_of(html)
+    assert "do not determine o_z" in reasons
+    assert re.search(r"next poses: 1\) [xyz] (up|down)", reasons)  # the pose planner's orientations that would fix it
+
+
+def test_hand_held_mpu6050_is_at_best_usable_with_care(shared_data: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    data = shared_data / "mpu6050-imucalibration" / "example_data_calibration.csv"
+    code, html, err = run_report(tmp_path, capsys, ["calibrate", str(data), "--allow-degenerate"], "mpu.html")
+    assert code == 0, err
+    assert verdict_of(html) in ("usable with care", "not usable")
+    reasons = reasons_of(html)
+    assert "only weakly: A_xy" in reasons and "next poses: 1)" in reasons
+
+
+def test_diagnosis_with_a_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from diagnosis_cases import make_case
+    from test_cli_diagnose import write_table
+
+    case = make_case("temperature_bias", 21)
+    data = write_table(case, tmp_path / "poses.csv")
+    code, html, err = run_report(tmp_path, capsys, ["diagnose", str(data), "--simulations", "20"], "diagnosis.html")
+    assert code == 0, err
+    assert verdict_of(html) == "usable with care"
+    reasons = reasons_of(html)
+    assert f"temperature_bias on axis {case.axis}" in reasons and "mg/°C" in reasons and "°C" in reasons
+    assert "changes the output by" in reasons
+
+
+def test_check_and_segment_reports(shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    data = str(shared_data / "imutk-xsens" / "xsens_imutk.csv")
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", data, "-o", str(cal)]) == 0
+    code, html, err = run_report(tmp_path, capsys, ["check", str(cal), data], "check.html")
+    assert code == 0, err
+    assert verdict_of(html) == "good" and "before" in html
+    code, html, err = run_report(tmp_path, capsys, ["segment", data], "segment.html")
+    assert code == 0, err
+    assert verdict_of(html) == "good" and "data:image/png;base64," in html
+
+
+def test_report_path_must_be_html(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    poses = simulate_poses(SENSOR, uniform_directions(20, 2), 1e-3, rng=3)
+    csv = tmp_path / "poses.csv"
+    np.savetxt(csv, poses.acc, delimiter=",", header="ax,ay,az", comments="")
+    code = main(["calibrate", str(csv), "--report", str(tmp_path / "out.txt")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("error: ") and ".html" in err and "Traceback" not in err
+
+
+# ----------------------------------------------------------------------------- the text report
+def test_text_report_of_counts_data_prints_every_number() -> None:
+    from optcal.simulate_effects import demo_sensor
+
+    poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)  # counts, 2 counts of noise
+    text = calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")).report()
+    block = text[text.index("[[A = T'T"):text.index("[[Identifiability]]")]
+    numbers = [float(x) for x in re.findall(r"[-+]?\d\.\d+e[-+]\d+", block.split("]]", 1)[1])]
+    assert len(numbers) == 18 and all(x != 0 for x in numbers[::2])  # 9 entries of A and their standard errors
+    assert "0.000000" not in text and "(0.00%)" not in text
+    scale = re.search(r"S_x\s+=\s+(\d+\.?\d*)\s+\+/-\s+\S+\s+counts/g", text)
+    assert scale and float(scale.group(1)) == pytest.approx(16300, rel=1e-3)
+    assert re.search(r"ρ\s+=\s+0\.3\d*\s+\+/-\s+\S+\s+°", text)  # demo sensor: ρ = 0.3°
+
+
+def test_rendered_page_escapes_user_text_and_is_printable(tmp_path: Path) -> None:
+    from optcal.report.document import calibration_document
+    from optcal.report.render import render_html, write_html
+
+    poses = simulate_poses(SENSOR, uniform_directions(24, 9), 5e-4, rng=9)
+    doc = calibration_document(calibrate(poses), poses, "<script>x</script>.csv", "optcal calibrate '<x>.csv'")
+    html = render_html(doc)
+    assert "<script>x</script>" not in html and "&lt;script&gt;x&lt;/script&gt;.csv" in html
+    assert_self_contained(html)
+    assert "@media print" in html and 'name="viewport"' in html and "Content-Security-Policy" in html
+    assert html.count("<svg") >= 2  # residuals and sphere map, inline
+    with pytest.raises(Exception, match=r"\.html"):
+        write_html(doc, tmp_path / "report.pdf")
