@@ -200,7 +200,7 @@ def per_unit_ms(step, items) -> tuple[float, float]:
 
 
 with tempfile.TemporaryDirectory() as tmp:
-    write_fleet(tmp, full_or_quick(120, 10), SEED + 5, scale_error_units=0, six_face_units=0, unreadable_units=0)
+    write_fleet(tmp, full_or_quick(120, 25), SEED + 5, scale_error_units=0, six_face_units=0, unreadable_units=0)
     units = expand_inputs([tmp])
     tables = [read_unit(u, {}) for u in units]
     own = [fit_unit(u, p) for u, p in zip(units, tables)]
