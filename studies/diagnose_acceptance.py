@@ -53,7 +53,7 @@ PER_CANDIDATE_LEVEL = 0.01 / 12
 N_NULL = 2 if QUICK else 4 if SMOKE else 400
 N_HIDDEN = 1 if QUICK else 2 if SMOKE else 60
 N_CORNER = 0 if QUICK else 1 if SMOKE else 40
-N_RAW = 1 if SMOKE else 6
+N_RAW = 0 if QUICK else 1 if SMOKE else 6
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
