@@ -30,6 +30,7 @@ import numpy as np
 
 from optcal.calibration import calibrate
 from optcal.errors import IdentifiabilityError
+from optcal.identifiability import analyse_design
 from optcal.model import PARAM_NAMES
 from optcal.plan import Prior, plan_poses
 from optcal.plan.figure import sphere_figure
@@ -128,7 +129,13 @@ lines += ["## Schedules against the best design of the same size", "",
 for name, n, eff, se in rows:
     cells = " | ".join("∞" if not np.isfinite(v) or v > 1e3 else f"{v * 1e4:.2f}" for v in se)
     lines.append(f"| {name} | {n} | {eff:.3f} | {cells} |")
-lines += ["", xsens_note, ""]
+lines += ["", xsens_note, "", "Why the zeros (optcal.identifiability on the noise-free design):", ""]
+for name, d in schedules.items():
+    report = analyse_design(NOMINAL.model, d)
+    if not report.identifiable:
+        distinct = len(np.unique(np.round(d, 9), axis=0))
+        lines.append(f"- {name}: {distinct} distinct gravity directions; {report.describe()}")
+lines.append("")
 print("\n".join(lines))
 
 # %% [markdown]

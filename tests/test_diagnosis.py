@@ -268,3 +268,25 @@ def test_typed_result_round_trips_through_json_and_figures_leave_the_backend_alo
     assert not any("corr_" in t.get_text() for a in fig.axes for t in a.get_yticklabels())
     paths = save_figures(diag, tmp_path)
     assert len(paths) == 2 and matplotlib.get_backend() == backend
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_two_effects_at_once_are_both_named_with_axes_and_estimates(seed: int) -> None:
+    """A temperature bias on one axis and a drift on another (truth hidden): both named, each within 30 %."""
+    rng = np.random.default_rng(seed)
+    n = 90
+    t = np.sort(rng.uniform(0, 1200, n))
+    temp = warmup_cooldown(t, 22, 40, 28)
+    axes = rng.permutation(3)[:2]
+    coefficients = {"temperature_bias": np.zeros((3, 1)), "bias_drift": np.zeros((3, 1))}
+    coefficients["temperature_bias"][axes[0], 0] = 0.8e-3
+    coefficients["bias_drift"][axes[1], 0] = -6e-3 / 1200
+    model = ExtendedModel(lu2017_reference_model(), coefficients, temp_ref=30, t_ref=600)
+    poses = simulate_extended(model, uniform_directions(n, rng), 0.4e-3, temp=temp, t=t, rng=rng)
+    diag = diagnose(poses, simulations=0)
+    named = {f.effect: f for f in diag.findings}
+    assert set(named) == {"temperature_bias", "bias_drift"}, [(f.effect, f.axes) for f in diag.findings]
+    for effect, axis in (("temperature_bias", axes[0]), ("bias_drift", axes[1])):
+        f = named[effect]
+        assert f.axes == ["xyz"[axis]]
+        assert f.estimate["xyz"[axis]] == pytest.approx(coefficients[effect][axis, 0], rel=0.3)

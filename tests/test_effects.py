@@ -158,3 +158,19 @@ def test_model_terms_need_their_columns() -> None:
         model.measure(uniform_directions(3, 0))
     with pytest.raises(InputError, match="unknown effect"):
         ExtendedModel(lu2017_reference_model(), {"temperature": [[1], [0], [0]]})
+
+
+def test_analytic_jacobian_matches_the_complex_step() -> None:
+    """The chain-rule Jacobian of the extended residual against the complex step of the forward formula."""
+    from optcal.diagnosis.problem import COMPLEX_STEP, N_X, extended_residuals, residuals_and_jacobian
+
+    rng = np.random.default_rng(8)
+    n = 40
+    u = uniform_directions(n, rng) * 1.02 + 0.01
+    data = PoseData(u, rng.uniform(-1, 1, n), rng.uniform(-1, 1, n))
+    x = np.concatenate([[1.01, 0.02, 0.98, -0.01, 0.03, 1.03, 0.01, -0.02, 0.005], rng.normal(0, 2e-3, N_X - 9)])
+    r, J = residuals_and_jacobian(x, data)
+    X = np.tile(x.astype(complex), (N_X, 1)) + 1j * COMPLEX_STEP * np.eye(N_X)
+    reference = np.imag(extended_residuals(X, data.u, data.tau, data.s)).T / COMPLEX_STEP
+    np.testing.assert_allclose(r, extended_residuals(x, data.u, data.tau, data.s), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(J, reference, rtol=1e-9, atol=1e-12)

@@ -60,3 +60,23 @@ def test_imu_without_gyro_columns(tmp_path, capsys) -> None:
     assert main(["calibrate", str(path), "--imu"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "no gyro columns" in err and err.count("\n") == 1
+
+
+def test_allan_gyro_angle_random_walk(tmp_path, capsys) -> None:
+    """A still log with white gyro noise σ at f_s: angle random walk N = σ/√f_s, in rad/s/√Hz (Kalibr's units)."""
+    rng = np.random.default_rng(5)
+    n, fs, sigma = 60000, 100.0, 0.002
+    t = np.arange(n) / fs
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.normal(size=(n, 3))
+    gyro = np.array([0.01, -0.02, 0.005]) + sigma * rng.normal(size=(n, 3))
+    path = tmp_path / "still.csv"
+    pd.DataFrame({"t": t, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+                  "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}).to_csv(path, index=False)
+    assert main(["allan", str(path), "--sensor", "gyro", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["sensor"] == "gyro" and out["units"]["input"] == "rad/s"
+    for axis in "xyz":
+        assert out[axis]["angle_random_walk"] == pytest.approx(sigma / np.sqrt(fs), rel=0.1)
+    assert out["kalibr"]["gyroscope_noise_density"] == pytest.approx(sigma / np.sqrt(fs), rel=0.1)
+    assert main(["allan", str(path), "--sensor", "gyro", "--gyro-units", "counts"]) == 2
+    assert "counts-per-rad/s" in capsys.readouterr().err

@@ -6,6 +6,7 @@
 ``lumped``       ``ā = T (a − o)``, T canonical lower-triangular (Lu 2017)    :class:`LumpedCalibration`
 ``sixpos_full``  ``ā = W a + V``, W full (Yin 2014, eq. 3)                   :class:`SixPositionCalibration`
 ``extended``     lumped + temperature, drift and nonlinearity terms          :class:`ExtendedCalibration`
+``imu``          lumped + gyro ``ω = T_g (g − b_g − G_g ā)`` (Tedaldi 2014)  :class:`optcal.gyro.result.ImuCalibration`
 ===============  ==========================================================  =======================
 
 :func:`load` reads a file (or a dictionary) and returns the right class; it refuses an unknown

@@ -58,7 +58,7 @@ def static_log(
     return log.samples, log.rate_hz, log.units, log.units_reason, log.exclusions
 
 
-def read_still_log(data: str, **read_options: Any) -> StillLog:
+def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> StillLog:
     """Read a still log for the Allan deviation.
 
     Unusable samples (non-finite, duplicated, saturated) are dropped and counted; a few
@@ -66,7 +66,8 @@ def read_still_log(data: str, **read_options: Any) -> StillLog:
     :data:`MAX_MISSING_RUN`) are counted and the log treated as uniformly sampled; a longer
     gap is refused, because the Allan deviation needs uniform sampling.  A log that static
     detection does not find at rest (at least :data:`MIN_STILL_FRACTION` of it) is refused:
-    the Allan deviation of a moving sensor measures the motion.
+    the Allan deviation of a moving sensor measures the motion.  ``sensor="gyro"`` takes the
+    gyro samples (``units`` then says the gyro units as the file states them, or ``None``).
     """
     from optcal.data import load_recording
     from optcal.data.static import detect_static
@@ -75,6 +76,10 @@ def read_still_log(data: str, **read_options: Any) -> StillLog:
     rec = load_recording(data, **read_options)
     t = rec.t[rec.usable]
     samples = rec.acc[rec.usable]
+    if sensor == "gyro":
+        if rec.gyro is None:
+            raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
+        samples = rec.gyro[rec.usable]
     exclusions = dict(rec.exclusions)
     steps = np.diff(t)
     if steps.size:
@@ -97,6 +102,9 @@ def read_still_log(data: str, **read_options: Any) -> StillLog:
             f"{data}: the log is not still: static detection finds only {100 * still:.0f} % of its samples at rest "
             f"({len(seg.intervals)} static interval(s)); the Allan deviation needs a log of a sensor that does not move"
         )
+    if sensor == "gyro":
+        return StillLog(samples, rec.rate_hz, rec.gyro_units or "", "stated by the file" if rec.gyro_units else "",
+                        exclusions, rec.decisions)
     return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions)
 
 
@@ -106,6 +114,12 @@ def read_still_log(data: str, **read_options: Any) -> StillLog:
 @plot_option(f"the log-log Allan deviation with the fitted lines ({FIGURE_NAME})")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
               help="Scale of raw counts, needed for counts (16384 for an MPU-6050 at ±2 g).")
+@click.option("--sensor", type=click.Choice(["acc", "gyro"]), default="acc", show_default=True,
+              help="Channels analysed: the accelerometer, or the gyro (angle random walk, bias instability, rate random walk).")
+@click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
+              help="--sensor gyro: units of the gyro columns (default: from the column names or file, else from the data).")
+@click.option("--counts-per-rad-s", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
+              help="--sensor gyro: scale of raw gyro counts (e.g. K_g of an IMU calibration).")
 @read_options
 @click.option("--max-tau", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
               help="Largest averaging time τ (default: the largest octave τ leaving 9 clusters).")
@@ -114,6 +128,9 @@ def allan(
     as_json: bool,
     plot_path: str | None,
     counts_per_g: float | None,
+    sensor: str,
+    gyro_units: str | None,
+    counts_per_rad_s: float | None,
     max_tau: float | None,
     **reading: Any,
 ) -> None:
@@ -128,6 +145,11 @@ def allan(
     from optcal.result import jsonable
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
+    if sensor == "gyro":
+        from optcal.gyro.cli import allan_gyro_command
+
+        allan_gyro_command(data, as_json, gyro_units, counts_per_rad_s, max_tau, reading_kwargs(reading))
+        return
     log = read_still_log(data, **reading_kwargs(reading))
     samples, rate_hz, units_used, units_reason, exclusions, decisions = (
         log.samples, log.rate_hz, log.units, log.units_reason, log.exclusions, log.decisions)

@@ -38,7 +38,9 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     cal = caltypes.load(calibration)
     applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
                             rate=rate, kind=data_format)
-    fmt = write_table(applied, output)
+    from optcal.cli.outputs import output_file
+
+    fmt = write_table(applied, output_file(output))
     click.echo(f"calibration: {calibration}: {cal.describe()}")
     click.echo(f"DATA: {data} read as a {applied.kind} [{applied.kind_reason}], units {applied.units_in} "
                f"[{applied.units_reason}]")

@@ -68,7 +68,9 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         for line in report:
             click.echo(line, err=True)
         return
-    Path(output).write_text(result.text)
+    from optcal.cli.outputs import output_file
+
+    output_file(output).write_text(result.text)
     for line in report:
         click.echo(line)
     click.echo(f"wrote {fmt} file {output}")

@@ -36,7 +36,9 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
               help="Candidate directions on the sphere (or in the cap) for the relaxation.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random rounding start.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, metavar="FILE", help="Save the orientation sphere.")
+@click.option("--plot", type=click.Path(), default=None, metavar="PATH",
+              help="Save the orientation sphere into the folder PATH (plan.png; created when missing), or to PATH "
+                   "itself when it ends in .png, .pdf or .svg.")
 @data_options
 def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
@@ -62,8 +64,8 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         raise InputError("--turntable and --candidates both fix the orientations; give one")
     if target_stderr is not None and next_data is None:
         raise InputError("--target-stderr goes with --next DATA")
-    if n_poses is not None and criterion.upper() != "D" and next_data is not None:
-        raise InputError("--next always uses the D criterion")
+    if next_data is not None and criterion.upper() != "D":
+        raise InputError("--next always uses the D criterion (the largest gain in log det); drop --criterion")
 
     data_path = next_data or given_data
     poses = load_data(data_path, **data_opts) if data_path else None
@@ -99,6 +101,9 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         from optcal.plan.figure import sphere_figure
 
         shown = None if candidates.continuous else candidates.directions
+        from optcal.cli.outputs import plot_file
+
+        plot = str(plot_file(plot, "plan.png"))
         sphere_figure(planned, given_dirs, shown, cap).savefig(plot, dpi=120)
     if as_json:
         out = result.to_dict()

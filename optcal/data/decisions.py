@@ -327,7 +327,8 @@ def decide(
         )
     acc = _acc(src, ev.usable)
     try:
-        one_g = nominal_conversion(decide_units(acc, units, src.units_hint, src.units_reason).units, acc).sensitivity
+        found = decide_units(acc, units, src.units_hint, src.units_reason, norm=ev.median_norm)
+        one_g = nominal_conversion(found.units, acc).sensitivity
     except InputError:  # refused below, once the kind is known
         one_g = ev.median_norm
     kind_decision = _decide_kind(src, ev, kind, one_g)
@@ -337,7 +338,7 @@ def decide(
                 f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
                 f"{value!r} on data row {row} ({count} such cell(s)); every cell of a pose table must be a number"
             )
-    units_d = decide_units(acc, units, src.units_hint, src.units_reason)
+    units_d = decide_units(acc, units, src.units_hint, src.units_reason, norm=ev.median_norm)
     units_decision = Decision(units_d.units, units_d.reason, "--units")
     columns = Decision(src.describe_columns(), src.columns_reason, "--columns")
     if kind_decision.value == POSE_TABLE:

@@ -79,6 +79,7 @@ def decide_units(
     requested: str | None = None,
     hint: str | None = None,
     hint_reason: str = "",
+    norm: float | None = None,
 ) -> UnitsDecision:
     """Decide the units of ``acc``.
 
@@ -93,13 +94,15 @@ def decide_units(
         ``m/s^2`` for ROS ``sensor_msgs/Imu``).
     hint_reason : str
         Where ``hint`` came from, for the report.
+    norm : float, optional
+        The median ‖a‖ of ``acc`` when already known (saves a pass over the data).
 
     Raises
     ------
     InputError
         When nothing states the units and the norm is ambiguous.
     """
-    norm = median_norm(acc)
+    norm = median_norm(acc) if norm is None else norm
     if requested is not None:
         return check_units(UnitsDecision(normalise_units(requested), "given with --units"), norm)
     if hint is not None:

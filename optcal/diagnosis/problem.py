@@ -1,27 +1,30 @@
-"""The extended fit as one CasADi/IPOPT problem: norm residuals with the model inverted inside.
+"""The extended fit: norm residuals with the model inverted inside, vectorised, solved by least squares.
 
 Every term of :class:`~optcal.extended_model.ExtendedModel` is inverted in closed form per
-axis (:func:`optcal.extended_model.invert_axis`), and the residual is Lu 2017's norm residual
-of the recovered linear output, ``r = ‖T y(a)‖ − 1`` (eq. 13), weighted by
-``1/(σ_k ‖Tᵀ ā_k‖)²``.  Why this and not the errors-in-variables problem with a latent
-direction per pose (:mod:`optcal.estimators.exact`)?  Eliminating the latent unit direction
-from eq. 8 leaves, to first order in the noise, exactly this weighted norm residual (the
-distance of the measurement to the ellipsoid along its normal, :mod:`optcal.identifiability`);
-the difference is of relative order σ² (≈1e-6 for mg noise), far below any effect worth
-reporting.  The norm-residual problem has ``9 + P`` unknowns instead of ``9 + P + 3n``, so the
-hundreds of re-solves of a bootstrap and a k-fold selection stay fast, and the held-out
-residual of a pose (the model inverted at its own measurement) is the same formula.
+axis (:func:`optcal.extended_model.invert_axis`, the same function the extended calibration
+applies), and the residual is Lu 2017's norm residual of the recovered linear output,
+``r = ‖T y(a)‖ − 1`` (eq. 13), weighted by ``1/(σ_k ‖Tᵀ ā_k‖)²`` (eq. 14).  Why this and not
+the errors-in-variables problem with a latent direction per pose
+(:mod:`optcal.estimators.exact`)?  Eliminating the latent unit direction from eq. 8 leaves, to
+first order in the noise, exactly this weighted norm residual (the distance of the measurement
+to the ellipsoid along its normal, :mod:`optcal.identifiability`); the difference is of relative
+order σ² (≈1e-6 for mg noise), far below any effect worth reporting.  The norm-residual problem
+has ``9 + P`` unknowns instead of ``9 + P + 3n``, so the hundreds of re-solves of a bootstrap and
+a k-fold selection stay fast, and the held-out residual of a pose (the model inverted at its own
+measurement) is the same formula.
 
-:class:`ExtendedProblem` is built once per (n, loss) with *every* possible coefficient as a
-variable and the data, weights, normalised temperature and time as parameters; an effect set
-is chosen by fixing the unused coefficients to zero through the bounds (IPOPT then removes
-them), so the bootstrap, the k-fold and the forward selection build nothing.
+Speed (issue 13): the residuals of all poses are evaluated in whole-array numpy operations, and
+their Jacobian by the complex step (``∂r/∂x_k = Im r(x + i h e_k)/h``, exact to rounding for this
+analytic residual; Squire & Trapp 1998), all free parameters in one broadcast evaluation.  The
+problem is a small dense nonlinear least-squares problem (``9 + P`` unknowns, ``n`` residuals),
+solved by scipy's Levenberg–Marquardt (MINPACK) or, for the robust Cauchy loss of the outlier
+search, its trust-region reflective method, warm-started from the previous fit.  Nothing is built
+per data set or per n: the bootstrap, the k-fold and the selection only re-solve.  An effect set
+is chosen by keeping the unused coefficients at zero (they are not variables of the solve).
 """
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -49,35 +52,145 @@ N_BETA: int = len(BETA_INDEX)
 N_X: int = 9 + N_BETA
 
 
-def extended_residual_function() -> Any:
-    """``r(x, a, τ, s) = ‖T y(a)‖ − 1`` for one pose as a CasADi Function (normalised units).
+#: Complex-step size (any tiny number: no subtraction, so no cancellation).
+COMPLEX_STEP: float = 1e-30
+#: Least-squares tolerances: relative change of the cost and of x.  The norm residual ``‖v‖ − 1``
+#: loses about 1e-16 absolutely to cancellation, so the cost is known to ~1e-13 relatively near the
+#: optimum; 1e-12 stops there, with the parameters within ~1e-10 of their size of the optimum, far
+#: inside any standard error.
+TOLERANCE: float = 1e-12
+#: Largest number of residual evaluations of one solve.
+MAX_EVALUATIONS: int = 400
 
-    ``x = [θ (9), β (N_BETA)]``; the coefficients β multiply powers of the normalised
-    temperature ``τ`` and time ``s`` (:class:`Regressors`), so each is a number in g (bias
-    terms), a relative scale (temperature scale) or g/g² (nonlinearity).
+
+def _real_floor(v: Any, low: float) -> Any:
+    """``max(v, low)`` on the real part, keeping the complex step's imaginary part."""
+    return np.where(np.real(v) > low, v, low)
+
+
+def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
+                       used: NDArray[np.intp] | None = None) -> NDArray:
+    """``r = ‖T y(a)‖ − 1`` of every pose, for one or several parameter vectors (normalised units).
+
+    Parameters
+    ----------
+    x : ndarray, shape (N_X,) or (m, N_X)
+        ``[θ (9), β (N_BETA)]``, real or complex (complex step); β multiplies powers of the
+        normalised temperature ``τ`` and time ``s`` (:class:`Regressors`), so each is a number in
+        g (bias terms), a relative scale (temperature scale) or g/g² (nonlinearity).
+    u : ndarray, shape (n, 3)
+        Normalised measurements.
+    tau, s : ndarray, shape (n,)
+    used : ndarray of int, optional
+        Indices into β of the coefficients to include (default every one); the others are zero.
+
+    Returns
+    -------
+    ndarray, shape (n,) or (m, n)
     """
-    import casadi as ca
-
-    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
-
-    x = ca.SX.sym("x", N_X)
-    a = ca.SX.sym("a", 3)
-    tau = ca.SX.sym("tau")
-    s = ca.SX.sym("s")
-    T = lower_triangular(x[:6])
-    L = [[x[0], 0, 0], [x[1], x[2], 0], [x[3], x[4], x[5]]]
+    x = np.asarray(x)
+    single = x.ndim == 1
+    X = x[None, :] if single else x
+    col = [X[:, k : k + 1] for k in range(9)]
+    L = [[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]]  # T, lower-triangular
     C = inverse_lower(L)
-    S = [ca.sqrt(sum(C[i][j] ** 2 for j in range(i + 1))) for i in range(3)]
-    beta = x[9:]
+    used_set = set(range(N_BETA)) if used is None else {int(b) for b in used}
+    powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)]}
+    zero = np.zeros((1, 1))
+
+    def poly(effect: str, axis: int, values: list[NDArray]) -> Any:
+        total: Any = zero
+        for p in range(1, MAX_ORDER[effect] + 1):
+            b = BETA_INDEX[(effect, axis, p)]
+            if b in used_set:
+                total = total + X[:, 9 + b : 10 + b] * values[p - 1][None, :]
+        return total
+
     y = []
     for i in range(3):
-        b = lambda effect, p: beta[BETA_INDEX[(effect, i, p)]]  # noqa: E731
-        bias = sum(b("temperature_bias", p) * tau**p for p in range(1, MAX_ORDER["temperature_bias"] + 1))
-        bias += sum(b("bias_drift", p) * s**p for p in range(1, MAX_ORDER["bias_drift"] + 1))
-        scale = sum(b("temperature_scale", p) * tau**p for p in range(1, MAX_ORDER["temperature_scale"] + 1))
-        y.append(invert_axis(a[i] - x[6 + i], S[i], bias, scale, b("scale_nonlinearity", 1), ca.sqrt, ca.fmax))
-    v = ca.mtimes(T, ca.vertcat(*y))
-    return ca.Function("extended_norm_residual", [x, a, tau, s], [ca.norm_2(v) - 1.0])
+        S = np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1)))
+        bias = poly("temperature_bias", i, powers["temp"]) + poly("bias_drift", i, powers["t"])
+        scale = poly("temperature_scale", i, powers["temp"])
+        b2 = BETA_INDEX[("scale_nonlinearity", i, 1)]
+        k2 = X[:, 9 + b2 : 10 + b2] if b2 in used_set else zero
+        y.append(invert_axis(u[None, :, i] - col[6 + i], S, bias, scale, k2, np.sqrt, _real_floor))
+    v = [sum(L[i][j] * y[j] for j in range(i + 1)) for i in range(3)]
+    r = np.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) - 1.0  # Lu 2017, eq. 13
+    return r[0] if single else r
+
+
+def sensitivity_jacobian(theta_L: NDArray) -> tuple[NDArray, NDArray]:
+    """``S_i = ‖row i of L⁻¹‖`` and ``∂S_i/∂x_k`` for the six entries of ``L`` (complex step on a 3×3)."""
+    X = np.tile(np.asarray(theta_L[:6], dtype=complex), (7, 1))
+    X[np.arange(1, 7), np.arange(6)] += 1j * COMPLEX_STEP
+    col = [X[:, k] for k in range(6)]
+    C = inverse_lower([[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]])
+    S = np.stack([np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1))) for i in range(3)])  # (3, 7)
+    return np.real(S[:, 0]), np.imag(S[:, 1:]) / COMPLEX_STEP
+
+
+def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
+                           free: NDArray[np.intp] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Residuals of :func:`extended_residuals` and their Jacobian w.r.t. ``x[free]`` (default all), (n, len(free)).
+
+    The chain rule through the closed-form inversion, in whole-array operations: with
+    ``ā = v/‖v‖`` and ``g = Lᵀ ā`` (``∂r/∂y``), the root ``y`` of ``y + k2 y²/S = w`` has
+    ``dy = (dw + k2 y²/S² dS − y²/S dk2)/(1 + 2 k2 y/S)`` and
+    ``dw = (dz − bias dS − S dbias − w dscale)/(1 + scale)``; ``∂r/∂L_ij = ā_i y_j`` plus the
+    path through ``S`` (``L⁻¹``'s row norms).  Checked against the complex step in the tests.
+    """
+    n = d.n
+    Lm = np.array([[x[0], 0.0, 0.0], [x[1], x[2], 0.0], [x[3], x[4], x[5]]])
+    S, dS = sensitivity_jacobian(x)
+    powers = {"temp": [d.tau**p for p in range(1, 4)], "t": [d.s**p for p in range(1, 4)]}
+
+    beta = x[9:].tolist()
+    wanted = set(range(N_X)) if free is None else {int(k) for k in free}
+
+    def coefficient(effect: str, axis: int, p: int) -> float:
+        return beta[BETA_INDEX[(effect, axis, p)]]
+
+    JT = np.zeros((N_X, n))  # one contiguous row per parameter
+    y = np.empty((3, n))
+    parts = []
+    for i in range(3):
+        bias = np.zeros(n)
+        for effect, column in (("temperature_bias", "temp"), ("bias_drift", "t")):
+            for p in range(1, MAX_ORDER[effect] + 1):
+                if coefficient(effect, i, p):
+                    bias += coefficient(effect, i, p) * powers[column][p - 1]
+        scale = np.zeros(n)
+        for p in range(1, MAX_ORDER["temperature_scale"] + 1):
+            if coefficient("temperature_scale", i, p):
+                scale += coefficient("temperature_scale", i, p) * powers["temp"][p - 1]
+        k2 = coefficient("scale_nonlinearity", i, 1)
+        z = d.u[:, i] - x[6 + i]
+        y[i] = invert_axis(z, S[i], bias, scale, k2, np.sqrt, np.maximum)
+        w = (z - S[i] * bias) / (1 + scale)
+        parts.append((bias, scale, k2, w))
+    v = Lm @ y
+    norm = np.sqrt(np.sum(v * v, axis=0))
+    r = norm - 1.0  # Lu 2017, eq. 13
+    abar = v / norm
+    g = Lm.T @ abar  # ∂r/∂y
+    for k, (i, j) in enumerate(((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))):
+        JT[k] = abar[i] * y[j]
+    for m in range(3):
+        bias, scale, k2, w = parts[m]
+        den = 1 + 2 * k2 * y[m] / S[m]
+        dy_dw = g[m] / den  # ∂r/∂w_m
+        dr_dS = dy_dw * (-bias / (1 + scale)) + g[m] * k2 * y[m] ** 2 / S[m] ** 2 / den
+        JT[:6] += dS[m][:, None] * dr_dS[None, :]
+        JT[6 + m] = -dy_dw / (1 + scale)
+        for effect, column in (("temperature_bias", "temp"), ("bias_drift", "t")):
+            for p in range(1, MAX_ORDER[effect] + 1):
+                if 9 + BETA_INDEX[(effect, m, p)] in wanted:
+                    JT[9 + BETA_INDEX[(effect, m, p)]] = -dy_dw * S[m] / (1 + scale) * powers[column][p - 1]
+        for p in range(1, MAX_ORDER["temperature_scale"] + 1):
+            if 9 + BETA_INDEX[("temperature_scale", m, p)] in wanted:
+                JT[9 + BETA_INDEX[("temperature_scale", m, p)]] = -dy_dw * w / (1 + scale) * powers["temp"][p - 1]
+        JT[9 + BETA_INDEX[("scale_nonlinearity", m, 1)]] = -g[m] * y[m] ** 2 / S[m] / den
+    return r, (JT if free is None else JT[free]).T
 
 
 @dataclass
@@ -100,102 +213,82 @@ class PoseData:
     def n(self) -> int:
         return int(self.u.shape[0])
 
-    def parameters(self, w: NDArray, delta: float = 1.0) -> NDArray[np.float64]:
-        """The parameter vector of :class:`ExtendedProblem` for weights ``w`` (passed as √w)."""
-        return np.concatenate([self.u.ravel(), np.sqrt(w), self.tau, self.s, [delta]])
+    def parameters(self, w: NDArray, delta: float = 1.0) -> "ProblemData":
+        """The data of one solve of :class:`ExtendedProblem`: these poses with weights ``w``."""
+        return ProblemData(self, np.sqrt(w), float(delta))
 
 
-#: IPOPT options of :class:`ExtendedProblem`.  The norm residual ``‖v‖ − 1`` loses about
-#: 1e-16 absolutely to cancellation, so near the optimum the cost is only known to ~1e-13
-#: relatively and the gradient cannot be driven below ~√(curvature × that); the solve is
-#: therefore accepted once the objective stops changing (relative change < 1e-12 for two
-#: iterations) with the scaled optimality error below 1e-2 (which bounds the parameter error
-#: at ~1e-10 of the parameters' size, far inside any standard error).
-SOLVER_OPTIONS: dict[str, Any] = {
-    "ipopt.tol": 1e-9,
-    "ipopt.acceptable_tol": 1e-2,
-    "ipopt.acceptable_obj_change_tol": 1e-12,
-    "ipopt.acceptable_iter": 2,
-    "ipopt.max_iter": 200,
-    "calc_lam_p": False,
-}
+@dataclass(frozen=True)
+class ProblemData:
+    """Poses, their square-root weights and the robust loss's scale: everything one solve needs."""
 
-
-#: Built problems kept (least recently used dropped first): each holds a compiled IPOPT problem.
-CACHE_SIZE: int = 16
-_CACHE: "OrderedDict[tuple[int, str], ExtendedProblem]" = OrderedDict()
-_CACHE_LOCK = threading.Lock()
+    poses: PoseData
+    sqrt_w: NDArray[np.float64]
+    delta: float = 1.0
 
 
 class ExtendedProblem:
-    """``min_x Σ_k ρ(√w_k r_k(x))`` over θ and every coefficient, data as parameters (built once).
+    """``min_x Σ_k ρ(√w_k r_k(x))`` over θ and the active coefficients (module docstring).
 
-    Unused coefficients are fixed at zero through the bounds (see :meth:`bounds`).  Also
-    provides the residuals and their Jacobian as CasADi Functions (for held-out residuals and
-    the Fisher information).
+    Holds no data (each call gets its :class:`ProblemData`), so one instance per loss serves
+    every data set and thread.
+
+    Parameters
+    ----------
+    loss : {"squared", "cauchy"}
     """
 
-    def __init__(self, n: int, loss: str = "squared") -> None:
-        import casadi as ca
-
-        from optcal.estimators.mle import IPOPT_DEFAULTS, robust_loss
-
-        self.n, self.loss = n, loss
-        r = extended_residual_function()
-        # the squared loss is re-solved hundreds of times (bootstrap, k-fold): one expanded SX graph
-        # (slower to build, ~4x faster to solve); the robust losses are solved a few times: MX map
-        sym = ca.SX if loss == "squared" else ca.MX
-        x = sym.sym("x", N_X)
-        A = sym.sym("a", 3, n)
-        sqrt_w = sym.sym("sqrt_w", 1, n)
-        tau = sym.sym("tau", 1, n)
-        s = sym.sym("s", 1, n)
-        delta = sym.sym("delta")
-        res = (r.map(n) if n > 1 else r)(x, A, tau, s)  # 1 x n
-        cost = ca.sum2(robust_loss(res * sqrt_w, loss, delta))
-        p = ca.vertcat(ca.vec(A), sqrt_w.T, tau.T, s.T, delta)
-        opts = dict(IPOPT_DEFAULTS)
-        opts.update(SOLVER_OPTIONS)
-        self.solver = ca.nlpsol(f"extended_{loss}", "ipopt", {"x": x, "p": p, "f": cost}, opts)
-        self.residuals = ca.Function("residuals", [x, p], [res.T])
-        self.jacobian = ca.Function("jacobian", [x, p], [ca.jacobian(res.T, x)])
+    def __init__(self, loss: str = "squared") -> None:
+        if loss not in ("squared", "cauchy"):
+            raise ValueError(f"unknown loss {loss!r}")
+        self.loss = loss
 
     @classmethod
-    def get(cls, n: int, loss: str = "squared") -> "ExtendedProblem":
-        """The problem for ``n`` poses and ``loss``, built once (a bounded, thread-safe cache)."""
-        key = (n, loss)
-        with _CACHE_LOCK:
-            if key in _CACHE:
-                _CACHE.move_to_end(key)
-                return _CACHE[key]
-        problem = cls(n, loss)
-        with _CACHE_LOCK:
-            _CACHE[key] = problem
-            while len(_CACHE) > CACHE_SIZE:
-                _CACHE.popitem(last=False)
-        return problem
+    def get(cls, n: int = 0, loss: str = "squared") -> "ExtendedProblem":
+        """The problem of ``loss`` (``n`` is accepted for symmetry with the estimators; nothing depends on it)."""
+        return cls(loss)
 
     @staticmethod
-    def bounds(active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Bounds fixing every inactive coefficient (``active`` over β) at zero."""
-        lb = np.full(N_X, -np.inf)
-        ub = np.full(N_X, np.inf)
-        lb[9:][~active] = 0.0
-        ub[9:][~active] = 0.0
-        return lb, ub
+    def residuals_and_jacobian(x: NDArray, data: ProblemData, free: NDArray[np.intp]) -> tuple[NDArray, NDArray]:
+        """Unweighted residuals (n,) and their Jacobian (n, len(free)) w.r.t. ``x[free]``."""
+        return residuals_and_jacobian(np.asarray(x, float), data.poses, free)
 
-    def solve(self, x0: NDArray, p: NDArray, active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``x0`` with parameters ``p`` and the coefficients ``active`` free."""
-        lb, ub = self.bounds(active)
-        x0 = np.clip(x0, lb, ub)
-        sol = self.solver(x0=x0, p=p, lbx=lb, ubx=ub)
-        return np.asarray(sol["x"]).ravel(), self.solver.stats()
+    def solve(self, x0: NDArray, data: ProblemData, active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """Solve from ``x0`` with the coefficients ``active`` free (the others fixed at zero)."""
+        from scipy.optimize import least_squares
 
-    def residual_values(self, x: NDArray, p: NDArray) -> NDArray[np.float64]:
-        return np.asarray(self.residuals(x, p)).ravel()
+        free = np.concatenate([np.arange(9), 9 + np.flatnonzero(active)])
+        x = np.zeros(N_X)
+        x[free] = np.asarray(x0, float)[free]
+        sqrt_w = data.sqrt_w
+        d = data.poses
+        used = free[9:] - 9
 
-    def jacobian_values(self, x: NDArray, p: NDArray) -> NDArray[np.float64]:
-        return np.asarray(self.jacobian(x, p))
+        def residuals(z: NDArray) -> NDArray:
+            x[free] = z
+            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used)
+
+        def jacobian(z: NDArray) -> NDArray:
+            x[free] = z
+            return sqrt_w[:, None] * residuals_and_jacobian(x, d, free)[1]
+
+        robust = self.loss == "cauchy"
+        result = least_squares(
+            residuals, x[free].copy(), jac=jacobian,
+            method="trf" if robust else "lm", loss="cauchy" if robust else "linear", f_scale=data.delta,
+            x_scale="jac", ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, max_nfev=MAX_EVALUATIONS,
+        )
+        x[free] = result.x
+        return x.copy(), {"success": bool(result.success), "evaluations": int(result.nfev), "message": result.message}
+
+    def residual_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
+        """Unweighted residuals of every pose at ``x``."""
+        d = data.poses
+        return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:])))
+
+    def jacobian_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
+        """Unweighted Jacobian of every pose's residual w.r.t. every entry of ``x``, shape (n, N_X)."""
+        return residuals_and_jacobian(np.asarray(x, float), data.poses)[1]
 
 
 def active_mask(terms: Mapping[tuple[str, int], int]) -> NDArray[np.bool_]:

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.diagnosis.effects import REGRESSOR_WORDS
-from optcal.diagnosis.fitting import Fit, Fitter
+from optcal.diagnosis.fitting import Fit, Fitter, orthogonal_part
 from optcal.diagnosis.problem import BETA_INDEX, PoseData
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.model import AXES
@@ -165,15 +165,13 @@ def residual_statistics(
     z = ek / max(scale, 1e-300)
     out["excess_kurtosis"] = float(sps.kurtosis(z, fisher=True, bias=False)) if len(z) > 3 else 0.0
     out["max_abs_z"] = float(np.max(np.abs(z)))
-    Gk = G[kept]
-    pinv = np.linalg.pinv(Gk, rcond=1e-12)
-    for effect, axis in candidates:
-        if (effect, axis) in fit.terms:
-            continue
-        g = J_full[kept, 9 + BETA_INDEX[(effect, axis, 1)]]
-        g_perp = g - Gk @ (pinv @ g)
-        den = float(np.linalg.norm(g_perp) * np.linalg.norm(ek))
-        out[correlation_name(effect, axis)] = float(ek @ g_perp / den) if den > 0 else 0.0
+    open_candidates = [(e, a) for e, a in candidates if (e, a) not in fit.terms]
+    if open_candidates:
+        columns = [9 + BETA_INDEX[(e, a, 1)] for e, a in open_candidates]
+        g_perp = orthogonal_part(J_full[kept][:, columns], G[kept])
+        norms = np.linalg.norm(g_perp, axis=0) * np.linalg.norm(ek)
+        for (effect, axis), gp, den in zip(open_candidates, g_perp.T, norms):
+            out[correlation_name(effect, axis)] = float(ek @ gp / den) if den > 0 else 0.0
     return out
 
 

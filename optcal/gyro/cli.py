@@ -54,3 +54,28 @@ def gravity_check_lines(cal: Any, data: str, data_opts: dict[str, Any]) -> tuple
                                           "before": result.before, "exclusions": result.exclusions,
                                           "angles_deg_before": np.round(result.angles_before_deg, 6).tolist(),
                                           "angles_deg_after": np.round(result.angles_after_deg, 6).tolist()}}
+
+
+def allan_gyro_command(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_s: float | None,
+                       max_tau: float | None, reading: dict[str, Any]) -> None:
+    """``optcal allan DATA --sensor gyro``: the gyro's noise parameters (and Kalibr's two numbers)."""
+    import json
+
+    from optcal.cli.cmd_allan import read_still_log
+    from optcal.gyro.allan import analyse_gyro_log
+    from optcal.gyro.units import decide_gyro_units
+    from optcal.result import jsonable
+
+    log = read_still_log(data, sensor="gyro", **reading)
+    decision = decide_gyro_units(log.samples, log.samples.mean(axis=0), gyro_units, log.units or None)
+    analysis = analyse_gyro_log(log.samples, log.rate_hz, decision.units, counts_per_rad_s, max_tau)
+    if as_json:
+        out = analysis.summary()
+        out["log"].update({"path": data, "units_reason": decision.reason, "exclusions": log.exclusions})
+        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        return
+    click.echo(f"DATA: {data}, a still log of {log.samples.shape[0]} samples at {log.rate_hz:.6g} Hz, "
+               f"gyro units {decision.units} ({decision.reason})")
+    if log.exclusions:
+        click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in log.exclusions.items()))
+    click.echo(analysis.report())

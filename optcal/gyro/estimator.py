@@ -7,9 +7,10 @@
    nominal scale) minimises ``½ Σ_i ‖Φ_i(T_g)ᵀ u_i − u_{i+1}‖²`` over the moves (eq. 13),
    ``Φ_i`` the rotation integrated from the corrected gyro across move ``i`` (eq. 14, by
    the exponential map of :mod:`optcal.gyro.propagation`) and ``u_i`` the gravity direction
-   of the calibrated accelerometer at pose ``i``.  One CasADi NLP per recording layout
-   (the samples are its parameters), solved by IPOPT with the Gauss–Newton Hessian
-   ``JᵀJ`` (``hess_lag``), as imu_tk solves it by Levenberg–Marquardt in Ceres.
+   of the calibrated accelerometer at pose ``i``.  The integrator and its sensitivities
+   ``∂u/∂T_g`` are one CasADi function built once per recording layout (the samples are
+   its inputs); IPOPT solves the problem with the Gauss–Newton Hessian ``JᵀJ``
+   (``hess_lag``), as imu_tk solves it by Levenberg–Marquardt in Ceres.
 3. **Accelerometer**: fixed (its gravity directions as data), or ``joint``: its nine
    parameters re-estimated with the gyro's, the norm residuals of the poses (Lu 2017,
    eq. 13) and the gravity-prediction residuals each scaled to unit variance.

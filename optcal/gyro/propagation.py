@@ -8,12 +8,13 @@ predicts at the next pose is ``Φᵀ u_i`` (Tedaldi 2014, eq. 14, their Ψ with 
 map instead of quaternion Runge–Kutta).  The residual of move ``i`` is
 ``Φᵀ u_i − u_{i+1}`` (Tedaldi 2014, eq. 13, imu_tk's ``MultiPosGyroResidual``).
 
-:class:`GravityPredictor` builds this once per recording layout (number of steps and where
-the moves end): the step is one CasADi SX function, accumulated over all steps of all
-moves by ``mapaccum`` (the accumulator is reset to the identity at the first step of each
-move), with the rates, step lengths and gravity directions as inputs.  It serves both the
-fit (:mod:`optcal.gyro.estimator`) and the convention-free figure of merit
-:func:`prediction_angles_deg`.
+:class:`GravityPredictor` builds this once per recording layout (number of steps of each
+move): the step, with the forward sensitivity ``∂u/∂T_g`` carried along, is one CasADi SX
+function (:func:`rotation_step`), mapped over the moves side by side and accumulated over
+the steps by ``mapaccum``, with the rates, step lengths and gravity directions as inputs.
+It serves both the fit (:mod:`optcal.gyro.estimator`, residuals and Jacobian in one pass)
+and the convention-free figure of merit, :func:`angles_deg` between predicted and measured
+directions.
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ from optcal.model import PARAM_NAMES
 from optcal.plan.candidates import CandidateSet
 from optcal.plan.describe import describe_direction
 from optcal.plan.information import Criterion, Prior, covariance, criterion_value, information, named
-from optcal.plan.planner import _resolve
+from optcal.plan.planner import resolve_inputs
 from optcal.plan.rounding import refine, sequential
 from optcal.poses import PoseTable
 
@@ -164,7 +164,7 @@ def next_pose(
         raise InputError(f"target_stderr must be positive, not {target_stderr}")
     if not isinstance(poses, PoseTable):
         poses = np.asarray(poses, float).reshape(-1, 3)
-    prior, sigma, candidates, given = _resolve(prior, sigma, candidates, poses)
+    prior, sigma, candidates, given = resolve_inputs(prior, sigma, candidates, poses)
     M0 = given.information
     H = prior.information_vectors(candidates.directions)
     index = int(sequential(H, 1, Criterion.D, M0)[0])

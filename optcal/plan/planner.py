@@ -219,8 +219,9 @@ def refuse_if_undetermined(prior: Prior, acc: NDArray, sigma_ratio: NDArray, sig
         raise IdentifiabilityError(f"{what} cannot determine the calibration: {report.describe()}", report)
 
 
-def _resolve(prior: Prior | None, sigma: float | None, candidates: CandidateSet | None,
-             given: PoseTable | ArrayLike | None) -> tuple[Prior, float, CandidateSet, GivenPoses]:
+def resolve_inputs(prior: Prior | None, sigma: float | None, candidates: CandidateSet | None,
+                   given: PoseTable | ArrayLike | None) -> tuple[Prior, float, CandidateSet, GivenPoses]:
+    """Defaults of a planning request: nominal prior, 1 mg (in the prior's units), free orientations."""
     prior = Prior.nominal() if prior is None else prior
     sigma = DEFAULT_SIGMA * prior.scale if sigma is None else float(sigma)
     if not np.isfinite(sigma) or sigma <= 0:
@@ -304,7 +305,7 @@ def plan_poses(
         standard error above 5 % of full scale; the message names the combination.
     """
     crit = Criterion.parse(criterion)
-    prior, sigma, candidates, given_poses = _resolve(prior, sigma, candidates, given)
+    prior, sigma, candidates, given_poses = resolve_inputs(prior, sigma, candidates, given)
     H = prior.information_vectors(candidates.directions)
     _check_feasible(prior, candidates, given_poses, n_poses, sigma, H)
     with warnings.catch_warnings():
@@ -365,4 +366,4 @@ def plan_poses(
     )
 
 
-__all__ = ["DEFAULT_SIGMA", "GivenPoses", "PosePlan", "plan_poses", "refuse_if_undetermined"]
+__all__ = ["DEFAULT_SIGMA", "GivenPoses", "PosePlan", "plan_poses", "refuse_if_undetermined", "resolve_inputs"]
