@@ -212,8 +212,7 @@ class Diagnoser:
             self.progress("simulating the extended model")
             sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed, loop)
         model = fitter.model(final)
-        d = model.correct(poses.acc, *fitter.columns())
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        d = fitter.fitted_directions(final)
         return Diagnosis(
             poses=poses, regressors=reg, settings=s, baseline_source=source, effects_tested=effects,
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,

@@ -233,6 +233,15 @@ class Fitter:
         """The physical extended model of ``fit``."""
         return to_model(fit.x, self.norm.centre, self.norm.scale, self.reg)
 
+    def fitted_directions(self, fit: Fit) -> NDArray[np.float64]:
+        """Unit specific-force directions of the poses under ``fit``'s model (its inversion at each pose)."""
+        d = self.model(fit).correct(self.poses.acc, *self.columns())
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def noise_free(self, fit: Fit) -> NDArray[np.float64]:
+        """What ``fit``'s model measures, without noise, at the poses' fitted directions, temperatures and times."""
+        return self.model(fit).measure(self.fitted_directions(fit), *self.columns())
+
     def columns(self) -> tuple[NDArray | None, NDArray | None]:
         """Temperature and time of the poses where usable (``None`` otherwise)."""
         return (self.poses.temp if self.reg.has_temp else None, self.poses.t if self.reg.has_time else None)

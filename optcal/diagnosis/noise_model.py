@@ -162,11 +162,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     """Coverage of nominal 95 % intervals of θ, simulated with ``σ'`` and judged with σ and with ``σ'``."""
     rng = np.random.default_rng(seed)
     n = extended.n
-    model = extended.model(fit)
-    temp, t = extended.columns()
-    directions = model.correct(extended.poses.acc, temp, t)
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    clean = model.measure(directions, temp, t)
+    clean = extended.noise_free(fit)
     truth = fit.x[:9]
     z = float(sps.norm.isf((1 - NOMINAL) / 2))
     sigma = np.asarray(extended.poses.sigma, float)

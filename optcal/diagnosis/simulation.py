@@ -182,11 +182,7 @@ def simulation_check(
     """Parametric bootstrap of ``fit``: measured residual statistics against simulated bands."""
     n = fitter.n
     rng = np.random.default_rng(seed)
-    model = fitter.model(fit)
-    temp, t = fitter.columns()
-    directions = model.correct(fitter.poses.acc, temp, t)
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    clean = model.measure(directions, temp, t)
+    clean = fitter.noise_free(fit)
     kept = fit.kept(n)
     lam = float(np.sqrt(fit.rss * fitter.w_mean / max(kept.sum() - (fit.n_params - len(fit.outliers)), 1)))
     known = fitter.poses.sigma is not None
