@@ -8,7 +8,8 @@ Run on demand: ``pytest benchmarks/bench_fleet.py`` (``OPTCAL_BENCH_QUICK=1`` fo
   *including the cluster start* and the prior refit.  Target ≤ 60 s on 2 cores.
 * ``test_batched_throughput`` — complete default ``mle`` fits per second of 120-pose problems
   (Lu 2017 Table 1 design), batched (:mod:`optcal.estimators.batched`) against one at a time
-  measured in the same run.  Target ≥ 2,000 batched fits/s on one core.
+  measured in the same run, per second of wall time and of CPU time.  Target ≥ 2,000 batched fits/s
+  on one core (asserted on the wall-time rate in strict mode: run it on an idle machine).
 """
 
 from __future__ import annotations
@@ -53,9 +54,11 @@ def test_batched_throughput(benchmark):
                              rounds=1, iterations=1)
     b = res["batched"]
     benchmark.extra_info.update({"batched_fits_per_s": b["fits_per_s"], "single_fits_per_s": res["fits_per_s"],
+                                 "batched_fits_per_cpu_s": b["fits_per_cpu_s"], "single_fits_per_cpu_s": res["fits_per_cpu_s"],
                                  "speedup": b["fits_per_s"] / res["fits_per_s"],
                                  "max_deviation_from_single_in_stderr": b["max_deviation_from_single_in_stderr"]})
-    print(f"\nbatched {b['fits_per_s']:.0f} fits/s, one at a time {res['fits_per_s']:.0f} fits/s "
+    print(f"\nbatched {b['fits_per_s']:.0f} fits/s ({b['fits_per_cpu_s']:.0f} per CPU second), one at a time "
+          f"{res['fits_per_s']:.0f} fits/s ({res['fits_per_cpu_s']:.0f} per CPU second) "
           f"(×{b['fits_per_s'] / res['fits_per_s']:.1f}); largest difference {b['max_deviation_from_single_in_stderr']:.1e} SE")
     assert b["max_deviation_from_single_in_stderr"] < 1e-5
     if STRICT:

@@ -52,10 +52,11 @@ from optcal.diagnosis.effects import EFFECTS  # noqa: E402
 SMOKE = bool(int(os.environ.get("SMOKE", "0"))) or QUICK
 #: The selection's level per candidate term: α_terms = 0.01 over 4 effects × 3 axes.
 PER_CANDIDATE_LEVEL = 0.01 / 12
-N_NULL = 2 if QUICK else 4 if SMOKE else 400
+N_NULL = 1 if QUICK else 4 if SMOKE else 400
 N_HIDDEN = 1 if QUICK else 2 if SMOKE else 60
+N_SMALLEST = 0 if QUICK else N_HIDDEN
 N_CORNER = 0 if QUICK else 1 if SMOKE else 40
-N_RAW = 1 if SMOKE else 6
+N_RAW = 0 if QUICK else 1 if SMOKE else 6
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -213,7 +214,7 @@ def summarise(title: str, rows: list[dict], note: str) -> list[str]:
 hidden = pool_map(run_case, [(e, s, {}) for e in EFFECTS for s in range(N_HIDDEN)])
 report += summarise("2. Hidden effects drawn from the acceptance ranges", hidden,
                     "Magnitude 1-2× the smallest acceptance value, random sign and axis, 40-120 poses, 0.2-0.8 mg.")
-smallest = pool_map(run_case, [(e, 500 + s, {"scale": (1.0, 1.0)}) for e in EFFECTS for s in range(N_HIDDEN)])
+smallest = pool_map(run_case, [(e, 500 + s, {"scale": (1.0, 1.0)}) for e in EFFECTS for s in range(N_SMALLEST)])
 report += summarise("3. At exactly the smallest magnitudes", smallest,
                     "0.5 mg/°C, 300 ppm/°C, 3 mg over the recording, 4 mg/g², 8 % outliers; 40-120 poses, 0.2-0.8 mg.")
 corner = pool_map(run_case, [(e, 900 + s, {"scale": (1.0, 1.0), "n_range": (40, 40), "sigma_range": (0.8e-3, 0.8e-3)})

@@ -1,7 +1,7 @@
 # ---
 # jupyter:
 #   jupytext:
-#     formats: py:percent
+#     formats: ipynb,py:percent
 #     text_representation:
 #       extension: .py
 #       format_name: percent
@@ -39,9 +39,10 @@ from optcal.gyro.units import GyroUnitsDecision
 from optcal.poses import PoseTable
 from optcal.result import jsonable
 
-OUT = Path(__file__).resolve().parent / "results"
-OUT.mkdir(parents=True, exist_ok=True)
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import STUDIES, size  # noqa: E402
+
+DATA = STUDIES.parents[1] / "shared" / "data"
 SEED = 2014
 lines: list[str] = ["# Gyroscope calibration (Tedaldi 2014): optcal against imu_tk, five MPU-9150 units, Monte Carlo", ""]
 results: dict = {}
@@ -98,7 +99,7 @@ if xsens.exists():
 
 # %%
 units = []
-for k in range(5):
+for k in range(size(5, 1)):
     path = DATA / "mikoff-mpu9150" / f"imu{k}.log"
     if not path.exists():
         continue
@@ -140,7 +141,7 @@ if units:
 acc_model = optcal.lu2017_reference_model()
 truth = reference_gyro(1.0, rng=SEED)
 Q = acc_model.T_canonical @ acc_model.C
-runs = 30
+runs = size(30, 3)
 err, est, ses = [], [], []
 for run in range(runs):
     rec = simulate_imu(acc_model, truth, 16, rng=SEED + run, dwell_s=1.0, move_s=1.2, acc_noise=0.002, gyro_noise=0.005)

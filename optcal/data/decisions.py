@@ -164,7 +164,8 @@ def gather_evidence(src: Source) -> Evidence:
     usable = ok & ~absurd
     if usable.any():
         median_norm = float(np.median(norm[usable]))
-        step = np.sqrt(sum(np.diff(a[usable]) ** 2 for a in acc))
+        with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit
+            step = np.sqrt(sum(np.diff(a[usable]) ** 2 for a in acc))
         median_step = float(np.median(step)) if step.size else 0.0
     else:
         median_norm = median_step = float("nan")

@@ -182,23 +182,41 @@ class GyroProblem:
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._grad, "hess_lag": self._hess, **ipopt_options}
         self.solver = ca.nlpsol("gyro_calibration", "ipopt", {"x": x, "f": self._cost(x)}, opts)
 
-    def solve(self, evaluate: Any, x0: NDArray) -> tuple[NDArray[np.float64], dict[str, Any], float]:
-        """Solve from ``x0`` with ``evaluate(x) -> (r, J)``; the solution, IPOPT's stats, seconds.
+    def solve(self, evaluate: Any, x0: NDArray) -> "GyroSolution":
+        """Solve from ``x0`` with ``evaluate(x) -> (r, J)``.
 
         The cost is scaled by :func:`optcal.estimators.mle.cost_scale` (one tolerance for any
-        number of moves, noise level or units, as in the accelerometer's ML problem).
+        number of moves, noise level or units, as in the accelerometer's ML problem).  The
+        residuals at the start and at the solution are returned with it (each integration
+        of the recording is done once).
         """
         from optcal.estimators.mle import cost_scale
 
-        self.evaluate, self._cache = evaluate, None
-        r0, _ = evaluate(np.asarray(x0, float))
-        self.scale = cost_scale(r0.size, float(np.sqrt(np.mean(r0**2))))
+        x0 = np.asarray(x0, float)
+        start = evaluate(x0)
+        self.evaluate, self._cache = evaluate, (x0.tobytes(), *start)
+        self.scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
         t0 = time.perf_counter()
         try:
             sol = self.solver(x0=x0)
+            x = np.asarray(sol["x"]).ravel()
+            cached = self._cache
+            final = (cached[1], cached[2]) if cached is not None and cached[0] == x.tobytes() else evaluate(x)
         finally:
             self.evaluate, self._cache = None, None
-        return np.asarray(sol["x"]).ravel(), self.solver.stats(), time.perf_counter() - t0
+        return GyroSolution(x, self.solver.stats(), time.perf_counter() - t0, start[0], final[0], final[1])
+
+
+@dataclass(frozen=True)
+class GyroSolution:
+    """IPOPT's solution of a :class:`GyroProblem`: ``x``, stats, seconds, residuals at the start and at ``x``, Jacobian at ``x``."""
+
+    x: NDArray[np.float64]
+    stats: dict[str, Any]
+    seconds: float
+    r_start: NDArray[np.float64]
+    r: NDArray[np.float64]
+    J: NDArray[np.float64]
 
 
 def _solver_info(stats: dict[str, Any], seconds: float) -> SolverInfo:
@@ -282,25 +300,26 @@ def calibrate_gyro(
               else f"bias removed, one scale {s_fit:.6g} rad/s per count from the turn angles")
     predictor = GravityPredictor(moves.first_step, moves.last_step)
     u0, u1 = u[moves.move_from], u[moves.move_to]
-    angles_before = angles_deg(predictor(w * scale0, moves.dt, u0), u1)
     m = moves.n_moves
 
     def fixed_residuals(x: NDArray) -> tuple[NDArray, NDArray]:
         v, S, _ = predictor.evaluate(scale0 * (np.eye(3) + x.reshape(3, 3)), w, moves.dt, u0)
         return (v - u1).ravel(), scale0 * S.reshape(3 * m, 9)
 
-    x, stats, seconds = GyroProblem(predictor, 9, settings.ipopt_options).solve(fixed_residuals, np.zeros(9))
+    sol = GyroProblem(predictor, 9, settings.ipopt_options).solve(fixed_residuals, np.zeros(9))
+    x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
+    angles_before = angles_deg(sol.r_start.reshape(m, 3) + u1, u1)  # x = 0: T_g = s₀ I
     iterations = int(stats.get("iter_count", 0))
-    r, J = fixed_residuals(x)
     dof = 2 * m - 9
     sigma_g = float(np.sqrt(np.sum(r**2) / dof)) if dof > 0 else float("nan")
     acc_result = accelerometer
+    predicted = r.reshape(m, 3) + u1
     if settings.accelerometer == "joint":
-        acc_result, x, J, stats, extra_s = _joint(moves, accelerometer, w, scale0, x, sigma_g, predictor, settings)
+        acc_result, x, J, stats, extra_s, predicted = _joint(moves, accelerometer, w, scale0, x, sigma_g, predictor, settings)
         seconds += extra_s
         iterations += int(stats.get("iter_count", 0))
         u = unit_rows(acc_result.correct(moves.acc_means))
-        u0, u1 = u[moves.move_from], u[moves.move_to]
+        u1 = u[moves.move_to]
         cov_x = np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)[:9, :9]
     else:
         cov_x = sigma_g**2 * np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)
@@ -312,7 +331,7 @@ def calibrate_gyro(
             raise IdentifiabilityError(msg + ". Record moves about more axes", ident)
         notes.append("DEGENERATE MOVES: " + msg)
     model = GyroModel(Tg, static.bias, static.g_sensitivity)
-    angles_after = angles_deg(predictor(w @ Tg.T, moves.dt, u0), u1)
+    angles_after = angles_deg(predicted, u1)
     names = list(T_NAMES) + list(BIAS_NAMES) + (list(G_NAMES) if static.g_sensitivity is not None else [])
     params = np.concatenate([Tg.ravel(), static.bias] + ([static.g_sensitivity.ravel()] if static.g_sensitivity is not None else []))
     k = len(names)
@@ -345,11 +364,11 @@ def calibrate_gyro(
 def _joint(
     moves: MoveSet, acc: CalibrationResult, w: NDArray, scale0: float, x_gyro: NDArray, sigma_g: float,
     predictor: GravityPredictor, settings: GyroSettings,
-) -> tuple[CalibrationResult, NDArray, NDArray, dict[str, Any], float]:
+) -> tuple[CalibrationResult, NDArray, NDArray, dict[str, Any], float, NDArray]:
     """Re-estimate the accelerometer with the gyro (both residual kinds at unit variance).
 
     Returns the accelerometer result, ``x``, the Jacobian scaled so that ``(JᵀJ)⁻¹`` is the
-    covariance of ``x``, IPOPT's stats and the solve time.
+    covariance of ``x``, IPOPT's stats, the solve time and the predicted gravity directions.
     """
     P = moves.acc_means.shape[0]
     # per-pose noise of the norm residual, from the accelerometer fit (scaled by its reduced chi-square)
@@ -372,9 +391,8 @@ def _joint(
                       [np.zeros((P, 9)), drn.reshape(P, 9) / sig_a[:, None]]])
         return r, J
 
-    x, stats, seconds = GyroProblem(predictor, 18, settings.ipopt_options).solve(
-        joint_residuals, np.concatenate([x_gyro, np.zeros(9)]))
-    r, J = joint_residuals(x)
+    sol = GyroProblem(predictor, 18, settings.ipopt_options).solve(joint_residuals, np.concatenate([x_gyro, np.zeros(9)]))
+    x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
     dof = 2 * m + P - 18
     chi2 = float(np.sum(r**2))
     L = np.zeros((3, 3))
@@ -396,7 +414,9 @@ def _joint(
         covariance=D @ cov[9:, 9:] @ D.T, residuals=norm_residuals(Ta, o, moves.acc_means),
         notes=[*acc.notes, "re-estimated jointly with the gyroscope (gravity directions across the moves)"],
     )
-    return acc_joint, x, J / np.sqrt(factor), stats, seconds
+    u = unit_rows(acc_joint.correct(moves.acc_means))
+    predicted = r[: 3 * m].reshape(m, 3) * sigma_g + u[to]
+    return acc_joint, x, J / np.sqrt(factor), stats, seconds, predicted
 
 
 def calibrate_imu(

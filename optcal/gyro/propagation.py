@@ -92,7 +92,7 @@ class GravityPredictor:
         per move the predicted direction, its derivative w.r.t. the row-major ``T_g`` and the
         accumulated rotation (column-major), from the rotation vectors ``θ = ω dt`` of the
         steps of all moves side by side (the step mapped over the ``m`` moves, accumulated
-        over the ``L`` steps of the longest move by ``mapaccum``).
+        over the ``L ≥`` steps of the longest move by ``mapaccum``, as ``b`` blocks of ``a``).
     """
 
     def __init__(self, first_step: NDArray[np.bool_], last_step: NDArray[np.int64]) -> None:
@@ -103,7 +103,11 @@ class GravityPredictor:
         self.n_steps, self.n_moves = n, m
         starts = np.flatnonzero(first_step)
         lengths = np.asarray(last_step) - starts + 1
-        L = int(lengths.max())
+        # L = a·b steps, accumulated as b blocks of a steps (two short mapaccum graphs instead
+        # of one with L nodes: building costs ~2√L nodes)
+        a = int(np.ceil(np.sqrt(lengths.max())))
+        b = int(np.ceil(lengths.max() / a))
+        L = a * b
         self.length = L
         # steps of all moves side by side: slot (step s, move i) at column s·m + i; moves shorter
         # than L are padded at the end with zero rotations (the identity)
@@ -113,9 +117,12 @@ class GravityPredictor:
         first[0, :m] = 1.0
         self.first = first
         theta, q, u0 = ca.MX.sym("theta", 3, L * m), ca.MX.sym("q", 3, L * m), ca.MX.sym("u0", 3, m)
-        step = rotation_step().map(m)
-        states = step.mapaccum("move_steps", L)(ca.DM.zeros(39, m), theta, q, ca.repmat(u0, 1, L), ca.DM(first))
-        ends = states[:, (L - 1) * m:]
+        inner = rotation_step().map(m).mapaccum("block_steps", a)
+        z = ca.MX.sym("z", 39, m)
+        args = [ca.MX.sym(name, rows, a * m) for name, rows in (("theta", 3), ("q", 3), ("u0", 3), ("first", 1))]
+        block = ca.Function("block", [z, *args], [inner(z, *args)[:, (a - 1) * m:]])
+        states = block.mapaccum("move_blocks", b)(ca.DM.zeros(39, m), theta, q, ca.repmat(u0, 1, L), ca.DM(first))
+        ends = states[:, (b - 1) * m:]
         self.function = ca.Function("predict_gravity", [theta, q, u0], [ends[0:3, :], ends[3:30, :], ends[30:39, :]],
                                     ["theta", "q", "u0"], ["v", "S", "Phi"])
 
