@@ -75,10 +75,17 @@ def load_recording(
     time_unit: str | None = None,
     timing: str = "auto",
     gyro_file: str | Path | None = None,
+    required_by: str = "reading a recording",
 ) -> Recording:
-    """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how)."""
+    """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how).
+
+    ``required_by`` names what needs the raw recording (e.g. ``"the allan command"``); it is
+    the reason the kind decision gives.
+    """
     src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)
-    return recording_from_source(src, units=units, rate=rate, time_unit=time_unit, timing=timing)
+    return recording_from_source(
+        src, units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
+    )
 
 
 def segment(
@@ -223,6 +230,7 @@ def recording_meta(rec: Recording, decisions: DataDecisions) -> dict[str, Any]:
         "time": rec.time_reason,
         "rate_hz": rec.rate_hz,
         "duration_s": rec.duration_s,
+        "n_usable": rec.n_usable,
         "decisions": decisions.to_dict(),
         **rec.meta,
     }
