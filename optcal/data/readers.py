@@ -400,7 +400,7 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
                     f"(the file has: {', '.join(names)}; or give a 1-based position 1..{len(names)})"
                 )
         if col in given:
-            where = f"column {mapping[canon]}" + (f" ({col!r})" if col != mapping[canon] else "")
+            where = f"column {mapping[canon]} ({col!r})" if col != mapping[canon] else f"column {col!r}"
             raise InputError(
                 f"columns: {given[col]} and {canon} both map to {where}; give each name its own column"
             )

@@ -51,6 +51,8 @@ MOVING = "samples in non-static stretches"
 SHORT = "samples in static stretches shorter than the minimum dwell"
 SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
+TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
+TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
@@ -260,6 +262,14 @@ class Segmentation:
 def no_static_message(seg: Segmentation) -> str:
     rec = seg.recording
     thr = seg.thresholds
+    if seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: its gyro noise floor ({seg.noise_floor['gyro_rate_measured']:.3g}, norm over the axes) "
+            f"is above a resting gyro's ({seg.noise_floor['gyro_rate']:.3g} = {GYRO_FLOOR_MAX_QUANTA:g} converter "
+            f"steps), and the {seg.exclusions[TURNING_STRETCHES]} quiet stretch(es) still turn; record the sensor "
+            "at rest between moves"
+        )
     return (
         f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
         f"windows of {seg.settings.window_s:g} s must stay below {seg.settings.threshold:g}× the noise floor "
@@ -444,6 +454,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     }
 
     gyro_bias = None
+    resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
         gyro_bias = np.median(gyro[base], axis=0)
@@ -460,8 +471,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
         q = quantum(gyro)
         if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
-            # the quietest windows of a recording that never rests still turn
-            floors["gyro_rate"] = GYRO_FLOOR_MAX_QUANTA * q
+            # the quietest windows of a recording that never rests still turn: the floor is
+            # capped at a resting gyro's noise, and so is the noise inside every interval kept
+            floors["gyro_rate_measured"] = floors["gyro_rate"]
+            floors["gyro_rate"] = resting_gyro_std = GYRO_FLOOR_MAX_QUANTA * q
         thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
         static &= rate_dev <= thresholds["gyro_rate"]
         trace["gyro_rate"] = rate_dev
@@ -494,6 +507,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[a2:b2] = True
         kept.append((a2, b2))
     groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    if resting_gyro_std is not None and gyro is not None:
+        groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
+        _add(exclusions, TURNING, n_turning_samples)
+        _add(exclusions, TURNING_STRETCHES, n_turning)
     for group in groups:
         pos = np.concatenate([np.arange(a, b) for a, b in group])
         intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
@@ -505,6 +522,29 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     return seg
+
+
+def _reject_turning(
+    groups: list[list[tuple[int, int]]], gyro: NDArray[np.float64], limit: float, in_pose: NDArray[np.bool_]
+) -> tuple[list[list[tuple[int, int]]], int, int]:
+    """Drop the groups whose gyro standard deviation (norm over the axes) exceeds ``limit``.
+
+    Used when a recording's gyro noise floor is above a resting gyro's: its quiet stretches
+    are the slowest parts of a motion, not rests.  ``in_pose`` is cleared for the dropped
+    samples; returns the kept groups, the number dropped and their samples.
+    """
+    kept: list[list[tuple[int, int]]] = []
+    n_dropped = n_samples = 0
+    for group in groups:
+        pos = np.concatenate([np.arange(a, b) for a, b in group])
+        spread = float(np.sqrt(np.sum(np.var(gyro[pos], axis=0, ddof=1))))
+        if spread <= limit:
+            kept.append(group)
+            continue
+        n_dropped += 1
+        n_samples += int(pos.size)
+        in_pose[pos] = False
+    return kept, n_dropped, n_samples
 
 
 def join_interrupted(
