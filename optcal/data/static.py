@@ -387,12 +387,17 @@ def _resolution(x: NDArray[np.float64]) -> float:
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
 
 
+#: Steps on which :func:`quantum` checks that the steps are multiples of the smallest.
+QUANTUM_CHECK_STEPS: int = 100_000
+
+
 def quantum(x: NDArray[np.float64]) -> float | None:
     """The converter step of quantised data, else ``None``.
 
     Data are quantised when their steps are multiples of one step and their range spans at
     most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
-    have a common step too, but span far more of them.
+    have a common step too, but span far more of them.  The multiples are checked on at most
+    :data:`QUANTUM_CHECK_STEPS` evenly strided steps (the smallest step over all of them).
     """
     d = np.abs(np.diff(x, axis=0)).ravel()
     d = d[d > 0]
@@ -401,7 +406,7 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     q = float(d.min())
     if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
         return None
-    ratio = d / q
+    ratio = d[:: max(1, d.size // QUANTUM_CHECK_STEPS)] / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
 

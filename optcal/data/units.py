@@ -271,11 +271,14 @@ def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
         name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
         return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
-    a = a[np.all(np.isfinite(a), axis=1)]
+    finite = np.isfinite(a).all(axis=1)
+    if not finite.all():  # no copy of a recording whose samples are all finite
+        a = a[finite]
     offset = np.zeros(3)
     what = "no offset"
     if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(np.median(a, axis=0) - UNSIGNED_16_MIDSCALE) < 16384):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
-    sens = float(np.median(np.linalg.norm(a - offset, axis=1))) if a.size else 1.0
+    # column by column: temporaries of one column, not of three
+    sens = float(np.median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))))) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
