@@ -396,7 +396,8 @@ def quantum(x: NDArray[np.float64]) -> float | None:
 
     Data are quantised when their steps are multiples of one step and their range spans at
     most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
-    have a common step too, but span far more of them.  The multiples are checked on at most
+    have a common step too, but span far more of them, or (a signal of small range) step by
+    exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
     :data:`QUANTUM_CHECK_STEPS` evenly strided steps (the smallest step over all of them).
     """
     d = np.abs(np.diff(x, axis=0)).ravel()
@@ -406,6 +407,8 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     q = float(d.min())
     if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
         return None
+    if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
+        return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
     ratio = d[:: max(1, d.size // QUANTUM_CHECK_STEPS)] / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
