@@ -227,20 +227,29 @@ def saturated_samples(
     counters).
     """
     sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
-    a = acc[usable]
-    if a.shape[0] == 0:
+    if not usable.any():
         return sat
-    nominal = nominal_conversion(units, a)
-    integer = bool(np.all(a == np.round(a)))
-    magnitude = np.abs(np.where(usable[:, None], acc, np.nan))
+    every = bool(usable.all())  # then no copy of the samples: column by column below
+    nominal = nominal_conversion(units, acc if every else acc[usable])
+
+    def usable_column(axis: int) -> NDArray[np.float64]:
+        return acc[:, axis] if every else acc[usable, axis]
+
+    integer = all(bool(np.all(c == np.round(c))) for c in map(usable_column, range(3)))
     for axis in range(3):
-        for extreme in (a[:, axis].min(), a[:, axis].max()):
+        column = usable_column(axis)
+        for extreme in (column.min(), column.max()):
             at_int_rail = integer and any(extreme in rail for rail in INTEGER_RAILS)
             beyond_gravity = abs(extreme - nominal.offset[axis]) >= SATURATION_MIN_G * nominal.sensitivity
             if at_int_rail:
                 sat |= usable & (acc[:, axis] == extreme)
             elif beyond_gravity:
-                on = np.any(magnitude == abs(extreme), axis=1)
-                if int(np.sum(magnitude == abs(extreme))) >= SATURATION_MIN_COUNT:
+                on = np.zeros(acc.shape[0], dtype=bool)
+                hits = 0
+                for k in range(3):  # the same magnitude reached on any axis
+                    at = usable & (np.abs(acc[:, k]) == abs(extreme))
+                    hits += int(np.count_nonzero(at))
+                    on |= at
+                if hits >= SATURATION_MIN_COUNT:
                     sat |= on
     return sat

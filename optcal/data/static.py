@@ -333,10 +333,15 @@ def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.flo
         x = x[:, None]
     centre = centre_of(x)
     xc = x - centre
-    s1, count = centred_window_sums(xc, window)
-    s2, _ = centred_window_sums(xc * xc, window)
-    mean = s1 / count[:, None]
-    var = np.clip(s2 / count[:, None] - mean * mean, 0.0, None)
+    mean, count = centred_window_sums(xc, window)
+    np.multiply(xc, xc, out=xc)  # in place: one temporary of the data's size, not three
+    var, _ = centred_window_sums(xc, window)
+    del xc
+    count = count[:, None]
+    mean /= count
+    var /= count
+    var -= mean * mean
+    np.clip(var, 0.0, None, out=var)
     mean += centre
     return (mean[:, 0], var[:, 0]) if squeeze else (mean, var)
 
@@ -380,10 +385,15 @@ def _resolution(x: NDArray[np.float64]) -> float:
     """
     if x.size == 0:
         return 0.0
-    d = np.abs(np.diff(x, axis=0)).ravel()
-    d = d[d > 0]
-    step = float(d.min() / np.sqrt(12.0)) if d.size else 0.0
-    spread = float(np.max(np.abs(x - centre_of(x))))
+    columns = x.reshape(x.shape[0], -1)
+    smallest, spread = np.inf, 0.0
+    for j in range(columns.shape[1]):  # column by column: temporaries of one column
+        col = columns[:, j]
+        d = np.diff(col)
+        np.abs(d, out=d)
+        smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
+        spread = max(spread, float(np.max(np.abs(col - centre_of(col)))))
+    step = smallest / np.sqrt(12.0) if np.isfinite(smallest) else 0.0
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
 
 
@@ -444,10 +454,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = nominal_conversion(rec.units, acc)
-    norm = np.linalg.norm(acc - nominal.offset, axis=1)
+    norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
 
-    _, var_norm = moving_mean_var(norm, window)
-    sd_norm = np.sqrt(var_norm)
+    sd_norm = moving_mean_var(norm, window)[1]
+    np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
     # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
     sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
     res_acc = _resolution(acc)
@@ -480,15 +490,18 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        gyro_bias = np.median(gyro[base], axis=0)
+        gyro_bias = np.array([np.median(gyro[base, j]) for j in range(3)])  # column by column
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
             mean_j, var_j = moving_mean_var(gyro[:, j], window)
             var_sum += var_j
-            dev2 += (mean_j - gyro_bias[j]) ** 2
-        sd_gyro = np.sqrt(var_sum)
-        rate_dev = np.sqrt(dev2)
+            mean_j -= gyro_bias[j]
+            mean_j *= mean_j
+            dev2 += mean_j
+            del mean_j, var_j  # freed before the next column's statistics
+        sd_gyro = np.sqrt(var_sum, out=var_sum)  # in place
+        rate_dev = np.sqrt(dev2, out=dev2)
         res_g = _resolution(gyro)
         # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
         floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
