@@ -415,7 +415,9 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     if d.size < 10:
         return None
     q = float(d.min())
-    if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
+    columns = x.reshape(x.shape[0], -1)
+    span = max(float(columns[:, j].max() - columns[:, j].min()) for j in range(columns.shape[1]))  # per column: fast
+    if span > (2**16 + 1) * q:
         return None
     if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
         return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
@@ -634,16 +636,19 @@ def _add(d: dict[str, int], key: str, value: int) -> None:
         d[key] = d.get(key, 0) + int(value)
 
 
-def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
+def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] | None = None) -> float:
     """Standard deviation of the mean of the samples ``x`` (n, 3), pooled over the axes.
 
     White noise gives ``σ/√n``; sensor noise is not white (flicker, drift: the block means
     of the IMU-TK Xsens rest scatter 1.2-3× more than ``σ/√n`` predicts), so the batch-means
     estimate ``std(block means)/√blocks`` over ``blocks`` consecutive blocks is taken when it
     is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
+    ``var`` is the per-axis sample variance (ddof 1) of ``x`` when already computed.
     """
     n = x.shape[0]
-    white = float(np.sqrt(np.mean(x.var(axis=0, ddof=1))) / np.sqrt(n)) if n > 1 else 0.0
+    if var is None:
+        var = x.var(axis=0, ddof=1) if n > 1 else np.zeros(x.shape[1])
+    white = float(np.sqrt(np.mean(var)) / np.sqrt(n)) if n > 1 else 0.0
     if blocks < 2 or n < 4 * blocks:
         return white
     size = n // blocks
@@ -652,16 +657,22 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
     return max(white, batch)
 
 
+def _rows(index: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+    """A slice (a view, no copy) for increasing indices without a gap, else the indices."""
+    return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
+
+
 def _interval(
     number: int, rec: Recording, use: NDArray[np.int64], pos: NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
     idx = use[pos]
-    x = rec.acc[idx]
+    x = rec.acc[_rows(idx)]
     n = x.shape[0]
     mean = x.mean(axis=0)
-    std = x.std(axis=0, ddof=1)
-    sigma = sigma_of_mean(x, sigma_blocks)
+    var = x.var(axis=0, ddof=1)
+    std = np.sqrt(var)
+    sigma = sigma_of_mean(x, sigma_blocks, var=var)
     return StaticInterval(
         number=number,
         start=int(idx[0]),
@@ -674,6 +685,6 @@ def _interval(
         mean=mean,
         std=std,
         sigma=sigma,
-        gyro_mean=None if gyro is None else gyro[pos].mean(axis=0),
-        temp_mean=None if rec.temp is None else float(rec.temp[idx].mean()),
+        gyro_mean=None if gyro is None else gyro[_rows(pos)].mean(axis=0),
+        temp_mean=None if rec.temp is None else float(rec.temp[_rows(idx)].mean()),
     )
