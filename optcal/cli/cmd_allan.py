@@ -73,7 +73,7 @@ def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> Still
     from optcal.data.static import detect_static
     from optcal.errors import InputError
 
-    rec = load_recording(data, **read_options)
+    rec = load_recording(data, required_by="the allan command", **read_options)
     t = rec.t[rec.usable]
     samples = rec.acc[rec.usable]
     if sensor == "gyro":

@@ -41,7 +41,8 @@ _NON_NEGATIVE = click.FloatRange(min=0)
 _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--columns", metavar="NAME=COLUMN,...", default=None,
                  help="Map the file's columns by name or 1-based position: e.g. ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts,t=t_s "
-                      "or t=1,ax=2,ay=3,az=4 (names: t ax ay az gx gy gz temp sigma n_samples index). "
+                      "or t=1,ax=2,ay=3,az=4 (names: t ax ay az gx gy gz temp sigma n_samples index); NAME=none ignores the "
+                      "column optcal would take as NAME (e.g. index=none, t=none). "
                       "Common names, and the common layouts of files without a header, are recognised without it."),
     click.option("--units", type=click.Choice(["g", "m/s^2", "counts"]), default=None,
                  help="Units of the accelerometer data (default: from the column names or file format, else from the norm)."),
@@ -142,8 +143,10 @@ def data_line(path: str, poses: PoseTable) -> str:
     """What DATA was read as, and every decision with its reason (every command prints it)."""
     if poses.source == "raw recording":
         seg = poses.meta.get("segmentation", {})
+        n_rows, n_usable = seg.get("n_samples", "?"), poses.meta.get("n_usable", seg.get("n_samples", "?"))
+        samples = f"{n_usable} samples" + ("" if n_usable == n_rows else f" of {n_rows} rows")
         what = (
-            f"a raw recording ({seg.get('n_samples', '?')} samples, {poses.meta.get('duration_s', 0):.1f} s at "
+            f"a raw recording ({samples}, {poses.meta.get('duration_s', 0):.1f} s at "
             f"{poses.meta.get('rate_hz', float('nan')):.4g} Hz) → {poses.n} static poses"
         )
     else:
@@ -171,6 +174,7 @@ def data_summary(path: str, poses: PoseTable) -> dict[str, Any]:
         out.update(
             {
                 "n_samples": seg.get("n_samples"),
+                "n_usable": poses.meta.get("n_usable"),
                 "rate_hz": poses.meta.get("rate_hz"),
                 "duration_s": poses.meta.get("duration_s"),
                 "time": poses.meta.get("time"),

@@ -30,6 +30,7 @@ from optcal.data.readers import Source, read_source
 from optcal.data.recording import Recording, recording_from_source
 from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.data.tables import load_pose_table, pose_table_from_source, read_csv_frame
+from optcal.data.units import check_sensitivity
 from optcal.errors import InputError
 from optcal.poses import PoseTable
 
@@ -75,10 +76,17 @@ def load_recording(
     time_unit: str | None = None,
     timing: str = "auto",
     gyro_file: str | Path | None = None,
+    required_by: str = "reading a recording",
 ) -> Recording:
-    """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how)."""
+    """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how).
+
+    ``required_by`` names what needs the raw recording (e.g. ``"the allan command"``); it is
+    the reason the kind decision gives.
+    """
     src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)
-    return recording_from_source(src, units=units, rate=rate, time_unit=time_unit, timing=timing)
+    return recording_from_source(
+        src, units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
+    )
 
 
 def segment(
@@ -141,11 +149,14 @@ def load_with_segmentation(
     evidence = gather_evidence(src)  # evidence
     decisions = decide(src, evidence, kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing)
     if decisions.kind.value == POSE_TABLE:
-        return LoadedData(pose_table_from_source(src, decisions), decisions)  # conversion
+        poses = pose_table_from_source(src, decisions)  # conversion
+        check_sensitivity(poses.acc, poses.units)  # the units decision, checked on the poses
+        return LoadedData(poses, decisions)
     rec = recording_from_source(src, decisions, evidence=evidence)  # conversion
     del src, evidence  # the recording holds its own arrays: free the file's columns before segmenting
     seg = detect_static(rec, settings)  # segmentation
     table = seg.pose_table()
+    check_sensitivity(table.acc, table.units)  # the units decision, checked on the poses
     table.meta.update(recording_meta(rec, decisions))
     table.decisions = decisions
     return LoadedData(table, decisions, seg)
@@ -223,6 +234,7 @@ def recording_meta(rec: Recording, decisions: DataDecisions) -> dict[str, Any]:
         "time": rec.time_reason,
         "rate_hz": rec.rate_hz,
         "duration_s": rec.duration_s,
+        "n_usable": rec.n_usable,
         "decisions": decisions.to_dict(),
         **rec.meta,
     }

@@ -56,6 +56,8 @@ BURST_RATIO: float = 2.0
 COARSE_REPEATED_FRACTION: float = 0.05
 #: Plausible sampling rates of a recording, Hz (for a stated assumption on the time unit).
 PLAUSIBLE_RATE_HZ: tuple[float, float] = (1.0, 100_000.0)
+#: A ``rate`` that differs from a regular time column's rate by more than this fraction is warned about.
+RATE_MISMATCH_FRACTION: float = 0.05
 
 # exclusion counters (also the keys of ``PoseTable.exclusions``)
 NON_FINITE = "non-finite samples (empty, non-numeric or truncated cells)"
@@ -240,6 +242,8 @@ class DataDecisions:
         How the file was laid out (delimiter, header) and read.
     exclusions : dict of str to int
         Rows excluded before segmentation, by reason (segmentation adds its own).
+    warnings : list of str
+        Choices given by the user that the evidence contradicts (the user's choice is kept).
     """
 
     kind: Decision
@@ -249,6 +253,7 @@ class DataDecisions:
     rate: Decision
     layout: str = ""
     exclusions: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe form."""
@@ -260,12 +265,14 @@ class DataDecisions:
             "rate_hz": self.rate.to_dict(),
             "layout": self.layout,
             "exclusions": dict(self.exclusions),
+            "warnings": list(self.warnings),
         }
 
     def lines(self) -> list[str]:
         """One line per decision, for the text report of every command."""
+        kind_flag = f"; {self.kind.flag}" if self.kind.flag else ""
         out = [
-            f"kind: {self.kind.value} ({self.kind.reason}; {self.kind.flag})",
+            f"kind: {self.kind.value} ({self.kind.reason}{kind_flag})",
             f"columns: {self.columns.value} ({self.columns.reason}; {self.columns.flag})",
             f"units: {self.units.value} ({self.units.reason}; {self.units.flag})",
         ]
@@ -278,6 +285,7 @@ class DataDecisions:
             out.append(f"read: {self.layout}")
         if self.exclusions:
             out.append("excluded while reading: " + "; ".join(f"{k}: {v}" for k, v in self.exclusions.items()))
+        out.extend(f"warning: {w}" for w in self.warnings)
         return out
 
 
@@ -290,6 +298,7 @@ def decide(
     rate: float | None = None,
     time_unit: str | None = None,
     timing: str = "auto",
+    required_by: str | None = None,
 ) -> DataDecisions:
     """Decide kind, columns, units, time base and rate from the evidence (flags win).
 
@@ -306,6 +315,9 @@ def decide(
     timing : {"auto", "stamps", "uniform"}
         Keep the stamps, or spread the samples evenly over the stamped span (bursty or
         coarse stamps are spread evenly under ``auto``).
+    required_by : str, optional
+        What requires ``kind`` (e.g. ``"the allan command"``) when it is not the user's
+        choice; the kind decision then gives that as its reason.
 
     Raises
     ------
@@ -332,7 +344,16 @@ def decide(
         one_g = nominal_conversion(found.units, acc).sensitivity
     except InputError:  # refused below, once the kind is known
         one_g = ev.median_norm
-    kind_decision = _decide_kind(src, ev, kind, one_g)
+    warnings: list[str] = []
+    if required_by is not None:
+        if kind not in ("poses", "raw"):
+            raise InputError(f"required_by needs kind 'poses' or 'raw', got {kind!r}")
+        what = POSE_TABLE if kind == "poses" else RAW_RECORDING
+        kind_decision = Decision(what, f"{required_by} requires a {what}", "")
+    else:
+        kind_decision = _decide_kind(src, ev, kind, one_g)
+        if kind != "auto":
+            warnings.extend(_kind_contradiction(src, ev, kind_decision, one_g))
     if kind_decision.value == POSE_TABLE:
         for canon, (count, row, value) in src.non_numeric.items():
             raise InputError(
@@ -348,7 +369,45 @@ def decide(
         time_base, rate_d = _pose_table_time(src, time_unit)
     else:
         time_base, rate_d = _recording_time(src, ev, rate, time_unit, timing)
-    return DataDecisions(kind_decision, columns, units_decision, time_base, rate_d, src.layout, ev.exclusions())
+        warnings.extend(_rate_contradiction(src, ev, rate, time_unit))
+    return DataDecisions(
+        kind_decision, columns, units_decision, time_base, rate_d, src.layout, ev.exclusions(), warnings
+    )
+
+
+def _kind_contradiction(src: Source, ev: Evidence, given: Decision, one_g: float) -> list[str]:
+    """A warning when the evidence alone would read the file as the other kind (the user's choice is kept)."""
+    try:
+        auto = _decide_kind(src, ev, "auto", one_g)
+    except InputError:
+        return []
+    if auto.value == given.value:
+        return []
+    return [
+        f"read as a {given.value} as given, but the evidence says {auto.value}: {auto.reason}"
+        + (f" ({int(ev.usable.sum())} rows would each be one pose)" if given.value == POSE_TABLE else "")
+    ]
+
+
+def _rate_contradiction(src: Source, ev: Evidence, rate: float | None, time_unit: str | None) -> list[str]:
+    """A warning when a given rate contradicts a regular time column (the given rate is kept)."""
+    te = ev.time
+    if rate is None or te is None or not src.has("t") or te.backwards or not te.duration > 0 or te.n < RAW_MIN_ROWS:
+        return []
+    if time_unit is not None and src.time_unit is None:
+        factor = TIME_UNITS[time_unit]
+    else:
+        factor = 1.0  # a unit named by the column is already in seconds
+    rate_t = 1.0 / (te.mean_step * factor)  # (N−1)/duration: robust to bursty stamps
+    if src.time_unit is None and time_unit is None and rate_t < PLAUSIBLE_RATE_HZ[0]:
+        rate_t *= 1e3  # an unnamed column of ms stamps (as in the kind decision)
+    if abs(rate / rate_t - 1.0) <= RATE_MISMATCH_FRACTION:
+        return []
+    return [
+        f"the given rate {rate:g} Hz differs by {100 * abs(rate / rate_t - 1.0):.0f} % from the time column "
+        f"{src.column_map.get('t', 't')!r} ({te.n} rows over {te.duration * factor:.6g} s: {rate_t:.4g} Hz); "
+        "the given rate is used (drop rate= to use the time column)"
+    ]
 
 
 def _acc(src: Source, rows: NDArray[np.bool_]) -> NDArray[np.float64]:

@@ -319,8 +319,16 @@ def read_parquet(path: str | Path) -> Any:
     return frame
 
 
+#: The ``--columns`` value that makes optcal use no column as that name (``index=none``).
+NO_COLUMN: str = "none"
+
+
 def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]:
-    """Parse ``"ax=acc1,ay=acc2,t=time"`` (names, or 1-based positions) into {canonical: file column}."""
+    """Parse ``"ax=acc1,ay=acc2,t=time"`` (names, or 1-based positions) into {canonical: file column}.
+
+    A value of :data:`NO_COLUMN` (``"t=none"``, ``"index=none"``) keeps optcal from taking any
+    column as that name (a recognised column is then left unused).
+    """
     if columns is None or columns == "":
         return {}
     if isinstance(columns, dict):
@@ -341,6 +349,8 @@ def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]
     for k, v in pairs:
         if k not in CANONICAL and k != "index":
             raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
+        if k in ACC and v.lower() == NO_COLUMN:
+            raise InputError(f"columns {k}={v}: the accelerometer columns cannot be ignored; map {k} to a column")
         out[k] = v
     return out
 
@@ -373,7 +383,14 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
     """
     column_map: dict[str, str] = {}
     units: dict[str, str | None] = {}
+    ignored = {canon for canon, col in mapping.items() if col.lower() == NO_COLUMN and col not in names}
+    # "samples" may be taken as index or as n_samples: ignoring one ignores the column for both
+    if ignored & {"index", "n_samples"}:
+        ignored |= {"index", "n_samples", "index_or_count"}
+    given: dict[str, str] = {}
     for canon, col in mapping.items():
+        if canon in ignored:
+            continue
         if col not in names:
             if col.isdigit() and 1 <= int(col) <= len(names):
                 col = names[int(col) - 1]
@@ -382,6 +399,12 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
                     f"columns {canon}={col}: there is no column {col!r} "
                     f"(the file has: {', '.join(names)}; or give a 1-based position 1..{len(names)})"
                 )
+        if col in given:
+            where = f"column {mapping[canon]} ({col!r})" if col != mapping[canon] else f"column {col!r}"
+            raise InputError(
+                f"columns: {given[col]} and {canon} both map to {where}; give each name its own column"
+            )
+        given[col] = canon
         column_map[canon] = col
         units[canon] = _strip_unit(_normalise_name(col))[1]
     taken = set(column_map.values())
@@ -397,7 +420,7 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
                 canon = next((c for c, al in ALIASES.items() if candidate in al), None)
             if canon is not None:
                 break
-        if canon is None:
+        if canon is None or canon in ignored:
             continue
         if canon == "index_or_count":
             # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a

@@ -88,8 +88,15 @@ class Recording:
         return int(self.t.size)
 
     @property
+    def n_usable(self) -> int:
+        """Samples not excluded (the rows counted in ``exclusions`` are not)."""
+        return int(np.count_nonzero(self.usable))
+
+    @property
     def duration_s(self) -> float:
-        return float(self.t[-1] - self.t[0]) if self.n > 1 else 0.0
+        """Time from the first to the last usable sample (excluded rows may have no time)."""
+        idx = np.flatnonzero(self.usable)
+        return float(self.t[idx[-1]] - self.t[idx[0]]) if idx.size > 1 else 0.0
 
 
 def recording_from_source(
@@ -101,6 +108,7 @@ def recording_from_source(
     rate: float | None = None,
     time_unit: str | None = None,
     timing: str = "auto",
+    required_by: str = "reading a recording",
 ) -> Recording:
     """Build a :class:`Recording` from a reader's :class:`Source` (the conversion step).
 
@@ -114,6 +122,9 @@ def recording_from_source(
         The evidence the decisions were made from (gathered here when omitted).
     units, rate, time_unit, timing
         Options of :func:`optcal.data.decisions.decide` when ``decisions`` is omitted.
+    required_by : str
+        What requires a raw recording (the reason of the kind decision when ``decisions`` is
+        omitted), e.g. ``"the allan command"``.
 
     Raises
     ------
@@ -122,7 +133,9 @@ def recording_from_source(
     """
     ev = evidence if evidence is not None else gather_evidence(src)
     if decisions is None:
-        decisions = decide(src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing)
+        decisions = decide(
+            src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
+        )
     n = src.n_rows
     acc = np.column_stack([src.column(c) for c in ACC])
     gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
@@ -214,20 +227,29 @@ def saturated_samples(
     counters).
     """
     sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
-    a = acc[usable]
-    if a.shape[0] == 0:
+    if not usable.any():
         return sat
-    nominal = nominal_conversion(units, a)
-    integer = bool(np.all(a == np.round(a)))
-    magnitude = np.abs(np.where(usable[:, None], acc, np.nan))
+    every = bool(usable.all())  # then no copy of the samples: column by column below
+    nominal = nominal_conversion(units, acc if every else acc[usable])
+
+    def usable_column(axis: int) -> NDArray[np.float64]:
+        return acc[:, axis] if every else acc[usable, axis]
+
+    integer = all(bool(np.all(c == np.round(c))) for c in map(usable_column, range(3)))
     for axis in range(3):
-        for extreme in (a[:, axis].min(), a[:, axis].max()):
+        column = usable_column(axis)
+        for extreme in (column.min(), column.max()):
             at_int_rail = integer and any(extreme in rail for rail in INTEGER_RAILS)
             beyond_gravity = abs(extreme - nominal.offset[axis]) >= SATURATION_MIN_G * nominal.sensitivity
             if at_int_rail:
                 sat |= usable & (acc[:, axis] == extreme)
             elif beyond_gravity:
-                on = np.any(magnitude == abs(extreme), axis=1)
-                if int(np.sum(magnitude == abs(extreme))) >= SATURATION_MIN_COUNT:
+                on = np.zeros(acc.shape[0], dtype=bool)
+                hits = 0
+                for k in range(3):  # the same magnitude reached on any axis
+                    at = usable & (np.abs(acc[:, k]) == abs(extreme))
+                    hits += int(np.count_nonzero(at))
+                    on |= at
+                if hits >= SATURATION_MIN_COUNT:
                     sat |= on
     return sat

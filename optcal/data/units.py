@@ -149,6 +149,70 @@ def check_units(decision: UnitsDecision, norm: float) -> UnitsDecision:
     )
 
 
+#: Smallest plausible ratio of the implied sensitivity (the radius of the sphere through the
+#: pose means, raw units per g) to the median |a|: an accelerometer's poses lie on a sphere
+#: around its zero (a 16-bit unsigned converter at ±16 g: 2048/57000 ≈ 0.036); a resting
+#: gyroscope's outputs mapped as an accelerometer cluster within a few hundred counts of
+#: each other (the Xsens MTi's gyro: radius ≈ 150 counts next to |a| ≈ 57000, 0.0026).
+MIN_SENSITIVITY_TO_NORM: float = 0.01
+#: Poses needed before the sensitivity is checked (a calibration needs 9).
+MIN_POSES_FOR_SCALE_CHECK: int = 9
+
+
+def implied_sensitivity(means: ArrayLike) -> float:
+    """Radius of the least-squares sphere through pose means: the raw units of 1 g they imply.
+
+    The algebraic sphere fit ``‖a‖² = 2 a·c + (r² − ‖c‖²)`` (linear in ``c`` and the
+    constant), solved on means centred and scaled by their spread so that a tight cluster
+    far from zero is as well conditioned as a sphere around it.  NaN when the means do not
+    determine a sphere.
+    """
+    a = np.asarray(means, dtype=float).reshape(-1, 3)
+    a = a[np.all(np.isfinite(a), axis=1)]
+    if a.shape[0] < 4:
+        return float("nan")
+    centre0 = a.mean(axis=0)
+    scale = float(np.sqrt(np.mean(np.sum((a - centre0) ** 2, axis=1))))
+    if not scale > 0:
+        return 0.0
+    u = (a - centre0) / scale
+    design = np.column_stack([2.0 * u, np.ones(len(u))])
+    sol, _, rank, _ = np.linalg.lstsq(design, np.sum(u * u, axis=1), rcond=None)
+    if rank < 4:
+        return float("nan")
+    r2 = float(sol[3] + sol[:3] @ sol[:3])
+    return float(np.sqrt(r2)) * scale if r2 > 0 else float("nan")
+
+
+def check_sensitivity(means: ArrayLike, units: str) -> None:
+    """Refuse pose means whose implied sensitivity is implausibly small next to their |a|.
+
+    An accelerometer's pose means lie on a sphere of radius 1 g (in its units) around its
+    zero; a radius that is a tiny fraction of the measured |a| means the columns are not an
+    accelerometer's (gyroscope columns mapped as ``ax, ay, az``), or the sensor was never
+    turned.  Checked from :data:`MIN_POSES_FOR_SCALE_CHECK` poses on.
+
+    Raises
+    ------
+    InputError
+        With the radius, the median |a|, and the fix.
+    """
+    a = np.asarray(means, dtype=float).reshape(-1, 3)
+    if a.shape[0] < MIN_POSES_FOR_SCALE_CHECK:
+        return
+    norm = median_norm(a)
+    radius = implied_sensitivity(a)
+    if not (np.isfinite(norm) and norm > 0) or np.isnan(radius) or radius >= MIN_SENSITIVITY_TO_NORM * norm:
+        return
+    raise InputError(
+        f"the {a.shape[0]} pose means do not look like an accelerometer's: they lie within a sphere of radius "
+        f"{radius:.4g} {units} around their centre (the implied 1 g), while their median |a| is {norm:.4g} {units} "
+        f"(ratio {radius / norm:.2g}, an accelerometer's is at least {MIN_SENSITIVITY_TO_NORM:g}); if these are "
+        "gyroscope columns, map the accelerometer's with columns= (ax=NAME,ay=NAME,az=NAME), otherwise turn the "
+        "sensor through several orientations"
+    )
+
+
 def to_g_factor(units: str) -> float | None:
     """Factor converting ``units`` to g (``None`` for counts, whose scale is what calibration finds)."""
     units = normalise_units(units)
@@ -207,11 +271,14 @@ def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
         name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
         return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
-    a = a[np.all(np.isfinite(a), axis=1)]
+    finite = np.isfinite(a).all(axis=1)
+    if not finite.all():  # no copy of a recording whose samples are all finite
+        a = a[finite]
     offset = np.zeros(3)
     what = "no offset"
     if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(np.median(a, axis=0) - UNSIGNED_16_MIDSCALE) < 16384):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
-    sens = float(np.median(np.linalg.norm(a - offset, axis=1))) if a.size else 1.0
+    # column by column: temporaries of one column, not of three
+    sens = float(np.median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))))) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
