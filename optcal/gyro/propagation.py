@@ -51,13 +51,19 @@ def exponential_map(theta: NDArray) -> tuple[NDArray[np.float64], NDArray[np.flo
     small = a2 < SMALL_ANGLE_SQ
     a2_safe = np.where(small, 1.0, a2)
     a = np.sqrt(a2_safe)
-    c1 = np.where(small, 1 - a2 / 6 + a2**2 / 120, np.sin(a) / a)[:, None, None]
-    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - np.cos(a)) / a2_safe)[:, None, None]
-    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - np.sin(a)) / (a2_safe * a))[:, None, None]
+    sin, cos = np.sin(a), np.cos(a)
+    c1 = np.where(small, 1 - a2 / 6 + a2**2 / 120, sin / a)[:, None, None]
+    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - cos) / a2_safe)[:, None, None]
+    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))[:, None, None]
+    # [θ]×² = θθᵀ − α² I: exp([θ]×) = (1 − c₂α²) I + c₁[θ]× + c₂θθᵀ, J_r(−θ) = (1 − c₃α²) I + c₂[θ]× + c₃θθᵀ
     K = skew_rows(theta)
-    K2 = K @ K
-    eye = np.eye(3)
-    return eye + c1 * K + c2 * K2, eye + c2 * K + c3 * K2
+    outer = theta[:, :, None] * theta[:, None, :]
+    E = c1 * K + c2 * outer
+    Jr = c2 * K + c3 * outer
+    diagonal = np.arange(3)
+    E[:, diagonal, diagonal] += 1 - c2[:, :, 0] * a2[:, None]
+    Jr[:, diagonal, diagonal] += 1 - c3[:, :, 0] * a2[:, None]
+    return E, Jr
 
 
 class GravityPredictor:
@@ -90,22 +96,21 @@ class GravityPredictor:
 
         ``w`` (N, 3) are bias-free raw rates, ``dt`` (N,) step lengths, ``u0`` (m, 3) start directions.
         """
-        m = self.n_moves
-        q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
-        E, Jr = exponential_map(q @ np.asarray(T, float).T)
-        # prefix products P_k = E_1 ⋯ E_k of all moves side by side (identity after a move's end)
-        steps = np.broadcast_to(np.eye(3), (self.length, m, 3, 3)).copy()
-        steps[self.position, self.move] = E
-        before = np.empty_like(steps)  # P_{k−1}
-        P = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
-        for s in range(self.length):
-            before[s] = P
-            P = P @ steps[s]
+        L, m = self.length, self.n_moves
+        # the steps of all moves side by side, (L, m); after a move's end q = 0: E = I, no sensitivity
+        q = np.zeros((L, m, 3))
+        q[self.position, self.move] = np.asarray(w, float) * np.asarray(dt, float)[:, None]
+        E, Jr = (x.reshape(L, m, 3, 3) for x in exponential_map((q @ np.asarray(T, float).T).reshape(-1, 3)))
+        prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
+        prefix[0] = np.eye(3)
+        for s in range(L):
+            np.matmul(prefix[s], E[s], out=prefix[s + 1])
+        P = prefix[L]
         u0 = np.asarray(u0, float)
         v = np.einsum("mji,mj->mi", P, u0)  # Φᵀ u₀
-        B = before[self.position, self.move] @ Jr  # P_{k−1} J_r(−θ_k), (N, 3, 3)
-        # C[:, i, j] = Σ_k B_k[:, i] q_kj over the steps of each move
-        C = np.add.reduceat((B[:, :, :, None] * q[:, None, None, :]).reshape(-1, 27), self.starts, axis=0)
+        B = np.matmul(prefix[:L], Jr)  # P_{k−1} J_r(−θ_k)
+        # C[(a, i), j] = Σ_k B_k[a, i] q_kj over the steps of each move
+        C = np.matmul(B.reshape(L, m, 9).transpose(1, 2, 0), q.transpose(1, 0, 2))  # (m, 9, 3)
         S = np.einsum("mji,mjk,mkl->mil", P, skew_rows(u0), C.reshape(m, 3, 9))
         return v, S, P
 
