@@ -53,6 +53,8 @@ class ExportOptions:
         Poses to measure the loss on, when the calibration file has none (``fitted_on``).
     allan : dict, optional
         An ``optcal allan --json`` result (``kalibr``, ``ros``).
+    gyro_allan : dict, optional
+        An ``optcal allan --sensor gyro --json`` result (``kalibr``: the gyroscope keys).
     rate_hz : float, optional
         Sample rate of the IMU topic (``kalibr``; default: the Allan log's rate).
     rostopic : str
@@ -65,6 +67,7 @@ class ExportOptions:
     max_loss_g: float = DEFAULT_MAX_LOSS_G
     poses: FitPoses | None = None
     allan: dict[str, Any] | None = None
+    gyro_allan: dict[str, Any] | None = None
     rate_hz: float | None = None
     rostopic: str = "/imu0"
     source: str = "a calibration"

@@ -7,8 +7,10 @@ Kalibr uses ``density · √update_rate`` per sample) and ``accelerometer_random
 bias diffusion); both must be positive.  optcal's Allan result gives the velocity random walk
 ``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
 (Yin 2014; :mod:`optcal.yin2014.allan`): the largest over the axes is written, each axis in a comment.
-The gyroscope keys are not optcal's to fill in (an accelerometer calibration) and are left as
-comments.
+The gyroscope keys ``gyroscope_noise_density`` (rad/s/√Hz) and ``gyroscope_random_walk``
+(rad/s²/√Hz) come from an ``optcal allan --sensor gyro --json`` result when one is given
+(``gyro_allan``; its ``kalibr`` entry, :meth:`optcal.gyro.allan.GyroAllanAnalysis.kalibr`: the
+angle random walk and the rate random walk of the largest axis), else they are left as comments.
 """
 
 from __future__ import annotations
@@ -33,12 +35,36 @@ def update_rate(allan: dict, options: ExportOptions) -> float:
     return float(rate)
 
 
+def gyroscope_lines(gyro_allan: dict) -> list[str]:
+    """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment."""
+    if gyro_allan.get("sensor") != "gyro" or not isinstance(gyro_allan.get("kalibr"), dict):
+        raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json")
+    values = gyro_allan["kalibr"]
+    density, walk = values.get("gyroscope_noise_density"), values.get("gyroscope_random_walk")
+    if density is None or not density > 0:
+        raise InputError("the gyro Allan result has no angle random walk; Kalibr needs gyroscope_noise_density > 0")
+    if walk is None or not walk > 0:
+        raise InputError(
+            "the gyro Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            "Kalibr needs gyroscope_random_walk > 0: record a longer static log"
+        )
+    arw, rrw = axis_values(gyro_allan, "angle_random_walk"), axis_values(gyro_allan, "rate_random_walk")
+    return [
+        "# gyro angle random walk per axis, rad/s/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in arw.items()),
+        "# gyro rate random walk per axis, rad/s^2/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in rrw.items()),
+        f"gyroscope_noise_density: {float(density):.9g}  # [ rad / s / sqrt(Hz) ]",
+        f"gyroscope_random_walk: {float(walk):.9g}  # [ rad / s^2 / sqrt(Hz) ]",
+    ]
+
+
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
     if options.allan is None:
         raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
     density = axis_values(options.allan, "velocity_random_walk")
     walk = axis_values(options.allan, "rate_random_walk")
+    if options.allan.get("sensor") == "gyro":
+        raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
     if not density:
         raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
     if not walk:
@@ -60,9 +86,16 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         f"update_rate: {rate:.9g}",
         f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
         f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]",
-        "# gyroscope_noise_density: not measured by an accelerometer calibration; fill in (rad/s/sqrt(Hz))",
-        "# gyroscope_random_walk: not measured by an accelerometer calibration; fill in (rad/s^2/sqrt(Hz))",
     ]
-    notes = ["Kalibr also needs gyroscope_noise_density and gyroscope_random_walk, which optcal leaves to you"]
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
+    notes: list[str] = []
+    if options.gyro_allan is not None:
+        lines += gyroscope_lines(options.gyro_allan)
+        mapped += ["gyro Allan angle random walk (gyroscope noise density)",
+                   "gyro Allan rate random walk (gyroscope random walk)"]
+    else:
+        lines += ["# gyroscope_noise_density: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s/sqrt(Hz))",
+                  "# gyroscope_random_walk: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s^2/sqrt(Hz))"]
+        notes.append("Kalibr also needs gyroscope_noise_density and gyroscope_random_walk: give an "
+                     "optcal allan --sensor gyro --json result (gyro_allan) or fill them in")
     return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)
