@@ -97,10 +97,11 @@ class GravityPredictor:
         ``w`` (N, 3) are bias-free raw rates, ``dt`` (N,) step lengths, ``u0`` (m, 3) start directions.
         """
         L, m = self.length, self.n_moves
-        # the steps of all moves side by side, (L, m); after a move's end q = 0: E = I, no sensitivity
-        q = np.zeros((L, m, 3))
-        q[self.position, self.move] = np.asarray(w, float) * np.asarray(dt, float)[:, None]
-        E, Jr = (x.reshape(L, m, 3, 3) for x in exponential_map((q @ np.asarray(T, float).T).reshape(-1, 3)))
+        at = (self.position, self.move)  # each step's slot when the moves are laid side by side, (L, m)
+        q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
+        E_steps, Jr_steps = exponential_map(q @ np.asarray(T, float).T)
+        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
+        E[at] = E_steps
         prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
         prefix[0] = np.eye(3)
         for s in range(L):
@@ -108,9 +109,12 @@ class GravityPredictor:
         P = prefix[L]
         u0 = np.asarray(u0, float)
         v = np.einsum("mji,mj->mi", P, u0)  # Φᵀ u₀
-        B = np.matmul(prefix[:L], Jr)  # P_{k−1} J_r(−θ_k)
-        # C[(a, i), j] = Σ_k B_k[a, i] q_kj over the steps of each move
-        C = np.matmul(B.reshape(L, m, 9).transpose(1, 2, 0), q.transpose(1, 0, 2))  # (m, 9, 3)
+        # C[(a, i), j] = Σ_k (P_{k−1} J_r(−θ_k))[a, i] q_kj over the steps of each move (zero in the padding)
+        B = np.zeros((L, m, 9))
+        B[at] = np.matmul(prefix[at], Jr_steps).reshape(-1, 9)
+        q_side = np.zeros((L, m, 3))
+        q_side[at] = q
+        C = np.matmul(B.transpose(1, 2, 0), q_side.transpose(1, 0, 2))  # (m, 9, 3)
         S = np.einsum("mji,mjk,mkl->mil", P, skew_rows(u0), C.reshape(m, 3, 9))
         return v, S, P
 
