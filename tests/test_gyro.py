@@ -121,7 +121,8 @@ def test_two_axis_rotations_refused(acc_model: LumpedModel) -> None:
 
 
 def test_json_round_trip(tmp_path, acc_model: LumpedModel) -> None:
-    rec = simulate_imu(acc_model, reference_gyro(1.0, rng=1), 12, rng=12, dwell_s=1.0, move_s=1.0, gyro_noise=0.002)
+    rec = simulate_imu(acc_model, reference_gyro(1.0, rng=1), 12, rng=12, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                         acc_noise=0.001)
     cal = fit(rec, g_sensitivity=True)
     path = tmp_path / "imu.json"
     cal.save(path)
@@ -212,3 +213,26 @@ def test_predictor_jacobian_matches_finite_differences() -> None:
         numeric[:, :, k] = (gp.evaluate(T + step.reshape(3, 3), w, dt, u0)[0]
                             - gp.evaluate(T - step.reshape(3, 3), w, dt, u0)[0]) / (2 * h)
     assert np.max(np.abs(S - numeric)) < 1e-8 * np.max(np.abs(S))
+
+
+def test_cached_problem_solves_each_recording_afresh(acc_model: LumpedModel) -> None:
+    """The NLP is built once per size (GYRO_PROBLEMS) and reused: a second recording, a joint solve in
+    between, and two threads at once leave each recording's calibration exactly as when solved alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optcal.gyro.estimator import GYRO_PROBLEMS
+
+    first = simulate_imu(acc_model, reference_gyro(1.0, rng=6), 12, rng=7, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                         acc_noise=0.001)
+    second = simulate_imu(acc_model, reference_gyro(1.0, rng=8), 12, rng=9, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                          acc_noise=0.001)
+    GYRO_PROBLEMS.clear()
+    alone = fit(first)
+    fit(second, accelerometer="joint")
+    assert len(GYRO_PROBLEMS) == 2  # the fixed (9) and the joint (18) problem
+    again = fit(first)
+    assert np.array_equal(again.params, alone.params) and len(GYRO_PROBLEMS) == 2
+    with ThreadPoolExecutor(2) as pool:
+        both = list(pool.map(fit, [first, second]))
+    assert np.array_equal(both[0].params, alone.params)
+    assert np.array_equal(both[1].params, fit(second).params)
