@@ -140,6 +140,40 @@ def test_diagnose_saves_the_extended_model_and_it_corrects_better_than_lumped(tm
     assert rms_error(extended) <= 0.5 * rms_error(lumped)
     assert rms_error(extended) == pytest.approx(obj["final"]["rms_g"], rel=0.1)
 
+    # The same through `optcal apply`: the corrected recordings, averaged over the static intervals
+    # that segmentation found in the raw recording (the row count is unchanged by apply).
+    from optcal.data import load_with_segmentation
+
+    intervals = load_with_segmentation(rec).segmentation.intervals
+    applied_rms = {}
+    for name in ("ext", "lumped"):
+        out = tmp_path / f"{name}_applied.csv"
+        assert main(["apply", str(tmp_path / f"{name}.json"), str(rec), "-o", str(out)]) == 0
+        corrected = pd.read_csv(out)
+        assert len(corrected) == len(frame)
+        acc = corrected[["ax_g", "ay_g", "az_g"]].to_numpy()
+        means = np.array([acc[i.start:i.stop].mean(axis=0) for i in intervals])
+        applied_rms[name] = float(np.sqrt(np.mean((np.linalg.norm(means, axis=1) - 1) ** 2)))
+    capsys.readouterr()
+    assert applied_rms["ext"] <= 0.5 * applied_rms["lumped"]
+    assert applied_rms["ext"] == pytest.approx(obj["final"]["rms_g"], rel=0.1)
+
+
+def test_baseline_in_other_units_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A baseline calibration fitted on data in other units is refused, as check and apply refuse it."""
+    case = make_case("temperature_bias", 27)
+    path = write_table(case, tmp_path / "poses.csv")
+    assert main(["calibrate", str(path), "--method", "convex", "-o", str(tmp_path / "cal.json")]) == 0
+    cal = json.loads((tmp_path / "cal.json").read_text())
+    assert cal["units"]["input"] == "g"
+    cal["units"]["input"] = "counts"
+    (tmp_path / "cal_ms2.json").write_text(json.dumps(cal))
+    capsys.readouterr()
+    code = main(["diagnose", str(path), "--quiet", "--simulations", "0", "--baseline", str(tmp_path / "cal_ms2.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "baseline calibration is for data in counts but the poses are in g" in err
+
 
 def test_nothing_found_saves_the_lumped_baseline(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     path = write_table(make_case(None, 28), tmp_path / "poses.csv")

@@ -157,6 +157,12 @@ class Diagnoser:
             T, o = getattr(baseline, "T", None), getattr(baseline, "o", None)
             if T is None or o is None:
                 raise InputError("baseline must be a calibration with a T matrix and a bias o (e.g. optcal.calibrate's result)")
+            units = getattr(baseline, "units", None)
+            if units is not None and units != poses.units:
+                raise InputError(
+                    f"the baseline calibration is for data in {units} but the poses are in {poses.units}; "
+                    f"give a baseline fitted on {poses.units} data, or the data in {units}"
+                )
             return canonicalise(T), np.asarray(o, float), "the given calibration"
         from optcal.calibration import calibrate
 

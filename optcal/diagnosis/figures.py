@@ -29,9 +29,12 @@ def residual_figure(diag: "Diagnosis") -> "Figure":
     for i, ax in enumerate(AXES):
         xs.append((f"force along {ax} (g)", diag.fitted_directions[:, i]))
     kept = diag.kept
-    fig = Figure(figsize=(3.2 * len(xs), 6.4))
-    axes = fig.subplots(2, len(xs), sharey="row", squeeze=False)
-    rows = (("paper's model", diag.baseline.residuals, "C0"), ("extended model", diag.final.residuals, "C2"))
+    extended = diag.final.describe() != diag.baseline.describe()
+    rows = [("paper's model", diag.baseline.residuals, "C0")]
+    if extended:  # with nothing found, a second row would repeat the first under another name
+        rows.append(("extended model", diag.final.residuals, "C2"))
+    fig = Figure(figsize=(3.2 * len(xs), 3.4 * len(rows) + 0.4))
+    axes = fig.subplots(len(rows), len(xs), sharey="row", squeeze=False)
     for col, (label, x) in enumerate(xs):
         for row, (name, r, colour) in enumerate(rows):
             a = axes[row][col]
@@ -49,9 +52,10 @@ def residual_figure(diag: "Diagnosis") -> "Figure":
                 handles.append(h)
                 labels.append(lab)
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
-    fig.suptitle(f"What is left after calibration: the paper's model (top) and {diag.final.describe()} (bottom)",
-                 fontsize=9)
-    fig.tight_layout(rect=(0, 0.05, 1, 0.97))
+    title = (f"What is left after calibration: the paper's model (top) and {diag.final.describe()} (bottom)"
+             if extended else "What is left after calibration with the paper's model (no extension was found)")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout(rect=(0, 0.05 if extended else 0.09, 1, 0.97 if extended else 0.94))
     return fig
 
 
@@ -63,7 +67,7 @@ def simulation_figure(diag: "Diagnosis") -> "Figure | None":
     names = [k for k, v in stats.items() if np.all(np.isfinite(v.band))]
     if not names:
         return None
-    fig = Figure(figsize=(8, 0.34 * len(names) + 1.4))
+    fig = Figure(figsize=(10, 0.34 * len(names) + 2.0), layout="constrained")
     a = fig.subplots()
     for k, name in enumerate(names):
         st = stats[name]
@@ -72,17 +76,23 @@ def simulation_figure(diag: "Diagnosis") -> "Figure | None":
         a.plot([-1, 1], [k, k], color="0.7", lw=6, solid_capstyle="butt",
                label="range of the simulations" if k == 0 else None)
         z = (st.measured - mid) / half
-        a.plot(np.clip(z, -4, 4), k, "o", color="C3" if st.outside else "C0",
-               label=None)
+        colour = "C3" if st.outside else "C0"
+        if abs(z) <= 4:
+            a.plot(z, k, "o", color=colour)
+        else:  # far outside: an arrow at the edge, with the measured value in band units
+            a.plot(4 * np.sign(z), k, ">" if z > 0 else "<", color=colour, ms=8)
+            a.annotate(f"{z:+.3g}", (4 * np.sign(z), k), xytext=(-6 if z > 0 else 6, 6), textcoords="offset points",
+                       ha="right" if z > 0 else "left", fontsize=7, color=colour)
     a.plot([], [], "o", color="C0", label="measured: inside")
     a.plot([], [], "o", color="C3", label="measured: outside (the simulation gets this wrong)")
+    a.plot([], [], ">", color="C3", label="measured: far outside (value written beside it)")
     a.set_yticks(range(len(names)))
     a.set_yticklabels([stats[n].meaning for n in names], fontsize=7)
-    a.set_xlim(-4.2, 4.2)
-    a.set_xlabel(f"measured value, scaled so that the simulated {diag.simulation.band * 100:g} % range is −1 to 1")
+    a.set_xlim(-4.4, 4.4)
+    a.set_xlabel(f"measured value, scaled so that the simulated {diag.simulation.band * 100:g} % range is −1 to 1",
+                 fontsize=8)
     a.set_title("Does data simulated from the calibrated model look like the measurements?", fontsize=9)
-    a.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
+    fig.legend(fontsize=7, loc="outside lower center", ncol=2, frameon=False)
     return fig
 
 
