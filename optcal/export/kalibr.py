@@ -61,10 +61,10 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
     if options.allan is None:
         raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
-    density = axis_values(options.allan, "velocity_random_walk")
-    walk = axis_values(options.allan, "rate_random_walk")
     if options.allan.get("sensor") == "gyro":
         raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
+    density = axis_values(options.allan, "velocity_random_walk")
+    walk = axis_values(options.allan, "rate_random_walk")
     if not density:
         raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
     if not walk:
