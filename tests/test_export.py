@@ -214,6 +214,40 @@ def test_kalibr_imu_yaml_from_an_allan_result(allan_json, tmp_path, capsys):
     assert code == 2 and "needs the noise model" in err
 
 
+def test_kalibr_gyroscope_keys_from_a_gyro_allan_result(allan_json, tmp_path, capsys):
+    """``--gyro-allan``: Kalibr's gyroscope keys from ``optcal allan --sensor gyro --json`` (white noise and a bias walk)."""
+    rng = np.random.default_rng(11)
+    rate, n, sigma, step = 100.0, 40_000, 0.002, 1e-5  # rad/s per sample; bias random walk rad/s per sample
+    gyro = np.array([0.01, -0.02, 0.005]) + sigma * rng.standard_normal((n, 3))
+    gyro += np.cumsum(rng.standard_normal((n, 3)), axis=0) * step
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.standard_normal((n, 3))
+    pd.DataFrame({"t": np.arange(n) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+                  "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}).to_csv(tmp_path / "still.csv", index=False)
+    code, out, err = run(["allan", tmp_path / "still.csv", "--sensor", "gyro", "--json"], capsys)
+    assert code == 0, err
+    gyro_allan = json.loads(out)
+    (tmp_path / "gyro.json").write_text(out)
+    main(["allan", str(allan_json / "static.csv"), "--json"])
+    (tmp_path / "acc.json").write_text(capsys.readouterr().out)
+    LumpedCalibration(np.eye(3), np.zeros(3)).save(tmp_path / "cal.json")
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "acc.json",
+                          "--gyro-allan", tmp_path / "gyro.json"], capsys)
+    assert code == 0, err
+    imu = yaml.safe_load(out)
+    assert imu["gyroscope_noise_density"] == pytest.approx(gyro_allan["kalibr"]["gyroscope_noise_density"], rel=1e-8)
+    assert imu["gyroscope_random_walk"] == pytest.approx(gyro_allan["kalibr"]["gyroscope_random_walk"], rel=1e-8)
+    # white noise σ at f_s is σ/√f_s rad/s/√Hz; a bias walk of s per sample is s·√f_s rad/s²/√Hz
+    assert imu["gyroscope_noise_density"] == pytest.approx(sigma / np.sqrt(rate), rel=0.15)
+    assert imu["gyroscope_random_walk"] == pytest.approx(step * np.sqrt(rate), rel=0.5)
+    assert imu["accelerometer_noise_density"] > 0 and "gyroscope random walk" in err
+    # the two results swapped are refused, each with what to pass instead
+    code, _, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "gyro.json"], capsys)
+    assert code == 2 and "pass it as gyro_allan" in err
+    code, _, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "acc.json",
+                        "--gyro-allan", tmp_path / "acc.json"], capsys)
+    assert code == 2 and "--sensor gyro --json" in err
+
+
 def test_ros_covariance_from_the_allan_noise_else_the_residual(allan_json, tmp_path, capsys):
     model = lu2017_reference_model()
     d = uniform_directions(20, rng=3)

@@ -121,7 +121,8 @@ def test_two_axis_rotations_refused(acc_model: LumpedModel) -> None:
 
 
 def test_json_round_trip(tmp_path, acc_model: LumpedModel) -> None:
-    rec = simulate_imu(acc_model, reference_gyro(1.0, rng=1), 12, rng=12, dwell_s=1.0, move_s=1.0, gyro_noise=0.002)
+    rec = simulate_imu(acc_model, reference_gyro(1.0, rng=1), 12, rng=12, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                         acc_noise=0.001)
     cal = fit(rec, g_sensitivity=True)
     path = tmp_path / "imu.json"
     cal.save(path)
@@ -187,3 +188,51 @@ def test_xsens_log_beats_imutk(shared_data) -> None:
     for M, reference in ((Tg @ Kg, 0.517), (Kg, 3.44)):
         got = rms(angles_deg(gp((moves.gyro_mid() - bg) @ M.T, moves.dt, u[moves.move_from]), u[moves.move_to]))
         assert abs(got - reference) < 0.02 * reference
+
+
+def test_predictor_jacobian_matches_finite_differences() -> None:
+    """The analytic ∂(Φᵀu₀)/∂T_g of two moves of unequal length against central differences."""
+    rng = np.random.default_rng(4)
+    lengths = (120, 75)
+    first = np.zeros(sum(lengths), bool)
+    first[[0, lengths[0]]] = True
+    gp = GravityPredictor(first, np.cumsum(lengths) - 1)
+    w = rng.normal(size=(first.size, 3)) * 3.0
+    w[:10] *= 1e-6  # steps below SMALL_ANGLE_SQ take the Taylor branch
+    dt = np.full(first.size, 0.01)
+    u0 = unit_rows(rng.normal(size=(2, 3)))
+    T = np.eye(3) + 0.02 * rng.normal(size=(3, 3))
+    v, S, Phi = gp.evaluate(T, w, dt, u0)
+    assert np.allclose(np.einsum("mji,mj->mi", Phi, u0), v, atol=1e-15)
+    assert np.allclose(Phi @ Phi.transpose(0, 2, 1), np.eye(3), atol=1e-13)
+    h = 1e-6
+    numeric = np.empty_like(S)
+    for k in range(9):
+        step = np.zeros(9)
+        step[k] = h
+        numeric[:, :, k] = (gp.evaluate(T + step.reshape(3, 3), w, dt, u0)[0]
+                            - gp.evaluate(T - step.reshape(3, 3), w, dt, u0)[0]) / (2 * h)
+    assert np.max(np.abs(S - numeric)) < 1e-8 * np.max(np.abs(S))
+
+
+def test_cached_problem_solves_each_recording_afresh(acc_model: LumpedModel) -> None:
+    """The NLP is built once per size (GYRO_PROBLEMS) and reused: a second recording, a joint solve in
+    between, and two threads at once leave each recording's calibration exactly as when solved alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optcal.gyro.estimator import GYRO_PROBLEMS
+
+    first = simulate_imu(acc_model, reference_gyro(1.0, rng=6), 12, rng=7, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                         acc_noise=0.001)
+    second = simulate_imu(acc_model, reference_gyro(1.0, rng=8), 12, rng=9, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
+                          acc_noise=0.001)
+    GYRO_PROBLEMS.clear()
+    alone = fit(first)
+    fit(second, accelerometer="joint")
+    assert len(GYRO_PROBLEMS) == 2  # the fixed (9) and the joint (18) problem
+    again = fit(first)
+    assert np.array_equal(again.params, alone.params) and len(GYRO_PROBLEMS) == 2
+    with ThreadPoolExecutor(2) as pool:
+        both = list(pool.map(fit, [first, second]))
+    assert np.array_equal(both[0].params, alone.params)
+    assert np.array_equal(both[1].params, fit(second).params)

@@ -26,14 +26,16 @@ from optcal.cli.data_options import DATA_PATH
               help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures).")
 @click.option("--allan", type=click.Path(dir_okay=False), default=None,
               help="kalibr (required), ros (the sensor noise; without it the calibration residual): an `optcal allan --json` result.")
+@click.option("--gyro-allan", type=click.Path(dir_okay=False), default=None,
+              help="kalibr: an `optcal allan --sensor gyro --json` result (gyroscope_noise_density, gyroscope_random_walk).")
 @click.option("--random-walk-bound", is_flag=True,
               help="kalibr: when the Allan log shows no rate random walk, write its upper bound (labelled) instead of refusing.")
 @click.option("--rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
               help="kalibr/ros: the IMU topic's rate (default: the Allan log's).")
 @click.option("--rostopic", default="/imu0", show_default=True, help="kalibr: the IMU topic.")
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
-           max_loss: float,
-           poses: str | None, allan: str | None, random_walk_bound: bool, rate: float | None, rostopic: str) -> None:
+           max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
+           rate: float | None, rostopic: str) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
@@ -62,6 +64,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         poses=fit_poses,
         allan=read_allan(allan) if allan else None,
         random_walk_bound=random_walk_bound,
+        gyro_allan=read_allan(gyro_allan) if gyro_allan else None,
         rate_hz=rate,
         rostopic=rostopic,
         source=Path(calibration).name,

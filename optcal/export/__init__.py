@@ -60,6 +60,8 @@ class ExportOptions:
     random_walk_bound : bool
         ``kalibr``: write the Allan result's upper bound of the rate random walk on axes where
         the log shows none (labelled as a bound), instead of refusing.
+    gyro_allan : dict, optional
+        An ``optcal allan --sensor gyro --json`` result (``kalibr``: the gyroscope keys).
     rate_hz : float, optional
         Sample rate of the IMU topic (``kalibr``; default: the Allan log's rate).
     rostopic : str
@@ -74,6 +76,7 @@ class ExportOptions:
     poses: FitPoses | None = None
     allan: dict[str, Any] | None = None
     random_walk_bound: bool = False
+    gyro_allan: dict[str, Any] | None = None
     rate_hz: float | None = None
     rostopic: str = "/imu0"
     source: str = "a calibration"

@@ -10,8 +10,10 @@ bias diffusion); both must be positive.  optcal's Allan result gives the velocit
 A log too short to show the rate random walk's +1/2 slope has no ``K``; with
 ``ExportOptions.random_walk_bound`` the Allan result's upper bound ``K ≤ min_τ σ(τ)·√(3/τ)``
 (reached near the longest τ) is written instead, labelled as a bound in the file and the notes.
-The gyroscope keys are not optcal's to fill in (an accelerometer calibration) and are left as
-comments.
+The gyroscope keys ``gyroscope_noise_density`` (rad/s/√Hz) and ``gyroscope_random_walk``
+(rad/s²/√Hz) come from an ``optcal allan --sensor gyro --json`` result when one is given
+(``gyro_allan``; its ``kalibr`` entry, :meth:`optcal.gyro.allan.GyroAllanAnalysis.kalibr`: the
+angle random walk and the rate random walk of the largest axis), else they are left as comments.
 """
 
 from __future__ import annotations
@@ -36,10 +38,34 @@ def update_rate(allan: dict, options: ExportOptions) -> float:
     return float(rate)
 
 
+def gyroscope_lines(gyro_allan: dict) -> list[str]:
+    """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment."""
+    if gyro_allan.get("sensor") != "gyro" or not isinstance(gyro_allan.get("kalibr"), dict):
+        raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json")
+    values = gyro_allan["kalibr"]
+    density, walk = values.get("gyroscope_noise_density"), values.get("gyroscope_random_walk")
+    if density is None or not density > 0:
+        raise InputError("the gyro Allan result has no angle random walk; Kalibr needs gyroscope_noise_density > 0")
+    if walk is None or not walk > 0:
+        raise InputError(
+            "the gyro Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            "Kalibr needs gyroscope_random_walk > 0: record a longer static log"
+        )
+    arw, rrw = axis_values(gyro_allan, "angle_random_walk"), axis_values(gyro_allan, "rate_random_walk")
+    return [
+        "# gyro angle random walk per axis, rad/s/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in arw.items()),
+        "# gyro rate random walk per axis, rad/s^2/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in rrw.items()),
+        f"gyroscope_noise_density: {float(density):.9g}  # [ rad / s / sqrt(Hz) ]",
+        f"gyroscope_random_walk: {float(walk):.9g}  # [ rad / s^2 / sqrt(Hz) ]",
+    ]
+
+
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
     if options.allan is None:
         raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
+    if options.allan.get("sensor") == "gyro":
+        raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
     density = axis_values(options.allan, "velocity_random_walk")
     walk = axis_values(options.allan, "rate_random_walk")
     if not density:
@@ -74,15 +100,22 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
         f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]"
         + (" UPPER BOUND" if max(walk, key=walk.get) in bounded else ""),
-        "# gyroscope_noise_density: not measured by an accelerometer calibration; fill in (rad/s/sqrt(Hz))",
-        "# gyroscope_random_walk: not measured by an accelerometer calibration; fill in (rad/s^2/sqrt(Hz))",
     ]
-    notes = ["Kalibr also needs gyroscope_noise_density and gyroscope_random_walk, which optcal leaves to you"]
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
+    notes: list[str] = []
     if bounded:
         taus = ", ".join(f"{a} at tau {options.allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
         notes.append(
             f"accelerometer_random_walk is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
             f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it"
         )
+    if options.gyro_allan is not None:
+        lines += gyroscope_lines(options.gyro_allan)
+        mapped += ["gyro Allan angle random walk (gyroscope noise density)",
+                   "gyro Allan rate random walk (gyroscope random walk)"]
+    else:
+        lines += ["# gyroscope_noise_density: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s/sqrt(Hz))",
+                  "# gyroscope_random_walk: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s^2/sqrt(Hz))"]
+        notes.append("Kalibr also needs gyroscope_noise_density and gyroscope_random_walk: give an "
+                     "optcal allan --sensor gyro --json result (gyro_allan) or fill them in")
     return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)

@@ -7,10 +7,11 @@
    nominal scale) minimises ``½ Σ_i ‖Φ_i(T_g)ᵀ u_i − u_{i+1}‖²`` over the moves (eq. 13),
    ``Φ_i`` the rotation integrated from the corrected gyro across move ``i`` (eq. 14, by
    the exponential map of :mod:`optcal.gyro.propagation`) and ``u_i`` the gravity direction
-   of the calibrated accelerometer at pose ``i``.  The integrator and its sensitivities
-   ``∂u/∂T_g`` are one CasADi function built once per recording layout (the samples are
-   its inputs); IPOPT solves the problem with the Gauss–Newton Hessian ``JᵀJ``
-   (``hess_lag``), as imu_tk solves it by Levenberg–Marquardt in Ceres.
+   of the calibrated accelerometer at pose ``i``.  The integrator and its analytic
+   sensitivities ``∂u/∂T_g`` are vectorised numpy (:class:`GravityPredictor`); IPOPT, through
+   a CasADi NLP built once per problem size (:data:`GYRO_PROBLEMS`), solves the problem with
+   the Gauss–Newton Hessian ``JᵀJ`` (``hess_lag``), as imu_tk solves it by
+   Levenberg–Marquardt in Ceres.
 3. **Accelerometer**: fixed (its gravity directions as data), or ``joint``: its nine
    parameters re-estimated with the gyro's, the norm residuals of the poses (Lu 2017,
    eq. 13) and the gravity-prediction residuals each scaled to unit variance.
@@ -22,6 +23,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -39,6 +41,7 @@ from optcal.gyro.result import ImuCalibration
 from optcal.gyro.units import GyroUnitsDecision
 from optcal.norm_residual import norm_residuals
 from optcal.model import TRIL_INDEX, theta_from
+from optcal.problem_cache import ProblemCache, freeze_options, problem_cache
 from optcal.result import CalibrationResult, SolverInfo
 
 ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
@@ -128,19 +131,21 @@ class GyroProblem:
 
     ``x = vec(X)`` (9, row-major) with ``T_g = s₀ (I + X)`` for a fixed accelerometer; jointly
     ``x = (vec X, y)`` with the accelerometer's ``y`` of :func:`accelerometer_directions`.
-    Residuals and Jacobian come from the CasADi integrator :class:`GravityPredictor` (built
-    once per recording layout, the samples as inputs) and are handed to ``nlpsol`` as
-    callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate,
+    Residuals and Jacobian come from the integrator :class:`GravityPredictor` (numpy, analytic
+    sensitivities) through the ``evaluate`` given to :meth:`solve` and are handed to ``nlpsol``
+    as callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate,
     with the options and cost scaling of the accelerometer's ML problem
-    (:data:`optcal.estimators.mle.ML_IPOPT_DEFAULTS`).
+    (:data:`optcal.estimators.mle.ML_IPOPT_DEFAULTS`).  The problem depends on ``nx`` and the
+    options only, so it is built once and kept in :data:`GYRO_PROBLEMS`; each solve holds its lock.
     """
 
-    def __init__(self, predictor: GravityPredictor, nx: int, ipopt_options: dict[str, Any]) -> None:
+    def __init__(self, nx: int, ipopt_options: dict[str, Any]) -> None:
         import casadi as ca
 
         from optcal.estimators.mle import ML_IPOPT_DEFAULTS, numpy_callback
 
         self.nx = nx
+        self._lock = threading.Lock()
         self.scale = 1.0  # the cost factor of cost_scale(), set by solve()
         self.evaluate: Any = None  # x -> (r, J), set by solve()
         self._cache: tuple[bytes, NDArray, NDArray] | None = None
@@ -194,17 +199,23 @@ class GyroProblem:
 
         x0 = np.asarray(x0, float)
         start = evaluate(x0)
-        self.evaluate, self._cache = evaluate, (x0.tobytes(), *start)
-        self.scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
-        t0 = time.perf_counter()
-        try:
-            sol = self.solver(x0=x0)
-            x = np.asarray(sol["x"]).ravel()
-            cached = self._cache
-            final = (cached[1], cached[2]) if cached is not None and cached[0] == x.tobytes() else evaluate(x)
-        finally:
-            self.evaluate, self._cache = None, None
-        return GyroSolution(x, self.solver.stats(), time.perf_counter() - t0, start[0], final[0], final[1])
+        with self._lock:
+            self.evaluate, self._cache = evaluate, (x0.tobytes(), *start)
+            self.scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
+            t0 = time.perf_counter()
+            try:
+                sol = self.solver(x0=x0)
+                x = np.asarray(sol["x"]).ravel()
+                stats = self.solver.stats()
+                cached = self._cache
+                final = (cached[1], cached[2]) if cached is not None and cached[0] == x.tobytes() else evaluate(x)
+            finally:
+                self.evaluate, self._cache = None, None
+        return GyroSolution(x, stats, time.perf_counter() - t0, start[0], final[0], final[1])
+
+
+#: Built gyro NLPs keyed by ``(nx, frozen IPOPT options)``: 9 (accelerometer fixed) and 18 (joint).
+GYRO_PROBLEMS: ProblemCache[GyroProblem] = problem_cache(lambda nx, options: GyroProblem(nx, dict(options)), maxsize=8)
 
 
 @dataclass(frozen=True)
@@ -306,7 +317,7 @@ def calibrate_gyro(
         v, S, _ = predictor.evaluate(scale0 * (np.eye(3) + x.reshape(3, 3)), w, moves.dt, u0)
         return (v - u1).ravel(), scale0 * S.reshape(3 * m, 9)
 
-    sol = GyroProblem(predictor, 9, settings.ipopt_options).solve(fixed_residuals, np.zeros(9))
+    sol = GYRO_PROBLEMS.get(9, freeze_options(settings.ipopt_options)).solve(fixed_residuals, np.zeros(9))
     x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
     angles_before = angles_deg(sol.r_start.reshape(m, 3) + u1, u1)  # x = 0: T_g = s₀ I
     iterations = int(stats.get("iter_count", 0))
@@ -391,7 +402,8 @@ def _joint(
                       [np.zeros((P, 9)), drn.reshape(P, 9) / sig_a[:, None]]])
         return r, J
 
-    sol = GyroProblem(predictor, 18, settings.ipopt_options).solve(joint_residuals, np.concatenate([x_gyro, np.zeros(9)]))
+    sol = GYRO_PROBLEMS.get(18, freeze_options(settings.ipopt_options)).solve(joint_residuals,
+                                                                         np.concatenate([x_gyro, np.zeros(9)]))
     x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
     dof = 2 * m + P - 18
     chi2 = float(np.sum(r**2))

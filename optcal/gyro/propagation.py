@@ -1,26 +1,29 @@
-"""Gravity carried across a move by the corrected gyro, in CasADi (Tedaldi 2014, eq. 13-14).
+"""Gravity carried across a move by the corrected gyro (Tedaldi 2014, eq. 13-14).
 
 A world-fixed vector seen from the body obeys ``u̇ = −ω × u``.  Over one integration step of
 length ``dt_k`` with the trapezoid mean rate ``ω̄_k = T_g (ḡ_k − b_g − G_g f_k)`` the body
-turns by ``exp([ω̄_k dt_k]×)`` (exponential map, Rodrigues' formula), so the rotation
-accumulated over a move is ``Φ = Π_k exp([ω̄_k dt_k]×)`` and the gravity direction it
+turns by ``E_k = exp([θ_k]×)``, ``θ_k = ω̄_k dt_k`` (exponential map, Rodrigues' formula), so
+the rotation accumulated over a move is ``Φ = E_1 E_2 ⋯ E_n`` and the gravity direction it
 predicts at the next pose is ``Φᵀ u_i`` (Tedaldi 2014, eq. 14, their Ψ with an exponential
 map instead of quaternion Runge–Kutta).  The residual of move ``i`` is
 ``Φᵀ u_i − u_{i+1}`` (Tedaldi 2014, eq. 13, imu_tk's ``MultiPosGyroResidual``).
 
-:class:`GravityPredictor` builds this once per recording layout (number of steps of each
-move): the step, with the forward sensitivity ``∂u/∂T_g`` carried along, is one CasADi SX
-function (:func:`rotation_step`), mapped over the moves side by side and accumulated over
-the steps by ``mapaccum``, with the rates, step lengths and gravity directions as inputs.
-It serves both the fit (:mod:`optcal.gyro.estimator`, residuals and Jacobian in one pass)
-and the convention-free figure of merit, :func:`angles_deg` between predicted and measured
+:class:`GravityPredictor` evaluates this for every move of a recording at once, in numpy,
+with the analytic sensitivity ``∂(Φᵀu₀)/∂T_g``: with the prefix products
+``P_k = E_1 ⋯ E_k`` and the right Jacobian ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×²`` of each step,
+
+    ∂(Φᵀu₀)/∂θ_k = Φᵀ [u₀]× P_{k−1} J_r(−θ_k),    ∂θ_k/∂T_ij = e_i q_kj,
+
+(``q_k = w_k dt_k`` the bias-free raw rotation of the step, ``T_g`` row-major), because
+``∂(E_kᵀ v)/∂θ_k = E_kᵀ [v]× J_r(−θ_k)`` and ``P [Pᵀu₀]× = [u₀]× P`` for a rotation ``P``.
+The rotations of all steps come from one vectorised Rodrigues formula; only the prefix
+products are a loop, over the steps of the longest move with the moves side by side.  It
+serves both the fit (:mod:`optcal.gyro.estimator`, residuals and Jacobian in one pass) and
+the convention-free figure of merit, :func:`angles_deg` between predicted and measured
 directions.
 """
 
 from __future__ import annotations
-
-from functools import lru_cache
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,115 +32,91 @@ from numpy.typing import NDArray
 SMALL_ANGLE_SQ: float = 1e-8
 
 
-@lru_cache(maxsize=1)
-def rotation_step() -> Any:
-    """CasADi SX step ``(z, θ, q, u₀, first) → z'`` of the gravity direction and its sensitivity.
+def skew_rows(x: NDArray) -> NDArray[np.float64]:
+    """``[x_k]×`` for every row of ``x`` (n, 3) → (n, 3, 3)."""
+    K = np.zeros((x.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -x[:, 2], x[:, 1], -x[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = x[:, 2], -x[:, 1], x[:, 0]
+    return K
 
-    ``z = (v, S, Φ)``: the direction ``v`` (3) carried so far, ``S = ∂v/∂T_g`` (3×9,
-    column-major, ``T_g`` row-major) and the accumulated rotation ``Φ`` (3×3, column-major).
-    ``θ = T_g q`` is the step's rotation vector and ``q = w dt`` its bias-free raw part, so
-    ``∂θ_i/∂T_ij = q_j``.  On the first step of a move the state restarts from ``(u₀, 0, I)``.
-    ``v' = Eᵀ v`` with ``E = exp([θ]×)`` (Rodrigues), ``S' = Eᵀ S + ∂(Eᵀ v)/∂θ · ∂θ/∂T``,
-    ``Φ' = Φ E``.
+
+def exponential_map(theta: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``exp([θ]×)`` and ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×²`` for every row of ``theta`` (n, 3).
+
+    Rodrigues: ``exp([θ]×) = I + c₁[θ]× + c₂[θ]×²`` with ``c₁ = sin α/α``,
+    ``c₂ = (1 − cos α)/α²``, ``c₃ = (α − sin α)/α³``, ``α = ‖θ‖`` (Taylor series below
+    :data:`SMALL_ANGLE_SQ`).
     """
-    import casadi as ca
-
-    z = ca.SX.sym("z", 3 + 27 + 9)
-    th = ca.SX.sym("theta", 3)
-    q = ca.SX.sym("q", 3)
-    u0 = ca.SX.sym("u0", 3)
-    first = ca.SX.sym("first")
-    a2 = ca.dot(th, th)
+    a2 = np.einsum("ni,ni->n", theta, theta)
     small = a2 < SMALL_ANGLE_SQ
-    a2_safe = ca.if_else(small, 1.0, a2)
-    a = ca.sqrt(a2_safe)
-    c1 = ca.if_else(small, 1 - a2 / 6 + a2**2 / 120, ca.sin(a) / a)
-    c2 = ca.if_else(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - ca.cos(a)) / a2_safe)
-    c3 = ca.if_else(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - ca.sin(a)) / (a2_safe * a))
-    K = ca.skew(th)
-    K2 = K @ K
-    E = ca.SX.eye(3) + c1 * K + c2 * K2
-    keep = 1 - first
-    v = first * u0 + keep * z[0:3]
-    S = keep * ca.reshape(z[3:30], 3, 9)
-    P = first * ca.SX.eye(3) + keep * ca.reshape(z[30:39], 3, 3)
-    v_next = E.T @ v
-    # ∂(exp(−[θ]×) v)/∂θ = exp(−[θ]×) [v]× J_r(−θ),  J_r(−θ) = I + c2 [θ]× + c3 [θ]×²
-    dv_dth = E.T @ ca.skew(v) @ (ca.SX.eye(3) + c2 * K + c3 * K2)
-    # ∂θ/∂T (3×9, T row-major): row i holds q in the columns 3i..3i+2
-    dth_dT = ca.SX.zeros(3, 9)
-    for i in range(3):
-        for j in range(3):
-            dth_dT[i, 3 * i + j] = q[j]
-    S_next = E.T @ S + dv_dth @ dth_dT
-    return ca.Function("rotation_step", [z, th, q, u0, first], [ca.vertcat(v_next, ca.vec(S_next), ca.vec(P @ E))])
+    a2_safe = np.where(small, 1.0, a2)
+    a = np.sqrt(a2_safe)
+    sin, cos = np.sin(a), np.cos(a)
+    c1 = np.where(small, 1 - a2 / 6 + a2**2 / 120, sin / a)[:, None, None]
+    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - cos) / a2_safe)[:, None, None]
+    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))[:, None, None]
+    # [θ]×² = θθᵀ − α² I: exp([θ]×) = (1 − c₂α²) I + c₁[θ]× + c₂θθᵀ, J_r(−θ) = (1 − c₃α²) I + c₂[θ]× + c₃θθᵀ
+    K = skew_rows(theta)
+    outer = theta[:, :, None] * theta[:, None, :]
+    E = c1 * K + c2 * outer
+    Jr = c2 * K + c3 * outer
+    diagonal = np.arange(3)
+    E[:, diagonal, diagonal] += 1 - c2[:, :, 0] * a2[:, None]
+    Jr[:, diagonal, diagonal] += 1 - c3[:, :, 0] * a2[:, None]
+    return E, Jr
 
 
 class GravityPredictor:
     """Gravity directions carried across every move of a recording layout, with ``∂/∂T_g``.
 
-    Built once per layout; the rates, step lengths and start directions are inputs.
+    Made once per layout (the index arrays of the moves); the rates, step lengths and start
+    directions are arguments of :meth:`evaluate`.
 
     Parameters
     ----------
     first_step : ndarray of bool, shape (N,)
-        First integration step of each move.
+        First integration step of each move (the steps of a move are contiguous).
     last_step : ndarray of int, shape (m,)
         Last step of each move.
-
-    Attributes
-    ----------
-    function : casadi.Function
-        ``(theta (3, L·m), q (3, L·m), u0 (3, m)) → (v (3, m), S (27, m), Phi (9, m))``:
-        per move the predicted direction, its derivative w.r.t. the row-major ``T_g`` and the
-        accumulated rotation (column-major), from the rotation vectors ``θ = ω dt`` of the
-        steps of all moves side by side (the step mapped over the ``m`` moves, accumulated
-        over the ``L ≥`` steps of the longest move by ``mapaccum``, as ``b`` blocks of ``a``).
     """
 
     def __init__(self, first_step: NDArray[np.bool_], last_step: NDArray[np.int64]) -> None:
-        import casadi as ca
-
         n = int(first_step.size)
-        m = int(last_step.size)
+        m = int(np.asarray(last_step).size)
         self.n_steps, self.n_moves = n, m
-        starts = np.flatnonzero(first_step)
-        lengths = np.asarray(last_step) - starts + 1
-        # L = a·b steps, accumulated as b blocks of a steps (two short mapaccum graphs instead
-        # of one with L nodes: building costs ~2√L nodes)
-        a = int(np.ceil(np.sqrt(lengths.max())))
-        b = int(np.ceil(lengths.max() / a))
-        L = a * b
-        self.length = L
-        # steps of all moves side by side: slot (step s, move i) at column s·m + i; moves shorter
-        # than L are padded at the end with zero rotations (the identity)
-        slot = (np.arange(n) - np.repeat(starts, lengths)) * m + np.repeat(np.arange(m), lengths)
-        self.slot = slot
-        first = np.zeros((1, L * m))
-        first[0, :m] = 1.0
-        self.first = first
-        theta, q, u0 = ca.MX.sym("theta", 3, L * m), ca.MX.sym("q", 3, L * m), ca.MX.sym("u0", 3, m)
-        inner = rotation_step().map(m).mapaccum("block_steps", a)
-        z = ca.MX.sym("z", 39, m)
-        args = [ca.MX.sym(name, rows, a * m) for name, rows in (("theta", 3), ("q", 3), ("u0", 3), ("first", 1))]
-        block = ca.Function("block", [z, *args], [inner(z, *args)[:, (a - 1) * m:]])
-        states = block.mapaccum("move_blocks", b)(ca.DM.zeros(39, m), theta, q, ca.repmat(u0, 1, L), ca.DM(first))
-        ends = states[:, (b - 1) * m:]
-        self.function = ca.Function("predict_gravity", [theta, q, u0], [ends[0:3, :], ends[3:30, :], ends[30:39, :]],
-                                    ["theta", "q", "u0"], ["v", "S", "Phi"])
+        self.starts = np.flatnonzero(first_step)
+        lengths = np.asarray(last_step) - self.starts + 1
+        self.length = int(lengths.max())
+        #: position of each step inside its move and the move it belongs to
+        self.position = np.arange(n) - np.repeat(self.starts, lengths)
+        self.move = np.repeat(np.arange(m), lengths)
 
     def evaluate(self, T: NDArray, w: NDArray, dt: NDArray, u0: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """Predicted directions (m, 3), their Jacobian w.r.t. row-major ``T`` (m, 3, 9) and ``Φ`` (m, 3, 3).
 
         ``w`` (N, 3) are bias-free raw rates, ``dt`` (N,) step lengths, ``u0`` (m, 3) start directions.
         """
-        q = np.zeros((self.length * self.n_moves, 3))
-        q[self.slot] = np.asarray(w, float) * np.asarray(dt, float)[:, None]
-        theta = q @ np.asarray(T, float).T
-        v, S, P = self.function(theta.T, q.T, np.asarray(u0, float).T)
-        m = self.n_moves
-        return (np.asarray(v).T, np.asarray(S).T.reshape(m, 9, 3).transpose(0, 2, 1),
-                np.asarray(P).T.reshape(m, 3, 3).transpose(0, 2, 1))
+        L, m = self.length, self.n_moves
+        at = (self.position, self.move)  # each step's slot when the moves are laid side by side, (L, m)
+        q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
+        E_steps, Jr_steps = exponential_map(q @ np.asarray(T, float).T)
+        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
+        E[at] = E_steps
+        prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
+        prefix[0] = np.eye(3)
+        for s in range(L):
+            np.matmul(prefix[s], E[s], out=prefix[s + 1])
+        P = prefix[L]
+        u0 = np.asarray(u0, float)
+        v = np.einsum("mji,mj->mi", P, u0)  # Φᵀ u₀
+        # C[(a, i), j] = Σ_k (P_{k−1} J_r(−θ_k))[a, i] q_kj over the steps of each move (zero in the padding)
+        B = np.zeros((L, m, 9))
+        B[at] = np.matmul(prefix[at], Jr_steps).reshape(-1, 9)
+        q_side = np.zeros((L, m, 3))
+        q_side[at] = q
+        C = np.matmul(B.transpose(1, 2, 0), q_side.transpose(1, 0, 2))  # (m, 9, 3)
+        S = np.einsum("mji,mjk,mkl->mil", P, skew_rows(u0), C.reshape(m, 3, 9))
+        return v, S, P
 
     def __call__(self, omega: NDArray, dt: NDArray, u0: NDArray) -> NDArray[np.float64]:
         """Predicted directions (m, 3) for corrected rates ``omega`` (N, 3) rad/s."""
