@@ -51,12 +51,11 @@ def tcal_coefficients(coefficients: np.ndarray, temp_ref: float) -> np.ndarray:
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The ArduPilot parameters of ``cal`` (first IMU) in Mission Planner's ``NAME,VALUE`` format."""
-    model, loss, lines = begin_export(
+    model, loss, lines, zero_notes = begin_export(
         cal, options, "ardupilot", HEADER, "INS_ACCOFFS_{axis},{value:.9g}", "INS_ACCSCAL_{axis},{value:.9g}"
     )
     notes = ["the offsets and scales apply to the axes of the calibration data; log them in the IMU's own orientation"]
-    if model.zero_reason:
-        notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
+    notes += zero_notes
     if model.thermal is not None:
         th = model.thermal
         c = tcal_coefficients(th.coefficients, th.temp_ref)

@@ -211,11 +211,12 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
 
 def begin_export(
     cal: Calibration, options: ExportOptions, firmware: str, header: tuple[str, ...], offset_line: str, scale_line: str
-) -> tuple[DiagonalModel, LossReport, list[str]]:
-    """The firmware model of ``cal``, its loss (refused above ``options.max_loss_g``) and the file's lines so far.
+) -> tuple[DiagonalModel, LossReport, list[str], list[str]]:
+    """The firmware model of ``cal``, its loss (refused above ``options.max_loss_g``), the file's lines so far and its notes.
 
     The lines are ``header`` (``{source}`` filled in), the loss figures and every term the model
     cannot hold as comments, then the offsets and scales written with :func:`per_axis` templates.
+    The notes say which zero reading was subtracted from counts, when one was.
     """
     model = diagonal_model(cal, options)
     loss = measure_loss(cal, model, options, firmware)
@@ -224,7 +225,8 @@ def begin_export(
         lines.append(f"# {model.zero_reason}")
     lines += [f"# not exported: {d}" for d in model.dropped]
     lines += per_axis(offset_line, model.offset_ms2) + per_axis(scale_line, model.scale)
-    return model, loss, lines
+    notes = [f"{model.zero_reason}; counts_zero=VALUE sets another zero reading"] if model.zero_reason else []
+    return model, loss, lines, notes
 
 
 def per_axis(template: str, values: ArrayLike) -> list[str]:

@@ -33,12 +33,11 @@ HEADER: tuple[str, ...] = (
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The PX4 parameters of ``cal`` (instance 0) as NSH/MAVLink-console ``param set`` commands."""
-    model, loss, lines = begin_export(
+    model, loss, lines, zero_notes = begin_export(
         cal, options, "px4", HEADER, "param set CAL_ACC0_{axis}OFF {value:.9g}", "param set CAL_ACC0_{axis}SCALE {value:.9g}"
     )
     notes = ["CAL_ACC0_ID and TC_A0_ID must be set to the sensor's device id (optcal does not know it)"]
-    if model.zero_reason:
-        notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
+    notes += zero_notes
     if model.thermal is not None:
         th = model.thermal
         lines += [
