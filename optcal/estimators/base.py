@@ -181,6 +181,12 @@ def degenerate_note(ident: IdentifiabilityReport, allow_degenerate: bool) -> str
     return ("DEGENERATE POSE SET: " if ident.rank < ident.n_params else "WEAKLY DETERMINED POSE SET: ") + msg
 
 
+def is_collapsed(T: NDArray) -> bool:
+    """Whether the lower-triangular ``T`` is singular to working precision (a diagonal entry ≈ 0)."""
+    diag = np.abs(np.diag(T))
+    return bool(diag.min() <= 1e-6 * max(diag.max(), 1e-300))
+
+
 def check_pose_set(poses: PoseTable, theta: NDArray, weighting: str = "propagated", allow_degenerate: bool = False) -> None:
     """Refuse, before an iterative fit, a pose set that does not identify θ at the start ``theta`` (raw units).
 
@@ -190,8 +196,7 @@ def check_pose_set(poses: PoseTable, theta: NDArray, weighting: str = "propagate
     if allow_degenerate or not np.all(np.isfinite(theta)):
         return
     T, o = unpack_theta(theta)
-    diag = np.abs(np.diag(T))
-    if diag.min() <= 1e-6 * max(diag.max(), 1e-300):
+    if is_collapsed(T):
         return  # a collapsed start: the fit may still recover; finish() judges its answer
     degenerate_note(fisher_at_fit(poses, canonicalise(T), o, weighting).identifiability, allow_degenerate)
 
@@ -222,8 +227,8 @@ def finish(
     if solver.status in SOLVER_FAILURES or not finite:
         check_solver(method, solver, theta, remedy)  # raises SolverError
     T, o = unpack_theta(theta)
-    diag = np.abs(np.diag(T))
-    if diag.min() <= 1e-6 * max(diag.max(), 1e-300):
+    if is_collapsed(T):
+        diag = np.abs(np.diag(T))
         raise FitError(
             f"the {method} fit collapsed to a singular T (|diagonal| = {', '.join(f'{d:.3g}' for d in diag)}): "
             "the poses do not pin the ellipsoid down, so the cost has a degenerate minimum; "
