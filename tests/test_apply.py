@@ -132,3 +132,19 @@ def test_check_accepts_every_cal_type(files, capsys):
     after = [p["after_g"] for p in results["extended"]["poses"]]
     np.testing.assert_allclose(after, ext.norm_errors(poses.acc, poses.temp, poses.t), atol=1e-12)
     assert results["extended"]["rms_after_g"] <= 0.5 * results["lumped"]["rms_after_g"]
+
+
+def test_a_headerless_file_keeps_its_columns_by_position(files, tmp_path, capsys):
+    """A headerless `ax ay az gx gy gz` log (mikoff's layout): corrected in place, the gyro columns passed through."""
+    d, frame, poses = files
+    headerless = tmp_path / "log.txt"
+    frame[["ax", "ay", "az", "gx", "gy", "gz"]].to_csv(headerless, sep=" ", header=False, index=False)
+    code, out, err = run(["apply", d / "lumped.json", headerless, "--rate", "100", "-o", tmp_path / "out.csv"], capsys)
+    assert code == 0, err
+    result = pd.read_csv(tmp_path / "out.csv")
+    assert list(result.columns) == ["ax_g", "ay_g", "az_g", "4", "5", "6", STATUS_COLUMN]
+    assert len(result) == len(frame)
+    np.testing.assert_array_equal(result["4"].to_numpy(), frame["gx"].to_numpy())
+    lumped = caltypes.load(d / "lumped.json")
+    expected = lumped.correct(frame[["ax", "ay", "az"]].to_numpy(float))
+    np.testing.assert_allclose(result[["ax_g", "ay_g", "az_g"]].to_numpy(), expected, rtol=1e-9, atol=1e-12)

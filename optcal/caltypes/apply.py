@@ -179,7 +179,14 @@ def apply_to_file(
             frame[name] = values
     if len(frame) != len(raw):
         raise InputError(f"{path}: read {len(frame)} rows but {len(raw)} samples; cannot pass the columns through")
-    names = [src.column_map.get(c, c) for c in ACC]
+    def frame_column(role: str) -> Any:
+        """The frame's column holding ``role`` (a headerless file's columns are named by position: '#2' is '2')."""
+        name = src.column_map.get(role, role)
+        if name not in frame.columns and name.startswith("#") and name[1:] in frame.columns:
+            return name[1:]
+        return name
+
+    names = [frame_column(c) for c in ACC]
     position = min(list(frame.columns).index(n) for n in names)
     frame = frame.drop(columns=names)
     for k, axis in enumerate("xyz"):
@@ -192,7 +199,7 @@ def apply_to_file(
             raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
         gyro = np.full(raw.shape, np.nan)
         gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
-        gnames = [src.column_map.get(c, c) for c in GYRO]
+        gnames = [frame_column(c) for c in GYRO]
         gpos = min(list(frame.columns).index(n) for n in gnames)
         frame = frame.drop(columns=gnames)
         for k, axis in enumerate("xyz"):
