@@ -68,7 +68,10 @@ def trimmed_scale(smallest_squares: NDArray, m: int, params: int) -> float:
 
     The sum over the ``h`` kept is divided by its degrees of freedom ``h − p`` and by the
     consistency factor of a trimmed Gaussian, ``E[z² | |z| ≤ q] = 1 − 2 q φ(q)/α`` with
-    ``α = h/m = 2Φ(q) − 1`` (Rousseeuw & Leroy 1987, the LTS scale).
+    ``α = h/m = 2Φ(q) − 1`` (Rousseeuw & Leroy 1987, the LTS scale).  It only scales the first
+    Cauchy iteration, which then re-estimates σ from its own residuals (:func:`robust_scale`): at
+    20-30 poses the concentration steps pick the ``h`` poses a 9-parameter fit matches best, and
+    this scale comes out at 0.6-0.7 σ (Pison, Van Aelst & Willems 2002 tabulate small-sample factors).
     """
     h = smallest_squares.size
     alpha = h / m
