@@ -358,6 +358,49 @@ if XSENS.exists():
         report.append(f"| {effect} | {len(rs)} | {rate_line(rs)} | {rate_line(rs, 'named_all')} | {median_ratio(rs)} |")
     report.append("")
     report += failures("Xsens", xs)
+report += [
+    "## Why the failing families failed last time (10 seeds), and what changed", "",
+    "Measured on the failing seeds' diagnoses (their candidates, p values and levels printed), main at abf7ae9 "
+    "against this engine, 40 seeds each (`diagnose(poses, simulations=0)` on the cases of this script).", "",
+    "* **Outliers in 20-30-pose sessions (1/10).** The family planted 3-4× the acceptance's 8 % *fraction*: 24-32 % "
+    "of the poses (5-10 of 20-30) off. A larger fraction is not a larger effect but a harder one: the least-squares "
+    "baseline is bent by the outlier poses, which mask each other (2-4 σ under the baseline instead of 10-40 σ), and "
+    "the Cauchy fit started there found 3 of 7 or none. Two causes, two changes. (1) The family: the acceptance's "
+    "outlier magnitude is 8 % of the poses; the row `outliers` now plants that (2 of 20-30, 10-40 σ; main: 38/40, "
+    "as this engine), and 24-32 % stays as a stress row. (2) The method had no high-breakdown start: the outlier "
+    "search now starts from least trimmed squares (concentration steps from the best of 500 elemental quadrics "
+    "through 9 poses, Sampson distance), then the Cauchy M-step, then the exact deleted-residual test "
+    "(stress row: main 4/40, this engine in the table). The robust scales now count the nine fitted "
+    "parameters' degrees of freedom (√(m/(m−p)): at 21 poses the median scale was 0.76 σ); without that the "
+    "trimmed start flagged a clean pose in 10/40 null sessions, with it 1/40. What the stress row still misses: "
+    "sessions where a fit through a different half of the poses trims to a smaller sum than the clean fit (the "
+    "data cannot tell those outliers from another T, o), and outliers whose radial part (7-10 σ) does not pass "
+    "the Bonferroni t test at 7-13 residual degrees of freedom.",
+    "* **Null cases (9/10 clean in both families).** The multiplicity is counted: every candidate of a step is in "
+    "its Bonferroni level (12 first-order terms and the 6 order-2/3 time terms: 0.01/18 = 0.00056 each), the "
+    "outlier test has the other half of α (0.01, Bonferroni over the poses), and the noise model is never a "
+    "finding (tested after the selection, never among the findings). The small-session null rate is in the "
+    "table. On the Gauss–Markov recordings the remaining false findings are bias_drift terms and single "
+    "outlier poses. The pose means of a Gauss–Markov noise with a 4 s correlation time are correlated between "
+    "consecutive poses 6 s apart (ρ ≈ 0.31 per axis: covariance 0.24 against a variance of 0.74 + 0.05 of the "
+    "two 4 s means, in units of the GM variance), and the tests assume independent poses: for a candidate that "
+    "is smooth in time the variance of its coefficient is ≈ 1 + 2ρ/3 ≈ 1.2 times what the test assumes (1/3: "
+    "consecutive poses' directions are independent), which triples its false-finding rate (0.00056 → 0.0017). "
+    "Not fixed here: the remedy is to model the wandering bias itself (a Gauss–Markov or random-walk bias "
+    "state fitted with T and o, issue 13 item 2) or a serial-correlation-robust variance in the tests. Weighting "
+    "the selection with the widened σ of the noise model (fitted before the selection) was tried and not kept: "
+    "35/40 null recordings clean against 37/40 without it, effects unchanged (13/20 and 17/20 against 13/20 and "
+    "16/20 for temperature_scale and scale_nonlinearity).",
+    "* **Effects in the Gauss–Markov recordings (60-80 %).** The demo's sizes are 1.4-2× the detection limit "
+    "`diagnose` reports on these recordings (column `limit / truth`): at that size the test names the effect "
+    "about half to nine times in ten, and the 30 % window is 1-2 standard errors. The rows at 3× the limit "
+    "show what the method does where the data can resolve the effect; the demo-size rows are the detection "
+    "limit at work, not a fault of the selection.",
+    "* **Planted in the Xsens log (temperature_scale and scale_nonlinearity 0/5 \"named alone\").** The log has "
+    "its own finding (a bias on z that rises and falls, found without any planting), so \"alone\" could never "
+    "hold; the planted effect is now judged against the same seed's unplanted diagnosis.",
+    "",
+]
 report += ["", f"Run time {time.time() - t0:.0f} s.", ""]
 if N13:
     (OUT / "diagnose_issue13.md").write_text("\n".join(report))
