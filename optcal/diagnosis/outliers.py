@@ -39,6 +39,8 @@ CAUCHY_SCALE: float = 2.385
 LTS_STARTS: int = 500
 #: The best elemental partitions refined by concentration steps (FAST-LTS keeps 10).
 LTS_KEEP: int = 5
+#: Poses the elemental subsets are drawn from and ranked on (all of them up to this many).
+LTS_PROBE: int = 500
 #: Concentration steps from each start (each refits on the h poses of smallest residual).
 LTS_STEPS: int = 3
 
@@ -91,15 +93,19 @@ def elemental_partitions(u: NDArray, sqrt_w: NDArray, rows: NDArray, h: int, sta
     *outside* each of the ``keep`` partitions of smallest trimmed sum.
     """
     rng = np.random.default_rng(rows.size)  # deterministic: the same data give the same partitions
-    D = design_matrix(u[rows])
-    subsets = np.array([rng.choice(rows.size, size=9, replace=False) for _ in range(starts)])
+    # the subsets are drawn and ranked on at most LTS_PROBE poses (FAST-LTS's subsample for large n)
+    probe = rows if rows.size <= LTS_PROBE else np.sort(rng.choice(rows, size=LTS_PROBE, replace=False))
+    h_probe = h if probe is rows else int(round(h * probe.size / rows.size))
+    D = design_matrix(u[probe])
+    subsets = np.array([rng.choice(probe.size, size=9, replace=False) for _ in range(starts)])
     eta = np.linalg.svd(D[subsets], full_matrices=True)[2][:, -1, :]  # (starts, 10): each subset's null vector
     value = np.empty(starts)
-    for block in np.array_split(np.arange(starts), max(1, rows.size * starts // 200_000)):  # bounded memory
+    for block in np.array_split(np.arange(starts), max(1, probe.size * starts // 200_000)):  # bounded memory
         A = eta[block][:, [0, 3, 4, 3, 1, 5, 4, 5, 2]].reshape(-1, 3, 3)
-        gradient = 2 * np.einsum("kij,mj->mki", A, u[rows]) + eta[None, block, 6:9]
-        e2 = (sqrt_w[rows, None] * (D @ eta[block].T)) ** 2 / np.maximum(np.sum(gradient**2, axis=2), 1e-300)
-        value[block] = np.sum(np.partition(e2, h - 1, axis=0)[:h], axis=0)
+        gradient = 2 * np.einsum("kij,mj->mki", A, u[probe]) + eta[None, block, 6:9]
+        e2 = (sqrt_w[probe, None] * (D @ eta[block].T)) ** 2 / np.maximum(np.sum(gradient**2, axis=2), 1e-300)
+        value[block] = np.sum(np.partition(e2, h_probe - 1, axis=0)[:h_probe], axis=0)
+    D = design_matrix(u[rows])
     out = []
     for j in np.argsort(value, kind="stable")[:keep]:
         A = eta[j, [0, 3, 4, 3, 1, 5, 4, 5, 2]].reshape(3, 3)
