@@ -280,33 +280,6 @@ def no_static_message(seg: Segmentation) -> str:
 
 
 # ----------------------------------------------------------------------------- statistics
-def centred_window_sums(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Sums of ``x`` (m, k) over the centred window at each sample and the window sizes.
-
-    Windows are clipped at the ends.  Interior windows are differences of slices of one
-    cumulative sum (no gather), so this is O(n) and fast on 10⁶ samples.
-    """
-    m = x.shape[0]
-    c = np.empty((m + 1, x.shape[1]))
-    c[0] = 0.0
-    np.cumsum(x, axis=0, out=c[1:])
-    h = window // 2
-    sums = np.empty_like(x)
-    count = np.empty(m)
-    full = m - window + 1
-    if full > 0:
-        sums[h:h + full] = c[window:] - c[:full]
-        count[h:h + full] = window
-        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
-    else:
-        edge = np.arange(m)
-    lo = np.clip(edge - h, 0, m)
-    hi = np.clip(edge - h + window, 0, m)
-    sums[edge] = c[hi] - c[lo]
-    count[edge] = hi - lo
-    return sums, count
-
-
 #: Rows a centring value is taken from (evenly strided): the median of 10⁶ samples costs a sort.
 CENTRE_ROWS: int = 4096
 
@@ -325,25 +298,13 @@ def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.flo
     """Centred moving mean and variance (windows clipped at the ends), columnwise.
 
     Uses cumulative sums of the data centred near the data (:func:`centre_of`), so it is O(n) and exact
-    enough for raw counts with a large offset.
+    enough for raw counts with a large offset (:func:`column_window_stats`, column by column).
     """
     x = np.asarray(x, dtype=float)
-    squeeze = x.ndim == 1
-    if squeeze:
-        x = x[:, None]
-    centre = centre_of(x)
-    xc = x - centre
-    mean, count = centred_window_sums(xc, window)
-    np.multiply(xc, xc, out=xc)  # in place: one temporary of the data's size, not three
-    var, _ = centred_window_sums(xc, window)
-    del xc
-    count = count[:, None]
-    mean /= count
-    var /= count
-    var -= mean * mean
-    np.clip(var, 0.0, None, out=var)
-    mean += centre
-    return (mean[:, 0], var[:, 0]) if squeeze else (mean, var)
+    if x.ndim == 1:
+        return column_window_stats(x, window)
+    pairs = [column_window_stats(x[:, j], window) for j in range(x.shape[1])]
+    return np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs])
 
 
 def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64]:
@@ -354,21 +315,92 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
     that the moving variance misses.  Zero within half a window of the ends.
     """
     x = np.asarray(x, dtype=float)
-    m = x.shape[0]
-    h = max(1, window // 2)
-    out = np.zeros(m)
-    if m < 2 * h + 1:
-        return out
-    sq = np.zeros(m - 2 * h + 1)
-    c = np.empty(m + 1)
-    for j in range(x.shape[1]):  # column by column: temporaries of one column
-        c[0] = 0.0
-        np.cumsum(x[:, j] - centre_of(x[:, j]), out=c[1:])
+    drift = HalfWindowDrift(x.shape[0], window)
+    for j in range(x.shape[1]):
+        column_window_stats(x[:, j], window, drift)
+    return drift.result()
+
+
+class HalfWindowDrift:
+    """The squared half-window drift summed over columns (:func:`half_window_drift`), filled by
+    :func:`column_window_stats` from the cumulative sum it makes anyway (one pass per column)."""
+
+    def __init__(self, m: int, window: int) -> None:
+        self.m = m
+        self.h = max(1, window // 2)
+        self.squared = np.zeros(max(0, m - 2 * self.h + 1))
+
+    def add(self, c: NDArray[np.float64]) -> None:
+        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``)."""
+        m, h = self.m, self.h
+        if m < 2 * h + 1:
+            return
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
-        sq += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
-    out[h:m - h + 1] = np.sqrt(sq) / h
-    return out
+        self.squared += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+
+    def result(self) -> NDArray[np.float64]:
+        out = np.zeros(self.m)
+        if self.m >= 2 * self.h + 1:
+            out[self.h:self.m - self.h + 1] = np.sqrt(self.squared) / self.h
+        return out
+
+
+def column_window_stats(
+    x: NDArray[np.float64], window: int, drift: HalfWindowDrift | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centred moving mean and variance of one column (windows clipped at the ends), O(n).
+
+    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
+    give the window sums; the same sum gives ``drift``'s half-window means when given, and
+    the cumulative sum of the squares the variance.  Every step writes into the arrays it
+    returns or into one cumulative-sum buffer: a handful of passes over the column.
+    """
+    m = x.shape[0]
+    centre = centre_of(x)
+    xc = x - centre
+    c = np.empty(m + 1)
+    c[0] = 0.0
+    np.cumsum(xc, out=c[1:])
+    mean = np.empty(m)
+    interior, edge, count = _window_sums(c, window, mean)
+    if drift is not None:
+        drift.add(c)
+    np.multiply(xc, xc, out=xc)  # in place: the squares reuse the centred column
+    np.cumsum(xc, out=c[1:])
+    del xc
+    var = np.empty(m)
+    _window_sums(c, window, var)
+    for a in (mean, var):
+        a[interior] /= window
+        a[edge] /= count
+    var -= mean * mean
+    np.clip(var, 0.0, None, out=var)
+    mean += centre
+    return mean, var
+
+
+def _window_sums(
+    c: NDArray[np.float64], window: int, out: NDArray[np.float64]
+) -> tuple[slice, NDArray[np.int64], NDArray[np.float64]]:
+    """Sums over the centred window at each sample from the cumulative sum ``c`` (``c[0] = 0``), into ``out``.
+
+    Returns the interior rows (full windows), the edge rows and their (clipped) window sizes.
+    """
+    m = out.size
+    h = window // 2
+    full = m - window + 1
+    if full > 0:
+        np.subtract(c[window:], c[:full], out=out[h:h + full])
+        interior = slice(h, h + full)
+        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
+    else:
+        interior = slice(0, 0)
+        edge = np.arange(m)
+    lo = np.clip(edge - h, 0, m)
+    hi = np.clip(edge - h + window, 0, m)
+    out[edge] = c[hi] - c[lo]
+    return interior, edge, (hi - lo).astype(float)
 
 
 def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
@@ -450,18 +482,22 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     use = np.flatnonzero(rec.usable)
     every = use.size == rec.n  # no copies when every sample is usable
     t = rec.t if every else rec.t[use]
-    acc = rec.acc if every else rec.acc[use]
-    gyro = (rec.gyro if every else rec.gyro[use]) if rec.gyro is not None else None
+    acc = rec.acc if every else _usable_rows(rec.acc, use)
+    gyro = (rec.gyro if every else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
     m = use.size
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = nominal_conversion(rec.units, acc)
     norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
 
-    sd_norm = moving_mean_var(norm, window)[1]
+    sd_norm = column_window_stats(norm, window)[1]
     np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
-    # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
-    sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
+    # column by column (temporaries of one column), the drift from the same cumulative sums
+    drift_sums = HalfWindowDrift(m, window)
+    sd_axes = np.zeros(m)
+    for j in range(3):
+        sd_axes += column_window_stats(acc[:, j], window, drift_sums)[1]
+    np.sqrt(sd_axes, out=sd_axes)
     res_acc = _resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
@@ -471,7 +507,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
-    drift = half_window_drift(acc, window)
+    drift = drift_sums.result()
     floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
     thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
     static = (
@@ -492,11 +528,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        gyro_bias = np.array([np.median(gyro[base, j]) for j in range(3)])  # column by column
+        # column by column; the median partitions its own copy of the static samples in place
+        gyro_bias = np.array([np.median(gyro[base, j], overwrite_input=True) for j in range(3)])
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
-            mean_j, var_j = moving_mean_var(gyro[:, j], window)
+            mean_j, var_j = column_window_stats(gyro[:, j], window)
             var_sum += var_j
             mean_j -= gyro_bias[j]
             mean_j *= mean_j
@@ -560,6 +597,14 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     return seg
+
+
+def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The rows ``use`` of ``x`` (n, k) as a column-major copy (contiguous columns, as a recording's)."""
+    out = np.empty((use.size, x.shape[1]), order="F")
+    for j in range(x.shape[1]):
+        np.take(x[:, j], use, out=out[:, j])
+    return out
 
 
 def _reject_turning(
