@@ -53,6 +53,17 @@ SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
 TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
 TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
+NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
+NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
+#: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
+#: the low quantile (``floor_quantile / 5``) of the axes moving std to its floor quantile says
+#: that the quietest windows share no noise level: the recording never rests.  Windows at rest
+#: share the sensor's noise (the measured ratio is 0.94-0.96 on every resting recording of
+#: ../shared/data); the quietest windows of a continuous motion are its slowest moments, spread
+#: down to the noise (0.53-0.72 on the sunsided motion logs without their gyro).
+REST_PLATEAU_FRACTION: float = 0.85
+#: Windows a recording needs before the plateau of resting noise is looked for.
+PLATEAU_MIN_WINDOWS: int = 10
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
@@ -262,6 +273,17 @@ class Segmentation:
 def no_static_message(seg: Segmentation) -> str:
     rec = seg.recording
     thr = seg.thresholds
+    if seg.exclusions.get(NO_REST_STRETCHES):
+        floor = seg.noise_floor
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: the quietest windows share no noise level (the axes moving std at its "
+            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {floor['acc_axes_std_low']:.3g}, "
+            f"{floor['acc_axes_std_low'] / floor['acc_axes_std_measured']:.2f} of its "
+            f"{100 * seg.settings.floor_quantile:g} % quantile {floor['acc_axes_std_measured']:.3g} {rec.units}; windows at "
+            f"rest give at least {floor['acc_axes_plateau_limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
+            "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
+        )
     if seg.exclusions.get(TURNING_STRETCHES):
         return (
             f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
@@ -505,6 +527,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
     floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
+    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), floors)
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
     drift = drift_sums.result()
@@ -586,6 +609,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
         _add(exclusions, TURNING, n_turning_samples)
         _add(exclusions, TURNING_STRETCHES, n_turning)
+    elif never_rests:
+        n_dropped = sum(b - a for group in groups for a, b in group)
+        _add(exclusions, NO_REST, n_dropped)
+        _add(exclusions, NO_REST_STRETCHES, len(groups))
+        in_pose[:] = False
+        groups = []
     for group in groups:
         pos = np.concatenate([np.arange(a, b) for a, b in group])
         intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
@@ -597,6 +626,43 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     return seg
+
+
+def rest_plateau_limit(window: int, floor_quantile: float) -> float:
+    """Smallest ratio of the axes moving std's ``floor_quantile / 5`` quantile to its ``floor_quantile``
+    quantile that windows at rest give: :data:`REST_PLATEAU_FRACTION` of the ratio for white noise.
+
+    For white noise the std over ``window`` samples, summed over three axes, has a relative
+    spread ``r ≈ 1/√(6 (window − 1))`` (each axis ``1/√(2 (window − 1))``), so the ratio of
+    the two quantiles is ``(1 + z_low r) / (1 + z_floor r)`` with ``z`` the normal quantiles.
+    """
+    from statistics import NormalDist
+
+    r = 1.0 / np.sqrt(6.0 * max(1, window - 1))
+    z = NormalDist().inv_cdf
+    white = (1.0 + z(floor_quantile / 5) * r) / (1.0 + z(floor_quantile) * r)
+    return REST_PLATEAU_FRACTION * max(0.0, white)
+
+
+def _never_rests(
+    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, floors: dict[str, float]
+) -> bool:
+    """Whether the quietest windows share no noise level (the recording never rests); adds the evidence to ``floors``.
+
+    Both quantiles are taken at least at the data's ``resolution`` (noise-free or coarsely
+    quantised rests sit there).  Decided only on recordings of at least
+    :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
+    """
+    if sd_axes.size < PLATEAU_MIN_WINDOWS * window:
+        return False
+    low, at_floor = (max(float(q), resolution) for q in np.quantile(sd_axes, [floor_quantile / 5, floor_quantile]))
+    if not at_floor > 0:
+        return False
+    limit = rest_plateau_limit(window, floor_quantile)
+    floors["acc_axes_std_low"] = float(low)
+    floors["acc_axes_std_measured"] = float(at_floor)
+    floors["acc_axes_plateau_limit"] = limit
+    return bool(low < limit * at_floor)
 
 
 def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
