@@ -540,7 +540,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     )
     trace: dict[str, Any] = {
         "t": t,
-        "norm_g": norm / nominal.sensitivity,
+        "norm_g": np.divide(norm, nominal.sensitivity, out=norm),  # in place: the norm itself is not needed again
         "acc_norm_std": sd_norm,
         "acc_axes_std": sd_axes,
         "acc_drift": drift,

@@ -28,8 +28,8 @@ from optcal.errors import InputError
 SNIFF_LINES: int = 64
 #: Files up to this size are parsed by numpy (no pandas import); larger ones by pandas.
 SMALL_FILE_BYTES: int = 16 * 2**20
-#: Rows per chunk when streaming.
-CHUNK_ROWS: int = 1_000_000
+#: Rows per chunk when streaming with pandas (its tokenizer holds a chunk's text, fields and frame at once).
+CHUNK_ROWS: int = 2**18
 #: Delimiters tried, in order of preference when several fit.
 DELIMITERS: tuple[str, ...] = ("\t", ";", "|", ",", " ")
 _NAMES = {"\t": "tab", ";": "semicolon", "|": "'|'", ",": "comma", " ": "whitespace"}
@@ -303,8 +303,8 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
     return int(p.stat().st_size / per_row * 1.1) + 1024
 
 
-#: Bytes of text pyarrow parses per streamed batch.
-ARROW_BLOCK_BYTES: int = 16 * 2**20
+#: Bytes of text pyarrow parses per streamed batch (larger batches hold more memory, parse no faster).
+ARROW_BLOCK_BYTES: int = 2**20
 
 
 def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
