@@ -214,6 +214,10 @@ class Segmentation:
         Per usable sample: ``t``, the statistics and the static mask (for plots).
     joined : int
         Static stretches joined to the previous one as the same pose (:func:`join_interrupted`).
+    rest_plateau : dict of str to float
+        The evidence that the recording rests (:func:`rest_plateau_limit`): the axes moving std at
+        its low quantile (``low``) and at the floor quantile (``floor``), and the smallest ratio
+        ``low / floor`` of windows at rest (``limit``); empty when the recording is too short.
     """
 
     recording: Recording
@@ -225,6 +229,7 @@ class Segmentation:
     exclusions: dict[str, int]
     trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     joined: int = 0
+    rest_plateau: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -243,6 +248,7 @@ class Segmentation:
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
+            "rest_plateau": dict(self.rest_plateau),
             "intervals": [iv.to_dict() for iv in self.intervals],
         }
 
@@ -274,14 +280,14 @@ def no_static_message(seg: Segmentation) -> str:
     rec = seg.recording
     thr = seg.thresholds
     if seg.exclusions.get(NO_REST_STRETCHES):
-        floor = seg.noise_floor
+        plateau = seg.rest_plateau
         return (
             f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
             f"never rests: the quietest windows share no noise level (the axes moving std at its "
-            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {floor['acc_axes_std_low']:.3g}, "
-            f"{floor['acc_axes_std_low'] / floor['acc_axes_std_measured']:.2f} of its "
-            f"{100 * seg.settings.floor_quantile:g} % quantile {floor['acc_axes_std_measured']:.3g} {rec.units}; windows at "
-            f"rest give at least {floor['acc_axes_plateau_limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
+            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {plateau['low']:.3g}, "
+            f"{plateau['low'] / plateau['floor']:.2f} of its "
+            f"{100 * seg.settings.floor_quantile:g} % quantile {plateau['floor']:.3g} {rec.units}; windows at "
+            f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
             "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
         )
     if seg.exclusions.get(TURNING_STRETCHES):
@@ -527,7 +533,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
     floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
-    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), floors)
+    rest_plateau: dict[str, float] = {}
+    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
     drift = drift_sums.result()
@@ -625,6 +632,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     trace["static"] = in_pose
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
+    seg.rest_plateau = rest_plateau
     return seg
 
 
@@ -645,9 +653,9 @@ def rest_plateau_limit(window: int, floor_quantile: float) -> float:
 
 
 def _never_rests(
-    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, floors: dict[str, float]
+    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, evidence: dict[str, float]
 ) -> bool:
-    """Whether the quietest windows share no noise level (the recording never rests); adds the evidence to ``floors``.
+    """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
 
     Both quantiles are taken at least at the data's ``resolution`` (noise-free or coarsely
     quantised rests sit there).  Decided only on recordings of at least
@@ -659,9 +667,7 @@ def _never_rests(
     if not at_floor > 0:
         return False
     limit = rest_plateau_limit(window, floor_quantile)
-    floors["acc_axes_std_low"] = float(low)
-    floors["acc_axes_std_measured"] = float(at_floor)
-    floors["acc_axes_plateau_limit"] = limit
+    evidence.update(low=float(low), floor=float(at_floor), limit=limit)
     return bool(low < limit * at_floor)
 
 
