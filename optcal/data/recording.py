@@ -142,8 +142,12 @@ def recording_from_source(
     temp = src.column("temp") if src.has("temp") else None
     row = np.arange(1, n + 1)
     if decisions.time_base.value == "rate":
-        base = src.column("index") if src.has("index") else np.arange(n, dtype=float)
-        t = (base - base[0]) / float(decisions.rate.value)
+        if src.has("index"):
+            base = src.column("index")
+            t = (base - base[0]) / float(decisions.rate.value)
+        else:  # in place: no temporaries of the row numbers
+            t = np.arange(n, dtype=float)
+            t /= float(decisions.rate.value)
     else:
         t = src.column("t")
     exclusions: dict[str, int] = dict(src.exclusions)

@@ -396,9 +396,9 @@ def column_window_stats(
         drift.add(c)
     np.multiply(xc, xc, out=xc)  # in place: the squares reuse the centred column
     np.cumsum(xc, out=c[1:])
-    del xc
-    var = np.empty(m)
+    var = xc  # the window sums of the squares overwrite the squares (read from c only)
     _window_sums(c, window, var)
+    del c
     for a in (mean, var):
         a[interior] /= window
         a[edge] /= count
@@ -468,20 +468,30 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
     have a common step too, but span far more of them, or (a signal of small range) step by
     exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
-    :data:`QUANTUM_CHECK_STEPS` evenly strided steps (the smallest step over all of them).
+    :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
+    them), column by column: temporaries of one column, not of all.
     """
-    d = np.abs(np.diff(x, axis=0)).ravel()
-    d = d[d > 0]
-    if d.size < 10:
-        return None
-    q = float(d.min())
     columns = x.reshape(x.shape[0], -1)
-    span = max(float(columns[:, j].max() - columns[:, j].min()) for j in range(columns.shape[1]))  # per column: fast
+    k = columns.shape[1]
+    stride = max(1, (columns.shape[0] - 1) * k // QUANTUM_CHECK_STEPS)
+    q, span, n_steps, sample = np.inf, 0.0, 0, []
+    for j in range(k):
+        col = columns[:, j]
+        d = np.diff(col)
+        np.abs(d, out=d)
+        d = d[d > 0]
+        n_steps += d.size
+        if d.size:
+            q = min(q, float(d.min()))
+            sample.append(d[::stride])
+        span = max(span, float(col.max() - col.min()))
+    if n_steps < 10:
+        return None
     if span > (2**16 + 1) * q:
         return None
     if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
         return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
-    ratio = d[:: max(1, d.size // QUANTUM_CHECK_STEPS)] / q
+    ratio = np.concatenate(sample) / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
 

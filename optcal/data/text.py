@@ -334,6 +334,9 @@ def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
             ),
             parse_options=pacsv.ParseOptions(delimiter=layout.delimiter, quote_char=False),
             convert_options=pacsv.ConvertOptions(column_types={n: pa.float64() for n in names}),
+            # the system allocator: each batch's memory returns to the heap numpy allocates from,
+            # instead of staying cached in pyarrow's own pool
+            memory_pool=pa.system_memory_pool(),
         )
         block = ColumnBlock(width, estimated_rows(p, layout))
         with reader:

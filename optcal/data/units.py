@@ -75,7 +75,7 @@ def median_norm(acc: ArrayLike) -> float:
 
 
 def decide_units(
-    acc: ArrayLike,
+    acc: ArrayLike | None,
     requested: str | None = None,
     hint: str | None = None,
     hint_reason: str = "",
@@ -85,8 +85,8 @@ def decide_units(
 
     Parameters
     ----------
-    acc : array_like, shape (n, 3)
-        Measurements (raw samples or pose means).
+    acc : array_like, shape (n, 3), or None
+        Measurements (raw samples or pose means); not read when ``norm`` is given.
     requested : str, optional
         The user's ``--units``; always wins.
     hint : str, optional
@@ -102,7 +102,10 @@ def decide_units(
     InputError
         When nothing states the units and the norm is ambiguous.
     """
-    norm = median_norm(acc) if norm is None else norm
+    if norm is None:
+        if acc is None:
+            raise InputError("decide_units needs the samples (acc) or their median norm (norm)")
+        norm = median_norm(acc)
     if requested is not None:
         return check_units(UnitsDecision(normalise_units(requested), "given with --units"), norm)
     if hint is not None:
@@ -269,7 +272,7 @@ class NominalConversion:
 UNSIGNED_16_MIDSCALE: float = 32768.0
 
 
-def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
+def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
     """The "before calibration" conversion to g for data in ``units``.
 
     ``g`` and ``m/s^2`` use their exact unit factors with no offset.  Counts have no
@@ -281,14 +284,16 @@ def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
     Parameters
     ----------
     units : str
-    acc : array_like, shape (n, 3)
-        Pose means (or samples) used to choose the counts baseline.
+    acc : array_like, shape (n, 3), or None
+        Pose means (or samples) used to choose the counts baseline (required for counts only).
     """
     units = normalise_units(units)
     factor = to_g_factor(units)
     if factor is not None:
         name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
         return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
+    if acc is None:
+        raise InputError("the nominal conversion of counts needs the samples (acc)")
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     finite = np.isfinite(a).all(axis=1)
     if not finite.all():  # no copy of a recording whose samples are all finite
