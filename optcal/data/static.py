@@ -24,7 +24,11 @@ the statistic over all windows (a calibration recording is mostly at rest, so th
 quantiles are windows at rest), never below the resolution of the data; the axes floor
 is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, and the floor of quantised gyro
 data at :data:`GYRO_FLOOR_MAX_QUANTA` steps, so that a recording that never rests (its
-quietest windows still turn) is not taken for one at rest.  Static runs are split at time
+quietest windows still turn) is not taken for one at rest.  Windows at rest share one noise
+level, so the low quantiles of the axes statistic form a plateau; a recording whose
+``floor_quantile / 5`` quantile falls far below its floor (:func:`rest_plateau_limit`) has
+no rest, only the slowest moments of a motion, and gives no pose (with a gyro whose
+converter step does not settle it, or none).  Static runs are split at time
 gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
 each remaining run, runs of one orientation interrupted for less than a window by a hand's
 twitch are joined into one pose (:func:`join_interrupted`), and every sample that does not
