@@ -16,14 +16,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.diagnosis.effects import EFFECTS, PARAMETRIC, parse_effects
+from optcal.diagnosis.effects import EFFECTS, FITTED, SESSION_BIAS, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model
@@ -32,6 +32,7 @@ from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
 from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
+from optcal.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.model import canonicalise
@@ -108,17 +109,17 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
         for e in EFFECTS:
             if reg.supports(e):
                 chosen.append(e)
-            else:
+            elif e != SESSION_BIAS:  # one recording: sessions are not a question
                 skipped[e] = reg.reason_unsupported(e)
         return tuple(chosen), skipped
     if not asked:
-        return (), {e: "not asked for (effects 'none')" for e in EFFECTS}
+        return (), {e: "not asked for (effects 'none')" for e in EFFECTS if e != SESSION_BIAS or reg.n_sessions > 1}
     bad = [f"{e}: {reg.reason_unsupported(e)}" for e in asked if not reg.supports(e)]
     if bad:
-        raise InputError(
-            "cannot test " + "; ".join(bad) + ". Give data with a varying temp column (°C) and a time column, "
-            "or leave those effects out of the candidate effects"
-        )
+        fix = ("give several sessions of the sensor (a list of pose tables)" if SESSION_BIAS in " ".join(bad)
+               else "give data with a varying temp column (°C) and a time column")
+        raise InputError("cannot test " + "; ".join(bad) + f". {fix.capitalize()}, "
+                         "or leave those effects out of the candidate effects")
     return asked, skipped
 
 
@@ -176,21 +177,48 @@ class Diagnoser:
         T, o, source = self.start(poses, baseline)
         return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds), source
 
+    def run_sessions(self, sessions: Sequence[PoseTable], baseline: LumpedCalibration | None = None,
+                     names: Sequence[str] | None = None) -> Diagnosis:
+        """Diagnose several sessions of one sensor together (:mod:`optcal.diagnosis.sessions`).
+
+        One calibration ``T``, ``o`` is fitted to every session's poses; "the bias changed
+        between sessions" (``session_bias``) is a candidate effect; time terms count from each
+        session's own start, temperature terms are pooled.
+        """
+        if isinstance(sessions, PoseTable) or not all(isinstance(p, PoseTable) for p in sessions):
+            raise InputError("Diagnoser.run_sessions() takes a list of PoseTables, one per session; "
+                             "load each with optcal.data.load")
+        for p in sessions:
+            p.validate()
+        return self.run_stack(stack_sessions(sessions, names), baseline)
+
     def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None) -> Diagnosis:
         """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration."""
         if not isinstance(poses, PoseTable):
             raise InputError("Diagnoser.run() takes a PoseTable; load data with optcal.data.load")
+        return self.run_stack(None, baseline, poses)
+
+    def run_stack(self, stack: SessionStack | None, baseline: LumpedCalibration | None = None,
+                  poses: PoseTable | None = None) -> Diagnosis:
+        """Diagnose the sessions of ``stack``, or the one recording ``poses`` when ``stack`` is ``None``."""
+        poses = stack.poses if stack is not None else poses
+        assert poses is not None
         poses.validate()
         s = self.settings
-        reg = Regressors.of(poses)
+        reg = Regressors.of(poses, None if stack is None else stack.session)
         notes: list[str] = []
 
         def note(text: str) -> None:
             if text not in notes:
                 notes.append(text)
 
+        if stack is not None:
+            counts = ", ".join(f"{name}: {count}" for name, count in zip(stack.names, stack.counts()))
+            note(f"{stack.n_sessions} sessions of one sensor diagnosed together ({counts} poses); one calibration "
+                 "fitted to all; time counts from each session's own start, temperature is pooled")
+
         effects, skipped = choose_effects(s.effects, reg)
-        candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
+        candidates = [(e, a) for e in effects if e in FITTED for a in range(3)]
         check_size(poses.n)
         T, o, source = self.start(poses, baseline)
         fitter = Fitter(poses, reg, T, o, s.folds)
@@ -204,7 +232,7 @@ class Diagnoser:
         self.progress("forward selection over the candidate effects")
         selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
         final = selection.final
-        findings = build_findings(fitter, final, selection.steps)
+        findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
         limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
@@ -224,7 +252,7 @@ class Diagnoser:
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
-            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise,
+            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise, sessions=stack,
         )
 
 

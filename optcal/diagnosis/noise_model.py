@@ -170,7 +170,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     count = 0
     for _ in loop(range(simulations), "noise-model coverage", simulations):
         acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
-        data = PoseData(extended.norm.forward(acc), extended.reg.tau, extended.reg.s)
+        data = PoseData.of(extended.norm.forward(acc), extended.reg)
         sim = extended.fit(fit.terms, fit.outliers, fit.x, data)
         error = np.abs(sim.x[:9] - truth)
         for name, fitter in (("given", given), ("extended", extended)):

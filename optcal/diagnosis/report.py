@@ -11,6 +11,7 @@ from optcal.extended_model import format_value
 
 if TYPE_CHECKING:
     from optcal.diagnosis.result import Diagnosis
+    from optcal.diagnosis.sessions import SessionOffsets
 
 MG = 1e3
 
@@ -62,6 +63,18 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
     return lines
 
 
+def session_lines(sessions: "SessionOffsets") -> list[str]:
+    """Per axis: the turn-on repeatability and every session's bias offset from their mean."""
+    lines = []
+    for ax in sessions.axes:
+        offsets = ", ".join(f"{name} {v * MG:+.3g} ± {se * MG:.2g}"
+                            for name, v, se in zip(sessions.names, sessions.offsets_g[ax], sessions.stderr_g[ax]))
+        lines.append(f"      axis {ax}: turn-on repeatability {sessions.repeatability_g[ax] * MG:.3g} mg "
+                     f"(sessions' biases from their mean, mg: {offsets})")
+    lines.append(f"      {sessions.applied}")
+    return lines
+
+
 def diagnosis_report(diag: "Diagnosis") -> str:
     """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
     settings = diag.settings
@@ -106,7 +119,9 @@ def diagnosis_report(diag: "Diagnosis") -> str:
         if f.rows is not None:
             named = "poses" if diag.poses.source == "raw recording" else "poses in file rows"
             lines.append(f"      {named} {', '.join(str(r) for r in f.rows)} given zero weight")
-        for ax in f.axes:
+        if f.sessions is not None:
+            lines += session_lines(f.sessions)
+        for ax in f.axes if f.sessions is None else ():
             order = f.order[ax]
             change = f.change_over_data[ax]
             size = f"{change * 1e6:.3g} ppm" if f.effect == "temperature_scale" else f"{change * MG:.3g} mg"
