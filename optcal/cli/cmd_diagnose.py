@@ -92,11 +92,12 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     settings = settings_from(effects, folds, simulations, alpha, seed, method)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path) if baseline_path else None
-    sessions = [load_data(path, **data_opts) for path in data]
+    reporter = progress_printer(quiet)
+    sessions = [load_data(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
     if not as_json:
         for path, session in zip(data, sessions):
             click.echo(data_line(path, session))
-    diagnoser = Diagnoser(settings, progress_printer(quiet))
+    diagnoser = Diagnoser(settings, reporter)
     if len(sessions) == 1:
         poses, source = sessions[0], data[0]
         diag = diagnoser.run(poses, baseline)

@@ -167,15 +167,15 @@ class Diagnoser:
             return canonicalise(T), np.asarray(o, float), "the given calibration"
         from optcal.calibration import calibrate
 
-        self.progress(f"fitting the paper's model ({self.settings.method})")
-        result = calibrate(poses, self.settings.method)
+        with self.reporter.stage(f"fitting the paper's model ({self.settings.method})"):
+            result = calibrate(poses, self.settings.method)
         return canonicalise(result.T), np.asarray(result.o, float), f"the {self.settings.method} calibration"
 
     def prepare(self, poses: PoseTable, baseline: LumpedCalibration | None = None,
                 regressors: Regressors | None = None) -> tuple[Fitter, str]:
         """The :class:`Fitter` of ``poses`` started from the baseline calibration, and where that came from."""
         T, o, source = self.start(poses, baseline)
-        return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds), source
+        return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds, self.reporter.loop), source
 
     def run_sessions(self, sessions: Sequence[PoseTable], baseline: LumpedCalibration | None = None,
                      names: Sequence[str] | None = None) -> Diagnosis:
@@ -221,22 +221,24 @@ class Diagnoser:
         candidates = [(e, a) for e in effects if e in FITTED for a in range(3)]
         check_size(poses.n)
         T, o, source = self.start(poses, baseline)
-        fitter = Fitter(poses, reg, T, o, s.folds)
+        loop = self.reporter.loop
+        fitter = Fitter(poses, reg, T, o, s.folds, loop)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
-        loop = self.reporter.loop
         sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
         selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
         final = selection.final
+        self.progress("measuring the findings (held-out error without each effect)")
         findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
-        limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
+        self.progress("detection limits of the candidates not found")
+        limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
-            other = Fitter(widened, reg, T, o, s.folds)
+            other = Fitter(widened, reg, T, o, s.folds, loop)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")

@@ -16,8 +16,8 @@ from optcal.extended_model import NEEDS as MODEL_NEEDS
 from optcal.extended_model import UNITS as MODEL_UNITS
 from optcal.model import AXES
 
-__all__ = ["EFFECTS", "PARAMETRIC", "FITTED", "SESSION_BIAS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "CAUSES",
-           "parse_effects", "describe_term"]
+__all__ = ["EFFECTS", "PARAMETRIC", "FITTED", "SESSION_BIAS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
+           "parse_effects", "describe_term", "plain_term"]
 
 #: "The bias changed between sessions" (turn-on bias repeatability): one offset per session after
 #: the first and per axis, relative to the first session (several sessions of one sensor only).
@@ -62,6 +62,22 @@ REGRESSOR_WORDS: dict[str, str] = {
     "scale_nonlinearity": "force²",
     SESSION_BIAS: "the session",
 }
+
+
+#: Each effect in plain words (figures: no internal names).
+PLAIN_NAMES: dict[str, str] = {
+    "temperature_bias": "bias changing with temperature",
+    "temperature_scale": "sensitivity changing with temperature",
+    "bias_drift": "bias drifting in time",
+    "scale_nonlinearity": "nonlinear response",
+    SESSION_BIAS: "bias differing between sessions",
+    "outliers": "outlier poses",
+}
+
+
+def plain_term(effect: str, axis: int, order: int) -> str:
+    """A term in plain words, e.g. ``bias changing with temperature on z (order 2)``."""
+    return f"{PLAIN_NAMES[effect]} on {AXES[axis]}" + (f" (order {order})" if order > 1 and effect != SESSION_BIAS else "")
 
 
 def parse_effects(text: str | Iterable[str] | None) -> tuple[str, ...] | None:

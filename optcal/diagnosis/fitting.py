@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
 
-from optcal.diagnosis.effects import FITTED, describe_term
+from optcal.diagnosis.effects import FITTED, describe_term, plain_term
 from optcal.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, active_mask, session_shift,
                                       to_model)
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.diagnosis.regressors import Regressors
 from optcal.estimators.base import Normaliser
 from optcal.extended_model import ExtendedModel
@@ -86,6 +87,13 @@ class Fit:
             parts.append(f"outliers({len(self.outliers)} poses zero-weighted)")
         return " + ".join(parts)
 
+    def describe_plain(self) -> str:
+        """The model in plain words (figures), e.g. ``the paper's model + bias changing with temperature on z``."""
+        parts = ["the paper's model"] + [plain_term(e, a, o) for (e, a), o in terms_key(self.terms)]
+        if self.outliers:
+            parts.append(f"{len(self.outliers)} outlier poses left out")
+        return " + ".join(parts)
+
 
 def orthogonal_part(g: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[np.float64]:
     """The part of ``g`` (or of each column of ``g``) orthogonal to the columns of ``G``.
@@ -117,9 +125,12 @@ class Fitter:
         The baseline calibration (the start of every fit and the source of the weights).
     folds : int
         k of the k-fold held-out error (folds interleaved along time, so each spans the recording).
+    loop : callable, optional
+        Wraps the loop over the folds (a progress bar, :mod:`optcal.diagnosis.progress`).
     """
 
-    def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int) -> None:
+    def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int,
+                 loop: Loop = plain_loop) -> None:
         from optcal.norm_residual import normal_gain
 
         self.poses = poses
@@ -143,6 +154,7 @@ class Fitter:
         self.fold = np.empty(self.n, dtype=int)
         self.fold[order] = np.arange(self.n) % self.folds
         self.time_order = order
+        self.loop = loop
         self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ fitting
@@ -199,7 +211,7 @@ class Fitter:
         out = np.empty(self.n)
         mask = active_mask(fit.terms)
         base_w = self.weights(fit)
-        for f in range(self.folds):
+        for f in self.loop(range(self.folds), f"{self.folds}-fold held-out error", self.folds):
             held = self.fold == f
             p = self.params(np.where(held, 0.0, base_w))
             x, _ = self.problem.solve(fit.x, p, mask)
