@@ -82,7 +82,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     BIC and k-fold held-out error); the findings, the final model and its gain on held-out poses
     are reported.
     """
-    from optcal.cli.data_options import data_line, data_summary, load_data
+    from optcal.cli.data_options import data_line, data_summary, load_data_detailed
     from optcal.caltypes import load as load_calibration
     from optcal.diagnosis import Diagnoser, save_figures
     from optcal.result import jsonable
@@ -93,16 +93,18 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path) if baseline_path else None
     reporter = progress_printer(quiet)
-    sessions = [load_data(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
+    loaded = [load_data_detailed(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
+    sessions = [item.poses for item in loaded]
+    still_parts = [item.segmentation for item in loaded]  # the raw samples: the measured noise route
     if not as_json:
         for path, session in zip(data, sessions):
             click.echo(data_line(path, session))
     diagnoser = Diagnoser(settings, reporter)
     if len(sessions) == 1:
         poses, source = sessions[0], data[0]
-        diag = diagnoser.run(poses, baseline)
+        diag = diagnoser.run(poses, baseline, still_parts[0])
     else:
-        diag = diagnoser.run_sessions(sessions, baseline, names=list(data))
+        diag = diagnoser.run_sessions(sessions, baseline, names=list(data), still_parts=still_parts)
         poses, source = diag.poses, " + ".join(data)
     paths = save_figures(diag, figures_into) if figures_into else []
     calibration = diag.calibration() if output else None

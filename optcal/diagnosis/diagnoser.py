@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,10 +33,14 @@ from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
 from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
 from optcal.diagnosis.sessions import SessionStack, stack_sessions
+from optcal.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
 from optcal.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.model import canonicalise
 from optcal.poses import PoseTable
+
+if TYPE_CHECKING:
+    from optcal.data.static import Segmentation
 
 #: Parametric-bootstrap replications of the noise-model check (at most; fewer when fewer simulations are asked for).
 NOISE_SIMULATIONS: int = 100
@@ -178,28 +182,40 @@ class Diagnoser:
         return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds, self.reporter.loop), source
 
     def run_sessions(self, sessions: Sequence[PoseTable], baseline: LumpedCalibration | None = None,
-                     names: Sequence[str] | None = None) -> Diagnosis:
+                     names: Sequence[str] | None = None,
+                     still_parts: Sequence["Segmentation | None"] | None = None) -> Diagnosis:
         """Diagnose several sessions of one sensor together (:mod:`optcal.diagnosis.sessions`).
 
         One calibration ``T``, ``o`` is fitted to every session's poses; "the bias changed
         between sessions" (``session_bias``) is a candidate effect; time terms count from each
-        session's own start, temperature terms are pooled.
+        session's own start, temperature terms are pooled.  ``still_parts`` (optional): each
+        session's static detection (``None`` for a pose table), for the measured noise route.
         """
         if isinstance(sessions, PoseTable) or not all(isinstance(p, PoseTable) for p in sessions):
             raise InputError("Diagnoser.run_sessions() takes a list of PoseTables, one per session; "
                              "load each with optcal.data.load")
         for p in sessions:
             p.validate()
-        return self.run_stack(stack_sessions(sessions, names), baseline)
+        parts = [None] * len(sessions) if still_parts is None else list(still_parts)
+        if len(parts) != len(sessions):
+            raise InputError(f"still_parts has {len(parts)} entries for {len(sessions)} sessions; give one per session")
+        measured = stack_measured([pose_noise_from_still_parts(p, seg) for p, seg in zip(sessions, parts)])
+        return self.run_stack(stack_sessions(sessions, names), baseline, measured=measured)
 
-    def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None) -> Diagnosis:
-        """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration."""
+    def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None,
+            still_parts: "Segmentation | None" = None) -> Diagnosis:
+        """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration.
+
+        ``still_parts`` (optional) is the static detection ``poses`` came from
+        (:func:`optcal.data.load_with_segmentation`): the noise of each pose mean is then also
+        measured on the recording's still parts (:mod:`optcal.diagnosis.still_noise`).
+        """
         if not isinstance(poses, PoseTable):
             raise InputError("Diagnoser.run() takes a PoseTable; load data with optcal.data.load")
-        return self.run_stack(None, baseline, poses)
+        return self.run_stack(None, baseline, poses, pose_noise_from_still_parts(poses, still_parts))
 
     def run_stack(self, stack: SessionStack | None, baseline: LumpedCalibration | None = None,
-                  poses: PoseTable | None = None) -> Diagnosis:
+                  poses: PoseTable | None = None, measured: MeasuredPoseNoise | None = None) -> Diagnosis:
         """Diagnose the sessions of ``stack``, or the one recording ``poses`` when ``stack`` is ``None``."""
         poses = stack.poses if stack is not None else poses
         assert poses is not None
@@ -242,7 +258,8 @@ class Diagnoser:
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
-        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop)
+        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
+                                  measured)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")

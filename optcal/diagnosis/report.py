@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from optcal.diagnosis.noise_model import NoiseModelCheck
 from optcal.diagnosis.simulation import SimulationCheck
 from optcal.extended_model import format_value
 
@@ -40,11 +41,31 @@ def simulation_text(sim: SimulationCheck, indent: str = "", after: bool = False)
     return "\n".join(lines)
 
 
+def measured_noise_lines(check: NoiseModelCheck) -> list[str]:
+    """The measured route of the noise model: the noise of each pose mean from the recording's still parts."""
+    if check.measured_route is None:
+        return []
+    if check.measured_understated_by is None:
+        return [f"      measured route: not available ({check.measured_route})"]
+    line = (f"      measured route: {check.measured_route}: σ/√n understated the pose noise "
+            f"{check.measured_understated_by:.3g}× (median; residual-estimated {check.understated_by:.3g}×); "
+            f"reduced χ² with the measured σ {check.reduced_chi2_measured:.3g}")
+    if check.coverage_measured is not None:
+        line += (f"; its {check.nominal_coverage * 100:g} % intervals cover {check.coverage_measured * 100:.0f} % "
+                 "in the bootstrap")
+    return [line]
+
+
 def noise_model_lines(diag: "Diagnosis") -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
-    if check is None or not check.tested or not check.named:
+    if check is None or not check.tested:
         return []
+    if not check.named:
+        if check.measured_route is None:
+            return []
+        return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
+                *measured_noise_lines(check)]
     unit = diag.poses.units
     lines = [
         f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
@@ -60,7 +81,7 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
             f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
             f"extended noise model ({check.simulations} simulations)"
         )
-    return lines
+    return lines + measured_noise_lines(check)
 
 
 def session_lines(sessions: "SessionOffsets") -> list[str]:
