@@ -6,9 +6,8 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
-from diagnosis_cases import make_case
+from diagnosis_cases import make_case, write_pose_table
 
 from optcal.cli.main import main
 from optcal.diagnosis import Diagnoser, DiagnosisSettings
@@ -16,15 +15,8 @@ from optcal.diagnosis.figures import residual_figure, simulation_figure
 from optcal.diagnosis.progress import Progress
 
 
-def write_table(poses, path: Path) -> Path:
-    frame = pd.DataFrame({"ax": poses.acc[:, 0], "ay": poses.acc[:, 1], "az": poses.acc[:, 2],
-                          "sigma": poses.sigma, "t": poses.t, "temp": poses.temp})
-    frame.to_csv(path, index=False, float_format="%.10g")
-    return path
-
-
 def test_no_bar_text_when_stderr_is_not_a_terminal(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    path = write_table(make_case("temperature_bias", 5, n_range=(40, 40)).poses, tmp_path / "p.csv")
+    path = write_pose_table(make_case("temperature_bias", 5, n_range=(40, 40)).poses, tmp_path / "p.csv")
     assert main(["diagnose", str(path), str(path), "--simulations", "5"]) == 0
     err = capsys.readouterr().err
     assert "... fitting the paper's model" in err and "... forward selection" in err  # stage messages instead

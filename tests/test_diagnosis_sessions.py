@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from diagnosis_cases import make_case
+from diagnosis_cases import make_case, write_pose_table
 
 import optcal.caltypes
 from optcal.cli.main import main
@@ -104,16 +104,9 @@ def test_each_session_keeps_its_own_time_origin_and_bad_stacks_are_refused() -> 
         Diagnoser(DiagnosisSettings(effects="session_bias")).run(first)
 
 
-def write_table(poses, path: Path) -> Path:
-    frame = pd.DataFrame({"ax": poses.acc[:, 0], "ay": poses.acc[:, 1], "az": poses.acc[:, 2],
-                          "sigma": poses.sigma, "t": poses.t, "temp": poses.temp})
-    frame.to_csv(path, index=False, float_format="%.10g")
-    return path
-
-
 def test_cli_diagnoses_sessions_together_and_saves_the_mean_bias(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     sessions, _ = sessions_with_shift(3e-3, 2, 51)
-    paths = [str(write_table(p, tmp_path / f"s{k}.csv")) for k, p in enumerate(sessions)]
+    paths = [str(write_pose_table(p, tmp_path / f"s{k}.csv")) for k, p in enumerate(sessions)]
     code = main(["diagnose", *paths, "--simulations", "10", "-o", str(tmp_path / "cal.json")])
     out = capsys.readouterr()
     assert code == 0, out.err
