@@ -17,10 +17,7 @@ from diagnosis_cases import make_case
 from optcal.calibration import calibrate
 from optcal.data import load
 from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose
-from optcal.diagnosis.effects import EFFECTS, SESSION_BIAS
-
-#: The effects one recording can show (session_bias needs several sessions: tests/test_diagnosis_sessions.py).
-ONE_RECORDING = tuple(e for e in EFFECTS if e != SESSION_BIAS)
+from optcal.diagnosis.effects import EFFECTS
 from optcal.diagnosis.fitting import Fitter
 from optcal.diagnosis.regressors import Regressors
 from optcal.extended_model import ExtendedModel
@@ -76,7 +73,7 @@ def check_named(diag, case) -> dict | None:
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-@pytest.mark.parametrize("effect", ONE_RECORDING)
+@pytest.mark.parametrize("effect", EFFECTS)
 def test_hidden_effect_is_named_with_axis_and_size(effect: str, seed: int) -> None:
     case = make_case(effect, seed)
     diag = diagnose(case.poses, simulations=SIMULATIONS if seed == 1 else 0, seed=seed)
@@ -89,7 +86,7 @@ def test_hidden_effect_is_named_with_axis_and_size(effect: str, seed: int) -> No
 
 def test_smallest_magnitudes_with_the_most_poses_are_found() -> None:
     """All five effects at exactly the smallest acceptance magnitude (120 poses, 0.5 mg)."""
-    for k, effect in enumerate(ONE_RECORDING):
+    for k, effect in enumerate(EFFECTS):
         case = make_case(effect, 100 + k, scale=(1.0, 1.0), n_range=(120, 120), sigma_range=(0.5e-3, 0.5e-3))
         check_named(diagnose(case.poses, simulations=0), case)
 

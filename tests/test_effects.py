@@ -129,7 +129,8 @@ def test_parse_effects() -> None:
 
 
 def test_layout_covers_every_parametric_order() -> None:
-    assert set(PARAMETRIC) | {"session_bias", "outliers"} == set(EFFECTS)
+    assert set(PARAMETRIC) | {"outliers"} == set(EFFECTS)
+    # the fit's layout: every order of the model's terms, then one offset per session after the first
     assert active_mask({(e, a): FIT_MAX_ORDER[e] for e in FITTED for a in range(3)}).all()
 
 

@@ -10,11 +10,12 @@ import click
 from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
 from optcal.cli.report_option import command_line, report_options, write_report
-from optcal.diagnosis.effects import EFFECTS
+from optcal.diagnosis.effects import VOCABULARY
 
 EFFECTS_HELP = (
-    "Candidate effects, comma-separated, from: " + ", ".join(EFFECTS)
-    + " (default: every effect the data's columns support; none: the baseline and its simulation check only)."
+    "Candidate effects, comma-separated, from: " + ", ".join(VOCABULARY)
+    + " (default: every effect the data's columns support, session_bias with several DATA; none: the baseline "
+    "and its simulation check only)."
 )
 
 

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.diagnosis.effects import EFFECTS, FITTED, SESSION_BIAS, parse_effects
+from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model
@@ -60,7 +60,7 @@ class DiagnosisSettings:
     Attributes
     ----------
     effects : str, tuple of str or None
-        Candidate effects (names from :data:`~optcal.diagnosis.effects.EFFECTS`, or
+        Candidate effects (names from :data:`~optcal.diagnosis.effects.VOCABULARY`, or
         ``"none"``); ``None``: every effect the data's columns support.  Asking for an effect
         the data cannot support raises :class:`~optcal.errors.InputError`.
     folds : int
@@ -110,14 +110,14 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
     skipped: dict[str, str] = {}
     if asked is None:
         chosen = []
-        for e in EFFECTS:
+        for e in VOCABULARY:
             if reg.supports(e):
                 chosen.append(e)
             elif e != SESSION_BIAS:  # one recording: sessions are not a question
                 skipped[e] = reg.reason_unsupported(e)
         return tuple(chosen), skipped
     if not asked:
-        return (), {e: "not asked for (effects 'none')" for e in EFFECTS if e != SESSION_BIAS or reg.n_sessions > 1}
+        return (), {e: "not asked for (effects 'none')" for e in VOCABULARY if e != SESSION_BIAS or reg.n_sessions > 1}
     bad = [f"{e}: {reg.reason_unsupported(e)}" for e in asked if not reg.supports(e)]
     if bad:
         fix = ("give several sessions of the sensor (a list of pose tables)" if SESSION_BIAS in " ".join(bad)

@@ -16,7 +16,7 @@ from optcal.extended_model import NEEDS as MODEL_NEEDS
 from optcal.extended_model import UNITS as MODEL_UNITS
 from optcal.model import AXES
 
-__all__ = ["EFFECTS", "PARAMETRIC", "FITTED", "SESSION_BIAS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
+__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
            "parse_effects", "describe_term", "plain_term"]
 
 #: "The bias changed between sessions" (turn-on bias repeatability): one offset per session after
@@ -29,8 +29,11 @@ FITTED: tuple[str, ...] = (*PARAMETRIC, SESSION_BIAS)
 #: Number of coefficients per axis of each fitted term (its polynomial orders; for the session
 #: offsets, one per session after the first).
 MAX_ORDER: dict[str, int] = {**MODEL_MAX_ORDER, SESSION_BIAS: MAX_SESSIONS - 1}
-#: The vocabulary of model extensions, in the order they are reported.
-EFFECTS: tuple[str, ...] = (*FITTED, "outliers")
+#: The effects one recording can show, in the order they are reported.
+EFFECTS: tuple[str, ...] = (*PARAMETRIC, "outliers")
+#: The whole vocabulary of model extensions: one recording's effects and, for several sessions,
+#: the bias changing between them.
+VOCABULARY: tuple[str, ...] = (*FITTED, "outliers")
 #: Column each effect needs (``None``: none; ``session``: several sessions).
 NEEDS: dict[str, str | None] = {**MODEL_NEEDS, SESSION_BIAS: "session", "outliers": None}
 #: Units of the first-order coefficient (JSON ``estimate``; ``rows`` for outliers; the session
@@ -93,10 +96,10 @@ def parse_effects(text: str | Iterable[str] | None) -> tuple[str, ...] | None:
         return ()
     if not names or names == ["all"]:
         return None
-    unknown = [s for s in names if s not in EFFECTS]
+    unknown = [s for s in names if s not in VOCABULARY]
     if unknown:
-        raise InputError(f"unknown effect(s) {', '.join(unknown)}; choose from {', '.join(EFFECTS)}")
-    return tuple(e for e in EFFECTS if e in names)
+        raise InputError(f"unknown effect(s) {', '.join(unknown)}; choose from {', '.join(VOCABULARY)}")
+    return tuple(e for e in VOCABULARY if e in names)
 
 
 def describe_term(effect: str, axis: int, order: int) -> str:
