@@ -9,7 +9,9 @@ not usable                  a parameter combination is not determined by the pos
                             ``NOT_USABLE_FACTOR`` × the tolerance
 usable with care            a combination is only weakly determined; the held-out error exceeds the
                             tolerance, or it cannot be measured; the residuals exceed what the model
-                            predicts by more than the tolerance; an effect found by
+                            predicts by more than the tolerance (against the χ² distribution, or
+                            χ² and the held-out rms against the band of simulations of the fitted
+                            model); an effect found by
                             the diagnosis that changes the output by more than the tolerance over the
                             recorded range; an outlier pose off by more than the tolerance
 good                        none of the above
@@ -160,6 +162,37 @@ def _model_check(ev: Evidence, tol_g: float) -> Reason:
                   f"{_mg(excess)} rms, {judgement} the tolerance of {_mg(tol_g)}.")
 
 
+def _simulation_band(ev: Evidence, tol_g: float) -> list[Reason]:
+    """χ² and the held-out rms among refits of simulations of the fitted model.
+
+    Above the band, the part of the error the simulations do not produce is
+    ``√(measured² − median²)`` of the rms (χ² as its rms ``σ_floor·√(χ²/n)``); it is judged against the tolerance.
+    """
+    from optcal.report.simulation_band import BAND_LABEL
+
+    if not ev.simulated:
+        return [Reason("good", "simulation band", f"Not computed: {ev.simulation_note}.")] if ev.simulation_note else []
+    out: list[Reason] = []
+    for check in ev.simulated:
+        held_out = "held-out" in check.statistic
+        value = _mg(check.measured) if held_out else f"{check.measured:.4g}"
+        band = (f"{_mg(check.low)} .. {_mg(check.high)}" if held_out else f"{check.low:.4g} .. {check.high:.4g}")
+        text = f"{check.statistic}: {value}, at the {check.percentile:.0f}th percentile of {check.source} ({BAND_LABEL} band {band})"
+        if check.position != "above":
+            out.append(Reason("good", "simulation band", f"{text}: as the calibration model predicts."))
+            continue
+        if held_out:
+            excess = float(np.sqrt(max(check.measured**2 - check.median**2, 0.0)))
+        else:
+            floor = ev.noise_floor_g if np.isfinite(ev.noise_floor_g) else 0.0
+            excess = floor * float(np.sqrt(max(check.measured - check.median, 0.0) / max(ev.n_poses, 1)))
+        level: Level = "usable with care" if excess > tol_g else "good"
+        out.append(Reason(level, "simulation band",
+                          f"{text}: above what the model produces; the part not explained is about {_mg(excess)} rms, "
+                          f"{'above' if level != 'good' else 'within'} the tolerance of {_mg(tol_g)}."))
+    return out
+
+
 def _outliers(ev: Evidence, tol_g: float) -> Reason:
     o = ev.outliers
     if not o.poses:
@@ -222,7 +255,8 @@ def judge(evidence: Evidence, tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> Ver
     if not evidence.solver_ok:
         reasons.append(Reason("not usable", "solver",
                               f"The solver did not converge ({evidence.solver_text}): the numbers below are not an optimum."))
-    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), _outliers(evidence, tol_g), _coverage(evidence)]
+    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), *_simulation_band(evidence, tol_g),
+                _outliers(evidence, tol_g), _coverage(evidence)]
     reasons += _effects(evidence, tol_g)
     reasons.sort(key=lambda r: -LEVELS.index(r.level))
     level = max((r.level for r in reasons), key=LEVELS.index)
