@@ -27,11 +27,14 @@ at that tolerance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from optcal.report.evidence import Evidence
+
+if TYPE_CHECKING:
+    from optcal.fleet.results import FleetResult
 
 Level = Literal["good", "usable with care", "not usable"]
 #: Levels from best to worst.
@@ -305,4 +308,97 @@ def judge_segmentation(n_poses: int, distinct: int) -> Verdict:
     return Verdict(reason.level, [reason], None)
 
 
-__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_segmentation"]
+#: Units named in one reason of a fleet verdict (the rest are counted).
+NAMED_UNITS: int = 12
+
+
+def _some(names: list[str]) -> str:
+    """``a, b, c`` or ``a, b, ... and N more``."""
+    shown = ", ".join(names[:NAMED_UNITS])
+    return shown + (f" and {len(names) - NAMED_UNITS} more" if len(names) > NAMED_UNITS else "")
+
+
+def judge_fleet(result: "FleetResult", tolerance_mg: float = DEFAULT_TOLERANCE_MG,
+                flag_words: dict[str, str] | None = None) -> Verdict:
+    """Verdict on a fleet as a whole (``optcal fleet``): can its calibrations be used, and which units need a look?
+
+    ==========================  ==================================================================
+    not usable                  no unit calibrated, or fewer than half of the units
+    usable with care            a unit failed or was refused; a unit lies outside the population's
+                                bands (flagged); a unit was calibrated with the population prior
+                                (its undetermined parameters come from the fleet, not from its
+                                data); a unit's held-out rms exceeds the tolerance; fewer than
+                                five units calibrated by their own data (no population check)
+    good                        none of the above
+    ==========================  ==================================================================
+
+    Parameters
+    ----------
+    result : optcal.fleet.results.FleetResult
+    tolerance_mg : float
+        Accuracy asked of each unit's calibrated norm (its held-out rms), mg.
+    flag_words : dict of str to str, optional
+        The reason of each flagged unit in plain words (default: the fleet's own flag reason).
+    """
+    from optcal.errors import InputError
+
+    if not tolerance_mg > 0:
+        raise InputError(f"tolerance_mg must be positive, got {tolerance_mg}")
+    tol_g = tolerance_mg * 1e-3
+    n = len(result.outcomes)
+    calibrated = [o for o in result.outcomes if o.calibrated]
+    reasons: list[Reason] = []
+    own, with_prior = result.count("calibrated"), result.count("calibrated_with_prior")
+    counts = (f"{n} units: {own} calibrated by their own data, {with_prior} with the population prior, "
+              f"{result.count('refused')} refused, {result.count('failed')} failed")
+    if not calibrated or len(calibrated) < n / 2:
+        reasons.append(Reason("not usable", "units calibrated",
+                              f"{counts}: fewer than half of the units have a calibration. Check the files and the "
+                              "data options (--columns, --units, the static detection) on one unit with optcal calibrate."))
+    else:
+        reasons.append(Reason("good", "units calibrated", f"{counts}."))
+    bad = result.not_calibrated
+    if bad:
+        reasons.append(Reason("usable with care", "units without a calibration",
+                              f"{len(bad)} unit(s) have no calibration: "
+                              + _some([f"{o.unit} ({o.status}: {o.reason})" for o in bad]) + "."))
+    if result.stats is None:
+        reasons.append(Reason("usable with care", "population check",
+                              f"Fewer than five units were calibrated by their own data in the same units, so no unit "
+                              "could be compared with the population."))
+    flagged = result.flagged
+    words = flag_words or {}
+    if flagged:
+        reasons.append(Reason("usable with care", "units unlike the others",
+                              f"{len(flagged)} unit(s) lie outside the population's robust band"
+                              + (f" (median ± {result.stats.threshold_n:.3g} robust SD)" if result.stats else "") + ": "
+                              + _some([f"{o.unit}: {words.get(o.unit, o.flag)}" for o in flagged])
+                              + ". Check them before use: a damaged part, a different part number or a bad session."))
+    elif result.stats is not None:
+        reasons.append(Reason("good", "units unlike the others",
+                              f"No unit lies outside the population's robust band (median ± "
+                              f"{result.stats.threshold_n:.3g} robust SD of every parameter and of the residual)."))
+    if with_prior:
+        names = [o.unit for o in result.outcomes if o.status == "calibrated_with_prior"]
+        reasons.append(Reason("usable with care", "calibrated with the population prior",
+                              f"{with_prior} unit(s) do not determine every parameter by their own poses; the missing "
+                              f"part comes from the population prior: {_some(names)}. Their calibration is as good as "
+                              "the population is alike; record more orientations to calibrate them alone."))
+    high = [o for o in calibrated if np.isfinite(o.heldout_rms_g) and o.heldout_rms_g > tol_g]
+    held = np.array([o.heldout_rms_g for o in calibrated if np.isfinite(o.heldout_rms_g)])
+    if high:
+        reasons.append(Reason("usable with care", "held-out error",
+                              f"{len(high)} of {len(calibrated)} calibrated units have a held-out rms error of |a| "
+                              f"(leave-one-out) above the tolerance of {_mg(tol_g)}: "
+                              + _some([f"{o.unit} ({_mg(o.heldout_rms_g)})" for o in high]) + "."))
+    elif held.size:
+        reasons.append(Reason("good", "held-out error",
+                              f"Every calibrated unit's held-out rms error of |a| (leave-one-out) is within the tolerance "
+                              f"of {_mg(tol_g)}: median {_mg(float(np.median(held)))}, largest {_mg(float(held.max()))}."))
+    reasons.sort(key=lambda r: -LEVELS.index(r.level))
+    level = max((r.level for r in reasons), key=LEVELS.index)
+    return Verdict(level, reasons, tolerance_mg)
+
+
+__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_fleet",
+           "judge_segmentation"]
