@@ -35,6 +35,7 @@ from optcal.report.evidence import Evidence
 
 if TYPE_CHECKING:
     from optcal.fleet.results import FleetResult
+    from optcal.plan import NextPose, PosePlan
 
 Level = Literal["good", "usable with care", "not usable"]
 #: Levels from best to worst.
@@ -400,5 +401,57 @@ def judge_fleet(result: "FleetResult", tolerance_mg: float = DEFAULT_TOLERANCE_M
     return Verdict(level, reasons, tolerance_mg)
 
 
-__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_fleet",
-           "judge_segmentation"]
+#: A plan whose efficiency against the certified bound is below this is "usable with care".
+PLAN_EFFICIENCY_GOOD: float = 0.9
+
+
+def judge_plan(plan: "PosePlan") -> Verdict:
+    """Verdict on a pose plan (``optcal plan --poses K``): how close it comes to the best any K poses can do.
+
+    ``good`` when its efficiency against the relaxation's certified bound is at least
+    ``PLAN_EFFICIENCY_GOOD``; ``usable with care`` below (the feasible set or the grid limits the
+    plan).  The planner refuses plans that leave a combination undetermined, so none is judged here.
+    """
+    name = {"D": "D-efficiency", "A": "A-efficiency", "E": "E-efficiency"}[plan.criterion.value]
+    text = (f"The {plan.n_poses} poses reach {100 * plan.efficiency:.1f} % of the best any {plan.n_poses} poses in the "
+            f"feasible set ({plan.feasible_set}) can reach ({name} against the relaxation's certified bound)")
+    if plan.efficiency >= PLAN_EFFICIENCY_GOOD:
+        reason = Reason("good", "design", f"{text}.")
+    else:
+        reason = Reason("usable with care", "design",
+                        f"{text}: the constraint limits the plan; more poses or a wider feasible set determine the "
+                        "calibration better.")
+    return Verdict(reason.level, [reason], None)
+
+
+def judge_next_pose(step: "NextPose") -> Verdict:
+    """Verdict on the poses taken so far (``optcal plan --next DATA``): can they make a calibration, or take the next?
+
+    ``not usable`` while they do not determine every parameter; ``usable with care`` while a
+    standard error is above the target; ``good`` once every one is below it (stop), or when
+    they determine every parameter and no target was given.
+    """
+    from optcal.model import N_PARAMS
+
+    have = f"The {step.n_poses} poses taken"
+    if step.rank_before < N_PARAMS:
+        reason = Reason("not usable", "poses so far",
+                        f"{have} do not determine the calibration (Fisher information rank {step.rank_before} of "
+                        f"{N_PARAMS}); the next pose ({step.description}) raises the rank to {step.rank_after}.")
+    elif step.stop:
+        reason = Reason("good", "poses so far", f"{have} determine every parameter; {step.stop_message}.")
+    elif step.target_stderr is not None:
+        worst = max(step.stderr_normalised, key=lambda k: step.stderr_normalised[k])
+        reason = Reason("usable with care", "poses so far",
+                        f"{have} determine every parameter, but {worst} has a standard error of "
+                        f"{step.stderr_normalised[worst]:.3g} (normalised), above the target {step.target_stderr:g}: "
+                        f"take the next pose ({step.description}).")
+    else:
+        reason = Reason("good", "poses so far",
+                        f"{have} determine every parameter; the next pose ({step.description}) adds "
+                        f"{step.gain_logdet:.3g} to the log determinant of the information.")
+    return Verdict(reason.level, [reason], None)
+
+
+__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "PLAN_EFFICIENCY_GOOD", "Reason", "Verdict", "judge", "judge_check",
+           "judge_fleet", "judge_next_pose", "judge_plan", "judge_segmentation"]
