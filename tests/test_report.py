@@ -258,6 +258,18 @@ def test_simulation_band_of_a_well_specified_calibration() -> None:
     assert [r.level for r in verdict.reasons if r.topic == "simulation band"] == ["good", "good"]
 
 
+def test_simulation_band_of_counts_data() -> None:
+    """A sensor in counts (T far from I): the simulations are of the fitted sensor, not of T taken as C."""
+    from optcal.report.simulation_band import simulation_band
+    from optcal.simulate_effects import demo_sensor
+
+    poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)
+    counts = PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")
+    band = simulation_band(calibrate(counts), counts)
+    assert band.simulations == 200, band.note
+    assert [c.position for c in band.checks] == ["inside", "inside"]
+
+
 def test_simulation_band_puts_a_planted_effect_above() -> None:
     poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
     acc = poses.acc.copy()

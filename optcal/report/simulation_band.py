@@ -115,7 +115,7 @@ def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: in
     """
     from optcal.errors import ConvergenceWarning, InputError
     from optcal.estimators.batched import BatchedMaximumLikelihood
-    from optcal.model import LumpedModel, unpack_theta
+    from optcal.model import unpack_theta
     from optcal.simulate import simulate_poses
 
     if poses.sigma is None:
@@ -125,11 +125,10 @@ def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: in
     if int(idf.get("rank", result.n_params)) < int(idf.get("n_params", result.n_params)):
         return SimulationBand([], 0, "the poses do not determine every parameter, so refits of simulations scatter "
                                      "along the undetermined combination")
-    model = LumpedModel(result.T, result.o)
     directions = result.correct(poses.acc)
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     rng = np.random.default_rng(seed)
-    tables = [simulate_poses(model, directions, poses.sigma, rng=rng, units=poses.units) for _ in range(simulations)]
+    tables = [simulate_poses(result.model, directions, poses.sigma, rng=rng, units=poses.units) for _ in range(simulations)]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
