@@ -19,7 +19,7 @@ from optcal.model import AXES, PARAM_NAMES
 from optcal.plan import NextPose, PosePlan, Prior
 from optcal.plan.describe import describe_direction
 from optcal.report.document import ReportDocument, Section, Table, now_utc, significant, versions
-from optcal.report.figures import embed
+from optcal.report.figures import EmbeddedFigure, embed
 from optcal.report.verdict import judge_next_pose, judge_plan
 
 #: The criteria in words.
@@ -67,7 +67,7 @@ def _stderr_table(before: dict[str, float], after: dict[str, float], prior: Prio
                  "sensor's scale, o in mg")
 
 
-def _map(planned: NDArray, given: NDArray, candidates: NDArray | None, cap: Any, title: str) -> Any:
+def _map(planned: NDArray, given: NDArray, candidates: NDArray | None, cap: Any, title: str) -> EmbeddedFigure:
     from optcal.plan.figure import sphere_figure
 
     return embed(sphere_figure(planned, given if len(given) else None, candidates, cap, title),
