@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from optcal.poses import PoseTable
-from optcal.report.evidence import BandCheck, Evidence, gather, pose_name
+from optcal.report.evidence import Evidence, gather, pose_name
 from optcal.report.figures import (
     EmbeddedFigure,
     before_after_figure,
@@ -189,18 +189,9 @@ def _pose_table(result: CalibrationResult, poses: PoseTable, noise: np.ndarray |
     return Table(header, rows, "Norm residual ‖T(a − o)‖ − 1 of each pose")
 
 
-def _band_sentence(check: BandCheck) -> str:
-    """One sentence: a statistic among the refits of simulations of the fitted model."""
-    from optcal.report.simulation_band import BAND_LABEL
-
-    held_out = "held-out" in check.statistic
-    show = (lambda x: f"{x * 1e3:.3g} mg") if held_out else (lambda x: significant(x))
-    return (f"{check.statistic.capitalize()}: {show(check.measured)}, at the {check.percentile:.0f}th percentile of "
-            f"{check.source} (median {show(check.median)}, {BAND_LABEL} band {show(check.low)} .. {show(check.high)}).")
-
-
 def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
     from optcal.report.evidence import noise_floor
+    from optcal.report.simulation_band import band_text
 
     result = ev.result
     labels = [pose_name(poses, k).split(" (")[0].replace("pose ", "") for k in range(poses.n)]
@@ -218,7 +209,7 @@ def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
             f"χ² {significant(result.chisqr)} with {result.dof} degrees of freedom"
             + (f" (reduced χ² {significant(result.redchi)})" if result.dof > 0 else "")
             + f"; solver {result.solver.name}: {result.solver.status}, {result.solver.iterations} iterations.",
-            *[_band_sentence(check) for check in ev.simulated],
+            *[band_text(check)[0].upper() + band_text(check)[1:] + "." for check in ev.simulated],
             *([f"χ² against simulations of the fitted model: not computed ({ev.simulation_note})."]
               if ev.simulation_note else []),
         ],

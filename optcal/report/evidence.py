@@ -89,6 +89,8 @@ class BandCheck:
         Where the measured value lies in a simulated distribution, % (NaN for a distribution's band).
     median : float
         The median of the simulated distribution (NaN for a distribution's band).
+    unit : str
+        ``"g"`` for a statistic in g (shown in mg), ``""`` for a number without unit.
     """
 
     statistic: str
@@ -99,6 +101,7 @@ class BandCheck:
     meaningful: bool = True
     percentile: float = float("nan")
     median: float = float("nan")
+    unit: str = ""
 
     @property
     def position(self) -> str:

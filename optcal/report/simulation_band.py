@@ -89,6 +89,15 @@ def fit_statistics(T: NDArray[np.float64], o: NDArray[np.float64], acc: NDArray[
     return FitStatistics(float(np.sum(weights * r * r)), float(np.sqrt(np.mean(heldout**2))))
 
 
+def band_text(check: BandCheck) -> str:
+    """``statistic: value, at the Nth percentile of ... (median, band)``: a statistic among the simulated refits."""
+    def show(x: float) -> str:
+        return f"{x * 1e3:.3g} mg" if check.unit == "g" else f"{x:.4g}"
+
+    return (f"{check.statistic}: {show(check.measured)}, at the {check.percentile:.0f}th percentile of {check.source} "
+            f"(median {show(check.median)}, {BAND_LABEL} band {show(check.low)} .. {show(check.high)})")
+
+
 def _percentile(measured: float, simulated: NDArray[np.float64]) -> float:
     """Share of the simulated values below ``measured`` (ties count half), %."""
     return float(100.0 * (np.sum(simulated < measured) + 0.5 * np.sum(simulated == measured)) / simulated.size)
@@ -142,14 +151,15 @@ def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: in
     measured = fit_statistics(result.T, result.o, poses.acc, poses.sigma)
     source = f"{len(stats)} simulations of the fitted model, each refitted"
     checks = []
-    for what, value, simulated in (
-        ("χ² of the fit", measured.chisqr, np.array([s.chisqr for s in stats])),
-        ("held-out rms of |a| − 1 g (leave-one-out)", measured.heldout_rms_g, np.array([s.heldout_rms_g for s in stats])),
+    for what, value, simulated, unit in (
+        ("χ² of the fit", measured.chisqr, np.array([s.chisqr for s in stats]), ""),
+        ("held-out rms of |a| − 1 g (leave-one-out)", measured.heldout_rms_g,
+         np.array([s.heldout_rms_g for s in stats]), "g"),
     ):
         low, high = np.percentile(simulated, BAND_PERCENTILES)
-        checks.append(BandCheck(what, value, float(low), float(high), source,
-                                percentile=_percentile(value, simulated), median=float(np.median(simulated))))
+        checks.append(BandCheck(what, value, float(low), float(high), source, percentile=_percentile(value, simulated),
+                                median=float(np.median(simulated)), unit=unit))
     return SimulationBand(checks, len(stats))
 
 
-__all__ = ["BAND_LABEL", "BAND_PERCENTILES", "FitStatistics", "SIMULATIONS", "SimulationBand", "fit_statistics", "simulation_band"]
+__all__ = ["BAND_LABEL", "BAND_PERCENTILES", "FitStatistics", "band_text", "SIMULATIONS", "SimulationBand", "fit_statistics", "simulation_band"]

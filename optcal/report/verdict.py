@@ -172,20 +172,17 @@ def _simulation_band(ev: Evidence, tol_g: float) -> list[Reason]:
     Above the band, the part of the error the simulations do not produce is
     ``√(measured² − median²)`` of the rms (χ² as its rms ``σ_floor·√(χ²/n)``); it is judged against the tolerance.
     """
-    from optcal.report.simulation_band import BAND_LABEL
+    from optcal.report.simulation_band import band_text
 
     if not ev.simulated:
         return [Reason("good", "simulation band", f"Not computed: {ev.simulation_note}.")] if ev.simulation_note else []
     out: list[Reason] = []
     for check in ev.simulated:
-        held_out = "held-out" in check.statistic
-        value = _mg(check.measured) if held_out else f"{check.measured:.4g}"
-        band = (f"{_mg(check.low)} .. {_mg(check.high)}" if held_out else f"{check.low:.4g} .. {check.high:.4g}")
-        text = f"{check.statistic}: {value}, at the {check.percentile:.0f}th percentile of {check.source} ({BAND_LABEL} band {band})"
+        text = band_text(check)
         if check.position != "above":
             out.append(Reason("good", "simulation band", f"{text}: as the calibration model predicts."))
             continue
-        if held_out:
+        if check.unit == "g":
             excess = float(np.sqrt(max(check.measured**2 - check.median**2, 0.0)))
         else:
             floor = ev.noise_floor_g if np.isfinite(ev.noise_floor_g) else 0.0
