@@ -117,6 +117,41 @@ def machine_load() -> str:
     return f"load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores"
 
 
+@dataclass(frozen=True)
+class Comparison:
+    """optcal's process and imu_tk's, timed side by side (or imu_tk's recorded time when it cannot run here)."""
+
+    timings: dict[str, ProcessTiming]
+    imutk_s: float
+    imutk_cpu_s: float
+    imutk_from: str
+
+    @property
+    def optcal(self) -> ProcessTiming:
+        return self.timings["optcal"]
+
+    def figures(self) -> dict[str, object]:
+        """The times, their ratios (optcal / imu_tk) and where imu_tk's time comes from, for :func:`report`."""
+        ours = self.optcal
+        return {"optcal_s": ours.wall_s, "optcal_cpu_s": ours.cpu_s, "imutk_s": self.imutk_s, "imutk_cpu_s": self.imutk_cpu_s,
+                "ratio_wall": ours.wall_s / self.imutk_s, "ratio_cpu": ours.cpu_s / self.imutk_cpu_s, "imutk_from": self.imutk_from}
+
+
+def against_imutk(optcal_argv: list[str], variable: str, reference_s: float, reference: str,
+                  others: dict[str, list[str] | str] | None = None) -> Comparison:
+    """Time ``optcal_argv`` (and ``others``) side by side with the shell command in ``$variable``; without it,
+    imu_tk's time is ``reference_s`` (from ``reference``) and the comparison is said not to be side by side."""
+    commands: dict[str, list[str] | str] = {"optcal": optcal_argv, **(others or {})}
+    imutk_cmd = os.environ.get(variable)
+    if imutk_cmd:
+        commands["imutk"] = imutk_cmd
+    timings = side_by_side(commands)
+    if imutk_cmd:
+        return Comparison(timings, timings["imutk"].wall_s, timings["imutk"].cpu_s,
+                          f"${variable}, side by side: interleaved, median of {ROUNDS}")
+    return Comparison(timings, reference_s, float("nan"), f"{reference}, NOT side by side: set ${variable} to measure imu_tk in this run")
+
+
 def imutk_reference_s() -> float:
     """The upper end of imu_tk's whole-process time in IMUTK_REFERENCE.md ('whole process 0.30–0.38 s')."""
     text = IMUTK_REFERENCE.read_text(encoding="utf-8")
@@ -132,30 +167,16 @@ def report(name: str, **figures: object) -> None:
 @pytest.mark.skipif(not XSENS.exists(), reason="../shared/data is not present")
 def test_calibrate_xsens_as_a_new_process():
     py = sys.executable
-    commands: dict[str, list[str] | str] = {
-        "optcal": [py, "-m", "optcal.cli.main", "calibrate", str(XSENS), "--json"],
-        "python_bare": [py, "-c", "pass"],
-        "import_numpy": [py, "-c", "import numpy"],
-    }
-    imutk_cmd = os.environ.get("OPTCAL_IMUTK_ACC_CMD")
-    if imutk_cmd:
-        commands["imutk"] = imutk_cmd
-    timings = side_by_side(commands)
-    ours = timings["optcal"]
-    if imutk_cmd:
-        imutk, imutk_cpu = timings["imutk"].wall_s, timings["imutk"].cpu_s
-        source = f"$OPTCAL_IMUTK_ACC_CMD, side by side: interleaved, median of {ROUNDS}"
-    else:
-        imutk, imutk_cpu = imutk_reference_s(), float("nan")
-        source = "IMUTK_REFERENCE.md (upper end), NOT side by side: set $OPTCAL_IMUTK_ACC_CMD to measure imu_tk in this run"
-    rms_mg = json.loads(ours.stdout)["rms_norm_residual_g"] * 1e3
-    report("calibrate xsens", optcal_s=ours.wall_s, optcal_cpu_s=ours.cpu_s, imutk_s=imutk, imutk_cpu_s=imutk_cpu,
-           ratio_wall=ours.wall_s / imutk, ratio_cpu=ours.cpu_s / imutk_cpu, imutk_from=source,
-           python_bare_s=timings["python_bare"].wall_s, import_numpy_s=timings["import_numpy"].wall_s,
-           optcal_rms_mg=rms_mg, imutk_rms_mg=IMUTK_RMS_MG, machine=machine_load())
+    compared = against_imutk([py, "-m", "optcal.cli.main", "calibrate", str(XSENS), "--json"], "OPTCAL_IMUTK_ACC_CMD",
+                             imutk_reference_s(), "IMUTK_REFERENCE.md (upper end)",
+                             {"python_bare": [py, "-c", "pass"], "import_numpy": [py, "-c", "import numpy"]})
+    rms_mg = json.loads(compared.optcal.stdout)["rms_norm_residual_g"] * 1e3
+    report("calibrate xsens", **compared.figures(), python_bare_s=compared.timings["python_bare"].wall_s,
+           import_numpy_s=compared.timings["import_numpy"].wall_s, optcal_rms_mg=rms_mg, imutk_rms_mg=IMUTK_RMS_MG,
+           machine=machine_load())
     assert rms_mg <= IMUTK_RMS_MG
     if STRICT:
-        assert ours.wall_s <= imutk, f"optcal {ours.wall_s:.3f} s > imu_tk {imutk:.3f} s"
+        assert compared.optcal.wall_s <= compared.imutk_s, f"optcal {compared.optcal.wall_s:.3f} s > imu_tk {compared.imutk_s:.3f} s"
 
 
 def test_help_as_a_new_process():

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench_data import ROUNDS, STRICT, machine_load, report, side_by_side
+from bench_data import STRICT, against_imutk, machine_load, report, side_by_side
 from optcal.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
 
 XSENS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "imutk-xsens" / "xsens_imutk.csv"
@@ -105,25 +105,13 @@ def test_gyro_fit_only_xsens(benchmark, xsens: Path) -> None:
 
 def test_calibrate_imu_as_a_new_process(xsens: Path) -> None:
     """``optcal calibrate DATA --imu`` against imu_tk's accelerometer + gyroscope calibration, side by side."""
-    commands: dict[str, list[str] | str] = {"optcal": [sys.executable, "-m", "optcal.cli.main", "calibrate", str(xsens), "--imu", "--json"]}
-    imutk_cmd = os.environ.get("OPTCAL_IMUTK_CMD")
-    if imutk_cmd:
-        commands["imutk"] = imutk_cmd
-    timings = side_by_side(commands)
-    ours = timings["optcal"]
-    if imutk_cmd:
-        imutk, imutk_cpu = timings["imutk"].wall_s, timings["imutk"].cpu_s
-        source = f"$OPTCAL_IMUTK_CMD, side by side: interleaved, median of {ROUNDS}"
-    else:
-        imutk, imutk_cpu = IMUTK_REFERENCE_S, float("nan")
-        source = "IMUTK_REFERENCE.md (accelerometer only), NOT side by side: set $OPTCAL_IMUTK_CMD"
-    out = json.loads(ours.stdout)
+    compared = against_imutk([sys.executable, "-m", "optcal.cli.main", "calibrate", str(xsens), "--imu", "--json"],
+                             "OPTCAL_IMUTK_CMD", IMUTK_REFERENCE_S, "IMUTK_REFERENCE.md (accelerometer only)")
+    out = json.loads(compared.optcal.stdout)
     residual = out["gravity_prediction"]["rms_deg_after"]
     rms_mg = out["accelerometer_fit"]["rms_norm_residual_g"] * 1e3
-    report("calibrate --imu xsens", optcal_s=ours.wall_s, optcal_cpu_s=ours.cpu_s, imutk_s=imutk, imutk_cpu_s=imutk_cpu,
-           ratio_wall=ours.wall_s / imutk, ratio_cpu=ours.cpu_s / imutk_cpu, imutk_from=source,
-           optcal_gyro_residual_deg=residual, imutk_gyro_residual_deg=IMUTK_RESIDUAL_DEG, optcal_acc_rms_mg=rms_mg,
-           machine=machine_load())
+    report("calibrate --imu xsens", **compared.figures(), optcal_gyro_residual_deg=residual,
+           imutk_gyro_residual_deg=IMUTK_RESIDUAL_DEG, optcal_acc_rms_mg=rms_mg, machine=machine_load())
     assert residual <= IMUTK_RESIDUAL_DEG
     if STRICT:
-        assert ours.wall_s <= imutk, f"optcal {ours.wall_s:.3f} s > imu_tk {imutk:.3f} s"
+        assert compared.optcal.wall_s <= compared.imutk_s, f"optcal {compared.optcal.wall_s:.3f} s > imu_tk {compared.imutk_s:.3f} s"
