@@ -107,12 +107,14 @@ def test_each_session_keeps_its_own_time_origin_and_bad_stacks_are_refused() -> 
 def test_cli_diagnoses_sessions_together_and_saves_the_mean_bias(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     sessions, _ = sessions_with_shift(3e-3, 2, 51)
     paths = [str(write_pose_table(p, tmp_path / f"s{k}.csv")) for k, p in enumerate(sessions)]
-    code = main(["diagnose", *paths, "--simulations", "10", "-o", str(tmp_path / "cal.json")])
+    code = main(["diagnose", *paths, "--simulations", "10", "-o", str(tmp_path / "cal.json"),
+                 "--report", str(tmp_path / "report.html")])
     out = capsys.readouterr()
     assert code == 0, out.err
     assert sum("pose table" in line for line in out.out.splitlines()[:2]) == 2  # each session's data decisions
     assert "session_bias" in out.out and "turn-on repeatability" in out.out
     assert "mean of 2 sessions' biases" in out.out  # what the saved calibration applies, stated
+    assert "session_bias on axis z" in (tmp_path / "report.html").read_text()
     code = main(["diagnose", *paths, "--simulations", "10", "--json"])
     obj = json.loads(capsys.readouterr().out)
     assert [d["path"] for d in obj["data"]] == paths and obj["sessions"]["names"] == paths

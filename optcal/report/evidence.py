@@ -445,6 +445,10 @@ def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
                                   ", ".join(names_of_rows(poses, rows)), f.cause))
             continue
         for axis in f.axes:
+            if effect == "session_bias":  # the sessions' biases: their range, the spread as the estimate
+                out.append(EffectSize(effect, axis, format_value(effect, f.estimate[axis], f.stderr[axis]),
+                                      1e3 * f.change_over_data[axis], "the sessions", f.cause))
+                continue
             coefs = np.asarray(f.coefficients[axis], dtype=float)
             if effect.startswith("temperature") or effect == "bias_drift":
                 column = poses.temp if effect.startswith("temperature") else poses.t
