@@ -231,7 +231,8 @@ class Diagnoser:
         if stack is not None:
             counts = ", ".join(f"{name}: {count}" for name, count in zip(stack.names, stack.counts()))
             note(f"{stack.n_sessions} sessions of one sensor diagnosed together ({counts} poses); one calibration "
-                 "fitted to all; time counts from each session's own start, temperature is pooled")
+                 "fitted to all; time counts from each session's own start (so does a saved drift term's t), "
+                 "temperature is pooled")
 
         effects, skipped = choose_effects(s.effects, reg)
         candidates = [(e, a) for e in effects if e in FITTED for a in range(3)]
