@@ -64,46 +64,81 @@ class BatchedNormResidualCost:
     def n_units(self) -> int:
         return int(self.w.shape[0])
 
-    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
-        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached).
+    def _at(self, x: NDArray) -> None:
+        """Residuals and calibrated directions at ``x`` (kept until ``x`` changes).
 
         The stacked form of :class:`optcal.norm_residual.NormResidualPoint`: the same formulas
-        (Lu 2017, eq. 13, 15-16) with a leading unit axis.
+        (Lu 2017, eq. 13) with a leading unit axis, the product with the lower-triangular T
+        written out (three broadcasts instead of a 3 × 3 matrix product per pose).
         """
         x = np.asarray(x, dtype=float).ravel()
-        if self._x is None or not np.array_equal(x, self._x):
-            th = x.reshape(-1, 9)
-            T = np.zeros((th.shape[0], 3, 3))
-            T[:, TRIL_ROWS, TRIL_COLS] = th[:, :6]
-            d = self.u - th[:, 6:9, None]  # a_k − o, (K, 3, n)
-            v = np.einsum("kij,kjn->kin", T, d)  # T (a_k − o)
-            nv = np.sqrt(np.sum(v * v, axis=1))
-            self._x, self._r, self._J = x.copy(), nv - 1.0, None  # eq. 13
-            self._parts = (T, d, v / nv[:, None, :])
-        if jacobian and self._J is None:
-            T, d, direction = self._parts
-            self._J = np.concatenate([direction[:, TRIL_ROWS] * d[:, TRIL_COLS],  # ∂r/∂T_ij = ā_i u_j, eq. 15
-                                      -np.einsum("kji,kjn->kin", T, direction)], axis=1)  # ∂r/∂o = −Tᵀ ā, eq. 16
-        return self._r, self._J
+        if self._x is not None and np.array_equal(x, self._x):
+            return
+        th = x.reshape(-1, 9)[:, :, None]
+        d = self.u - th[:, 6:9]  # a_k − o, (K, 3, n)
+        v = np.empty_like(d)  # T (a_k − o), T lower-triangular (θ order of optcal.model.TRIL_INDEX)
+        np.multiply(th[:, 0], d[:, 0], out=v[:, 0])
+        v[:, 1] = th[:, 1] * d[:, 0] + th[:, 2] * d[:, 1]
+        v[:, 2] = th[:, 3] * d[:, 0] + th[:, 4] * d[:, 1] + th[:, 5] * d[:, 2]
+        nv = np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2 + v[:, 2] ** 2)
+        v /= nv[:, None]  # ā_k
+        self._x, self._r, self._J, self._gain = x.copy(), nv - 1.0, None, None  # eq. 13
+        self._parts = (th, d, v)
+
+    def residuals(self, x: NDArray) -> NDArray[np.float64]:
+        """``r_jk = ‖T_j(u_jk − o_j)‖ − 1`` (K, n) (Lu 2017, eq. 13)."""
+        self._at(x)
+        return self._r
+
+    def bias_jacobian(self, x: NDArray) -> NDArray[np.float64]:
+        """``∂r/∂o = −Tᵀ ā`` (K, 3, n) (Lu 2017, eq. 16)."""
+        self._at(x)
+        th, _, a = self._parts
+        g = np.empty_like(a)
+        g[:, 0] = -(th[:, 0] * a[:, 0] + th[:, 1] * a[:, 1] + th[:, 3] * a[:, 2])
+        g[:, 1] = -(th[:, 2] * a[:, 1] + th[:, 4] * a[:, 2])
+        g[:, 2] = -th[:, 5] * a[:, 2]
+        return g
+
+    def jacobian(self, x: NDArray) -> NDArray[np.float64]:
+        """``∂r/∂θ`` (K, 9, n): ``∂r/∂T_ij = ā_i u_j`` (Lu 2017, eq. 15), then ∂r/∂o (eq. 16)."""
+        self._at(x)
+        if self._J is None:
+            _, d, a = self._parts
+            J = np.empty((d.shape[0], 9, d.shape[2]))
+            np.multiply(a[:, TRIL_ROWS], d[:, TRIL_COLS], out=J[:, :6])
+            J[:, 6:9] = self.bias_jacobian(x)
+            self._J = J
+        return self._J
+
+    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
+        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached)."""
+        r = self.residuals(x)
+        return r, (self.jacobian(x) if jacobian else None)
 
     def value(self, x: NDArray) -> float:
-        r, _ = self.evaluate(x, jacobian=False)
-        return float(np.sum(self.scale * np.sum(self.w * r * r, axis=1)))
+        r = self.residuals(x)
+        return float(self.scale @ np.sum(self.w * r * r, axis=1))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
         r, J = self.evaluate(x)
-        g = 2.0 * self.scale[:, None] * np.einsum("kpn,kn->kp", J, self.w * r)
-        return self.value(x), g.ravel()
+        wr = self.w * r
+        g = (2.0 * self.scale)[:, None] * np.matmul(J, wr[:, :, None])[:, :, 0]
+        return float(self.scale @ np.sum(wr * r, axis=1)), g.ravel()
 
     def hessian_blocks(self, x: NDArray) -> NDArray[np.float64]:
         """``2 c_j J_j W_j J_jᵀ`` per unit, (K, 9, 9)."""
         _, J = self.evaluate(x)
-        return 2.0 * self.scale[:, None, None] * np.einsum("kpn,kqn->kpq", J * self.w[:, None, :], J)
+        Jw = J * np.sqrt((2.0 * self.scale)[:, None] * self.w)[:, None, :]
+        return np.matmul(Jw, np.swapaxes(Jw, 1, 2))
 
     def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
-        """``‖Tᵀ ā_jk‖`` in normalised units (K, n) (= −∂r/∂o, as :meth:`NormResidualCost.normal_gain`)."""
-        _, J = self.evaluate(x)
-        return np.sqrt(np.sum(J[:, 6:9] ** 2, axis=1))
+        """``‖Tᵀ ā_jk‖`` in normalised units (K, n) (= ‖∂r/∂o‖, as :meth:`NormResidualCost.normal_gain`)."""
+        self._at(x)
+        if self._gain is None:
+            g = self.bias_jacobian(x) if self._J is None else self._J[:, 6:9]
+            self._gain = np.sqrt(g[:, 0] ** 2 + g[:, 1] ** 2 + g[:, 2] ** 2)
+        return self._gain
 
 
 class BatchedMLProblem:
