@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLikelihood, numpy_callback
-from optcal.identifiability import RANK_TOL, WEAK_STDERR
+from optcal.identifiability import RANK_TOL, WEAK_STDERR, pseudo_inverse
 from optcal.model import PARAM_NAMES
 from optcal.norm_residual import TRIL_COLS, TRIL_ROWS
 from optcal.poses import PoseTable
@@ -106,7 +106,8 @@ class BatchedNormResidualCost:
         if self._J is None:
             _, d, a = self._parts
             J = np.empty((d.shape[0], 9, d.shape[2]))
-            np.multiply(a[:, TRIL_ROWS], d[:, TRIL_COLS], out=J[:, :6])
+            for k, (i, j) in enumerate(zip(TRIL_ROWS, TRIL_COLS)):
+                np.multiply(a[:, i], d[:, j], out=J[:, k])
             J[:, 6:9] = self.bias_jacobian(x)
             self._J = J
         return self._J
@@ -163,12 +164,9 @@ class BatchedMLProblem:
         scalar = ca.Sparsity.dense(1, 1)
         empty = ca.Sparsity(0, 1)
 
-        def theta(arg: list) -> NDArray:
-            return np.asarray(arg[0]).ravel()
-
         self._gradient = numpy_callback(
             "batched_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)],
-            lambda arg: list(current().gradient(theta(arg))),
+            lambda arg: list(current().gradient(arg[0])), nonzeros=True,
         )
 
         def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
@@ -177,11 +175,11 @@ class BatchedMLProblem:
             return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
         self._cost = numpy_callback("batched_f", [("x", dense)], [("f", scalar)],
-                                    lambda arg: [current().value(theta(arg))], reverse=cost_reverse)
+                                    lambda arg: [current().value(arg[0])], reverse=cost_reverse, nonzeros=True)
         self._hessian = numpy_callback(
             "batched_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
             [("triu_hess_gamma_x_x", hess_sp)],
-            lambda arg: [ca.DM(hess_sp, current().hessian_blocks(theta(arg)).ravel()[self._flat] * float(arg[2]))],
+            lambda arg: [current().hessian_blocks(arg[0]).ravel()[self._flat] * float(arg[2][0])], nonzeros=True,
         )
         x = ca.MX.sym("theta", 9 * K)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian}
@@ -229,6 +227,10 @@ class BatchedFit:
         Whether IPOPT reported success for the unit's last solve.
     passes : ndarray of int, shape (K,)
         Solves until the weights settled.
+    iterations : ndarray of int, shape (K,)
+        IPOPT iterations of the problems the unit was solved in, summed over its passes.
+    residuals, weights : list of ndarray, shape (n_j,) each
+        Each unit's norm residuals and their weights at the fit (as ``CalibrationResult``).
     """
 
     theta: NDArray[np.float64]
@@ -237,6 +239,23 @@ class BatchedFit:
     identifiable: NDArray[np.bool_]
     success: NDArray[np.bool_]
     passes: NDArray[np.int64]
+    iterations: NDArray[np.int64]
+    residuals: list[NDArray[np.float64]]
+    weights: list[NDArray[np.float64]]
+
+    @classmethod
+    def empty(cls, n_units: int) -> "BatchedFit":
+        """A fit of ``n_units`` units to be filled in."""
+        K = n_units
+        return cls(np.zeros((K, 9)), np.zeros((K, 9, 9)), np.zeros(K), np.zeros(K, bool), np.zeros(K, bool),
+                   np.zeros(K, np.int64), np.zeros(K, np.int64), [np.empty(0)] * K, [np.empty(0)] * K)
+
+    def put(self, index: list[int], part: "BatchedFit") -> None:
+        """Store ``part`` (a fit of ``len(index)`` units) at positions ``index``."""
+        for name in ("theta", "covariance", "rms_g", "identifiable", "success", "passes", "iterations"):
+            getattr(self, name)[index] = getattr(part, name)
+        for j, k in enumerate(index):
+            self.residuals[k], self.weights[k] = part.residuals[j], part.weights[j]
 
     @property
     def stderr(self) -> NDArray[np.float64]:
@@ -269,9 +288,7 @@ class BatchedMaximumLikelihood:
 
     def fit_many(self, tables: list[PoseTable]) -> BatchedFit:
         """Calibrate every table (grouped by pose count, ``batch`` units per problem)."""
-        K = len(tables)
-        out = BatchedFit(np.zeros((K, 9)), np.zeros((K, 9, 9)), np.zeros(K), np.zeros(K, bool), np.zeros(K, bool),
-                         np.zeros(K, np.int64))
+        out = BatchedFit.empty(len(tables))
         by_n: dict[int, list[int]] = {}
         for j, t in enumerate(tables):
             by_n.setdefault(t.n, []).append(j)
@@ -279,9 +296,7 @@ class BatchedMaximumLikelihood:
             validate_many([tables[j] for j in idx], idx)
             for s in range(0, len(idx), self.batch):
                 part = idx[s:s + self.batch]
-                fit = self._fit_group([tables[j] for j in part])
-                for name in ("theta", "covariance", "rms_g", "identifiable", "success", "passes"):
-                    getattr(out, name)[part] = getattr(fit, name)
+                out.put(part, self._fit_group([tables[j] for j in part]))
         return out
 
     def _fit_group(self, tables: list[PoseTable]) -> BatchedFit:
@@ -297,14 +312,17 @@ class BatchedMaximumLikelihood:
             theta[j] = MaximumLikelihood().initial_normalised(tables[j], Normaliser(centre[j], float(scale[j])), u[j])[0]
         sigma = np.stack([t.sigma if t.sigma is not None else np.full(n, np.nan) for t in tables])
         known = np.all(np.isfinite(sigma), axis=1)
+        sigma_or_1 = np.where(known[:, None], sigma, 1.0)
 
         def weights(th: NDArray) -> NDArray:
+            """The propagated weights 1/(σ‖Tᵀā‖)² in raw units (MaximumLikelihood.weights), 1 without noise."""
             gain = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K)).normal_gain(th.ravel()) / scale[:, None]
-            return np.where(known[:, None], 1.0 / (np.where(known[:, None], sigma, 1.0) * gain) ** 2, 1.0)
+            return np.where(known[:, None], 1.0 / (sigma_or_1 * gain) ** 2, 1.0)
 
         w_used = np.full((K, n), np.nan)
         active = np.ones(K, bool)
         passes = np.zeros(K, np.int64)
+        iterations = np.zeros(K, np.int64)
         success = np.zeros(K, bool)
         for p in range(1 + max(self.reweight, 0)):
             w = weights(theta)
@@ -316,14 +334,21 @@ class BatchedMaximumLikelihood:
             w_n = w[a] / np.mean(w[a], axis=1, keepdims=True)
             theta[a], stats = BatchedMLProblem.get(len(a)).solve(theta[a], u[a], w_n)
             success[a] = bool(stats.get("success", False))
+            iterations[a] += int(stats.get("iter_count", 0))
             passes[a] += 1
             w_used[a] = w[a]
-        return self._finish(theta, u, scale, centre, sigma, known, success, passes)
+        return self._finish(theta, u, scale, centre, sigma_or_1, known, success, passes, iterations)
 
     @staticmethod
     def _finish(theta_n: NDArray, u: NDArray, scale: NDArray, centre: NDArray, sigma: NDArray, known: NDArray,
-                success: NDArray, passes: NDArray) -> BatchedFit:
-        """Covariance and identifiability as :func:`optcal.estimators.base.finish`, for every unit at once."""
+                success: NDArray, passes: NDArray, iterations: NDArray) -> BatchedFit:
+        """Covariance and identifiability as :func:`optcal.estimators.base.fisher_at_fit`, for every unit at once.
+
+        One Jacobian per unit; the Fisher information with the noise propagated to the norm
+        (:func:`optcal.identifiability.fisher_information`) serves the rank test and, for units
+        with known noise, is also the information whose pseudo-inverse is the covariance; its
+        eigenvalues give the weak-direction test (:func:`optcal.identifiability.add_weak_directions`).
+        """
         K, n, _ = u.shape
         theta_n = theta_n.copy()
         flip = theta_n[:, [0, 2, 5]] < 0  # canonical form: positive diagonal of T (a row sign of T is free)
@@ -334,26 +359,31 @@ class BatchedMaximumLikelihood:
             theta_n[j] = theta_from(canonicalise(T), o)
         cost = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K))
         r, J = cost.evaluate(theta_n.ravel())
-        gain = cost.normal_gain(theta_n.ravel()) / scale[:, None]
-        s = np.where(known[:, None], sigma, 1.0)
-        w = np.where(known[:, None], 1.0 / (s * gain) ** 2, 1.0)
-        F_n = np.einsum("kpn,kqn->kpq", J * w[:, None, :], J)  # Fisher information, normalised θ
-        cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
+        gain = cost.normal_gain(theta_n.ravel()) / scale[:, None]  # raw units
+        w_fisher = 1.0 / (sigma * gain) ** 2  # fisher_information's weights (σ = 1 when not known)
+        Jw = J * np.sqrt(w_fisher)[:, None, :]
+        F_fisher = np.matmul(Jw, np.swapaxes(Jw, 1, 2))  # normalised θ
+        w = np.where(known[:, None], w_fisher, 1.0)  # the fit's weights (pose_weights)
+        F_n = F_fisher.copy()
+        if not known.all():
+            Ju = J[~known]
+            F_n[~known] = np.matmul(Ju, np.swapaxes(Ju, 1, 2))
+        cov_n, cov_eigenvalues, _ = pseudo_inverse(F_n)
         dof = n - 9
         chi2 = np.sum(w * r * r, axis=1)
-        cov_n = np.where(known[:, None, None], cov_n, cov_n * (chi2 / dof if dof > 0 else np.nan)[:, None, None])
+        factor = np.where(known, 1.0, chi2 / dof if dof > 0 else np.nan)
+        cov_n *= factor[:, None, None]
         # identifiability (optcal.identifiability.analyse): rank of the correlation-form Fisher matrix
-        w_id = 1.0 / (s * gain) ** 2
-        F_id = np.einsum("kpn,kqn->kpq", J * w_id[:, None, :], J)
-        d = np.sqrt(np.clip(np.diagonal(F_id, axis1=1, axis2=2), 1e-300, None))
-        ev = np.linalg.eigvalsh(F_id / (d[:, :, None] * d[:, None, :]))
+        d = np.sqrt(np.clip(np.diagonal(F_fisher, axis1=1, axis2=2), 1e-300, None))
+        ev = np.linalg.eigvalsh(F_fisher / (d[:, :, None] * d[:, None, :]))
         full_rank = np.all(ev >= RANK_TOL * np.maximum(ev[:, -1:], 1e-300), axis=1)
-        weak = np.linalg.eigvalsh(0.5 * (cov_n + np.swapaxes(cov_n, 1, 2)))[:, -1] > WEAK_STDERR**2
+        weak = np.max(cov_eigenvalues * factor[:, None], axis=1) > WEAK_STDERR**2
         D = np.concatenate([np.repeat(1.0 / scale[:, None], 6, axis=1), np.repeat(scale[:, None], 3, axis=1)], axis=1)
         theta = theta_n * D
         theta[:, 6:9] += centre  # Normaliser.theta_to_raw
         cov = cov_n * D[:, :, None] * D[:, None, :]
-        return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes)
+        return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes,
+                          iterations, list(r), list(w))
 
 
 def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
