@@ -286,14 +286,19 @@ class BatchedMaximumLikelihood:
         self.reweight = int(reweight if reweight is not None else defaults.reweight)
         self.reweight_rtol = float(reweight_rtol)
 
-    def fit_many(self, tables: list[PoseTable]) -> BatchedFit:
-        """Calibrate every table (grouped by pose count, ``batch`` units per problem)."""
+    def fit_many(self, tables: list[PoseTable], validate: bool = True) -> BatchedFit:
+        """Calibrate every table (grouped by pose count, ``batch`` units per problem).
+
+        ``validate=False`` skips :func:`validate_many` for tables the caller has validated
+        (:func:`invalid_tables`).
+        """
         out = BatchedFit.empty(len(tables))
         by_n: dict[int, list[int]] = {}
         for j, t in enumerate(tables):
             by_n.setdefault(t.n, []).append(j)
         for idx in by_n.values():
-            validate_many([tables[j] for j in idx], idx)
+            if validate:
+                validate_many([tables[j] for j in idx], idx)
             for s in range(0, len(idx), self.batch):
                 part = idx[s:s + self.batch]
                 out.put(part, self._fit_group([tables[j] for j in part]))
@@ -386,42 +391,54 @@ class BatchedMaximumLikelihood:
                           iterations, list(r), list(w))
 
 
-def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
-    """:meth:`PoseTable.validate` for tables of one pose count, vectorised; the first failure raised.
+def invalid_tables(tables: list[PoseTable]) -> dict[int, InputError]:
+    """The tables (of one pose count) that :meth:`PoseTable.validate` refuses, with its error.
 
     The checks (finite values, positive noise, enough poses, enough distinct poses, not
-    coplanar) run on the stacked (K, n, 3) array; a table that fails any of them is validated
-    on its own so that the error is exactly :meth:`PoseTable.validate`'s, prefixed with its
-    position in ``tables`` (or ``index``).
+    coplanar) are screened on the stacked (K, n, 3) array; a table the screen cannot pass
+    is validated on its own, so that the verdict and the error are exactly
+    :meth:`PoseTable.validate`'s.  (Distinct poses are screened by the distinct quantised x
+    values, a lower bound of the distinct rows.)
     """
     from optcal.poses import MIN_POSES
 
-    index = list(range(len(tables))) if index is None else index
+    if not tables:
+        return {}
     acc = np.stack([t.acc for t in tables])
     n = acc.shape[1]
-    bad = ~np.all(np.isfinite(acc), axis=(1, 2)) | (n < MIN_POSES)
-    for j, t in enumerate(tables):
-        for v in (t.sigma, t.t, t.temp):
-            if v is not None and not np.all(np.isfinite(v)):
-                bad[j] = True
-        if t.sigma is not None and np.any(t.sigma <= 0):
-            bad[j] = True
-    ok = ~bad
-    if n >= MIN_POSES and ok.any():
+    suspect = ~np.all(np.isfinite(acc), axis=(1, 2)) | (n < MIN_POSES)
+    for name in ("sigma", "t", "temp"):
+        have = [j for j, t in enumerate(tables) if getattr(t, name) is not None]
+        if have:
+            v = np.stack([getattr(tables[j], name) for j in have])
+            bad = ~np.all(np.isfinite(v), axis=1) | (np.any(v <= 0, axis=1) if name == "sigma" else False)
+            suspect[np.asarray(have)[bad]] = True
+    ok = np.flatnonzero(~suspect)
+    if n >= MIN_POSES and ok.size:
         a = acc[ok]
         full = np.max(np.abs(a), axis=(1, 2))
-        q = np.round(a / (np.where(full > 0, full, 1.0) * 1e-9)[:, None, None])
-        order = np.lexsort((q[..., 2], q[..., 1], q[..., 0]), axis=-1)
-        q = np.take_along_axis(q, order[..., None], axis=1)
-        distinct = 1 + np.sum(np.any(np.diff(q, axis=1) != 0, axis=2), axis=1)
+        qx = np.sort(np.round(a[..., 0] / (np.where(full > 0, full, 1.0) * 1e-9)[:, None]), axis=1)
+        distinct_x = 1 + np.sum(np.diff(qx, axis=1) != 0, axis=1)
         sv = np.linalg.svd(a - a.mean(axis=1, keepdims=True), compute_uv=False)
         flat = (sv[:, 0] == 0) | (sv[:, -1] < 1e-6 * sv[:, 0])
-        bad[np.flatnonzero(ok)[(distinct < MIN_POSES) | flat]] = True
-    for j in np.flatnonzero(bad):
+        suspect[ok[(distinct_x < MIN_POSES) | flat]] = True
+    errors = {}
+    for j in np.flatnonzero(suspect):
         try:
             tables[j].validate()
         except InputError as exc:
-            raise InputError(f"tables[{index[j]}]: {exc}") from exc
+            errors[int(j)] = exc
+    return errors
+
+
+def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
+    """:meth:`PoseTable.validate` for tables of one pose count, vectorised (:func:`invalid_tables`).
+
+    The first failure is raised, prefixed with its position in ``tables`` (or ``index``).
+    """
+    index = list(range(len(tables))) if index is None else index
+    for j, exc in sorted(invalid_tables(tables).items()):
+        raise InputError(f"tables[{index[j]}]: {exc}") from exc
 
 
 def convex_start(u: NDArray) -> NDArray[np.float64]:

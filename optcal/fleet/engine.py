@@ -10,7 +10,8 @@ fit and the refit with the population prior.
 
 Steps of :func:`run_fleet`:
 
-1. read and calibrate every unit (``read_unit`` → ``fit_unit``), in tasks of a few dozen units
+1. read and calibrate every unit (``read_unit`` → ``fit_units``: the default calibrations of a task's
+   units solved together in batched IPOPT problems), in tasks of a few dozen units
    (:func:`auto_chunk`: per-task overhead of the scheduler stays small, and the data of a chunk
    stay on its worker);
 2. population statistics and flags from the units calibrated by their own data
@@ -36,7 +37,7 @@ from optcal.fleet.inputs import UnitInput
 from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD, flag_units, population_stats
 from optcal.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
 from optcal.fleet.results import FleetResult
-from optcal.fleet.unit import ReadFailure, UnitOutcome, fit_unit, outcome_from_result, read_unit
+from optcal.fleet.unit import ReadFailure, UnitOutcome, fit_units, outcome_from_result, read_unit
 from optcal.poses import PoseTable
 
 
@@ -175,8 +176,8 @@ def read_chunk(units: list[UnitInput], load_options: dict[str, Any]) -> list[Pos
 
 
 def fit_chunk(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> list[UnitOutcome]:
-    """:func:`~optcal.fleet.unit.fit_unit` for a chunk of units (one Dask task)."""
-    return [fit_unit(u, d) for u, d in zip(units, data)]
+    """The units of a chunk calibrated together (:func:`~optcal.fleet.unit.fit_units`; one Dask task)."""
+    return fit_units(units, data)
 
 
 def refit_chunk(outcomes: list[UnitOutcome], data: list[PoseTable | ReadFailure], prior: PopulationPrior) -> list[UnitOutcome]:
