@@ -35,12 +35,17 @@ def fleet_run(tmp_path_factory):
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
         code = main(["fleet", str(folder / "units"), "-o", str(out), "--workers", "2", "--json", "--no-progress"])
-    return truth, code, json.loads(stdout.getvalue()), pd.read_parquet(out)
+    return truth, code, json.loads(stdout.getvalue()), pd.read_parquet(out), out
 
 
 def test_fleet_acceptance(fleet_run):
-    truth, code, summary, table = fleet_run
+    truth, code, summary, table, out = fleet_run
     assert code == 0
+    # the table was streamed: one row group per task, the units in input order
+    import pyarrow.parquet as pq
+
+    assert list(table["unit"]) == sorted(truth.kinds)
+    assert pq.ParquetFile(out).num_row_groups == -(-N_UNITS // summary["units_per_task"])
     assert summary["engine"] == "dask.distributed LocalCluster, 2 workers"
     assert summary["n_units"] == N_UNITS == len(table)
     # the unreadable files are listed with their reason, nothing else failed
@@ -66,7 +71,7 @@ def test_fleet_acceptance(fleet_run):
 
 
 def test_unit_identical_to_calibrate(fleet_run, capsys):
-    truth, _, _, table = fleet_run
+    truth, _, _, table, _ = fleet_run
     rows = table.set_index("unit")
     for unit in (truth.units("normal")[0], truth.units("scale_error")[0]):
         path = str(truth.folder / f"{unit}.csv")
@@ -121,7 +126,7 @@ def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
 
 
 def test_prior_helps_weak_units_and_does_not_bias_the_others(fleet_run):
-    truth, _, _, table = fleet_run
+    truth, _, _, table, _ = fleet_run
     rows = table.set_index("unit")
     normal = [u for u in truth.units("normal") if rows.loc[u, "status"] == "calibrated"]
     own = np.array([rows.loc[u, list(PARAM_NAMES)].to_numpy(float) - truth.truth[u] for u in normal])
