@@ -14,6 +14,7 @@ from optcal.cli.main import main
 from optcal.data import load
 from optcal.calibration import calibrate
 from optcal.errors import InputError
+from optcal.estimators.batched import parameter_full_scale
 from optcal.fleet.engine import ClusterSettings
 from optcal.fleet.inputs import expand_inputs, read_manifest
 from optcal.fleet.population import flag_units, population_stats
@@ -80,20 +81,14 @@ def test_unit_identical_to_calibrate(fleet_run, capsys):
         # the fleet solves its units in batches: equal to the solver tolerance (fit_units below)
         theta = np.array([rows.loc[unit, p] for p in PARAM_NAMES])
         ref_theta = np.array([ref["params"][p] for p in PARAM_NAMES])
-        assert np.max(np.abs(theta - ref_theta) / _full_scale(ref_theta)) < PARITY_FULL_SCALE
+        assert np.max(np.abs(theta - ref_theta) / parameter_full_scale(ref_theta)) < PARITY_FULL_SCALE
         np.testing.assert_allclose([rows.loc[unit, f"{p}_stderr"] for p in PARAM_NAMES],
                                    [ref["stderr"][p] for p in PARAM_NAMES], rtol=1e-7, atol=0)
 
 
 #: Largest difference between a unit's θ solved in a batch and alone, as a fraction of the
-#: parameter's full scale (:func:`_full_scale`); measured 8.3e-10 on 300 units.
+#: parameter's full scale (:func:`optcal.estimators.batched.parameter_full_scale`); measured 8.3e-10 on 300 units.
 PARITY_FULL_SCALE = 5e-9
-
-
-def _full_scale(theta: np.ndarray) -> np.ndarray:
-    """Full scale of each parameter of θ: the largest diagonal entry of T for T, 1 g (1/min diag T) for o."""
-    diag = np.abs(theta[[0, 2, 5]])
-    return np.concatenate([np.full(6, diag.max()), np.full(3, 1.0 / diag.min())])
 
 
 def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
@@ -119,7 +114,7 @@ def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
         assert (b.unit, b.status, b.reason, b.n_poses, b.sigma_known) == (s.unit, s.status, s.reason, s.n_poses, s.sigma_known)
         if s.theta is None:
             continue
-        assert np.max(np.abs(b.theta - s.theta) / _full_scale(s.theta)) < PARITY_FULL_SCALE
+        assert np.max(np.abs(b.theta - s.theta) / parameter_full_scale(s.theta)) < PARITY_FULL_SCALE
         assert np.max(np.abs(b.theta - s.theta) / s.stderr) < 1e-5  # the solver tolerance, ~1e-7·√n SE
         np.testing.assert_allclose(b.stderr, s.stderr, rtol=1e-7, atol=0)
         assert b.rms_g == pytest.approx(s.rms_g, rel=1e-7) and b.heldout_rms_g == pytest.approx(s.heldout_rms_g, rel=1e-7)

@@ -391,6 +391,16 @@ class BatchedMaximumLikelihood:
                           iterations, list(r), list(w))
 
 
+def parameter_full_scale(theta: NDArray) -> NDArray[np.float64]:
+    """Full scale of each entry of θ: the largest diagonal entry of T for T, 1 g (1/min diag T) for o.
+
+    The yardstick of "equal to the solver tolerance": relative to each value, an off-diagonal
+    entry near zero would make any difference look large.
+    """
+    diag = np.abs(np.asarray(theta, dtype=float)[[0, 2, 5]])
+    return np.concatenate([np.full(6, diag.max()), np.full(3, 1.0 / diag.min())])
+
+
 def invalid_tables(tables: list[PoseTable]) -> dict[int, InputError]:
     """The tables (of one pose count) that :meth:`PoseTable.validate` refuses, with its error.
 
