@@ -258,7 +258,7 @@ def run_fleet(
         Progress bars on standard error.
     output : str or Path, optional
         The Parquet results table, written while the last stage runs (:class:`ResultsWriter`:
-        one row group per task, in input order) rather than from the whole table at the end.
+        in input order, row group by row group) rather than from the whole table at the end.
     """
     from uuid import uuid4
 

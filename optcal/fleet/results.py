@@ -48,6 +48,10 @@ def unit_row(o: UnitOutcome, meta_keys: list[str] | None = None) -> dict[str, An
     return row
 
 
+#: Rows per Parquet row group of the results table.
+ROW_GROUP: int = 4096
+
+
 def results_schema(meta_keys: list[str]) -> Any:
     """The :class:`pyarrow.Schema` of the results table (columns of :func:`unit_row`)."""
     import pyarrow as pa
@@ -61,35 +65,46 @@ def results_schema(meta_keys: list[str]) -> Any:
 
 
 class ResultsWriter:
-    """The results table written as the units finish: one Parquet row group per batch of outcomes.
+    """The results table written as the units finish, in Parquet row groups of ``row_group`` rows.
 
-    The client holds one batch of rows at a time instead of the whole table (a 10⁶-unit table
-    is ≈ 0.5 GB as Parquet, several GB as Python rows).  A context manager.
+    The client holds at most one row group of rows at a time instead of the whole table (a
+    10⁶-unit table is ≈ 0.5 GB as Parquet, several GB as Python rows).  A context manager.
 
     Parameters
     ----------
     path : str or Path
     meta_keys : list of str
         Every manifest metadata column of the fleet (the schema is fixed before the first row).
+    row_group : int
+        Rows per row group (:data:`ROW_GROUP`): large enough for Parquet's column encodings.
     """
 
-    def __init__(self, path: str | Path, meta_keys: list[str]) -> None:
+    def __init__(self, path: str | Path, meta_keys: list[str], row_group: int = 0) -> None:
         import pyarrow.parquet as pq
 
         self.meta_keys = list(meta_keys)
         self.schema = results_schema(self.meta_keys)
+        self.row_group = int(row_group) or ROW_GROUP
         self._writer = pq.ParquetWriter(str(path), self.schema)
+        self._pending: list[dict[str, Any]] = []
         self.rows = 0
 
     def write(self, outcomes: list[UnitOutcome]) -> None:
-        """Append the rows of ``outcomes`` as one row group."""
+        """Append the rows of ``outcomes`` (written once a row group is full)."""
+        self._pending += [unit_row(o, self.meta_keys) for o in outcomes]
+        if len(self._pending) >= self.row_group:
+            self._flush()
+
+    def _flush(self) -> None:
         import pyarrow as pa
 
-        if outcomes:
-            self._writer.write_table(pa.Table.from_pylist([unit_row(o, self.meta_keys) for o in outcomes], schema=self.schema))
-            self.rows += len(outcomes)
+        if self._pending:
+            self._writer.write_table(pa.Table.from_pylist(self._pending, schema=self.schema))
+            self.rows += len(self._pending)
+            self._pending = []
 
     def close(self) -> None:
+        self._flush()
         self._writer.close()
 
     def __enter__(self) -> "ResultsWriter":
@@ -151,8 +166,7 @@ class FleetResult:
         """Write the results table to a Parquet file (as :class:`ResultsWriter` does while a run streams it)."""
         meta_keys = sorted({k for o in self.outcomes for k in o.metadata})
         with ResultsWriter(path, meta_keys) as writer:
-            for s in range(0, len(self.outcomes), 4096):
-                writer.write(self.outcomes[s:s + 4096])
+            writer.write(self.outcomes)
 
     def summary(self, results_path: str | None = None) -> dict[str, Any]:
         """The JSON summary (``engine``, ``n_units``, ``calibrated``, ``failed``, ``flagged``, ``results``, ...)."""
