@@ -74,8 +74,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         board = f"dashboard {fc.dashboard_link}" if fc.dashboard_link else "dashboard off"
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
         result = run_fleet(units, fc.client, engine=fc.engine, load_options=_load_kwargs(data_opts),
-                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress)
-    result.write_parquet(output)
+                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress, output=output)
     if plot:
         _write_figures(result, Path(plot))
     if report_path:
