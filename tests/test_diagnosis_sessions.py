@@ -18,6 +18,8 @@ from optcal.errors import InputError
 from optcal.model import AXES, lu2017_reference_model
 
 SETTINGS = DiagnosisSettings(simulations=10)
+#: No simulation check where only the selection matters.
+NO_SIMULATION = DiagnosisSettings(simulations=0)
 
 
 def sessions_with_shift(shift_g: float, axis: int, seed: int, n: int = 40):
@@ -63,7 +65,7 @@ def test_sessions_without_a_shift_name_no_session_bias() -> None:
     named = 0
     for seed in (21, 22, 23):
         sessions, _ = sessions_with_shift(0.0, 0, seed)
-        diag = Diagnoser(SETTINGS).run_sessions(sessions)
+        diag = Diagnoser(NO_SIMULATION).run_sessions(sessions)
         named += diag.finding("session_bias") is not None
         assert "session_bias" in diag.effects_tested
     assert named == 0
@@ -115,7 +117,7 @@ def test_cli_diagnoses_sessions_together_and_saves_the_mean_bias(tmp_path: Path,
     assert "session_bias" in out.out and "turn-on repeatability" in out.out
     assert "mean of 2 sessions' biases" in out.out  # what the saved calibration applies, stated
     assert "session_bias on axis z" in (tmp_path / "report.html").read_text()
-    code = main(["diagnose", *paths, "--simulations", "10", "--json"])
+    code = main(["diagnose", *paths, "--simulations", "0", "--json"])
     obj = json.loads(capsys.readouterr().out)
     assert [d["path"] for d in obj["data"]] == paths and obj["sessions"]["names"] == paths
     found = next(f for f in obj["findings"] if f["effect"] == "session_bias")
@@ -135,13 +137,13 @@ def test_two_halves_of_the_xsens_log_with_a_planted_shift(shared_data: Path, tmp
     clean = frame.iloc[half:].copy()
     clean.to_csv(tmp_path / "b.csv", index=False)
     first, second = load(tmp_path / "a.csv"), load(tmp_path / "b.csv")
-    unplanted = Diagnoser(SETTINGS).run_sessions([first, second])
+    unplanted = Diagnoser(NO_SIMULATION).run_sessions([first, second])
     assert unplanted.finding("session_bias") is None
     counts_per_g = float(np.linalg.norm(unplanted.model.base.C, axis=1)[2])
     shift_counts = int(round(4e-3 * counts_per_g))
     clean["acc_z_counts"] += shift_counts
     clean.to_csv(tmp_path / "b_shifted.csv", index=False)
-    diag = Diagnoser(SETTINGS).run_sessions([first, load(tmp_path / "b_shifted.csv")])
+    diag = Diagnoser(NO_SIMULATION).run_sessions([first, load(tmp_path / "b_shifted.csv")])
     found = diag.finding("session_bias")
     assert found is not None and found.axes == ["z"]
     difference = found.sessions.offsets_g["z"][1] - found.sessions.offsets_g["z"][0]

@@ -13,7 +13,9 @@ from optcal.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.diagnosis.still_noise import mean_noise_at, pose_noise_from_still_parts
 from optcal.simulate_effects import recording_with_effect
 
-SETTINGS = DiagnosisSettings(simulations=30)
+SETTINGS = DiagnosisSettings(simulations=10)
+#: No simulation check where only the selection and the noise test matter.
+NO_SIMULATION = DiagnosisSettings(simulations=0)
 
 
 def raw(tmp_path: Path, effect: str | None, gauss_markov_g: float, seed: int, axis: str | None = None):
@@ -59,7 +61,7 @@ def test_white_noise_recording_measures_no_understatement(tmp_path: Path) -> Non
 
 def test_the_noise_model_does_not_hide_a_real_effect(tmp_path: Path) -> None:
     loaded, truth = raw(tmp_path, "temperature_bias", 1.5e-3, seed=7, axis="y")
-    diag = Diagnoser(SETTINGS).run(loaded.poses, still_parts=loaded.segmentation)
+    diag = Diagnoser(NO_SIMULATION).run(loaded.poses, still_parts=loaded.segmentation)
     found = diag.finding("temperature_bias")
     assert found is not None and found.axes == ["y"]
     assert found.estimate["y"] == pytest.approx(truth.value, rel=0.3)
