@@ -84,8 +84,8 @@ def test_unit_identical_to_calibrate(fleet_run, capsys):
 
 
 #: Largest difference between a unit's θ solved in a batch and alone, as a fraction of the
-#: parameter's full scale (:func:`optcal.estimators.batched.parameter_full_scale`); measured 8.3e-10 on 300 units.
-PARITY_FULL_SCALE = 5e-9
+#: parameter's full scale (:func:`optcal.estimators.batched.parameter_full_scale`); measured 8.3e-10 on 300 units at ipopt.tol 1e-7, at most 1.1e-10 at 1e-10.
+PARITY_FULL_SCALE = 5e-10
 
 
 def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
@@ -112,7 +112,7 @@ def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
         if s.theta is None:
             continue
         assert np.max(np.abs(b.theta - s.theta) / parameter_full_scale(s.theta)) < PARITY_FULL_SCALE
-        assert np.max(np.abs(b.theta - s.theta) / s.stderr) < 1e-5  # the solver tolerance, ~1e-7·√n SE
+        assert np.max(np.abs(b.theta - s.theta) / s.stderr) < 1e-6  # the solver tolerance
         np.testing.assert_allclose(b.stderr, s.stderr, rtol=1e-7, atol=0)
         assert b.rms_g == pytest.approx(s.rms_g, rel=1e-7) and b.heldout_rms_g == pytest.approx(s.heldout_rms_g, rel=1e-7)
 

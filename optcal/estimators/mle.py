@@ -177,7 +177,7 @@ def cost_scale(n: int, start_rms: float) -> float:
 #: cost a gradient evaluation); the multipliers of the parameters are not needed.
 ML_IPOPT_DEFAULTS: dict[str, Any] = {
     **IPOPT_DEFAULTS,
-    "ipopt.tol": 1e-7,
+    "ipopt.tol": 1e-10,
     "ipopt.acceptable_tol": 1e-5,
     "ipopt.acceptable_iter": 3,
     "ipopt.nlp_scaling_method": "none",
