@@ -6,6 +6,9 @@ Run on demand: ``pytest benchmarks/bench_fleet.py`` (``OPTCAL_BENCH_QUICK=1`` fo
 * ``test_fleet_few_hundred_units`` — ``optcal fleet`` on 300 synthetic units with planted trouble
   (2 unreadable files, an 8 % scale error, a six-face unit) on a 2-worker LocalCluster, wall time
   *including the cluster start* and the prior refit.  Target ≤ 60 s on 2 cores.
+* ``test_fit_stage_batched_against_single`` — the fleet's fit stage in one process (no Dask) on
+  the same read tables: ``fit_units`` (a task's units in batched IPOPT problems) against
+  ``fit_unit`` one at a time (the baseline, measured in the same run), CPU ms per unit.
 * ``test_batched_throughput`` — complete default ``mle`` fits per second of 120-pose problems
   (Lu 2017 Table 1 design), batched (:mod:`optcal.estimators.batched`) against one at a time
   measured in the same run, per second of wall time and of CPU time.  Target ≥ 2,000 batched fits/s
@@ -48,6 +51,38 @@ def test_fleet_few_hundred_units(benchmark, tmp_path):
         assert out["total_s"] <= 60.0
 
 
+def test_fit_stage_batched_against_single(benchmark, tmp_path):
+    import numpy as np
+
+    from optcal.estimators.batched import parameter_full_scale
+    from optcal.fleet.unit import fit_unit, fit_units, read_unit
+
+    n = 128 if QUICK else 512
+    write_fleet(tmp_path / "units", n, seed=18, scale_error_units=1, six_face_units=1, unreadable_units=1)
+    units = expand_inputs([str(tmp_path / "units")])
+    data = [read_unit(u, {}) for u in units]
+    fit_units(units[:8], data[:8])  # builds the problems
+    [fit_unit(u, d) for u, d in zip(units[:2], data[:2])]
+
+    def stage() -> dict:
+        c0 = time.process_time()
+        single = [fit_unit(u, d) for u, d in zip(units, data)]
+        c1 = time.process_time()
+        together = fit_units(units, data)
+        c2 = time.process_time()
+        return {"single_ms": (c1 - c0) / n * 1e3, "batched_ms": (c2 - c1) / n * 1e3, "single": single, "together": together}
+
+    out = benchmark.pedantic(stage, rounds=1, iterations=1)
+    worst = max(float(np.max(np.abs(b.theta - s.theta) / parameter_full_scale(s.theta)))
+                for b, s in zip(out["together"], out["single"]) if s.theta is not None)
+    benchmark.extra_info.update({"units": n, "single_cpu_ms_per_unit": out["single_ms"],
+                                 "batched_cpu_ms_per_unit": out["batched_ms"], "max_deviation_full_scale": worst})
+    print(f"\nfit stage, {n} units: one at a time {out['single_ms']:.2f} CPU ms/unit, batched {out['batched_ms']:.2f} "
+          f"(×{out['single_ms'] / out['batched_ms']:.1f}); largest difference {worst:.1e} of full scale")
+    assert [b.status for b in out["together"]] == [s.status for s in out["single"]]
+    assert worst < 5e-10
+
+
 def test_batched_throughput(benchmark):
     fits = 100 if QUICK else 300
     res = benchmark.pedantic(throughput, args=(table1_design(), fits, 0, False), kwargs={"batched_fits": 10 * fits},
@@ -60,6 +95,7 @@ def test_batched_throughput(benchmark):
     print(f"\nbatched {b['fits_per_s']:.0f} fits/s ({b['fits_per_cpu_s']:.0f} per CPU second), one at a time "
           f"{res['fits_per_s']:.0f} fits/s ({res['fits_per_cpu_s']:.0f} per CPU second) "
           f"(×{b['fits_per_s'] / res['fits_per_s']:.1f}); largest difference {b['max_deviation_from_single_in_stderr']:.1e} SE")
-    assert b["max_deviation_from_single_in_stderr"] < 1e-5
+    assert b["max_deviation_from_single_in_stderr"] < 1e-6
+    assert b["max_deviation_from_single_full_scale"] < 5e-10
     if STRICT:
         assert b["fits_per_s"] >= 2000

@@ -217,6 +217,7 @@ def format_value(effect: str, value: float, stderr: float | None = None) -> str:
         "temperature_scale": (1e6, "ppm/°C"),
         "bias_drift": (1e6, "µg/s"),
         "scale_nonlinearity": (1e3, "mg/g²"),
+        "session_bias": (1e3, "mg"),  # a bias offset between sessions (turn-on repeatability), g
     }[effect]
     text = f"{value * factor:+.3g}"
     if stderr is not None and np.isfinite(stderr):

@@ -169,13 +169,16 @@ def analyse(
     sigma: ArrayLike | None = None,
     tol: float = RANK_TOL,
     jacobian: NDArray | None = None,
+    information: NDArray | None = None,
 ) -> IdentifiabilityReport:
     """Identifiability of θ at (T, o) for measurements ``acc``.
 
     The Fisher matrix is scaled to correlation form (unit diagonal) so that rank and
-    condition number do not depend on units.  ``jacobian``: see :func:`fisher_information`.
+    condition number do not depend on units.  ``jacobian``: see :func:`fisher_information`;
+    ``information``: :func:`fisher_information` itself, when the caller already has it (then
+    ``acc``, ``sigma`` and ``jacobian`` are not read).
     """
-    F = fisher_information(T, o, acc, sigma, jacobian)
+    F = fisher_information(T, o, acc, sigma, jacobian) if information is None else information
     d = np.sqrt(np.clip(np.diag(F), 1e-300, None))
     S = F / np.outer(d, d)
     evals, evecs = np.linalg.eigh(S)
@@ -193,13 +196,16 @@ def analyse(
 
 
 def add_weak_directions(report: IdentifiabilityReport, cov_normalised: NDArray, T_normalised: NDArray,
-                        threshold: float = WEAK_STDERR) -> IdentifiabilityReport:
+                        threshold: float = WEAK_STDERR,
+                        eigen: tuple[NDArray, NDArray] | None = None) -> IdentifiabilityReport:
     """Record in ``report`` the combinations whose standard error exceeds ``threshold``.
 
     ``cov_normalised`` is the covariance of θ in the normalised coordinates of
-    :class:`optcal.estimators.base.Normaliser` (T ≈ rotation, o in units of the radius).
+    :class:`optcal.estimators.base.Normaliser` (T ≈ rotation, o in units of the radius);
+    ``eigen`` its eigenvalues and eigenvectors when the caller has them (from
+    :func:`pseudo_inverse`), so that they are not computed again.
     """
-    evals, evecs = np.linalg.eigh(0.5 * (cov_normalised + cov_normalised.T))
+    evals, evecs = np.linalg.eigh(0.5 * (cov_normalised + cov_normalised.T)) if eigen is None else eigen
     big = evals > threshold**2
     if np.any(big):
         described = _describe_null_space(evecs[:, big], T_normalised)
@@ -207,6 +213,20 @@ def add_weak_directions(report: IdentifiabilityReport, cov_normalised: NDArray, 
             item["stderr"] = float(np.sqrt(lam))
         report.weak = described
     return report
+
+
+def pseudo_inverse(information: NDArray, rcond: float = 1e-12) -> tuple[NDArray[np.float64], NDArray, NDArray]:
+    """``F⁺`` of a symmetric information matrix, with its eigenvalues and eigenvectors.
+
+    The pseudo-inverse of :func:`numpy.linalg.pinv` with ``hermitian=True`` (eigenvalues below
+    ``rcond`` times the largest in magnitude count as zero), from one eigendecomposition; the
+    eigenvalues of ``F⁺`` (``1/λ`` or 0) and ``F``'s eigenvectors are returned for
+    :func:`add_weak_directions`.  Works on a stack of matrices (..., p, p).
+    """
+    lam, V = np.linalg.eigh(information)
+    cutoff = rcond * np.max(np.abs(lam), axis=-1, keepdims=True)
+    inv = np.where(np.abs(lam) > cutoff, 1.0 / np.where(lam == 0, 1.0, lam), 0.0)
+    return (V * inv[..., None, :]) @ np.swapaxes(V, -1, -2), inv, V
 
 
 def analyse_design(model: LumpedModel, directions: ArrayLike, tol: float = RANK_TOL) -> IdentifiabilityReport:
@@ -221,4 +241,5 @@ __all__ = [
     "analyse_design",
     "cramer_rao_bound",
     "fisher_information",
+    "pseudo_inverse",
 ]

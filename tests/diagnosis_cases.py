@@ -79,3 +79,13 @@ def make_case(effect: str | None, seed: int, scale: tuple[float, float] = (1.0, 
         rows = [int(r) for r in bad]
         axis = None
     return Case(poses, effect, None if axis is None else AXES[axis], value, rows, sigma)
+
+
+def write_pose_table(poses: PoseTable, path):
+    """``poses`` as a CSV pose table (``ax, ay, az, sigma, t, temp``) for the command-line tests."""
+    import pandas as pd
+
+    frame = pd.DataFrame({"ax": poses.acc[:, 0], "ay": poses.acc[:, 1], "az": poses.acc[:, 2],
+                          "sigma": poses.sigma, "t": poses.t, "temp": poses.temp})
+    frame.to_csv(path, index=False, float_format="%.10g")
+    return path

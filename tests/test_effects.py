@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.diagnosis.effects import EFFECTS, parse_effects
+from optcal.diagnosis.effects import EFFECTS, FITTED, parse_effects
+from optcal.diagnosis.effects import MAX_ORDER as FIT_MAX_ORDER
 from optcal.diagnosis.problem import ExtendedProblem, PoseData, active_mask, to_model
 from optcal.diagnosis.regressors import Regressors
 from optcal.extended_model import MAX_ORDER, PARAMETRIC, ExtendedModel
@@ -129,7 +130,8 @@ def test_parse_effects() -> None:
 
 def test_layout_covers_every_parametric_order() -> None:
     assert set(PARAMETRIC) | {"outliers"} == set(EFFECTS)
-    assert active_mask({(e, a): MAX_ORDER[e] for e in PARAMETRIC for a in range(3)}).all()
+    # the fit's layout: every order of the model's terms, then one offset per session after the first
+    assert active_mask({(e, a): FIT_MAX_ORDER[e] for e in FITTED for a in range(3)}).all()
 
 
 def test_warmup_cooldown_is_not_monotone() -> None:

@@ -233,3 +233,59 @@ def test_rendered_page_escapes_user_text_and_is_printable(tmp_path: Path) -> Non
     assert html.count("<svg") >= 2  # residuals and sphere map, inline
     with pytest.raises(Exception, match=r"\.html"):
         write_html(doc, tmp_path / "report.pdf")
+
+
+# ----------------------------------------------------------------------------- χ² against the simulation band
+def test_simulation_band_of_a_well_specified_calibration() -> None:
+    from scipy import stats
+
+    from optcal.report.simulation_band import fit_statistics, simulation_band
+
+    poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
+    result = calibrate(poses)
+    # the statistics of the measured fit are the fit's own χ²
+    assert fit_statistics(result.T, result.o, poses.acc, poses.sigma).chisqr == pytest.approx(result.chisqr, rel=1e-10)
+    band = simulation_band(result, poses)
+    assert band.simulations == 200 and not band.note
+    chi2, held_out = band.checks
+    assert chi2.position == "inside" and held_out.position == "inside"
+    assert 5 <= chi2.percentile <= 95 and 5 <= held_out.percentile <= 95
+    # the simulated χ² follows the χ² distribution with n − 9 degrees of freedom (Monte Carlo, 3 standard errors of the median)
+    dof = poses.n - 9
+    se_median = 1.2533 * np.sqrt(2 * dof) / np.sqrt(band.simulations)
+    assert abs(chi2.median - stats.chi2.median(dof)) < 3 * se_median
+    verdict = judge(gather(result, poses))
+    assert [r.level for r in verdict.reasons if r.topic == "simulation band"] == ["good", "good"]
+
+
+def test_simulation_band_of_counts_data() -> None:
+    """A sensor in counts (T far from I): the simulations are of the fitted sensor, not of T taken as C."""
+    from optcal.report.simulation_band import simulation_band
+    from optcal.simulate_effects import demo_sensor
+
+    poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)
+    counts = PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")
+    band = simulation_band(calibrate(counts), counts)
+    assert band.simulations == 200, band.note
+    assert [c.position for c in band.checks] == ["inside", "inside"]
+
+
+def test_simulation_band_puts_a_planted_effect_above() -> None:
+    poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
+    acc = poses.acc.copy()
+    acc[:, 2] += 2e-3 * np.linspace(-1, 1, poses.n)  # a z bias drifting by 4 mg over the session
+    drifted = PoseTable(acc=acc, sigma=poses.sigma, units="g")
+    ev = gather(calibrate(drifted), drifted)
+    chi2, held_out = ev.simulated
+    assert chi2.position == "above" and chi2.percentile == 100.0
+    assert held_out.position == "above" and held_out.percentile == 100.0
+    reasons = [r for r in judge(ev).reasons if r.topic == "simulation band"]
+    assert all("above what the model produces" in r.text for r in reasons)
+    # the part the simulations do not produce (about 0.4-0.6 mg rms) is within 1 mg and above 0.2 mg
+    assert [r.level for r in reasons] == ["good", "good"]
+    strict = [r for r in judge(ev, tolerance_mg=0.2).reasons if r.topic == "simulation band"]
+    assert [r.level for r in strict] == ["usable with care"] * 2
+    # without per-pose noise no band is computed, and the reason says why
+    blind = PoseTable(acc=acc, units="g")
+    ev = gather(calibrate(blind), blind)
+    assert ev.simulated == [] and "no per-pose noise" in ev.simulation_note

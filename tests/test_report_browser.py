@@ -51,22 +51,24 @@ def open_in_browser(page: Path, screenshot: Path, profile: Path, width: int = 41
 
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Reports of calibrate, check, diagnose and segment on a measured-like recording with a hidden drift."""
+    """Reports of calibrate, check, diagnose and segment on a measured-like recording with a hidden drift, and the
+    plan of four more poses after it (the fleet's report is rendered in tests/test_report_fleet.py)."""
     from optcal.simulate_effects import recording_with_effect
 
     out = tmp_path_factory.mktemp("reports")
     frame, _ = recording_with_effect("bias_drift", "y", n_poses=30, seed=4)
     data = out / "recording.csv"
     frame.to_csv(data, index=False, float_format="%.8g")
-    paths = {name: out / f"{name}.html" for name in ("calibrate", "check", "diagnose", "segment")}
+    paths = {name: out / f"{name}.html" for name in ("calibrate", "check", "diagnose", "segment", "plan")}
     assert main(["calibrate", str(data), "-o", str(out / "cal.json"), "--report", str(paths["calibrate"])]) == 0
     assert main(["check", str(out / "cal.json"), str(data), "--report", str(paths["check"])]) == 0
     assert main(["diagnose", str(data), "--simulations", "10", "--effects", "bias_drift", "--report", str(paths["diagnose"])]) == 0
     assert main(["segment", str(data), "--report", str(paths["segment"])]) == 0
+    assert main(["plan", "--poses", "4", "--given", str(data), "--report", str(paths["plan"])]) == 0
     return paths
 
 
-@pytest.mark.parametrize("name", ["calibrate", "check", "diagnose", "segment"])
+@pytest.mark.parametrize("name", ["calibrate", "check", "diagnose", "segment", "plan"])
 def test_report_renders_without_errors_or_requests(reports: dict[str, Path], name: str, tmp_path: Path) -> None:
     shots = Path(os.environ.get("OPTCAL_SCREENSHOT_DIR", tmp_path))
     shots.mkdir(parents=True, exist_ok=True)

@@ -9,6 +9,8 @@ Parameters, units and equation
 ``temp_ref``       °C              reference temperature ``T_ref`` (when a term needs temperature)
 ``t_ref``          s               reference time ``t_ref`` (when a term needs time)
 ``validity``       °C, s, g        temperature span, time span and ``|ā|`` range of the fit
+``bias_repeatability``  g          optional (format 2.1): turn-on bias repeatability per axis when the
+                                   calibration was fitted to several sessions (``o`` is then their mean)
 =================  ==============  ================================================================
 
 Term coefficients of order ``p``: ``temperature_bias`` g/°C^p, ``temperature_scale`` 1/°C^p,
@@ -40,7 +42,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.caltypes.base import Calibration, FitPoses, ValidityRangeWarning, as_column, as_samples, jsonable, read_matrix
+from optcal.caltypes.base import FORMAT_VERSION, Calibration, FitPoses, ValidityRangeWarning, as_column, as_samples, jsonable, read_matrix
 from optcal.caltypes.lumped import LumpedCalibration
 from optcal.extended_model import MAX_ORDER, NEEDS, PARAMETRIC, UNITS, ExtendedModel, axis_number
 from optcal.errors import InputError
@@ -105,6 +107,46 @@ class ExtendedTerm:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "ExtendedTerm":
         return cls(str(d["effect"]), str(d["axis"]), tuple(d["coefficients"]))
+
+
+@dataclass(frozen=True)
+class BiasRepeatability:
+    """Turn-on bias repeatability: how much the bias differed between the sessions of the fit.
+
+    A future session's bias is unknown, so a calibration fitted to several sessions applies the
+    mean of their biases (its ``o``) and carries this spread as the uncertainty of that bias.
+
+    Attributes
+    ----------
+    per_axis_g : tuple of float
+        Sample standard deviation of the sessions' biases per axis x, y, z (g; 0 on an axis
+        where the sessions agreed).
+    sessions : int
+        Number of sessions.
+    """
+
+    per_axis_g: tuple[float, float, float]
+    sessions: int
+
+    def __post_init__(self) -> None:
+        values = tuple(float(v) for v in np.asarray(self.per_axis_g, dtype=float).ravel())
+        if len(values) != 3 or not all(np.isfinite(v) and v >= 0 for v in values):
+            raise InputError("bias_repeatability per_axis_g must be three finite non-negative numbers (g)")
+        if int(self.sessions) < 2:
+            raise InputError(f"bias_repeatability needs at least 2 sessions, got {self.sessions}")
+        object.__setattr__(self, "per_axis_g", values)
+        object.__setattr__(self, "sessions", int(self.sessions))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"per_axis_g": list(self.per_axis_g), "sessions": self.sessions,
+                "meaning": "the bias o is the mean of the sessions' biases; a new session's bias differs from it "
+                           "by about this much (sample standard deviation over the sessions)"}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "BiasRepeatability":
+        if not isinstance(d, dict) or "per_axis_g" not in d or "sessions" not in d:
+            raise InputError("bias_repeatability must be an object with per_axis_g (3 numbers, g) and sessions")
+        return cls(tuple(d["per_axis_g"]), int(d["sessions"]))  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -243,6 +285,9 @@ class ExtendedCalibration(Calibration):
     units : str
         Raw units.
     fitted_on : FitPoses, optional
+    bias_repeatability : BiasRepeatability, optional
+        Fitted to several sessions: ``o`` is the mean of their biases and this is their spread.
+        Files that carry it are format 2.1 (readers of 2.0 ignore it; 2.0 files load without it).
     """
 
     cal_type: ClassVar[str] = "extended"
@@ -255,6 +300,12 @@ class ExtendedCalibration(Calibration):
     validity: ValidityRange = field(default_factory=ValidityRange)
     units: str = "g"
     fitted_on: FitPoses | None = None
+    bias_repeatability: BiasRepeatability | None = None
+
+    @property
+    def format_version(self) -> str:  # type: ignore[override]
+        """``2.1`` when the file carries the optional :attr:`bias_repeatability`, else ``2.0``."""
+        return "2.1" if self.bias_repeatability is not None else FORMAT_VERSION
 
     def __post_init__(self) -> None:
         base = LumpedCalibration(self.T, self.o, self.units)  # validates T (canonical) and o
@@ -372,6 +423,7 @@ class ExtendedCalibration(Calibration):
             "t_ref": self.t_ref,
             "terms": [term.to_dict() for term in self.terms],
             "validity": self.validity.to_dict(),
+            **({} if self.bias_repeatability is None else {"bias_repeatability": self.bias_repeatability.to_dict()}),
         }
 
     @classmethod
@@ -385,10 +437,21 @@ class ExtendedCalibration(Calibration):
             ValidityRange.from_dict(d.get("validity") or {}),
             units,
             fitted_on,
+            None if d.get("bias_repeatability") is None else BiasRepeatability.from_dict(d["bias_repeatability"]),
         )
 
     def unit_fields(self) -> dict[str, str]:
         return {"T": f"g per {self.units}", "o": self.units, "temp_ref": "°C", "t_ref": "s"}
+
+    def describe(self) -> str:
+        """One line; with :attr:`bias_repeatability`, how the bias was chosen and its uncertainty."""
+        text = super().describe()
+        r = self.bias_repeatability
+        if r is not None:
+            spread = "/".join(f"{v * 1e3:.2g}" for v in r.per_axis_g)
+            text += (f"; bias o = mean of {r.sessions} sessions' biases, turn-on repeatability x/y/z "
+                     f"{spread} mg recorded as its uncertainty")
+        return text
 
     def lumped(self) -> LumpedCalibration:
         """``T`` and ``o`` alone (the terms dropped): the model at ``T_ref``, ``t_ref`` and small forces."""

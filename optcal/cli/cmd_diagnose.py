@@ -10,11 +10,12 @@ import click
 from optcal.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
 from optcal.cli.report_option import command_line, report_options, write_report
-from optcal.diagnosis.effects import EFFECTS
+from optcal.diagnosis.effects import VOCABULARY
 
 EFFECTS_HELP = (
-    "Candidate effects, comma-separated, from: " + ", ".join(EFFECTS)
-    + " (default: every effect the data's columns support; none: the baseline and its simulation check only)."
+    "Candidate effects, comma-separated, from: " + ", ".join(VOCABULARY)
+    + " (default: every effect the data's columns support, session_bias with several DATA; none: the baseline "
+    "and its simulation check only)."
 )
 
 
@@ -56,7 +57,7 @@ def progress_printer(quiet: bool) -> Any:
 
 
 @click.command()
-@click.argument("data", type=DATA_PATH)
+@click.argument("data", type=DATA_PATH, nargs=-1, required=True)
 @data_options
 @diagnosis_options
 @click.option("--baseline", "baseline_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
@@ -66,19 +67,23 @@ def progress_printer(quiet: bool) -> Any:
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
                    "with the temperature, time and |a| ranges it was fitted on.")
 @report_options
-def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
+def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, output: str | None,
              report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
-    DATA is a pose table or a raw recording (anything `optcal calibrate` reads).  The paper's
+    DATA is a pose table or a raw recording (anything `optcal calibrate` reads); several DATA
+    (`optcal diagnose A B C`) are sessions of one sensor, each read with its own data decisions,
+    diagnosed together: one calibration for all, and "the bias changed between sessions"
+    (session_bias, per-session offsets) as a candidate cause; time counts from each session's
+    own start.  The paper's
     model is fitted (by --method, or taken from --baseline) and simulated many times on the same
     poses; the candidate effects (temperature_bias, temperature_scale, bias_drift,
     scale_nonlinearity, outliers) are tried per axis by forward selection (likelihood-ratio test,
     BIC and k-fold held-out error); the findings, the final model and its gain on held-out poses
     are reported.
     """
-    from optcal.cli.data_options import data_line, data_summary, load_data
+    from optcal.cli.data_options import data_line, data_summary, load_data_detailed
     from optcal.caltypes import load as load_calibration
     from optcal.diagnosis import Diagnoser, save_figures
     from optcal.result import jsonable
@@ -88,10 +93,20 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     settings = settings_from(effects, folds, simulations, alpha, seed, method)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path) if baseline_path else None
-    poses = load_data(data, **data_opts)
+    reporter = progress_printer(quiet)
+    loaded = [load_data_detailed(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
+    sessions = [item.poses for item in loaded]
+    still_parts = [item.segmentation for item in loaded]  # the raw samples: the measured noise route
     if not as_json:
-        click.echo(data_line(data, poses))
-    diag = Diagnoser(settings, progress_printer(quiet)).run(poses, baseline)
+        for path, session in zip(data, sessions):
+            click.echo(data_line(path, session))
+    diagnoser = Diagnoser(settings, reporter)
+    if len(sessions) == 1:
+        poses, source = sessions[0], data[0]
+        diag = diagnoser.run(poses, baseline, still_parts[0])
+    else:
+        diag = diagnoser.run_sessions(sessions, baseline, names=list(data), still_parts=still_parts)
+        poses, source = diag.poses, " + ".join(data)
     paths = save_figures(diag, figures_into) if figures_into else []
     calibration = diag.calibration() if output else None
     if calibration is not None:
@@ -99,10 +114,11 @@ def diagnose(data: str, effects: str | None, folds: int, simulations: int, alpha
     if report_path:
         from optcal.report.document import diagnosis_document
 
-        write_report(diagnosis_document(diag, poses, data, command_line(), tolerance), report_path)
+        write_report(diagnosis_document(diag, poses, source, command_line(), tolerance), report_path)
     if as_json:
         out = diag.to_dict()
-        out["data"] = data_summary(data, poses)
+        summaries = [data_summary(path, session) for path, session in zip(data, sessions)]
+        out["data"] = summaries[0] if len(summaries) == 1 else summaries  # one per session
         out["figures"] = paths
         out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
         click.echo(json.dumps(jsonable(out), allow_nan=False))

@@ -9,6 +9,7 @@ import click
 
 from optcal.cli.cmd_calibrate import echo_json
 from optcal.cli.data_options import data_options
+from optcal.cli.report_option import command_line, report_options, write_report
 
 
 @click.command()
@@ -40,11 +41,12 @@ from optcal.cli.data_options import data_options
 @click.option("--chunk", type=click.IntRange(1), default=None, metavar="N",
               help="Units per Dask task [about eight tasks per worker, at most 64 units].")
 @click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on standard error.")
+@report_options
 @data_options
 def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | None, scheduler: str | None,
           tls_ca_file: str | None, tls_cert: str | None, tls_key: str | None, dask_config: str | None,
           dashboard: bool, prior: str, flag_threshold: float | None, plot: str | None, chunk: int | None, progress: bool,
-          **data_opts: Any) -> None:
+          report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Calibrate every unit of a fleet on Dask, flag the odd ones, borrow strength from the population.
 
     INPUT is a folder (every data file in it), a glob, a manifest CSV (columns unit, path and
@@ -72,10 +74,13 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         board = f"dashboard {fc.dashboard_link}" if fc.dashboard_link else "dashboard off"
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
         result = run_fleet(units, fc.client, engine=fc.engine, load_options=_load_kwargs(data_opts),
-                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress)
-    result.write_parquet(output)
+                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress, output=output)
     if plot:
         _write_figures(result, Path(plot))
+    if report_path:
+        from optcal.report.fleet_report import fleet_document
+
+        write_report(fleet_document(result, output, command_line(), tolerance), report_path)
     if as_json:
         echo_json(result.summary(output))
         return

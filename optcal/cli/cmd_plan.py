@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.report_option import check_report_path, command_line, write_report
 
 
 @click.command()
@@ -39,11 +40,15 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
 @click.option("--plot", type=click.Path(), default=None, metavar="PATH",
               help="Save the orientation sphere into the folder PATH (plan.png; created when missing), or to PATH "
                    "itself when it ends in .png, .pdf or .svg.")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
+              callback=check_report_path,
+              help="Write the plan as a self-contained HTML page: the poses as a sphere map and a table to follow, "
+                   "the criterion, the expected standard errors.")
 @data_options
 def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
          given_data: str | None, target_stderr: float | None, grid: int, seed: int, as_json: bool,
-         plot: str | None, **data_opts: Any) -> None:
+         plot: str | None, report_path: str | None, **data_opts: Any) -> None:
     """Plan calibration poses before taking them (optimal experiment design for the lumped model).
 
     --poses K: the K orientations that determine the nine parameters best (convex relaxation
@@ -97,14 +102,17 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         result = plan_poses(n_poses, criterion, prior=prior_model, sigma=sigma, candidates=candidates,
                             given=poses, seed=seed)
         planned, given_dirs = result.directions, result.given_directions
+    shown = None if candidates.continuous else candidates.directions
     if plot:
         from optcal.plan.figure import sphere_figure
-
-        shown = None if candidates.continuous else candidates.directions
         from optcal.cli.outputs import plot_file
 
         plot = str(plot_file(plot, "plan.png"))
         sphere_figure(planned, given_dirs, shown, cap).savefig(plot, dpi=120)
+    if report_path:
+        from optcal.report.plan_report import plan_document
+
+        write_report(plan_document(result, prior_model, command_line(), shown, cap, data_path or ""), report_path)
     if as_json:
         out = result.to_dict()
         if poses is not None:

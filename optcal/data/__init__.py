@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from optcal.data.decisions import (
     KINDS,
     POSE_TABLE,
@@ -156,7 +158,8 @@ def load_with_segmentation(
     del src, evidence  # the recording holds its own arrays: free the file's columns before segmenting
     seg = detect_static(rec, settings)  # segmentation
     table = seg.pose_table()
-    check_sensitivity(table.acc, table.units)  # the units decision, checked on the poses
+    # the units decision, checked on the poses and their noise
+    check_sensitivity(table.acc, table.units, noise=[float(np.sqrt(np.mean(iv.std**2))) for iv in seg.intervals])
     table.meta.update(recording_meta(rec, decisions))
     table.decisions = decisions
     return LoadedData(table, decisions, seg)

@@ -338,10 +338,10 @@ def decide(
             f"{src.path}: no usable sample (of {ev.n_rows} rows: "
             + "; ".join(f"{k}: {v}" for k, v in ev.exclusions().items()) + ")"
         )
-    acc = _acc(src, ev.usable)
     try:
-        found = decide_units(acc, units, src.units_hint, src.units_reason, norm=ev.median_norm)
-        one_g = nominal_conversion(found.units, acc).sensitivity
+        found = decide_units(None, units, src.units_hint, src.units_reason, norm=ev.median_norm)
+        # the samples are gathered (a copy) only for counts, whose nominal 1 g comes from them
+        one_g = nominal_conversion(found.units, _acc(src, ev.usable) if found.units == "counts" else None).sensitivity
     except InputError:  # refused below, once the kind is known
         one_g = ev.median_norm
     warnings: list[str] = []
@@ -360,7 +360,7 @@ def decide(
                 f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
                 f"{value!r} on data row {row} ({count} such cell(s)); every cell of a pose table must be a number"
             )
-    units_d = decide_units(acc, units, src.units_hint, src.units_reason, norm=ev.median_norm)
+    units_d = decide_units(None, units, src.units_hint, src.units_reason, norm=ev.median_norm)
     units_decision = Decision(units_d.units, units_d.reason, "--units")
     columns = Decision(src.describe_columns(), src.columns_reason, "--columns")
     if kind_decision.value == POSE_TABLE:

@@ -137,13 +137,17 @@ def recording_from_source(
             src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
         )
     n = src.n_rows
-    acc = np.column_stack([src.column(c) for c in ACC])
-    gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
+    acc = columns_block(src, ACC)
+    gyro = columns_block(src, GYRO) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
     row = np.arange(1, n + 1)
     if decisions.time_base.value == "rate":
-        base = src.column("index") if src.has("index") else np.arange(n, dtype=float)
-        t = (base - base[0]) / float(decisions.rate.value)
+        if src.has("index"):
+            base = src.column("index")
+            t = (base - base[0]) / float(decisions.rate.value)
+        else:  # in place: no temporaries of the row numbers
+            t = np.arange(n, dtype=float)
+            t /= float(decisions.rate.value)
     else:
         t = src.column("t")
     exclusions: dict[str, int] = dict(src.exclusions)
@@ -201,6 +205,44 @@ def recording_from_source(
         meta=meta,
         decisions=decisions,
     )
+
+
+def columns_block(src: Source, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """The columns ``names`` of ``src`` as one (n, k) array in column-major (Fortran) order.
+
+    Each column is contiguous, so the column-by-column statistics of the static detection and
+    the per-interval means read contiguous memory.  When the columns are already adjacent
+    columns, in this order, of one column-major block (a large text file is parsed into one,
+    :class:`optcal.data.text.ColumnBlock`), the result is a view of that block: no copy.
+    """
+    view = _adjacent_columns([src.column(name) for name in names])
+    if view is not None:
+        return view
+    block = np.empty((src.n_rows, len(names)), order="F")
+    for j, name in enumerate(names):
+        block[:, j] = src.column(name)
+    return block
+
+
+def _adjacent_columns(cols: list[NDArray[np.float64]]) -> NDArray[np.float64] | None:
+    """``base[:n, k:k + len(cols)]`` when ``cols`` are those columns of one column-major base, else ``None``."""
+    base = cols[0].base
+    if not isinstance(base, np.ndarray) or base.ndim != 2 or not base.flags.f_contiguous or base.dtype != np.float64:
+        return None
+    n = cols[0].size
+    start = base.__array_interface__["data"][0]
+    stride = base.strides[1]
+    first = cols[0].__array_interface__["data"][0] - start
+    if n > base.shape[0] or first % stride:
+        return None
+    k = first // stride
+    for j, col in enumerate(cols):
+        if (col.base is not base or col.ndim != 1 or col.size != n or col.strides != (8,)
+                or col.__array_interface__["data"][0] - start != (k + j) * stride):
+            return None
+    if k + len(cols) > base.shape[1]:
+        return None
+    return base[:n, k:k + len(cols)]
 
 
 def _count(d: dict[str, int], key: str, value: int) -> None:

@@ -24,7 +24,11 @@ the statistic over all windows (a calibration recording is mostly at rest, so th
 quantiles are windows at rest), never below the resolution of the data; the axes floor
 is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, and the floor of quantised gyro
 data at :data:`GYRO_FLOOR_MAX_QUANTA` steps, so that a recording that never rests (its
-quietest windows still turn) is not taken for one at rest.  Static runs are split at time
+quietest windows still turn) is not taken for one at rest.  Windows at rest share one noise
+level, so the low quantiles of the axes statistic form a plateau; a recording whose
+``floor_quantile / 5`` quantile falls far below its floor (:func:`rest_plateau_limit`) has
+no rest, only the slowest moments of a motion, and gives no pose (with a gyro whose
+converter step does not settle it, or none).  Static runs are split at time
 gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
 each remaining run, runs of one orientation interrupted for less than a window by a hand's
 twitch are joined into one pose (:func:`join_interrupted`), and every sample that does not
@@ -53,6 +57,17 @@ SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
 TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
 TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
+NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
+NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
+#: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
+#: the low quantile (``floor_quantile / 5``) of the axes moving std to its floor quantile says
+#: that the quietest windows share no noise level: the recording never rests.  Windows at rest
+#: share the sensor's noise (the measured ratio is 0.94-0.96 on every resting recording of
+#: ../shared/data); the quietest windows of a continuous motion are its slowest moments, spread
+#: down to the noise (0.53-0.72 on the sunsided motion logs without their gyro).
+REST_PLATEAU_FRACTION: float = 0.85
+#: Windows a recording needs before the plateau of resting noise is looked for.
+PLATEAU_MIN_WINDOWS: int = 10
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
@@ -203,6 +218,10 @@ class Segmentation:
         Per usable sample: ``t``, the statistics and the static mask (for plots).
     joined : int
         Static stretches joined to the previous one as the same pose (:func:`join_interrupted`).
+    rest_plateau : dict of str to float
+        The evidence that the recording rests (:func:`rest_plateau_limit`): the axes moving std at
+        its low quantile (``low``) and at the floor quantile (``floor``), and the smallest ratio
+        ``low / floor`` of windows at rest (``limit``); empty when the recording is too short.
     """
 
     recording: Recording
@@ -214,6 +233,7 @@ class Segmentation:
     exclusions: dict[str, int]
     trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     joined: int = 0
+    rest_plateau: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -232,6 +252,7 @@ class Segmentation:
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
+            "rest_plateau": dict(self.rest_plateau),
             "intervals": [iv.to_dict() for iv in self.intervals],
         }
 
@@ -262,6 +283,17 @@ class Segmentation:
 def no_static_message(seg: Segmentation) -> str:
     rec = seg.recording
     thr = seg.thresholds
+    if seg.exclusions.get(NO_REST_STRETCHES):
+        plateau = seg.rest_plateau
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: the quietest windows share no noise level (the axes moving std at its "
+            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {plateau['low']:.3g}, "
+            f"{plateau['low'] / plateau['floor']:.2f} of its "
+            f"{100 * seg.settings.floor_quantile:g} % quantile {plateau['floor']:.3g} {rec.units}; windows at "
+            f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
+            "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
+        )
     if seg.exclusions.get(TURNING_STRETCHES):
         return (
             f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
@@ -280,33 +312,6 @@ def no_static_message(seg: Segmentation) -> str:
 
 
 # ----------------------------------------------------------------------------- statistics
-def centred_window_sums(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Sums of ``x`` (m, k) over the centred window at each sample and the window sizes.
-
-    Windows are clipped at the ends.  Interior windows are differences of slices of one
-    cumulative sum (no gather), so this is O(n) and fast on 10⁶ samples.
-    """
-    m = x.shape[0]
-    c = np.empty((m + 1, x.shape[1]))
-    c[0] = 0.0
-    np.cumsum(x, axis=0, out=c[1:])
-    h = window // 2
-    sums = np.empty_like(x)
-    count = np.empty(m)
-    full = m - window + 1
-    if full > 0:
-        sums[h:h + full] = c[window:] - c[:full]
-        count[h:h + full] = window
-        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
-    else:
-        edge = np.arange(m)
-    lo = np.clip(edge - h, 0, m)
-    hi = np.clip(edge - h + window, 0, m)
-    sums[edge] = c[hi] - c[lo]
-    count[edge] = hi - lo
-    return sums, count
-
-
 #: Rows a centring value is taken from (evenly strided): the median of 10⁶ samples costs a sort.
 CENTRE_ROWS: int = 4096
 
@@ -325,25 +330,13 @@ def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.flo
     """Centred moving mean and variance (windows clipped at the ends), columnwise.
 
     Uses cumulative sums of the data centred near the data (:func:`centre_of`), so it is O(n) and exact
-    enough for raw counts with a large offset.
+    enough for raw counts with a large offset (:func:`column_window_stats`, column by column).
     """
     x = np.asarray(x, dtype=float)
-    squeeze = x.ndim == 1
-    if squeeze:
-        x = x[:, None]
-    centre = centre_of(x)
-    xc = x - centre
-    mean, count = centred_window_sums(xc, window)
-    np.multiply(xc, xc, out=xc)  # in place: one temporary of the data's size, not three
-    var, _ = centred_window_sums(xc, window)
-    del xc
-    count = count[:, None]
-    mean /= count
-    var /= count
-    var -= mean * mean
-    np.clip(var, 0.0, None, out=var)
-    mean += centre
-    return (mean[:, 0], var[:, 0]) if squeeze else (mean, var)
+    if x.ndim == 1:
+        return column_window_stats(x, window)
+    pairs = [column_window_stats(x[:, j], window) for j in range(x.shape[1])]
+    return np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs])
 
 
 def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64]:
@@ -354,21 +347,92 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
     that the moving variance misses.  Zero within half a window of the ends.
     """
     x = np.asarray(x, dtype=float)
-    m = x.shape[0]
-    h = max(1, window // 2)
-    out = np.zeros(m)
-    if m < 2 * h + 1:
-        return out
-    sq = np.zeros(m - 2 * h + 1)
-    c = np.empty(m + 1)
-    for j in range(x.shape[1]):  # column by column: temporaries of one column
-        c[0] = 0.0
-        np.cumsum(x[:, j] - centre_of(x[:, j]), out=c[1:])
+    drift = HalfWindowDrift(x.shape[0], window)
+    for j in range(x.shape[1]):
+        column_window_stats(x[:, j], window, drift)
+    return drift.result()
+
+
+class HalfWindowDrift:
+    """The squared half-window drift summed over columns (:func:`half_window_drift`), filled by
+    :func:`column_window_stats` from the cumulative sum it makes anyway (one pass per column)."""
+
+    def __init__(self, m: int, window: int) -> None:
+        self.m = m
+        self.h = max(1, window // 2)
+        self.squared = np.zeros(max(0, m - 2 * self.h + 1))
+
+    def add(self, c: NDArray[np.float64]) -> None:
+        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``)."""
+        m, h = self.m, self.h
+        if m < 2 * h + 1:
+            return
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
-        sq += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
-    out[h:m - h + 1] = np.sqrt(sq) / h
-    return out
+        self.squared += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+
+    def result(self) -> NDArray[np.float64]:
+        out = np.zeros(self.m)
+        if self.m >= 2 * self.h + 1:
+            out[self.h:self.m - self.h + 1] = np.sqrt(self.squared) / self.h
+        return out
+
+
+def column_window_stats(
+    x: NDArray[np.float64], window: int, drift: HalfWindowDrift | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centred moving mean and variance of one column (windows clipped at the ends), O(n).
+
+    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
+    give the window sums; the same sum gives ``drift``'s half-window means when given, and
+    the cumulative sum of the squares the variance.  Every step writes into the arrays it
+    returns or into one cumulative-sum buffer: a handful of passes over the column.
+    """
+    m = x.shape[0]
+    centre = centre_of(x)
+    xc = x - centre
+    c = np.empty(m + 1)
+    c[0] = 0.0
+    np.cumsum(xc, out=c[1:])
+    mean = np.empty(m)
+    interior, edge, count = _window_sums(c, window, mean)
+    if drift is not None:
+        drift.add(c)
+    np.multiply(xc, xc, out=xc)  # in place: the squares reuse the centred column
+    np.cumsum(xc, out=c[1:])
+    var = xc  # the window sums of the squares overwrite the squares (read from c only)
+    _window_sums(c, window, var)
+    del c
+    for a in (mean, var):
+        a[interior] /= window
+        a[edge] /= count
+    var -= mean * mean
+    np.clip(var, 0.0, None, out=var)
+    mean += centre
+    return mean, var
+
+
+def _window_sums(
+    c: NDArray[np.float64], window: int, out: NDArray[np.float64]
+) -> tuple[slice, NDArray[np.int64], NDArray[np.float64]]:
+    """Sums over the centred window at each sample from the cumulative sum ``c`` (``c[0] = 0``), into ``out``.
+
+    Returns the interior rows (full windows), the edge rows and their (clipped) window sizes.
+    """
+    m = out.size
+    h = window // 2
+    full = m - window + 1
+    if full > 0:
+        np.subtract(c[window:], c[:full], out=out[h:h + full])
+        interior = slice(h, h + full)
+        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
+    else:
+        interior = slice(0, 0)
+        edge = np.arange(m)
+    lo = np.clip(edge - h, 0, m)
+    hi = np.clip(edge - h + window, 0, m)
+    out[edge] = c[hi] - c[lo]
+    return interior, edge, (hi - lo).astype(float)
 
 
 def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
@@ -408,20 +472,30 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
     have a common step too, but span far more of them, or (a signal of small range) step by
     exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
-    :data:`QUANTUM_CHECK_STEPS` evenly strided steps (the smallest step over all of them).
+    :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
+    them), column by column: temporaries of one column, not of all.
     """
-    d = np.abs(np.diff(x, axis=0)).ravel()
-    d = d[d > 0]
-    if d.size < 10:
-        return None
-    q = float(d.min())
     columns = x.reshape(x.shape[0], -1)
-    span = max(float(columns[:, j].max() - columns[:, j].min()) for j in range(columns.shape[1]))  # per column: fast
+    k = columns.shape[1]
+    stride = max(1, (columns.shape[0] - 1) * k // QUANTUM_CHECK_STEPS)
+    q, span, n_steps, sample = np.inf, 0.0, 0, []
+    for j in range(k):
+        col = columns[:, j]
+        d = np.diff(col)
+        np.abs(d, out=d)
+        d = d[d > 0]
+        n_steps += d.size
+        if d.size:
+            q = min(q, float(d.min()))
+            sample.append(d[::stride])
+        span = max(span, float(col.max() - col.min()))
+    if n_steps < 10:
+        return None
     if span > (2**16 + 1) * q:
         return None
     if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
         return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
-    ratio = d[:: max(1, d.size // QUANTUM_CHECK_STEPS)] / q
+    ratio = np.concatenate(sample) / q
     return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
 
 
@@ -450,18 +524,22 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     use = np.flatnonzero(rec.usable)
     every = use.size == rec.n  # no copies when every sample is usable
     t = rec.t if every else rec.t[use]
-    acc = rec.acc if every else rec.acc[use]
-    gyro = (rec.gyro if every else rec.gyro[use]) if rec.gyro is not None else None
+    acc = rec.acc if every else _usable_rows(rec.acc, use)
+    gyro = (rec.gyro if every else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
     m = use.size
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = nominal_conversion(rec.units, acc)
     norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
 
-    sd_norm = moving_mean_var(norm, window)[1]
+    sd_norm = column_window_stats(norm, window)[1]
     np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
-    # column by column: temporaries of one column, not of three (a 10⁷-sample recording)
-    sd_axes = np.sqrt(sum(moving_mean_var(acc[:, j], window)[1] for j in range(3)))
+    # column by column (temporaries of one column), the drift from the same cumulative sums
+    drift_sums = HalfWindowDrift(m, window)
+    sd_axes = np.zeros(m)
+    for j in range(3):
+        sd_axes += column_window_stats(acc[:, j], window, drift_sums)[1]
+    np.sqrt(sd_axes, out=sd_axes)
     res_acc = _resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
@@ -469,9 +547,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
     floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
+    rest_plateau: dict[str, float] = {}
+    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
-    drift = half_window_drift(acc, window)
+    drift = drift_sums.result()
     floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
     thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
     static = (
@@ -481,7 +561,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     )
     trace: dict[str, Any] = {
         "t": t,
-        "norm_g": norm / nominal.sensitivity,
+        "norm_g": np.divide(norm, nominal.sensitivity, out=norm),  # in place: the norm itself is not needed again
         "acc_norm_std": sd_norm,
         "acc_axes_std": sd_axes,
         "acc_drift": drift,
@@ -492,11 +572,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        gyro_bias = np.array([np.median(gyro[base, j]) for j in range(3)])  # column by column
+        # column by column; the median partitions its own copy of the static samples in place
+        gyro_bias = np.array([np.median(gyro[base, j], overwrite_input=True) for j in range(3)])
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
-            mean_j, var_j = moving_mean_var(gyro[:, j], window)
+            mean_j, var_j = column_window_stats(gyro[:, j], window)
             var_sum += var_j
             mean_j -= gyro_bias[j]
             mean_j *= mean_j
@@ -549,6 +630,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
         _add(exclusions, TURNING, n_turning_samples)
         _add(exclusions, TURNING_STRETCHES, n_turning)
+    elif never_rests:
+        n_dropped = sum(b - a for group in groups for a, b in group)
+        _add(exclusions, NO_REST, n_dropped)
+        _add(exclusions, NO_REST_STRETCHES, len(groups))
+        in_pose[:] = False
+        groups = []
     for group in groups:
         pos = np.concatenate([np.arange(a, b) for a, b in group])
         intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
@@ -559,7 +646,51 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     trace["static"] = in_pose
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
+    seg.rest_plateau = rest_plateau
     return seg
+
+
+def rest_plateau_limit(window: int, floor_quantile: float) -> float:
+    """Smallest ratio of the axes moving std's ``floor_quantile / 5`` quantile to its ``floor_quantile``
+    quantile that windows at rest give: :data:`REST_PLATEAU_FRACTION` of the ratio for white noise.
+
+    For white noise the std over ``window`` samples, summed over three axes, has a relative
+    spread ``r ≈ 1/√(6 (window − 1))`` (each axis ``1/√(2 (window − 1))``), so the ratio of
+    the two quantiles is ``(1 + z_low r) / (1 + z_floor r)`` with ``z`` the normal quantiles.
+    """
+    from statistics import NormalDist
+
+    r = 1.0 / np.sqrt(6.0 * max(1, window - 1))
+    z = NormalDist().inv_cdf
+    white = (1.0 + z(floor_quantile / 5) * r) / (1.0 + z(floor_quantile) * r)
+    return REST_PLATEAU_FRACTION * max(0.0, white)
+
+
+def _never_rests(
+    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, evidence: dict[str, float]
+) -> bool:
+    """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
+
+    Both quantiles are taken at least at the data's ``resolution`` (noise-free or coarsely
+    quantised rests sit there).  Decided only on recordings of at least
+    :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
+    """
+    if sd_axes.size < PLATEAU_MIN_WINDOWS * window:
+        return False
+    low, at_floor = (max(float(q), resolution) for q in np.quantile(sd_axes, [floor_quantile / 5, floor_quantile]))
+    if not at_floor > 0:
+        return False
+    limit = rest_plateau_limit(window, floor_quantile)
+    evidence.update(low=float(low), floor=float(at_floor), limit=limit)
+    return bool(low < limit * at_floor)
+
+
+def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The rows ``use`` of ``x`` (n, k) as a column-major copy (contiguous columns, as a recording's)."""
+    out = np.empty((use.size, x.shape[1]), order="F")
+    for j in range(x.shape[1]):
+        np.take(x[:, j], use, out=out[:, j])
+    return out
 
 
 def _reject_turning(

@@ -28,8 +28,8 @@ from optcal.errors import InputError
 SNIFF_LINES: int = 64
 #: Files up to this size are parsed by numpy (no pandas import); larger ones by pandas.
 SMALL_FILE_BYTES: int = 16 * 2**20
-#: Rows per chunk when streaming.
-CHUNK_ROWS: int = 1_000_000
+#: Rows per chunk when streaming with pandas (its tokenizer holds a chunk's text, fields and frame at once).
+CHUNK_ROWS: int = 2**18
 #: Delimiters tried, in order of preference when several fit.
 DELIMITERS: tuple[str, ...] = ("\t", ";", "|", ",", " ")
 _NAMES = {"\t": "tab", ";": "semicolon", "|": "'|'", ",": "comma", " ": "whitespace"}
@@ -236,34 +236,117 @@ class ParsedNumbers:
 def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_ROWS) -> ParsedNumbers:
     """Parse every data row of a file laid out as ``layout``.
 
-    Small files with plain numbers are read by numpy; large files, decimal commas and any
-    file with a non-numeric or missing cell by pandas (in chunks of ``chunk_rows``), which
-    turns such cells into NaN and counts them per column.
+    Small files with plain numbers are read by numpy.  Larger files are streamed chunk by
+    chunk into one column-major float block (:class:`ColumnBlock`; the columns returned are
+    its contiguous columns, so the file's numbers are held once): by pyarrow's streaming CSV
+    reader when it is installed and the file is plain numbers with a one-character delimiter,
+    otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
+    pandas (in chunks of ``chunk_rows``), which turns such cells into NaN and counts them per
+    column.
     """
     p = Path(path)
-    if p.stat().st_size <= SMALL_FILE_BYTES and not layout.decimal_comma:
+    size = p.stat().st_size
+    if size <= SMALL_FILE_BYTES and not layout.decimal_comma:
         try:
             data = _numpy_read(p, layout)
             return ParsedNumbers([np.ascontiguousarray(data[:, j]) for j in range(data.shape[1])], {}, "numpy")
         except ValueError:
             pass  # a ragged, empty or non-numeric cell: pandas reads it cell by cell
-    parts: list[list[NDArray[np.float64]]] = []
+    if size > SMALL_FILE_BYTES:
+        block = _arrow_block(p, layout)
+        if block is not None:
+            return ParsedNumbers(block.columns(), {}, "pyarrow")
+    block = ColumnBlock(len(layout.names), estimated_rows(p, layout))
     non_numeric: dict[int, tuple[int, int, str]] = {}
-    offset = 0
     for cols, bad in _pandas_chunks(p, layout, chunk_rows):
         for j, (count, row, value) in bad.items():
             old = non_numeric.get(j)
-            non_numeric[j] = (count + (old[0] if old else 0), old[1] if old else row + offset, old[2] if old else value)
-        offset += cols[0].size if cols else 0
-        parts.append(cols)
-    if not parts or offset == 0:
+            non_numeric[j] = (count + (old[0] if old else 0), old[1] if old else row + block.n, old[2] if old else value)
+        block.append(cols)
+    if block.n == 0:
         raise InputError(f"{p}: no data rows after the header")
-    columns: list[NDArray[np.float64]] = []
-    for j in range(len(parts[0])):
-        columns.append(np.concatenate([c[j] for c in parts]) if len(parts) > 1 else parts[0][j])
-        for c in parts:  # free each chunk's column once joined: one copy of the data at a time
-            c[j] = columns[-1][:0]
-    return ParsedNumbers(columns, non_numeric, "pandas")
+    return ParsedNumbers(block.columns(), non_numeric, "pandas")
+
+
+class ColumnBlock:
+    """Float columns filled chunk by chunk into one column-major (Fortran-order) array.
+
+    The array is allocated for an estimate of the row count (pages never written take no
+    memory) and grown by half when a chunk does not fit; :meth:`columns` returns contiguous
+    views of its filled rows, so the numbers are held once, not once per chunk and once joined.
+    """
+
+    def __init__(self, width: int, rows: int) -> None:
+        self.block = np.empty((max(1, rows), width), order="F")
+        self.n = 0
+
+    def append(self, cols: list[NDArray[np.float64]]) -> None:
+        """Copy one chunk's columns below the rows already filled."""
+        k = int(cols[0].size) if cols else 0
+        if self.n + k > self.block.shape[0]:
+            grown = np.empty((max(self.n + k, self.block.shape[0] * 3 // 2), self.block.shape[1]), order="F")
+            grown[: self.n] = self.block[: self.n]
+            self.block = grown
+        for j, col in enumerate(cols):
+            self.block[self.n:self.n + k, j] = col
+        self.n += k
+
+    def columns(self) -> list[NDArray[np.float64]]:
+        """The filled rows of every column (contiguous views into the block)."""
+        return [self.block[: self.n, j] for j in range(self.block.shape[1])]
+
+
+def estimated_rows(p: Path, layout: TextLayout) -> int:
+    """Rows of a file from its size and the mean length of the data lines in its head (plus 10 %)."""
+    lines = [ln for ln in read_head(p)[layout.first_data_line:] if ln.strip()]
+    per_row = max(1.0, sum(len(ln) + 1 for ln in lines) / max(1, len(lines)))
+    return int(p.stat().st_size / per_row * 1.1) + 1024
+
+
+#: Bytes of text pyarrow parses per streamed batch (larger batches hold more memory, parse no faster).
+ARROW_BLOCK_BYTES: int = 2**20
+
+
+def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
+    """The file's numbers streamed by pyarrow into a :class:`ColumnBlock`, or ``None`` to leave it to pandas.
+
+    ``None`` when pyarrow is not installed, the delimiter is not one character (whitespace
+    runs), numbers have decimal commas, or any cell is not a plain number (a comment, text, a
+    ragged row; with whitespace, an empty field from a run of blanks): pandas then reads the
+    file and counts such cells.
+    """
+    if layout.decimal_comma:
+        return None
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+    except ImportError:
+        return None
+    width = len(layout.names)
+    names = [f"c{j}" for j in range(width)]
+    blank_delimited = layout.delimiter == " "
+    try:
+        reader = pacsv.open_csv(
+            p,
+            read_options=pacsv.ReadOptions(
+                column_names=names, skip_rows=layout.first_data_line, block_size=ARROW_BLOCK_BYTES,
+                encoding="utf8", use_threads=False,
+            ),
+            parse_options=pacsv.ParseOptions(delimiter=layout.delimiter, quote_char=False),
+            convert_options=pacsv.ConvertOptions(column_types={n: pa.float64() for n in names}),
+            # the system allocator: each batch's memory returns to the heap numpy allocates from,
+            # instead of staying cached in pyarrow's own pool
+            memory_pool=pa.system_memory_pool(),
+        )
+        block = ColumnBlock(width, estimated_rows(p, layout))
+        with reader:
+            for batch in reader:
+                if blank_delimited and any(batch.column(j).null_count for j in range(width)):
+                    return None  # a run of blanks: fields are not single-blank separated
+                block.append([batch.column(j).to_numpy(zero_copy_only=False) for j in range(width)])
+    except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
+        return None
+    return block if block.n else None
 
 
 def iter_number_chunks(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_ROWS) -> Iterator[list[NDArray[np.float64]]]:

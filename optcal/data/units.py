@@ -75,7 +75,7 @@ def median_norm(acc: ArrayLike) -> float:
 
 
 def decide_units(
-    acc: ArrayLike,
+    acc: ArrayLike | None,
     requested: str | None = None,
     hint: str | None = None,
     hint_reason: str = "",
@@ -85,8 +85,8 @@ def decide_units(
 
     Parameters
     ----------
-    acc : array_like, shape (n, 3)
-        Measurements (raw samples or pose means).
+    acc : array_like, shape (n, 3), or None
+        Measurements (raw samples or pose means); not read when ``norm`` is given.
     requested : str, optional
         The user's ``--units``; always wins.
     hint : str, optional
@@ -102,7 +102,10 @@ def decide_units(
     InputError
         When nothing states the units and the norm is ambiguous.
     """
-    norm = median_norm(acc) if norm is None else norm
+    if norm is None:
+        if acc is None:
+            raise InputError("decide_units needs the samples (acc) or their median norm (norm)")
+        norm = median_norm(acc)
     if requested is not None:
         return check_units(UnitsDecision(normalise_units(requested), "given with --units"), norm)
     if hint is not None:
@@ -157,6 +160,11 @@ def check_units(decision: UnitsDecision, norm: float) -> UnitsDecision:
 MIN_SENSITIVITY_TO_NORM: float = 0.01
 #: Poses needed before the sensitivity is checked (a calibration needs 9).
 MIN_POSES_FOR_SCALE_CHECK: int = 9
+#: Largest per-sample noise of a resting accelerometer, in g of the nominal conversion: tens of
+#: mg at most (phone-grade sensors ≈ 15 mg; the recordings in ../shared/data 0.9-7.7 mg).  A
+#: resting gyroscope's outputs mapped as an accelerometer have the noise of the gyro next to an
+#: "implied 1 g" that is only its bias (the Xsens MTi's gyro in unsigned counts: ≈ 0.3).
+MAX_REST_NOISE_G: float = 0.05
 
 
 def implied_sensitivity(means: ArrayLike) -> float:
@@ -184,33 +192,47 @@ def implied_sensitivity(means: ArrayLike) -> float:
     return float(np.sqrt(r2)) * scale if r2 > 0 else float("nan")
 
 
-def check_sensitivity(means: ArrayLike, units: str) -> None:
-    """Refuse pose means whose implied sensitivity is implausibly small next to their |a|.
+def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = None) -> None:
+    """Refuse pose means that are not an accelerometer's (gyroscope columns mapped as ``ax, ay, az``).
 
-    An accelerometer's pose means lie on a sphere of radius 1 g (in its units) around its
-    zero; a radius that is a tiny fraction of the measured |a| means the columns are not an
-    accelerometer's (gyroscope columns mapped as ``ax, ay, az``), or the sensor was never
-    turned.  Checked from :data:`MIN_POSES_FOR_SCALE_CHECK` poses on.
+    Two pieces of evidence, each with the fix in the message:
+
+    * from :data:`MIN_POSES_FOR_SCALE_CHECK` poses on, the implied sensitivity: an
+      accelerometer's pose means lie on a sphere of radius 1 g (in its units) around its zero;
+      a radius that is a tiny fraction of the measured |a| means the columns are not an
+      accelerometer's, or the sensor was never turned;
+    * with any number of poses, when ``noise`` (each pose's per-sample standard deviation,
+      pooled over the axes, raw units) is given: a resting accelerometer's noise is at most
+      :data:`MAX_REST_NOISE_G` of 1 g by the nominal conversion; a gyroscope's noise next to
+      its bias (the "1 g" its outputs imply) is far more.
 
     Raises
     ------
     InputError
-        With the radius, the median |a|, and the fix.
+        With the measured figures, and the fix.
     """
     a = np.asarray(means, dtype=float).reshape(-1, 3)
-    if a.shape[0] < MIN_POSES_FOR_SCALE_CHECK:
-        return
-    norm = median_norm(a)
-    radius = implied_sensitivity(a)
-    if not (np.isfinite(norm) and norm > 0) or np.isnan(radius) or radius >= MIN_SENSITIVITY_TO_NORM * norm:
-        return
-    raise InputError(
-        f"the {a.shape[0]} pose means do not look like an accelerometer's: they lie within a sphere of radius "
-        f"{radius:.4g} {units} around their centre (the implied 1 g), while their median |a| is {norm:.4g} {units} "
-        f"(ratio {radius / norm:.2g}, an accelerometer's is at least {MIN_SENSITIVITY_TO_NORM:g}); if these are "
-        "gyroscope columns, map the accelerometer's with columns= (ax=NAME,ay=NAME,az=NAME), otherwise turn the "
-        "sensor through several orientations"
-    )
+    fix = ("if these are gyroscope columns, map the accelerometer's with columns= (ax=NAME,ay=NAME,az=NAME), "
+           "otherwise turn the sensor through several orientations")
+    if a.shape[0] >= MIN_POSES_FOR_SCALE_CHECK:
+        norm = median_norm(a)
+        radius = implied_sensitivity(a)
+        if np.isfinite(norm) and norm > 0 and not np.isnan(radius) and radius < MIN_SENSITIVITY_TO_NORM * norm:
+            raise InputError(
+                f"the {a.shape[0]} pose means do not look like an accelerometer's: they lie within a sphere of radius "
+                f"{radius:.4g} {units} around their centre (the implied 1 g), while their median |a| is {norm:.4g} "
+                f"{units} (ratio {radius / norm:.2g}, an accelerometer's is at least {MIN_SENSITIVITY_TO_NORM:g}); {fix}"
+            )
+    if noise is not None and a.shape[0] >= 1:
+        one_g = nominal_conversion(units, a).sensitivity
+        typical = float(np.median(np.asarray(noise, dtype=float)))
+        if one_g > 0 and typical > MAX_REST_NOISE_G * one_g:
+            raise InputError(
+                f"the {a.shape[0]} static pose(s) do not look like an accelerometer's: their per-sample noise "
+                f"({typical:.4g} {units}, median over the poses) is {typical / one_g:.3g} of the 1 g their means imply "
+                f"({one_g:.4g} {units} by the nominal conversion), while a resting accelerometer's is at most "
+                f"{MAX_REST_NOISE_G:g}; {fix}"
+            )
 
 
 def to_g_factor(units: str) -> float | None:
@@ -250,7 +272,7 @@ class NominalConversion:
 UNSIGNED_16_MIDSCALE: float = 32768.0
 
 
-def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
+def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
     """The "before calibration" conversion to g for data in ``units``.
 
     ``g`` and ``m/s^2`` use their exact unit factors with no offset.  Counts have no
@@ -262,14 +284,16 @@ def nominal_conversion(units: str, acc: ArrayLike) -> NominalConversion:
     Parameters
     ----------
     units : str
-    acc : array_like, shape (n, 3)
-        Pose means (or samples) used to choose the counts baseline.
+    acc : array_like, shape (n, 3), or None
+        Pose means (or samples) used to choose the counts baseline (required for counts only).
     """
     units = normalise_units(units)
     factor = to_g_factor(units)
     if factor is not None:
         name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
         return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
+    if acc is None:
+        raise InputError("the nominal conversion of counts needs the samples (acc)")
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     finite = np.isfinite(a).all(axis=1)
     if not finite.all():  # no copy of a recording whose samples are all finite

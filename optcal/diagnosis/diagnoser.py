@@ -16,14 +16,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.diagnosis.effects import EFFECTS, PARAMETRIC, parse_effects
+from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model
@@ -32,10 +32,15 @@ from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
 from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
+from optcal.diagnosis.sessions import SessionStack, stack_sessions
+from optcal.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
 from optcal.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.model import canonicalise
 from optcal.poses import PoseTable
+
+if TYPE_CHECKING:
+    from optcal.data.static import Segmentation
 
 #: Parametric-bootstrap replications of the noise-model check (at most; fewer when fewer simulations are asked for).
 NOISE_SIMULATIONS: int = 100
@@ -55,7 +60,7 @@ class DiagnosisSettings:
     Attributes
     ----------
     effects : str, tuple of str or None
-        Candidate effects (names from :data:`~optcal.diagnosis.effects.EFFECTS`, or
+        Candidate effects (names from :data:`~optcal.diagnosis.effects.VOCABULARY`, or
         ``"none"``); ``None``: every effect the data's columns support.  Asking for an effect
         the data cannot support raises :class:`~optcal.errors.InputError`.
     folds : int
@@ -105,20 +110,20 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
     skipped: dict[str, str] = {}
     if asked is None:
         chosen = []
-        for e in EFFECTS:
+        for e in VOCABULARY:
             if reg.supports(e):
                 chosen.append(e)
-            else:
+            elif e != SESSION_BIAS:  # one recording: sessions are not a question
                 skipped[e] = reg.reason_unsupported(e)
         return tuple(chosen), skipped
     if not asked:
-        return (), {e: "not asked for (effects 'none')" for e in EFFECTS}
+        return (), {e: "not asked for (effects 'none')" for e in VOCABULARY if e != SESSION_BIAS or reg.n_sessions > 1}
     bad = [f"{e}: {reg.reason_unsupported(e)}" for e in asked if not reg.supports(e)]
     if bad:
-        raise InputError(
-            "cannot test " + "; ".join(bad) + ". Give data with a varying temp column (°C) and a time column, "
-            "or leave those effects out of the candidate effects"
-        )
+        fix = ("give several sessions of the sensor (a list of pose tables)" if SESSION_BIAS in " ".join(bad)
+               else "give data with a varying temp column (°C) and a time column")
+        raise InputError("cannot test " + "; ".join(bad) + f". {fix.capitalize()}, "
+                         "or leave those effects out of the candidate effects")
     return asked, skipped
 
 
@@ -166,53 +171,96 @@ class Diagnoser:
             return canonicalise(T), np.asarray(o, float), "the given calibration"
         from optcal.calibration import calibrate
 
-        self.progress(f"fitting the paper's model ({self.settings.method})")
-        result = calibrate(poses, self.settings.method)
+        with self.reporter.stage(f"fitting the paper's model ({self.settings.method})"):
+            result = calibrate(poses, self.settings.method)
         return canonicalise(result.T), np.asarray(result.o, float), f"the {self.settings.method} calibration"
 
     def prepare(self, poses: PoseTable, baseline: LumpedCalibration | None = None,
                 regressors: Regressors | None = None) -> tuple[Fitter, str]:
         """The :class:`Fitter` of ``poses`` started from the baseline calibration, and where that came from."""
         T, o, source = self.start(poses, baseline)
-        return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds), source
+        return Fitter(poses, regressors or Regressors.of(poses), T, o, self.settings.folds, self.reporter.loop), source
 
-    def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None) -> Diagnosis:
-        """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration."""
+    def run_sessions(self, sessions: Sequence[PoseTable], baseline: LumpedCalibration | None = None,
+                     names: Sequence[str] | None = None,
+                     still_parts: Sequence["Segmentation | None"] | None = None) -> Diagnosis:
+        """Diagnose several sessions of one sensor together (:mod:`optcal.diagnosis.sessions`).
+
+        One calibration ``T``, ``o`` is fitted to every session's poses; "the bias changed
+        between sessions" (``session_bias``) is a candidate effect; time terms count from each
+        session's own start, temperature terms are pooled.  ``still_parts`` (optional): each
+        session's static detection (``None`` for a pose table), for the measured noise route.
+        """
+        if isinstance(sessions, PoseTable) or not all(isinstance(p, PoseTable) for p in sessions):
+            raise InputError("Diagnoser.run_sessions() takes a list of PoseTables, one per session; "
+                             "load each with optcal.data.load")
+        for p in sessions:
+            p.validate()
+        parts = [None] * len(sessions) if still_parts is None else list(still_parts)
+        if len(parts) != len(sessions):
+            raise InputError(f"still_parts has {len(parts)} entries for {len(sessions)} sessions; give one per session")
+        measured = stack_measured([pose_noise_from_still_parts(p, seg) for p, seg in zip(sessions, parts)])
+        return self.run_stack(stack_sessions(sessions, names), baseline, measured=measured)
+
+    def run(self, poses: PoseTable, baseline: LumpedCalibration | None = None,
+            still_parts: "Segmentation | None" = None) -> Diagnosis:
+        """Diagnose ``poses``; ``baseline`` (optional) replaces the settings' method as the baseline calibration.
+
+        ``still_parts`` (optional) is the static detection ``poses`` came from
+        (:func:`optcal.data.load_with_segmentation`): the noise of each pose mean is then also
+        measured on the recording's still parts (:mod:`optcal.diagnosis.still_noise`).
+        """
         if not isinstance(poses, PoseTable):
             raise InputError("Diagnoser.run() takes a PoseTable; load data with optcal.data.load")
+        return self.run_stack(None, baseline, poses, pose_noise_from_still_parts(poses, still_parts))
+
+    def run_stack(self, stack: SessionStack | None, baseline: LumpedCalibration | None = None,
+                  poses: PoseTable | None = None, measured: MeasuredPoseNoise | None = None) -> Diagnosis:
+        """Diagnose the sessions of ``stack``, or the one recording ``poses`` when ``stack`` is ``None``."""
+        poses = stack.poses if stack is not None else poses
+        assert poses is not None
         poses.validate()
         s = self.settings
-        reg = Regressors.of(poses)
+        reg = Regressors.of(poses, None if stack is None else stack.session)
         notes: list[str] = []
 
         def note(text: str) -> None:
             if text not in notes:
                 notes.append(text)
 
+        if stack is not None:
+            counts = ", ".join(f"{name}: {count}" for name, count in zip(stack.names, stack.counts()))
+            note(f"{stack.n_sessions} sessions of one sensor diagnosed together ({counts} poses); one calibration "
+                 "fitted to all; time counts from each session's own start (so does a saved drift term's t), "
+                 "temperature is pooled")
+
         effects, skipped = choose_effects(s.effects, reg)
-        candidates = [(e, a) for e in effects if e in PARAMETRIC for a in range(3)]
+        candidates = [(e, a) for e in effects if e in FITTED for a in range(3)]
         check_size(poses.n)
         T, o, source = self.start(poses, baseline)
-        fitter = Fitter(poses, reg, T, o, s.folds)
+        loop = self.reporter.loop
+        fitter = Fitter(poses, reg, T, o, s.folds, loop)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
-        loop = self.reporter.loop
         sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
         selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
         final = selection.final
-        findings = build_findings(fitter, final, selection.steps)
-        limits = detection_limits(fitter, final, candidates, selection.last_level) if candidates else []
+        self.progress("measuring the findings (held-out error without each effect)")
+        findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
+        self.progress("detection limits of the candidates not found")
+        limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
-            other = Fitter(widened, reg, T, o, s.folds)
+            other = Fitter(widened, reg, T, o, s.folds, loop)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
-        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop)
+        noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
+                                  measured)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
@@ -224,7 +272,7 @@ class Diagnoser:
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
-            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise,
+            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise, sessions=stack,
         )
 
 

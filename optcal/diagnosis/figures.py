@@ -24,8 +24,10 @@ def residual_figure(diag: "Diagnosis") -> "Figure":
     xs: list[tuple[str, NDArray[np.float64]]] = []
     if poses.temp is not None:
         xs.append(("temperature (°C)", poses.temp))
-    if poses.t is not None:
-        xs.append(("time from the start (s)", poses.t - float(np.min(poses.t))))
+    if poses.t is not None:  # seconds from the start (from each session's own start when several), never epoch
+        several = diag.sessions is not None
+        start = (np.zeros(poses.n) if several else np.full(poses.n, float(np.min(poses.t))))
+        xs.append(("time from the session's start (s)" if several else "time from the start (s)", poses.t - start))
     for i, ax in enumerate(AXES):
         xs.append((f"force along {ax} (g)", diag.fitted_directions[:, i]))
     kept = diag.kept
@@ -52,7 +54,7 @@ def residual_figure(diag: "Diagnosis") -> "Figure":
                 handles.append(h)
                 labels.append(lab)
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
-    title = (f"What is left after calibration: the paper's model (top) and {diag.final.describe()} (bottom)"
+    title = (f"What is left after calibration: the paper's model (top) and {diag.final.describe_plain()} (bottom)"
              if extended else "What is left after calibration with the paper's model (no extension was found)")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout(rect=(0, 0.05 if extended else 0.09, 1, 0.97 if extended else 0.94))

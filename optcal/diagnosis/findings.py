@@ -8,16 +8,20 @@ model (ΔBIC, p value), and the held-out rms without and with it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from optcal.diagnosis.effects import CAUSES, PARAMETRIC, UNITS
+from optcal.diagnosis.effects import CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.diagnosis.selection import Step
 from optcal.model import AXES
+
+if TYPE_CHECKING:
+    from optcal.diagnosis.sessions import SessionOffsets
 
 
 @dataclass
@@ -56,7 +60,11 @@ class Finding:
     change_over_data : dict of str to float
         Peak-to-peak change of the term over the fitted poses per axis: g for a bias term,
         relative for a scale term, g at 1 g for the nonlinearity (what the polynomial does,
-        whatever its order).
+        whatever its order); the range of the sessions' biases for ``session_bias``.
+    sessions : SessionOffsets or None
+        For ``session_bias``: every session's offset with its standard error; :attr:`estimate`
+        is then their spread (the turn-on repeatability, g) and :attr:`stderr` the sampling
+        error of that spread, ``spread/√(2(S − 1))``.
     """
 
     effect: str
@@ -73,11 +81,14 @@ class Finding:
     reference: dict[str, float] = field(default_factory=dict)
     rows: list[int] | None = None
     change_over_data: dict[str, float] = field(default_factory=dict)
+    sessions: "SessionOffsets | None" = None
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
         if self.rows is None:
             del out["rows"]
+        if self.sessions is None:
+            del out["sessions"]
         return out
 
 
@@ -100,8 +111,8 @@ def change_over_data(fitter: Fitter, fit: Fit, effect: str, axis: int) -> float:
     return float(np.ptp(term))
 
 
-def build_findings(fitter: Fitter, final: Fit, steps: list[Step]) -> list[Finding]:
-    """One finding per effect of the final model, with the evidence of dropping it."""
+def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names: Sequence[str] = ()) -> list[Finding]:
+    """One finding per effect of the final model, with the evidence of dropping it (``session_names``: one per session)."""
     out: list[Finding] = []
     cov = fitter.covariance(final)
     free_beta = np.flatnonzero(active_mask(final.terms))
@@ -129,6 +140,24 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step]) -> list[Findin
                 float(final.x[9 + BETA_INDEX[(effect, a, p)]] / h**p) for p in range(1, final.terms[(effect, a)] + 1)
             ]
             finding.change_over_data[AXES[a]] = change_over_data(fitter, final, effect, a)
+        out.append(finding)
+    session_axes = sorted(a for (e, a) in final.terms if e == SESSION_BIAS)
+    if session_axes:
+        from optcal.diagnosis.sessions import session_offsets
+
+        names = list(session_names) or [f"session {k + 1}" for k in range(fitter.reg.n_sessions)]
+        offsets = session_offsets(fitter, final, names)
+        assert offsets is not None
+        without = fitter.fit({k: v for k, v in final.terms.items() if k[0] != SESSION_BIAS}, final.outliers, final.x)
+        finding = Finding(
+            SESSION_BIAS, [AXES[a] for a in session_axes], dict(offsets.repeatability_g), {}, UNITS[SESSION_BIAS],
+            CAUSES[SESSION_BIAS], Evidence(bic_final - fitter.bic(without), fitter.f_test(without, final)),
+            rms(fitter.heldout(without), mask), after, sessions=offsets,
+        )
+        for axis in offsets.axes:
+            finding.stderr[axis] = offsets.repeatability_g[axis] / np.sqrt(2 * (fitter.reg.n_sessions - 1))
+            finding.order[axis] = fitter.reg.n_sessions - 1
+            finding.change_over_data[axis] = float(np.ptp(offsets.offsets_g[axis]))
         out.append(finding)
     if final.outliers:
         without = fitter.fit(final.terms, frozenset(), final.x)

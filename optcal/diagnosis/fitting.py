@@ -19,11 +19,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
 
-from optcal.diagnosis.effects import describe_term
-from optcal.diagnosis.problem import BETA_INDEX, N_X, ExtendedProblem, PoseData, active_mask, to_model
+from optcal.diagnosis.effects import FITTED, describe_term, plain_term
+from optcal.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, active_mask, session_shift,
+                                      to_model)
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.diagnosis.regressors import Regressors
 from optcal.estimators.base import Normaliser
-from optcal.extended_model import PARAMETRIC, ExtendedModel
+from optcal.extended_model import ExtendedModel
 from optcal.model import theta_from
 from optcal.poses import PoseTable
 
@@ -37,8 +39,8 @@ Terms = tuple[tuple[tuple[str, int], int], ...]
 
 
 def terms_key(terms: dict[tuple[str, int], int]) -> Terms:
-    """The terms in report order (effect in :data:`PARAMETRIC` order, then axis)."""
-    return tuple(sorted(terms.items(), key=lambda kv: (PARAMETRIC.index(kv[0][0]), kv[0][1])))
+    """The terms in report order (effect in :data:`~optcal.diagnosis.effects.FITTED` order, then axis)."""
+    return tuple(sorted(terms.items(), key=lambda kv: (FITTED.index(kv[0][0]), kv[0][1])))
 
 
 @dataclass
@@ -85,6 +87,13 @@ class Fit:
             parts.append(f"outliers({len(self.outliers)} poses zero-weighted)")
         return " + ".join(parts)
 
+    def describe_plain(self) -> str:
+        """The model in plain words (figures), e.g. ``the paper's model + bias changing with temperature on z``."""
+        parts = ["the paper's model"] + [plain_term(e, a, o) for (e, a), o in terms_key(self.terms)]
+        if self.outliers:
+            parts.append(f"{len(self.outliers)} outlier poses left out")
+        return " + ".join(parts)
+
 
 def orthogonal_part(g: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[np.float64]:
     """The part of ``g`` (or of each column of ``g``) orthogonal to the columns of ``G``.
@@ -116,16 +125,19 @@ class Fitter:
         The baseline calibration (the start of every fit and the source of the weights).
     folds : int
         k of the k-fold held-out error (folds interleaved along time, so each spans the recording).
+    loop : callable, optional
+        Wraps the loop over the folds (a progress bar, :mod:`optcal.diagnosis.progress`).
     """
 
-    def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int) -> None:
+    def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int,
+                 loop: Loop = plain_loop) -> None:
         from optcal.norm_residual import normal_gain
 
         self.poses = poses
         self.n = poses.n
         self.reg = regressors
         self.norm = Normaliser.of(poses.acc)
-        self.data = PoseData(self.norm.forward(poses.acc), regressors.tau, regressors.s)
+        self.data = PoseData.of(self.norm.forward(poses.acc), regressors)
         self.problem = ExtendedProblem.get(self.n, "squared")
         sigma = np.ones(self.n) if poses.sigma is None else poses.sigma
         w_abs = 1.0 / (sigma * normal_gain(T, o, poses.acc)) ** 2  # Lu 2017, eq. 14
@@ -142,6 +154,7 @@ class Fitter:
         self.fold = np.empty(self.n, dtype=int)
         self.fold[order] = np.arange(self.n) % self.folds
         self.time_order = order
+        self.loop = loop
         self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ fitting
@@ -198,7 +211,7 @@ class Fitter:
         out = np.empty(self.n)
         mask = active_mask(fit.terms)
         base_w = self.weights(fit)
-        for f in range(self.folds):
+        for f in self.loop(range(self.folds), f"{self.folds}-fold held-out error", self.folds):
             held = self.fold == f
             p = self.params(np.where(held, 0.0, base_w))
             x, _ = self.problem.solve(fit.x, p, mask)
@@ -233,14 +246,18 @@ class Fitter:
         """The physical extended model of ``fit``."""
         return to_model(fit.x, self.norm.centre, self.norm.scale, self.reg)
 
+    def session_shift(self, fit: Fit) -> NDArray[np.float64]:
+        """Raw bias of each pose's session relative to the first session's under ``fit`` (zeros for one session)."""
+        return session_shift(fit.x, self.model(fit).base.C, self.reg.session, self.reg.n_sessions)
+
     def fitted_directions(self, fit: Fit) -> NDArray[np.float64]:
         """Unit specific-force directions of the poses under ``fit``'s model (its inversion at each pose)."""
-        d = self.model(fit).correct(self.poses.acc, *self.columns())
+        d = self.model(fit).correct(self.poses.acc - self.session_shift(fit), *self.columns())
         return d / np.linalg.norm(d, axis=1, keepdims=True)
 
     def noise_free(self, fit: Fit) -> NDArray[np.float64]:
-        """What ``fit``'s model measures, without noise, at the poses' fitted directions, temperatures and times."""
-        return self.model(fit).measure(self.fitted_directions(fit), *self.columns())
+        """What ``fit``'s model measures, without noise, at the poses' fitted directions, temperatures, times and sessions."""
+        return self.model(fit).measure(self.fitted_directions(fit), *self.columns()) + self.session_shift(fit)
 
     def columns(self) -> tuple[NDArray | None, NDArray | None]:
         """Temperature and time of the poses where usable (``None`` otherwise)."""

@@ -14,9 +14,10 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 
-from optcal.diagnosis.effects import UNITS, describe_term
+from optcal.diagnosis.effects import SESSION_BIAS, UNITS, describe_term
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
+from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.diagnosis.selection import MIN_DOF
 from optcal.extended_model import format_value
 from optcal.model import AXES
@@ -57,18 +58,19 @@ class DetectionLimit:
         return asdict(self)
 
 
-def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], level: float) -> list[DetectionLimit]:
+def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], level: float,
+                     loop: Loop = plain_loop) -> list[DetectionLimit]:
     """Limits of the ``candidates`` not in ``fit``, each added alone to ``fit`` (module docstring).
 
     Candidates the data have no room to test (fewer than ``MIN_DOF`` degrees of freedom left) get none.
     """
     z = float(sps.norm.isf(level / 2))
     out = []
-    for effect, axis in candidates:
+    for effect, axis in loop(candidates, "detection limits", len(candidates)):
         if (effect, axis) in fit.terms or fitter.n - fit.n_params - 1 < MIN_DOF:
             continue
         terms = dict(fit.terms)
-        terms[(effect, axis)] = 1
+        terms[(effect, axis)] = fitter.reg.n_sessions - 1 if effect == SESSION_BIAS else 1  # every session's offset
         bigger = fitter.fit(terms, fit.outliers, fit.x)
         free = np.flatnonzero(active_mask(terms))
         k = 9 + int(np.flatnonzero(free == BETA_INDEX[(effect, axis, 1)])[0])

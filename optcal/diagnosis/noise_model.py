@@ -19,6 +19,13 @@ depend on the σ claim):
 * **gain** — the reduced χ² before and after, and the coverage of the nominal 95 % intervals
   of the calibration parameters in a parametric bootstrap of the extended noise model, with
   the standard errors the given σ implies and with those of ``σ'``.
+
+The **measured route** (:mod:`optcal.diagnosis.still_noise`): for a raw recording the noise of
+each pose mean is also measured on the recording's longest still stretch (its Allan deviation
+at the pose's dwell); the model is refitted with those per-pose σ and both understatement
+factors are reported, measured and residual-estimated, with the reduced χ² and the bootstrap
+coverage of each.  A pose table has no samples to measure: only the residual route is
+available, and the check says so.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from scipy import optimize, stats as sps
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import PoseData
 from optcal.diagnosis.progress import Loop, plain_loop
+from optcal.diagnosis.still_noise import MeasuredPoseNoise
 from optcal.poses import PoseTable
 
 #: The named cause, in plain words.
@@ -73,6 +81,15 @@ class NoiseModelCheck:
     simulations : int
     reason : str or None
     cause : str
+    measured_route : str or None
+        Where the noise of each pose mean was measured (the recording's still parts), or why only
+        the residual route is available (``None``: not asked).
+    measured_understated_by : float or None
+        Median over the poses of measured ``σ_k`` / given ``σ_k``.
+    reduced_chi2_measured : float or None
+        Reduced χ² refitted with the measured per-pose σ.
+    coverage_measured : float or None
+        Bootstrap coverage (simulated with the measured σ) of the intervals of the measured σ.
     """
 
     tested: bool
@@ -89,6 +106,10 @@ class NoiseModelCheck:
     simulations: int = 0
     reason: str | None = None
     cause: str = NOISE_CAUSE
+    measured_route: str | None = None
+    measured_understated_by: float | None = None
+    reduced_chi2_measured: float | None = None
+    coverage_measured: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -117,11 +138,13 @@ def covariance_absolute(fitter: Fitter, fit: Fit, data: PoseData | None = None) 
 
 
 def check_noise_model(fitter: Fitter, final: Fit, alpha: float, simulations: int, seed: int,
-                      refit: Callable[[PoseTable], tuple[Fitter, Fit]], loop: Loop = plain_loop) -> NoiseModelCheck:
+                      refit: Callable[[PoseTable], tuple[Fitter, Fit]], loop: Loop = plain_loop,
+                      measured: MeasuredPoseNoise | None = None) -> NoiseModelCheck:
     """Test, extend and check the noise model of ``final`` (module docstring).
 
     ``refit(poses) -> (Fitter, Fit)`` refits the final model's terms to a pose table with other
-    σ (the diagnoser's own fitting, so the terms and the start are the same).
+    σ (the diagnoser's own fitting, so the terms and the start are the same); ``measured`` is
+    the noise of each pose mean measured on the recording's still parts (the measured route).
     """
     poses = fitter.poses
     if poses.sigma is None:
@@ -133,6 +156,14 @@ def check_noise_model(fitter: Fitter, final: Fit, alpha: float, simulations: int
     chi2 = reduced_chi2(fitter, final)
     p = float(sps.chi2.sf(chi2 * dof, dof))
     check = NoiseModelCheck(True, chi2, p, bool(p < alpha), reduced_chi2_after=chi2)
+    if measured is not None:
+        check.measured_route = measured.source
+        if measured.sigma is not None:
+            check.measured_understated_by = float(np.median(measured.sigma / np.asarray(poses.sigma, float)))
+            fitter_m, fit_m = refit(replace(poses, sigma=measured.sigma))
+            check.reduced_chi2_measured = reduced_chi2(fitter_m, fit_m)
+            if simulations and check.named:
+                _, check.coverage_measured = bootstrap_coverage(fitter, fitter_m, fit_m, simulations, seed, loop)
     if not check.named:
         return check
     sigma = np.asarray(poses.sigma, float)
@@ -170,7 +201,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     count = 0
     for _ in loop(range(simulations), "noise-model coverage", simulations):
         acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
-        data = PoseData(extended.norm.forward(acc), extended.reg.tau, extended.reg.s)
+        data = PoseData.of(extended.norm.forward(acc), extended.reg)
         sim = extended.fit(fit.terms, fit.outliers, fit.x, data)
         error = np.abs(sim.x[:9] - truth)
         for name, fitter in (("given", given), ("extended", extended)):

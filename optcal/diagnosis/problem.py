@@ -32,21 +32,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.diagnosis.effects import FITTED, MAX_ORDER, SESSION_BIAS
 from optcal.diagnosis.regressors import Regressors
-from optcal.extended_model import MAX_ORDER, PARAMETRIC, ExtendedModel, inverse_lower, invert_axis
+from optcal.extended_model import PARAMETRIC, ExtendedModel, inverse_lower, invert_axis
 from optcal.model import LumpedModel
 
 
 def _beta_layout() -> dict[tuple[str, int, int], int]:
     index: dict[tuple[str, int, int], int] = {}
-    for effect in PARAMETRIC:
+    for effect in FITTED:
         for axis in range(3):
             for order in range(1, MAX_ORDER[effect] + 1):
                 index[(effect, axis, order)] = len(index)
     return index
 
 
-#: (effect, axis number, order) → index of its coefficient in β (after the nine entries of θ).
+#: (effect, axis number, order) → index of its coefficient in β (after the nine entries of θ).  For
+#: the session offsets, "order" k is session k's offset from session 0 (its regressor the indicator).
 BETA_INDEX: dict[tuple[str, int, int], int] = _beta_layout()
 N_BETA: int = len(BETA_INDEX)
 N_X: int = 9 + N_BETA
@@ -68,8 +70,15 @@ def _real_floor(v: Any, low: float) -> Any:
     return np.where(np.real(v) > low, v, low)
 
 
+def session_indicators(session: NDArray[np.intp] | None, n: int) -> list[NDArray[np.float64]]:
+    """Indicator of sessions 1, 2, ... of each pose: the regressors of the session offsets (session 0 is the reference)."""
+    if session is None:
+        return [np.zeros(n)] * MAX_ORDER[SESSION_BIAS]
+    return [(session == k).astype(float) for k in range(1, MAX_ORDER[SESSION_BIAS] + 1)]
+
+
 def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
-                       used: NDArray[np.intp] | None = None) -> NDArray:
+                       used: NDArray[np.intp] | None = None, session: NDArray[np.intp] | None = None) -> NDArray:
     """``r = ‖T y(a)‖ − 1`` of every pose, for one or several parameter vectors (normalised units).
 
     Parameters
@@ -83,6 +92,9 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     tau, s : ndarray, shape (n,)
     used : ndarray of int, optional
         Indices into β of the coefficients to include (default every one); the others are zero.
+    session : ndarray of int, shape (n,), optional
+        Session of each pose (0, 1, ...; default all 0): the session offsets are biases of the
+        sessions after the first.
 
     Returns
     -------
@@ -95,7 +107,8 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     L = [[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]]  # T, lower-triangular
     C = inverse_lower(L)
     used_set = set(range(N_BETA)) if used is None else {int(b) for b in used}
-    powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)]}
+    powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)],
+              "session": session_indicators(session, u.shape[0])}
     zero = np.zeros((1, 1))
 
     def poly(effect: str, axis: int, values: list[NDArray]) -> Any:
@@ -109,7 +122,8 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     y = []
     for i in range(3):
         S = np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1)))
-        bias = poly("temperature_bias", i, powers["temp"]) + poly("bias_drift", i, powers["t"])
+        bias = (poly("temperature_bias", i, powers["temp"]) + poly("bias_drift", i, powers["t"])
+                + poly(SESSION_BIAS, i, powers["session"]))
         scale = poly("temperature_scale", i, powers["temp"])
         b2 = BETA_INDEX[("scale_nonlinearity", i, 1)]
         k2 = X[:, 9 + b2 : 10 + b2] if b2 in used_set else zero
@@ -142,7 +156,9 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
     n = d.n
     Lm = np.array([[x[0], 0.0, 0.0], [x[1], x[2], 0.0], [x[3], x[4], x[5]]])
     S, dS = sensitivity_jacobian(x)
-    powers = {"temp": [d.tau**p for p in range(1, 4)], "t": [d.s**p for p in range(1, 4)]}
+    powers = {"temp": [d.tau**p for p in range(1, 4)], "t": [d.s**p for p in range(1, 4)],
+              "session": session_indicators(d.session, n)}
+    biases = (("temperature_bias", "temp"), ("bias_drift", "t"), (SESSION_BIAS, "session"))
 
     beta = x[9:].tolist()
     wanted = set(range(N_X)) if free is None else {int(k) for k in free}
@@ -155,7 +171,7 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
     parts = []
     for i in range(3):
         bias = np.zeros(n)
-        for effect, column in (("temperature_bias", "temp"), ("bias_drift", "t")):
+        for effect, column in biases:
             for p in range(1, MAX_ORDER[effect] + 1):
                 if coefficient(effect, i, p):
                     bias += coefficient(effect, i, p) * powers[column][p - 1]
@@ -182,7 +198,9 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
         dr_dS = dy_dw * (-bias / (1 + scale)) + g[m] * k2 * y[m] ** 2 / S[m] ** 2 / den
         JT[:6] += dS[m][:, None] * dr_dS[None, :]
         JT[6 + m] = -dy_dw / (1 + scale)
-        for effect, column in (("temperature_bias", "temp"), ("bias_drift", "t")):
+        for effect, column in biases:
+            if column == "session" and d.session is None:
+                continue  # one session: the offsets' regressors are zero
             for p in range(1, MAX_ORDER[effect] + 1):
                 if 9 + BETA_INDEX[(effect, m, p)] in wanted:
                     JT[9 + BETA_INDEX[(effect, m, p)]] = -dy_dw * S[m] / (1 + scale) * powers[column][p - 1]
@@ -203,11 +221,19 @@ class PoseData:
         Normalised measurements ``(a − centre)/scale`` (:class:`optcal.estimators.base.Normaliser`).
     tau, s : ndarray, shape (n,)
         Normalised temperature and time.
+    session : ndarray of int, shape (n,), optional
+        Session of each pose (``None``: one session).
     """
 
     u: NDArray[np.float64]
     tau: NDArray[np.float64]
     s: NDArray[np.float64]
+    session: NDArray[np.intp] | None = None
+
+    @classmethod
+    def of(cls, u: NDArray[np.float64], reg: Regressors) -> "PoseData":
+        """Normalised measurements ``u`` with the temperature, time and session of ``reg``."""
+        return cls(u, reg.tau, reg.s, reg.session if reg.n_sessions > 1 else None)
 
     @property
     def n(self) -> int:
@@ -266,7 +292,7 @@ class ExtendedProblem:
 
         def residuals(z: NDArray) -> NDArray:
             x[free] = z
-            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used)
+            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used, d.session)
 
         def jacobian(z: NDArray) -> NDArray:
             x[free] = z
@@ -284,7 +310,7 @@ class ExtendedProblem:
     def residual_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
         """Unweighted residuals of every pose at ``x``."""
         d = data.poses
-        return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:])))
+        return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:]), d.session))
 
     def jacobian_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
         """Unweighted Jacobian of every pose's residual w.r.t. every entry of ``x``, shape (n, N_X)."""
@@ -301,7 +327,11 @@ def active_mask(terms: Mapping[tuple[str, int], int]) -> NDArray[np.bool_]:
 
 
 def to_model(x: NDArray, centre: NDArray, scale: float, reg: Regressors) -> ExtendedModel:
-    """The physical :class:`ExtendedModel` of a solution ``x`` in normalised units."""
+    """The physical :class:`ExtendedModel` of a solution ``x`` in normalised units.
+
+    Its bias ``o`` is the first session's; the session offsets are not a term of the model
+    (:func:`session_offsets_g` gives them).
+    """
     from optcal.model import canonicalise, unpack_theta
 
     T_n, o_n = unpack_theta(x[:9])
@@ -319,3 +349,23 @@ def to_model(x: NDArray, centre: NDArray, scale: float, reg: Regressors) -> Exte
     temp_ref = reg.temp_ref if np.isfinite(reg.temp_ref) else 25.0
     t_ref = reg.t_ref if np.isfinite(reg.t_ref) else 0.0
     return ExtendedModel(LumpedModel.from_T(T, o), coefficients, temp_ref, t_ref)
+
+
+def session_offsets_g(x: NDArray, n_sessions: int) -> NDArray[np.float64]:
+    """Bias of every session relative to the first, shape (3, n_sessions), g (bias terms are per g)."""
+    out = np.zeros((3, n_sessions))
+    for i in range(3):
+        for k in range(1, n_sessions):
+            out[i, k] = x[9 + BETA_INDEX[(SESSION_BIAS, i, k)]]
+    return out
+
+
+def session_shift(x: NDArray, C: NDArray, session: NDArray[np.intp], n_sessions: int) -> NDArray[np.float64]:
+    """Raw bias of each pose's session relative to the first session's, shape (n, 3) (zeros for one session).
+
+    Bias terms are per g, so the raw offset of axis i is ``S_i δ_i`` with ``S_i`` the row norm of
+    ``C`` (:mod:`optcal.extended_model`).
+    """
+    if n_sessions < 2:
+        return np.zeros((len(session), 3))
+    return (session_offsets_g(x, n_sessions) * np.linalg.norm(C, axis=1)[:, None])[:, session].T

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -27,11 +28,14 @@ class Progress:
     message : callable, optional
         Receives a short message at each stage.
     bars : bool
-        Draw a tqdm bar on stderr for every loop that takes more than a second.
+        Draw a tqdm bar on stderr for every loop and stage that takes more than a second.
+    delay : float
+        Seconds before a bar appears (a quicker loop draws nothing).
     """
 
     message: Callable[[str], None] | None = None
     bars: bool = False
+    delay: float = 1.0
 
     @classmethod
     def for_terminal(cls, quiet: bool) -> "Progress":
@@ -53,5 +57,19 @@ class Progress:
             return
         from tqdm import tqdm
 
-        yield from tqdm(iterable, desc=description, total=total, file=sys.stderr, leave=False, delay=1.0,
+        yield from tqdm(iterable, desc=description, total=total, file=sys.stderr, leave=False, delay=self.delay,
                         mininterval=0.5, dynamic_ncols=True)
+
+    @contextmanager
+    def stage(self, description: str) -> Iterator[None]:
+        """A stage that is one call (e.g. the baseline fit): its message, and a bar with the elapsed time when slow."""
+        self.say(description)
+        if not self.bars:
+            yield
+            return
+        from tqdm import tqdm
+
+        with tqdm(total=1, desc=description, file=sys.stderr, leave=False, delay=self.delay,
+                  bar_format="{desc}: {elapsed}", dynamic_ncols=True) as bar:
+            yield
+            bar.update(1)

@@ -1,8 +1,8 @@
-"""Temperature and time of each pose as the regressors of the candidate effects."""
+"""Temperature, time and session of each pose as the regressors of the candidate effects."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +30,9 @@ class Regressors:
         Whether a temperature (non-constant) and a time column are usable.
     notes : list of str
         Why a column is unusable (for the report).
+    session : ndarray of int, shape (n,)
+        Session of each pose (all 0 for one recording).
+    n_sessions : int
     """
 
     tau: NDArray[np.float64]
@@ -41,9 +44,16 @@ class Regressors:
     has_temp: bool
     has_time: bool
     notes: tuple[str, ...] = ()
+    session: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    n_sessions: int = 1
 
     @classmethod
-    def of(cls, poses: PoseTable) -> "Regressors":
+    def of(cls, poses: PoseTable, session: NDArray[np.intp] | None = None) -> "Regressors":
+        """The regressors of ``poses``; ``session`` (optional) is the session of each pose (0, 1, ...).
+
+        With several sessions the pose times must already count from each session's own start
+        (:func:`optcal.diagnosis.sessions.stack_sessions` does that): a drift is within a session.
+        """
         n = poses.n
         notes: list[str] = []
         tau, s = np.zeros(n), np.zeros(n)
@@ -72,16 +82,21 @@ class Regressors:
             else:
                 has_time, t_half = True, 0.5 * (hi - lo)
                 s = (poses.t - t_ref) / t_half
-        return cls(tau, s, temp_ref, temp_half, t_ref, t_half, has_temp, has_time, tuple(notes))
+        index = np.zeros(n, dtype=np.intp) if session is None else np.asarray(session, dtype=np.intp)
+        n_sessions = int(index.max()) + 1 if n else 1
+        if n_sessions < 2:
+            notes.append("one session: session_bias needs several sessions of the sensor")
+        return cls(tau, s, temp_ref, temp_half, t_ref, t_half, has_temp, has_time, tuple(notes), index, n_sessions)
 
     def supports(self, effect: str) -> bool:
         """Whether the columns ``effect`` needs are usable."""
         need = NEEDS[effect]
-        return need is None or (need == "temp" and self.has_temp) or (need == "t" and self.has_time)
+        return (need is None or (need == "temp" and self.has_temp) or (need == "t" and self.has_time)
+                or (need == "session" and self.n_sessions > 1))
 
     def reason_unsupported(self, effect: str) -> str:
         need = NEEDS[effect]
-        word = "temperature" if need == "temp" else "time"
+        word = {"temp": "temperature", "t": "time", "session": "session"}.get(str(need), "time")
         hits = [note for note in self.notes if word in note]
         return hits[0] if hits else f"{effect} needs a {word} column"
 

@@ -6,11 +6,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from optcal.diagnosis.noise_model import NoiseModelCheck
 from optcal.diagnosis.simulation import SimulationCheck
 from optcal.extended_model import format_value
 
 if TYPE_CHECKING:
     from optcal.diagnosis.result import Diagnosis
+    from optcal.diagnosis.sessions import SessionOffsets
 
 MG = 1e3
 
@@ -39,11 +41,31 @@ def simulation_text(sim: SimulationCheck, indent: str = "", after: bool = False)
     return "\n".join(lines)
 
 
+def measured_noise_lines(check: NoiseModelCheck) -> list[str]:
+    """The measured route of the noise model: the noise of each pose mean from the recording's still parts."""
+    if check.measured_route is None:
+        return []
+    if check.measured_understated_by is None:
+        return [f"      measured route: not available ({check.measured_route})"]
+    line = (f"      measured route: {check.measured_route}: σ/√n understated the pose noise "
+            f"{check.measured_understated_by:.3g}× (median; residual-estimated {check.understated_by:.3g}×); "
+            f"reduced χ² with the measured σ {check.reduced_chi2_measured:.3g}")
+    if check.coverage_measured is not None:
+        line += (f"; its {check.nominal_coverage * 100:g} % intervals cover {check.coverage_measured * 100:.0f} % "
+                 "in the bootstrap")
+    return [line]
+
+
 def noise_model_lines(diag: "Diagnosis") -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
-    if check is None or not check.tested or not check.named:
+    if check is None or not check.tested:
         return []
+    if not check.named:
+        if check.measured_route is None:
+            return []
+        return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
+                *measured_noise_lines(check)]
     unit = diag.poses.units
     lines = [
         f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
@@ -59,6 +81,18 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
             f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
             f"extended noise model ({check.simulations} simulations)"
         )
+    return lines + measured_noise_lines(check)
+
+
+def session_lines(sessions: "SessionOffsets") -> list[str]:
+    """Per axis: the turn-on repeatability and every session's bias offset from their mean."""
+    lines = []
+    for ax in sessions.axes:
+        offsets = ", ".join(f"{name} {v * MG:+.3g} ± {se * MG:.2g}"
+                            for name, v, se in zip(sessions.names, sessions.offsets_g[ax], sessions.stderr_g[ax]))
+        lines.append(f"      axis {ax}: turn-on repeatability {sessions.repeatability_g[ax] * MG:.3g} mg "
+                     f"(sessions' biases from their mean, mg: {offsets})")
+    lines.append(f"      {sessions.applied}")
     return lines
 
 
@@ -106,7 +140,9 @@ def diagnosis_report(diag: "Diagnosis") -> str:
         if f.rows is not None:
             named = "poses" if diag.poses.source == "raw recording" else "poses in file rows"
             lines.append(f"      {named} {', '.join(str(r) for r in f.rows)} given zero weight")
-        for ax in f.axes:
+        if f.sessions is not None:
+            lines += session_lines(f.sessions)
+        for ax in f.axes if f.sessions is None else ():
             order = f.order[ax]
             change = f.change_over_data[ax]
             size = f"{change * 1e6:.3g} ppm" if f.effect == "temperature_scale" else f"{change * MG:.3g} mg"

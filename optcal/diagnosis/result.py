@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -14,13 +14,16 @@ from optcal.diagnosis.limits import DetectionLimit
 from optcal.diagnosis.noise_model import NoiseModelCheck
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.selection import Step, TemperatureTimeDecision
+from optcal.diagnosis.sessions import SessionStack
 from optcal.diagnosis.simulation import SimulationCheck
 from optcal.extended_model import ExtendedModel
+from optcal.model import AXES
 from optcal.poses import PoseTable
 
 if TYPE_CHECKING:
     from optcal.caltypes.base import Calibration
     from optcal.diagnosis.diagnoser import DiagnosisSettings
+    from optcal.diagnosis.sessions import SessionOffsets
 
 
 @dataclass
@@ -57,6 +60,8 @@ class Diagnosis:
         For every candidate not in the final model, the smallest effect the last step would have named.
     noise_model : NoiseModelCheck or None
         Whether the given per-pose σ describes the scatter, and the extended noise model when not.
+    sessions : SessionStack or None
+        The sessions when several sessions of one sensor were diagnosed together.
     """
 
     poses: PoseTable
@@ -80,6 +85,7 @@ class Diagnosis:
     given_rms_g: float | None = None
     detection_limits: list[DetectionLimit] = field(default_factory=list)
     noise_model: NoiseModelCheck | None = None
+    sessions: SessionStack | None = None
 
     @property
     def n(self) -> int:
@@ -121,13 +127,37 @@ class Diagnosis:
         from optcal.caltypes.extended import ExtendedCalibration
         from optcal.caltypes.lumped import LumpedCalibration
 
+        from optcal.caltypes.extended import BiasRepeatability
+        from optcal.model import LumpedModel
+
         kept = self.kept
         temp = self.poses.temp[kept] if self.poses.temp is not None and self.regressors.has_temp else None
         t = self.poses.t[kept] if self.poses.t is not None and self.regressors.has_time else None
         fitted_on = FitPoses(self.poses.acc[kept].copy(), temp, t)
-        if not self.final.terms:
-            return LumpedCalibration.from_model(self.model.base, self.poses.units, fitted_on)
-        return ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
+        sessions = self.session_offsets()
+        if sessions is None:
+            if not self.final.terms:
+                return LumpedCalibration.from_model(self.model.base, self.poses.units, fitted_on)
+            return ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
+        # per-session offsets do not apply to a future session: the mean bias, the spread as its uncertainty
+        base = self.model.base
+        shift = np.array([sessions.mean_from_first_g.get(a, 0.0) for a in AXES]) * np.linalg.norm(base.C, axis=1)
+        model = replace(self.model, base=LumpedModel(base.C, base.o + shift))
+        fitted_on = replace(fitted_on, acc=fitted_on.acc - (self.session_shift() - shift)[kept])
+        cal = ExtendedCalibration.from_model(model, units=self.poses.units, fitted_on=fitted_on)
+        cal.bias_repeatability = BiasRepeatability(tuple(sessions.repeatability_vector()), self.regressors.n_sessions)
+        return cal
+
+    def session_offsets(self) -> "SessionOffsets | None":
+        """The sessions' bias offsets when ``session_bias`` was found (``None`` otherwise)."""
+        found = self.finding("session_bias")
+        return None if found is None else found.sessions
+
+    def session_shift(self) -> NDArray[np.float64]:
+        """Raw bias of each pose's session relative to the first session's, shape (n, 3) (zeros for one session)."""
+        from optcal.diagnosis.problem import session_shift
+
+        return session_shift(self.final.x, self.model.base.C, self.regressors.session, self.regressors.n_sessions)
 
     def to_dict(self) -> dict[str, Any]:
         """The one JSON object of ``optcal diagnose --json``."""
@@ -161,6 +191,10 @@ class Diagnosis:
             "temperature_time_decisions": [d.to_dict() for d in self.decisions],
             "detection_limits": [lim.to_dict() for lim in self.detection_limits],
             "noise_model": None if self.noise_model is None else self.noise_model.to_dict(),
+            "sessions": None if self.sessions is None else {
+                "names": list(self.sessions.names), "poses": self.sessions.counts(),
+                "time_origins_s": list(self.sessions.time_origins),
+            },
             "selection": [s.to_dict() for s in self.steps],
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),

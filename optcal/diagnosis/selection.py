@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from optcal.diagnosis.effects import MAX_ORDER, describe_term
+from optcal.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.outliers import detect_outliers
 from optcal.diagnosis.progress import Loop, plain_loop
@@ -181,19 +181,21 @@ class ForwardSelection:
                 )
             return []
         out = []
+        sessions = self.fitter.reg.n_sessions
         for e, a in self.candidates:
             if (e, a) not in fit.terms:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
-                out += [(e, a, order) for order in range(1, top + 1)
+                orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
+                out += [(e, a, order) for order in orders
                         if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= MIN_DOF]
         for (e, a), order in fit.terms.items():
-            if order < MAX_ORDER[e] and self.supports_order(e, order + 1):
+            if e != SESSION_BIAS and order < MAX_ORDER[e] and self.supports_order(e, order + 1):
                 out.append((e, a, order + 1))
         return out
 
     def supports_order(self, effect: str, order: int) -> bool:
         """Whether the regressor takes enough distinct values for a polynomial of ``order``."""
-        if order == 1:
+        if order == 1 or effect == SESSION_BIAS:
             return True
         values = self.fitter.reg.tau if effect.startswith("temperature") else self.fitter.reg.s
         return bool(np.unique(np.round(values, 6)).size >= order + 2)

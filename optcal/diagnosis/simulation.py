@@ -197,7 +197,7 @@ def simulation_check(
     sims: dict[str, list[float]] = {k: [] for k in measured}
     for _ in loop(range(simulations), "simulation check", simulations):
         acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
-        data = PoseData(fitter.norm.forward(acc), fitter.reg.tau, fitter.reg.s)
+        data = PoseData.of(fitter.norm.forward(acc), fitter.reg)
         sim_fit = fitter.fit(fit.terms, fit.outliers, fit.x, data)
         G_s, J_s = fitter.jacobians(sim_fit, w, data)
         st = residual_statistics(fitter, sim_fit, sim_fit.residuals, J_s, G_s, candidates)

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
-from optcal.identifiability import IdentifiabilityReport, add_weak_directions, analyse
+from optcal.identifiability import IdentifiabilityReport, add_weak_directions, analyse, pseudo_inverse
 from optcal.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.norm_residual import NormResidualKernel, normal_gain
 from optcal.poses import PoseTable
@@ -58,13 +58,15 @@ class Normaliser:
         return np.diag([1 / self.scale] * 6 + [self.scale] * 3)
 
 
-def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated") -> tuple[NDArray, bool]:
+def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated",
+                 gain: NDArray | None = None) -> tuple[NDArray, bool]:
     """Weights of the norm residuals and whether they are absolute (noise known).
 
     ``paper``: ``1/σ_k²`` (Lu 2017, eq. 14).  ``propagated`` (default): ``1/(σ_k ‖Tᵀā_k‖)²``,
     the first-order variance of the norm residual, which makes the cost the maximum-likelihood
     cost of the norm residuals whatever the units (it equals ``paper`` when T ≈ I in g).
     Without per-pose noise all weights are 1 and the covariance is scaled by the fit.
+    ``gain`` is :func:`optcal.norm_residual.normal_gain` at (T, o) when the caller has it.
     """
     if weighting not in WEIGHTINGS:
         raise InputError(f"unknown weighting {weighting!r}; use one of {', '.join(WEIGHTINGS)}")
@@ -72,7 +74,7 @@ def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "pro
         return np.ones(poses.n), False
     if weighting == "paper":
         return 1.0 / poses.sigma**2, True
-    return 1.0 / (poses.sigma * normal_gain(T, o, poses.acc)) ** 2, True
+    return 1.0 / (poses.sigma * (normal_gain(T, o, poses.acc) if gain is None else gain)) ** 2, True
 
 
 #: Solver statuses that mean a failure (no usable answer), not an early stop: IPOPT's error
@@ -146,22 +148,32 @@ def fisher_at_fit(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "pr
 
     The weak-direction test needs the covariance, so both come from one Fisher matrix:
     inverted in normalised coordinates (in raw counts the T and o blocks differ by ~1e16).
+    The norm residuals are evaluated once; with the propagated weights of known noise the
+    weighted information *is* the Fisher information of :func:`optcal.identifiability.fisher_information`,
+    computed once for the verdict and the covariance.
     """
-    w, known = pose_weights(poses, T, o, weighting)
     point = NormResidualKernel(poses.acc).at(T, o)
     r = point.residuals
     J = point.jacobian().T
+    gain = point.normal_gain()
+    w, known = pose_weights(poses, T, o, weighting, gain=gain)
     norm = Normaliser.of(poses.acc)
     D = norm.jacobian()  # dθ_raw/dθ_normalised
-    F_n = D @ (J.T @ (J * w[:, None])) @ D
-    ident = analyse(T, o, poses.acc, poses.sigma, jacobian=J)
-    cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
+    F = J.T @ (J * w[:, None])
+    if known and weighting == "propagated":
+        information = F  # w = 1/(σ‖Tᵀā‖)², the weights of fisher_information
+    else:
+        s = np.ones(poses.n) if poses.sigma is None else poses.sigma
+        information = J.T @ (J * (1.0 / (s * gain) ** 2)[:, None])
+    ident = analyse(T, o, poses.acc, poses.sigma, information=information)
+    cov_n, cov_eigenvalues, eigenvectors = pseudo_inverse(D @ F @ D)
     dof = poses.n - len(PARAM_NAMES)
     if not known and covariance_scale == "auto":
         chi2 = float(np.sum(w * r**2))
-        cov_n = cov_n * (chi2 / dof) if dof > 0 else np.full_like(cov_n, np.nan)
+        factor = chi2 / dof if dof > 0 else np.nan
+        cov_n, cov_eigenvalues = cov_n * factor, cov_eigenvalues * factor
     if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
-        add_weak_directions(ident, cov_n, T * norm.scale)
+        add_weak_directions(ident, cov_n, T * norm.scale, eigen=(cov_eigenvalues, eigenvectors))
     return FisherAtFit(ident, D @ cov_n @ D, r, w, known)
 
 

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLikelihood, numpy_callback
-from optcal.identifiability import RANK_TOL, WEAK_STDERR
+from optcal.identifiability import RANK_TOL, WEAK_STDERR, pseudo_inverse
 from optcal.model import PARAM_NAMES
 from optcal.norm_residual import TRIL_COLS, TRIL_ROWS
 from optcal.poses import PoseTable
@@ -64,46 +64,82 @@ class BatchedNormResidualCost:
     def n_units(self) -> int:
         return int(self.w.shape[0])
 
-    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
-        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached).
+    def _at(self, x: NDArray) -> None:
+        """Residuals and calibrated directions at ``x`` (kept until ``x`` changes).
 
         The stacked form of :class:`optcal.norm_residual.NormResidualPoint`: the same formulas
-        (Lu 2017, eq. 13, 15-16) with a leading unit axis.
+        (Lu 2017, eq. 13) with a leading unit axis, the product with the lower-triangular T
+        written out (three broadcasts instead of a 3 × 3 matrix product per pose).
         """
         x = np.asarray(x, dtype=float).ravel()
-        if self._x is None or not np.array_equal(x, self._x):
-            th = x.reshape(-1, 9)
-            T = np.zeros((th.shape[0], 3, 3))
-            T[:, TRIL_ROWS, TRIL_COLS] = th[:, :6]
-            d = self.u - th[:, 6:9, None]  # a_k − o, (K, 3, n)
-            v = np.einsum("kij,kjn->kin", T, d)  # T (a_k − o)
-            nv = np.sqrt(np.sum(v * v, axis=1))
-            self._x, self._r, self._J = x.copy(), nv - 1.0, None  # eq. 13
-            self._parts = (T, d, v / nv[:, None, :])
-        if jacobian and self._J is None:
-            T, d, direction = self._parts
-            self._J = np.concatenate([direction[:, TRIL_ROWS] * d[:, TRIL_COLS],  # ∂r/∂T_ij = ā_i u_j, eq. 15
-                                      -np.einsum("kji,kjn->kin", T, direction)], axis=1)  # ∂r/∂o = −Tᵀ ā, eq. 16
-        return self._r, self._J
+        if self._x is not None and np.array_equal(x, self._x):
+            return
+        th = x.reshape(-1, 9)[:, :, None]
+        d = self.u - th[:, 6:9]  # a_k − o, (K, 3, n)
+        v = np.empty_like(d)  # T (a_k − o), T lower-triangular (θ order of optcal.model.TRIL_INDEX)
+        np.multiply(th[:, 0], d[:, 0], out=v[:, 0])
+        v[:, 1] = th[:, 1] * d[:, 0] + th[:, 2] * d[:, 1]
+        v[:, 2] = th[:, 3] * d[:, 0] + th[:, 4] * d[:, 1] + th[:, 5] * d[:, 2]
+        nv = np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2 + v[:, 2] ** 2)
+        v /= nv[:, None]  # ā_k
+        self._x, self._r, self._J, self._gain = x.copy(), nv - 1.0, None, None  # eq. 13
+        self._parts = (th, d, v)
+
+    def residuals(self, x: NDArray) -> NDArray[np.float64]:
+        """``r_jk = ‖T_j(u_jk − o_j)‖ − 1`` (K, n) (Lu 2017, eq. 13)."""
+        self._at(x)
+        return self._r
+
+    def bias_jacobian(self, x: NDArray) -> NDArray[np.float64]:
+        """``∂r/∂o = −Tᵀ ā`` (K, 3, n) (Lu 2017, eq. 16)."""
+        self._at(x)
+        th, _, a = self._parts
+        g = np.empty_like(a)
+        g[:, 0] = -(th[:, 0] * a[:, 0] + th[:, 1] * a[:, 1] + th[:, 3] * a[:, 2])
+        g[:, 1] = -(th[:, 2] * a[:, 1] + th[:, 4] * a[:, 2])
+        g[:, 2] = -th[:, 5] * a[:, 2]
+        return g
+
+    def jacobian(self, x: NDArray) -> NDArray[np.float64]:
+        """``∂r/∂θ`` (K, 9, n): ``∂r/∂T_ij = ā_i u_j`` (Lu 2017, eq. 15), then ∂r/∂o (eq. 16)."""
+        self._at(x)
+        if self._J is None:
+            _, d, a = self._parts
+            J = np.empty((d.shape[0], 9, d.shape[2]))
+            for k, (i, j) in enumerate(zip(TRIL_ROWS, TRIL_COLS)):
+                np.multiply(a[:, i], d[:, j], out=J[:, k])
+            J[:, 6:9] = self.bias_jacobian(x)
+            self._J = J
+        return self._J
+
+    def evaluate(self, x: NDArray, jacobian: bool = True) -> tuple[NDArray, NDArray | None]:
+        """Residuals ``r`` (K, n) and, if asked, their Jacobian (K, 9, n) at ``x`` (both cached)."""
+        r = self.residuals(x)
+        return r, (self.jacobian(x) if jacobian else None)
 
     def value(self, x: NDArray) -> float:
-        r, _ = self.evaluate(x, jacobian=False)
-        return float(np.sum(self.scale * np.sum(self.w * r * r, axis=1)))
+        r = self.residuals(x)
+        return float(self.scale @ np.sum(self.w * r * r, axis=1))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
         r, J = self.evaluate(x)
-        g = 2.0 * self.scale[:, None] * np.einsum("kpn,kn->kp", J, self.w * r)
-        return self.value(x), g.ravel()
+        wr = self.w * r
+        g = (2.0 * self.scale)[:, None] * np.matmul(J, wr[:, :, None])[:, :, 0]
+        return float(self.scale @ np.sum(wr * r, axis=1)), g.ravel()
 
     def hessian_blocks(self, x: NDArray) -> NDArray[np.float64]:
         """``2 c_j J_j W_j J_jᵀ`` per unit, (K, 9, 9)."""
         _, J = self.evaluate(x)
-        return 2.0 * self.scale[:, None, None] * np.einsum("kpn,kqn->kpq", J * self.w[:, None, :], J)
+        Jw = J * np.sqrt((2.0 * self.scale)[:, None] * self.w)[:, None, :]
+        return np.matmul(Jw, np.swapaxes(Jw, 1, 2))
 
     def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
-        """``‖Tᵀ ā_jk‖`` in normalised units (K, n) (= −∂r/∂o, as :meth:`NormResidualCost.normal_gain`)."""
-        _, J = self.evaluate(x)
-        return np.sqrt(np.sum(J[:, 6:9] ** 2, axis=1))
+        """``‖Tᵀ ā_jk‖`` in normalised units (K, n) (= ‖∂r/∂o‖, as :meth:`NormResidualCost.normal_gain`)."""
+        self._at(x)
+        if self._gain is None:
+            g = self.bias_jacobian(x) if self._J is None else self._J[:, 6:9]
+            self._gain = np.sqrt(g[:, 0] ** 2 + g[:, 1] ** 2 + g[:, 2] ** 2)
+        return self._gain
 
 
 class BatchedMLProblem:
@@ -128,12 +164,9 @@ class BatchedMLProblem:
         scalar = ca.Sparsity.dense(1, 1)
         empty = ca.Sparsity(0, 1)
 
-        def theta(arg: list) -> NDArray:
-            return np.asarray(arg[0]).ravel()
-
         self._gradient = numpy_callback(
             "batched_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)],
-            lambda arg: list(current().gradient(theta(arg))),
+            lambda arg: list(current().gradient(arg[0])), nonzeros=True,
         )
 
         def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
@@ -142,11 +175,11 @@ class BatchedMLProblem:
             return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
 
         self._cost = numpy_callback("batched_f", [("x", dense)], [("f", scalar)],
-                                    lambda arg: [current().value(theta(arg))], reverse=cost_reverse)
+                                    lambda arg: [current().value(arg[0])], reverse=cost_reverse, nonzeros=True)
         self._hessian = numpy_callback(
             "batched_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
             [("triu_hess_gamma_x_x", hess_sp)],
-            lambda arg: [ca.DM(hess_sp, current().hessian_blocks(theta(arg)).ravel()[self._flat] * float(arg[2]))],
+            lambda arg: [current().hessian_blocks(arg[0]).ravel()[self._flat] * float(arg[2][0])], nonzeros=True,
         )
         x = ca.MX.sym("theta", 9 * K)
         opts = {**ML_IPOPT_DEFAULTS, "grad_f": self._gradient, "hess_lag": self._hessian}
@@ -194,6 +227,10 @@ class BatchedFit:
         Whether IPOPT reported success for the unit's last solve.
     passes : ndarray of int, shape (K,)
         Solves until the weights settled.
+    iterations : ndarray of int, shape (K,)
+        IPOPT iterations of the problems the unit was solved in, summed over its passes.
+    residuals, weights : list of ndarray, shape (n_j,) each
+        Each unit's norm residuals and their weights at the fit (as ``CalibrationResult``).
     """
 
     theta: NDArray[np.float64]
@@ -202,6 +239,23 @@ class BatchedFit:
     identifiable: NDArray[np.bool_]
     success: NDArray[np.bool_]
     passes: NDArray[np.int64]
+    iterations: NDArray[np.int64]
+    residuals: list[NDArray[np.float64]]
+    weights: list[NDArray[np.float64]]
+
+    @classmethod
+    def empty(cls, n_units: int) -> "BatchedFit":
+        """A fit of ``n_units`` units to be filled in."""
+        K = n_units
+        return cls(np.zeros((K, 9)), np.zeros((K, 9, 9)), np.zeros(K), np.zeros(K, bool), np.zeros(K, bool),
+                   np.zeros(K, np.int64), np.zeros(K, np.int64), [np.empty(0)] * K, [np.empty(0)] * K)
+
+    def put(self, index: list[int], part: "BatchedFit") -> None:
+        """Store ``part`` (a fit of ``len(index)`` units) at positions ``index``."""
+        for name in ("theta", "covariance", "rms_g", "identifiable", "success", "passes", "iterations"):
+            getattr(self, name)[index] = getattr(part, name)
+        for j, k in enumerate(index):
+            self.residuals[k], self.weights[k] = part.residuals[j], part.weights[j]
 
     @property
     def stderr(self) -> NDArray[np.float64]:
@@ -232,21 +286,22 @@ class BatchedMaximumLikelihood:
         self.reweight = int(reweight if reweight is not None else defaults.reweight)
         self.reweight_rtol = float(reweight_rtol)
 
-    def fit_many(self, tables: list[PoseTable]) -> BatchedFit:
-        """Calibrate every table (grouped by pose count, ``batch`` units per problem)."""
-        K = len(tables)
-        out = BatchedFit(np.zeros((K, 9)), np.zeros((K, 9, 9)), np.zeros(K), np.zeros(K, bool), np.zeros(K, bool),
-                         np.zeros(K, np.int64))
+    def fit_many(self, tables: list[PoseTable], validate: bool = True) -> BatchedFit:
+        """Calibrate every table (grouped by pose count, ``batch`` units per problem).
+
+        ``validate=False`` skips :func:`validate_many` for tables the caller has validated
+        (:func:`invalid_tables`).
+        """
+        out = BatchedFit.empty(len(tables))
         by_n: dict[int, list[int]] = {}
         for j, t in enumerate(tables):
             by_n.setdefault(t.n, []).append(j)
         for idx in by_n.values():
-            validate_many([tables[j] for j in idx], idx)
+            if validate:
+                validate_many([tables[j] for j in idx], idx)
             for s in range(0, len(idx), self.batch):
                 part = idx[s:s + self.batch]
-                fit = self._fit_group([tables[j] for j in part])
-                for name in ("theta", "covariance", "rms_g", "identifiable", "success", "passes"):
-                    getattr(out, name)[part] = getattr(fit, name)
+                out.put(part, self._fit_group([tables[j] for j in part]))
         return out
 
     def _fit_group(self, tables: list[PoseTable]) -> BatchedFit:
@@ -262,14 +317,17 @@ class BatchedMaximumLikelihood:
             theta[j] = MaximumLikelihood().initial_normalised(tables[j], Normaliser(centre[j], float(scale[j])), u[j])[0]
         sigma = np.stack([t.sigma if t.sigma is not None else np.full(n, np.nan) for t in tables])
         known = np.all(np.isfinite(sigma), axis=1)
+        sigma_or_1 = np.where(known[:, None], sigma, 1.0)
 
         def weights(th: NDArray) -> NDArray:
+            """The propagated weights 1/(σ‖Tᵀā‖)² in raw units (MaximumLikelihood.weights), 1 without noise."""
             gain = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K)).normal_gain(th.ravel()) / scale[:, None]
-            return np.where(known[:, None], 1.0 / (np.where(known[:, None], sigma, 1.0) * gain) ** 2, 1.0)
+            return np.where(known[:, None], 1.0 / (sigma_or_1 * gain) ** 2, 1.0)
 
         w_used = np.full((K, n), np.nan)
         active = np.ones(K, bool)
         passes = np.zeros(K, np.int64)
+        iterations = np.zeros(K, np.int64)
         success = np.zeros(K, bool)
         for p in range(1 + max(self.reweight, 0)):
             w = weights(theta)
@@ -281,14 +339,21 @@ class BatchedMaximumLikelihood:
             w_n = w[a] / np.mean(w[a], axis=1, keepdims=True)
             theta[a], stats = BatchedMLProblem.get(len(a)).solve(theta[a], u[a], w_n)
             success[a] = bool(stats.get("success", False))
+            iterations[a] += int(stats.get("iter_count", 0))
             passes[a] += 1
             w_used[a] = w[a]
-        return self._finish(theta, u, scale, centre, sigma, known, success, passes)
+        return self._finish(theta, u, scale, centre, sigma_or_1, known, success, passes, iterations)
 
     @staticmethod
     def _finish(theta_n: NDArray, u: NDArray, scale: NDArray, centre: NDArray, sigma: NDArray, known: NDArray,
-                success: NDArray, passes: NDArray) -> BatchedFit:
-        """Covariance and identifiability as :func:`optcal.estimators.base.finish`, for every unit at once."""
+                success: NDArray, passes: NDArray, iterations: NDArray) -> BatchedFit:
+        """Covariance and identifiability as :func:`optcal.estimators.base.fisher_at_fit`, for every unit at once.
+
+        One Jacobian per unit; the Fisher information with the noise propagated to the norm
+        (:func:`optcal.identifiability.fisher_information`) serves the rank test and, for units
+        with known noise, is also the information whose pseudo-inverse is the covariance; its
+        eigenvalues give the weak-direction test (:func:`optcal.identifiability.add_weak_directions`).
+        """
         K, n, _ = u.shape
         theta_n = theta_n.copy()
         flip = theta_n[:, [0, 2, 5]] < 0  # canonical form: positive diagonal of T (a row sign of T is free)
@@ -299,64 +364,91 @@ class BatchedMaximumLikelihood:
             theta_n[j] = theta_from(canonicalise(T), o)
         cost = BatchedNormResidualCost(u, np.ones((K, n)), np.ones(K))
         r, J = cost.evaluate(theta_n.ravel())
-        gain = cost.normal_gain(theta_n.ravel()) / scale[:, None]
-        s = np.where(known[:, None], sigma, 1.0)
-        w = np.where(known[:, None], 1.0 / (s * gain) ** 2, 1.0)
-        F_n = np.einsum("kpn,kqn->kpq", J * w[:, None, :], J)  # Fisher information, normalised θ
-        cov_n = np.linalg.pinv(F_n, rcond=1e-12, hermitian=True)
+        gain = cost.normal_gain(theta_n.ravel()) / scale[:, None]  # raw units
+        w_fisher = 1.0 / (sigma * gain) ** 2  # fisher_information's weights (σ = 1 when not known)
+        Jw = J * np.sqrt(w_fisher)[:, None, :]
+        F_fisher = np.matmul(Jw, np.swapaxes(Jw, 1, 2))  # normalised θ
+        w = np.where(known[:, None], w_fisher, 1.0)  # the fit's weights (pose_weights)
+        F_n = F_fisher.copy()
+        if not known.all():
+            Ju = J[~known]
+            F_n[~known] = np.matmul(Ju, np.swapaxes(Ju, 1, 2))
+        cov_n, cov_eigenvalues, _ = pseudo_inverse(F_n)
         dof = n - 9
         chi2 = np.sum(w * r * r, axis=1)
-        cov_n = np.where(known[:, None, None], cov_n, cov_n * (chi2 / dof if dof > 0 else np.nan)[:, None, None])
+        factor = np.where(known, 1.0, chi2 / dof if dof > 0 else np.nan)
+        cov_n *= factor[:, None, None]
         # identifiability (optcal.identifiability.analyse): rank of the correlation-form Fisher matrix
-        w_id = 1.0 / (s * gain) ** 2
-        F_id = np.einsum("kpn,kqn->kpq", J * w_id[:, None, :], J)
-        d = np.sqrt(np.clip(np.diagonal(F_id, axis1=1, axis2=2), 1e-300, None))
-        ev = np.linalg.eigvalsh(F_id / (d[:, :, None] * d[:, None, :]))
+        d = np.sqrt(np.clip(np.diagonal(F_fisher, axis1=1, axis2=2), 1e-300, None))
+        ev = np.linalg.eigvalsh(F_fisher / (d[:, :, None] * d[:, None, :]))
         full_rank = np.all(ev >= RANK_TOL * np.maximum(ev[:, -1:], 1e-300), axis=1)
-        weak = np.linalg.eigvalsh(0.5 * (cov_n + np.swapaxes(cov_n, 1, 2)))[:, -1] > WEAK_STDERR**2
+        weak = np.max(cov_eigenvalues * factor[:, None], axis=1) > WEAK_STDERR**2
         D = np.concatenate([np.repeat(1.0 / scale[:, None], 6, axis=1), np.repeat(scale[:, None], 3, axis=1)], axis=1)
         theta = theta_n * D
         theta[:, 6:9] += centre  # Normaliser.theta_to_raw
         cov = cov_n * D[:, :, None] * D[:, None, :]
-        return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes)
+        return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes,
+                          iterations, list(r), list(w))
 
 
-def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
-    """:meth:`PoseTable.validate` for tables of one pose count, vectorised; the first failure raised.
+def parameter_full_scale(theta: NDArray) -> NDArray[np.float64]:
+    """Full scale of each entry of θ: the largest diagonal entry of T for T, 1 g (1/min diag T) for o.
+
+    The yardstick of "equal to the solver tolerance": relative to each value, an off-diagonal
+    entry near zero would make any difference look large.
+    """
+    diag = np.abs(np.asarray(theta, dtype=float)[[0, 2, 5]])
+    return np.concatenate([np.full(6, diag.max()), np.full(3, 1.0 / diag.min())])
+
+
+def invalid_tables(tables: list[PoseTable]) -> dict[int, InputError]:
+    """The tables (of one pose count) that :meth:`PoseTable.validate` refuses, with its error.
 
     The checks (finite values, positive noise, enough poses, enough distinct poses, not
-    coplanar) run on the stacked (K, n, 3) array; a table that fails any of them is validated
-    on its own so that the error is exactly :meth:`PoseTable.validate`'s, prefixed with its
-    position in ``tables`` (or ``index``).
+    coplanar) are screened on the stacked (K, n, 3) array; a table the screen cannot pass
+    is validated on its own, so that the verdict and the error are exactly
+    :meth:`PoseTable.validate`'s.  (Distinct poses are screened by the distinct quantised x
+    values, a lower bound of the distinct rows.)
     """
     from optcal.poses import MIN_POSES
 
-    index = list(range(len(tables))) if index is None else index
+    if not tables:
+        return {}
     acc = np.stack([t.acc for t in tables])
     n = acc.shape[1]
-    bad = ~np.all(np.isfinite(acc), axis=(1, 2)) | (n < MIN_POSES)
-    for j, t in enumerate(tables):
-        for v in (t.sigma, t.t, t.temp):
-            if v is not None and not np.all(np.isfinite(v)):
-                bad[j] = True
-        if t.sigma is not None and np.any(t.sigma <= 0):
-            bad[j] = True
-    ok = ~bad
-    if n >= MIN_POSES and ok.any():
+    suspect = ~np.all(np.isfinite(acc), axis=(1, 2)) | (n < MIN_POSES)
+    for name in ("sigma", "t", "temp"):
+        have = [j for j, t in enumerate(tables) if getattr(t, name) is not None]
+        if have:
+            v = np.stack([getattr(tables[j], name) for j in have])
+            bad = ~np.all(np.isfinite(v), axis=1) | (np.any(v <= 0, axis=1) if name == "sigma" else False)
+            suspect[np.asarray(have)[bad]] = True
+    ok = np.flatnonzero(~suspect)
+    if n >= MIN_POSES and ok.size:
         a = acc[ok]
         full = np.max(np.abs(a), axis=(1, 2))
-        q = np.round(a / (np.where(full > 0, full, 1.0) * 1e-9)[:, None, None])
-        order = np.lexsort((q[..., 2], q[..., 1], q[..., 0]), axis=-1)
-        q = np.take_along_axis(q, order[..., None], axis=1)
-        distinct = 1 + np.sum(np.any(np.diff(q, axis=1) != 0, axis=2), axis=1)
+        qx = np.sort(np.round(a[..., 0] / (np.where(full > 0, full, 1.0) * 1e-9)[:, None]), axis=1)
+        distinct_x = 1 + np.sum(np.diff(qx, axis=1) != 0, axis=1)
         sv = np.linalg.svd(a - a.mean(axis=1, keepdims=True), compute_uv=False)
         flat = (sv[:, 0] == 0) | (sv[:, -1] < 1e-6 * sv[:, 0])
-        bad[np.flatnonzero(ok)[(distinct < MIN_POSES) | flat]] = True
-    for j in np.flatnonzero(bad):
+        suspect[ok[(distinct_x < MIN_POSES) | flat]] = True
+    errors = {}
+    for j in np.flatnonzero(suspect):
         try:
             tables[j].validate()
         except InputError as exc:
-            raise InputError(f"tables[{index[j]}]: {exc}") from exc
+            errors[int(j)] = exc
+    return errors
+
+
+def validate_many(tables: list[PoseTable], index: list[int] | None = None) -> None:
+    """:meth:`PoseTable.validate` for tables of one pose count, vectorised (:func:`invalid_tables`).
+
+    The first failure is raised, prefixed with its position in ``tables`` (or ``index``).
+    """
+    index = list(range(len(tables))) if index is None else index
+    for j, exc in sorted(invalid_tables(tables).items()):
+        raise InputError(f"tables[{index[j]}]: {exc}") from exc
 
 
 def convex_start(u: NDArray) -> NDArray[np.float64]:

@@ -177,7 +177,7 @@ def cost_scale(n: int, start_rms: float) -> float:
 #: cost a gradient evaluation); the multipliers of the parameters are not needed.
 ML_IPOPT_DEFAULTS: dict[str, Any] = {
     **IPOPT_DEFAULTS,
-    "ipopt.tol": 1e-7,
+    "ipopt.tol": 1e-10,
     "ipopt.acceptable_tol": 1e-5,
     "ipopt.acceptable_iter": 3,
     "ipopt.nlp_scaling_method": "none",
@@ -263,12 +263,18 @@ def numpy_callback(
     outputs: list[tuple[str, Any]],
     evaluate: Callable[[list], list],
     reverse: Callable[[str, list, list, dict], Any] | None = None,
+    nonzeros: bool = False,
 ) -> Any:
     """A CasADi ``Callback`` evaluated in Python.
 
     ``inputs`` and ``outputs`` are ``(name, sparsity)`` pairs; ``evaluate`` maps the list of
     input values to the list of outputs; ``reverse(name, inames, onames, opts)``, if given,
-    returns the Function of the first-order reverse derivative.
+    returns the Function of the first-order reverse derivative.  With ``nonzeros``, the
+    values are exchanged through CasADi's buffers (``eval_buffer``) instead of ``DM`` s:
+    ``evaluate`` receives each input's nonzeros as a float array (a view, valid during the
+    call) and returns each output's nonzeros (arrays or floats, in the output sparsity's
+    order), which are copied into CasADi's memory; no element-wise conversion, which for
+    thousands of values costs more than the numpy work itself.
     """
     import casadi as ca
 
@@ -297,6 +303,17 @@ def numpy_callback(
 
         def eval(self, arg: list) -> list:
             return evaluate(arg)
+
+        def has_eval_buffer(self) -> bool:
+            return nonzeros
+
+        def eval_buffer(self, arg: list, res: list) -> int:
+            # an absent buffer: an input without nonzeros, or an output the caller does not need
+            values = evaluate([np.empty(0) if a is None else np.frombuffer(a, dtype=np.float64) for a in arg])
+            for buffer, value in zip(res, values):
+                if buffer is not None:
+                    np.frombuffer(buffer, dtype=np.float64)[:] = value
+            return 0
 
         def has_reverse(self, nadj: int) -> bool:
             return reverse is not None and nadj == 1

@@ -10,7 +10,8 @@ fit and the refit with the population prior.
 
 Steps of :func:`run_fleet`:
 
-1. read and calibrate every unit (``read_unit`` → ``fit_unit``), in tasks of a few dozen units
+1. read and calibrate every unit (``read_unit`` → ``fit_units``: the default calibrations of a task's
+   units solved together in batched IPOPT problems), in tasks of a few dozen units
    (:func:`auto_chunk`: per-task overhead of the scheduler stays small, and the data of a chunk
    stay on its worker);
 2. population statistics and flags from the units calibrated by their own data
@@ -23,20 +24,22 @@ Steps of :func:`run_fleet`:
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from optcal.errors import InputError
 from optcal.fleet.inputs import UnitInput
-from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD, flag_units, population_stats
+from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD, PopulationStats, flag_units, population_stats
 from optcal.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
-from optcal.fleet.results import FleetResult
-from optcal.fleet.unit import ReadFailure, UnitOutcome, fit_unit, outcome_from_result, read_unit
+from optcal.fleet.results import FleetResult, ResultsWriter
+from optcal.fleet.unit import ReadFailure, UnitOutcome, fit_units, outcome_from_result, read_unit
 from optcal.poses import PoseTable
 
 
@@ -175,26 +178,36 @@ def read_chunk(units: list[UnitInput], load_options: dict[str, Any]) -> list[Pos
 
 
 def fit_chunk(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> list[UnitOutcome]:
-    """:func:`~optcal.fleet.unit.fit_unit` for a chunk of units (one Dask task)."""
-    return [fit_unit(u, d) for u, d in zip(units, data)]
+    """The units of a chunk calibrated together (:func:`~optcal.fleet.unit.fit_units`; one Dask task)."""
+    return fit_units(units, data)
 
 
-def refit_chunk(outcomes: list[UnitOutcome], data: list[PoseTable | ReadFailure], prior: PopulationPrior) -> list[UnitOutcome]:
-    """:func:`refit_unit` for a chunk of units (one Dask task)."""
-    return [refit_unit(o, d, prior) for o, d in zip(outcomes, data)]
+def refit_chunk(outcomes: list[UnitOutcome], data: list[PoseTable | ReadFailure], prior: PopulationPrior,
+                stats: PopulationStats | None = None) -> list[UnitOutcome]:
+    """:func:`refit_unit` for a chunk of units, then their flags from ``stats`` (one Dask task)."""
+    refitted = [refit_unit(o, d, prior) for o, d in zip(outcomes, data)]
+    if stats is not None:
+        flag_units(refitted, stats)
+    return refitted
 
 
 def _gather(futures: list[Any], sizes: list[int], desc: str, progress: bool,
-            on_error: Callable[[int, BaseException], list[Any]]) -> list[list[Any]]:
+            on_error: Callable[[int, BaseException], list[Any]],
+            consume: Callable[[list[Any]], None] | None = None, release: bool = False) -> list[list[Any]]:
     """Results of the chunk ``futures`` in their order, with a progress bar (in units) on standard error.
 
     A task that raises anyway (a worker lost, out of memory) gives ``on_error(index, exception)``.
+    ``consume``, if given, receives every chunk's results in input order as soon as the chunks
+    before it are in (those that finish early wait in a buffer), while the others still run.
+    ``release`` lets the cluster forget each result once it is here (the futures are then spent).
     """
     from distributed import as_completed
     from tqdm import tqdm
 
     index = {f.key: i for i, f in enumerate(futures)}
     out: list[list[Any]] = [[] for _ in futures]
+    done = [False] * len(futures)
+    next_out = 0
     with tqdm(total=sum(sizes), desc=desc, disable=not progress, leave=False, unit="unit") as bar:
         for future in as_completed(futures):
             i = index[future.key]
@@ -202,7 +215,13 @@ def _gather(futures: list[Any], sizes: list[int], desc: str, progress: bool,
                 out[i] = future.result()
             except Exception as exc:  # noqa: BLE001 - one lost task never stops the run
                 out[i] = on_error(i, exc)
+            if release:
+                future.release()
+            done[i] = True
             bar.update(sizes[i])
+            while consume is not None and next_out < len(futures) and done[next_out]:
+                consume(out[next_out])
+                next_out += 1
     return out
 
 
@@ -216,6 +235,7 @@ def run_fleet(
     prior: str = "population",
     chunk: int | None = None,
     progress: bool = False,
+    output: str | Path | None = None,
 ) -> FleetResult:
     """Calibrate every unit on the Dask ``client`` and analyse the population.
 
@@ -236,6 +256,9 @@ def run_fleet(
         Units per Dask task (:func:`auto_chunk` when omitted).
     progress : bool
         Progress bars on standard error.
+    output : str or Path, optional
+        The Parquet results table, written while the last stage runs (:class:`ResultsWriter`:
+        in input order, row group by row group) rather than from the whole table at the end.
     """
     from uuid import uuid4
 
@@ -264,17 +287,24 @@ def run_fleet(
         flag_units(outcomes, stats)
     fitted_prior = estimate_prior(outcomes, stats.units if stats else None) if prior == "population" else None
     prior_note = "not asked for" if prior == "none" else ""
-    if fitted_prior is not None:
-        prior_future = client.scatter(fitted_prior, broadcast=True)
-        refits = [client.submit(refit_chunk, per_chunk[j], reads[j], prior_future, key=f"prior-{j}-{uuid}")
-                  for j in range(len(chunks))]
-        kept = _gather(refits, sizes, "refitting with the prior", progress, lambda j, exc: per_chunk[j])
-        outcomes = [o for part in kept for o in part]
-        if stats is not None:
-            flag_units(outcomes, stats)
-    elif prior == "population":
-        n_good = sum(o.status == "calibrated" and not o.flag for o in outcomes)
-        prior_note = f"not estimated: {n_good} well-determined unit(s), at least 20 needed"
-    del reads
+    meta_keys = sorted({k for u in units for k in u.metadata})
+    with contextlib.ExitStack() as stack:
+        writer = stack.enter_context(ResultsWriter(output, meta_keys)) if output is not None else None
+        if fitted_prior is not None:
+            prior_future = client.scatter(fitted_prior, broadcast=True)
+            # the first outcomes stay on the workers (the fit futures); flags are set where the refit runs
+            refits = [client.submit(refit_chunk, fits[j], reads[j], prior_future, stats, key=f"prior-{j}-{uuid}")
+                      for j in range(len(chunks))]
+            del reads, fits
+            kept = _gather(refits, sizes, "refitting with the prior", progress, lambda j, exc: per_chunk[j],
+                           consume=writer.write if writer is not None else None, release=True)
+            outcomes = [o for part in kept for o in part]
+        else:
+            if prior == "population":
+                n_good = sum(o.status == "calibrated" and not o.flag for o in outcomes)
+                prior_note = f"not estimated: {n_good} well-determined unit(s), at least 20 needed"
+            del reads, fits
+            for part in per_chunk if writer is not None else ():
+                writer.write(part)
     return FleetResult(outcomes=outcomes, stats=stats, prior=fitted_prior, prior_note=prior_note,
                        engine=engine, seconds=time.perf_counter() - t0, chunk=size)

@@ -119,6 +119,12 @@ def statistic_values(outcome: UnitOutcome) -> NDArray[np.float64]:
     return np.append(outcome.theta, outcome.rms_g)
 
 
+def robust_location_spread(values: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Median and normalised MAD (:data:`MAD_TO_SD` · MAD) of each column of ``values`` (units × statistics)."""
+    med = np.median(values, axis=0)
+    return med, MAD_TO_SD * np.median(np.abs(values - med), axis=0)
+
+
 def population_stats(outcomes: list[UnitOutcome], threshold: float = DEFAULT_FLAG_THRESHOLD) -> PopulationStats | None:
     """Robust bands from the units calibrated by their own data (``None`` when fewer than :data:`MIN_UNITS`)."""
     if not threshold > 0:
@@ -130,9 +136,7 @@ def population_stats(outcomes: list[UnitOutcome], threshold: float = DEFAULT_FLA
     own = [o for o in own if o.units == units]
     if len(own) < MIN_UNITS:
         return None
-    X = np.array([statistic_values(o) for o in own])
-    med = np.median(X, axis=0)
-    spread = MAD_TO_SD * np.median(np.abs(X - med), axis=0)
+    med, spread = robust_location_spread(np.array([statistic_values(o) for o in own]))
     k_n = finite_sample_threshold(threshold, len(own))
     bands = []
     for i, name in enumerate(STATISTICS):

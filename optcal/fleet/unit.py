@@ -152,19 +152,22 @@ def heldout_residuals(residuals: NDArray, jacobian: NDArray, weights: NDArray) -
     return residuals / (1.0 - h)
 
 
-def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: str = "calibrated") -> UnitOutcome:
-    """A :class:`UnitOutcome` from a :class:`~optcal.result.CalibrationResult` of the unit's poses."""
+def outcome_from_fit(unit: UnitInput, poses: PoseTable, theta: NDArray, covariance: NDArray | None, residuals: NDArray,
+                     weights: NDArray, sigma_known: bool, reason: str = "", status: str = "calibrated") -> UnitOutcome:
+    """A :class:`UnitOutcome` from a fit of the unit's poses: θ (raw units), its covariance, residuals and weights."""
+    from optcal.model import unpack_theta
     from optcal.norm_residual import norm_residual_jacobian
 
-    r = np.asarray(result.residuals, dtype=float)
-    heldout = heldout_residuals(r, norm_residual_jacobian(result.T, result.o, poses.acc), np.asarray(result.weights))
-    cov = None if result.covariance is None else np.asarray(result.covariance)[:9, :9]
+    r = np.asarray(residuals, dtype=float)
+    T, o = unpack_theta(np.asarray(theta, dtype=float)[:9])
+    heldout = heldout_residuals(r, norm_residual_jacobian(T, o, poses.acc), np.asarray(weights))
+    cov = None if covariance is None else np.asarray(covariance)[:9, :9]
     return UnitOutcome(
         unit=unit.unit,
         path=unit.path,
         status=status,
-        reason="" if result.solver.success else f"solver: {result.solver.status}",
-        theta=np.asarray(result.params[:9], dtype=float),
+        reason=reason,
+        theta=np.asarray(theta[:9], dtype=float),
         stderr=None if cov is None else np.sqrt(np.clip(np.diag(cov), 0.0, None)),
         covariance=cov,
         rms_g=float(np.sqrt(np.mean(r**2))),
@@ -172,9 +175,15 @@ def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: 
         n_poses=poses.n,
         exclusions=dict(poses.exclusions),
         units=poses.units,
-        sigma_known=bool(result.sigma_known),
+        sigma_known=bool(sigma_known),
         metadata=dict(unit.metadata),
     )
+
+
+def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: str = "calibrated") -> UnitOutcome:
+    """A :class:`UnitOutcome` from a :class:`~optcal.result.CalibrationResult` of the unit's poses."""
+    return outcome_from_fit(unit, poses, result.params, result.covariance, result.residuals, result.weights,
+                            result.sigma_known, "" if result.solver.success else f"solver: {result.solver.status}", status)
 
 
 def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
@@ -198,3 +207,41 @@ def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
     except Exception as exc:  # noqa: BLE001 - one bad unit never stops the run; the reason is kept
         return UnitOutcome(unit.unit, unit.path, "failed", f"{type(exc).__name__}: {exc}", n_poses=data.n,
                            metadata=dict(unit.metadata))
+
+
+def fit_units(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> list[UnitOutcome]:
+    """:func:`fit_unit` for many units, the readable ones solved together in batched IPOPT problems.
+
+    The default calibration of every unit whose table :meth:`PoseTable.validate` accepts is
+    solved by :class:`optcal.estimators.batched.BatchedMaximumLikelihood` (the same start,
+    weights, passes, covariance and identifiability test as ``optcal calibrate``; its θ equal to
+    the one-at-a-time fit to the solver tolerance, measured ≤ 1e-8 relative and ≤ 1e-7 standard
+    errors, see ``studies/fleet_scale.md``).  Every unit the batch cannot take exactly as
+    ``calibrate`` would — unreadable, refused by validation, not identifiable, a solver that
+    did not report success, a collapsed T, no degrees of freedom — goes through
+    :func:`fit_unit`, so its outcome and reason are the single-unit path's.  Never raises.
+    """
+    from optcal.estimators.base import is_collapsed
+    from optcal.estimators.batched import BatchedMaximumLikelihood, invalid_tables
+    from optcal.model import PARAM_NAMES, unpack_theta
+
+    outcomes: list[UnitOutcome | None] = [None] * len(units)
+    by_n: dict[int, list[int]] = {}
+    for j, d in enumerate(data):
+        if isinstance(d, PoseTable) and d.n > len(PARAM_NAMES):
+            by_n.setdefault(d.n, []).append(j)
+    batch: list[int] = []
+    for group in by_n.values():
+        refused = invalid_tables([data[j] for j in group])
+        batch += [j for k, j in enumerate(group) if k not in refused]
+    tables = [data[j] for j in batch]
+    try:
+        fit = BatchedMaximumLikelihood().fit_many(tables, validate=False) if batch else None  # type: ignore[arg-type]
+    except Exception:  # noqa: BLE001 - the single-unit path below says what went wrong, unit by unit
+        fit = None
+    if fit is not None:
+        for k, j in enumerate(batch):
+            if fit.identifiable[k] and fit.success[k] and not is_collapsed(unpack_theta(fit.theta[k])[0]):
+                outcomes[j] = outcome_from_fit(units[j], tables[k], fit.theta[k], fit.covariance[k], fit.residuals[k],
+                                               fit.weights[k], tables[k].sigma is not None)
+    return [o if o is not None else fit_unit(u, d) for u, d, o in zip(units, data, outcomes)]

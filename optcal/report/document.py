@@ -92,11 +92,12 @@ def versions() -> list[tuple[str, str]]:
     return out
 
 
-def _now() -> str:
+def now_utc() -> str:
+    """The time stamp of a report (UTC, to the minute)."""
     return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
-def _g(x: float, digits: int = 4) -> str:
+def significant(x: float, digits: int = 4) -> str:
     """A number with the significant digits it needs (``n/a`` when not finite)."""
     return f"{x:.{digits}g}" if np.isfinite(x) else "n/a"
 
@@ -120,8 +121,8 @@ def data_section(data_path: str, poses: PoseTable) -> Section:
         seg = meta.get("segmentation", {})
         rows += [
             ["samples", f"{seg.get('n_samples', 'n/a')}"],
-            ["rate", f"{_g(float(meta.get('rate_hz', float('nan'))))} Hz" + (f" ({meta['time']})" if meta.get("time") else "")],
-            ["duration", f"{_g(float(meta.get('duration_s', float('nan'))))} s"],
+            ["rate", f"{significant(float(meta.get('rate_hz', float('nan'))))} Hz" + (f" ({meta['time']})" if meta.get("time") else "")],
+            ["duration", f"{significant(float(meta.get('duration_s', float('nan'))))} s"],
         ]
     rows.append(["static poses", str(poses.n)])
     rows.append(["temperature", "recorded" if poses.temp is not None else "not recorded"])
@@ -137,8 +138,8 @@ def _quantity_rows(quantities: list[Quantity], digits: int = 6) -> list[list[str
     rows = []
     for q in quantities:
         lo, hi = q.ci95
-        ci = f"{_g(lo, digits)} .. {_g(hi, digits)}" if np.isfinite(q.stderr) else "n/a"
-        rows.append([q.name, q.symbol, _g(q.value, digits), _g(q.stderr, 2), ci, q.unit])
+        ci = f"{significant(lo, digits)} .. {significant(hi, digits)}" if np.isfinite(q.stderr) else "n/a"
+        rows.append([q.name, q.symbol, significant(q.value, digits), significant(q.stderr, 2), ci, q.unit])
     return rows
 
 
@@ -150,7 +151,7 @@ def parameters_section(params: EngineeringParameters, T: np.ndarray, errors_from
     """
     header = ["parameter", "symbol", "value", "standard error", "95 % interval", "unit"]
     zero = params.zero
-    zero_text = "0" if not np.any(zero) else ", ".join(_g(z, 6) for z in zero) + f" {params.units}"
+    zero_text = "0" if not np.any(zero) else ", ".join(significant(z, 6) for z in zero) + f" {params.units}"
     paragraphs = [
         "Scale factors are the sensor's output per g; the angles are the non-orthogonality of the sensing axes "
         "(Lu 2017, eq. 1: ρ tilts y towards x, φ and λ tilt z towards x and y). The mounting misalignment is not "
@@ -180,7 +181,7 @@ def _pose_table(result: CalibrationResult, poses: PoseTable, noise: np.ndarray |
     for k in range(poses.n):
         rows.append([
             pose_name(poses, k),
-            _g(float(poses.t[k]), 5) if poses.t is not None else "",
+            significant(float(poses.t[k]), 5) if poses.t is not None else "",
             str(int(poses.n_samples[k])) if poses.n_samples is not None else "",
             f"{residuals[k] * 1e3:+.4f}",
             f"{noise[k] * 1e3:.4f}" if noise is not None else "",
@@ -190,6 +191,7 @@ def _pose_table(result: CalibrationResult, poses: PoseTable, noise: np.ndarray |
 
 def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
     from optcal.report.evidence import noise_floor
+    from optcal.report.simulation_band import band_text
 
     result = ev.result
     labels = [pose_name(poses, k).split(" (")[0].replace("pose ", "") for k in range(poses.n)]
@@ -204,9 +206,12 @@ def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
             f"{result.rms_norm_residual_g * 1e3:.3g} mg in sample"
             + (f", {ev.held_out.rms_g * 1e3:.3g} mg held out ({ev.held_out.source})" if ev.held_out.available else "")
             + (f"; noise floor {ev.noise_floor_g * 1e3:.3g} mg" if np.isfinite(ev.noise_floor_g) else "") + ".",
-            f"χ² {_g(result.chisqr)} with {result.dof} degrees of freedom"
-            + (f" (reduced χ² {_g(result.redchi)})" if result.dof > 0 else "")
+            f"χ² {significant(result.chisqr)} with {result.dof} degrees of freedom"
+            + (f" (reduced χ² {significant(result.redchi)})" if result.dof > 0 else "")
             + f"; solver {result.solver.name}: {result.solver.status}, {result.solver.iterations} iterations.",
+            *[band_text(check)[0].upper() + band_text(check)[1:] + "." for check in ev.simulated],
+            *([f"χ² against simulations of the fitted model: not computed ({ev.simulation_note})."]
+              if ev.simulation_note else []),
         ],
         [_pose_table(result, poses, noise, result.residuals)],
         [embed(residual_figure(result.residuals, labels, noise, flagged),
@@ -258,7 +263,7 @@ def calibration_document(
     verdict = judge(ev, tolerance_mg)
     sections = [result_parameters_section(result, poses), *_evidence_sections(ev, poses), data_section(data_path, poses),
                 Section("Text report", preformatted=result.report())]
-    return ReportDocument(f"Calibration of {data_path}", data_path, verdict, sections, command, versions(), _now())
+    return ReportDocument(f"Calibration of {data_path}", data_path, verdict, sections, command, versions(), now_utc())
 
 
 def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str,
@@ -269,7 +274,7 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
     result = calibrate(poses, method="mle", allow_degenerate=True)
     ev = gather(result, poses, diagnosis=diag)
     verdict = judge(ev, tolerance_mg)
-    findings_rows = [[e.effect, e.axis or "", e.coefficient, _g(e.size_mg, 3) if np.isfinite(e.size_mg) else "", e.over]
+    findings_rows = [[e.effect, e.axis or "", e.coefficient, significant(e.size_mg, 3) if np.isfinite(e.size_mg) else "", e.over]
                      for e in ev.effects]
     from optcal.diagnosis.figures import residual_figure as diagnosis_residual_figure
     from optcal.diagnosis.figures import simulation_figure
@@ -292,7 +297,7 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
     sections = [diagnosis, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
                 data_section(data_path, poses),
                 Section("Text report", preformatted=diag.report())]
-    return ReportDocument(f"Diagnosis of {data_path}", data_path, verdict, sections, command, versions(), _now())
+    return ReportDocument(f"Diagnosis of {data_path}", data_path, verdict, sections, command, versions(), now_utc())
 
 
 def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_path: str, command: str,
@@ -322,7 +327,7 @@ def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_p
     params = parameters_section(engineering_parameters(lumped.model, cal.units, None, _zero_of(poses)),
                                 lumped.model.T_canonical, "not stored in the calibration file (see the report of its fit)")
     return ReportDocument(f"Check of {cal_path} on {data_path}", f"{cal_path} on {data_path}", verdict,
-                          [section, params, data_section(data_path, poses)], command, versions(), _now())
+                          [section, params, data_section(data_path, poses)], command, versions(), now_utc())
 
 
 def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, command: str, text: str) -> ReportDocument:
@@ -343,4 +348,4 @@ def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, c
                              fmt="png"))
     figures.append(embed(sphere_map_figure(directions), "Sphere map of the static poses (nominal conversion)"))
     sections = [Section("Static intervals", [], [], figures, text), data_section(data_path, poses)]
-    return ReportDocument(f"Static intervals of {data_path}", data_path, verdict, sections, command, versions(), _now())
+    return ReportDocument(f"Static intervals of {data_path}", data_path, verdict, sections, command, versions(), now_utc())

@@ -9,7 +9,8 @@ Everything here is measured, nothing is judged (that is :mod:`optcal.report.verd
   diagnosis's own held-out error;
 * the **model check**: χ² of the fit against its 99 % band under the model (the χ²
   distribution with the fit's degrees of freedom when the per-pose noise is given), or the
-  residual rms against the band of the diagnosis's simulations;
+  residual rms against the band of the diagnosis's simulations; and χ² and the held-out rms
+  against the band of simulations of the fitted model (:mod:`optcal.report.simulation_band`);
 * **determination**: the parameter combinations the poses do not determine or determine only
   weakly (:mod:`optcal.identifiability`) and the next poses the pose planner recommends
   (:func:`optcal.plan.next_pose`);
@@ -84,6 +85,12 @@ class BandCheck:
         Where the band comes from (the χ² distribution, or N simulations).
     meaningful : bool
         False when the band cannot test anything (no per-pose noise given: χ² is matched by construction).
+    percentile : float
+        Where the measured value lies in a simulated distribution, % (NaN for a distribution's band).
+    median : float
+        The median of the simulated distribution (NaN for a distribution's band).
+    unit : str
+        ``"g"`` for a statistic in g (shown in mg), ``""`` for a number without unit.
     """
 
     statistic: str
@@ -92,6 +99,9 @@ class BandCheck:
     high: float
     source: str
     meaningful: bool = True
+    percentile: float = float("nan")
+    median: float = float("nan")
+    unit: str = ""
 
     @property
     def position(self) -> str:
@@ -238,6 +248,11 @@ class Evidence:
         Whether a diagnosis was run.
     solver_ok : bool
     solver_text : str
+    simulated : list of BandCheck
+        χ² and the held-out rms against the band of simulations of the fitted model
+        (:mod:`optcal.report.simulation_band`; empty when not computed).
+    simulation_note : str
+        Why they were not computed ("" when they were).
     """
 
     result: CalibrationResult
@@ -252,6 +267,8 @@ class Evidence:
     diagnosed: bool = False
     solver_ok: bool = True
     solver_text: str = ""
+    simulated: list[BandCheck] = field(default_factory=list)
+    simulation_note: str = ""
 
 
 # ----------------------------------------------------------------------------- pieces
@@ -428,6 +445,10 @@ def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
                                   ", ".join(names_of_rows(poses, rows)), f.cause))
             continue
         for axis in f.axes:
+            if effect == "session_bias":  # the sessions' biases: their range, the spread as the estimate
+                out.append(EffectSize(effect, axis, format_value(effect, f.estimate[axis], f.stderr[axis]),
+                                      1e3 * f.change_over_data[axis], "the sessions", f.cause))
+                continue
             coefs = np.asarray(f.coefficients[axis], dtype=float)
             if effect.startswith("temperature") or effect == "bias_drift":
                 column = poses.temp if effect.startswith("temperature") else poses.t
@@ -471,6 +492,8 @@ def gather(
         raise InputError(f"poses has {poses.n} poses but the result was fitted to {result.n_poses}; pass the same poses")
     sigma_r = noise_floor(result, poses)
     floor = float(np.sqrt(np.mean(sigma_r**2))) if sigma_r is not None else float("nan")
+    simulated: list[BandCheck] = []
+    simulation_note = ""  # a diagnosis brings its own simulation check
     if diagnosis is not None:
         folds = int(diagnosis.settings.folds)
         held = HeldOut(diagnosis.baseline_heldout_rms(), diagnosis.baseline_rms(), folds,
@@ -488,6 +511,10 @@ def gather(
         check = chi_square_check(result)
         outliers = robust_outliers(result, poses)
         effects = []
+        from optcal.report.simulation_band import simulation_band
+
+        band = simulation_band(result, poses)
+        simulated, simulation_note = band.checks, band.note
     return Evidence(
         result=result,
         n_poses=poses.n,
@@ -501,4 +528,6 @@ def gather(
         diagnosed=diagnosis is not None,
         solver_ok=bool(result.solver.success),
         solver_text=f"{result.solver.name}: {result.solver.status}",
+        simulated=simulated,
+        simulation_note=simulation_note,
     )

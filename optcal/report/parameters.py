@@ -87,8 +87,13 @@ class EngineeringParameters:
         """Every quantity, in reading order."""
         return [*self.scale, *self.scale_error, *self.angles, *self.bias_raw, *self.bias_mg]
 
+    @property
+    def physical(self) -> list[Quantity]:
+        """Scale factors, angles and biases in mg: the order of :func:`physical_vector`."""
+        return [*self.scale, *self.angles, *self.bias_mg]
 
-def _physical_vector(theta: NDArray[np.float64], zero: NDArray[np.float64]) -> NDArray[np.float64]:
+
+def physical_vector(theta: NDArray[np.float64], zero: NDArray[np.float64]) -> NDArray[np.float64]:
     """θ → (S_x, S_y, S_z, ρ, φ, λ in degrees, bias in mg (``T (o − zero)``))."""
     model = LumpedModel.from_theta(theta)
     phys = model.physical()
@@ -131,7 +136,7 @@ def engineering_parameters(model: LumpedModel, units: str, covariance: ArrayLike
     """
     zero_raw = np.zeros(3) if zero is None else np.asarray(zero, dtype=float).reshape(3)
     theta = model.theta
-    values = _physical_vector(theta, zero_raw)
+    values = physical_vector(theta, zero_raw)
     cov = None if covariance is None else np.asarray(covariance, dtype=float)
     if cov is None:
         stderr = np.full(values.size, np.nan)
@@ -141,7 +146,7 @@ def engineering_parameters(model: LumpedModel, units: str, covariance: ArrayLike
         for k, h in enumerate(steps):
             e = np.zeros(theta.size)
             e[k] = h
-            J[:, k] = (_physical_vector(theta + e, zero_raw) - _physical_vector(theta - e, zero_raw)) / (2 * h)
+            J[:, k] = (physical_vector(theta + e, zero_raw) - physical_vector(theta - e, zero_raw)) / (2 * h)
         stderr = np.sqrt(np.clip(np.diag(J @ cov @ J.T), 0.0, None))
     scale = [Quantity(f"scale factor {a}", f"S_{a}", values[i], stderr[i], f"{units}/g") for i, a in enumerate(AXES)]
     nominal = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}.get(units)
@@ -162,4 +167,5 @@ def engineering_parameters(model: LumpedModel, units: str, covariance: ArrayLike
     return EngineeringParameters(units, scale, scale_error, angles, bias_raw, bias_mg, zero_raw)
 
 
-__all__ = ["EngineeringParameters", "Quantity", "Z95", "engineering_parameters", "result_parameters", "theta_covariance"]
+__all__ = ["EngineeringParameters", "Quantity", "Z95", "engineering_parameters", "physical_vector", "result_parameters",
+           "theta_covariance"]

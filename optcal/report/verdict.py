@@ -9,7 +9,9 @@ not usable                  a parameter combination is not determined by the pos
                             ``NOT_USABLE_FACTOR`` × the tolerance
 usable with care            a combination is only weakly determined; the held-out error exceeds the
                             tolerance, or it cannot be measured; the residuals exceed what the model
-                            predicts by more than the tolerance; an effect found by
+                            predicts by more than the tolerance (against the χ² distribution, or
+                            χ² and the held-out rms against the band of simulations of the fitted
+                            model); an effect found by
                             the diagnosis that changes the output by more than the tolerance over the
                             recorded range; an outlier pose off by more than the tolerance
 good                        none of the above
@@ -25,11 +27,15 @@ at that tolerance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from optcal.report.evidence import Evidence
+
+if TYPE_CHECKING:
+    from optcal.fleet.results import FleetResult
+    from optcal.plan import NextPose, PosePlan
 
 Level = Literal["good", "usable with care", "not usable"]
 #: Levels from best to worst.
@@ -160,6 +166,34 @@ def _model_check(ev: Evidence, tol_g: float) -> Reason:
                   f"{_mg(excess)} rms, {judgement} the tolerance of {_mg(tol_g)}.")
 
 
+def _simulation_band(ev: Evidence, tol_g: float) -> list[Reason]:
+    """χ² and the held-out rms among refits of simulations of the fitted model.
+
+    Above the band, the part of the error the simulations do not produce is
+    ``√(measured² − median²)`` of the rms (χ² as its rms ``σ_floor·√(χ²/n)``); it is judged against the tolerance.
+    """
+    from optcal.report.simulation_band import band_text
+
+    if not ev.simulated:
+        return [Reason("good", "simulation band", f"Not computed: {ev.simulation_note}.")] if ev.simulation_note else []
+    out: list[Reason] = []
+    for check in ev.simulated:
+        text = band_text(check)
+        if check.position != "above":
+            out.append(Reason("good", "simulation band", f"{text}: as the calibration model predicts."))
+            continue
+        if check.unit == "g":
+            excess = float(np.sqrt(max(check.measured**2 - check.median**2, 0.0)))
+        else:
+            floor = ev.noise_floor_g if np.isfinite(ev.noise_floor_g) else 0.0
+            excess = floor * float(np.sqrt(max(check.measured - check.median, 0.0) / max(ev.n_poses, 1)))
+        level: Level = "usable with care" if excess > tol_g else "good"
+        out.append(Reason(level, "simulation band",
+                          f"{text}: above what the model produces; the part not explained is about {_mg(excess)} rms, "
+                          f"{'above' if level != 'good' else 'within'} the tolerance of {_mg(tol_g)}."))
+    return out
+
+
 def _outliers(ev: Evidence, tol_g: float) -> Reason:
     o = ev.outliers
     if not o.poses:
@@ -222,7 +256,8 @@ def judge(evidence: Evidence, tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> Ver
     if not evidence.solver_ok:
         reasons.append(Reason("not usable", "solver",
                               f"The solver did not converge ({evidence.solver_text}): the numbers below are not an optimum."))
-    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), _outliers(evidence, tol_g), _coverage(evidence)]
+    reasons += [_held_out(evidence, tol_g), _model_check(evidence, tol_g), *_simulation_band(evidence, tol_g),
+                _outliers(evidence, tol_g), _coverage(evidence)]
     reasons += _effects(evidence, tol_g)
     reasons.sort(key=lambda r: -LEVELS.index(r.level))
     level = max((r.level for r in reasons), key=LEVELS.index)
@@ -271,4 +306,149 @@ def judge_segmentation(n_poses: int, distinct: int) -> Verdict:
     return Verdict(reason.level, [reason], None)
 
 
-__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "Reason", "Verdict", "judge", "judge_check", "judge_segmentation"]
+#: Units named in one reason of a fleet verdict (the rest are counted).
+NAMED_UNITS: int = 12
+
+
+def _some(names: list[str]) -> str:
+    """``a, b, c`` or ``a, b, ... and N more``."""
+    shown = ", ".join(names[:NAMED_UNITS])
+    return shown + (f" and {len(names) - NAMED_UNITS} more" if len(names) > NAMED_UNITS else "")
+
+
+def judge_fleet(result: "FleetResult", tolerance_mg: float = DEFAULT_TOLERANCE_MG,
+                flag_words: dict[str, str] | None = None) -> Verdict:
+    """Verdict on a fleet as a whole (``optcal fleet``): can its calibrations be used, and which units need a look?
+
+    ==========================  ==================================================================
+    not usable                  no unit calibrated, or fewer than half of the units
+    usable with care            a unit failed or was refused; a unit lies outside the population's
+                                bands (flagged); a unit was calibrated with the population prior
+                                (its undetermined parameters come from the fleet, not from its
+                                data); a unit's held-out rms exceeds the tolerance; fewer than
+                                five units calibrated by their own data (no population check)
+    good                        none of the above
+    ==========================  ==================================================================
+
+    Parameters
+    ----------
+    result : optcal.fleet.results.FleetResult
+    tolerance_mg : float
+        Accuracy asked of each unit's calibrated norm (its held-out rms), mg.
+    flag_words : dict of str to str, optional
+        The reason of each flagged unit in plain words (default: the fleet's own flag reason).
+    """
+    from optcal.errors import InputError
+
+    if not tolerance_mg > 0:
+        raise InputError(f"tolerance_mg must be positive, got {tolerance_mg}")
+    tol_g = tolerance_mg * 1e-3
+    n = len(result.outcomes)
+    calibrated = [o for o in result.outcomes if o.calibrated]
+    reasons: list[Reason] = []
+    own, with_prior = result.count("calibrated"), result.count("calibrated_with_prior")
+    counts = (f"{n} units: {own} calibrated by their own data, {with_prior} with the population prior, "
+              f"{result.count('refused')} refused, {result.count('failed')} failed")
+    if not calibrated or len(calibrated) < n / 2:
+        reasons.append(Reason("not usable", "units calibrated",
+                              f"{counts}: fewer than half of the units have a calibration. Check the files and the "
+                              "data options (--columns, --units, the static detection) on one unit with optcal calibrate."))
+    else:
+        reasons.append(Reason("good", "units calibrated", f"{counts}."))
+    bad = result.not_calibrated
+    if bad:
+        reasons.append(Reason("usable with care", "units without a calibration",
+                              f"{len(bad)} unit(s) have no calibration: "
+                              + _some([f"{o.unit} ({o.status}: {o.reason})" for o in bad]) + "."))
+    if result.stats is None:
+        reasons.append(Reason("usable with care", "population check",
+                              f"Fewer than five units were calibrated by their own data in the same units, so no unit "
+                              "could be compared with the population."))
+    flagged = result.flagged
+    words = flag_words or {}
+    if flagged:
+        reasons.append(Reason("usable with care", "units unlike the others",
+                              f"{len(flagged)} unit(s) lie outside the population's robust band"
+                              + (f" (median ± {result.stats.threshold_n:.3g} robust SD)" if result.stats else "") + ": "
+                              + _some([f"{o.unit}: {words.get(o.unit, o.flag)}" for o in flagged])
+                              + ". Check them before use: a damaged part, a different part number or a bad session."))
+    elif result.stats is not None:
+        reasons.append(Reason("good", "units unlike the others",
+                              f"No unit lies outside the population's robust band (median ± "
+                              f"{result.stats.threshold_n:.3g} robust SD of every parameter and of the residual)."))
+    if with_prior:
+        names = [o.unit for o in result.outcomes if o.status == "calibrated_with_prior"]
+        reasons.append(Reason("usable with care", "calibrated with the population prior",
+                              f"{with_prior} unit(s) do not determine every parameter by their own poses; the missing "
+                              f"part comes from the population prior: {_some(names)}. Their calibration is as good as "
+                              "the population is alike; record more orientations to calibrate them alone."))
+    high = [o for o in calibrated if np.isfinite(o.heldout_rms_g) and o.heldout_rms_g > tol_g]
+    held = np.array([o.heldout_rms_g for o in calibrated if np.isfinite(o.heldout_rms_g)])
+    if high:
+        reasons.append(Reason("usable with care", "held-out error",
+                              f"{len(high)} of {len(calibrated)} calibrated units have a held-out rms error of |a| "
+                              f"(leave-one-out) above the tolerance of {_mg(tol_g)}: "
+                              + _some([f"{o.unit} ({_mg(o.heldout_rms_g)})" for o in high]) + "."))
+    elif held.size:
+        reasons.append(Reason("good", "held-out error",
+                              f"Every calibrated unit's held-out rms error of |a| (leave-one-out) is within the tolerance "
+                              f"of {_mg(tol_g)}: median {_mg(float(np.median(held)))}, largest {_mg(float(held.max()))}."))
+    reasons.sort(key=lambda r: -LEVELS.index(r.level))
+    level = max((r.level for r in reasons), key=LEVELS.index)
+    return Verdict(level, reasons, tolerance_mg)
+
+
+#: A plan whose efficiency against the certified bound is below this is "usable with care".
+PLAN_EFFICIENCY_GOOD: float = 0.9
+
+
+def judge_plan(plan: "PosePlan") -> Verdict:
+    """Verdict on a pose plan (``optcal plan --poses K``): how close it comes to the best any K poses can do.
+
+    ``good`` when its efficiency against the relaxation's certified bound is at least
+    ``PLAN_EFFICIENCY_GOOD``; ``usable with care`` below (the feasible set or the grid limits the
+    plan).  The planner refuses plans that leave a combination undetermined, so none is judged here.
+    """
+    name = {"D": "D-efficiency", "A": "A-efficiency", "E": "E-efficiency"}[plan.criterion.value]
+    text = (f"The {plan.n_poses} poses reach {100 * plan.efficiency:.1f} % of the best any {plan.n_poses} poses in the "
+            f"feasible set ({plan.feasible_set}) can reach ({name} against the relaxation's certified bound)")
+    if plan.efficiency >= PLAN_EFFICIENCY_GOOD:
+        reason = Reason("good", "design", f"{text}.")
+    else:
+        reason = Reason("usable with care", "design",
+                        f"{text}: the constraint limits the plan; more poses or a wider feasible set determine the "
+                        "calibration better.")
+    return Verdict(reason.level, [reason], None)
+
+
+def judge_next_pose(step: "NextPose") -> Verdict:
+    """Verdict on the poses taken so far (``optcal plan --next DATA``): can they make a calibration, or take the next?
+
+    ``not usable`` while they do not determine every parameter; ``usable with care`` while a
+    standard error is above the target; ``good`` once every one is below it (stop), or when
+    they determine every parameter and no target was given.
+    """
+    from optcal.model import N_PARAMS
+
+    have = f"The {step.n_poses} poses taken"
+    if step.rank_before < N_PARAMS:
+        reason = Reason("not usable", "poses so far",
+                        f"{have} do not determine the calibration (Fisher information rank {step.rank_before} of "
+                        f"{N_PARAMS}); the next pose ({step.description}) raises the rank to {step.rank_after}.")
+    elif step.stop:
+        reason = Reason("good", "poses so far", f"{have} determine every parameter; {step.stop_message}.")
+    elif step.target_stderr is not None:
+        worst = max(step.stderr_normalised, key=lambda k: step.stderr_normalised[k])
+        reason = Reason("usable with care", "poses so far",
+                        f"{have} determine every parameter, but {worst} has a standard error of "
+                        f"{step.stderr_normalised[worst]:.3g} (normalised), above the target {step.target_stderr:g}: "
+                        f"take the next pose ({step.description}).")
+    else:
+        reason = Reason("good", "poses so far",
+                        f"{have} determine every parameter; the next pose ({step.description}) adds "
+                        f"{step.gain_logdet:.3g} to the log determinant of the information.")
+    return Verdict(reason.level, [reason], None)
+
+
+__all__ = ["DEFAULT_TOLERANCE_MG", "LEVELS", "Level", "PLAN_EFFICIENCY_GOOD", "Reason", "Verdict", "judge", "judge_check",
+           "judge_fleet", "judge_next_pose", "judge_plan", "judge_segmentation"]

@@ -1,0 +1,250 @@
+"""The data layer at scale (issue 11): the O(n) static detector against a straightforward reference,
+large text files parsed once into a column-major block (the same poses as the small-file path), and
+two refusals: a recording that never rests, and gyroscope columns mapped as the accelerometer with
+fewer than nine poses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.lib.stride_tricks import sliding_window_view
+
+import optcal.data.text as text
+from optcal.data import load, load_with_segmentation
+from optcal.data.readers import read_source
+from optcal.data.recording import recording_from_source
+from optcal.data.static import NO_REST, NO_REST_STRETCHES, Segmentation, detect_static
+from optcal.data.synthetic import synthesize_recording
+from optcal.errors import InputError
+from optcal.model import LumpedModel, lu2017_reference_model
+from optcal.simulate import tilted_sweeps, uniform_directions
+
+from conftest import SHARED
+
+DATA = SHARED / "data"
+
+
+def need(path: Path) -> Path:
+    if not path.exists():
+        pytest.skip(f"{path} is not present")
+    return path
+
+
+# ----------------------------------------------------------------------------- reference detector
+def reference_window_std(x: np.ndarray, window: int) -> np.ndarray:
+    """Population std over the centred window ``[i − h, i − h + window)`` clipped to the data, by brute force."""
+    m, h = x.size, window // 2
+    out = np.empty(m)
+    if m >= window:
+        out[h:h + m - window + 1] = sliding_window_view(x, window).std(axis=1)
+    for i in [*range(min(h, m)), *range(max(h, h + m - window + 1), m)]:
+        out[i] = x[max(0, i - h):min(m, i - h + window)].std()
+    return out
+
+
+def reference_drift(acc: np.ndarray, window: int) -> np.ndarray:
+    """‖mean of the next h samples − mean of the previous h samples‖, h = window // 2, zero at the ends."""
+    m, h = acc.shape[0], window // 2
+    out = np.zeros(m)
+    for i in range(h, m - h + 1):
+        out[i] = np.linalg.norm(acc[i:i + h].mean(axis=0) - acc[i - h:i].mean(axis=0))
+    return out
+
+
+def reference_static_mask(seg: Segmentation) -> np.ndarray:
+    """The static mask recomputed from the brute-force statistics and the segmentation's thresholds."""
+    rec, thr, window = seg.recording, seg.thresholds, int(seg.trace["window_samples"])
+    acc = rec.acc[rec.usable]
+    norm = np.linalg.norm(acc - nominal_offset(seg), axis=1)
+    axes = np.sqrt(sum(reference_window_std(acc[:, j], window) ** 2 for j in range(3)))
+    mask = (reference_window_std(norm, window) <= thr["acc_norm_std"]) & (axes <= thr["acc_axes_std"])
+    return mask & (reference_drift(acc, window) <= thr["acc_drift"])
+
+
+def nominal_offset(seg: Segmentation) -> np.ndarray:
+    from optcal.data.units import nominal_conversion
+
+    rec = seg.recording
+    return nominal_conversion(rec.units, rec.acc[rec.usable]).offset
+
+
+def check_against_reference(seg: Segmentation, statistics_samples: int | None = None) -> None:
+    """The detector's statistics, static mask and poses against the brute-force reference."""
+    rec, window = seg.recording, int(seg.trace["window_samples"])
+    acc = rec.acc[rec.usable]
+    n = acc.shape[0] if statistics_samples is None else min(statistics_samples, acc.shape[0])
+    # the moving std of each axis summed in quadrature, and the drift, to rounding
+    axes = np.sqrt(sum(reference_window_std(acc[:n, j], window) ** 2 for j in range(3)))
+    scale = float(np.max(np.abs(acc[:n] - np.median(acc[:n], axis=0))))
+    np.testing.assert_allclose(seg.trace["acc_axes_std"][:n - window], axes[:n - window], rtol=1e-7, atol=1e-6 * scale)
+    np.testing.assert_allclose(seg.trace["acc_drift"][:n - window], reference_drift(acc[:n], window)[:n - window],
+                               rtol=1e-7, atol=1e-9 * scale)
+    if statistics_samples is None:  # the whole mask: no sample sits within rounding of a threshold
+        ref = reference_static_mask(seg)
+        static = (seg.trace["acc_norm_std"] <= seg.thresholds["acc_norm_std"]) & (
+            seg.trace["acc_axes_std"] <= seg.thresholds["acc_axes_std"]) & (
+            seg.trace["acc_drift"] <= seg.thresholds["acc_drift"])
+        if "gyro_rate" in seg.trace:
+            ref &= seg.trace["gyro_rate"] <= seg.thresholds["gyro_rate"]
+            static &= seg.trace["gyro_rate"] <= seg.thresholds["gyro_rate"]
+        assert np.array_equal(ref, static)
+    for iv in seg.intervals:  # every pose is the plain mean of its samples, to 1e-12
+        rows = rec.acc[iv.start:iv.stop][rec.usable[iv.start:iv.stop]]
+        if rows.shape[0] == iv.n_samples:  # one stretch (joined stretches leave samples out between them)
+            np.testing.assert_allclose(iv.mean, rows.mean(axis=0), rtol=1e-12, atol=0)
+            np.testing.assert_allclose(iv.std, rows.std(axis=0, ddof=1), rtol=1e-9, atol=0)
+
+
+def test_detector_matches_reference_on_a_synthetic_recording():
+    syn = synthesize_recording(lu2017_reference_model(), tilted_sweeps(3), sigma=0.003, slow_creeps=2, rng=3)
+    frame = syn.frame
+    seg = detect_static(recording_from_source(source_of(frame)))
+    assert len(seg.intervals) >= len(syn.dwells)
+    check_against_reference(seg)
+
+
+def test_detector_matches_reference_on_raw_counts_with_an_offset():
+    model = LumpedModel.from_physical([16300, 16400, 16700], 0.01, -0.005, 0.008, [700, -360, -1800])
+    syn = synthesize_recording(model, uniform_directions(15, rng=1), sigma=60.0, quantum=1.0, units="counts", rng=2)
+    seg = detect_static(recording_from_source(source_of(syn.frame)))
+    assert len(seg.intervals) == 15
+    check_against_reference(seg)
+
+
+@pytest.mark.parametrize("name", ["mikoff-mpu9150/imu0.log", "mpu6050-imucalibration/example_data_calibration.csv"])
+def test_detector_matches_reference_on_real_recordings(name):
+    loaded = load_with_segmentation(need(DATA / name), rate=100.0 if name.endswith(".log") else None)
+    assert loaded.poses.n >= 10
+    check_against_reference(loaded.segmentation)
+
+
+def source_of(frame: pd.DataFrame):
+    from optcal.data.readers import source_from_frame
+
+    return source_from_frame(frame, "synthetic", "csv")
+
+
+# ----------------------------------------------------------------------------- large files
+def test_large_file_block_gives_the_poses_of_the_small_file_path(tmp_path, monkeypatch):
+    """A file above the small-file size is parsed into one column-major block (pyarrow, or pandas for
+    whitespace): the recording's accelerometer and gyro are views of it, and the poses are those of numpy's
+    small-file path (comma-separated: bit for bit; whitespace via pandas: to 1e-12)."""
+    model = LumpedModel.from_physical([16300, 16400, 16700], 0.01, -0.005, 0.008, [700, -360, -1800])
+    syn = synthesize_recording(model, uniform_directions(12, rng=4), sigma=60.0, quantum=1.0, units="counts", rng=5,
+                               temperature=(25.0, 0.001))
+    comma = tmp_path / "rec.csv"
+    syn.to_csv(str(comma), float_format="%.6f")
+    blank = tmp_path / "rec.txt"
+    syn.frame.to_csv(blank, sep=" ", index=False, float_format="%.6f")
+    small = {p: load_with_segmentation(p) for p in (comma, blank)}
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)  # every file is "large"
+    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 64 * 1024)  # several streamed batches
+    for path, exact in ((comma, True), (blank, False)):
+        src = read_source(path)
+        rec = recording_from_source(src)
+        assert rec.acc.base is not None and np.shares_memory(rec.acc, src.column("ax"))  # a view, no copy
+        large = load_with_segmentation(path)
+        a, b = small[path].poses, large.poses
+        assert a.n == b.n == 12
+        if exact:
+            assert np.array_equal(a.acc, b.acc) and np.array_equal(a.sigma, b.sigma)
+        else:
+            np.testing.assert_allclose(b.acc, a.acc, rtol=1e-12)
+        assert a.exclusions == b.exclusions
+
+
+def test_large_file_with_text_cells_falls_back_to_pandas_and_counts_them(tmp_path, monkeypatch):
+    rows = ["t,ax,ay,az"] + [f"{k / 100:.2f},0.001,0.002,1.0" for k in range(3000)]
+    rows[1500] = "14.99,oops,0.002,1.0"
+    path = tmp_path / "cells.csv"
+    path.write_text("\n".join(rows) + "\n")
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
+    parsed = text.parse_numbers(path, text.sniff_layout(path))
+    assert parsed.engine == "pandas" and parsed.non_numeric == {1: (1, 1500, "oops")}
+    assert np.isnan(parsed.columns[1][1499]) and parsed.columns[0].size == 3000
+
+
+def test_column_block_grows_past_its_estimate():
+    block = text.ColumnBlock(2, 3)
+    for k in range(4):
+        block.append([np.full(2, k, float), np.full(2, -k, float)])
+    a, b = block.columns()
+    assert np.array_equal(a, [0, 0, 1, 1, 2, 2, 3, 3]) and np.array_equal(b, -a) and a.flags.c_contiguous
+
+
+# ----------------------------------------------------------------------------- a recording that never rests
+def slow_sphere(gyro: bool) -> pd.DataFrame:
+    """A slow full-sphere rotation with noise: 20 directions passed through without stopping."""
+    model = LumpedModel.from_physical([1.0, 1.0, 1.0], 0.0, 0.0, 0.0, [0.0, 0.0, 0.0])
+    syn = synthesize_recording(model, uniform_directions(20, rng=3), dwell_s=0.0, transition_s=(8.0, 15.0),
+                               sigma=0.004, gyro=gyro, yaw_rate_dps=0.0, rng=4)
+    return syn.frame
+
+
+@pytest.mark.parametrize("gyro", [False, True], ids=["no gyro", "float gyro"])
+def test_never_resting_sphere_gives_no_pose_and_says_so(gyro):
+    frame = slow_sphere(gyro)
+    if gyro:
+        assert not np.allclose(frame["gx"], np.round(frame["gx"]))  # a float gyro: no converter step to cap at
+    seg = detect_static(recording_from_source(source_of(frame)))
+    assert seg.intervals == []
+    assert seg.exclusions[NO_REST_STRETCHES] >= 5 and seg.exclusions[NO_REST] > 0
+    with pytest.raises(InputError, match="never rests: the quietest windows share no noise level"):
+        seg.pose_table()
+
+
+def test_the_same_sphere_with_rests_gives_its_poses():
+    model = LumpedModel.from_physical([1.0, 1.0, 1.0], 0.0, 0.0, 0.0, [0.0, 0.0, 0.0])
+    syn = synthesize_recording(model, uniform_directions(20, rng=3), dwell_s=4.0, transition_s=(8.0, 15.0),
+                               sigma=0.004, gyro=False, yaw_rate_dps=0.0, rng=4)
+    seg = detect_static(recording_from_source(source_of(syn.frame)))
+    assert len(seg.intervals) == 20 and NO_REST not in seg.exclusions
+
+
+@pytest.mark.parametrize("folder", ["set-2/full-sphere", "set-1/tilt-sphere", "set-2/roll-and-tilt-at-45-90"])
+def test_sunsided_motion_without_its_gyro_gives_no_pose(folder):
+    """The motion logs with their gyro columns left unused (they gave 15, 9 and 3 poses before)."""
+    path = need(DATA / "sunsided-mpu6050" / folder / "mpu6050.csv")
+    with pytest.raises(InputError, match="never rests"):
+        load(path, columns="gx=none,gy=none,gz=none")
+
+
+def test_sunsided_rest_without_its_gyro_is_still_one_pose():
+    path = need(DATA / "sunsided-mpu6050" / "set-2" / "unmoved-with-x-pointing-forward" / "mpu6050.csv")
+    assert load(path, columns="gx=none,gy=none,gz=none").n == 1
+
+
+# ----------------------------------------------------------------------------- gyro columns as the accelerometer
+def imu_counts(n_poses: int) -> pd.DataFrame:
+    """An unsigned 16-bit IMU in counts: the accelerometer at 4096 counts/g, the gyro at mid-scale with
+    its bias and 25 counts of noise (the Xsens MTi's gyro at rest: 27 counts)."""
+    model = LumpedModel.from_physical([4096.0, 4096.0, 4096.0], 0.0, 0.0, 0.0, [32768.0, 32768.0, 32768.0])
+    syn = synthesize_recording(model, uniform_directions(n_poses, rng=7), sigma=8.0, quantum=1.0, units="counts",
+                               gyro=False, rng=8)
+    frame = syn.frame.rename(columns={"ax": "acc_x", "ay": "acc_y", "az": "acc_z"})
+    rng = np.random.default_rng(9)
+    for axis, bias in zip("xyz", (310.0, -240.0, 180.0)):
+        frame[f"gyro_{axis}"] = np.round(32768.0 + bias + 25.0 * rng.standard_normal(len(frame)))
+    return frame
+
+
+@pytest.mark.parametrize("n_poses", [1, 3, 6])
+def test_gyro_columns_as_accelerometer_refused_with_few_poses(n_poses, tmp_path):
+    path = tmp_path / "imu.csv"
+    imu_counts(n_poses).to_csv(path, index=False)
+    assert load(path).n == n_poses  # the accelerometer's own columns
+    with pytest.raises(InputError, match="do not look like an accelerometer's: their per-sample noise"):
+        load(path, columns="ax=gyro_x,ay=gyro_y,az=gyro_z")
+
+
+def test_xsens_gyro_as_accelerometer_refused_with_six_poses(tmp_path):
+    """imu_tk's Xsens log cut after its sixth pose, its gyro columns mapped as the accelerometer."""
+    frame = pd.read_csv(need(DATA / "imutk-xsens" / "xsens_imutk.csv"), nrows=11_360)
+    path = tmp_path / "xsens6.csv"
+    frame.to_csv(path, index=False)
+    assert load(path).n == 6
+    with pytest.raises(InputError, match="do not look like an accelerometer's"):
+        load(path, columns="ax=gyro_x_counts,ay=gyro_y_counts,az=gyro_z_counts")
