@@ -39,7 +39,7 @@ import numpy as np
 
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
-from study_mode import QUICK  # noqa: E402
+from study_mode import QUICK, wilson  # noqa: E402
 
 sys.path.insert(0, str(HERE.parent / "tests"))
 
@@ -57,17 +57,6 @@ N_HIDDEN = 1 if QUICK else 2 if SMOKE else 60
 N_SMALLEST = 0 if QUICK else N_HIDDEN
 N_CORNER = 0 if QUICK else 1 if SMOKE else 40
 N_RAW = 0 if QUICK else 1 if SMOKE else 6
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson 95 % interval of a proportion."""
-    if n == 0:
-        return (float("nan"), float("nan"))
-    p = k / n
-    den = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return centre - half, centre + half
 
 
 def judge(effect, case, diag) -> dict:

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from study_mode import QUICK  # noqa: E402
+from study_mode import QUICK, wilson  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES as HERE  # noqa: E402
 
@@ -63,17 +63,6 @@ XSENS = HERE.parents[1] / "shared" / "data" / "imutk-xsens" / "xsens_imutk.csv"
 #: Smallest planted magnitude in the Xsens recording (drawn up to 1.5×): mg/°C, ppm/°C, g/s (2 mg over 512 s), g/g².
 XSENS_MAGNITUDE = {"temperature_bias": 0.3e-3, "temperature_scale": 200e-6, "bias_drift": 2e-3 / 512,
                    "scale_nonlinearity": 3e-3}
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson 95 % interval of a proportion."""
-    if n == 0:
-        return (float("nan"), float("nan"))
-    p = k / n
-    den = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, centre - half), min(1.0, centre + half)  # clipped: rounding gave "-0" at k = 0
 
 
 def limit_of(diag, effect: str | None, axis: str | None) -> float | None:

@@ -40,3 +40,13 @@ def show(path: Path) -> Path:
     if get_ipython() is not None:
         display(Image(filename=str(path)))
     return path
+
+
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """Wilson 95 % interval of the proportion k/n (scipy's; NaN when n = 0)."""
+    if n == 0:
+        return (float("nan"), float("nan"))
+    from scipy.stats import binomtest
+
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(ci.low), float(ci.high)
