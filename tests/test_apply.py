@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 
 import optcal.caltypes as caltypes
+from cli_run import run
 from optcal.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibration
 from optcal.caltypes.apply import STATUS_COLUMN
-from optcal.cli.main import main
 from optcal.data import load
 from optcal.simulate_effects import recording_with_effect
 from optcal.model import STANDARD_GRAVITY
@@ -33,11 +33,6 @@ def files(tmp_path_factory):
     ExtendedCalibration.from_model(truth.model, "counts", fitted_on=FitPoses.of(poses)).save(d / "extended.json")
     return d, frame, poses
 
-
-def run(argv, capsys):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def rms_of_static_poses(path) -> float:

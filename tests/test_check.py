@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from optcal.cli.main import main
+from cli_run import run
 from optcal.data import load
 from optcal.data.synthetic import synthesize_recording
 from optcal.data.validation import (
@@ -43,11 +43,6 @@ def files(tmp_path_factory):
     calibrate(load(d / "a.csv")).save(d / "cal.json")
     return d, b
 
-
-def run(argv, capsys):
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_check_json_reports_before_and_after(files, capsys):

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optcal.cli.main import main
+from cli_run import run
 from optcal.data import load
 from optcal.data.static import TURNING, TURNING_STRETCHES
 from optcal.data.synthetic import synthesize_recording
@@ -18,11 +18,6 @@ from optcal.errors import InputError
 from optcal.model import LumpedModel
 from optcal.simulate import uniform_directions
 
-
-def run(argv, capsys):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

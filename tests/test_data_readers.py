@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optcal.cli.main import main
+from cli_run import run
 from optcal.data import decide_kind, load, load_pose_table, load_recording, load_with_segmentation
 from optcal.data.readers import read_source
 from optcal.data.recording import DUPLICATED, NON_FINITE, REPEATED_TIME, SATURATED
@@ -35,11 +35,6 @@ def recording():
         gyro_units="rad/s", temperature=(30.0, 0.02), rng=4, units="m/s^2", t0=1000.0,
     )
 
-
-def run(argv, capsys):
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # ----------------------------------------------------------------------------- formats

@@ -10,18 +10,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optcal.cli.main import main
+from cli_run import run
 from optcal.data import load, load_with_segmentation
 from optcal.data.synthetic import synthesize_recording
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY, LumpedModel
 from optcal.simulate import uniform_directions
 
-
-def run(argv, capsys):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 import optcal.caltypes as caltypes
+from cli_run import run
 from optcal.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
 from optcal.cli.main import main
 from optcal.extended_model import ExtendedModel
@@ -21,11 +22,6 @@ from optcal.simulate import uniform_directions
 
 COUNTS_PER_G = 16384.0
 
-
-def run(argv, capsys):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def poses_of(model: ExtendedModel, n: int = 24, seed: int = 5):
