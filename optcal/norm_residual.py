@@ -127,6 +127,23 @@ def normal_gain(T: ArrayLike, o: ArrayLike, acc: ArrayLike) -> NDArray[np.float6
     return NormResidualKernel(acc).at(T, o).normal_gain()
 
 
+def heldout_residuals(residuals: NDArray, jacobian: NDArray, weights: NDArray) -> NDArray[np.float64]:
+    """Leave-one-out norm residuals ``r_k / (1 − h_kk)`` (the PRESS residuals).
+
+    ``h_kk`` is the leverage of pose k, the diagonal of the hat matrix
+    ``W½J (JᵀWJ)⁻¹ JᵀW½`` of the linearised fit: exact for a linear least-squares problem and
+    first-order for the norm residual, it predicts each pose's residual under the fit made
+    without it at the cost of one QR decomposition.  Columns are scaled first (the hat matrix
+    does not depend on the parametrisation) and a rank-deficient J is handled by its range.
+    """
+    Js = jacobian * np.sqrt(weights)[:, None]
+    Js = Js / np.maximum(np.linalg.norm(Js, axis=0), 1e-300)
+    U, s, _ = np.linalg.svd(Js, full_matrices=False)
+    U = U[:, s > s[0] * 1e-10]
+    h = np.clip(np.sum(U * U, axis=1), 0.0, 1.0 - 1e-12)
+    return residuals / (1.0 - h)
+
+
 def casadi_lower_triangular(x: Any) -> Any:
     """CasADi 3×3 lower-triangular matrix from the first six entries of θ (order of :data:`TRIL_INDEX`)."""
     import casadi as ca
@@ -153,6 +170,7 @@ __all__ = [
     "NormResidualPoint",
     "casadi_lower_triangular",
     "casadi_norm_residual",
+    "heldout_residuals",
     "norm_residual_jacobian",
     "norm_residuals",
     "normal_gain",

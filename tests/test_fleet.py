@@ -20,7 +20,8 @@ from optcal.fleet.inputs import expand_inputs, read_manifest
 from optcal.fleet.population import flag_units, population_stats
 from optcal.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
 from optcal.fleet.synthetic import write_fleet
-from optcal.fleet.unit import UnitInput, UnitOutcome, heldout_residuals, read_unit
+from optcal.fleet.unit import UnitInput, UnitOutcome, read_unit
+from optcal.norm_residual import heldout_residuals
 from optcal.model import PARAM_NAMES, LumpedModel
 from optcal.simulate import simulate_poses, six_position, uniform_directions
 

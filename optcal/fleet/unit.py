@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import FitError, IdentifiabilityError, InputError, OptcalError
 from optcal.fleet.inputs import UnitInput, is_url
+from optcal.norm_residual import heldout_residuals
 from optcal.poses import PoseTable
 
 #: Unit statuses, in the order of the report.
@@ -49,7 +50,7 @@ class UnitOutcome:
         The calibration θ (:data:`optcal.model.PARAM_NAMES`, raw units) and its standard errors.
     covariance : ndarray, shape (9, 9), or None
     rms_g, heldout_rms_g : float
-        Rms norm residual in g, and its leave-one-out counterpart (:func:`heldout_residuals`).
+        Rms norm residual in g, and its leave-one-out counterpart (:func:`optcal.norm_residual.heldout_residuals`).
     n_poses : int
         Poses used.
     exclusions : dict of str to int
@@ -133,23 +134,6 @@ def read_unit(unit: UnitInput, load_options: dict[str, Any]) -> PoseTable | Read
     finally:
         if local is not None:
             os.unlink(local)
-
-
-def heldout_residuals(residuals: NDArray, jacobian: NDArray, weights: NDArray) -> NDArray[np.float64]:
-    """Leave-one-out norm residuals ``r_k / (1 − h_kk)`` (the PRESS residuals).
-
-    ``h_kk`` is the leverage of pose k, the diagonal of the hat matrix
-    ``W½J (JᵀWJ)⁻¹ JᵀW½`` of the linearised fit: exact for a linear least-squares problem and
-    first-order for the norm residual, it predicts each pose's residual under the fit made
-    without it at the cost of one QR decomposition.  Columns are scaled first (the hat matrix
-    does not depend on the parametrisation) and a rank-deficient J is handled by its range.
-    """
-    Js = jacobian * np.sqrt(weights)[:, None]
-    Js = Js / np.maximum(np.linalg.norm(Js, axis=0), 1e-300)
-    U, s, _ = np.linalg.svd(Js, full_matrices=False)
-    U = U[:, s > s[0] * 1e-10]
-    h = np.clip(np.sum(U * U, axis=1), 0.0, 1.0 - 1e-12)
-    return residuals / (1.0 - h)
 
 
 def outcome_from_fit(unit: UnitInput, poses: PoseTable, theta: NDArray, covariance: NDArray | None, residuals: NDArray,

@@ -12,7 +12,7 @@ refit the same two statistics are computed as for the measured fit:
 * χ² ``= Σ_k r_k² / σ_r,k²`` with ``σ_r,k`` the pose noise propagated to the norm residual
   (:func:`optcal.data.validation.norm_noise`; Lu 2017 eq. 13-14);
 * the held-out rms: the leave-one-out norm residuals of the fit, first order
-  (:func:`optcal.fleet.unit.heldout_residuals`), so that every simulation costs no extra fit.
+  (:func:`optcal.norm_residual.heldout_residuals`), so that every simulation costs no extra fit.
 
 The measured values are placed among the simulated ones (percentile) and against the
 ``BAND_PERCENTILES`` band.  Without a per-pose σ the noise would have to be estimated from the
@@ -79,8 +79,7 @@ def fit_statistics(T: NDArray[np.float64], o: NDArray[np.float64], acc: NDArray[
                    sigma: NDArray[np.float64]) -> FitStatistics:
     """χ² and the leave-one-out held-out rms of the fit ``(T, o)`` to the poses ``acc`` with noise ``sigma``."""
     from optcal.data.validation import norm_noise
-    from optcal.fleet.unit import heldout_residuals
-    from optcal.norm_residual import NormResidualKernel
+    from optcal.norm_residual import NormResidualKernel, heldout_residuals
 
     point = NormResidualKernel(acc).at(T, o)
     weights = 1.0 / norm_noise(T, o, acc, sigma) ** 2
