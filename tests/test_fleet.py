@@ -192,6 +192,11 @@ def test_inputs_manifest_glob_and_errors(tmp_path):
     assert [u.unit for u in units] == ["A", "B", "unit00002", "unit00003"]
     assert units[0].metadata == {"line": "north"} and units[0].path == str(tmp_path / "d" / "unit00000.csv")
     assert len(expand_inputs([str(tmp_path / "d")])) == len(truth.kinds)
+    logs = tmp_path / "logs"  # a logger's text dumps, as ../shared/data/mikoff-mpu9150 has them, beside its notes
+    logs.mkdir()
+    for name in ("imu0.log", "imu1.dat", "README.md", "SHA256SUMS"):
+        (logs / name).write_text("0 0 1\n")
+    assert [u.unit for u in expand_inputs([str(logs)])] == ["imu0", "imu1"]
     with pytest.raises(InputError, match="matches no file"):
         expand_inputs([str(tmp_path / "nothing_*.csv")])
     bad = tmp_path / "bad.csv"

@@ -23,8 +23,10 @@ from pathlib import Path
 
 from optcal.errors import InputError
 
-#: Suffixes of the files a folder contributes (what :mod:`optcal.data.readers` reads).
-DATA_SUFFIXES: tuple[str, ...] = (".csv", ".txt", ".tsv", ".parquet", ".pq", ".bag", ".ulg", ".db3", ".mcap")
+#: Suffixes of the files a folder contributes (what :mod:`optcal.data.readers` reads; loggers' text dumps
+#: often end in .log or .dat, and imu_tk's in .mat).
+DATA_SUFFIXES: tuple[str, ...] = (".csv", ".txt", ".tsv", ".log", ".dat", ".mat", ".parquet", ".pq", ".bag", ".ulg",
+                                  ".db3", ".mcap")
 #: Columns a CSV must have to be read as a manifest.
 MANIFEST_COLUMNS: tuple[str, str] = ("unit", "path")
 
