@@ -82,3 +82,17 @@ def test_next_pose_reports_judge_the_poses_so_far(tmp_path: Path, capsys: pytest
     assert main(["plan", "--next", str(many), "--target-stderr", "1e-5", "--report", str(page)]) == 0
     assert verdict_of(page.read_text(encoding="utf-8")) == "usable with care"
     capsys.readouterr()
+
+
+def test_next_pose_after_a_weakly_determined_real_session(shared_data: Path, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture) -> None:
+    """The MPU-6050's 10 hand-held poses in counts determine A_xy only weakly (calibrate refuses them
+    without --allow-degenerate): the planner plans about their fit, and the verdict says 'with care'."""
+    page = tmp_path / "next.html"
+    data = shared_data / "mpu6050-imucalibration" / "example_data_calibration.csv"
+    assert main(["plan", "--next", str(data), "--report", str(page)]) == 0
+    out = capsys.readouterr().out
+    assert "(10 poses, weakly determined)" in out and "next pose:" in out
+    html = unescape(page.read_text(encoding="utf-8"))
+    assert verdict_of(html) == "usable with care"
+    assert "T_yx has a standard error" in reasons_of(html) and "weakly determined" in reasons_of(html)

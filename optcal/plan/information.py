@@ -94,7 +94,7 @@ class Prior:
     @classmethod
     def of_poses(cls, poses: "PoseTable", label: str = "the poses") -> "Prior":
         """The prior for planning after ``poses``: their convex ellipsoid fit when they determine
-        it (9 poses or more), else the nominal calibration in their units.
+        it, even weakly (9 poses or more, full Fisher rank), else the nominal calibration in their units.
 
         Raises
         ------
@@ -102,12 +102,25 @@ class Prior:
             Poses in counts that do not determine a fit (no nominal calibration exists).
         """
         from optcal.calibration import calibrate
+        from optcal.errors import IdentifiabilityError
 
         reason = f"{poses.n} poses, fewer than {N_PARAMS}"
         if poses.n >= N_PARAMS:
             try:
                 cal = calibrate(poses, method="convex")
                 return cls(cal.model, poses.units, f"convex ellipsoid fit of {label} ({poses.n} poses)")
+            except IdentifiabilityError as exc:
+                reason = str(exc)
+                report = exc.report
+                if report is not None and report.rank == report.n_params:
+                    # weakly determined, not undetermined: the fit is still a point to plan about, and
+                    # such a session is the one whose next poses matter most
+                    try:
+                        cal = calibrate(poses, method="convex", allow_degenerate=True)
+                        return cls(cal.model, poses.units,
+                                   f"convex ellipsoid fit of {label} ({poses.n} poses, weakly determined)")
+                    except InputError as refit_exc:
+                        reason = str(refit_exc)
             except InputError as exc:
                 reason = str(exc)
         try:

@@ -425,23 +425,27 @@ def judge_next_pose(step: "NextPose") -> Verdict:
     """Verdict on the poses taken so far (``optcal plan --next DATA``): can they make a calibration, or take the next?
 
     ``not usable`` while they do not determine every parameter; ``usable with care`` while a
-    standard error is above the target; ``good`` once every one is below it (stop), or when
-    they determine every parameter and no target was given.
+    standard error is above the target, or, without a target, above the fraction of full scale
+    at which a calibration calls a parameter weakly determined
+    (:data:`optcal.identifiability.WEAK_STDERR`); ``good`` once every one is below it.
     """
+    from optcal.identifiability import WEAK_STDERR
     from optcal.model import N_PARAMS
 
     have = f"The {step.n_poses} poses taken"
+    worst = max(step.stderr_normalised, key=lambda k: step.stderr_normalised[k])
     if step.rank_before < N_PARAMS:
         reason = Reason("not usable", "poses so far",
                         f"{have} do not determine the calibration (Fisher information rank {step.rank_before} of "
                         f"{N_PARAMS}); the next pose ({step.description}) raises the rank to {step.rank_after}.")
     elif step.stop:
         reason = Reason("good", "poses so far", f"{have} determine every parameter; {step.stop_message}.")
-    elif step.target_stderr is not None:
-        worst = max(step.stderr_normalised, key=lambda k: step.stderr_normalised[k])
+    elif step.target_stderr is not None or step.stderr_normalised[worst] > WEAK_STDERR:
+        bar = (f"the target {step.target_stderr:g}" if step.target_stderr is not None else
+               f"{WEAK_STDERR:g}, where a calibration calls it weakly determined")
         reason = Reason("usable with care", "poses so far",
                         f"{have} determine every parameter, but {worst} has a standard error of "
-                        f"{step.stderr_normalised[worst]:.3g} (normalised), above the target {step.target_stderr:g}: "
+                        f"{step.stderr_normalised[worst]:.3g} (normalised), above {bar}: "
                         f"take the next pose ({step.description}).")
     else:
         reason = Reason("good", "poses so far",
