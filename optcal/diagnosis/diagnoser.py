@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
-from optcal.diagnosis.noise_model import check_noise_model
+from optcal.diagnosis.noise_model import check_noise_model, pose_correlation
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
@@ -242,6 +242,10 @@ class Diagnoser:
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
+        correlation = pose_correlation(fitter, base, s.alpha, measured)
+        if correlation.used:  # the tests, standard errors and limits under the correlated pose noise
+            fitter.correlation = correlation.operator
+            base = fitter.fit({}, frozenset(), base.x)
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
@@ -255,12 +259,13 @@ class Diagnoser:
         limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
-            other = Fitter(widened, reg, T, o, s.folds, loop)
+            other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
+        noise.correlation = correlation
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
