@@ -11,10 +11,12 @@ A term is added when
 
 Among the candidates passing the first two, the best BIC is tried first.  A term's polynomial
 order is raised (one coefficient at a time, same tests) where the data support it.  A time term
-that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down while its top
-coefficient is not significant given the lower ones (F test at ``α``): a linear drift is named as
+that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
+order its higher coefficients do not significantly improve on (F test at the level it entered
+at, the level a later step would need to raise the order again): a linear drift is named as
 linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
-a recording, so the cubic's first-order coefficient would carry only part of the trend).  Outliers
+a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
+bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.diagnosis.outliers`).  Selection stops when nothing
 more passes.
 
@@ -261,23 +263,27 @@ class ForwardSelection:
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
 
     def step_down(self, accepted: Candidate, current: Fit) -> None:
-        """Lower the order of a directly entered time term while its top coefficient is not significant (module docstring)."""
+        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
+
+        Order ``k`` is kept over ``j < k`` only when its coefficients above ``j`` are significant
+        together (F test) at the level the term entered at, the level raising the order from ``j``
+        would need in a later step.
+        """
         if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
             return
         key = (accepted.effect, AXES.index(str(accepted.axis)))
-        if key in current.terms:  # a raised order was tested on its own coefficient
+        if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
             return
         entered = accepted.order
-        while accepted.order > 1:
+        for lower_order in range(1, entered):
             terms = dict(accepted.fit.terms)
-            terms[key] = accepted.order - 1
+            terms[key] = lower_order
             lower = self.fitter.fit(terms, accepted.fit.outliers, accepted.fit.x)
-            if self.fitter.f_test(lower, accepted.fit) < self.alpha_terms:
-                break
-            accepted.fit, accepted.order = lower, accepted.order - 1
-        if accepted.order != entered:
-            accepted.stepped_down_from = entered
-            accepted.term = describe_term(accepted.effect, key[1], accepted.order)
+            if self.fitter.f_test(lower, accepted.fit) >= accepted.threshold:
+                accepted.fit, accepted.order = lower, lower_order
+                accepted.stepped_down_from = entered
+                accepted.term = describe_term(accepted.effect, key[1], lower_order)
+                return
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one."""
