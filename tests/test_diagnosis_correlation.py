@@ -123,3 +123,14 @@ def test_a_bias_that_rises_and_falls_is_still_seen_with_its_order() -> None:
     first = [s for s in diag.steps if s.accepted is not None][0].candidates
     linear = next(c for c in first if c.term == "bias_drift(y)")
     assert not linear.significant  # the first-order term alone does not see it
+
+
+def test_the_correlation_setting_is_checked_and_off_means_independent_poses() -> None:
+    from optcal.errors import InputError
+
+    with pytest.raises(InputError, match="pose_correlation must be one of auto, off, on"):
+        DiagnosisSettings(pose_correlation="maybe")
+    case = make_case(None, 4001, n_range=(20, 30))
+    diag = diagnose(case.poses, simulations=0, pose_correlation="off")
+    assert not diag.noise_model.correlation.tested and "switched off" in diag.noise_model.correlation.text()
+    assert diag.to_dict()["settings"]["pose_correlation"] == "off"

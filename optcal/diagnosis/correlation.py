@@ -149,7 +149,9 @@ class PoseCorrelation:
         Likelihood-ratio test of the correlation against independent poses.
     used : bool
         The tests, standard errors and limits use it: its own test is significant at the diagnosis's
-        level, or the pose means scatter significantly more than σ/√n says (noise at the pose time scale).
+        level, or other evidence shows noise at the pose time scale (:attr:`reason` says which).
+    reason : str or None
+        Why it was not tested, or why it is used.
     """
 
     tested: bool
@@ -171,8 +173,9 @@ class PoseCorrelation:
                     "the tests treat the poses as independent")
         return (f"the pose noise is correlated in time: neighbouring poses ({self.median_gap_s:.3g} s apart) share "
                 f"ρ = {self.neighbour_rho:.2f} of their noise along a common direction (correlation time "
-                f"{self.tau_s:.3g} s, p = {self.p_value:.2g}); the tests, standard errors and detection limits "
-                "account for it (generalised least squares). This is a property of the noise, not a physical effect")
+                f"{self.tau_s:.3g} s; estimated from the residuals, its own test p = {self.p_value:.2g}; used because of "
+                f"{self.reason}); the tests, standard errors and detection limits account for it (generalised least "
+                "squares). This is a property of the noise, not a physical effect")
 
     def to_dict(self) -> dict[str, Any]:
         return {"tested": self.tested, "rho0": self.rho0, "tau_s": self.tau_s, "median_gap_s": self.median_gap_s,
@@ -181,12 +184,12 @@ class PoseCorrelation:
 
 
 def estimate_correlation(e: NDArray, G: NDArray, t: NDArray | None, session: NDArray, directions: NDArray,
-                         alpha: float, excess_p: float | None = None) -> PoseCorrelation:
+                         alpha: float, evidence: str | None = None) -> PoseCorrelation:
     """Estimate ``ρ₀, τ`` from weighted residuals ``e`` and weighted Jacobian ``G`` of a fit, and test them at ``alpha``.
 
     ``directions``: unit normal of each pose; ``t``: pose times (s; ``None``: no time column);
-    ``excess_p``: p value of the pose scatter against the given σ/√n (significant at ``alpha``:
-    the correlation is used whatever its own test says).
+    ``evidence``: other evidence of noise at the pose time scale, in words (the correlation is then
+    used whatever its own test says, and the reason is kept).
     """
     n = e.size
     if t is None:
@@ -209,6 +212,7 @@ def estimate_correlation(e: NDArray, G: NDArray, t: NDArray | None, session: NDA
     rho0, tau = float(best.x[0]), float(np.exp(best.x[1]))
     stat = max(white - float(best.fun), 0.0)
     p = float(sps.chi2.sf(stat, 2))
-    used = bool((p < alpha or (excess_p is not None and excess_p < alpha)) and rho0 > 0)
+    used = bool((p < alpha or evidence is not None) and rho0 > 0)
     op = CorrelationOperator.build(rho0, tau, t, session, directions) if used else None
-    return PoseCorrelation(True, rho0, tau, gap, rho0 * float(np.exp(-gap / tau)), p, used, operator=op)
+    why = ("its likelihood-ratio test against independent poses" if p < alpha else evidence) if used else None
+    return PoseCorrelation(True, rho0, tau, gap, rho0 * float(np.exp(-gap / tau)), p, used, why, operator=op)

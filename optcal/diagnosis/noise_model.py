@@ -142,7 +142,8 @@ def extra_noise(r: NDArray, w_abs: NDArray, gain2: NDArray, dof: int) -> float:
     return float(optimize.brentq(excess, 0.0, hi, xtol=1e-30, rtol=1e-12))
 
 
-def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredPoseNoise | None = None) -> PoseCorrelation:
+def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredPoseNoise | None = None,
+                     use: str = "auto") -> PoseCorrelation:
     """The correlation of the pose noise in time under ``fit`` (:mod:`optcal.diagnosis.correlation`).
 
     It is used (``used``) when the likelihood-ratio test against independent poses is significant
@@ -151,8 +152,11 @@ def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredP
     σ/√n: noise that does not average down within a pose is noise at the pose's time scale or
     longer, which neighbouring poses share, so the correlation is then estimated even where the
     residuals alone cannot establish it (a few dozen poses).  The residuals' own excess over σ/√n
-    is no such evidence: an effect not yet in the model (a drift) makes it too.
+    is no such evidence: an effect not yet in the model (a drift) makes it too.  ``use``: ``auto``
+    (as said), ``off`` (poses independent) or ``on`` (the estimate used whatever the evidence).
     """
+    if use == "off":
+        return PoseCorrelation(False, reason="switched off (pose_correlation='off'): the poses are treated as independent")
     G, J = fitter.jacobians(fit, fitter.w)
     trends = [9 + BETA_INDEX[(effect, axis, 1)] for effect in SMOOTH_TERMS if fitter.reg.supports(effect)
               for axis in range(3)]
@@ -160,10 +164,12 @@ def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredP
         G = np.column_stack([G, J[:, trends]])
     e = np.sqrt(fitter.w) * fit.residuals
     t = fitter.poses.t if fitter.reg.has_time else None
-    evidence = None
-    if measured is not None and measured.sigma is not None and fitter.poses.sigma is not None:
+    evidence = "the request pose_correlation='on'" if use == "on" else None
+    if evidence is None and measured is not None and measured.sigma is not None and fitter.poses.sigma is not None:
         ratio = float(np.median(measured.sigma / np.asarray(fitter.poses.sigma, float)))
-        evidence = 0.0 if ratio >= CORRELATED_RATIO else 1.0
+        if ratio >= CORRELATED_RATIO:
+            evidence = (f"the noise of the pose means measured on the still parts, {ratio:.3g}× σ/√n "
+                        f"(from {CORRELATED_RATIO:g}×: noise that does not average down within a pose)")
     return estimate_correlation(e, G, t, fitter.reg.session, fitter.pose_normals(fit), alpha, evidence)
 
 
