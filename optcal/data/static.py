@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
@@ -323,7 +324,7 @@ def centre_of(x: NDArray[np.float64]) -> NDArray[np.float64] | float:
     near the data (raw counts carry a large offset), not the exact median.
     """
     stride = max(1, x.shape[0] // CENTRE_ROWS)
-    return np.median(x[::stride], axis=0)
+    return median(x[::stride]) if x.ndim == 1 else column_medians(x[::stride])
 
 
 def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -437,7 +438,7 @@ def _window_sums(
 
 def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
     """Noise floor of a windowed statistic: its low quantile, at least the data's resolution."""
-    return float(max(np.quantile(stat, quantile), resolution))
+    return float(max(quantiles(stat, [quantile])[0], resolution))
 
 
 def _resolution(x: NDArray[np.float64]) -> float:
@@ -545,10 +546,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
     # axes floor means the quietest windows still rotate (the norm does not see rotation),
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
-    floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
+    # the floor and the rest plateau's low quantile of the axes statistic from one partition
+    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile])
+    floor_axes = min(max(axes_quantiles[1], res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
     rest_plateau: dict[str, float] = {}
-    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
+    never_rests = _never_rests(m, axes_quantiles, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
     drift = drift_sums.result()
@@ -573,7 +576,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
         # column by column; the median partitions its own copy of the static samples in place
-        gyro_bias = np.array([np.median(gyro[base, j], overwrite_input=True) for j in range(3)])
+        gyro_bias = np.array([median(gyro[base, j], overwrite_input=True) for j in range(3)])
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
@@ -637,8 +640,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[:] = False
         groups = []
     for group in groups:
-        pos = np.concatenate([np.arange(a, b) for a, b in group])
-        intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
+        intervals.append(_interval(len(intervals) + 1, rec, use, _positions(group), gyro, s.sigma_blocks))
     _add(exclusions, MOVING, int(np.sum(~static)))
     _add(exclusions, SHORT, n_short_samples)
     _add(exclusions, SHORT_STRETCHES, n_short)
@@ -667,17 +669,19 @@ def rest_plateau_limit(window: int, floor_quantile: float) -> float:
 
 
 def _never_rests(
-    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, evidence: dict[str, float]
+    m: int, axes_quantiles: list[float], window: int, floor_quantile: float, resolution: float,
+    evidence: dict[str, float],
 ) -> bool:
     """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
 
-    Both quantiles are taken at least at the data's ``resolution`` (noise-free or coarsely
-    quantised rests sit there).  Decided only on recordings of at least
+    ``axes_quantiles`` are the ``floor_quantile / 5`` and ``floor_quantile`` quantiles of the axes
+    moving std over ``m`` samples.  Both are taken at least at the data's ``resolution``
+    (noise-free or coarsely quantised rests sit there).  Decided only on recordings of at least
     :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
     """
-    if sd_axes.size < PLATEAU_MIN_WINDOWS * window:
+    if m < PLATEAU_MIN_WINDOWS * window:
         return False
-    low, at_floor = (max(float(q), resolution) for q in np.quantile(sd_axes, [floor_quantile / 5, floor_quantile]))
+    low, at_floor = (max(float(q), resolution) for q in axes_quantiles)
     if not at_floor > 0:
         return False
     limit = rest_plateau_limit(window, floor_quantile)
@@ -788,13 +792,22 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] 
     return max(white, batch)
 
 
-def _rows(index: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+def _positions(group: list[tuple[int, int]]) -> slice | NDArray[np.int64]:
+    """The sample positions of a group of stretches ``[a, b)``: a slice for one stretch (no index array)."""
+    if len(group) == 1:
+        return slice(int(group[0][0]), int(group[0][1]))
+    return np.concatenate([np.arange(a, b) for a, b in group])
+
+
+def _rows(index: slice | NDArray[np.int64]) -> slice | NDArray[np.int64]:
     """A slice (a view, no copy) for increasing indices without a gap, else the indices."""
+    if isinstance(index, slice):
+        return index
     return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
 
 
 def _interval(
-    number: int, rec: Recording, use: NDArray[np.int64], pos: NDArray[np.int64],
+    number: int, rec: Recording, use: NDArray[np.int64], pos: slice | NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
     idx = use[pos]

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.data.quantiles import column_medians, median
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
 from optcal.poses import UNITS
@@ -71,7 +72,7 @@ def median_norm(acc: ArrayLike) -> float:
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
     with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit: an infinite norm
-        return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
+        return median(np.linalg.norm(a, axis=1)) if a.size else float("nan")
 
 
 def decide_units(
@@ -225,7 +226,7 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
             )
     if noise is not None and a.shape[0] >= 1:
         one_g = nominal_conversion(units, a).sensitivity
-        typical = float(np.median(np.asarray(noise, dtype=float)))
+        typical = median(np.asarray(noise, dtype=float))
         if one_g > 0 and typical > MAX_REST_NOISE_G * one_g:
             raise InputError(
                 f"the {a.shape[0]} static pose(s) do not look like an accelerometer's: their per-sample noise "
@@ -300,9 +301,9 @@ def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
         a = a[finite]
     offset = np.zeros(3)
     what = "no offset"
-    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(np.median(a, axis=0) - UNSIGNED_16_MIDSCALE) < 16384):
+    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(column_medians(a) - UNSIGNED_16_MIDSCALE) < 16384):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
     # column by column: temporaries of one column, not of three
-    sens = float(np.median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))))) if a.size else 1.0
+    sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
