@@ -457,7 +457,9 @@ def _resolution(x: NDArray[np.float64]) -> float:
         d = np.diff(col)
         np.abs(d, out=d)
         smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
-        spread = max(spread, float(np.max(np.abs(col - centre_of(col)))))
+        # max |x − c| from the extremes: rounding x − c is monotonic in x, so this is exact
+        centre = centre_of(col)
+        spread = max(spread, float(col.max() - centre), float(centre - col.min()))
     step = smallest / np.sqrt(12.0) if np.isfinite(smallest) else 0.0
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
 
@@ -780,15 +782,17 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] 
     is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
     ``var`` is the per-axis sample variance (ddof 1) of ``x`` when already computed.
     """
-    n = x.shape[0]
+    # numpy's mean and var written as their reductions (bit for bit): hundreds of intervals per recording
+    n, k = x.shape
     if var is None:
-        var = x.var(axis=0, ddof=1) if n > 1 else np.zeros(x.shape[1])
-    white = float(np.sqrt(np.mean(var)) / np.sqrt(n)) if n > 1 else 0.0
+        var = _mean_var(x)[1]
+    white = float(np.sqrt(np.add.reduce(var) / k) / np.sqrt(n)) if n > 1 else 0.0
     if blocks < 2 or n < 4 * blocks:
         return white
     size = n // blocks
-    means = x[: size * blocks].reshape(blocks, size, 3).mean(axis=1)
-    batch = float(np.sqrt(np.mean(means.var(axis=0, ddof=1))) / np.sqrt(blocks))
+    # (blocks, size) per axis as a view of the axis's samples (no transposing copy); the same sums
+    means = (np.add.reduce(x[: size * blocks].T.reshape(k, blocks, size), axis=2) / size).T
+    batch = float(np.sqrt(np.add.reduce(_mean_var(means)[1]) / k) / np.sqrt(blocks))
     return max(white, batch)
 
 
@@ -806,15 +810,27 @@ def _rows(index: slice | NDArray[np.int64]) -> slice | NDArray[np.int64]:
     return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
 
 
+def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Column means and sample variances (ddof 1) of ``x`` (n, k): ``x.mean(axis=0)`` and
+    ``x.var(axis=0, ddof=1)`` bit for bit (the same reductions, without numpy's per-call checks;
+    a recording has hundreds of intervals)."""
+    n = x.shape[0]
+    mean = np.add.reduce(x, axis=0) / n
+    dev = x - mean
+    np.square(dev, out=dev)
+    var = np.add.reduce(dev, axis=0) / max(n - 1, 0) if n > 1 else np.zeros(x.shape[1])
+    return mean, var
+
+
 def _interval(
     number: int, rec: Recording, use: NDArray[np.int64], pos: slice | NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
     idx = use[pos]
-    x = rec.acc[_rows(idx)]
+    rows = _rows(idx)
+    x = rec.acc[rows]
     n = x.shape[0]
-    mean = x.mean(axis=0)
-    var = x.var(axis=0, ddof=1)
+    mean, var = _mean_var(x)
     std = np.sqrt(var)
     sigma = sigma_of_mean(x, sigma_blocks, var=var)
     return StaticInterval(
@@ -829,6 +845,6 @@ def _interval(
         mean=mean,
         std=std,
         sigma=sigma,
-        gyro_mean=None if gyro is None else gyro[_rows(pos)].mean(axis=0),
-        temp_mean=None if rec.temp is None else float(rec.temp[_rows(idx)].mean()),
+        gyro_mean=None if gyro is None else np.add.reduce(gyro[_rows(pos)], axis=0) / n,
+        temp_mean=None if rec.temp is None else float(np.add.reduce(rec.temp[rows]) / n),
     )
