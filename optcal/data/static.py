@@ -356,12 +356,15 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
 
 class HalfWindowDrift:
     """The squared half-window drift summed over columns (:func:`half_window_drift`), filled by
-    :func:`column_window_stats` from the cumulative sum it makes anyway (one pass per column)."""
+    :class:`MovingWindow` from the cumulative sum it makes anyway (one pass per column)."""
 
     def __init__(self, m: int, window: int) -> None:
         self.m = m
         self.h = max(1, window // 2)
-        self.squared = np.zeros(max(0, m - 2 * self.h + 1))
+        size = max(0, m - 2 * self.h + 1)
+        self.squared = np.zeros(size)
+        self._after = np.empty(size)  # scratch, reused for every column
+        self._before = np.empty(size)
 
     def add(self, c: NDArray[np.float64]) -> None:
         """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``)."""
@@ -370,7 +373,12 @@ class HalfWindowDrift:
             return
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
-        self.squared += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+        after, before = self._after, self._before
+        np.subtract(c[2 * h:], centre, out=after)
+        np.subtract(centre, c[:m - 2 * h + 1], out=before)
+        np.subtract(after, before, out=after)
+        np.multiply(after, after, out=after)
+        self.squared += after
 
     def result(self) -> NDArray[np.float64]:
         out = np.zeros(self.m)
@@ -379,38 +387,55 @@ class HalfWindowDrift:
         return out
 
 
+class MovingWindow:
+    """Centred moving mean and variance (windows clipped at the ends) of columns of ``m`` samples, O(m) each.
+
+    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
+    give the window sums; the same sum gives ``drift``'s half-window means when given, and the
+    cumulative sum of the squares the variance.  The buffers are allocated once and reused
+    for every column (a recording's statistics take seven columns): :meth:`column` returns
+    views of them, valid until its next call.
+    """
+
+    def __init__(self, m: int, window: int) -> None:
+        self.m, self.window = m, window
+        self._cumsum = np.empty(m + 1)
+        self._cumsum[0] = 0.0
+        self._mean = np.empty(m)
+        self._var = np.empty(m)
+
+    def column(
+        self, x: NDArray[np.float64], drift: HalfWindowDrift | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The moving mean and variance of one column ``x`` (m,): views of this object's buffers.
+
+        ``drift`` accumulates the column's half-window drift from the same cumulative sum.
+        """
+        window, c, mean, var = self.window, self._cumsum, self._mean, self._var
+        centre = centre_of(x)
+        xc = np.subtract(x, centre, out=var)  # the centred column, then its squares, then the variance
+        np.cumsum(xc, out=c[1:])
+        interior, edge, count = _window_sums(c, window, mean)
+        if drift is not None:
+            drift.add(c)
+        np.multiply(xc, xc, out=xc)
+        np.cumsum(xc, out=c[1:])
+        _window_sums(c, window, var)  # the window sums of the squares overwrite the squares (read from c only)
+        for a in (mean, var):
+            a[interior] /= window
+            a[edge] /= count
+        square = np.multiply(mean, mean, out=c[1:])  # the cumulative sums are no longer needed
+        var -= square
+        np.clip(var, 0.0, None, out=var)
+        mean += centre
+        return mean, var
+
+
 def column_window_stats(
     x: NDArray[np.float64], window: int, drift: HalfWindowDrift | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centred moving mean and variance of one column (windows clipped at the ends), O(n).
-
-    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
-    give the window sums; the same sum gives ``drift``'s half-window means when given, and
-    the cumulative sum of the squares the variance.  Every step writes into the arrays it
-    returns or into one cumulative-sum buffer: a handful of passes over the column.
-    """
-    m = x.shape[0]
-    centre = centre_of(x)
-    xc = x - centre
-    c = np.empty(m + 1)
-    c[0] = 0.0
-    np.cumsum(xc, out=c[1:])
-    mean = np.empty(m)
-    interior, edge, count = _window_sums(c, window, mean)
-    if drift is not None:
-        drift.add(c)
-    np.multiply(xc, xc, out=xc)  # in place: the squares reuse the centred column
-    np.cumsum(xc, out=c[1:])
-    var = xc  # the window sums of the squares overwrite the squares (read from c only)
-    _window_sums(c, window, var)
-    del c
-    for a in (mean, var):
-        a[interior] /= window
-        a[edge] /= count
-    var -= mean * mean
-    np.clip(var, 0.0, None, out=var)
-    mean += centre
-    return mean, var
+    """Centred moving mean and variance of one column (windows clipped at the ends), O(n) (:class:`MovingWindow`)."""
+    return MovingWindow(x.shape[0], window).column(x, drift)
 
 
 def _window_sums(
@@ -533,15 +558,14 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = nominal_conversion(rec.units, acc)
-    norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
-
-    sd_norm = column_window_stats(norm, window)[1]
-    np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
-    # column by column (temporaries of one column), the drift from the same cumulative sums
+    norm = _distance(acc, nominal.offset)
+    # column by column in one set of buffers, the drift from the same cumulative sums
+    moving = MovingWindow(m, window)
+    sd_norm = np.sqrt(moving.column(norm)[1])
     drift_sums = HalfWindowDrift(m, window)
     sd_axes = np.zeros(m)
     for j in range(3):
-        sd_axes += column_window_stats(acc[:, j], window, drift_sums)[1]
+        sd_axes += moving.column(acc[:, j], drift_sums)[1]
     np.sqrt(sd_axes, out=sd_axes)
     res_acc = _resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
@@ -582,12 +606,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
-            mean_j, var_j = column_window_stats(gyro[:, j], window)
+            mean_j, var_j = moving.column(gyro[:, j])  # the buffers of the accelerometer's statistics
             var_sum += var_j
             mean_j -= gyro_bias[j]
             mean_j *= mean_j
             dev2 += mean_j
-            del mean_j, var_j  # freed before the next column's statistics
+        del moving
         sd_gyro = np.sqrt(var_sum, out=var_sum)  # in place
         rate_dev = np.sqrt(dev2, out=dev2)
         res_g = _resolution(gyro)
@@ -652,6 +676,18 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     seg.joined = len(kept) - len(groups)
     seg.rest_plateau = rest_plateau
     return seg
+
+
+def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:
+    """‖a − offset‖ of every sample, column by column into one array (no (m, 3) temporary)."""
+    norm = np.subtract(acc[:, 0], offset[0])
+    np.multiply(norm, norm, out=norm)
+    term = np.empty_like(norm)
+    for j in (1, 2):
+        np.subtract(acc[:, j], offset[j], out=term)
+        np.multiply(term, term, out=term)
+        norm += term
+    return np.sqrt(norm, out=norm)
 
 
 def rest_plateau_limit(window: int, floor_quantile: float) -> float:
