@@ -548,7 +548,8 @@ def _recording_time(
     t = src.column("t")
     if te is None:
         raise InputError(f"{src.path}: fewer than two usable samples with a time")
-    _refuse_backwards(src, ev, t, "time")
+    if te.backwards:  # the evidence counted the steps back among the usable rows
+        _refuse_backwards(src, ev, t, "time")
     # the unit
     if time_unit is not None:
         if src.time_unit is not None and src.time_unit != time_unit:

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
 from optcal.data.readers import ACC, GYRO, Source, columns_block
-from optcal.data.units import nominal_conversion
+from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
 
 #: Exclusion counters of :class:`Recording` (also used as keys of ``PoseTable.exclusions``);
@@ -64,6 +64,10 @@ class Recording:
     meta : dict
     decisions : DataDecisions or None
         Every decision about the file, with its reason.
+    nominal : NominalConversion or None
+        The nominal conversion of the usable samples (:func:`optcal.data.units.nominal_conversion`
+        of ``acc[usable]``), made once while converting for the saturation check and the static
+        detection; ``None`` to have it made from the samples when needed.
     """
 
     t: NDArray[np.float64]
@@ -82,6 +86,7 @@ class Recording:
     exclusions: dict[str, int] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
     decisions: DataDecisions | None = None
+    nominal: NominalConversion | None = None
 
     @property
     def n(self) -> int:
@@ -168,9 +173,14 @@ def recording_from_source(
         usable[later] = False
         _count(exclusions, DUPLICATED, int(np.sum(identical)))
         _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
-    sat = saturated_samples(acc, usable, str(decisions.units.value), src.saturated)
-    _count(exclusions, SATURATED, int(np.sum(sat & usable)))
+    units = str(decisions.units.value)
+    nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
+    sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
+    n_saturated = int(np.count_nonzero(sat & usable))
+    _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
+    if n_saturated:  # the conversion of the samples left
+        nominal = nominal_conversion(units, acc[usable])
     if not usable.any():
         raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
     tu = t[usable]
@@ -204,6 +214,7 @@ def recording_from_source(
         exclusions=exclusions,
         meta=meta,
         decisions=decisions,
+        nominal=nominal,
     )
 
 
@@ -217,6 +228,7 @@ def saturated_samples(
     usable: NDArray[np.bool_],
     units: str,
     flagged: NDArray[np.bool_] | None = None,
+    nominal: NominalConversion | None = None,
 ) -> NDArray[np.bool_]:
     """Samples with an axis at a saturation rail.
 
@@ -228,13 +240,14 @@ def saturated_samples(
     (so that the extreme of a coarsely quantised static pose is never taken for a rail);
     or a full-scale value of a 16-bit converter (:data:`INTEGER_RAILS`) reached by
     integer-valued data.  ``flagged`` adds the file's own saturation flags (ULog clip
-    counters).
+    counters).  ``nominal`` is the nominal conversion of ``acc[usable]`` when already made.
     """
     sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
     if not usable.any():
         return sat
     every = bool(usable.all())  # then no copy of the samples: column by column below
-    nominal = nominal_conversion(units, acc if every else acc[usable])
+    if nominal is None:
+        nominal = nominal_conversion(units, acc if every else acc[usable])
 
     def usable_column(axis: int) -> NDArray[np.float64]:
         return acc[:, axis] if every else acc[usable, axis]

@@ -557,7 +557,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     m = use.size
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
-    nominal = nominal_conversion(rec.units, acc)
+    nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
     norm = _distance(acc, nominal.offset)
     # column by column in one set of buffers, the drift from the same cumulative sums
     moving = MovingWindow(m, window)
@@ -602,7 +602,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
         # column by column; the median partitions its own copy of the static samples in place
-        gyro_bias = np.array([median(gyro[base, j], overwrite_input=True) for j in range(3)])
+        gyro_bias = np.array([median(gyro[:, j][base], overwrite_input=True) for j in range(3)])
         var_sum = np.zeros(m)
         dev2 = np.zeros(m)
         for j in range(3):
