@@ -50,7 +50,9 @@ def column_medians(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([median(x[:, j]) for j in range(x.shape[1])])
 
 
-def quantiles(x: ArrayLike, probabilities: Sequence[float]) -> list[float]:
+def quantiles(
+    x: ArrayLike, probabilities: Sequence[float], scratch: NDArray[np.float64] | None = None
+) -> list[float]:
     """Quantiles of finite values, as ``np.quantile(x, probabilities)`` gives them (linear interpolation).
 
     One partition per probability, each of the part of the data below the previous one (the
@@ -62,8 +64,16 @@ def quantiles(x: ArrayLike, probabilities: Sequence[float]) -> list[float]:
         Finite values; at least one.
     probabilities : sequence of float
         Each in [0, 1].
+    scratch : ndarray, optional
+        A float buffer of at least ``x``'s size that may be overwritten: the copy partitioned is
+        made there (no allocation of another array of the data's size).
     """
-    a = np.array(x, dtype=float).ravel()  # a copy: partitioned in place below
+    values_in = np.asarray(x, dtype=float).ravel()
+    if scratch is not None and scratch.size >= values_in.size:
+        a = scratch[: values_in.size]
+        a[...] = values_in
+    else:
+        a = values_in.copy()  # partitioned in place below
     n = a.size
     if n == 0:
         return [float("nan")] * len(probabilities)

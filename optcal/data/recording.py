@@ -49,7 +49,8 @@ class Recording:
     temp : ndarray, shape (n,) or None
         Temperature, °C.
     row : ndarray of int, shape (n,)
-        Data row (1-based) or message number of each sample in the file.
+        Data row (1-based) or message number of each sample in the file (int32 when every
+        number fits).
     usable : ndarray of bool, shape (n,)
         Samples that may enter a static interval (finite, not duplicated, not saturated).
     units : str
@@ -74,7 +75,7 @@ class Recording:
     acc: NDArray[np.float64]
     gyro: NDArray[np.float64] | None
     temp: NDArray[np.float64] | None
-    row: NDArray[np.int64]
+    row: NDArray[np.int32] | NDArray[np.int64]
     usable: NDArray[np.bool_]
     units: str
     units_reason: str
@@ -145,7 +146,7 @@ def recording_from_source(
     acc = columns_block(src, ACC)
     gyro = columns_block(src, GYRO) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
-    row = np.arange(1, n + 1)
+    row = np.arange(1, n + 1, dtype=np.int32 if n < 2**31 - 1 else np.int64)  # int32: half the memory
     if decisions.time_base.value == "rate":
         if src.has("index"):
             base = src.column("index")
@@ -161,9 +162,12 @@ def recording_from_source(
     usable = ev.usable.copy()
     if decisions.time_base.value == "rate":
         usable &= np.isfinite(t)
-    idx = np.flatnonzero(usable)
-    dt = np.diff(t[idx])
-    same = np.flatnonzero(dt == 0)
+    # row numbers over a rate, and samples spread evenly, never repeat a time: no search for duplicates
+    retimed = decisions.time_base.value == "uniform" or (decisions.time_base.value == "rate" and not src.has("index"))
+    same = np.empty(0, dtype=np.intp)
+    if not retimed:
+        idx = np.flatnonzero(usable)
+        same = np.flatnonzero(np.diff(t[idx]) == 0)
     if same.size:
         later = idx[same + 1]
         earlier = idx[same]

@@ -40,6 +40,7 @@ sample count, the mid time, the mean temperature and the mean gyro reading.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -369,17 +370,20 @@ class HalfWindowDrift:
         self.h = max(1, window // 2)
         size = max(0, m - 2 * self.h + 1)
         self.squared = np.zeros(size)
-        self._after = np.empty(size)  # scratch, reused for every column
-        self._before = np.empty(size)
+        self._after: NDArray[np.float64] | None = np.empty(size)  # scratch, reused for every column
 
-    def add(self, c: NDArray[np.float64]) -> None:
-        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``)."""
+    def add(self, c: NDArray[np.float64], scratch: NDArray[np.float64] | None = None) -> None:
+        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``).
+
+        ``scratch`` is a free buffer of at least ``m − 2h + 1`` floats (else one is allocated).
+        """
         m, h = self.m, self.h
         if m < 2 * h + 1:
             return
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
-        after, before = self._after, self._before
+        after = self._after if self._after is not None else np.empty(centre.size)
+        before = scratch[:centre.size] if scratch is not None else np.empty(centre.size)
         np.subtract(c[2 * h:], centre, out=after)
         np.subtract(centre, c[:m - 2 * h + 1], out=before)
         np.subtract(after, before, out=after)
@@ -387,9 +391,14 @@ class HalfWindowDrift:
         self.squared += after
 
     def result(self) -> NDArray[np.float64]:
+        """The drift at each sample (zero within half a window of the ends); the sums are used up."""
+        self._after = None
         out = np.zeros(self.m)
         if self.m >= 2 * self.h + 1:
-            out[self.h:self.m - self.h + 1] = np.sqrt(self.squared) / self.h
+            drift = np.sqrt(self.squared, out=self.squared)
+            drift /= self.h
+            out[self.h:self.m - self.h + 1] = drift
+        self.squared = np.zeros(0)
         return out
 
 
@@ -421,9 +430,9 @@ class MovingWindow:
         centre = centre_of(x)
         xc = np.subtract(x, centre, out=var)  # the centred column, then its squares, then the variance
         np.cumsum(xc, out=c[1:])
+        if drift is not None:  # before the window sums: the mean's buffer is its scratch
+            drift.add(c, scratch=mean)
         interior, edge, count = _window_sums(c, window, mean)
-        if drift is not None:
-            drift.add(c)
         np.multiply(xc, xc, out=xc)
         np.cumsum(xc, out=c[1:])
         _window_sums(c, window, var)  # the window sums of the squares overwrite the squares (read from c only)
@@ -435,6 +444,10 @@ class MovingWindow:
         np.clip(var, 0.0, None, out=var)
         mean += centre
         return mean, var
+
+    def scratch(self) -> NDArray[np.float64]:
+        """A free buffer of ``m`` floats (the cumulative sums'), overwritten by the next :meth:`column`."""
+        return self._cumsum[1:]
 
 
 def column_window_stats(
@@ -467,9 +480,24 @@ def _window_sums(
     return interior, edge, (hi - lo).astype(float)
 
 
-def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
-    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution."""
-    return float(max(quantiles(stat, [quantile])[0], resolution))
+def noise_floor(
+    stat: NDArray[np.float64], quantile: float, resolution: float, scratch: NDArray[np.float64] | None = None
+) -> float:
+    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution.
+
+    ``scratch`` is a free buffer of the statistic's size to partition in (:func:`quantiles`)."""
+    return float(max(quantiles(stat, [quantile], scratch)[0], resolution))
+
+
+#: Steps per chunk of :func:`_abs_step_chunks` (temporaries of 2 MB, whatever the recording's length).
+STEP_CHUNK: int = 2**18
+
+
+def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
+    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps."""
+    for start in range(0, max(0, col.size - 1), STEP_CHUNK):
+        d = np.diff(col[start:start + STEP_CHUNK + 1])
+        yield np.abs(d, out=d)
 
 
 def _resolution(x: NDArray[np.float64]) -> float:
@@ -477,7 +505,8 @@ def _resolution(x: NDArray[np.float64]) -> float:
 
     The quantisation noise ``q/√12`` of the smallest non-zero step, and at least the
     rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − c|``
-    (``c`` the centre of those sums, :func:`centre_of`).
+    (``c`` the centre of those sums, :func:`centre_of`).  The steps are taken in chunks
+    (:func:`_abs_step_chunks`): no temporary of the data's length.
     """
     if x.size == 0:
         return 0.0
@@ -485,9 +514,8 @@ def _resolution(x: NDArray[np.float64]) -> float:
     smallest, spread = np.inf, 0.0
     for j in range(columns.shape[1]):  # column by column: temporaries of one column
         col = columns[:, j]
-        d = np.diff(col)
-        np.abs(d, out=d)
-        smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
+        for d in _abs_step_chunks(col):
+            smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
         # max |x − c| from the extremes: rounding x − c is monotonic in x, so this is exact
         centre = centre_of(col)
         spread = max(spread, float(col.max() - centre), float(centre - col.min()))
@@ -507,7 +535,8 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     have a common step too, but span far more of them, or (a signal of small range) step by
     exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
     :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
-    them), column by column: temporaries of one column, not of all.
+    them), column by column and chunk by chunk (:func:`_abs_step_chunks`): no temporary of the
+    data's length.
     """
     columns = x.reshape(x.shape[0], -1)
     k = columns.shape[1]
@@ -515,13 +544,14 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     q, span, n_steps, sample = np.inf, 0.0, 0, []
     for j in range(k):
         col = columns[:, j]
-        d = np.diff(col)
-        np.abs(d, out=d)
-        d = d[d > 0]
-        n_steps += d.size
-        if d.size:
-            q = min(q, float(d.min()))
-            sample.append(d[::stride])
+        column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
+        for d in _abs_step_chunks(col):
+            d = d[d > 0]
+            if d.size:
+                q = min(q, float(d.min()))
+                sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
+            column_steps += d.size
+        n_steps += column_steps
         span = max(span, float(col.max() - col.min()))
     if n_steps < 10:
         return None
@@ -555,12 +585,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         :class:`InputError`), thresholds, noise floors and every exclusion counted.
     """
     s = settings or StaticSettings()
-    use = np.flatnonzero(rec.usable)
-    every = use.size == rec.n  # no copies when every sample is usable
-    t = rec.t if every else rec.t[use]
-    acc = rec.acc if every else _usable_rows(rec.acc, use)
-    gyro = (rec.gyro if every else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
-    m = use.size
+    every = bool(rec.usable.all())  # then no copies, and no index array of every sample
+    use = None if every else np.flatnonzero(rec.usable)
+    t = rec.t if use is None else rec.t[use]
+    acc = rec.acc if use is None else _usable_rows(rec.acc, use)
+    gyro = (rec.gyro if use is None else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
+    m = acc.shape[0]
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
     nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
@@ -581,12 +611,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         sd_axes += moving.column(acc[:, j], drift_sums)[1]
     np.sqrt(sd_axes, out=sd_axes)
     res_acc = _resolution(acc)
-    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
+    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc, moving.scratch())
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
     # axes floor means the quietest windows still rotate (the norm does not see rotation),
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
     # the floor and the rest plateau's low quantile of the axes statistic from one partition
-    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile])
+    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile], moving.scratch())
     floor_axes = min(max(axes_quantiles[1], res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
     rest_plateau: dict[str, float] = {}
@@ -594,6 +624,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
     drift = drift_sums.result()
+    del drift_sums  # its three columns freed before the gyro's statistics
     floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
     thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
     static = (
@@ -704,10 +735,8 @@ class GyroWindows:
 
     Attributes
     ----------
-    sd : ndarray
-        Moving standard deviation, norm over the axes (the per-sample noise).
     floor : float
-        Its noise floor (:func:`noise_floor`, at least the data's resolution).
+        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise) (:func:`noise_floor`, at least the data's resolution).
     quantum : float or None
         The gyro's converter step (:func:`quantum`).
     means : list of ndarray or None
@@ -716,7 +745,6 @@ class GyroWindows:
         ``‖mean(ω) − b_ω‖²`` when the bias was given.
     """
 
-    sd: NDArray[np.float64]
     floor: float
     quantum: float | None
     means: list[NDArray[np.float64]] | None
@@ -762,8 +790,9 @@ def _gyro_windows(
             mean_j *= mean_j
             dev2 += mean_j
     sd = np.sqrt(var_sum, out=var_sum)
-    floor = noise_floor(sd, floor_quantile, _resolution(gyro) * np.sqrt(3))
-    return GyroWindows(sd, floor, quantum(gyro), means if bias is None else None, dev2)
+    floor = noise_floor(sd, floor_quantile, _resolution(gyro) * np.sqrt(3), moving.scratch())
+    del sd, var_sum
+    return GyroWindows(floor, quantum(gyro), means if bias is None else None, dev2)
 
 
 def rest_plateau_limit(window: int, floor_quantile: float) -> float:
@@ -935,11 +964,16 @@ def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
 
 
 def _interval(
-    number: int, rec: Recording, use: NDArray[np.int64], pos: slice | NDArray[np.int64],
+    number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
-    idx = use[pos]
-    rows = _rows(idx)
+    if use is None:  # every sample is usable: positions are the recording's samples
+        rows = _rows(pos)
+        first, last = (pos.start, pos.stop - 1) if isinstance(pos, slice) else (int(pos[0]), int(pos[-1]))
+    else:
+        idx = use[pos]
+        rows = _rows(idx)
+        first, last = int(idx[0]), int(idx[-1])
     x = rec.acc[rows]
     n = x.shape[0]
     mean, var = _mean_var(x)
@@ -947,12 +981,12 @@ def _interval(
     sigma = sigma_of_mean(x, sigma_blocks, var=var)
     return StaticInterval(
         number=number,
-        start=int(idx[0]),
-        stop=int(idx[-1]) + 1,
-        first_row=int(rec.row[idx[0]]),
-        last_row=int(rec.row[idx[-1]]),
-        t_start=float(rec.t[idx[0]]),
-        t_end=float(rec.t[idx[-1]]),
+        start=first,
+        stop=last + 1,
+        first_row=int(rec.row[first]),
+        last_row=int(rec.row[last]),
+        t_start=float(rec.t[first]),
+        t_end=float(rec.t[last]),
         n_samples=int(n),
         mean=mean,
         std=std,

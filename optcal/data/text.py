@@ -315,11 +315,11 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
 ARROW_BLOCK_BYTES: int = 2**20
 #: Text files up to this size are parsed by pyarrow's multithreaded ``read_csv`` (≈ 1.7× faster on two
 #: cores: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV); larger ones by its streaming
-#: reader, one block at a time.  The threaded reader holds the whole parsed table before its columns
-#: are copied into the block (each column released once copied), i.e. up to one more copy of the
-#: numbers for a moment: bounded by this size, it stays a fixed amount (≈ 200 MB at most) instead of
-#: growing with the file, which the streaming reader's single 1 MB block does not.
-THREADED_READ_BYTES: int = 256 * 2**20
+#: reader, one block at a time.  The threaded reader holds the whole parsed table (≈ 1.25 copies of
+#: the numbers: arrow's buffers are padded) while its columns are copied into the block, so reading
+#: peaks at ≈ 2.2 copies instead of one: bounded by this size that is a fixed ≈ 140 MB more at most,
+#: below what the static detection holds anyway, instead of a cost growing with the file.
+THREADED_READ_BYTES: int = 128 * 2**20
 
 
 def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any] | None:
@@ -373,20 +373,30 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     import pyarrow.csv as pacsv
 
     width = len(layout.names)
+    # a pool whose freed memory can be handed back to the system at once (release_unused below):
+    # the table is freed as a whole after reading, not reused block by block as in streaming
     try:
-        table = pacsv.read_csv(p, **options)
-    except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
-        return None
-    if table.num_rows == 0:
-        return None
-    if layout.delimiter == " " and any(table.column(j).null_count for j in range(width)):
-        return None  # a run of blanks: fields are not single-blank separated
-    block = ColumnBlock(width, table.num_rows)
-    for j in range(width):
-        block.fill_column(j, [chunk.to_numpy(zero_copy_only=False) for chunk in table.column(0).chunks])
-        table = table.remove_column(0)  # the copied column's buffers are freed
-    block.n = block.block.shape[0]
-    return block
+        options["memory_pool"] = pa.mimalloc_memory_pool()
+    except NotImplementedError:  # pyarrow built without mimalloc: its default pool
+        options["memory_pool"] = pa.default_memory_pool()
+    try:
+        try:
+            table = pacsv.read_csv(p, **options)
+        except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
+            return None
+        if table.num_rows == 0:
+            return None
+        if layout.delimiter == " " and any(table.column(j).null_count for j in range(width)):
+            return None  # a run of blanks: fields are not single-blank separated
+        block = ColumnBlock(width, table.num_rows)
+        for j in range(width):
+            block.fill_column(j, [chunk.to_numpy(zero_copy_only=False) for chunk in table.column(0).chunks])
+            table = table.remove_column(0)  # the copied column's buffers are freed
+        block.n = block.block.shape[0]
+        del table
+        return block
+    finally:
+        options["memory_pool"].release_unused()
 
 
 def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
