@@ -60,6 +60,8 @@ SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
 TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
 TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
+SWEEPING = "samples in quiet stretches whose mean moves along the axes by more than the accelerometer gate (a slow turn)"
+SWEEPING_STRETCHES = "quiet stretches rejected because their mean moves along the axes by more than the accelerometer gate"
 NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
 NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
 #: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
@@ -301,6 +303,14 @@ def no_static_message(seg: Segmentation) -> str:
             f"{100 * seg.settings.floor_quantile:g} % quantile {plateau['floor']:.3g} {rec.units}; windows at "
             f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
             "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
+        )
+    if seg.exclusions.get(SWEEPING_STRETCHES) and not seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the "
+            f"{seg.exclusions[SWEEPING_STRETCHES]} quiet stretch(es) turn slowly: their means move along the axes "
+            f"by more than the accelerometer gate ({thr.get('acc_axes_std', float('nan')):.3g} {rec.units}) while "
+            "|a| stays the same (a slow turn, e.g. about an axis near the vertical); record the sensor at rest "
+            "between moves, or add the gyro columns"
         )
     if seg.exclusions.get(TURNING_STRETCHES):
         return (
@@ -694,6 +704,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[a2:b2] = True
         kept.append((a2, b2))
     groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    groups, n_sweeping, n_sweeping_samples = _reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
+    _add(exclusions, SWEEPING, n_sweeping_samples)
+    _add(exclusions, SWEEPING_STRETCHES, n_sweeping)
     if resting_gyro_std is not None and gyro is not None:
         groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
         _add(exclusions, TURNING, n_turning_samples)
@@ -838,6 +851,44 @@ def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.f
     for j in range(x.shape[1]):
         np.take(x[:, j], use, out=out[:, j])
     return out
+
+
+def sweep(x: NDArray[np.float64], window: int) -> float:
+    """How far the mean of ``x`` (n, 3) moves across it: ‖max − min‖ over the axes of the means of
+    consecutive blocks of ``window`` samples (0 for fewer than two blocks).
+
+    A slow turn that keeps ‖a‖ (by hand about an axis near the vertical) moves the axes by less than
+    the noise within one window, so neither the moving standard deviation nor the half-window drift
+    sees it, but over a stretch of several windows its block means sweep far beyond the noise.
+    """
+    blocks = x.shape[0] // window
+    if blocks < 2:
+        return 0.0
+    means = np.add.reduce(x[: blocks * window].T.reshape(x.shape[1], blocks, window), axis=2) / window
+    return float(np.linalg.norm(means.max(axis=1) - means.min(axis=1)))
+
+
+def _reject_sweeping(
+    groups: list[list[tuple[int, int]]], acc: NDArray[np.float64], window: int, limit: float,
+    in_pose: NDArray[np.bool_],
+) -> tuple[list[list[tuple[int, int]]], int, int]:
+    """Drop the groups whose block means sweep by more than ``limit`` (the accelerometer gate, :func:`sweep`).
+
+    At rest the means of one-window blocks scatter by the noise of a mean, far below the gate
+    (≤ 0.72 of it over every static pose of the recordings in ../shared/data); ``in_pose`` is cleared
+    for the dropped samples; returns the kept groups, the number dropped and their samples.
+    """
+    kept: list[list[tuple[int, int]]] = []
+    n_dropped = n_samples = 0
+    for group in groups:
+        pos = _positions(group)
+        if sweep(acc[pos], window) <= limit:
+            kept.append(group)
+            continue
+        n_dropped += 1
+        n_samples += sum(b - a for a, b in group)
+        in_pose[pos] = False
+    return kept, n_dropped, n_samples
 
 
 def _reject_turning(
