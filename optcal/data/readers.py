@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.quantiles import median
 from optcal.data.units import UNIT_ALIASES, normalise_units
 
 if TYPE_CHECKING:
@@ -519,7 +520,7 @@ def source_from_columns(
     if "index" in data:
         idx = data["index"][np.isfinite(data["index"])]
         steps = np.diff(idx)
-        is_index = steps.size > 0 and float(np.median(steps)) == 1.0
+        is_index = steps.size > 0 and median(steps) == 1.0
         if not is_index and "n_samples" not in data:
             data["n_samples"] = data.pop("index")
             column_map["n_samples"] = column_map.pop("index")

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
+from optcal.data.quantiles import median
 from optcal.data.readers import ACC, GYRO, Source, columns_block
 from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
@@ -190,7 +191,8 @@ def recording_from_source(
     tu = t[usable]
     steps = np.diff(tu)
     if decisions.time_base.value == "stamps":
-        rate_hz = float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else float("nan")
+        step = median(steps) if steps.size else 0.0
+        rate_hz = float(1.0 / step) if step > 0 else float("nan")
         decisions.rate = Decision(rate_hz, decisions.rate.reason, decisions.rate.flag)
     else:
         rate_hz = float(decisions.rate.value)
