@@ -31,8 +31,13 @@ no rest, only the slowest moments of a motion, and gives no pose (with a gyro wh
 converter step does not settle it, or none).  Static runs are split at time
 gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
 each remaining run, runs of one orientation interrupted for less than a window by a hand's
-twitch are joined into one pose (:func:`join_interrupted`), and every sample that does not
-end in a pose is counted by reason.  Each interval gives one pose: the mean, the per-axis standard deviation, the
+twitch are joined into one pose (:func:`join_interrupted`), a stretch whose means over
+one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
+(:func:`sweep`: a turn about an axis near the vertical keeps ‖a‖ and moves the axes by less
+than the noise within a window), and every sample that does not end in a pose is counted by
+reason.  The moving statistics take one cumulative sum per column in one set of reused
+buffers (:class:`MovingWindow`); the gyro's are computed in a second thread beside the
+accelerometer's for recordings up to :data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose: the mean, the per-axis standard deviation, the
 standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights, Lu 2017
 eq. 14; by batch means, :func:`sigma_of_mean`, since sensor noise is not white), the
 sample count, the mid time, the mean temperature and the mean gyro reading.

@@ -4,8 +4,9 @@ The layout (:class:`TextLayout`) is sniffed from the first :data:`SNIFF_LINES` l
 delimiter (comma, semicolon, tab, ``|`` or whitespace), a decimal comma, the header row
 (or none), and the metadata lines above it (``Fs,100``, ``# comments``).  The numbers are
 then parsed in one place, :func:`parse_numbers`: numpy's C reader for small files (it
-needs no pandas import, which costs more than reading a file of 10⁵ rows), pandas' C
-parser in chunks for large files, for decimal commas and for files with non-numeric
+needs no pandas import, which costs more than reading a file of 10⁵ rows), pyarrow for
+large files of plain numbers (multithreaded up to 128 MB, streamed above), pandas' C
+parser in chunks for the others, for decimal commas and for files with non-numeric
 cells (which are counted, not fatal).  :func:`iter_number_chunks` streams a file of any
 size chunk by chunk.
 """
@@ -236,11 +237,11 @@ class ParsedNumbers:
 def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_ROWS) -> ParsedNumbers:
     """Parse every data row of a file laid out as ``layout``.
 
-    Small files with plain numbers are read by numpy.  Larger files are streamed chunk by
-    chunk into one column-major float block (:class:`ColumnBlock`; the columns returned are
-    its contiguous columns, so the file's numbers are held once): by pyarrow's streaming CSV
-    reader when it is installed and the file is plain numbers with a one-character delimiter,
-    otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
+    Small files with plain numbers are read by numpy.  Larger files are read into one
+    column-major float block (:class:`ColumnBlock`; the columns returned are its contiguous
+    columns, so the file's numbers are held once): by pyarrow when it is installed and the file
+    is plain numbers with a one-character delimiter (its multithreaded reader up to
+    :data:`THREADED_READ_BYTES`, its streaming reader above), otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
     pandas (in chunks of ``chunk_rows``), which turns such cells into NaN and counts them per
     column.
     """
