@@ -620,6 +620,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     # column by column in one set of buffers, the drift from the same cumulative sums
     moving = MovingWindow(m, window)
     sd_norm = np.sqrt(moving.column(norm)[1])
+    del norm  # made again for the trace at the end: one column less while the statistics are held
     drift_sums = HalfWindowDrift(m, window)
     sd_axes = np.zeros(m)
     for j in range(3):
@@ -649,7 +650,6 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     )
     trace: dict[str, Any] = {
         "t": t,
-        "norm_g": np.divide(norm, nominal.sensitivity, out=norm),  # in place: the norm itself is not needed again
         "acc_norm_std": sd_norm,
         "acc_axes_std": sd_axes,
         "acc_drift": drift,
@@ -729,6 +729,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     _add(exclusions, SHORT_STRETCHES, n_short)
     _add(exclusions, TRIMMED, n_trim)
     trace["static"] = in_pose
+    norm = _distance(acc, nominal.offset)
+    trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     seg.rest_plateau = rest_plateau
@@ -792,24 +794,28 @@ def _gyro_windows(
     gyro: NDArray[np.float64], window: int, floor_quantile: float, moving: MovingWindow,
     bias: NDArray[np.float64] | None,
 ) -> GyroWindows:
-    """The gyro's moving statistics in ``moving``'s buffers: with ``bias`` the squared mean rate at once,
-    without it the three moving means kept (for :meth:`GyroWindows.rate_deviation`)."""
+    """The gyro's moving statistics in ``moving``'s buffers: without ``bias`` the three moving means kept
+    (for :meth:`GyroWindows.rate_deviation`); with it (long recordings) the squared mean rate from a
+    second pass over the columns, so that the noise's and the rate's sums are never held at once."""
     m = gyro.shape[0]
     var_sum = np.zeros(m)
-    dev2 = np.zeros(m) if bias is not None else None
     means: list[NDArray[np.float64]] = []
     for j in range(3):
         mean_j, var_j = moving.column(gyro[:, j])
         var_sum += var_j
         if bias is None:
             means.append(mean_j.copy())
-        else:  # as _add_squared_deviations, in the buffer
-            mean_j -= bias[j]
-            mean_j *= mean_j
-            dev2 += mean_j
     sd = np.sqrt(var_sum, out=var_sum)
     floor = noise_floor(sd, floor_quantile, _resolution(gyro) * np.sqrt(3), moving.scratch())
     del sd, var_sum
+    dev2 = None
+    if bias is not None:
+        dev2 = np.zeros(m)
+        for j in range(3):  # as _add_squared_deviations, in the buffer
+            mean_j = moving.column(gyro[:, j])[0]
+            mean_j -= bias[j]
+            mean_j *= mean_j
+            dev2 += mean_j
     return GyroWindows(floor, quantum(gyro), means if bias is None else None, dev2)
 
 
