@@ -35,7 +35,7 @@ def median(x: ArrayLike, overwrite_input: bool = False) -> float:
     if n == 0:
         return float("nan")
     mid = n // 2
-    if overwrite_input and a is x:
+    if overwrite_input and isinstance(x, np.ndarray) and np.shares_memory(a, x):
         a.partition(mid)
         part = a
     else:

@@ -660,8 +660,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        # column by column; the median partitions its own copy of the static samples in place
-        gyro_bias = np.array([median(gyro[:, j][base], overwrite_input=True) for j in range(3)])
+        # column by column: the static samples gathered into a free window buffer, partitioned there
+        gyro_bias = np.array([median(_gather(gyro[:, j], base, moving.scratch()), overwrite_input=True)
+                              for j in range(3)])
         if gyro_job is not None and pool is not None:
             windows = gyro_job.result()
             pool.shutdown()
@@ -854,6 +855,16 @@ def _never_rests(
     limit = rest_plateau_limit(window, floor_quantile)
     evidence.update(low=float(low), floor=float(at_floor), limit=limit)
     return bool(low < limit * at_floor)
+
+
+def _gather(x: NDArray[np.float64], mask: NDArray[np.bool_], out: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``x[mask]`` written into ``out`` chunk by chunk (no temporary of the data's length); a view of ``out``."""
+    filled = 0
+    for start in range(0, x.size, STEP_CHUNK):
+        chunk = x[start:start + STEP_CHUNK][mask[start:start + STEP_CHUNK]]
+        out[filled:filled + chunk.size] = chunk
+        filled += chunk.size
+    return out[:filled]
 
 
 def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
