@@ -191,7 +191,7 @@ class PoseTable:
                 "orientations are needed to calibrate bias, scale and non-orthogonality"
             )
         scale = float(np.max(np.abs(self.acc))) or 1.0
-        distinct = np.unique(np.round(self.acc / (scale * 1e-9)), axis=0).shape[0]
+        distinct = _distinct_rows(np.round(self.acc / (scale * 1e-9)))
         if distinct < min_poses:
             raise InputError(
                 f"only {distinct} distinct poses among {self.n} (identical rows); at least "
@@ -205,3 +205,11 @@ class PoseTable:
                 "about more than one axis so that the poses span three dimensions"
             )
         return self
+
+
+def _distinct_rows(rows: NDArray[np.float64]) -> int:
+    """Number of distinct rows (``np.unique(rows, axis=0)``'s, without its import of ``numpy.ma``)."""
+    if rows.shape[0] == 0:
+        return 0
+    ordered = rows[np.lexsort(rows.T[::-1])]
+    return 1 + int(np.count_nonzero(np.any(ordered[1:] != ordered[:-1], axis=1)))

@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.readers import ACC, GYRO, Source
+from optcal.data.quantiles import median
+from optcal.data.readers import ACC, GYRO, Source, columns_block
 from optcal.data.units import decide_units, nominal_conversion
 from optcal.errors import InputError
 
@@ -80,6 +81,8 @@ class TimeEvidence:
         Negative steps.
     first_backwards : int or None
         Index (into the usable rows) of the first sample after a negative step.
+    regular_fraction : float
+        Fraction of the steps within ±50 % of the median step (0 when the median step is not positive).
     """
 
     n: int
@@ -89,6 +92,7 @@ class TimeEvidence:
     repeated: int
     backwards: int
     first_backwards: int | None
+    regular_fraction: float = 0.0
 
     @property
     def mean_step(self) -> float:
@@ -144,7 +148,12 @@ class Evidence:
 
 
 def gather_evidence(src: Source) -> Evidence:
-    """The statistics every decision is made from, in one pass over the columns."""
+    """The statistics every decision is made from, in one pass over the columns.
+
+    Column by column, with no copy of the samples when every row is usable (the common
+    case); the median norm over the usable rows is the one over the finite, non-zero rows
+    when no row is absurd (one median, not two).
+    """
     n = src.n_rows
     acc = [src.column(c) for c in ACC]  # column by column: no copy of the file's data
     finite = np.ones(n, dtype=bool)
@@ -155,30 +164,47 @@ def gather_evidence(src: Source) -> Evidence:
     for name in (*ACC, *(GYRO if src.has(*GYRO) else ())):
         zero &= src.column(name) == 0.0
     ok = finite & ~zero
+    every_ok = bool(ok.all())
     with np.errstate(over="ignore", invalid="ignore"):
         # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        norm = np.sqrt(sum(a * a for a in acc))
-        med = float(np.median(norm[ok])) if ok.any() else float("nan")
+        norm = acc[0] * acc[0]
+        for a in acc[1:]:
+            norm += a * a
+        np.sqrt(norm, out=norm)
+        med = median(norm if every_ok else norm[ok]) if ok.any() else float("nan")
         absurd = np.zeros(n, dtype=bool)
         if np.isfinite(med) and med > 0:
             for a in acc:
                 absurd |= ok & (np.abs(a) > ABSURD_G * med)
-    usable = ok & ~absurd
+    n_absurd = int(np.count_nonzero(absurd))
+    usable = ok & ~absurd if n_absurd else ok
+    every = every_ok and not n_absurd
     if usable.any():
-        median_norm = float(np.median(norm[usable]))
+        median_norm = med if not n_absurd else median(norm[usable])
+        del norm
         with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit
-            step = np.sqrt(sum(np.diff(a[usable]) ** 2 for a in acc))
-        median_step = float(np.median(step)) if step.size else 0.0
+            step = np.zeros(max(0, int(np.count_nonzero(usable)) - 1))
+            for a in acc:
+                d = np.diff(a if every else a[usable])
+                np.multiply(d, d, out=d)
+                step += d
+            np.sqrt(step, out=step)
+        median_step = median(step, overwrite_input=True) if step.size else 0.0
+        del step
     else:
         median_norm = median_step = float("nan")
-    time = time_evidence(src.column("t")[usable]) if src.has("t") and usable.sum() > 1 else None
+    if src.has("t") and np.count_nonzero(usable) > 1:
+        t = src.column("t")
+        time = time_evidence(t if every else t[usable])
+    else:
+        time = None
     return Evidence(
         n_rows=n,
         size_bytes=src.size_bytes,
         usable=usable,
-        non_finite=int(np.sum(~finite)),
-        zero_rows=int(np.sum(zero)),
-        absurd=int(np.sum(absurd)),
+        non_finite=n - int(np.count_nonzero(finite)),
+        zero_rows=int(np.count_nonzero(zero)),
+        absurd=n_absurd,
         median_norm=median_norm,
         median_step=median_step,
         time=time,
@@ -186,18 +212,21 @@ def gather_evidence(src: Source) -> Evidence:
 
 
 def time_evidence(t: NDArray[np.float64]) -> TimeEvidence:
-    """Steps, repeats and reversals of a time column."""
+    """Steps, repeats and reversals of a time column (one difference of the column, one median)."""
     d = np.diff(t)
     back = np.flatnonzero(d < 0)
-    pos = d[d > 0]
+    positive = d > 0
+    med = median(d) if d.size else 0.0
+    regular = float(np.mean(np.abs(d - med) <= 0.5 * med)) if med > 0 else 0.0
     return TimeEvidence(
         n=int(t.size),
         duration=float(t[-1] - t[0]),
-        median_step=float(np.median(d)) if d.size else 0.0,
-        min_positive_step=float(pos.min()) if pos.size else 0.0,
-        repeated=int(np.sum(d == 0)),
+        median_step=med,
+        min_positive_step=float(d.min(where=positive, initial=np.inf)) if positive.any() else 0.0,
+        repeated=int(np.count_nonzero(d == 0)),
         backwards=int(back.size),
         first_backwards=int(back[0] + 1) if back.size else None,
+        regular_fraction=regular,
     )
 
 
@@ -411,6 +440,9 @@ def _rate_contradiction(src: Source, ev: Evidence, rate: float | None, time_unit
 
 
 def _acc(src: Source, rows: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The accelerometer samples of ``rows`` (n, 3); a view of the file's columns when every row is taken."""
+    if rows.all():
+        return columns_block(src, ACC)
     return np.column_stack([src.column(c)[rows] for c in ACC])
 
 
@@ -437,7 +469,7 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float) -> Dec
         rate_s = 1.0 / te.mean_step
         if src.time_unit is None and rate_s < PLAUSIBLE_RATE_HZ[0]:
             rate_s = 1e3 / te.mean_step  # an unnamed column of ms stamps; seconds are decided later
-        regular = te.backwards == 0 and (te.bursty or te.coarse or _regular(src.column("t")[ev.usable]))
+        regular = te.backwards == 0 and (te.bursty or te.coarse or _regular(te))
         if regular and rate_s >= RAW_MIN_RATE_HZ:
             return Decision(
                 RAW_RECORDING,
@@ -460,11 +492,9 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float) -> Dec
     )
 
 
-def _regular(t: NDArray[np.float64]) -> bool:
+def _regular(te: TimeEvidence) -> bool:
     """Steps within ±50 % of their median for 90 % of the samples (a sampled time series)."""
-    d = np.diff(t)
-    med = float(np.median(d)) if d.size else 0.0
-    return med > 0 and float(np.mean(np.abs(d - med) <= 0.5 * med)) >= 0.9
+    return te.median_step > 0 and te.regular_fraction >= 0.9
 
 
 def _refuse_backwards(src: Source, ev: Evidence, t: NDArray[np.float64], what: str) -> None:
@@ -518,7 +548,8 @@ def _recording_time(
     t = src.column("t")
     if te is None:
         raise InputError(f"{src.path}: fewer than two usable samples with a time")
-    _refuse_backwards(src, ev, t, "time")
+    if te.backwards:  # the evidence counted the steps back among the usable rows
+        _refuse_backwards(src, ev, t, "time")
     # the unit
     if time_unit is not None:
         if src.time_unit is not None and src.time_unit != time_unit:

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.quantiles import median
 from optcal.data.units import UNIT_ALIASES, normalise_units
 
 if TYPE_CHECKING:
@@ -167,6 +168,44 @@ class Source:
     def describe_columns(self) -> str:
         """``ax←acc_x_counts, ...`` for reports."""
         return ", ".join(f"{k}←{v}" for k, v in self.column_map.items() if k != v) or "as named"
+
+
+def columns_block(src: Source, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """The columns ``names`` of ``src`` as one (n, k) array in column-major (Fortran) order.
+
+    Each column is contiguous, so the column-by-column statistics of the static detection and
+    the per-interval means read contiguous memory.  When the columns are already adjacent
+    columns, in this order, of one column-major block (a large text file is parsed into one,
+    :class:`optcal.data.text.ColumnBlock`), the result is a view of that block: no copy.
+    """
+    view = _adjacent_columns([src.column(name) for name in names])
+    if view is not None:
+        return view
+    block = np.empty((src.n_rows, len(names)), order="F")
+    for j, name in enumerate(names):
+        block[:, j] = src.column(name)
+    return block
+
+
+def _adjacent_columns(cols: list[NDArray[np.float64]]) -> NDArray[np.float64] | None:
+    """``base[:n, k:k + len(cols)]`` when ``cols`` are those columns of one column-major base, else ``None``."""
+    base = cols[0].base
+    if not isinstance(base, np.ndarray) or base.ndim != 2 or not base.flags.f_contiguous or base.dtype != np.float64:
+        return None
+    n = cols[0].size
+    start = base.__array_interface__["data"][0]
+    stride = base.strides[1]
+    first = cols[0].__array_interface__["data"][0] - start
+    if n > base.shape[0] or first % stride:
+        return None
+    k = first // stride
+    for j, col in enumerate(cols):
+        if (col.base is not base or col.ndim != 1 or col.size != n or col.strides != (8,)
+                or col.__array_interface__["data"][0] - start != (k + j) * stride):
+            return None
+    if k + len(cols) > base.shape[1]:
+        return None
+    return base[:n, k:k + len(cols)]
 
 
 # ----------------------------------------------------------------------------- file types
@@ -481,7 +520,7 @@ def source_from_columns(
     if "index" in data:
         idx = data["index"][np.isfinite(data["index"])]
         steps = np.diff(idx)
-        is_index = steps.size > 0 and float(np.median(steps)) == 1.0
+        is_index = steps.size > 0 and median(steps) == 1.0
         if not is_index and "n_samples" not in data:
             data["n_samples"] = data.pop("index")
             column_map["n_samples"] = column_map.pop("index")

@@ -17,8 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
-from optcal.data.readers import ACC, GYRO, Source
-from optcal.data.units import nominal_conversion
+from optcal.data.quantiles import median
+from optcal.data.readers import ACC, GYRO, Source, columns_block
+from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
 
 #: Exclusion counters of :class:`Recording` (also used as keys of ``PoseTable.exclusions``);
@@ -49,7 +50,8 @@ class Recording:
     temp : ndarray, shape (n,) or None
         Temperature, °C.
     row : ndarray of int, shape (n,)
-        Data row (1-based) or message number of each sample in the file.
+        Data row (1-based) or message number of each sample in the file (int32 when every
+        number fits).
     usable : ndarray of bool, shape (n,)
         Samples that may enter a static interval (finite, not duplicated, not saturated).
     units : str
@@ -64,13 +66,17 @@ class Recording:
     meta : dict
     decisions : DataDecisions or None
         Every decision about the file, with its reason.
+    nominal : NominalConversion or None
+        The nominal conversion of the usable samples (:func:`optcal.data.units.nominal_conversion`
+        of ``acc[usable]``), made once while converting for the saturation check and the static
+        detection; ``None`` to have it made from the samples when needed.
     """
 
     t: NDArray[np.float64]
     acc: NDArray[np.float64]
     gyro: NDArray[np.float64] | None
     temp: NDArray[np.float64] | None
-    row: NDArray[np.int64]
+    row: NDArray[np.int32] | NDArray[np.int64]
     usable: NDArray[np.bool_]
     units: str
     units_reason: str
@@ -82,6 +88,7 @@ class Recording:
     exclusions: dict[str, int] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
     decisions: DataDecisions | None = None
+    nominal: NominalConversion | None = None
 
     @property
     def n(self) -> int:
@@ -140,7 +147,7 @@ def recording_from_source(
     acc = columns_block(src, ACC)
     gyro = columns_block(src, GYRO) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
-    row = np.arange(1, n + 1)
+    row = np.arange(1, n + 1, dtype=np.int32 if n < 2**31 - 1 else np.int64)  # int32: half the memory
     if decisions.time_base.value == "rate":
         if src.has("index"):
             base = src.column("index")
@@ -156,9 +163,12 @@ def recording_from_source(
     usable = ev.usable.copy()
     if decisions.time_base.value == "rate":
         usable &= np.isfinite(t)
-    idx = np.flatnonzero(usable)
-    dt = np.diff(t[idx])
-    same = np.flatnonzero(dt == 0)
+    # row numbers over a rate, and samples spread evenly, never repeat a time: no search for duplicates
+    retimed = decisions.time_base.value == "uniform" or (decisions.time_base.value == "rate" and not src.has("index"))
+    same = np.empty(0, dtype=np.intp)
+    if not retimed:
+        idx = np.flatnonzero(usable)
+        same = np.flatnonzero(np.diff(t[idx]) == 0)
     if same.size:
         later = idx[same + 1]
         earlier = idx[same]
@@ -168,15 +178,21 @@ def recording_from_source(
         usable[later] = False
         _count(exclusions, DUPLICATED, int(np.sum(identical)))
         _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
-    sat = saturated_samples(acc, usable, str(decisions.units.value), src.saturated)
-    _count(exclusions, SATURATED, int(np.sum(sat & usable)))
+    units = str(decisions.units.value)
+    nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
+    sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
+    n_saturated = int(np.count_nonzero(sat & usable))
+    _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
+    if n_saturated:  # the conversion of the samples left
+        nominal = nominal_conversion(units, acc[usable])
     if not usable.any():
         raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
     tu = t[usable]
     steps = np.diff(tu)
     if decisions.time_base.value == "stamps":
-        rate_hz = float(1.0 / np.median(steps)) if steps.size and np.median(steps) > 0 else float("nan")
+        step = median(steps) if steps.size else 0.0
+        rate_hz = float(1.0 / step) if step > 0 else float("nan")
         decisions.rate = Decision(rate_hz, decisions.rate.reason, decisions.rate.flag)
     else:
         rate_hz = float(decisions.rate.value)
@@ -204,45 +220,8 @@ def recording_from_source(
         exclusions=exclusions,
         meta=meta,
         decisions=decisions,
+        nominal=nominal,
     )
-
-
-def columns_block(src: Source, names: tuple[str, ...]) -> NDArray[np.float64]:
-    """The columns ``names`` of ``src`` as one (n, k) array in column-major (Fortran) order.
-
-    Each column is contiguous, so the column-by-column statistics of the static detection and
-    the per-interval means read contiguous memory.  When the columns are already adjacent
-    columns, in this order, of one column-major block (a large text file is parsed into one,
-    :class:`optcal.data.text.ColumnBlock`), the result is a view of that block: no copy.
-    """
-    view = _adjacent_columns([src.column(name) for name in names])
-    if view is not None:
-        return view
-    block = np.empty((src.n_rows, len(names)), order="F")
-    for j, name in enumerate(names):
-        block[:, j] = src.column(name)
-    return block
-
-
-def _adjacent_columns(cols: list[NDArray[np.float64]]) -> NDArray[np.float64] | None:
-    """``base[:n, k:k + len(cols)]`` when ``cols`` are those columns of one column-major base, else ``None``."""
-    base = cols[0].base
-    if not isinstance(base, np.ndarray) or base.ndim != 2 or not base.flags.f_contiguous or base.dtype != np.float64:
-        return None
-    n = cols[0].size
-    start = base.__array_interface__["data"][0]
-    stride = base.strides[1]
-    first = cols[0].__array_interface__["data"][0] - start
-    if n > base.shape[0] or first % stride:
-        return None
-    k = first // stride
-    for j, col in enumerate(cols):
-        if (col.base is not base or col.ndim != 1 or col.size != n or col.strides != (8,)
-                or col.__array_interface__["data"][0] - start != (k + j) * stride):
-            return None
-    if k + len(cols) > base.shape[1]:
-        return None
-    return base[:n, k:k + len(cols)]
 
 
 def _count(d: dict[str, int], key: str, value: int) -> None:
@@ -255,6 +234,7 @@ def saturated_samples(
     usable: NDArray[np.bool_],
     units: str,
     flagged: NDArray[np.bool_] | None = None,
+    nominal: NominalConversion | None = None,
 ) -> NDArray[np.bool_]:
     """Samples with an axis at a saturation rail.
 
@@ -266,13 +246,14 @@ def saturated_samples(
     (so that the extreme of a coarsely quantised static pose is never taken for a rail);
     or a full-scale value of a 16-bit converter (:data:`INTEGER_RAILS`) reached by
     integer-valued data.  ``flagged`` adds the file's own saturation flags (ULog clip
-    counters).
+    counters).  ``nominal`` is the nominal conversion of ``acc[usable]`` when already made.
     """
     sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
     if not usable.any():
         return sat
     every = bool(usable.all())  # then no copy of the samples: column by column below
-    nominal = nominal_conversion(units, acc if every else acc[usable])
+    if nominal is None:
+        nominal = nominal_conversion(units, acc if every else acc[usable])
 
     def usable_column(axis: int) -> NDArray[np.float64]:
         return acc[:, axis] if every else acc[usable, axis]

@@ -31,8 +31,13 @@ no rest, only the slowest moments of a motion, and gives no pose (with a gyro wh
 converter step does not settle it, or none).  Static runs are split at time
 gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
 each remaining run, runs of one orientation interrupted for less than a window by a hand's
-twitch are joined into one pose (:func:`join_interrupted`), and every sample that does not
-end in a pose is counted by reason.  Each interval gives one pose: the mean, the per-axis standard deviation, the
+twitch are joined into one pose (:func:`join_interrupted`), a stretch whose means over
+one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
+(:func:`sweep`: a turn about an axis near the vertical keeps ‖a‖ and moves the axes by less
+than the noise within a window), and every sample that does not end in a pose is counted by
+reason.  The moving statistics take one cumulative sum per column in one set of reused
+buffers (:class:`MovingWindow`); the gyro's are computed in a second thread beside the
+accelerometer's for recordings up to :data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose: the mean, the per-axis standard deviation, the
 standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights, Lu 2017
 eq. 14; by batch means, :func:`sigma_of_mean`, since sensor noise is not white), the
 sample count, the mid time, the mean temperature and the mean gyro reading.
@@ -40,12 +45,15 @@ sample count, the mid time, the mean temperature and the mean gyro reading.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
@@ -57,6 +65,8 @@ SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
 TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
 TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
+SWEEPING = "samples in quiet stretches whose mean moves along the axes by more than the accelerometer gate (a slow turn)"
+SWEEPING_STRETCHES = "quiet stretches rejected because their mean moves along the axes by more than the accelerometer gate"
 NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
 NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
 #: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
@@ -68,6 +78,11 @@ NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests 
 REST_PLATEAU_FRACTION: float = 0.85
 #: Windows a recording needs before the plateau of resting noise is looked for.
 PLATEAU_MIN_WINDOWS: int = 10
+#: Recordings up to this many samples compute the gyro's moving statistics in a second thread beside the
+#: accelerometer's (≈ 0.1 s less wall time for 10⁶ samples on two cores); the thread's own buffers and the
+#: three moving means it keeps until the gyro bias is known take seven columns (≤ 235 MB at this size).
+#: Longer recordings compute them after the accelerometer's, in the same buffers, holding less.
+PARALLEL_MAX_SAMPLES: int = 2**22
 #: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
 #: isotropic noise; twice that allows for axes of unequal noise).
 AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
@@ -294,6 +309,14 @@ def no_static_message(seg: Segmentation) -> str:
             f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
             "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
         )
+    if seg.exclusions.get(SWEEPING_STRETCHES) and not seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the "
+            f"{seg.exclusions[SWEEPING_STRETCHES]} quiet stretch(es) turn slowly: their means move along the axes "
+            f"by more than the accelerometer gate ({thr.get('acc_axes_std', float('nan')):.3g} {rec.units}) while "
+            "|a| stays the same (a slow turn, e.g. about an axis near the vertical); record the sensor at rest "
+            "between moves, or add the gyro columns"
+        )
     if seg.exclusions.get(TURNING_STRETCHES):
         return (
             f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
@@ -323,7 +346,7 @@ def centre_of(x: NDArray[np.float64]) -> NDArray[np.float64] | float:
     near the data (raw counts carry a large offset), not the exact median.
     """
     stride = max(1, x.shape[0] // CENTRE_ROWS)
-    return np.median(x[::stride], axis=0)
+    return median(x[::stride]) if x.ndim == 1 else column_medians(x[::stride])
 
 
 def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -355,61 +378,98 @@ def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64
 
 class HalfWindowDrift:
     """The squared half-window drift summed over columns (:func:`half_window_drift`), filled by
-    :func:`column_window_stats` from the cumulative sum it makes anyway (one pass per column)."""
+    :class:`MovingWindow` from the cumulative sum it makes anyway (one pass per column)."""
 
     def __init__(self, m: int, window: int) -> None:
         self.m = m
         self.h = max(1, window // 2)
-        self.squared = np.zeros(max(0, m - 2 * self.h + 1))
+        size = max(0, m - 2 * self.h + 1)
+        self.squared = np.zeros(size)
+        self._after: NDArray[np.float64] | None = np.empty(size)  # scratch, reused for every column
 
-    def add(self, c: NDArray[np.float64]) -> None:
-        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``)."""
+    def add(self, c: NDArray[np.float64], scratch: NDArray[np.float64] | None = None) -> None:
+        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``).
+
+        ``scratch`` is a free buffer of at least ``m − 2h + 1`` floats (else one is allocated).
+        """
         m, h = self.m, self.h
         if m < 2 * h + 1:
             return
         # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
         centre = c[h:m - h + 1]
-        self.squared += ((c[2 * h:] - centre) - (centre - c[:m - 2 * h + 1])) ** 2
+        after = self._after if self._after is not None else np.empty(centre.size)
+        before = scratch[:centre.size] if scratch is not None else np.empty(centre.size)
+        np.subtract(c[2 * h:], centre, out=after)
+        np.subtract(centre, c[:m - 2 * h + 1], out=before)
+        np.subtract(after, before, out=after)
+        np.multiply(after, after, out=after)
+        self.squared += after
 
     def result(self) -> NDArray[np.float64]:
+        """The drift at each sample (zero within half a window of the ends); the sums are used up."""
+        self._after = None
         out = np.zeros(self.m)
         if self.m >= 2 * self.h + 1:
-            out[self.h:self.m - self.h + 1] = np.sqrt(self.squared) / self.h
+            drift = np.sqrt(self.squared, out=self.squared)
+            drift /= self.h
+            out[self.h:self.m - self.h + 1] = drift
+        self.squared = np.zeros(0)
         return out
+
+
+class MovingWindow:
+    """Centred moving mean and variance (windows clipped at the ends) of columns of ``m`` samples, O(m) each.
+
+    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
+    give the window sums; the same sum gives ``drift``'s half-window means when given, and the
+    cumulative sum of the squares the variance.  The buffers are allocated once and reused
+    for every column (a recording's statistics take seven columns): :meth:`column` returns
+    views of them, valid until its next call.
+    """
+
+    def __init__(self, m: int, window: int) -> None:
+        self.m, self.window = m, window
+        self._cumsum = np.empty(m + 1)
+        self._cumsum[0] = 0.0
+        self._mean = np.empty(m)
+        self._var = np.empty(m)
+
+    def column(
+        self, x: NDArray[np.float64], drift: HalfWindowDrift | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The moving mean and variance of one column ``x`` (m,): views of this object's buffers.
+
+        ``drift`` accumulates the column's half-window drift from the same cumulative sum.
+        """
+        window, c, mean, var = self.window, self._cumsum, self._mean, self._var
+        centre = centre_of(x)
+        xc = np.subtract(x, centre, out=var)  # the centred column, then its squares, then the variance
+        np.cumsum(xc, out=c[1:])
+        if drift is not None:  # before the window sums: the mean's buffer is its scratch
+            drift.add(c, scratch=mean)
+        interior, edge, count = _window_sums(c, window, mean)
+        np.multiply(xc, xc, out=xc)
+        np.cumsum(xc, out=c[1:])
+        _window_sums(c, window, var)  # the window sums of the squares overwrite the squares (read from c only)
+        for a in (mean, var):
+            a[interior] /= window
+            a[edge] /= count
+        square = np.multiply(mean, mean, out=c[1:])  # the cumulative sums are no longer needed
+        var -= square
+        np.clip(var, 0.0, None, out=var)
+        mean += centre
+        return mean, var
+
+    def scratch(self) -> NDArray[np.float64]:
+        """A free buffer of ``m`` floats (the cumulative sums'), overwritten by the next :meth:`column`."""
+        return self._cumsum[1:]
 
 
 def column_window_stats(
     x: NDArray[np.float64], window: int, drift: HalfWindowDrift | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centred moving mean and variance of one column (windows clipped at the ends), O(n).
-
-    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
-    give the window sums; the same sum gives ``drift``'s half-window means when given, and
-    the cumulative sum of the squares the variance.  Every step writes into the arrays it
-    returns or into one cumulative-sum buffer: a handful of passes over the column.
-    """
-    m = x.shape[0]
-    centre = centre_of(x)
-    xc = x - centre
-    c = np.empty(m + 1)
-    c[0] = 0.0
-    np.cumsum(xc, out=c[1:])
-    mean = np.empty(m)
-    interior, edge, count = _window_sums(c, window, mean)
-    if drift is not None:
-        drift.add(c)
-    np.multiply(xc, xc, out=xc)  # in place: the squares reuse the centred column
-    np.cumsum(xc, out=c[1:])
-    var = xc  # the window sums of the squares overwrite the squares (read from c only)
-    _window_sums(c, window, var)
-    del c
-    for a in (mean, var):
-        a[interior] /= window
-        a[edge] /= count
-    var -= mean * mean
-    np.clip(var, 0.0, None, out=var)
-    mean += centre
-    return mean, var
+    """Centred moving mean and variance of one column (windows clipped at the ends), O(n) (:class:`MovingWindow`)."""
+    return MovingWindow(x.shape[0], window).column(x, drift)
 
 
 def _window_sums(
@@ -435,9 +495,24 @@ def _window_sums(
     return interior, edge, (hi - lo).astype(float)
 
 
-def noise_floor(stat: NDArray[np.float64], quantile: float, resolution: float) -> float:
-    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution."""
-    return float(max(np.quantile(stat, quantile), resolution))
+def noise_floor(
+    stat: NDArray[np.float64], quantile: float, resolution: float, scratch: NDArray[np.float64] | None = None
+) -> float:
+    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution.
+
+    ``scratch`` is a free buffer of the statistic's size to partition in (:func:`quantiles`)."""
+    return float(max(quantiles(stat, [quantile], scratch)[0], resolution))
+
+
+#: Steps per chunk of :func:`_abs_step_chunks` (temporaries of 2 MB, whatever the recording's length).
+STEP_CHUNK: int = 2**18
+
+
+def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
+    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps."""
+    for start in range(0, max(0, col.size - 1), STEP_CHUNK):
+        d = np.diff(col[start:start + STEP_CHUNK + 1])
+        yield np.abs(d, out=d)
 
 
 def _resolution(x: NDArray[np.float64]) -> float:
@@ -445,7 +520,8 @@ def _resolution(x: NDArray[np.float64]) -> float:
 
     The quantisation noise ``q/√12`` of the smallest non-zero step, and at least the
     rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − c|``
-    (``c`` the centre of those sums, :func:`centre_of`).
+    (``c`` the centre of those sums, :func:`centre_of`).  The steps are taken in chunks
+    (:func:`_abs_step_chunks`): no temporary of the data's length.
     """
     if x.size == 0:
         return 0.0
@@ -453,10 +529,11 @@ def _resolution(x: NDArray[np.float64]) -> float:
     smallest, spread = np.inf, 0.0
     for j in range(columns.shape[1]):  # column by column: temporaries of one column
         col = columns[:, j]
-        d = np.diff(col)
-        np.abs(d, out=d)
-        smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
-        spread = max(spread, float(np.max(np.abs(col - centre_of(col)))))
+        for d in _abs_step_chunks(col):
+            smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
+        # max |x − c| from the extremes: rounding x − c is monotonic in x, so this is exact
+        centre = centre_of(col)
+        spread = max(spread, float(col.max() - centre), float(centre - col.min()))
     step = smallest / np.sqrt(12.0) if np.isfinite(smallest) else 0.0
     return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
 
@@ -473,7 +550,8 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     have a common step too, but span far more of them, or (a signal of small range) step by
     exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
     :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
-    them), column by column: temporaries of one column, not of all.
+    them), column by column and chunk by chunk (:func:`_abs_step_chunks`): no temporary of the
+    data's length.
     """
     columns = x.reshape(x.shape[0], -1)
     k = columns.shape[1]
@@ -481,13 +559,14 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     q, span, n_steps, sample = np.inf, 0.0, 0, []
     for j in range(k):
         col = columns[:, j]
-        d = np.diff(col)
-        np.abs(d, out=d)
-        d = d[d > 0]
-        n_steps += d.size
-        if d.size:
-            q = min(q, float(d.min()))
-            sample.append(d[::stride])
+        column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
+        for d in _abs_step_chunks(col):
+            d = d[d > 0]
+            if d.size:
+                q = min(q, float(d.min()))
+                sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
+            column_steps += d.size
+        n_steps += column_steps
         span = max(span, float(col.max() - col.min()))
     if n_steps < 10:
         return None
@@ -521,37 +600,47 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         :class:`InputError`), thresholds, noise floors and every exclusion counted.
     """
     s = settings or StaticSettings()
-    use = np.flatnonzero(rec.usable)
-    every = use.size == rec.n  # no copies when every sample is usable
-    t = rec.t if every else rec.t[use]
-    acc = rec.acc if every else _usable_rows(rec.acc, use)
-    gyro = (rec.gyro if every else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
-    m = use.size
+    every = bool(rec.usable.all())  # then no copies, and no index array of every sample
+    use = None if every else np.flatnonzero(rec.usable)
+    t = rec.t if use is None else rec.t[use]
+    acc = rec.acc if use is None else _usable_rows(rec.acc, use)
+    gyro = (rec.gyro if use is None else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
+    m = acc.shape[0]
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     window = max(3, int(round(s.window_s * rate)))
-    nominal = nominal_conversion(rec.units, acc)
-    norm = np.sqrt(sum((acc[:, j] - nominal.offset[j]) ** 2 for j in range(3)))  # no (m, 3) temporary
-
-    sd_norm = column_window_stats(norm, window)[1]
-    np.sqrt(sd_norm, out=sd_norm)  # in place: the variance is not needed
-    # column by column (temporaries of one column), the drift from the same cumulative sums
+    nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
+    norm = _distance(acc, nominal.offset)
+    # the gyro's statistics that do not need its bias in a second thread (numpy releases the GIL
+    # in its loops), beside the accelerometer's: recordings up to PARALLEL_MAX_SAMPLES samples
+    gyro_job: Future[GyroWindows] | None = None
+    pool: ThreadPoolExecutor | None = None
+    if gyro is not None and m <= PARALLEL_MAX_SAMPLES:
+        pool = ThreadPoolExecutor(max_workers=1)
+        gyro_job = pool.submit(_gyro_windows, gyro, window, s.floor_quantile, MovingWindow(m, window), None)
+    # column by column in one set of buffers, the drift from the same cumulative sums
+    moving = MovingWindow(m, window)
+    sd_norm = np.sqrt(moving.column(norm)[1])
+    del norm  # made again for the trace at the end: one column less while the statistics are held
     drift_sums = HalfWindowDrift(m, window)
     sd_axes = np.zeros(m)
     for j in range(3):
-        sd_axes += column_window_stats(acc[:, j], window, drift_sums)[1]
+        sd_axes += moving.column(acc[:, j], drift_sums)[1]
     np.sqrt(sd_axes, out=sd_axes)
     res_acc = _resolution(acc)
-    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc)
+    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc, moving.scratch())
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
     # axes floor means the quietest windows still rotate (the norm does not see rotation),
     # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
-    floor_axes = min(noise_floor(sd_axes, s.floor_quantile, res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
+    # the floor and the rest plateau's low quantile of the axes statistic from one partition
+    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile], moving.scratch())
+    floor_axes = min(max(axes_quantiles[1], res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
     floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
     rest_plateau: dict[str, float] = {}
-    never_rests = _never_rests(sd_axes, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
+    never_rests = _never_rests(m, axes_quantiles, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
     thresholds = {k: s.threshold * v for k, v in floors.items()}
     # drift: the two halves of the window must agree within the noise of their means
     drift = drift_sums.result()
+    del drift_sums  # its three columns freed before the gyro's statistics
     floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
     thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
     static = (
@@ -561,7 +650,6 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     )
     trace: dict[str, Any] = {
         "t": t,
-        "norm_g": np.divide(norm, nominal.sensitivity, out=norm),  # in place: the norm itself is not needed again
         "acc_norm_std": sd_norm,
         "acc_axes_std": sd_axes,
         "acc_drift": drift,
@@ -572,23 +660,19 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     resting_gyro_std: float | None = None
     if gyro is not None:
         base = static if static.any() else np.ones(m, dtype=bool)
-        # column by column; the median partitions its own copy of the static samples in place
-        gyro_bias = np.array([np.median(gyro[base, j], overwrite_input=True) for j in range(3)])
-        var_sum = np.zeros(m)
-        dev2 = np.zeros(m)
-        for j in range(3):
-            mean_j, var_j = column_window_stats(gyro[:, j], window)
-            var_sum += var_j
-            mean_j -= gyro_bias[j]
-            mean_j *= mean_j
-            dev2 += mean_j
-            del mean_j, var_j  # freed before the next column's statistics
-        sd_gyro = np.sqrt(var_sum, out=var_sum)  # in place
-        rate_dev = np.sqrt(dev2, out=dev2)
-        res_g = _resolution(gyro)
+        # column by column: the static samples gathered into a free window buffer, partitioned there
+        gyro_bias = np.array([median(_gather(gyro[:, j], base, moving.scratch()), overwrite_input=True)
+                              for j in range(3)])
+        if gyro_job is not None and pool is not None:
+            windows = gyro_job.result()
+            pool.shutdown()
+        else:  # after the accelerometer's, in its buffers, the mean rate from the bias at once
+            windows = _gyro_windows(gyro, window, s.floor_quantile, moving, gyro_bias)
+        del moving
+        rate_dev = windows.rate_deviation(gyro_bias)
         # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
-        floors["gyro_rate"] = noise_floor(sd_gyro, s.floor_quantile, res_g * np.sqrt(3))
-        q = quantum(gyro)
+        floors["gyro_rate"] = windows.floor
+        q = windows.quantum
         if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
             # the quietest windows of a recording that never rests still turn: the floor is
             # capped at a resting gyro's noise, and so is the noise inside every interval kept
@@ -626,6 +710,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[a2:b2] = True
         kept.append((a2, b2))
     groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    groups, n_sweeping, n_sweeping_samples = _reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
+    _add(exclusions, SWEEPING, n_sweeping_samples)
+    _add(exclusions, SWEEPING_STRETCHES, n_sweeping)
     if resting_gyro_std is not None and gyro is not None:
         groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
         _add(exclusions, TURNING, n_turning_samples)
@@ -637,17 +724,100 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[:] = False
         groups = []
     for group in groups:
-        pos = np.concatenate([np.arange(a, b) for a, b in group])
-        intervals.append(_interval(len(intervals) + 1, rec, use, pos, gyro, s.sigma_blocks))
+        intervals.append(_interval(len(intervals) + 1, rec, use, _positions(group), gyro, s.sigma_blocks))
     _add(exclusions, MOVING, int(np.sum(~static)))
     _add(exclusions, SHORT, n_short_samples)
     _add(exclusions, SHORT_STRETCHES, n_short)
     _add(exclusions, TRIMMED, n_trim)
     trace["static"] = in_pose
+    norm = _distance(acc, nominal.offset)
+    trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
     seg.joined = len(kept) - len(groups)
     seg.rest_plateau = rest_plateau
     return seg
+
+
+def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:
+    """‖a − offset‖ of every sample, column by column into one array (no (m, 3) temporary)."""
+    norm = np.subtract(acc[:, 0], offset[0])
+    np.multiply(norm, norm, out=norm)
+    term = np.empty_like(norm)
+    for j in (1, 2):
+        np.subtract(acc[:, j], offset[j], out=term)
+        np.multiply(term, term, out=term)
+        norm += term
+    return np.sqrt(norm, out=norm)
+
+
+@dataclass
+class GyroWindows:
+    """The gyro's moving statistics (:func:`_gyro_windows`).
+
+    Attributes
+    ----------
+    floor : float
+        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise) (:func:`noise_floor`, at least the data's resolution).
+    quantum : float or None
+        The gyro's converter step (:func:`quantum`).
+    means : list of ndarray or None
+        Moving mean of each axis, kept when the bias was not known yet.
+    squared_deviation : ndarray or None
+        ``‖mean(ω) − b_ω‖²`` when the bias was given.
+    """
+
+    floor: float
+    quantum: float | None
+    means: list[NDArray[np.float64]] | None
+    squared_deviation: NDArray[np.float64] | None
+
+    def rate_deviation(self, bias: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The windowed mean rate ``‖mean(ω) − b_ω‖`` at each sample."""
+        dev2 = self.squared_deviation
+        if dev2 is None:
+            assert self.means is not None
+            dev2 = _add_squared_deviations(self.means, bias)
+            self.means = None
+        return np.sqrt(dev2, out=dev2)
+
+
+def _add_squared_deviations(means: list[NDArray[np.float64]], bias: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``Σ_j (mean_j − b_j)²`` column by column, each mean overwritten."""
+    dev2 = np.zeros(means[0].size)
+    for j, mean_j in enumerate(means):
+        mean_j -= bias[j]
+        mean_j *= mean_j
+        dev2 += mean_j
+    return dev2
+
+
+def _gyro_windows(
+    gyro: NDArray[np.float64], window: int, floor_quantile: float, moving: MovingWindow,
+    bias: NDArray[np.float64] | None,
+) -> GyroWindows:
+    """The gyro's moving statistics in ``moving``'s buffers: without ``bias`` the three moving means kept
+    (for :meth:`GyroWindows.rate_deviation`); with it (long recordings) the squared mean rate from a
+    second pass over the columns, so that the noise's and the rate's sums are never held at once."""
+    m = gyro.shape[0]
+    var_sum = np.zeros(m)
+    means: list[NDArray[np.float64]] = []
+    for j in range(3):
+        mean_j, var_j = moving.column(gyro[:, j])
+        var_sum += var_j
+        if bias is None:
+            means.append(mean_j.copy())
+    sd = np.sqrt(var_sum, out=var_sum)
+    floor = noise_floor(sd, floor_quantile, _resolution(gyro) * np.sqrt(3), moving.scratch())
+    del sd, var_sum
+    dev2 = None
+    if bias is not None:
+        dev2 = np.zeros(m)
+        for j in range(3):  # as _add_squared_deviations, in the buffer
+            mean_j = moving.column(gyro[:, j])[0]
+            mean_j -= bias[j]
+            mean_j *= mean_j
+            dev2 += mean_j
+    return GyroWindows(floor, quantum(gyro), means if bias is None else None, dev2)
 
 
 def rest_plateau_limit(window: int, floor_quantile: float) -> float:
@@ -667,22 +837,34 @@ def rest_plateau_limit(window: int, floor_quantile: float) -> float:
 
 
 def _never_rests(
-    sd_axes: NDArray[np.float64], window: int, floor_quantile: float, resolution: float, evidence: dict[str, float]
+    m: int, axes_quantiles: list[float], window: int, floor_quantile: float, resolution: float,
+    evidence: dict[str, float],
 ) -> bool:
     """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
 
-    Both quantiles are taken at least at the data's ``resolution`` (noise-free or coarsely
-    quantised rests sit there).  Decided only on recordings of at least
+    ``axes_quantiles`` are the ``floor_quantile / 5`` and ``floor_quantile`` quantiles of the axes
+    moving std over ``m`` samples.  Both are taken at least at the data's ``resolution``
+    (noise-free or coarsely quantised rests sit there).  Decided only on recordings of at least
     :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
     """
-    if sd_axes.size < PLATEAU_MIN_WINDOWS * window:
+    if m < PLATEAU_MIN_WINDOWS * window:
         return False
-    low, at_floor = (max(float(q), resolution) for q in np.quantile(sd_axes, [floor_quantile / 5, floor_quantile]))
+    low, at_floor = (max(float(q), resolution) for q in axes_quantiles)
     if not at_floor > 0:
         return False
     limit = rest_plateau_limit(window, floor_quantile)
     evidence.update(low=float(low), floor=float(at_floor), limit=limit)
     return bool(low < limit * at_floor)
+
+
+def _gather(x: NDArray[np.float64], mask: NDArray[np.bool_], out: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``x[mask]`` written into ``out`` chunk by chunk (no temporary of the data's length); a view of ``out``."""
+    filled = 0
+    for start in range(0, x.size, STEP_CHUNK):
+        chunk = x[start:start + STEP_CHUNK][mask[start:start + STEP_CHUNK]]
+        out[filled:filled + chunk.size] = chunk
+        filled += chunk.size
+    return out[:filled]
 
 
 def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -691,6 +873,44 @@ def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.f
     for j in range(x.shape[1]):
         np.take(x[:, j], use, out=out[:, j])
     return out
+
+
+def sweep(x: NDArray[np.float64], window: int) -> float:
+    """How far the mean of ``x`` (n, 3) moves across it: ‖max − min‖ over the axes of the means of
+    consecutive blocks of ``window`` samples (0 for fewer than two blocks).
+
+    A slow turn that keeps ‖a‖ (by hand about an axis near the vertical) moves the axes by less than
+    the noise within one window, so neither the moving standard deviation nor the half-window drift
+    sees it, but over a stretch of several windows its block means sweep far beyond the noise.
+    """
+    blocks = x.shape[0] // window
+    if blocks < 2:
+        return 0.0
+    means = np.add.reduce(x[: blocks * window].T.reshape(x.shape[1], blocks, window), axis=2) / window
+    return float(np.linalg.norm(means.max(axis=1) - means.min(axis=1)))
+
+
+def _reject_sweeping(
+    groups: list[list[tuple[int, int]]], acc: NDArray[np.float64], window: int, limit: float,
+    in_pose: NDArray[np.bool_],
+) -> tuple[list[list[tuple[int, int]]], int, int]:
+    """Drop the groups whose block means sweep by more than ``limit`` (the accelerometer gate, :func:`sweep`).
+
+    At rest the means of one-window blocks scatter by the noise of a mean, far below the gate
+    (≤ 0.72 of it over every static pose of the recordings in ../shared/data); ``in_pose`` is cleared
+    for the dropped samples; returns the kept groups, the number dropped and their samples.
+    """
+    kept: list[list[tuple[int, int]]] = []
+    n_dropped = n_samples = 0
+    for group in groups:
+        pos = _positions(group)
+        if sweep(acc[pos], window) <= limit:
+            kept.append(group)
+            continue
+        n_dropped += 1
+        n_samples += sum(b - a for a, b in group)
+        in_pose[pos] = False
+    return kept, n_dropped, n_samples
 
 
 def _reject_turning(
@@ -776,46 +996,74 @@ def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] 
     is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
     ``var`` is the per-axis sample variance (ddof 1) of ``x`` when already computed.
     """
-    n = x.shape[0]
+    # numpy's mean and var written as their reductions (bit for bit): hundreds of intervals per recording
+    n, k = x.shape
     if var is None:
-        var = x.var(axis=0, ddof=1) if n > 1 else np.zeros(x.shape[1])
-    white = float(np.sqrt(np.mean(var)) / np.sqrt(n)) if n > 1 else 0.0
+        var = _mean_var(x)[1]
+    white = float(np.sqrt(np.add.reduce(var) / k) / np.sqrt(n)) if n > 1 else 0.0
     if blocks < 2 or n < 4 * blocks:
         return white
     size = n // blocks
-    means = x[: size * blocks].reshape(blocks, size, 3).mean(axis=1)
-    batch = float(np.sqrt(np.mean(means.var(axis=0, ddof=1))) / np.sqrt(blocks))
+    # (blocks, size) per axis as a view of the axis's samples (no transposing copy); the same sums
+    means = (np.add.reduce(x[: size * blocks].T.reshape(k, blocks, size), axis=2) / size).T
+    batch = float(np.sqrt(np.add.reduce(_mean_var(means)[1]) / k) / np.sqrt(blocks))
     return max(white, batch)
 
 
-def _rows(index: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+def _positions(group: list[tuple[int, int]]) -> slice | NDArray[np.int64]:
+    """The sample positions of a group of stretches ``[a, b)``: a slice for one stretch (no index array)."""
+    if len(group) == 1:
+        return slice(int(group[0][0]), int(group[0][1]))
+    return np.concatenate([np.arange(a, b) for a, b in group])
+
+
+def _rows(index: slice | NDArray[np.int64]) -> slice | NDArray[np.int64]:
     """A slice (a view, no copy) for increasing indices without a gap, else the indices."""
+    if isinstance(index, slice):
+        return index
     return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
 
 
+def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Column means and sample variances (ddof 1) of ``x`` (n, k): ``x.mean(axis=0)`` and
+    ``x.var(axis=0, ddof=1)`` bit for bit (the same reductions, without numpy's per-call checks;
+    a recording has hundreds of intervals)."""
+    n = x.shape[0]
+    mean = np.add.reduce(x, axis=0) / n
+    dev = x - mean
+    np.square(dev, out=dev)
+    var = np.add.reduce(dev, axis=0) / max(n - 1, 0) if n > 1 else np.zeros(x.shape[1])
+    return mean, var
+
+
 def _interval(
-    number: int, rec: Recording, use: NDArray[np.int64], pos: NDArray[np.int64],
+    number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,
 ) -> StaticInterval:
-    idx = use[pos]
-    x = rec.acc[_rows(idx)]
+    if use is None:  # every sample is usable: positions are the recording's samples
+        rows = _rows(pos)
+        first, last = (pos.start, pos.stop - 1) if isinstance(pos, slice) else (int(pos[0]), int(pos[-1]))
+    else:
+        idx = use[pos]
+        rows = _rows(idx)
+        first, last = int(idx[0]), int(idx[-1])
+    x = rec.acc[rows]
     n = x.shape[0]
-    mean = x.mean(axis=0)
-    var = x.var(axis=0, ddof=1)
+    mean, var = _mean_var(x)
     std = np.sqrt(var)
     sigma = sigma_of_mean(x, sigma_blocks, var=var)
     return StaticInterval(
         number=number,
-        start=int(idx[0]),
-        stop=int(idx[-1]) + 1,
-        first_row=int(rec.row[idx[0]]),
-        last_row=int(rec.row[idx[-1]]),
-        t_start=float(rec.t[idx[0]]),
-        t_end=float(rec.t[idx[-1]]),
+        start=first,
+        stop=last + 1,
+        first_row=int(rec.row[first]),
+        last_row=int(rec.row[last]),
+        t_start=float(rec.t[first]),
+        t_end=float(rec.t[last]),
         n_samples=int(n),
         mean=mean,
         std=std,
         sigma=sigma,
-        gyro_mean=None if gyro is None else gyro[_rows(pos)].mean(axis=0),
-        temp_mean=None if rec.temp is None else float(rec.temp[_rows(idx)].mean()),
+        gyro_mean=None if gyro is None else np.add.reduce(gyro[_rows(pos)], axis=0) / n,
+        temp_mean=None if rec.temp is None else float(np.add.reduce(rec.temp[rows]) / n),
     )

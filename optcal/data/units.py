@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.data.quantiles import column_medians, median
 from optcal.errors import InputError
 from optcal.model import STANDARD_GRAVITY
 from optcal.poses import UNITS
@@ -71,7 +72,7 @@ def median_norm(acc: ArrayLike) -> float:
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
     with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit: an infinite norm
-        return float(np.median(np.linalg.norm(a, axis=1))) if a.size else float("nan")
+        return median(np.linalg.norm(a, axis=1)) if a.size else float("nan")
 
 
 def decide_units(
@@ -165,6 +166,13 @@ MIN_POSES_FOR_SCALE_CHECK: int = 9
 #: resting gyroscope's outputs mapped as an accelerometer have the noise of the gyro next to an
 #: "implied 1 g" that is only its bias (the Xsens MTi's gyro in unsigned counts: ≈ 0.3).
 MAX_REST_NOISE_G: float = 0.05
+#: Pose means of a sensor turned between its poses spread by a good part of their |a| (an accelerometer's
+#: by up to 2 g: 0.035 for a 2° turn); pose means that stay within this fraction of their median |a| are
+#: one constant offset, as a gyroscope's at rest reads in every orientation (or a sensor never turned).
+MIN_SPREAD_TO_NORM: float = 0.035
+#: Pose means in g or m/s² whose median |a| lies within this fraction of 1 g are an accelerometer's at rest,
+#: turned or not (the spread rule then does not apply).
+ONE_G_TOLERANCE: float = 0.2
 
 
 def implied_sensitivity(means: ArrayLike) -> float:
@@ -201,6 +209,11 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
       accelerometer's pose means lie on a sphere of radius 1 g (in its units) around its zero;
       a radius that is a tiny fraction of the measured |a| means the columns are not an
       accelerometer's, or the sensor was never turned;
+    * from two poses on, their spread: an accelerometer turned between its poses moves their
+      means by a good part of 1 g, while a gyroscope at rest reads its constant offset in every
+      orientation; means within :data:`MIN_SPREAD_TO_NORM` of their median |a| are refused,
+      unless they are in g or m/s² and their |a| is 1 g (an accelerometer that was not turned).
+      This holds however small the gyroscope's noise is next to its offset;
     * with any number of poses, when ``noise`` (each pose's per-sample standard deviation,
       pooled over the axes, raw units) is given: a resting accelerometer's noise is at most
       :data:`MAX_REST_NOISE_G` of 1 g by the nominal conversion; a gyroscope's noise next to
@@ -223,9 +236,21 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
                 f"{radius:.4g} {units} around their centre (the implied 1 g), while their median |a| is {norm:.4g} "
                 f"{units} (ratio {radius / norm:.2g}, an accelerometer's is at least {MIN_SENSITIVITY_TO_NORM:g}); {fix}"
             )
+    if a.shape[0] >= 2:
+        norm = median_norm(a)
+        spread = float(np.linalg.norm(np.ptp(a[np.all(np.isfinite(a), axis=1)], axis=0)))
+        factor = to_g_factor(units)
+        one_g_at_rest = factor is not None and abs(norm * factor - 1.0) <= ONE_G_TOLERANCE
+        if np.isfinite(norm) and norm > 0 and spread < MIN_SPREAD_TO_NORM * norm and not one_g_at_rest:
+            raise InputError(
+                f"the {a.shape[0]} pose means do not look like an accelerometer's: they stay within {spread:.4g} "
+                f"{units} of each other, {spread / norm:.2g} of their median |a| {norm:.4g} {units} (a sensor turned "
+                f"between its poses moves them by more than {MIN_SPREAD_TO_NORM:g} of it): one constant offset, as a "
+                f"gyroscope at rest reads in every orientation; {fix}"
+            )
     if noise is not None and a.shape[0] >= 1:
         one_g = nominal_conversion(units, a).sensitivity
-        typical = float(np.median(np.asarray(noise, dtype=float)))
+        typical = median(np.asarray(noise, dtype=float))
         if one_g > 0 and typical > MAX_REST_NOISE_G * one_g:
             raise InputError(
                 f"the {a.shape[0]} static pose(s) do not look like an accelerometer's: their per-sample noise "
@@ -300,9 +325,9 @@ def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
         a = a[finite]
     offset = np.zeros(3)
     what = "no offset"
-    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(np.median(a, axis=0) - UNSIGNED_16_MIDSCALE) < 16384):
+    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(column_medians(a) - UNSIGNED_16_MIDSCALE) < 16384):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
     # column by column: temporaries of one column, not of three
-    sens = float(np.median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))))) if a.size else 1.0
+    sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")

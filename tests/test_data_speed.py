@@ -1,0 +1,69 @@
+"""What the data layer does to be fast gives the same numbers as the plain way: medians and quantiles by one
+partition (numpy's values bit for bit), pyarrow's threaded reader (the streaming reader's numbers bit for
+bit), and the gyro statistics computed in a second thread (the segmentation of the sequential path)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optcal.data.static as static
+import optcal.data.text as text
+from optcal.data.quantiles import column_medians, median, quantiles
+from optcal.data.readers import source_from_frame
+from optcal.data.recording import recording_from_source
+from optcal.data.synthetic import synthesize_recording
+from optcal.model import LumpedModel
+from optcal.simulate import uniform_directions
+
+
+def test_median_and_quantiles_are_numpys_bit_for_bit():
+    rng = np.random.default_rng(7)
+    for trial in range(400):
+        n = int(rng.integers(1, 40)) if trial % 2 else int(rng.integers(1, 3000))
+        x = rng.normal(size=n) * 10 ** rng.uniform(-4, 6)
+        if trial % 3 == 0:
+            x = np.round(x)  # ties
+        assert median(x) == np.median(x)
+        probabilities = [float(rng.uniform()), 0.1, 0.02, 0.0, 1.0]
+        assert quantiles(x, probabilities) == list(np.quantile(x, probabilities))
+        assert quantiles(x, probabilities, scratch=np.empty(n + 3)) == list(np.quantile(x, probabilities))
+    block = rng.normal(size=(101, 3))
+    assert np.array_equal(column_medians(block), np.median(block, axis=0))
+
+
+@pytest.fixture(scope="module")
+def counts_recording():
+    model = LumpedModel.from_physical([16300, 16400, 16700], 0.01, -0.005, 0.008, [700, -360, -1800])
+    return synthesize_recording(model, uniform_directions(10, rng=4), sigma=60.0, quantum=1.0, units="counts",
+                                rng=5, temperature=(25.0, 0.001))
+
+
+@pytest.mark.parametrize("sep", [",", " "])
+def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch, counts_recording, sep):
+    path = tmp_path / "rec.txt"
+    counts_recording.frame.to_csv(path, sep=sep, index=False, float_format="%.6f")
+    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 32 * 1024)  # many blocks: several threads, several batches
+    layout = text.sniff_layout(path)
+    threaded = text.arrow_threaded_block(path, layout)
+    streamed = text.arrow_streamed_block(path, layout)
+    assert threaded is not None and streamed is not None and threaded.n == streamed.n == len(counts_recording.frame)
+    for a, b in zip(threaded.columns(), streamed.columns()):
+        assert a.tobytes() == b.tobytes()
+    # the threaded reader is the one used for a file above the small-file size and below THREADED_READ_BYTES
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
+    parsed = text.parse_numbers(path, layout)
+    assert parsed.engine == "pyarrow" and all(np.array_equal(a, b) for a, b in zip(parsed.columns, streamed.columns()))
+
+
+def test_gyro_statistics_in_a_second_thread_give_the_sequential_segmentation(monkeypatch, counts_recording):
+    rec = recording_from_source(source_from_frame(counts_recording.frame, "synthetic", "csv"))
+    beside = static.detect_static(rec)
+    monkeypatch.setattr(static, "PARALLEL_MAX_SAMPLES", 0)  # every recording on the sequential path
+    after = static.detect_static(rec)
+    assert len(beside.intervals) == len(after.intervals) == 10
+    assert beside.thresholds == after.thresholds and beside.noise_floor == after.noise_floor
+    assert np.array_equal(beside.trace["gyro_rate"], after.trace["gyro_rate"])
+    for a, b in zip(beside.intervals, after.intervals):
+        assert (a.start, a.stop) == (b.start, b.stop)
+        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.gyro_mean, b.gyro_mean) and a.sigma == b.sigma
