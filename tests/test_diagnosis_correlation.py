@@ -134,3 +134,21 @@ def test_the_correlation_setting_is_checked_and_off_means_independent_poses() ->
     diag = diagnose(case.poses, simulations=0, pose_correlation="off")
     assert not diag.noise_model.correlation.tested and "switched off" in diag.noise_model.correlation.text()
     assert diag.to_dict()["settings"]["pose_correlation"] == "off"
+
+
+def test_generalised_fit_with_independent_poses_is_the_weighted_least_squares_fit() -> None:
+    """R = I: the Gauss–Newton refinement, the mean shifts of outlier poses and the covariance reduce to today's fit."""
+    from optcal.calibration import calibrate
+    from optcal.diagnosis.fitting import Fitter
+    from optcal.diagnosis.regressors import Regressors
+
+    poses = make_case("bias_drift", 7, n_range=(40, 40)).poses
+    cal = calibrate(poses)
+    reg = Regressors.of(poses)
+    plain = Fitter(poses, reg, cal.T, cal.o, 5)
+    identity = CorrelationOperator.build(0.0, 1.0, poses.t, reg.session, np.eye(3)[np.zeros(poses.n, dtype=int)])
+    generalised = Fitter(poses, reg, cal.T, cal.o, 5, correlation=identity)
+    terms, outliers = {("bias_drift", 2): 1}, frozenset({3, 17})
+    a, b = plain.fit(terms, outliers), generalised.fit(terms, outliers)
+    assert np.allclose(b.x, a.x, rtol=0, atol=1e-8) and b.rss == pytest.approx(a.rss, rel=1e-8)
+    assert np.allclose(generalised.covariance(b), plain.covariance(a), rtol=1e-6, atol=1e-14)

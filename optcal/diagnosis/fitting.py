@@ -109,6 +109,13 @@ def orthogonal_part(g: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[n
     return g - G @ (inverse @ (G.T @ g))
 
 
+def mean_shift_columns(n: int, outliers: frozenset[int]) -> NDArray[np.float64]:
+    """One indicator column per outlier pose: its free mean shift in a generalised least-squares fit."""
+    columns = np.zeros((n, len(outliers)))
+    columns[sorted(outliers), np.arange(len(outliers))] = 1.0
+    return columns
+
+
 def rms(r: NDArray[np.float64], mask: NDArray[np.bool_] | None = None) -> float:
     """Root mean square of ``r`` (over ``mask``)."""
     values = r if mask is None else r[mask]
@@ -205,8 +212,7 @@ class Fitter:
         assert self.correlation is not None
         free = np.flatnonzero(np.concatenate([np.ones(9, dtype=bool), active_mask(terms)]))
         sqrt_w = np.sqrt(self.w)
-        shifts = np.zeros((self.n, len(outliers)))
-        shifts[sorted(outliers), np.arange(len(outliers))] = 1.0
+        shifts = mean_shift_columns(self.n, outliers)
         total = float("nan")
         for step_number in range(self.GLS_STEPS + 1):
             G = np.column_stack([sqrt_w[:, None] * self.problem.jacobian_values(x, p)[:, free], shifts])
@@ -269,9 +275,7 @@ class Fitter:
         s2 = fit.rss / max(self.n - fit.n_params, 1)
         if self.correlation is not None:  # (Gᵀ R⁻¹ G)⁻¹ with a mean shift per outlier pose, kept to θ and β
             G, _ = self.jacobians(fit, self.w)
-            shifts = np.zeros((self.n, len(fit.outliers)))
-            shifts[sorted(fit.outliers), np.arange(len(fit.outliers))] = 1.0
-            H = np.column_stack([G, shifts])
+            H = np.column_stack([G, mean_shift_columns(self.n, fit.outliers)])
             full = np.linalg.pinv(H.T @ self.correlation.solve(H), rcond=1e-13, hermitian=True)
             return s2 * full[: G.shape[1], : G.shape[1]]
         G, _ = self.jacobians(fit, self.weights(fit))
