@@ -42,11 +42,13 @@ def diagnosis_options(func: Any) -> Any:
     return func
 
 
-def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str) -> Any:
+def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
+                  pose_correlation: str = "auto") -> Any:
     """The :class:`~optcal.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
     from optcal.diagnosis import DiagnosisSettings
 
-    return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method)
+    return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
+                             pose_correlation=pose_correlation)
 
 
 def progress_printer(quiet: bool) -> Any:
@@ -62,14 +64,16 @@ def progress_printer(quiet: bool) -> Any:
 @diagnosis_options
 @click.option("--baseline", "baseline_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Start from this saved calibration (JSON) instead of calibrating with --method.")
+@click.option("--pose-correlation", type=click.Choice(["auto", "off", "on"]), default="auto", show_default=True,
+              help="Pose noise correlated in time: used on evidence (auto), never (off: poses independent), or always (on).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
                    "with the temperature, time and |a| ranges it was fitted on.")
 @report_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-             plot_dir: str | None, quiet: bool, baseline_path: str | None, as_json: bool, output: str | None,
-             report_path: str | None, tolerance: float, **data_opts: Any) -> None:
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, as_json: bool,
+             output: str | None, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads); several DATA
@@ -90,7 +94,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
 
     from optcal.cli.outputs import output_file, plot_folder
 
-    settings = settings_from(effects, folds, simulations, alpha, seed, method)
+    settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path) if baseline_path else None
     reporter = progress_printer(quiet)

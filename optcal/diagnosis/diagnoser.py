@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
-from optcal.diagnosis.noise_model import check_noise_model
+from optcal.diagnosis.noise_model import check_noise_model, pose_correlation
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
@@ -42,6 +42,8 @@ from optcal.poses import PoseTable
 if TYPE_CHECKING:
     from optcal.data.static import Segmentation
 
+#: How the pose noise correlated in time is used (:class:`DiagnosisSettings`).
+POSE_CORRELATION_CHOICES: tuple[str, ...] = ("auto", "off", "on")
 #: Parametric-bootstrap replications of the noise-model check (at most; fewer when fewer simulations are asked for).
 NOISE_SIMULATIONS: int = 100
 
@@ -75,6 +77,10 @@ class DiagnosisSettings:
         Seed of the simulations.
     method : str
         Calibration method of the baseline (any of :func:`optcal.calibrate`'s).
+    pose_correlation : {"auto", "off", "on"}
+        The pose noise correlated in time (:mod:`optcal.diagnosis.correlation`): ``auto`` uses it
+        on evidence (its own test, or the still parts' noise at the pose time scale), ``off`` treats
+        the poses as independent, ``on`` uses the estimate whatever the evidence.
     """
 
     effects: str | tuple[str, ...] | None = None
@@ -84,8 +90,12 @@ class DiagnosisSettings:
     band: float = 0.99
     seed: int = 0
     method: str = "mle"
+    pose_correlation: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.pose_correlation not in POSE_CORRELATION_CHOICES:
+            raise InputError(f"pose_correlation must be one of {', '.join(POSE_CORRELATION_CHOICES)}, "
+                             f"got {self.pose_correlation!r}")
         if not 0 < self.alpha < 1:
             raise InputError(f"alpha must be between 0 and 1, got {self.alpha}")
         if not 0 < self.band < 1:
@@ -99,7 +109,7 @@ class DiagnosisSettings:
 
     def to_dict(self) -> dict[str, Any]:
         return {"folds": self.folds, "simulations": self.simulations, "alpha": self.alpha, "band": self.band,
-                "seed": self.seed, "min_dof": MIN_DOF, "method": self.method,
+                "seed": self.seed, "min_dof": MIN_DOF, "method": self.method, "pose_correlation": self.pose_correlation,
                 "effects": None if self.effects is None else (
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
 
@@ -242,6 +252,10 @@ class Diagnoser:
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
+        correlation = pose_correlation(fitter, base, s.alpha, measured, s.pose_correlation)
+        if correlation.used:  # the tests, standard errors and limits under the correlated pose noise
+            fitter.correlation = correlation.operator
+            base = fitter.fit({}, frozenset(), base.x)
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
@@ -255,12 +269,13 @@ class Diagnoser:
         limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
-            other = Fitter(widened, reg, T, o, s.folds, loop)
+            other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
+        noise.correlation = correlation
         sim_after = None
         if findings:
             self.progress("simulating the extended model")

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
 
+from optcal.diagnosis.correlation import CorrelationOperator
 from optcal.diagnosis.effects import FITTED, describe_term, plain_term
 from optcal.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, active_mask, session_shift,
                                       to_model)
@@ -108,6 +109,13 @@ def orthogonal_part(g: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[n
     return g - G @ (inverse @ (G.T @ g))
 
 
+def mean_shift_columns(n: int, outliers: frozenset[int]) -> NDArray[np.float64]:
+    """One indicator column per outlier pose: its free mean shift in a generalised least-squares fit."""
+    columns = np.zeros((n, len(outliers)))
+    columns[sorted(outliers), np.arange(len(outliers))] = 1.0
+    return columns
+
+
 def rms(r: NDArray[np.float64], mask: NDArray[np.bool_] | None = None) -> float:
     """Root mean square of ``r`` (over ``mask``)."""
     values = r if mask is None else r[mask]
@@ -127,10 +135,16 @@ class Fitter:
         k of the k-fold held-out error (folds interleaved along time, so each spans the recording).
     loop : callable, optional
         Wraps the loop over the folds (a progress bar, :mod:`optcal.diagnosis.progress`).
+    correlation : CorrelationOperator, optional
+        The correlation of the pose noise in time (:mod:`optcal.diagnosis.correlation`): every fit
+        is then refined to generalised least squares and its ``rss`` is the generalised sum.
     """
 
+    #: Gauss–Newton steps from the weighted least-squares solution to the generalised one.
+    GLS_STEPS: int = 2
+
     def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int,
-                 loop: Loop = plain_loop) -> None:
+                 loop: Loop = plain_loop, correlation: CorrelationOperator | None = None) -> None:
         from optcal.norm_residual import normal_gain
 
         self.poses = poses
@@ -155,6 +169,7 @@ class Fitter:
         self.fold[order] = np.arange(self.n) % self.folds
         self.time_order = order
         self.loop = loop
+        self.correlation = correlation
         self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ fitting
@@ -182,8 +197,36 @@ class Fitter:
         x, stats = self.problem.solve(self.x_start if x0 is None else x0, p, active_mask(terms))
         r = self.problem.residual_values(x, p)
         rss = float(np.sum(self.w[kept] * r[kept] ** 2))
+        if self.correlation is not None:
+            x, r, rss = self.generalised(x, r, terms, outliers, p)
         n_params = 9 + sum(terms.values()) + len(outliers)
         return Fit(dict(terms), frozenset(outliers), x, r, rss, n_params, bool(stats.get("success", False)))
+
+    def generalised(self, x: NDArray, r: NDArray, terms: dict[tuple[str, int], int], outliers: frozenset[int],
+                    p: NDArray) -> tuple[NDArray, NDArray, float]:
+        """Gauss–Newton steps from ``x`` to the generalised least-squares fit under :attr:`correlation`.
+
+        Minimises ``(e + Gδ)ᵀ R⁻¹ (e + Gδ)`` over the free parameters and one mean shift per outlier pose
+        (``e = √w r``); returns the solution, its residuals and the generalised sum.
+        """
+        assert self.correlation is not None
+        free = np.flatnonzero(np.concatenate([np.ones(9, dtype=bool), active_mask(terms)]))
+        sqrt_w = np.sqrt(self.w)
+        shifts = mean_shift_columns(self.n, outliers)
+        total = float("nan")
+        for step_number in range(self.GLS_STEPS + 1):
+            G = np.column_stack([sqrt_w[:, None] * self.problem.jacobian_values(x, p)[:, free], shifts])
+            e = sqrt_w * r
+            Z = self.correlation.solve(np.column_stack([e, G]))
+            info, b = G.T @ Z[:, 1:], G.T @ Z[:, 0]
+            step = -np.linalg.lstsq(info, b, rcond=None)[0]
+            total = float(e @ Z[:, 0] + b @ step)  # the minimum of the linearised generalised sum
+            if step_number == self.GLS_STEPS:
+                break  # the last linearisation's step is negligible: its minimum is the sum at x
+            x = x.copy()
+            x[free] += step[: free.size]
+            r = self.problem.residual_values(x, p)
+        return x, r, total
 
     def evaluate(self, x: NDArray) -> Fit:
         """The baseline model at a given solution, not refitted (a calibration given as it is)."""
@@ -229,8 +272,13 @@ class Fitter:
 
     def covariance(self, fit: Fit) -> NDArray[np.float64]:
         """Covariance of the free normalised parameters (θ, then active β in layout order)."""
-        G, _ = self.jacobians(fit, self.weights(fit))
         s2 = fit.rss / max(self.n - fit.n_params, 1)
+        if self.correlation is not None:  # (Gᵀ R⁻¹ G)⁻¹ with a mean shift per outlier pose, kept to θ and β
+            G, _ = self.jacobians(fit, self.w)
+            H = np.column_stack([G, mean_shift_columns(self.n, fit.outliers)])
+            full = np.linalg.pinv(H.T @ self.correlation.solve(H), rcond=1e-13, hermitian=True)
+            return s2 * full[: G.shape[1], : G.shape[1]]
+        G, _ = self.jacobians(fit, self.weights(fit))
         return s2 * np.linalg.pinv(G.T @ G, rcond=1e-13, hermitian=True)
 
     def identifiable(self, fit: Fit, effect: str, axis: int, order: int) -> bool:
@@ -241,6 +289,12 @@ class Fitter:
             return False
         g_perp = orthogonal_part(g, G)
         return float(g_perp @ g_perp) > IDENTIFIABLE_TOL * float(g @ g)
+
+    def pose_normals(self, fit: Fit) -> NDArray[np.float64]:
+        """Unit gradient of each pose's residual with respect to its measurement (minus the bias columns)."""
+        J = self.problem.jacobian_values(fit.x, self.params(self.w))
+        d = -J[:, 6:9]
+        return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
 
     def model(self, fit: Fit) -> ExtendedModel:
         """The physical extended model of ``fit``."""

@@ -3,7 +3,10 @@
 For a candidate added alone to a fitted model, the limit is ``z × SE``: ``SE`` the standard
 error of its first-order coefficient (Fisher information, noise scale from the residuals) and
 ``z`` the two-sided normal quantile of the per-candidate level the selection tests it at.  An
-effect this large passes the test about half the time; twice as large, almost always.
+effect this large passes the test about half the time; twice as large, almost always.  When the
+pose noise is correlated in time (:mod:`optcal.diagnosis.correlation`) the standard error is the
+generalised least-squares one, ``(Gᵀ R⁻¹ G)⁻¹``, the one the selection's test has: a limit computed
+as if the poses were independent would overstate the power for terms smooth in time.
 """
 
 from __future__ import annotations

@@ -38,8 +38,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats as sps
 
+from optcal.diagnosis.correlation import PoseCorrelation, estimate_correlation
 from optcal.diagnosis.fitting import Fit, Fitter
-from optcal.diagnosis.problem import PoseData
+from optcal.diagnosis.problem import BETA_INDEX, PoseData
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.diagnosis.still_noise import MeasuredPoseNoise
 from optcal.poses import PoseTable
@@ -50,6 +51,13 @@ NOISE_CAUSE = (
     "(σ/√n) says, as noise correlated at the time scale of a pose does (bias instability, flicker); "
     "this is not a physical effect of the calibration model"
 )
+#: Terms smooth in time that the correlation's restricted likelihood counts as fixed effects.
+SMOOTH_TERMS: tuple[str, ...] = ("bias_drift", "temperature_bias")
+#: Residual degrees of freedom the correlation's estimate keeps after those terms (as a selection test does).
+MIN_DOF: int = 10
+#: Measured noise of the pose means (still parts) over σ/√n from which the pose noise counts as
+#: correlated between neighbouring poses (more than half its variance is not white).
+CORRELATED_RATIO: float = 1.5
 #: Nominal coverage of the intervals checked in the bootstrap.
 NOMINAL: float = 0.95
 
@@ -110,9 +118,12 @@ class NoiseModelCheck:
     measured_understated_by: float | None = None
     reduced_chi2_measured: float | None = None
     coverage_measured: float | None = None
+    correlation: PoseCorrelation | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(replace(self, correlation=None))
+        out["correlation"] = None if self.correlation is None else self.correlation.to_dict()
+        return out
 
 
 def reduced_chi2(fitter: Fitter, fit: Fit) -> float:
@@ -129,6 +140,37 @@ def extra_noise(r: NDArray, w_abs: NDArray, gain2: NDArray, dof: int) -> float:
         return 0.0
     hi = float(np.max(r**2 / gain2)) * len(r) + 1e-300
     return float(optimize.brentq(excess, 0.0, hi, xtol=1e-30, rtol=1e-12))
+
+
+def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredPoseNoise | None = None,
+                     use: str = "auto") -> PoseCorrelation:
+    """The correlation of the pose noise in time under ``fit`` (:mod:`optcal.diagnosis.correlation`).
+
+    It is used (``used``) when the likelihood-ratio test against independent poses is significant
+    at ``alpha``, or when the noise of the pose means measured on the recording's still parts
+    (``measured``, :mod:`optcal.diagnosis.still_noise`) is at least :data:`CORRELATED_RATIO` times
+    σ/√n: noise that does not average down within a pose is noise at the pose's time scale or
+    longer, which neighbouring poses share, so the correlation is then estimated even where the
+    residuals alone cannot establish it (a few dozen poses).  The residuals' own excess over σ/√n
+    is no such evidence: an effect not yet in the model (a drift) makes it too.  ``use``: ``auto``
+    (as said), ``off`` (poses independent) or ``on`` (the estimate used whatever the evidence).
+    """
+    if use == "off":
+        return PoseCorrelation(False, reason="switched off (pose_correlation='off'): the poses are treated as independent")
+    G, J = fitter.jacobians(fit, fitter.w)
+    trends = [9 + BETA_INDEX[(effect, axis, 1)] for effect in SMOOTH_TERMS if fitter.reg.supports(effect)
+              for axis in range(3)]
+    if trends and fitter.n - G.shape[1] - len(trends) >= MIN_DOF:  # a trend is not taken for correlated noise
+        G = np.column_stack([G, J[:, trends]])
+    e = np.sqrt(fitter.w) * fit.residuals
+    t = fitter.poses.t if fitter.reg.has_time else None
+    evidence = "the request pose_correlation='on'" if use == "on" else None
+    if evidence is None and measured is not None and measured.sigma is not None and fitter.poses.sigma is not None:
+        ratio = float(np.median(measured.sigma / np.asarray(fitter.poses.sigma, float)))
+        if ratio >= CORRELATED_RATIO:
+            evidence = (f"the noise of the pose means measured on the still parts, {ratio:.3g}× σ/√n "
+                        f"(from {CORRELATED_RATIO:g}×: noise that does not average down within a pose)")
+    return estimate_correlation(e, G, t, fitter.reg.session, fitter.pose_normals(fit), alpha, evidence)
 
 
 def covariance_absolute(fitter: Fitter, fit: Fit, data: PoseData | None = None) -> NDArray[np.float64]:

@@ -56,16 +56,25 @@ def measured_noise_lines(check: NoiseModelCheck) -> list[str]:
     return [line]
 
 
+def correlation_lines(check: NoiseModelCheck) -> list[str]:
+    """The pose noise correlated in time, when the tests use it (a named noise explanation, never an effect)."""
+    if check.correlation is None or not check.correlation.used:
+        return []
+    return [f"      {check.correlation.text()}"]
+
+
 def noise_model_lines(diag: "Diagnosis") -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
-    if check is None or not check.tested:
+    if check is None:
         return []
+    if not check.tested:
+        return ["   the noise model:", *correlation_lines(check)] if correlation_lines(check) else []
     if not check.named:
-        if check.measured_route is None:
+        if check.measured_route is None and not correlation_lines(check):
             return []
         return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
-                *measured_noise_lines(check)]
+                *correlation_lines(check), *measured_noise_lines(check)]
     unit = diag.poses.units
     lines = [
         f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
@@ -81,7 +90,7 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
             f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
             f"extended noise model ({check.simulations} simulations)"
         )
-    return lines + measured_noise_lines(check)
+    return lines + correlation_lines(check) + measured_noise_lines(check)
 
 
 def session_lines(sessions: "SessionOffsets") -> list[str]:

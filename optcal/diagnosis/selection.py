@@ -10,7 +10,13 @@ A term is added when
 * it lowers the held-out rms (k-fold).
 
 Among the candidates passing the first two, the best BIC is tried first.  A term's polynomial
-order is raised (one coefficient at a time, same tests) where the data support it.  Outliers
+order is raised (one coefficient at a time, same tests) where the data support it.  A time term
+that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
+order its higher coefficients do not significantly improve on (F test at the level it entered
+at, the level a later step would need to raise the order again): a linear drift is named as
+linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
+a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
+bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.diagnosis.outliers`).  Selection stops when nothing
 more passes.
 
@@ -65,6 +71,9 @@ class Candidate:
         Passed the test and the BIC (and, once tried, the held-out rms).
     rows : list of int or None
         For outliers, the poses' rows.
+    stepped_down_from : int or None
+        The order the term entered at, when its top coefficients were not significant and it was
+        stepped down to :attr:`order`.
     heldout_rms_g_before, heldout_rms_g_after : float or None
         Held-out rms without and with the candidate (computed for the candidates that passed).
     rejected_because : str or None
@@ -82,6 +91,7 @@ class Candidate:
     heldout_rms_g_before: float | None = None
     heldout_rms_g_after: float | None = None
     rejected_because: str | None = None
+    stepped_down_from: int | None = None
     fit: Fit | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -90,7 +100,7 @@ class Candidate:
             "delta_bic": self.delta_bic, "p_value": self.p_value, "threshold": self.threshold,
             "significant": self.significant,
         }
-        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because"):
+        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out
@@ -243,6 +253,7 @@ class ForwardSelection:
                 c.significant = False
                 c.rejected_because = "held-out rms did not fall"
             if accepted is not None:
+                self.step_down(accepted, current)
                 rivalries += self.rivals(accepted, tried)
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
@@ -250,6 +261,29 @@ class ForwardSelection:
             current = accepted.fit
         level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def step_down(self, accepted: Candidate, current: Fit) -> None:
+        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
+
+        Order ``k`` is kept over ``j < k`` only when its coefficients above ``j`` are significant
+        together (F test) at the level the term entered at, the level raising the order from ``j``
+        would need in a later step.
+        """
+        if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
+            return
+        key = (accepted.effect, AXES.index(str(accepted.axis)))
+        if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
+            return
+        entered = accepted.order
+        for lower_order in range(1, entered):
+            terms = dict(accepted.fit.terms)
+            terms[key] = lower_order
+            lower = self.fitter.fit(terms, accepted.fit.outliers, accepted.fit.x)
+            if self.fitter.f_test(lower, accepted.fit) >= accepted.threshold:
+                accepted.fit, accepted.order = lower, lower_order
+                accepted.stepped_down_from = entered
+                accepted.term = describe_term(accepted.effect, key[1], lower_order)
+                return
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one."""

@@ -1,0 +1,154 @@
+"""Pose noise correlated in time: the banded operator, its estimate, and the diagnosis under it (issue 13)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optcal.data import load_with_segmentation
+from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose
+from optcal.diagnosis.correlation import CorrelationOperator, estimate_correlation, restricted_deviance
+from optcal.simulate_effects import recording_with_effect
+
+sys.path.insert(0, str(Path(__file__).parent))
+from diagnosis_cases import make_case  # noqa: E402
+
+
+def dense_correlation(rho0: float, tau: float, t: np.ndarray, session: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``(1 − ρ₀) I + ρ₀ K ∘ D Dᵀ`` written out (the module's definition), for the reference."""
+    K = np.exp(-np.abs(t[:, None] - t[None, :]) / tau) * (session[:, None] == session[None, :])
+    return (1 - rho0) * np.eye(t.size) + rho0 * K * (d @ d.T)
+
+
+def unit_rows(rng: np.random.Generator, n: int) -> np.ndarray:
+    d = rng.standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def test_banded_operator_equals_the_dense_inverse_and_determinant() -> None:
+    rng = np.random.default_rng(3)
+    n = 40
+    t = rng.permutation(np.sort(rng.uniform(0, 200, n)))  # poses not given in time order
+    session = (np.arange(n) % 3 == 0).astype(int)  # two interleaved sessions: independent of each other
+    d = unit_rows(rng, n)
+    R = dense_correlation(0.7, 9.0, t, session, d)
+    op = CorrelationOperator.build(0.7, 9.0, t, session, d)
+    X = rng.standard_normal((n, 5))
+    assert np.allclose(op.solve(X), np.linalg.solve(R, X), rtol=0, atol=1e-9)
+    assert np.allclose(op.solve(X[:, 0]), np.linalg.solve(R, X[:, 0]), rtol=0, atol=1e-9)
+    assert op.logdet == pytest.approx(np.linalg.slogdet(R)[1], abs=1e-9)
+
+
+def test_correlation_is_recovered_and_white_residuals_are_not_called_correlated() -> None:
+    rng = np.random.default_rng(5)
+    n = 600
+    t = np.arange(n) * 6.0  # a pose every 6 s
+    session = np.zeros(n, dtype=int)
+    d = unit_rows(rng, n)
+    G = np.column_stack([np.ones(n), d])  # a few fixed effects (the restricted likelihood counts them)
+    L = np.linalg.cholesky(dense_correlation(0.6, 9.0, t, session, d))
+    found = estimate_correlation(L @ rng.standard_normal(n), G, t, session, d, 0.02)
+    assert found.used and found.p_value < 1e-3
+    # ρ₀ and τ trade off along the ridge of the neighbours' correlation, which is what the tests lean on
+    assert found.neighbour_rho == pytest.approx(0.6 * np.exp(-6 / 9), abs=0.1)
+    e = L @ rng.standard_normal(n)
+    found = estimate_correlation(e, G, t, session, d, 0.02)
+    at_truth = restricted_deviance(CorrelationOperator.build(0.6, 9.0, t, session, d), e, G)
+    assert restricted_deviance(found.operator, e, G) <= at_truth + 1e-9  # the maximum was found
+    white = estimate_correlation(rng.standard_normal(n), G, t, session, d, 0.02)
+    assert not white.used and white.p_value > 0.02 and white.operator is None
+    assert not estimate_correlation(rng.standard_normal(n), G, None, session, d, 0.02).tested
+
+
+def gauss_markov_recording(tmp_path: Path, effect: str | None, seed: int, gauss_markov_g: float = 1e-3):
+    frame, truth = recording_with_effect(effect, gauss_markov_g=gauss_markov_g, correlation_s=4.0, seed=seed)
+    path = tmp_path / "rec.csv"
+    frame.to_csv(path, index=False, float_format="%.8g")
+    return load_with_segmentation(path), truth
+
+
+def test_gauss_markov_recording_is_diagnosed_under_its_correlation_and_stays_clean(tmp_path: Path) -> None:
+    """Seed 5009 of the issue-13 null family: a clean pose was named an outlier before (p = 0.006)."""
+    loaded, _ = gauss_markov_recording(tmp_path, None, 5009)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(loaded.poses, still_parts=loaded.segmentation)
+    corr = diag.noise_model.correlation
+    assert diag.findings == []
+    assert corr.used and 0 < corr.neighbour_rho < 1 and corr.tau_s > 0
+    assert "the pose noise is correlated in time" in diag.report() and "not a physical effect" in diag.report()
+    saved = json.loads(json.dumps(diag.to_dict()))["noise_model"]["correlation"]
+    assert saved["used"] is True and saved["neighbour_rho"] == pytest.approx(corr.neighbour_rho)
+
+
+def test_white_recording_is_diagnosed_as_independent_poses(tmp_path: Path) -> None:
+    loaded, _ = gauss_markov_recording(tmp_path, None, 2, gauss_markov_g=0.0)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(loaded.poses, still_parts=loaded.segmentation)
+    assert diag.findings == [] and not diag.noise_model.correlation.used
+
+
+@pytest.mark.parametrize("seed", [4023, 4032])
+def test_a_linear_drift_in_a_small_session_is_named_as_linear(seed: int) -> None:
+    """Issue 13's small-session family: these drifts entered as cubics and were named 34-53 % off."""
+    case = make_case("bias_drift", seed, scale=(3.0, 4.0), n_range=(20, 30), sigma_range=(0.2e-3, 0.5e-3))
+    diag = diagnose(case.poses, simulations=0)
+    assert [(f.effect, f.axes) for f in diag.findings] == [("bias_drift", [case.axis])]
+    assert diag.final.terms == {("bias_drift", "xyz".index(case.axis)): 1}
+    assert diag.findings[0].estimate[case.axis] == pytest.approx(case.value, rel=0.3)
+    entered = [s.accepted for s in diag.steps if s.accepted is not None][0]
+    assert entered.stepped_down_from in (2, 3) and entered.to_dict()["stepped_down_from"] == entered.stepped_down_from
+
+
+def test_a_bias_that_rises_and_falls_is_still_seen_with_its_order() -> None:
+    """A bias wandering up and back down over the recording (warm-up then cooling) has no linear part:
+    it must enter at order 2 directly, and the step-down must keep that order (its top coefficient matters)."""
+    from optcal.extended_model import ExtendedModel
+    from optcal.model import lu2017_reference_model
+    from optcal.simulate import uniform_directions
+    from optcal.simulate_effects import simulate_extended
+
+    rng = np.random.default_rng(11)
+    n = 60
+    t = np.sort(rng.uniform(0, 1200, n))
+    curvature = 3e-3 / 600**2  # 3 mg up from the ends to the middle, g/s²
+    beta = np.zeros((3, 2))
+    beta[1, 1] = -curvature
+    model = ExtendedModel(lu2017_reference_model(), {"bias_drift": beta}, t_ref=600.0)
+    poses = simulate_extended(model, uniform_directions(n, rng), 0.3e-3, t=t, rng=rng)
+    diag = diagnose(poses, simulations=0)
+    assert [(f.effect, f.axes) for f in diag.findings] == [("bias_drift", ["y"])]
+    assert diag.final.terms == {("bias_drift", 1): 2}
+    first = [s for s in diag.steps if s.accepted is not None][0].candidates
+    linear = next(c for c in first if c.term == "bias_drift(y)")
+    assert not linear.significant  # the first-order term alone does not see it
+
+
+def test_the_correlation_setting_is_checked_and_off_means_independent_poses() -> None:
+    from optcal.errors import InputError
+
+    with pytest.raises(InputError, match="pose_correlation must be one of auto, off, on"):
+        DiagnosisSettings(pose_correlation="maybe")
+    case = make_case(None, 4001, n_range=(20, 30))
+    diag = diagnose(case.poses, simulations=0, pose_correlation="off")
+    assert not diag.noise_model.correlation.tested and "switched off" in diag.noise_model.correlation.text()
+    assert diag.to_dict()["settings"]["pose_correlation"] == "off"
+
+
+def test_generalised_fit_with_independent_poses_is_the_weighted_least_squares_fit() -> None:
+    """R = I: the Gauss–Newton refinement, the mean shifts of outlier poses and the covariance reduce to today's fit."""
+    from optcal.calibration import calibrate
+    from optcal.diagnosis.fitting import Fitter
+    from optcal.diagnosis.regressors import Regressors
+
+    poses = make_case("bias_drift", 7, n_range=(40, 40)).poses
+    cal = calibrate(poses)
+    reg = Regressors.of(poses)
+    plain = Fitter(poses, reg, cal.T, cal.o, 5)
+    identity = CorrelationOperator.build(0.0, 1.0, poses.t, reg.session, np.eye(3)[np.zeros(poses.n, dtype=int)])
+    generalised = Fitter(poses, reg, cal.T, cal.o, 5, correlation=identity)
+    terms, outliers = {("bias_drift", 2): 1}, frozenset({3, 17})
+    a, b = plain.fit(terms, outliers), generalised.fit(terms, outliers)
+    assert np.allclose(b.x, a.x, rtol=0, atol=1e-8) and b.rss == pytest.approx(a.rss, rel=1e-8)
+    assert np.allclose(generalised.covariance(b), plain.covariance(a), rtol=1e-6, atol=1e-14)
