@@ -26,6 +26,11 @@ from optcal.result import A_INDEX, dA_dtheta
 
 #: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
 RANK_TOL: float = 1e-9
+#: Fisher information of one parameter (its diagonal entry), relative to the largest, below which no
+#: pose carries information on that parameter: it is undetermined on its own, whatever the others do.
+#: Scaling such a column to correlation form would blow its rounding noise up to unit size and mix it
+#: into the genuine null combinations of the other parameters.
+UNEXCITED_TOL: float = 1e-13
 #: Standard error (normalised units: T relative to 1, o relative to the 1 g radius) above which a
 #: parameter combination counts as not determined by the data, however full the rank: 5 % of
 #: full scale.  With noise, an exactly degenerate design is no longer numerically singular
@@ -136,18 +141,33 @@ class IdentifiabilityReport:
         }
 
 
-def _describe_null_space(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
+def _describe_null_space(vectors: NDArray, T: NDArray, alone: NDArray | None = None) -> list[dict[str, Any]]:
     """Express null directions of θ as changes of the entries of A and o.
 
     The basis is rotated so that each direction moves one entry of (A, o) by 1 and the other
-    pivot entries by 0, which makes it readable ("A_xy is not determined").
+    pivot entries by 0, which makes it readable ("A_xy is not determined").  ``alone`` (bool,
+    shape (9,)) marks the parameters of θ that no pose excites (:func:`scaled_information`):
+    they are described first, apart from ``vectors`` (zero on them), the null combinations of
+    the other parameters, so that the two never mix.
     """
+    out: list[dict[str, Any]] = []
+    if alone is not None and np.any(alone):
+        unit = np.eye(len(alone))[:, np.flatnonzero(alone)]
+        out += [{**item, "text": item["text"] + ": no pose carries information on it"}
+                for item in _describe_directions(unit, T)]
+    return out + _describe_directions(vectors, T)
+
+
+def _describe_directions(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
+    """Changes of θ (columns of ``vectors``) as unit changes of pivot entries of (A, o)."""
     axes = "xyz"
     names = [f"A_{axes[i]}{axes[j]}" for i, j in A_INDEX] + ["o_x", "o_y", "o_z"]
+    k = vectors.shape[1]
+    if k == 0:
+        return []
     M = np.vstack([dA_dtheta(T) @ vectors[:6], vectors[6:9]])  # (9, k) change of (A, o)
     import scipy.linalg  # only for a degenerate pose set: keeps scipy out of every fit's start-up
 
-    k = vectors.shape[1]
     _, _, piv = scipy.linalg.qr(M.T, pivoting=True)
     pivots = piv[:k]
     B = M @ np.linalg.inv(M[pivots, :])  # each column: unit change of one pivot entry
@@ -162,6 +182,64 @@ def _describe_null_space(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
     return out
 
 
+def parameter_full_scale(theta: NDArray) -> NDArray[np.float64]:
+    """Full scale of each entry of θ (shape (..., 9)): the largest diagonal entry of T for T, 1 g (1/min diag T) for o.
+
+    The yardstick of "equal to the solver tolerance" and of "no information": relative to each
+    value, an off-diagonal entry near zero would make any difference look large.
+    """
+    diag = np.abs(np.asarray(theta, dtype=float)[..., [0, 2, 5]])
+    top = np.max(diag, axis=-1, keepdims=True)
+    bottom = np.min(diag, axis=-1, keepdims=True)
+    return np.concatenate([np.repeat(top, 6, axis=-1), np.repeat(1.0 / bottom, 3, axis=-1)], axis=-1)
+
+
+def scaled_information(
+    information: NDArray, full_scale: NDArray
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Correlation form of Fisher information matrices, with the unexcited parameters set apart.
+
+    Parameters
+    ----------
+    information : ndarray, shape (..., p, p)
+        One Fisher information matrix or a stack of them.
+    full_scale : ndarray, shape (..., p)
+        Each parameter's full scale (:func:`parameter_full_scale`): the information is compared
+        across parameters in these units, so that an offset in counts and a scale factor in
+        g/count are judged alike.
+
+    Returns
+    -------
+    scaled : ndarray, shape (..., p, p)
+        ``F_ij / (d_i d_j)`` with ``d = sqrt(diag F)`` (unit diagonal), so that rank and
+        condition number do not depend on units; the rows and columns of the unexcited
+        parameters are zero.
+    d : ndarray, shape (..., p)
+        The scale ``sqrt(diag F)`` (1 for the unexcited parameters).
+    unexcited : ndarray of bool, shape (..., p)
+        Parameters whose information in full-scale units is below :data:`UNEXCITED_TOL` times the
+        largest: undetermined each on its own.
+    """
+    diag = np.diagonal(information, axis1=-2, axis2=-1)
+    relative = diag * np.asarray(full_scale, dtype=float) ** 2
+    top = np.maximum(np.max(relative, axis=-1, keepdims=True), 1e-300)
+    unexcited = relative <= UNEXCITED_TOL * top
+    d = np.sqrt(np.where(unexcited, 1.0, diag))
+    scaled = information / (d[..., :, None] * d[..., None, :])
+    scaled = np.where(unexcited[..., :, None] | unexcited[..., None, :], 0.0, scaled)
+    return scaled, d, unexcited
+
+
+def numerical_rank(eigenvalues: NDArray, tol: float = RANK_TOL) -> NDArray[np.int_]:
+    """Rank from the ascending eigenvalues of :func:`scaled_information`'s matrices (..., p).
+
+    Eigenvalues below ``tol`` times the largest count as zero; the unexcited parameters' rows
+    are zero, so each of them takes one from the rank.
+    """
+    top = np.maximum(eigenvalues[..., -1:], 1e-300)
+    return np.sum(eigenvalues >= tol * top, axis=-1)
+
+
 def analyse(
     T: NDArray,
     o: NDArray,
@@ -174,20 +252,29 @@ def analyse(
     """Identifiability of θ at (T, o) for measurements ``acc``.
 
     The Fisher matrix is scaled to correlation form (unit diagonal) so that rank and
-    condition number do not depend on units.  ``jacobian``: see :func:`fisher_information`;
+    condition number do not depend on units (:func:`scaled_information`); a parameter no pose
+    excites is named alone, and the null combinations are those of the other parameters.  ``jacobian``: see :func:`fisher_information`;
     ``information``: :func:`fisher_information` itself, when the caller already has it (then
     ``acc``, ``sigma`` and ``jacobian`` are not read).
     """
     F = fisher_information(T, o, acc, sigma, jacobian) if information is None else information
-    d = np.sqrt(np.clip(np.diag(F), 1e-300, None))
-    S = F / np.outer(d, d)
-    evals, evecs = np.linalg.eigh(S)
+    theta_diag = np.diag(np.asarray(T, dtype=float))
+    full_scale = parameter_full_scale(np.array([theta_diag[0], 0, theta_diag[1], 0, 0, theta_diag[2], 0, 0, 0]))
+    S, d, unexcited = scaled_information(F, full_scale)
+    evals = np.linalg.eigvalsh(S)
+    rank = int(numerical_rank(evals, tol))
     top = max(evals[-1], 1e-300)
-    null = evals < tol * top
-    unid = _describe_null_space(evecs[:, null] / d[:, None], T) if np.any(null) else []
+    unid: list[dict[str, Any]] = []
+    if rank < len(evals):
+        excited = np.flatnonzero(~unexcited)
+        sub_evals, sub_evecs = np.linalg.eigh(S[np.ix_(excited, excited)])
+        null = sub_evals < tol * top  # the combinations of the excited parameters (same test as the rank)
+        vectors = np.zeros((len(evals), int(np.sum(null))))
+        vectors[excited] = sub_evecs[:, null] / d[excited, None]
+        unid = _describe_null_space(vectors, T, unexcited)
     cond = float(top / evals[0]) if evals[0] > 0 else float("inf")
     return IdentifiabilityReport(
-        rank=int(np.sum(~null)),
+        rank=rank,
         n_params=len(evals),
         condition_number=cond,
         eigenvalues=[float(e / top) for e in evals],
@@ -241,5 +328,8 @@ __all__ = [
     "analyse_design",
     "cramer_rao_bound",
     "fisher_information",
+    "numerical_rank",
+    "parameter_full_scale",
     "pseudo_inverse",
+    "scaled_information",
 ]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.estimators.batched import BatchedMaximumLikelihood, BatchedNormResidualCost, parameter_full_scale, validate_many
+from optcal.estimators.batched import BatchedMaximumLikelihood, BatchedNormResidualCost, validate_many
+from optcal.identifiability import parameter_full_scale
 from optcal.estimators.mle import MaximumLikelihood, NormResidualCost
 from optcal.model import LumpedModel, lu2017_reference_model
 from optcal.poses import PoseTable

@@ -14,7 +14,7 @@ from optcal.cli.main import main
 from optcal.data import load
 from optcal.calibration import calibrate
 from optcal.errors import InputError
-from optcal.estimators.batched import parameter_full_scale
+from optcal.identifiability import parameter_full_scale
 from optcal.fleet.engine import ClusterSettings
 from optcal.fleet.inputs import expand_inputs, read_manifest
 from optcal.fleet.population import flag_units, population_stats
@@ -85,7 +85,7 @@ def test_unit_identical_to_calibrate(fleet_run, capsys):
 
 
 #: Largest difference between a unit's θ solved in a batch and alone, as a fraction of the
-#: parameter's full scale (:func:`optcal.estimators.batched.parameter_full_scale`); measured 8.3e-10 on 300 units at ipopt.tol 1e-7, at most 1.1e-10 at 1e-10.
+#: parameter's full scale (:func:`optcal.identifiability.parameter_full_scale`); measured 8.3e-10 on 300 units at ipopt.tol 1e-7, at most 1.1e-10 at 1e-10.
 PARITY_FULL_SCALE = 5e-10
 
 

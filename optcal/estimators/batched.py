@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.estimators.mle import ML_IPOPT_DEFAULTS, MIN_RESIDUAL_RMS, MaximumLikelihood, numpy_callback
-from optcal.identifiability import RANK_TOL, WEAK_STDERR, pseudo_inverse
+from optcal.identifiability import WEAK_STDERR, numerical_rank, parameter_full_scale, pseudo_inverse, scaled_information
 from optcal.model import PARAM_NAMES
 from optcal.norm_residual import TRIL_COLS, TRIL_ROWS
 from optcal.poses import PoseTable
@@ -379,9 +379,7 @@ class BatchedMaximumLikelihood:
         factor = np.where(known, 1.0, chi2 / dof if dof > 0 else np.nan)
         cov_n *= factor[:, None, None]
         # identifiability (optcal.identifiability.analyse): rank of the correlation-form Fisher matrix
-        d = np.sqrt(np.clip(np.diagonal(F_fisher, axis1=1, axis2=2), 1e-300, None))
-        ev = np.linalg.eigvalsh(F_fisher / (d[:, :, None] * d[:, None, :]))
-        full_rank = np.all(ev >= RANK_TOL * np.maximum(ev[:, -1:], 1e-300), axis=1)
+        full_rank = numerical_rank(np.linalg.eigvalsh(scaled_information(F_fisher, parameter_full_scale(theta_n))[0])) == 9
         weak = np.max(cov_eigenvalues * factor[:, None], axis=1) > WEAK_STDERR**2
         D = np.concatenate([np.repeat(1.0 / scale[:, None], 6, axis=1), np.repeat(scale[:, None], 3, axis=1)], axis=1)
         theta = theta_n * D
@@ -389,16 +387,6 @@ class BatchedMaximumLikelihood:
         cov = cov_n * D[:, :, None] * D[:, None, :]
         return BatchedFit(theta, cov, np.sqrt(np.mean(r * r, axis=1)), full_rank & ~weak, success, passes,
                           iterations, list(r), list(w))
-
-
-def parameter_full_scale(theta: NDArray) -> NDArray[np.float64]:
-    """Full scale of each entry of θ: the largest diagonal entry of T for T, 1 g (1/min diag T) for o.
-
-    The yardstick of "equal to the solver tolerance": relative to each value, an off-diagonal
-    entry near zero would make any difference look large.
-    """
-    diag = np.abs(np.asarray(theta, dtype=float)[[0, 2, 5]])
-    return np.concatenate([np.full(6, diag.max()), np.full(3, 1.0 / diag.min())])
 
 
 def invalid_tables(tables: list[PoseTable]) -> dict[int, InputError]:

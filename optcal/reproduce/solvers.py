@@ -313,7 +313,8 @@ def throughput(design: Design, fits: int, seed: int, progress: bool = True, batc
     second of wall time and per second of the process's CPU time (``fits_per_cpu_s``: what one
     core gives when the machine is shared).
     """
-    from optcal.estimators.batched import BatchedMaximumLikelihood, parameter_full_scale
+    from optcal.estimators.batched import BatchedMaximumLikelihood
+    from optcal.identifiability import parameter_full_scale
 
     n_batched = batched_fits or 10 * fits
     tables = [design.poses(seed, 5000 + k) for k in range(max(fits, n_batched))]
