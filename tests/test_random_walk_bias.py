@@ -87,3 +87,34 @@ def test_refusals():
         RandomWalkBias(max_poses=10).fit(poses, TRUE_THETA)
     with pytest.raises(InputError, match="noise_scale"):
         RandomWalkBias(noise_scale=0.0)
+
+
+def test_diagnose_names_a_wandering_bias_as_noise_and_not_on_white_sessions():
+    """The diagnosis tests the walk in its noise section (never a finding) and names it only when it is there."""
+    from optcal.diagnosis import diagnose
+
+    walking, _ = _session(1e-3, 7, n=40)
+    d = diagnose(walking, simulations=0)
+    check = d.noise_model.random_walk
+    assert check.tested and check.named and check.p_value < 1e-3
+    assert check.heldout_rms_walk_g < check.heldout_rms_white_g
+    true_K_g = 1e-3 * np.mean(np.abs(np.diag(MODEL.T_canonical)))  # raw units → g, as the check converts
+    assert check.K_interval_g[0] <= true_K_g <= check.K_interval_g[1]
+    assert "random-walk bias" in d.report() and "named cause: the bias wanders" in d.report()
+    assert d.to_dict()["noise_model"]["random_walk"]["named"] is True
+    quiet, _ = _session(0.0, 8, n=40)
+    check = diagnose(quiet, simulations=0).noise_model.random_walk
+    assert check.tested and not check.named
+
+
+def test_the_xsens_recording_bias_wanders(shared_data):
+    """../shared/data/imutk-xsens: the residuals are 2× σ/√n; a random walk explains part and predicts held-out poses better."""
+    from optcal.data import load_with_segmentation
+    from optcal.diagnosis import Diagnoser, DiagnosisSettings
+
+    loaded = load_with_segmentation(shared_data / "imutk-xsens" / "xsens_imutk.csv")
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(loaded.poses, still_parts=loaded.segmentation)
+    check = diag.noise_model.random_walk
+    assert check.tested and check.named
+    assert check.noise_scale_source == "measured on the still parts"
+    assert check.heldout_rms_walk_g < 0.9 * check.heldout_rms_white_g

@@ -27,6 +27,7 @@ from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_eff
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model, pose_correlation
+from optcal.diagnosis.random_walk import check_random_walk
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
@@ -276,6 +277,9 @@ class Diagnoser:
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
         noise.correlation = correlation
+        self.progress("testing a bias that wanders in time (a random walk)")
+        noise.random_walk = check_random_walk(poses, T, o, None if stack is None else stack.session, s.alpha,
+                                              noise.measured_understated_by)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats as sps
 
+from optcal.diagnosis.random_walk import RandomWalkCheck
 from optcal.diagnosis.correlation import PoseCorrelation, estimate_correlation
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, PoseData
@@ -98,6 +99,10 @@ class NoiseModelCheck:
         Reduced χ² refitted with the measured per-pose σ.
     coverage_measured : float or None
         Bootstrap coverage (simulated with the measured σ) of the intervals of the measured σ.
+    correlation : PoseCorrelation or None
+        The pose noise correlated in time (:mod:`optcal.diagnosis.correlation`).
+    random_walk : RandomWalkCheck or None
+        The bias wandering as a random walk (:mod:`optcal.diagnosis.random_walk`).
     """
 
     tested: bool
@@ -119,10 +124,12 @@ class NoiseModelCheck:
     reduced_chi2_measured: float | None = None
     coverage_measured: float | None = None
     correlation: PoseCorrelation | None = None
+    random_walk: RandomWalkCheck | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        out = asdict(replace(self, correlation=None))
+        out = asdict(replace(self, correlation=None, random_walk=None))
         out["correlation"] = None if self.correlation is None else self.correlation.to_dict()
+        out["random_walk"] = None if self.random_walk is None else self.random_walk.to_dict()
         return out
 
 

@@ -63,18 +63,26 @@ def correlation_lines(check: NoiseModelCheck) -> list[str]:
     return [f"      {check.correlation.text()}"]
 
 
+def random_walk_lines(check: NoiseModelCheck) -> list[str]:
+    """The bias wandering as a random walk, when tested (a noise explanation, never an effect)."""
+    if check.random_walk is None or not check.random_walk.tested:
+        return []
+    return [f"      {check.random_walk.text()}"]
+
+
 def noise_model_lines(diag: "Diagnosis") -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
     if check is None:
         return []
+    extra = correlation_lines(check) + random_walk_lines(check)
     if not check.tested:
-        return ["   the noise model:", *correlation_lines(check)] if correlation_lines(check) else []
+        return ["   the noise model:", *extra] if extra else []
     if not check.named:
-        if check.measured_route is None and not correlation_lines(check):
+        if check.measured_route is None and not extra:
             return []
         return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
-                *correlation_lines(check), *measured_noise_lines(check)]
+                *correlation_lines(check), *measured_noise_lines(check), *random_walk_lines(check)]
     unit = diag.poses.units
     lines = [
         f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
@@ -90,7 +98,7 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
             f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
             f"extended noise model ({check.simulations} simulations)"
         )
-    return lines + correlation_lines(check) + measured_noise_lines(check)
+    return lines + correlation_lines(check) + measured_noise_lines(check) + random_walk_lines(check)
 
 
 def session_lines(sessions: "SessionOffsets") -> list[str]:

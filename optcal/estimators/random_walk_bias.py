@@ -186,6 +186,13 @@ class RandomWalkBias:
         V[np.diag_indices_from(V)] += self._white_variance(point, sigma, known)
         return V
 
+    def white_fit(self, poses: PoseTable, theta0: ArrayLike) -> NDArray[np.float64]:
+        """θ of the calibration without a walk (``q = 0``: weighted least squares with the table's σ)."""
+        t, sess, sigma = self._setup(poses, None)
+        theta, _, _, _ = self._gls(NormResidualKernel(poses.acc), np.asarray(theta0, dtype=float).ravel()[:9], 0.0,
+                                   np.zeros((t.size, t.size)), sigma, poses.sigma is not None)
+        return theta
+
     # -- the fit --------------------------------------------------------------------------------
     def fit(self, poses: PoseTable, theta0: ArrayLike, session: ArrayLike | None = None) -> RandomWalkBiasFit:
         """Fit ``(T, o, q)`` by maximum likelihood with the walk integrated out.

@@ -1,0 +1,156 @@
+"""The bias wandering in time as a random walk: a stochastic explanation the diagnosis tests and names.
+
+Issue 13, item 2: a bias that rises and falls over a recording (bias instability at the scale
+of minutes, warm-up then cooling) has almost no linear component, so the polynomial time terms
+of the selection may miss it.  :class:`~optcal.estimators.random_walk_bias.RandomWalkBias` fits
+``T``, ``o`` and the walk's intensity ``K`` jointly by maximum likelihood; here that fit is run
+on the session's poses and judged as a *noise* explanation ("the bias wanders"), never as a
+deterministic effect: it is reported in the noise section, it does not enter the forward
+selection, and it cannot remove a finding.  It is named when the boundary likelihood-ratio test
+of ``K = 0`` is significant at the diagnosis's level *and* the walk predicts held-out poses
+better than the white-noise calibration (k-fold, every k-th pose in time held out, its bias
+predicted from the training poses around it).
+
+The white noise of a pose mean is taken as what is known of it, not estimated together with
+the walk (with a few dozen poses a walk explains white noise too, and the joint estimate drifts
+toward a walk without white noise): the noise measured on the recording's still parts when
+there is one (:mod:`optcal.diagnosis.still_noise`), else the table's ``σ`` as given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import InputError
+from optcal.estimators.random_walk_bias import RandomWalkBias
+from optcal.model import theta_from, unpack_theta
+from optcal.norm_residual import norm_residuals
+from optcal.poses import PoseTable
+
+#: Most poses the check runs on (the dense likelihood is O(n³) and the check refits it per fold).
+MAX_CHECK_POSES: int = 300
+#: Folds of the held-out comparison (every k-th pose in time order held out).
+FOLDS: int = 5
+#: Fewest poses the walk is tested on.
+MIN_POSES: int = 15
+CAUSE = "the bias wanders in time (a random walk: bias instability), not a deterministic effect"
+
+
+@dataclass
+class RandomWalkCheck:
+    """The random-walk bias tested on one diagnosis's poses.
+
+    Attributes
+    ----------
+    tested : bool
+        Whether the walk was fitted (``reason`` says why not).
+    named : bool
+        Significant at the diagnosis's level and better on held-out poses: named as a cause.
+    K_g, K_interval_g : float, tuple of float
+        The walk's intensity ``K`` (its increments' standard deviation over one second) and its
+        95 % profile-likelihood interval, in g/√s.
+    p_value : float
+        Boundary likelihood-ratio test of ``K = 0`` (Self & Liang 1987).
+    noise_scale, noise_scale_source : float, str
+        The white pose noise used, relative to the table's σ, and where it comes from.
+    wander_rms_g : float
+        RMS of the smoothed bias about its mean over the session(s), g.
+    heldout_rms_white_g, heldout_rms_walk_g : float
+        RMS of the held-out norm residuals of the white-noise calibration and of the walk's
+        prediction (:data:`FOLDS`-fold), g.
+    """
+
+    tested: bool
+    reason: str | None = None
+    named: bool = False
+    K_g: float = 0.0
+    K_interval_g: tuple[float, float] = (0.0, 0.0)
+    p_value: float = 1.0
+    noise_scale: float = 1.0
+    noise_scale_source: str = ""
+    wander_rms_g: float = 0.0
+    heldout_rms_white_g: float = float("nan")
+    heldout_rms_walk_g: float = float("nan")
+    folds: int = FOLDS
+    cause: str = CAUSE
+
+    def text(self) -> str:
+        """One line for the report's noise section."""
+        if not self.tested:
+            return f"random-walk bias: not tested ({self.reason})"
+        mg = 1e3
+        head = (f"random-walk bias: K = {self.K_g * mg:.3g} mg/√s (95 % {self.K_interval_g[0] * mg:.3g}–"
+                f"{self.K_interval_g[1] * mg:.3g}), p = {self.p_value:.2g}; the bias wanders {self.wander_rms_g * mg:.3g} mg "
+                f"rms; held-out rms {self.heldout_rms_white_g * mg:.3g} → {self.heldout_rms_walk_g * mg:.3g} mg "
+                f"({self.folds}-fold); white pose noise {self.noise_scale:.3g}× σ ({self.noise_scale_source})")
+        return (f"named cause: {self.cause}. " if self.named else "not named: ") + head
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["K_interval_g"] = list(self.K_interval_g)
+        return out
+
+
+def _subset(poses: PoseTable, keep: NDArray) -> PoseTable:
+    return PoseTable(acc=poses.acc[keep], t=poses.t[keep], sigma=poses.sigma[keep], units=poses.units)
+
+
+def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray | None, alpha: float,
+                      measured_ratio: float | None) -> RandomWalkCheck:
+    """Fit and judge the random-walk bias on ``poses`` about the white-noise calibration ``(T, o)``.
+
+    Parameters
+    ----------
+    poses : PoseTable
+        The diagnosed poses (times ``t`` in seconds, per-pose ``σ``).
+    T, o : ndarray
+        The baseline calibration (the start of the fit).
+    session : ndarray of int or None
+        Session of each pose (the walk restarts in each).
+    alpha : float
+        The diagnosis's significance level.
+    measured_ratio : float or None
+        The noise of the pose means measured on the still parts over σ/√n (median), if measured.
+    """
+    n = poses.n
+    if poses.t is None:
+        return RandomWalkCheck(False, reason="the poses have no times")
+    if poses.sigma is None:
+        return RandomWalkCheck(False, reason="the poses have no per-pose σ, so the white noise is not known")
+    if n < MIN_POSES:
+        return RandomWalkCheck(False, reason=f"{n} poses are fewer than the {MIN_POSES} it is tested on")
+    if n > MAX_CHECK_POSES:
+        return RandomWalkCheck(False, reason=f"{n} poses are more than the {MAX_CHECK_POSES} the dense likelihood "
+                                             "is run on here")
+    scale, source = ((measured_ratio, "measured on the still parts") if measured_ratio is not None
+                     else (1.0, "the given σ, trusted: no still parts were measured"))
+    session = np.zeros(n, dtype=int) if session is None else np.asarray(session, dtype=int)
+    estimator = RandomWalkBias(noise_scale=scale)
+    theta0 = theta_from(T, o)
+    try:
+        fit = estimator.fit(poses, theta0, session)
+        order = np.lexsort((poses.t, session))
+        fold_of = np.empty(n, dtype=int)
+        fold_of[order] = np.arange(n) % FOLDS
+        white, walk = [], []
+        for k in range(FOLDS):
+            test, train = fold_of == k, fold_of != k
+            tr, te = _subset(poses, train), _subset(poses, test)
+            fold = estimator.fit(tr, theta0, session[train])
+            walk.append(estimator.predict_heldout(tr, te, fold, session[train], session[test]))
+            white.append(norm_residuals(*unpack_theta(estimator.white_fit(tr, theta0)), te.acc))
+    except (np.linalg.LinAlgError, InputError) as err:
+        return RandomWalkCheck(False, reason=f"the fit failed: {err}")
+    g_per_raw = float(np.mean(np.abs(np.diag(T))))  # raw units → g (T maps raw to g)
+    rms_white = float(np.sqrt(np.mean(np.concatenate(white) ** 2)))
+    rms_walk = float(np.sqrt(np.mean(np.concatenate(walk) ** 2)))
+    return RandomWalkCheck(
+        True, named=bool(fit.p_value < alpha and rms_walk < rms_white), K_g=fit.K * g_per_raw,
+        K_interval_g=(fit.K_interval[0] * g_per_raw, fit.K_interval[1] * g_per_raw), p_value=fit.p_value,
+        noise_scale=scale, noise_scale_source=source, wander_rms_g=fit.wander_rms * g_per_raw,
+        heldout_rms_white_g=rms_white, heldout_rms_walk_g=rms_walk,
+    )
