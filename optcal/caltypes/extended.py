@@ -11,6 +11,9 @@ Parameters, units and equation
 ``validity``       °C, s, g        temperature span, time span and ``|ā|`` range of the fit
 ``bias_repeatability``  g          optional (format 2.1): turn-on bias repeatability per axis when the
                                    calibration was fitted to several sessions (``o`` is then their mean)
+``bias_random_walk``    g/√s, g    optional (format 2.2): the bias wanders in time as a random walk of
+                                   intensity ``K`` (the diagnosis named it); ``o`` is the fit's bias and
+                                   ``K √Δt`` the uncertainty it gains over ``Δt`` seconds
 =================  ==============  ================================================================
 
 Term coefficients of order ``p``: ``temperature_bias`` g/°C^p, ``temperature_scale`` 1/°C^p,
@@ -147,6 +150,52 @@ class BiasRepeatability:
         if not isinstance(d, dict) or "per_axis_g" not in d or "sessions" not in d:
             raise InputError("bias_repeatability must be an object with per_axis_g (3 numbers, g) and sessions")
         return cls(tuple(d["per_axis_g"]), int(d["sessions"]))  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class BiasRandomWalk:
+    """The bias wanders in time as a random walk (bias instability), named by the diagnosis.
+
+    A wander cannot be predicted for a later recording, so the calibration applies its fitted
+    bias ``o`` and carries the walk as that bias's uncertainty: after ``Δt`` seconds the bias is
+    off by about ``K √Δt`` (one standard deviation per axis).
+
+    Attributes
+    ----------
+    K_g_per_sqrt_s : float
+        Intensity ``K``, g/√s (the rate random walk of ``optcal allan``, in g).
+    K_interval_g_per_sqrt_s : tuple of float
+        Its 95 % profile-likelihood interval.
+    wander_rms_g : float
+        RMS of the smoothed bias about its mean over the fitted recording(s), g.
+    """
+
+    K_g_per_sqrt_s: float
+    K_interval_g_per_sqrt_s: tuple[float, float]
+    wander_rms_g: float
+
+    def __post_init__(self) -> None:
+        values = [float(self.K_g_per_sqrt_s), *(float(v) for v in self.K_interval_g_per_sqrt_s), float(self.wander_rms_g)]
+        if len(values) != 4 or not all(np.isfinite(v) and v >= 0 for v in values):
+            raise InputError("bias_random_walk needs finite non-negative K_g_per_sqrt_s, a 2-number "
+                             "K_interval_g_per_sqrt_s and wander_rms_g (g/√s, g)")
+        object.__setattr__(self, "K_g_per_sqrt_s", values[0])
+        object.__setattr__(self, "K_interval_g_per_sqrt_s", (values[1], values[2]))
+        object.__setattr__(self, "wander_rms_g", values[3])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"K_g_per_sqrt_s": self.K_g_per_sqrt_s, "K_interval_g_per_sqrt_s": list(self.K_interval_g_per_sqrt_s),
+                "wander_rms_g": self.wander_rms_g,
+                "meaning": "the bias wanders as a random walk: o is the fitted bias, and after dt seconds the bias "
+                           "is off by about K_g_per_sqrt_s * sqrt(dt) per axis (one standard deviation)"}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "BiasRandomWalk":
+        keys = ("K_g_per_sqrt_s", "K_interval_g_per_sqrt_s", "wander_rms_g")
+        if not isinstance(d, dict) or any(k not in d for k in keys):
+            raise InputError("bias_random_walk must be an object with K_g_per_sqrt_s, K_interval_g_per_sqrt_s "
+                             "(2 numbers) and wander_rms_g")
+        return cls(float(d["K_g_per_sqrt_s"]), tuple(d["K_interval_g_per_sqrt_s"]), float(d["wander_rms_g"]))  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -288,6 +337,9 @@ class ExtendedCalibration(Calibration):
     bias_repeatability : BiasRepeatability, optional
         Fitted to several sessions: ``o`` is the mean of their biases and this is their spread.
         Files that carry it are format 2.1 (readers of 2.0 ignore it; 2.0 files load without it).
+    bias_random_walk : BiasRandomWalk, optional
+        The bias wanders in time: ``K`` recorded as the bias's uncertainty growing with time.
+        Files that carry it are format 2.2 (older files load without it).
     """
 
     cal_type: ClassVar[str] = "extended"
@@ -301,10 +353,13 @@ class ExtendedCalibration(Calibration):
     units: str = "g"
     fitted_on: FitPoses | None = None
     bias_repeatability: BiasRepeatability | None = None
+    bias_random_walk: BiasRandomWalk | None = None
 
     @property
     def format_version(self) -> str:  # type: ignore[override]
-        """``2.1`` when the file carries the optional :attr:`bias_repeatability`, else ``2.0``."""
+        """``2.2`` with :attr:`bias_random_walk`, ``2.1`` with :attr:`bias_repeatability`, else ``2.0``."""
+        if self.bias_random_walk is not None:
+            return "2.2"
         return "2.1" if self.bias_repeatability is not None else FORMAT_VERSION
 
     def __post_init__(self) -> None:
@@ -424,6 +479,7 @@ class ExtendedCalibration(Calibration):
             "terms": [term.to_dict() for term in self.terms],
             "validity": self.validity.to_dict(),
             **({} if self.bias_repeatability is None else {"bias_repeatability": self.bias_repeatability.to_dict()}),
+            **({} if self.bias_random_walk is None else {"bias_random_walk": self.bias_random_walk.to_dict()}),
         }
 
     @classmethod
@@ -438,6 +494,7 @@ class ExtendedCalibration(Calibration):
             units,
             fitted_on,
             None if d.get("bias_repeatability") is None else BiasRepeatability.from_dict(d["bias_repeatability"]),
+            None if d.get("bias_random_walk") is None else BiasRandomWalk.from_dict(d["bias_random_walk"]),
         )
 
     def unit_fields(self) -> dict[str, str]:
@@ -451,6 +508,10 @@ class ExtendedCalibration(Calibration):
             spread = "/".join(f"{v * 1e3:.2g}" for v in r.per_axis_g)
             text += (f"; bias o = mean of {r.sessions} sessions' biases, turn-on repeatability x/y/z "
                      f"{spread} mg recorded as its uncertainty")
+        w = self.bias_random_walk
+        if w is not None:
+            text += (f"; the bias wanders as a random walk, K = {w.K_g_per_sqrt_s * 1e3:.3g} mg/√s recorded as its "
+                     "uncertainty growing with time (K·√Δt)")
         return text
 
     def lumped(self) -> LumpedCalibration:

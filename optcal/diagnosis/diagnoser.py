@@ -27,7 +27,7 @@ from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_eff
 from optcal.diagnosis.findings import build_findings
 from optcal.diagnosis.fitting import Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model, pose_correlation
-from optcal.diagnosis.random_walk import check_random_walk
+from optcal.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
@@ -277,22 +277,35 @@ class Diagnoser:
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
         noise.correlation = correlation
-        self.progress("testing a bias that wanders in time (a random walk)")
-        noise.random_walk = check_random_walk(poses, T, o, None if stack is None else stack.session, s.alpha,
-                                              noise.measured_understated_by)
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
             sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed, loop)
         model = fitter.model(final)
         d = fitter.fitted_directions(final)
-        return Diagnosis(
+        diagnosis = Diagnosis(
             poses=poses, regressors=reg, settings=s, baseline_source=source, effects_tested=effects,
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
             given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise, sessions=stack,
         )
+        self.progress("testing a bias that wanders in time (a random walk)")
+        noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by)
+        return diagnosis
+
+    @staticmethod
+    def random_walk(diagnosis: Diagnosis, alpha: float, measured_ratio: float | None) -> RandomWalkCheck:
+        """The random-walk bias tested about the final model: the named effects' share of each pose is
+        taken out first (so the walk cannot re-explain a drift, a temperature term or a session's
+        bias), and the outlier poses are left out."""
+        poses, model, kept = diagnosis.poses, diagnosis.model, diagnosis.kept
+        directions = diagnosis.fitted_directions
+        share = model.measure(directions, poses.temp, poses.t) - model.base.measure(directions)
+        share = share + diagnosis.session_shift()
+        subset = poses.with_acc(poses.acc - share).subset(np.flatnonzero(kept))
+        session = None if diagnosis.sessions is None else diagnosis.sessions.session[kept]
+        return check_random_walk(subset, model.base.T_canonical, model.base.o, session, alpha, measured_ratio)
 
 
 def diagnose(poses: PoseTable, baseline: LumpedCalibration | None = None,

@@ -4,7 +4,8 @@ Issue 13, item 2: a bias that rises and falls over a recording (bias instability
 of minutes, warm-up then cooling) has almost no linear component, so the polynomial time terms
 of the selection may miss it.  :class:`~optcal.estimators.random_walk_bias.RandomWalkBias` fits
 ``T``, ``o`` and the walk's intensity ``K`` jointly by maximum likelihood; here that fit is run
-on the session's poses and judged as a *noise* explanation ("the bias wanders"), never as a
+on the session's poses — about the diagnosis's final model, the named effects' share of each
+pose taken out first (:meth:`optcal.diagnosis.diagnoser.Diagnoser.random_walk`) — and judged as a *noise* explanation ("the bias wanders"), never as a
 deterministic effect: it is reported in the noise section, it does not enter the forward
 selection, and it cannot remove a finding.  It is named when the boundary likelihood-ratio test
 of ``K = 0`` is significant at the diagnosis's level *and* the walk predicts held-out poses
@@ -95,10 +96,6 @@ class RandomWalkCheck:
         return out
 
 
-def _subset(poses: PoseTable, keep: NDArray) -> PoseTable:
-    return PoseTable(acc=poses.acc[keep], t=poses.t[keep], sigma=poses.sigma[keep], units=poses.units)
-
-
 def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray | None, alpha: float,
                       measured_ratio: float | None) -> RandomWalkCheck:
     """Fit and judge the random-walk bias on ``poses`` about the white-noise calibration ``(T, o)``.
@@ -139,7 +136,7 @@ def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray
         white, walk = [], []
         for k in range(FOLDS):
             test, train = fold_of == k, fold_of != k
-            tr, te = _subset(poses, train), _subset(poses, test)
+            tr, te = poses.subset(np.flatnonzero(train)), poses.subset(np.flatnonzero(test))
             fold = estimator.fit(tr, theta0, session[train])
             walk.append(estimator.predict_heldout(tr, te, fold, session[train], session[test]))
             white.append(norm_residuals(*unpack_theta(estimator.white_fit(tr, theta0)), te.acc))

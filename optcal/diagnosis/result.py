@@ -121,31 +121,38 @@ class Diagnosis:
 
         Fitted on the kept poses (outliers excluded); the validity range is their temperature,
         time and ``|ā|`` ranges.  Columns the data could not use (no or constant temperature)
-        carry no term, so they are not needed to apply it.
+        carry no term, so they are not needed to apply it.  Two named causes cannot be applied
+        to a later recording and are carried as the bias's uncertainty instead (an ``extended``
+        calibration then): the turn-on repeatability between sessions (``o`` is the sessions'
+        mean) and a bias that wanders as a random walk (``K``).
         """
         from optcal.caltypes.base import FitPoses
-        from optcal.caltypes.extended import ExtendedCalibration
+        from optcal.caltypes.extended import BiasRandomWalk, BiasRepeatability, ExtendedCalibration
         from optcal.caltypes.lumped import LumpedCalibration
-
-        from optcal.caltypes.extended import BiasRepeatability
         from optcal.model import LumpedModel
 
         kept = self.kept
         temp = self.poses.temp[kept] if self.poses.temp is not None and self.regressors.has_temp else None
         t = self.poses.t[kept] if self.poses.t is not None and self.regressors.has_time else None
         fitted_on = FitPoses(self.poses.acc[kept].copy(), temp, t)
+        walk = None if self.noise_model is None else self.noise_model.random_walk
+        walk_named = walk is not None and walk.named
         sessions = self.session_offsets()
         if sessions is None:
-            if not self.final.terms:
+            if not self.final.terms and not walk_named:
                 return LumpedCalibration.from_model(self.model.base, self.poses.units, fitted_on)
-            return ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
-        # per-session offsets do not apply to a future session: the mean bias, the spread as its uncertainty
-        base = self.model.base
-        shift = np.array([sessions.mean_from_first_g.get(a, 0.0) for a in AXES]) * np.linalg.norm(base.C, axis=1)
-        model = replace(self.model, base=LumpedModel(base.C, base.o + shift))
-        fitted_on = replace(fitted_on, acc=fitted_on.acc - (self.session_shift() - shift)[kept])
-        cal = ExtendedCalibration.from_model(model, units=self.poses.units, fitted_on=fitted_on)
-        cal.bias_repeatability = BiasRepeatability(tuple(sessions.repeatability_vector()), self.regressors.n_sessions)
+            cal = ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
+        else:
+            # per-session offsets do not apply to a future session: the mean bias, the spread as its uncertainty
+            base = self.model.base
+            shift = np.array([sessions.mean_from_first_g.get(a, 0.0) for a in AXES]) * np.linalg.norm(base.C, axis=1)
+            model = replace(self.model, base=LumpedModel(base.C, base.o + shift))
+            fitted_on = replace(fitted_on, acc=fitted_on.acc - (self.session_shift() - shift)[kept])
+            cal = ExtendedCalibration.from_model(model, units=self.poses.units, fitted_on=fitted_on)
+            cal.bias_repeatability = BiasRepeatability(tuple(sessions.repeatability_vector()),
+                                                       self.regressors.n_sessions)
+        if walk_named:
+            cal.bias_random_walk = BiasRandomWalk(walk.K_g, walk.K_interval_g, walk.wander_rms_g)
         return cal
 
     def session_offsets(self) -> "SessionOffsets | None":
