@@ -148,3 +148,27 @@ def test_two_halves_of_the_xsens_log_with_a_planted_shift(shared_data: Path, tmp
     assert found is not None and found.axes == ["z"]
     difference = found.sessions.offsets_g["z"][1] - found.sessions.offsets_g["z"][0]
     assert difference == pytest.approx(shift_counts / counts_per_g, rel=0.3)
+
+
+def test_an_outlier_in_the_second_session_is_named_with_its_session(tmp_path: Path) -> None:
+    """File row numbers repeat across sessions: the JSON, the text and the HTML name the outlier's session."""
+    from optcal.report.evidence import outlier_names
+
+    sessions, sensitivity = sessions_with_shift(0.0, 0, 21)
+    second = sessions[1]
+    acc = second.acc.copy()
+    k = 7
+    acc[k] += 40e-3 * sensitivity  # 40 mg off on every axis
+    sessions[1] = second.with_acc(acc)
+    assert int(sessions[0].rows[k]) == int(sessions[1].rows[k])  # the same row number in both files
+    diag = Diagnoser(SETTINGS).run_sessions(sessions, names=["first.csv", "second.csv"])
+    found = diag.finding("outliers")
+    assert found is not None
+    at = found.rows.index(int(sessions[1].rows[k]))
+    assert found.row_sessions[at] == "second.csv"
+    assert found.pose_index[at] == sessions[0].n + k  # its place in the stack, not the first session's row
+    out = diag.to_dict()
+    row = next(f for f in out["findings"] if f["effect"] == "outliers")
+    assert row["row_sessions"][at] == "second.csv"
+    assert f"{int(sessions[1].rows[k])} of second.csv" in diag.report()
+    assert outlier_names(diag.poses, found)[at].endswith("of second.csv")

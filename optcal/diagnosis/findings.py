@@ -56,7 +56,11 @@ class Finding:
     reference : dict of str to float
         ``temp_ref_c`` or ``t_ref_s``: where the polynomial is centred.
     rows : list of int or None
-        For outliers, the rows given zero weight.
+        For outliers, the rows given zero weight (each file's own row numbers).
+    row_sessions : list of str or None
+        For outliers in several sessions diagnosed together: the session (file) of each row.
+    pose_index : list of int or None
+        For outliers: their positions among the diagnosed poses (unique across sessions).
     change_over_data : dict of str to float
         Peak-to-peak change of the term over the fitted poses per axis: g for a bias term,
         relative for a scale term, g at 1 g for the nonlinearity (what the polynomial does,
@@ -82,11 +86,14 @@ class Finding:
     rows: list[int] | None = None
     change_over_data: dict[str, float] = field(default_factory=dict)
     sessions: "SessionOffsets | None" = None
+    row_sessions: list[str] | None = None
+    pose_index: list[int] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
-        if self.rows is None:
-            del out["rows"]
+        for key in ("rows", "row_sessions", "pose_index"):
+            if out[key] is None:
+                del out[key]
         if self.sessions is None:
             del out["sessions"]
         return out
@@ -167,5 +174,9 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
             Evidence(bic_final - fitter.bic(without), float(min(p_values)) if p_values else 0.0),
             rms(fitter.heldout(without), mask), after,
             rows=[int(fitter.poses.rows[k]) for k in sorted(final.outliers)],
+            row_sessions=None if fitter.reg.n_sessions < 2 else [
+                (list(session_names) or [f"session {j + 1}" for j in range(fitter.reg.n_sessions)])[
+                    int(fitter.reg.session[k])] for k in sorted(final.outliers)],
+            pose_index=[int(k) for k in sorted(final.outliers)],
         ))
     return out

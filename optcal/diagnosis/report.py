@@ -156,7 +156,8 @@ def diagnosis_report(diag: "Diagnosis") -> str:
         lines.append(f"   {f.effect}: {f.cause}")
         if f.rows is not None:
             named = "poses" if diag.poses.source == "raw recording" else "poses in file rows"
-            lines.append(f"      {named} {', '.join(str(r) for r in f.rows)} given zero weight")
+            where = [str(r) if f.row_sessions is None else f"{r} of {f.row_sessions[i]}" for i, r in enumerate(f.rows)]
+            lines.append(f"      {named} {', '.join(where)} given zero weight")
         if f.sessions is not None:
             lines += session_lines(f.sessions)
         for ax in f.axes if f.sessions is None else ():

@@ -426,10 +426,15 @@ def determination(result: CalibrationResult, poses: PoseTable) -> Determination:
     )
 
 
-def names_of_rows(poses: PoseTable, rows: list[int]) -> list[str]:
-    """:func:`pose_name` of the poses with the given row (or interval) numbers."""
-    index = {int(r): k for k, r in enumerate(poses.rows)}
-    return [pose_name(poses, index[int(r)]) for r in rows]
+def outlier_names(poses: PoseTable, finding: Any) -> list[str]:
+    """:func:`pose_name` of an outlier finding's poses, with each one's session when several were stacked.
+
+    By their positions among the diagnosed poses (``pose_index``): file row numbers repeat
+    across the sessions of ``optcal diagnose A B C``.
+    """
+    sessions = finding.row_sessions
+    return [pose_name(poses, k) + ("" if sessions is None else f" of {sessions[i]}")
+            for i, k in enumerate(finding.pose_index or [])]
 
 
 def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
@@ -442,7 +447,7 @@ def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
         if effect == "outliers":
             rows = list(f.rows or [])
             out.append(EffectSize(effect, "", f"{len(rows)} poses given zero weight", float("nan"),
-                                  ", ".join(names_of_rows(poses, rows)), f.cause))
+                                  ", ".join(outlier_names(poses, f)), f.cause))
             continue
         for axis in f.axes:
             if effect == "session_bias":  # the sessions' biases: their range, the spread as the estimate
@@ -500,10 +505,9 @@ def gather(
                        f"{folds}-fold over poses, the paper's model by maximum likelihood")
         check = simulation_check(diagnosis.simulation)
         found = diagnosis.finding("outliers")
-        outlier_rows = list(found.rows or []) if found is not None else []
-        index = {int(r): k for k, r in enumerate(poses.rows)}
-        outliers = Outliers(names_of_rows(poses, outlier_rows), [],
-                            [float(diagnosis.baseline.residuals[index[int(r)]]) for r in outlier_rows], float("nan"),
+        at = list(found.pose_index or []) if found is not None else []
+        names = outlier_names(poses, found) if found is not None else []
+        outliers = Outliers(names, [], [float(diagnosis.baseline.residuals[k]) for k in at], float("nan"),
                             "the diagnosis's robust fit and deleted-residual test")
         effects = effect_sizes(diagnosis.findings, poses)
     else:
