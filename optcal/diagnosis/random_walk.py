@@ -140,7 +140,7 @@ def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray
             fold = estimator.fit(tr, theta0, session[train])
             walk.append(estimator.predict_heldout(tr, te, fold, session[train], session[test]))
             white.append(norm_residuals(*unpack_theta(estimator.white_fit(tr, theta0)), te.acc))
-    except (np.linalg.LinAlgError, InputError) as err:
+    except (np.linalg.LinAlgError, InputError, ValueError) as err:  # ValueError: a profile interval not bracketed
         return RandomWalkCheck(False, reason=f"the fit failed: {err}")
     g_per_raw = float(np.mean(np.abs(np.diag(T))))  # raw units → g (T maps raw to g)
     rms_white = float(np.sqrt(np.mean(np.concatenate(white) ** 2)))
