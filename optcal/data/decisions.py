@@ -370,7 +370,8 @@ def decide(
     try:
         found = decide_units(None, units, src.units_hint, src.units_reason, norm=ev.median_norm)
         # the samples are gathered (a copy) only for counts, whose nominal 1 g comes from them
-        one_g = nominal_conversion(found.units, _acc(src, ev.usable) if found.units == "counts" else None).sensitivity
+        one_g = nominal_conversion(found.units, _acc(src, ev.usable) if found.units == "counts" else None,
+                                   median_norm=ev.median_norm).sensitivity
     except InputError:  # refused below, once the kind is known
         one_g = ev.median_norm
     warnings: list[str] = []

@@ -179,7 +179,10 @@ def recording_from_source(
         _count(exclusions, DUPLICATED, int(np.sum(identical)))
         _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
     units = str(decisions.units.value)
-    nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
+    # the evidence's median norm is the one over these rows when no duplicate was set aside
+    same_rows = int(np.count_nonzero(usable)) == int(np.count_nonzero(ev.usable))
+    nominal = nominal_conversion(units, acc if usable.all() else acc[usable],
+                                 median_norm=ev.median_norm if same_rows else None)
     sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)

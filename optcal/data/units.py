@@ -297,7 +297,7 @@ class NominalConversion:
 UNSIGNED_16_MIDSCALE: float = 32768.0
 
 
-def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
+def nominal_conversion(units: str, acc: ArrayLike | None, *, median_norm: float | None = None) -> NominalConversion:
     """The "before calibration" conversion to g for data in ``units``.
 
     ``g`` and ``m/s^2`` use their exact unit factors with no offset.  Counts have no
@@ -311,6 +311,10 @@ def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
     units : str
     acc : array_like, shape (n, 3), or None
         Pose means (or samples) used to choose the counts baseline (required for counts only).
+    median_norm : float, optional
+        The median of ``‖acc‖`` over its finite rows when already computed (the evidence's,
+        :func:`optcal.data.decisions.gather_evidence`): used as the sensitivity when no mid-scale
+        offset is taken, instead of a second pass over the samples.
     """
     units = normalise_units(units)
     factor = to_g_factor(units)
@@ -328,6 +332,8 @@ def nominal_conversion(units: str, acc: ArrayLike | None) -> NominalConversion:
     if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(column_medians(a) - UNSIGNED_16_MIDSCALE) < 16384):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
-    # column by column: temporaries of one column, not of three
-    sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
+    if median_norm is not None and not offset.any():
+        sens = float(median_norm)
+    else:  # column by column: temporaries of one column, not of three
+        sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
