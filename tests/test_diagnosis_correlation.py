@@ -43,6 +43,28 @@ def test_banded_operator_equals_the_dense_inverse_and_determinant() -> None:
     assert op.logdet == pytest.approx(np.linalg.slogdet(R)[1], abs=1e-9)
 
 
+def test_operator_samples_noise_with_the_correlation_it_inverts() -> None:
+    """The simulations' noise (``sample``) has, along the poses' normals, the correlation ``R`` the
+    tests invert, and per axis ``(1 − ρ₀) I + ρ₀ K``; sessions are independent of each other."""
+    rng = np.random.default_rng(11)
+    n, draws = 10, 40_000
+    t = rng.permutation(np.sort(rng.uniform(0, 60, n)))
+    session = (np.arange(n) >= 6).astype(int)
+    d = unit_rows(rng, n)
+    op = CorrelationOperator.build(0.6, 8.0, t, session, d)
+    noise = op.sample(np.random.default_rng(5), draws)
+    assert noise.shape == (draws, n, 3)
+    along = np.einsum("skc,kc->sk", noise, d)
+    # sample covariances of unit-variance Gaussians: standard error ≤ √2/√draws ≈ 0.007; 0.03 is > 4 of them
+    assert np.abs(along.T @ along / draws - dense_correlation(0.6, 8.0, t, session, d)).max() < 0.03
+    K = np.exp(-np.abs(t[:, None] - t[None, :]) / 8.0) * (session[:, None] == session[None, :])
+    for axis in range(3):
+        x = noise[:, :, axis]
+        assert np.abs(x.T @ x / draws - (0.4 * np.eye(n) + 0.6 * K)).max() < 0.03
+    white = CorrelationOperator.build(0.0, 8.0, t, session, d).sample(np.random.default_rng(5), 4)
+    assert white.shape == (4, n, 3)
+
+
 def test_correlation_is_recovered_and_white_residuals_are_not_called_correlated() -> None:
     rng = np.random.default_rng(5)
     n = 600
@@ -152,3 +174,17 @@ def test_generalised_fit_with_independent_poses_is_the_weighted_least_squares_fi
     a, b = plain.fit(terms, outliers), generalised.fit(terms, outliers)
     assert np.allclose(b.x, a.x, rtol=0, atol=1e-8) and b.rss == pytest.approx(a.rss, rel=1e-8)
     assert np.allclose(generalised.covariance(b), plain.covariance(a), rtol=1e-6, atol=1e-14)
+
+
+def test_simulation_check_simulates_the_correlated_pose_noise_it_tests_under(tmp_path: Path) -> None:
+    """Seed 5002 of the issue-13 null family: simulated with independent poses, the band of the
+    residuals' correlation with a drift on x was too narrow for the correlated noise, and the
+    measured value fell outside it; simulated as the diagnosis's noise model says, it does not.
+    Over seeds 5000-5019 the statistics outside their 95 % band (rms aside) went from 9 to 6 of 320
+    and the median bootstrap coverage of the 95 % intervals from 94.3 % to 95.1 %."""
+    loaded, _ = gauss_markov_recording(tmp_path, None, 5002)
+    diag = Diagnoser(DiagnosisSettings(simulations=200)).run(loaded.poses, still_parts=loaded.segmentation)
+    assert diag.noise_model.correlation.used and diag.findings == []
+    assert "correlated between neighbouring poses" in diag.simulation.noise
+    assert [name for name in diag.simulation.outside_band if name != "rms_g"] == []
+    assert 0.92 <= diag.noise_model.coverage_extended <= 0.98

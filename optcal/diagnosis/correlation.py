@@ -71,6 +71,9 @@ class CorrelationOperator:
     a: float
     factor: NDArray[np.float64] | None
     logdet: float
+    #: ``φ_i = exp(−Δt_i/τ)`` between consecutive poses in :attr:`order` (0 across sessions): the
+    #: sampled Ornstein–Uhlenbeck process the simulations draw from (:meth:`sample`)
+    phi: NDArray[np.float64] | None = None
 
     @classmethod
     def build(cls, rho0: float, tau_s: float, t: NDArray, session: NDArray, directions: NDArray) -> "CorrelationOperator":
@@ -79,7 +82,7 @@ class CorrelationOperator:
         order = np.lexsort((t, session))
         d = directions[order]
         if rho0 <= 0:
-            return cls(order, d, 1.0, None, 0.0)
+            return cls(order, d, 1.0, None, 0.0, None)
         a = 1.0 - rho0
         gap = np.diff(t[order])
         same = np.diff(session[order]) == 0
@@ -102,7 +105,29 @@ class CorrelationOperator:
         logdet_m = 2.0 * float(np.sum(np.log(factor[3])))
         logdet_k = float(np.sum(np.log(one_minus)))
         logdet = logdet_m + 3 * n * np.log(rho0) + 3 * logdet_k + n * np.log(a)  # determinant lemma
-        return cls(order, d, a, factor, logdet)
+        return cls(order, d, a, factor, logdet, phi)
+
+    def sample(self, rng: np.random.Generator, draws: int = 1) -> NDArray[np.float64]:
+        """Unit-variance noise of every pose's three axes with this correlation: shape ``(draws, n, 3)``.
+
+        Per axis, ``√(1 − ρ₀) ε_k + √ρ₀ x_k`` with ``x`` the Ornstein–Uhlenbeck process sampled at
+        the pose times (``x_{i+1} = φ_i x_i + √(1 − φ_i²) η_i``, restarted in each session), so that
+        the noise along the poses' normals has the correlation ``R`` the tests assume; scaled by each
+        pose's σ it is the noise the diagnosis's model claims (simulation check, bootstrap).
+        """
+        n = self.order.size
+        white = rng.standard_normal((draws, n, 3))
+        if self.phi is None:
+            return white
+        steps = rng.standard_normal((n, draws, 3))
+        x = np.empty((n, draws, 3))
+        x[0] = steps[0]
+        gain = np.sqrt(1.0 - self.phi**2)
+        for i in range(1, n):  # in time order; φ = 0 starts a new session
+            x[i] = self.phi[i - 1] * x[i - 1] + gain[i - 1] * steps[i]
+        out = np.sqrt(self.a) * white
+        out[:, self.order] += np.sqrt(1.0 - self.a) * x.transpose(1, 0, 2)
+        return out
 
     def solve(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
         """``R⁻¹ X`` (rows of ``X`` in pose order; a vector or a matrix)."""

@@ -43,6 +43,7 @@ from optcal.diagnosis.correlation import PoseCorrelation, estimate_correlation
 from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, PoseData
 from optcal.diagnosis.progress import Loop, plain_loop
+from optcal.diagnosis.simulation import pose_noise
 from optcal.diagnosis.still_noise import MeasuredPoseNoise
 from optcal.poses import PoseTable
 
@@ -181,9 +182,11 @@ def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredP
 
 
 def covariance_absolute(fitter: Fitter, fit: Fit, data: PoseData | None = None) -> NDArray[np.float64]:
-    """Covariance of the free normalised parameters with the absolute weights (σ taken as known)."""
+    """Covariance of the free normalised parameters with the absolute weights (σ taken as known);
+    ``(Gᵀ R⁻¹ G)⁻¹`` under the fitter's pose-noise correlation when it has one."""
     G, _ = fitter.jacobians(fit, fitter.weights(fit), data)
-    return np.linalg.pinv(G.T @ G, rcond=1e-13, hermitian=True) / fitter.w_mean
+    info = G.T @ (G if fitter.correlation is None else fitter.correlation.solve(G))
+    return np.linalg.pinv(info, rcond=1e-13, hermitian=True) / fitter.w_mean
 
 
 def check_noise_model(fitter: Fitter, final: Fit, alpha: float, simulations: int, seed: int,
@@ -249,7 +252,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     hits = {"given": 0, "extended": 0}
     count = 0
     for _ in loop(range(simulations), "noise-model coverage", simulations):
-        acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
+        acc = clean + pose_noise(extended, rng) * sigma[:, None]
         data = PoseData.of(extended.norm.forward(acc), extended.reg)
         sim = extended.fit(fit.terms, fit.outliers, fit.x, data)
         error = np.abs(sim.x[:9] - truth)

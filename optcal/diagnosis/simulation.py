@@ -175,6 +175,15 @@ def residual_statistics(
     return out
 
 
+def pose_noise(fitter: Fitter, rng: np.random.Generator) -> NDArray[np.float64]:
+    """Unit-variance noise of every pose's axes (n, 3) as the diagnosis's noise model claims it: independent
+    poses, or correlated in time when the fitter tests under the pose-noise correlation
+    (:meth:`optcal.diagnosis.correlation.CorrelationOperator.sample`)."""
+    if fitter.correlation is None:
+        return rng.standard_normal((fitter.n, 3))
+    return fitter.correlation.sample(rng)[0]
+
+
 def simulation_check(
     fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], simulations: int, band: float, seed: int,
     loop: Loop = plain_loop,
@@ -195,8 +204,10 @@ def simulation_check(
     G, J = fitter.jacobians(fit, w)
     measured = residual_statistics(fitter, fit, fit.residuals, J, G, candidates)
     sims: dict[str, list[float]] = {k: [] for k in measured}
+    if fitter.correlation is not None:
+        noise += "; correlated between neighbouring poses as estimated (the pose-noise correlation in use)"
     for _ in loop(range(simulations), "simulation check", simulations):
-        acc = clean + rng.standard_normal((n, 3)) * sigma[:, None]
+        acc = clean + pose_noise(fitter, rng) * sigma[:, None]
         data = PoseData.of(fitter.norm.forward(acc), fitter.reg)
         sim_fit = fitter.fit(fit.terms, fit.outliers, fit.x, data)
         G_s, J_s = fitter.jacobians(sim_fit, w, data)
