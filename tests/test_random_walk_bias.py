@@ -79,6 +79,31 @@ def test_heldout_poses_are_predicted_better_with_the_walk():
     assert walk_rms < 0.5 * white_rms
 
 
+def test_the_still_parts_allan_deviation_bounds_and_resolves_the_rate_random_walk():
+    """The Allan side of the comparison: the bound ``K ≤ σ(τ)√(3/τ)`` on the analytic curve, and a rate
+    random walk resolved on a long still stretch (white 0.05 mg·√s, K = 0.01 mg/√s, 20 min at 100 Hz)."""
+    from optcal.diagnosis.random_walk import compare_with_allan
+    from optcal.diagnosis.still_noise import MeasuredPoseNoise
+    from optcal.yin2014.allan import NoiseParameters, allan_deviation, rate_random_walk_bound, simulate_noise
+
+    taus = 2.0 ** np.arange(-6, 8)
+    params = NoiseParameters(5e-5, 0.0, 1e-5, {}, True, 0.0, 1.0)
+    bound, at = rate_random_walk_bound(taus, params.model_adev(taus))
+    assert at == taus[-1] and bound == pytest.approx(np.sqrt(3 * 5e-5**2 / taus[-1] ** 2 + 1e-5**2), rel=1e-12)
+    rng = np.random.default_rng(2)
+    samples = np.column_stack([simulate_noise(120_000, 100.0, 5e-5, 0.0, 1e-5, rng) for _ in range(3)])
+    curves = [allan_deviation(samples[:, axis], 100.0) for axis in range(3)]
+    adev = np.sqrt(np.mean([c.adev**2 for c in curves], axis=0))
+    still = MeasuredPoseNoise(None, "a long still stretch", 1200.0, curves[0].taus, adev, curves)
+    agree = compare_with_allan(still, 1.1e-5, (0.7e-5, 1.6e-5), 1.0)
+    assert agree.K_allan_g is not None and agree.consistent
+    assert agree.K_allan_interval_g[0] <= 1e-5 <= agree.K_allan_interval_g[1]
+    assert not compare_with_allan(still, 1e-4, (0.7e-4, 1.6e-4), 1.0).consistent
+    bound_only = compare_with_allan(MeasuredPoseNoise(None, "pooled", 4.0, curves[0].taus[:6], adev[:6]),
+                                    1e-5, (0.7e-5, 1.6e-5), 1.0)
+    assert bound_only.K_allan_g is None and bound_only.consistent and bound_only.K_bound_g >= 1e-5
+
+
 def test_refusals():
     poses, _ = _session(0.0, 0)
     with pytest.raises(InputError, match="times"):
@@ -133,6 +158,18 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
     assert check.named
     assert 0.5 * K_g <= check.K_g <= 2 * K_g
     assert check.heldout_rms_walk_g < 0.9 * check.heldout_rms_white_g
+    # compared with the still parts' Allan deviation (38 intervals pooled, τ ≤ 20.5 s, no +½ slope): the log's
+    # own small K (0.0049 mg/√s) is within the bound it sets (0.012 mg/√s); the walk planted between the poses
+    # is not in the samples, so the still parts rule it out
+    for walk_check, consistent in ((plain, True), (check, False)):
+        allan = walk_check.allan
+        assert allan is not None and allan.K_allan_g is None and allan.consistent is consistent
+        assert 0.005e-3 < allan.K_bound_g < 0.05e-3
+        # the log's own K would rise above the curve only beyond its longest τ; the planted one well within it
+        assert (allan.tau_needed_s > allan.tau_max_s) is consistent
+    assert "bounds it at K ≤" in plain.text() and "several times that long" in plain.text()
+    assert "not the sensor's noise" in check.text() and "would show in it" in check.text()
+    assert planted.to_dict()["noise_model"]["random_walk"]["allan"]["consistent"] is False
 
 
 def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path):

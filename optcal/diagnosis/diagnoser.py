@@ -291,11 +291,12 @@ class Diagnoser:
             given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise, sessions=stack,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
-        noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by)
+        noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)
         return diagnosis
 
     @staticmethod
-    def random_walk(diagnosis: Diagnosis, alpha: float, measured_ratio: float | None) -> RandomWalkCheck:
+    def random_walk(diagnosis: Diagnosis, alpha: float, measured_ratio: float | None,
+                    still: MeasuredPoseNoise | None = None) -> RandomWalkCheck:
         """The random-walk bias tested about the final model: the named effects' share of each pose is
         taken out first (so the walk cannot re-explain a drift, a temperature term or a session's
         bias), and the outlier poses are left out."""
@@ -305,7 +306,7 @@ class Diagnoser:
         share = share + diagnosis.session_shift()
         subset = poses.with_acc(poses.acc - share).subset(np.flatnonzero(kept))
         session = None if diagnosis.sessions is None else diagnosis.sessions.session[kept]
-        return check_random_walk(subset, model.base.T_canonical, model.base.o, session, alpha, measured_ratio)
+        return check_random_walk(subset, model.base.T_canonical, model.base.o, session, alpha, measured_ratio, still)
 
 
 def diagnose(poses: PoseTable, baseline: LumpedCalibration | None = None,

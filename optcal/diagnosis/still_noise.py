@@ -36,6 +36,7 @@ from optcal.poses import PoseTable
 
 if TYPE_CHECKING:
     from optcal.data.static import Segmentation
+    from optcal.yin2014.allan import AllanCurve
 
 #: Why a pose table alone allows only the residual route.
 POSE_TABLE_ONLY = ("a pose table without raw samples: the noise of a pose mean cannot be measured, "
@@ -57,6 +58,9 @@ class MeasuredPoseNoise:
         Length of the still stretch(es) used, s (the longest per session).
     taus_s, adev : ndarray
         The pooled Allan deviation curve (raw units) of the (first) stretch.
+    curves : list of AllanCurve or None
+        Each axis's Allan curve (with its equivalent degrees of freedom) when the longest still
+        stretch alone was long enough; ``None`` for the pooled intervals.
     """
 
     sigma: NDArray[np.float64] | None
@@ -64,6 +68,7 @@ class MeasuredPoseNoise:
     stretch_s: float = 0.0
     taus_s: NDArray[np.float64] | None = None
     adev: NDArray[np.float64] | None = None
+    curves: "list[AllanCurve] | None" = None
 
     @property
     def measured(self) -> bool:
@@ -130,7 +135,8 @@ def pose_noise_from_still_parts(poses: PoseTable, segmentation: "Segmentation | 
     if reaches:
         source = (f"Allan deviation of the longest still stretch ({longest.duration_s:.3g} s, pose {longest.number}) "
                   "at each pose's dwell")
-        return MeasuredPoseNoise(mean_noise_at(taus, adev, dwell), source, float(longest.duration_s), taus, adev)
+        return MeasuredPoseNoise(mean_noise_at(taus, adev, dwell), source, float(longest.duration_s), taus, adev,
+                                 curves)
     spans = [(iv.start, iv.stop) for iv in segmentation.intervals]
     taus, adev = pooled_interval_adev(rec.acc, spans, rec.rate_hz)
     if taus.size == 0:
@@ -149,4 +155,4 @@ def stack_measured(parts: Sequence[MeasuredPoseNoise]) -> MeasuredPoseNoise:
         return MeasuredPoseNoise(None, missing[0])
     sigma = np.concatenate([p.sigma for p in parts if p.sigma is not None])
     return MeasuredPoseNoise(sigma, "per session: " + "; ".join(p.source for p in parts),
-                             min(p.stretch_s for p in parts), parts[0].taus_s, parts[0].adev)
+                             min(p.stretch_s for p in parts), parts[0].taus_s, parts[0].adev, parts[0].curves)

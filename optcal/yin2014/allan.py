@@ -321,6 +321,19 @@ class NoiseParameters:
         )
 
 
+def rate_random_walk_bound(taus: ArrayLike, adev: ArrayLike) -> tuple[float, float]:
+    """The largest rate random walk an Allan curve allows, and the τ that sets it.
+
+    Every noise term adds to the Allan variance, so the +½ line ``K² τ/3`` (the term of
+    :meth:`NoiseParameters.model_adev`) lies below the curve at every τ: ``K ≤ σ(τ) √(3/τ)``, the
+    tightest at the τ where that is least (usually the longest).  Returns ``(K_max, τ)``.
+    """
+    t, a = np.asarray(taus, dtype=float), np.asarray(adev, dtype=float)
+    bounds = a * np.sqrt(3.0 / t)
+    k = int(np.argmin(bounds))
+    return float(bounds[k]), float(t[k])
+
+
 def _design(taus: NDArray[np.float64], terms: list[int]) -> NDArray[np.float64]:
     """Columns of σ²(τ) = c_0/τ + c_1 + c_2 τ/3 for the chosen terms (0 = white, 1 = flicker, 2 = RRW)."""
     columns = (1.0 / taus, np.ones_like(taus), taus / 3.0)
