@@ -140,7 +140,10 @@ for title, key, loader in RECORDINGS:
     walk = ("—" if rw is None else f"not tested: {rw.reason}" if not rw.tested else
             f"{'named' if rw.named else 'not named'}: {rw.K_g * 1e3:.3g} ({rw.K_interval_g[0] * 1e3:.2g}–"
             f"{rw.K_interval_g[1] * 1e3:.2g}), p = {rw.p_value:.2g}; {rw.heldout_rms_white_g * 1e3:.3f} → "
-            f"{rw.heldout_rms_walk_g * 1e3:.3f}")
+            f"{rw.heldout_rms_walk_g * 1e3:.3f}" + ("" if rw.allan is None else
+            f"; still parts: K ≤ {rw.allan.K_bound_g * 1e3:.2g} ({'consistent' if rw.allan.consistent else 'inconsistent'})"
+            if rw.allan.K_allan_g is None else
+            f"; still parts: K = {rw.allan.K_allan_g * 1e3:.2g} ({'consistent' if rw.allan.consistent else 'inconsistent'})"))
     summary.append(f"| {title} | {poses.n} | {diag.baseline_rms() * 1e3:.3f} / {diag.baseline_heldout_rms() * 1e3:.3f} | "
                    f"{found} | {limits_text(diag)} | {diag.gain():.2f} | {noise} | {measured} | {walk} |")
 
@@ -183,7 +186,9 @@ if xs is not None:
                  f"held-out poses at {rw.heldout_rms_walk_g * 1e3:.3f} mg rms against {rw.heldout_rms_white_g * 1e3:.3f} mg "
                  f"for the white-noise calibration ({rw.folds}-fold in time) — "
                  + ("named: the excess is consistent with bias instability at the scale of minutes." if rw.named
-                    else "not named: once the time term is in, what remains does not behave as a walk."))
+                    else "not named: once the time term is in, what remains does not behave as a walk.")
+                 + ("" if rw.allan is None else f" Compared with the rate random walk `optcal allan` reads: "
+                    f"{rw.allan.text(rw.K_g)}."))
     report.append(text)
 mik = [results[k] for k in (f"mikoff_imu{i}" for i in range(5)) if k in results]
 if mik:

@@ -9,7 +9,9 @@ A term is added when
 * it lowers the BIC (``n log(RSS/n) + p log n``);
 * it lowers the held-out rms (k-fold).
 
-Among the candidates passing the first two, the best BIC is tried first.  A term's polynomial
+Among the candidates passing the first two, the best BIC is tried first, except that among term
+candidates within :data:`BIC_TIE` of it the one with the fewest coefficients goes first
+(:func:`preference_order`).  A term's polynomial
 order is raised (one coefficient at a time, same tests) where the data support it.  A time term
 that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
 order its higher coefficients do not significantly improve on (F test at the level it entered
@@ -48,6 +50,31 @@ BIC_TIE: float = 6.0
 DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
 #: Residual degrees of freedom a candidate's test must keep (the current model plus the candidate).
 MIN_DOF: int = 10
+
+
+def coefficient_count(c: "Candidate") -> int:
+    """Coefficients a term candidate adds (its polynomial order; a session bias, one per session after the
+    first; outliers, one per pose)."""
+    if c.order is not None:
+        return int(c.order)
+    return len(c.rows) if c.rows is not None else 1
+
+
+def preference_order(significant: list["Candidate"]) -> list["Candidate"]:
+    """The order in which a step tries its significant candidates: the best BIC first, except that among the
+    term candidates within :data:`BIC_TIE` of the best (evidence the data cannot call strong, Kass &
+    Raftery 1995) the one with the fewest coefficients goes first, as the one-standard-error rule picks the
+    simplest model the data do not reject.  A warm-up seen by a temperature channel is one temperature
+    coefficient; a cubic in time mimics the same rise and fall with three, and wins on BIC only by fitting
+    some noise as well (the Gauss–Markov family of the issue-13 study: 5 of 100 recordings at 3× the
+    detection limit named a cubic drift instead of the planted temperature bias, ΔBIC 2 apart)."""
+    if not significant:
+        return []
+    best = min(c.delta_bic for c in significant)
+    tied = [c for c in significant if c.order is not None and c.delta_bic < best + BIC_TIE]
+    first = sorted(tied, key=lambda c: (coefficient_count(c), c.delta_bic))
+    taken = {id(c) for c in first}
+    return first + sorted((c for c in significant if id(c) not in taken), key=lambda c: c.delta_bic)
 
 
 @dataclass
@@ -242,7 +269,7 @@ class ForwardSelection:
                         rows=[int(fitter.poses.rows[k]) for k in sorted(found.poses)], fit=found.fit,
                     ))
             accepted = None
-            for c in sorted((c for c in tried if c.significant), key=lambda c: c.delta_bic):
+            for c in preference_order([c for c in tried if c.significant]):
                 assert c.fit is not None
                 mask = c.fit.kept(fitter.n)
                 c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
