@@ -496,14 +496,13 @@ class AllanAnalysis:
         }
         for axis, p in self.si_parameters().items():
             curve = self.curves[axis]
-            k_bound = curve.adev * np.sqrt(3.0 / curve.taus)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
-            at = int(np.argmin(k_bound))
+            k_bound, at_tau = rate_random_walk_bound(curve.taus, curve.adev)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
             out[axis] = {
                 "velocity_random_walk": p.velocity_random_walk,
                 "bias_instability": p.bias_instability,
                 "rate_random_walk": p.rate_random_walk,
-                "rate_random_walk_upper_bound": float(k_bound[at]) * self.si_per_unit,
-                "rate_random_walk_bound_tau_s": float(curve.taus[at]),
+                "rate_random_walk_upper_bound": k_bound * self.si_per_unit,
+                "rate_random_walk_bound_tau_s": at_tau,
                 "ci": {**p.ci, "bias_instability_is_upper_bound": p.bias_instability_bound},
                 "notes": p.notes,
             }
