@@ -208,3 +208,6 @@ def test_a_warm_up_seen_by_the_temperature_channel_is_named_as_temperature_not_a
     first = diag.steps[0]
     rival = min((c for c in first.candidates if c.effect == "bias_drift" and c.significant), key=lambda c: c.delta_bic)
     assert rival.delta_bic < first.accepted.delta_bic  # the cubic had the better BIC, within the tie
+    (decision,) = diag.decisions  # and the report says so, with the rival at its order
+    assert decision.other == "bias_drift" and decision.other_order == rival.order
+    assert f"bias_drift({truth.axis}, order {rival.order}) fits a shade better" in decision.text

@@ -157,6 +157,9 @@ class TemperatureTimeDecision:
     temperature_time_correlation: float | None = None
     p_other_given_chosen: float | None = None
     text: str = ""
+    #: Polynomial orders of the chosen term and of its rival (a rise and fall in time enters at order 2-3)
+    chosen_order: int = 1
+    other_order: int = 1
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -313,14 +316,20 @@ class ForwardSelection:
                 return
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
-        """Temperature vs time on the same axis: both significant in the step that chose one."""
-        if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order != 1:
+        """Temperature vs time on the same axis: both significant in the step that chose one (each rival
+        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3)."""
+        if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order is None:
             return []
         rivals = ("bias_drift",) if accepted.effect != "bias_drift" else ("temperature_bias", "temperature_scale")
+        best: dict[str, Candidate] = {}
+        for c in tried:
+            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < self.alpha_terms
+                    and (c.effect not in best or c.delta_bic < best[c.effect].delta_bic)):
+                best[c.effect] = c
         return [
-            TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic)
-            for c in tried
-            if c.effect in rivals and c.axis == accepted.axis and c.order == 1 and c.p_value < self.alpha_terms
+            TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic,
+                                    chosen_order=int(accepted.order), other_order=int(c.order or 1))
+            for c in best.values()
         ]
 
     def explain(self, final: Fit, rivalries: list[TemperatureTimeDecision]) -> list[TemperatureTimeDecision]:
@@ -330,29 +339,38 @@ class ForwardSelection:
         for r in rivalries:
             key = (r.other, AXES.index(r.axis))
             gap = r.delta_bic_other - r.delta_bic_chosen
+            other = describe_term(r.other, key[1], r.other_order)
+            chosen = describe_term(r.chosen, key[1], r.chosen_order)
             if key in final.terms:
                 given = "both are in the final model: each explains something the other does not"
             else:
                 terms = dict(final.terms)
-                terms[key] = 1
+                terms[key] = r.other_order
                 r.p_other_given_chosen = fitter.f_test(final, fitter.fit(terms, final.outliers, final.x))
                 given = (
-                    f"with {r.chosen} in the model, {r.other} adds nothing significant (p = {r.p_other_given_chosen:.2g})"
+                    f"with {chosen} in the model, {other} adds nothing significant (p = {r.p_other_given_chosen:.2g})"
                     if r.p_other_given_chosen >= self.alpha_terms else
-                    f"even with {r.chosen} in the model, {r.other} still explains more (p = {r.p_other_given_chosen:.2g})"
+                    f"even with {chosen} in the model, {other} still explains more (p = {r.p_other_given_chosen:.2g})"
                 )
             r.temperature_time_correlation = corr
             corr_txt = f"temperature and time correlate (r = {corr:+.2f})" if corr is not None else ""
-            if gap < BIC_TIE and corr is not None and abs(corr) > 0.9:
+            if gap < 0:  # kept within the BIC tie as the term with fewer coefficients (preference_order)
                 r.text = (
-                    f"axis {r.axis}: {r.chosen} and {r.other} cannot be told apart from this recording "
-                    f"({corr_txt}; ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f}); {r.chosen} "
+                    f"axis {r.axis}: temperature or time? both explain the change on their own ({corr_txt}); "
+                    f"{other} fits a shade better (ΔBIC {r.delta_bic_other:+.1f} vs {r.delta_bic_chosen:+.1f}) with "
+                    f"more coefficients, so the simpler {chosen} was kept (a difference under {BIC_TIE:g} is not strong "
+                    f"evidence), and {given}; a temperature profile that does not follow time would separate them"
+                )
+            elif gap < BIC_TIE and corr is not None and abs(corr) > 0.9:
+                r.text = (
+                    f"axis {r.axis}: {chosen} and {other} cannot be told apart from this recording "
+                    f"({corr_txt}; ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f}); {chosen} "
                     "was kept by a small margin: record a temperature profile that is not monotone in time to separate them"
                 )
             else:
                 r.text = (
                     f"axis {r.axis}: temperature or time? both explain the change on their own ({corr_txt}); "
-                    f"{r.chosen} explains it better (ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f} "
-                    f"for {r.other}), and {given}"
+                    f"{chosen} explains it better (ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f} "
+                    f"for {other}), and {given}"
                 )
         return rivalries
