@@ -5,7 +5,7 @@ Run on demand (not part of the default test run)::
     /work/venv/bin/pytest benchmarks/bench_diagnose.py --benchmark-only
 
 Targets (issue 13): 2,000 poses (200 simulations, 10-fold held-out errors, forward selection over
-every candidate, the noise-model check) in ≤ 20 s and ≤ 1.5 GB of peak memory; 10⁴ poses in
+every candidate, the noise-model check, the random-walk bias with its 5-fold held-out check) in ≤ 20 s and ≤ 1.5 GB of peak memory; 10⁴ poses in
 ≤ 2 min; 120 poses well under 10 s in a warm process; ``optcal demo`` (a 100 Hz recording of
 28,600 samples built, segmented, diagnosed and told) well under a minute as a new process.  The
 large sizes run in a fresh process each, so the peak resident memory measured is theirs alone.

@@ -36,10 +36,9 @@ the detection limits (``(Gᵀ R⁻¹ G)⁻¹``) hold under the correlation.  Out
 mean-shift terms (an indicator column each).
 
 **Computation.**  ``K⁻¹`` of an Ornstein–Uhlenbeck process sampled at sorted times is
-tridiagonal (the process is Markov), so with the three axes of each pose interleaved,
-``R⁻¹ = (I − D M⁻¹ Dᵀ/a)/a`` (Woodbury; ``a = 1 − ρ₀``, ``M = K⁻¹ ⊗ I₃/ρ₀ + blockdiag(d_k d_kᵀ)/a``)
-needs one banded Cholesky factor of ``M`` (bandwidth 3): linear in the number of poses, 10⁴
-poses included.
+tridiagonal (the process is Markov), so ``R⁻¹`` and ``log det R`` need one banded Cholesky
+factor (:mod:`optcal.chain_covariance`, shared with the random-walk bias): linear in the number of
+poses, 10⁴ poses included.
 """
 
 from __future__ import annotations
@@ -49,7 +48,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg, optimize, stats as sps
+from scipy import optimize, stats as sps
+
+from optcal.chain_covariance import ChainCovariance, MarkovChain
 
 #: Largest ρ₀ (``R`` must stay positive definite: ``1 − ρ₀`` is its smallest possible eigenvalue).
 MAX_RHO: float = 0.95
@@ -64,12 +65,15 @@ MIN_POSES: int = 20
 
 @dataclass
 class CorrelationOperator:
-    """``R⁻¹`` of one ``(ρ₀, τ)`` applied by a banded Cholesky factor (module docstring, *Computation*)."""
+    """``R⁻¹`` of one ``(ρ₀, τ)``, applied in linear time (module docstring, *Computation*).
+
+    ``R = (1 − ρ₀) I + U (K ⊗ I₃) Uᵀ`` with ``u_k = √ρ₀ d_k``: white noise plus the pose noise
+    shared along the sampled Ornstein–Uhlenbeck chain (:class:`optcal.chain_covariance.ChainCovariance`).
+    """
 
     order: NDArray[np.intp]
-    directions: NDArray[np.float64]
     a: float
-    factor: NDArray[np.float64] | None
+    covariance: ChainCovariance | None
     logdet: float
     #: ``φ_i = exp(−Δt_i/τ)`` between consecutive poses in :attr:`order` (0 across sessions): the
     #: sampled Ornstein–Uhlenbeck process the simulations draw from (:meth:`sample`)
@@ -80,32 +84,19 @@ class CorrelationOperator:
         """The operator of ``R`` for poses at times ``t`` in ``session`` with unit normals ``directions``."""
         n = t.size
         order = np.lexsort((t, session))
-        d = directions[order]
         if rho0 <= 0:
-            return cls(order, d, 1.0, None, 0.0, None)
+            return cls(order, 1.0, None, 0.0, None)
         a = 1.0 - rho0
         gap = np.diff(t[order])
         same = np.diff(session[order]) == 0
         phi = np.where(same, np.exp(-np.maximum(gap, 0.0) / tau_s), 0.0)
         phi = np.minimum(phi, 1.0 - 1e-9)
-        one_minus = 1.0 - phi**2
-        # K⁻¹ of the sampled Ornstein–Uhlenbeck process: x_{i+1} = φ_i x_i + √(1 − φ_i²) ε_i
-        diag = np.ones(n)
-        diag[1:] = 1.0 / one_minus
-        diag[:-1] += phi**2 / one_minus
-        off = -phi / one_minus
-        # M in upper banded storage, index 3k + axis; band 3 (the same axis of the next pose)
-        m = 3 * n
-        ab = np.zeros((4, m))
-        ab[3] = np.repeat(diag, 3) / rho0 + (d**2).ravel() / a
-        ab[2, 1:] = np.stack([d[:, 0] * d[:, 1], d[:, 1] * d[:, 2], np.zeros(n)], axis=1).ravel()[:-1] / a
-        ab[1, 2:] = np.stack([d[:, 0] * d[:, 2], np.zeros(n), np.zeros(n)], axis=1).ravel()[:-2] / a
-        ab[0, 3:] = np.repeat(off, 3) / rho0
-        factor = linalg.cholesky_banded(ab, lower=False, check_finite=False)
-        logdet_m = 2.0 * float(np.sum(np.log(factor[3])))
-        logdet_k = float(np.sum(np.log(one_minus)))
-        logdet = logdet_m + 3 * n * np.log(rho0) + 3 * logdet_k + n * np.log(a)  # determinant lemma
-        return cls(order, d, a, factor, logdet, phi)
+        # the sampled Ornstein–Uhlenbeck process: x_{i+1} = φ_i x_i + √(1 − φ_i²) ε_i, unit variance
+        chain = MarkovChain(phi, np.concatenate([[1.0], 1.0 - phi**2]))
+        state = np.empty(n, dtype=np.intp)
+        state[order] = np.arange(n)
+        cov = ChainCovariance(np.full(n, a), np.sqrt(rho0) * np.asarray(directions, dtype=float), state, chain)
+        return cls(order, a, cov, cov.logdet, phi)
 
     def sample(self, rng: np.random.Generator, draws: int = 1) -> NDArray[np.float64]:
         """Unit-variance noise of every pose's three axes with this correlation: shape ``(draws, n, 3)``.
@@ -131,16 +122,9 @@ class CorrelationOperator:
 
     def solve(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
         """``R⁻¹ X`` (rows of ``X`` in pose order; a vector or a matrix)."""
-        if self.factor is None:
+        if self.covariance is None:
             return np.array(X, dtype=float, copy=True)
-        vector = X.ndim == 1
-        Y = (X[:, None] if vector else X)[self.order]
-        n, cols = Y.shape
-        DtY = (self.directions[:, :, None] * Y[:, None, :]).reshape(3 * n, cols)
-        Z = linalg.cho_solve_banded((self.factor, False), DtY / self.a, check_finite=False).reshape(n, 3, cols)
-        out = np.empty_like(Y)
-        out[self.order] = (Y - np.einsum("ka,kac->kc", self.directions, Z)) / self.a
-        return out[:, 0] if vector else out
+        return self.covariance.solve(X)
 
 
 def restricted_deviance(op: CorrelationOperator, e: NDArray, G: NDArray) -> float:

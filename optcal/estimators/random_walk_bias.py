@@ -22,9 +22,10 @@ where ``W⁻¹`` holds each pose's white-noise variance in g² (``(σ_k ‖h_k�
 ``σ``, else 1) and ``s²`` is a free noise scale (profiled out: ``ŝ² = rᵀ V⁻¹ r / n``), so the
 white noise is not assumed to be what ``σ/√n`` says.  For fixed ``λ`` the calibration is a
 generalised least-squares problem, solved by Gauss–Newton from the baseline fit; ``λ`` is found
-by maximising the profile likelihood ``−½ (n log ŝ² + log det V)`` over ``log λ``.  The same
-likelihood as a Kalman filter over the poses in time order would be O(n); the dense form is
-O(n³) and exact, and is used up to :data:`MAX_POSES` poses (a hand-held session has 20–100).
+by maximising the profile likelihood ``−½ (n log ŝ² + log det V)`` over ``log λ``.  The walk is a
+Markov chain in time, so ``V⁻¹``, ``log det V`` and the smoothed walk take one banded factorisation
+(:mod:`optcal.chain_covariance`: the Kalman filter's likelihood and the Rauch–Tung–Striebel
+smoother, exact): linear in the number of poses, 10⁴ poses included.
 
 **Test of ``q = 0``.**  ``λ = 0`` is on the boundary of the parameter space, so the
 likelihood-ratio statistic is distributed as ``½χ²₀ + ½χ²₁`` under the null (Self & Liang 1987,
@@ -41,14 +42,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg, optimize, stats
+from scipy import optimize, stats
 
+from optcal.chain_covariance import ChainCovariance, MarkovChain
 from optcal.errors import InputError
 from optcal.norm_residual import NormResidualKernel
 from optcal.poses import PoseTable
 
-#: Most poses the dense likelihood takes (its cost grows as n³: 0.1 s at 1,000 poses per evaluation).
-MAX_POSES: int = 1500
 #: Search range of ``log10 λ`` relative to the white-noise scale over the recording's duration.
 LOG_LAMBDA_RANGE: tuple[float, float] = (-8.0, 8.0)
 #: Gauss–Newton steps of the generalised least-squares fit at one ``λ``.
@@ -103,15 +103,57 @@ class RandomWalkBiasFit:
         return float(np.sqrt(np.mean(np.sum(centred**2, axis=1))))
 
 
-def _brownian_covariance(t: NDArray, session: NDArray) -> NDArray[np.float64]:
-    """``B_kj = min(t_k, t_j) − t_0`` within a session (its first pose's time ``t_0``), 0 between sessions."""
-    start = np.zeros_like(t)
+def brownian_states(t: NDArray, session: NDArray) -> tuple[NDArray[np.intp], MarkovChain]:
+    """The walk's states and their chain at unit intensity (``q = 1``).
+
+    Each distinct time of a session after its first pose's time ``t_0`` is a state (poses recorded
+    at the same time share it); poses at ``t_0`` see none (the walk is 0 there: its start is the
+    offset).  Within a session ``x_{i+1} = x_i + √(t_{i+1} − t_i) ε``, the first state restarting
+    with variance ``t_1 − t_0``: ``cov = min(t_k, t_j) − t_0`` (module docstring).
+
+    Returns
+    -------
+    state : ndarray of int, shape (n,)
+        The state of each pose (``−1`` at its session's start).
+    chain : MarkovChain
+    """
+    t = np.asarray(t, dtype=float)
+    session = np.asarray(session)
+    order = np.lexsort((t, session))
+    ts, ss = t[order], session[order]
+    new_session = np.r_[True, ss[1:] != ss[:-1]]
+    start = ts[new_session][np.cumsum(new_session) - 1]
+    new_time = np.r_[True, new_session[1:] | (ts[1:] != ts[:-1])]
+    group = np.cumsum(new_time) - 1  # distinct (session, time) of each pose in order
+    g_time = ts[new_time]
+    g_start = start[new_time]
+    is_state = g_time != g_start
+    state_of_group = np.where(is_state, np.cumsum(is_state) - 1, -1)
+    # a state's predecessor is the previous time of its session (its start's group included: a restart)
+    q = np.diff(g_time, prepend=np.nan)[is_state]
+    restart = ~np.r_[False, is_state[:-1]]
+    phi = np.where(restart[is_state][1:], 0.0, 1.0)
+    state = np.empty(t.size, dtype=np.intp)
+    state[order] = state_of_group[group]
+    return state, MarkovChain(phi, q)
+
+
+def _session_start(t: NDArray, session: NDArray) -> NDArray[np.float64]:
+    """The first pose's time of each pose's session."""
+    start = np.empty_like(t)
     for s in np.unique(session):
-        m = session == s
-        start[m] = t[m].min()
-    elapsed = t - start
-    B = np.minimum(elapsed[:, None], elapsed[None, :])
-    return np.where(session[:, None] == session[None, :], B, 0.0)
+        start[session == s] = t[session == s].min()
+    return start
+
+
+def _brownian_covariance(t: NDArray, session: NDArray) -> NDArray[np.float64]:
+    """``B_kj = min(t_k, t_j) − t_0`` within a session (its first pose's time ``t_0``), 0 between sessions (dense)."""
+    state, chain = brownian_states(t, session)
+    P = chain.covariance() if chain.size else np.zeros((0, 0))
+    B = np.zeros((t.size, t.size))
+    seen = state >= 0
+    B[np.ix_(seen, seen)] = P[np.ix_(state[seen], state[seen])]
+    return B
 
 
 class RandomWalkBias:
@@ -125,24 +167,18 @@ class RandomWalkBias:
         the recording's still parts).  With few poses the two are hard to tell apart: a walk
         whose steps are as large as the white noise explains white noise too, and the
         profiled likelihood then drifts toward a walk without white noise.  Fix it when it is known.
-    max_poses : int
-        Largest pose table accepted (the dense likelihood is O(n³)).
     """
 
-    def __init__(self, noise_scale: float | None = None, max_poses: int = MAX_POSES) -> None:
+    def __init__(self, noise_scale: float | None = None) -> None:
         if noise_scale is not None and not noise_scale > 0:
             raise InputError(f"noise_scale must be positive or None, not {noise_scale}")
         self.noise_scale = noise_scale
-        self.max_poses = max_poses
 
     # -- the pieces ---------------------------------------------------------------------------
     def _setup(self, poses: PoseTable, session: ArrayLike | None) -> tuple[NDArray, NDArray, NDArray]:
         if poses.t is None:
             raise InputError("a random-walk bias needs the poses' times: the pose table has no t column")
         n = poses.acc.shape[0]
-        if n > self.max_poses:
-            raise InputError(f"{n} poses are more than the dense random-walk likelihood takes ({self.max_poses}); "
-                             "pass fewer poses or raise max_poses")
         sess = np.zeros(n, dtype=int) if session is None else np.asarray(session, dtype=int)
         t = np.asarray(poses.t, dtype=float)
         sigma = np.ones(n) if poses.sigma is None else np.asarray(poses.sigma, dtype=float)
@@ -153,48 +189,51 @@ class RandomWalkBias:
         """Each pose's white-noise variance of the norm residual, g² (1 when ``σ`` is not known)."""
         return (sigma * point.normal_gain()) ** 2 if known else np.ones_like(sigma)
 
-    def _gls(self, kernel: NormResidualKernel, theta: NDArray, lam: float, B: NDArray, sigma: NDArray,
-             known: bool) -> tuple[NDArray, float, NDArray, NDArray]:
+    def _gls(self, kernel: NormResidualKernel, theta: NDArray, lam: float, walk: tuple[NDArray, MarkovChain],
+             sigma: NDArray, known: bool) -> tuple[NDArray, float, ChainCovariance, NDArray]:
         """Gauss–Newton GLS at fixed ``λ``: θ, the profile −2 log-likelihood, ``V`` and the residuals."""
-        n = B.shape[0]
+        n = sigma.size
         for _ in range(GN_STEPS):
             point = kernel.at_theta(theta)
-            V = self._covariance(point, lam, B, sigma, known)
-            cho = linalg.cho_factor(V, lower=True)
+            V = self._covariance(point, lam, walk, sigma, known)
             J = point.jacobian().T  # (n, 9)
             r = point.residuals
-            VJ = linalg.cho_solve(cho, J)
+            VJ = V.solve(J)
             step = np.linalg.solve(J.T @ VJ, -(VJ.T @ r))
             theta = theta + step
             if np.max(np.abs(step)) < 1e-12 * max(1.0, np.max(np.abs(theta))):
                 break
         point = kernel.at_theta(theta)
-        V = self._covariance(point, lam, B, sigma, known)
-        cho = linalg.cho_factor(V, lower=True)
+        V = self._covariance(point, lam, walk, sigma, known)
         r = point.residuals
-        quad = float(r @ linalg.cho_solve(cho, r))
-        logdet = 2.0 * float(np.sum(np.log(np.diag(cho[0]))))
+        quad = float(r @ V.solve(r))
         if self.noise_scale is not None:  # −2 log L with s² fixed (constant 2π terms dropped)
             s2 = self.noise_scale**2
-            return theta, quad / s2 + n * np.log(s2) + logdet, V, r
-        return theta, n * np.log(max(quad / n, 1e-300)) + logdet, V, r  # s² profiled: ŝ² = rᵀV⁻¹r / n
+            return theta, quad / s2 + n * np.log(s2) + V.logdet, V, r
+        return theta, n * np.log(max(quad / n, 1e-300)) + V.logdet, V, r  # s² profiled: ŝ² = rᵀV⁻¹r / n
 
-    def _covariance(self, point, lam: float, B: NDArray, sigma: NDArray, known: bool) -> NDArray[np.float64]:
-        """``V = W⁻¹ + λ (H Hᵀ ∘ B)`` (module docstring)."""
+    def _covariance(self, point, lam: float, walk: tuple[NDArray, MarkovChain], sigma: NDArray,
+                    known: bool) -> ChainCovariance:
+        """``V = W⁻¹ + λ (H Hᵀ ∘ B)`` (module docstring), in linear time (:mod:`optcal.chain_covariance`).
+
+        The walk is the chain's state; pose ``k`` sees it along ``−h_k`` (a bias ``b`` moves the
+        residual by ``−h_kᵀ b``; Lu 2017, eq. 16), so the smoothed states are the bias itself.
+        """
+        state, chain = walk
         H = point.bias_jacobian()  # (3, n): ∂r_k/∂b (Lu 2017, eq. 16)
-        V = lam * (H.T @ H) * B
-        V[np.diag_indices_from(V)] += self._white_variance(point, sigma, known)
-        return V
+        return ChainCovariance(self._white_variance(point, sigma, known), -H.T, state,
+                               chain.scaled(lam) if lam > 0 else None)
 
     def white_fit(self, poses: PoseTable, theta0: ArrayLike) -> NDArray[np.float64]:
         """θ of the calibration without a walk (``q = 0``: weighted least squares with the table's σ)."""
         t, sess, sigma = self._setup(poses, None)
         theta, _, _, _ = self._gls(NormResidualKernel(poses.acc), np.asarray(theta0, dtype=float).ravel()[:9], 0.0,
-                                   np.zeros((t.size, t.size)), sigma, poses.sigma is not None)
+                                   brownian_states(t, sess), sigma, poses.sigma is not None)
         return theta
 
     # -- the fit --------------------------------------------------------------------------------
-    def fit(self, poses: PoseTable, theta0: ArrayLike, session: ArrayLike | None = None) -> RandomWalkBiasFit:
+    def fit(self, poses: PoseTable, theta0: ArrayLike, session: ArrayLike | None = None,
+            interval: bool = True) -> RandomWalkBiasFit:
         """Fit ``(T, o, q)`` by maximum likelihood with the walk integrated out.
 
         Parameters
@@ -206,23 +245,29 @@ class RandomWalkBias:
             :func:`optcal.model.theta_from`), the start.
         session : array_like of int, optional
             Session of each pose (the walk restarts in each).
+        interval : bool
+            Compute ``K``'s profile-likelihood interval (``False``: ``(nan, nan)``; a held-out fold
+            needs only the estimate).
         """
         t, sess, sigma = self._setup(poses, session)
         known = poses.sigma is not None
         kernel = NormResidualKernel(poses.acc)
-        B = _brownian_covariance(t, sess)
+        walk = brownian_states(t, sess)
+        span = float(np.max(t - _session_start(t, sess)))
         theta0 = np.asarray(theta0, dtype=float).ravel()[:9]
         # λ's natural unit: the white variance over the bias variance one raw unit² s⁻¹ gives in a session
         point0 = kernel.at_theta(theta0)
         white = float(np.median(self._white_variance(point0, sigma, known)))
         gain2 = float(np.median(np.sum(point0.bias_jacobian() ** 2, axis=0)))
-        unit = white / (gain2 * max(float(np.max(B)), 1e-12))
-        theta_white, m2ll_white, _, _ = self._gls(kernel, theta0, 0.0, B, sigma, known)
+        unit = white / (gain2 * max(span, 1e-12))
+        theta_white, m2ll_white, _, _ = self._gls(kernel, theta0, 0.0, walk, sigma, known)
 
         cache: dict[float, tuple[NDArray, float]] = {}
 
         def profile(log_lam: float) -> float:
-            th, m2ll, V, r = self._gls(kernel, theta_white, unit * 10.0**log_lam, B, sigma, known)
+            # warm start from the nearest λ already solved (the profile is evaluated along log λ)
+            start = cache[min(cache, key=lambda g: abs(g - log_lam))][0] if cache else theta_white
+            th, m2ll, V, r = self._gls(kernel, start, unit * 10.0**log_lam, walk, sigma, known)
             cache[log_lam] = (th, m2ll)
             # K at this λ, with the noise scale profiled at it: q = λ ŝ²(λ)
             K_at[log_lam] = float(np.sqrt(unit * 10.0**log_lam * self._scale2(V, r)))
@@ -245,38 +290,34 @@ class RandomWalkBias:
         lr = max(m2ll_white - m2ll, 0.0)
         p = 0.5 * float(stats.chi2.sf(lr, 1)) if lr > 0 else 1.0  # Self & Liang 1987: ½χ²₀ + ½χ²₁
 
-        # the smoothed walk and the noise scale at the optimum
+        # the smoothed walk and the noise scale at the optimum (the chain's states are the bias / s)
         point = kernel.at_theta(theta)
-        V = self._covariance(point, lam, B, sigma, known)
-        cho = linalg.cho_factor(V, lower=True)
+        V = self._covariance(point, lam, walk, sigma, known)
         r = point.residuals
         n = r.size
         s2 = self._scale2(V, r)
         q = lam * s2
         H = point.bias_jacobian()  # (3, n)
-        alpha = linalg.cho_solve(cho, r)
         track = np.zeros((n, 3))
         sd = np.zeros((n, 3))
         if q > 0:
-            # E[b_k | r] = −q Σ_j B_kj h_j (C⁻¹ r)_j, C = s² V; cov(b_k, r) rows give the variance reduction
-            track = -(lam * B) @ (H.T * alpha[:, None])
-            for axis in range(3):
-                G = lam * B * H[axis][None, :]  # cov(b_k,axis, r_j) / s²
-                reduction = np.einsum("kj,kj->k", G, linalg.cho_solve(cho, G.T).T)
-                sd[:, axis] = np.sqrt(np.clip(s2 * (lam * np.diag(B) - reduction), 0.0, None))
+            state = walk[0]
+            seen = state >= 0
+            track[seen] = V.state_mean(r)[state[seen]]  # E[b_k | r] (s² cancels)
+            sd[seen] = np.sqrt(np.clip(s2 * V.state_variance()[state[seen]], 0.0, None))
         residuals = r + np.einsum("ik,ki->k", H, track)  # the walk's share −h_kᵀ b_k taken out
-        interval = self._interval(profile, K_at, m2ll, log_lam, m2ll_white)
+        bounds = self._interval(profile, K_at, m2ll, log_lam, m2ll_white) if interval else (float("nan"), float("nan"))
         return RandomWalkBiasFit(
-            theta=theta, q=q, K=float(np.sqrt(q)), K_interval=interval, noise_scale=float(np.sqrt(s2)),
+            theta=theta, q=q, K=float(np.sqrt(q)), K_interval=bounds, noise_scale=float(np.sqrt(s2)),
             log_likelihood=-0.5 * m2ll, log_likelihood_white=-0.5 * m2ll_white, lr_statistic=lr, p_value=p,
             bias_track=track, bias_track_sd=sd, residuals=residuals,
         )
 
-    def _scale2(self, V: NDArray, r: NDArray) -> float:
+    def _scale2(self, V: ChainCovariance, r: NDArray) -> float:
         """``s²``: fixed, or profiled (``rᵀ V⁻¹ r / n``)."""
         if self.noise_scale is not None:
             return self.noise_scale**2
-        return float(r @ linalg.solve(V, r, assume_a="pos")) / r.size
+        return float(r @ V.solve(r)) / r.size
 
     @staticmethod
     def _interval(profile, K_at: dict[float, float], m2ll: float, log_lam: float | None,
@@ -309,21 +350,19 @@ class RandomWalkBias:
         t_tr, s_tr, sig_tr = self._setup(train, session_train)
         t_te, s_te, _ = self._setup(test, session_test)
         known = train.sigma is not None
-        both_t = np.concatenate([t_tr, t_te])
-        both_s = np.concatenate([s_tr, s_te])
-        B = _brownian_covariance(both_t, both_s)
         n = t_tr.size
         p_tr = NormResidualKernel(train.acc).at_theta(fit.theta)
         p_te = NormResidualKernel(test.acc).at_theta(fit.theta)
         if fit.q <= 0:
             return p_te.residuals
-        s2 = fit.noise_scale**2
-        lam = fit.q / s2
-        V = self._covariance(p_tr, lam, B[:n, :n], sig_tr, known)
-        alpha = linalg.cho_solve(linalg.cho_factor(V, lower=True), p_tr.residuals)
-        H_tr, H_te = p_tr.bias_jacobian(), p_te.bias_jacobian()
-        cross = lam * (H_te.T @ H_tr) * B[n:, :n]  # cov(r_test, r_train) / s²
-        return p_te.residuals - cross @ alpha
+        # one chain over the training and the held-out times; the held-out poses' states are seen by no
+        # residual and are predicted from their neighbours (E[b(t_h) | r_train], a Brownian bridge)
+        state, chain = brownian_states(np.concatenate([t_tr, t_te]), np.concatenate([s_tr, s_te]))
+        V = self._covariance(p_tr, fit.q / fit.noise_scale**2, (state[:n], chain), sig_tr, known)
+        mean = V.state_mean(p_tr.residuals)
+        held = state[n:]
+        bias = np.where((held >= 0)[:, None], mean[np.maximum(held, 0)], 0.0)
+        return p_te.residuals + np.einsum("ik,ki->k", p_te.bias_jacobian(), bias)  # the walk's share −h·b out
 
 
-__all__ = ["MAX_POSES", "RandomWalkBias", "RandomWalkBiasFit"]
+__all__ = ["RandomWalkBias", "RandomWalkBiasFit", "brownian_states"]
