@@ -211,3 +211,50 @@ def test_a_warm_up_seen_by_the_temperature_channel_is_named_as_temperature_not_a
     (decision,) = diag.decisions  # and the report says so, with the rival at its order
     assert decision.other == "bias_drift" and decision.other_order == rival.order
     assert f"bias_drift({truth.axis}, order {rival.order}) fits a shade better" in decision.text
+
+
+def test_outlier_test_under_the_correlation_reduces_to_the_plain_deleted_residual_test() -> None:
+    """The deleted-residual test of outlier poses runs under the correlated noise (generalised least squares);
+    with R = I it is the plain test to rounding, and with a strong correlation it differs."""
+    from optcal.calibration import calibrate
+    from optcal.diagnosis.fitting import Fitter
+    from optcal.diagnosis.outliers import deleted_residual_test
+    from optcal.diagnosis.regressors import Regressors
+
+    case = make_case("outliers", 4, n_range=(40, 40))
+    poses = case.poses
+    cal = calibrate(poses)
+    reg = Regressors.of(poses)
+    suspects = frozenset(int(k) for k in case.outlier_rows) | {5}
+    plain = Fitter(poses, reg, cal.T, cal.o, 5)
+    base = plain.fit({})
+    p_plain = deleted_residual_test(plain, base, suspects, base.x, 2.0)
+    directions = plain.pose_normals(base)
+    identity = CorrelationOperator.build(0.0, 1.0, poses.t, reg.session, directions)
+    with_identity = Fitter(poses, reg, cal.T, cal.o, 5, correlation=identity)
+    p_identity = deleted_residual_test(with_identity, with_identity.fit({}), suspects, base.x, 2.0)
+    assert set(p_identity) == set(p_plain) == set(suspects)
+    for k in suspects:
+        assert p_identity[k] == pytest.approx(p_plain[k], rel=1e-6, abs=1e-300)
+    gap = float(np.median(np.diff(np.sort(poses.t))))
+    strong = CorrelationOperator.build(0.8, 2 * gap, poses.t, reg.session, directions)
+    with_strong = Fitter(poses, reg, cal.T, cal.o, 5, correlation=strong)
+    p_strong = deleted_residual_test(with_strong, with_strong.fit({}), suspects, base.x, 2.0)
+    assert any(abs(np.log(p_strong[k] / p_plain[k])) > 0.1 for k in suspects if 1e-12 < p_plain[k] < 1.0)
+    # the generalised statistic, written as ordinary least squares on data whitened by the dense R
+    from scipy import stats as sps
+
+    inner = with_strong.fit({}, suspects, base.x)
+    G, _ = with_strong.jacobians(inner, with_strong.w)
+    shifted = sorted(suspects)
+    H = np.column_stack([G, np.eye(poses.n)[:, shifted]])
+    L = np.linalg.cholesky(strong.covariance.dense())
+    Hw = np.linalg.solve(L, H)
+    ew = np.linalg.solve(L, np.sqrt(with_strong.w) * inner.residuals)
+    coef = np.linalg.lstsq(Hw, -ew, rcond=None)[0]
+    dof = poses.n - inner.n_params
+    s2 = inner.rss / dof
+    inv = np.linalg.inv(Hw.T @ Hw)
+    for j, k in enumerate(shifted):
+        t = coef[G.shape[1] + j] / np.sqrt(s2 * inv[G.shape[1] + j, G.shape[1] + j])
+        assert p_strong[k] == pytest.approx(min(1.0, poses.n * 2 * sps.t.sf(abs(t), dof)), rel=1e-6)

@@ -25,7 +25,7 @@ from scipy import stats as sps
 
 from numpy.typing import NDArray
 
-from optcal.diagnosis.fitting import Fit, Fitter
+from optcal.diagnosis.fitting import Fit, Fitter, mean_shift_columns
 from optcal.estimators.ellipsoid import design_matrix
 from optcal.diagnosis.problem import ExtendedProblem, active_mask
 
@@ -160,6 +160,8 @@ def deleted_residual_test(fitter: Fitter, fit: Fit, suspects: frozenset[int], x:
     if dof <= 0:
         return {}
     s2 = inner.rss / dof
+    if fitter.correlation is not None:
+        return _generalised_deleted_test(fitter, inner, suspects, s2, dof, alpha)
     G, _ = fitter.jacobians(inner, fitter.weights(inner))
     M = np.linalg.pinv(G.T @ G, rcond=1e-13, hermitian=True)
     J = fitter.problem.jacobian_values(inner.x, fitter.params(fitter.weights(inner)))
@@ -169,6 +171,34 @@ def deleted_residual_test(fitter: Fitter, fit: Fit, suspects: frozenset[int], x:
         jk = J[k, free]
         v = s2 * (1.0 / fitter.w[k] + float(jk @ M @ jk))
         tk = inner.residuals[k] / np.sqrt(v)
+        pk = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
+        if pk < alpha:
+            flagged[k] = pk
+    return flagged
+
+
+def _generalised_deleted_test(fitter: Fitter, inner: Fit, suspects: frozenset[int], s2: float, dof: int,
+                              alpha: float) -> dict[int, float]:
+    """The deleted-residual test under the correlated pose noise: each suspect's mean shift in the
+    generalised least-squares fit, ``t = δ̂_k / (s √[(Hᵀ R⁻¹ H)⁻¹]_kk)``.
+
+    ``H`` holds the free parameters' weighted Jacobian and one indicator column per pose set aside;
+    ``δ̂_k`` is what pose ``k`` departs from the model *and* from the noise its neighbours in time
+    share with it.  With ``R = I`` this is the plain test's ``r_k / √(s² (1/w_k + j_kᵀ M j_k))``.
+    """
+    assert fitter.correlation is not None
+    n = fitter.n
+    G, _ = fitter.jacobians(inner, fitter.w)
+    shifted = sorted(inner.outliers)
+    H = np.column_stack([G, mean_shift_columns(n, inner.outliers)])
+    e = np.sqrt(fitter.w) * inner.residuals
+    Z = fitter.correlation.solve(np.column_stack([e, H]))
+    cov = np.linalg.pinv(H.T @ Z[:, 1:], rcond=1e-13, hermitian=True)
+    coefficients = -cov @ (H.T @ Z[:, 0])  # the generalised fit's step from the linearisation at ``inner``
+    flagged: dict[int, float] = {}
+    for k in suspects:
+        column = G.shape[1] + shifted.index(k)
+        tk = coefficients[column] / np.sqrt(s2 * cov[column, column])
         pk = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
         if pk < alpha:
             flagged[k] = pk
