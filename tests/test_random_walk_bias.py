@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from optcal.errors import InputError
 from optcal.estimators.mle import MaximumLikelihood
@@ -235,3 +236,39 @@ def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path):
     again = load_calibration(path)
     assert again.bias_random_walk == cal.bias_random_walk
     assert np.allclose(again.correct(walking.acc, t=walking.t), cal.correct(walking.acc, t=walking.t), atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2), st.integers(0, 6)), min_size=1, max_size=25))
+def test_the_walk_s_states_give_the_brownian_covariance_for_any_times_sessions_and_ties(rows):
+    """Property: whatever the order, ties and sessions, the chain's covariance is ``min(t_k, t_j) − t_0`` per session."""
+    session = np.array([s for s, _ in rows])
+    t = np.array([float(v) * 1.5 for _, v in rows])
+    start = np.array([t[session == s].min() for s in session])
+    elapsed = t - start
+    dense = np.where(session[:, None] == session[None, :], np.minimum(elapsed[:, None], elapsed[None, :]), 0.0)
+    assert np.allclose(_brownian_covariance(t, session), dense, rtol=0, atol=1e-9)
+
+
+def test_heldout_prediction_equals_the_dense_conditional_mean_also_before_the_first_training_pose():
+    """E[h·b(t_h) | r_train] from the chain (held-out states seen by no residual) against the dense Gaussian
+    conditional; the first pose in time is held out, so the walk starts at a held-out pose."""
+    from optcal.norm_residual import NormResidualKernel
+
+    poses, _ = _session(1e-3, 5, n=40)
+    held = np.arange(40) % 4 == 0  # pose 0 (the session's start) is held out
+    train, test = poses.subset(np.flatnonzero(~held)), poses.subset(np.flatnonzero(held))
+    rw = RandomWalkBias(noise_scale=1.0)
+    fit = rw.fit(train, MaximumLikelihood().fit(train).params[:9], interval=False)
+    assert fit.q > 0 and np.isnan(fit.K_interval[0])
+    predicted = rw.predict_heldout(train, test, fit)
+    p_tr = NormResidualKernel(train.acc).at_theta(fit.theta)
+    p_te = NormResidualKernel(test.acc).at_theta(fit.theta)
+    n = train.n
+    B = _brownian_covariance(np.concatenate([train.t, test.t]), np.zeros(40, dtype=int))
+    H_tr, H_te = p_tr.bias_jacobian(), p_te.bias_jacobian()
+    lam = fit.q / fit.noise_scale**2
+    V = lam * (H_tr.T @ H_tr) * B[:n, :n] + np.diag((train.sigma * p_tr.normal_gain()) ** 2)
+    dense = p_te.residuals - (lam * (H_te.T @ H_tr) * B[n:, :n]) @ np.linalg.solve(V, p_tr.residuals)
+    assert np.allclose(predicted, dense, rtol=0, atol=1e-12)  # g
+    assert predicted[0] == pytest.approx(p_te.residuals[0], abs=1e-15)  # the walk is 0 at the start

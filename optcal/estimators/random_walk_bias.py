@@ -361,6 +361,8 @@ class RandomWalkBias:
         V = self._covariance(p_tr, fit.q / fit.noise_scale**2, (state[:n], chain), sig_tr, known)
         mean = V.state_mean(p_tr.residuals)
         held = state[n:]
+        if mean.shape[0] == 0:  # no state after the sessions' starts: the walk is 0 at every held-out pose
+            return p_te.residuals
         bias = np.where((held >= 0)[:, None], mean[np.maximum(held, 0)], 0.0)
         return p_te.residuals + np.einsum("ik,ki->k", p_te.bias_jacobian(), bias)  # the walk's share −h·b out
 
