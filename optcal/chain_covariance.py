@@ -188,7 +188,6 @@ class ChainCovariance:
         if self.chain is not None:
             P = self.chain.covariance()
             U = np.zeros((self.n, self.chain.size))
-            V = V.copy()
             for axis in range(3):
                 U[:] = 0.0
                 U[self._seen, self.state[self._seen]] = self.loading[self._seen, axis]

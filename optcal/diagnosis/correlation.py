@@ -74,7 +74,6 @@ class CorrelationOperator:
     order: NDArray[np.intp]
     a: float
     covariance: ChainCovariance | None
-    logdet: float
     #: ``φ_i = exp(−Δt_i/τ)`` between consecutive poses in :attr:`order` (0 across sessions): the
     #: sampled Ornstein–Uhlenbeck process the simulations draw from (:meth:`sample`)
     phi: NDArray[np.float64] | None = None
@@ -85,7 +84,7 @@ class CorrelationOperator:
         n = t.size
         order = np.lexsort((t, session))
         if rho0 <= 0:
-            return cls(order, 1.0, None, 0.0, None)
+            return cls(order, 1.0, None, None)
         a = 1.0 - rho0
         gap = np.diff(t[order])
         same = np.diff(session[order]) == 0
@@ -96,7 +95,12 @@ class CorrelationOperator:
         state = np.empty(n, dtype=np.intp)
         state[order] = np.arange(n)
         cov = ChainCovariance(np.full(n, a), np.sqrt(rho0) * np.asarray(directions, dtype=float), state, chain)
-        return cls(order, a, cov, cov.logdet, phi)
+        return cls(order, a, cov, phi)
+
+    @property
+    def logdet(self) -> float:
+        """``log det R`` (0 for independent poses)."""
+        return 0.0 if self.covariance is None else self.covariance.logdet
 
     def sample(self, rng: np.random.Generator, draws: int = 1) -> NDArray[np.float64]:
         """Unit-variance noise of every pose's three axes with this correlation: shape ``(draws, n, 3)``.

@@ -25,7 +25,7 @@ from scipy import stats as sps
 
 from numpy.typing import NDArray
 
-from optcal.diagnosis.fitting import Fit, Fitter, mean_shift_columns
+from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.estimators.ellipsoid import design_matrix
 from optcal.diagnosis.problem import ExtendedProblem, active_mask
 
@@ -186,19 +186,14 @@ def _generalised_deleted_test(fitter: Fitter, inner: Fit, suspects: frozenset[in
     ``δ̂_k`` is what pose ``k`` departs from the model *and* from the noise its neighbours in time
     share with it.  With ``R = I`` this is the plain test's ``r_k / √(s² (1/w_k + j_kᵀ M j_k))``.
     """
-    assert fitter.correlation is not None
     n = fitter.n
-    G, _ = fitter.jacobians(inner, fitter.w)
+    cov, step = fitter.generalised_solution(inner)
+    first_shift = cov.shape[0] - len(inner.outliers)
     shifted = sorted(inner.outliers)
-    H = np.column_stack([G, mean_shift_columns(n, inner.outliers)])
-    e = np.sqrt(fitter.w) * inner.residuals
-    Z = fitter.correlation.solve(np.column_stack([e, H]))
-    cov = np.linalg.pinv(H.T @ Z[:, 1:], rcond=1e-13, hermitian=True)
-    coefficients = -cov @ (H.T @ Z[:, 0])  # the generalised fit's step from the linearisation at ``inner``
     flagged: dict[int, float] = {}
     for k in suspects:
-        column = G.shape[1] + shifted.index(k)
-        tk = coefficients[column] / np.sqrt(s2 * cov[column, column])
+        column = first_shift + shifted.index(k)
+        tk = step[column] / np.sqrt(s2 * cov[column, column])
         pk = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
         if pk < alpha:
             flagged[k] = pk
