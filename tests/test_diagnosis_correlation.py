@@ -218,7 +218,7 @@ def test_outlier_test_under_the_correlation_reduces_to_the_plain_deleted_residua
     with R = I it is the plain test to rounding, and with a strong correlation it differs."""
     from optcal.calibration import calibrate
     from optcal.diagnosis.fitting import Fitter
-    from optcal.diagnosis.outliers import deleted_residual_test
+    from optcal.diagnosis.outliers import deleted_residual_p
     from optcal.diagnosis.regressors import Regressors
 
     case = make_case("outliers", 4, n_range=(40, 40))
@@ -228,18 +228,18 @@ def test_outlier_test_under_the_correlation_reduces_to_the_plain_deleted_residua
     suspects = frozenset(int(k) for k in case.outlier_rows) | {5}
     plain = Fitter(poses, reg, cal.T, cal.o, 5)
     base = plain.fit({})
-    p_plain = deleted_residual_test(plain, base, suspects, base.x, 2.0)
+    p_plain = deleted_residual_p(plain, base, suspects, base.x)
     directions = plain.pose_normals(base)
     identity = CorrelationOperator.build(0.0, 1.0, poses.t, reg.session, directions)
     with_identity = Fitter(poses, reg, cal.T, cal.o, 5, correlation=identity)
-    p_identity = deleted_residual_test(with_identity, with_identity.fit({}), suspects, base.x, 2.0)
+    p_identity = deleted_residual_p(with_identity, with_identity.fit({}), suspects, base.x)
     assert set(p_identity) == set(p_plain) == set(suspects)
     for k in suspects:
         assert p_identity[k] == pytest.approx(p_plain[k], rel=1e-6, abs=1e-300)
     gap = float(np.median(np.diff(np.sort(poses.t))))
     strong = CorrelationOperator.build(0.8, 2 * gap, poses.t, reg.session, directions)
     with_strong = Fitter(poses, reg, cal.T, cal.o, 5, correlation=strong)
-    p_strong = deleted_residual_test(with_strong, with_strong.fit({}), suspects, base.x, 2.0)
+    p_strong = deleted_residual_p(with_strong, with_strong.fit({}), suspects, base.x)
     assert any(abs(np.log(p_strong[k] / p_plain[k])) > 0.1 for k in suspects if 1e-12 < p_plain[k] < 1.0)
     # the generalised statistic, written as ordinary least squares on data whitened by the dense R
     from scipy import stats as sps

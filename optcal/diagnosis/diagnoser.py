@@ -25,14 +25,14 @@ from numpy.typing import NDArray
 
 from optcal.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.diagnosis.findings import build_findings
-from optcal.diagnosis.fitting import Fit, Fitter, rms
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter, rms
 from optcal.diagnosis.noise_model import check_noise_model, pose_correlation
 from optcal.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
 from optcal.diagnosis.limits import detection_limits
-from optcal.diagnosis.selection import MIN_DOF, ForwardSelection
+from optcal.diagnosis.selection import ForwardSelection
 from optcal.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
 from optcal.diagnosis.simulation import simulation_check

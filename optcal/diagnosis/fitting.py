@@ -34,6 +34,9 @@ from optcal.poses import PoseTable
 BASELINE_MODEL = "T, o, white noise (Lu 2017, eq. 5)"
 #: Relative partial Fisher information below which a candidate is not identifiable from the poses.
 IDENTIFIABLE_TOL: float = 1e-6
+#: Residual degrees of freedom every test of the diagnosis keeps (a selection candidate on top of the current
+#: model, the outlier test with its suspects set aside, the correlation's estimate after its trend terms).
+MIN_DOF: int = 10
 
 #: Sorted ``((effect, axis), order)`` pairs: a hashable set of terms.
 Terms = tuple[tuple[tuple[str, int], int], ...]

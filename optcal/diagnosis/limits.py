@@ -18,10 +18,9 @@ import numpy as np
 from scipy import stats as sps
 
 from optcal.diagnosis.effects import SESSION_BIAS, UNITS, describe_term
-from optcal.diagnosis.fitting import Fit, Fitter
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.diagnosis.progress import Loop, plain_loop
-from optcal.diagnosis.selection import MIN_DOF
 from optcal.extended_model import format_value
 from optcal.model import AXES
 

@@ -40,7 +40,7 @@ from scipy import optimize, stats as sps
 
 from optcal.diagnosis.random_walk import RandomWalkCheck
 from optcal.diagnosis.correlation import PoseCorrelation, estimate_correlation
-from optcal.diagnosis.fitting import Fit, Fitter
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, PoseData
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.diagnosis.simulation import pose_noise
@@ -55,8 +55,6 @@ NOISE_CAUSE = (
 )
 #: Terms smooth in time that the correlation's restricted likelihood counts as fixed effects.
 SMOOTH_TERMS: tuple[str, ...] = ("bias_drift", "temperature_bias")
-#: Residual degrees of freedom the correlation's estimate keeps after those terms (as a selection test does).
-MIN_DOF: int = 10
 #: Measured noise of the pose means (still parts) over σ/√n from which the pose noise counts as
 #: correlated between neighbouring poses (more than half its variance is not white).
 CORRELATED_RATIO: float = 1.5

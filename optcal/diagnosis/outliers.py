@@ -1,8 +1,9 @@
 """Outlier poses as mean-shift terms: a robust fit marks suspects, a deleted-residual test keeps them.
 
-A Cauchy-loss fit of the current model marks suspects (standardised residual >
-:data:`SUSPECT_Z`); each suspect is kept only if its deleted residual, tested against the fit
-without the suspects (t distribution, Bonferroni over the n poses), is significant.  A kept
+A Cauchy-loss fit of the current model and its high-breakdown start mark suspects (standardised
+residual > :data:`SUSPECT_Z` in either); the suspects are set aside together and returned to the fit
+one at a time, the least significant first, until each one left aside has a significant deleted
+residual against the fit without them (t distribution, Bonferroni over the n poses).  A kept
 outlier gets a free offset, i.e. zero weight.
 
 The Cauchy fit is a redescending M-estimate: it finds the outliers only from a start they have
@@ -25,7 +26,7 @@ from scipy import stats as sps
 
 from numpy.typing import NDArray
 
-from optcal.diagnosis.fitting import Fit, Fitter
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.estimators.ellipsoid import design_matrix
 from optcal.diagnosis.problem import ExtendedProblem, active_mask
 
@@ -148,37 +149,34 @@ def trimmed_start(fitter: Fitter, fit: Fit) -> tuple[Fit, float]:
     return best, trimmed_scale(smallest, rows.size, p)
 
 
-def deleted_residual_test(fitter: Fitter, fit: Fit, suspects: frozenset[int], x: NDArray,
-                          alpha: float) -> dict[int, float]:
+def deleted_residual_p(fitter: Fitter, fit: Fit, suspects: frozenset[int], x: NDArray) -> dict[int, float]:
     """Bonferroni p of each suspect's deleted residual (t test) under ``fit`` refitted without ``suspects``.
 
-    Returns the suspects significant at ``alpha`` with their p values.
+    A suspect's p is 1 when the refit has no residual degrees of freedom left.
     """
     n = fitter.n
     inner = fitter.fit(fit.terms, fit.outliers | suspects, x)
     dof = n - inner.n_params
     if dof <= 0:
-        return {}
+        return dict.fromkeys(suspects, 1.0)
     s2 = inner.rss / dof
     if fitter.correlation is not None:
-        return _generalised_deleted_test(fitter, inner, suspects, s2, dof, alpha)
+        return _generalised_deleted_p(fitter, inner, suspects, s2, dof)
     G, _ = fitter.jacobians(inner, fitter.weights(inner))
     M = np.linalg.pinv(G.T @ G, rcond=1e-13, hermitian=True)
     J = fitter.problem.jacobian_values(inner.x, fitter.params(fitter.weights(inner)))
     free = np.concatenate([np.ones(9, dtype=bool), active_mask(fit.terms)])
-    flagged: dict[int, float] = {}
+    p_values: dict[int, float] = {}
     for k in suspects:
         jk = J[k, free]
         v = s2 * (1.0 / fitter.w[k] + float(jk @ M @ jk))
         tk = inner.residuals[k] / np.sqrt(v)
-        pk = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
-        if pk < alpha:
-            flagged[k] = pk
-    return flagged
+        p_values[k] = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
+    return p_values
 
 
-def _generalised_deleted_test(fitter: Fitter, inner: Fit, suspects: frozenset[int], s2: float, dof: int,
-                              alpha: float) -> dict[int, float]:
+def _generalised_deleted_p(fitter: Fitter, inner: Fit, suspects: frozenset[int], s2: float,
+                           dof: int) -> dict[int, float]:
     """The deleted-residual test under the correlated pose noise: each suspect's mean shift in the
     generalised least-squares fit, ``t = δ̂_k / (s √[(Hᵀ R⁻¹ H)⁻¹]_kk)``.
 
@@ -190,18 +188,26 @@ def _generalised_deleted_test(fitter: Fitter, inner: Fit, suspects: frozenset[in
     cov, step = fitter.generalised_solution(inner)
     first_shift = cov.shape[0] - len(inner.outliers)
     shifted = sorted(inner.outliers)
-    flagged: dict[int, float] = {}
+    p_values: dict[int, float] = {}
     for k in suspects:
         column = first_shift + shifted.index(k)
         tk = step[column] / np.sqrt(s2 * cov[column, column])
-        pk = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
-        if pk < alpha:
-            flagged[k] = pk
-    return flagged
+        p_values[k] = min(1.0, n * 2 * float(sps.t.sf(abs(tk), dof)))
+    return p_values
 
 
 def detect_outliers(fitter: Fitter, fit: Fit, alpha: float) -> OutlierTest | None:
-    """New outlier poses under ``fit`` at family-wise level ``alpha`` (module docstring)."""
+    """New outlier poses under ``fit`` at family-wise level ``alpha`` (module docstring).
+
+    The suspects are the poses off by more than :data:`SUSPECT_Z` robust scales in the Cauchy fit
+    *or* in its trimmed start: the M-step can absorb one of two outliers of a small session that
+    the trimmed fit sets clearly apart, and an outlier left in the fit inflates the scale the
+    others are tested against.  All suspects are set aside, then returned to the fit one at a time,
+    the least significant first, until every one left aside passes the deleted-residual test
+    (a backward search in the manner of Hadi & Simonoff 1993: clean suspects cannot deflate the
+    test's noise scale for the others, and real outliers stay aside together, so they cannot mask
+    each other).
+    """
     n = fitter.n
     kept = fit.kept(n)
     start, scale = trimmed_start(fitter, fit)
@@ -216,22 +222,16 @@ def detect_outliers(fitter: Fitter, fit: Fit, alpha: float) -> OutlierTest | Non
         x, _ = cauchy.solve(x, p, mask)
         e = np.sqrt(fitter.w) * cauchy.residual_values(x, p)
         scale = robust_scale(e[kept], params)
-    suspects = frozenset(int(k) for k in np.flatnonzero(kept & (np.abs(e) / scale > SUSPECT_Z)))
-    if not suspects:
-        return None
-    flagged = deleted_residual_test(fitter, fit, suspects, x, alpha)
-    if not flagged:
-        return None
-    # The suspects were set aside at three robust scales, a scale a trimmed fit of a few dozen poses
-    # understates: set aside together, clean suspects deflate the noise scale of the test.  Test again
-    # with only the flagged poses set aside, until the flagged set holds (a clean pose drops out; real
-    # outliers stay set aside, so they cannot mask each other).
-    for _ in range(3):
-        again = deleted_residual_test(fitter, fit, frozenset(flagged), x, alpha)
-        if set(again) == set(flagged):
-            break
-        flagged = again
-    if not flagged:
-        return None
-    refit = fitter.fit(fit.terms, fit.outliers | frozenset(flagged), x)
-    return OutlierTest(frozenset(flagged), min(flagged.values()), refit)
+    # both fits' residuals against the M-step's scale: the trimmed fit's own scale is biased low in a small
+    # session, where choosing the best h of a few dozen poses for 9 parameters fits noise too
+    z = np.maximum(np.abs(e), np.abs(np.sqrt(fitter.w) * start.residuals)) / scale
+    suspects = set(int(k) for k in np.flatnonzero(kept & (z > SUSPECT_Z)))
+    while suspects:
+        p_values = deleted_residual_p(fitter, fit, frozenset(suspects), x)
+        weakest = max(p_values, key=lambda k: (p_values[k], k))
+        if p_values[weakest] < alpha:
+            refit = fitter.fit(fit.terms, fit.outliers | frozenset(suspects), x)
+            return OutlierTest(frozenset(suspects), min(p_values.values()), refit)
+        # those not significant at any level return together (a large session's clean 3-σ poses)
+        suspects -= {k for k, p_k in p_values.items() if p_k >= 1.0} | {weakest}
+    return None

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from optcal.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
-from optcal.diagnosis.fitting import Fit, Fitter, rms
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter, rms
 from optcal.diagnosis.outliers import detect_outliers
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.model import AXES
@@ -48,8 +48,6 @@ BIC_TIE: float = 6.0
 #: rises and falls again in time (warm-up then cooling, bias instability at the scale of minutes)
 #: has almost no linear part.  Every order counts as a candidate of the step (honest multiplicity).
 DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
-#: Residual degrees of freedom a candidate's test must keep (the current model plus the candidate).
-MIN_DOF: int = 10
 
 
 def coefficient_count(c: "Candidate") -> int:
