@@ -98,7 +98,7 @@ def judge_parametric(diag, truths: list[tuple[str, str, float]], own: set | None
     hits = [(e, a) in named and abs(named[(e, a)] / v - 1) < 0.3 for e, a, v in truths]
     allowed = {(e, a) for e, a, _ in truths} | (own or set())
     extra = sorted((k for k in named_terms(diag) if k not in allowed), key=str)
-    return {"ok": bool(all(hits) and not extra), "named_all": bool(all((e, a) in named for e, a, _ in truths)),
+    return {"ok": bool(all(hits) and not extra), "hits": bool(all(hits)), "named_all": bool(all((e, a) in named for e, a, _ in truths)),
             "findings": sorted(named_terms(diag), key=str), "extra": extra,
             "estimates": {f"{e}({a})": named.get((e, a)) for e, a, _ in truths}}
 
@@ -270,6 +270,11 @@ def run_xsens(args: tuple) -> dict:
         return {"effect": "none", "seed": seed, "findings": sorted(named_terms(diag), key=str), "own": named_terms(diag),
                 "ok": True}
     out = judge_parametric(diag, [(effect, "xyz"[axis], value)], own)
+    # The recording's own effects have no known cause.  An extra finding is the recording's own effect under
+    # its other name when the report's temperature-or-time decision on that axis names the unplanted
+    # diagnosis's term as the rival it could not tell apart from the one kept.
+    declared = {(d.chosen, d.axis) for d in diag.decisions if (d.other, d.axis) in own}
+    out["ok_up_to_declared"] = bool(out["ok"] or (out["hits"] and set(map(tuple, out["extra"])) <= declared))
     limit = limit_of(diag, effect, "xyz"[axis])
     return {**out, "effect": effect, "seed": seed, "own": sorted(own, key=str),
             "limit_over_truth": limit / abs(value) if limit else None}
@@ -413,12 +418,17 @@ if "xsens" in FAMILIES and XSENS.exists():
                f"seeds without a planted effect name {', '.join(f'{k} ({v}/{len(own)})' for k, v in sorted(own_counts.items())) or 'nothing'}. "
                "A planted effect is judged against that unplanted diagnosis of the same seed (same temperature "
                "channel): named on its axis within 30 %, and nothing named that the unplanted recording does not "
-               "show.  (Judged as \"named alone\", a real recording with its own findings could never pass.)", "",
-               "| effect | recordings | success (named on its axis, 30 %, nothing new) | named | median detection "
-               "limit / truth |", "|---|---|---|---|---|"]
+               "show.  (Judged as \"named alone\", a real recording with its own findings could never pass.)  The "
+               "recording's own effects have no known cause, and a synthetic temperature channel can be collinear "
+               "with them: the next column also counts as a success a case whose only extra is the recording's own "
+               "effect under the other name of a temperature-or-time decision the report states (the unplanted "
+               "diagnosis's term named as the rival the data could not tell apart from the one kept).", "",
+               "| effect | recordings | success (named on its axis, 30 %, nothing new) | success, own effect under "
+               "its declared other name | named | median detection limit / truth |", "|---|---|---|---|---|---|"]
     for effect in EFFECTS[:4]:
         rs = [r for r in xs if r["effect"] == effect]
-        report.append(f"| {effect} | {len(rs)} | {rate_line(rs)} | {rate_line(rs, 'named_all')} | {median_ratio(rs)} |")
+        report.append(f"| {effect} | {len(rs)} | {rate_line(rs)} | {rate_line(rs, 'ok_up_to_declared')} | "
+                      f"{rate_line(rs, 'named_all')} | {median_ratio(rs)} |")
     report.append("")
     report += failures("Xsens", xs)
     save()
