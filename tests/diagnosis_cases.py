@@ -8,9 +8,10 @@ poses; 0.2-0.8 mg of noise per pose.  The temperature follows a warm-up then a c
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from optcal.extended_model import ExtendedModel
 from optcal.simulate_effects import simulate_extended, warmup_cooldown
@@ -40,6 +41,8 @@ class Case:
     value: float | None
     outlier_rows: list[int]
     sigma: float
+    #: For outliers: each pose's shift (raw units, 3-vectors in the rows' order).
+    outlier_shifts: list[NDArray[np.float64]] = field(default_factory=list)
 
 
 def make_case(effect: str | None, seed: int, scale: tuple[float, float] = (1.0, 2.0),
@@ -64,6 +67,7 @@ def make_case(effect: str | None, seed: int, scale: tuple[float, float] = (1.0, 
         model = ExtendedModel.with_effect(base, effect, axis, value, temp_ref=30.0, t_ref=600.0)
     poses = simulate_extended(model, directions, sigma, temp=temp, t=t, rng=rng)
     rows: list[int] = []
+    shifts: list[NDArray[np.float64]] = []
     if effect == "outliers":
         k = int(round(MIN_MAGNITUDE["outliers"] * factor * n))
         bad = np.sort(rng.choice(n, size=k, replace=False))
@@ -74,11 +78,12 @@ def make_case(effect: str | None, seed: int, scale: tuple[float, float] = (1.0, 
             side /= np.linalg.norm(side)
             angle = rng.uniform(0, np.pi / 4)
             size = rng.uniform(10, 40) * sigma
-            acc[b] += size * (rng.choice([-1.0, 1.0]) * np.cos(angle) * radial + np.sin(angle) * side)
+            shifts.append(size * (rng.choice([-1.0, 1.0]) * np.cos(angle) * radial + np.sin(angle) * side))
+            acc[b] += shifts[-1]
         poses = poses.with_acc(acc)
         rows = [int(r) for r in bad]
         axis = None
-    return Case(poses, effect, None if axis is None else AXES[axis], value, rows, sigma)
+    return Case(poses, effect, None if axis is None else AXES[axis], value, rows, sigma, shifts)
 
 
 def write_pose_table(poses: PoseTable, path):

@@ -148,6 +148,7 @@ def test_json_shape_is_the_issue_s(tmp_path: Path) -> None:
     text = json.dumps(out, allow_nan=False)
     out = json.loads(text)
     assert isinstance(out["n_poses"], int)
+    assert set(out["outlier_limit"]) == {"median_g", "smallest_g", "largest_g", "level", "poses"}
     assert set(out["baseline"]) == {"model", "calibration", "rms_g", "heldout_rms_g", "given_rms_g"}
     assert {"model", "rms_g", "heldout_rms_g", "gain"} <= set(out["final"])
     assert "statistics" in out["simulation_check"] and "outside_band" in out["simulation_check"]
@@ -194,6 +195,12 @@ def test_small_sessions_test_one_candidate_at_a_time_and_state_detection_limits(
         (e, a) for e in ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity") for a in "xyz"}
     lim = next(x for x in diag.detection_limits if x.effect == "temperature_bias" and x.axis == "z")
     assert 0 < lim.limit < 1e-3 and "detection limits" in diag.report()
+    # and the smallest outlier pose it could name: the t quantile of a Bonferroni test over 25 poses
+    # at 15 degrees of freedom (≈ 5) times the pose noise and its leverage factor
+    pose = diag.outlier_limit
+    assert pose is not None and pose.poses == 25 and pose.smallest_g <= pose.median_g <= pose.largest_g
+    assert 4.5 * np.sqrt(diag.final.rss / 16) < pose.smallest_g and pose.largest_g < 30 * np.sqrt(diag.final.rss / 16)
+    assert "smallest outlier pose the outlier test" in diag.report()
     # 11 poses are below the baseline's own minimum (9 parameters + 3 degrees of freedom)
     with pytest.raises(InputError, match=r"11 poses are too few for a diagnosis: at least 12"):
         diagnose(clean_table(11), simulations=0)

@@ -258,3 +258,45 @@ def test_outlier_test_under_the_correlation_reduces_to_the_plain_deleted_residua
     for j, k in enumerate(shifted):
         t = coef[G.shape[1] + j] / np.sqrt(s2 * inv[G.shape[1] + j, G.shape[1] + j])
         assert p_strong[k] == pytest.approx(min(1.0, poses.n * 2 * sps.t.sf(abs(t), dof)), rel=1e-6)
+
+
+def test_outlier_limit_under_the_correlation_equals_the_dense_mean_shift_variance() -> None:
+    """The outlier limit's variance of pose k's mean shift, ``1/(R⁻¹_kk − zₖᵀ(HᵀR⁻¹H)⁻¹zₖ)``, equals the last
+    diagonal entry of ``([H, eₖ]ᵀ R⁻¹ [H, eₖ])⁻¹`` with the dense R, outlier poses already set aside included."""
+    from scipy import stats as sps
+
+    from optcal.calibration import calibrate
+    from optcal.diagnosis.fitting import Fitter, mean_shift_columns
+    from optcal.diagnosis.limits import pose_outlier_limits
+    from optcal.diagnosis.regressors import Regressors
+
+    case = make_case("outliers", 4, n_range=(40, 40))
+    poses = case.poses
+    cal = calibrate(poses)
+    reg = Regressors.of(poses)
+    plain = Fitter(poses, reg, cal.T, cal.o, 5)
+    base = plain.fit({})
+    gap = float(np.median(np.diff(np.sort(poses.t))))
+    strong = CorrelationOperator.build(0.8, 2 * gap, poses.t, reg.session, plain.pose_normals(base))
+    fitter = Fitter(poses, reg, cal.T, cal.o, 5, correlation=strong)
+    fit = fitter.fit({}, frozenset(case.outlier_rows), base.x)
+    rows = np.array([k for k in range(poses.n) if k not in case.outlier_rows][:6])
+    limits = pose_outlier_limits(fitter, fit, 0.01, rows)
+    G, _ = fitter.jacobians(fit, fitter.w)
+    H = np.column_stack([G, mean_shift_columns(poses.n, fit.outliers)])
+    R_inv = np.linalg.inv(strong.covariance.dense())
+    s2 = fit.rss / (poses.n - fit.n_params)
+    t = sps.t.isf(0.01 / (2 * poses.n), poses.n - fit.n_params - 1)
+    for limit, k in zip(limits, rows):
+        Hk = np.column_stack([H, np.eye(poses.n)[:, k]])
+        var = np.linalg.inv(Hk.T @ R_inv @ Hk)[-1, -1]
+        assert limit == pytest.approx(t * np.sqrt(s2 * var / fitter.w[k]), rel=1e-6)
+    # a pose the fit sets aside: the variance its deleted-residual test has, at that test's degrees of freedom
+    aside = np.array(case.outlier_rows)
+    full = np.linalg.inv(H.T @ R_inv @ H)
+    t_aside = sps.t.isf(0.01 / (2 * poses.n), poses.n - fit.n_params)
+    for limit, j, k in zip(pose_outlier_limits(fitter, fit, 0.01, aside), range(aside.size), aside):
+        column = H.shape[1] - aside.size + j
+        assert limit == pytest.approx(t_aside * np.sqrt(s2 * full[column, column] / fitter.w[k]), rel=1e-6)
+    plain_limits = pose_outlier_limits(plain, plain.fit({}, fit.outliers, base.x), 0.01, rows)
+    assert np.max(np.abs(np.log(limits / plain_limits))) > 0.02  # the correlation changes them

@@ -27,6 +27,7 @@ _EXPORTS = {
     "StatisticBand": "simulation", "save_figures": "figures", "residual_figure": "figures",
     "simulation_figure": "figures", "EFFECTS": "effects", "Progress": "progress", "NoiseModelCheck": "noise_model",
     "DetectionLimit": "limits",
+    "OutlierLimit": "limits",
 }
 __all__ = sorted(_EXPORTS)
 

@@ -31,7 +31,7 @@ from optcal.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.diagnosis.progress import Progress
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.result import Diagnosis
-from optcal.diagnosis.limits import detection_limits
+from optcal.diagnosis.limits import detection_limits, outlier_limit
 from optcal.diagnosis.selection import ForwardSelection
 from optcal.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
@@ -262,12 +262,14 @@ class Diagnoser:
         self.progress(f"simulating the fitted model {s.simulations} times")
         sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
-        selection = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop).run(base)
+        selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop)
+        selection = selector.run(base)
         final = selection.final
         self.progress("measuring the findings (held-out error without each effect)")
         findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
         self.progress("detection limits of the candidates not found")
         limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
+        pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
             other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
@@ -288,7 +290,8 @@ class Diagnoser:
             skipped=skipped, notes=notes, baseline=base, baseline_heldout=base_heldout, final=final,
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
-            given_rms_g=rms(given.residuals), detection_limits=limits, noise_model=noise, sessions=stack,
+            given_rms_g=rms(given.residuals), detection_limits=limits, outlier_limit=pose_limit, noise_model=noise,
+            sessions=stack,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
         noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)

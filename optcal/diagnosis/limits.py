@@ -7,6 +7,14 @@ effect this large passes the test about half the time; twice as large, almost al
 pose noise is correlated in time (:mod:`optcal.diagnosis.correlation`) the standard error is the
 generalised least-squares one, ``(Gᵀ R⁻¹ G)⁻¹``, the one the selection's test has: a limit computed
 as if the poses were independent would overstate the power for terms smooth in time.
+
+For outlier poses (:func:`outlier_limit`) the limit is the shift of one pose along its own direction
+(the only part the norm residual sees) at which its deleted-residual test is at its critical value:
+``t × s × √var_k``, with ``t`` the Student quantile of the Bonferroni level over the poses and
+``var_k`` the variance of pose ``k``'s mean shift in the fit without it,
+``1 / (R⁻¹_kk − zₖᵀ (Hᵀ R⁻¹ H)⁻¹ zₖ)``, ``zₖ = Hᵀ R⁻¹ eₖ`` (``R = I``: ``1/(1 − h_kk)``, the
+leverage).  It depends on where the pose lies: a pose in a direction few others share is largely
+absorbed by the fit.
 """
 
 from __future__ import annotations
@@ -15,10 +23,11 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.diagnosis.effects import SESSION_BIAS, UNITS, describe_term
-from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter, mean_shift_columns
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.extended_model import format_value
@@ -58,6 +67,78 @@ class DetectionLimit:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+@dataclass
+class OutlierLimit:
+    """The smallest outlier pose the outlier test would name, about half the time.
+
+    Attributes
+    ----------
+    median_g : float
+        Shift of one pose along its own direction (g), median over the poses.
+    smallest_g, largest_g : float
+        The same for the best- and the worst-placed pose.
+    level : float
+        The outlier test's family-wise level (Bonferroni over the poses).
+    poses : int
+        Poses the limit was computed for (every kept pose, or an evenly spaced sample of a large session).
+    """
+
+    median_g: float
+    smallest_g: float
+    largest_g: float
+    level: float
+    poses: int
+
+    def text(self) -> str:
+        return (f"{self.median_g * 1e3:.2g} mg along the pose's own direction (median over the poses; "
+                f"{self.smallest_g * 1e3:.2g}-{self.largest_g * 1e3:.2g} mg by where the pose lies)")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+#: Poses an outlier limit is computed for at most (an evenly spaced sample of a larger session).
+OUTLIER_LIMIT_POSES: int = 500
+
+
+def pose_outlier_limits(fitter: Fitter, fit: Fit, level: float, rows: NDArray[np.intp]) -> NDArray[np.float64]:
+    """The outlier test's limit (g, along the pose's direction) for each of ``rows`` under ``fit`` (module docstring).
+
+    A pose ``fit`` already sets aside gets the limit its deleted-residual test has: its mean shift's
+    variance is its diagonal entry of ``(Hᵀ R⁻¹ H)⁻¹``, and the noise scale is the fit's without it.
+    """
+    G, _ = fitter.jacobians(fit, fitter.w)
+    shifted = sorted(fit.outliers)
+    H = np.column_stack([G, mean_shift_columns(fitter.n, fit.outliers)])
+    RH = H if fitter.correlation is None else fitter.correlation.solve(H)
+    inverse = np.linalg.pinv(H.T @ RH, rcond=1e-13, hermitian=True)
+    aside = np.isin(rows, shifted)
+    var = np.empty(rows.size)
+    first_shift = G.shape[1]
+    var[aside] = [inverse[first_shift + shifted.index(int(k)), first_shift + shifted.index(int(k))] for k in rows[aside]]
+    kept_rows = rows[~aside]
+    if kept_rows.size:
+        E = np.zeros((fitter.n, kept_rows.size))
+        E[kept_rows, np.arange(kept_rows.size)] = 1.0
+        Z = E if fitter.correlation is None else fitter.correlation.solve(E)  # R⁻¹ eₖ
+        z = H.T @ Z
+        diagonal = Z[kept_rows, np.arange(kept_rows.size)] - np.einsum("ik,ij,jk->k", z, inverse, z)
+        var[~aside] = 1.0 / np.maximum(diagonal, 1e-12)
+    dof = fitter.n - fit.n_params
+    t = sps.t.isf(level / (2 * fitter.n), np.where(aside, dof, dof - 1))
+    return t * np.sqrt(fit.rss / dof * var / fitter.w[rows])
+
+
+def outlier_limit(fitter: Fitter, fit: Fit, level: float) -> OutlierLimit | None:
+    """The outlier test's detection limit under ``fit`` (module docstring); ``None`` without the room to test."""
+    if fitter.n - fit.n_params - 1 < MIN_DOF:  # the test's degrees of freedom with the pose set aside
+        return None
+    kept = np.flatnonzero(fit.kept(fitter.n))
+    rows = kept[np.unique(np.linspace(0, kept.size - 1, min(kept.size, OUTLIER_LIMIT_POSES)).round().astype(int))]
+    shift = pose_outlier_limits(fitter, fit, level, rows)
+    return OutlierLimit(float(np.median(shift)), float(shift.min()), float(shift.max()), level, int(rows.size))
 
 
 def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]], level: float,

@@ -178,6 +178,10 @@ def diagnosis_report(diag: "Diagnosis") -> str:
         level = diag.detection_limits[0].level
         lines.append(f"   detection limits (smallest effect a test at level {level:.2g} would name, about half the time):")
         lines += [f"      {lim.text()}" for lim in diag.detection_limits]
+    if diag.outlier_limit is not None:
+        lim = diag.outlier_limit
+        lines.append(f"   smallest outlier pose the outlier test (level {lim.level:.2g} over the poses) would name, about half "
+                     f"the time: {lim.text()}")
     lines += [
         "",
         "5. Final model: " + diag.final.describe(),

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from optcal.diagnosis.findings import Finding
 from optcal.diagnosis.fitting import BASELINE_MODEL, Fit, rms
-from optcal.diagnosis.limits import DetectionLimit
+from optcal.diagnosis.limits import DetectionLimit, OutlierLimit
 from optcal.diagnosis.noise_model import NoiseModelCheck
 from optcal.diagnosis.regressors import Regressors
 from optcal.diagnosis.selection import Step, TemperatureTimeDecision
@@ -58,6 +58,8 @@ class Diagnosis:
         rms norm residual of a given calibration as it was given (before the refit).
     detection_limits : list of DetectionLimit
         For every candidate not in the final model, the smallest effect the last step would have named.
+    outlier_limit : OutlierLimit or None
+        The smallest outlier pose the outlier test would name (``None`` when outliers were not tested).
     noise_model : NoiseModelCheck or None
         Whether the given per-pose σ describes the scatter, and the extended noise model when not.
     sessions : SessionStack or None
@@ -84,6 +86,7 @@ class Diagnosis:
     fitted_directions: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     given_rms_g: float | None = None
     detection_limits: list[DetectionLimit] = field(default_factory=list)
+    outlier_limit: OutlierLimit | None = None
     noise_model: NoiseModelCheck | None = None
     sessions: SessionStack | None = None
 
@@ -197,6 +200,7 @@ class Diagnosis:
             "effects_skipped": dict(self.skipped),
             "temperature_time_decisions": [d.to_dict() for d in self.decisions],
             "detection_limits": [lim.to_dict() for lim in self.detection_limits],
+            "outlier_limit": None if self.outlier_limit is None else self.outlier_limit.to_dict(),
             "noise_model": None if self.noise_model is None else self.noise_model.to_dict(),
             "sessions": None if self.sessions is None else {
                 "names": list(self.sessions.names), "poses": self.sessions.counts(),
