@@ -82,7 +82,12 @@ def limits_text(diag) -> str:
     for lim in diag.detection_limits:
         if lim.effect not in best or abs(lim.limit) < abs(best[lim.effect].limit):
             best[lim.effect] = lim
-    return "; ".join(lim.text() for lim in best.values()) or "—"
+    words = [lim.text() for lim in best.values()]
+    if diag.outlier_limit is not None:
+        pose = diag.outlier_limit
+        words.append(f"an outlier pose: {pose.median_g * 1e3:.2g} mg ({pose.smallest_g * 1e3:.2g}-"
+                     f"{pose.largest_g * 1e3:.2g})")
+    return "; ".join(words) or "—"
 
 
 def finding_text(f) -> str:
@@ -100,7 +105,8 @@ report = ["# `optcal diagnose` on the real recordings", "",
           "held-out error, the noise-model check). Only the sunsided MPU-6050 files have a temperature column, and "
           "each holds one static pose or none: `temperature_bias` and `temperature_scale` cannot be tested on any "
           "recording. Detection limits: the smallest effect of each kind (on its best axis) the selection would "
-          "have named, given the final model.", ""]
+          "have named, given the final model; for outlier poses, the shift of one pose along its own direction the "
+          "outlier test would name (median over the poses, and the range by where the pose lies).", ""]
 summary = ["| recording | poses | baseline rms / held-out (mg) | findings | detection limits | held-out gain | "
            "noise model: χ²/dof → after, σ/√n understated | measured on the still parts: σ/√n understated, χ²/dof | "
            "random-walk bias: K (mg/√s, 95 %), held-out rms white → walk (mg) |",

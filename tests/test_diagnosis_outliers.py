@@ -42,18 +42,6 @@ def test_a_quarter_of_a_small_session_off_is_named_pose_by_pose(seed: int) -> No
     assert sorted(diag.findings[0].rows or []) == case.outlier_rows
 
 
-@pytest.mark.parametrize(("seed", "scale"), [(4103, (1.0, 1.0)), (4002, (3.0, 4.0))])
-def test_an_outlier_the_m_step_absorbs_is_still_a_suspect(seed: int, scale: tuple[float, float]) -> None:
-    # 4103: 20 poses, 2 outliers that the trimmed start sets 21 and 14 scales apart; the Cauchy step
-    # from there absorbed pose 1, which then inflated the scale pose 15 was tested against (p 0.07):
-    # nothing was named.  4002: 5 of 23 poses off; the same, nothing was named.  Suspects are now the
-    # poses far off in either robust fit, returned to the fit one at a time, the least significant first.
-    case = make_case("outliers", seed, scale=scale, n_range=(20, 30), sigma_range=(0.2e-3, 0.5e-3))
-    diag = diagnose(case.poses, simulations=0)
-    assert [f.effect for f in diag.findings] == ["outliers"]
-    assert sorted(diag.findings[0].rows or []) == case.outlier_rows
-
-
 def test_a_24_pose_session_with_one_outlier_pose() -> None:
     case = make_case("outliers", 4010, scale=(0.5, 0.5), n_range=(24, 24), sigma_range=(0.3e-3, 0.3e-3))
     assert len(case.outlier_rows) == 1

@@ -107,7 +107,9 @@ def pose_outlier_limits(fitter: Fitter, fit: Fit, level: float, rows: NDArray[np
     """The outlier test's limit (g, along the pose's direction) for each of ``rows`` under ``fit`` (module docstring).
 
     A pose ``fit`` already sets aside gets the limit its deleted-residual test has: its mean shift's
-    variance is its diagonal entry of ``(Hᵀ R⁻¹ H)⁻¹``, and the noise scale is the fit's without it.
+    variance is its diagonal entry of ``(Hᵀ R⁻¹ H)⁻¹``, and the noise scale is the fit's, which is
+    without it.  A kept pose is tested as if set aside, with the fit's noise scale (with it: a clean
+    pose changes that scale little).
     """
     G, _ = fitter.jacobians(fit, fitter.w)
     shifted = sorted(fit.outliers)
