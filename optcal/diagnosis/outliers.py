@@ -26,7 +26,7 @@ from scipy import stats as sps
 
 from numpy.typing import NDArray
 
-from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.diagnosis.fitting import Fit, Fitter
 from optcal.estimators.ellipsoid import design_matrix
 from optcal.diagnosis.problem import ExtendedProblem, active_mask
 
