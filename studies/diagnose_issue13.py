@@ -154,8 +154,8 @@ def run_small(args: tuple) -> dict:
 
 def outlier_limit_over_truth(case) -> list[float]:
     """For each planted outlier: the outlier test's detection limit at its pose (the planted outliers set
-    aside, as the deleted-residual test has them) over what its shift changes the pose's calibrated norm by under the true sensor (Lu 2017, eq. 5:
-    the only part of the shift the norm residual sees)."""
+    aside, as the deleted-residual test has them) over what its shift changes the pose's calibrated norm by
+    under the true sensor (Lu 2017, eq. 5: the only part of the shift the norm residual sees)."""
     from optcal.diagnosis import Diagnoser
     from optcal.diagnosis.limits import pose_outlier_limits
     from optcal.model import lu2017_reference_model
