@@ -273,24 +273,32 @@ class Fitter:
         sw = np.sqrt(w)[:, None]
         return sw * J[:, free], sw * J
 
-    def generalised_solution(self, fit: Fit) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(Hᵀ R⁻¹ H)⁻¹`` and the linearised generalised least-squares step at ``fit`` under :attr:`correlation`.
+    def correlated_solve(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``R⁻¹ X`` under :attr:`correlation` (a copy of ``X`` for independent poses)."""
+        return np.array(X, dtype=float, copy=True) if self.correlation is None else self.correlation.solve(X)
+
+    def generalised_system(self, fit: Fit) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``H`` and ``(Hᵀ R⁻¹ H)⁻¹`` at ``fit`` (``R = I`` for independent poses).
 
         ``H``: the free parameters' weighted Jacobian (θ, then active β), then one mean-shift column per
-        outlier pose of ``fit`` (in pose order); the step's shift entries are those poses' departures.
+        outlier pose of ``fit`` (in pose order).
         """
-        assert self.correlation is not None
         G, _ = self.jacobians(fit, self.w)
         H = np.column_stack([G, mean_shift_columns(self.n, fit.outliers)])
-        Z = self.correlation.solve(np.column_stack([np.sqrt(self.w) * fit.residuals, H]))
-        full = np.linalg.pinv(H.T @ Z[:, 1:], rcond=1e-13, hermitian=True)
-        return full, -full @ (H.T @ Z[:, 0])
+        return H, np.linalg.pinv(H.T @ self.correlated_solve(H), rcond=1e-13, hermitian=True)
+
+    def generalised_solution(self, fit: Fit) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(Hᵀ R⁻¹ H)⁻¹`` (:meth:`generalised_system`) and the linearised generalised least-squares step at
+        ``fit`` under :attr:`correlation`; the step's shift entries are the outlier poses' departures."""
+        assert self.correlation is not None
+        H, full = self.generalised_system(fit)
+        return full, -full @ (H.T @ self.correlation.solve(np.sqrt(self.w) * fit.residuals))
 
     def covariance(self, fit: Fit) -> NDArray[np.float64]:
         """Covariance of the free normalised parameters (θ, then active β in layout order)."""
         s2 = fit.rss / max(self.n - fit.n_params, 1)
         if self.correlation is not None:  # (Gᵀ R⁻¹ G)⁻¹ with a mean shift per outlier pose, kept to θ and β
-            full, _ = self.generalised_solution(fit)
+            _, full = self.generalised_system(fit)
             p = full.shape[0] - len(fit.outliers)
             return s2 * full[:p, :p]
         G, _ = self.jacobians(fit, self.weights(fit))

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.diagnosis.effects import SESSION_BIAS, UNITS, describe_term
-from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter, mean_shift_columns
+from optcal.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.diagnosis.progress import Loop, plain_loop
 from optcal.extended_model import format_value
@@ -111,20 +111,17 @@ def pose_outlier_limits(fitter: Fitter, fit: Fit, level: float, rows: NDArray[np
     without it.  A kept pose is tested as if set aside, with the fit's noise scale (with it: a clean
     pose changes that scale little).
     """
-    G, _ = fitter.jacobians(fit, fitter.w)
+    H, inverse = fitter.generalised_system(fit)
     shifted = sorted(fit.outliers)
-    H = np.column_stack([G, mean_shift_columns(fitter.n, fit.outliers)])
-    RH = H if fitter.correlation is None else fitter.correlation.solve(H)
-    inverse = np.linalg.pinv(H.T @ RH, rcond=1e-13, hermitian=True)
     aside = np.isin(rows, shifted)
     var = np.empty(rows.size)
-    first_shift = G.shape[1]
+    first_shift = H.shape[1] - len(shifted)
     var[aside] = [inverse[first_shift + shifted.index(int(k)), first_shift + shifted.index(int(k))] for k in rows[aside]]
     kept_rows = rows[~aside]
     if kept_rows.size:
         E = np.zeros((fitter.n, kept_rows.size))
         E[kept_rows, np.arange(kept_rows.size)] = 1.0
-        Z = E if fitter.correlation is None else fitter.correlation.solve(E)  # R⁻¹ eₖ
+        Z = fitter.correlated_solve(E)  # R⁻¹ eₖ
         z = H.T @ Z
         diagonal = Z[kept_rows, np.arange(kept_rows.size)] - np.einsum("ik,ij,jk->k", z, inverse, z)
         var[~aside] = 1.0 / np.maximum(diagonal, 1e-12)
