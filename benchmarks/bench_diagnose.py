@@ -29,7 +29,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from diagnosis_cases import make_case  # noqa: E402
 
-from optcal.diagnosis import diagnose  # noqa: E402
+from optcal.applications.diagnosis import diagnose  # noqa: E402
 
 STRICT = os.environ.get("OPTCAL_BENCH_STRICT") == "1"
 DIAGNOSE_120_BUDGET_S = 10.0
@@ -42,7 +42,7 @@ LARGE_SCRIPT = """
 import json, resource, sys, time
 sys.path.insert(0, {tests!r})
 from diagnosis_cases import make_case
-from optcal.diagnosis import diagnose
+from optcal.applications.diagnosis import diagnose
 case = make_case("temperature_bias", 3, n_range=({n}, {n}))
 t0 = time.perf_counter()
 diag = diagnose(case.poses, simulations=200)

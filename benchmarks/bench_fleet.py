@@ -10,7 +10,7 @@ Run on demand: ``pytest benchmarks/bench_fleet.py`` (``OPTCAL_BENCH_QUICK=1`` fo
   the same read tables: ``fit_units`` (a task's units in batched IPOPT problems) against
   ``fit_unit`` one at a time (the baseline, measured in the same run), CPU ms per unit.
 * ``test_batched_throughput`` — complete default ``mle`` fits per second of 120-pose problems
-  (Lu 2017 Table 1 design), batched (:mod:`optcal.estimators.batched`) against one at a time
+  (Lu 2017 Table 1 design), batched (:mod:`optcal.families.accel.batched`) against one at a time
   measured in the same run, per second of wall time and of CPU time.  Target ≥ 2,000 batched fits/s
   on one core (asserted on the wall-time rate in strict mode: run it on an idle machine).
 """
@@ -20,10 +20,10 @@ from __future__ import annotations
 import os
 import time
 
-from optcal.fleet.engine import ClusterSettings, FleetClient, run_fleet
-from optcal.fleet.inputs import expand_inputs
-from optcal.fleet.synthetic import write_fleet
-from optcal.reproduce.solvers import table1_design, throughput
+from optcal.applications.fleet.engine import ClusterSettings, FleetClient, run_fleet
+from optcal.applications.fleet.inputs import expand_inputs
+from optcal.applications.fleet.synthetic import write_fleet
+from optcal.applications.papers.solver_study import table1_design, throughput
 
 QUICK = os.environ.get("OPTCAL_BENCH_QUICK") == "1"
 STRICT = os.environ.get("OPTCAL_BENCH_STRICT") == "1"
@@ -54,8 +54,8 @@ def test_fleet_few_hundred_units(benchmark, tmp_path):
 def test_fit_stage_batched_against_single(benchmark, tmp_path):
     import numpy as np
 
-    from optcal.estimators.batched import parameter_full_scale
-    from optcal.fleet.unit import fit_unit, fit_units, read_unit
+    from optcal.families.accel.batched import parameter_full_scale
+    from optcal.applications.fleet.unit import fit_unit, fit_units, read_unit
 
     n = 128 if QUICK else 512
     write_fleet(tmp_path / "units", n, seed=18, scale_error_units=1, six_face_units=1, unreadable_units=1)

@@ -35,7 +35,7 @@ import numpy as np
 import pytest
 
 from bench_data import STRICT, against_imutk, machine_load, report, side_by_side
-from optcal.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
+from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
 
 XSENS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "imutk-xsens" / "xsens_imutk.csv"
 #: imu_tk's process on this machine (IMUTK_REFERENCE.md), seconds: the upper end of 0.30-0.38 s.
@@ -90,8 +90,8 @@ def test_imu_calibration_xsens(benchmark, xsens: Path) -> None:
 def test_gyro_fit_only_xsens(benchmark, xsens: Path) -> None:
     import optcal
     from optcal.data import load_with_segmentation
-    from optcal.gyro.moves import moves_from_segmentation
-    from optcal.gyro.units import GyroUnitsDecision
+    from optcal.families.gyro.moves import moves_from_segmentation
+    from optcal.core.units import GyroUnitsDecision
 
     loaded = load_with_segmentation(str(xsens))
     moves = moves_from_segmentation(loaded.segmentation)

@@ -20,9 +20,9 @@ import time
 import pytest
 
 from optcal.data import load
-from optcal.data.synthetic import synthesize_recording
-from optcal.model import LumpedModel
-from optcal.simulate import uniform_directions
+from optcal.families.simulate.recording import synthesize_recording
+from optcal.core.model import LumpedModel
+from optcal.families.simulate.poses import uniform_directions
 
 BUDGET_S = 5.0
 
@@ -38,7 +38,7 @@ def million_sample_csv(tmp_path_factory):
 
 
 def segment_and_calibrate(path):
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     poses = load(path)
     return poses, calibrate(poses)

@@ -17,12 +17,12 @@ import os
 import numpy as np
 import pytest
 
-from optcal.calibration import calibrate
-from optcal.estimators.gradient_descent import GradientDescent, descend
-from optcal.estimators.mle import MLProblem, NormResidualCost
-from optcal.estimators.scipy_ls import solve_least_squares
-from optcal.model import unpack_theta
-from optcal.reproduce.solvers import comparison_start, monte_carlo, speed_to_same_cost, table1_design, throughput, uniform_design
+from optcal.families.accel.calibration import calibrate
+from optcal.families.accel.gradient_descent import GradientDescent, descend
+from optcal.families.accel.mle import MLProblem, NormResidualCost
+from optcal.families.accel.scipy_ls import solve_least_squares
+from optcal.core.model import unpack_theta
+from optcal.applications.papers.solver_study import comparison_start, monte_carlo, speed_to_same_cost, table1_design, throughput, uniform_design
 
 QUICK = os.environ.get("OPTCAL_BENCH_QUICK", "") not in ("", "0")
 STRICT = os.environ.get("OPTCAL_BENCH_STRICT", "") not in ("", "0")

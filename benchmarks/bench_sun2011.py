@@ -7,10 +7,10 @@
 
 from __future__ import annotations
 
-from optcal.sun2011.alignment import FilterTuning
-from optcal.reproduce.sun2011 import DEFAULT_RUNS, run
-from optcal.sun2011.tenposition import run_scheme
-from optcal.sun2011.turntable import SimulationSettings, TurntableRun
+from optcal.applications.papers.sun2011.alignment import FilterTuning
+from optcal.applications.papers.sun2011.reproduce import DEFAULT_RUNS, run
+from optcal.applications.papers.sun2011.tenposition import run_scheme
+from optcal.applications.papers.sun2011.turntable import SimulationSettings, TurntableRun
 
 
 def test_reproduction_default_run_within_60_s(benchmark) -> None:

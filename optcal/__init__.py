@@ -2,7 +2,7 @@
 
 The lumped model ``ā = T (a − o)`` (Lu et al. 2017) is fitted by an algebraic ellipsoid fit
 (SVD, or a constrained convex problem in cvxpy), refined by maximum likelihood (IPOPT in
-CasADi), and compared with the paper's gradient-descent baseline.  See :mod:`optcal.model`
+CasADi), and compared with the paper's gradient-descent baseline.  See :mod:`optcal.core.model`
 for the conventions.
 """
 
@@ -14,9 +14,9 @@ __version__ = "0.1.0"
 
 #: Names imported on first use (PEP 562), so that ``optcal --help`` does not import numpy.
 _LAZY: dict[str, str] = {
-    "LumpedModel": "optcal.model",
-    "lu2017_reference_model": "optcal.model",
-    "PoseTable": "optcal.poses",
+    "LumpedModel": "optcal.core.model",
+    "lu2017_reference_model": "optcal.core.model",
+    "PoseTable": "optcal.core.poses",
 }
 
 
@@ -43,14 +43,14 @@ __all__ = [
 
 
 def calibrate(poses, method: str = "default", **options):
-    """Calibrate a :class:`PoseTable`; see :func:`optcal.calibration.calibrate`."""
-    from optcal.calibration import calibrate as _calibrate
+    """Calibrate a :class:`PoseTable`; see :func:`optcal.families.accel.calibration.calibrate`."""
+    from optcal.families.accel.calibration import calibrate as _calibrate
 
     return _calibrate(poses, method=method, **options)
 
 
 def cramer_rao_bound(model, directions, sigma):
-    """Cramér–Rao bound of θ, directions as nuisance; see :func:`optcal.identifiability.cramer_rao_bound`."""
-    from optcal.identifiability import cramer_rao_bound as _crlb
+    """Cramér–Rao bound of θ, directions as nuisance; see :func:`optcal.core.identifiability.cramer_rao_bound`."""
+    from optcal.core.identifiability import cramer_rao_bound as _crlb
 
     return _crlb(model, directions, sigma)

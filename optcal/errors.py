@@ -30,7 +30,7 @@ class IdentifiabilityError(InputError):
 
     Attributes
     ----------
-    report : optcal.identifiability.IdentifiabilityReport
+    report : optcal.core.identifiability.IdentifiabilityReport
         Rank, conditioning and the unidentifiable parameter combinations.
     """
 

@@ -19,7 +19,7 @@
 #   300 ppm/°C, 3 mg of drift over the recording, 4 mg/g², 8 % outlier poses; 40-120 poses;
 #   0.2-0.8 mg of noise per pose: diagnose must name the effect and the axis, and the estimate must be
 #   within 30 % of the truth.  The temperature warms up and cools down (15-30 °C span, 20 min).
-# * Raw 100 Hz recordings in counts (`optcal.simulate_effects.recording_with_effect`).
+# * Raw 100 Hz recordings in counts (`optcal.families.simulate.effects.recording_with_effect`).
 #
 # Data sets come from `tests/diagnosis_cases.py`.  Regenerate with
 # `python studies/diagnose_acceptance.py` (about 10 minutes on 2 cores); writes
@@ -45,8 +45,8 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from diagnosis_cases import make_case  # noqa: E402
 
-from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
-from optcal.diagnosis.effects import EFFECTS  # noqa: E402
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
+from optcal.applications.diagnosis.effects import EFFECTS  # noqa: E402
 
 # sizes (a smoke run: SMOKE=1 python studies/diagnose_acceptance.py; smaller still: OPTCAL_STUDY_QUICK=1)
 SMOKE = bool(int(os.environ.get("SMOKE", "0"))) or QUICK
@@ -118,7 +118,7 @@ def run_case(args: tuple) -> dict:
 
 def run_raw(args: tuple) -> dict:
     from optcal.data import load
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.families.simulate.effects import recording_with_effect
 
     effect, seed = args
     frame, truth = recording_with_effect(effect, seed=seed)
@@ -233,7 +233,7 @@ report += ["## 5. Temperature or time (warm-up then cool-down)", "",
 # %%
 raw = pool_map(run_raw, [(e, 50 + s) for e in EFFECTS for s in range(N_RAW)])
 report += ["## 6. Raw 100 Hz recordings (counts, 48 poses, static detection)", "",
-           "`optcal.simulate_effects.recording_with_effect` with its default magnitudes (0.8 mg/°C, 400 ppm/°C, 5 mg drift, "
+           "`optcal.families.simulate.effects.recording_with_effect` with its default magnitudes (0.8 mg/°C, 400 ppm/°C, 5 mg drift, "
            "6 mg/g², 4 corrupted poses); success = the effect alone named, right axis, within 30 % (outliers: every "
            "corrupted pose whose shift along its own direction exceeds 2 mg flagged, nothing else).", "",
            "| effect | recordings | success | median gain |", "|---|---|---|---|"]

@@ -47,9 +47,9 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from diagnosis_cases import make_case  # noqa: E402
 
-from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
-from optcal.diagnosis.effects import EFFECTS  # noqa: E402
-from optcal.extended_model import format_value  # noqa: E402
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
+from optcal.applications.diagnosis.effects import EFFECTS  # noqa: E402
+from optcal.core.extended_model import format_value  # noqa: E402
 
 N13 = int(os.environ.get("N13", "0" if QUICK else "20"))
 #: Seeds of the cells that passed at 100 % in the last run or are at their detection limit by construction
@@ -104,10 +104,10 @@ def judge_parametric(diag, truths: list[tuple[str, str, float]], own: set | None
 
 
 def run_two_effects(seed: int) -> dict:
-    from optcal.extended_model import ExtendedModel
-    from optcal.model import lu2017_reference_model
-    from optcal.simulate import uniform_directions
-    from optcal.simulate_effects import simulate_extended, warmup_cooldown
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import uniform_directions
+    from optcal.families.simulate.effects import simulate_extended, warmup_cooldown
 
     rng = np.random.default_rng(seed)
     n = int(rng.integers(60, 121))
@@ -156,9 +156,9 @@ def outlier_limit_over_truth(case) -> list[float]:
     """For each planted outlier: the outlier test's detection limit at its pose (the planted outliers set
     aside, as the deleted-residual test has them) over what its shift changes the pose's calibrated norm by
     under the true sensor (Lu 2017, eq. 5: the only part of the shift the norm residual sees)."""
-    from optcal.diagnosis import Diagnoser
-    from optcal.diagnosis.limits import pose_outlier_limits
-    from optcal.model import lu2017_reference_model
+    from optcal.applications.diagnosis import Diagnoser
+    from optcal.applications.diagnosis.limits import pose_outlier_limits
+    from optcal.core.model import lu2017_reference_model
 
     true = lu2017_reference_model()
     diagnoser = Diagnoser()
@@ -180,7 +180,7 @@ def recording(effect, seed: int, gauss_markov_g: float, units: str, value: float
     ``value``: the effect's size (default: the demo's); its sign is drawn from the seed.
     """
     from optcal.data import load_with_segmentation
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.families.simulate.effects import recording_with_effect
 
     if value is not None:
         value *= float(np.random.default_rng(seed + 10**6).choice([-1.0, 1.0]))
@@ -207,9 +207,9 @@ def coverage(diag, poses) -> tuple[float, float]:
     correlation `diagnose` estimated, and as if the poses were independent."""
     from scipy import stats as sps
 
-    from optcal.diagnosis.fitting import Fitter
-    from optcal.model import theta_from
-    from optcal.simulate_effects import demo_sensor
+    from optcal.applications.diagnosis.fitting import Fitter
+    from optcal.core.model import theta_from
+    from optcal.families.simulate.effects import demo_sensor
 
     truth, base = demo_sensor(), diag.model.base
     z = float(sps.norm.isf(0.025))
@@ -257,7 +257,7 @@ def xsens_base():
     """The Xsens samples (t, ax, ay, az) and the recording's own lumped maximum-likelihood model (read once per process)."""
     import pandas as pd
 
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
     from optcal.data import load
 
     raw = pd.read_csv(XSENS).rename(columns={"t_s": "t", "acc_x_counts": "ax", "acc_y_counts": "ay", "acc_z_counts": "az"})
@@ -271,8 +271,8 @@ def run_xsens(args: tuple) -> dict:
     ``own``: the findings of the same seed without the effect (``None`` for the unplanted run itself).
     """
     from optcal.data import load
-    from optcal.extended_model import ExtendedModel
-    from optcal.simulate_effects import distort_recording, warmup_cooldown
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.families.simulate.effects import distort_recording, warmup_cooldown
 
     effect, seed, own = args
     rng = np.random.default_rng(seed)
@@ -505,7 +505,7 @@ report += [
     "(tests/test_diagnosis_correlation.py). In the table: 40/40.",
     "* **Null Gauss–Markov recordings (previous run 37/40).** The three false findings were single outlier poses "
     "(seeds 5009, 5013) and scale_nonlinearity(y) (5027), not a term smooth in time. Two changes. (1) The pose "
-    "noise correlated in time is now part of the noise model (`optcal.diagnosis.correlation`): the noise of pose "
+    "noise correlated in time is now part of the noise model (`optcal.applications.diagnosis.correlation`): the noise of pose "
     "means a few seconds apart is modelled as a first-order Gauss–Markov process of the pose times along each "
     "pose's normal, corr = ρ₀ exp(−Δt/τ) (d_k·d_j), estimated by restricted maximum likelihood from the baseline "
     "(τ at most two pose gaps, the first-order drift and temperature terms among the fixed effects, so that a trend "

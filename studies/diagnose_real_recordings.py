@@ -14,7 +14,7 @@
 #
 # Every real recording in `../shared/data` (see each `PROVENANCE.md`), read with `optcal.data.load`
 # (the readers and static detection, default settings; the headerless mikoff logs at their
-# documented 100 Hz) and diagnosed with the default settings (`optcal.diagnosis.diagnose`: every
+# documented 100 Hz) and diagnosed with the default settings (`optcal.applications.diagnosis.diagnose`: every
 # effect the columns support, tested one candidate at a time, 200 simulations, α = 0.02, 10-fold,
 # the noise-model check).  Only the sunsided MPU-6050 files have a temperature column, and each
 # holds one static pose or none, so the temperature effects cannot be tested on any recording;
@@ -31,9 +31,10 @@ from optcal.data import load_with_segmentation
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
 from optcal.data.static import detect_static
-from optcal.diagnosis import Diagnoser, DiagnosisSettings, save_figures
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.report.diagnosis_figures import save_figures
 from optcal.errors import InputError
-from optcal.extended_model import format_value
+from optcal.core.extended_model import format_value
 
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402

@@ -10,7 +10,7 @@
 # %% [markdown]
 # # Fleets: flag rule, population prior, and the scale of a run (issue 17)
 #
-# 1. **False-flag rate** of the flag rule (:mod:`optcal.fleet.population`) on clean synthetic
+# 1. **False-flag rate** of the flag rule (:mod:`optcal.applications.fleet.population`) on clean synthetic
 #    fleets of several sizes (no planted trouble), and the detection of an 8 % scale error.
 # 2. **Population prior** on fleets with known truth: error of weak units (six faces only; a 60°
 #    cap) with the prior against their own degenerate fit; bias and error of well-determined units
@@ -20,7 +20,7 @@
 #
 # Regenerate with `python studies/fleet_scale.py` (writes `studies/fleet_scale.md` and
 # `studies/results/fleet_scale.json`; about 10 minutes on a busy 2-core machine).  Sections 1 and 2
-# use the batched solver (:mod:`optcal.estimators.batched`, identical to `mle` to the solver
+# use the batched solver (:mod:`optcal.families.accel.batched`, identical to `mle` to the solver
 # tolerance) for the thousands of own fits.
 
 # %%
@@ -38,16 +38,16 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.calibration import calibrate
-from optcal.estimators.batched import BatchedMaximumLikelihood
-from optcal.fleet.engine import refit_unit
-from optcal.fleet.inputs import expand_inputs
-from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD, flag_units, population_stats
-from optcal.fleet.prior import estimate_prior, fit_with_prior
-from optcal.fleet.synthetic import unit_model, write_fleet
-from optcal.fleet.unit import UnitOutcome, fit_unit, read_unit
-from optcal.model import LumpedModel
-from optcal.simulate import cap_directions, simulate_poses, six_position, uniform_directions
+from optcal.families.accel.calibration import calibrate
+from optcal.families.accel.batched import BatchedMaximumLikelihood
+from optcal.applications.fleet.engine import refit_unit
+from optcal.applications.fleet.inputs import expand_inputs
+from optcal.applications.fleet.population import DEFAULT_FLAG_THRESHOLD, flag_units, population_stats
+from optcal.applications.fleet.prior import estimate_prior, fit_with_prior
+from optcal.applications.fleet.synthetic import unit_model, write_fleet
+from optcal.applications.fleet.unit import UnitOutcome, fit_unit, read_unit
+from optcal.core.model import LumpedModel
+from optcal.families.simulate.poses import cap_directions, simulate_poses, six_position, uniform_directions
 
 from study_mode import size as full_or_quick  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402

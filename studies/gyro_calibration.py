@@ -31,13 +31,13 @@ import numpy as np
 
 import optcal
 from optcal.data import load_with_segmentation
-from optcal.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu_loaded
-from optcal.gyro.moves import moves_from_arrays, moves_from_segmentation
-from optcal.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
-from optcal.gyro.simulate import reference_gyro, simulate_imu
-from optcal.gyro.units import GyroUnitsDecision
-from optcal.poses import PoseTable
-from optcal.result import jsonable
+from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu_loaded
+from optcal.families.gyro.moves import moves_from_arrays, moves_from_segmentation
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
+from optcal.families.simulate.gyro import reference_gyro, simulate_imu
+from optcal.core.units import GyroUnitsDecision
+from optcal.core.poses import PoseTable
+from optcal.core.fit_result import jsonable
 
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES, size  # noqa: E402

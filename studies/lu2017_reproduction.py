@@ -26,9 +26,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from optcal import calibrate
-from optcal.model import lu2017_reference_model
-from optcal.reproduce.lu2017 import format_report, run
-from optcal.simulate import simulate_poses, tilted_sweeps
+from optcal.core.model import lu2017_reference_model
+from optcal.applications.papers.lu2017 import format_report, run
+from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
 from study_mode import FIGURES as FIG
 from study_mode import show  # noqa: E402
 from study_mode import RESULTS as OUT

@@ -12,10 +12,10 @@
 #
 # For the lumped model (nine parameters, gravity directions as nuisance) every schedule of n poses
 # is scored by its D-efficiency against the best n poses, `exp((log det M − log det M*)/9)`, where
-# `M*` is bounded by the certified relaxation of `optcal.plan` (the bound is ≥ every n-pose design,
+# `M*` is bounded by the certified relaxation of `optcal.applications.plan` (the bound is ≥ every n-pose design,
 # so these efficiencies are lower bounds), and by the expected standard error of every parameter at
 # 1 mg pose noise (nominal sensor T = I, o = 0 in g, so T entries are relative and o is in g).
-# Schedules: Lu 2017's three sweeps as written and about tilted axes (`optcal.simulate`), Yin 2014's
+# Schedules: Lu 2017's three sweeps as written and about tilted axes (`optcal.families.simulate.poses`), Yin 2014's
 # six cube faces, Sun 2011's ten turntable positions, the real 38-pose hand-held Xsens session of
 # imu_tk (`shared/data/imutk-xsens`, with its own convex fit as the prior), random sets, and the
 # plans of `optcal plan` of the same sizes. Then a Monte Carlo: K planned poses against N random ones.
@@ -28,15 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.calibration import calibrate
+from optcal.families.accel.calibration import calibrate
 from optcal.errors import IdentifiabilityError
-from optcal.identifiability import analyse_design
-from optcal.model import PARAM_NAMES
-from optcal.plan import Prior, plan_poses
-from optcal.plan.figure import sphere_figure
-from optcal.plan.information import covariance, information
-from optcal.simulate import lu2017_sweeps, simulate_poses, six_position, tilted_sweeps, uniform_directions
-from optcal.sun2011.turntable import ten_position_scheme
+from optcal.core.identifiability import analyse_design
+from optcal.core.model import PARAM_NAMES
+from optcal.applications.plan import Prior, plan_poses
+from optcal.report.plan_figure import sphere_figure
+from optcal.applications.plan.information import covariance, information
+from optcal.families.simulate.poses import lu2017_sweeps, simulate_poses, six_position, tilted_sweeps, uniform_directions
+from optcal.applications.papers.sun2011.turntable import ten_position_scheme
 
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import RESULTS as OUT  # noqa: E402
@@ -129,7 +129,7 @@ lines += ["## Schedules against the best design of the same size", "",
 for name, n, eff, se in rows:
     cells = " | ".join("∞" if not np.isfinite(v) or v > 1e3 else f"{v * 1e4:.2f}" for v in se)
     lines.append(f"| {name} | {n} | {eff:.3f} | {cells} |")
-lines += ["", xsens_note, "", "Why the zeros (optcal.identifiability on the noise-free design):", ""]
+lines += ["", xsens_note, "", "Why the zeros (optcal.core.identifiability on the noise-free design):", ""]
 for name, d in schedules.items():
     report = analyse_design(NOMINAL.model, d)
     if not report.identifiable:

@@ -27,7 +27,7 @@
 # CI executes this notebook with both set (tests/test_notebooks.py): it redraws from the saved full
 # run; the computation itself is exercised by `benchmarks/run_quick.sh` and `tests/test_solvers.py`.
 #
-# The computation is `optcal.reproduce.solvers.run` (also `optcal reproduce solvers [--json]`).
+# The computation is `optcal.applications.papers.solver_study.run` (also `optcal reproduce solvers [--json]`).
 
 # %%
 from __future__ import annotations
@@ -48,8 +48,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from optcal.model import PARAM_NAMES  # noqa: E402
-from optcal.reproduce.solvers import run  # noqa: E402
+from optcal.core.model import PARAM_NAMES  # noqa: E402
+from optcal.applications.papers.solver_study import run  # noqa: E402
 
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import show  # noqa: E402
@@ -226,9 +226,9 @@ svd_fail_convex_ok = [
 
 # One example, looked at closely: the algebraic quadric of each fit on a 30° cap at 20 mg.
 from optcal.errors import FitError  # noqa: E402
-from optcal.estimators.ellipsoid import ConvexEllipsoidFit, SVDEllipsoidFit  # noqa: E402
-from optcal.model import lu2017_reference_model  # noqa: E402
-from optcal.simulate import cap_directions, simulate_poses  # noqa: E402
+from optcal.families.accel.ellipsoid import ConvexEllipsoidFit, SVDEllipsoidFit  # noqa: E402
+from optcal.core.model import lu2017_reference_model  # noqa: E402
+from optcal.families.simulate.poses import cap_directions, simulate_poses  # noqa: E402
 
 example_poses = simulate_poses(lu2017_reference_model(), cap_directions(120, 30.0, np.random.default_rng(1)), 0.020,
                                rng=np.random.default_rng(2))

@@ -35,10 +35,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from optcal.sun2011.alignment import FilterTuning
-from optcal.reproduce.sun2011 import conclusion, format_report, run
-from optcal.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
-from optcal.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
+from optcal.applications.papers.sun2011.alignment import FilterTuning
+from optcal.applications.papers.sun2011.reproduce import conclusion, format_report, run
+from optcal.applications.papers.sun2011.tenposition import STEP_PARAMS, error_rates, misalignment_design, path_estimates, run_scheme
+from optcal.applications.papers.sun2011.turntable import ARCSEC, PARAM_NAMES, SimulationSettings, TurntableRun
 
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import show  # noqa: E402

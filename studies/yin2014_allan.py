@@ -29,10 +29,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from optcal.data import load_recording
-from optcal.yin2014.ekf import YinEKF
-from optcal.model import AXES, STANDARD_GRAVITY
-from optcal.yin2014.allan import analyse_static_log, plot_allan
-from optcal.reproduce import yin2014
+from optcal.applications.papers.yin2014.ekf import YinEKF
+from optcal.core.model import AXES, STANDARD_GRAVITY
+from optcal.families.noise.allan import analyse_static_log, plot_allan
+from optcal.applications.papers.yin2014 import reproduce as yin2014
 
 from study_mode import FIGURES as FIG  # noqa: E402
 from study_mode import show  # noqa: E402

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optcal.model import lu2017_reference_model
+from optcal.core.model import lu2017_reference_model
 
 #: ../shared beside the repository (real recordings and the papers); tests skip without it.
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"

@@ -3,7 +3,7 @@
 Issue 4's acceptance ranges: every effect of the vocabulary, a random axis, magnitudes down to
 0.5 mg/°C, 300 ppm/°C, 3 mg of drift over the recording, 4 mg/g² and 8 % outlier poses; 40-120
 poses; 0.2-0.8 mg of noise per pose.  The temperature follows a warm-up then a cool-down
-(:func:`optcal.simulate_effects.warmup_cooldown`) spanning 15-30 °C over a 20-minute session.
+(:func:`optcal.families.simulate.effects.warmup_cooldown`) spanning 15-30 °C over a 20-minute session.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.extended_model import ExtendedModel
-from optcal.simulate_effects import simulate_extended, warmup_cooldown
-from optcal.model import AXES, lu2017_reference_model
-from optcal.poses import PoseTable
-from optcal.simulate import uniform_directions
+from optcal.core.extended_model import ExtendedModel
+from optcal.families.simulate.effects import simulate_extended, warmup_cooldown
+from optcal.core.model import AXES, lu2017_reference_model
+from optcal.core.poses import PoseTable
+from optcal.families.simulate.poses import uniform_directions
 
 #: Smallest magnitude of each effect (first-order coefficient; drift: g over the recording;
 #: outliers: fraction of poses).

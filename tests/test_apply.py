@@ -8,13 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import optcal.caltypes as caltypes
+import optcal.families.caltypes as caltypes
 from cli_run import run
-from optcal.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibration
-from optcal.caltypes.apply import STATUS_COLUMN
+from optcal.families.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibration
+from optcal.families.caltypes.apply import STATUS_COLUMN
 from optcal.data import load
-from optcal.simulate_effects import recording_with_effect
-from optcal.model import STANDARD_GRAVITY
+from optcal.families.simulate.effects import recording_with_effect
+from optcal.core.model import STANDARD_GRAVITY
 
 #: 1 mg/°C on z over the 16 °C warm-up and cool-down of the generator: ±8 mg, far above the noise.
 PLANTED = 1e-3
@@ -23,7 +23,7 @@ PLANTED = 1e-3
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """A counts recording with a planted temperature bias, its lumped fit and the extended truth."""
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     d = tmp_path_factory.mktemp("apply")
     frame, truth = recording_with_effect("temperature_bias", "z", PLANTED, n_poses=30, seed=3)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from optcal.cli.main import main
-from optcal.simulate import uniform_directions
+from optcal.families.simulate.poses import uniform_directions
 
 RATE = 100.0
 

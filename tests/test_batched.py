@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.estimators.batched import BatchedMaximumLikelihood, BatchedNormResidualCost, validate_many
-from optcal.identifiability import parameter_full_scale
-from optcal.estimators.mle import MaximumLikelihood, NormResidualCost
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.poses import PoseTable
-from optcal.simulate import simulate_poses, six_position, tilted_sweeps, uniform_directions
+from optcal.families.accel.batched import BatchedMaximumLikelihood, BatchedNormResidualCost, validate_many
+from optcal.core.identifiability import parameter_full_scale
+from optcal.families.accel.mle import MaximumLikelihood, NormResidualCost
+from optcal.core.model import LumpedModel, lu2017_reference_model
+from optcal.core.poses import PoseTable
+from optcal.families.simulate.poses import simulate_poses, six_position, tilted_sweeps, uniform_directions
 
 
 def _tables(seed: int) -> list[PoseTable]:

@@ -8,8 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-import optcal.caltypes as caltypes
-from optcal.caltypes import (
+import optcal.families.caltypes as caltypes
+from optcal.families.caltypes import (
     ExtendedCalibration,
     ExtendedTerm,
     FitPoses,
@@ -18,11 +18,11 @@ from optcal.caltypes import (
     ValidityRange,
     ValidityRangeWarning,
 )
-from optcal.extended_model import ExtendedModel
-from optcal.simulate_effects import demo_sensor
+from optcal.core.extended_model import ExtendedModel
+from optcal.families.simulate.effects import demo_sensor
 from optcal.errors import InputError
-from optcal.model import lu2017_reference_model
-from optcal.simulate import uniform_directions
+from optcal.core.model import lu2017_reference_model
+from optcal.families.simulate.poses import uniform_directions
 
 RNG_DIRECTIONS = 11
 
@@ -111,7 +111,7 @@ def test_unknown_type_and_newer_major_version_are_refused(tmp_path):
 
 
 def test_registry_is_open_to_a_new_type():
-    caltypes.register("lumped_copy", "optcal.caltypes.lumped:LumpedCalibration")
+    caltypes.register("lumped_copy", "optcal.families.caltypes.lumped:LumpedCalibration")
     try:
         assert caltypes.calibration_class("lumped_copy") is LumpedCalibration
     finally:

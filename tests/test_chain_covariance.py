@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.chain_covariance import ChainCovariance, MarkovChain, block_inverse_diagonal
+from optcal.core.chain_covariance import ChainCovariance, MarkovChain, block_inverse_diagonal
 
 
 def _dense_loading(op: ChainCovariance) -> np.ndarray:

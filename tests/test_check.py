@@ -9,8 +9,8 @@ import pytest
 
 from cli_run import run
 from optcal.data import load
-from optcal.data.synthetic import synthesize_recording
-from optcal.data.validation import (
+from optcal.families.simulate.recording import synthesize_recording
+from optcal.applications.quality.validation import (
     check_calibration,
     displacement_integration,
     held_out_validation,
@@ -18,9 +18,9 @@ from optcal.data.validation import (
     levelling_rotation,
 )
 from optcal.errors import InputError
-from optcal.model import STANDARD_GRAVITY, LumpedModel
-from optcal.norm_residual import norm_residuals
-from optcal.simulate import uniform_directions
+from optcal.core.model import STANDARD_GRAVITY, LumpedModel
+from optcal.core.norm_residual import norm_residuals
+from optcal.families.simulate.poses import uniform_directions
 
 SIGMA = 0.003
 MODEL = LumpedModel.from_physical([1.02, 0.98, 1.03], np.deg2rad(0.8), np.deg2rad(-0.5), np.deg2rad(0.6),
@@ -30,7 +30,7 @@ MODEL = LumpedModel.from_physical([1.02, 0.98, 1.03], np.deg2rad(0.8), np.deg2ra
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """A calibration from recording A, and a second recording B of the same sensor (g and m/s²)."""
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     d = tmp_path_factory.mktemp("check")
     a = synthesize_recording(MODEL, uniform_directions(30, rng=1), sigma=SIGMA, rng=2)
@@ -85,11 +85,11 @@ def test_check_bad_inputs(files, tmp_path, capsys):
 
 
 def test_check_calibration_counts_nominal_baseline():
-    from optcal.result import CalibrationResult, SolverInfo
+    from optcal.core.fit_result import CalibrationResult, SolverInfo
 
     model = LumpedModel.from_physical([4065.0, 4047.0, 4063.0], 0.0, 0.0, 0.0, [33122.0, 33278.0, 32371.0])
     d = uniform_directions(20, rng=0)
-    from optcal.simulate import simulate_poses
+    from optcal.families.simulate.poses import simulate_poses
 
     poses = simulate_poses(model, d, 0.5, rng=1, units="counts")
     T, o = model.T_canonical, model.o
@@ -101,7 +101,7 @@ def test_check_calibration_counts_nominal_baseline():
 
 
 def test_held_out_validation_on_known_truth():
-    from optcal.simulate import simulate_poses
+    from optcal.families.simulate.poses import simulate_poses
 
     poses = simulate_poses(MODEL, uniform_directions(40, rng=5), SIGMA / 10, rng=6)
     h = held_out_validation(poses, folds=4, rng=0)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from optcal.cli.main import main
-from optcal.simulate import simulate_poses, tilted_sweeps
+from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
 
 
 def run(capsys, *args):

@@ -117,9 +117,9 @@ def test_diagnose_saves_the_extended_model_and_it_corrects_better_than_lumped(tm
     The extended calibration halves (at least) the rms |a| − 1 of the lumped calibration applied the
     same way, and reproduces the diagnosis's own final rms within 10 %.
     """
-    import optcal.caltypes as caltypes
+    import optcal.families.caltypes as caltypes
     from optcal.data import load
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.families.simulate.effects import recording_with_effect
 
     frame, truth = recording_with_effect("temperature_bias", seed=2)
     rec = tmp_path / "rec.csv"
@@ -179,6 +179,6 @@ def test_nothing_found_saves_the_lumped_baseline(tmp_path: Path, capsys: pytest.
     path = write_table(make_case(None, 28), tmp_path / "poses.csv")
     assert main(["diagnose", str(path), "--simulations", "0", "-o", str(tmp_path / "cal.json")]) == 0
     assert "saved: " in capsys.readouterr().out
-    import optcal.caltypes as caltypes
+    import optcal.families.caltypes as caltypes
 
     assert caltypes.load(tmp_path / "cal.json").cal_type == "lumped"

@@ -30,9 +30,9 @@ def test_usage_errors_are_one_error_line_with_exit_2(capsys, pose_csv, tmp_path,
 @pytest.fixture
 def counts_cal(tmp_path):
     """A lumped calibration in counts (fitted on 30 noise-free poses) and a recording in m/s²."""
-    from optcal.caltypes import FitPoses, LumpedCalibration
-    from optcal.model import LumpedModel, lu2017_reference_model
-    from optcal.simulate import uniform_directions
+    from optcal.families.caltypes import FitPoses, LumpedCalibration
+    from optcal.core.model import LumpedModel, lu2017_reference_model
+    from optcal.families.simulate.poses import uniform_directions
 
     model = LumpedModel(np.diag([16300.0, 16450.0, 16700.0]) @ lu2017_reference_model().C,
                         np.array([700.0, -360.0, -1830.0]))
@@ -66,9 +66,9 @@ def test_apply_names_data_units_and_columns(capsys, counts_cal, tmp_path):
     cal, ms2 = counts_cal
     err = one_error(*run(capsys, "apply", str(cal), str(ms2), "-o", str(tmp_path / "out.csv"))[::2])
     assert "(or pass --data-units counts if that is what it is)" in err and "units=" not in err
-    from optcal.caltypes import ExtendedCalibration, FitPoses
-    from optcal.extended_model import ExtendedModel
-    from optcal.model import LumpedModel
+    from optcal.families.caltypes import ExtendedCalibration, FitPoses
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.core.model import LumpedModel
 
     model = ExtendedModel(LumpedModel(np.eye(3), np.zeros(3)), {"temperature_bias": np.array([1e-3, 0, 0])}, temp_ref=25.0)
     ExtendedCalibration.from_model(model, "g", fitted_on=None).save(tmp_path / "ext.json")
@@ -85,7 +85,7 @@ def test_calibrate_names_time_unit(capsys, counts_cal):
 @pytest.fixture
 def one_ipopt_iteration(monkeypatch):
     """IPOPT limited to one iteration; the problems built meanwhile are not kept for other tests."""
-    from optcal.estimators import mle
+    from optcal.families.accel import mle
 
     monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
     mle.ML_PROBLEMS.clear()
@@ -117,8 +117,8 @@ def test_weakly_determined_pose_set_is_refused_with_consistent_wording(capsys, s
 
 
 def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, one_ipopt_iteration):
-    from optcal.model import lu2017_reference_model
-    from optcal.simulate import simulate_poses
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import simulate_poses
 
     # six cube faces: rank 6 of 9 whatever the noise; an IPOPT limit of 1 iteration would warn if it ran
     faces = np.repeat(np.vstack([np.eye(3), -np.eye(3)]), 3, axis=0)
@@ -133,9 +133,9 @@ def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, o
 
 # ----------------------------------------------------------------------------- simulate -> calibrate --method sixpos
 def test_simulated_six_positions_calibrate_with_sixpos(capsys, tmp_path):
-    import optcal.caltypes as caltypes
+    import optcal.families.caltypes as caltypes
     from optcal.data import load
-    from optcal.simulate import six_position, user_directions
+    from optcal.families.simulate.poses import six_position, user_directions
 
     path = tmp_path / "six.csv"
     code, _, err = run(capsys, "simulate", "--schedule", "sixpos", "--sigma", "0", "-o", str(path))

@@ -1,6 +1,6 @@
 """Cramér–Rao bound with the gravity directions as nuisance parameters.
 
-The bound of :func:`optcal.identifiability.cramer_rao_bound` comes from a reduced Fisher
+The bound of :func:`optcal.core.identifiability.cramer_rao_bound` comes from a reduced Fisher
 information (one rank-one term per pose along the ellipsoid normal).  Here it is checked
 against the brute-force Schur complement of the full Fisher information of θ plus two
 tangent angles per direction, and against a Monte Carlo of the exact (errors-in-variables)
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import optcal
-from optcal.estimators.exact import ExactMaximumLikelihood
-from optcal.identifiability import cramer_rao_bound, fisher_information
-from optcal.model import TRIL_INDEX, LumpedModel, lu2017_reference_model
-from optcal.reproduce.solvers import distorted_model
-from optcal.simulate import simulate_poses, tilted_sweeps, uniform_directions
+from optcal.families.accel.exact import ExactMaximumLikelihood
+from optcal.core.identifiability import cramer_rao_bound, fisher_information
+from optcal.core.model import TRIL_INDEX, LumpedModel, lu2017_reference_model
+from optcal.applications.papers.solver_study import distorted_model
+from optcal.families.simulate.poses import simulate_poses, tilted_sweeps, uniform_directions
 
 
 def tangent_basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

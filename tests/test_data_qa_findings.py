@@ -12,11 +12,11 @@ import pytest
 from cli_run import run
 from optcal.data import load
 from optcal.data.static import TURNING, TURNING_STRETCHES
-from optcal.data.synthetic import synthesize_recording
+from optcal.families.simulate.recording import synthesize_recording
 from optcal.data.units import implied_sensitivity
 from optcal.errors import InputError
-from optcal.model import LumpedModel
-from optcal.simulate import uniform_directions
+from optcal.core.model import LumpedModel
+from optcal.families.simulate.poses import uniform_directions
 
 
 

@@ -15,12 +15,12 @@ from cli_run import run
 from optcal.data import decide_kind, load, load_pose_table, load_recording, load_with_segmentation
 from optcal.data.readers import read_source
 from optcal.data.recording import DUPLICATED, NON_FINITE, REPEATED_TIME, SATURATED
-from optcal.data.synthetic import synthesize_recording
+from optcal.families.simulate.recording import synthesize_recording
 from optcal.data.units import decide_units, nominal_conversion
 from optcal.data.writers import write_recording
 from optcal.errors import InputError
-from optcal.model import STANDARD_GRAVITY, LumpedModel, lu2017_reference_model
-from optcal.simulate import simulate_poses, uniform_directions
+from optcal.core.model import STANDARD_GRAVITY, LumpedModel, lu2017_reference_model
+from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 
 def ms2_model() -> LumpedModel:

@@ -11,10 +11,10 @@ from optcal.data import load, load_with_segmentation
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
 from optcal.data.static import SWEEPING, SWEEPING_STRETCHES, detect_static
-from optcal.data.synthetic import synthesize_recording
+from optcal.families.simulate.recording import synthesize_recording
 from optcal.errors import InputError
-from optcal.model import lu2017_reference_model
-from optcal.simulate import uniform_directions
+from optcal.core.model import lu2017_reference_model
+from optcal.families.simulate.poses import uniform_directions
 
 from conftest import SHARED
 

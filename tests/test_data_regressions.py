@@ -12,10 +12,10 @@ import pytest
 
 from cli_run import run
 from optcal.data import load, load_with_segmentation
-from optcal.data.synthetic import synthesize_recording
+from optcal.families.simulate.recording import synthesize_recording
 from optcal.errors import InputError
-from optcal.model import STANDARD_GRAVITY, LumpedModel
-from optcal.simulate import uniform_directions
+from optcal.core.model import STANDARD_GRAVITY, LumpedModel
+from optcal.families.simulate.poses import uniform_directions
 
 
 

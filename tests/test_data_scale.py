@@ -17,10 +17,10 @@ from optcal.data import load, load_with_segmentation
 from optcal.data.readers import read_source
 from optcal.data.recording import recording_from_source
 from optcal.data.static import NO_REST, NO_REST_STRETCHES, Segmentation, detect_static
-from optcal.data.synthetic import synthesize_recording
+from optcal.families.simulate.recording import synthesize_recording
 from optcal.errors import InputError
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.simulate import tilted_sweeps, uniform_directions
+from optcal.core.model import LumpedModel, lu2017_reference_model
+from optcal.families.simulate.poses import tilted_sweeps, uniform_directions
 
 from conftest import SHARED
 

@@ -12,9 +12,9 @@ import optcal.data.text as text
 from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
-from optcal.data.synthetic import synthesize_recording
-from optcal.model import LumpedModel
-from optcal.simulate import uniform_directions
+from optcal.families.simulate.recording import synthesize_recording
+from optcal.core.model import LumpedModel
+from optcal.families.simulate.poses import uniform_directions
 
 
 def test_median_and_quantiles_are_numpys_bit_for_bit():

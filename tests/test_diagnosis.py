@@ -1,7 +1,7 @@
 """Diagnosis: hidden effects are named with the right axis and size; clean data give no finding.
 
 The data sets come from :mod:`diagnosis_cases` (the acceptance ranges of issue 4); the test
-holds the truth and :class:`optcal.diagnosis.Diagnoser` never sees it.  The false-finding rate
+holds the truth and :class:`optcal.applications.diagnosis.Diagnoser` never sees it.  The false-finding rate
 over many seeds is measured in ``studies/diagnose_acceptance.py``; here a few seeds guard it.
 """
 
@@ -14,19 +14,19 @@ import numpy as np
 import pytest
 from diagnosis_cases import make_case
 
-from optcal.calibration import calibrate
+from optcal.families.accel.calibration import calibrate
 from optcal.data import load
-from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose
-from optcal.diagnosis.effects import EFFECTS
-from optcal.diagnosis.fitting import Fitter
-from optcal.diagnosis.regressors import Regressors
-from optcal.extended_model import ExtendedModel
-from optcal.simulate_effects import recording_with_effect, simulate_extended, warmup_cooldown
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose
+from optcal.applications.diagnosis.effects import EFFECTS
+from optcal.applications.diagnosis.fitting import Fitter
+from optcal.applications.diagnosis.regressors import Regressors
+from optcal.core.extended_model import ExtendedModel
+from optcal.families.simulate.effects import recording_with_effect, simulate_extended, warmup_cooldown
 from optcal.errors import InputError
-from optcal.model import lu2017_reference_model
-from optcal.poses import PoseTable
-from optcal.result import jsonable
-from optcal.simulate import uniform_directions
+from optcal.core.model import lu2017_reference_model
+from optcal.core.poses import PoseTable
+from optcal.core.fit_result import jsonable
+from optcal.families.simulate.poses import uniform_directions
 
 SIMULATIONS = 30
 
@@ -259,7 +259,8 @@ def test_typed_result_round_trips_through_json_and_figures_leave_the_backend_alo
 
     import matplotlib
 
-    from optcal.diagnosis import Finding, SimulationCheck, Step, residual_figure, save_figures
+    from optcal.applications.diagnosis import Finding, SimulationCheck, Step
+    from optcal.report.diagnosis_figures import residual_figure, save_figures
 
     backend = matplotlib.get_backend()
     case = make_case("bias_drift", 6)

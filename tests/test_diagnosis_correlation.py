@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from optcal.data import load_with_segmentation
-from optcal.diagnosis import Diagnoser, DiagnosisSettings, diagnose
-from optcal.diagnosis.correlation import CorrelationOperator, estimate_correlation, restricted_deviance
-from optcal.simulate_effects import recording_with_effect
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose
+from optcal.applications.diagnosis.correlation import CorrelationOperator, estimate_correlation, restricted_deviance
+from optcal.families.simulate.effects import recording_with_effect
 
 sys.path.insert(0, str(Path(__file__).parent))
 from diagnosis_cases import make_case  # noqa: E402
@@ -129,10 +129,10 @@ def test_a_linear_drift_in_a_small_session_is_named_as_linear(seed: int) -> None
 def test_a_bias_that_rises_and_falls_is_still_seen_with_its_order() -> None:
     """A bias wandering up and back down over the recording (warm-up then cooling) has no linear part:
     it must enter at order 2 directly, and the step-down must keep that order (its top coefficient matters)."""
-    from optcal.extended_model import ExtendedModel
-    from optcal.model import lu2017_reference_model
-    from optcal.simulate import uniform_directions
-    from optcal.simulate_effects import simulate_extended
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import uniform_directions
+    from optcal.families.simulate.effects import simulate_extended
 
     rng = np.random.default_rng(11)
     n = 60
@@ -163,9 +163,9 @@ def test_the_correlation_setting_is_checked_and_off_means_independent_poses() ->
 
 def test_generalised_fit_with_independent_poses_is_the_weighted_least_squares_fit() -> None:
     """R = I: the Gauss–Newton refinement, the mean shifts of outlier poses and the covariance reduce to today's fit."""
-    from optcal.calibration import calibrate
-    from optcal.diagnosis.fitting import Fitter
-    from optcal.diagnosis.regressors import Regressors
+    from optcal.families.accel.calibration import calibrate
+    from optcal.applications.diagnosis.fitting import Fitter
+    from optcal.applications.diagnosis.regressors import Regressors
 
     poses = make_case("bias_drift", 7, n_range=(40, 40)).poses
     cal = calibrate(poses)
@@ -216,10 +216,10 @@ def test_a_warm_up_seen_by_the_temperature_channel_is_named_as_temperature_not_a
 def test_outlier_test_under_the_correlation_reduces_to_the_plain_deleted_residual_test() -> None:
     """The deleted-residual test of outlier poses runs under the correlated noise (generalised least squares);
     with R = I it is the plain test to rounding, and with a strong correlation it differs."""
-    from optcal.calibration import calibrate
-    from optcal.diagnosis.fitting import Fitter
-    from optcal.diagnosis.outliers import deleted_residual_p
-    from optcal.diagnosis.regressors import Regressors
+    from optcal.families.accel.calibration import calibrate
+    from optcal.applications.diagnosis.fitting import Fitter
+    from optcal.applications.diagnosis.outliers import deleted_residual_p
+    from optcal.applications.diagnosis.regressors import Regressors
 
     case = make_case("outliers", 4, n_range=(40, 40))
     poses = case.poses
@@ -265,10 +265,10 @@ def test_outlier_limit_under_the_correlation_equals_the_dense_mean_shift_varianc
     diagonal entry of ``([H, eₖ]ᵀ R⁻¹ [H, eₖ])⁻¹`` with the dense R, outlier poses already set aside included."""
     from scipy import stats as sps
 
-    from optcal.calibration import calibrate
-    from optcal.diagnosis.fitting import Fitter, mean_shift_columns
-    from optcal.diagnosis.limits import pose_outlier_limits
-    from optcal.diagnosis.regressors import Regressors
+    from optcal.families.accel.calibration import calibrate
+    from optcal.applications.diagnosis.fitting import Fitter, mean_shift_columns
+    from optcal.applications.diagnosis.limits import pose_outlier_limits
+    from optcal.applications.diagnosis.regressors import Regressors
 
     case = make_case("outliers", 4, n_range=(40, 40))
     poses = case.poses

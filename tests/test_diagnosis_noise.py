@@ -1,6 +1,6 @@
 """The noise model as a named explanation: correlated pose noise is named, never as a physical effect.
 
-Raw 100 Hz recordings in counts from :func:`optcal.simulate_effects.recording_with_effect` with a
+Raw 100 Hz recordings in counts from :func:`optcal.families.simulate.effects.recording_with_effect` with a
 Gauss–Markov noise component (1 mg, 4 s correlation time: the time scale of a 4 s dwell); the
 truth (no effect, or one effect) is hidden from the diagnosis.
 """
@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from optcal.data import load
-from optcal.diagnosis import diagnose
-from optcal.simulate_effects import recording_with_effect
+from optcal.applications.diagnosis import diagnose
+from optcal.families.simulate.effects import recording_with_effect
 
 
 def poses_of(tmp_path: Path, effect: str | None, gauss_markov_g: float, seed: int):

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from diagnosis_cases import make_case
 
-from optcal.diagnosis import Diagnoser, diagnose
-from optcal.diagnosis.outliers import detect_outliers, robust_scale, trimmed_scale
+from optcal.applications.diagnosis import Diagnoser, diagnose
+from optcal.applications.diagnosis.outliers import detect_outliers, robust_scale, trimmed_scale
 
 
 def test_scales_are_consistent() -> None:
@@ -66,8 +66,8 @@ def test_the_outlier_limit_is_the_shift_named_about_half_the_time() -> None:
     twice the limit almost always (40 clean 40-pose sessions, a different pose each time)."""
     from scipy import stats as sps
 
-    from optcal.diagnosis.limits import pose_outlier_limits
-    from optcal.model import lu2017_reference_model
+    from optcal.applications.diagnosis.limits import pose_outlier_limits
+    from optcal.core.model import lu2017_reference_model
 
     named = {1.0: 0, 2.0: 0}
     sessions = 40

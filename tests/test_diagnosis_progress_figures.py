@@ -10,9 +10,9 @@ import pytest
 from diagnosis_cases import make_case, write_pose_table
 
 from optcal.cli.main import main
-from optcal.diagnosis import Diagnoser, DiagnosisSettings
-from optcal.diagnosis.figures import residual_figure, simulation_figure
-from optcal.diagnosis.progress import Progress
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.report.diagnosis_figures import residual_figure, simulation_figure
+from optcal.applications.diagnosis.progress import Progress
 
 
 def test_no_bar_text_when_stderr_is_not_a_terminal(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optcal.diagnosis import diagnose
+from optcal.applications.diagnosis import diagnose
 
 XSENS_COLUMNS = {"t_s": "t", "acc_x_counts": "ax", "acc_y_counts": "ay", "acc_z_counts": "az"}
 
@@ -21,10 +21,10 @@ XSENS_COLUMNS = {"t_s": "t", "acc_x_counts": "ax", "acc_y_counts": "ay", "acc_z_
 def planted_xsens(tmp_path: Path, path: Path, effect: str | None, axis: int, value: float, name: str):
     """The Xsens log with ``effect`` planted on ``axis`` through its own lumped calibration, and a synthetic
     warm-up/cool-down temperature channel (the log has none), read back as ``optcal diagnose`` reads it."""
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
     from optcal.data import load
-    from optcal.extended_model import ExtendedModel
-    from optcal.simulate_effects import distort_recording, warmup_cooldown
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.families.simulate.effects import distort_recording, warmup_cooldown
 
     raw = pd.read_csv(path).rename(columns=XSENS_COLUMNS)[["t", "ax", "ay", "az"]]
     raw["temp"] = warmup_cooldown(raw["t"].to_numpy(), 22.0, 38.0, 27.0)
@@ -60,7 +60,7 @@ def test_the_same_recording_in_counts_and_in_m_per_s2_gives_the_same_diagnosis(t
     """A raw 100 Hz recording with a hidden temperature coefficient, written once in counts and once in m/s²:
     the same finding, axis and estimate (the coefficients are per g whatever the input units)."""
     from optcal.data import load
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.families.simulate.effects import recording_with_effect
 
     frame, truth = recording_with_effect("temperature_bias", seed=3)
     frame.to_csv(tmp_path / "counts.csv", index=False, float_format="%.8g")

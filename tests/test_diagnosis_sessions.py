@@ -10,12 +10,12 @@ import pandas as pd
 import pytest
 from diagnosis_cases import make_case, write_pose_table
 
-import optcal.caltypes
+import optcal.families.caltypes
 from optcal.cli.main import main
-from optcal.diagnosis import Diagnoser, DiagnosisSettings
-from optcal.diagnosis.sessions import stack_sessions
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.applications.diagnosis.sessions import stack_sessions
 from optcal.errors import InputError
-from optcal.model import AXES, lu2017_reference_model
+from optcal.core.model import AXES, lu2017_reference_model
 
 SETTINGS = DiagnosisSettings(simulations=10)
 #: No simulation check where only the selection matters.
@@ -80,14 +80,14 @@ def test_the_saved_repeatability_round_trips_as_a_minor_format_version(tmp_path:
     cal.save(path)
     data = json.loads(path.read_text())
     assert data["format_version"] == "2.1" and data["bias_repeatability"]["sessions"] == 2
-    back = optcal.caltypes.load(path)
+    back = optcal.families.caltypes.load(path)
     assert back.bias_repeatability == cal.bias_repeatability
     np.testing.assert_allclose(back.o, cal.o, rtol=0, atol=1e-12)
     # a 2.0 file (no repeatability) still loads
     data.pop("bias_repeatability")
     data["format_version"] = "2.0"
     path.write_text(json.dumps(data))
-    assert optcal.caltypes.load(path).bias_repeatability is None
+    assert optcal.families.caltypes.load(path).bias_repeatability is None
 
 
 def test_each_session_keeps_its_own_time_origin_and_bad_stacks_are_refused() -> None:
@@ -152,7 +152,7 @@ def test_two_halves_of_the_xsens_log_with_a_planted_shift(shared_data: Path, tmp
 
 def test_an_outlier_in_the_second_session_is_named_with_its_session(tmp_path: Path) -> None:
     """File row numbers repeat across sessions: the JSON, the text and the HTML name the outlier's session."""
-    from optcal.report.evidence import outlier_names
+    from optcal.applications.quality.evidence import outlier_names
 
     sessions, sensitivity = sessions_with_shift(0.0, 0, 21)
     second = sessions[1]

@@ -9,9 +9,9 @@ import pytest
 from diagnosis_cases import make_case
 
 from optcal.data import load_with_segmentation
-from optcal.diagnosis import Diagnoser, DiagnosisSettings
-from optcal.diagnosis.still_noise import mean_noise_at, pose_noise_from_still_parts
-from optcal.simulate_effects import recording_with_effect
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.applications.diagnosis.still_noise import mean_noise_at, pose_noise_from_still_parts
+from optcal.families.simulate.effects import recording_with_effect
 
 SETTINGS = DiagnosisSettings(simulations=10)
 #: No simulation check where only the selection and the noise test matter.

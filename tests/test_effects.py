@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.diagnosis.effects import EFFECTS, FITTED, parse_effects
-from optcal.diagnosis.effects import MAX_ORDER as FIT_MAX_ORDER
-from optcal.diagnosis.problem import ExtendedProblem, PoseData, active_mask, to_model
-from optcal.diagnosis.regressors import Regressors
-from optcal.extended_model import MAX_ORDER, PARAMETRIC, ExtendedModel
-from optcal.simulate_effects import demo_sensor, recording_with_effect, simulate_extended, warmup_cooldown
+from optcal.applications.diagnosis.effects import EFFECTS, FITTED, parse_effects
+from optcal.applications.diagnosis.effects import MAX_ORDER as FIT_MAX_ORDER
+from optcal.applications.diagnosis.problem import ExtendedProblem, PoseData, active_mask, to_model
+from optcal.applications.diagnosis.regressors import Regressors
+from optcal.core.extended_model import MAX_ORDER, PARAMETRIC, ExtendedModel
+from optcal.families.simulate.effects import demo_sensor, recording_with_effect, simulate_extended, warmup_cooldown
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser
-from optcal.model import lu2017_reference_model, theta_from
-from optcal.poses import PoseTable
-from optcal.simulate import uniform_directions
+from optcal.families.accel.base import Normaliser
+from optcal.core.model import lu2017_reference_model, theta_from
+from optcal.core.poses import PoseTable
+from optcal.families.simulate.poses import uniform_directions
 
 
 def every_effect(base, temp_ref=30.0, t_ref=100.0) -> ExtendedModel:
@@ -164,7 +164,7 @@ def test_model_terms_need_their_columns() -> None:
 
 def test_analytic_jacobian_matches_the_complex_step() -> None:
     """The chain-rule Jacobian of the extended residual against the complex step of the forward formula."""
-    from optcal.diagnosis.problem import COMPLEX_STEP, N_X, extended_residuals, residuals_and_jacobian
+    from optcal.applications.diagnosis.problem import COMPLEX_STEP, N_X, extended_residuals, residuals_and_jacobian
 
     rng = np.random.default_rng(8)
     n = 40

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from optcal.yin2014.ekf import YinEKF, specific_force, sum_squared_errors, tilt_angles
+from optcal.applications.papers.yin2014.ekf import YinEKF, specific_force, sum_squared_errors, tilt_angles
 from optcal.errors import InputError
-from optcal.model import lumped_matrix
-from optcal.yin2014.allan import analyse_static_log, simulate_noise
+from optcal.core.model import lumped_matrix
+from optcal.families.noise.allan import analyse_static_log, simulate_noise
 
 RATE = 100.0
 C = lumped_matrix((1.02, 0.97, 1.03), *np.radians((0.5, 0.3, 0.4)))

@@ -5,12 +5,12 @@ import pytest
 
 from optcal import calibrate
 from optcal.errors import FitError, IdentifiabilityError, InputError
-from optcal.estimators.ellipsoid import ConvexEllipsoidFit
-from optcal.estimators.gradient_descent import GradientDescent, cost_and_gradient
-from optcal.estimators.mle import MaximumLikelihood
-from optcal.model import LumpedModel
-from optcal.poses import PoseTable
-from optcal.simulate import cap_directions, lu2017_sweeps, simulate_poses, tilted_sweeps, uniform_directions
+from optcal.families.accel.ellipsoid import ConvexEllipsoidFit
+from optcal.families.accel.gradient_descent import GradientDescent, cost_and_gradient
+from optcal.families.accel.mle import MaximumLikelihood
+from optcal.core.model import LumpedModel
+from optcal.core.poses import PoseTable
+from optcal.families.simulate.poses import cap_directions, lu2017_sweeps, simulate_poses, tilted_sweeps, uniform_directions
 
 from conftest import rngs
 
@@ -176,7 +176,7 @@ def test_mle_bounds_respected(lu_model):
 
 
 def test_mle_reuses_problem(lu_model):
-    from optcal.estimators.mle import ML_PROBLEMS
+    from optcal.families.accel.mle import ML_PROBLEMS
 
     poses = simulate_poses(lu_model, tilted_sweeps(20), 0.01, rng=np.random.default_rng(9))
     calibrate(poses, method="mle")
@@ -232,7 +232,7 @@ def test_counts_covariance_is_well_scaled(lu_model):
 def test_collapsed_ml_fit_is_a_fit_error_with_the_right_advice():
     """On a 30° cap the norm-residual cost can fall into a degenerate minimum (T singular):
     that is reported as a collapsed fit, not as "not an ellipsoid, use convex"."""
-    from optcal.model import lu2017_reference_model
+    from optcal.core.model import lu2017_reference_model
 
     model = lu2017_reference_model()
     poses = simulate_poses(model, cap_directions(120, 30.0, np.random.default_rng(31)), 0.02,
@@ -247,8 +247,8 @@ def test_exact_problem_hessian_matches_automatic_differentiation():
     """The per-pose assembly of the eq. 8 Lagrangian Hessian equals CasADi's own (upper triangle)."""
     import casadi as ca
 
-    from optcal.estimators.exact import ExactProblem
-    from optcal.norm_residual import casadi_lower_triangular as lower_triangular
+    from optcal.families.accel.exact import ExactProblem
+    from optcal.core.norm_residual import casadi_lower_triangular as lower_triangular
 
     n = 7
     x, p = ca.SX.sym("x", 9 + 3 * n), ca.SX.sym("p", 4 * n)

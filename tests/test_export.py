@@ -11,14 +11,14 @@ import pandas as pd
 import pytest
 import yaml
 
-import optcal.caltypes as caltypes
+import optcal.families.caltypes as caltypes
 from cli_run import run
-from optcal.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
+from optcal.families.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
 from optcal.cli.main import main
-from optcal.extended_model import ExtendedModel
-from optcal.model import STANDARD_GRAVITY as G
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.simulate import uniform_directions
+from optcal.core.extended_model import ExtendedModel
+from optcal.core.model import STANDARD_GRAVITY as G
+from optcal.core.model import LumpedModel, lu2017_reference_model
+from optcal.families.simulate.poses import uniform_directions
 
 COUNTS_PER_G = 16384.0
 

@@ -7,10 +7,10 @@ import numpy as np
 
 from optcal.cli.cmd_segment import segmentation_figure
 from optcal.data import load_with_segmentation
-from optcal.data.synthetic import synthesize_recording
-from optcal.model import lu2017_reference_model
-from optcal.simulate import uniform_directions
-from optcal.yin2014.allan import allan_figure, analyse_static_log, plot_allan, simulate_noise
+from optcal.families.simulate.recording import synthesize_recording
+from optcal.core.model import lu2017_reference_model
+from optcal.families.simulate.poses import uniform_directions
+from optcal.families.noise.allan import allan_figure, analyse_static_log, plot_allan, simulate_noise
 
 LIBRARY = Path(__file__).resolve().parents[1] / "optcal"
 

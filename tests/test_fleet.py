@@ -12,18 +12,18 @@ import pytest
 
 from optcal.cli.main import main
 from optcal.data import load
-from optcal.calibration import calibrate
+from optcal.families.accel.calibration import calibrate
 from optcal.errors import InputError
-from optcal.identifiability import parameter_full_scale
-from optcal.fleet.engine import ClusterSettings
-from optcal.fleet.inputs import expand_inputs, read_manifest
-from optcal.fleet.population import flag_units, population_stats
-from optcal.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
-from optcal.fleet.synthetic import write_fleet
-from optcal.fleet.unit import UnitInput, UnitOutcome, read_unit
-from optcal.norm_residual import heldout_residuals
-from optcal.model import PARAM_NAMES, LumpedModel
-from optcal.simulate import simulate_poses, six_position, uniform_directions
+from optcal.core.identifiability import parameter_full_scale
+from optcal.applications.fleet.engine import ClusterSettings
+from optcal.applications.fleet.inputs import expand_inputs, read_manifest
+from optcal.applications.fleet.population import flag_units, population_stats
+from optcal.applications.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
+from optcal.applications.fleet.synthetic import write_fleet
+from optcal.applications.fleet.unit import UnitInput, UnitOutcome, read_unit
+from optcal.core.norm_residual import heldout_residuals
+from optcal.core.model import PARAM_NAMES, LumpedModel
+from optcal.families.simulate.poses import simulate_poses, six_position, uniform_directions
 
 N_UNITS = 150
 
@@ -85,14 +85,14 @@ def test_unit_identical_to_calibrate(fleet_run, capsys):
 
 
 #: Largest difference between a unit's θ solved in a batch and alone, as a fraction of the
-#: parameter's full scale (:func:`optcal.identifiability.parameter_full_scale`); measured 8.3e-10 on 300 units at ipopt.tol 1e-7, at most 1.1e-10 at 1e-10.
+#: parameter's full scale (:func:`optcal.core.identifiability.parameter_full_scale`); measured 8.3e-10 on 300 units at ipopt.tol 1e-7, at most 1.1e-10 at 1e-10.
 PARITY_FULL_SCALE = 5e-10
 
 
 def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
     """A few hundred units fitted together: every outcome as optcal calibrate's path gives it,
     the units the batch cannot take (unreadable, six faces) through the single-unit path."""
-    import optcal.fleet.unit as unit_module
+    import optcal.applications.fleet.unit as unit_module
 
     truth = write_fleet(tmp_path, 200, seed=23, scale_error_units=2, six_face_units=2, unreadable_units=2)
     units = expand_inputs([str(tmp_path)])
@@ -235,7 +235,7 @@ def test_results_writer_streams_the_table_in_row_groups(tmp_path):
     """Rows written chunk by chunk: several row groups, the same table as the whole-table path."""
     import pyarrow.parquet as pq
 
-    from optcal.fleet.results import FleetResult, ResultsWriter
+    from optcal.applications.fleet.results import FleetResult, ResultsWriter
 
     rng = np.random.default_rng(1)
     outcomes = [UnitOutcome(f"u{k}", f"p{k}", "calibrated" if k % 3 else "failed", reason="" if k % 3 else "bad file",

@@ -1,4 +1,4 @@
-"""Gyroscope calibration (optcal.gyro): synthetic recovery, Monte Carlo, identifiability, JSON, Xsens log."""
+"""Gyroscope calibration (optcal.families.gyro): synthetic recovery, Monte Carlo, identifiability, JSON, Xsens log."""
 
 from __future__ import annotations
 
@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 
 import optcal
-import optcal.caltypes
+import optcal.families.caltypes
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
-from optcal.gyro.model import GyroModel
-from optcal.gyro.moves import moves_from_arrays
-from optcal.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
-from optcal.gyro.result import ImuCalibration
-from optcal.gyro.simulate import ImuRecording, reference_gyro, simulate_imu
-from optcal.gyro.units import GyroUnitsDecision, decide_gyro_units
-from optcal.model import LumpedModel
-from optcal.poses import PoseTable
+from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
+from optcal.core.gyro_model import GyroModel
+from optcal.families.gyro.moves import moves_from_arrays
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
+from optcal.families.gyro.result import ImuCalibration
+from optcal.families.simulate.gyro import ImuRecording, reference_gyro, simulate_imu
+from optcal.core.units import GyroUnitsDecision, decide_gyro_units
+from optcal.core.model import LumpedModel
+from optcal.core.poses import PoseTable
 
 RAD_S = GyroUnitsDecision("rad/s", "test")
 
@@ -127,7 +127,7 @@ def test_json_round_trip(tmp_path, acc_model: LumpedModel) -> None:
     path = tmp_path / "imu.json"
     cal.save(path)
     back = ImuCalibration.load(path)
-    assert isinstance(optcal.caltypes.load(path), ImuCalibration) and back == cal
+    assert isinstance(optcal.families.caltypes.load(path), ImuCalibration) and back == cal
     assert np.array_equal(cal.correct(rec.acc), back.correct(rec.acc))
     assert np.array_equal(cal.correct_gyro(rec.gyro, rec.acc), back.correct_gyro(rec.gyro, rec.acc))
     assert back.param_names == cal.param_names and np.array_equal(back.covariance, cal.covariance)
@@ -179,7 +179,7 @@ def test_xsens_log_beats_imutk(shared_data) -> None:
     assert cal.rms_angle_after_deg <= 0.517
     # the metric reproduces imu_tk's own figures from its parameters
     from optcal.data import load_with_segmentation
-    from optcal.gyro.moves import moves_from_segmentation
+    from optcal.families.gyro.moves import moves_from_segmentation
 
     moves = moves_from_segmentation(load_with_segmentation(str(path)).segmentation)
     u = unit_rows((moves.acc_means - IMUTK_ACC[1]) @ IMUTK_ACC[0].T)
@@ -220,7 +220,7 @@ def test_cached_problem_solves_each_recording_afresh(acc_model: LumpedModel) -> 
     between, and two threads at once leave each recording's calibration exactly as when solved alone."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from optcal.gyro.estimator import GYRO_PROBLEMS
+    from optcal.families.gyro.estimator import GYRO_PROBLEMS
 
     first = simulate_imu(acc_model, reference_gyro(1.0, rng=6), 12, rng=7, dwell_s=1.0, move_s=1.0, gyro_noise=0.002,
                          acc_noise=0.001)

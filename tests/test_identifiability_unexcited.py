@@ -12,19 +12,19 @@ import numpy as np
 import pytest
 
 from optcal.errors import IdentifiabilityError
-from optcal.estimators.batched import BatchedMaximumLikelihood
-from optcal.estimators.mle import MaximumLikelihood
-from optcal.identifiability import (
+from optcal.families.accel.batched import BatchedMaximumLikelihood
+from optcal.families.accel.mle import MaximumLikelihood
+from optcal.core.identifiability import (
     analyse,
     fisher_information,
     numerical_rank,
     parameter_full_scale,
     scaled_information,
 )
-from optcal.model import PARAM_NAMES, lu2017_reference_model
-from optcal.poses import PoseTable
-from optcal.result import A_INDEX, dA_dtheta
-from optcal.simulate import uniform_directions
+from optcal.core.model import PARAM_NAMES, lu2017_reference_model
+from optcal.core.poses import PoseTable
+from optcal.core.fit_result import A_INDEX, dA_dtheta
+from optcal.families.simulate.poses import uniform_directions
 
 MODEL = lu2017_reference_model()
 T = MODEL.T_canonical

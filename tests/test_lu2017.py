@@ -1,13 +1,13 @@
 """Reproduction of Lu et al. 2017, Table 1 (J. NUDT 39(5), section 3.1).
 
-Reference data: Table 1 of the paper (``optcal.model.LU2017_TABLE1_*``), printed to four decimals.
+Reference data: Table 1 of the paper (``optcal.core.model.LU2017_TABLE1_*``), printed to four decimals.
 """
 
 import numpy as np
 import pytest
 
-from optcal.model import LU2017_TABLE1_A_PAPER, LU2017_TABLE1_A_REF, LU2017_TABLE1_O_REF
-from optcal.reproduce.lu2017 import literal_schedule_finding, monte_carlo
+from optcal.core.model import LU2017_TABLE1_A_PAPER, LU2017_TABLE1_A_REF, LU2017_TABLE1_O_REF
+from optcal.applications.papers.lu2017 import literal_schedule_finding, monte_carlo
 
 
 def test_paper_own_estimate_is_close_to_its_reference():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from optcal.errors import InputError
-from optcal.model import (
+from optcal.core.model import (
     LU2017_TABLE1_A_REF,
     LU2017_TABLE1_O_REF,
     LumpedModel,
@@ -13,7 +13,7 @@ from optcal.model import (
     theta_from,
     unpack_theta,
 )
-from optcal.simulate import uniform_directions
+from optcal.families.simulate.poses import uniform_directions
 
 
 def test_table1_reference_from_physical_parameters(lu_model):

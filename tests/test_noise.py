@@ -10,8 +10,8 @@ import pytest
 
 from optcal.cli.main import main
 from optcal.errors import InputError
-from optcal.model import STANDARD_GRAVITY
-from optcal.yin2014.allan import (
+from optcal.core.model import STANDARD_GRAVITY
+from optcal.families.noise.allan import (
     FLICKER_FACTOR,
     MIN_CLUSTERS,
     allan_deviation,

@@ -7,8 +7,8 @@ derivative of the same residual; the paper's 12-parameter Jacobian against the Î
 import numpy as np
 import pytest
 
-from optcal.model import theta_from, unpack_theta
-from optcal.norm_residual import (
+from optcal.core.model import theta_from, unpack_theta
+from optcal.core.norm_residual import (
     NormResidualKernel,
     casadi_lower_triangular,
     casadi_norm_residual,
@@ -16,7 +16,7 @@ from optcal.norm_residual import (
     norm_residuals,
     normal_gain,
 )
-from optcal.simulate import simulate_poses, uniform_directions
+from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 from conftest import rngs
 

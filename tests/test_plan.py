@@ -11,10 +11,10 @@ from scipy.optimize import minimize
 
 from optcal.cli.main import main
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.identifiability import cramer_rao_bound, fisher_information
-from optcal.norm_residual import norm_residual_jacobian, normal_gain
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.plan import (
+from optcal.core.identifiability import cramer_rao_bound, fisher_information
+from optcal.core.norm_residual import norm_residual_jacobian, normal_gain
+from optcal.core.model import LumpedModel, lu2017_reference_model
+from optcal.applications.plan import (
     Cap,
     Prior,
     given_candidates,
@@ -23,9 +23,9 @@ from optcal.plan import (
     sphere_candidates,
     turntable_candidates,
 )
-from optcal.plan.describe import describe_direction
-from optcal.simulate import lu2017_sweeps, simulate_poses, uniform_directions
-from optcal.sun2011.turntable import attitude_matrix
+from optcal.applications.plan.describe import describe_direction
+from optcal.families.simulate.poses import lu2017_sweeps, simulate_poses, uniform_directions
+from optcal.applications.papers.sun2011.turntable import attitude_matrix
 
 NOMINAL = LumpedModel(np.eye(3), np.zeros(3))
 
@@ -35,7 +35,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def info(directions: np.ndarray, model: LumpedModel = NOMINAL, sigma: float = 1.0) -> np.ndarray:
-    """Fisher information of a design, straight from optcal.identifiability."""
+    """Fisher information of a design, straight from optcal.core.identifiability."""
     return fisher_information(model.T_canonical, model.o, model.measure(directions), sigma)
 
 
@@ -118,7 +118,7 @@ def test_expected_stderr_is_the_cramer_rao_bound_for_a_calibrated_prior():
 
 def test_monte_carlo_spread_matches_the_expected_stderr():
     """Noisy fits on the planned poses scatter as predicted (within 3 standard errors of the spread)."""
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     sigma, runs = 2e-3, 150
     plan = plan_poses(12, sigma=sigma)
@@ -159,7 +159,7 @@ def test_next_pose_after_lu2017_literal_sweeps_fills_a_xy():
     assert step.gain_logdet == np.inf
     assert np.isinf(step.stderr_before["T_yx"]) and np.isfinite(step.stderr_after["T_yx"])
     assert min(abs(step.direction[0]), abs(step.direction[1])) > 0.1  # off the sweeps' planes x = 0 and y = 0
-    assert json.loads(json.dumps(__import__("optcal.result", fromlist=["jsonable"]).jsonable(step.to_dict())))["gain_logdet"] is None
+    assert json.loads(json.dumps(__import__("optcal.core.fit_result", fromlist=["jsonable"]).jsonable(step.to_dict())))["gain_logdet"] is None
 
 
 def test_target_stderr_says_stop():
@@ -270,7 +270,7 @@ def test_cli_next_on_a_pose_table(tmp_path, capsys):
 
 
 def test_cli_plan_with_a_saved_calibration_as_prior(tmp_path, capsys):
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     model = lu2017_reference_model()
     cal = calibrate(simulate_poses(model, uniform_directions(30, rng=4), 1e-3, rng=5))

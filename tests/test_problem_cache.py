@@ -12,9 +12,9 @@ import pytest
 
 from optcal import calibrate
 from optcal.errors import InputError
-from optcal.estimators.mle import ML_PROBLEMS, MLProblem, VectorisedMLProblem
-from optcal.problem_cache import freeze_options, problem_cache
-from optcal.simulate import simulate_poses, uniform_directions
+from optcal.families.accel.mle import ML_PROBLEMS, MLProblem, VectorisedMLProblem
+from optcal.solvers.cache import freeze_options, problem_cache
+from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 from conftest import rngs
 

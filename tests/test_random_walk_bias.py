@@ -7,12 +7,12 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from optcal.errors import InputError
-from optcal.estimators.mle import MaximumLikelihood
-from optcal.estimators.random_walk_bias import RandomWalkBias, _brownian_covariance, brownian_states
-from optcal.model import lu2017_reference_model, theta_from, unpack_theta
-from optcal.norm_residual import norm_residuals
-from optcal.poses import PoseTable
-from optcal.simulate import uniform_directions
+from optcal.families.accel.mle import MaximumLikelihood
+from optcal.families.accel.random_walk_bias import RandomWalkBias, _brownian_covariance, brownian_states
+from optcal.core.model import lu2017_reference_model, theta_from, unpack_theta
+from optcal.core.norm_residual import norm_residuals
+from optcal.core.poses import PoseTable
+from optcal.families.simulate.poses import uniform_directions
 
 MODEL = lu2017_reference_model()
 TRUE_THETA = theta_from(MODEL.T_canonical, MODEL.o)
@@ -49,7 +49,7 @@ def test_poses_at_the_same_time_share_the_walk_and_the_session_start_sees_none()
 
 def _dense_profile(poses: PoseTable, theta: np.ndarray, lam: float, s2: float) -> tuple[float, np.ndarray]:
     """−2 log L (s² fixed) and the smoothed walk at ``(θ, λ)`` written densely from the model's definition."""
-    from optcal.norm_residual import NormResidualKernel
+    from optcal.core.norm_residual import NormResidualKernel
 
     point = NormResidualKernel(poses.acc).at_theta(theta)
     H = point.bias_jacobian()
@@ -73,7 +73,7 @@ def test_the_linear_time_likelihood_and_smoother_equal_the_dense_definition():
 
 def test_a_walk_is_fitted_and_checked_on_thousands_of_poses():
     """No pose cap any more: 3,000 poses 2 s apart, a walk of 1e-4 raw/√s (the dense form was O(n³))."""
-    from optcal.diagnosis.random_walk import check_random_walk
+    from optcal.applications.diagnosis.random_walk import check_random_walk
 
     poses, _ = _session(1e-4, 11, n=3000, dt=2.0)
     ml = MaximumLikelihood().fit(poses)
@@ -131,9 +131,9 @@ def test_heldout_poses_are_predicted_better_with_the_walk():
 def test_the_still_parts_allan_deviation_bounds_and_resolves_the_rate_random_walk():
     """The Allan side of the comparison: the bound ``K ≤ σ(τ)√(3/τ)`` on the analytic curve, and a rate
     random walk resolved on a long still stretch (white 0.05 mg·√s, K = 0.01 mg/√s, 20 min at 100 Hz)."""
-    from optcal.diagnosis.random_walk import compare_with_allan
-    from optcal.diagnosis.still_noise import MeasuredPoseNoise
-    from optcal.yin2014.allan import NoiseParameters, allan_deviation, rate_random_walk_bound, simulate_noise
+    from optcal.applications.diagnosis.random_walk import compare_with_allan
+    from optcal.applications.diagnosis.still_noise import MeasuredPoseNoise
+    from optcal.families.noise.allan import NoiseParameters, allan_deviation, rate_random_walk_bound, simulate_noise
 
     taus = 2.0 ** np.arange(-6, 8)
     params = NoiseParameters(5e-5, 0.0, 1e-5, {}, True, 0.0, 1.0)
@@ -163,7 +163,7 @@ def test_refusals():
 
 def test_diagnose_names_a_wandering_bias_as_noise_and_not_on_white_sessions():
     """The diagnosis tests the walk in its noise section (never a finding) and names it only when it is there."""
-    from optcal.diagnosis import diagnose
+    from optcal.applications.diagnosis import diagnose
 
     walking, _ = _session(1e-3, 7, n=40)
     d = diagnose(walking, simulations=0)
@@ -187,7 +187,7 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
     share of a walk first), its 95 % interval covering 0.05 in 7/10, held-out rms cut by > 20 % in 8/10.
     """
     from optcal.data import load_with_segmentation
-    from optcal.diagnosis import Diagnoser, DiagnosisSettings
+    from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 
     loaded = load_with_segmentation(shared_data / "imutk-xsens" / "xsens_imutk.csv")
     poses = loaded.poses
@@ -221,9 +221,9 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
 
 def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path):
     """diagnose -o: a named walk is not applicable to a later recording; it is saved as the bias's uncertainty (format 2.2)."""
-    from optcal.caltypes import load as load_calibration
-    from optcal.caltypes.extended import ExtendedCalibration
-    from optcal.diagnosis import diagnose
+    from optcal.families.caltypes import load as load_calibration
+    from optcal.families.caltypes.extended import ExtendedCalibration
+    from optcal.applications.diagnosis import diagnose
 
     walking, _ = _session(1e-3, 7, n=40)
     d = diagnose(walking, simulations=0)
@@ -253,7 +253,7 @@ def test_the_walk_s_states_give_the_brownian_covariance_for_any_times_sessions_a
 def test_heldout_prediction_equals_the_dense_conditional_mean_also_before_the_first_training_pose():
     """E[h·b(t_h) | r_train] from the chain (held-out states seen by no residual) against the dense Gaussian
     conditional; the first pose in time is held out, so the walk starts at a held-out pose."""
-    from optcal.norm_residual import NormResidualKernel
+    from optcal.core.norm_residual import NormResidualKernel
 
     poses, _ = _session(1e-3, 5, n=40)
     held = np.arange(40) % 4 == 0  # pose 0 (the session's start) is held out

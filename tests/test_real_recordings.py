@@ -34,7 +34,7 @@ def xsens():
 
 @pytest.fixture(scope="module")
 def xsens_calibration(xsens):
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     return calibrate(xsens.poses)
 
@@ -62,7 +62,7 @@ def test_xsens_static_intervals_as_imu_tk(xsens):
 
 
 def test_xsens_calibrated_norm_error_below_0_2_mg(xsens, xsens_calibration):
-    from optcal.data.validation import check_calibration
+    from optcal.applications.quality.validation import check_calibration
 
     check = check_calibration(xsens_calibration, xsens.poses)
     assert check.rms_after <= 0.2e-3
@@ -71,7 +71,7 @@ def test_xsens_calibrated_norm_error_below_0_2_mg(xsens, xsens_calibration):
 
 def test_xsens_held_out_below_0_3_mg(xsens):
     """Lu 2017, section 3.2.2: calibrate on part of the poses, test on the rest (5-fold)."""
-    from optcal.data.validation import held_out_validation
+    from optcal.applications.quality.validation import held_out_validation
 
     h = held_out_validation(xsens.poses, folds=5, rng=0)
     assert np.all(np.isfinite(h.residuals))
@@ -107,7 +107,7 @@ def test_mpu6050_rotation_test_has_few_long_rests():
 
 # ----------------------------------------------------------------------------- imucal
 def test_ferraris_session_has_six_orientations_and_is_not_identifiable():
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     p = load(need(FERRARIS / "example_ferraris_session.csv"), rate=102.4)
     assert p.units == "m/s^2" and p.n == 13

@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optcal.calibration import calibrate
+from optcal.families.accel.calibration import calibrate
 from optcal.cli.main import main
-from optcal.model import LumpedModel
-from optcal.poses import PoseTable
-from optcal.report.evidence import HeldOut, gather
+from optcal.core.model import LumpedModel
+from optcal.core.poses import PoseTable
+from optcal.applications.quality.evidence import HeldOut, gather
 from optcal.report.parameters import result_parameters
-from optcal.report.verdict import judge, judge_check, judge_segmentation
-from optcal.simulate import simulate_poses, uniform_directions
+from optcal.applications.quality.verdict import judge, judge_check, judge_segmentation
+from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 sys.path.insert(0, str(Path(__file__).parent))
 
@@ -83,7 +83,7 @@ def test_a_well_designed_calibration_is_good(good_evidence) -> None:
 
 
 def test_orientation_counting() -> None:
-    from optcal.report.evidence import distinct_orientations
+    from optcal.applications.quality.evidence import distinct_orientations
 
     faces = np.vstack([np.eye(3), -np.eye(3)])
     nudged = faces + 0.05 * np.roll(faces, 1, axis=1)  # ~3° away from each face
@@ -207,7 +207,7 @@ def test_report_path_must_be_html(tmp_path: Path, capsys: pytest.CaptureFixture)
 
 # ----------------------------------------------------------------------------- the text report
 def test_text_report_of_counts_data_prints_every_number() -> None:
-    from optcal.simulate_effects import demo_sensor
+    from optcal.families.simulate.effects import demo_sensor
 
     poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)  # counts, 2 counts of noise
     text = calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")).report()
@@ -239,7 +239,7 @@ def test_rendered_page_escapes_user_text_and_is_printable(tmp_path: Path) -> Non
 def test_simulation_band_of_a_well_specified_calibration() -> None:
     from scipy import stats
 
-    from optcal.report.simulation_band import fit_statistics, simulation_band
+    from optcal.applications.quality.simulation_band import fit_statistics, simulation_band
 
     poses = simulate_poses(SENSOR, uniform_directions(30, 6), 2e-4, rng=7)
     result = calibrate(poses)
@@ -260,8 +260,8 @@ def test_simulation_band_of_a_well_specified_calibration() -> None:
 
 def test_simulation_band_of_counts_data() -> None:
     """A sensor in counts (T far from I): the simulations are of the fitted sensor, not of T taken as C."""
-    from optcal.report.simulation_band import simulation_band
-    from optcal.simulate_effects import demo_sensor
+    from optcal.applications.quality.simulation_band import simulation_band
+    from optcal.families.simulate.effects import demo_sensor
 
     poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)
     counts = PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")

@@ -53,7 +53,7 @@ def open_in_browser(page: Path, screenshot: Path, profile: Path, width: int = 41
 def reports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Reports of calibrate, check, diagnose and segment on a measured-like recording with a hidden drift, and the
     plan of four more poses after it (the fleet's report is rendered in tests/test_report_fleet.py)."""
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.families.simulate.effects import recording_with_effect
 
     out = tmp_path_factory.mktemp("reports")
     frame, _ = recording_with_effect("bias_drift", "y", n_poses=30, seed=4)

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from optcal.cli.main import main
-from optcal.fleet.inputs import UnitInput
-from optcal.fleet.population import flag_units, population_stats
-from optcal.fleet.results import FleetResult
-from optcal.fleet.synthetic import unit_model, write_fleet
-from optcal.fleet.unit import UnitOutcome, fit_unit
-from optcal.report.verdict import judge_fleet
-from optcal.simulate import simulate_poses, uniform_directions
+from optcal.applications.fleet.inputs import UnitInput
+from optcal.applications.fleet.population import flag_units, population_stats
+from optcal.applications.fleet.results import FleetResult
+from optcal.applications.fleet.synthetic import unit_model, write_fleet
+from optcal.applications.fleet.unit import UnitOutcome, fit_unit
+from optcal.applications.quality.verdict import judge_fleet
+from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from optcal.cli.main import main
-from optcal.model import LumpedModel
+from optcal.core.model import LumpedModel
 from optcal.report.plan_report import orientation_rows
-from optcal.simulate import simulate_poses, six_position, uniform_directions
+from optcal.families.simulate.poses import simulate_poses, six_position, uniform_directions
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402

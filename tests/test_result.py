@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-import optcal.caltypes as caltypes
+import optcal.families.caltypes as caltypes
 from optcal import calibrate
-from optcal.caltypes import LumpedCalibration
+from optcal.families.caltypes import LumpedCalibration
 from optcal.errors import InputError
-from optcal.result import CalibrationResult
-from optcal.simulate import simulate_poses, tilted_sweeps
+from optcal.core.fit_result import CalibrationResult
+from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
 
 
 @pytest.fixture
@@ -121,7 +121,7 @@ def test_load_rejects_bad_files(tmp_path):
 
 
 def test_pose_table_copies_extra_columns():
-    from optcal.poses import PoseTable
+    from optcal.core.poses import PoseTable
 
     col = np.arange(9.0)
     table = PoseTable(acc=np.eye(3)[np.arange(9) % 3], extra={"roll_deg": col})
@@ -130,7 +130,7 @@ def test_pose_table_copies_extra_columns():
 
 
 def test_pose_tables_compare_values():
-    from optcal.poses import PoseTable
+    from optcal.core.poses import PoseTable
 
     acc = np.eye(3)[np.arange(9) % 3] + 0.01 * np.arange(27).reshape(9, 3)
     a = PoseTable(acc=acc, temp=np.arange(9.0), extra={"roll_deg": np.arange(9.0)})

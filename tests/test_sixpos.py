@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from optcal.calibration import calibrate
+from optcal.families.accel.calibration import calibrate
 from optcal.cli.main import main
 from optcal.errors import InputError
-from optcal.estimators.sixpos import PARAM_NAMES, SixPositionLeastSquares, reference_from_angles
-from optcal.model import STANDARD_GRAVITY, lumped_matrix
-from optcal.poses import PoseTable
-from optcal.result import CalibrationResult
+from optcal.families.accel.sixpos import PARAM_NAMES, SixPositionLeastSquares, reference_from_angles
+from optcal.core.model import STANDARD_GRAVITY, lumped_matrix
+from optcal.core.poses import PoseTable
+from optcal.core.fit_result import CalibrationResult
 
 #: Table 2 of the paper (reconstructed): the six faces of a levelled cube, roll/pitch in degrees.
 SIX = np.array([(0, 0), (180, 0), (90, 0), (-90, 0), (0, 90), (0, -90)], dtype=float)
@@ -114,7 +114,7 @@ def test_result_survives_a_json_round_trip(tmp_path) -> None:
 
 
 def test_result_holds_a_sixpos_full_calibration() -> None:
-    from optcal.caltypes import SixPositionCalibration
+    from optcal.families.caltypes import SixPositionCalibration
 
     r = SixPositionLeastSquares().fit(six_poses(1e-4, np.random.default_rng(8)))
     cal = r.calibration
@@ -130,9 +130,9 @@ def test_result_holds_a_sixpos_full_calibration() -> None:
 
 def test_mle_started_from_a_sixpos_result_starts_at_its_calibration() -> None:
     """MaximumLikelihood(init=<sixpos result>) starts from θ of W, V (not from W's first nine numbers)."""
-    from optcal.estimators.base import Normaliser
-    from optcal.estimators.mle import MaximumLikelihood
-    from optcal.model import theta_from
+    from optcal.families.accel.base import Normaliser
+    from optcal.families.accel.mle import MaximumLikelihood
+    from optcal.core.model import theta_from
 
     rng = np.random.default_rng(3)
     dirs = rng.standard_normal((30, 3))

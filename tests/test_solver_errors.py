@@ -12,8 +12,8 @@ import pytest
 from optcal import calibrate
 from optcal.cli.main import EXIT_INPUT_ERROR, EXIT_SOLVER_ERROR, main
 from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
-from optcal.estimators.mle import ML_IPOPT_DEFAULTS, ML_PROBLEMS
-from optcal.simulate import cap_directions, lu2017_sweeps, simulate_poses, uniform_directions
+from optcal.families.accel.mle import ML_IPOPT_DEFAULTS, ML_PROBLEMS
+from optcal.families.simulate.poses import cap_directions, lu2017_sweeps, simulate_poses, uniform_directions
 
 from conftest import rngs
 

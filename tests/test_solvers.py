@@ -12,13 +12,13 @@ import pytest
 from optcal import calibrate
 from optcal.cli.main import main
 from optcal.errors import InputError
-from optcal.estimators.base import Normaliser
-from optcal.estimators.gradient_descent import GradientDescent, cost_and_gradient, descend
-from optcal.estimators.mle import MaximumLikelihood, MLProblem, NormResidualCost, VectorisedMLProblem
-from optcal.estimators.scipy_ls import ScipyLeastSquares, solve_least_squares
-from optcal.norm_residual import norm_residual_jacobian, normal_gain
-from optcal.model import unpack_theta
-from optcal.simulate import simulate_poses, tilted_sweeps, uniform_directions
+from optcal.families.accel.base import Normaliser
+from optcal.families.accel.gradient_descent import GradientDescent, cost_and_gradient, descend
+from optcal.families.accel.mle import MaximumLikelihood, MLProblem, NormResidualCost, VectorisedMLProblem
+from optcal.families.accel.scipy_ls import ScipyLeastSquares, solve_least_squares
+from optcal.core.norm_residual import norm_residual_jacobian, normal_gain
+from optcal.core.model import unpack_theta
+from optcal.families.simulate.poses import simulate_poses, tilted_sweeps, uniform_directions
 
 from conftest import rngs
 

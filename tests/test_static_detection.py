@@ -18,9 +18,9 @@ from optcal.data.static import (
     half_window_drift,
     moving_mean_var,
 )
-from optcal.data.synthetic import synthesize_recording
-from optcal.model import LumpedModel, lu2017_reference_model
-from optcal.simulate import tilted_sweeps, uniform_directions
+from optcal.families.simulate.recording import synthesize_recording
+from optcal.core.model import LumpedModel, lu2017_reference_model
+from optcal.families.simulate.poses import tilted_sweeps, uniform_directions
 
 SIGMA = 0.002  # g per sample, MPU-6050-like
 
@@ -182,7 +182,7 @@ def test_moving_statistics_match_direct_computation(window):
 
 
 def _z_scores(model, sigma, quantum, units, seed, tmp_path=None):
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     syn = synthesize_recording(model, uniform_directions(40, rng=100 + seed), sigma=sigma, quantum=quantum,
                                units=units, dwell_s=(3.0, 8.0), rng=200 + seed, slow_creeps=2, slow_turns=2)

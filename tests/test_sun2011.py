@@ -12,13 +12,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from optcal.sun2011.alignment import FilterTuning, align, discretise, error_dynamics
+from optcal.applications.papers.sun2011.alignment import FilterTuning, align, discretise, error_dynamics
 from optcal.cli.main import main
 from optcal.errors import InputError
-from optcal.identifiability import analyse_design
-from optcal.model import LumpedModel
-from optcal.reproduce.sun2011 import _BUDGET_OFF, PAPER_TABLE2, PAPER_TABLE3, run
-from optcal.sun2011.tenposition import (
+from optcal.core.identifiability import analyse_design
+from optcal.core.model import LumpedModel
+from optcal.applications.papers.sun2011.reproduce import _BUDGET_OFF, PAPER_TABLE2, PAPER_TABLE3, run
+from optcal.applications.papers.sun2011.tenposition import (
     coupling_bias,
     decoupled_estimate,
     error_rates,
@@ -33,7 +33,7 @@ from optcal.sun2011.tenposition import (
     step3_closed_form,
     step4_closed_form,
 )
-from optcal.sun2011.turntable import (
+from optcal.applications.papers.sun2011.turntable import (
     PARAM_NAMES,
     AccelerometerErrors,
     SimulationSettings,
@@ -315,7 +315,7 @@ def test_cli_rejects_zero_runs(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_cli_failed_acceptance_exits_1_with_one_line(capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
-    from optcal.reproduce import sun2011
+    from optcal.applications.papers.sun2011 import reproduce as sun2011
 
     real_run = sun2011.run
 

@@ -1,7 +1,7 @@
 """``optcal reproduce yin2014``: six-position LS, Allan parameters and the EKF against a known truth.
 
 The paper's Tables 2-4 did not survive the text extraction, so the reference here is the
-simulation's truth (see :mod:`optcal.reproduce.yin2014`), checked against the acceptance of
+simulation's truth (see :mod:`optcal.applications.papers.yin2014.reproduce`), checked against the acceptance of
 issue 5: noise parameters within 10 % (VRW, BI) and 25 % (RRW) on a 12 h, 100 Hz log; W and
 V within 3 standard errors; SSE reduced by the EKF on x and y.
 """
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from optcal.cli.main import main
-from optcal.reproduce import yin2014
+from optcal.applications.papers.yin2014 import reproduce as yin2014
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +104,7 @@ def test_rate_random_walk_interval_covers_the_truth_at_least_at_its_level() -> N
     K 0.01 mg/√s, 10 min at 100 Hz): the fit alone, treating overlapping octave estimates as independent,
     covered the truth in 37-49 % of logs at its nominal 68 %; with the longest τ's own interval it covers
     78-88 % at 68 % and 97-100 % at 95 % (80 logs per case, three cases)."""
-    from optcal.yin2014.allan import allan_deviation, fit_noise_parameters, simulate_noise
+    from optcal.families.noise.allan import allan_deviation, fit_noise_parameters, simulate_noise
 
     rng = np.random.default_rng(7)
     K = 1e-5

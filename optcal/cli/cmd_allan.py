@@ -141,12 +141,12 @@ def allan(
     confidence intervals (allantools); the noise parameters are read from the fitted
     −1/2, 0 and +1/2 slope lines as in Yin 2014.
     """
-    from optcal.yin2014.allan import analyse_static_log, plot_allan, si_per_unit
-    from optcal.result import jsonable
+    from optcal.families.noise.allan import analyse_static_log, plot_allan, si_per_unit
+    from optcal.core.fit_result import jsonable
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     if sensor == "gyro":
-        from optcal.gyro.cli import allan_gyro_command
+        from optcal.cli.gyro_commands import allan_gyro_command
 
         allan_gyro_command(data, as_json, gyro_units, counts_per_rad_s, max_tau, reading_kwargs(reading))
         return

@@ -32,8 +32,8 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     validity range of an extended calibration), excluded (duplicated, repeated timestamp or
     saturated sample of a recording) or non_finite.  No row is dropped.
     """
-    import optcal.caltypes as caltypes
-    from optcal.caltypes.apply import apply_to_file, write_table
+    import optcal.families.caltypes as caltypes
+    from optcal.families.caltypes.apply import apply_to_file, write_table
 
     cal = caltypes.load(calibration)
     applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,

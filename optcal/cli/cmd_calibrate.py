@@ -8,14 +8,14 @@ from typing import Any
 
 import click
 
-from optcal.calibration import METHOD_CHOICES
+from optcal.families.accel.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
 from optcal.cli.report_option import command_line, report_options, write_report
 
 
 def echo_json(obj: dict) -> None:
     """Print exactly one JSON object on standard output."""
-    from optcal.result import jsonable
+    from optcal.core.fit_result import jsonable
 
     click.echo(json.dumps(jsonable(obj), allow_nan=False))
 
@@ -45,13 +45,13 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
 
     With --imu, DATA is a raw recording with gyro columns and the gyroscope is calibrated too.
     """
-    from optcal.calibration import calibrate as run_calibration
+    from optcal.families.accel.calibration import calibrate as run_calibration
     from optcal.errors import IdentifiabilityError, InputError
 
     if not imu and (gyro_units or joint or g_sensitivity):
         raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
     if imu:
-        from optcal.gyro.cli import calibrate_imu_command
+        from optcal.cli.gyro_commands import calibrate_imu_command
 
         if report_path:
             raise InputError("--report covers the accelerometer calibration; it is not available with --imu yet")

@@ -26,23 +26,23 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
     ``optcal segment``).  "Before" is the nominal conversion to g (exact unit factors for g
     and m/s²; for counts, mid-scale offset if unsigned and one sensitivity from the median norm).
     """
-    import optcal.caltypes as caltypes
-    from optcal.data.validation import check_calibration
-    from optcal.result import jsonable
+    import optcal.families.caltypes as caltypes
+    from optcal.applications.quality.validation import check_calibration
+    from optcal.core.fit_result import jsonable
 
     cal = caltypes.load(calibration)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     poses = load_data(data, **data_opts)
     result = check_calibration(cal, poses)
     if report_path:
-        from optcal.data.validation import convert_to_units
+        from optcal.applications.quality.validation import convert_to_units
         from optcal.report.document import check_document
 
         write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
                                     tolerance), report_path)
     gyro_lines, gyro_out = [], {}
     if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
-        from optcal.gyro.cli import gravity_check_lines
+        from optcal.cli.gyro_commands import gravity_check_lines
 
         gyro_lines, gyro_out = gravity_check_lines(cal, data, data_opts)
     if as_json:

@@ -1,7 +1,7 @@
 """``optcal demo``: calibrate, diagnose, extend and measure the gain, told in plain words.
 
 Without ``--data`` the demo needs no files: it builds a measured-like raw recording with one
-hidden effect from the package's own simulator (:func:`optcal.simulate_effects.recording_with_effect`),
+hidden effect from the package's own simulator (:func:`optcal.families.simulate.effects.recording_with_effect`),
 reads it like any recording, and tells the story; what was hidden is revealed only at the end,
 as a check.  ``optcal demo --data FILE`` tells the same story for any recording or pose table.
 """
@@ -17,7 +17,7 @@ import click
 
 from optcal.cli.cmd_diagnose import diagnosis_options, progress_printer, settings_from
 from optcal.cli.data_options import DATA_PATH, data_options
-from optcal.simulate_effects import HIDDEN_EFFECTS
+from optcal.families.simulate.effects import HIDDEN_EFFECTS
 
 
 def say(text: str = "", indent: int = 0) -> None:
@@ -46,8 +46,9 @@ def demo(data: str | None, hidden: str, effects: str | None, folds: int, simulat
     import numpy as np
 
     from optcal.cli.data_options import data_line, load_data
-    from optcal.diagnosis import Diagnoser, save_figures
-    from optcal.simulate_effects import recording_with_effect
+    from optcal.applications.diagnosis import Diagnoser
+    from optcal.report.diagnosis_figures import save_figures
+    from optcal.families.simulate.effects import recording_with_effect
 
     truth = None
     say("optcal demo: calibrate an accelerometer, find what the calibrated model gets wrong, name the "
@@ -105,7 +106,7 @@ def demo(data: str | None, hidden: str, effects: str | None, folds: int, simulat
         "only if a likelihood-ratio test, the BIC and the error on held-out poses all say it helps.")
     if not diag.findings:
         say("Nothing passes: the paper's model explains these data.", indent=3)
-    from optcal.extended_model import format_value
+    from optcal.core.extended_model import format_value
 
     for f in diag.findings:
         if f.rows is not None:

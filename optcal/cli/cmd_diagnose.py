@@ -7,10 +7,10 @@ from typing import Any
 
 import click
 
-from optcal.calibration import METHOD_CHOICES
+from optcal.families.accel.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
 from optcal.cli.report_option import command_line, report_options, write_report
-from optcal.diagnosis.effects import VOCABULARY
+from optcal.applications.diagnosis.effects import VOCABULARY
 
 EFFECTS_HELP = (
     "Candidate effects, comma-separated, from: " + ", ".join(VOCABULARY)
@@ -44,8 +44,8 @@ def diagnosis_options(func: Any) -> Any:
 
 def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
                   pose_correlation: str = "auto") -> Any:
-    """The :class:`~optcal.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
-    from optcal.diagnosis import DiagnosisSettings
+    """The :class:`~optcal.applications.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
+    from optcal.applications.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
                              pose_correlation=pose_correlation)
@@ -53,7 +53,7 @@ def settings_from(effects: str | None, folds: int, simulations: int, alpha: floa
 
 def progress_printer(quiet: bool) -> Any:
     """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet``."""
-    from optcal.diagnosis.progress import Progress
+    from optcal.applications.diagnosis.progress import Progress
 
     return Progress.for_terminal(quiet)
 
@@ -88,9 +88,10 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     are reported.
     """
     from optcal.cli.data_options import data_line, data_summary, load_data_detailed
-    from optcal.caltypes import load as load_calibration
-    from optcal.diagnosis import Diagnoser, save_figures
-    from optcal.result import jsonable
+    from optcal.families.caltypes import load as load_calibration
+    from optcal.applications.diagnosis import Diagnoser
+    from optcal.report.diagnosis_figures import save_figures
+    from optcal.core.fit_result import jsonable
 
     from optcal.cli.outputs import output_file, plot_folder
 

@@ -44,15 +44,15 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     output, so a calibration in counts needs --counts-per-g (and --counts-zero when the driver
     subtracts a zero reading that optcal cannot see in the poses).
     """
-    import optcal.caltypes as caltypes
+    import optcal.families.caltypes as caltypes
     from optcal.cli.main import cli_message
-    from optcal.caltypes.apply import convert_samples
-    from optcal.export import ExportOptions, export as run_export, read_allan
+    from optcal.families.caltypes.apply import convert_samples
+    from optcal.applications.export import ExportOptions, export as run_export, read_allan
 
     cal = caltypes.load(calibration)
     fit_poses = None
     if poses is not None:
-        from optcal.caltypes import FitPoses
+        from optcal.families.caltypes import FitPoses
         from optcal.data import load
 
         table = load(poses)

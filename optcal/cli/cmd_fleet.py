@@ -57,9 +57,9 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
     files never stop the run: they are listed with their reason.
     """
     from optcal.cli.data_options import _load_kwargs
-    from optcal.fleet.engine import ClusterSettings, FleetClient, run_fleet
-    from optcal.fleet.inputs import expand_inputs
-    from optcal.fleet.population import DEFAULT_FLAG_THRESHOLD
+    from optcal.applications.fleet.engine import ClusterSettings, FleetClient, run_fleet
+    from optcal.applications.fleet.inputs import expand_inputs
+    from optcal.applications.fleet.population import DEFAULT_FLAG_THRESHOLD
 
     from optcal.errors import InputError
 
@@ -89,7 +89,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
 
 
 def _write_figures(result: Any, folder: Path) -> None:
-    from optcal.fleet.population import STATISTICS, parameter_figure, summary_figure
+    from optcal.applications.fleet.population import STATISTICS, parameter_figure, summary_figure
 
     if result.stats is None:
         click.echo("no figures: fewer than 5 units calibrated by their own data", err=True)

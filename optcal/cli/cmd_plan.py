@@ -57,9 +57,9 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     --next DATA: the next best orientation after the poses in DATA.
     """
     from optcal.errors import InputError
-    from optcal.plan import Cap, Prior, given_candidates, sphere_candidates, turntable_candidates
-    from optcal.plan.candidates import read_orientations
-    from optcal.result import jsonable
+    from optcal.applications.plan import Cap, Prior, given_candidates, sphere_candidates, turntable_candidates
+    from optcal.applications.plan.candidates import read_orientations
+    from optcal.core.fit_result import jsonable
 
     if (n_poses is None) == (next_data is None):
         raise InputError("give either --poses K (plan K poses) or --next DATA (the next pose after DATA)")
@@ -91,20 +91,20 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         candidates = sphere_candidates(grid, cap)
 
     if next_data is not None:
-        from optcal.plan import next_pose
+        from optcal.applications.plan import next_pose
 
         result: Any = next_pose(poses, prior=prior_model, sigma=sigma, candidates=candidates,
                                 target_stderr=target_stderr)
         planned, given_dirs = result.direction[None, :], result.given_directions
     else:
-        from optcal.plan import plan_poses
+        from optcal.applications.plan import plan_poses
 
         result = plan_poses(n_poses, criterion, prior=prior_model, sigma=sigma, candidates=candidates,
                             given=poses, seed=seed)
         planned, given_dirs = result.directions, result.given_directions
     shown = None if candidates.continuous else candidates.directions
     if plot:
-        from optcal.plan.figure import sphere_figure
+        from optcal.report.plan_figure import sphere_figure
         from optcal.cli.outputs import plot_file
 
         plot = str(plot_file(plot, "plan.png"))

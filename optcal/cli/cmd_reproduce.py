@@ -8,10 +8,10 @@ from optcal.cli.lazy_group import LazyGroup
 
 #: reproduction name -> "module:attribute" of its click command.  One line each.
 REPRODUCTIONS: dict[str, str] = {
-    "lu2017": "optcal.reproduce.lu2017:command",
-    "yin2014": "optcal.reproduce.yin2014:command",
-    "sun2011": "optcal.reproduce.sun2011:command",
-    "solvers": "optcal.reproduce.solvers:command",
+    "lu2017": "optcal.applications.papers.lu2017:command",
+    "yin2014": "optcal.applications.papers.yin2014.reproduce:command",
+    "sun2011": "optcal.applications.papers.sun2011.reproduce:command",
+    "solvers": "optcal.applications.papers.solver_study:command",
 }
 
 

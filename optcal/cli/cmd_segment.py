@@ -32,7 +32,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
     DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
     file (sensor_accel).  A pose table is recognised and reported as such.
     """
-    from optcal.result import jsonable
+    from optcal.core.fit_result import jsonable
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     loaded = load_data_detailed(data, **data_opts)

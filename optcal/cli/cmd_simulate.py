@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 import numpy as np
 
-from optcal.simulate import SCHEDULES
+from optcal.families.simulate.poses import SCHEDULES
 
 
 @click.command()
@@ -31,9 +31,9 @@ def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samp
 
     from optcal.data.tables import read_csv_frame
     from optcal.errors import InputError
-    from optcal.model import lu2017_reference_model
-    from optcal.simulate import schedule as make_schedule
-    from optcal.simulate import angles_from_directions, simulate_poses, user_directions
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import schedule as make_schedule
+    from optcal.families.simulate.poses import angles_from_directions, simulate_poses, user_directions
 
     model = lu2017_reference_model()
     rng_dirs, rng_noise = np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2])

@@ -23,7 +23,7 @@ from typing import Any
 
 import click
 
-from optcal.poses import PoseTable
+from optcal.core.poses import PoseTable
 
 #: Type of the DATA argument: a file, or a directory (a ROS 2 bag); existence is checked by
 #: the readers, with one clear error line.

@@ -29,7 +29,7 @@ EXIT_SOLVER_ERROR = 3
 
 #: How a library message's Python wording reads on the command line: regular expression ->
 #: replacement, applied in order after the command's own table (:data:`COMMAND_SPELLING`).
-#: IPOPT's advice when it stops early (optcal.estimators.mle.IPOPT_REMEDY), which names Python arguments.
+#: IPOPT's advice when it stops early (optcal.families.accel.mle.IPOPT_REMEDY), which names Python arguments.
 IPOPT_ADVICE = re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)")
 CLI_SPELLING: dict[str, str] = {
     # the command line sets no IPOPT options

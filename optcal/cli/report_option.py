@@ -18,7 +18,7 @@ from typing import Any
 
 import click
 
-#: Default tolerance of the verdict, mg (kept equal to :data:`optcal.report.verdict.DEFAULT_TOLERANCE_MG`,
+#: Default tolerance of the verdict, mg (kept equal to :data:`optcal.applications.quality.verdict.DEFAULT_TOLERANCE_MG`,
 #: which is not imported here so that ``optcal --help`` stays light).
 DEFAULT_TOLERANCE_MG: float = 1.0
 

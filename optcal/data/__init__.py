@@ -6,7 +6,7 @@
 **decisions** (pose table or raw recording, columns, units, time base, rate, exclusions;
 each with its reason), **convert** (a pose table, or a :class:`Recording`), and for a
 recording **segment** it into static poses (:mod:`optcal.data.static`).  The returned
-:class:`~optcal.poses.PoseTable` carries the :class:`DataDecisions` (``decisions``), and
+:class:`~optcal.core.poses.PoseTable` carries the :class:`DataDecisions` (``decisions``), and
 every excluded sample is counted in ``exclusions``.
 """
 
@@ -34,7 +34,7 @@ from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.data.tables import load_pose_table, pose_table_from_source, read_csv_frame
 from optcal.data.units import check_sensitivity
 from optcal.errors import InputError
-from optcal.poses import PoseTable
+from optcal.core.poses import PoseTable
 
 __all__ = [
     "KINDS",
@@ -179,7 +179,7 @@ def load(
     settings: StaticSettings | None = None,
     **static_options: Any,
 ) -> PoseTable:
-    """Load DATA, a pose table or a raw recording, as a :class:`~optcal.poses.PoseTable`.
+    """Load DATA, a pose table or a raw recording, as a :class:`~optcal.core.poses.PoseTable`.
 
     This is the one entry point every command uses for DATA.
 

@@ -3,7 +3,7 @@
 Every reader returns a :class:`Source`: the data under optcal's canonical column names
 (:data:`CANONICAL`), with what the file itself says about units, sampling rate and
 saturation.  Deciding whether the data are a pose table or a raw recording, and turning
-them into a :class:`~optcal.poses.PoseTable`, happens in :mod:`optcal.data`.
+them into a :class:`~optcal.core.poses.PoseTable`, happens in :mod:`optcal.data`.
 
 Text files are laid out by :mod:`optcal.data.text` (any delimiter, decimal commas, with or
 without a header: a headerless file's columns are taken by position, :data:`HEADERLESS_LAYOUTS`).

@@ -57,7 +57,7 @@ from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
-from optcal.poses import PoseTable
+from optcal.core.poses import PoseTable
 
 MOVING = "samples in non-static stretches"
 SHORT = "samples in static stretches shorter than the minimum dwell"

@@ -18,7 +18,7 @@ from optcal.data.decisions import DataDecisions, decide, gather_evidence
 from optcal.data.readers import ACC, GYRO, Source, read_source, source_from_frame
 from optcal.data.units import decide_units
 from optcal.errors import InputError
-from optcal.poses import PoseTable
+from optcal.core.poses import PoseTable
 
 ACC_COLUMNS = ACC
 GYRO_COLUMNS = GYRO

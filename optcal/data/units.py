@@ -16,8 +16,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.data.quantiles import column_medians, median
 from optcal.errors import InputError
-from optcal.model import STANDARD_GRAVITY
-from optcal.poses import UNITS
+from optcal.core.model import STANDARD_GRAVITY
+from optcal.core.poses import UNITS
 
 #: Accepted spellings of each unit, for ``--units`` and for unit words in column names.
 UNIT_ALIASES: dict[str, str] = {
@@ -44,7 +44,7 @@ COUNTS_MIN_NORM: float = 50.0
 
 
 def normalise_units(units: str) -> str:
-    """Map a spelling of a unit (``"m/s2"``, ``"LSB"``, ...) to one of :data:`optcal.poses.UNITS`."""
+    """Map a spelling of a unit (``"m/s2"``, ``"LSB"``, ...) to one of :data:`optcal.core.poses.UNITS`."""
     key = str(units).strip().lower()
     if key not in UNIT_ALIASES:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")

@@ -1,7 +1,7 @@
 """Writing recordings in the formats optcal reads: CSV, Parquet, ROS 1/ROS 2 bags, PX4 ULog.
 
 Used to build test fixtures and example files from synthetic recordings
-(:mod:`optcal.data.synthetic`).  Bags are written with the ``rosbags`` library
+(:mod:`optcal.families.simulate.recording`).  Bags are written with the ``rosbags`` library
 (``sensor_msgs/Imu``, plus ``sensor_msgs/Temperature`` when there is a ``temp`` column);
 ULog files with a minimal writer of the ULog format (header, flag bits, format and
 subscription messages, ``sensor_accel`` and ``sensor_gyro`` data), since ``pyulog`` only

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from optcal.poses import PoseTable
-from optcal.report.evidence import Evidence, gather, pose_name
+from optcal.core.poses import PoseTable
+from optcal.applications.quality.evidence import Evidence, gather, pose_name
 from optcal.report.figures import (
     EmbeddedFigure,
     before_after_figure,
@@ -26,8 +26,8 @@ from optcal.report.figures import (
     sphere_map_figure,
 )
 from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters, result_parameters
-from optcal.report.verdict import DEFAULT_TOLERANCE_MG, Verdict, judge, judge_check, judge_segmentation
-from optcal.result import CalibrationResult
+from optcal.applications.quality.verdict import DEFAULT_TOLERANCE_MG, Verdict, judge, judge_check, judge_segmentation
+from optcal.core.fit_result import CalibrationResult
 
 #: Packages whose versions every report states.
 VERSIONED_PACKAGES: tuple[str, ...] = ("optcal", "numpy", "scipy", "casadi", "cvxpy", "clarabel", "pandas", "matplotlib", "jinja2")
@@ -190,8 +190,8 @@ def _pose_table(result: CalibrationResult, poses: PoseTable, noise: np.ndarray |
 
 
 def _evidence_sections(ev: Evidence, poses: PoseTable) -> list[Section]:
-    from optcal.report.evidence import noise_floor
-    from optcal.report.simulation_band import band_text
+    from optcal.applications.quality.evidence import noise_floor
+    from optcal.applications.quality.simulation_band import band_text
 
     result = ev.result
     labels = [pose_name(poses, k).split(" (")[0].replace("pose ", "") for k in range(poses.n)]
@@ -257,7 +257,7 @@ def calibration_document(
     method, settings : optional
         Estimator and its settings, for the held-out refits.
     tolerance_mg : float
-        Accuracy asked of the calibrated norm (see :mod:`optcal.report.verdict`).
+        Accuracy asked of the calibrated norm (see :mod:`optcal.applications.quality.verdict`).
     """
     ev = gather(result, poses, method, settings)
     verdict = judge(ev, tolerance_mg)
@@ -269,15 +269,15 @@ def calibration_document(
 def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str,
                        tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> ReportDocument:
     """Report of ``optcal diagnose``: the verdict on the paper's model, the findings and their size, the figures."""
-    from optcal.calibration import calibrate
+    from optcal.families.accel.calibration import calibrate
 
     result = calibrate(poses, method="mle", allow_degenerate=True)
     ev = gather(result, poses, diagnosis=diag)
     verdict = judge(ev, tolerance_mg)
     findings_rows = [[e.effect, e.axis or "", e.coefficient, significant(e.size_mg, 3) if np.isfinite(e.size_mg) else "", e.over]
                      for e in ev.effects]
-    from optcal.diagnosis.figures import residual_figure as diagnosis_residual_figure
-    from optcal.diagnosis.figures import simulation_figure
+    from optcal.report.diagnosis_figures import residual_figure as diagnosis_residual_figure
+    from optcal.report.diagnosis_figures import simulation_figure
 
     figures = [embed(diagnosis_residual_figure(diag),
                      "Norm residuals against temperature, time and each axis: the paper's model and the final model")]
@@ -302,9 +302,9 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
 
 def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_path: str, command: str,
                    tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> ReportDocument:
-    """Report of ``optcal check``: a saved calibration (any :mod:`optcal.caltypes` type) on other data, before and after.
+    """Report of ``optcal check``: a saved calibration (any :mod:`optcal.families.caltypes` type) on other data, before and after.
 
-    ``poses`` are in the calibration's units; ``check`` is :func:`optcal.data.validation.check_calibration`'s result.
+    ``poses`` are in the calibration's units; ``check`` is :func:`optcal.applications.quality.validation.check_calibration`'s result.
     """
     verdict = judge_check(check.rms_after, check.rms_noise, check.rows.size, tolerance_mg)
     labels = [str(int(r)) for r in check.rows]
@@ -336,7 +336,7 @@ def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, c
 
     directions = nominal_conversion(poses.units, poses.acc).apply(poses.acc)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    from optcal.report.evidence import distinct_orientations
+    from optcal.applications.quality.evidence import distinct_orientations
 
     distinct = distinct_orientations(directions)
     verdict = judge_segmentation(poses.n, distinct)

@@ -1,13 +1,13 @@
 """The one-page report of a fleet (``optcal fleet --report FILE.html``), built from its public result types.
 
-A verdict on the fleet as a whole (:func:`optcal.report.verdict.judge_fleet`), then the
+A verdict on the fleet as a whole (:func:`optcal.applications.quality.verdict.judge_fleet`), then the
 population in the units engineers use: for every unit calibrated by its own data its θ is
 stated as scale factors, non-orthogonality angles and biases in mg
 (:func:`optcal.report.parameters.physical_vector`, Lu 2017 eq. 1 and 5) and the rms residual in
 mg; the population's location and spread of each are the median and the normalised MAD
-(:func:`optcal.fleet.population.robust_location_spread`), its band ``median ± k_n·spread`` with
+(:func:`optcal.applications.fleet.population.robust_location_spread`), its band ``median ± k_n·spread`` with
 the fleet's own ``k_n``.  The units are flagged by the fleet's rule on θ
-(:mod:`optcal.fleet.population`); the report says which of the engineers' quantities put each
+(:mod:`optcal.applications.fleet.population`); the report says which of the engineers' quantities put each
 flagged unit outside.  Then one figure per quantity, the units without a calibration, the
 population prior and what it did, and how the fleet was run.
 """
@@ -20,13 +20,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.fleet.results import FleetResult
-from optcal.fleet.unit import STATUSES, UnitOutcome
-from optcal.model import PARAM_NAMES, LumpedModel
+from optcal.applications.fleet.results import FleetResult
+from optcal.applications.fleet.unit import STATUSES, UnitOutcome
+from optcal.core.model import PARAM_NAMES, LumpedModel
 from optcal.report.document import ReportDocument, Section, Table, now_utc, significant, versions
 from optcal.report.figures import embed
 from optcal.report.parameters import Quantity, engineering_parameters, physical_vector
-from optcal.report.verdict import DEFAULT_TOLERANCE_MG, judge_fleet
+from optcal.applications.quality.verdict import DEFAULT_TOLERANCE_MG, judge_fleet
 
 #: Units above which the per-quantity figures are embedded as PNG (an SVG grows with every mark).
 SVG_MAX_UNITS: int = 2000
@@ -109,7 +109,7 @@ def _quantities(units: str, zero: NDArray[np.float64]) -> list[Quantity]:
 def fleet_population(result: FleetResult) -> FleetPopulation | None:
     """Every calibrated unit's quantities and the population's robust bands (``None`` without population statistics)."""
     from optcal.data.units import nominal_conversion
-    from optcal.fleet.population import robust_location_spread
+    from optcal.applications.fleet.population import robust_location_spread
 
     stats = result.stats
     if stats is None:
@@ -281,7 +281,7 @@ def fleet_document(result: FleetResult, results_path: str, command: str,
     Parameters
     ----------
     result : FleetResult
-        From :func:`optcal.fleet.engine.run_fleet`.
+        From :func:`optcal.applications.fleet.engine.run_fleet`.
     results_path : str
         The Parquet table written beside it.
     command : str

@@ -1,7 +1,7 @@
 """The calibration in the units engineers use, with confidence intervals.
 
 The nine identifiable numbers ``θ = (T, o)`` map one-to-one onto the physical parameters of
-Lu 2017, eq. 1 and 5 (:meth:`optcal.model.LumpedModel.physical`): the scale factors ``S_M``
+Lu 2017, eq. 1 and 5 (:meth:`optcal.core.model.LumpedModel.physical`): the scale factors ``S_M``
 (raw units per g), the three non-orthogonality angles ρ, φ, λ of ``C_NO`` and the bias ``o``.
 Their standard errors follow from the covariance of θ by the delta method (the Jacobian of
 ``θ → physical`` by central differences).  The mounting misalignment ``V_L`` is not
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.model import AXES, PARAM_NAMES, STANDARD_GRAVITY, LumpedModel
-from optcal.result import CalibrationResult
+from optcal.core.model import AXES, PARAM_NAMES, STANDARD_GRAVITY, LumpedModel
+from optcal.core.fit_result import CalibrationResult
 
 #: Two-sided 95 % normal quantile: the half-width of a 95 % confidence interval in standard errors.
 Z95: float = 1.959963984540054
@@ -124,7 +124,7 @@ def engineering_parameters(model: LumpedModel, units: str, covariance: ArrayLike
     units : str
         Raw units of the data.
     covariance : array_like, shape (9, 9), optional
-        Covariance of θ (:data:`optcal.model.PARAM_NAMES` order); without it the standard errors are NaN.
+        Covariance of θ (:data:`optcal.core.model.PARAM_NAMES` order); without it the standard errors are NaN.
     zero : array_like, shape (3,), optional
         The raw reading that nominally means zero force (e.g. mid-scale 32768 of unsigned
         16-bit counts, :func:`optcal.data.units.nominal_conversion`); the bias in mg is

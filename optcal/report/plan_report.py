@@ -1,11 +1,11 @@
 """The pose plan as a readable page (``optcal plan --report FILE.html``).
 
-The recommended poses as a sphere map (:func:`optcal.plan.figure.sphere_figure`) and a table a
+The recommended poses as a sphere map (:func:`optcal.report.plan_figure.sphere_figure`) and a table a
 person can follow (which axis points up, the tilt from vertical, the description of
-:mod:`optcal.plan.describe`, the gravity direction), the design criterion and its value against
+:mod:`optcal.applications.plan.describe`, the gravity direction), the design criterion and its value against
 the certified bound, and the expected standard error of every parameter at the planning noise,
-before and after the plan when it adds poses to a session (:class:`optcal.plan.PosePlan`), or
-before and after the next pose (:class:`optcal.plan.NextPose`).
+before and after the plan when it adds poses to a session (:class:`optcal.applications.plan.PosePlan`), or
+before and after the next pose (:class:`optcal.applications.plan.NextPose`).
 """
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.model import AXES, PARAM_NAMES
-from optcal.plan import NextPose, PosePlan, Prior
-from optcal.plan.describe import describe_direction
+from optcal.core.model import AXES, PARAM_NAMES
+from optcal.applications.plan import NextPose, PosePlan, Prior
+from optcal.applications.plan.describe import describe_direction
 from optcal.report.document import ReportDocument, Section, Table, now_utc, significant, versions
 from optcal.report.figures import EmbeddedFigure, embed
-from optcal.report.verdict import judge_next_pose, judge_plan
+from optcal.applications.quality.verdict import judge_next_pose, judge_plan
 
 #: The criteria in words.
 CRITERION_WORDS: dict[str, str] = {
@@ -68,7 +68,7 @@ def _stderr_table(before: dict[str, float], after: dict[str, float], prior: Prio
 
 
 def _map(planned: NDArray, given: NDArray, candidates: NDArray | None, cap: Any, title: str) -> EmbeddedFigure:
-    from optcal.plan.figure import sphere_figure
+    from optcal.report.plan_figure import sphere_figure
 
     return embed(sphere_figure(planned, given if len(given) else None, candidates, cap, title),
                  "Sphere map: the gravity direction of each pose in the sensor frame, both hemispheres (equal-area); "
@@ -82,14 +82,14 @@ def plan_document(plan: PosePlan | NextPose, prior: Prior, command: str, candida
     Parameters
     ----------
     plan : PosePlan or NextPose
-        From :func:`optcal.plan.plan_poses` (``--poses K``) or :func:`optcal.plan.next_pose` (``--next DATA``).
+        From :func:`optcal.applications.plan.plan_poses` (``--poses K``) or :func:`optcal.applications.plan.next_pose` (``--next DATA``).
     prior : Prior
         The sensor it was planned for (its scale turns the standard errors into relative terms).
     command : str
         The exact command line.
     candidates : ndarray, shape (m, 3), optional
         A fixed set of feasible directions to show on the map.
-    cap : optcal.plan.Cap, optional
+    cap : optcal.applications.plan.Cap, optional
         The constraint cap to draw.
     given_from : str
         The file of the poses already taken.

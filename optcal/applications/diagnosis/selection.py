@@ -1,0 +1,374 @@
+"""Forward selection over the candidate effects, per axis, each fitted jointly with T and o.
+
+A term is added when
+
+* its likelihood-ratio test is significant: the F form (noise scale estimated from the
+  residuals, so a wrong σ claim cannot manufacture findings), ``q`` = number of new
+  coefficients, at level ``α/(2m)`` for ``m`` candidates in the step (Bonferroni: the
+  family-wise false-finding rate of the first step is at most ``α/2``);
+* it lowers the BIC (``n log(RSS/n) + p log n``);
+* it lowers the held-out rms (k-fold).
+
+Among the candidates passing the first two, the best BIC is tried first, except that among term
+candidates within :data:`BIC_TIE` of it the one with the fewest coefficients goes first
+(:func:`preference_order`).  A term's polynomial
+order is raised (one coefficient at a time, same tests) where the data support it.  A time term
+that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
+order its higher coefficients do not significantly improve on (F test at the level it entered
+at, the level a later step would need to raise the order again): a linear drift is named as
+linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
+a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
+bias that rises and falls keeps its order 2.  Outliers
+enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
+more passes.
+
+When temperature and time both explain a bias on the same axis (a sensor warming up), the
+one with the better BIC enters first and the other is then tested *given* it; a
+:class:`TemperatureTimeDecision` says which was chosen, by how much, and whether the other
+adds anything (and that the two cannot be told apart when the recording makes them collinear).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
+from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter, rms
+from optcal.applications.diagnosis.outliers import detect_outliers
+from optcal.applications.diagnosis.progress import Loop, plain_loop
+from optcal.core.model import AXES
+
+#: ΔBIC difference below which two competing explanations count as indistinguishable (Kass & Raftery).
+BIC_TIE: float = 6.0
+#: Effects whose higher polynomial orders may enter directly (not only after order 1): a bias that
+#: rises and falls again in time (warm-up then cooling, bias instability at the scale of minutes)
+#: has almost no linear part.  Every order counts as a candidate of the step (honest multiplicity).
+DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
+
+
+def coefficient_count(c: "Candidate") -> int:
+    """Coefficients a term candidate adds (its polynomial order; a session bias, one per session after the
+    first; outliers, one per pose)."""
+    if c.order is not None:
+        return int(c.order)
+    return len(c.rows) if c.rows is not None else 1
+
+
+def preference_order(significant: list["Candidate"]) -> list["Candidate"]:
+    """The order in which a step tries its significant candidates: the best BIC first, except that among the
+    term candidates within :data:`BIC_TIE` of the best (evidence the data cannot call strong, Kass &
+    Raftery 1995) the one with the fewest coefficients goes first, as the one-standard-error rule picks the
+    simplest model the data do not reject.  A warm-up seen by a temperature channel is one temperature
+    coefficient; a cubic in time mimics the same rise and fall with three, and wins on BIC only by fitting
+    some noise as well (the Gauss–Markov family of the issue-13 study: 5 of 100 recordings at 3× the
+    detection limit named a cubic drift instead of the planted temperature bias, ΔBIC 2 apart)."""
+    if not significant:
+        return []
+    best = min(c.delta_bic for c in significant)
+    tied = [c for c in significant if c.order is not None and c.delta_bic < best + BIC_TIE]
+    first = sorted(tied, key=lambda c: (coefficient_count(c), c.delta_bic))
+    taken = {id(c) for c in first}
+    return first + sorted((c for c in significant if id(c) not in taken), key=lambda c: c.delta_bic)
+
+
+@dataclass
+class Candidate:
+    """One candidate tried in a selection step.
+
+    Attributes
+    ----------
+    term : str
+        E.g. ``temperature_bias(z, order 2)`` or ``outliers(3 poses)``.
+    effect : str
+    axis : str or None
+    order : int or None
+    delta_bic : float
+        BIC of the model with the candidate minus the current model's.
+    p_value : float
+        Likelihood-ratio (F) test, or the smallest Bonferroni p of the new outlier poses.
+    threshold : float
+        The level the p value is compared with.
+    significant : bool
+        Passed the test and the BIC (and, once tried, the held-out rms).
+    rows : list of int or None
+        For outliers, the poses' rows.
+    stepped_down_from : int or None
+        The order the term entered at, when its top coefficients were not significant and it was
+        stepped down to :attr:`order`.
+    heldout_rms_g_before, heldout_rms_g_after : float or None
+        Held-out rms without and with the candidate (computed for the candidates that passed).
+    rejected_because : str or None
+    """
+
+    term: str
+    effect: str
+    axis: str | None
+    order: int | None
+    delta_bic: float
+    p_value: float
+    threshold: float
+    significant: bool
+    rows: list[int] | None = None
+    heldout_rms_g_before: float | None = None
+    heldout_rms_g_after: float | None = None
+    rejected_because: str | None = None
+    stepped_down_from: int | None = None
+    fit: Fit | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "term": self.term, "effect": self.effect, "axis": self.axis, "order": self.order,
+            "delta_bic": self.delta_bic, "p_value": self.p_value, "threshold": self.threshold,
+            "significant": self.significant,
+        }
+        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from"):
+            if getattr(self, key) is not None:
+                out[key] = getattr(self, key)
+        return out
+
+
+@dataclass
+class Step:
+    """One forward-selection step: every candidate tried, and the one accepted (``None``: stop)."""
+
+    candidates: list[Candidate]
+    accepted: Candidate | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"accepted": self.accepted.term if self.accepted else None,
+                "candidates": [c.to_dict() for c in self.candidates]}
+
+
+@dataclass
+class TemperatureTimeDecision:
+    """Temperature or time: both explained a bias on one axis on their own; which was kept, and why."""
+
+    axis: str
+    chosen: str
+    other: str
+    delta_bic_chosen: float
+    delta_bic_other: float
+    temperature_time_correlation: float | None = None
+    p_other_given_chosen: float | None = None
+    text: str = ""
+    #: Polynomial orders of the chosen term and of its rival (a rise and fall in time enters at order 2-3)
+    chosen_order: int = 1
+    other_order: int = 1
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class SelectionResult:
+    """The final fit, the steps that led to it, the temperature/time decisions, and the last step's level."""
+
+    final: Fit
+    steps: list[Step]
+    decisions: list[TemperatureTimeDecision]
+    last_level: float
+
+
+class ForwardSelection:
+    """Forward selection (module docstring) over ``candidates`` ``[(effect, axis number)]``.
+
+    Parameters
+    ----------
+    fitter : Fitter
+    candidates : list of (str, int)
+        The parametric candidates.
+    with_outliers : bool
+        Whether outlier poses are a candidate.
+    alpha : float
+        Family-wise false-finding level of a step (split in two when outliers are a candidate).
+    note : callable
+        Receives notes for the report (terms not identifiable from the poses).
+    loop : callable, optional
+        Wraps the loop over a step's candidates (a progress bar).
+    """
+
+    def __init__(self, fitter: Fitter, candidates: list[tuple[str, int]], with_outliers: bool, alpha: float,
+                 note: Callable[[str], None], loop: Loop = plain_loop) -> None:
+        self.fitter = fitter
+        self.candidates = candidates
+        self.with_outliers = with_outliers
+        self.alpha = alpha
+        self.alpha_terms = alpha / 2 if with_outliers else alpha
+        self.alpha_outliers = alpha / 2
+        self.note = note
+        self.loop = loop
+
+    def room(self, fit: Fit) -> bool:
+        """Whether one more parameter leaves :data:`MIN_DOF` residual degrees of freedom."""
+        return self.fitter.n - fit.n_params - 1 >= MIN_DOF
+
+    def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
+        """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
+
+        Only orders the regressor can carry and that leave :data:`MIN_DOF` degrees of freedom.
+        """
+        if not self.room(fit):
+            if self.candidates or self.with_outliers:
+                self.note(
+                    f"{self.fitter.n} poses leave too few degrees of freedom to test another term after "
+                    f"{fit.describe()} (a test needs {MIN_DOF} left: at least {fit.n_params + 1 + MIN_DOF} poses)"
+                )
+            return []
+        out = []
+        sessions = self.fitter.reg.n_sessions
+        for e, a in self.candidates:
+            if (e, a) not in fit.terms:
+                top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
+                orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
+                out += [(e, a, order) for order in orders
+                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= MIN_DOF]
+        for (e, a), order in fit.terms.items():
+            if e != SESSION_BIAS and order < MAX_ORDER[e] and self.supports_order(e, order + 1):
+                out.append((e, a, order + 1))
+        return out
+
+    def supports_order(self, effect: str, order: int) -> bool:
+        """Whether the regressor takes enough distinct values for a polynomial of ``order``."""
+        if order == 1 or effect == SESSION_BIAS:
+            return True
+        values = self.fitter.reg.tau if effect.startswith("temperature") else self.fitter.reg.s
+        return bool(np.unique(np.round(values, 6)).size >= order + 2)
+
+    def run(self, baseline: Fit) -> SelectionResult:
+        """Forward selection from ``baseline``."""
+        fitter = self.fitter
+        current = baseline
+        steps: list[Step] = []
+        rivalries: list[TemperatureTimeDecision] = []
+        for _ in range(4 * len(self.candidates) + 3):
+            bic0 = fitter.bic(current)
+            term_cands = self.term_candidates(current)
+            m = max(len(term_cands), 1)
+            tried: list[Candidate] = []
+            for effect, axis, order in self.loop(term_cands, f"selection step {len(steps) + 1}", len(term_cands)):
+                if not fitter.identifiable(current, effect, axis, order):
+                    self.note(f"{describe_term(effect, axis, order)} is not identifiable from these poses; not tested")
+                    continue
+                terms = dict(current.terms)
+                terms[(effect, axis)] = order
+                cand = fitter.fit(terms, current.outliers, current.x)
+                p = fitter.f_test(current, cand)
+                delta = fitter.bic(cand) - bic0
+                tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
+                                       self.alpha_terms / m, bool(p < self.alpha_terms / m and delta < 0), fit=cand))
+            if self.with_outliers and self.room(current):
+                found = detect_outliers(fitter, current, self.alpha_outliers)
+                if found is not None:
+                    delta = fitter.bic(found.fit) - bic0
+                    tried.append(Candidate(
+                        f"outliers({len(found.poses)} poses)", "outliers", None, None, delta, found.p_value,
+                        self.alpha_outliers, bool(delta < 0),
+                        rows=[int(fitter.poses.rows[k]) for k in sorted(found.poses)], fit=found.fit,
+                    ))
+            accepted = None
+            for c in preference_order([c for c in tried if c.significant]):
+                assert c.fit is not None
+                mask = c.fit.kept(fitter.n)
+                c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
+                c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
+                if c.heldout_rms_g_after < c.heldout_rms_g_before:
+                    accepted = c
+                    break
+                c.significant = False
+                c.rejected_because = "held-out rms did not fall"
+            if accepted is not None:
+                self.step_down(accepted, current)
+                rivalries += self.rivals(accepted, tried)
+            steps.append(Step(tried, accepted))
+            if accepted is None or accepted.fit is None:
+                break
+            current = accepted.fit
+        level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
+        return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def step_down(self, accepted: Candidate, current: Fit) -> None:
+        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
+
+        Order ``k`` is kept over ``j < k`` only when its coefficients above ``j`` are significant
+        together (F test) at the level the term entered at, the level raising the order from ``j``
+        would need in a later step.
+        """
+        if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
+            return
+        key = (accepted.effect, AXES.index(str(accepted.axis)))
+        if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
+            return
+        entered = accepted.order
+        for lower_order in range(1, entered):
+            terms = dict(accepted.fit.terms)
+            terms[key] = lower_order
+            lower = self.fitter.fit(terms, accepted.fit.outliers, accepted.fit.x)
+            if self.fitter.f_test(lower, accepted.fit) >= accepted.threshold:
+                accepted.fit, accepted.order = lower, lower_order
+                accepted.stepped_down_from = entered
+                accepted.term = describe_term(accepted.effect, key[1], lower_order)
+                return
+
+    def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
+        """Temperature vs time on the same axis: both significant in the step that chose one (each rival
+        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3)."""
+        if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order is None:
+            return []
+        rivals = ("bias_drift",) if accepted.effect != "bias_drift" else ("temperature_bias", "temperature_scale")
+        best: dict[str, Candidate] = {}
+        for c in tried:
+            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < self.alpha_terms
+                    and (c.effect not in best or c.delta_bic < best[c.effect].delta_bic)):
+                best[c.effect] = c
+        return [
+            TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic,
+                                    chosen_order=int(accepted.order), other_order=int(c.order or 1))
+            for c in best.values()
+        ]
+
+    def explain(self, final: Fit, rivalries: list[TemperatureTimeDecision]) -> list[TemperatureTimeDecision]:
+        """Test the other explanation given the final model, and say what the data can tell apart."""
+        fitter = self.fitter
+        corr = fitter.reg.correlation()
+        for r in rivalries:
+            key = (r.other, AXES.index(r.axis))
+            gap = r.delta_bic_other - r.delta_bic_chosen
+            other = describe_term(r.other, key[1], r.other_order)
+            chosen = describe_term(r.chosen, key[1], r.chosen_order)
+            if key in final.terms:
+                given = "both are in the final model: each explains something the other does not"
+            else:
+                terms = dict(final.terms)
+                terms[key] = r.other_order
+                r.p_other_given_chosen = fitter.f_test(final, fitter.fit(terms, final.outliers, final.x))
+                given = (
+                    f"with {chosen} in the model, {other} adds nothing significant (p = {r.p_other_given_chosen:.2g})"
+                    if r.p_other_given_chosen >= self.alpha_terms else
+                    f"even with {chosen} in the model, {other} still explains more (p = {r.p_other_given_chosen:.2g})"
+                )
+            r.temperature_time_correlation = corr
+            corr_txt = f"temperature and time correlate (r = {corr:+.2f})" if corr is not None else ""
+            if gap < 0:  # kept within the BIC tie as the term with fewer coefficients (preference_order)
+                r.text = (
+                    f"axis {r.axis}: temperature or time? both explain the change on their own ({corr_txt}); "
+                    f"{other} fits a shade better (ΔBIC {r.delta_bic_other:+.1f} vs {r.delta_bic_chosen:+.1f}) with "
+                    f"more coefficients, so the simpler {chosen} was kept (a difference under {BIC_TIE:g} is not strong "
+                    f"evidence), and {given}; a temperature profile that does not follow time would separate them"
+                )
+            elif gap < BIC_TIE and corr is not None and abs(corr) > 0.9:
+                r.text = (
+                    f"axis {r.axis}: {chosen} and {other} cannot be told apart from this recording "
+                    f"({corr_txt}; ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f}); {chosen} "
+                    "was kept by a small margin: record a temperature profile that is not monotone in time to separate them"
+                )
+            else:
+                r.text = (
+                    f"axis {r.axis}: temperature or time? both explain the change on their own ({corr_txt}); "
+                    f"{chosen} explains it better (ΔBIC {r.delta_bic_chosen:+.1f} vs {r.delta_bic_other:+.1f} "
+                    f"for {other}), and {given}"
+                )
+        return rivalries

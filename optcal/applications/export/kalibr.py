@@ -1,0 +1,121 @@
+"""Kalibr: an ``imu.yaml`` noise model from an ``optcal allan --json`` result.
+
+Upstream definition (ethz-asl/kalibr, ``aslam_offline_calibration/kalibr/python/kalibr_common/
+ConfigReader.py``, ``ImuParameters``; the IMU-Noise-Model wiki page): keys ``rostopic``,
+``update_rate`` (Hz), ``accelerometer_noise_density`` (m/s²/√Hz, continuous-time white noise;
+Kalibr uses ``density · √update_rate`` per sample) and ``accelerometer_random_walk`` (m/s³/√Hz,
+bias diffusion); both must be positive.  optcal's Allan result gives the velocity random walk
+``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
+(Yin 2014; :mod:`optcal.families.noise.allan`): the largest over the axes is written, each axis in a comment.
+A log too short to show the rate random walk's +1/2 slope has no ``K``; with
+``ExportOptions.random_walk_bound`` the Allan result's upper bound ``K ≤ min_τ σ(τ)·√(3/τ)``
+(reached near the longest τ) is written instead, labelled as a bound in the file and the notes.
+The gyroscope keys ``gyroscope_noise_density`` (rad/s/√Hz) and ``gyroscope_random_walk``
+(rad/s²/√Hz) come from an ``optcal allan --sensor gyro --json`` result when one is given
+(``gyro_allan``; its ``kalibr`` entry, :meth:`optcal.families.noise.gyro_allan.GyroAllanAnalysis.kalibr`: the
+angle random walk and the rate random walk of the largest axis), else they are left as comments.
+"""
+
+from __future__ import annotations
+
+from optcal.families.caltypes.base import Calibration
+from optcal.errors import InputError
+from optcal.applications.export import ExportOptions, ExportResult
+
+AXIS_NAMES: tuple[str, str, str] = ("x", "y", "z")
+
+
+def axis_values(allan: dict, key: str) -> dict[str, float]:
+    """The per-axis value of ``key`` in an Allan result, axes without it left out."""
+    return {a: float(allan[a][key]) for a in AXIS_NAMES if allan[a].get(key) is not None}
+
+
+def update_rate(allan: dict, options: ExportOptions) -> float:
+    """The IMU rate: ``options.rate_hz``, else the Allan log's."""
+    rate = options.rate_hz if options.rate_hz is not None else allan.get("log", {}).get("rate_hz")
+    if rate is None or not rate > 0:
+        raise InputError("no update rate: give rate_hz (the IMU topic's rate, Hz)")
+    return float(rate)
+
+
+def gyroscope_lines(gyro_allan: dict) -> list[str]:
+    """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment."""
+    if gyro_allan.get("sensor") != "gyro" or not isinstance(gyro_allan.get("kalibr"), dict):
+        raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json")
+    values = gyro_allan["kalibr"]
+    density, walk = values.get("gyroscope_noise_density"), values.get("gyroscope_random_walk")
+    if density is None or not density > 0:
+        raise InputError("the gyro Allan result has no angle random walk; Kalibr needs gyroscope_noise_density > 0")
+    if walk is None or not walk > 0:
+        raise InputError(
+            "the gyro Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            "Kalibr needs gyroscope_random_walk > 0: record a longer static log"
+        )
+    arw, rrw = axis_values(gyro_allan, "angle_random_walk"), axis_values(gyro_allan, "rate_random_walk")
+    return [
+        "# gyro angle random walk per axis, rad/s/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in arw.items()),
+        "# gyro rate random walk per axis, rad/s^2/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in rrw.items()),
+        f"gyroscope_noise_density: {float(density):.9g}  # [ rad / s / sqrt(Hz) ]",
+        f"gyroscope_random_walk: {float(walk):.9g}  # [ rad / s^2 / sqrt(Hz) ]",
+    ]
+
+
+def export(cal: Calibration, options: ExportOptions) -> ExportResult:
+    """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
+    if options.allan is None:
+        raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
+    if options.allan.get("sensor") == "gyro":
+        raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
+    density = axis_values(options.allan, "velocity_random_walk")
+    walk = axis_values(options.allan, "rate_random_walk")
+    if not density:
+        raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
+    bounded = [a for a in AXIS_NAMES if a not in walk]
+    if bounded and options.random_walk_bound:
+        bounds = axis_values(options.allan, "rate_random_walk_upper_bound")
+        if any(a not in bounds for a in bounded):
+            raise InputError("the Allan result has no rate_random_walk_upper_bound; run optcal allan again to get one")
+        walk.update({a: bounds[a] for a in bounded})
+    elif not walk:
+        raise InputError(
+            "the Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            "Kalibr needs accelerometer_random_walk > 0: record a longer static log, or pass random_walk_bound=True "
+            "to write the upper bound the log allows"
+        )
+    else:
+        bounded = []
+    rate = update_rate(options.allan, options)
+
+    def per_axis(values: dict[str, float]) -> str:
+        return ", ".join(f"{a} {v:.4g}" for a, v in values.items())
+
+    lines = [
+        f"# Kalibr IMU noise model exported by optcal (calibration: {options.source}, {cal.describe()})",
+        "# keys as read by kalibr_common/ConfigReader.py (ImuParameters); the largest axis is written",
+        f"# velocity random walk per axis, m/s^2/sqrt(Hz): {per_axis(density)}",
+        f"# rate random walk per axis, m/s^3/sqrt(Hz): {per_axis(walk)}"
+        + (f" (UPPER BOUND on {', '.join(bounded)}: no +1/2 slope in the log)" if bounded else ""),
+        f"rostopic: {options.rostopic}",
+        f"update_rate: {rate:.9g}",
+        f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
+        f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]"
+        + (" UPPER BOUND" if max(walk, key=walk.get) in bounded else ""),
+    ]
+    mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
+    notes: list[str] = []
+    if bounded:
+        taus = ", ".join(f"{a} at tau {options.allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
+        notes.append(
+            f"accelerometer_random_walk is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
+            f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it"
+        )
+    if options.gyro_allan is not None:
+        lines += gyroscope_lines(options.gyro_allan)
+        mapped += ["gyro Allan angle random walk (gyroscope noise density)",
+                   "gyro Allan rate random walk (gyroscope random walk)"]
+    else:
+        lines += ["# gyroscope_noise_density: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s/sqrt(Hz))",
+                  "# gyroscope_random_walk: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s^2/sqrt(Hz))"]
+        notes.append("Kalibr also needs gyroscope_noise_density and gyroscope_random_walk: give an "
+                     "optcal allan --sensor gyro --json result (gyro_allan) or fill them in")
+    return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)

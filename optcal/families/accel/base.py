@@ -1,0 +1,289 @@
+"""What every static estimator shares: data normalisation, noise weights, result assembly.
+
+All estimators work on normalised data ``u' = (a − m)/s`` (``m`` the mean pose, ``s`` the rms
+distance to it), so that raw counts, m/s² and g give equally well-scaled problems.  A fit
+``(T', o')`` in normalised coordinates maps back exactly by ``T = T'/s``, ``o = m + s o'``;
+being linear in θ, the map carries the covariance exactly too.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
+from optcal.core.identifiability import IdentifiabilityReport, add_weak_directions, analyse, pseudo_inverse
+from optcal.core.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
+from optcal.core.norm_residual import NormResidualKernel, normal_gain
+from optcal.core.poses import PoseTable
+from optcal.core.fit_result import CalibrationResult, SolverInfo
+
+WEIGHTINGS = ("propagated", "paper")
+
+
+@dataclass(frozen=True)
+class Normaliser:
+    """Affine normalisation of the measurements, ``u' = (a − centre)/scale``."""
+
+    centre: NDArray[np.float64]
+    scale: float
+
+    @classmethod
+    def of(cls, acc: NDArray) -> "Normaliser":
+        centre = acc.mean(axis=0)
+        scale = float(np.sqrt(np.mean(np.sum((acc - centre) ** 2, axis=1))))
+        if not np.isfinite(scale) or scale <= 0:
+            raise InputError("all poses are identical; rotate the sensor between poses")
+        return cls(centre, scale)
+
+    def forward(self, acc: NDArray) -> NDArray[np.float64]:
+        return (acc - self.centre) / self.scale
+
+    def theta_to_raw(self, theta_n: NDArray) -> NDArray[np.float64]:
+        """θ in normalised coordinates → θ in raw units."""
+        T, o = unpack_theta(theta_n)
+        return theta_from(T / self.scale, self.centre + self.scale * o)
+
+    def theta_to_normalised(self, theta: NDArray) -> NDArray[np.float64]:
+        T, o = unpack_theta(theta)
+        return theta_from(T * self.scale, (o - self.centre) / self.scale)
+
+    def jacobian(self) -> NDArray[np.float64]:
+        """d θ_raw / d θ_normalised (diagonal)."""
+        return np.diag([1 / self.scale] * 6 + [self.scale] * 3)
+
+
+def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated",
+                 gain: NDArray | None = None) -> tuple[NDArray, bool]:
+    """Weights of the norm residuals and whether they are absolute (noise known).
+
+    ``paper``: ``1/σ_k²`` (Lu 2017, eq. 14).  ``propagated`` (default): ``1/(σ_k ‖Tᵀā_k‖)²``,
+    the first-order variance of the norm residual, which makes the cost the maximum-likelihood
+    cost of the norm residuals whatever the units (it equals ``paper`` when T ≈ I in g).
+    Without per-pose noise all weights are 1 and the covariance is scaled by the fit.
+    ``gain`` is :func:`optcal.core.norm_residual.normal_gain` at (T, o) when the caller has it.
+    """
+    if weighting not in WEIGHTINGS:
+        raise InputError(f"unknown weighting {weighting!r}; use one of {', '.join(WEIGHTINGS)}")
+    if poses.sigma is None:
+        return np.ones(poses.n), False
+    if weighting == "paper":
+        return 1.0 / poses.sigma**2, True
+    return 1.0 / (poses.sigma * (normal_gain(T, o, poses.acc) if gain is None else gain)) ** 2, True
+
+
+#: Solver statuses that mean a failure (no usable answer), not an early stop: IPOPT's error
+#: return codes (``ApplicationReturnStatus`` of IpReturnCodes.h, as CasADi names them) and the
+#: gradient descent's divergence.
+SOLVER_FAILURES: frozenset[str] = frozenset({
+    "Infeasible_Problem_Detected", "Diverging_Iterates", "Error_In_Step_Computation",
+    "Not_Enough_Degrees_Of_Freedom", "Invalid_Problem_Definition", "Invalid_Option", "Invalid_Number_Detected",
+    "Unrecoverable_Exception", "NonIpopt_Exception_Thrown", "Insufficient_Memory", "Internal_Error",
+    "diverged",
+})
+
+
+@dataclass(frozen=True)
+class Remedy:
+    """What to tell the user when an estimator's solver stops early or fails (Python arguments)."""
+
+    stopped_early: str
+    failed: str
+
+
+def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy | None = None) -> None:
+    """Raise :class:`SolverError` for a failed solve; warn :class:`ConvergenceWarning` for an early stop.
+
+    A failure: a status in :data:`SOLVER_FAILURES` or a non-finite θ.  An early stop: the
+    solver does not report success but returned a finite answer (kept, its record says so).
+    """
+    finite = bool(np.all(np.isfinite(theta)))
+    if solver.status in SOLVER_FAILURES or not finite:
+        raise SolverError(
+            f"the {method} fit failed: {solver.name} ended with {solver.status!r}"
+            + ("" if finite else " and a non-finite answer")
+            + (f"; {remedy.failed}" if remedy else "")
+        )
+    if not solver.success:
+        warnings.warn(
+            f"the {method} fit did not converge: {solver.name} stopped with {solver.status!r} after "
+            f"{solver.iterations} iterations; the result is its last iterate"
+            + (f"; {remedy.stopped_early}" if remedy else ""),
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+
+
+@dataclass(frozen=True)
+class FisherAtFit:
+    """The Fisher information of a pose set at a fit, as :func:`finish` needs it.
+
+    Attributes
+    ----------
+    identifiability : IdentifiabilityReport
+        Rank, conditioning, and the combinations not determined or only weakly determined.
+    covariance : ndarray, shape (9, 9)
+        Covariance of θ in raw units (scaled by the reduced chi-square when the noise is not known).
+    residuals, weights : ndarray, shape (n,)
+        Norm residuals and their weights at the fit.
+    sigma_known : bool
+        Whether the weights are absolute (per-pose noise given).
+    """
+
+    identifiability: IdentifiabilityReport
+    covariance: NDArray[np.float64]
+    residuals: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    sigma_known: bool
+
+
+def fisher_at_fit(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated",
+                  covariance_scale: str = "auto") -> FisherAtFit:
+    """Covariance and identifiability of θ at ``(T, o)`` (see :mod:`optcal.core.identifiability`).
+
+    The weak-direction test needs the covariance, so both come from one Fisher matrix:
+    inverted in normalised coordinates (in raw counts the T and o blocks differ by ~1e16).
+    The norm residuals are evaluated once; with the propagated weights of known noise the
+    weighted information *is* the Fisher information of :func:`optcal.core.identifiability.fisher_information`,
+    computed once for the verdict and the covariance.
+    """
+    point = NormResidualKernel(poses.acc).at(T, o)
+    r = point.residuals
+    J = point.jacobian().T
+    gain = point.normal_gain()
+    w, known = pose_weights(poses, T, o, weighting, gain=gain)
+    norm = Normaliser.of(poses.acc)
+    D = norm.jacobian()  # dθ_raw/dθ_normalised
+    F = J.T @ (J * w[:, None])
+    if known and weighting == "propagated":
+        information = F  # w = 1/(σ‖Tᵀā‖)², the weights of fisher_information
+    else:
+        s = np.ones(poses.n) if poses.sigma is None else poses.sigma
+        information = J.T @ (J * (1.0 / (s * gain) ** 2)[:, None])
+    ident = analyse(T, o, poses.acc, poses.sigma, information=information)
+    cov_n, cov_eigenvalues, eigenvectors = pseudo_inverse(D @ F @ D)
+    dof = poses.n - len(PARAM_NAMES)
+    if not known and covariance_scale == "auto":
+        chi2 = float(np.sum(w * r**2))
+        factor = chi2 / dof if dof > 0 else np.nan
+        cov_n, cov_eigenvalues = cov_n * factor, cov_eigenvalues * factor
+    if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
+        add_weak_directions(ident, cov_n, T * norm.scale, eigen=(cov_eigenvalues, eigenvectors))
+    return FisherAtFit(ident, D @ cov_n @ D, r, w, known)
+
+
+def degenerate_note(ident: IdentifiabilityReport, allow_degenerate: bool) -> str | None:
+    """The note for a pose set that does not identify θ, or :class:`IdentifiabilityError` without ``allow_degenerate``."""
+    if ident.identifiable:
+        return None
+    msg = ident.describe()
+    if not allow_degenerate:
+        consequence = ("the undetermined combinations are then arbitrary" if ident.rank < ident.n_params
+                       else "the weakly determined combinations then carry these large standard errors")
+        raise IdentifiabilityError(
+            msg + ". Add poses that tilt the sensor about other axes (or pass allow_degenerate=True "
+            f"to proceed anyway: {consequence})",
+            ident,
+        )
+    return ("DEGENERATE POSE SET: " if ident.rank < ident.n_params else "WEAKLY DETERMINED POSE SET: ") + msg
+
+
+def is_collapsed(T: NDArray) -> bool:
+    """Whether the lower-triangular ``T`` is singular to working precision (a diagonal entry ≈ 0)."""
+    diag = np.abs(np.diag(T))
+    return bool(diag.min() <= 1e-6 * max(diag.max(), 1e-300))
+
+
+def check_pose_set(poses: PoseTable, theta: NDArray, weighting: str = "propagated", allow_degenerate: bool = False) -> None:
+    """Refuse, before an iterative fit, a pose set that does not identify θ at the start ``theta`` (raw units).
+
+    The same test as :func:`finish` applies after the fit; run first, it spares the user an
+    iterative solve (and its convergence warnings) that would end in that refusal.
+    """
+    if allow_degenerate or not np.all(np.isfinite(theta)):
+        return
+    T, o = unpack_theta(theta)
+    if is_collapsed(T):
+        return  # a collapsed start: the fit may still recover; finish() judges its answer
+    degenerate_note(fisher_at_fit(poses, canonicalise(T), o, weighting).identifiability, allow_degenerate)
+
+
+def finish(
+    *,
+    method: str,
+    poses: PoseTable,
+    theta: NDArray,
+    solver: SolverInfo,
+    weighting: str = "propagated",
+    allow_degenerate: bool = False,
+    notes: list[str] | None = None,
+    extra: dict[str, Any] | None = None,
+    covariance_scale: str = "auto",
+    remedy: Remedy | None = None,
+) -> CalibrationResult:
+    """Assemble a :class:`CalibrationResult` from θ in raw units.
+
+    Checks that the solver returned an answer (:func:`check_solver`; ``remedy`` says which
+    argument to change), then computes the norm residuals, the Fisher information at θ (with
+    directions eliminated, see :mod:`optcal.core.identifiability`), its inverse as covariance
+    (scaled by the reduced chi-square when the noise is not known) and the identifiability
+    report; refuses a pose set that does not identify θ unless ``allow_degenerate``.  An early
+    stop of the solver is warned about only for a pose set that is not refused.
+    """
+    finite = bool(np.all(np.isfinite(theta)))
+    if solver.status in SOLVER_FAILURES or not finite:
+        check_solver(method, solver, theta, remedy)  # raises SolverError
+    T, o = unpack_theta(theta)
+    if is_collapsed(T):
+        diag = np.abs(np.diag(T))
+        raise FitError(
+            f"the {method} fit collapsed to a singular T (|diagonal| = {', '.join(f'{d:.3g}' for d in diag)}): "
+            "the poses do not pin the ellipsoid down, so the cost has a degenerate minimum; "
+            "record more orientations spread over the sphere, or bound the scale (mle: scale_range=(low, high))"
+        )
+    T = canonicalise(T)  # no-op for lower-triangular T with positive diagonal
+    theta = theta_from(T, o)
+    notes = list(notes or [])
+    fisher = fisher_at_fit(poses, T, o, weighting, covariance_scale)
+    ident = fisher.identifiability
+    note = degenerate_note(ident, allow_degenerate)
+    if note:
+        notes.append(note)
+    check_solver(method, solver, theta, remedy)  # warns of an early stop
+    if poses.n <= len(theta):
+        notes.append(f"no degrees of freedom left ({poses.n} poses, {len(theta)} parameters)")
+    return CalibrationResult(
+        method=method,
+        T=T,
+        o=o,
+        units=poses.units,
+        params=theta,
+        param_names=list(PARAM_NAMES),
+        covariance=fisher.covariance,
+        residuals=fisher.residuals,
+        weights=fisher.weights,
+        sigma_known=fisher.sigma_known,
+        solver=solver,
+        rows=[int(x) for x in poses.rows],
+        exclusions=dict(poses.exclusions),
+        identifiability=ident.to_dict(),
+        notes=notes,
+        extra=dict(extra or {}),
+    )
+
+
+class Stopwatch:
+    """``with Stopwatch() as sw: ...; sw.seconds``."""
+
+    def __enter__(self) -> "Stopwatch":
+        self._t0 = time.perf_counter()
+        self.seconds = 0.0
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.seconds = time.perf_counter() - self._t0

@@ -1,0 +1,266 @@
+"""Algebraic ellipsoid fits: the paper's SVD fit and the same fit as a constrained convex problem.
+
+Both fit the quadric ``aᵀ A a + bᵀ a + c = 0`` through the poses (Lu 2017, eq. 18) by
+minimising the algebraic residuals ``J η`` (eq. 22-24).  With ``A`` symmetric, ``J``'s rows
+are ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (the paper's Kronecker form ``a ⊗ a`` would
+leave the antisymmetric part of A free).  The scale ``α`` follows from eq. 19-21 (eq. 27),
+``o = −½ A⁻¹ b`` (eq. 20) and ``T`` from ``A = Tᵀ T`` (eq. 29-30; optcal takes the
+lower-triangular factor, eq. 30's symmetric square root differs from it by a rotation).
+
+* :class:`SVDEllipsoidFit`: η is the right singular vector of ``J`` for the smallest singular
+  value (``‖η‖ = 1`` excludes the zero solution).  Nothing forces ``A ≻ 0``: with poses
+  covering only a cap of the sphere, or with much noise, the answer can be a hyperboloid,
+  and then there is no calibration to return.
+* :class:`ConvexEllipsoidFit`: ``min ‖J η‖²`` subject to ``A ⪰ ε I`` (semidefinite constraint,
+  so the answer is always an ellipsoid) and ``tr A = 3`` (a linear normalisation that
+  excludes the zero solution), solved by cvxpy with Clarabel by default.  The problem is
+  built once and re-solved with the data as a parameter: ``‖J η‖² = ‖R η‖²`` with ``R``
+  the 10×10 triangular factor of ``J``, so the problem size does not depend on the number of
+  poses.  When the semidefinite constraint is inactive at the solution, the equality-
+  constrained least-squares problem it then solves is re-solved exactly by its KKT system
+  ("polish"), which gives the interior-point answer to machine precision.
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import FitError, InputError, SolverError
+from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, finish
+from optcal.core.model import canonical_T, theta_from
+from optcal.core.poses import PoseTable
+from optcal.solvers.cache import FrozenOptions, ProblemCache, freeze_options, problem_cache
+from optcal.core.fit_result import CalibrationResult, SolverInfo
+
+
+def design_matrix(u: NDArray) -> NDArray[np.float64]:
+    """Rows ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (Lu 2017, eq. 23, A symmetric)."""
+    x, y, z = u.T
+    return np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, x, y, z, np.ones_like(x)])
+
+
+def unpack_quadric(eta: NDArray) -> tuple[NDArray, NDArray, float]:
+    """η → (A, b, c) for η ordered as in :func:`design_matrix`."""
+    a11, a22, a33, a12, a13, a23 = eta[:6]
+    A = np.array([[a11, a12, a13], [a12, a22, a23], [a13, a23, a33]])
+    return A, np.asarray(eta[6:9], float), float(eta[9])
+
+
+def quadric_to_calibration(eta: NDArray) -> tuple[NDArray, NDArray]:
+    """Scale the quadric to ``‖T(a − o)‖ = 1`` and return (T, o) (Lu 2017, eq. 19-21, 27-30).
+
+    Raises
+    ------
+    FitError
+        When the quadric is not a real ellipsoid.
+    """
+    A_s, b_s, c_s = unpack_quadric(eta)
+    eig = np.linalg.eigvalsh(A_s)
+    if eig[0] * eig[-1] <= 0:
+        raise FitError(
+            f"the algebraic fit is not an ellipsoid (eigenvalues of A: {', '.join(f'{e:.3g}' for e in eig)}: "
+            "a hyperboloid); this happens when the poses cover only part of the sphere or the noise is "
+            "large; use method=\"convex\", which constrains A to be positive definite"
+        )
+    o = -0.5 * np.linalg.solve(A_s, b_s)  # Lu 2017, eq. 20
+    alpha = 1.0 / (0.25 * b_s @ np.linalg.solve(A_s, b_s) - c_s)  # eq. 27
+    A = alpha * A_s  # eq. 28
+    if np.linalg.eigvalsh(A)[0] <= 0:
+        raise FitError("the algebraic fit is an imaginary ellipsoid (no real points); check the data")
+    return canonical_T(A), o
+
+
+class SVDEllipsoidFit:
+    """Lu 2017's algebraic ellipsoid fit by singular value decomposition (eq. 18-30).
+
+    Parameters
+    ----------
+    allow_degenerate : bool
+        Return a result (with a warning note) for pose sets that do not identify every parameter.
+    """
+
+    name = "svd"
+
+    def __init__(self, allow_degenerate: bool = False) -> None:
+        self.allow_degenerate = allow_degenerate
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        poses.validate()
+        norm = Normaliser.of(poses.acc)
+        with Stopwatch() as sw:
+            J = design_matrix(norm.forward(poses.acc))
+            _, s, vt = np.linalg.svd(J, full_matrices=False)
+            eta = vt[-1]  # right singular vector of the smallest singular value
+            T_n, o_n = quadric_to_calibration(eta)
+        solver = SolverInfo("numpy.linalg.svd", "solved", True, 0, sw.seconds, f"smallest singular value {s[-1]:.3g}")
+        return finish(
+            method=self.name,
+            poses=poses,
+            theta=norm.theta_to_raw(theta_from(T_n, o_n)),
+            solver=solver,
+            allow_degenerate=self.allow_degenerate,
+        )
+
+
+@dataclass(frozen=True)
+class ConvexSolution:
+    """What one solve of :class:`ConvexEllipsoidProblem` returned.
+
+    Attributes
+    ----------
+    status : str
+        cvxpy's status (``optimal``, ``optimal_inaccurate``, ...).
+    eta : ndarray or None, shape (10,)
+        The quadric, ordered as in :func:`design_matrix`.
+    A : ndarray or None, shape (3, 3)
+    iterations : int
+    """
+
+    status: str
+    eta: NDArray[np.float64] | None
+    A: NDArray[np.float64] | None
+    iterations: int
+
+
+class ConvexEllipsoidProblem:
+    """``min ‖R η‖²`` s.t. ``A ⪰ εI``, ``tr A = 3`` in cvxpy, ``R`` a parameter.
+
+    Built once per (ε, solver, solver options): cvxpy keeps the solver it set up on the first
+    solve and re-uses it, settings included, so one problem serves one set of settings.
+    Solving sets the parameter and reads the variables: one step, under the problem's lock.
+    """
+
+    def __init__(self, eps: float, solver: str, options: FrozenOptions) -> None:
+        import cvxpy as cp
+
+        A = cp.Variable((3, 3), symmetric=True)
+        b = cp.Variable(3)
+        c = cp.Variable()
+        self._R = cp.Parameter((10, 10))
+        self._A = A
+        self._eta = cp.hstack([A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[0, 2], A[1, 2], b, c])
+        constraints = [A >> eps * np.eye(3), cp.trace(A) == 3.0]
+        self._problem = cp.Problem(cp.Minimize(cp.sum_squares(self._R @ self._eta)), constraints)
+        self.solver, self.options = solver, dict(options)
+        self._lock = threading.Lock()
+
+    def solve(self, R: NDArray) -> ConvexSolution:
+        """Solve for the triangular factor ``R`` (10×10) of the design matrix."""
+        with self._lock:
+            self._R.value = R
+            with warnings.catch_warnings():  # optcal says it itself (ConvergenceWarning), with what to change
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                self._problem.solve(solver=self.solver, **self.options)
+            eta, A = self._eta.value, self._A.value
+            return ConvexSolution(
+                status=str(self._problem.status),
+                eta=None if eta is None else np.asarray(eta, dtype=float),
+                A=None if A is None else np.asarray(A, dtype=float),
+                iterations=int(self._problem.solver_stats.num_iters or 0),
+            )
+
+
+#: The convex problems, keyed by (ε, solver, frozen solver options).
+CONVEX_PROBLEMS: ProblemCache[ConvexEllipsoidProblem] = problem_cache(ConvexEllipsoidProblem, maxsize=8)
+
+
+class ConvexEllipsoidFit:
+    """The algebraic ellipsoid fit as a semidefinite-constrained convex problem in cvxpy.
+
+    Parameters
+    ----------
+    solver : str
+        cvxpy solver name; ``"CLARABEL"`` by default (``"SCS"`` also works).
+    eps : float
+        Lower bound on the eigenvalues of the normalised ``A`` (whose trace is 3).
+    polish : bool
+        Re-solve exactly by the KKT system when the semidefinite constraint is inactive.
+    allow_degenerate : bool
+        Return a result for pose sets that do not identify every parameter.
+    solver_options : dict, optional
+        Passed to ``problem.solve``.
+    """
+
+    name = "convex"
+
+    def __init__(
+        self,
+        solver: str = "CLARABEL",
+        eps: float = 1e-3,
+        polish: bool = True,
+        allow_degenerate: bool = False,
+        solver_options: dict[str, Any] | None = None,
+    ) -> None:
+        self.solver = solver.upper()
+        self.eps = float(eps)
+        self.polish = polish
+        self.allow_degenerate = allow_degenerate
+        self.solver_options = dict(solver_options or {})
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        import cvxpy as cp
+
+        poses.validate()
+        if self.solver not in cp.installed_solvers():
+            raise InputError(f"cvxpy solver {self.solver} is not installed (installed: {', '.join(cp.installed_solvers())})")
+        norm = Normaliser.of(poses.acc)
+        J = design_matrix(norm.forward(poses.acc))
+        R = np.zeros((10, 10))
+        R_qr = np.linalg.qr(J, mode="r")  # (min(n, 10), 10): pad for fewer than 10 poses
+        R[: R_qr.shape[0]] = R_qr
+        notes: list[str] = []
+        with Stopwatch() as sw:
+            try:
+                solution = CONVEX_PROBLEMS.get(self.eps, self.solver, freeze_options(self.solver_options)).solve(R)
+            except cp.error.SolverError as exc:
+                raise SolverError(f"the convex ellipsoid fit failed in {self.solver}: {exc}; try solver='SCS'") from exc
+        status = solution.status
+        if status not in cp.settings.SOLUTION_PRESENT or solution.eta is None or solution.A is None:
+            # the problem is always feasible (A = I) and bounded below (by 0): any other end is the solver's
+            raise SolverError(f"the convex ellipsoid fit ended with status {status!r} in {self.solver}; try solver='SCS'")
+        eta_v = solution.eta
+        iters = solution.iterations
+        message = ""
+        min_eig = float(np.linalg.eigvalsh(solution.A)[0])
+        active = min_eig < 2 * self.eps
+        if active:
+            notes.append(
+                "the semidefinite constraint A ⪰ εI is active: the unconstrained algebraic fit is not an "
+                "ellipsoid (poses on part of the sphere or large noise); the answer is the nearest ellipsoid"
+            )
+        elif self.polish:
+            eta_v = self._kkt_polish(R)
+            message = "polished by KKT solve (semidefinite constraint inactive)"
+        try:
+            T_n, o_n = quadric_to_calibration(eta_v)
+        except FitError as exc:
+            raise FitError(f"the convex fit returned a degenerate ellipsoid ({exc})") from exc
+        solver = SolverInfo(self.solver, status, status == cp.OPTIMAL, iters, sw.seconds, message)
+        return finish(
+            method=self.name,
+            poses=poses,
+            theta=norm.theta_to_raw(theta_from(T_n, o_n)),
+            solver=solver,
+            allow_degenerate=self.allow_degenerate,
+            notes=notes,
+            extra={"min_eigenvalue_normalised_A": min_eig, "psd_constraint_active": active},
+            remedy=Remedy(stopped_early="raise the solver's iteration limit (solver_options) or try solver='SCS'",
+                          failed="try solver='SCS'"),
+        )
+
+    @staticmethod
+    def _kkt_polish(R: NDArray) -> NDArray[np.float64]:
+        """Exact solution of ``min ‖R η‖²`` s.t. ``tr A = 3`` (KKT system)."""
+        H = R.T @ R
+        g = np.zeros(10)
+        g[:3] = 1.0
+        K = np.block([[2 * H, g[:, None]], [g[None, :], np.zeros((1, 1))]])
+        rhs = np.concatenate([np.zeros(10), [3.0]])
+        sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
+        return sol[:10]

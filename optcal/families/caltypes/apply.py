@@ -1,0 +1,231 @@
+"""Applying a calibration to a whole file: every row corrected, every other column passed through.
+
+:func:`apply_to_file` reads DATA (a raw recording or a pose table, any supported format),
+corrects every row with :meth:`Calibration.correct <optcal.families.caltypes.base.Calibration.correct>`
+(temperature and time from DATA's own columns when the calibration needs them) and returns
+the file's table with the three acceleration columns replaced by the calibrated ones
+(``ax_g, ay_g, az_g`` or ``ax_m_s2, ...``: the unit word in the name, which optcal's readers
+recognise) and a status column :data:`STATUS_COLUMN`.  Nothing is dropped: the row count is
+unchanged, and rows that are not finite, were excluded by the recording checks (duplicated
+samples, repeated timestamps, saturation) or lie outside the calibration's validity range are
+marked in the status column and counted.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.families.caltypes.base import Calibration, ValidityRangeWarning
+from optcal.errors import InputError
+from optcal.core.model import STANDARD_GRAVITY
+
+#: Name of the column that marks each row.
+STATUS_COLUMN: str = "optcal_status"
+#: Status words, in the order they are reported.
+STATUS_WORDS: tuple[str, ...] = ("ok", "out_of_range", "excluded", "non_finite")
+#: Output units → (factor from g, unit word appended to the column names).
+OUTPUT_UNITS: dict[str, tuple[float, str]] = {"g": (1.0, "g"), "m/s^2": (STANDARD_GRAVITY, "m_s2")}
+#: Output file extensions → format.
+OUTPUT_FORMATS: dict[str, str] = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
+_G_FACTOR: dict[str, float] = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
+
+
+@dataclass
+class AppliedFile:
+    """A file corrected by a calibration.
+
+    Attributes
+    ----------
+    frame : pandas.DataFrame
+        The output table (same rows as the file).
+    kind : str
+        ``"raw recording"`` or ``"pose table"``, and :attr:`kind_reason` why.
+    units_in : str
+        Units of DATA (decided as every command does), :attr:`units_reason` why.
+    units_out : str
+    status_counts : dict of str to int
+        Rows per status word.
+    exclusions : dict of str to int
+        Why rows were excluded (recordings: duplicated, repeated timestamp, saturated, non-finite).
+    range_notes : list of str
+        What lies outside the validity range, and by how much.
+    header : dict of str to str
+        Metadata lines above the CSV header, written back above it.
+    time_reason : str
+        How the time column was read (unit and scale), when there is one.
+    """
+
+    frame: Any
+    kind: str
+    kind_reason: str
+    units_in: str
+    units_reason: str
+    units_out: str
+    status_counts: dict[str, int]
+    exclusions: dict[str, int] = field(default_factory=dict)
+    range_notes: list[str] = field(default_factory=list)
+    header: dict[str, str] = field(default_factory=dict)
+    time_reason: str = ""
+
+    @property
+    def n_rows(self) -> int:
+        return int(len(self.frame))
+
+
+def convert_samples(acc: NDArray[np.float64], units: str, to_units: str) -> NDArray[np.float64]:
+    """Samples in ``to_units`` (g ↔ m/s²; counts only to counts)."""
+    if units == to_units:
+        return acc
+    if units in _G_FACTOR and to_units in _G_FACTOR:
+        return acc * (_G_FACTOR[to_units] / _G_FACTOR[units])
+    raise InputError(
+        f"the calibration takes {to_units} but DATA is in {units}; give DATA in {to_units} "
+        f"(or pass units=\"{to_units}\" if that is what it is)"
+    )
+
+
+def apply_to_file(
+    cal: Calibration,
+    path: str | Path,
+    *,
+    units_out: str = "g",
+    columns: str | dict[str, str] | None = None,
+    units: str | None = None,
+    topic: str | None = None,
+    rate: float | None = None,
+    kind: str = "auto",
+) -> AppliedFile:
+    """Correct every row of DATA with ``cal``.
+
+    Parameters
+    ----------
+    cal : Calibration
+    path : str or Path
+        DATA: CSV, Parquet, ROS bag or ULog; a raw recording or a pose table.
+    units_out : {"g", "m/s^2"}
+        Units of the calibrated accelerations.
+    columns, units, topic, rate, kind
+        As for :func:`optcal.data.load`.
+
+    Raises
+    ------
+    InputError
+        Unreadable DATA, units that cannot be converted, or a temperature or time column the
+        calibration needs and DATA lacks.
+    """
+    from optcal.data import POSE_TABLE, decide, gather_evidence
+    from optcal.data.readers import ACC, GYRO, read_parquet, read_source
+    from optcal.data.recording import recording_from_source
+    from optcal.data.text import read_frame
+
+    if units_out not in OUTPUT_UNITS:
+        raise InputError(f"unknown output units {units_out!r}; use g or m/s^2")
+    src = read_source(path, columns=columns, topic=topic)
+    evidence = gather_evidence(src)
+    decisions = decide(src, evidence, kind=kind, units=units, rate=rate)
+    decision = decisions.kind
+    acc = np.column_stack([src.column(c) for c in ACC])
+    temp = src.column("temp") if src.has("temp") else None
+    exclusions: dict[str, int] = {}
+    time_reason = src.time_reason
+    if decision.value == POSE_TABLE:
+        t = src.column("t") if src.has("t") else None
+        usable = np.ones(len(acc), dtype=bool)
+        units_in, units_reason = str(decisions.units.value), decisions.units.reason
+    else:
+        rec = recording_from_source(src, decisions, evidence=evidence)
+        t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
+        time_reason = rec.time_reason
+        exclusions = dict(rec.exclusions)
+    for column in cal.needs:
+        if (temp if column == "temp" else t) is None:
+            what = "temperature column (temp, °C)" if column == "temp" else "time column (t, s) or rate"
+            raise InputError(
+                f"{path}: has no {what}, and the {cal.cal_type} calibration needs it (its terms depend on "
+                f"{'temperature' if column == 'temp' else 'time'}); add the column or map it with columns=\"{column}=NAME\""
+            )
+    raw = convert_samples(acc, units_in, cal.units)
+    finite = np.all(np.isfinite(raw), axis=1)
+    for column in cal.needs:
+        finite &= np.isfinite(temp if column == "temp" else t)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ValidityRangeWarning)
+        corrected = np.full(raw.shape, np.nan)
+        pick = (lambda v: None if v is None else v[finite])  # noqa: E731
+        corrected[finite] = cal.correct(raw[finite], pick(temp), pick(t))
+    range_notes = [str(w.message) for w in caught if issubclass(w.category, ValidityRangeWarning)]
+    outside = np.zeros(len(raw), dtype=bool)
+    outside[finite] = cal.out_of_range(corrected[finite], pick(temp), pick(t))
+
+    status = np.full(len(raw), "ok", dtype=object)
+    status[outside] = "out_of_range"
+    status[~usable] = "excluded"
+    status[~finite] = "non_finite"
+    factor, word = OUTPUT_UNITS[units_out]
+
+    if src.file_type in ("csv", "parquet"):
+        frame, header = read_frame(path) if src.file_type == "csv" else (read_parquet(path), {})
+    else:
+        import pandas as pd
+
+        frame, header = pd.DataFrame(src.data), {}
+        for name, values in src.extra.items():
+            frame[name] = values
+    if len(frame) != len(raw):
+        raise InputError(f"{path}: read {len(frame)} rows but {len(raw)} samples; cannot pass the columns through")
+    def frame_column(role: str) -> Any:
+        """The frame's column holding ``role`` (a headerless file's columns are named by position: '#2' is '2')."""
+        name = src.column_map.get(role, role)
+        if name not in frame.columns and name.startswith("#") and name[1:] in frame.columns:
+            return name[1:]
+        return name
+
+    names = [frame_column(c) for c in ACC]
+    position = min(list(frame.columns).index(n) for n in names)
+    frame = frame.drop(columns=names)
+    for k, axis in enumerate("xyz"):
+        frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
+    correct_gyro = getattr(cal, "correct_gyro", None)  # cal_type imu: gyro columns to rad/s as well
+    if correct_gyro is not None and src.has(*GYRO):
+        from optcal.core.units import normalise_gyro_units
+
+        if src.gyro_units is not None and normalise_gyro_units(src.gyro_units) != cal.gyro_units:
+            raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
+        gyro = np.full(raw.shape, np.nan)
+        gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
+        gnames = [frame_column(c) for c in GYRO]
+        gpos = min(list(frame.columns).index(n) for n in gnames)
+        frame = frame.drop(columns=gnames)
+        for k, axis in enumerate("xyz"):
+            frame.insert(gpos + k, f"g{axis}_rad_s", gyro[:, k])
+    frame[STATUS_COLUMN] = status
+    counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
+    return AppliedFile(
+        frame, decision.value, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
+        time_reason if t is not None else "",
+    )
+
+
+def write_table(applied: AppliedFile, path: str | Path) -> str:
+    """Write the output as CSV or Parquet by the extension of ``path``; returns the format."""
+    p = Path(path)
+    fmt = OUTPUT_FORMATS.get(p.suffix.lower())
+    if fmt is None:
+        raise InputError(f"{p}: give an output file ending in .csv or .parquet (the format follows the extension)")
+    if fmt == "parquet":
+        try:
+            applied.frame.to_parquet(p, index=False)
+        except ImportError as exc:
+            raise InputError("writing Parquet files needs pyarrow: pip install optcal[parquet]") from exc
+        return fmt
+    with p.open("w", newline="") as fh:
+        for key, value in applied.header.items():
+            fh.write(f"{key},{value}\n" if value else f"# {key}\n")
+        applied.frame.to_csv(fh, index=False)
+    return fmt

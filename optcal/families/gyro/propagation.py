@@ -1,0 +1,141 @@
+"""Gravity carried across a move by the corrected gyro (Tedaldi 2014, eq. 13-14).
+
+A world-fixed vector seen from the body obeys ``u̇ = −ω × u``.  Over one integration step of
+length ``dt_k`` with the trapezoid mean rate ``ω̄_k = T_g (ḡ_k − b_g − G_g f_k)`` the body
+turns by ``E_k = exp([θ_k]×)``, ``θ_k = ω̄_k dt_k`` (exponential map, Rodrigues' formula), so
+the rotation accumulated over a move is ``Φ = E_1 E_2 ⋯ E_n`` and the gravity direction it
+predicts at the next pose is ``Φᵀ u_i`` (Tedaldi 2014, eq. 14, their Ψ with an exponential
+map instead of quaternion Runge–Kutta).  The residual of move ``i`` is
+``Φᵀ u_i − u_{i+1}`` (Tedaldi 2014, eq. 13, imu_tk's ``MultiPosGyroResidual``).
+
+:class:`GravityPredictor` evaluates this for every move of a recording at once, in numpy,
+with the analytic sensitivity ``∂(Φᵀu₀)/∂T_g``: with the prefix products
+``P_k = E_1 ⋯ E_k`` and the right Jacobian ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×²`` of each step,
+
+    ∂(Φᵀu₀)/∂θ_k = Φᵀ [u₀]× P_{k−1} J_r(−θ_k),    ∂θ_k/∂T_ij = e_i q_kj,
+
+(``q_k = w_k dt_k`` the bias-free raw rotation of the step, ``T_g`` row-major), because
+``∂(E_kᵀ v)/∂θ_k = E_kᵀ [v]× J_r(−θ_k)`` and ``P [Pᵀu₀]× = [u₀]× P`` for a rotation ``P``.
+The rotations of all steps come from one vectorised Rodrigues formula; only the prefix
+products are a loop, over the steps of the longest move with the moves side by side.  It
+serves both the fit (:mod:`optcal.families.gyro.estimator`, residuals and Jacobian in one pass) and
+the convention-free figure of merit, :func:`angles_deg` between predicted and measured
+directions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Below this squared rotation angle (rad²) the Rodrigues coefficients use their Taylor series.
+SMALL_ANGLE_SQ: float = 1e-8
+
+
+def skew_rows(x: NDArray) -> NDArray[np.float64]:
+    """``[x_k]×`` for every row of ``x`` (n, 3) → (n, 3, 3)."""
+    K = np.zeros((x.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -x[:, 2], x[:, 1], -x[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = x[:, 2], -x[:, 1], x[:, 0]
+    return K
+
+
+def exponential_map(theta: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``exp([θ]×)`` and ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×²`` for every row of ``theta`` (n, 3).
+
+    Rodrigues: ``exp([θ]×) = I + c₁[θ]× + c₂[θ]×²`` with ``c₁ = sin α/α``,
+    ``c₂ = (1 − cos α)/α²``, ``c₃ = (α − sin α)/α³``, ``α = ‖θ‖`` (Taylor series below
+    :data:`SMALL_ANGLE_SQ`).
+    """
+    a2 = np.einsum("ni,ni->n", theta, theta)
+    small = a2 < SMALL_ANGLE_SQ
+    a2_safe = np.where(small, 1.0, a2)
+    a = np.sqrt(a2_safe)
+    sin, cos = np.sin(a), np.cos(a)
+    c1 = np.where(small, 1 - a2 / 6 + a2**2 / 120, sin / a)[:, None, None]
+    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - cos) / a2_safe)[:, None, None]
+    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))[:, None, None]
+    # [θ]×² = θθᵀ − α² I: exp([θ]×) = (1 − c₂α²) I + c₁[θ]× + c₂θθᵀ, J_r(−θ) = (1 − c₃α²) I + c₂[θ]× + c₃θθᵀ
+    K = skew_rows(theta)
+    outer = theta[:, :, None] * theta[:, None, :]
+    E = c1 * K + c2 * outer
+    Jr = c2 * K + c3 * outer
+    diagonal = np.arange(3)
+    E[:, diagonal, diagonal] += 1 - c2[:, :, 0] * a2[:, None]
+    Jr[:, diagonal, diagonal] += 1 - c3[:, :, 0] * a2[:, None]
+    return E, Jr
+
+
+class GravityPredictor:
+    """Gravity directions carried across every move of a recording layout, with ``∂/∂T_g``.
+
+    Made once per layout (the index arrays of the moves); the rates, step lengths and start
+    directions are arguments of :meth:`evaluate`.
+
+    Parameters
+    ----------
+    first_step : ndarray of bool, shape (N,)
+        First integration step of each move (the steps of a move are contiguous).
+    last_step : ndarray of int, shape (m,)
+        Last step of each move.
+    """
+
+    def __init__(self, first_step: NDArray[np.bool_], last_step: NDArray[np.int64]) -> None:
+        n = int(first_step.size)
+        m = int(np.asarray(last_step).size)
+        self.n_steps, self.n_moves = n, m
+        self.starts = np.flatnonzero(first_step)
+        lengths = np.asarray(last_step) - self.starts + 1
+        self.length = int(lengths.max())
+        #: position of each step inside its move and the move it belongs to
+        self.position = np.arange(n) - np.repeat(self.starts, lengths)
+        self.move = np.repeat(np.arange(m), lengths)
+
+    def evaluate(self, T: NDArray, w: NDArray, dt: NDArray, u0: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """Predicted directions (m, 3), their Jacobian w.r.t. row-major ``T`` (m, 3, 9) and ``Φ`` (m, 3, 3).
+
+        ``w`` (N, 3) are bias-free raw rates, ``dt`` (N,) step lengths, ``u0`` (m, 3) start directions.
+        """
+        L, m = self.length, self.n_moves
+        at = (self.position, self.move)  # each step's slot when the moves are laid side by side, (L, m)
+        q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
+        E_steps, Jr_steps = exponential_map(q @ np.asarray(T, float).T)
+        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
+        E[at] = E_steps
+        prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
+        prefix[0] = np.eye(3)
+        for s in range(L):
+            np.matmul(prefix[s], E[s], out=prefix[s + 1])
+        P = prefix[L]
+        u0 = np.asarray(u0, float)
+        v = np.einsum("mji,mj->mi", P, u0)  # Φᵀ u₀
+        # C[(a, i), j] = Σ_k (P_{k−1} J_r(−θ_k))[a, i] q_kj over the steps of each move (zero in the padding)
+        B = np.zeros((L, m, 9))
+        B[at] = np.matmul(prefix[at], Jr_steps).reshape(-1, 9)
+        q_side = np.zeros((L, m, 3))
+        q_side[at] = q
+        C = np.matmul(B.transpose(1, 2, 0), q_side.transpose(1, 0, 2))  # (m, 9, 3)
+        S = np.einsum("mji,mjk,mkl->mil", P, skew_rows(u0), C.reshape(m, 3, 9))
+        return v, S, P
+
+    def __call__(self, omega: NDArray, dt: NDArray, u0: NDArray) -> NDArray[np.float64]:
+        """Predicted directions (m, 3) for corrected rates ``omega`` (N, 3) rad/s."""
+        return self.evaluate(np.eye(3), omega, dt, u0)[0]
+
+
+def unit_rows(x: NDArray) -> NDArray[np.float64]:
+    """Rows of ``x`` scaled to unit length."""
+    x = np.asarray(x, dtype=float)
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def angles_deg(predicted: NDArray, measured: NDArray) -> NDArray[np.float64]:
+    """Angle between corresponding rows of two direction arrays, degrees."""
+    p, q = unit_rows(predicted), unit_rows(measured)
+    cross = np.linalg.norm(np.cross(p, q), axis=1)
+    return np.degrees(np.arctan2(cross, np.sum(p * q, axis=1)))
+
+
+def rms(x: NDArray) -> float:
+    """Root mean square of ``x``."""
+    return float(np.sqrt(np.mean(np.square(x))))

@@ -1,0 +1,1 @@
+"""Noise analysis of a still log: one Allan analysis for the accelerometer and the gyroscope."""

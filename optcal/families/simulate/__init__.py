@@ -1,0 +1,1 @@
+"""Simulated pose tables and recordings with known truth (one kinematics engine)."""

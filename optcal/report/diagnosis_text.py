@@ -1,0 +1,201 @@
+"""The text report of a diagnosis, in plain words."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from optcal.applications.diagnosis.noise_model import NoiseModelCheck
+from optcal.applications.diagnosis.simulation import SimulationCheck
+from optcal.core.extended_model import format_value
+
+if TYPE_CHECKING:
+    from optcal.applications.diagnosis.result import Diagnosis
+    from optcal.applications.diagnosis.sessions import SessionOffsets
+
+MG = 1e3
+
+
+def simulation_text(sim: SimulationCheck, indent: str = "", after: bool = False) -> str:
+    """Plain-words summary of a simulation check."""
+    of = " of the final model" if after else ""
+    if not sim.simulations:
+        return f"Simulation check{of}: not run (0 simulations requested)"
+    lines = [
+        f"Simulation check{of}: the fitted model simulated {sim.simulations} times on the same poses "
+        f"({sim.noise}); {sim.band * 100:g} % bands"
+    ]
+    if not sim.outside_band:
+        lines.append(f"{indent}every residual statistic is inside its simulated band: the simulation reproduces the measurements")
+    else:
+        lines.append(f"{indent}where the measurement leaves the simulated band (what the simulation gets wrong):")
+        for name in sim.outside_band:
+            st = sim.statistics[name]
+            lo, hi = st.band
+            lines.append(
+                f"{indent}  {st.meaning}: measured {st.measured:.3g}, simulated {lo:.3g} .. {hi:.3g} (p = {st.p_value:.2g})"
+            )
+    if sim.multiplicity_note:
+        lines.append(f"{indent}{sim.multiplicity_note}")
+    return "\n".join(lines)
+
+
+def measured_noise_lines(check: NoiseModelCheck) -> list[str]:
+    """The measured route of the noise model: the noise of each pose mean from the recording's still parts."""
+    if check.measured_route is None:
+        return []
+    if check.measured_understated_by is None:
+        return [f"      measured route: not available ({check.measured_route})"]
+    line = (f"      measured route: {check.measured_route}: σ/√n understated the pose noise "
+            f"{check.measured_understated_by:.3g}× (median; residual-estimated {check.understated_by:.3g}×); "
+            f"reduced χ² with the measured σ {check.reduced_chi2_measured:.3g}")
+    if check.coverage_measured is not None:
+        line += (f"; its {check.nominal_coverage * 100:g} % intervals cover {check.coverage_measured * 100:.0f} % "
+                 "in the bootstrap")
+    return [line]
+
+
+def correlation_lines(check: NoiseModelCheck) -> list[str]:
+    """The pose noise correlated in time, when the tests use it (a named noise explanation, never an effect)."""
+    if check.correlation is None or not check.correlation.used:
+        return []
+    return [f"      {check.correlation.text()}"]
+
+
+def random_walk_lines(check: NoiseModelCheck) -> list[str]:
+    """The bias wandering as a random walk, when tested (a noise explanation, never an effect)."""
+    if check.random_walk is None or not check.random_walk.tested:
+        return []
+    return [f"      {check.random_walk.text()}"]
+
+
+def noise_model_lines(diag: "Diagnosis") -> list[str]:
+    """The noise-model explanation (never a finding), when the given σ understates the scatter."""
+    check = diag.noise_model
+    if check is None:
+        return []
+    extra = correlation_lines(check) + random_walk_lines(check)
+    if not check.tested:
+        return ["   the noise model:", *extra] if extra else []
+    if not check.named:
+        if check.measured_route is None and not extra:
+            return []
+        return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
+                *correlation_lines(check), *measured_noise_lines(check), *random_walk_lines(check)]
+    unit = diag.poses.units
+    lines = [
+        f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
+        f"(reduced χ² {check.reduced_chi2:.3g}, p = {check.p_value:.2g})",
+        f"      named cause: {check.cause}",
+        f"      extension: an extra pose-to-pose noise of {check.extra_noise:.3g} {unit} ({check.extra_noise_g * MG:.3g} mg) "
+        f"per pose; σ/√n understated the pose noise {check.understated_by:.3g}× (median); reduced χ² "
+        f"{check.reduced_chi2:.3g} → {check.reduced_chi2_after:.3g}",
+    ]
+    if check.coverage_extended is not None and check.coverage_given_sigma is not None:
+        lines.append(
+            f"      calibrated standard errors: {check.nominal_coverage * 100:g} % intervals cover "
+            f"{check.coverage_given_sigma * 100:.0f} % with the given σ, {check.coverage_extended * 100:.0f} % with the "
+            f"extended noise model ({check.simulations} simulations)"
+        )
+    return lines + correlation_lines(check) + measured_noise_lines(check) + random_walk_lines(check)
+
+
+def session_lines(sessions: "SessionOffsets") -> list[str]:
+    """Per axis: the turn-on repeatability and every session's bias offset from their mean."""
+    lines = []
+    for ax in sessions.axes:
+        offsets = ", ".join(f"{name} {v * MG:+.3g} ± {se * MG:.2g}"
+                            for name, v, se in zip(sessions.names, sessions.offsets_g[ax], sessions.stderr_g[ax]))
+        lines.append(f"      axis {ax}: turn-on repeatability {sessions.repeatability_g[ax] * MG:.3g} mg "
+                     f"(sessions' biases from their mean, mg: {offsets})")
+    lines.append(f"      {sessions.applied}")
+    return lines
+
+
+def diagnosis_report(diag: "Diagnosis") -> str:
+    """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
+    settings = diag.settings
+    lines = [
+        f"Diagnosis of {diag.n} poses ({diag.poses.source}, units {diag.poses.units})",
+        "",
+        f"1. Baseline: the paper's model (T, o, white noise), maximum likelihood started from {diag.baseline_source}",
+        f"   rms norm residual {diag.baseline_rms() * MG:.3g} mg; held-out ({settings.folds}-fold over poses) "
+        f"{diag.baseline_heldout_rms() * MG:.3g} mg",
+    ]
+    if diag.given_rms_g is not None:
+        lines.append(f"   the given calibration as it is: rms norm residual {diag.given_rms_g * MG:.3g} mg on these poses")
+    lines += ["", "2. " + simulation_text(diag.simulation, indent="   ")]
+    lines += ["", f"3. Candidate effects tested: {', '.join(diag.effects_tested) or 'none'}"]
+    for effect, why in diag.skipped.items():
+        lines.append(f"   not tested: {effect} ({why})")
+    lines.append(
+        f"   forward selection: F/likelihood-ratio test at family-wise level {settings.alpha:g} (Bonferroni over the "
+        "candidates of each step), lower BIC, and lower held-out rms, all three required"
+    )
+    for k, step in enumerate(diag.steps, 1):
+        best = sorted(step.candidates, key=lambda c: c.delta_bic)[:3]
+        tried = "; ".join(f"{c.term} ΔBIC {c.delta_bic:+.1f}, p {c.p_value:.2g}" for c in best)
+        verdict = f"added {step.accepted.term}" if step.accepted else "nothing passes: stop"
+        lines.append(f"   step {k}: {verdict}  [best candidates: {tried or 'none'}]")
+    for decision in diag.decisions:
+        lines.append("   " + decision.text)
+    lines += ["", "4. Findings"]
+    noise_named = diag.noise_model is not None and diag.noise_model.named
+    if not diag.findings:
+        if noise_named:
+            lines.append("   no physical effect: the excess scatter is explained by the noise model (see 3)")
+        elif "rms_g" in diag.simulation.outside_band:
+            lines.append(
+                "   none: no candidate effect passes the tests, although the residuals are larger than the given "
+                "per-pose noise predicts (see 2): the excess is not one of the tested effects"
+            )
+        else:
+            lines.append("   none: the paper's model explains these data (no candidate passes the tests)")
+    for f in diag.findings:
+        lines.append(f"   {f.effect}: {f.cause}")
+        if f.rows is not None:
+            named = "poses" if diag.poses.source == "raw recording" else "poses in file rows"
+            where = [str(r) if f.row_sessions is None else f"{r} of {f.row_sessions[i]}" for i, r in enumerate(f.rows)]
+            lines.append(f"      {named} {', '.join(where)} given zero weight")
+        if f.sessions is not None:
+            lines += session_lines(f.sessions)
+        for ax in f.axes if f.sessions is None else ():
+            order = f.order[ax]
+            change = f.change_over_data[ax]
+            size = f"{change * 1e6:.3g} ppm" if f.effect == "temperature_scale" else f"{change * MG:.3g} mg"
+            lines.append(
+                f"      axis {ax}: {format_value(f.effect, f.estimate[ax], f.stderr[ax])}"
+                + (f" (polynomial order {order} supported by the data; slope at the reference shown)" if order > 1 else "")
+                + f"; changes by {size} over the data"
+            )
+        lines.append(
+            f"      evidence: ΔBIC {f.evidence.delta_bic:+.1f}, p = {f.evidence.p_value:.2g}; held-out rms "
+            f"{f.heldout_rms_g_before * MG:.3g} → {f.heldout_rms_g_after * MG:.3g} mg"
+        )
+    lines += noise_model_lines(diag)
+    if diag.detection_limits:
+        level = diag.detection_limits[0].level
+        lines.append(f"   detection limits (smallest effect a test at level {level:.2g} would name, about half the time):")
+        lines += [f"      {lim.text()}" for lim in diag.detection_limits]
+    if diag.outlier_limit is not None:
+        lim = diag.outlier_limit
+        lines.append(f"   smallest outlier pose the outlier test (level {lim.level:.2g} over the poses) would name, about half "
+                     f"the time: {lim.text()}")
+    lines += [
+        "",
+        "5. Final model: " + diag.final.describe(),
+        f"   rms {diag.final_rms() * MG:.3g} mg; held-out {diag.final_heldout_rms() * MG:.3g} mg; "
+        f"gain {diag.gain():.3g}× (baseline held-out / final held-out)",
+    ]
+    if diag.final.outliers:
+        kept = diag.kept
+        on_kept = diag.baseline_heldout_rms(kept)
+        lines.append(
+            f"   (held-out rms over the {int(kept.sum())} kept poses; on those same poses the baseline's is "
+            f"{on_kept * MG:.3g} mg, a gain of {on_kept / diag.final_heldout_rms():.3g}×)"
+        )
+    if diag.simulation_after is not None:
+        lines += ["", "6. " + simulation_text(diag.simulation_after, indent="   ", after=True)]
+    lines += [f"note: {note}" for note in diag.notes]
+    return "\n".join(lines)

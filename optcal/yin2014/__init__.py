@@ -1,8 +1,0 @@
-"""Yin 2014: six-position calibration, Allan-variance noise analysis and an EKF for compensation.
-
-A paper layer on top of the core: :mod:`optcal.yin2014.allan` reads velocity random walk, bias
-instability and rate random walk off a static log (section 2.2), :mod:`optcal.yin2014.ekf` is the
-compensation filter (eqs. 7-13).  The six-position least squares itself (eq. 3-4) is the core
-estimator :mod:`optcal.estimators.sixpos`; ``optcal reproduce yin2014``
-(:mod:`optcal.reproduce.yin2014`) runs the paper's experiments.
-"""
