@@ -28,13 +28,14 @@ folder, each also in its resolved form) are replaced by ``<CASE_DIR>``, ``<SHARE
 ``<OPTCAL>``.  Files the case wrote are recorded too: JSON parsed, text as lines, binary files
 (Parquet) by name only.  The children run with ``PYTHONHASHSEED=0`` and one BLAS/OpenMP thread
 (:data:`CHILD_ENV`), so that no number depends on hash randomisation or on how a reduction was
-split over threads; the commands' own seeds (``diagnose``, ``plan``, ``simulate``) stay at their
+split over threads, and with ``PYTHONDONTWRITEBYTECODE=1``, so that no ``__pycache__`` is written
+into the checkouts; the commands' own seeds (``diagnose``, ``plan``, ``simulate``) stay at their
 fixed default, 0.
 
 ``capture OUTDIR [--shared PATH] [--only NAME ...] [--timeout S]`` writes ``OUTDIR/<case>.json``
 per case and ``OUTDIR/_meta.json`` (interpreter, optcal folder, wall time per case; never
 compared).  ``--shared`` defaults to the ``shared/data`` folder beside the repository
-(``<repo>/../shared/data``).  The 36 cases take 40-50 s on the 2-core machine.  ``list`` prints
+(``<repo>/../shared/data``).  The 36 cases take 40-70 s on the 2-core machine (45 s idle).  ``list`` prints
 the command lines.
 
 ``compare DIR_A DIR_B [--rtol 1e-12] [--atol 1e-12]`` compares two captures recursively: the same

@@ -502,7 +502,7 @@ report += [
     "order its higher coefficients do not significantly improve on (F test at the level it entered at, the level "
     "a later step would need to raise the order again; seed 4023: order 3 against order 1, p = 0.010 > 0.00056, "
     "although s³ given s and s² alone has p = 0.003). The rise-then-fall bias keeps its order 2 "
-    "(tests/test_diagnosis_correlation.py). In the table: 40/40.",
+    "(tests/applications/test_diagnosis_correlation.py). In the table: 40/40.",
     "* **Null Gauss–Markov recordings (previous run 37/40).** The three false findings were single outlier poses "
     "(seeds 5009, 5013) and scale_nonlinearity(y) (5027), not a term smooth in time. Two changes. (1) The pose "
     "noise correlated in time is now part of the noise model (`optcal.applications.diagnosis.correlation`): the noise of pose "
@@ -574,7 +574,7 @@ report += [
     "temperature-or-time decision on z names bias_drift(z) as the rival it could not tell apart: counted with the "
     "log's own effect allowed under that declared other name (the table's second column), 120/120. (2) Small-session "
     "outliers 111/120, planted 10-40 σ off. `diagnose` now states the outlier test's own detection limit, the shift "
-    "of one pose along its own direction the test names about half the time (tests/test_diagnosis_outliers.py: a "
+    "of one pose along its own direction the test names about half the time (tests/applications/test_diagnosis_outliers.py: a "
     "pose shifted by its limit was named in 16 of 40 sessions, by twice it in 40 of 40). Against that limit the "
     "weakest planted outlier is below 1.5× in 14 of the 120 sessions, and five of the nine failures are among them: "
     "1.0-1.3× in the four where one or both outliers were not named (4081, 4094, 4102, 4103), 1.2× in 4071, where "

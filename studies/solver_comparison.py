@@ -25,7 +25,7 @@
 #     OPTCAL_STUDY_REUSE=1 python studies/solver_comparison.py   # redraw tables/figures from the saved JSON
 #
 # CI executes this notebook with both set (tests/test_notebooks.py): it redraws from the saved full
-# run; the computation itself is exercised by `benchmarks/run_quick.sh` and `tests/test_solvers.py`.
+# run; the computation itself is exercised by `benchmarks/run_quick.sh` and `tests/families/test_solvers.py`.
 #
 # The computation is `optcal.applications.papers.solver_study.run` (also `optcal reproduce solvers [--json]`).
 
@@ -262,7 +262,7 @@ lines = [
     "",
     "θ = (T_xx, T_yx, T_yy, T_zx, T_zy, T_zz, o_x, o_y, o_z) (optcal's canonical identifiable parameters, "
     "raw units = g here).  CRLB: `optcal.cramer_rao_bound` — the Fisher information with the unknown gravity "
-    "directions eliminated (checked against the brute-force Schur complement in `tests/test_crlb.py`).  "
+    "directions eliminated (checked against the brute-force Schur complement in `tests/core/test_crlb.py`).  "
     "**Σ MSE / Σ CRLB** is the issue's \"MSE / CRLB summed over parameters\"; 1 is efficient, and a biased "
     "estimator can fall below 1.  The relative Monte Carlo standard error of each MSE is √(2/runs).  A failure "
     "is an optcal error (no ellipsoid, unidentifiable answer) or a solver that does not report convergence; "

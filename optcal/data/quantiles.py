@@ -6,7 +6,7 @@ against 5 ms for 10⁶ samples), and its NaN check imports ``numpy.ma`` (≈ 15 
 process).  The data layer takes medians and noise-floor quantiles of whole recordings
 several times per file, always of finite values, so these helpers partition once at the
 upper position and take the lower one as the maximum of the part below it.  The results
-are bit for bit those of numpy's (``tests/test_data_speed.py`` checks it): the even-size
+are bit for bit those of numpy's (``tests/data/test_data_speed.py`` checks it): the even-size
 median is ``(a + b) / 2`` as ``np.mean`` of the two middle values computes it, and a
 quantile is numpy's linear interpolation (``method="linear"``, Hyndman & Fan's type 7)
 with numpy's own rounding (``_lerp``).

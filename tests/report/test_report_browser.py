@@ -52,7 +52,7 @@ def open_in_browser(page: Path, screenshot: Path, profile: Path, width: int = 41
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Reports of calibrate, check, diagnose and segment on a measured-like recording with a hidden drift, and the
-    plan of four more poses after it (the fleet's report is rendered in tests/test_report_fleet.py)."""
+    plan of four more poses after it (the fleet's report is rendered in tests/report/test_report_fleet.py)."""
     from optcal.families.simulate.effects import recording_with_effect
 
     out = tmp_path_factory.mktemp("reports")

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from diagnosis_cases import make_case, write_pose_table
+from helpers.diagnosis_cases import make_case, write_pose_table
 
 import optcal.families.caltypes
 from optcal.cli.main import main

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case
 
 from optcal.families.accel.calibration import calibrate
 from optcal.data import load

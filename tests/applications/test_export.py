@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 import optcal.families.caltypes as caltypes
-from cli_run import run
+from helpers.cli_run import run
 from optcal.families.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
 from optcal.cli.main import main
 from optcal.core.extended_model import ExtendedModel

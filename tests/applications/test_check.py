@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from cli_run import run
+from helpers.cli_run import run
 from optcal.data import load
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.applications.quality.validation import (

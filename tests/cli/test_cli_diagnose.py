@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case
 
 from optcal.cli.main import main
 

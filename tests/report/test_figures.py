@@ -12,7 +12,7 @@ from optcal.core.model import lu2017_reference_model
 from optcal.families.simulate.poses import uniform_directions
 from optcal.families.noise.allan import allan_figure, analyse_static_log, plot_allan, simulate_noise
 
-LIBRARY = Path(__file__).resolve().parents[1] / "optcal"
+LIBRARY = Path(__file__).resolve().parents[2] / "optcal"
 
 
 def test_no_library_module_switches_the_backend_or_uses_pyplot():

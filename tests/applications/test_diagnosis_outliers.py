@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case
 
 from optcal.applications.diagnosis import Diagnoser, diagnose
 from optcal.applications.diagnosis.outliers import detect_outliers, robust_scale, trimmed_scale

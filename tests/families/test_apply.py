@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 import optcal.families.caltypes as caltypes
-from cli_run import run
+from helpers.cli_run import run
 from optcal.families.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibration
 from optcal.families.caltypes.apply import STATUS_COLUMN
 from optcal.data import load

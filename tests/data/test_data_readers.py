@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cli_run import run
+from helpers.cli_run import run
 from optcal.data import decide_kind, load, load_pose_table, load_recording, load_with_segmentation
 from optcal.data.readers import read_source
 from optcal.data.recording import DUPLICATED, NON_FINITE, REPEATED_TIME, SATURATED

@@ -19,7 +19,7 @@ from optcal.report.parameters import result_parameters
 from optcal.applications.quality.verdict import judge, judge_check, judge_segmentation
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def verdict_of(html: str) -> str:
@@ -171,7 +171,7 @@ def test_hand_held_mpu6050_is_at_best_usable_with_care(shared_data: Path, tmp_pa
 
 
 def test_diagnosis_with_a_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    from diagnosis_cases import make_case
+    from helpers.diagnosis_cases import make_case
     from test_cli_diagnose import write_table
 
     case = make_case("temperature_bias", 21)

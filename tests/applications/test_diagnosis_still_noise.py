@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case
 
 from optcal.data import load_with_segmentation
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cli_run import run
+from helpers.cli_run import run
 from optcal.data import load, load_with_segmentation
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.errors import InputError

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from diagnosis_cases import make_case, write_pose_table
+from helpers.diagnosis_cases import make_case, write_pose_table
 
 from optcal.cli.main import main
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings

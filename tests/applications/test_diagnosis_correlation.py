@@ -14,8 +14,8 @@ from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose
 from optcal.applications.diagnosis.correlation import CorrelationOperator, estimate_correlation, restricted_deviance
 from optcal.families.simulate.effects import recording_with_effect
 
-sys.path.insert(0, str(Path(__file__).parent))
-from diagnosis_cases import make_case  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from helpers.diagnosis_cases import make_case  # noqa: E402
 
 
 def dense_correlation(rho0: float, tau: float, t: np.ndarray, session: np.ndarray, d: np.ndarray) -> np.ndarray:

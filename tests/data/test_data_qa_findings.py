@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cli_run import run
+from helpers.cli_run import run
 from optcal.data import load
 from optcal.data.static import TURNING, TURNING_STRETCHES
 from optcal.families.simulate.recording import synthesize_recording

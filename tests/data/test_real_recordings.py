@@ -15,7 +15,7 @@ from optcal.data.recording import recording_from_source
 from optcal.data.static import detect_static
 from optcal.errors import IdentifiabilityError, InputError
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 XSENS = DATA / "imutk-xsens" / "xsens_imutk.csv"
 MPU = DATA / "mpu6050-imucalibration"
 FERRARIS = DATA / "imucal-ferraris"

@@ -1,0 +1,1 @@
+"""Helpers shared by the tests: CLI runner and diagnosis cases."""
