@@ -33,7 +33,8 @@ import optcal
 from optcal.data import load_with_segmentation
 from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu_loaded
 from optcal.families.gyro.moves import moves_from_arrays, moves_from_segmentation
-from optcal.families.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
+from optcal.core.stats import rms
 from optcal.families.simulate.gyro import reference_gyro, simulate_imu
 from optcal.core.units import GyroUnitsDecision
 from optcal.core.poses import PoseTable

@@ -11,7 +11,8 @@ from optcal.errors import IdentifiabilityError, InputError
 from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
 from optcal.core.gyro_model import GyroModel
 from optcal.families.gyro.moves import moves_from_arrays
-from optcal.families.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
+from optcal.core.stats import rms
 from optcal.families.gyro.result import ImuCalibration
 from optcal.families.simulate.gyro import ImuRecording, reference_gyro, simulate_imu
 from optcal.core.units import GyroUnitsDecision, decide_gyro_units

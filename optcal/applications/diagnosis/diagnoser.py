@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from optcal.applications.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.applications.diagnosis.findings import build_findings
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter, rms
+from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.noise_model import check_noise_model, pose_correlation
 from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.applications.diagnosis.progress import Progress
@@ -39,6 +39,7 @@ from optcal.applications.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
 from optcal.core.model import canonicalise
 from optcal.core.poses import PoseTable
+from optcal.core.stats import rms
 
 if TYPE_CHECKING:
     from optcal.data.static import Segmentation

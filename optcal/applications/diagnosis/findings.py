@@ -15,10 +15,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from optcal.applications.diagnosis.effects import CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
-from optcal.applications.diagnosis.fitting import Fit, Fitter, rms
+from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.selection import Step
 from optcal.core.model import AXES
+from optcal.core.stats import rms
 
 if TYPE_CHECKING:
     from optcal.applications.diagnosis.sessions import SessionOffsets

@@ -119,12 +119,6 @@ def mean_shift_columns(n: int, outliers: frozenset[int]) -> NDArray[np.float64]:
     return columns
 
 
-def rms(r: NDArray[np.float64], mask: NDArray[np.bool_] | None = None) -> float:
-    """Root mean square of ``r`` (over ``mask``)."""
-    values = r if mask is None else r[mask]
-    return float(np.sqrt(np.mean(values**2)))
-
-
 class Fitter:
     """Fits of the extended model to ``poses`` (module docstring).
 

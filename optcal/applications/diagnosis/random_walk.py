@@ -32,6 +32,7 @@ from optcal.families.accel.random_walk_bias import RandomWalkBias
 from optcal.core.model import theta_from, unpack_theta
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.poses import PoseTable
+from optcal.core.stats import rms
 
 #: Folds of the held-out comparison (every k-th pose in time order held out).
 FOLDS: int = 5
@@ -125,10 +126,9 @@ def compare_with_allan(still: MeasuredPoseNoise, K_g: float, K_interval_g: tuple
         ks = [f.rate_random_walk for f in fitted]
         cis = [f.ci.get("rate_random_walk") for f in fitted]
         if all(k is not None for k in ks) and all(ci is not None for ci in cis):
-            def rms(values: list[float]) -> float:
-                return float(np.sqrt(np.mean(np.square(values)))) * g_per_raw
-            out.K_allan_g = rms(ks)  # type: ignore[arg-type]
-            out.K_allan_interval_g = (rms([ci[0] for ci in cis]), rms([ci[1] for ci in cis]))  # type: ignore[index]
+            out.K_allan_g = rms(ks) * g_per_raw  # type: ignore[arg-type]
+            out.K_allan_interval_g = (rms([ci[0] for ci in cis]) * g_per_raw,  # type: ignore[index]
+                                      rms([ci[1] for ci in cis]) * g_per_raw)  # type: ignore[index]
             out.allan_level = float(still.curves[0].confidence)
             out.consistent = bool(out.K_allan_interval_g[0] <= K_interval_g[1] and K_interval_g[0] <= out.K_allan_interval_g[1])
             return out

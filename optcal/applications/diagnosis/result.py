@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.applications.diagnosis.findings import Finding
-from optcal.applications.diagnosis.fitting import BASELINE_MODEL, Fit, rms
+from optcal.applications.diagnosis.fitting import BASELINE_MODEL, Fit
 from optcal.applications.diagnosis.limits import DetectionLimit, OutlierLimit
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
 from optcal.applications.diagnosis.regressors import Regressors
@@ -19,6 +19,7 @@ from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import ExtendedModel
 from optcal.core.model import AXES
 from optcal.core.poses import PoseTable
+from optcal.core.stats import rms
 
 if TYPE_CHECKING:
     from optcal.families.caltypes.base import Calibration

@@ -37,10 +37,11 @@ from typing import Any
 import numpy as np
 
 from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter, rms
+from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import detect_outliers
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
+from optcal.core.stats import rms
 
 #: ΔBIC difference below which two competing explanations count as indistinguishable (Kass & Raftery).
 BIC_TIE: float = 6.0

@@ -23,6 +23,7 @@ from optcal.errors import InputError
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.norm_residual import norm_residuals, normal_gain
 from optcal.core.poses import MIN_POSES, PoseTable
+from optcal.core.stats import rms
 from optcal.families.caltypes import Calibration
 from optcal.core.fit_result import CalibrationResult, jsonable
 
@@ -35,10 +36,6 @@ def norm_noise(T: ArrayLike, o: ArrayLike, acc: ArrayLike, sigma: ArrayLike) -> 
     First order: ``σ_k ‖Tᵀ v_k‖`` with ``v_k`` the unit calibrated vector.
     """
     return np.asarray(sigma, float) * normal_gain(T, o, acc)
-
-
-def _rms(x: NDArray[np.float64]) -> float:
-    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
 @dataclass
@@ -66,16 +63,16 @@ class NormCheck:
 
     @property
     def rms_before(self) -> float:
-        return _rms(self.before)
+        return rms(self.before)
 
     @property
     def rms_after(self) -> float:
-        return _rms(self.after)
+        return rms(self.after)
 
     @property
     def rms_noise(self) -> float:
         """rms of ``after`` expected from the pose noise alone (NaN without σ_k)."""
-        return _rms(self.noise) if self.noise is not None else float("nan")
+        return rms(self.noise) if self.noise is not None else float("nan")
 
     def summary(self) -> dict[str, Any]:
         """JSON-safe dictionary, figures in g."""
@@ -168,11 +165,11 @@ class HeldOutResult:
     @property
     def rms_held_out(self) -> float:
         r = self.residuals[np.isfinite(self.residuals)]
-        return _rms(r)
+        return rms(r)
 
     @property
     def rms_in_sample(self) -> float:
-        return _rms(self.in_sample)
+        return rms(self.in_sample)
 
 
 def kfold_masks(n: int, folds: int, rng: np.random.Generator | int | None = 0) -> list[NDArray[np.bool_]]:
@@ -224,7 +221,7 @@ def held_out_validation(
         test = np.flatnonzero(m)
         r = norm_residuals(cal.T, cal.o, poses.acc[test])
         residuals[test] = r
-        records.append({"n_train": int(train.size), "n_test": int(test.size), "rms_test_g": _rms(r),
+        records.append({"n_train": int(train.size), "n_test": int(test.size), "rms_test_g": rms(r),
                         "rms_train_g": cal.rms_norm_residual_g})
     full = calibrate(poses, method=method, **settings)
     return HeldOutResult(residuals, norm_residuals(full.T, full.o, poses.acc), records)

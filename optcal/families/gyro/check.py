@@ -9,7 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.families.gyro.moves import moves_from_segmentation
-from optcal.families.gyro.propagation import GravityPredictor, angles_deg, rms, unit_rows
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
+from optcal.core.stats import rms
 from optcal.core.units import RAD_PER_UNIT
 
 if TYPE_CHECKING:

@@ -134,8 +134,3 @@ def angles_deg(predicted: NDArray, measured: NDArray) -> NDArray[np.float64]:
     p, q = unit_rows(predicted), unit_rows(measured)
     cross = np.linalg.norm(np.cross(p, q), axis=1)
     return np.degrees(np.arctan2(cross, np.sum(p * q, axis=1)))
-
-
-def rms(x: NDArray) -> float:
-    """Root mean square of ``x``."""
-    return float(np.sqrt(np.mean(np.square(x))))

@@ -28,7 +28,7 @@ from optcal.families.caltypes.base import Calibration, FitPoses, as_samples, rea
 from optcal.families.caltypes.lumped import LumpedCalibration
 from optcal.errors import InputError
 from optcal.core.gyro_model import GyroModel
-from optcal.families.gyro.propagation import rms
+from optcal.core.stats import rms
 from optcal.core.fit_result import CalibrationResult, SolverInfo
 
 CAL_TYPE: str = "imu"
