@@ -11,7 +11,7 @@
   so (``result.solver.success`` is false).  Command line: one ``warning: ...`` line.
 
 Messages name Python arguments (``allow_degenerate=True``); the command line translates them
-into its flags (:data:`optcal.cli.main.CLI_SPELLING`).
+into its flags (:data:`optcal.cli.messages.CLI_SPELLING`).
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from optcal.families.accel.calibration import calibrate
-from optcal.cli.cmd_segment import segmentation_figure
+from optcal.report.segmentation_figure import segmentation_figure
 from optcal.data import StaticSettings, load, load_recording, load_with_segmentation
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from typing import Any
 
@@ -10,7 +9,7 @@ import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, read_options, reading_kwargs
-from optcal.cli.outputs import plot_file, plot_option
+from optcal.cli.outputs import echo_json, plot_file, plot_option
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "allan.png"
@@ -142,13 +141,10 @@ def allan(
     −1/2, 0 and +1/2 slope lines as in Yin 2014.
     """
     from optcal.families.noise.allan import analyse_static_log, plot_allan, si_per_unit
-    from optcal.core.fit_result import jsonable
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     if sensor == "gyro":
-        from optcal.cli.gyro_commands import allan_gyro_command
-
-        allan_gyro_command(data, as_json, gyro_units, counts_per_rad_s, max_tau, reading_kwargs(reading))
+        allan_gyro(data, as_json, gyro_units, counts_per_rad_s, max_tau, reading_kwargs(reading))
         return
     log = read_still_log(data, **reading_kwargs(reading))
     samples, rate_hz, units_used, units_reason, exclusions, decisions = (
@@ -161,7 +157,7 @@ def allan(
         out: dict[str, Any] = analysis.summary()
         out["log"].update({"path": data, "units_reason": units_reason, "exclusions": exclusions,
                            "decisions": decisions.to_dict()})
-        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        echo_json(out)
         if figure is not None:
             click.echo(f"figure saved to {figure}", err=True)
         return
@@ -173,3 +169,39 @@ def allan(
     click.echo(analysis.report())
     if figure is not None:
         click.echo(f"figure saved to {figure}")
+
+def allan_gyro(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_s: float | None,
+               max_tau: float | None, reading: dict[str, Any]) -> None:
+    """``optcal allan DATA --sensor gyro``: the gyro's noise parameters (and Kalibr's two numbers).
+
+    Parameters
+    ----------
+    data : str
+        The still log, with gyro columns.
+    as_json : bool
+        Print one JSON object instead of the table.
+    gyro_units : str, optional
+        Units of the gyro columns (``--gyro-units``; default: decided from the file and the data).
+    counts_per_rad_s : float, optional
+        Scale of raw gyro counts.
+    max_tau : float, optional
+        Largest averaging time τ, s.
+    reading : dict
+        Keywords of :func:`optcal.data.load_recording` (:func:`optcal.cli.data_options.reading_kwargs`).
+    """
+    from optcal.families.noise.gyro_allan import analyse_gyro_log
+    from optcal.core.units import decide_gyro_units
+
+    log = read_still_log(data, sensor="gyro", **reading)
+    decision = decide_gyro_units(log.samples, log.samples.mean(axis=0), gyro_units, log.units or None)
+    analysis = analyse_gyro_log(log.samples, log.rate_hz, decision.units, counts_per_rad_s, max_tau)
+    if as_json:
+        out = analysis.summary()
+        out["log"].update({"path": data, "units_reason": decision.reason, "exclusions": log.exclusions})
+        echo_json(out)
+        return
+    click.echo(f"DATA: {data}, a still log of {log.samples.shape[0]} samples at {log.rate_hz:.6g} Hz, "
+               f"gyro units {decision.units} ({decision.reason})")
+    if log.exclusions:
+        click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in log.exclusions.items()))
+    click.echo(analysis.report())

@@ -2,22 +2,14 @@
 
 from __future__ import annotations
 
-import json
-
 from typing import Any
 
 import click
 
 from optcal.families.accel.calibration import METHOD_CHOICES
-from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data, load_data_detailed
+from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
-
-
-def echo_json(obj: dict) -> None:
-    """Print exactly one JSON object on standard output."""
-    from optcal.core.fit_result import jsonable
-
-    click.echo(json.dumps(jsonable(obj), allow_nan=False))
 
 
 @click.command()
@@ -51,12 +43,10 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     if not imu and (gyro_units or joint or g_sensitivity):
         raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
     if imu:
-        from optcal.cli.gyro_commands import calibrate_imu_command
-
         if report_path:
             raise InputError("--report covers the accelerometer calibration; it is not available with --imu yet")
 
-        calibrate_imu_command(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts)
+        calibrate_imu(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts)
         return
     poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
@@ -79,8 +69,6 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             write_report(calibration_document(refused, poses, data, command_line(), method, forced, tolerance), report_path)
         raise
     if output:
-        from optcal.cli.outputs import output_file
-
         result.save(output_file(output))
     if report_path:
         from optcal.report.document import calibration_document
@@ -93,5 +81,53 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         return
     click.echo(data_line(data, poses))
     click.echo(result.report())
+    if output:
+        click.echo(f"saved to {output}")
+
+
+def calibrate_imu(
+    data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
+    gyro_units: str | None, joint: bool, g_sensitivity: bool, data_opts: dict[str, Any],
+) -> None:
+    """``optcal calibrate DATA --imu``: both sensors from one raw recording (cal_type imu).
+
+    Parameters
+    ----------
+    data : str
+        The raw recording, with gyro columns.
+    method : str
+        The accelerometer's estimator (``--method``).
+    as_json : bool
+        Print one JSON object instead of the text report.
+    output : str, optional
+        Where to save the calibration (``-o``).
+    allow_degenerate : bool
+        Proceed when the poses or the moves do not identify every parameter.
+    gyro_units : str, optional
+        Units of the gyro columns (``--gyro-units``; default: decided from the file and the data).
+    joint : bool
+        Re-estimate the accelerometer jointly with the gyro.
+    g_sensitivity : bool
+        Model the gyro's g-sensitivity.
+    data_opts : dict
+        The DATA reading options (:func:`optcal.cli.data_options.data_options`).
+    """
+    from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
+
+    loaded = load_data_detailed(data, **data_opts)
+    settings = GyroSettings(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
+                            allow_degenerate=allow_degenerate)
+    cal = calibrate_imu_loaded(loaded, gyro_units=gyro_units, method=method, settings=settings,
+                               acc_settings={"allow_degenerate": allow_degenerate})
+    if output:
+        cal.save(output_file(output))
+    if as_json:
+        out = cal.to_dict()
+        out.pop("fitted_on", None)
+        out["data"] = data_summary(data, loaded.poses)
+        echo_json(out)
+        return
+    click.echo(data_line(data, loaded.poses))
+    click.echo(cal.report())
     if output:
         click.echo(f"saved to {output}")

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
 import numpy as np
 
-from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data, load_data_detailed
+from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import command_line, report_options, write_report
 
 
@@ -28,7 +28,6 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
     """
     import optcal.families.caltypes as caltypes
     from optcal.applications.quality.validation import check_calibration
-    from optcal.core.fit_result import jsonable
 
     cal = caltypes.load(calibration)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
@@ -42,8 +41,6 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
                                     tolerance), report_path)
     gyro_lines, gyro_out = [], {}
     if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
-        from optcal.cli.gyro_commands import gravity_check_lines
-
         gyro_lines, gyro_out = gravity_check_lines(cal, data, data_opts)
     if as_json:
         out = {
@@ -52,7 +49,7 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
             **result.summary(),
             **gyro_out,
         }
-        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        echo_json(out)
         return
     click.echo(f"calibration: {calibration}: {cal.describe()}")
     click.echo(data_line(data, poses))
@@ -79,3 +76,37 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
         click.echo(f"{int(result.rows[k]):>5} {t} {n} {result.before[k] * 1e3:12.4f} {result.after[k] * 1e3:11.4f} {noise}")
     if poses.exclusions:
         click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in poses.exclusions.items()))
+
+
+def gravity_check_lines(cal: Any, data: str, data_opts: dict[str, Any]) -> tuple[list[str], dict[str, Any]]:
+    """``optcal check`` on an IMU calibration: the gravity-prediction residual of DATA's moves, before and after.
+
+    Parameters
+    ----------
+    cal : ImuCalibration
+        The saved calibration (cal_type imu).
+    data : str
+        The recording checked (a raw recording with gyro columns; a pose table gives one line saying so).
+    data_opts : dict
+        The DATA reading options (:func:`optcal.cli.data_options.data_options`).
+
+    Returns
+    -------
+    lines : list of str
+        The text report's lines.
+    out : dict
+        The ``--json`` entries (``gravity_prediction``; empty without raw gyro samples).
+    """
+    from optcal.families.gyro.check import gravity_prediction_check
+
+    loaded = load_data_detailed(data, **data_opts)
+    if loaded.segmentation is None or loaded.segmentation.recording.gyro is None:
+        return ["gyro: DATA has no raw gyro samples; the gravity-prediction check needs a raw recording with gx, gy, gz"], {}
+    result = gravity_prediction_check(cal, loaded.segmentation)
+    lines = [f"gyro: gravity predicted across {result.angles_after_deg.size} moves, rms angle to the next pose: "
+             f"before {result.rms_before_deg:.3f}° ({result.before}), after {result.rms_after_deg:.3f}°"]
+    return lines, {"gravity_prediction": {"n_moves": int(result.angles_after_deg.size),
+                                          "rms_deg_before": result.rms_before_deg, "rms_deg_after": result.rms_after_deg,
+                                          "before": result.before, "exclusions": result.exclusions,
+                                          "angles_deg_before": np.round(result.angles_before_deg, 6).tolist(),
+                                          "angles_deg_after": np.round(result.angles_after_deg, 6).tolist()}}

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
@@ -91,9 +90,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     from optcal.families.caltypes import load as load_calibration
     from optcal.applications.diagnosis import Diagnoser
     from optcal.report.diagnosis_figures import save_figures
-    from optcal.core.fit_result import jsonable
 
-    from optcal.cli.outputs import output_file, plot_folder
+    from optcal.cli.outputs import echo_json, output_file, plot_folder
 
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation)
     figures_into = plot_folder(plot_dir) if plot_dir else None
@@ -126,7 +124,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         out["data"] = summaries[0] if len(summaries) == 1 else summaries  # one per session
         out["figures"] = paths
         out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
-        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        echo_json(out)
         return
     click.echo(diag.report())
     for path in paths:

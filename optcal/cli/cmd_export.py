@@ -45,7 +45,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     subtracts a zero reading that optcal cannot see in the poses).
     """
     import optcal.families.caltypes as caltypes
-    from optcal.cli.main import cli_message
+    from optcal.cli.messages import cli_message
     from optcal.families.caltypes.apply import convert_samples
     from optcal.applications.export import ExportOptions, export as run_export, read_allan
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import click
 
-from optcal.cli.cmd_calibrate import echo_json
 from optcal.cli.data_options import data_options
+from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import command_line, report_options, write_report
 
 

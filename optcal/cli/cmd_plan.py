@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
+from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import check_report_path, command_line, write_report
 
 
@@ -59,7 +59,6 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     from optcal.errors import InputError
     from optcal.applications.plan import Cap, Prior, given_candidates, sphere_candidates, turntable_candidates
     from optcal.applications.plan.candidates import read_orientations
-    from optcal.core.fit_result import jsonable
 
     if (n_poses is None) == (next_data is None):
         raise InputError("give either --poses K (plan K poses) or --next DATA (the next pose after DATA)")
@@ -117,7 +116,7 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         out = result.to_dict()
         if poses is not None:
             out["data"] = data_summary(data_path, poses)
-        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        echo_json(out)
         return
     click.echo(result.report())
     if poses is not None and poses.exclusions:

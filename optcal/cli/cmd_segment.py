@@ -2,21 +2,18 @@
 
 from __future__ import annotations
 
-import json
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
 from optcal.cli.report_option import check_report_path, command_line, write_report
-from optcal.cli.outputs import plot_file, plot_option
+from optcal.cli.outputs import echo_json, plot_file, plot_option
+from optcal.report.segmentation_figure import segmentation_figure
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "segments.png"
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
 
 
 @click.command()
@@ -32,8 +29,6 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
     DATA is a CSV/Parquet time series, a ROS 1/ROS 2 bag (sensor_msgs/Imu) or a PX4 ULog
     file (sensor_accel).  A pose table is recognised and reported as such.
     """
-    from optcal.core.fit_result import jsonable
-
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     loaded = load_data_detailed(data, **data_opts)
     poses, seg = loaded.poses, loaded.segmentation
@@ -56,7 +51,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
             out["poses"] = {"acc": poses.acc, "rows": poses.rows}
         if figure is not None:
             out["plot"] = str(figure)
-        click.echo(json.dumps(jsonable(out), allow_nan=False))
+        echo_json(out)
         return
     click.echo(data_line(data, poses))
     if seg is None:
@@ -99,39 +94,3 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     if seg.exclusions:
         lines.append("excluded: " + "; ".join(f"{k}: {v}" for k, v in seg.exclusions.items()))
     return "\n".join(lines)
-
-
-def segmentation_figure(seg: Any) -> "Figure":
-    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
-
-    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
-    """
-    from matplotlib.figure import Figure
-
-    tr = seg.trace
-    t = tr["t"]
-    has_gyro = "gyro_rate" in tr
-    fig = Figure(figsize=(11, 7 if has_gyro else 5))
-    axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
-    ax = axes[0]
-    ax.plot(t, tr["norm_g"], lw=0.5, color="0.3")
-    for iv in seg.intervals:
-        for a in axes:
-            a.axvspan(iv.t_start, iv.t_end, color="tab:green", alpha=0.15, lw=0)
-    ax.set_ylabel("|a| (nominal g)")
-    ax.set_title(f"{seg.recording.path}: {len(seg.intervals)} static intervals")
-    ax = axes[1]
-    ax.semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
-    ax.semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
-    ax.axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
-    ax.axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
-    ax.set_ylabel(f"std ({seg.recording.units})")
-    ax.legend(loc="upper right", fontsize=8)
-    if has_gyro:
-        ax = axes[2]
-        ax.semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
-        ax.axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
-        ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
-    axes[-1].set_xlabel("t (s)")
-    fig.tight_layout()
-    return fig

@@ -5,14 +5,13 @@ Commands are loaded lazily (``COMMANDS`` maps a name to ``module:attribute``) so
 becomes one ``error: ...`` line on standard error and exit code 2 (bad input), every
 :class:`~optcal.errors.SolverError` one ``error: ...`` line and exit code 3 (a solver failed),
 without a traceback; optcal's warnings (:class:`~optcal.errors.ConvergenceWarning`) become one
-``warning: ...`` line.  Library messages name Python arguments; :func:`cli_message` puts the
-command line's flags in their place (:data:`CLI_SPELLING`).
+``warning: ...`` line.  Library messages name Python arguments; :func:`optcal.cli.messages.cli_message`
+puts the command line's flags in their place.
 """
 
 from __future__ import annotations
 
 import functools
-import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -21,44 +20,12 @@ from typing import Any
 import click
 
 from optcal.cli.lazy_group import LazyGroup
+from optcal.cli.messages import cli_message
 from optcal.errors import ConvergenceWarning, InputError, SolverError
 
 #: Exit codes: bad input (the user can fix the data or options) and a solver failure.
 EXIT_INPUT_ERROR = 2
 EXIT_SOLVER_ERROR = 3
-
-#: How a library message's Python wording reads on the command line: regular expression ->
-#: replacement, applied in order after the command's own table (:data:`COMMAND_SPELLING`).
-#: IPOPT's advice when it stops early (optcal.families.accel.mle.IPOPT_REMEDY), which names Python arguments.
-IPOPT_ADVICE = re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)")
-CLI_SPELLING: dict[str, str] = {
-    # the command line sets no IPOPT options
-    IPOPT_ADVICE:
-        "on the command line, try --method convex (the convex fit alone, no IPOPT) or add poses in orientations "
-        "not yet covered",
-    re.escape('check ipopt_options, or use method="convex"'): "use --method convex",
-    re.escape("raise the solver's iteration limit (solver_options) or try solver='SCS'"): "try --method mle",
-    re.escape("pass a larger max_iter or a looser tol"): "use --method default instead",
-    re.escape('method="convex"'): "--method convex",
-    re.escape("allow_degenerate=True"): "--allow-degenerate",
-    re.escape("scale_range=(low, high)"): "--scale-range LOW HIGH",
-    r'\bunits="([^"]*)"': r"--units \1",
-    r'\bcolumns="([^"]*)"': r"--columns \1",
-    r"\bcolumns=": "--columns",
-    r"\btime_unit\b": "--time-unit",
-    r"\bcounts_per_g\b": "--counts-per-g",
-    r"\bcounts_zero=(\S+)": r"--counts-zero \1",
-    r"\ballan=": "--allan FILE",
-    re.escape("random_walk_bound=True"): "--random-walk-bound",
-    r"\bmax_loss_g( =)?": "--max-loss",
-}
-
-#: Per command: wording that reads differently there (the same Python argument, another flag).
-COMMAND_SPELLING: dict[str, dict[str, str]] = {
-    "apply": {r'\bunits="([^"]*)"': r"--data-units \1"},  # apply's --units is the output unit
-    "export": {r' \(or pass units="[^"]*" if that is what it is\)': ""},  # export reads --poses in their own units
-    "reproduce": {IPOPT_ADVICE: "the reproduction keeps that fit and reports it"},  # its fits are fixed by the paper
-}
 
 #: name -> "module:attribute" of a click command.  Add one line per command.
 COMMANDS: dict[str, str] = {
@@ -81,21 +48,6 @@ COMMANDS: dict[str, str] = {
 @click.version_option(package_name="optcal")
 def cli() -> None:
     """optcal: calibrate triaxial accelerometers as optimisation problems, and diagnose the model."""
-
-
-def cli_message(message: str, command: str | None = None) -> str:
-    """A library message with the command line's flags in place of Python arguments.
-
-    Parameters
-    ----------
-    message : str
-        The library's message (Python wording).
-    command : str, optional
-        The optcal command that ran (``"apply"``); its :data:`COMMAND_SPELLING` is applied first.
-    """
-    for pattern, flag in (*COMMAND_SPELLING.get(command or "", {}).items(), *CLI_SPELLING.items()):
-        message = re.sub(pattern, flag, message)
-    return message
 
 
 def command_name(argv: list[str]) -> str | None:

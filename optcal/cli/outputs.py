@@ -1,4 +1,7 @@
-"""Where commands write: ``-o FILE`` and ``--plot PATH``, the same in every command.
+"""Where commands write: ``--json``, ``-o FILE`` and ``--plot PATH``, the same in every command.
+
+``--json`` prints exactly one JSON object on standard output (:func:`echo_json`: NumPy values
+made plain, a number that is not finite written as ``null``).
 
 ``--plot PATH`` takes a folder in every command (created when missing); the figures are
 written into it under their own names (``segments.png``, ``allan.png``, the diagnosis
@@ -9,6 +12,7 @@ be written (an existing folder given as a file, a file given as a folder) is one
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -19,6 +23,20 @@ from optcal.errors import InputError
 
 #: Suffixes that make ``--plot PATH`` a file name rather than a folder.
 FIGURE_SUFFIXES: tuple[str, ...] = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def echo_json(obj: dict[str, Any]) -> None:
+    """Print exactly one JSON object on standard output.
+
+    Parameters
+    ----------
+    obj : dict
+        The command's result; NumPy arrays and scalars are converted and a number that is not
+        finite becomes ``null`` (:func:`optcal.families.caltypes.base.jsonable`).
+    """
+    from optcal.families.caltypes.base import jsonable
+
+    click.echo(json.dumps(jsonable(obj), allow_nan=False))
 
 
 def plot_option(what: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

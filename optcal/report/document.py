@@ -26,6 +26,7 @@ from optcal.report.figures import (
     sphere_map_figure,
 )
 from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters, result_parameters
+from optcal.report.segmentation_figure import segmentation_figure
 from optcal.applications.quality.verdict import DEFAULT_TOLERANCE_MG, Verdict, judge, judge_check, judge_segmentation
 from optcal.core.fit_result import CalibrationResult
 
@@ -340,8 +341,6 @@ def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, c
 
     distinct = distinct_orientations(directions)
     verdict = judge_segmentation(poses.n, distinct)
-    from optcal.cli.cmd_segment import segmentation_figure
-
     figures = []
     if segmentation is not None:
         figures.append(embed(segmentation_figure(segmentation), "The recording: |a|, the detector's statistics and the static intervals",

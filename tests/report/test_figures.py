@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.cli.cmd_segment import segmentation_figure
+from optcal.report.segmentation_figure import segmentation_figure
 from optcal.data import load_with_segmentation
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.core.model import lu2017_reference_model

@@ -1,0 +1,59 @@
+"""Library messages in the command line's words.
+
+Library messages name Python arguments (``allow_degenerate=True``); on the command line the
+same advice reads as a flag (``--allow-degenerate``).  :func:`cli_message` applies the
+command's own table (:data:`COMMAND_SPELLING`), then :data:`CLI_SPELLING`, to every ``error:``,
+``warning:`` and ``note:`` line a command prints.
+"""
+
+from __future__ import annotations
+
+import re
+
+#: How a library message's Python wording reads on the command line: regular expression ->
+#: replacement, applied in order after the command's own table (:data:`COMMAND_SPELLING`).
+#: IPOPT's advice when it stops early (optcal.families.accel.mle.IPOPT_REMEDY), which names Python arguments.
+IPOPT_ADVICE = re.escape("raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)")
+CLI_SPELLING: dict[str, str] = {
+    # the command line sets no IPOPT options
+    IPOPT_ADVICE:
+        "on the command line, try --method convex (the convex fit alone, no IPOPT) or add poses in orientations "
+        "not yet covered",
+    re.escape('check ipopt_options, or use method="convex"'): "use --method convex",
+    re.escape("raise the solver's iteration limit (solver_options) or try solver='SCS'"): "try --method mle",
+    re.escape("pass a larger max_iter or a looser tol"): "use --method default instead",
+    re.escape('method="convex"'): "--method convex",
+    re.escape("allow_degenerate=True"): "--allow-degenerate",
+    re.escape("scale_range=(low, high)"): "--scale-range LOW HIGH",
+    r'\bunits="([^"]*)"': r"--units \1",
+    r'\bcolumns="([^"]*)"': r"--columns \1",
+    r"\bcolumns=": "--columns",
+    r"\btime_unit\b": "--time-unit",
+    r"\bcounts_per_g\b": "--counts-per-g",
+    r"\bcounts_zero=(\S+)": r"--counts-zero \1",
+    r"\ballan=": "--allan FILE",
+    re.escape("random_walk_bound=True"): "--random-walk-bound",
+    r"\bmax_loss_g( =)?": "--max-loss",
+}
+
+#: Per command: wording that reads differently there (the same Python argument, another flag).
+COMMAND_SPELLING: dict[str, dict[str, str]] = {
+    "apply": {r'\bunits="([^"]*)"': r"--data-units \1"},  # apply's --units is the output unit
+    "export": {r' \(or pass units="[^"]*" if that is what it is\)': ""},  # export reads --poses in their own units
+    "reproduce": {IPOPT_ADVICE: "the reproduction keeps that fit and reports it"},  # its fits are fixed by the paper
+}
+
+
+def cli_message(message: str, command: str | None = None) -> str:
+    """A library message with the command line's flags in place of Python arguments.
+
+    Parameters
+    ----------
+    message : str
+        The library's message (Python wording).
+    command : str, optional
+        The optcal command that ran (``"apply"``); its :data:`COMMAND_SPELLING` is applied first.
+    """
+    for pattern, flag in (*COMMAND_SPELLING.get(command or "", {}).items(), *CLI_SPELLING.items()):
+        message = re.sub(pattern, flag, message)
+    return message
