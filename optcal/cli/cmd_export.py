@@ -47,7 +47,8 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     import optcal.families.caltypes as caltypes
     from optcal.cli.messages import cli_message
     from optcal.families.caltypes.apply import convert_samples
-    from optcal.applications.export import ExportOptions, export as run_export, read_allan
+    from optcal.applications.export import export as run_export, read_allan
+    from optcal.applications.export.base import ExportOptions
 
     cal = caltypes.load(calibration)
     fit_poses = None

@@ -23,8 +23,8 @@ import numpy as np
 from numpy.polynomial import Polynomial
 
 from optcal.families.caltypes.base import Calibration
-from optcal.applications.export import ExportOptions, ExportResult
-from optcal.applications.export.firmware import THERMAL_ORDER, begin_export, per_axis
+from optcal.applications.export.base import ExportOptions, ExportResult
+from optcal.applications.export.firmware import THERMAL_ORDER, FirmwareFormat, ThermalOffset, per_axis, write_firmware
 
 #: ArduPilot's fixed reference temperature and coefficient scale (AP_InertialSensor_tempcal.cpp).
 TEMP_REFERENCE_C: float = 35.0
@@ -49,24 +49,29 @@ def tcal_coefficients(coefficients: np.ndarray, temp_ref: float) -> np.ndarray:
     return out
 
 
+def thermal_block(thermal: ThermalOffset) -> tuple[list[str], list[str]]:
+    """The ``INS_TCAL1_*`` lines of the thermal offset polynomial (re-expanded about 35 °C, ×1e6) and their note."""
+    c = tcal_coefficients(thermal.coefficients, thermal.temp_ref)
+    lines = [
+        "# thermal offset polynomial about 35 C, x1e6 (AP_InertialSensor_tempcal.cpp, correct_sensor)",
+        "INS_TCAL1_ENABLE,1",
+        f"INS_TCAL1_TMIN,{thermal.tmin:.9g}",
+        f"INS_TCAL1_TMAX,{thermal.tmax:.9g}",
+        f"INS_ACC1_CALTEMP,{thermal.temp_ref:.9g}",
+    ]
+    for n in range(THERMAL_ORDER):
+        lines += per_axis(f"INS_TCAL1_ACC{n + 1}_{{axis}},{{value:.9g}}", c[:, n])
+    return lines, ["INS_TCAL1_ENABLE=1 also enables the gyro thermal terms INS_TCAL1_GYR*, which this file leaves as they are"]
+
+
+#: ArduPilot's parameter file (first IMU), in Mission Planner's ``NAME,VALUE`` format.
+ARDUPILOT = FirmwareFormat(
+    "ardupilot", HEADER, "INS_ACCOFFS_{axis},{value:.9g}", "INS_ACCSCAL_{axis},{value:.9g}",
+    "the offsets and scales apply to the axes of the calibration data; log them in the IMU's own orientation",
+    thermal_block,
+)
+
+
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The ArduPilot parameters of ``cal`` (first IMU) in Mission Planner's ``NAME,VALUE`` format."""
-    model, loss, lines, zero_notes = begin_export(
-        cal, options, "ardupilot", HEADER, "INS_ACCOFFS_{axis},{value:.9g}", "INS_ACCSCAL_{axis},{value:.9g}"
-    )
-    notes = ["the offsets and scales apply to the axes of the calibration data; log them in the IMU's own orientation"]
-    notes += zero_notes
-    if model.thermal is not None:
-        th = model.thermal
-        c = tcal_coefficients(th.coefficients, th.temp_ref)
-        lines += [
-            "# thermal offset polynomial about 35 C, x1e6 (AP_InertialSensor_tempcal.cpp, correct_sensor)",
-            "INS_TCAL1_ENABLE,1",
-            f"INS_TCAL1_TMIN,{th.tmin:.9g}",
-            f"INS_TCAL1_TMAX,{th.tmax:.9g}",
-            f"INS_ACC1_CALTEMP,{th.temp_ref:.9g}",
-        ]
-        for n in range(THERMAL_ORDER):
-            lines += per_axis(f"INS_TCAL1_ACC{n + 1}_{{axis}},{{value:.9g}}", c[:, n])
-        notes.append("INS_TCAL1_ENABLE=1 also enables the gyro thermal terms INS_TCAL1_GYR*, which this file leaves as they are")
-    return ExportResult("ardupilot", "\n".join(lines) + "\n", loss, list(model.mapped), list(model.dropped), notes)
+    return write_firmware(cal, options, ARDUPILOT)

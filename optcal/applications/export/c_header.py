@@ -21,7 +21,7 @@ from optcal.families.caltypes.base import Calibration, ValidityRangeWarning
 from optcal.families.caltypes.extended import ExtendedCalibration
 from optcal.families.caltypes.sixpos import SixPositionCalibration
 from optcal.core.extended_model import MAX_ORDER
-from optcal.applications.export import ExportOptions, ExportResult
+from optcal.applications.export.base import ExportOptions, ExportResult
 
 GUARD = "OPTCAL_ACCEL_CALIBRATION_H"
 

@@ -22,11 +22,13 @@ An extended calibration's ``temperature_bias`` terms are exact offset polynomial
 ``S_i Σ_p k_ip (T − T_ref)^p`` (raw units, ``S_i`` the axis sensitivity) to output i, so
 ``thermal_i(T) = k S_i Σ_p k_ip (T − T_ref)^p``.  ``temperature_scale``, ``bias_drift`` and
 ``scale_nonlinearity`` have no firmware parameter and are dropped.  :func:`measure_loss` says, on
-the calibration's own poses, what all of this costs.
+the calibration's own poses, what all of this costs; :func:`write_firmware` writes the parameter
+file of a :class:`FirmwareFormat` (ArduPilot's, PX4's).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +38,7 @@ from optcal.families.caltypes.base import Calibration, FitPoses
 from optcal.families.caltypes.extended import ExtendedCalibration
 from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
-from optcal.applications.export import ExportOptions, LossReport
+from optcal.applications.export.base import ExportOptions, ExportResult, LossReport
 from optcal.core.model import AXES, STANDARD_GRAVITY
 
 #: Highest order of the firmwares' thermal offset polynomials (ArduPilot ACC1..3, PX4 X1..X3).
@@ -209,24 +211,65 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
     return report
 
 
-def begin_export(
-    cal: Calibration, options: ExportOptions, firmware: str, header: tuple[str, ...], offset_line: str, scale_line: str
-) -> tuple[DiagonalModel, LossReport, list[str], list[str]]:
-    """The firmware model of ``cal``, its loss (refused above ``options.max_loss_g``), the file's lines so far and its notes.
+@dataclass(frozen=True)
+class FirmwareFormat:
+    """How one firmware's parameter file writes the per-axis model.
 
-    The lines are ``header`` (``{source}`` filled in), the loss figures and every term the model
-    cannot hold as comments, then the offsets and scales written with :func:`per_axis` templates.
-    The notes say which zero reading was subtracted from counts, when one was.
+    Attributes
+    ----------
+    name : str
+        The export format (``"ardupilot"``), named in the loss refusal and the result.
+    header : tuple of str
+        The file's first lines; ``{source}`` is filled in with where the calibration came from.
+    offset_line, scale_line : str
+        :func:`per_axis` templates of one offset and one scale parameter.
+    note : str
+        What the user must always know about the file (frames, ids optcal cannot fill in).
+    thermal_block : callable
+        The lines and notes of the thermal offset polynomial, from the model's :class:`ThermalOffset`.
+    """
+
+    name: str
+    header: tuple[str, ...]
+    offset_line: str
+    scale_line: str
+    note: str
+    thermal_block: Callable[[ThermalOffset], tuple[list[str], list[str]]]
+
+
+def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareFormat) -> ExportResult:
+    """The parameter file of ``firmware`` for ``cal``: its per-axis model, refused above ``options.max_loss_g``.
+
+    The file is the header (``{source}`` filled in), the loss figures, the zero reading subtracted
+    from counts (when one is) and every term the model cannot hold as comments, then the offsets
+    and scales, then the thermal block when the model has one.  The notes are the format's own
+    note, the zero reading's and the thermal block's.
+
+    Parameters
+    ----------
+    cal : Calibration
+    options : ExportOptions
+    firmware : FirmwareFormat
+
+    Returns
+    -------
+    ExportResult
     """
     model = diagonal_model(cal, options)
-    loss = measure_loss(cal, model, options, firmware)
-    lines = [line.format(source=options.source) for line in header] + [f"# {loss.describe()}"]
+    loss = measure_loss(cal, model, options, firmware.name)
+    lines = [line.format(source=options.source) for line in firmware.header] + [f"# {loss.describe()}"]
     if model.zero_reason:
         lines.append(f"# {model.zero_reason}")
     lines += [f"# not exported: {d}" for d in model.dropped]
-    lines += per_axis(offset_line, model.offset_ms2) + per_axis(scale_line, model.scale)
-    notes = [f"{model.zero_reason}; counts_zero=VALUE sets another zero reading"] if model.zero_reason else []
-    return model, loss, lines, notes
+    lines += per_axis(firmware.offset_line, model.offset_ms2) + per_axis(firmware.scale_line, model.scale)
+    notes = [firmware.note]
+    if model.zero_reason:
+        notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
+    if model.thermal is not None:
+        thermal_lines, thermal_notes = firmware.thermal_block(model.thermal)
+        lines += thermal_lines
+        notes += thermal_notes
+    return ExportResult(firmware.name, "\n".join(lines) + "\n", loss, list(model.mapped), list(model.dropped), notes)
 
 
 def per_axis(template: str, values: ArrayLike) -> list[str]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from optcal.families.caltypes.base import Calibration
 from optcal.errors import InputError
-from optcal.applications.export import ExportOptions, ExportResult
+from optcal.applications.export.base import ExportOptions, ExportResult
 
 AXIS_NAMES: tuple[str, str, str] = ("x", "y", "z")
 

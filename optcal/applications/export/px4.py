@@ -19,8 +19,8 @@ of orders 1-3.  Not mapped: cross-axis terms, ``temperature_scale``, ``bias_drif
 from __future__ import annotations
 
 from optcal.families.caltypes.base import Calibration
-from optcal.applications.export import ExportOptions, ExportResult
-from optcal.applications.export.firmware import THERMAL_ORDER, begin_export
+from optcal.applications.export.base import ExportOptions, ExportResult
+from optcal.applications.export.firmware import THERMAL_ORDER, FirmwareFormat, ThermalOffset, write_firmware
 
 #: First lines of the file.
 HEADER: tuple[str, ...] = (
@@ -31,24 +31,30 @@ HEADER: tuple[str, ...] = (
 )
 
 
+def thermal_block(thermal: ThermalOffset) -> tuple[list[str], list[str]]:
+    """The ``TC_A0_*`` lines of the thermal offset polynomial (``X0 = 0``); no note."""
+    lines = [
+        "# thermal offset polynomial (TemperatureCompensation.cpp, calc_thermal_offsets_3D)",
+        "param set TC_A_ENABLE 1",
+        f"param set TC_A0_TREF {thermal.temp_ref:.9g}",
+        f"param set TC_A0_TMIN {thermal.tmin:.9g}",
+        f"param set TC_A0_TMAX {thermal.tmax:.9g}",
+    ]
+    for k in range(3):
+        lines.append(f"param set TC_A0_X0_{k} 0")
+        for n in range(THERMAL_ORDER):
+            lines.append(f"param set TC_A0_X{n + 1}_{k} {thermal.coefficients[k, n]:.9g}")
+    return lines, []
+
+
+#: PX4's parameters (instance 0) as NSH/MAVLink-console ``param set`` commands.
+PX4 = FirmwareFormat(
+    "px4", HEADER, "param set CAL_ACC0_{axis}OFF {value:.9g}", "param set CAL_ACC0_{axis}SCALE {value:.9g}",
+    "CAL_ACC0_ID and TC_A0_ID must be set to the sensor's device id (optcal does not know it)",
+    thermal_block,
+)
+
+
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The PX4 parameters of ``cal`` (instance 0) as NSH/MAVLink-console ``param set`` commands."""
-    model, loss, lines, zero_notes = begin_export(
-        cal, options, "px4", HEADER, "param set CAL_ACC0_{axis}OFF {value:.9g}", "param set CAL_ACC0_{axis}SCALE {value:.9g}"
-    )
-    notes = ["CAL_ACC0_ID and TC_A0_ID must be set to the sensor's device id (optcal does not know it)"]
-    notes += zero_notes
-    if model.thermal is not None:
-        th = model.thermal
-        lines += [
-            "# thermal offset polynomial (TemperatureCompensation.cpp, calc_thermal_offsets_3D)",
-            "param set TC_A_ENABLE 1",
-            f"param set TC_A0_TREF {th.temp_ref:.9g}",
-            f"param set TC_A0_TMIN {th.tmin:.9g}",
-            f"param set TC_A0_TMAX {th.tmax:.9g}",
-        ]
-        for k in range(3):
-            lines.append(f"param set TC_A0_X0_{k} 0")
-            for n in range(THERMAL_ORDER):
-                lines.append(f"param set TC_A0_X{n + 1}_{k} {th.coefficients[k, n]:.9g}")
-    return ExportResult("px4", "\n".join(lines) + "\n", loss, list(model.mapped), list(model.dropped), notes)
+    return write_firmware(cal, options, PX4)

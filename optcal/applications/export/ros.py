@@ -15,7 +15,7 @@ import numpy as np
 
 from optcal.families.caltypes.base import Calibration
 from optcal.errors import InputError
-from optcal.applications.export import ExportOptions, ExportResult
+from optcal.applications.export.base import ExportOptions, ExportResult
 from optcal.applications.export.firmware import loss_poses
 from optcal.applications.export.kalibr import AXIS_NAMES, axis_values, update_rate
 from optcal.core.model import STANDARD_GRAVITY
