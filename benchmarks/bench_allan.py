@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.families.noise.allan import analyse_static_log, simulate_noise
+from optcal.families.noise.allan import simulate_noise
+from optcal.families.noise.analysis import analyse_static_log
 
 RATE = 100.0
 N_SAMPLES = int(12 * 3600 * RATE)

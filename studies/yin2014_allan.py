@@ -31,7 +31,7 @@ import numpy as np
 from optcal.data import load_recording
 from optcal.applications.papers.yin2014.ekf import YinEKF
 from optcal.core.model import AXES, STANDARD_GRAVITY
-from optcal.families.noise.allan import analyse_static_log, plot_allan
+from optcal.families.noise.analysis import analyse_static_log, plot_allan
 from optcal.applications.papers.yin2014 import reproduce as yin2014
 
 from study_mode import FIGURES as FIG  # noqa: E402

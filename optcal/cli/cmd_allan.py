@@ -140,7 +140,8 @@ def allan(
     confidence intervals (allantools); the noise parameters are read from the fitted
     −1/2, 0 and +1/2 slope lines as in Yin 2014.
     """
-    from optcal.families.noise.allan import analyse_static_log, plot_allan, si_per_unit
+    from optcal.families.noise.analysis import analyse_static_log, plot_allan
+    from optcal.families.noise.sensors import ACCELEROMETER
 
     figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
     if sensor == "gyro":
@@ -149,7 +150,7 @@ def allan(
     log = read_still_log(data, **reading_kwargs(reading))
     samples, rate_hz, units_used, units_reason, exclusions, decisions = (
         log.samples, log.rate_hz, log.units, log.units_reason, log.exclusions, log.decisions)
-    si_per_unit(units_used, counts_per_g)  # fail early on counts without a scale
+    ACCELEROMETER.si_per_unit(units_used, counts_per_g)  # fail early on counts without a scale
     analysis = analyse_static_log(samples, rate_hz, units_used, counts_per_g, max_tau)
     if figure is not None:
         plot_allan(analysis, figure, title=f"Allan deviation of {data}")
@@ -189,12 +190,13 @@ def allan_gyro(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_
     reading : dict
         Keywords of :func:`optcal.data.load_recording` (:func:`optcal.cli.data_options.reading_kwargs`).
     """
-    from optcal.families.noise.gyro_allan import analyse_gyro_log
+    from optcal.families.noise.analysis import analyse_static_log
+    from optcal.families.noise.sensors import GYROSCOPE
     from optcal.core.units import decide_gyro_units
 
     log = read_still_log(data, sensor="gyro", **reading)
     decision = decide_gyro_units(log.samples, log.samples.mean(axis=0), gyro_units, log.units or None)
-    analysis = analyse_gyro_log(log.samples, log.rate_hz, decision.units, counts_per_rad_s, max_tau)
+    analysis = analyse_static_log(log.samples, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
     if as_json:
         out = analysis.summary()
         out["log"].update({"path": data, "units_reason": decision.reason, "exclusions": log.exclusions})

@@ -10,7 +10,8 @@ import pytest
 from optcal.applications.papers.yin2014.ekf import YinEKF, specific_force, sum_squared_errors, tilt_angles
 from optcal.errors import InputError
 from optcal.core.model import lumped_matrix
-from optcal.families.noise.allan import analyse_static_log, simulate_noise
+from optcal.families.noise.allan import simulate_noise
+from optcal.families.noise.analysis import analyse_static_log
 
 RATE = 100.0
 C = lumped_matrix((1.02, 0.97, 1.03), *np.radians((0.5, 0.3, 0.4)))

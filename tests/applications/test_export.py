@@ -210,6 +210,20 @@ def test_kalibr_imu_yaml_from_an_allan_result(allan_json, tmp_path, capsys):
     assert code == 2 and "needs the noise model" in err
 
 
+def save_allan_results(gyro: np.ndarray, acc: np.ndarray, rate: float, allan_json, tmp_path, capsys) -> dict:
+    """Write a still log of ``gyro`` and ``acc``, its ``optcal allan --sensor gyro --json`` result (``gyro.json``,
+    returned), the accelerometer's result of ``allan_json`` (``acc.json``) and an identity calibration (``cal.json``)."""
+    pd.DataFrame({"t": np.arange(len(gyro)) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+                  "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}).to_csv(tmp_path / "still.csv", index=False)
+    code, out, err = run(["allan", tmp_path / "still.csv", "--sensor", "gyro", "--json"], capsys)
+    assert code == 0, err
+    (tmp_path / "gyro.json").write_text(out)
+    main(["allan", str(allan_json / "static.csv"), "--json"])
+    (tmp_path / "acc.json").write_text(capsys.readouterr().out)
+    LumpedCalibration(np.eye(3), np.zeros(3)).save(tmp_path / "cal.json")
+    return json.loads(out)
+
+
 def test_kalibr_gyroscope_keys_from_a_gyro_allan_result(allan_json, tmp_path, capsys):
     """``--gyro-allan``: Kalibr's gyroscope keys from ``optcal allan --sensor gyro --json`` (white noise and a bias walk)."""
     rng = np.random.default_rng(11)
@@ -217,15 +231,7 @@ def test_kalibr_gyroscope_keys_from_a_gyro_allan_result(allan_json, tmp_path, ca
     gyro = np.array([0.01, -0.02, 0.005]) + sigma * rng.standard_normal((n, 3))
     gyro += np.cumsum(rng.standard_normal((n, 3)), axis=0) * step
     acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.standard_normal((n, 3))
-    pd.DataFrame({"t": np.arange(n) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
-                  "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}).to_csv(tmp_path / "still.csv", index=False)
-    code, out, err = run(["allan", tmp_path / "still.csv", "--sensor", "gyro", "--json"], capsys)
-    assert code == 0, err
-    gyro_allan = json.loads(out)
-    (tmp_path / "gyro.json").write_text(out)
-    main(["allan", str(allan_json / "static.csv"), "--json"])
-    (tmp_path / "acc.json").write_text(capsys.readouterr().out)
-    LumpedCalibration(np.eye(3), np.zeros(3)).save(tmp_path / "cal.json")
+    gyro_allan = save_allan_results(gyro, acc, rate, allan_json, tmp_path, capsys)
     code, out, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "acc.json",
                           "--gyro-allan", tmp_path / "gyro.json"], capsys)
     assert code == 0, err
@@ -242,6 +248,29 @@ def test_kalibr_gyroscope_keys_from_a_gyro_allan_result(allan_json, tmp_path, ca
     code, _, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "acc.json",
                         "--gyro-allan", tmp_path / "acc.json"], capsys)
     assert code == 2 and "--sensor gyro --json" in err
+
+
+def test_kalibr_gyroscope_random_walk_bound_from_a_short_still_log(allan_json, tmp_path, capsys):
+    """A gyro still log too short to show the +1/2 slope: refused without ``--random-walk-bound``, and with it
+    the gyro Allan result's upper bound is written, labelled as a bound in the file and the notes."""
+    rng = np.random.default_rng(3)
+    rate, n, sigma = 100.0, 30_000, 0.002
+    gyro = np.array([0.01, -0.02, 0.005]) + sigma * rng.standard_normal((n, 3))
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.standard_normal((n, 3))
+    gyro_allan = save_allan_results(gyro, acc, rate, allan_json, tmp_path, capsys)
+    assert all(gyro_allan[a]["rate_random_walk"] is None for a in "xyz")
+    args = ["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "acc.json",
+            "--gyro-allan", tmp_path / "gyro.json"]
+    code, _, err = run(args, capsys)
+    assert code == 2 and "gyroscope_random_walk > 0" in err and "--random-walk-bound" in err
+    code, out, err = run([*args, "--random-walk-bound"], capsys)
+    assert code == 0, err
+    imu = yaml.safe_load(out)
+    bound = max(gyro_allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    assert imu["gyroscope_random_walk"] == pytest.approx(bound, rel=1e-8)
+    assert imu["gyroscope_noise_density"] == pytest.approx(gyro_allan["kalibr"]["gyroscope_noise_density"], rel=1e-8)
+    assert "gyroscope_random_walk: " in out and out.split("gyroscope_random_walk: ")[1].splitlines()[0].endswith("UPPER BOUND")
+    assert "gyroscope_random_walk is an upper bound" in err
 
 
 def test_ros_covariance_from_the_allan_noise_else_the_residual(allan_json, tmp_path, capsys):

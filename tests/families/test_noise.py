@@ -1,4 +1,4 @@
-"""Allan deviation and noise parameters (Yin 2014, section 2.2) against simulated truth."""
+"""Allan deviation and noise parameters (Yin 2014, section 2.2) against simulated truth, both sensors through one analysis."""
 
 from __future__ import annotations
 
@@ -15,13 +15,12 @@ from optcal.families.noise.allan import (
     FLICKER_FACTOR,
     MIN_CLUSTERS,
     allan_deviation,
-    analyse_static_log,
     fit_noise_parameters,
     octave_taus,
-    plot_allan,
-    si_per_unit,
     simulate_noise,
 )
+from optcal.families.noise.analysis import allan_figure, analyse_static_log, plot_allan
+from optcal.families.noise.sensors import ACCELEROMETER, GYROSCOPE, SENSORS
 
 RATE = 100.0
 #: Truth of the long log (g units): N in g·√s, B in g, K in g/√s.
@@ -44,7 +43,7 @@ def long_analysis(long_log: np.ndarray):
 def test_twelve_hour_log_recovers_the_three_noise_parameters(long_analysis) -> None:
     # acceptance of issue 5: VRW and BI within 10 %, RRW within 25 % (12 h, 100 Hz)
     for axis, p in long_analysis.parameters.items():
-        assert p.velocity_random_walk == pytest.approx(N_TRUE, rel=0.10), axis
+        assert p.noise_density == pytest.approx(N_TRUE, rel=0.10), axis
         assert not p.bias_instability_bound
         assert p.bias_instability == pytest.approx(B_TRUE, rel=0.10), axis
         assert p.rate_random_walk is not None
@@ -96,11 +95,11 @@ def test_white_noise_only_reports_absent_terms_without_nan() -> None:
     rng = np.random.default_rng(3)
     y = rng.standard_normal(int(600 * RATE)) * 0.004  # N = 0.004/√100 = 4e-4 g√s
     p = fit_noise_parameters(allan_deviation(y, RATE))
-    assert p.velocity_random_walk == pytest.approx(4e-4, rel=0.02)
+    assert p.noise_density == pytest.approx(4e-4, rel=0.02)
     assert p.rate_random_walk is None and p.ci["rate_random_walk"] is None
     assert p.bias_instability_bound and p.bias_instability == pytest.approx(p.min_reading)
     assert any("upper bound" in n for n in p.notes)
-    assert all(math.isfinite(v) for v in (p.velocity_random_walk, p.bias_instability, p.correlation_time_s))
+    assert all(math.isfinite(v) for v in (p.noise_density, p.bias_instability, p.correlation_time_s))
 
 
 def test_units_convert_to_si_whatever_the_input_units() -> None:
@@ -108,13 +107,13 @@ def test_units_convert_to_si_whatever_the_input_units() -> None:
     g_log = np.column_stack([simulate_noise(60_000, RATE, 3e-4, 5e-5, 0.0, rng) for _ in range(3)])
     in_g = analyse_static_log(g_log, RATE, "g").summary()
     in_ms2 = analyse_static_log(g_log * STANDARD_GRAVITY, RATE, "m/s^2").summary()
-    in_counts = analyse_static_log(g_log * 16384.0, RATE, "counts", counts_per_g=16384.0).summary()
+    in_counts = analyse_static_log(g_log * 16384.0, RATE, "counts", counts_per_unit=16384.0).summary()
     for axis in "xyz":
         for other in (in_ms2, in_counts):
             assert other[axis]["velocity_random_walk"] == pytest.approx(in_g[axis]["velocity_random_walk"], rel=1e-9)
             assert other[axis]["bias_instability"] == pytest.approx(in_g[axis]["bias_instability"], rel=1e-9)
         assert in_g[axis]["velocity_random_walk"] == pytest.approx(3e-4 * STANDARD_GRAVITY, rel=0.05)
-    assert si_per_unit("m/s^2") == 1.0 and si_per_unit("g") == STANDARD_GRAVITY
+    assert ACCELEROMETER.si_per_unit("m/s^2") == 1.0 and ACCELEROMETER.si_per_unit("g") == STANDARD_GRAVITY
     assert in_g["units"]["velocity_random_walk"] == "m/s/√s"
     json.dumps(in_g, allow_nan=False)
 
@@ -126,7 +125,11 @@ def test_units_convert_to_si_whatever_the_input_units() -> None:
         (lambda: octave_taus(10_000, RATE, max_tau_s=20.0), "τ = 20 s needs at least 9 clusters"),
         (lambda: allan_deviation(np.r_[np.zeros(5000), np.nan], RATE), "NaN"),
         (lambda: allan_deviation(np.ones(5000), RATE), "constant"),
-        (lambda: si_per_unit("counts"), "counts-per-g"),
+        (lambda: ACCELEROMETER.si_per_unit("counts"), "counts-per-g"),
+        (lambda: ACCELEROMETER.si_per_unit("rad/s"), "unknown units"),
+        (lambda: GYROSCOPE.si_per_unit("counts"), "counts-per-rad/s"),
+        (lambda: GYROSCOPE.si_per_unit("counts", float("inf")), "counts-per-rad/s"),
+        (lambda: GYROSCOPE.si_per_unit("g"), "unknown gyro units"),
         (lambda: analyse_static_log(np.zeros((5000, 2)), RATE, "g"), "three columns"),
     ],
 )
@@ -175,11 +178,11 @@ def test_real_mpu6050_static_log(shared_data, tmp_path) -> None:
     path = shared_data / "mpu6050-imucalibration" / "example_data_tinit_calc.csv"
     samples, rate, units, _, excluded = static_log(str(path), None, None, None, None)
     assert units == "counts" and rate == pytest.approx(100.0) and not excluded
-    analysis = analyse_static_log(samples, rate, units, counts_per_g=16384.0)
+    analysis = analyse_static_log(samples, rate, units, counts_per_unit=16384.0)
     si = analysis.si_parameters()
     for p in si.values():
         # MPU-6050 datasheet: 400 µg/√Hz; a 449 s log cannot resolve the flat region
-        vrw_ug = p.velocity_random_walk / STANDARD_GRAVITY * 1e6
+        vrw_ug = p.noise_density / STANDARD_GRAVITY * 1e6
         assert 150 < vrw_ug < 800
         assert p.bias_instability_bound and p.rate_random_walk is None
     plot_allan(analysis, tmp_path / "real.png")
@@ -194,3 +197,110 @@ def test_cli_refuses_a_log_with_a_gap(tmp_path, capsys) -> None:
     f.write_text("t_s,ax,ay,az\n" + "\n".join(f"{ti:.3f},{x:.6f},{y:.6f},{z:.6f}" for ti, (x, y, z) in zip(t, data)) + "\n")
     assert main(["allan", str(f), "--units", "g"]) == 2
     assert "gap of 5.01 s" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- one analysis, two sensors
+#: Gyro truth (rad/s): angle random walk N in rad/s/√Hz, bias instability B in rad/s, rate random walk K in rad/s²/√Hz.
+ARW_TRUE, GYRO_BI_TRUE, GYRO_RRW_TRUE = 2e-4, 1e-4, 1e-4
+
+
+def _gyro_log(minutes: float, bias_instability: float, rate_random_walk: float, seed: int = 0) -> np.ndarray:
+    """A simulated still gyro log, rad/s, three axes with the same truth."""
+    rng = np.random.default_rng(seed)
+    n = int(minutes * 60 * RATE)
+    return np.column_stack([simulate_noise(n, RATE, ARW_TRUE, bias_instability, rate_random_walk, rng)
+                            for _ in range(3)])
+
+
+def test_both_sensors_go_through_the_same_code() -> None:
+    """The same samples as an accelerometer in m/s² and a gyroscope in rad/s: the same numbers, each under its
+    sensor's names (velocity or angle random walk) and units."""
+    samples = _gyro_log(20, 0.0, GYRO_RRW_TRUE)
+    acc = analyse_static_log(samples, RATE, "m/s^2").summary()
+    gyro = analyse_static_log(samples, RATE, "rad/s", sensor=GYROSCOPE).summary()
+    assert "sensor" not in acc and "kalibr" not in acc and gyro["sensor"] == "gyro"
+    assert acc["units"]["velocity_random_walk"] == "m/s/√s" and gyro["units"]["angle_random_walk"] == "rad/s/√Hz"
+    assert acc["units"]["si_per_input_unit"] == gyro["units"]["rad_s_per_input_unit"] == 1.0
+    for axis in "xyz":
+        assert gyro[axis]["angle_random_walk"] == acc[axis]["velocity_random_walk"]
+        for key in ("bias_instability", "rate_random_walk", "rate_random_walk_upper_bound",
+                    "rate_random_walk_bound_tau_s", "notes"):
+            assert gyro[axis][key] == acc[axis][key], key
+        acc_ci = dict(acc[axis]["ci"])
+        acc_ci["angle_random_walk"] = acc_ci.pop("velocity_random_walk")
+        assert gyro[axis]["ci"] == acc_ci
+        assert gyro[axis]["bias_instability_is_upper_bound"] == acc[axis]["ci"]["bias_instability_is_upper_bound"]
+    assert set(SENSORS) == {"acc", "gyro"}
+
+
+def test_gyro_rate_random_walk_and_its_bound_from_a_still_log_that_shows_it() -> None:
+    """20 min of white noise and a rate random walk, given in °/s: N and K in rad/s units, the bound beside them."""
+    rad = _gyro_log(20, 0.0, GYRO_RRW_TRUE)
+    analysis = analyse_static_log(np.degrees(rad), RATE, "dps", sensor=GYROSCOPE)
+    assert analysis.units == "deg/s" and analysis.si_per_unit == pytest.approx(math.pi / 180.0, rel=1e-15)
+    out = analysis.summary()
+    for axis in "xyz":
+        a = out[axis]
+        assert a["angle_random_walk"] == pytest.approx(ARW_TRUE, rel=0.02)
+        assert a["rate_random_walk"] == pytest.approx(GYRO_RRW_TRUE, rel=0.25)
+        low, high = a["ci"]["rate_random_walk"]
+        assert low <= a["rate_random_walk"] <= high
+        # the bound is read on the measured curve (K ≤ σ(τ)√(3/τ), least at the longest τ): near K when K shows
+        assert 0.5 * GYRO_RRW_TRUE < a["rate_random_walk_upper_bound"] < 1.5 * GYRO_RRW_TRUE
+        assert a["rate_random_walk_bound_tau_s"] == analysis.curves[axis].taus[-1]
+    walks = [out[axis]["rate_random_walk"] for axis in "xyz"]
+    assert out["kalibr"] == {"gyroscope_noise_density": max(out[a]["angle_random_walk"] for a in "xyz"),
+                             "gyroscope_random_walk": max(walks)}
+    json.dumps(out, allow_nan=False)
+
+
+def test_gyro_without_a_rate_random_walk_reports_the_upper_bound() -> None:
+    """10 min of white and flicker noise: no +1/2 slope, so K is absent and the curve's bound is reported instead,
+    ``K ≤ σ(τ)√(3/τ)`` at the longest τ (here the white and flicker terms: √((N²/τ + (0.664 B)²)·3/τ))."""
+    analysis = analyse_static_log(_gyro_log(10, GYRO_BI_TRUE, 0.0), RATE, "rad/s", sensor=GYROSCOPE)
+    out = analysis.summary()
+    for axis in "xyz":
+        a = out[axis]
+        tau = a["rate_random_walk_bound_tau_s"]
+        expected = math.sqrt((ARW_TRUE**2 / tau + (FLICKER_FACTOR * GYRO_BI_TRUE) ** 2) * 3.0 / tau)
+        assert a["rate_random_walk"] is None and a["ci"]["rate_random_walk"] is None
+        assert a["rate_random_walk_upper_bound"] == pytest.approx(expected, rel=0.4)
+        assert tau == analysis.curves[axis].taus[-1]
+        assert any("no rate random walk" in note for note in a["notes"])
+    assert out["kalibr"]["gyroscope_random_walk"] is None
+    report = analysis.report()
+    assert "angle random walk" in report and "rate random walk       not present" in report
+    assert "Kalibr: gyroscope_noise_density" in report and "velocity" not in report
+    legend = [t.get_text() for t in allan_figure(analysis).axes[0].get_legend().get_texts()]
+    assert any(label.startswith("ARW ") and label.endswith("°/√h") for label in legend)
+    assert not any(label.startswith(("VRW", "RRW")) for label in legend)
+    json.dumps(out, allow_nan=False)
+
+
+def test_gyro_counts_are_scaled_by_counts_per_rad_s() -> None:
+    rad = _gyro_log(5, GYRO_BI_TRUE, 0.0)
+    in_rad = analyse_static_log(rad, RATE, "rad/s", sensor=GYROSCOPE).summary()
+    in_counts = analyse_static_log(rad * 7505.7, RATE, "counts", counts_per_unit=7505.7, sensor=GYROSCOPE).summary()
+    assert in_counts["units"]["rad_s_per_input_unit"] == 1.0 / 7505.7
+    for axis in "xyz":
+        for key in ("angle_random_walk", "bias_instability", "rate_random_walk_upper_bound"):
+            assert in_counts[axis][key] == pytest.approx(in_rad[axis][key], rel=1e-9)
+
+
+def test_accelerometer_summary_is_the_one_before_the_sensors_were_merged() -> None:
+    """The accelerometer's ``optcal allan --json`` numbers, pinned from the code before the gyroscope shared it
+    (40 min at 100 Hz, g): the merge changed no key and no value."""
+    rng = np.random.default_rng(20250125)
+    log = np.column_stack([simulate_noise(int(40 * 60 * RATE), RATE, 3e-4, 5e-5, 2e-5, rng) for _ in range(3)])
+    x = analyse_static_log(log, RATE, "g").summary()["x"]
+    assert list(x) == ["velocity_random_walk", "bias_instability", "rate_random_walk", "rate_random_walk_upper_bound",
+                       "rate_random_walk_bound_tau_s", "ci", "notes"]
+    assert list(x["ci"]) == ["velocity_random_walk", "bias_instability", "rate_random_walk", "level",
+                             "bias_instability_is_upper_bound"]
+    pinned = {"velocity_random_walk": 0.002937674610897148, "bias_instability": 0.0005952441134336658,
+              "rate_random_walk": 0.00017676020404471093, "rate_random_walk_upper_bound": 0.00015846003663542326,
+              "rate_random_walk_bound_tau_s": 163.84}
+    for key, value in pinned.items():
+        assert x[key] == pytest.approx(value, rel=1e-9), key
+    assert x["ci"]["rate_random_walk"] == pytest.approx([0.00011897515053436802, 0.00019793973882557803], rel=1e-9)
+    assert x["notes"] == [] and x["ci"]["bias_instability_is_upper_bound"] is False

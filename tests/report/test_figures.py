@@ -10,7 +10,8 @@ from optcal.data import load_with_segmentation
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.core.model import lu2017_reference_model
 from optcal.families.simulate.poses import uniform_directions
-from optcal.families.noise.allan import allan_figure, analyse_static_log, plot_allan, simulate_noise
+from optcal.families.noise.allan import simulate_noise
+from optcal.families.noise.analysis import allan_figure, analyse_static_log, plot_allan
 
 LIBRARY = Path(__file__).resolve().parents[2] / "optcal"
 

@@ -12,8 +12,10 @@ A log too short to show the rate random walk's +1/2 slope has no ``K``; with
 (reached near the longest τ) is written instead, labelled as a bound in the file and the notes.
 The gyroscope keys ``gyroscope_noise_density`` (rad/s/√Hz) and ``gyroscope_random_walk``
 (rad/s²/√Hz) come from an ``optcal allan --sensor gyro --json`` result when one is given
-(``gyro_allan``; its ``kalibr`` entry, :meth:`optcal.families.noise.gyro_allan.GyroAllanAnalysis.kalibr`: the
-angle random walk and the rate random walk of the largest axis), else they are left as comments.
+(``gyro_allan``; the angle random walk and the rate random walk of the largest axis, as its
+``kalibr`` entry gives them, :meth:`optcal.families.noise.analysis.AllanAnalysis.kalibr`; the
+rate random walk's bound with ``random_walk_bound``, as for the accelerometer), else they are
+left as comments.
 """
 
 from __future__ import annotations
@@ -38,26 +40,69 @@ def update_rate(allan: dict, options: ExportOptions) -> float:
     return float(rate)
 
 
-def gyroscope_lines(gyro_allan: dict) -> list[str]:
-    """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment."""
+def random_walk_per_axis(allan: dict, random_walk_bound: bool, key: str,
+                         result: str = "the Allan result") -> tuple[dict[str, float], list[str]]:
+    """The rate random walk per axis of an Allan result, and the axes where it is only the upper bound.
+
+    Parameters
+    ----------
+    allan : dict
+        An ``optcal allan --json`` result, either sensor.
+    random_walk_bound : bool
+        Write the result's ``rate_random_walk_upper_bound`` on axes whose log shows no +1/2 slope
+        (``K ≤ min_τ σ(τ)·√(3/τ)``), instead of leaving them out.
+    key : str
+        The Kalibr key the value goes to (named in the refusal).
+    result : str
+        How the refusal names the result.
+
+    Raises
+    ------
+    InputError
+        When no axis has a rate random walk and the bound is not asked for (or not in the result).
+    """
+    walk = axis_values(allan, "rate_random_walk")
+    bounded = [a for a in AXIS_NAMES if a not in walk]
+    if bounded and random_walk_bound:
+        bounds = axis_values(allan, "rate_random_walk_upper_bound")
+        if any(a not in bounds for a in bounded):
+            raise InputError(f"{result} has no rate_random_walk_upper_bound; run optcal allan again to get one")
+        walk.update({a: bounds[a] for a in bounded})
+    elif not walk:
+        raise InputError(
+            f"{result} has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
+            f"Kalibr needs {key} > 0: record a longer static log, or pass random_walk_bound=True "
+            "to write the upper bound the log allows"
+        )
+    else:
+        bounded = []
+    return walk, bounded
+
+
+def bound_note(allan: dict, key: str, bounded: list[str]) -> str:
+    """The note saying that ``key`` is an upper bound on the axes ``bounded``, with the τ that sets each."""
+    taus = ", ".join(f"{a} at tau {allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
+    return (f"{key} is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
+            f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it")
+
+
+def gyroscope_lines(gyro_allan: dict, random_walk_bound: bool = False) -> tuple[list[str], list[str]]:
+    """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment, and notes."""
     if gyro_allan.get("sensor") != "gyro" or not isinstance(gyro_allan.get("kalibr"), dict):
         raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json")
-    values = gyro_allan["kalibr"]
-    density, walk = values.get("gyroscope_noise_density"), values.get("gyroscope_random_walk")
-    if density is None or not density > 0:
+    arw = axis_values(gyro_allan, "angle_random_walk")
+    if not arw or not max(arw.values()) > 0:
         raise InputError("the gyro Allan result has no angle random walk; Kalibr needs gyroscope_noise_density > 0")
-    if walk is None or not walk > 0:
-        raise InputError(
-            "the gyro Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
-            "Kalibr needs gyroscope_random_walk > 0: record a longer static log"
-        )
-    arw, rrw = axis_values(gyro_allan, "angle_random_walk"), axis_values(gyro_allan, "rate_random_walk")
-    return [
+    rrw, bounded = random_walk_per_axis(gyro_allan, random_walk_bound, "gyroscope_random_walk", "the gyro Allan result")
+    lines = [
         "# gyro angle random walk per axis, rad/s/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in arw.items()),
-        "# gyro rate random walk per axis, rad/s^2/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in rrw.items()),
-        f"gyroscope_noise_density: {float(density):.9g}  # [ rad / s / sqrt(Hz) ]",
-        f"gyroscope_random_walk: {float(walk):.9g}  # [ rad / s^2 / sqrt(Hz) ]",
+        "# gyro rate random walk per axis, rad/s^2/sqrt(Hz): " + ", ".join(f"{a} {v:.4g}" for a, v in rrw.items())
+        + (f" (UPPER BOUND on {', '.join(bounded)}: no +1/2 slope in the log)" if bounded else ""),
+        f"gyroscope_noise_density: {max(arw.values()):.9g}  # [ rad / s / sqrt(Hz) ]",
+        f"gyroscope_random_walk: {max(rrw.values()):.9g}  # [ rad / s^2 / sqrt(Hz) ]"
+        + (" UPPER BOUND" if max(rrw, key=rrw.get) in bounded else ""),
     ]
+    return lines, [bound_note(gyro_allan, "gyroscope_random_walk", bounded)] if bounded else []
 
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
@@ -67,23 +112,9 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     if options.allan.get("sensor") == "gyro":
         raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
     density = axis_values(options.allan, "velocity_random_walk")
-    walk = axis_values(options.allan, "rate_random_walk")
     if not density:
         raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
-    bounded = [a for a in AXIS_NAMES if a not in walk]
-    if bounded and options.random_walk_bound:
-        bounds = axis_values(options.allan, "rate_random_walk_upper_bound")
-        if any(a not in bounds for a in bounded):
-            raise InputError("the Allan result has no rate_random_walk_upper_bound; run optcal allan again to get one")
-        walk.update({a: bounds[a] for a in bounded})
-    elif not walk:
-        raise InputError(
-            "the Allan result has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
-            "Kalibr needs accelerometer_random_walk > 0: record a longer static log, or pass random_walk_bound=True "
-            "to write the upper bound the log allows"
-        )
-    else:
-        bounded = []
+    walk, bounded = random_walk_per_axis(options.allan, options.random_walk_bound, "accelerometer_random_walk")
     rate = update_rate(options.allan, options)
 
     def per_axis(values: dict[str, float]) -> str:
@@ -104,13 +135,11 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
     notes: list[str] = []
     if bounded:
-        taus = ", ".join(f"{a} at tau {options.allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
-        notes.append(
-            f"accelerometer_random_walk is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
-            f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it"
-        )
+        notes.append(bound_note(options.allan, "accelerometer_random_walk", bounded))
     if options.gyro_allan is not None:
-        lines += gyroscope_lines(options.gyro_allan)
+        gyro_lines, gyro_notes = gyroscope_lines(options.gyro_allan, options.random_walk_bound)
+        lines += gyro_lines
+        notes += gyro_notes
         mapped += ["gyro Allan angle random walk (gyroscope noise density)",
                    "gyro Allan rate random walk (gyroscope random walk)"]
     else:

@@ -1,4 +1,9 @@
-"""Allan-deviation noise analysis of a static accelerometer log (Yin 2014, section 2.2).
+"""Allan deviation of one axis of a static log and its noise parameters (Yin 2014, section 2.2; IEEE Std 952).
+
+One analysis serves the accelerometer and the gyroscope: the Allan deviation and its three
+slopes are the same for both; only the names and units of the coefficients and the scale of
+raw counts differ (:mod:`optcal.families.noise.sensors`).  The three axes of a log, the
+summary, the report and the figure are :mod:`optcal.families.noise.analysis`.
 
 What the paper does (its equations 5-6 were lost in the text extraction; reconstructed here)
 ------------------------------------------------------------------------------------------
@@ -17,10 +22,12 @@ Greenhall's equivalent degrees of freedom.
 
 Table 1 (eq. 6) relates the Allan deviation to the noise terms (IEEE Std 952, Annex C)::
 
-    velocity random walk  N :  σ(τ) = N / √τ                  log-log slope −1/2, read at τ = 1 s
+    noise density         N :  σ(τ) = N / √τ                  log-log slope −1/2, read at τ = 1 s
     bias instability      B :  σ(τ) = √(2 ln 2 / π) · B ≈ 0.664 B   slope 0, the flat minimum
     rate random walk      K :  σ(τ) = K √(τ / 3)              slope +1/2, read at τ = 3 s
 
+N is the velocity random walk of an accelerometer (its white noise integrates to a random walk
+of velocity) and the angle random walk of a gyroscope (IEEE Std 952's name).
 The paper reads N on the −1/2 line at τ = 1 s and B as the flat minimum (σ_min / 0.664).
 Where the three regions overlap, the plain minimum over-states B (white noise and rate random
 walk still add to it), so optcal fits the sum of the three terms (independent noises add in
@@ -33,20 +40,22 @@ equivalent degrees of freedom, ``var(σ̂²) ≈ 2 σ⁴ / edf``, iterated on th
 three lines of the fit: N is the −1/2 line at τ = 1 s, B the flat line divided by 0.664, K the
 +1/2 line at τ = 3 s.  A term is reported as present when its coefficient exceeds twice its
 standard error; otherwise rate random walk is ``None`` and bias instability is the upper bound
-``σ_min / 0.664`` (the paper's reading), with a note saying so.
+``σ_min / 0.664`` (the paper's reading), with a note saying so.  Every term is non-negative, so
+the curve bounds the rate random walk from above whether or not it shows it:
+``K ≤ min_τ σ(τ) √(3/τ)`` (:func:`rate_random_walk_bound`).
 
-Units: parameters are kept in the log's units ``u`` (g, m/s² or counts): N in u·√s
-(= u/√Hz), B in u, K in u/√s.  :func:`si_per_unit` converts to SI (N in m/s/√s, B in m/s²,
-K in m/s²/√s); :data:`DISPLAY_UNITS` lists the conventional units for a report
-(m/s/√h and µg/√Hz for N, µg for B).
+Units: parameters are kept in the log's units ``u`` (g, m/s², rad/s, °/s or counts): N in
+u·√s (= u/√Hz), B in u, K in u/√s.  The sensor converts them to SI
+(:meth:`~optcal.families.noise.sensors.NoiseSensor.si_per_unit`: for the accelerometer N in
+m/s/√s, B in m/s², K in m/s²/√s; for the gyroscope N in rad/s/√Hz, B in rad/s, K in
+rad/s²/√Hz) and lists the conventional units of a report (m/s/√h and µg/√Hz, µg; °/√h, °/h).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import allantools
 import numpy as np
@@ -55,17 +64,14 @@ from scipy.optimize import nnls
 from scipy.stats import norm
 
 from optcal.errors import InputError
-from optcal.core.model import AXES, STANDARD_GRAVITY
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+from optcal.families.noise.sensors import ACCELEROMETER, NoiseSensor
 
 #: Yin 2014, section 2.2: grow τ only while at least 9 clusters remain.
 MIN_CLUSTERS: int = 9
 #: The flat level of flicker noise: σ = √(2 ln 2 / π) B (IEEE Std 952, Table C.1).
 FLICKER_FACTOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
-#: τ at which the velocity random walk is read on the −1/2 line (Yin 2014, section 3).
-VRW_TAU_S: float = 1.0
+#: τ at which the noise density (velocity or angle random walk) is read on the −1/2 line (Yin 2014, section 3).
+NOISE_DENSITY_TAU_S: float = 1.0
 #: τ at which the rate random walk is read on the +1/2 line (IEEE Std 952).
 RRW_TAU_S: float = 3.0
 #: One-sigma confidence level, as allantools defines it.
@@ -77,47 +83,12 @@ _NOISE_ID_MIN_POINTS: int = 30
 _NOISE_ID_MAX_POINTS: int = 2048
 #: A fitted term counts as present when its coefficient exceeds this many standard errors.
 _PRESENCE_SIGMAS: float = 2.0
-#: Noise-type exponents α (S_y ∝ f^α) accepted for the EDF: the three accelerometer terms
+#: Noise-type exponents α (S_y ∝ f^α) accepted for the EDF: the three terms of the model
 #: (α = 0, −1, −2) plus flicker phase noise (α = 1) from an anti-aliasing filter.
 _ALPHA_RANGE: tuple[int, int] = (-2, 1)
 
-#: SI units of the three parameters (what ``optcal allan --json`` prints).
-SI_UNITS: dict[str, str] = {
-    "velocity_random_walk": "m/s/√s",
-    "bias_instability": "m/s^2",
-    "rate_random_walk": "m/s^2/√s",
-}
-#: Conventional report units and the factor from the SI unit.
-DISPLAY_UNITS: dict[str, list[tuple[str, float]]] = {
-    "velocity_random_walk": [("m/s/√h", 60.0), ("µg/√Hz", 1e6 / STANDARD_GRAVITY)],
-    "bias_instability": [("µg", 1e6 / STANDARD_GRAVITY), ("mg", 1e3 / STANDARD_GRAVITY)],
-    "rate_random_walk": [("m/s/h^1.5", 3600.0**1.5), ("µg/√s", 1e6 / STANDARD_GRAVITY)],
-}
-PARAMETERS: tuple[str, str, str] = ("velocity_random_walk", "bias_instability", "rate_random_walk")
-
-
-def si_per_unit(units: str, counts_per_g: float | None = None) -> float:
-    """Metres per second squared per input unit.
-
-    Parameters
-    ----------
-    units : {"g", "m/s^2", "counts"}
-    counts_per_g : float, optional
-        Required for ``counts`` (e.g. 16384 for an MPU-6050 at ±2 g).
-    """
-    if units == "m/s^2":
-        return 1.0
-    if units == "g":
-        return STANDARD_GRAVITY
-    if units == "counts":
-        if counts_per_g is None or not np.isfinite(counts_per_g) or counts_per_g <= 0:
-            raise InputError(
-                "raw counts need a positive counts-per-g scale to report noise in physical units "
-                "(--counts-per-g; 16384 for an MPU-6050 at ±2 g)"
-            )
-        return STANDARD_GRAVITY / float(counts_per_g)
-    raise InputError(f"unknown units {units!r}; use one of g, m/s^2, counts")
-
+#: The three fitted coefficients, sensor-neutral names (:class:`NoiseParameters`).
+PARAMETERS: tuple[str, str, str] = ("noise_density", "bias_instability", "rate_random_walk")
 
 # --------------------------------------------------------------------------- Allan deviation
 @dataclass
@@ -158,16 +129,16 @@ def octave_taus(n_samples: int, rate_hz: float, max_tau_s: float | None = None) 
     Raises
     ------
     InputError
-        If the log is too short for τ = 1 s (where the velocity random walk is read) or for
+        If the log is too short for τ = 1 s (where the noise density is read) or for
         the ``max_tau_s`` asked.
     """
     duration = n_samples / rate_hz
     m_max = n_samples // MIN_CLUSTERS
-    if m_max < round(VRW_TAU_S * rate_hz):
+    if m_max < round(NOISE_DENSITY_TAU_S * rate_hz):
         raise InputError(
-            f"the log is {duration:.3g} s long ({n_samples} samples at {rate_hz:g} Hz): reading the velocity "
-            f"random walk at τ = {VRW_TAU_S:g} s needs at least {MIN_CLUSTERS} clusters of that length, "
-            f"i.e. {MIN_CLUSTERS * VRW_TAU_S:g} s of static data; record a longer static log"
+            f"the log is {duration:.3g} s long ({n_samples} samples at {rate_hz:g} Hz): reading the noise density "
+            f"(velocity or angle random walk) at τ = {NOISE_DENSITY_TAU_S:g} s needs at least {MIN_CLUSTERS} clusters "
+            f"of that length, i.e. {MIN_CLUSTERS * NOISE_DENSITY_TAU_S:g} s of static data; record a longer static log"
         )
     if max_tau_s is not None:
         if not max_tau_s > 0:
@@ -263,12 +234,13 @@ def allan_deviation(
 # ------------------------------------------------------------------- noise-parameter fit
 @dataclass
 class NoiseParameters:
-    """Velocity random walk, bias instability and rate random walk of one axis.
+    """Noise density, bias instability and rate random walk of one axis (either sensor).
 
     Attributes
     ----------
-    velocity_random_walk : float
-        N, input units·√s (the −1/2 line at τ = 1 s).
+    noise_density : float
+        N, input units·√s (= input units/√Hz; the −1/2 line at τ = 1 s): the velocity random walk
+        of an accelerometer, the angle random walk of a gyroscope.
     bias_instability : float
         B, input units (flat line / 0.664; an upper bound when ``bias_instability_bound``).
     rate_random_walk : float or None
@@ -286,7 +258,7 @@ class NoiseParameters:
     notes : list of str
     """
 
-    velocity_random_walk: float
+    noise_density: float
     bias_instability: float
     rate_random_walk: float | None
     ci: dict[str, Any]
@@ -300,7 +272,7 @@ class NoiseParameters:
         t = np.asarray(taus, dtype=float)
         flat = 0.0 if self.bias_instability_bound else FLICKER_FACTOR * self.bias_instability
         k = self.rate_random_walk or 0.0
-        return np.sqrt(self.velocity_random_walk**2 / t + flat**2 + k**2 * t / 3.0)
+        return np.sqrt(self.noise_density**2 / t + flat**2 + k**2 * t / 3.0)
 
     def scaled(self, factor: float) -> "NoiseParameters":
         """The same parameters with every value multiplied by ``factor`` (a unit change)."""
@@ -310,7 +282,7 @@ class NoiseParameters:
 
         ci = {k: (scale_pair(v) if k in PARAMETERS else v) for k, v in self.ci.items()}
         return NoiseParameters(
-            velocity_random_walk=self.velocity_random_walk * factor,
+            noise_density=self.noise_density * factor,
             bias_instability=self.bias_instability * factor,
             rate_random_walk=None if self.rate_random_walk is None else self.rate_random_walk * factor,
             ci=ci,
@@ -363,8 +335,8 @@ def _interval(coef: float, se: float, level_sigmas: float) -> list[float]:
     return [math.sqrt(max(coef - level_sigmas * se, 0.0)), math.sqrt(max(coef + level_sigmas * se, 0.0))]
 
 
-def fit_noise_parameters(curve: AllanCurve) -> NoiseParameters:
-    """Velocity random walk, bias instability and rate random walk from an Allan curve.
+def fit_noise_parameters(curve: AllanCurve, sensor: NoiseSensor = ACCELEROMETER) -> NoiseParameters:
+    """Noise density (velocity or angle random walk), bias instability and rate random walk from an Allan curve.
 
     Fits ``σ²(τ) = N²/τ + (0.664 B)² + K² τ/3`` (Yin 2014, Table 1 / eq. 6, summed over the
     independent terms) by weighted non-negative least squares, drops a term whose coefficient
@@ -373,7 +345,8 @@ def fit_noise_parameters(curve: AllanCurve) -> NoiseParameters:
     root (at the curve's confidence level); they ignore the correlation between neighbouring
     overlapping estimates and are therefore somewhat optimistic, except the rate random walk's,
     which also spans the interval read from the longest τ alone with its equivalent degrees of
-    freedom (measured coverage near nominal; see the comment in the code).
+    freedom (measured coverage near nominal; see the comment in the code).  ``sensor`` names N in
+    the notes.
     """
     taus, avar, edf = curve.taus, curve.adev**2, np.maximum(curve.edf, 1.0)
     notes: list[str] = []
@@ -393,12 +366,13 @@ def fit_noise_parameters(curve: AllanCurve) -> NoiseParameters:
     min_reading = float(np.min(curve.adev) / FLICKER_FACTOR)
 
     if 0 in fitted and fitted[0] > 0:
-        vrw = math.sqrt(fitted[0])  # the −1/2 line √(N²/τ) read at τ = 1 s is N
-        vrw_ci: list[float] | None = _interval(fitted[0], stderr[0], k_sigma)
+        density = math.sqrt(fitted[0])  # the −1/2 line √(N²/τ) read at τ = 1 s is N
+        density_ci: list[float] | None = _interval(fitted[0], stderr[0], k_sigma)
     else:
-        vrw = float(curve.adev[0] * math.sqrt(curve.taus[0]))
-        vrw_ci = None
-        notes.append("no white-noise (−1/2 slope) region was resolved; VRW is the line through the smallest τ")
+        density = float(curve.adev[0] * math.sqrt(curve.taus[0]))
+        density_ci = None
+        notes.append(f"no white-noise (−1/2 slope) region was resolved; {sensor.abbreviation('noise_density')} "
+                     "is the line through the smallest τ")
     if 1 in fitted:
         bias = math.sqrt(fitted[1]) / FLICKER_FACTOR
         c_lo, c_hi = _interval(fitted[1], stderr[1], k_sigma)
@@ -426,16 +400,16 @@ def fit_noise_parameters(curve: AllanCurve) -> NoiseParameters:
         rrw, rrw_ci = None, None
         notes.append(f"no rate random walk (+1/2 slope) within τ ≤ {curve.taus[-1]:.4g} s")
 
-    if rrw is not None and vrw > 0:
-        correlation_time = float(np.clip(math.sqrt(3.0) * vrw / rrw, curve.taus[0], curve.taus[-1]))
+    if rrw is not None and density > 0:
+        correlation_time = float(np.clip(math.sqrt(3.0) * density / rrw, curve.taus[0], curve.taus[-1]))
     else:
         correlation_time = float(curve.taus[-1])
     return NoiseParameters(
-        velocity_random_walk=vrw,
+        noise_density=density,
         bias_instability=bias,
         rate_random_walk=rrw,
         ci={
-            "velocity_random_walk": vrw_ci,
+            "noise_density": density_ci,
             "bias_instability": bias_ci,
             "rate_random_walk": rrw_ci,
             "level": curve.confidence,
@@ -444,128 +418,6 @@ def fit_noise_parameters(curve: AllanCurve) -> NoiseParameters:
         min_reading=min_reading,
         correlation_time_s=correlation_time,
         notes=notes,
-    )
-
-
-# --------------------------------------------------------------------------- whole-log analysis
-@dataclass
-class AllanAnalysis:
-    """Allan analysis of a three-axis static log.
-
-    Attributes
-    ----------
-    curves, parameters : dict
-        Per axis (``x``, ``y``, ``z``): :class:`AllanCurve` and :class:`NoiseParameters`,
-        both in the input units.
-    units : str
-        Input units (``g``, ``m/s^2`` or ``counts``).
-    si_per_unit : float
-        m/s² per input unit.
-    rate_hz : float
-    n_samples : int
-    """
-
-    curves: dict[str, AllanCurve]
-    parameters: dict[str, NoiseParameters]
-    units: str
-    si_per_unit: float
-    rate_hz: float
-    n_samples: int
-
-    @property
-    def duration_s(self) -> float:
-        return self.n_samples / self.rate_hz
-
-    def si_parameters(self) -> dict[str, NoiseParameters]:
-        """The parameters converted to SI (N in m/s/√s, B in m/s², K in m/s²/√s)."""
-        return {axis: p.scaled(self.si_per_unit) for axis, p in self.parameters.items()}
-
-    def summary(self) -> dict[str, Any]:
-        """JSON-safe summary in SI units (what ``optcal allan --json`` prints).
-
-        One object ``{"units": {...}, "log": {...}, "x": {...}, "y": {...}, "z": {...}}``;
-        each axis has ``velocity_random_walk``, ``bias_instability``, ``rate_random_walk`` (or
-        None), ``ci`` and ``notes``; ``log`` gives the rate, sample count and duration.
-        ``rate_random_walk_upper_bound`` (with ``rate_random_walk_bound_tau_s``) is the largest
-        K the measured curve allows: every term of σ²(τ) is non-negative, so K²τ/3 ≤ σ²(τ) at
-        every τ and K ≤ min_τ σ(τ)·√(3/τ), reached near the longest τ.
-        """
-        out: dict[str, Any] = {
-            "units": {**SI_UNITS, "input": self.units, "si_per_input_unit": self.si_per_unit},
-            "log": {"rate_hz": self.rate_hz, "n_samples": self.n_samples, "duration_s": self.duration_s},
-        }
-        for axis, p in self.si_parameters().items():
-            curve = self.curves[axis]
-            k_bound, at_tau = rate_random_walk_bound(curve.taus, curve.adev)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
-            out[axis] = {
-                "velocity_random_walk": p.velocity_random_walk,
-                "bias_instability": p.bias_instability,
-                "rate_random_walk": p.rate_random_walk,
-                "rate_random_walk_upper_bound": k_bound * self.si_per_unit,
-                "rate_random_walk_bound_tau_s": at_tau,
-                "ci": {**p.ci, "bias_instability_is_upper_bound": p.bias_instability_bound},
-                "notes": p.notes,
-            }
-        return out
-
-    def report(self) -> str:
-        """Readable table of the parameters in conventional units."""
-        lines = [
-            f"Allan deviation of a {self.duration_s:.1f} s static log ({self.n_samples} samples at "
-            f"{self.rate_hz:g} Hz, input in {self.units})",
-        ]
-        for axis, p in self.si_parameters().items():
-            lines.append(f"[{axis}]")
-            values = {
-                "velocity_random_walk": p.velocity_random_walk,
-                "bias_instability": p.bias_instability,
-                "rate_random_walk": p.rate_random_walk,
-            }
-            for name, value in values.items():
-                label = name.replace("_", " ")
-                if value is None:
-                    lines.append(f"    {label:<22s} not present")
-                    continue
-                shown = ", ".join(f"{value * f:.4g} {u}" for u, f in DISPLAY_UNITS[name])
-                bound = " (upper bound)" if name == "bias_instability" and p.bias_instability_bound else ""
-                lines.append(f"    {label:<22s} {value:.4g} {SI_UNITS[name]} = {shown}{bound}")
-            lines.extend(f"    note: {n}" for n in p.notes)
-        return "\n".join(lines)
-
-
-def analyse_static_log(
-    samples: ArrayLike,
-    rate_hz: float,
-    units: str,
-    counts_per_g: float | None = None,
-    max_tau_s: float | None = None,
-) -> AllanAnalysis:
-    """Allan deviation and noise parameters of every axis of a static log.
-
-    Parameters
-    ----------
-    samples : array_like, shape (n, 3)
-        Static samples, one column per axis, in ``units``.
-    rate_hz : float
-        Sample rate.
-    units : {"g", "m/s^2", "counts"}
-    counts_per_g : float, optional
-        Scale of ``counts`` (required for counts).
-    max_tau_s : float, optional
-        Largest τ analysed (must leave at least 9 clusters).
-    """
-    data = np.asarray(samples, dtype=float)
-    if data.ndim != 2 or data.shape[1] != 3:
-        raise InputError(f"a static log needs three columns (x, y, z), got shape {data.shape}")
-    factor = si_per_unit(units, counts_per_g)
-    curves = {axis: allan_deviation(data[:, i], rate_hz, max_tau_s) for i, axis in enumerate(AXES)}
-    return AllanAnalysis(
-        curves=curves,
-        parameters={axis: fit_noise_parameters(c) for axis, c in curves.items()},
-        units=units,
-        si_per_unit=factor,
-        rate_hz=float(rate_hz),
-        n_samples=int(data.shape[0]),
     )
 
 
@@ -598,52 +450,4 @@ def simulate_noise(
         out += np.fft.irfft(np.fft.rfft(rng.standard_normal(n_samples)) * gain, n_samples)
     if rate_random_walk > 0:
         out += np.cumsum(rng.standard_normal(n_samples)) * (rate_random_walk * math.sqrt(dt))
-    return out
-
-
-# --------------------------------------------------------------------------- plot
-def allan_figure(analysis: AllanAnalysis, title: str | None = None) -> "Figure":
-    """Log-log Allan deviation of each axis with confidence intervals and the fitted lines.
-
-    Values are drawn in the input units; the legend gives the parameters in conventional units.
-    Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
-    """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(15, 4.8))
-    axes = fig.subplots(1, 3)
-    for ax, (axis, curve) in zip(axes, analysis.curves.items()):
-        p = analysis.parameters[axis]
-        si = p.scaled(analysis.si_per_unit)
-        err = np.vstack([curve.adev - curve.ci_low, curve.ci_high - curve.adev])
-        ax.errorbar(curve.taus, curve.adev, yerr=err, fmt="o", ms=4, capsize=2, color="k", label="overlapping ADEV")
-        dense = np.geomspace(curve.taus[0], curve.taus[-1], 200)
-        ax.loglog(dense, p.model_adev(dense), "-", color="0.5", lw=2, alpha=0.6, label="fitted sum")
-        vrw_label = f"VRW {si.velocity_random_walk * 60:.3g} m/s/√h ({si.velocity_random_walk * 1e6 / STANDARD_GRAVITY:.3g} µg/√Hz)"
-        ax.loglog(dense, p.velocity_random_walk / np.sqrt(dense), "--", color="tab:blue", label=vrw_label)
-        ax.plot([VRW_TAU_S], [p.velocity_random_walk], "s", color="tab:blue", ms=7, mfc="none")
-        bi_ug = si.bias_instability * 1e6 / STANDARD_GRAVITY
-        flat_label = f"BI {'≤ ' if p.bias_instability_bound else ''}{bi_ug:.3g} µg (flat = 0.664 B)"
-        ax.axhline(FLICKER_FACTOR * p.bias_instability, ls=":", color="tab:green", label=flat_label)
-        if p.rate_random_walk is not None:
-            rrw_label = f"RRW {si.rate_random_walk * 1e6 / STANDARD_GRAVITY:.3g} µg/√s"
-            ax.loglog(dense, p.rate_random_walk * np.sqrt(dense / 3.0), "-.", color="tab:red", label=rrw_label)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("τ (s)")
-        ax.set_title(f"{axis} axis")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower left")
-        ax.set_ylim(bottom=min(curve.ci_low.min(), FLICKER_FACTOR * p.bias_instability) * 0.5)
-    axes[0].set_ylabel(f"Allan deviation σ(τ) ({analysis.units})")
-    fig.suptitle(title or f"Allan deviation, {analysis.duration_s / 3600:.3g} h at {analysis.rate_hz:g} Hz")
-    fig.tight_layout()
-    return fig
-
-
-def plot_allan(analysis: AllanAnalysis, path: str | Path, title: str | None = None) -> Path:
-    """Save :func:`allan_figure` to ``path`` (parent folders created); returns the path."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    allan_figure(analysis, title).savefig(out, dpi=120)
     return out

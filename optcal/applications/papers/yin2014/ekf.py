@@ -179,7 +179,7 @@ class YinEKF:
             W,
             V,
             rate_hz,
-            velocity_random_walk=[p.velocity_random_walk for p in params],
+            velocity_random_walk=[p.noise_density for p in params],
             bias_instability=[p.bias_instability for p in params],
             rate_random_walk=[p.rate_random_walk or 0.0 for p in params],
             correlation_time_s=settings.pop("correlation_time_s", float(np.median([p.correlation_time_s for p in params]))),
