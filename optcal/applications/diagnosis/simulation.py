@@ -6,6 +6,10 @@ and refitted many times.  For each statistic of the residuals — rms, whiteness
 order and time (lag-1 autocorrelation, Ljung–Box), partial correlation with the regressor of
 every candidate effect, tails (excess kurtosis, largest standardised residual) — the measured
 value is compared with the simulated band; what falls outside is what the simulation gets wrong.
+
+:func:`place_among_simulations` places a measured statistic among its simulated values (band,
+median, percentile, Monte Carlo p value); the simulation band of a calibration's report
+(:mod:`optcal.applications.quality.simulation_band`) places its statistics with it too.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sps
 
 from optcal.applications.diagnosis.effects import REGRESSOR_WORDS
@@ -62,6 +66,62 @@ def statistic_meaning(name: str, time_is_pose_order: bool = False) -> str:
     if name.endswith("pose_order") and time_is_pose_order:
         meaning += " (= time order)"
     return meaning
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a measured statistic lies among its values in fits of simulations of the fitted model.
+
+    Attributes
+    ----------
+    measured : float
+    low, high : float
+        The band: the simulated values' quantiles at the two levels asked for (NaN without simulations).
+    median : float
+        The simulated values' median (NaN without simulations).
+    percentile : float
+        Share of the simulated values below ``measured``, ties counted half, % (NaN without simulations).
+    p_value : float
+        Two-sided Monte Carlo p value ``min(1, 2 min((#{s ≥ m} + 1)/(N + 1), (#{s ≤ m} + 1)/(N + 1)))``
+        of ``N`` simulated values ``s`` and the measured ``m`` (1 without simulations).
+    """
+
+    measured: float
+    low: float
+    high: float
+    median: float
+    percentile: float
+    p_value: float
+
+    @property
+    def outside(self) -> bool:
+        """Whether ``measured`` lies outside ``[low, high]`` (never without simulations)."""
+        return bool(self.measured < self.low or self.measured > self.high)
+
+
+def place_among_simulations(measured: float, simulated: ArrayLike, levels: tuple[float, float]) -> Placement:
+    """Place ``measured`` among the values of the same statistic in refits of simulated data sets.
+
+    Parameters
+    ----------
+    measured : float
+        The statistic of the fit to the data.
+    simulated : array_like, shape (N,)
+        The statistic of each fit to a simulation of the fitted model.
+    levels : tuple of float
+        Quantile levels in [0, 1] of the band's bounds (``(0.05, 0.95)`` for a 5-95 % band).
+
+    Returns
+    -------
+    Placement
+    """
+    s = np.asarray(simulated, dtype=float)
+    if not s.size:
+        return Placement(measured, float("nan"), float("nan"), float("nan"), float("nan"), 1.0)
+    low, high = (float(np.quantile(s, q)) for q in levels)
+    percentile = float(100.0 * (np.sum(s < measured) + 0.5 * np.sum(s == measured)) / s.size)
+    p = min(1.0, 2 * min((np.sum(s >= measured) + 1) / (s.size + 1), (np.sum(s <= measured) + 1) / (s.size + 1)))
+    return Placement(measured, low, high, float(np.median(s)), percentile, float(p))
 
 
 @dataclass
@@ -218,18 +278,9 @@ def simulation_check(
     time_is_order = fitter.reg.has_time and np.array_equal(fitter.time_order, np.arange(n))
     check = SimulationCheck(fit.describe(), simulations, noise, lam if known else None, band)
     for name, value in measured.items():
-        s = np.asarray(sims[name])
-        if s.size:
-            lo, hi = float(np.quantile(s, lo_q)), float(np.quantile(s, hi_q))
-            p = min(1.0, 2 * min((np.sum(s >= value) + 1) / (s.size + 1), (np.sum(s <= value) + 1) / (s.size + 1)))
-            med = float(np.median(s))
-        else:
-            lo = hi = med = float("nan")
-            p = 1.0
-        outside = bool(s.size and (value < lo or value > hi))
-        if name == "rms_g" and not known:
-            outside = False
-        check.statistics[name] = StatisticBand(value, med, [lo, hi], float(p), outside,
+        place = place_among_simulations(value, sims[name], (lo_q, hi_q))
+        outside = place.outside and not (name == "rms_g" and not known)
+        check.statistics[name] = StatisticBand(value, place.median, [place.low, place.high], place.p_value, outside,
                                                statistic_meaning(name, time_is_order))
         if outside:
             check.outside_band.append(name)

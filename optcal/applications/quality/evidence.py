@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import ConvergenceWarning, InputError
 from optcal.core.poses import PoseTable
+from optcal.applications.quality.bands import BandCheck
 from optcal.core.fit_result import CalibrationResult
 
 #: Level of the model check's band and of the outlier test (family-wise over the poses).
@@ -69,46 +70,6 @@ class HeldOut:
     @property
     def available(self) -> bool:
         return bool(np.isfinite(self.rms_g))
-
-
-@dataclass(frozen=True)
-class BandCheck:
-    """A statistic of the fit against the band the model predicts for it.
-
-    Attributes
-    ----------
-    statistic : str
-        What is compared, in words.
-    measured, low, high : float
-        The measured value and the band (``low``, ``high``); NaN when no band exists.
-    source : str
-        Where the band comes from (the χ² distribution, or N simulations).
-    meaningful : bool
-        False when the band cannot test anything (no per-pose noise given: χ² is matched by construction).
-    percentile : float
-        Where the measured value lies in a simulated distribution, % (NaN for a distribution's band).
-    median : float
-        The median of the simulated distribution (NaN for a distribution's band).
-    unit : str
-        ``"g"`` for a statistic in g (shown in mg), ``""`` for a number without unit.
-    """
-
-    statistic: str
-    measured: float
-    low: float
-    high: float
-    source: str
-    meaningful: bool = True
-    percentile: float = float("nan")
-    median: float = float("nan")
-    unit: str = ""
-
-    @property
-    def position(self) -> str:
-        """``"inside"``, ``"above"`` or ``"below"`` the band (``"untested"`` when not meaningful)."""
-        if not self.meaningful or not np.isfinite(self.low):
-            return "untested"
-        return "above" if self.measured > self.high else "below" if self.measured < self.low else "inside"
 
 
 @dataclass(frozen=True)

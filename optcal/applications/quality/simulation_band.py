@@ -15,8 +15,10 @@ refit the same two statistics are computed as for the measured fit:
   (:func:`optcal.core.norm_residual.heldout_residuals`), so that every simulation costs no extra fit.
 
 The measured values are placed among the simulated ones (percentile) and against the
-``BAND_PERCENTILES`` band.  Without a per-pose σ the noise would have to be estimated from the
-same residuals, which matches χ² by construction: no band is computed then.
+``BAND_PERCENTILES`` band, as the diagnosis's simulation check places its statistics
+(:func:`optcal.applications.diagnosis.simulation.place_among_simulations`).  Without a per-pose
+σ the noise would have to be estimated from the same residuals, which matches χ² by
+construction: no band is computed then.
 """
 
 from __future__ import annotations
@@ -28,13 +30,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
-from optcal.applications.quality.evidence import BandCheck
+from optcal.applications.diagnosis.simulation import place_among_simulations
+from optcal.applications.quality.bands import BandCheck
 from optcal.core.fit_result import CalibrationResult
 
 #: Simulated data sets behind the band.
 SIMULATIONS: int = 200
 #: Percentiles of the simulated distribution that bound the reported band.
 BAND_PERCENTILES: tuple[float, float] = (5.0, 95.0)
+#: The same as quantile levels in [0, 1].
+BAND_LEVELS: tuple[float, float] = (BAND_PERCENTILES[0] / 100, BAND_PERCENTILES[1] / 100)
 #: The band in words.
 BAND_LABEL: str = f"{BAND_PERCENTILES[0]:g}-{BAND_PERCENTILES[1]:g} %"
 
@@ -97,11 +102,6 @@ def band_text(check: BandCheck) -> str:
             f"(median {show(check.median)}, {BAND_LABEL} band {show(check.low)} .. {show(check.high)})")
 
 
-def _percentile(measured: float, simulated: NDArray[np.float64]) -> float:
-    """Share of the simulated values below ``measured`` (ties count half), %."""
-    return float(100.0 * (np.sum(simulated < measured) + 0.5 * np.sum(simulated == measured)) / simulated.size)
-
-
 def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: int = SIMULATIONS,
                     seed: int = 0) -> SimulationBand:
     """Simulate the fitted model at the recorded poses, refit, and place the measured χ² and held-out rms.
@@ -155,10 +155,10 @@ def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: in
         ("held-out rms of |a| − 1 g (leave-one-out)", measured.heldout_rms_g,
          np.array([s.heldout_rms_g for s in stats]), "g"),
     ):
-        low, high = np.percentile(simulated, BAND_PERCENTILES)
-        checks.append(BandCheck(what, value, float(low), float(high), source, percentile=_percentile(value, simulated),
-                                median=float(np.median(simulated)), unit=unit))
+        place = place_among_simulations(value, simulated, BAND_LEVELS)
+        checks.append(BandCheck(what, value, place.low, place.high, source, percentile=place.percentile,
+                                median=place.median, unit=unit))
     return SimulationBand(checks, len(stats))
 
 
-__all__ = ["BAND_LABEL", "BAND_PERCENTILES", "FitStatistics", "band_text", "SIMULATIONS", "SimulationBand", "fit_statistics", "simulation_band"]
+__all__ = ["BAND_LABEL", "BAND_LEVELS", "BAND_PERCENTILES", "FitStatistics", "band_text", "SIMULATIONS", "SimulationBand", "fit_statistics", "simulation_band"]

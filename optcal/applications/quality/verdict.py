@@ -100,6 +100,29 @@ def _mg(x: float) -> str:
     return f"{x * 1e3:.3g} mg"
 
 
+def _unexplained_rms(total_g: float, explained_g: float) -> float:
+    """The part of an rms error that ``explained_g`` does not account for, in quadrature: ``√max(total² − explained², 0)``."""
+    return float(np.sqrt(max(total_g**2 - explained_g**2, 0.0)))
+
+
+def _unexplained_level(excess_g: float, tol_g: float) -> tuple[Level, str]:
+    """The level an error the model does not explain earns against the tolerance, and the word for it.
+
+    ``("usable with care", "above")`` when ``excess_g`` exceeds the tolerance, else ``("good", "within")``.
+    """
+    return ("usable with care", "above") if excess_g > tol_g else ("good", "within")
+
+
+def _beyond_tolerance(head: str, error_g: float, tol_g: float, topic: str) -> Reason | None:
+    """An error on poses the fit did not see, when it exceeds the tolerance: ``not usable`` above
+    ``NOT_USABLE_FACTOR`` tolerances, ``usable with care`` above one; ``None`` within it."""
+    if error_g > NOT_USABLE_FACTOR * tol_g:
+        return Reason("not usable", topic, f"{head}: more than {NOT_USABLE_FACTOR:g}× the tolerance of {_mg(tol_g)}.")
+    if error_g > tol_g:
+        return Reason("usable with care", topic, f"{head}: above the tolerance of {_mg(tol_g)}.")
+    return None
+
+
 def _determination(ev: Evidence) -> list[Reason]:
     det = ev.determination
     out: list[Reason] = []
@@ -132,13 +155,11 @@ def _held_out(ev: Evidence, tol_g: float) -> Reason:
     vs_floor = (f", {ho.rms_g / floor:.3g}× the noise floor of {_mg(floor)}" if np.isfinite(floor) and floor > 0
                 else " (no per-pose noise known, so no noise floor to compare with)")
     head = f"On poses not used in the fit ({ho.source}) the rms error of |a| is {_mg(ho.rms_g)}{vs_floor}"
-    if ho.rms_g > NOT_USABLE_FACTOR * tol_g:
-        return Reason("not usable", "held-out error",
-                      f"{head}: more than {NOT_USABLE_FACTOR:g}× the tolerance of {_mg(tol_g)}.")
-    if ho.rms_g > tol_g:
-        return Reason("usable with care", "held-out error", f"{head}: above the tolerance of {_mg(tol_g)}.")
+    beyond = _beyond_tolerance(head, ho.rms_g, tol_g, "held-out error")
+    if beyond is not None:
+        return beyond
     if np.isfinite(floor) and ho.rms_g > NOISE_FLOOR_FACTOR * floor:
-        excess = float(np.sqrt(max(ho.rms_g**2 - floor**2, 0.0)))
+        excess = _unexplained_rms(ho.rms_g, floor)
         return Reason("good", "held-out error",
                       f"{head}: about {_mg(excess)} is not noise (model error or slow drift), within the "
                       f"tolerance of {_mg(tol_g)}.")
@@ -158,9 +179,8 @@ def _model_check(ev: Evidence, tol_g: float) -> Reason:
                       f"{text}: the residuals are smaller than the per-pose noise predicts (the noise is overstated).")
     rms = ev.result.rms_norm_residual_g
     floor = ev.noise_floor_g if np.isfinite(ev.noise_floor_g) else 0.0
-    excess = float(np.sqrt(max(rms**2 - floor**2, 0.0)))
-    level: Level = "usable with care" if excess > tol_g else "good"
-    judgement = "above" if excess > tol_g else "within"
+    excess = _unexplained_rms(rms, floor)
+    level, judgement = _unexplained_level(excess, tol_g)
     return Reason(level, "model check",
                   f"{text}: the poses scatter more than their noise explains; the part not explained is about "
                   f"{_mg(excess)} rms, {judgement} the tolerance of {_mg(tol_g)}.")
@@ -183,14 +203,14 @@ def _simulation_band(ev: Evidence, tol_g: float) -> list[Reason]:
             out.append(Reason("good", "simulation band", f"{text}: as the calibration model predicts."))
             continue
         if check.unit == "g":
-            excess = float(np.sqrt(max(check.measured**2 - check.median**2, 0.0)))
+            excess = _unexplained_rms(check.measured, check.median)
         else:
             floor = ev.noise_floor_g if np.isfinite(ev.noise_floor_g) else 0.0
             excess = floor * float(np.sqrt(max(check.measured - check.median, 0.0) / max(ev.n_poses, 1)))
-        level: Level = "usable with care" if excess > tol_g else "good"
+        level, judgement = _unexplained_level(excess, tol_g)
         out.append(Reason(level, "simulation band",
                           f"{text}: above what the model produces; the part not explained is about {_mg(excess)} rms, "
-                          f"{'above' if level != 'good' else 'within'} the tolerance of {_mg(tol_g)}."))
+                          f"{judgement} the tolerance of {_mg(tol_g)}."))
     return out
 
 
@@ -224,11 +244,10 @@ def _effects(ev: Evidence, tol_g: float) -> list[Reason]:
     for e in ev.effects:
         if e.effect == "outliers":
             continue  # counted under outliers
-        size = e.size_mg * 1e-3
-        level: Level = "usable with care" if size > tol_g else "good"
+        level, judgement = _unexplained_level(e.size_mg * 1e-3, tol_g)
         out.append(Reason(level, "diagnosis",
                           f"{e.effect} on axis {e.axis}: {e.coefficient}, which changes the output by {e.size_mg:.3g} mg "
-                          f"over {e.over} ({'above' if level != 'good' else 'within'} the tolerance of {_mg(tol_g)}): "
+                          f"over {e.over} ({judgement} the tolerance of {_mg(tol_g)}): "
                           f"{e.cause}. The constant calibration cannot follow it; the extended model of the diagnosis does."))
     return out
 
@@ -275,12 +294,8 @@ def judge_check(rms_after_g: float, rms_noise_g: float, n_poses: int,
     floor = (f", {rms_after_g / rms_noise_g:.3g}× the noise floor of {_mg(rms_noise_g)}"
              if np.isfinite(rms_noise_g) and rms_noise_g > 0 else "")
     head = f"On these {n_poses} poses the rms error of |a| after calibration is {_mg(rms_after_g)}{floor}"
-    if rms_after_g > NOT_USABLE_FACTOR * tol_g:
-        reason = Reason("not usable", "error on new data", f"{head}: more than {NOT_USABLE_FACTOR:g}× the tolerance of {_mg(tol_g)}.")
-    elif rms_after_g > tol_g:
-        reason = Reason("usable with care", "error on new data", f"{head}: above the tolerance of {_mg(tol_g)}.")
-    else:
-        reason = Reason("good", "error on new data", f"{head}: within the tolerance of {_mg(tol_g)}.")
+    reason = (_beyond_tolerance(head, rms_after_g, tol_g, "error on new data")
+              or Reason("good", "error on new data", f"{head}: within the tolerance of {_mg(tol_g)}."))
     return Verdict(reason.level, [reason], tolerance_mg)
 
 
