@@ -38,6 +38,7 @@ EXPORTERS: dict[str, str] = {
     "c": "optcal.applications.export.c_header:export",
 }
 
+
 def export(cal: Calibration, fmt: str, options: ExportOptions | None = None) -> ExportResult:
     """Export ``cal`` in format ``fmt`` (one of :data:`EXPORTERS`)."""
     target = EXPORTERS.get(fmt)
