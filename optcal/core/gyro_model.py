@@ -64,16 +64,6 @@ G_NAMES: tuple[str, ...] = tuple(f"Gg_{AXES[i]}{AXES[j]}" for i in range(3) for 
 PARAM_NAMES: tuple[str, ...] = T_NAMES + BIAS_NAMES
 
 
-def small_rotation(angles: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix of the rotation vector ``angles`` (radians), by the exponential map."""
-    v = np.asarray(angles, dtype=float).reshape(3)
-    a = float(np.linalg.norm(v))
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    if a < 1e-12:
-        return np.eye(3) + K
-    return np.eye(3) + np.sin(a) / a * K + (1.0 - np.cos(a)) / a**2 * (K @ K)
-
-
 @dataclass(frozen=True)
 class GyroPhysical:
     """Physical parameters equivalent to a gyro calibration.

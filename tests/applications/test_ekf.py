@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from optcal.applications.papers.yin2014.ekf import YinEKF, specific_force, sum_squared_errors, tilt_angles
+from optcal.applications.papers.yin2014.ekf import YinEKF, sum_squared_errors
 from optcal.errors import InputError
 from optcal.core.model import lumped_matrix
+from optcal.core.rotations import gravity_direction, roll_pitch
 from optcal.families.noise.allan import simulate_noise
 from optcal.families.noise.analysis import analyse_static_log
 
@@ -22,7 +23,7 @@ N, B, K = 200e-6, 100e-6, 10e-6
 
 
 def still_log(roll: float, pitch: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    f = specific_force(roll, pitch)
+    f = gravity_direction(roll, pitch)
     noise = np.column_stack([simulate_noise(n, RATE, N, B, K, rng) for _ in range(3)])
     return C @ f + O + noise, f
 
@@ -32,9 +33,9 @@ def make_filter(**settings: float) -> YinEKF:
 
 
 @pytest.mark.parametrize("roll, pitch", [(0.3, -0.2), (math.pi, 0.1), (1.2, 0.4)])
-def test_tilt_angles_invert_the_specific_force(roll: float, pitch: float) -> None:
-    r, p = tilt_angles(specific_force(roll, pitch))
-    np.testing.assert_allclose(specific_force(r, p), specific_force(roll, pitch), atol=1e-15)
+def test_roll_pitch_inverts_the_gravity_direction(roll: float, pitch: float) -> None:
+    r, p = roll_pitch(gravity_direction(roll, pitch))
+    np.testing.assert_allclose(gravity_direction(r, p), gravity_direction(roll, pitch), atol=1e-15)
 
 
 def test_measurement_jacobian_matches_finite_differences() -> None:
@@ -58,7 +59,7 @@ def test_process_noise_follows_the_noise_parameters() -> None:
 
 
 def test_noise_free_input_converges_to_the_truth() -> None:
-    f = specific_force(0.25, -0.15)
+    f = gravity_direction(0.25, -0.15)
     raw = np.tile(C @ f + O, (3000, 1))
     out = make_filter().run(raw)
     np.testing.assert_allclose(out.compensated[-1], f, atol=1e-9)

@@ -25,7 +25,7 @@ from optcal.applications.plan import (
 )
 from optcal.applications.plan.describe import describe_direction
 from optcal.families.simulate.poses import lu2017_sweeps, simulate_poses, uniform_directions
-from optcal.applications.papers.sun2011.turntable import attitude_matrix
+from optcal.core.rotations import turntable_attitude
 
 NOMINAL = LumpedModel(np.eye(3), np.zeros(3))
 
@@ -159,7 +159,7 @@ def test_next_pose_after_lu2017_literal_sweeps_fills_a_xy():
     assert step.gain_logdet == np.inf
     assert np.isinf(step.stderr_before["T_yx"]) and np.isfinite(step.stderr_after["T_yx"])
     assert min(abs(step.direction[0]), abs(step.direction[1])) > 0.1  # off the sweeps' planes x = 0 and y = 0
-    assert json.loads(json.dumps(__import__("optcal.core.fit_result", fromlist=["jsonable"]).jsonable(step.to_dict())))["gain_logdet"] is None
+    assert json.loads(json.dumps(__import__("optcal.core.jsonio", fromlist=["jsonable"]).jsonable(step.to_dict())))["gain_logdet"] is None
 
 
 def test_target_stderr_says_stop():
@@ -192,7 +192,7 @@ def test_turntable_plan_uses_reachable_gimbal_angles():
     assert plan.refinement.startswith("not refined")
     for d, label in zip(plan.directions, plan.labels):
         pitch, roll = (float(x.split("°")[0].split()[-1]) for x in label.split(","))
-        f_b = attitude_matrix(np.deg2rad(pitch), np.deg2rad(roll), 0.0)[2]  # Sun 2011, eq. 1
+        f_b = turntable_attitude(np.deg2rad(pitch), np.deg2rad(roll), 0.0)[2]  # Sun 2011, eq. 1
         np.testing.assert_allclose(f_b, d, atol=1e-9)
     assert plan.bound >= plan.value
 

@@ -17,6 +17,7 @@ from optcal.cli.main import main
 from optcal.errors import InputError
 from optcal.core.identifiability import analyse_design
 from optcal.core.model import LumpedModel
+from optcal.core.rotations import turntable_attitude
 from optcal.applications.papers.sun2011.reproduce import _BUDGET_OFF, PAPER_TABLE2, PAPER_TABLE3, run
 from optcal.applications.papers.sun2011.tenposition import (
     coupling_bias,
@@ -38,7 +39,6 @@ from optcal.applications.papers.sun2011.turntable import (
     AccelerometerErrors,
     SimulationSettings,
     TurntableRun,
-    attitude_matrix,
     ten_position_scheme,
 )
 
@@ -64,13 +64,13 @@ def mc() -> tuple[TurntableRun, FilterTuning, object]:
 
 
 @pytest.mark.parametrize("beta_deg", [-45.0, 20.0, 45.0, 60.0])
-def test_attitude_matrix_reproduces_eq14(beta_deg: float) -> None:
+def test_turntable_attitude_reproduces_eq14(beta_deg: float) -> None:
     b = np.deg2rad(beta_deg)
     s, c = np.sin(b), np.cos(b)
     t1 = np.array([[s, 0, c], [c, 0, -s], [0, 1, 0]])
     t2 = np.array([[-s, 0, c], [-c, 0, -s], [0, -1, 0]])
-    np.testing.assert_allclose(attitude_matrix(np.pi / 2, np.pi / 2, b), t1, atol=1e-15)
-    np.testing.assert_allclose(attitude_matrix(-np.pi / 2, np.pi / 2, b), t2, atol=1e-15)
+    np.testing.assert_allclose(turntable_attitude(np.pi / 2, np.pi / 2, b), t1, atol=1e-15)
+    np.testing.assert_allclose(turntable_attitude(-np.pi / 2, np.pi / 2, b), t2, atol=1e-15)
 
 
 def test_set_values_are_those_of_tables_2_and_3() -> None:
@@ -84,7 +84,7 @@ def test_error_model_is_eq3_with_tau_ij_axis_i_about_axis_j() -> None:
     p = random_parameters(rng)
     e = AccelerometerErrors(p)
     b, t = p[:3], dict(zip(PARAM_NAMES[3:], p[3:]))
-    C = attitude_matrix(*rng.uniform(-np.pi, np.pi, 3))
+    C = turntable_attitude(*rng.uniform(-np.pi, np.pi, 3))
     f = G * C[2]  # eq. 1: f^b = g [C31, C32, C33]
     expected = [
         b[0] + G * C[2, 1] * t["tau_xz"] - G * C[2, 2] * t["tau_xy"],

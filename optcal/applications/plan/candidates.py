@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.core.rotations import turntable_attitude
 from optcal.errors import InputError
 from optcal.families.simulate.poses import user_directions
 
@@ -141,19 +142,17 @@ def sphere_candidates(n: int = DEFAULT_GRID, cap: Cap | None = None) -> Candidat
 def turntable_candidates(step_deg: float = 45.0, cap: Cap | None = None) -> CandidateSet:
     """Directions a three-axis turntable reaches with pitch and roll on multiples of ``step_deg``.
 
-    The gimbal convention is Sun 2011's (:func:`optcal.applications.papers.sun2011.turntable.attitude_matrix`); the heading
+    The gimbal convention is Sun 2011's (:func:`optcal.core.rotations.turntable_attitude`); the heading
     (outer, vertical axis) does not move gravity in the body frame.  Each direction keeps the
     first (pitch, roll) pair that reaches it as its label.
     """
-    from optcal.applications.papers.sun2011.turntable import attitude_matrix
-
     if not 0 < step_deg <= 180 or abs(360.0 / step_deg - round(360.0 / step_deg)) > 1e-9:
         raise InputError(f"the turntable step must divide 360°, not {step_deg:g}°")
     angles = np.deg2rad(np.arange(0.0, 360.0, step_deg))
     pitch, roll = (a.ravel() for a in np.meshgrid(angles, angles, indexing="ij"))
     # Sun 2011, eq. 1: f^b = C_n^b [0, 0, 1]ᵀ, the third row of C_b^n
     # rounded so that exact zeros stay zeros (cos 90° is 6e-17, which would fake information)
-    f_b = np.round(attitude_matrix(pitch, roll, np.zeros_like(pitch))[:, 2, :], 12) + 0.0
+    f_b = np.round(turntable_attitude(pitch, roll, np.zeros_like(pitch))[:, 2, :], 12) + 0.0
     _, first = np.unique(f_b, axis=0, return_index=True)
     first = np.sort(first)
     labels = [f"pitch {np.rad2deg(pitch[k]):.0f}°, roll {np.rad2deg(roll[k]):.0f}°" for k in first]

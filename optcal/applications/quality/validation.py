@@ -23,6 +23,7 @@ from optcal.errors import InputError
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.norm_residual import norm_residuals, normal_gain
 from optcal.core.poses import MIN_POSES, PoseTable
+from optcal.core.rotations import rotation_between
 from optcal.core.stats import rms
 from optcal.families.caltypes import Calibration
 from optcal.core.fit_result import CalibrationResult, jsonable
@@ -254,14 +255,7 @@ class DisplacementResult:
 
 def levelling_rotation(f: ArrayLike) -> NDArray[np.float64]:
     """Rotation ``R`` (body to navigation, z up) taking the direction of ``f`` to +z (yaw zero)."""
-    u = np.asarray(f, float) / np.linalg.norm(f)
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(u, z)
-    s, c = np.linalg.norm(v), float(np.dot(u, z))
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + K + K @ K * ((1 - c) / s**2)
+    return rotation_between(np.asarray(f, float) / np.linalg.norm(f), np.array([0.0, 0.0, 1.0]))
 
 
 def displacement_integration(

@@ -65,6 +65,7 @@ from numpy.typing import NDArray
 from optcal.errors import InputError
 from optcal.families.accel.base import Stopwatch
 from optcal.core.model import AXES, STANDARD_GRAVITY
+from optcal.core.rotations import gravity_direction
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.core.fit_result import CalibrationResult, SolverInfo
@@ -83,9 +84,7 @@ _MS2_REFERENCE_NORM: tuple[float, float] = (5.0, 20.0)
 
 def reference_from_angles(roll_deg: NDArray, pitch_deg: NDArray) -> NDArray[np.float64]:
     """Unit specific force ``f(φ, θ)`` in the sensor frame for roll/pitch in degrees (Yin 2014, eq. 2)."""
-    phi = np.radians(np.asarray(roll_deg, dtype=float))
-    theta = np.radians(np.asarray(pitch_deg, dtype=float))
-    return np.column_stack([-np.sin(theta), np.cos(theta) * np.sin(phi), np.cos(theta) * np.cos(phi)])
+    return gravity_direction(np.radians(np.asarray(roll_deg, dtype=float)), np.radians(np.asarray(pitch_deg, dtype=float)))
 
 
 def reference_specific_force(poses: PoseTable) -> tuple[NDArray[np.float64], str, list[str]]:

@@ -16,7 +16,8 @@ with the analytic sensitivity ``∂(Φᵀu₀)/∂T_g``: with the prefix product
 
 (``q_k = w_k dt_k`` the bias-free raw rotation of the step, ``T_g`` row-major), because
 ``∂(E_kᵀ v)/∂θ_k = E_kᵀ [v]× J_r(−θ_k)`` and ``P [Pᵀu₀]× = [u₀]× P`` for a rotation ``P``.
-The rotations of all steps come from one vectorised Rodrigues formula; only the prefix
+The rotations of all steps come from one vectorised Rodrigues formula
+(:func:`optcal.core.rotations.exponential_map_with_right_jacobian`); only the prefix
 products are a loop, over the steps of the longest move with the moves side by side.  It
 serves both the fit (:mod:`optcal.families.gyro.estimator`, residuals and Jacobian in one pass) and
 the convention-free figure of merit, :func:`angles_deg` between predicted and measured
@@ -28,42 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-#: Below this squared rotation angle (rad²) the Rodrigues coefficients use their Taylor series.
-SMALL_ANGLE_SQ: float = 1e-8
-
-
-def skew_rows(x: NDArray) -> NDArray[np.float64]:
-    """``[x_k]×`` for every row of ``x`` (n, 3) → (n, 3, 3)."""
-    K = np.zeros((x.shape[0], 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -x[:, 2], x[:, 1], -x[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = x[:, 2], -x[:, 1], x[:, 0]
-    return K
-
-
-def exponential_map(theta: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``exp([θ]×)`` and ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×²`` for every row of ``theta`` (n, 3).
-
-    Rodrigues: ``exp([θ]×) = I + c₁[θ]× + c₂[θ]×²`` with ``c₁ = sin α/α``,
-    ``c₂ = (1 − cos α)/α²``, ``c₃ = (α − sin α)/α³``, ``α = ‖θ‖`` (Taylor series below
-    :data:`SMALL_ANGLE_SQ`).
-    """
-    a2 = np.einsum("ni,ni->n", theta, theta)
-    small = a2 < SMALL_ANGLE_SQ
-    a2_safe = np.where(small, 1.0, a2)
-    a = np.sqrt(a2_safe)
-    sin, cos = np.sin(a), np.cos(a)
-    c1 = np.where(small, 1 - a2 / 6 + a2**2 / 120, sin / a)[:, None, None]
-    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - cos) / a2_safe)[:, None, None]
-    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))[:, None, None]
-    # [θ]×² = θθᵀ − α² I: exp([θ]×) = (1 − c₂α²) I + c₁[θ]× + c₂θθᵀ, J_r(−θ) = (1 − c₃α²) I + c₂[θ]× + c₃θθᵀ
-    K = skew_rows(theta)
-    outer = theta[:, :, None] * theta[:, None, :]
-    E = c1 * K + c2 * outer
-    Jr = c2 * K + c3 * outer
-    diagonal = np.arange(3)
-    E[:, diagonal, diagonal] += 1 - c2[:, :, 0] * a2[:, None]
-    Jr[:, diagonal, diagonal] += 1 - c3[:, :, 0] * a2[:, None]
-    return E, Jr
+from optcal.core.rotations import exponential_map_with_right_jacobian, skew
 
 
 class GravityPredictor:
@@ -99,7 +65,7 @@ class GravityPredictor:
         L, m = self.length, self.n_moves
         at = (self.position, self.move)  # each step's slot when the moves are laid side by side, (L, m)
         q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
-        E_steps, Jr_steps = exponential_map(q @ np.asarray(T, float).T)
+        E_steps, Jr_steps = exponential_map_with_right_jacobian(q @ np.asarray(T, float).T)
         E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
         E[at] = E_steps
         prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
@@ -115,7 +81,7 @@ class GravityPredictor:
         q_side = np.zeros((L, m, 3))
         q_side[at] = q
         C = np.matmul(B.transpose(1, 2, 0), q_side.transpose(1, 0, 2))  # (m, 9, 3)
-        S = np.einsum("mji,mjk,mkl->mil", P, skew_rows(u0), C.reshape(m, 3, 9))
+        S = np.einsum("mji,mjk,mkl->mil", P, skew(u0), C.reshape(m, 3, 9))
         return v, S, P
 
     def __call__(self, omega: NDArray, dt: NDArray, u0: NDArray) -> NDArray[np.float64]:

@@ -17,8 +17,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
-from optcal.core.gyro_model import GyroModel, small_rotation
+from optcal.core.gyro_model import GyroModel
 from optcal.core.model import LumpedModel
+from optcal.core.rotations import exponential_map, rotate_about_axis, skew
 
 
 @dataclass
@@ -62,7 +63,7 @@ def reference_gyro(scale: float = 1.0, rng: int | np.random.Generator | None = 0
     """A gyro with scales 1-3 % off ``scale``, sensing axes misaligned by about 0.5°, and a bias."""
     gen = np.random.default_rng(rng)
     k = scale * (1 + gen.choice([-1, 1], 3) * gen.uniform(0.01, 0.03, 3))
-    axes = np.array([small_rotation(gen.normal(0, np.radians(0.5) / np.sqrt(2), 3))[i] for i in range(3)])
+    axes = np.array([exponential_map(gen.normal(0, np.radians(0.5) / np.sqrt(2), 3))[i] for i in range(3)])
     return GyroModel.from_physical(k, axes, scale * gen.uniform(-0.05, 0.05, 3))
 
 
@@ -106,7 +107,7 @@ def simulate_imu(
     nmove = int(round(move_s * rate_hz))
     dt = 1.0 / rate_hz
     basis = None if axes is None else np.asarray(axes, float).reshape(-1, 3)
-    R = small_rotation(gen.normal(size=3))  # world ← body at the first pose
+    R = exponential_map(gen.normal(size=3))  # world ← body at the first pose
     t_all, f_all, w_all, intervals = [], [], [], []
     n = 0
     z = np.array([0.0, 0.0, 1.0])  # specific force at rest points up in the world
@@ -127,11 +128,9 @@ def simulate_imu(
         if wobble == 0.0:
             s = angle * (tau - np.sin(2 * np.pi * tau) / (2 * np.pi))
             # f = exp(−s [n]×) Rᵀ z in closed form (Rodrigues' rotation of a vector)
-            v = R.T @ z
-            c, sn = np.cos(s)[:, None], np.sin(s)[:, None]
-            forces = v * c - np.cross(axis, v) * sn + np.outer(1 - c.ravel(), axis) * (axis @ v)
+            forces = rotate_about_axis(axis, -s, R.T @ z)
             omega = speed[:, None] * axis
-            R = R @ small_rotation(axis * angle)
+            R = R @ exponential_map(axis * angle)
         else:
             from scipy.integrate import solve_ivp
 
@@ -143,9 +142,7 @@ def simulate_imu(
                 return axis * angle / move_s * (1 - np.cos(2 * np.pi * x)) + perp * wobble * np.sin(2 * np.pi * x) ** 3
 
             def deriv(t: float, y: NDArray) -> NDArray:
-                M = y.reshape(3, 3)
-                w = rate(t)
-                return (M @ np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])).ravel()
+                return (y.reshape(3, 3) @ skew(rate(t))).ravel()
 
             sol = solve_ivp(deriv, (0.0, move_s), R.ravel(), method="DOP853", rtol=1e-12, atol=1e-13,
                             t_eval=np.concatenate([tau * move_s, [move_s]]))

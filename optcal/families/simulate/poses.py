@@ -15,28 +15,17 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.errors import InputError
 from optcal.core.model import LumpedModel
 from optcal.core.poses import PoseTable
+from optcal.core.rotations import (
+    PARALLEL_SINE,
+    gravity_direction,
+    quaternion_from_axis_angle,
+    quaternion_to_matrix,
+    roll_pitch,
+    rotation_between,
+)
 
 #: Specific force at rest, navigation frame, z up, in g (the accelerometer feels +1 g up).
 GRAVITY_UP: NDArray[np.float64] = np.array([0.0, 0.0, 1.0])
-
-
-def quaternion(theta: float, axis: ArrayLike) -> NDArray[np.float64]:
-    """Unit quaternion ``q = [cos(θ/2), sin(θ/2) uᵀ]`` (Lu 2017, section 3.1)."""
-    u = np.asarray(axis, dtype=float)
-    u = u / np.linalg.norm(u)
-    return np.concatenate([[np.cos(theta / 2)], np.sin(theta / 2) * u])
-
-
-def rotation_matrix(q: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix of a unit quaternion ``[w, x, y, z]`` (active, body to navigation)."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def directions_from_rotations(rotations: Sequence[ArrayLike]) -> NDArray[np.float64]:
@@ -54,7 +43,7 @@ def lu2017_sweeps(n_per_axis: int = 40, include_endpoint: bool = False) -> NDArr
     of the sensor frame; see :mod:`optcal.core.identifiability` for what that does.
     """
     thetas = np.linspace(0.0, 2 * np.pi, n_per_axis, endpoint=include_endpoint)
-    rots = [rotation_matrix(quaternion(t, u)) for u in ([0, 0, 1], [1, 0, 0], [0, 1, 0]) for t in thetas]
+    rots = [quaternion_to_matrix(quaternion_from_axis_angle(t, u)) for u in ([0, 0, 1], [1, 0, 0], [0, 1, 0]) for t in thetas]
     return directions_from_rotations(rots)
 
 
@@ -69,8 +58,8 @@ def tilted_sweeps(n_per_axis: int = 40, tilt_deg: float = 35.0) -> NDArray[np.fl
     tilt = np.deg2rad(tilt_deg)
     rots = []
     for u, v in (([0, 0, 1], [1, 1, 0]), ([1, 0, 0], [0, 1, 1]), ([0, 1, 0], [1, 0, 1])):
-        R0 = rotation_matrix(quaternion(tilt, v))
-        rots.extend(R0 @ rotation_matrix(quaternion(t, u)) for t in thetas)
+        R0 = quaternion_to_matrix(quaternion_from_axis_angle(tilt, v))
+        rots.extend(R0 @ quaternion_to_matrix(quaternion_from_axis_angle(t, u)) for t in thetas)
     return directions_from_rotations(rots)
 
 
@@ -94,14 +83,9 @@ def cap_directions(
     a = np.asarray(axis, float) / np.linalg.norm(axis)
     if np.allclose(a, [0, 0, 1]):
         return d
-    # rotate z onto a (Rodrigues)
-    v = np.cross([0, 0, 1], a)
-    s, c = np.linalg.norm(v), a[2]
-    if s < 1e-12:
+    if np.linalg.norm(np.cross(GRAVITY_UP, a)) < PARALLEL_SINE:  # the cap about −z: the cap about +z turned over
         return -d
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    R = np.eye(3) + K + K @ K * ((1 - c) / s**2)
-    return d @ R.T
+    return d @ rotation_between(GRAVITY_UP, a).T
 
 
 def six_position() -> NDArray[np.float64]:
@@ -130,27 +114,23 @@ def user_directions(values: ArrayLike, kind: str = "directions") -> NDArray[np.f
     if kind == "quaternions":
         if v.ndim != 2 or v.shape[1] != 4:
             raise InputError("quaternions must have shape (n, 4), [w, x, y, z]")
-        return directions_from_rotations([rotation_matrix(q) for q in v])
+        return directions_from_rotations([quaternion_to_matrix(q) for q in v])
     if kind == "euler_deg":
         if v.ndim != 2 or v.shape[1] not in (2, 3):
             raise InputError("euler angles must have shape (n, 2) or (n, 3): roll, pitch[, yaw] in degrees")
-        r, p = np.deg2rad(v[:, 0]), np.deg2rad(v[:, 1])
         # specific force of a level platform seen in a body rolled by r and pitched by p
-        return np.column_stack([-np.sin(p), np.sin(r) * np.cos(p), np.cos(r) * np.cos(p)])
+        return gravity_direction(np.deg2rad(v[:, 0]), np.deg2rad(v[:, 1]))
     raise InputError(f"unknown orientation kind {kind!r}")
 
 
 def angles_from_directions(directions: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Roll and pitch in degrees of unit specific-force directions: the inverse of ``user_directions(..., "euler_deg")``.
 
-    ``f = [−sin θ, cos θ sin φ, cos θ cos φ]`` (Yin 2014, eq. 2) gives ``θ = asin(−f_x)`` and
-    ``φ = atan2(f_y, f_z)`` (φ = 0 when the x axis points straight up or down).
+    :func:`optcal.core.rotations.roll_pitch` of the directions (Yin 2014, eq. 2).
     """
     d = np.asarray(directions, dtype=float).reshape(-1, 3)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
-    pitch = np.degrees(np.arcsin(np.clip(-d[:, 0], -1.0, 1.0))) + 0.0  # + 0.0: no "-0" in the table
-    roll = np.degrees(np.arctan2(d[:, 1], d[:, 2]))
-    return roll, pitch
+    roll, pitch = roll_pitch(d / np.linalg.norm(d, axis=1, keepdims=True))
+    return np.degrees(roll), np.degrees(pitch) + 0.0  # + 0.0: no "-0" in the table
 
 
 SCHEDULES = ("lu2017", "tilted", "uniform", "sixpos")

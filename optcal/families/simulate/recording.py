@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
 from optcal.core.model import LumpedModel
+from optcal.core.rotations import rotate_about_axis
 from optcal.families.simulate.poses import user_directions
 
 
@@ -89,12 +90,6 @@ class SyntheticRecording:
     def to_csv(self, path: str, float_format: str = "%.9g") -> None:
         """Write the frame as CSV (``t, ax, ay, az[, gx, gy, gz][, temp]``)."""
         self.frame.to_csv(path, index=False, float_format=float_format)
-
-
-def _rodrigues(axis: NDArray[np.float64], angles: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotate ``v`` about the unit ``axis`` by each angle (active), shape (len(angles), 3)."""
-    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    return v * c + np.cross(axis, v) * s + np.outer(1 - c[:, 0], axis * np.dot(axis, v))
 
 
 def _smooth_profile(m: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -234,7 +229,7 @@ def synthesize_recording(
         m = max(2, int(round(seconds * rate_hz)))
         axis, angle = _rotation_axis(d0, d1, rng)
         s, ds = _smooth_profile(m)
-        f = _rodrigues(axis, s * angle, d0)
+        f = rotate_about_axis(axis, s * angle, d0)
         dt_total = m / rate_hz
         # ω = −φ ṡ n + ψ̇ f   (ḟ = −ω × f)
         w = -np.outer(angle * ds / dt_total, axis) + np.deg2rad(yaw_dps) * np.sin(np.pi * s)[:, None] * f
@@ -252,9 +247,9 @@ def synthesize_recording(
             perp = np.cross(d0, rng.standard_normal(3))
             perp /= np.linalg.norm(perp)
             angles = slow_rate * (np.arange(m_slow) + 0.5) / rate_hz
-            f = _rodrigues(perp, angles, d0)
+            f = rotate_about_axis(perp, angles, d0)
             w = -np.tile(slow_rate * perp, (m_slow, 1))
-            end = _rodrigues(perp, np.array([slow_rate * m_slow / rate_hz]), d0)[0]
+            end = rotate_about_axis(perp, np.array([slow_rate * m_slow / rate_hz]), d0)[0]
         f_parts.append(f)
         w_parts.append(w)
         slow.append((n, n + m_slow))

@@ -7,7 +7,8 @@ Frames and attitude (Sun 2011, section 1)
   east, north, up.
 * Attitude: ``C_b^n = R_z(−ψ) R_x(θ) R_y(γ)`` (active rotations; pitch θ about x, roll γ
   about y, heading ψ clockwise from north).  This is the convention that reproduces the
-  paper's eq. 14 exactly, e.g. for (θ, γ, ψ) = (π/2, π/2, β)::
+  paper's eq. 14 exactly (:func:`optcal.core.rotations.turntable_attitude`), e.g. for
+  (θ, γ, ψ) = (π/2, π/2, β)::
 
       C_b^n = [[sin β, 0, cos β], [cos β, 0, −sin β], [0, 1, 0]]
 
@@ -61,8 +62,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
-
+from optcal.core.rotations import axis_rotation, exponential_map, logarithm_map, turntable_attitude
 from optcal.errors import InputError
 
 #: Gravity used by Sun 2011 (100 µg = 0.978e-3 m/s², Table 2), m/s².
@@ -85,38 +85,6 @@ TAU_ENTRIES: dict[str, tuple[int, int, float]] = {
     "tau_zy": (2, 0, +1.0),
     "tau_zx": (2, 1, -1.0),
 }
-
-
-def _rotation(axis: int, angle: ArrayLike) -> NDArray[np.float64]:
-    """Active rotation matrices about body axis ``axis`` (0, 1, 2), shape (..., 3, 3)."""
-    a = np.asarray(angle, dtype=float)
-    c, s = np.cos(a), np.sin(a)
-    R = np.zeros(a.shape + (3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    R[..., axis, axis] = 1.0
-    R[..., i, i] = c
-    R[..., j, j] = c
-    R[..., i, j] = -s
-    R[..., j, i] = s
-    return R
-
-
-def attitude_matrix(pitch: ArrayLike, roll: ArrayLike, heading: ArrayLike) -> NDArray[np.float64]:
-    """``C_b^n = R_z(−ψ) R_x(θ) R_y(γ)`` (module docstring; reproduces Sun 2011, eq. 14).
-
-    Angles in radians; broadcasting shapes give (..., 3, 3).
-    """
-    return _rotation(2, -np.asarray(heading, float)) @ _rotation(0, pitch) @ _rotation(1, roll)
-
-
-def skew(v: ArrayLike) -> NDArray[np.float64]:
-    """``[v×]`` for vectors of shape (..., 3)."""
-    v = np.asarray(v, dtype=float)
-    S = np.zeros(v.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
 
 
 @dataclass(frozen=True)
@@ -142,7 +110,7 @@ class TurntablePosition:
     @property
     def attitude(self) -> NDArray[np.float64]:
         """Nominal ``C_b^n``."""
-        return attitude_matrix(self.pitch, self.roll, self.heading)
+        return turntable_attitude(self.pitch, self.roll, self.heading)
 
     def degrees(self) -> tuple[float, float, float]:
         """(pitch, roll, heading) in degrees."""
@@ -312,11 +280,11 @@ class Turntable:
         A rotation about a tilted axis ``E u`` is ``E R_u E^T``, so each tilted gimbal
         contributes ``E R E^T`` in place of ``R``.
         """
-        Em = Rotation.from_rotvec(self.tilt_middle).as_matrix()
-        Ei = Rotation.from_rotvec(self.tilt_inner).as_matrix()
-        Rz = _rotation(2, -(position.heading + angle_errors[:, 2]))
-        Rx = Em @ _rotation(0, position.pitch + angle_errors[:, 0]) @ np.swapaxes(Em, -1, -2)
-        Ry = Ei @ _rotation(1, position.roll + angle_errors[:, 1]) @ np.swapaxes(Ei, -1, -2)
+        Em = exponential_map(self.tilt_middle)
+        Ei = exponential_map(self.tilt_inner)
+        Rz = axis_rotation(2, -(position.heading + angle_errors[:, 2]))
+        Rx = Em @ axis_rotation(0, position.pitch + angle_errors[:, 0]) @ np.swapaxes(Em, -1, -2)
+        Ry = Ei @ axis_rotation(1, position.roll + angle_errors[:, 1]) @ np.swapaxes(Ei, -1, -2)
         return Rz @ Rx @ Ry
 
 
@@ -375,11 +343,6 @@ class PositionData:
         return self.f_meas.mean(axis=1)
 
 
-def small_rotation_vector(M: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``v`` with ``M ≈ I + [v×]`` for near-identity rotation matrices (..., 3, 3)."""
-    return Rotation.from_matrix(M).as_rotvec()
-
-
 def simulate_position(
     position: TurntablePosition,
     settings: SimulationSettings,
@@ -398,8 +361,8 @@ def simulate_position(
     C_true = turntable.true_attitude(position, angle_err)
     # (I − φ×) = (I − φ0×) C_nom C_trueᵀ, exactly as a rotation: φ = −rotvec(...)
     phi0 = np.deg2rad(np.asarray(settings.initial_misalignment_deg, float))
-    C_p_n = Rotation.from_rotvec(-phi0).as_matrix() @ C_nom @ np.swapaxes(C_true, -1, -2)
-    phi = -small_rotation_vector(C_p_n)
+    C_p_n = exponential_map(-phi0) @ C_nom @ np.swapaxes(C_true, -1, -2)
+    phi = -logarithm_map(C_p_n)
     f_true = np.einsum("rji,j->ri", C_true, g_n)  # f^b = C_n^b g^n (eq. 1)
     w_true = np.einsum("rji,j->ri", C_true, settings.earth_rate_n)
     acc_sd = settings.accel_noise_ug_rthz * 1e-6 * settings.gravity / np.sqrt(settings.dt_s)

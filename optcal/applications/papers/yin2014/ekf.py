@@ -60,24 +60,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
 from optcal.core.model import AXES
+from optcal.core.rotations import gravity_direction, roll_pitch
 from optcal.families.noise.allan import NoiseParameters
 
 #: Default attitude random walk of a nominally still platform, rad/√s.
 ATTITUDE_RANDOM_WALK: float = 1e-4
 #: Default prior standard deviation of the initial roll and pitch, rad.
 INITIAL_ATTITUDE_STD: float = 0.05
-
-
-def specific_force(roll: float, pitch: float) -> NDArray[np.float64]:
-    """``f(φ, θ) = [−sin θ, cos θ sin φ, cos θ cos φ]`` (Yin 2014, eq. 2, optcal's sign convention)."""
-    sp, cp, st, ct = math.sin(roll), math.cos(roll), math.sin(pitch), math.cos(pitch)
-    return np.array([-st, ct * sp, ct * cp])
-
-
-def tilt_angles(specific: ArrayLike) -> tuple[float, float]:
-    """Roll and pitch (rad) of a specific-force vector, the inverse of :func:`specific_force`."""
-    fx, fy, fz = np.asarray(specific, dtype=float).reshape(3)
-    return math.atan2(fy, fz), math.atan2(-fx, math.hypot(fy, fz))
 
 
 @dataclass
@@ -232,7 +221,7 @@ class YinEKF:
         a_diag = np.diag(A)
         eye = np.eye(5)
 
-        roll, pitch = tilt_angles(self.W @ z[0] + self.V)
+        roll, pitch = roll_pitch(self.W @ z[0] + self.V)
         x = np.array([roll, pitch, 0.0, 0.0, 0.0])
         P = np.diag([self.initial_attitude_std**2] * 2 + list(np.maximum(self.B**2, 1e-30)))
 
@@ -252,7 +241,7 @@ class YinEKF:
             x = x + gain @ (z[k] - h)
             IKH = eye - gain @ H
             P = IKH @ P @ IKH.T + gain @ R @ gain.T
-            compensated[k] = self.gravity * specific_force(x[0], x[1])
+            compensated[k] = self.gravity * gravity_direction(x[0], x[1])
             attitude[k] = x[:2]
             bias[k] = x[2:]
             att_var[k] = P[0, 0], P[1, 1]
