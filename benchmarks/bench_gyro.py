@@ -91,7 +91,7 @@ def test_gyro_fit_only_xsens(benchmark, xsens: Path) -> None:
     import optcal
     from optcal.data import load_with_segmentation
     from optcal.families.gyro.moves import moves_from_segmentation
-    from optcal.core.units import GyroUnitsDecision
+    from optcal.data.units import GyroUnitsDecision
 
     loaded = load_with_segmentation(str(xsens))
     moves = moves_from_segmentation(loaded.segmentation)

@@ -36,7 +36,7 @@ from optcal.families.gyro.moves import moves_from_arrays, moves_from_segmentatio
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 from optcal.core.stats import rms
 from optcal.families.simulate.gyro import reference_gyro, simulate_imu
-from optcal.core.units import GyroUnitsDecision
+from optcal.data.units import GyroUnitsDecision
 from optcal.core.poses import PoseTable
 from optcal.core.fit_result import jsonable
 

@@ -192,7 +192,7 @@ def allan_gyro(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_
     """
     from optcal.families.noise.analysis import analyse_static_log
     from optcal.families.noise.sensors import GYROSCOPE
-    from optcal.core.units import decide_gyro_units
+    from optcal.data.units import decide_gyro_units
 
     log = read_still_log(data, sensor="gyro", **reading)
     decision = decide_gyro_units(log.samples, log.samples.mean(axis=0), gyro_units, log.units or None)

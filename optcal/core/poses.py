@@ -10,19 +10,32 @@ non-static poses, non-finite rows, ...) is counted in :attr:`PoseTable.exclusion
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.core.units import ACCEL_UNITS
 from optcal.errors import InputError
-
-if TYPE_CHECKING:
-    from optcal.data.decisions import DataDecisions
 
 #: Minimum number of poses for the nine identifiable parameters.
 MIN_POSES: int = 9
-UNITS: tuple[str, ...] = ("g", "m/s^2", "counts")
+
+
+class ReadingDecisions(Protocol):
+    """How a data file was read, each decision with its reason: what a pose table keeps of it.
+
+    The data layer's decisions (kind, columns, units, time base, rate, exclusions) provide it;
+    reports print its :meth:`lines`, JSON output carries its :meth:`to_dict`.
+    """
+
+    def lines(self) -> list[str]:
+        """One line per decision, with its reason."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """The decisions as a JSON-safe dictionary."""
+        ...
 
 
 def _opt_array(x: ArrayLike | None, n: int, name: str, shape: tuple[int, ...] = ()) -> NDArray | None:
@@ -69,7 +82,7 @@ class PoseTable:
         Further per-pose columns (e.g. ``roll_deg``, ``gx_ref``), each of length n.
     meta : dict
         Free-form provenance (file name, detected segments, thresholds, ...).
-    decisions : optcal.data.decisions.DataDecisions or None
+    decisions : ReadingDecisions or None
         How the data file was read (kind, columns, units, time base, rate, exclusions, each
         with its reason), for tables loaded from a file.
     """
@@ -86,7 +99,7 @@ class PoseTable:
     exclusions: dict[str, int] = field(default_factory=dict)
     extra: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
-    decisions: DataDecisions | None = None
+    decisions: ReadingDecisions | None = None
 
     def __post_init__(self) -> None:
         acc = np.asarray(self.acc, dtype=float)
@@ -100,8 +113,8 @@ class PoseTable:
         self.temp = _opt_array(self.temp, n, "temp")
         self.gyro = _opt_array(self.gyro, n, "gyro", (3,))
         self.rows = np.arange(n) if self.rows is None else np.asarray(self.rows, dtype=int).reshape(n)
-        if self.units not in UNITS:
-            raise InputError(f"unknown units {self.units!r}; use one of {', '.join(UNITS)}")
+        if self.units not in ACCEL_UNITS:
+            raise InputError(f"unknown units {self.units!r}; use one of {', '.join(ACCEL_UNITS)}")
         # copies: a table never shares (and so never corrupts) the caller's arrays
         self.extra = {k: np.array(v, dtype=float).reshape(n, *np.shape(v)[1:]) for k, v in self.extra.items()}
 

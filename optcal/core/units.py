@@ -1,83 +1,81 @@
-"""Units of gyro samples: raw counts, rad/s or °/s, decided once, printed, overridable.
+"""Units of the sensors' samples: every unit name and accepted spelling, for both sensors, once.
 
-The calibration ``T_g`` absorbs the units (rad/s per raw unit), so the units decide only
-the *nominal* conversion: the "before calibration" baseline and the starting point of the
-fit.  The decision follows the accelerometer's (:mod:`optcal.data.units`): the user's
-``gyro_units`` wins, then a unit word in the file's column names or the file format (ROS
-``sensor_msgs/Imu`` and PX4 ULog state rad/s), then the data: integer-valued samples are
-counts; otherwise the fastest rates reached in the moves (99th percentile of ``|g − b|``)
-tell rad/s (a hand-turned sensor peaks at 1-20 rad/s) from °/s (60-1200 °/s).
+The accelerometer's samples are in ``g``, ``m/s^2`` or raw ``counts``; the gyro's in
+``counts``, ``rad/s`` or ``deg/s``.  :data:`UNIT_ALIASES` maps every accepted spelling (for
+``--units``, ``--gyro-units`` and unit words in column names) to its unit, per sensor, and
+:func:`normalise_units` reads a spelling.  The fixed factors of the units with a stated
+scale are :data:`G_PER_UNIT` and :data:`RAD_PER_UNIT`; counts have none (their scale is what
+calibration finds).  Which units a data set is in is a decision about the data, made in
+:mod:`optcal.data.units`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-from numpy.typing import NDArray
 
+from optcal.core.model import STANDARD_GRAVITY
 from optcal.errors import InputError
 
-GYRO_UNITS: tuple[str, ...] = ("counts", "rad/s", "deg/s")
-_ALIASES: dict[str, str] = {
-    "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts",
-    "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s", "rps": "rad/s",
-    "deg/s": "deg/s", "deg_s": "deg/s", "dps": "deg/s", "°/s": "deg/s", "degs": "deg/s",
+#: Accepted spellings of each sensor's units, mapped to the unit (the first spelling of each unit is its name).
+UNIT_ALIASES: dict[str, dict[str, str]] = {
+    "accelerometer": {
+        "g": "g",
+        "m/s^2": "m/s^2",
+        "m/s2": "m/s^2",
+        "m/s²": "m/s^2",
+        "mps2": "m/s^2",
+        "ms2": "m/s^2",
+        "m_s2": "m/s^2",
+        "m_s_2": "m/s^2",
+        "ms_2": "m/s^2",
+        "counts": "counts",
+        "count": "counts",
+        "lsb": "counts",
+        "raw": "counts",
+        "adc": "counts",
+    },
+    "gyro": {
+        "counts": "counts", "count": "counts", "lsb": "counts", "raw": "counts",
+        "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s", "rps": "rad/s",
+        "deg/s": "deg/s", "deg_s": "deg/s", "dps": "deg/s", "°/s": "deg/s", "degs": "deg/s",
+    },
 }
-#: Peak rate (99th percentile of the bias-free rate norm) above which float data are °/s.
-DEG_S_MIN_PEAK: float = 40.0
-#: rad/s per unit for the units with a stated scale.
+#: The units of each sensor, in the order messages list them.
+SENSOR_UNITS: dict[str, tuple[str, ...]] = {
+    sensor: tuple(dict.fromkeys(aliases.values())) for sensor, aliases in UNIT_ALIASES.items()
+}
+#: Units of accelerometer samples (and of an accelerometer calibration's input).
+ACCEL_UNITS: tuple[str, ...] = SENSOR_UNITS["accelerometer"]
+#: Units of gyro samples.
+GYRO_UNITS: tuple[str, ...] = SENSOR_UNITS["gyro"]
+#: g per unit for the accelerometer units with a stated scale.
+G_PER_UNIT: dict[str, float] = {"g": 1.0, "m/s^2": 1.0 / STANDARD_GRAVITY}
+#: rad/s per unit for the gyro units with a stated scale.
 RAD_PER_UNIT: dict[str, float] = {"rad/s": 1.0, "deg/s": float(np.pi / 180.0)}
 
 
-def normalise_gyro_units(units: str) -> str:
-    """Map a spelling (``"dps"``, ``"rad_s"``, ``"LSB"``, ...) to one of :data:`GYRO_UNITS`."""
-    key = str(units).strip().lower()
-    if key not in _ALIASES:
-        raise InputError(f"unknown gyro units {units!r}; use one of {', '.join(GYRO_UNITS)}")
-    return _ALIASES[key]
-
-
-@dataclass(frozen=True)
-class GyroUnitsDecision:
-    """The gyro units and how they were decided."""
-
-    units: str
-    reason: str
-
-    @property
-    def rad_per_unit(self) -> float | None:
-        """rad/s per raw unit (``None`` for counts, whose scale is what calibration finds)."""
-        return RAD_PER_UNIT.get(self.units)
-
-
-def decide_gyro_units(
-    gyro: NDArray, bias: NDArray, requested: str | None = None, hint: str | None = None
-) -> GyroUnitsDecision:
-    """Decide the units of raw gyro samples (module docstring).
+def normalise_units(units: str, sensor: str = "accelerometer") -> str:
+    """Map a spelling of one of ``sensor``'s units (``"m/s2"``, ``"LSB"``, ``"dps"``, ...) to the unit.
 
     Parameters
     ----------
-    gyro : ndarray, shape (n, 3)
-        Raw samples, moves included.
-    bias : ndarray, shape (3,)
-        Rest reading (mean of the still intervals), raw units.
-    requested : str, optional
-        The caller's ``gyro_units``; always wins.
-    hint : str, optional
-        Units stated by the file (column names, file format).
+    units : str
+        Any accepted spelling (:data:`UNIT_ALIASES`), in any case, with surrounding spaces.
+    sensor : {"accelerometer", "gyro"}
+
+    Raises
+    ------
+    InputError
+        For a spelling of none of the sensor's units.
     """
-    if requested is not None:
-        return GyroUnitsDecision(normalise_gyro_units(requested), "given with gyro_units")
-    if hint is not None:
-        return GyroUnitsDecision(normalise_gyro_units(hint), "stated by the file")
-    g = np.asarray(gyro, float)
-    g = g[np.all(np.isfinite(g), axis=1)]
-    if g.size == 0:
-        raise InputError("no finite gyro samples; cannot tell the gyro units")
-    if np.all(g == np.round(g)):
-        return GyroUnitsDecision("counts", "integer-valued samples (raw counts)")
-    peak = float(np.percentile(np.linalg.norm(g - bias, axis=1), 99))
-    if peak >= DEG_S_MIN_PEAK:
-        return GyroUnitsDecision("deg/s", f"peak rate {peak:.3g} ≥ {DEG_S_MIN_PEAK:g} (°/s)")
-    return GyroUnitsDecision("rad/s", f"peak rate {peak:.3g} < {DEG_S_MIN_PEAK:g} (rad/s)")
+    aliases = UNIT_ALIASES[sensor]
+    key = str(units).strip().lower()
+    if key not in aliases:
+        what = "units" if sensor == "accelerometer" else f"{sensor} units"
+        raise InputError(f"unknown {what} {units!r}; use one of {', '.join(SENSOR_UNITS[sensor])}")
+    return aliases[key]
+
+
+def to_g_factor(units: str) -> float | None:
+    """Factor converting accelerometer ``units`` to g (``None`` for counts, whose scale is what calibration finds)."""
+    return G_PER_UNIT.get(normalise_units(units))

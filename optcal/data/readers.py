@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.data.quantiles import median
-from optcal.data.units import UNIT_ALIASES, normalise_units
+from optcal.core.units import UNIT_ALIASES, normalise_units
 
 if TYPE_CHECKING:
     from optcal.data.text import TextLayout
@@ -65,15 +65,17 @@ INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_i
 
 #: Time unit words and their factor to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-#: Gyro unit words.
-GYRO_UNITS: dict[str, str] = {
+#: Gyro unit words at the end of column names (``gx_dps``, ``gyro_x_rad``), and the units they state.  Column
+#: names use words (``deg``, ``rad``, ``radps``) that are not spellings of ``--gyro-units``
+#: (:data:`optcal.core.units.UNIT_ALIASES`), and no ``/``.
+GYRO_UNIT_WORDS: dict[str, str] = {
     "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
     "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
     "counts": "counts", "lsb": "counts", "raw": "counts",
 }
 TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
 _UNIT_WORDS = sorted(
-    set(UNIT_ALIASES) | set(TIME_UNITS) | set(GYRO_UNITS) | set(TEMP_UNITS) | {"m_s_2"},
+    set(UNIT_ALIASES["accelerometer"]) | set(TIME_UNITS) | set(GYRO_UNIT_WORDS) | set(TEMP_UNITS) | {"m_s_2"},
     key=len,
     reverse=True,
 )
@@ -532,14 +534,14 @@ def source_from_columns(
         ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric,
     )
     acc_units = {unit_words.get(c) for c in ACC}
-    if len(acc_units) == 1 and None not in acc_units and next(iter(acc_units)) in UNIT_ALIASES:
+    if len(acc_units) == 1 and None not in acc_units and next(iter(acc_units)) in UNIT_ALIASES["accelerometer"]:
         word = next(iter(acc_units))
         src.units_hint = normalise_units(word)
         src.units_reason = f"unit word {word!r} in the column names"
     if src.has(*GYRO):
         words = {unit_words.get(c) for c in GYRO}
-        if len(words) == 1 and next(iter(words)) in GYRO_UNITS:
-            src.gyro_units = GYRO_UNITS[next(iter(words))]
+        if len(words) == 1 and next(iter(words)) in GYRO_UNIT_WORDS:
+            src.gyro_units = GYRO_UNIT_WORDS[next(iter(words))]
     if "t" in data:
         word = unit_words.get("t")
         name = column_map["t"]

@@ -1,10 +1,23 @@
-"""Units of measured specific force: raw counts, g and m/s².
+"""The units of a data set, decided from the evidence: the accelerometer's and the gyro's.
 
-optcal calibrates in the raw units of the data (``T`` in g per raw unit, ``o`` in raw
-units) and always outputs g.  This module decides the units of a data set (the user's
-``--units``, a unit word in the column names, the file format, or, when none of these
-says, the typical norm of the data) and provides the *nominal* conversion to g that
-serves as the "before calibration" baseline.
+The unit names and their spellings are :mod:`optcal.core.units`; this module decides which
+units a data set is in, and says why.
+
+Accelerometer (raw counts, g or m/s²): optcal calibrates in the raw units of the data (``T``
+in g per raw unit, ``o`` in raw units) and always outputs g.  The units are the user's
+``--units``, a unit word in the column names, the file format, or, when none of these says,
+the typical norm of the data (:func:`decide_units`), checked against that norm
+(:func:`check_units`) and against the pose means (:func:`check_sensitivity`); the *nominal*
+conversion to g (:func:`nominal_conversion`) serves as the "before calibration" baseline.
+
+Gyro (raw counts, rad/s or °/s): the calibration ``T_g`` absorbs the units (rad/s per raw
+unit), so the units decide only the nominal conversion: the "before calibration" baseline
+and the starting point of the fit.  The decision (:func:`decide_gyro_units`) follows the
+accelerometer's: the user's ``gyro_units`` wins, then a unit word in the file's column names
+or the file format (ROS ``sensor_msgs/Imu`` and PX4 ULog state rad/s), then the data:
+integer-valued samples are counts; otherwise the fastest rates reached in the moves (99th
+percentile of ``|g − b|``) tell rad/s (a hand-turned sensor peaks at 1-20 rad/s) from °/s
+(60-1200 °/s).
 """
 
 from __future__ import annotations
@@ -14,41 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.core.model import STANDARD_GRAVITY
+from optcal.core.units import RAD_PER_UNIT, normalise_units, to_g_factor
 from optcal.data.quantiles import column_medians, median
 from optcal.errors import InputError
-from optcal.core.model import STANDARD_GRAVITY
-from optcal.core.poses import UNITS
-
-#: Accepted spellings of each unit, for ``--units`` and for unit words in column names.
-UNIT_ALIASES: dict[str, str] = {
-    "g": "g",
-    "m/s^2": "m/s^2",
-    "m/s2": "m/s^2",
-    "m/s²": "m/s^2",
-    "mps2": "m/s^2",
-    "ms2": "m/s^2",
-    "m_s2": "m/s^2",
-    "m_s_2": "m/s^2",
-    "ms_2": "m/s^2",
-    "counts": "counts",
-    "count": "counts",
-    "lsb": "counts",
-    "raw": "counts",
-    "adc": "counts",
-}
 
 #: Norm ranges (median ‖a‖ over the data) in which the units are unambiguous.
 G_NORM_RANGE: tuple[float, float] = (0.5, 2.0)
 MS2_NORM_RANGE: tuple[float, float] = (5.0, 20.0)
 COUNTS_MIN_NORM: float = 50.0
-
-
-def normalise_units(units: str) -> str:
-    """Map a spelling of a unit (``"m/s2"``, ``"LSB"``, ...) to one of :data:`optcal.core.poses.UNITS`."""
-    key = str(units).strip().lower()
-    if key not in UNIT_ALIASES:
-        raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
-    return UNIT_ALIASES[key]
 
 
 @dataclass(frozen=True)
@@ -260,16 +247,6 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
             )
 
 
-def to_g_factor(units: str) -> float | None:
-    """Factor converting ``units`` to g (``None`` for counts, whose scale is what calibration finds)."""
-    units = normalise_units(units)
-    if units == "g":
-        return 1.0
-    if units == "m/s^2":
-        return 1.0 / STANDARD_GRAVITY
-    return None
-
-
 @dataclass(frozen=True)
 class NominalConversion:
     """The uncalibrated conversion ``a_g = (a − offset) / sensitivity`` used as the baseline.
@@ -337,3 +314,52 @@ def nominal_conversion(units: str, acc: ArrayLike | None, *, median_norm: float 
     else:  # column by column: temporaries of one column, not of three
         sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
     return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
+
+
+#: Peak rate (99th percentile of the bias-free rate norm) above which float gyro data are °/s.
+DEG_S_MIN_PEAK: float = 40.0
+
+
+@dataclass(frozen=True)
+class GyroUnitsDecision:
+    """The gyro units and how they were decided."""
+
+    units: str
+    reason: str
+
+    @property
+    def rad_per_unit(self) -> float | None:
+        """rad/s per raw unit (``None`` for counts, whose scale is what calibration finds)."""
+        return RAD_PER_UNIT.get(self.units)
+
+
+def decide_gyro_units(
+    gyro: NDArray, bias: NDArray, requested: str | None = None, hint: str | None = None
+) -> GyroUnitsDecision:
+    """Decide the units of raw gyro samples (module docstring).
+
+    Parameters
+    ----------
+    gyro : ndarray, shape (n, 3)
+        Raw samples, moves included.
+    bias : ndarray, shape (3,)
+        Rest reading (mean of the still intervals), raw units.
+    requested : str, optional
+        The caller's ``gyro_units``; always wins.
+    hint : str, optional
+        Units stated by the file (column names, file format).
+    """
+    if requested is not None:
+        return GyroUnitsDecision(normalise_units(requested, "gyro"), "given with gyro_units")
+    if hint is not None:
+        return GyroUnitsDecision(normalise_units(hint, "gyro"), "stated by the file")
+    g = np.asarray(gyro, float)
+    g = g[np.all(np.isfinite(g), axis=1)]
+    if g.size == 0:
+        raise InputError("no finite gyro samples; cannot tell the gyro units")
+    if np.all(g == np.round(g)):
+        return GyroUnitsDecision("counts", "integer-valued samples (raw counts)")
+    peak = float(np.percentile(np.linalg.norm(g - bias, axis=1), 99))
+    if peak >= DEG_S_MIN_PEAK:
+        return GyroUnitsDecision("deg/s", f"peak rate {peak:.3g} ≥ {DEG_S_MIN_PEAK:g} (°/s)")
+    return GyroUnitsDecision("rad/s", f"peak rate {peak:.3g} < {DEG_S_MIN_PEAK:g} (rad/s)")

@@ -15,7 +15,7 @@ from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_
 from optcal.core.stats import rms
 from optcal.families.gyro.result import ImuCalibration
 from optcal.families.simulate.gyro import ImuRecording, reference_gyro, simulate_imu
-from optcal.core.units import GyroUnitsDecision, decide_gyro_units
+from optcal.data.units import GyroUnitsDecision, decide_gyro_units
 from optcal.core.model import LumpedModel
 from optcal.core.poses import PoseTable
 

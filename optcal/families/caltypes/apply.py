@@ -193,9 +193,9 @@ def apply_to_file(
         frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
     correct_gyro = getattr(cal, "correct_gyro", None)  # cal_type imu: gyro columns to rad/s as well
     if correct_gyro is not None and src.has(*GYRO):
-        from optcal.core.units import normalise_gyro_units
+        from optcal.core.units import normalise_units
 
-        if src.gyro_units is not None and normalise_gyro_units(src.gyro_units) != cal.gyro_units:
+        if src.gyro_units is not None and normalise_units(src.gyro_units, "gyro") != cal.gyro_units:
             raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
         gyro = np.full(raw.shape, np.nan)
         gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
-from optcal.core.poses import UNITS
+from optcal.core.units import ACCEL_UNITS
 
 #: Major version of the calibration file format written by this optcal.
 FORMAT_MAJOR: int = 2
@@ -274,8 +274,8 @@ class Calibration(ABC):
         check_version(d.get("format_version"))
         units = d.get("units")
         units = units.get("input") if isinstance(units, dict) else units
-        if units not in UNITS:
-            raise InputError(f"the calibration's input units {units!r} are not one of {', '.join(UNITS)}")
+        if units not in ACCEL_UNITS:
+            raise InputError(f"the calibration's input units {units!r} are not one of {', '.join(ACCEL_UNITS)}")
         fitted = d.get("fitted_on")
         try:
             return cls.from_parameters(d, str(units), None if fitted is None else FitPoses.from_dict(fitted))

@@ -9,5 +9,5 @@
   IPOPT nonlinear least squares; the accelerometer fixed or estimated jointly.
 * :mod:`optcal.families.gyro.result` — the whole-IMU calibration (``cal_type`` ``imu``).
 * :mod:`optcal.families.simulate.gyro` — synthetic IMU recordings with known truth.
-* :mod:`optcal.core.units` — gyro units (counts, rad/s, °/s).
+* :mod:`optcal.data.units` — the gyro units of a recording (counts, rad/s, °/s), decided from the data.
 """

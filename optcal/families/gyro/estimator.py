@@ -38,7 +38,7 @@ from optcal.core.gyro_model import BIAS_NAMES, G_NAMES, T_NAMES, GyroModel
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 from optcal.families.gyro.result import ImuCalibration
-from optcal.core.units import GyroUnitsDecision
+from optcal.data.units import GyroUnitsDecision
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.model import TRIL_INDEX, theta_from
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
@@ -480,7 +480,7 @@ def calibrate_imu_loaded(
     """:func:`calibrate_imu` on what :func:`optcal.data.load_with_segmentation` read."""
     from optcal.families.accel.calibration import calibrate
     from optcal.families.gyro.moves import moves_from_segmentation
-    from optcal.core.units import decide_gyro_units
+    from optcal.data.units import decide_gyro_units
 
     if loaded.segmentation is None:
         raise InputError(f"DATA was read as a pose table ({loaded.kind.reason}); a gyro calibration needs the raw "

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from optcal.errors import InputError
 from optcal.core.model import STANDARD_GRAVITY
-from optcal.core.units import RAD_PER_UNIT, normalise_gyro_units
+from optcal.core.units import RAD_PER_UNIT, normalise_units
 
 
 def _accelerometer_units(units: str) -> str:
@@ -144,7 +145,7 @@ ACCELEROMETER = NoiseSensor(
 GYROSCOPE = NoiseSensor(
     name="gyro",
     noise_density_name="angle_random_walk",
-    canonical_units=normalise_gyro_units,
+    canonical_units=partial(normalise_units, sensor="gyro"),
     si_per_physical_unit=RAD_PER_UNIT,
     counts_scale_unit="rad/s",
     counts_scale_missing=("gyro counts need a positive counts-per-rad/s scale to report noise in rad/s "
