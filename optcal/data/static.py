@@ -28,24 +28,30 @@ quietest windows still turn) is not taken for one at rest.  Windows at rest shar
 level, so the low quantiles of the axes statistic form a plateau; a recording whose
 ``floor_quantile / 5`` quantile falls far below its floor (:func:`rest_plateau_limit`) has
 no rest, only the slowest moments of a motion, and gives no pose (with a gyro whose
-converter step does not settle it, or none).  Static runs are split at time
-gaps, runs shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of
-each remaining run, runs of one orientation interrupted for less than a window by a hand's
-twitch are joined into one pose (:func:`join_interrupted`), a stretch whose means over
-one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
-(:func:`sweep`: a turn about an axis near the vertical keeps ‖a‖ and moves the axes by less
-than the noise within a window), and every sample that does not end in a pose is counted by
-reason.  The moving statistics take one cumulative sum per column in one set of reused
-buffers (:class:`MovingWindow`); the gyro's are computed in a second thread beside the
-accelerometer's for recordings up to :data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose: the mean, the per-axis standard deviation, the
-standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights, Lu 2017
-eq. 14; by batch means, :func:`sigma_of_mean`, since sensor noise is not white), the
-sample count, the mid time, the mean temperature and the mean gyro reading.
+converter step does not settle it, or none).  Static runs are split at time gaps, runs
+shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of each remaining
+run, runs of one orientation interrupted for less than a window by a hand's twitch are joined
+into one pose (:func:`optcal.data.static_stretches.join_interrupted`), a stretch whose means
+over one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
+(:func:`optcal.data.static_stretches.sweep`: a turn about an axis near the vertical keeps ‖a‖
+and moves the axes by less than the noise within a window), and every sample that does not
+end in a pose is counted by reason.  The moving statistics take one cumulative sum per column
+in one set of reused buffers (:class:`optcal.data.window_stats.MovingWindow`); the gyro's are
+computed in a second thread beside the accelerometer's for recordings up to
+:data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose
+(:func:`optcal.data.static_poses.reduce_interval`): the mean, the per-axis standard
+deviation, the standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights,
+Lu 2017 eq. 14; by batch means, :func:`optcal.data.static_poses.sigma_of_mean`, since sensor
+noise is not white), the sample count, the mid time, the mean temperature and the mean gyro
+reading.
+
+This module decides; the moving-window statistics and floors are
+:mod:`optcal.data.window_stats`, the runs of static samples and their grouping
+:mod:`optcal.data.static_stretches`, the pose of each interval :mod:`optcal.data.static_poses`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -53,11 +59,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.quantiles import column_medians, median, quantiles
-from optcal.data.recording import Recording
-from optcal.data.units import nominal_conversion
-from optcal.errors import InputError
 from optcal.core.poses import PoseTable
+from optcal.data.quantiles import median, quantiles
+from optcal.data.recording import Recording
+from optcal.data.static_poses import StaticInterval, reduce_interval
+from optcal.data.static_stretches import (
+    group_positions,
+    join_interrupted,
+    reject_sweeping,
+    reject_turning,
+    split_runs,
+    true_runs,
+)
+from optcal.data.units import nominal_conversion
+from optcal.data.window_stats import STEP_CHUNK, HalfWindowDrift, MovingWindow, noise_floor, quantum, resolution
+from optcal.errors import InputError
 
 MOVING = "samples in non-static stretches"
 SHORT = "samples in static stretches shorter than the minimum dwell"
@@ -149,73 +165,6 @@ class StaticSettings:
 
 
 @dataclass
-class StaticInterval:
-    """One static interval and its pose.
-
-    Attributes
-    ----------
-    number : int
-        1-based interval number (the pose's ``rows`` entry).
-    start, stop : int
-        Sample range in the recording, ``stop`` exclusive.
-    first_row, last_row : int
-        Data rows of the file.
-    t_start, t_end : float
-        Seconds.
-    n_samples : int
-    mean, std : ndarray, shape (3,)
-        Mean and per-axis standard deviation of the samples, raw units.
-    sigma : float
-        Standard deviation of the mean (pooled over the axes), raw units.
-    gyro_mean : ndarray, shape (3,) or None
-    temp_mean : float or None
-    """
-
-    number: int
-    start: int
-    stop: int
-    first_row: int
-    last_row: int
-    t_start: float
-    t_end: float
-    n_samples: int
-    mean: NDArray[np.float64]
-    std: NDArray[np.float64]
-    sigma: float
-    gyro_mean: NDArray[np.float64] | None
-    temp_mean: float | None
-
-    @property
-    def duration_s(self) -> float:
-        return self.t_end - self.t_start
-
-    @property
-    def t_mid(self) -> float:
-        return 0.5 * (self.t_start + self.t_end)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = {
-            "number": self.number,
-            "first_row": self.first_row,
-            "last_row": self.last_row,
-            "sample_start": self.start,
-            "sample_stop": self.stop,
-            "t_start": self.t_start,
-            "t_end": self.t_end,
-            "duration_s": self.duration_s,
-            "n_samples": self.n_samples,
-            "mean": self.mean.tolist(),
-            "std": self.std.tolist(),
-            "sigma_mean": self.sigma,
-        }
-        if self.gyro_mean is not None:
-            d["gyro_mean"] = self.gyro_mean.tolist()
-        if self.temp_mean is not None:
-            d["temp_mean"] = self.temp_mean
-        return d
-
-
-@dataclass
 class Segmentation:
     """What static detection found in a recording.
 
@@ -232,7 +181,7 @@ class Segmentation:
     trace : dict of str to ndarray
         Per usable sample: ``t``, the statistics and the static mask (for plots).
     joined : int
-        Static stretches joined to the previous one as the same pose (:func:`join_interrupted`).
+        Static stretches joined to the previous one as the same pose (:func:`optcal.data.static_stretches.join_interrupted`).
     rest_plateau : dict of str to float
         The evidence that the recording rests (:func:`rest_plateau_limit`): the axes moving std at
         its low quantile (``low``) and at the floor quantile (``floor``), and the smallest ratio
@@ -334,256 +283,6 @@ def no_static_message(seg: Segmentation) -> str:
     )
 
 
-# ----------------------------------------------------------------------------- statistics
-#: Rows a centring value is taken from (evenly strided): the median of 10⁶ samples costs a sort.
-CENTRE_ROWS: int = 4096
-
-
-def centre_of(x: NDArray[np.float64]) -> NDArray[np.float64] | float:
-    """A value inside the data's range to centre cumulative sums on (columnwise for 2-D).
-
-    The median of at most :data:`CENTRE_ROWS` evenly strided rows: the sums need a centre
-    near the data (raw counts carry a large offset), not the exact median.
-    """
-    stride = max(1, x.shape[0] // CENTRE_ROWS)
-    return median(x[::stride]) if x.ndim == 1 else column_medians(x[::stride])
-
-
-def moving_mean_var(x: NDArray[np.float64], window: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centred moving mean and variance (windows clipped at the ends), columnwise.
-
-    Uses cumulative sums of the data centred near the data (:func:`centre_of`), so it is O(n) and exact
-    enough for raw counts with a large offset (:func:`column_window_stats`, column by column).
-    """
-    x = np.asarray(x, dtype=float)
-    if x.ndim == 1:
-        return column_window_stats(x, window)
-    pairs = [column_window_stats(x[:, j], window) for j in range(x.shape[1])]
-    return np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs])
-
-
-def half_window_drift(x: NDArray[np.float64], window: int) -> NDArray[np.float64]:
-    """‖mean of the next half window − mean of the previous half window‖ at each sample.
-
-    A rotation at rate ω moves the specific force by about ``ω · window/2`` between the two
-    halves, while at rest the difference is the noise of two means; this sees slow turns
-    that the moving variance misses.  Zero within half a window of the ends.
-    """
-    x = np.asarray(x, dtype=float)
-    drift = HalfWindowDrift(x.shape[0], window)
-    for j in range(x.shape[1]):
-        column_window_stats(x[:, j], window, drift)
-    return drift.result()
-
-
-class HalfWindowDrift:
-    """The squared half-window drift summed over columns (:func:`half_window_drift`), filled by
-    :class:`MovingWindow` from the cumulative sum it makes anyway (one pass per column)."""
-
-    def __init__(self, m: int, window: int) -> None:
-        self.m = m
-        self.h = max(1, window // 2)
-        size = max(0, m - 2 * self.h + 1)
-        self.squared = np.zeros(size)
-        self._after: NDArray[np.float64] | None = np.empty(size)  # scratch, reused for every column
-
-    def add(self, c: NDArray[np.float64], scratch: NDArray[np.float64] | None = None) -> None:
-        """Add one column's squared drift from ``c``, the cumulative sum of the centred column (``c[0] = 0``).
-
-        ``scratch`` is a free buffer of at least ``m − 2h + 1`` floats (else one is allocated).
-        """
-        m, h = self.m, self.h
-        if m < 2 * h + 1:
-            return
-        # samples i = h .. m − h: before = c[i] − c[i−h], after = c[i+h] − c[i]
-        centre = c[h:m - h + 1]
-        after = self._after if self._after is not None else np.empty(centre.size)
-        before = scratch[:centre.size] if scratch is not None else np.empty(centre.size)
-        np.subtract(c[2 * h:], centre, out=after)
-        np.subtract(centre, c[:m - 2 * h + 1], out=before)
-        np.subtract(after, before, out=after)
-        np.multiply(after, after, out=after)
-        self.squared += after
-
-    def result(self) -> NDArray[np.float64]:
-        """The drift at each sample (zero within half a window of the ends); the sums are used up."""
-        self._after = None
-        out = np.zeros(self.m)
-        if self.m >= 2 * self.h + 1:
-            drift = np.sqrt(self.squared, out=self.squared)
-            drift /= self.h
-            out[self.h:self.m - self.h + 1] = drift
-        self.squared = np.zeros(0)
-        return out
-
-
-class MovingWindow:
-    """Centred moving mean and variance (windows clipped at the ends) of columns of ``m`` samples, O(m) each.
-
-    Differences of one cumulative sum of the column centred near its data (:func:`centre_of`)
-    give the window sums; the same sum gives ``drift``'s half-window means when given, and the
-    cumulative sum of the squares the variance.  The buffers are allocated once and reused
-    for every column (a recording's statistics take seven columns): :meth:`column` returns
-    views of them, valid until its next call.
-    """
-
-    def __init__(self, m: int, window: int) -> None:
-        self.m, self.window = m, window
-        self._cumsum = np.empty(m + 1)
-        self._cumsum[0] = 0.0
-        self._mean = np.empty(m)
-        self._var = np.empty(m)
-
-    def column(
-        self, x: NDArray[np.float64], drift: HalfWindowDrift | None = None
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The moving mean and variance of one column ``x`` (m,): views of this object's buffers.
-
-        ``drift`` accumulates the column's half-window drift from the same cumulative sum.
-        """
-        window, c, mean, var = self.window, self._cumsum, self._mean, self._var
-        centre = centre_of(x)
-        xc = np.subtract(x, centre, out=var)  # the centred column, then its squares, then the variance
-        np.cumsum(xc, out=c[1:])
-        if drift is not None:  # before the window sums: the mean's buffer is its scratch
-            drift.add(c, scratch=mean)
-        interior, edge, count = _window_sums(c, window, mean)
-        np.multiply(xc, xc, out=xc)
-        np.cumsum(xc, out=c[1:])
-        _window_sums(c, window, var)  # the window sums of the squares overwrite the squares (read from c only)
-        for a in (mean, var):
-            a[interior] /= window
-            a[edge] /= count
-        square = np.multiply(mean, mean, out=c[1:])  # the cumulative sums are no longer needed
-        var -= square
-        np.clip(var, 0.0, None, out=var)
-        mean += centre
-        return mean, var
-
-    def scratch(self) -> NDArray[np.float64]:
-        """A free buffer of ``m`` floats (the cumulative sums'), overwritten by the next :meth:`column`."""
-        return self._cumsum[1:]
-
-
-def column_window_stats(
-    x: NDArray[np.float64], window: int, drift: HalfWindowDrift | None = None
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centred moving mean and variance of one column (windows clipped at the ends), O(n) (:class:`MovingWindow`)."""
-    return MovingWindow(x.shape[0], window).column(x, drift)
-
-
-def _window_sums(
-    c: NDArray[np.float64], window: int, out: NDArray[np.float64]
-) -> tuple[slice, NDArray[np.int64], NDArray[np.float64]]:
-    """Sums over the centred window at each sample from the cumulative sum ``c`` (``c[0] = 0``), into ``out``.
-
-    Returns the interior rows (full windows), the edge rows and their (clipped) window sizes.
-    """
-    m = out.size
-    h = window // 2
-    full = m - window + 1
-    if full > 0:
-        np.subtract(c[window:], c[:full], out=out[h:h + full])
-        interior = slice(h, h + full)
-        edge = np.concatenate([np.arange(0, h), np.arange(h + full, m)])
-    else:
-        interior = slice(0, 0)
-        edge = np.arange(m)
-    lo = np.clip(edge - h, 0, m)
-    hi = np.clip(edge - h + window, 0, m)
-    out[edge] = c[hi] - c[lo]
-    return interior, edge, (hi - lo).astype(float)
-
-
-def noise_floor(
-    stat: NDArray[np.float64], quantile: float, resolution: float, scratch: NDArray[np.float64] | None = None
-) -> float:
-    """Noise floor of a windowed statistic: its low quantile, at least the data's resolution.
-
-    ``scratch`` is a free buffer of the statistic's size to partition in (:func:`quantiles`)."""
-    return float(max(quantiles(stat, [quantile], scratch)[0], resolution))
-
-
-#: Steps per chunk of :func:`_abs_step_chunks` (temporaries of 2 MB, whatever the recording's length).
-STEP_CHUNK: int = 2**18
-
-
-def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
-    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps."""
-    for start in range(0, max(0, col.size - 1), STEP_CHUNK):
-        d = np.diff(col[start:start + STEP_CHUNK + 1])
-        yield np.abs(d, out=d)
-
-
-def _resolution(x: NDArray[np.float64]) -> float:
-    """Smallest standard deviation the data can resolve.
-
-    The quantisation noise ``q/√12`` of the smallest non-zero step, and at least the
-    rounding error of the moving variances from cumulative sums, ``√(ε n) · max|x − c|``
-    (``c`` the centre of those sums, :func:`centre_of`).  The steps are taken in chunks
-    (:func:`_abs_step_chunks`): no temporary of the data's length.
-    """
-    if x.size == 0:
-        return 0.0
-    columns = x.reshape(x.shape[0], -1)
-    smallest, spread = np.inf, 0.0
-    for j in range(columns.shape[1]):  # column by column: temporaries of one column
-        col = columns[:, j]
-        for d in _abs_step_chunks(col):
-            smallest = min(smallest, float(np.min(d, where=d > 0, initial=np.inf)))
-        # max |x − c| from the extremes: rounding x − c is monotonic in x, so this is exact
-        centre = centre_of(col)
-        spread = max(spread, float(col.max() - centre), float(centre - col.min()))
-    step = smallest / np.sqrt(12.0) if np.isfinite(smallest) else 0.0
-    return max(step, float(np.sqrt(np.finfo(float).eps * x.shape[0])) * spread)
-
-
-#: Steps on which :func:`quantum` checks that the steps are multiples of the smallest.
-QUANTUM_CHECK_STEPS: int = 100_000
-
-
-def quantum(x: NDArray[np.float64]) -> float | None:
-    """The converter step of quantised data, else ``None``.
-
-    Data are quantised when their steps are multiples of one step and their range spans at
-    most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
-    have a common step too, but span far more of them, or (a signal of small range) step by
-    exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
-    :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
-    them), column by column and chunk by chunk (:func:`_abs_step_chunks`): no temporary of the
-    data's length.
-    """
-    columns = x.reshape(x.shape[0], -1)
-    k = columns.shape[1]
-    stride = max(1, (columns.shape[0] - 1) * k // QUANTUM_CHECK_STEPS)
-    q, span, n_steps, sample = np.inf, 0.0, 0, []
-    for j in range(k):
-        col = columns[:, j]
-        column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
-        for d in _abs_step_chunks(col):
-            d = d[d > 0]
-            if d.size:
-                q = min(q, float(d.min()))
-                sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
-            column_steps += d.size
-        n_steps += column_steps
-        span = max(span, float(col.max() - col.min()))
-    if n_steps < 10:
-        return None
-    if span > (2**16 + 1) * q:
-        return None
-    if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
-        return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
-    ratio = np.concatenate(sample) / q
-    return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
-
-
-def _runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    edges = np.flatnonzero(np.diff(padded))
-    return edges[::2], edges[1::2]
-
-
 # ----------------------------------------------------------------------------- detection
 def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Segmentation:
     """Find the static intervals of a recording.
@@ -626,7 +325,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     for j in range(3):
         sd_axes += moving.column(acc[:, j], drift_sums)[1]
     np.sqrt(sd_axes, out=sd_axes)
-    res_acc = _resolution(acc)
+    res_acc = resolution(acc)
     floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc, moving.scratch())
     # At rest the three axes carry the noise of the norm about √3 times over; a much larger
     # axes floor means the quietest windows still rotate (the norm does not see rotation),
@@ -684,10 +383,10 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
 
     # split at time gaps: a step longer than max_gap_s ends a run
     max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
-    starts, stops = _runs(static)
+    starts, stops = true_runs(static)
     gap_after = np.flatnonzero(np.diff(t) > max_gap)
     if gap_after.size:
-        starts, stops = _split_runs(starts, stops, gap_after + 1)
+        starts, stops = split_runs(starts, stops, gap_after + 1)
 
     exclusions = dict(rec.exclusions)
     in_pose = np.zeros(m, dtype=bool)
@@ -710,11 +409,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[a2:b2] = True
         kept.append((a2, b2))
     groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
-    groups, n_sweeping, n_sweeping_samples = _reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
+    groups, n_sweeping, n_sweeping_samples = reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
     _add(exclusions, SWEEPING, n_sweeping_samples)
     _add(exclusions, SWEEPING_STRETCHES, n_sweeping)
     if resting_gyro_std is not None and gyro is not None:
-        groups, n_turning, n_turning_samples = _reject_turning(groups, gyro, resting_gyro_std, in_pose)
+        groups, n_turning, n_turning_samples = reject_turning(groups, gyro, resting_gyro_std, in_pose)
         _add(exclusions, TURNING, n_turning_samples)
         _add(exclusions, TURNING_STRETCHES, n_turning)
     elif never_rests:
@@ -724,7 +423,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         in_pose[:] = False
         groups = []
     for group in groups:
-        intervals.append(_interval(len(intervals) + 1, rec, use, _positions(group), gyro, s.sigma_blocks))
+        intervals.append(reduce_interval(len(intervals) + 1, rec, use, group_positions(group), gyro, s.sigma_blocks))
     _add(exclusions, MOVING, int(np.sum(~static)))
     _add(exclusions, SHORT, n_short_samples)
     _add(exclusions, SHORT_STRETCHES, n_short)
@@ -757,9 +456,10 @@ class GyroWindows:
     Attributes
     ----------
     floor : float
-        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise) (:func:`noise_floor`, at least the data's resolution).
+        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise)
+        (:func:`optcal.data.window_stats.noise_floor`, at least the data's resolution).
     quantum : float or None
-        The gyro's converter step (:func:`quantum`).
+        The gyro's converter step (:func:`optcal.data.window_stats.quantum`).
     means : list of ndarray or None
         Moving mean of each axis, kept when the bias was not known yet.
     squared_deviation : ndarray or None
@@ -807,7 +507,7 @@ def _gyro_windows(
         if bias is None:
             means.append(mean_j.copy())
     sd = np.sqrt(var_sum, out=var_sum)
-    floor = noise_floor(sd, floor_quantile, _resolution(gyro) * np.sqrt(3), moving.scratch())
+    floor = noise_floor(sd, floor_quantile, resolution(gyro) * np.sqrt(3), moving.scratch())
     del sd, var_sum
     dev2 = None
     if bias is not None:
@@ -875,195 +575,6 @@ def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.f
     return out
 
 
-def sweep(x: NDArray[np.float64], window: int) -> float:
-    """How far the mean of ``x`` (n, 3) moves across it: ‖max − min‖ over the axes of the means of
-    consecutive blocks of ``window`` samples (0 for fewer than two blocks).
-
-    A slow turn that keeps ‖a‖ (by hand about an axis near the vertical) moves the axes by less than
-    the noise within one window, so neither the moving standard deviation nor the half-window drift
-    sees it, but over a stretch of several windows its block means sweep far beyond the noise.
-    """
-    blocks = x.shape[0] // window
-    if blocks < 2:
-        return 0.0
-    means = np.add.reduce(x[: blocks * window].T.reshape(x.shape[1], blocks, window), axis=2) / window
-    return float(np.linalg.norm(means.max(axis=1) - means.min(axis=1)))
-
-
-def _reject_sweeping(
-    groups: list[list[tuple[int, int]]], acc: NDArray[np.float64], window: int, limit: float,
-    in_pose: NDArray[np.bool_],
-) -> tuple[list[list[tuple[int, int]]], int, int]:
-    """Drop the groups whose block means sweep by more than ``limit`` (the accelerometer gate, :func:`sweep`).
-
-    At rest the means of one-window blocks scatter by the noise of a mean, far below the gate
-    (≤ 0.72 of it over every static pose of the recordings in ../shared/data); ``in_pose`` is cleared
-    for the dropped samples; returns the kept groups, the number dropped and their samples.
-    """
-    kept: list[list[tuple[int, int]]] = []
-    n_dropped = n_samples = 0
-    for group in groups:
-        pos = _positions(group)
-        if sweep(acc[pos], window) <= limit:
-            kept.append(group)
-            continue
-        n_dropped += 1
-        n_samples += sum(b - a for a, b in group)
-        in_pose[pos] = False
-    return kept, n_dropped, n_samples
-
-
-def _reject_turning(
-    groups: list[list[tuple[int, int]]], gyro: NDArray[np.float64], limit: float, in_pose: NDArray[np.bool_]
-) -> tuple[list[list[tuple[int, int]]], int, int]:
-    """Drop the groups whose gyro standard deviation (norm over the axes) exceeds ``limit``.
-
-    Used when a recording's gyro noise floor is above a resting gyro's: its quiet stretches
-    are the slowest parts of a motion, not rests.  ``in_pose`` is cleared for the dropped
-    samples; returns the kept groups, the number dropped and their samples.
-    """
-    kept: list[list[tuple[int, int]]] = []
-    n_dropped = n_samples = 0
-    for group in groups:
-        pos = np.concatenate([np.arange(a, b) for a, b in group])
-        spread = float(np.sqrt(np.sum(np.var(gyro[pos], axis=0, ddof=1))))
-        if spread <= limit:
-            kept.append(group)
-            continue
-        n_dropped += 1
-        n_samples += int(pos.size)
-        in_pose[pos] = False
-    return kept, n_dropped, n_samples
-
-
-def join_interrupted(
-    ranges: list[tuple[int, int]],
-    t: NDArray[np.float64],
-    acc: NDArray[np.float64],
-    window_s: float,
-    tolerance: float,
-) -> list[list[tuple[int, int]]]:
-    """Group static stretches that are one pose interrupted by a twitch.
-
-    Consecutive stretches ``[a, b)`` separated by less than one window in time whose means
-    differ by less than ``tolerance`` (the accelerometer gate, raw units) are the same
-    orientation held by hand through a brief tremor: one pose, the samples between them
-    left out (and counted as moving).
-    """
-    groups: list[list[tuple[int, int]]] = []
-    last_mean: NDArray[np.float64] | None = None
-    for a, b in ranges:
-        mean = acc[a:b].mean(axis=0)
-        if (
-            groups
-            and last_mean is not None
-            and t[a] - t[groups[-1][-1][1] - 1] < window_s
-            and float(np.linalg.norm(mean - last_mean)) < tolerance
-        ):
-            groups[-1].append((a, b))
-            n = sum(y - x for x, y in groups[-1])
-            last_mean = np.sum([acc[x:y].sum(axis=0) for x, y in groups[-1]], axis=0) / n
-        else:
-            groups.append([(a, b)])
-            last_mean = mean
-    return groups
-
-
-def _split_runs(
-    starts: NDArray[np.int64], stops: NDArray[np.int64], breaks: NDArray[np.int64]
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Split runs ``[a, b)`` at the sample indices ``breaks`` (a new run starts there)."""
-    out_a, out_b = [], []
-    for a, b in zip(starts, stops):
-        inner = breaks[(breaks > a) & (breaks < b)]
-        edges = [a, *inner.tolist(), b]
-        out_a.extend(edges[:-1])
-        out_b.extend(edges[1:])
-    return np.asarray(out_a, dtype=int), np.asarray(out_b, dtype=int)
-
-
 def _add(d: dict[str, int], key: str, value: int) -> None:
     if value:
         d[key] = d.get(key, 0) + int(value)
-
-
-def sigma_of_mean(x: NDArray[np.float64], blocks: int, var: NDArray[np.float64] | None = None) -> float:
-    """Standard deviation of the mean of the samples ``x`` (n, 3), pooled over the axes.
-
-    White noise gives ``σ/√n``; sensor noise is not white (flicker, drift: the block means
-    of the IMU-TK Xsens rest scatter 1.2-3× more than ``σ/√n`` predicts), so the batch-means
-    estimate ``std(block means)/√blocks`` over ``blocks`` consecutive blocks is taken when it
-    is larger.  These ``σ_k`` feed the maximum-likelihood weights (Lu 2017, eq. 14).
-    ``var`` is the per-axis sample variance (ddof 1) of ``x`` when already computed.
-    """
-    # numpy's mean and var written as their reductions (bit for bit): hundreds of intervals per recording
-    n, k = x.shape
-    if var is None:
-        var = _mean_var(x)[1]
-    white = float(np.sqrt(np.add.reduce(var) / k) / np.sqrt(n)) if n > 1 else 0.0
-    if blocks < 2 or n < 4 * blocks:
-        return white
-    size = n // blocks
-    # (blocks, size) per axis as a view of the axis's samples (no transposing copy); the same sums
-    means = (np.add.reduce(x[: size * blocks].T.reshape(k, blocks, size), axis=2) / size).T
-    batch = float(np.sqrt(np.add.reduce(_mean_var(means)[1]) / k) / np.sqrt(blocks))
-    return max(white, batch)
-
-
-def _positions(group: list[tuple[int, int]]) -> slice | NDArray[np.int64]:
-    """The sample positions of a group of stretches ``[a, b)``: a slice for one stretch (no index array)."""
-    if len(group) == 1:
-        return slice(int(group[0][0]), int(group[0][1]))
-    return np.concatenate([np.arange(a, b) for a, b in group])
-
-
-def _rows(index: slice | NDArray[np.int64]) -> slice | NDArray[np.int64]:
-    """A slice (a view, no copy) for increasing indices without a gap, else the indices."""
-    if isinstance(index, slice):
-        return index
-    return slice(int(index[0]), int(index[-1]) + 1) if int(index[-1] - index[0]) + 1 == index.size else index
-
-
-def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Column means and sample variances (ddof 1) of ``x`` (n, k): ``x.mean(axis=0)`` and
-    ``x.var(axis=0, ddof=1)`` bit for bit (the same reductions, without numpy's per-call checks;
-    a recording has hundreds of intervals)."""
-    n = x.shape[0]
-    mean = np.add.reduce(x, axis=0) / n
-    dev = x - mean
-    np.square(dev, out=dev)
-    var = np.add.reduce(dev, axis=0) / max(n - 1, 0) if n > 1 else np.zeros(x.shape[1])
-    return mean, var
-
-
-def _interval(
-    number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64],
-    gyro: NDArray[np.float64] | None, sigma_blocks: int,
-) -> StaticInterval:
-    if use is None:  # every sample is usable: positions are the recording's samples
-        rows = _rows(pos)
-        first, last = (pos.start, pos.stop - 1) if isinstance(pos, slice) else (int(pos[0]), int(pos[-1]))
-    else:
-        idx = use[pos]
-        rows = _rows(idx)
-        first, last = int(idx[0]), int(idx[-1])
-    x = rec.acc[rows]
-    n = x.shape[0]
-    mean, var = _mean_var(x)
-    std = np.sqrt(var)
-    sigma = sigma_of_mean(x, sigma_blocks, var=var)
-    return StaticInterval(
-        number=number,
-        start=first,
-        stop=last + 1,
-        first_row=int(rec.row[first]),
-        last_row=int(rec.row[last]),
-        t_start=float(rec.t[first]),
-        t_end=float(rec.t[last]),
-        n_samples=int(n),
-        mean=mean,
-        std=std,
-        sigma=sigma,
-        gyro_mean=None if gyro is None else np.add.reduce(gyro[_rows(pos)], axis=0) / n,
-        temp_mean=None if rec.temp is None else float(np.add.reduce(rec.temp[rows]) / n),
-    )

@@ -15,9 +15,8 @@ from optcal.data.static import (
     SHORT_STRETCHES,
     TRIMMED,
     detect_static,
-    half_window_drift,
-    moving_mean_var,
 )
+from optcal.data.window_stats import half_window_drift, moving_mean_var
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.core.model import LumpedModel, lu2017_reference_model
 from optcal.families.simulate.poses import tilted_sweeps, uniform_directions
@@ -221,7 +220,7 @@ def test_raw_recording_in_counts_calibrates_within_three_standard_errors(tmp_pat
 
 def test_sigma_of_mean_sees_correlated_noise():
     """AR(1) noise (ρ = 0.95): the mean scatters √((1+ρ)/(1−ρ)) ≈ 6× more than σ/√n."""
-    from optcal.data.static import sigma_of_mean
+    from optcal.data.static_poses import sigma_of_mean
 
     rng = np.random.default_rng(3)
     rho, n, reps = 0.95, 2000, 200

@@ -1,7 +1,7 @@
 """The noise model as a candidate explanation: pose means that scatter more than ``σ/√n`` says.
 
 The per-pose σ of a raw recording is the standard deviation of an interval's mean (batch
-means, :func:`optcal.data.static.sigma_of_mean`).  When the sensor's noise is correlated at
+means, :func:`optcal.data.static_poses.sigma_of_mean`).  When the sensor's noise is correlated at
 the time scale of a pose (bias instability, flicker, a Gauss–Markov component with a
 correlation time of seconds), the mean of a dwell wanders more than its samples say, and the
 residuals of every model are larger than the simulation predicts.  The honest diagnosis is
