@@ -33,6 +33,7 @@ from optcal.data.recording import recording_from_source
 from optcal.data.static import detect_static
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.report.diagnosis_figures import save_figures
+from optcal.report.diagnosis_text import diagnosis_report
 from optcal.errors import InputError
 from optcal.core.extended_model import format_value
 
@@ -131,7 +132,7 @@ for title, key, loader in RECORDINGS:
         summary.append(f"| {title} | {poses.n} | refused: {str(exc).split(':')[0]} | | | | | | |")
         continue
     results[key] = diag
-    sections += ["", "```", diag.report(), "```", ""]
+    sections += ["", "```", diagnosis_report(diag), "```", ""]
     paths = save_figures(diag, str(FIG / f"diagnose_{key}"))
     for path in paths:
         show(Path(path))

@@ -38,7 +38,7 @@ from optcal.core.stats import rms
 from optcal.families.simulate.gyro import reference_gyro, simulate_imu
 from optcal.data.units import GyroUnitsDecision
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import jsonable
 
 from study_mode import RESULTS as OUT  # noqa: E402
 from study_mode import STUDIES, size  # noqa: E402

@@ -242,7 +242,7 @@ example_text = (
     f"Example (120 poses on a 30° cap, 20 mg, one draw): {svd_example}.  convex: an ellipsoid with the "
     f"semidefinite constraint {'active' if convex_example.extra['psd_constraint_active'] else 'inactive'} "
     f"(smallest eigenvalue of the normalised A {convex_example.extra['min_eigenvalue_normalised_A']:.3g}); "
-    f"identifiability report: {convex_example.identifiability['description']}."
+    f"identifiability report: {convex_example.identifiability.describe()}."
 )
 
 # %% [markdown]

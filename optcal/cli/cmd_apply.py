@@ -32,10 +32,10 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     validity range of an extended calibration), excluded (duplicated, repeated timestamp or
     saturated sample of a recording) or non_finite.  No row is dropped.
     """
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
     from optcal.families.caltypes.apply import apply_to_file, write_table
 
-    cal = caltypes.load(calibration)
+    cal = calibration_files.load(calibration)
     applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
                             rate=rate, kind=data_format)
     from optcal.cli.outputs import output_file

@@ -79,8 +79,10 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         summary["data"] = data_summary(data, poses)
         echo_json(summary)
         return
+    from optcal.report.calibration_text import calibration_report
+
     click.echo(data_line(data, poses))
-    click.echo(result.report())
+    click.echo(calibration_report(result))
     if output:
         click.echo(f"saved to {output}")
 
@@ -127,7 +129,9 @@ def calibrate_imu(
         out["data"] = data_summary(data, loaded.poses)
         echo_json(out)
         return
+    from optcal.report.imu_text import imu_report
+
     click.echo(data_line(data, loaded.poses))
-    click.echo(cal.report())
+    click.echo(imu_report(cal))
     if output:
         click.echo(f"saved to {output}")

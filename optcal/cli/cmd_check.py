@@ -26,10 +26,10 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
     ``optcal segment``).  "Before" is the nominal conversion to g (exact unit factors for g
     and m/s²; for counts, mid-scale offset if unsigned and one sensitivity from the median norm).
     """
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
     from optcal.applications.quality.validation import check_calibration
 
-    cal = caltypes.load(calibration)
+    cal = calibration_files.load(calibration)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     poses = load_data(data, **data_opts)
     result = check_calibration(cal, poses)

@@ -87,9 +87,10 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     are reported.
     """
     from optcal.cli.data_options import data_line, data_summary, load_data_detailed
-    from optcal.families.caltypes import load as load_calibration
+    from optcal.families.calibration_files import load as load_calibration
     from optcal.applications.diagnosis import Diagnoser
     from optcal.report.diagnosis_figures import save_figures
+    from optcal.report.diagnosis_text import diagnosis_report
 
     from optcal.cli.outputs import echo_json, output_file, plot_folder
 
@@ -126,7 +127,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
         echo_json(out)
         return
-    click.echo(diag.report())
+    click.echo(diagnosis_report(diag))
     for path in paths:
         click.echo(f"figure: {path}")
     if calibration is not None:

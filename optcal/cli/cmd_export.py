@@ -44,13 +44,13 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     output, so a calibration in counts needs --counts-per-g (and --counts-zero when the driver
     subtracts a zero reading that optcal cannot see in the poses).
     """
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
     from optcal.cli.messages import cli_message
     from optcal.families.caltypes.apply import convert_samples
     from optcal.applications.export import export as run_export, read_allan
     from optcal.applications.export.base import ExportOptions
 
-    cal = caltypes.load(calibration)
+    cal = calibration_files.load(calibration)
     fit_poses = None
     if poses is not None:
         from optcal.families.caltypes import FitPoses

@@ -12,7 +12,6 @@ be written (an existing folder given as a file, a file given as a folder) is one
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -32,11 +31,11 @@ def echo_json(obj: dict[str, Any]) -> None:
     ----------
     obj : dict
         The command's result; NumPy arrays and scalars are converted and a number that is not
-        finite becomes ``null`` (:func:`optcal.families.caltypes.base.jsonable`).
+        finite becomes ``null`` (:func:`optcal.core.jsonio.json_text`).
     """
-    from optcal.families.caltypes.base import jsonable
+    from optcal.core.jsonio import json_text
 
-    click.echo(json.dumps(jsonable(obj), allow_nan=False))
+    click.echo(json_text(obj))
 
 
 def plot_option(what: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

@@ -10,6 +10,13 @@ pose, only the component of the noise along the ellipsoid normal ``Tᵀ ā_k``::
 which is the Gauss–Newton matrix of the norm-residual cost (Lu 2017, eq. 14) with the noise
 propagated to the norm.  ``F⁻¹`` is the Cramér–Rao bound of θ; a rank-deficient ``F`` means
 that some combination of the parameters is not determined by the pose set.
+
+:func:`rank_report` is the one rank test of an information matrix (correlation form, unexcited
+parameters set apart) for both sensors: the accelerometer's Fisher information here
+(:func:`analyse`) and the gyroscope's Gauss–Newton matrix
+(:func:`optcal.families.gyro.identifiability.fisher_rank`).  Its :class:`RankReport` is the typed
+identifiability record of every fit result (:class:`optcal.core.fit_result.FitRecord`);
+:class:`IdentifiabilityReport` adds the accelerometer's named combinations.
 """
 
 from __future__ import annotations
@@ -20,9 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.core.model import LumpedModel
+from optcal.core.model import TRIL_INDEX, LumpedModel
 from optcal.core.norm_residual import NormResidualKernel
-from optcal.core.fit_result import A_INDEX, dA_dtheta
 
 #: Relative eigenvalue of the scaled Fisher matrix below which a direction counts as unidentified.
 RANK_TOL: float = 1e-9
@@ -37,6 +43,28 @@ UNEXCITED_TOL: float = 1e-13
 #: (the fitted directions leave the degenerate set by the noise), but the standard error
 #: along the missing direction stays of order one whatever the noise level.
 WEAK_STDERR: float = 0.05
+#: The six unique entries of the symmetric ``A = TᵀT`` (Lu 2017, eq. 19): upper triangle, row-major.
+A_INDEX: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def dA_dT_entry(T: NDArray[np.float64], i: int, j: int) -> NDArray[np.float64]:
+    """Change of the unique entries of ``A = TᵀT`` (:data:`A_INDEX` order) per unit change of ``T[i, j]``.
+
+    ``dA = EᵀT + TᵀE`` with ``E`` the unit matrix of entry ``(i, j)``; shape (6,).
+    """
+    E = np.zeros((3, 3))
+    E[i, j] = 1.0
+    dA = E.T @ T + T.T @ E
+    return np.array([dA[a, b] for a, b in A_INDEX])
+
+
+def dA_dtheta(T: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Jacobian of the 6 unique entries of ``A = TᵀT`` w.r.t. the 6 entries of lower-triangular T.
+
+    Rows follow :data:`A_INDEX` (upper triangle of A, row-major); columns follow
+    :data:`optcal.core.model.TRIL_INDEX`.
+    """
+    return np.column_stack([dA_dT_entry(T, i, j) for i, j in TRIL_INDEX])
 
 
 def fisher_information(
@@ -81,16 +109,57 @@ def cramer_rao_bound(model: LumpedModel, directions: ArrayLike, sigma: float | A
 
 
 @dataclass
-class IdentifiabilityReport:
-    """Rank and conditioning of the Fisher information of a pose set.
+class RankReport:
+    """Rank and conditioning of an information matrix (:func:`rank_report`).
 
     Attributes
     ----------
     rank : int
-        Numerical rank of the scaled Fisher matrix (out of ``n_params``).
+        Numerical rank of the correlation-form matrix (out of ``n_params``).
     n_params : int
     condition_number : float
-        Ratio of the extreme eigenvalues of the scaled (correlation-form) Fisher matrix.
+        Ratio of the extreme eigenvalues of the correlation-form matrix (``inf`` when singular).
+    eigenvalues : list of float
+        Its eigenvalues, ascending, relative to the largest (not written to files).
+    """
+
+    rank: int
+    n_params: int
+    condition_number: float
+    eigenvalues: list[float] = field(default_factory=list)
+
+    @property
+    def identifiable(self) -> bool:
+        """Whether the matrix determines every parameter."""
+        return self.rank == self.n_params
+
+    def describe(self) -> str:
+        """One sentence: the rank and the condition number."""
+        return f"rank {self.rank} of {self.n_params} parameters (condition number {self.condition_number:.3g})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready record: rank, number of parameters, condition number."""
+        return {"rank": self.rank, "n_params": self.n_params, "condition_number": self.condition_number}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RankReport":
+        """Rebuild from :meth:`to_dict` (a condition number written as ``null`` was not finite: ``inf``)."""
+        return cls(int(d["rank"]), int(d["n_params"]), _condition_number(d.get("condition_number")))
+
+
+def _condition_number(value: Any) -> float:
+    """A condition number read from JSON, where a non-finite one was written as ``null``."""
+    return float("inf") if value is None else float(value)
+
+
+@dataclass
+class IdentifiabilityReport(RankReport):
+    """Rank and conditioning of the Fisher information of a pose set, with what it does not determine.
+
+    Attributes
+    ----------
+    rank, n_params, condition_number, eigenvalues
+        See :class:`RankReport` (of the scaled Fisher matrix).
     unidentified : list of dict
         One entry per null direction: ``entry`` (the entry of A or o it moves),
         ``combination`` (change of each entry of A and o), ``text`` (readable).
@@ -99,18 +168,16 @@ class IdentifiabilityReport:
         :data:`WEAK_STDERR`): as ``unidentified``, plus ``stderr`` (fraction of full scale).
     """
 
-    rank: int
-    n_params: int
-    condition_number: float
-    eigenvalues: list[float] = field(default_factory=list)
     unidentified: list[dict[str, Any]] = field(default_factory=list)
     weak: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def identifiable(self) -> bool:
+        """Full rank and no weakly determined combination."""
         return self.rank == self.n_params and not self.weak
 
     def describe(self) -> str:
+        """One sentence: what the pose set determines, and what it does not."""
         if self.identifiable:
             return (
                 f"all {self.n_params} parameters identifiable (Fisher condition number "
@@ -130,6 +197,7 @@ class IdentifiabilityReport:
         )
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready record (the eigenvalues are left out)."""
         return {
             "rank": self.rank,
             "n_params": self.n_params,
@@ -139,6 +207,87 @@ class IdentifiabilityReport:
             "weak": self.weak,
             "description": self.describe(),
         }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "IdentifiabilityReport":
+        """Rebuild from :meth:`to_dict` (``identifiable`` and ``description`` follow from the rest)."""
+        return cls(
+            rank=int(d["rank"]),
+            n_params=int(d["n_params"]),
+            condition_number=_condition_number(d.get("condition_number")),
+            unidentified=[dict(u) for u in d.get("unidentified") or []],
+            weak=[dict(u) for u in d.get("weak") or []],
+        )
+
+
+@dataclass(frozen=True)
+class NullSpace:
+    """The parameter directions an information matrix does not determine (:func:`rank_report`).
+
+    Attributes
+    ----------
+    unexcited : ndarray of bool, shape (p,)
+        Parameters no observation carries information on (:func:`scaled_information`):
+        undetermined each on its own.
+    combinations : ndarray, shape (p, k)
+        The null combinations of the other parameters, in correlation-form coordinates
+        (unit vectors of the scaled matrix; zero on the unexcited parameters).
+    scale : ndarray, shape (p,)
+        ``sqrt(diag F)`` (1 for the unexcited parameters), the correlation form's scale.
+    """
+
+    unexcited: NDArray[np.bool_]
+    combinations: NDArray[np.float64]
+    scale: NDArray[np.float64]
+
+    @property
+    def combinations_in_parameter_units(self) -> NDArray[np.float64]:
+        """:attr:`combinations` as changes of the parameters themselves, shape (p, k)."""
+        return self.combinations / self.scale[:, None]
+
+
+def rank_report(information: NDArray, full_scale: ArrayLike | None = None,
+                tol: float = RANK_TOL) -> tuple[RankReport, NullSpace]:
+    """Rank, conditioning and null space of an information matrix, independent of the parameters' units.
+
+    The matrix is scaled to correlation form (unit diagonal, :func:`scaled_information`), so
+    that rank and condition number do not depend on units; a parameter that no observation
+    excites is set apart (named alone), and the null combinations are those of the other
+    parameters.
+
+    Parameters
+    ----------
+    information : ndarray, shape (p, p)
+        Fisher information or Gauss–Newton matrix ``JᵀJ`` of the parameters.
+    full_scale : array_like, shape (p,), optional
+        Each parameter's full scale (:func:`parameter_full_scale`), the yardstick of "no
+        information"; default 1 for every parameter.
+    tol : float
+        Relative eigenvalue below which a direction counts as not determined.
+
+    Returns
+    -------
+    report : RankReport
+    null_space : NullSpace
+        Empty (``k = 0``, nothing unexcited) at full rank.
+    """
+    F = np.asarray(information, dtype=float)
+    p = F.shape[0]
+    scale_of = np.ones(p) if full_scale is None else np.asarray(full_scale, dtype=float)
+    S, d, unexcited = scaled_information(F, scale_of)
+    evals = np.linalg.eigvalsh(S)
+    rank = int(numerical_rank(evals, tol))
+    top = max(evals[-1], 1e-300)
+    combinations = np.zeros((p, 0))
+    if rank < p:
+        excited = np.flatnonzero(~unexcited)
+        sub_evals, sub_evecs = np.linalg.eigh(S[np.ix_(excited, excited)])
+        null = sub_evals < tol * top  # the combinations of the excited parameters (same test as the rank)
+        combinations = np.zeros((p, int(np.sum(null))))
+        combinations[excited] = sub_evecs[:, null]
+    cond = float(top / evals[0]) if evals[0] > 0 else float("inf")
+    report = RankReport(rank=rank, n_params=p, condition_number=cond, eigenvalues=[float(e / top) for e in evals])
+    return report, NullSpace(unexcited, combinations, d)
 
 
 def _describe_null_space(vectors: NDArray, T: NDArray, alone: NDArray | None = None) -> list[dict[str, Any]]:
@@ -251,33 +400,24 @@ def analyse(
 ) -> IdentifiabilityReport:
     """Identifiability of θ at (T, o) for measurements ``acc``.
 
-    The Fisher matrix is scaled to correlation form (unit diagonal) so that rank and
-    condition number do not depend on units (:func:`scaled_information`); a parameter no pose
-    excites is named alone, and the null combinations are those of the other parameters.  ``jacobian``: see :func:`fisher_information`;
+    The rank test is :func:`rank_report`: the Fisher matrix in correlation form (unit diagonal),
+    so that rank and condition number do not depend on units; a parameter no pose excites is
+    named alone, and the null combinations are those of the other parameters.  ``jacobian``: see :func:`fisher_information`;
     ``information``: :func:`fisher_information` itself, when the caller already has it (then
     ``acc``, ``sigma`` and ``jacobian`` are not read).
     """
     F = fisher_information(T, o, acc, sigma, jacobian) if information is None else information
     theta_diag = np.diag(np.asarray(T, dtype=float))
     full_scale = parameter_full_scale(np.array([theta_diag[0], 0, theta_diag[1], 0, 0, theta_diag[2], 0, 0, 0]))
-    S, d, unexcited = scaled_information(F, full_scale)
-    evals = np.linalg.eigvalsh(S)
-    rank = int(numerical_rank(evals, tol))
-    top = max(evals[-1], 1e-300)
+    ranks, null = rank_report(F, full_scale, tol)
     unid: list[dict[str, Any]] = []
-    if rank < len(evals):
-        excited = np.flatnonzero(~unexcited)
-        sub_evals, sub_evecs = np.linalg.eigh(S[np.ix_(excited, excited)])
-        null = sub_evals < tol * top  # the combinations of the excited parameters (same test as the rank)
-        vectors = np.zeros((len(evals), int(np.sum(null))))
-        vectors[excited] = sub_evecs[:, null] / d[excited, None]
-        unid = _describe_null_space(vectors, T, unexcited)
-    cond = float(top / evals[0]) if evals[0] > 0 else float("inf")
+    if ranks.rank < ranks.n_params:
+        unid = _describe_null_space(null.combinations_in_parameter_units, T, null.unexcited)
     return IdentifiabilityReport(
-        rank=rank,
-        n_params=len(evals),
-        condition_number=cond,
-        eigenvalues=[float(e / top) for e in evals],
+        rank=ranks.rank,
+        n_params=ranks.n_params,
+        condition_number=ranks.condition_number,
+        eigenvalues=ranks.eigenvalues,
         unidentified=unid,
     )
 
@@ -323,13 +463,19 @@ def analyse_design(model: LumpedModel, directions: ArrayLike, tol: float = RANK_
 
 
 __all__ = [
+    "A_INDEX",
     "IdentifiabilityReport",
+    "NullSpace",
+    "RankReport",
     "analyse",
     "analyse_design",
     "cramer_rao_bound",
+    "dA_dT_entry",
+    "dA_dtheta",
     "fisher_information",
     "numerical_rank",
     "parameter_full_scale",
     "pseudo_inverse",
+    "rank_report",
     "scaled_information",
 ]

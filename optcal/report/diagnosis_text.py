@@ -1,18 +1,18 @@
-"""The text report of a diagnosis, in plain words."""
+"""The text report of a diagnosis, in plain words (``optcal diagnose`` without ``--json``).
+
+:func:`diagnosis_report` is a function of the :class:`~optcal.applications.diagnosis.result.Diagnosis`:
+the presentation lives here, above the diagnosis, which holds the numbers.
+"""
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
+from optcal.applications.diagnosis.result import Diagnosis
+from optcal.applications.diagnosis.sessions import SessionOffsets
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import format_value
-
-if TYPE_CHECKING:
-    from optcal.applications.diagnosis.result import Diagnosis
-    from optcal.applications.diagnosis.sessions import SessionOffsets
 
 MG = 1e3
 
@@ -70,7 +70,7 @@ def random_walk_lines(check: NoiseModelCheck) -> list[str]:
     return [f"      {check.random_walk.text()}"]
 
 
-def noise_model_lines(diag: "Diagnosis") -> list[str]:
+def noise_model_lines(diag: Diagnosis) -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
     if check is None:
@@ -101,7 +101,7 @@ def noise_model_lines(diag: "Diagnosis") -> list[str]:
     return lines + correlation_lines(check) + measured_noise_lines(check) + random_walk_lines(check)
 
 
-def session_lines(sessions: "SessionOffsets") -> list[str]:
+def session_lines(sessions: SessionOffsets) -> list[str]:
     """Per axis: the turn-on repeatability and every session's bias offset from their mean."""
     lines = []
     for ax in sessions.axes:
@@ -113,7 +113,7 @@ def session_lines(sessions: "SessionOffsets") -> list[str]:
     return lines
 
 
-def diagnosis_report(diag: "Diagnosis") -> str:
+def diagnosis_report(diag: Diagnosis) -> str:
     """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
     settings = diag.settings
     lines = [

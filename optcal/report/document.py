@@ -28,7 +28,9 @@ from optcal.report.figures import (
 from optcal.report.parameters import EngineeringParameters, Quantity, engineering_parameters, result_parameters
 from optcal.report.segmentation_figure import segmentation_figure
 from optcal.applications.quality.verdict import DEFAULT_TOLERANCE_MG, Verdict, judge, judge_check, judge_segmentation
-from optcal.core.fit_result import CalibrationResult
+from optcal.families.accel.result import CalibrationResult
+from optcal.report.calibration_text import calibration_report
+from optcal.report.diagnosis_text import diagnosis_report
 
 #: Packages whose versions every report states.
 VERSIONED_PACKAGES: tuple[str, ...] = ("optcal", "numpy", "scipy", "casadi", "cvxpy", "clarabel", "pandas", "matplotlib", "jinja2")
@@ -263,7 +265,7 @@ def calibration_document(
     ev = gather(result, poses, method, settings)
     verdict = judge(ev, tolerance_mg)
     sections = [result_parameters_section(result, poses), *_evidence_sections(ev, poses), data_section(data_path, poses),
-                Section("Text report", preformatted=result.report())]
+                Section("Text report", preformatted=calibration_report(result))]
     return ReportDocument(f"Calibration of {data_path}", data_path, verdict, sections, command, versions(), now_utc())
 
 
@@ -297,7 +299,7 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
     )
     sections = [diagnosis, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
                 data_section(data_path, poses),
-                Section("Text report", preformatted=diag.report())]
+                Section("Text report", preformatted=diagnosis_report(diag))]
     return ReportDocument(f"Diagnosis of {data_path}", data_path, verdict, sections, command, versions(), now_utc())
 
 

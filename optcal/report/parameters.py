@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.core.model import AXES, PARAM_NAMES, STANDARD_GRAVITY, LumpedModel
-from optcal.core.fit_result import CalibrationResult
+from optcal.families.accel.result import CalibrationResult
 
 #: Two-sided 95 % normal quantile: the half-width of a 95 % confidence interval in standard errors.
 Z95: float = 1.959963984540054

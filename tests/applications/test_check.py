@@ -85,7 +85,8 @@ def test_check_bad_inputs(files, tmp_path, capsys):
 
 
 def test_check_calibration_counts_nominal_baseline():
-    from optcal.core.fit_result import CalibrationResult, SolverInfo
+    from optcal.core.fit_result import SolverInfo, chi_square
+    from optcal.families.accel.result import CalibrationResult
 
     model = LumpedModel.from_physical([4065.0, 4047.0, 4063.0], 0.0, 0.0, 0.0, [33122.0, 33278.0, 32371.0])
     d = uniform_directions(20, rng=0)
@@ -93,8 +94,10 @@ def test_check_calibration_counts_nominal_baseline():
 
     poses = simulate_poses(model, d, 0.5, rng=1, units="counts")
     T, o = model.T_canonical, model.o
-    cal = CalibrationResult("test", T, o, "counts", np.zeros(9), [], None, norm_residuals(T, o, poses.acc),
-                            np.ones(poses.n), True, SolverInfo("none", "ok", True, 0, 0.0))
+    residuals = norm_residuals(T, o, poses.acc)
+    cal = CalibrationResult(method="test", T=T, o=o, units="counts", params=np.zeros(9), param_names=[], covariance=None,
+                            residuals=residuals, weights=np.ones(poses.n), chisqr=chi_square(residuals, np.ones(poses.n)),
+                            n_observations=poses.n, sigma_known=True, solver=SolverInfo("none", "ok", True, 0, 0.0))
     check = check_calibration(cal, poses)
     assert "offset 32768" in check.nominal.description
     assert check.rms_after < 1e-3 < check.rms_before

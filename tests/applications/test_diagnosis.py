@@ -25,8 +25,9 @@ from optcal.families.simulate.effects import recording_with_effect, simulate_ext
 from optcal.errors import InputError
 from optcal.core.model import lu2017_reference_model
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import jsonable
 from optcal.families.simulate.poses import uniform_directions
+from optcal.report.diagnosis_text import diagnosis_report
 
 SIMULATIONS = 30
 
@@ -194,13 +195,13 @@ def test_small_sessions_test_one_candidate_at_a_time_and_state_detection_limits(
     assert {(lim.effect, lim.axis) for lim in diag.detection_limits} == {
         (e, a) for e in ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity") for a in "xyz"}
     lim = next(x for x in diag.detection_limits if x.effect == "temperature_bias" and x.axis == "z")
-    assert 0 < lim.limit < 1e-3 and "detection limits" in diag.report()
+    assert 0 < lim.limit < 1e-3 and "detection limits" in diagnosis_report(diag)
     # and the smallest outlier pose it could name: the t quantile of a Bonferroni test over 25 poses
     # at 15 degrees of freedom (≈ 5) times the pose noise and its leverage factor
     pose = diag.outlier_limit
     assert pose is not None and pose.poses == 25 and pose.smallest_g <= pose.median_g <= pose.largest_g
     assert 4.5 * np.sqrt(diag.final.rss / 16) < pose.smallest_g and pose.largest_g < 30 * np.sqrt(diag.final.rss / 16)
-    assert "smallest outlier pose the outlier test" in diag.report()
+    assert "smallest outlier pose the outlier test" in diagnosis_report(diag)
     # 11 poses are below the baseline's own minimum (9 parameters + 3 degrees of freedom)
     with pytest.raises(InputError, match=r"11 poses are too few for a diagnosis: at least 12"):
         diagnose(clean_table(11), simulations=0)
@@ -234,7 +235,7 @@ def test_monotone_warmup_decides_on_the_evidence_and_says_why() -> None:
     assert decision.delta_bic_chosen < decision.delta_bic_other < 0
     assert decision.p_other_given_chosen > 0.05
     assert "explains it better" in decision.text and "adds nothing significant" in decision.text
-    assert decision.text in diag.report()
+    assert decision.text in diagnosis_report(diag)
 
 
 def test_higher_polynomial_order_where_the_data_support_it() -> None:
@@ -251,7 +252,7 @@ def test_higher_polynomial_order_where_the_data_support_it() -> None:
     assert finding.effect == "temperature_bias" and finding.order == {"z": 2}
     c1, c2 = finding.coefficients["z"]
     assert c1 == pytest.approx(0.5e-3, rel=0.1) and c2 == pytest.approx(0.04e-3, rel=0.3)
-    assert "polynomial order 2" in diag.report()
+    assert "polynomial order 2" in diagnosis_report(diag)
 
 
 def test_typed_result_round_trips_through_json_and_figures_leave_the_backend_alone(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from optcal.data import load_with_segmentation
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose
 from optcal.applications.diagnosis.correlation import CorrelationOperator, estimate_correlation, restricted_deviance
 from optcal.families.simulate.effects import recording_with_effect
+from optcal.report.diagnosis_text import diagnosis_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from helpers.diagnosis_cases import make_case  # noqa: E402
@@ -100,7 +101,7 @@ def test_gauss_markov_recording_is_diagnosed_under_its_correlation_and_stays_cle
     corr = diag.noise_model.correlation
     assert diag.findings == []
     assert corr.used and 0 < corr.neighbour_rho < 1 and corr.tau_s > 0
-    assert "the pose noise is correlated in time" in diag.report() and "not a physical effect" in diag.report()
+    assert "the pose noise is correlated in time" in diagnosis_report(diag) and "not a physical effect" in diagnosis_report(diag)
     saved = json.loads(json.dumps(diag.to_dict()))["noise_model"]["correlation"]
     assert saved["used"] is True and saved["neighbour_rho"] == pytest.approx(corr.neighbour_rho)
 

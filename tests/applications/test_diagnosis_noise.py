@@ -14,6 +14,7 @@ import pytest
 from optcal.data import load
 from optcal.applications.diagnosis import diagnose
 from optcal.families.simulate.effects import recording_with_effect
+from optcal.report.diagnosis_text import diagnosis_report
 
 
 def poses_of(tmp_path: Path, effect: str | None, gauss_markov_g: float, seed: int):
@@ -31,7 +32,7 @@ def test_correlated_noise_is_named_and_the_extension_calibrates_chi2_and_standar
     assert check.named and check.reduced_chi2 > 3 and check.understated_by > 1.5
     assert 0.7 <= check.reduced_chi2_after <= 1.5
     assert abs(check.coverage_extended - 0.95) <= 0.05 < 0.95 - check.coverage_given_sigma
-    report = diag.report()
+    report = diagnosis_report(diag)
     assert "the simulation's noise model is wrong" in report and "no physical effect" in report
     assert diag.to_dict()["noise_model"]["named"] is True
 

@@ -10,12 +10,13 @@ import pandas as pd
 import pytest
 from helpers.diagnosis_cases import make_case, write_pose_table
 
-import optcal.families.caltypes
+import optcal.families.calibration_files
 from optcal.cli.main import main
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.applications.diagnosis.sessions import stack_sessions
 from optcal.errors import InputError
 from optcal.core.model import AXES, lu2017_reference_model
+from optcal.report.diagnosis_text import diagnosis_report
 
 SETTINGS = DiagnosisSettings(simulations=10)
 #: No simulation check where only the selection matters.
@@ -58,7 +59,7 @@ def test_a_planted_turn_on_shift_is_named_with_its_axis_and_size(seed: int, axis
     assert shift_raw == pytest.approx(0.5 * difference * fitted_sensitivity, rel=1e-9)
     assert fitted_sensitivity == pytest.approx(sensitivity[axis], rel=1e-3)
     assert "mean of 2 sessions" in cal.describe() and "repeatability" in cal.describe()
-    assert "turn-on repeatability" in diag.report() and "cannot be applied to a future session" in diag.report()
+    assert "turn-on repeatability" in diagnosis_report(diag) and "cannot be applied to a future session" in diagnosis_report(diag)
 
 
 def test_sessions_without_a_shift_name_no_session_bias() -> None:
@@ -80,14 +81,14 @@ def test_the_saved_repeatability_round_trips_as_a_minor_format_version(tmp_path:
     cal.save(path)
     data = json.loads(path.read_text())
     assert data["format_version"] == "2.1" and data["bias_repeatability"]["sessions"] == 2
-    back = optcal.families.caltypes.load(path)
+    back = optcal.families.calibration_files.load(path)
     assert back.bias_repeatability == cal.bias_repeatability
     np.testing.assert_allclose(back.o, cal.o, rtol=0, atol=1e-12)
     # a 2.0 file (no repeatability) still loads
     data.pop("bias_repeatability")
     data["format_version"] = "2.0"
     path.write_text(json.dumps(data))
-    assert optcal.families.caltypes.load(path).bias_repeatability is None
+    assert optcal.families.calibration_files.load(path).bias_repeatability is None
 
 
 def test_each_session_keeps_its_own_time_origin_and_bad_stacks_are_refused() -> None:
@@ -170,5 +171,5 @@ def test_an_outlier_in_the_second_session_is_named_with_its_session(tmp_path: Pa
     out = diag.to_dict()
     row = next(f for f in out["findings"] if f["effect"] == "outliers")
     assert row["row_sessions"][at] == "second.csv"
-    assert f"{int(sessions[1].rows[k])} of second.csv" in diag.report()
+    assert f"{int(sessions[1].rows[k])} of second.csv" in diagnosis_report(diag)
     assert outlier_names(diag.poses, found)[at].endswith("of second.csv")

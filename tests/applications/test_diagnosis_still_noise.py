@@ -12,6 +12,7 @@ from optcal.data import load_with_segmentation
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.applications.diagnosis.still_noise import mean_noise_at, pose_noise_from_still_parts
 from optcal.families.simulate.effects import recording_with_effect
+from optcal.report.diagnosis_text import diagnosis_report
 
 SETTINGS = DiagnosisSettings(simulations=10)
 #: No simulation check where only the selection and the noise test matter.
@@ -47,7 +48,7 @@ def test_correlated_noise_is_measured_and_named_never_as_a_physical_effect(tmp_p
     assert check.measured_understated_by > 1.8
     assert 0.7 <= check.reduced_chi2_measured <= 1.5
     assert check.coverage_measured is not None and check.coverage_measured > check.coverage_given_sigma
-    text = diag.report()
+    text = diagnosis_report(diag)
     assert "measured route" in text and "residual-estimated" in text
     assert diag.to_dict()["noise_model"]["measured_understated_by"] == pytest.approx(check.measured_understated_by)
 

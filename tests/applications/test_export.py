@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 import yaml
 
-import optcal.families.caltypes as caltypes
+import optcal.families.calibration_files as calibration_files
 from helpers.cli_run import run
 from optcal.families.caltypes import ExtendedCalibration, FitPoses, LumpedCalibration, SixPositionCalibration
 from optcal.cli.main import main
@@ -398,4 +398,4 @@ def test_c_header_compiles_and_reproduces_optcal_apply(name, tmp_path, capsys):
     run_vector = subprocess.run([str(tmp_path / "apply")], input=" ".join(map(repr, raw + temp_t)), capture_output=True,
                                 text=True, check=True).stdout.split()
     np.testing.assert_allclose([float(v) for v in run_vector], expected, rtol=0, atol=1e-12)
-    assert caltypes.load(tmp_path / f"{name}.json") == cal
+    assert calibration_files.load(tmp_path / f"{name}.json") == cal

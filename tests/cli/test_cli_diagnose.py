@@ -117,7 +117,7 @@ def test_diagnose_saves_the_extended_model_and_it_corrects_better_than_lumped(tm
     The extended calibration halves (at least) the rms |a| − 1 of the lumped calibration applied the
     same way, and reproduces the diagnosis's own final rms within 10 %.
     """
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
     from optcal.data import load
     from optcal.families.simulate.effects import recording_with_effect
 
@@ -131,7 +131,7 @@ def test_diagnose_saves_the_extended_model_and_it_corrects_better_than_lumped(tm
     assert [f["effect"] for f in obj["findings"]] == ["temperature_bias"] and obj["findings"][0]["axes"] == [truth.axis]
     assert obj["saved"]["cal_type"] == "extended"
     poses = load(rec)
-    extended, lumped = caltypes.load(tmp_path / "ext.json"), caltypes.load(tmp_path / "lumped.json")
+    extended, lumped = calibration_files.load(tmp_path / "ext.json"), calibration_files.load(tmp_path / "lumped.json")
     assert extended.cal_type == "extended" and extended.validity.to_dict()["temp"] is not None
 
     def rms_error(cal) -> float:
@@ -179,6 +179,6 @@ def test_nothing_found_saves_the_lumped_baseline(tmp_path: Path, capsys: pytest.
     path = write_table(make_case(None, 28), tmp_path / "poses.csv")
     assert main(["diagnose", str(path), "--simulations", "0", "-o", str(tmp_path / "cal.json")]) == 0
     assert "saved: " in capsys.readouterr().out
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
 
-    assert caltypes.load(tmp_path / "cal.json").cal_type == "lumped"
+    assert calibration_files.load(tmp_path / "cal.json").cal_type == "lumped"

@@ -133,7 +133,7 @@ def test_identifiability_is_checked_before_the_iterative_fit(capsys, tmp_path, o
 
 # ----------------------------------------------------------------------------- simulate -> calibrate --method sixpos
 def test_simulated_six_positions_calibrate_with_sixpos(capsys, tmp_path):
-    import optcal.families.caltypes as caltypes
+    import optcal.families.calibration_files as calibration_files
     from optcal.data import load
     from optcal.families.simulate.poses import six_position, user_directions
 
@@ -145,6 +145,6 @@ def test_simulated_six_positions_calibrate_with_sixpos(capsys, tmp_path):
     np.testing.assert_allclose(user_directions(angles, "euler_deg"), six_position(), atol=1e-12)
     code, out, err = run(capsys, "calibrate", str(path), "--method", "sixpos", "-o", str(tmp_path / "cal.json"))
     assert code == 0, err
-    cal = caltypes.load(tmp_path / "cal.json")
+    cal = calibration_files.load(tmp_path / "cal.json")
     # noise-free: the fitted W, V map every simulated pose onto its true direction
     np.testing.assert_allclose(cal.correct(table.acc), six_position(), atol=1e-8)

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 import optcal
+import optcal.families.calibration_files
 from optcal.cli.main import main
 from optcal.families.simulate.gyro import reference_gyro, simulate_imu
 
@@ -32,7 +33,7 @@ def test_calibrate_imu_check_apply(recording, tmp_path, capsys) -> None:
     assert out["cal_type"] == "imu" and out["gyro_units"]["input"] == "rad/s"
     assert out["gravity_prediction"]["n_moves"] == 13
     assert out["gravity_prediction"]["rms_deg_after"] < 0.1 * out["gravity_prediction"]["rms_deg_before"]
-    cal = optcal.families.caltypes.load(cal_path)
+    cal = optcal.families.calibration_files.load(cal_path)
     assert cal.cal_type == "imu"
 
     assert main(["check", str(cal_path), path, "--json"]) == 0

@@ -15,7 +15,9 @@ from optcal.errors import IdentifiabilityError
 from optcal.families.accel.batched import BatchedMaximumLikelihood
 from optcal.families.accel.mle import MaximumLikelihood
 from optcal.core.identifiability import (
+    A_INDEX,
     analyse,
+    dA_dtheta,
     fisher_information,
     numerical_rank,
     parameter_full_scale,
@@ -23,7 +25,6 @@ from optcal.core.identifiability import (
 )
 from optcal.core.model import PARAM_NAMES, lu2017_reference_model
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import A_INDEX, dA_dtheta
 from optcal.families.simulate.poses import uniform_directions
 
 MODEL = lu2017_reference_model()

@@ -1,123 +1,83 @@
-"""CalibrationResult: JSON round trip, summary, report, correct()."""
-
-import json
+"""The fit-result base (optcal.core.fit_result): statistics written once, χ² and n as typed fields; pose tables."""
 
 import numpy as np
 import pytest
 
-import optcal.families.caltypes as caltypes
-from optcal import calibrate
-from optcal.families.caltypes import LumpedCalibration
-from optcal.errors import InputError
-from optcal.core.fit_result import CalibrationResult
-from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
+from optcal.core.fit_result import FitRecord, FitResult, SolverInfo, chi_square, standard_errors
+from optcal.core.identifiability import IdentifiabilityReport, RankReport
+
+#: A straight line ``y = a + b x`` fitted by weighted least squares, and what lmfit 1.3.4 reports
+#: for it (``lmfit.minimize`` of ``(y - a - b x) / sigma``, default ``leastsq``): χ², the number
+#: of data, of varied parameters, reduced χ², AIC and BIC.  lmfit's convention (minimizer.py,
+#: ``_calculate_statistics``): ``-2 ln L = n ln(χ²/n)``, ``AIC = -2 ln L + 2p``,
+#: ``BIC = -2 ln L + p ln n``.
+LINE_X = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+LINE_Y = np.array([1.0, 3.1, 4.9, 7.2, 8.8, 11.3, 12.9])
+LINE_SIGMA = np.array([0.1, 0.1, 0.2, 0.2, 0.1, 0.3, 0.2])
+LMFIT_LINE = {"chisqr": 6.0182880365760525, "ndata": 7, "nvarys": 2, "redchi": 1.2036576073152105,
+              "aic": 2.9422488336095514, "bic": 2.8340691317201774,
+              "a": 1.0495554991059934, "b": 1.9689357378727672,
+              "a_stderr": 0.08396502596032437, "b_stderr": 0.02915353168338259}
 
 
-@pytest.fixture
-def result(lu_model):
-    poses = simulate_poses(lu_model, tilted_sweeps(20), 0.005, rng=np.random.default_rng(1))
-    return calibrate(poses, method="mle")
+def line_fit() -> FitResult:
+    """The weighted straight-line fit as a :class:`FitResult`, covariance scaled by the reduced χ² (as lmfit's)."""
+    w = 1.0 / LINE_SIGMA**2
+    X = np.column_stack([np.ones_like(LINE_X), LINE_X])
+    sw = np.sqrt(w)
+    params, *_ = np.linalg.lstsq(X * sw[:, None], LINE_Y * sw, rcond=None)
+    residuals = LINE_Y - X @ params
+    chisqr = chi_square(residuals, w)
+    covariance = np.linalg.inv(X.T @ (X * w[:, None])) * chisqr / (len(LINE_X) - 2)
+    return FitResult(params=params, param_names=["a", "b"], covariance=covariance, residuals=residuals, weights=w,
+                     chisqr=chisqr, n_observations=len(LINE_X), solver=SolverInfo("numpy.linalg.lstsq", "solved", True, 0, 0.0))
 
 
-def test_json_round_trip(result, tmp_path):
-    path = tmp_path / "cal.json"
-    result.save(path)
-    back = CalibrationResult.load(path)
-    np.testing.assert_array_equal(back.T, result.T)
-    np.testing.assert_array_equal(back.o, result.o)
-    np.testing.assert_array_equal(back.covariance, result.covariance)
-    np.testing.assert_array_equal(back.residuals, result.residuals)
-    assert back.solver == result.solver
-    assert back.summary() == result.summary()
-    assert back == result
-    data = json.loads(path.read_text())
-    assert data["format_version"] == "2.0" and data["cal_type"] == "lumped"
-    # the file is a calibration of its type with the fit's statistics attached
-    cal = caltypes.load(path)
-    assert cal == result.calibration
-    np.testing.assert_array_equal(cal.correct(result.fitted_on.acc), result.correct(result.fitted_on.acc))
+def test_statistics_follow_lmfits_convention_on_a_reference_problem():
+    fit = line_fit()
+    ref = LMFIT_LINE
+    np.testing.assert_allclose(fit.params, [ref["a"], ref["b"]], rtol=1e-7)
+    assert fit.chisqr == pytest.approx(ref["chisqr"], rel=1e-10)
+    assert fit.n_observations == ref["ndata"] and fit.n_params == ref["nvarys"] and fit.dof == 5
+    assert fit.redchi == pytest.approx(ref["redchi"], rel=1e-10)
+    assert fit.aic == pytest.approx(ref["aic"], rel=1e-9)
+    assert fit.bic == pytest.approx(ref["bic"], rel=1e-9)
+    assert fit.stderr == pytest.approx({"a": ref["a_stderr"], "b": ref["b_stderr"]}, rel=1e-6)
 
 
-def test_equality_compares_values(result):
-    other = CalibrationResult.from_dict(json.loads(json.dumps(result.to_dict())))
-    assert other == result
-    other.o = other.o + 1e-12
-    assert other != result
+def test_chi_square_is_the_typed_field_not_recomputed():
+    """A method whose cost is not Σ w r² of the kept residuals (six-position: vector residuals) gives its own χ² and n."""
+    fit = line_fit()
+    fit.chisqr, fit.n_observations = 42.0, 21
+    assert fit.chisqr == 42.0 and fit.chisqr != chi_square(fit.residuals, fit.weights)
+    assert fit.dof == 19 and fit.redchi == pytest.approx(42.0 / 19)
+    assert fit.aic == pytest.approx(21 * np.log(42.0 / 21) + 2 * 2)
+    assert fit.bic == pytest.approx(21 * np.log(42.0 / 21) + np.log(21) * 2)
 
 
-def test_format_1_files_still_load(result, tmp_path):
-    """A file as optcal 0.1 wrote it: integer version, no cal_type, no fitted poses."""
-    old = {
-        "format_version": 1,
-        "method": result.method,
-        "units": {"input": "g", "output": "g", "T": "g per g", "o": "g"},
-        "T": result.T.tolist(),
-        "o": result.o.tolist(),
-        "params_vector": result.params.tolist(),
-        "param_names": result.param_names,
-        "covariance": result.covariance.tolist(),
-        "residuals": result.residuals.tolist(),
-        "weights": result.weights.tolist(),
-        "sigma_known": result.sigma_known,
-        "solver": result.solver.to_dict(),
-        "rows": [int(r) for r in result.rows],
-    }
-    path = tmp_path / "old.json"
-    path.write_text(json.dumps(old))
-    back = CalibrationResult.load(path)
-    np.testing.assert_array_equal(back.T, result.T)
-    assert back.calibration == LumpedCalibration(result.T, result.o, "g")
-    assert caltypes.load(path) == LumpedCalibration(result.T, result.o, "g")
+def test_no_degrees_of_freedom_and_no_covariance():
+    fit = line_fit()
+    fit.n_observations = 2
+    assert fit.dof == 0 and np.isnan(fit.redchi)
+    fit.covariance = None
+    assert all(np.isnan(v) for v in fit.stderr.values())
+    assert standard_errors(np.diag([4.0, -1e-30]), ["p", "q"]) == {"p": 2.0, "q": 0.0}
 
 
-def test_calibration_is_typed(result):
-    assert isinstance(result.calibration, LumpedCalibration)
-    assert result.fitted_on is not None and result.fitted_on.n == result.n_poses
-    np.testing.assert_array_equal(result.calibration.theta, result.params)
+def test_fit_record_holds_a_typed_identifiability_report():
+    record = FitRecord(params=np.zeros(2), param_names=["a", "b"], covariance=np.eye(2),
+                       solver=SolverInfo("none", "ok", True, 0, 0.0), identifiability=RankReport(2, 2, 3.0))
+    assert record.identifiability.to_dict() == {"rank": 2, "n_params": 2, "condition_number": 3.0}
+    assert record.exclusions == {} and record.notes == []
+    rich = IdentifiabilityReport(rank=8, n_params=9, condition_number=float("inf"),
+                                 unidentified=[{"entry": "A_xy", "combination": {"A_xy": 1.0}, "text": "A_xy"}])
+    back = IdentifiabilityReport.from_dict(rich.to_dict() | {"condition_number": None})  # JSON writes inf as null
+    assert back == rich and not back.identifiable and "A_xy" in back.describe()
 
 
-def test_summary_is_strict_json(result):
-    s = json.dumps(result.summary(), allow_nan=False)
-    d = json.loads(s)
-    for key in ("method", "T", "o", "A", "stderr", "rms_norm_residual_g", "n_poses", "solver", "aic", "bic"):
-        assert key in d
-    assert set(d["solver"]) >= {"name", "status", "iterations", "solve_time_s"}
-    assert np.asarray(d["T"]).shape == (3, 3)
-
-
-def test_report_mentions_parameters(result):
-    text = result.report()
-    for name in result.param_names:
-        assert name in text
-    assert "IPOPT" in text
-
-
-def test_correct_gives_unit_norm(result, lu_model):
-    d = np.array([[0.0, 0.0, 1.0], [0.6, 0.8, 0.0]])
-    cal = result.correct(lu_model.measure(d))
-    np.testing.assert_allclose(np.linalg.norm(cal, axis=1), 1.0, atol=0.01)
-    with pytest.raises(InputError):
-        result.correct(np.ones((2, 2)))
-
-
-def test_statistics(result):
-    n, p = result.n_poses, result.n_params
-    assert result.dof == n - p
-    assert result.bic - result.aic == pytest.approx(p * (np.log(n) - 2))
-    assert result.chisqr == pytest.approx(np.sum(result.weights * result.residuals**2))
-
-
-def test_load_rejects_bad_files(tmp_path):
-    bad = tmp_path / "bad.json"
-    bad.write_text("{not json")
-    with pytest.raises(InputError, match="not a JSON"):
-        CalibrationResult.load(bad)
-    bad.write_text('{"format_version": 99}')
-    with pytest.raises(InputError, match="format version 99"):
-        CalibrationResult.load(bad)
-    bad.write_text('{"format_version": 1}')
-    with pytest.raises(InputError, match="not an optcal calibration"):
-        CalibrationResult.load(bad)
+def test_solver_record_round_trip():
+    solver = SolverInfo("IPOPT", "Solve_Succeeded", True, 12, 0.25, "note")
+    assert SolverInfo.from_dict(solver.to_dict()) == solver
 
 
 def test_pose_table_copies_extra_columns():

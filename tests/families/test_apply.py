@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import optcal.families.caltypes as caltypes
+import optcal.families.calibration_files as calibration_files
 from helpers.cli_run import run
 from optcal.families.caltypes import ExtendedCalibration, FitPoses, SixPositionCalibration
 from optcal.families.caltypes.apply import STATUS_COLUMN
@@ -52,7 +52,7 @@ def test_extended_calibration_halves_the_error_of_the_lumped_one(files, capsys):
         rms[name] = rms_of_static_poses(d / f"{name}.csv")
     assert rms["extended"] <= 0.5 * rms["lumped"]
     # the same figures as the calibrations applied to the pose means directly
-    ext = caltypes.load(d / "extended.json")
+    ext = calibration_files.load(d / "extended.json")
     direct = ext.norm_errors(poses.acc, poses.temp, poses.t)
     assert rms["extended"] == pytest.approx(np.sqrt(np.mean(direct**2)), rel=1e-6)
 
@@ -83,7 +83,7 @@ def test_units_parquet_and_a_pose_table_with_a_sixpos_calibration(files, tmp_pat
     code, _, err = run(["apply", d / "lumped.json", d / "rec.csv", "-o", tmp_path / "ms2.parquet", "--units", "m/s^2"], capsys)
     assert code == 0, err
     ms2 = pd.read_parquet(tmp_path / "ms2.parquet")
-    cal = caltypes.load(d / "lumped.json")
+    cal = calibration_files.load(d / "lumped.json")
     expected = cal.correct(frame[["ax", "ay", "az"]].to_numpy(float)) * STANDARD_GRAVITY
     np.testing.assert_allclose(ms2[["ax_m_s2", "ay_m_s2", "az_m_s2"]].to_numpy(), expected, rtol=0, atol=1e-12)
     # a pose table in m/s^2 through a sixpos_full calibration for g input: converted, then W a + V
@@ -123,7 +123,7 @@ def test_check_accepts_every_cal_type(files, capsys):
         assert code == 0, err
         results[name] = json.loads(out)
         assert results[name]["calibration"]["cal_type"] == name
-    ext = caltypes.load(d / "extended.json")
+    ext = calibration_files.load(d / "extended.json")
     after = [p["after_g"] for p in results["extended"]["poses"]]
     np.testing.assert_allclose(after, ext.norm_errors(poses.acc, poses.temp, poses.t), atol=1e-12)
     assert results["extended"]["rms_after_g"] <= 0.5 * results["lumped"]["rms_after_g"]
@@ -140,6 +140,6 @@ def test_a_headerless_file_keeps_its_columns_by_position(files, tmp_path, capsys
     assert list(result.columns) == ["ax_g", "ay_g", "az_g", "4", "5", "6", STATUS_COLUMN]
     assert len(result) == len(frame)
     np.testing.assert_array_equal(result["4"].to_numpy(), frame["gx"].to_numpy())
-    lumped = caltypes.load(d / "lumped.json")
+    lumped = calibration_files.load(d / "lumped.json")
     expected = lumped.correct(frame[["ax", "ay", "az"]].to_numpy(float))
     np.testing.assert_allclose(result[["ax_g", "ay_g", "az_g"]].to_numpy(), expected, rtol=1e-9, atol=1e-12)

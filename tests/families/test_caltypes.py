@@ -1,4 +1,5 @@
-"""The calibration type family: round trips, the registry, version checks, correct(), validity range."""
+"""The calibration type family: round trips, the registry (optcal.families.calibration_files), version checks,
+correct(), validity range."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
-import optcal.families.caltypes as caltypes
+import optcal.families.calibration_files as calibration_files
 from optcal.families.caltypes import (
+    Calibration,
     ExtendedCalibration,
     ExtendedTerm,
     FitPoses,
@@ -50,7 +52,7 @@ def samples(n: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return d, temp, t, sensor_counts().measure(d, temp, t)
 
 
-def every_type() -> list[caltypes.Calibration]:
+def every_type() -> list[Calibration]:
     d, temp, t, acc = samples()
     fitted = FitPoses(acc, temp, t)
     W = np.linalg.inv(lu2017_reference_model().C)  # a full W with the mounting rotation
@@ -67,10 +69,10 @@ def test_every_type_survives_save_and_load(index, tmp_path):
     cal = every_type()[index]
     path = tmp_path / "cal.json"
     cal.save(path)
-    back = caltypes.load(path)
+    back = calibration_files.load(path)
     assert type(back) is type(cal)
     assert back == cal
-    assert caltypes.load(json.loads(path.read_text())) == cal
+    assert calibration_files.load(json.loads(path.read_text())) == cal
     d, temp, t, acc = samples()
     raw = acc if cal.units == "counts" else acc / 16400.0
     with warnings.catch_warnings():
@@ -84,11 +86,11 @@ def test_every_type_survives_save_and_load(index, tmp_path):
 
 def test_value_equality_sees_every_number():
     cal = every_type()[3]
-    other = caltypes.load(cal.to_dict())
+    other = calibration_files.load(cal.to_dict())
     assert other == cal
     other.terms = other.terms[:-1]
     assert other != cal
-    moved = caltypes.load(cal.to_dict())
+    moved = calibration_files.load(cal.to_dict())
     moved.o = moved.o + 1e-9
     assert moved != cal
     assert LumpedCalibration(np.eye(3), np.zeros(3)) != SixPositionCalibration(np.eye(3), np.zeros(3))
@@ -97,25 +99,25 @@ def test_value_equality_sees_every_number():
 def test_unknown_type_and_newer_major_version_are_refused(tmp_path):
     d = every_type()[0].to_dict()
     with pytest.raises(InputError, match="unknown cal_type 'magnetometer'.*extended, imu, lumped, sixpos_full"):
-        caltypes.load({**d, "cal_type": "magnetometer"})
+        calibration_files.load({**d, "cal_type": "magnetometer"})
     path = tmp_path / "new.json"
     path.write_text(json.dumps({**d, "format_version": "3.0"}))
     with pytest.raises(InputError, match=r"new.json: .*format version 3.0, newer than this optcal reads \(2.x"):
-        caltypes.load(path)
+        calibration_files.load(path)
     # a newer minor version only adds optional fields: read
-    assert caltypes.load({**d, "format_version": "2.7", "new_optional_field": 1}) == every_type()[0]
+    assert calibration_files.load({**d, "format_version": "2.7", "new_optional_field": 1}) == every_type()[0]
     with pytest.raises(InputError, match="no such calibration file"):
-        caltypes.load(tmp_path / "missing.json")
+        calibration_files.load(tmp_path / "missing.json")
     with pytest.raises(InputError, match="not an optcal calibration file"):
-        caltypes.load({"T": [1]})
+        calibration_files.load({"T": [1]})
 
 
 def test_registry_is_open_to_a_new_type():
-    caltypes.register("lumped_copy", "optcal.families.caltypes.lumped:LumpedCalibration")
+    calibration_files.register("lumped_copy", "optcal.families.caltypes.lumped:LumpedCalibration")
     try:
-        assert caltypes.calibration_class("lumped_copy") is LumpedCalibration
+        assert calibration_files.calibration_class("lumped_copy") is LumpedCalibration
     finally:
-        del caltypes.CAL_TYPES["lumped_copy"]
+        del calibration_files.CAL_TYPES["lumped_copy"]
 
 
 def test_lumped_needs_the_canonical_T():

@@ -4,7 +4,7 @@ scikit-learn's ``check_estimator`` idea: every method of
 :data:`optcal.families.accel.calibration.ESTIMATORS` is run through the same checks, so a
 new estimator is tested as soon as it is registered.  Only public entry points are used
 (``optcal.calibrate``, ``make_estimator``, ``result.save`` / ``load``,
-``optcal.families.caltypes.load``), never a result or estimator class by import.
+``optcal.families.calibration_files.load``), never a result or estimator class by import.
 
 The checks, for each method:
 
@@ -17,7 +17,7 @@ The checks, for each method:
   full scale: :data:`EXACT_TOLERANCE_FS` for every method unless :data:`TOLERANCE_FS` gives the
   one its documentation states;
 * **round trip**: ``result.save`` then ``load`` (the result) and
-  ``optcal.families.caltypes.load`` (the calibration) give the same numbers bit for bit and
+  ``optcal.families.calibration_files.load`` (the calibration) give the same numbers bit for bit and
   correct samples identically;
 * **refusal**: a pose set that cannot determine the parameters is refused with
   :class:`~optcal.errors.InputError` (the pose table's own checks: coplanar poses, too few
@@ -49,7 +49,7 @@ from optcal import calibrate
 from optcal.core.model import STANDARD_GRAVITY, LumpedModel
 from optcal.core.poses import PoseTable
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.families import caltypes
+from optcal.families import calibration_files
 from optcal.families.accel.calibration import ESTIMATORS, make_estimator
 
 METHODS: tuple[str, ...] = tuple(ESTIMATORS)
@@ -210,7 +210,7 @@ def test_round_trips_through_json(method: str, tmp_path) -> None:
     for name in ("params", "T", "o", "covariance", "residuals", "weights"):
         assert np.array_equal(getattr(reloaded, name), getattr(result, name)), name
 
-    calibration = caltypes.load(path)
+    calibration = calibration_files.load(path)
     assert calibration == result.calibration
     samples = poses.acc + np.random.default_rng(5).normal(0.0, 0.1 * COUNTS_PER_G, poses.acc.shape)
     expected = result.correct(samples)
@@ -283,9 +283,9 @@ def test_rank_deficient_pose_set_is_refused_or_identified(method: str) -> None:
                     and named["text"] and named["text"] in str(exc)):
                 failures.append(f"{design}: refused without naming A_{axis}{axis} with o_{axis}: {exc}")
             continue
-        rank = result.identifiability.get("rank")
+        rank = result.identifiability.rank
         error, frame = worst_error_fs(result.calibration, model, "g")
-        if not (rank == result.identifiability.get("n_params") == result.n_params
+        if not (rank == result.identifiability.n_params == result.n_params
                 and frame == "reference frame" and error <= recovery_tolerance(method)[0]):
             failures.append(f"{design}: fitted (rank {rank}/{result.n_params}) with error {error:.3g} of full scale ({frame})")
     assert not failures, "\n".join(failures)

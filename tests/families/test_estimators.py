@@ -129,9 +129,9 @@ def test_literal_lu_schedule_is_refused_and_named(lu_model):
     res = calibrate(poses, method="mle", allow_degenerate=True)
     # with noise the missing direction is numerically present: full rank, but weakly determined (and said so)
     ident = res.identifiability
-    word = "WEAKLY DETERMINED POSE SET" if ident["rank"] == ident["n_params"] else "DEGENERATE POSE SET"
+    word = "WEAKLY DETERMINED POSE SET" if ident.rank == ident.n_params else "DEGENERATE POSE SET"
     assert any(n.startswith(word) for n in res.notes), res.notes
-    if ident["rank"] == ident["n_params"]:
+    if ident.rank == ident.n_params:
         assert "does not determine" not in " ".join(res.notes) and "weakly determined (standard error" in " ".join(res.notes)
 
 

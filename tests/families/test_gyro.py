@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import optcal
-import optcal.families.caltypes
+import optcal.families.calibration_files
 from optcal.errors import IdentifiabilityError, InputError
 from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
 from optcal.core.gyro_model import GyroModel
@@ -128,7 +128,7 @@ def test_json_round_trip(tmp_path, acc_model: LumpedModel) -> None:
     path = tmp_path / "imu.json"
     cal.save(path)
     back = ImuCalibration.load(path)
-    assert isinstance(optcal.families.caltypes.load(path), ImuCalibration) and back == cal
+    assert isinstance(optcal.families.calibration_files.load(path), ImuCalibration) and back == cal
     assert np.array_equal(cal.correct(rec.acc), back.correct(rec.acc))
     assert np.array_equal(cal.correct_gyro(rec.gyro, rec.acc), back.correct_gyro(rec.gyro, rec.acc))
     assert back.param_names == cal.param_names and np.array_equal(back.covariance, cal.covariance)

@@ -13,6 +13,7 @@ from optcal.core.model import lu2017_reference_model, theta_from, unpack_theta
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.families.simulate.poses import uniform_directions
+from optcal.report.diagnosis_text import diagnosis_report
 
 MODEL = lu2017_reference_model()
 TRUE_THETA = theta_from(MODEL.T_canonical, MODEL.o)
@@ -172,7 +173,7 @@ def test_diagnose_names_a_wandering_bias_as_noise_and_not_on_white_sessions():
     assert check.heldout_rms_walk_g < check.heldout_rms_white_g
     true_K_g = 1e-3 * np.mean(np.abs(np.diag(MODEL.T_canonical)))  # raw units → g, as the check converts
     assert check.K_interval_g[0] <= true_K_g <= check.K_interval_g[1]
-    assert "random-walk bias" in d.report() and "named cause: the bias wanders" in d.report()
+    assert "random-walk bias" in diagnosis_report(d) and "named cause: the bias wanders" in diagnosis_report(d)
     assert d.to_dict()["noise_model"]["random_walk"]["named"] is True
     quiet, _ = _session(0.0, 8, n=40)
     check = diagnose(quiet, simulations=0).noise_model.random_walk
@@ -221,7 +222,7 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
 
 def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path):
     """diagnose -o: a named walk is not applicable to a later recording; it is saved as the bias's uncertainty (format 2.2)."""
-    from optcal.families.caltypes import load as load_calibration
+    from optcal.families.calibration_files import load as load_calibration
     from optcal.families.caltypes.extended import ExtendedCalibration
     from optcal.applications.diagnosis import diagnose
 

@@ -13,7 +13,7 @@ from optcal.errors import InputError
 from optcal.families.accel.sixpos import PARAM_NAMES, SixPositionLeastSquares, reference_from_angles
 from optcal.core.model import STANDARD_GRAVITY, lumped_matrix
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult
+from optcal.families.accel.result import CalibrationResult
 
 #: Table 2 of the paper (reconstructed): the six faces of a levelled cube, roll/pitch in degrees.
 SIX = np.array([(0, 0), (180, 0), (90, 0), (-90, 0), (0, 90), (0, -90)], dtype=float)
@@ -45,8 +45,8 @@ def test_reference_follows_the_tilt_convention() -> None:
 
 def test_noise_free_poses_give_w_and_v_exactly() -> None:
     r = SixPositionLeastSquares().fit(six_poses(1e-4, None))
-    np.testing.assert_allclose(r.extra["W"], W_TRUE, atol=1e-12)
-    np.testing.assert_allclose(r.extra["V"], V_TRUE, atol=1e-12)
+    np.testing.assert_allclose(r.W, W_TRUE, atol=1e-12)
+    np.testing.assert_allclose(r.V, V_TRUE, atol=1e-12)
     np.testing.assert_allclose(r.T, W_TRUE, atol=1e-12)
     np.testing.assert_allclose(r.o, O_TRUE, atol=1e-12)
     np.testing.assert_allclose(r.residuals, 0, atol=1e-12)
@@ -98,7 +98,7 @@ def test_reference_columns_equal_the_angles_and_accept_m_per_s2() -> None:
 
 def test_counts_give_w_in_g_per_count_and_a_working_correction() -> None:
     r = SixPositionLeastSquares().fit(six_poses(2e-4, np.random.default_rng(6), units_scale=16384.0))
-    np.testing.assert_allclose(r.extra["W"] * 16384.0, W_TRUE, atol=2e-3)
+    np.testing.assert_allclose(r.W * 16384.0, W_TRUE, atol=2e-3)
     raw = (C_TRUE @ [0.0, 0.6, 0.8] + O_TRUE) * 16384.0
     np.testing.assert_allclose(r.correct(raw), [0.0, 0.6, 0.8], atol=1e-3)
 
@@ -109,7 +109,12 @@ def test_result_survives_a_json_round_trip(tmp_path) -> None:
     back = CalibrationResult.load(tmp_path / "cal.json")
     np.testing.assert_allclose(back.T, r.T)
     np.testing.assert_allclose(back.params, r.params)
-    np.testing.assert_allclose(np.asarray(back.extra["W"]), r.extra["W"])
+    np.testing.assert_allclose(back.W, r.W)
+    np.testing.assert_allclose(back.V, r.V)
+    assert back.chisqr == r.chisqr and back.n_observations == 3 * r.n_poses and back.extra.keys() == r.extra.keys()
+    # the file keeps format 2.0's layout: W, V, n and chi-square under extra as well
+    saved = json.loads((tmp_path / "cal.json").read_text())["extra"]
+    assert list(saved)[:2] == ["W", "V"] and list(saved)[-2:] == ["n_observations", "chisqr"]
     assert back == r
 
 
@@ -119,7 +124,7 @@ def test_result_holds_a_sixpos_full_calibration() -> None:
     r = SixPositionLeastSquares().fit(six_poses(1e-4, np.random.default_rng(8)))
     cal = r.calibration
     assert isinstance(cal, SixPositionCalibration)
-    np.testing.assert_array_equal(cal.W, r.extra["W"])
+    np.testing.assert_array_equal(cal.W, r.W)
     raw = C_TRUE @ [0.0, 0.6, 0.8] + O_TRUE
     np.testing.assert_allclose(cal.correct(raw), r.correct(raw[None]), atol=1e-15)
     # its lumped form has the same norms (A = WᵀW) and optcal's canonical T

@@ -15,6 +15,7 @@ from optcal.cli.main import main
 from optcal.core.model import LumpedModel
 from optcal.core.poses import PoseTable
 from optcal.applications.quality.evidence import HeldOut, gather
+from optcal.report.calibration_text import calibration_report
 from optcal.report.parameters import result_parameters
 from optcal.applications.quality.verdict import judge, judge_check, judge_segmentation
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
@@ -210,7 +211,7 @@ def test_text_report_of_counts_data_prints_every_number() -> None:
     from optcal.families.simulate.effects import demo_sensor
 
     poses = simulate_poses(demo_sensor(), uniform_directions(30, 8), 2.0, rng=2)  # counts, 2 counts of noise
-    text = calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")).report()
+    text = calibration_report(calibrate(PoseTable(acc=poses.acc, sigma=poses.sigma, units="counts")))
     block = text[text.index("[[A = T'T"):text.index("[[Identifiability]]")]
     numbers = [float(x) for x in re.findall(r"[-+]?\d\.\d+e[-+]\d+", block.split("]]", 1)[1])]
     assert len(numbers) == 18 and all(x != 0 for x in numbers[::2])  # 9 entries of A and their standard errors
@@ -218,6 +219,16 @@ def test_text_report_of_counts_data_prints_every_number() -> None:
     scale = re.search(r"S_x\s+=\s+(\d+\.?\d*)\s+\+/-\s+\S+\s+counts/g", text)
     assert scale and float(scale.group(1)) == pytest.approx(16300, rel=1e-3)
     assert re.search(r"ρ\s+=\s+0\.3\d*\s+\+/-\s+\S+\s+°", text)  # demo sensor: ρ = 0.3°
+
+
+def test_text_report_names_every_parameter_and_the_solver(lu_model) -> None:
+    from optcal.families.simulate.poses import tilted_sweeps
+
+    result = calibrate(simulate_poses(lu_model, tilted_sweeps(20), 0.005, rng=np.random.default_rng(1)), method="mle")
+    text = calibration_report(result)
+    for name in result.param_names:
+        assert name in text
+    assert "IPOPT" in text and "[[Identifiability]]" in text and "Fisher rank 9/9" in text
 
 
 def test_rendered_page_escapes_user_text_and_is_printable(tmp_path: Path) -> None:

@@ -1,4 +1,7 @@
-"""The result of a diagnosis: numbers, the extended model, and the JSON shape of ``optcal diagnose --json``."""
+"""The result of a diagnosis: numbers, the extended model, and the JSON shape of ``optcal diagnose --json``.
+
+The text report is :func:`optcal.report.diagnosis_text.diagnosis_report`.
+"""
 
 from __future__ import annotations
 
@@ -211,9 +214,3 @@ class Diagnosis:
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),
         }
-
-    def report(self) -> str:
-        """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
-        from optcal.report.diagnosis_text import diagnosis_report
-
-        return diagnosis_report(self)

@@ -21,10 +21,10 @@ once, measures what it loses and writes the parameter file.
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 from typing import Any
 
+from optcal.core.jsonio import read_json
 from optcal.families.caltypes.base import Calibration
 from optcal.errors import InputError
 from optcal.applications.export.base import ExportOptions, ExportResult
@@ -51,12 +51,7 @@ def export(cal: Calibration, fmt: str, options: ExportOptions | None = None) -> 
 def read_allan(path: str | Path) -> dict[str, Any]:
     """An ``optcal allan --json`` result, checked to have the per-axis noise parameters."""
     p = Path(path)
-    try:
-        d = json.loads(p.read_text())
-    except FileNotFoundError as exc:
-        raise InputError(f"{p}: no such Allan result file") from exc
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: not a JSON file; save one with optcal allan LOG --json > {p.name}") from exc
-    if not isinstance(d, dict) or not all(isinstance(d.get(a), dict) for a in "xyz") or "log" not in d:
+    d = read_json(p, "Allan result file", hint=f"save one with optcal allan LOG --json > {p.name}")
+    if not all(isinstance(d.get(a), dict) for a in "xyz") or "log" not in d:
         raise InputError(f"{p}: not an optcal allan --json result (no per-axis x, y, z entries)")
     return d

@@ -165,7 +165,7 @@ def outcome_from_fit(unit: UnitInput, poses: PoseTable, theta: NDArray, covarian
 
 
 def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: str = "calibrated") -> UnitOutcome:
-    """A :class:`UnitOutcome` from a :class:`~optcal.core.fit_result.CalibrationResult` of the unit's poses."""
+    """A :class:`UnitOutcome` from a :class:`~optcal.families.accel.result.CalibrationResult` of the unit's poses."""
     return outcome_from_fit(unit, poses, result.params, result.covariance, result.residuals, result.weights,
                             result.sigma_known, "" if result.solver.success else f"solver: {result.solver.status}", status)
 

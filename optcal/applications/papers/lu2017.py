@@ -17,7 +17,6 @@ cannot be judged; 200 runs at 1 mg give a standard error of the mean of about 8e
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Any
 
@@ -35,7 +34,7 @@ from optcal.core.model import (
     lu2017_reference_model,
 )
 from optcal.applications.papers.command_output import show_progress
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import json_text, jsonable
 from optcal.families.simulate.poses import lu2017_sweeps, simulate_poses, tilted_sweeps
 
 METHODS = ("svd", "convex", "mle", "exact", "gd")
@@ -204,6 +203,6 @@ def command(as_json: bool, runs: int, sigma: float, seed: int) -> None:
     """Lu 2017 Table 1 by Monte Carlo with every method, and the literal schedule's identifiability."""
     res = run(runs=runs, seed=seed, sigma=sigma, progress=show_progress())
     if as_json:
-        click.echo(json.dumps(res, allow_nan=False))
+        click.echo(json_text(res))
     else:
         click.echo(format_report(res))

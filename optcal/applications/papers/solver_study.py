@@ -27,7 +27,6 @@ Every estimator of optcal, and scipy's ``least_squares``, on the same simulated 
 
 from __future__ import annotations
 
-import json
 import time
 import warnings
 from collections.abc import Callable
@@ -49,7 +48,7 @@ from optcal.core.identifiability import analyse_design, cramer_rao_bound
 from optcal.core.model import PARAM_NAMES, LumpedModel, lu2017_reference_model, unpack_theta
 from optcal.core.poses import PoseTable
 from optcal.applications.papers.command_output import show_progress
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import json_text, jsonable
 from optcal.families.simulate.poses import cap_directions, simulate_poses, tilted_sweeps, uniform_directions
 
 #: Gradient-descent iteration limit in the studies (a run that reaches it counts as a failure).
@@ -523,6 +522,6 @@ def command(as_json: bool, quick: bool, runs: int | None, seed: int) -> None:
     """Solver comparison: Cramér–Rao efficiency, speed against gd and scipy, scaling to 10⁶ poses."""
     res = run(quick=quick, runs=runs, seed=seed, progress=show_progress())
     if as_json:
-        click.echo(json.dumps(res, allow_nan=False))
+        click.echo(json_text(res))
     else:
         click.echo(format_report(res))

@@ -80,8 +80,9 @@ class Prior:
 
     @classmethod
     def load(cls, path: str) -> "Prior":
-        """A saved lumped calibration (``optcal calibrate -o``; read by :func:`optcal.families.caltypes.load`)."""
-        from optcal.families.caltypes import LumpedCalibration, load
+        """A saved lumped calibration (``optcal calibrate -o``; read by :func:`optcal.families.calibration_files.load`)."""
+        from optcal.families.calibration_files import load
+        from optcal.families.caltypes import LumpedCalibration
 
         cal = load(path)
         if not isinstance(cal, LumpedCalibration):

@@ -31,7 +31,8 @@ from numpy.typing import NDArray
 from optcal.errors import ConvergenceWarning, InputError
 from optcal.core.poses import PoseTable
 from optcal.applications.quality.bands import BandCheck
-from optcal.core.fit_result import CalibrationResult
+from optcal.core.identifiability import IdentifiabilityReport
+from optcal.families.accel.result import CalibrationResult
 
 #: Level of the model check's band and of the outlier test (family-wise over the poses).
 BAND_LEVEL: float = 0.99
@@ -377,13 +378,14 @@ def suggest_poses(result: CalibrationResult, poses: PoseTable,
 
 def determination(result: CalibrationResult, poses: PoseTable) -> Determination:
     """Rank, conditioning, undetermined and weak combinations, and the poses that would help."""
-    idf = result.identifiability or {}
-    undetermined = [Combination(u["entry"], u["text"], float("inf")) for u in idf.get("unidentified", [])]
-    weak = [Combination(u["entry"], u["text"], float(u.get("stderr", float("nan")))) for u in idf.get("weak", [])]
+    idf = result.identifiability
+    named = idf if isinstance(idf, IdentifiabilityReport) else None
+    undetermined = [Combination(u["entry"], u["text"], float("inf")) for u in (named.unidentified if named else [])]
+    weak = [Combination(u["entry"], u["text"], float(u.get("stderr", float("nan")))) for u in (named.weak if named else [])]
     suggestions, directions = suggest_poses(result, poses) if (undetermined or weak) else ([], np.zeros((0, 3)))
     return Determination(
-        int(idf.get("rank", result.n_params)), int(idf.get("n_params", result.n_params)),
-        float(idf.get("condition_number", float("nan"))), undetermined, weak, suggestions, directions,
+        result.n_params if idf is None else idf.rank, result.n_params if idf is None else idf.n_params,
+        float("nan") if idf is None else idf.condition_number, undetermined, weak, suggestions, directions,
     )
 
 

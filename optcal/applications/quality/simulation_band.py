@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from optcal.core.poses import PoseTable
 from optcal.applications.diagnosis.simulation import place_among_simulations
 from optcal.applications.quality.bands import BandCheck
-from optcal.core.fit_result import CalibrationResult
+from optcal.families.accel.result import CalibrationResult
 
 #: Simulated data sets behind the band.
 SIMULATIONS: int = 200
@@ -129,8 +129,8 @@ def simulation_band(result: CalibrationResult, poses: PoseTable, simulations: in
     if poses.sigma is None:
         return SimulationBand([], 0, "no per-pose noise given: a noise estimated from these residuals would "
                                      "match χ² by construction")
-    idf = result.identifiability or {}
-    if int(idf.get("rank", result.n_params)) < int(idf.get("n_params", result.n_params)):
+    idf = result.identifiability
+    if idf is not None and idf.rank < idf.n_params:
         return SimulationBand([], 0, "the poses do not determine every parameter, so refits of simulations scatter "
                                      "along the undetermined combination")
     directions = result.correct(poses.acc)

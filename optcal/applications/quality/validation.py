@@ -26,7 +26,8 @@ from optcal.core.poses import MIN_POSES, PoseTable
 from optcal.core.rotations import rotation_between
 from optcal.core.stats import rms
 from optcal.families.caltypes import Calibration
-from optcal.core.fit_result import CalibrationResult, jsonable
+from optcal.core.jsonio import jsonable
+from optcal.families.accel.result import CalibrationResult
 
 G_TO_MS2 = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
 

@@ -21,7 +21,8 @@ from optcal.core.identifiability import IdentifiabilityReport, add_weak_directio
 from optcal.core.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.core.norm_residual import NormResidualKernel, normal_gain
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo, chi_square
+from optcal.families.accel.result import CalibrationResult
 
 WEIGHTINGS = ("propagated", "paper")
 
@@ -267,11 +268,13 @@ def finish(
         covariance=fisher.covariance,
         residuals=fisher.residuals,
         weights=fisher.weights,
+        chisqr=chi_square(fisher.residuals, fisher.weights),
+        n_observations=poses.n,
         sigma_known=fisher.sigma_known,
         solver=solver,
         rows=[int(x) for x in poses.rows],
         exclusions=dict(poses.exclusions),
-        identifiability=ident.to_dict(),
+        identifiability=ident,
         notes=notes,
         extra=dict(extra or {}),
     )

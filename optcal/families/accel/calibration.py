@@ -15,7 +15,7 @@ from typing import Any
 from optcal.families.caltypes.base import FitPoses
 from optcal.errors import InputError
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult
+from optcal.families.accel.result import CalibrationResult
 
 #: method name -> "module:class".  One line per estimator.
 ESTIMATORS: dict[str, str] = {

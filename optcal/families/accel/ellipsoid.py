@@ -36,7 +36,8 @@ from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, finish
 from optcal.core.model import canonical_T, theta_from
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import FrozenOptions, ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.families.accel.result import CalibrationResult
 
 
 def design_matrix(u: NDArray) -> NDArray[np.float64]:

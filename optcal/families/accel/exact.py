@@ -28,7 +28,8 @@ from optcal.core.model import theta_from, unpack_theta
 from optcal.core.norm_residual import casadi_lower_triangular
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.families.accel.result import CalibrationResult
 
 
 class ExactProblem:

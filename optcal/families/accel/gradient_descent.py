@@ -23,7 +23,8 @@ from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, check_pose
 from optcal.core.model import canonicalise, theta_from
 from optcal.core.norm_residual import NormResidualKernel
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.families.accel.result import CalibrationResult
 
 
 def cost_and_gradient(x: NDArray, u: NDArray | NormResidualKernel, w: NDArray) -> tuple[float, NDArray[np.float64]]:

@@ -37,7 +37,8 @@ from optcal.core.model import PARAM_NAMES, theta_from, unpack_theta
 from optcal.core.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.families.accel.result import CalibrationResult
 
 LOSSES = ("squared", "huber", "cauchy")
 #: Default loss scales (in standard deviations): 95 % efficiency at the Gaussian.

@@ -20,7 +20,8 @@ from optcal.errors import InputError
 from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish
 from optcal.families.accel.mle import MaximumLikelihood, NormResidualCost
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.families.accel.result import CalibrationResult
 
 METHODS = ("lm", "trf")
 

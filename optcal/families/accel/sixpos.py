@@ -68,7 +68,9 @@ from optcal.core.model import AXES, STANDARD_GRAVITY
 from optcal.core.rotations import gravity_direction
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.poses import PoseTable
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo
+from optcal.core.identifiability import RankReport
+from optcal.families.accel.result import CalibrationResult
 
 #: Columns with the known orientation, degrees (Yin 2014, Table 2).
 ANGLE_COLUMNS: tuple[str, str] = ("roll_deg", "pitch_deg")
@@ -147,11 +149,12 @@ class SixPositionLeastSquares:
         self.scale_covariance = scale_covariance
 
     def fit(self, poses: PoseTable) -> CalibrationResult:
-        """Solve eq. 4 and return W, V as a :class:`~optcal.core.fit_result.CalibrationResult`.
+        """Solve eq. 4 and return W, V as a :class:`~optcal.families.accel.result.CalibrationResult`.
 
         ``T = W``, ``o = −W⁻¹ V`` (so that ``ā = T (a − o) = W a + V``); ``params`` are the
-        entries of W (row-major) and V with their covariance; ``extra`` holds ``W``, ``V``,
-        their standard errors, the reference and the vector residuals ``W a_k + V − f_k`` (g).
+        entries of W (row-major) and V with their covariance; ``W`` and ``V`` are fields of the
+        result (its calibration is ``sixpos_full``); ``extra`` holds their standard errors, the
+        reference and the vector residuals ``W a_k + V − f_k`` (g).
         """
         if not isinstance(poses, PoseTable):
             raise InputError("fit() takes a PoseTable")
@@ -193,8 +196,6 @@ class SixPositionLeastSquares:
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         redchi = float(np.trace(np.linalg.solve(W @ W.T, chi2_matrix)) / (3 * dof)) if known and dof > 0 else None
         extra: dict[str, Any] = {
-            "W": W,
-            "V": V,
             "W_stderr": se[:9].reshape(3, 3),
             "V_stderr": se[9:],
             "reference": reference,
@@ -202,9 +203,6 @@ class SixPositionLeastSquares:
             "vector_residuals_g": residual,
             "residual_covariance_g2": S,
             "reduced_chi_square_from_sigma": redchi,
-            # the fit has three scalar observations per pose (eq. 4 is a vector equation)
-            "n_observations": 3 * poses.n,
-            "chisqr": float(np.sum(weights[:, None] * residual**2)),
         }
         condition = float(np.linalg.cond(design.T @ design))
         return CalibrationResult(
@@ -217,6 +215,9 @@ class SixPositionLeastSquares:
             covariance=cov,
             residuals=norm_residuals(W, o, poses.acc),
             weights=weights,
+            # the cost is that of the vector residuals, three scalar observations per pose (eq. 4 is a vector equation)
+            chisqr=float(np.sum(weights[:, None] * residual**2)),
+            n_observations=3 * poses.n,
             sigma_known=not scale,
             solver=SolverInfo(
                 name="numpy.linalg.lstsq",
@@ -228,9 +229,11 @@ class SixPositionLeastSquares:
             ),
             rows=[int(r) for r in poses.rows],
             exclusions=dict(poses.exclusions),
-            identifiability={"rank": 12, "n_params": 12, "condition_number": condition},
+            identifiability=RankReport(rank=12, n_params=12, condition_number=condition),
             notes=notes,
             extra=extra,
+            W=W,
+            V=V,
         )
 
 

@@ -7,17 +7,16 @@ A calibration file is one JSON object::
      ... the type's own parameters ...,
      "fitted_on": {"acc": [[...], ...], "temp": [...], "t": [...]}   (optional)}
 
-``cal_type`` picks the class (:mod:`optcal.families.caltypes`); ``format_version`` is semantic
-(``MAJOR.MINOR``): a reader accepts every minor version of its major version (minor versions
-only add optional fields) and refuses a newer major version.  Units sit in the file next to the
+``cal_type`` picks the class (:mod:`optcal.families.calibration_files`); ``format_version`` is
+semantic (``MAJOR.MINOR``, :func:`optcal.core.jsonio.check_version`): a reader accepts every minor
+version of its major version (minor versions only add optional fields) and refuses a newer major
+version.  Units sit in the file next to the
 numbers (imucal's convention).  ``fitted_on`` holds the static poses the calibration was fitted
 on, so that an exporter can say what a simpler firmware model loses on them.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,64 +26,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from optcal.errors import InputError
+from optcal.core.jsonio import FORMAT_VERSION, check_version, jsonable, write_json
 from optcal.core.units import ACCEL_UNITS
-
-#: Major version of the calibration file format written by this optcal.
-FORMAT_MAJOR: int = 2
-#: Version string written into every file.
-FORMAT_VERSION: str = f"{FORMAT_MAJOR}.0"
 
 CalibrationT = TypeVar("CalibrationT", bound="Calibration")
 
 
 class ValidityRangeWarning(UserWarning):
     """A calibration was applied to samples outside the range it was fitted on."""
-
-
-def jsonable(x: Any) -> Any:
-    """Convert numpy values (and non-finite floats → ``None``) for :func:`json.dumps`."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def parse_version(version: Any) -> tuple[int, int]:
-    """``"2.0"`` → ``(2, 0)``; a bare integer (format 1 files wrote ``1``) → ``(1, 0)``."""
-    if isinstance(version, bool):
-        raise InputError(f"format_version {version!r} is not a version number like \"2.0\"")
-    if isinstance(version, int):
-        return version, 0
-    parts = str(version).split(".")
-    try:
-        major = int(parts[0])
-        minor = int(parts[1]) if len(parts) > 1 else 0
-    except ValueError as exc:
-        raise InputError(f"format_version {version!r} is not a version number like \"2.0\"") from exc
-    return major, minor
-
-
-def check_version(version: Any) -> tuple[int, int]:
-    """Parse ``version`` and refuse a major version newer than :data:`FORMAT_MAJOR`."""
-    major, minor = parse_version(version)
-    if major > FORMAT_MAJOR:
-        raise InputError(
-            f"the calibration file has format version {version}, newer than this optcal reads "
-            f"({FORMAT_MAJOR}.x and older); upgrade optcal to read it"
-        )
-    if major < 1:
-        raise InputError(f"the calibration file has format version {version}; optcal files start at version 1")
-    return major, minor
 
 
 def as_samples(acc: ArrayLike, name: str = "acc") -> NDArray[np.float64]:
@@ -180,7 +129,7 @@ class FitPoses:
 class Calibration(ABC):
     """A calibration: raw accelerometer samples in, specific force in g out.
 
-    Subclasses are dataclasses (``eq=False``) registered in :mod:`optcal.families.caltypes`; each
+    Subclasses are dataclasses (``eq=False``) registered in :mod:`optcal.families.calibration_files`; each
     documents its parameters, units and equation in its own docstring, and defines
     :meth:`correct`, :meth:`parameters`, :meth:`from_parameters`, :meth:`unit_fields` and
     :meth:`lumped`.  Two calibrations are equal when their files would be equal (same type,
@@ -270,7 +219,7 @@ class Calibration(ABC):
             raise InputError("a calibration is a JSON object (a dictionary)")
         found = d.get("cal_type")
         if found != cls.cal_type:
-            raise InputError(f"this is a {found!r} calibration, not {cls.cal_type!r}; read it with optcal.families.caltypes.load")
+            raise InputError(f"this is a {found!r} calibration, not {cls.cal_type!r}; read it with optcal.families.calibration_files.load")
         check_version(d.get("format_version"))
         units = d.get("units")
         units = units.get("input") if isinstance(units, dict) else units
@@ -285,8 +234,8 @@ class Calibration(ABC):
             raise InputError(f"not a valid {cls.cal_type!r} calibration ({exc.__class__.__name__}: {exc})") from exc
 
     def save(self, path: str | Path) -> None:
-        """Write the calibration as JSON."""
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+        """Write the calibration as JSON (:func:`optcal.core.jsonio.write_json`)."""
+        write_json(path, self.to_dict())
 
     def __eq__(self, other: object) -> bool:
         return type(self) is type(other) and self.to_dict() == other.to_dict()  # type: ignore[attr-defined]

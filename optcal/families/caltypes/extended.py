@@ -45,7 +45,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.families.caltypes.base import FORMAT_VERSION, Calibration, FitPoses, ValidityRangeWarning, as_column, as_samples, jsonable, read_matrix
+from optcal.core.jsonio import FORMAT_VERSION, jsonable
+from optcal.families.caltypes.base import Calibration, FitPoses, ValidityRangeWarning, as_column, as_samples, read_matrix
 from optcal.families.caltypes.lumped import LumpedCalibration
 from optcal.core.extended_model import MAX_ORDER, NEEDS, PARAMETRIC, UNITS, ExtendedModel, axis_number
 from optcal.errors import InputError

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.families.gyro.identifiability import GyroIdentifiability, excitation, fisher_rank
+from optcal.families.gyro.identifiability import excitation, fisher_rank, gyro_identifiability
 from optcal.core.gyro_model import BIAS_NAMES, G_NAMES, T_NAMES, GyroModel
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
@@ -42,7 +42,9 @@ from optcal.data.units import GyroUnitsDecision
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.model import TRIL_INDEX, theta_from
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import CalibrationResult, SolverInfo
+from optcal.core.fit_result import SolverInfo, chi_square
+from optcal.core.identifiability import RankReport
+from optcal.families.accel.result import CalibrationResult
 
 ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
 #: IPOPT's tolerance on the gyro problem's scaled cost: the accelerometer's ML problem asks for
@@ -306,7 +308,7 @@ def calibrate_gyro(
     if not exc.sufficient:
         msg = exc.describe()
         if not settings.allow_degenerate:
-            report = GyroIdentifiability(0, 9, float("inf"), exc, [])
+            report = gyro_identifiability(RankReport(0, 9, float("inf")), exc, [])
             raise IdentifiabilityError(msg + ". Record moves that also turn the sensor about that axis "
                                        "(or pass allow_degenerate=True: the combination is then arbitrary)", report)
         notes.append("DEGENERATE MOVES: " + msg)
@@ -370,7 +372,7 @@ def calibrate_gyro(
         before=before,
         accelerometer_mode=settings.accelerometer,
         solver=replace(_solver_info(stats, seconds), iterations=iterations),
-        identifiability=ident.to_dict(),
+        identifiability=ident,
         exclusions=dict(moves.exclusions),
         notes=notes,
         units=accelerometer.units,
@@ -427,9 +429,10 @@ def _joint(
         dT = acc.T @ E
         D[:6, k] = [dT[p, q] for p, q in TRIL_INDEX]
     D[6:, 6:] = r0 * np.eye(3)
+    residuals = norm_residuals(Ta, o, moves.acc_means)
     acc_joint = replace(
         acc, method=f"{acc.method}+gyro-joint", T=Ta, o=o, params=theta_from(Ta, o),
-        covariance=D @ cov[9:, 9:] @ D.T, residuals=norm_residuals(Ta, o, moves.acc_means),
+        covariance=D @ cov[9:, 9:] @ D.T, residuals=residuals, chisqr=chi_square(residuals, acc.weights),
         notes=[*acc.notes, "re-estimated jointly with the gyroscope (gravity directions across the moves)"],
     )
     u = unit_rows(acc_joint.correct(moves.acc_means))

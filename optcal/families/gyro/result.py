@@ -14,28 +14,43 @@ Parameters, units and equation
 
     ā = T (a − o)                          Lu 2017, eq. 6
     ω = T_g (g − b_g − G_g ā)              Tedaldi 2014, eq. 9 (rad/s, accelerometer frame)
+
+:class:`ImuCalibration` is a calibration type (:class:`~optcal.families.caltypes.base.Calibration`)
+and, for its gyroscope part, a fit record (:class:`~optcal.core.fit_result.FitRecord`: parameters,
+covariance, solver, identifiability, exclusions, notes); the accelerometer part is the
+accelerometer's own :class:`~optcal.families.accel.result.CalibrationResult`.  The text report is
+:func:`optcal.report.imu_text.imu_report`.
+
+The class lives with the gyroscope, not in :mod:`optcal.families.caltypes`: it holds the
+accelerometer's result, whose module imports the calibration types, so in ``caltypes`` it would
+close a cycle ``caltypes → accel → caltypes``.  The registry that reads any file by its
+``cal_type`` (:mod:`optcal.families.calibration_files`) sits above both for the same reason.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.families.accel.result import CalibrationResult
 from optcal.families.caltypes.base import Calibration, FitPoses, as_samples, read_matrix
 from optcal.families.caltypes.lumped import LumpedCalibration
+from optcal.families.gyro.identifiability import GyroIdentifiability
 from optcal.errors import InputError
+from optcal.core.fit_result import FitRecord, SolverInfo
 from optcal.core.gyro_model import GyroModel
+from optcal.core.jsonio import read_json
 from optcal.core.stats import rms
-from optcal.core.fit_result import CalibrationResult, SolverInfo
 
 CAL_TYPE: str = "imu"
 
 
-@dataclass(eq=False)
-class ImuCalibration(Calibration):
+@dataclass(kw_only=True, eq=False)
+class ImuCalibration(Calibration, FitRecord):
     """Accelerometer and gyroscope calibrated together (module docstring).
 
     Attributes
@@ -60,7 +75,9 @@ class ImuCalibration(Calibration):
     accelerometer_mode : str
         ``fixed`` or ``joint``.
     solver : SolverInfo
-    identifiability, exclusions, notes
+    identifiability : GyroIdentifiability, optional
+    exclusions, notes
+        Of the gyro fit (:class:`~optcal.core.fit_result.FitRecord`).
     units : str
         Accelerometer input units.
     fitted_on : FitPoses, optional
@@ -72,24 +89,13 @@ class ImuCalibration(Calibration):
     gyro: GyroModel
     gyro_units: str
     gyro_units_reason: str
-    param_names: list[str]
-    params: NDArray[np.float64]
-    covariance: NDArray[np.float64]
     angles_before_deg: NDArray[np.float64]
     angles_after_deg: NDArray[np.float64]
     before: str
     accelerometer_mode: str
-    solver: SolverInfo
-    identifiability: dict[str, Any] = field(default_factory=dict)
-    exclusions: dict[str, int] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
+    identifiability: GyroIdentifiability | None = None
     units: str = "g"
     fitted_on: FitPoses | None = None
-
-    @property
-    def stderr(self) -> dict[str, float]:
-        """Standard error of each gyro parameter."""
-        return dict(zip(self.param_names, np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)).tolist()))
 
     @property
     def rms_angle_before_deg(self) -> float:
@@ -132,7 +138,7 @@ class ImuCalibration(Calibration):
                 "covariance": self.covariance,
                 "accelerometer_mode": self.accelerometer_mode,
                 "solver": self.solver.to_dict(),
-                "identifiability": self.identifiability,
+                "identifiability": {} if self.identifiability is None else self.identifiability.to_dict(),
                 "exclusions": self.exclusions,
                 "notes": self.notes,
             },
@@ -164,8 +170,8 @@ class ImuCalibration(Calibration):
             angles_after_deg=np.asarray(gp["angles_deg_after"], float),
             before=str(gp["before"]),
             accelerometer_mode=str(fit["accelerometer_mode"]),
-            solver=SolverInfo(**fit["solver"]),
-            identifiability=dict(fit.get("identifiability") or {}),
+            solver=SolverInfo.from_dict(fit["solver"]),
+            identifiability=GyroIdentifiability.from_dict(fit["identifiability"]) if fit.get("identifiability") else None,
             exclusions=dict(fit.get("exclusions") or {}),
             notes=list(fit.get("notes") or []),
             units=units,
@@ -180,40 +186,16 @@ class ImuCalibration(Calibration):
         return LumpedCalibration.from_any_T(self.accelerometer.T, self.accelerometer.o, self.units, self.fitted_on)
 
     @classmethod
-    def load(cls, path: str) -> "ImuCalibration":
-        """Read a file written by :meth:`save` (``optcal.families.caltypes.load`` reads it too)."""
-        from optcal.families.caltypes import load
-
-        cal = load(path)
-        if not isinstance(cal, cls):
-            raise InputError(f"{path}: a {cal.cal_type!r} calibration, not an IMU calibration (cal_type 'imu')")
-        return cal
-
-    def report(self) -> str:
-        """Readable report: the accelerometer's, then the gyro's parameters and the gravity-prediction residual."""
-        se = self.stderr
-        phys = self.gyro.physical()
-        lines = [self.accelerometer.report(), f"[[Gyroscope: Tedaldi 2014, accelerometer {self.accelerometer_mode}]]",
-                 f"    units              = {self.gyro_units} in ({self.gyro_units_reason}), rad/s out",
-                 f"    moves              = {self.angles_after_deg.size}",
-                 f"    gravity prediction = {self.rms_angle_before_deg:.3f}° rms before ({self.before}), "
-                 f"{self.rms_angle_after_deg:.3f}° after",
-                 f"    scale K_g          = {', '.join(f'{s:.6g}' for s in phys.scale)} {self.gyro_units} per rad/s",
-                 f"    axis misalignment  = {', '.join(f'{m:.3f}' for m in phys.misalignment_deg)}° (x, y, z)",
-                 f"    solver             = {self.solver.name}: {self.solver.status}, {self.solver.iterations} iterations, "
-                 f"{self.solver.solve_time_s * 1e3:.1f} ms",
-                 "[[Gyro parameters]]"]
-        for name, value in zip(self.param_names, self.params):
-            lines.append(f"    {name:<8s} = {value: .8g} +/- {se.get(name, float('nan')):.3g}")
-        if self.identifiability:
-            lines.append(f"    identifiability: {self.identifiability.get('description', '')}")
-        if self.exclusions:
-            lines.append("[[Excluded (gyro)]]")
-            lines.extend(f"    {k}: {v}" for k, v in self.exclusions.items())
-        if self.notes:
-            lines.append("[[Notes (gyro)]]")
-            lines.extend(f"    - {n}" for n in self.notes)
-        return "\n".join(lines)
+    def load(cls, path: str | Path) -> "ImuCalibration":
+        """Read a file written by :meth:`save` (:func:`optcal.families.calibration_files.load` reads it too)."""
+        d = read_json(path)
+        found = d.get("cal_type")
+        if found != cls.cal_type:
+            raise InputError(f"{path}: a {found!r} calibration, not an IMU calibration (cal_type 'imu')")
+        try:
+            return cls.from_dict(d)
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}") from exc
 
 
 __all__ = ["CAL_TYPE", "ImuCalibration"]

@@ -16,7 +16,6 @@ scheme with compensation and the closed forms of eq. 28-30 (:mod:`optcal.applica
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from collections import Counter
@@ -33,7 +32,7 @@ from optcal.core.identifiability import analyse_design
 from optcal.core.model import LumpedModel
 from optcal.core.poses import PoseTable
 from optcal.applications.papers.command_output import acceptance_lines, exit_if_acceptance_failed, show_progress
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import json_text, jsonable
 from optcal.applications.papers.sun2011.tenposition import (
     STEP_PARAMS,
     TABLE4_PATHS_DEG,
@@ -476,7 +475,7 @@ def command(as_json: bool, runs: int, seed: int) -> None:
     """Sun 2011 Tables 2-4 by Monte Carlo, and the static ML calibration of the same data."""
     res = run(runs=runs, seed=seed, progress=show_progress())
     if as_json:
-        click.echo(json.dumps(res, allow_nan=False))
+        click.echo(json_text(res))
     else:
         click.echo(format_report(res))
     exit_if_acceptance_failed(acceptance_checks(res))

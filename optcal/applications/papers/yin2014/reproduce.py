@@ -26,7 +26,6 @@ logs in ``shared/data/mpu6050-imucalibration``:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +41,7 @@ from optcal.families.noise.allan import simulate_noise
 from optcal.families.noise.analysis import AllanAnalysis, analyse_static_log
 from optcal.core.poses import PoseTable
 from optcal.applications.papers.command_output import acceptance_lines, exit_if_acceptance_failed
-from optcal.core.fit_result import jsonable
+from optcal.core.jsonio import json_text, jsonable
 
 PAPER = 'Yin H., Zhang W., Yuan L. 2014, "An error analysis and calibration method of MEMS accelerometer", Chinese J. Sensors and Actuators 27(7)'
 RATE_HZ: float = 100.0
@@ -180,7 +179,7 @@ def sixpos_against_truth(poses: PoseTable, mean_noise: NDArray[np.float64]) -> t
     _, o, W_true, _ = true_sensor()
     V_true = -W_true @ (o + mean_noise)  # the bias during the calibration run
     result = SixPositionLeastSquares().fit(poses)
-    W, V = result.extra["W"], result.extra["V"]
+    W, V = result.W, result.V
     W_se, V_se = result.extra["W_stderr"], result.extra["V_stderr"]
     W_z = np.abs(W - W_true) / W_se
     V_z = np.abs(V - V_true) / V_se
@@ -415,7 +414,7 @@ def command(as_json: bool, seed: int, quick: bool) -> None:
     """Yin 2014: six-position least squares, Allan noise parameters and the EKF, on a known truth and real data."""
     result = run(seed=seed, quick=quick)
     if as_json:
-        click.echo(json.dumps(result))
+        click.echo(json_text(result))
     else:
         click.echo(_text_report(result))
     exit_if_acceptance_failed(acceptance_checks(result))

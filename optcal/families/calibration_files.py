@@ -1,0 +1,122 @@
+"""Reading any calibration file: the ``cal_type`` registry.
+
+:func:`load` reads a file (or its dictionary) and returns the class its ``cal_type`` names; it
+refuses an unknown ``cal_type`` and a newer major ``format_version``
+(:func:`optcal.core.jsonio.check_version`).  Files written by
+:meth:`optcal.families.accel.result.CalibrationResult.save` are calibrations of their type with the
+fit's statistics attached, so :func:`load` reads them too (and the format-1 files of optcal 0.1).
+
+The registry :data:`CAL_TYPES` maps each ``cal_type`` to ``"module:Class"``, imported on first
+use; another type registers itself with one line, ``register("magnetometer", "package.module:Class")``.
+It sits here, in a module of its own above :mod:`optcal.families.caltypes` and
+:mod:`optcal.families.gyro`, rather than in ``caltypes``: the ``imu`` type
+(:class:`optcal.families.gyro.result.ImuCalibration`) holds the accelerometer's fit result, which
+imports the calibration types, so naming it from ``caltypes`` would close the cycle
+``caltypes → gyro → caltypes``.  Nothing below the applications needs to read a file of an
+unknown type, so the registry costs no layer anything.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from optcal.core.jsonio import check_version, read_json
+from optcal.errors import InputError
+from optcal.families.caltypes import Calibration, LumpedCalibration, SixPositionCalibration
+
+__all__ = ["CAL_TYPES", "calibration_class", "from_dict", "load", "register"]
+
+#: cal_type → ``"module:Class"`` (imported on first use).  One line per type.
+CAL_TYPES: dict[str, str] = {
+    "lumped": "optcal.families.caltypes.lumped:LumpedCalibration",
+    "sixpos_full": "optcal.families.caltypes.sixpos:SixPositionCalibration",
+    "extended": "optcal.families.caltypes.extended:ExtendedCalibration",
+    "imu": "optcal.families.gyro.result:ImuCalibration",
+}
+
+
+def register(cal_type: str, target: str) -> None:
+    """Register a calibration class as ``"module:Class"`` under ``cal_type``.
+
+    Raises
+    ------
+    ValueError
+        ``target`` is not ``"module:Class"``.
+    """
+    if ":" not in target:
+        raise ValueError(f"register({cal_type!r}, ...) needs 'module:Class', got {target!r}")
+    CAL_TYPES[cal_type] = target
+
+
+def calibration_class(cal_type: str) -> type[Calibration]:
+    """The class registered under ``cal_type``.
+
+    Raises
+    ------
+    InputError
+        No class is registered under ``cal_type``.
+    """
+    target = CAL_TYPES.get(cal_type)
+    if target is None:
+        raise InputError(
+            f"unknown cal_type {cal_type!r}; this optcal reads {', '.join(sorted(CAL_TYPES))} "
+            "(a newer optcal may know it: upgrade)"
+        )
+    module, attr = target.split(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def _from_format_1(d: dict[str, Any]) -> Calibration:
+    """A format-1 file (optcal 0.1's CalibrationResult) as the calibration it holds."""
+    try:
+        units = str(d["units"]["input"])
+        extra = d.get("extra") or {}
+        if d.get("method") == "sixpos" and "W" in extra and "V" in extra:
+            return SixPositionCalibration(np.asarray(extra["W"], float), np.asarray(extra["V"], float), units)
+        return LumpedCalibration.from_any_T(np.asarray(d["T"], float), np.asarray(d["o"], float), units)
+    except (KeyError, TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"not an optcal calibration file ({exc.__class__.__name__}: {exc})") from exc
+
+
+def from_dict(d: dict[str, Any]) -> Calibration:
+    """The calibration described by a dictionary (a file's JSON object).
+
+    Raises
+    ------
+    InputError
+        Not a calibration, unknown ``cal_type``, newer major ``format_version``.
+    """
+    if not isinstance(d, dict):
+        raise InputError("a calibration is a JSON object (a dictionary)")
+    if "format_version" not in d:
+        raise InputError("not an optcal calibration file (no format_version)")
+    major, _ = check_version(d["format_version"])
+    if major == 1 and "cal_type" not in d:
+        return _from_format_1(d)
+    if "cal_type" not in d:
+        raise InputError("not an optcal calibration file (no cal_type)")
+    return calibration_class(str(d["cal_type"])).from_dict(d)
+
+
+def load(source: str | Path | dict[str, Any]) -> Calibration:
+    """Read a calibration file (or its dictionary) as the class named by its ``cal_type``.
+
+    Raises
+    ------
+    InputError
+        Missing or broken file, unknown ``cal_type``, newer major ``format_version``.
+    """
+    if isinstance(source, dict):
+        return from_dict(source)
+    try:
+        return from_dict(read_json(source))
+    except InputError as exc:
+        if str(exc).startswith(str(source)):
+            raise
+        raise InputError(f"{source}: {exc}") from exc
