@@ -19,6 +19,7 @@ from optcal.errors import InputError
 from optcal.core.extended_model import PARAMETRIC, ExtendedModel, axis_number, format_value
 from optcal.core.model import AXES, LumpedModel
 from optcal.core.poses import PoseTable
+from optcal.families.simulate.kinematics import gauss_markov, white_noise
 
 #: What :func:`recording_with_effect` can hide: every term of the extended model, or outlier poses.
 HIDDEN_EFFECTS: tuple[str, ...] = (*PARAMETRIC, "outliers")
@@ -142,21 +143,6 @@ class HiddenEffect:
         return [int(r) for r, t in zip(poses.rows, poses.t) if any(a <= t <= b for a, b in self.corrupt_times)]
 
 
-def gauss_markov(shape: tuple[int, int], dt: float, sigma: float, correlation_s: float,
-                 rng: np.random.Generator) -> NDArray[np.float64]:
-    """First-order Gauss–Markov noise (stationary, standard deviation ``sigma``) along axis 0.
-
-    ``x_{k+1} = φ x_k + σ √(1 − φ²) w_k`` with ``φ = exp(−dt/τ_c)`` (the discretised
-    exponentially correlated process; IEEE Std 952, annex C), started in its stationary law.
-    """
-    from scipy.signal import lfilter
-
-    phi = float(np.exp(-dt / correlation_s))
-    w = rng.standard_normal(shape) * sigma * np.sqrt(1 - phi**2)
-    w[0] = rng.standard_normal(shape[1]) * sigma
-    return lfilter([1.0], [1.0, -phi], w, axis=0)
-
-
 def recording_with_effect(
     effect: str | None,
     axis: str | None = None,
@@ -190,7 +176,8 @@ def recording_with_effect(
     noise_g : float
         White noise per sample and axis, g.
     gauss_markov_g, correlation_s : float
-        A first-order Gauss–Markov noise added to every axis (:func:`gauss_markov`): its standard
+        A first-order Gauss–Markov noise added to every axis
+        (:func:`optcal.families.simulate.kinematics.gauss_markov`): its standard
         deviation (g) and correlation time (s).  At the time scale of a pose it does not average
         down like white noise, so the pose means scatter more than ``σ/√n`` says.
     seed : int, optional
@@ -216,7 +203,7 @@ def recording_with_effect(
     )
     frame = rec.frame.copy()
     t = frame["t"].to_numpy()
-    frame["temp"] = warmup_cooldown(t) + 0.05 * rng.standard_normal(len(t))
+    frame["temp"] = warmup_cooldown(t) + white_noise(rng, 0.05, len(t))
     if gauss_markov_g > 0:
         coloured = gauss_markov((len(t), 3), 1.0 / rate_hz, gauss_markov_g, correlation_s, rng)
         for i, c in enumerate(("ax", "ay", "az")):

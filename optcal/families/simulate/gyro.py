@@ -1,12 +1,15 @@
 """Synthetic IMU recordings with known truth: still poses joined by smooth rotations.
 
-The truth is computed independently of the estimator's integrator: each move turns the
-body about one body-fixed axis by a raised-cosine speed profile, so its orientation is
-known in closed form (``R(t) = R_i exp(φ s(t) [n]×)``), or, with ``wobble``, a transverse
-oscillation is added and the orientation is integrated by scipy's adaptive DOP853 at
-tight tolerance (the estimator uses a fixed-step exponential map on the samples).  The
-accelerometer reads ``C R(t)ᵀ ẑ + o`` (specific force of a sensor turned about its own
-origin, in g), the gyro ``K_g M_g ω + b_g + G_g f``, each with white noise.
+The motion is built by :mod:`optcal.families.simulate.kinematics`, its truth independently of
+the estimator's integrator: each move turns the body about one body-fixed axis by a
+raised-cosine speed profile (:func:`~optcal.families.simulate.kinematics.raised_cosine_turn`),
+so its orientation is known in closed form (``R(t) = R_i exp(φ s(t) [n]×)``), or, with
+``wobble``, a transverse oscillation is added and the orientation is integrated by scipy's
+adaptive DOP853 at tight tolerance
+(:func:`~optcal.families.simulate.kinematics.integrate_attitude`; the estimator uses a
+fixed-step exponential map on the samples).  The accelerometer reads ``C R(t)ᵀ ẑ + o``
+(specific force of a sensor turned about its own origin, in g), the gyro
+``K_g M_g ω + b_g + G_g f``, each with white noise.
 """
 
 from __future__ import annotations
@@ -19,7 +22,14 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.errors import InputError
 from optcal.core.gyro_model import GyroModel
 from optcal.core.model import LumpedModel
-from optcal.core.rotations import exponential_map, rotate_about_axis, skew
+from optcal.core.rotations import exponential_map
+from optcal.families.simulate.kinematics import (
+    MotionBuilder,
+    integrate_attitude,
+    raised_cosine_turn,
+    turn,
+    white_noise,
+)
 
 
 @dataclass
@@ -108,57 +118,39 @@ def simulate_imu(
     dt = 1.0 / rate_hz
     basis = None if axes is None else np.asarray(axes, float).reshape(-1, 3)
     R = exponential_map(gen.normal(size=3))  # world ← body at the first pose
-    t_all, f_all, w_all, intervals = [], [], [], []
-    n = 0
     z = np.array([0.0, 0.0, 1.0])  # specific force at rest points up in the world
+    motion = MotionBuilder()
     for pose in range(n_poses):
-        tt = (n + np.arange(dwell)) * dt
-        t_all.append(tt)
-        f_all.append(np.tile(R.T @ z, (dwell, 1)))
-        w_all.append(np.zeros((dwell, 3)))
-        intervals.append((n, n + dwell))
-        n += dwell
+        motion.rest(R.T @ z, dwell)
         if pose == n_poses - 1:
             break
         axis = gen.normal(size=3) if basis is None else gen.normal(size=basis.shape[0]) @ basis
         axis /= np.linalg.norm(axis)
         angle = gen.uniform(np.radians(60), np.radians(150)) * gen.choice([-1, 1])
         tau = np.arange(1, nmove) / nmove  # interior samples; the ends are the still samples
-        speed = angle / move_s * (1 - np.cos(2 * np.pi * tau))
         if wobble == 0.0:
-            s = angle * (tau - np.sin(2 * np.pi * tau) / (2 * np.pi))
-            # f = exp(−s [n]×) Rᵀ z in closed form (Rodrigues' rotation of a vector)
-            forces = rotate_about_axis(axis, -s, R.T @ z)
-            omega = speed[:, None] * axis
+            # closed form: f = exp(−s [n]×) Rᵀ z
+            forces, omega = turn(R.T @ z, axis, *raised_cosine_turn(angle, move_s, tau))
             R = R @ exponential_map(axis * angle)
         else:
-            from scipy.integrate import solve_ivp
-
             perp = np.cross(axis, gen.normal(size=3))
             perp /= np.linalg.norm(perp)
 
             def rate(t: float) -> NDArray:
+                # the raised-cosine turn about the axis (raised_cosine_turn), and the transverse wobble
                 x = t / move_s
                 return axis * angle / move_s * (1 - np.cos(2 * np.pi * x)) + perp * wobble * np.sin(2 * np.pi * x) ** 3
 
-            def deriv(t: float, y: NDArray) -> NDArray:
-                return (y.reshape(3, 3) @ skew(rate(t))).ravel()
-
-            sol = solve_ivp(deriv, (0.0, move_s), R.ravel(), method="DOP853", rtol=1e-12, atol=1e-13,
-                            t_eval=np.concatenate([tau * move_s, [move_s]]))
-            mats = sol.y.T.reshape(-1, 3, 3)
+            mats = integrate_attitude(R, rate, move_s, np.concatenate([tau * move_s, [move_s]]))
             forces = mats[:-1].transpose(0, 2, 1) @ z
             omega = np.array([rate(x * move_s) for x in tau])
             U, _, Vt = np.linalg.svd(mats[-1])
             R = U @ Vt
-        t_all.append((n + np.arange(nmove - 1)) * dt)
-        f_all.append(forces)
-        w_all.append(omega)
-        n += nmove - 1
-    t = np.concatenate(t_all)
-    f = np.concatenate(f_all)
-    omega = np.concatenate(w_all)
-    acc = acc_model.measure(f) + acc_noise * gen.normal(size=f.shape)
+        motion.move(forces, omega)
+    truth = motion.finish()
+    t = np.arange(truth.n) * dt
+    f, omega = truth.specific_force, truth.rate
+    acc = acc_model.measure(f) + white_noise(gen, acc_noise, f.shape)
     gyro_clean = gyro_model.measure(omega, f if gyro_model.g_sensitivity is not None else None)
-    gyro = gyro_clean + gyro_noise * gen.normal(size=f.shape)
-    return ImuRecording(t, acc, gyro, gyro_clean, omega, intervals, acc_model, gyro_model)
+    gyro = gyro_clean + white_noise(gen, gyro_noise, f.shape)
+    return ImuRecording(t, acc, gyro, gyro_clean, omega, truth.rests, acc_model, gyro_model)

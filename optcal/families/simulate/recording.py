@@ -9,12 +9,14 @@ with the motion, optional temperature (with an optional temperature coefficient 
 bias), optional shocks and saturation, and the truth kept: which samples are at rest in
 which pose, which rotate slowly, which are clipped.
 
-Kinematics (sensor frame): the specific force at rest is ``f = ā`` (unit, in g).  A
-rotation through the angle ``φ`` about the fixed body axis ``n = ā_k × ā_{k+1}/‖·‖``
-moves it as ``f(s) = Rot(n, s φ) ā_k``, ``s`` from 0 to 1 along a smooth profile; the
-body angular rate is ``ω = −φ ṡ n + ψ̇ f`` (``ψ̇`` a turn about the vertical), which
-satisfies ``ḟ = −ω × f``.  Translational acceleration is neglected (the sensor turns
-about its own centre).  The measurement is ``a = C f + o + n`` (Lu 2017, eq. 5).
+The motion is built by :mod:`optcal.families.simulate.kinematics` (sensor frame): the
+specific force at rest is ``f = ā`` (unit, in g).  A rotation through the angle ``φ`` about
+the fixed body axis ``n = ā_k × ā_{k+1}/‖·‖`` moves it as ``f(s) = Rot(n, s φ) ā_k``, ``s``
+from 0 to 1 along a smooth profile
+(:func:`~optcal.families.simulate.kinematics.half_cosine_profile`); the body angular rate is
+``ω = −φ ṡ n + ψ̇ f`` (``ψ̇`` a turn about the vertical), which satisfies ``ḟ = −ω × f``.
+Translational acceleration is neglected (the sensor turns about its own centre).  The
+measurement is ``a = C f + o + n`` (Lu 2017, eq. 5).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.errors import InputError
 from optcal.core.model import LumpedModel
 from optcal.core.rotations import rotate_about_axis
+from optcal.families.simulate.kinematics import MotionBuilder, axis_between, half_cosine_profile, turn, white_noise
 from optcal.families.simulate.poses import user_directions
 
 
@@ -90,21 +93,6 @@ class SyntheticRecording:
     def to_csv(self, path: str, float_format: str = "%.9g") -> None:
         """Write the frame as CSV (``t, ax, ay, az[, gx, gy, gz][, temp]``)."""
         self.frame.to_csv(path, index=False, float_format=float_format)
-
-
-def _smooth_profile(m: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``s(τ) = (1 − cos πτ)/2`` over ``m`` samples and ``ds/dτ``."""
-    tau = (np.arange(m) + 0.5) / m
-    return 0.5 * (1 - np.cos(np.pi * tau)), 0.5 * np.pi * np.sin(np.pi * tau)
-
-
-def _rotation_axis(d0: NDArray[np.float64], d1: NDArray[np.float64], rng: np.random.Generator) -> tuple[NDArray[np.float64], float]:
-    cross = np.cross(d0, d1)
-    angle = float(np.arctan2(np.linalg.norm(cross), np.dot(d0, d1)))
-    if np.linalg.norm(cross) < 1e-9:  # same or opposite direction: any perpendicular axis
-        perp = np.cross(d0, rng.standard_normal(3))
-        return perp / np.linalg.norm(perp), angle
-    return cross / np.linalg.norm(cross), angle
 
 
 def synthesize_recording(
@@ -206,55 +194,32 @@ def synthesize_recording(
     # pose schedule: (direction, dwell samples); slow creeps insert a new pose after a dwell
     creep_after = set(rng.choice(k, size=min(slow_creeps, k), replace=False).tolist()) if slow_creeps else set()
     turn_in = set(rng.choice(k, size=min(slow_turns, k), replace=False).tolist()) if slow_turns else set()
-    f_parts: list[NDArray[np.float64]] = []
-    w_parts: list[NDArray[np.float64]] = []
-    dwells: list[tuple[int, int]] = []
-    dwell_dirs: list[NDArray[np.float64]] = []
-    slow: list[tuple[int, int]] = []
-    n = 0
+    motion = MotionBuilder()
     slow_rate = np.deg2rad(slow_rate_dps)
     m_slow = max(1, int(round(slow_s * rate_hz)))
 
     def rest(direction: NDArray[np.float64], seconds: float) -> None:
-        nonlocal n
-        m = max(1, int(round(seconds * rate_hz)))
-        f_parts.append(np.tile(direction, (m, 1)))
-        w_parts.append(np.zeros((m, 3)))
-        dwells.append((n, n + m))
-        dwell_dirs.append(direction)
-        n += m
+        motion.rest(direction, max(1, int(round(seconds * rate_hz))))
 
     def rotate(d0: NDArray[np.float64], d1: NDArray[np.float64], seconds: float, yaw_dps: float) -> None:
-        nonlocal n
         m = max(2, int(round(seconds * rate_hz)))
-        axis, angle = _rotation_axis(d0, d1, rng)
-        s, ds = _smooth_profile(m)
-        f = rotate_about_axis(axis, s * angle, d0)
+        axis, angle = axis_between(d0, d1, rng)
+        s, ds = half_cosine_profile(m)
         dt_total = m / rate_hz
-        # ω = −φ ṡ n + ψ̇ f   (ḟ = −ω × f)
-        w = -np.outer(angle * ds / dt_total, axis) + np.deg2rad(yaw_dps) * np.sin(np.pi * s)[:, None] * f
-        f_parts.append(f)
-        w_parts.append(w)
-        n += m
+        # a turn by −φ s about n (f(s) = Rot(n, φ s) ā_k), plus ψ̇ f, a turn about the vertical (ḟ = −ω × f)
+        f, w = turn(d0, axis, -(s * angle), -(angle * ds / dt_total))
+        motion.move(f, w + np.deg2rad(yaw_dps) * np.sin(np.pi * s)[:, None] * f)
 
     def slow_rotation(d0: NDArray[np.float64], about_vertical: bool) -> NDArray[np.float64]:
-        nonlocal n
         if about_vertical:
             f = np.tile(d0, (m_slow, 1))
-            w = slow_rate * f
-            end = d0
-        else:
-            perp = np.cross(d0, rng.standard_normal(3))
-            perp /= np.linalg.norm(perp)
-            angles = slow_rate * (np.arange(m_slow) + 0.5) / rate_hz
-            f = rotate_about_axis(perp, angles, d0)
-            w = -np.tile(slow_rate * perp, (m_slow, 1))
-            end = rotate_about_axis(perp, np.array([slow_rate * m_slow / rate_hz]), d0)[0]
-        f_parts.append(f)
-        w_parts.append(w)
-        slow.append((n, n + m_slow))
-        n += m_slow
-        return end
+            motion.move(f, slow_rate * f, slow=True)
+            return d0
+        perp = np.cross(d0, rng.standard_normal(3))
+        perp /= np.linalg.norm(perp)
+        angles = slow_rate * (np.arange(m_slow) + 0.5) / rate_hz
+        motion.move(*turn(d0, perp, -angles, np.full(m_slow, -slow_rate)), slow=True)
+        return rotate_about_axis(perp, np.array([slow_rate * m_slow / rate_hz]), d0)[0]
 
     current = d[0]
     for i in range(k):
@@ -272,13 +237,11 @@ def synthesize_recording(
             current = slow_rotation(current, about_vertical=False)
             rest(current, draw(dwell_s))
 
-    f = np.concatenate(f_parts)
-    w = np.concatenate(w_parts)
+    truth = motion.finish()
+    f, w, n = truth.specific_force, truth.rate, truth.n
     t = t0 + np.arange(n) / rate_hz
     # shocks: 30 ms half-sine bumps in the middle of transitions (never in a dwell or slow rotation)
-    moving = np.ones(n, dtype=bool)
-    for a, b in dwells + slow:
-        moving[a:b] = False
+    moving = truth.moving()
     shock_acc = np.zeros((n, 3))
     if shocks:
         candidates = np.flatnonzero(moving)
@@ -289,11 +252,11 @@ def synthesize_recording(
                 continue
             axis = rng.standard_normal(3)
             shock_acc[a:b] += shock_g * np.sin(np.pi * (np.arange(b - a) + 0.5) / (b - a))[:, None] * axis / np.linalg.norm(axis)
-    acc = (f + shock_acc) @ model.C.T + model.o
+    acc = model.measure(f + shock_acc)
     temp = None
     meta: dict[str, Any] = {"gyro_bias_dps": list(np.asarray(gyro_bias_dps, float)), "gyro_sigma_dps": gyro_sigma_dps}
     if temperature is not None:
-        temp = temperature[0] + temperature[1] * (t - t0) + 0.05 * rng.standard_normal(n)
+        temp = temperature[0] + temperature[1] * (t - t0) + white_noise(rng, 0.05, n)
         meta["temp_ref"] = float(temperature[0])
         if bias_temp_coeff is not None:
             coeff = np.asarray(bias_temp_coeff, float).reshape(3)
@@ -301,7 +264,7 @@ def synthesize_recording(
             meta["bias_temp_coeff"] = coeff
     elif bias_temp_coeff is not None:
         raise InputError("bias_temp_coeff needs a temperature profile")
-    acc = acc + sigma * rng.standard_normal((n, 3))
+    acc = acc + white_noise(rng, sigma, (n, 3))
     if quantum:
         acc = np.round(acc / quantum) * quantum
     saturated = np.zeros(n, dtype=bool)
@@ -311,7 +274,7 @@ def synthesize_recording(
         acc = np.clip(acc, low, high)
     frame = pd.DataFrame({"t": t, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2]})
     if gyro:
-        wg = np.rad2deg(w) + np.asarray(gyro_bias_dps, float) + gyro_sigma_dps * rng.standard_normal((n, 3))
+        wg = np.rad2deg(w) + np.asarray(gyro_bias_dps, float) + white_noise(rng, gyro_sigma_dps, (n, 3))
         if gyro_units == "rad/s":
             wg = np.deg2rad(wg)
         frame["gx"], frame["gy"], frame["gz"] = wg[:, 0], wg[:, 1], wg[:, 2]
@@ -320,9 +283,9 @@ def synthesize_recording(
     return SyntheticRecording(
         frame=frame,
         model=model,
-        directions=np.array(dwell_dirs),
-        dwells=np.array(dwells, dtype=int),
-        slow=np.array(slow, dtype=int).reshape(-1, 2),
+        directions=np.array(truth.rest_directions),
+        dwells=np.array(truth.rests, dtype=int),
+        slow=np.array(truth.slow, dtype=int).reshape(-1, 2),
         saturated=saturated,
         sigma=float(sigma),
         rate_hz=float(rate_hz),
