@@ -5,23 +5,10 @@ import json
 import numpy as np
 import pytest
 
+from helpers.cli_run import run_args as run
+
 from optcal.cli.main import main
 from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
-
-
-def run(capsys, *args):
-    code = main(list(args))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-@pytest.fixture
-def pose_csv(tmp_path, lu_model):
-    poses = simulate_poses(lu_model, tilted_sweeps(10), 0.002, rng=np.random.default_rng(3))
-    path = tmp_path / "poses.csv"
-    lines = ["ax,ay,az"] + [",".join(f"{v:.10g}" for v in row) for row in poses.acc]
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 @pytest.mark.parametrize("method", ["default", "svd", "convex", "mle", "exact", "gd"])

@@ -8,18 +8,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from helpers.diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case, write_table
 
 from optcal.cli.main import main
-
-
-def write_table(case, path: Path, temp: bool = True) -> Path:
-    p = case.poses
-    frame = pd.DataFrame({"ax": p.acc[:, 0], "ay": p.acc[:, 1], "az": p.acc[:, 2], "sigma": p.sigma, "t": p.t})
-    if temp:
-        frame["temp"] = p.temp
-    frame.to_csv(path, index=False, float_format="%.10g")
-    return path
 
 
 def test_json_is_exactly_one_object_with_the_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

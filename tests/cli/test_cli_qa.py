@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from test_cli_core import pose_csv, run  # noqa: F401 (pose_csv is a fixture)
+from helpers.cli_run import run_args as run
 
 
 @pytest.mark.parametrize("args, expected", [
@@ -86,8 +86,9 @@ def test_calibrate_names_time_unit(capsys, counts_cal):
 def one_ipopt_iteration(monkeypatch):
     """IPOPT limited to one iteration; the problems built meanwhile are not kept for other tests."""
     from optcal.families.accel import mle
+    from optcal.solvers import nlp
 
-    monkeypatch.setitem(mle.ML_IPOPT_DEFAULTS, "ipopt.max_iter", 1)
+    monkeypatch.setitem(nlp.SCALED_COST_IPOPT_OPTIONS, "ipopt.max_iter", 1)
     mle.ML_PROBLEMS.clear()
     yield
     mle.ML_PROBLEMS.clear()

@@ -10,3 +10,8 @@ def run(argv, capsys) -> tuple[int, str, str]:
     code = main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def run_args(capsys, *args: str) -> tuple[int, str, str]:
+    """``optcal ARGS`` → (exit code, stdout, stderr), the arguments given one by one."""
+    return run(list(args), capsys)

@@ -9,8 +9,10 @@ poses; 0.2-0.8 mg of noise per pose.  The temperature follows a warm-up then a c
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 
 from optcal.core.extended_model import ExtendedModel
@@ -92,5 +94,14 @@ def write_pose_table(poses: PoseTable, path):
 
     frame = pd.DataFrame({"ax": poses.acc[:, 0], "ay": poses.acc[:, 1], "az": poses.acc[:, 2],
                           "sigma": poses.sigma, "t": poses.t, "temp": poses.temp})
+    frame.to_csv(path, index=False, float_format="%.10g")
+    return path
+
+
+def write_table(case, path: Path, temp: bool = True) -> Path:
+    p = case.poses
+    frame = pd.DataFrame({"ax": p.acc[:, 0], "ay": p.acc[:, 1], "az": p.acc[:, 2], "sigma": p.sigma, "t": p.t})
+    if temp:
+        frame["temp"] = p.temp
     frame.to_csv(path, index=False, float_format="%.10g")
     return path

@@ -20,25 +20,7 @@ from optcal.report.parameters import result_parameters
 from optcal.applications.quality.verdict import judge, judge_check, judge_segmentation
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-
-def verdict_of(html: str) -> str:
-    match = re.search(r"Verdict: <strong>([^<]+)</strong>", html)
-    assert match, "no verdict in the report"
-    return match.group(1)
-
-
-def reasons_of(html: str) -> str:
-    start = html.index('aria-label="verdict"')
-    return html[start:html.index("</section>", start)]
-
-
-def assert_self_contained(html: str) -> None:
-    assert "<script" not in html
-    assert not re.search(r"""(src|href)\s*=\s*["'](https?:)?//""", html), "a resource that needs the network"
-    assert "@import" not in html and "url(http" not in html
-
+from helpers.html_report import assert_self_contained, reasons_of, verdict_of
 
 # ----------------------------------------------------------------------------- parameters
 SENSOR = LumpedModel.from_physical(scale=[1.02, 0.97, 1.05], rho=np.deg2rad(0.5), phi=np.deg2rad(-0.3),
@@ -173,7 +155,7 @@ def test_hand_held_mpu6050_is_at_best_usable_with_care(shared_data: Path, tmp_pa
 
 def test_diagnosis_with_a_finding(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from helpers.diagnosis_cases import make_case
-    from test_cli_diagnose import write_table
+    from helpers.diagnosis_cases import write_table
 
     case = make_case("temperature_bias", 21)
     data = write_table(case, tmp_path / "poses.csv")

@@ -20,8 +20,8 @@ from optcal.applications.quality.verdict import judge_fleet
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from test_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402
-from test_report_browser import BROWSER, open_in_browser  # noqa: E402
+from helpers.html_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402
+from helpers.html_report import BROWSER, open_in_browser  # noqa: E402
 
 
 @pytest.fixture(scope="module")

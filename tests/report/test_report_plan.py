@@ -17,7 +17,7 @@ from optcal.report.plan_report import orientation_rows
 from optcal.families.simulate.poses import simulate_poses, six_position, uniform_directions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from test_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402
+from helpers.html_report import assert_self_contained, reasons_of, verdict_of  # noqa: E402
 
 SENSOR = LumpedModel.from_physical([1.02, 0.98, 1.01], 0.003, -0.002, 0.001, [0.02, -0.01, 0.03])
 
