@@ -54,7 +54,7 @@ def test_fleet_few_hundred_units(benchmark, tmp_path):
 def test_fit_stage_batched_against_single(benchmark, tmp_path):
     import numpy as np
 
-    from optcal.families.accel.batched import parameter_full_scale
+    from optcal.core.identifiability import parameter_full_scale
     from optcal.applications.fleet.unit import fit_unit, fit_units, read_unit
 
     n = 128 if QUICK else 512

@@ -93,15 +93,15 @@ def lumped_matrix(
 
 
 def canonical_T(A: ArrayLike) -> NDArray[np.float64]:
-    """Lower-triangular ``T`` with positive diagonal such that ``Tᵀ T = A``.
+    """Lower-triangular ``T`` with positive diagonal such that ``Tᵀ T = A`` (``A`` (3, 3) or a stack (..., 3, 3)).
 
     Raises
     ------
     InputError
-        If ``A`` is not symmetric positive definite.
+        If ``A`` (any of the stack) is not symmetric positive definite.
     """
     A = np.asarray(A, dtype=float)
-    A = 0.5 * (A + A.T)
+    A = 0.5 * (A + np.swapaxes(A, -1, -2))
     P = np.eye(3)[::-1]
     try:
         L = np.linalg.cholesky(P @ A @ P)  # P A P = L Lᵀ
@@ -110,29 +110,29 @@ def canonical_T(A: ArrayLike) -> NDArray[np.float64]:
             "the fitted quadric is not an ellipsoid (A is not positive definite); "
             'use method="convex", which constrains A to be positive definite'
         ) from exc
-    U = L.T  # upper, Uᵀ U = P A P
+    U = np.swapaxes(L, -1, -2)  # upper, Uᵀ U = P A P
     return P @ U @ P  # lower, Tᵀ T = A
 
 
 def canonicalise(T: ArrayLike) -> NDArray[np.float64]:
-    """Map any invertible ``T`` to the canonical lower-triangular ``T`` with the same ``A``."""
+    """Map any invertible ``T`` (or a stack (..., 3, 3)) to the canonical lower-triangular ``T`` with the same ``A``."""
     T = np.asarray(T, dtype=float)
-    return canonical_T(T.T @ T)
+    return canonical_T(np.swapaxes(T, -1, -2) @ T)
 
 
 def theta_from(T: ArrayLike, o: ArrayLike) -> NDArray[np.float64]:
-    """Pack a lower-triangular ``T`` and ``o`` into the parameter vector θ."""
+    """Pack a lower-triangular ``T`` and ``o`` into the parameter vector θ (or a stack: T (..., 3, 3), o (..., 3))."""
     T = np.asarray(T, dtype=float)
-    return np.concatenate([[T[i, j] for i, j in TRIL_INDEX], np.asarray(o, float).reshape(3)])
+    lower = T[..., [i for i, _ in TRIL_INDEX], [j for _, j in TRIL_INDEX]]
+    return np.concatenate([lower, np.asarray(o, float).reshape(T.shape[:-2] + (3,))], axis=-1)
 
 
 def unpack_theta(theta: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Unpack θ into the lower-triangular ``T`` and ``o``."""
+    """Unpack θ (or a stack (..., 9)) into the lower-triangular ``T`` and ``o``."""
     theta = np.asarray(theta, dtype=float)
-    T = np.zeros((3, 3))
-    for k, (i, j) in enumerate(TRIL_INDEX):
-        T[i, j] = theta[k]
-    return T, theta[6:9].copy()
+    T = np.zeros(theta.shape[:-1] + (3, 3))
+    T[..., [i for i, _ in TRIL_INDEX], [j for _, j in TRIL_INDEX]] = theta[..., :6]
+    return T, theta[..., 6:9].copy()
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,8 @@ class NormResidualPoint:
     """The norm residuals of every measurement at one ``(T, o)``, with what their derivatives need.
 
     Per-measurement quantities are stored one row per component, one column per measurement.
+    For a stack of K measurement sets (:class:`NormResidualKernel` of (K, n, 3) measurements,
+    each at its own ``(T, o)``) every shape below gains a leading axis K.
 
     Attributes
     ----------
@@ -58,24 +60,24 @@ class NormResidualPoint:
 
     def bias_jacobian(self) -> NDArray[np.float64]:
         """``∂r_k/∂o = −Tᵀ ā_k`` (Lu 2017, eq. 16), shape (3, n)."""
-        return -(self.T.T @ self.direction)
+        return -(np.swapaxes(self.T, -1, -2) @ self.direction)
 
     def jacobian(self) -> NDArray[np.float64]:
         """``∂r_k/∂θ`` (θ: lower-triangular ``T`` entries, then ``o``), shape (9, n).
 
         ``∂r_k/∂T_ij = ā_k,i u_k,j`` (Lu 2017, eq. 15) for ``(i, j)`` in :data:`TRIL_INDEX`.
         """
-        return np.concatenate([self.direction[TRIL_ROWS] * self.u[TRIL_COLS], self.bias_jacobian()])
+        return np.concatenate([self.direction[..., TRIL_ROWS, :] * self.u[..., TRIL_COLS, :], self.bias_jacobian()], axis=-2)
 
     def jacobian_full(self) -> NDArray[np.float64]:
         """``∂r_k/∂[vec(T) row-major, o]`` (the paper's 12 parameters; eq. 15-16), shape (12, n)."""
-        dT = (self.direction[:, None, :] * self.u[None, :, :]).reshape(9, -1)
-        return np.concatenate([dT, self.bias_jacobian()])
+        dT = (self.direction[..., :, None, :] * self.u[..., None, :, :]).reshape(self.u.shape[:-2] + (9, -1))
+        return np.concatenate([dT, self.bias_jacobian()], axis=-2)
 
     def normal_gain(self) -> NDArray[np.float64]:
         """``‖Tᵀ ā_k‖``: how isotropic raw noise propagates to ``r_k``, shape (n,)."""
         g = self.bias_jacobian()
-        return np.sqrt(np.einsum("ij,ij->j", g, g))
+        return np.sqrt(np.einsum("...ij,...ij->...j", g, g))
 
 
 class NormResidualKernel:
@@ -83,27 +85,33 @@ class NormResidualKernel:
 
     Parameters
     ----------
-    acc : array_like, shape (n, 3)
-        Measurements, in any units (``T`` maps them to g).  Held transposed (3, n), so that
-        every operation runs along contiguous rows.
+    acc : array_like, shape (n, 3) or (K, n, 3)
+        Measurements, in any units (``T`` maps them to g), or a stack of K sets of n
+        measurements each, evaluated each at its own ``(T, o)`` (T (K, 3, 3), o (K, 3), θ
+        (K, 9)).  Held transposed ((3, n) or (K, 3, n)), so that every operation runs along
+        contiguous rows.
     """
 
     def __init__(self, acc: ArrayLike) -> None:
-        self.data = np.ascontiguousarray(np.asarray(acc, dtype=float).reshape(-1, 3).T)
-        self.n = self.data.shape[1]
+        acc = np.asarray(acc, dtype=float)
+        acc = acc.reshape(-1, 3) if acc.ndim <= 2 else acc
+        self.data = np.ascontiguousarray(np.swapaxes(acc, -1, -2))
+        self.n = self.data.shape[-1]
 
     def at(self, T: ArrayLike, o: ArrayLike) -> NormResidualPoint:
         """Residuals and directions at ``(T, o)`` (Lu 2017, eq. 13)."""
-        T = np.asarray(T, dtype=float).reshape(3, 3)
-        o = np.asarray(o, dtype=float).reshape(3)
-        u = self.data - o[:, None]
+        stack = self.data.shape[:-2]
+        T = np.asarray(T, dtype=float).reshape(stack + (3, 3))
+        o = np.asarray(o, dtype=float).reshape(stack + (3,))
+        u = self.data - o[..., :, None]
         v = T @ u
-        nv = np.sqrt(np.einsum("ij,ij->j", v, v))
-        return NormResidualPoint(T, o, u, v / nv, nv - 1.0)
+        nv = np.sqrt(np.einsum("...ij,...ij->...j", v, v))
+        return NormResidualPoint(T, o, u, v / nv[..., None, :], nv - 1.0)
 
     def at_theta(self, theta: ArrayLike) -> NormResidualPoint:
-        """:meth:`at` for the parameter vector θ of :mod:`optcal.core.model`."""
-        T, o = unpack_theta(np.asarray(theta, dtype=float).ravel()[:9])
+        """:meth:`at` for the parameter vector θ of :mod:`optcal.core.model` (θ (K, 9) for a stack)."""
+        theta = np.asarray(theta, dtype=float)
+        T, o = unpack_theta(theta.ravel()[:9] if theta.ndim <= 1 else theta[..., :9])
         return self.at(T, o)
 
     def at_full(self, x: ArrayLike) -> NormResidualPoint:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.families.accel.batched import BatchedMaximumLikelihood, BatchedNormResidualCost, validate_many
+from optcal.families.accel.batched import BatchedMaximumLikelihood, validate_many
 from optcal.core.identifiability import parameter_full_scale
 from optcal.families.accel.mle import MaximumLikelihood, NormResidualCost
 from optcal.core.model import LumpedModel, lu2017_reference_model
@@ -60,21 +60,44 @@ def test_batched_marks_the_unit_mle_refuses():
     assert fit.identifiable.tolist() == [True, False]
 
 
-def test_batched_cost_matches_the_single_cost():
+def test_the_cost_of_a_stack_is_the_sum_of_the_single_costs():
+    """NormResidualCost with a leading axis of units: the separable sum, gradient stacked, Hessian blocks."""
     rng = np.random.default_rng(2)
     u = rng.standard_normal((3, 50, 3))
     w = rng.uniform(0.5, 2, (3, 50))
+    scales = np.array([1.0, 2.0, 0.5])
     theta = np.tile(np.array([1.0, 0.01, 0.9, -0.02, 0.03, 1.1, 0.05, -0.1, 0.02]), 3) + 0.01 * rng.standard_normal(27)
-    cost = BatchedNormResidualCost(u, w, np.array([1.0, 2.0, 0.5]))
+    cost = NormResidualCost(u, w, scale=scales)
     _, g = cost.gradient(theta)
-    H = cost.hessian_blocks(theta)
-    for k, c in enumerate([1.0, 2.0, 0.5]):
+    H = cost.gauss_newton_hessian(theta)
+    assert g.shape == (27,) and H.shape == (3, 9, 9)
+    for k, c in enumerate(scales):
         one = NormResidualCost(u[k], w[k], scale=c)
         f1, g1 = one.gradient(theta[9 * k:9 * k + 9])
         assert np.allclose(g[9 * k:9 * k + 9], g1, rtol=1e-12, atol=1e-14)
         assert np.allclose(H[k], one.gauss_newton_hessian(theta[9 * k:9 * k + 9]), rtol=1e-12, atol=1e-14)
+        assert np.allclose(cost.residuals(theta)[k], one.residuals(theta[9 * k:9 * k + 9]), rtol=0, atol=1e-15)
     assert cost.value(theta) == pytest.approx(sum(NormResidualCost(u[k], w[k], scale=c).value(theta[9 * k:9 * k + 9])
-                                                  for k, c in enumerate([1.0, 2.0, 0.5])), rel=1e-12)
+                                                  for k, c in enumerate(scales)), rel=1e-12)
+
+
+def test_the_stacked_start_and_scale_are_the_single_ones():
+    """convex_start and scaled_cost on a stack give each unit what they give it alone (the rules are written once)."""
+    from optcal.families.accel.base import Normaliser
+    from optcal.families.accel.mle import convex_start, scaled_cost
+
+    tables = [t for t in _tables(4) if t.n == 120][:4]
+    acc = np.stack([t.acc for t in tables])
+    norm = Normaliser.of(acc)
+    u = norm.forward(acc)
+    theta = convex_start(u, 1e-3)
+    w = np.random.default_rng(3).uniform(0.5, 2, (len(tables), 120))
+    stacked = scaled_cost(u, w, theta)
+    for k, t in enumerate(tables):
+        single_norm = Normaliser.of(t.acc)
+        np.testing.assert_array_equal(u[k], single_norm.forward(t.acc))
+        np.testing.assert_allclose(theta[k], convex_start(u[k], 1e-3), rtol=1e-13, atol=1e-15)
+        assert stacked.scale[k] == pytest.approx(scaled_cost(u[k], w[k], theta[k]).scale, rel=1e-13)
 
 
 def test_validate_many_names_the_bad_table():

@@ -8,7 +8,7 @@ import pytest
 import optcal
 import optcal.families.calibration_files
 from optcal.errors import IdentifiabilityError, InputError
-from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu
+from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro, calibrate_imu_loaded
 from optcal.core.gyro_model import GyroModel
 from optcal.families.gyro.moves import moves_from_arrays
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
@@ -175,14 +175,15 @@ def test_xsens_log_beats_imutk(shared_data) -> None:
     path = shared_data / "imutk-xsens" / "xsens_imutk.csv"
     if not path.exists():
         pytest.skip("imutk-xsens recording absent")
-    cal = calibrate_imu(str(path))
-    assert cal.gyro_units == "counts" and cal.angles_after_deg.size == 37
-    assert cal.rms_angle_after_deg <= 0.517
-    # the metric reproduces imu_tk's own figures from its parameters
     from optcal.data import load_with_segmentation
     from optcal.families.gyro.moves import moves_from_segmentation
 
-    moves = moves_from_segmentation(load_with_segmentation(str(path)).segmentation)
+    loaded = load_with_segmentation(str(path))
+    cal = calibrate_imu_loaded(loaded)
+    assert cal.gyro_units == "counts" and cal.angles_after_deg.size == 37
+    assert cal.rms_angle_after_deg <= 0.517
+    # the metric reproduces imu_tk's own figures from its parameters
+    moves = moves_from_segmentation(loaded.segmentation)
     u = unit_rows((moves.acc_means - IMUTK_ACC[1]) @ IMUTK_ACC[0].T)
     gp = GravityPredictor(moves.first_step, moves.last_step)
     Tg, Kg, bg = IMUTK_GYRO

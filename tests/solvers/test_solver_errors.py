@@ -12,7 +12,8 @@ import pytest
 from optcal import calibrate
 from optcal.cli.main import EXIT_INPUT_ERROR, EXIT_SOLVER_ERROR, main
 from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
-from optcal.families.accel.mle import ML_IPOPT_DEFAULTS, ML_PROBLEMS
+from optcal.families.accel.mle import ML_PROBLEMS
+from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS
 from optcal.families.simulate.poses import cap_directions, lu2017_sweeps, simulate_poses, uniform_directions
 
 from conftest import rngs
@@ -85,7 +86,7 @@ def pose_csv(tmp_path, poses):
 def ipopt_defaults(monkeypatch):
     """Change the ML problems' IPOPT defaults for one test (the built problems are dropped around it)."""
     ML_PROBLEMS.clear()
-    yield lambda key, value: monkeypatch.setitem(ML_IPOPT_DEFAULTS, key, value)
+    yield lambda key, value: monkeypatch.setitem(SCALED_COST_IPOPT_OPTIONS, key, value)
     monkeypatch.undo()
     ML_PROBLEMS.clear()
 

@@ -32,7 +32,9 @@ from numpy.typing import NDArray
 from optcal.errors import InputError
 from optcal.applications.fleet.unit import UnitOutcome
 from optcal.core.poses import PoseTable
-from optcal.solvers.cache import ProblemCache, problem_cache
+from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
+from optcal.solvers.convergence import solver_record
+from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, cost_scale, nlp_solver
 
 #: Fewest well-determined units for a prior (a 9 × 9 covariance needs well over 9).
 MIN_PRIOR_UNITS: int = 20
@@ -110,10 +112,9 @@ class PriorMLProblem:
     the cost scale ``c`` are parameters of the NLP.
     """
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None) -> None:
         import casadi as ca
 
-        from optcal.families.accel.mle import ML_IPOPT_DEFAULTS
         from optcal.core.norm_residual import casadi_norm_residual
 
         self.n = n
@@ -127,17 +128,18 @@ class PriorMLProblem:
         penalty = ca.sumsqr(ca.mtimes(L, x - mu))
         cost = scale * (ca.sum2(w * r**2) + penalty)  # eq. 14 plus −2 log prior
         p = ca.vertcat(ca.vec(data), ca.vec(w), mu, ca.vec(L), scale)
-        self.solver = ca.nlpsol("ml_with_prior", "ipopt", {"x": x, "p": p, "f": cost}, dict(ML_IPOPT_DEFAULTS))
-        self._lock = threading.Lock()  # nlpsol keeps the statistics of its last call
+        self.solver = nlp_solver("ml_with_prior", {"x": x, "p": p, "f": cost}, SCALED_COST_IPOPT_OPTIONS,
+                                 solver_options=ipopt_options)
+        self._lock = threading.Lock()  # the solver keeps the statistics of its last call
 
     @staticmethod
-    def get(n: int) -> "PriorMLProblem":
+    def get(n: int, ipopt_options: dict[str, Any] | None = None) -> "PriorMLProblem":
         """The problem serving n poses (size :func:`padded_size`), built on first use (:data:`PRIOR_PROBLEMS`)."""
-        return PRIOR_PROBLEMS.get(padded_size(n))
+        return PRIOR_PROBLEMS.get(padded_size(n), freeze_options(ipopt_options))
 
     def solve(self, theta0: NDArray, u: NDArray, w: NDArray, mu: NDArray, L: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) with absolute weights ``w``."""
-        from optcal.families.accel.mle import NormResidualCost, cost_scale
+        from optcal.families.accel.mle import NormResidualCost
 
         n = len(u)
         pad = self.n - n
@@ -150,12 +152,12 @@ class PriorMLProblem:
         scale = cost_scale(n, np.sqrt(start / n))
         p = np.concatenate([u_p.ravel(), w_p, mu, L.ravel(order="F"), [scale]])
         with self._lock:
-            sol = self.solver(x0=theta0, p=p)
-            return np.asarray(sol["x"]).ravel(), self.solver.stats()
+            return self.solver.solve(x0=theta0, p=p)
 
 
-#: Built :class:`PriorMLProblem` s by padded size (:func:`optcal.solvers.cache.problem_cache`).
-PRIOR_PROBLEMS: ProblemCache[PriorMLProblem] = problem_cache(PriorMLProblem, maxsize=8)
+#: Built :class:`PriorMLProblem` s by padded size and frozen IPOPT options (:func:`optcal.solvers.cache.problem_cache`).
+PRIOR_PROBLEMS: ProblemCache[PriorMLProblem] = problem_cache(lambda n, options: PriorMLProblem(n, dict(options)),
+                                                             maxsize=8)
 
 
 @dataclass
@@ -174,7 +176,8 @@ class PriorFit:
     prior_weight: NDArray[np.float64]
 
 
-def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | None = None) -> PriorFit:
+def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | None = None,
+                   ipopt_options: dict[str, Any] | None = None) -> PriorFit:
     """Refit one unit's poses with the population prior (see the module docstring).
 
     Parameters
@@ -184,12 +187,13 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     prior : PopulationPrior
     start : ndarray, shape (9,), optional
         Starting θ (the unit's own fit); the prior mean when omitted.
+    ipopt_options : dict, optional
+        Extra CasADi/IPOPT options; options IPOPT refuses are an :class:`InputError`.
     """
     from optcal.families.accel.base import Normaliser, Stopwatch, finish
     from optcal.families.accel.mle import MaximumLikelihood
     from optcal.core.norm_residual import norm_residual_jacobian
     from optcal.core.model import unpack_theta
-    from optcal.core.fit_result import SolverInfo
 
     if poses.units != prior.units:
         raise InputError(f"the unit's data are in {poses.units} but the population prior in {prior.units}")
@@ -201,7 +205,7 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     mu_n = np.linalg.solve(D, prior.mean - offset)
     L = np.linalg.cholesky(D @ prior.precision @ D).T  # LᵀL = D P⁻¹ D
     theta_n = norm.theta_to_normalised(prior.mean if start is None else np.asarray(start, float))
-    problem = PriorMLProblem.get(poses.n)
+    problem = PriorMLProblem.get(poses.n, ipopt_options)
     ml = MaximumLikelihood()
     iterations, seconds, stats = 0, 0.0, {}
     for _ in range(PRIOR_PASSES):
@@ -210,9 +214,8 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
             theta_n, stats = problem.solve(theta_n, u, w, mu_n, L)
         iterations += int(stats.get("iter_count", 0))
         seconds += sw.seconds
-    solver = SolverInfo("IPOPT", str(stats.get("return_status", "unknown")), bool(stats.get("success", False)),
-                        iterations, seconds, f"CasADi nlpsol (SX, exact Hessian), norm residual + population prior, "
-                                             f"{PRIOR_PASSES} pass(es)")
+    solver = solver_record(stats, seconds, "IPOPT", f"CasADi nlpsol (SX, exact Hessian), norm residual + population prior, "
+                                                    f"{PRIOR_PASSES} pass(es)", iterations=iterations)
     result = finish(method="mle+prior", poses=poses, theta=norm.theta_to_raw(theta_n), solver=solver,
                     allow_degenerate=True, extra={"prior_units": prior.n_units})
     # posterior covariance (F + P⁻¹)⁻¹, inverted in normalised coordinates

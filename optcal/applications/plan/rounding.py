@@ -20,14 +20,17 @@ from numpy.typing import NDArray
 
 from optcal.applications.plan.candidates import Cap
 from optcal.applications.plan.information import Criterion, criterion_gradient, criterion_value, criterion_values, information
+from optcal.solvers.nlp import CallbackNLP, NumpyObjective
 
 #: Step of the central differences of the information vectors (unit directions).
 DIFF_STEP: float = 1e-6
-IPOPT_OPTIONS: dict[str, Any] = {
-    "ipopt.print_level": 0,
-    "print_time": False,
-    "ipopt.sb": "yes",
+#: IPOPT tuning of the refinement (on :data:`optcal.solvers.nlp.IPOPT_DEFAULTS`): the criterion's
+#: Hessian is not computed (limited-memory quasi-Newton), a local improvement of the rounded design
+#: is all that is asked (tolerance 1e-9, at most 60 iterations) and the barrier parameter follows
+#: IPOPT's own monotone rule.
+REFINE_IPOPT_TUNING: dict[str, Any] = {
     "ipopt.hessian_approximation": "limited-memory",
+    "ipopt.mu_strategy": "monotone",
     "ipopt.tol": 1e-9,
     "ipopt.acceptable_tol": 1e-7,
     "ipopt.acceptable_iter": 3,
@@ -119,15 +122,15 @@ def information_derivative(vectors: Callable[[NDArray], NDArray], directions: ND
 
 
 def refine(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion: Criterion,
-           base: NDArray | None = None, cap: Cap | None = None) -> tuple[NDArray[np.float64], str]:
+           base: NDArray | None = None, cap: Cap | None = None,
+           ipopt_options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], str]:
     """Move all K directions on the sphere (in the cap) to a local optimum of the criterion (IPOPT).
 
     Returns the refined directions (the start when IPOPT does not improve on it) and IPOPT's
-    return status.
+    return status.  ``ipopt_options`` override :data:`REFINE_IPOPT_TUNING`; options IPOPT refuses
+    are an :class:`~optcal.errors.InputError`.
     """
     import casadi as ca
-
-    from optcal.families.accel.mle import numpy_callback
 
     K = len(directions)
     p = vectors(directions[:1]).shape[1]
@@ -147,33 +150,23 @@ def refine(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion
         grad = 2.0 * np.einsum("kp,pq,kqj->kj", H, G, dH)
         return -value / scale, -grad.ravel() / scale
 
-    n = 3 * K
-    vec, scalar = ca.Sparsity.dense(n, 1), ca.Sparsity.dense(1, 1)
-    gradient = numpy_callback(
-        "plan_grad_f", [("x", vec), ("p", ca.Sparsity(0, 1))], [("f", scalar), ("grad_f", vec)],
-        lambda arg: [ca.DM(v) for v in cost_and_gradient(np.asarray(arg[0]).ravel())],
-    )
+    def constraints(x: Any) -> Any:
+        D = ca.reshape(x, 3, K).T  # row k is d_k (CasADi reshapes column-major)
+        g = [ca.sum2(D**2) - 1.0]
+        if cap is not None:
+            g.append(ca.mtimes(D, ca.DM(cap.axis)))
+        return ca.vertcat(*g)
 
-    def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
-        x, out, adj = ca.MX.sym("x", n), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-        _, g = gradient(x, ca.MX(0, 1))
-        return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
-
-    cost = numpy_callback("plan_f", [("x", vec)], [("f", scalar)],
-                          lambda arg: [cost_and_gradient(np.asarray(arg[0]).ravel())[0]], reverse=cost_reverse)
-    x = ca.MX.sym("d", n)
-    D = ca.reshape(x, 3, K).T  # row k is d_k (CasADi reshapes column-major)
-    g = [ca.sum2(D**2) - 1.0]
     lbg, ubg = [np.zeros(K)], [np.zeros(K)]
     if cap is not None:
-        g.append(ca.mtimes(D, ca.DM(cap.axis)))
         lbg.append(np.full(K, cap.cos_half_angle))
         ubg.append(np.full(K, np.inf))
-    solver = ca.nlpsol("plan_refine", "ipopt", {"x": x, "f": cost(x), "g": ca.vertcat(*g)},
-                       {**IPOPT_OPTIONS, "grad_f": gradient})
-    sol = solver(x0=directions.ravel(), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
-    status = str(solver.stats().get("return_status", "unknown"))
-    refined = np.asarray(sol["x"]).reshape(K, 3)
+    nlp = CallbackNLP("plan_refine", 3 * K, constraints=constraints, tuning=REFINE_IPOPT_TUNING,
+                      solver_options=ipopt_options)
+    x, stats = nlp.solve(NumpyObjective(lambda x: cost_and_gradient(x)[0], cost_and_gradient),
+                         x0=directions.ravel(), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+    status = str(stats.get("return_status", "unknown"))
+    refined = x.reshape(K, 3)
     refined = refined / np.linalg.norm(refined, axis=1, keepdims=True)
     if cap is not None and not np.all(cap.contains(refined, slack=1e-7)):
         return directions, status

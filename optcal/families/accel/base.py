@@ -9,54 +9,76 @@ being linear in θ, the map carries the covariance exactly too.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import ConvergenceWarning, FitError, IdentifiabilityError, InputError, SolverError
+from optcal.errors import FitError, IdentifiabilityError, InputError
 from optcal.core.identifiability import IdentifiabilityReport, add_weak_directions, analyse, pseudo_inverse
 from optcal.core.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.core.norm_residual import NormResidualKernel, normal_gain
 from optcal.core.poses import PoseTable
 from optcal.core.fit_result import SolverInfo, chi_square
 from optcal.families.accel.result import CalibrationResult
+from optcal.solvers.convergence import SOLVER_FAILURES, Remedy, check_solver
 
 WEIGHTINGS = ("propagated", "paper")
 
 
 @dataclass(frozen=True)
 class Normaliser:
-    """Affine normalisation of the measurements, ``u' = (a − centre)/scale``."""
+    """Affine normalisation of the measurements, ``u' = (a − centre)/scale``.
+
+    Of one pose set (``acc`` (n, 3): ``centre`` (3,), ``scale`` a float) or of a stack of K pose
+    sets of n poses each (``acc`` (K, n, 3): ``centre`` (K, 3), ``scale`` (K,)); the maps then
+    apply set by set, to θ of shape (K, 9).
+    """
 
     centre: NDArray[np.float64]
-    scale: float
+    scale: float | NDArray[np.float64]
 
     @classmethod
     def of(cls, acc: NDArray) -> "Normaliser":
-        centre = acc.mean(axis=0)
-        scale = float(np.sqrt(np.mean(np.sum((acc - centre) ** 2, axis=1))))
-        if not np.isfinite(scale) or scale <= 0:
+        centre = acc.mean(axis=-2)
+        scale = np.sqrt(np.mean(np.sum((acc - centre[..., None, :]) ** 2, axis=-1), axis=-1))
+        if not np.all(np.isfinite(scale)) or np.any(scale <= 0):
             raise InputError("all poses are identical; rotate the sensor between poses")
-        return cls(centre, scale)
+        return cls(centre, float(scale) if np.ndim(scale) == 0 else scale)
+
+    def _scale(self, axes: int) -> NDArray[np.float64]:
+        """The scale with ``axes`` trailing axes added, for broadcasting against a set's arrays."""
+        return np.asarray(self.scale).reshape(np.shape(self.scale) + (1,) * axes)
 
     def forward(self, acc: NDArray) -> NDArray[np.float64]:
-        return (acc - self.centre) / self.scale
+        return (acc - self.centre[..., None, :]) / self._scale(2)
 
     def theta_to_raw(self, theta_n: NDArray) -> NDArray[np.float64]:
-        """θ in normalised coordinates → θ in raw units."""
-        T, o = unpack_theta(theta_n)
-        return theta_from(T / self.scale, self.centre + self.scale * o)
+        """θ in normalised coordinates → θ in raw units (``T = T'/s``, ``o = m + s o'``)."""
+        theta_n = np.asarray(theta_n, dtype=float)
+        s = self._scale(1)
+        return np.concatenate([theta_n[..., :6] / s, self.centre + s * theta_n[..., 6:9]], axis=-1)
 
     def theta_to_normalised(self, theta: NDArray) -> NDArray[np.float64]:
-        T, o = unpack_theta(theta)
-        return theta_from(T * self.scale, (o - self.centre) / self.scale)
+        """θ in raw units → θ in normalised coordinates (``T' = T s``, ``o' = (o − m)/s``)."""
+        theta = np.asarray(theta, dtype=float)
+        s = self._scale(1)
+        return np.concatenate([theta[..., :6] * s, (theta[..., 6:9] - self.centre) / s], axis=-1)
 
     def jacobian(self) -> NDArray[np.float64]:
-        """d θ_raw / d θ_normalised (diagonal)."""
-        return np.diag([1 / self.scale] * 6 + [self.scale] * 3)
+        """d θ_raw / d θ_normalised (diagonal; (9, 9), or (K, 9, 9) for a stack)."""
+        s = self._scale(1)
+        diagonal = np.concatenate([np.repeat(1 / s, 6, axis=-1), np.repeat(s, 3, axis=-1)], axis=-1)
+        return diagonal[..., :, None] * np.eye(9)
+
+
+def propagated_weights(sigma: NDArray, gain: NDArray) -> NDArray[np.float64]:
+    """``1/(σ_k ‖Tᵀā_k‖)²``: the inverse first-order variance of the norm residual (any leading axes).
+
+    ``gain`` is :func:`optcal.core.norm_residual.normal_gain`, in the units of ``sigma``.
+    """
+    return 1.0 / (sigma * gain) ** 2
 
 
 def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "propagated",
@@ -75,49 +97,7 @@ def pose_weights(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "pro
         return np.ones(poses.n), False
     if weighting == "paper":
         return 1.0 / poses.sigma**2, True
-    return 1.0 / (poses.sigma * (normal_gain(T, o, poses.acc) if gain is None else gain)) ** 2, True
-
-
-#: Solver statuses that mean a failure (no usable answer), not an early stop: IPOPT's error
-#: return codes (``ApplicationReturnStatus`` of IpReturnCodes.h, as CasADi names them) and the
-#: gradient descent's divergence.
-SOLVER_FAILURES: frozenset[str] = frozenset({
-    "Infeasible_Problem_Detected", "Diverging_Iterates", "Error_In_Step_Computation",
-    "Not_Enough_Degrees_Of_Freedom", "Invalid_Problem_Definition", "Invalid_Option", "Invalid_Number_Detected",
-    "Unrecoverable_Exception", "NonIpopt_Exception_Thrown", "Insufficient_Memory", "Internal_Error",
-    "diverged",
-})
-
-
-@dataclass(frozen=True)
-class Remedy:
-    """What to tell the user when an estimator's solver stops early or fails (Python arguments)."""
-
-    stopped_early: str
-    failed: str
-
-
-def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy | None = None) -> None:
-    """Raise :class:`SolverError` for a failed solve; warn :class:`ConvergenceWarning` for an early stop.
-
-    A failure: a status in :data:`SOLVER_FAILURES` or a non-finite θ.  An early stop: the
-    solver does not report success but returned a finite answer (kept, its record says so).
-    """
-    finite = bool(np.all(np.isfinite(theta)))
-    if solver.status in SOLVER_FAILURES or not finite:
-        raise SolverError(
-            f"the {method} fit failed: {solver.name} ended with {solver.status!r}"
-            + ("" if finite else " and a non-finite answer")
-            + (f"; {remedy.failed}" if remedy else "")
-        )
-    if not solver.success:
-        warnings.warn(
-            f"the {method} fit did not converge: {solver.name} stopped with {solver.status!r} after "
-            f"{solver.iterations} iterations; the result is its last iterate"
-            + (f"; {remedy.stopped_early}" if remedy else ""),
-            ConvergenceWarning,
-            stacklevel=3,
-        )
+    return propagated_weights(poses.sigma, normal_gain(T, o, poses.acc) if gain is None else gain), True
 
 
 @dataclass(frozen=True)
@@ -160,22 +140,53 @@ def fisher_at_fit(poses: PoseTable, T: NDArray, o: NDArray, weighting: str = "pr
     w, known = pose_weights(poses, T, o, weighting, gain=gain)
     norm = Normaliser.of(poses.acc)
     D = norm.jacobian()  # dθ_raw/dθ_normalised
-    F = J.T @ (J * w[:, None])
+    F, cov_n, cov_eigenvalues, eigenvectors = weighted_covariance(J, r, w, known, D, covariance_scale)
     if known and weighting == "propagated":
         information = F  # w = 1/(σ‖Tᵀā‖)², the weights of fisher_information
     else:
         s = np.ones(poses.n) if poses.sigma is None else poses.sigma
-        information = J.T @ (J * (1.0 / (s * gain) ** 2)[:, None])
+        information = J.T @ (J * propagated_weights(s, gain)[:, None])
     ident = analyse(T, o, poses.acc, poses.sigma, information=information)
-    cov_n, cov_eigenvalues, eigenvectors = pseudo_inverse(D @ F @ D)
-    dof = poses.n - len(PARAM_NAMES)
-    if not known and covariance_scale == "auto":
-        chi2 = float(np.sum(w * r**2))
-        factor = chi2 / dof if dof > 0 else np.nan
-        cov_n, cov_eigenvalues = cov_n * factor, cov_eigenvalues * factor
     if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
         add_weak_directions(ident, cov_n, T * norm.scale, eigen=(cov_eigenvalues, eigenvectors))
     return FisherAtFit(ident, D @ cov_n @ D, r, w, known)
+
+
+def weighted_covariance(
+    J: NDArray, r: NDArray, w: NDArray, sigma_known: bool | NDArray, D: NDArray, covariance_scale: str = "auto"
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The information ``JᵀWJ`` of θ and its pseudo-inverse in normalised coordinates, of one fit or a stack.
+
+    Parameters
+    ----------
+    J : ndarray, shape (..., n, 9)
+        ``∂r_k/∂θ`` in raw units.
+    r, w : ndarray, shape (..., n)
+        Norm residuals and their weights.
+    sigma_known : bool or ndarray of bool, shape (...)
+        Whether the weights are absolute; where not (and ``covariance_scale`` is ``"auto"``) the
+        covariance is scaled by the reduced chi-square ``Σ w r² / (n − 9)``.
+    D : ndarray, shape (..., 9, 9)
+        ``dθ_raw/dθ_normalised`` (:meth:`Normaliser.jacobian`): the information is inverted in
+        normalised coordinates (in raw counts the T and o blocks differ by ~1e16).
+
+    Returns
+    -------
+    information : ndarray, shape (..., 9, 9)
+        ``JᵀWJ`` in raw units.
+    covariance : ndarray, shape (..., 9, 9)
+        Of θ in normalised coordinates (``D covariance D`` in raw units).
+    eigenvalues, eigenvectors : ndarray
+        Of the covariance (:func:`optcal.core.identifiability.pseudo_inverse`).
+    """
+    F = np.swapaxes(J, -1, -2) @ (J * w[..., :, None])
+    cov_n, cov_eigenvalues, eigenvectors = pseudo_inverse(D @ F @ D)
+    if covariance_scale == "auto" and not np.all(sigma_known):
+        dof = J.shape[-2] - len(PARAM_NAMES)
+        chi2 = np.sum(w * r**2, axis=-1)
+        factor = np.where(sigma_known, 1.0, chi2 / dof if dof > 0 else np.nan)
+        cov_n, cov_eigenvalues = cov_n * factor[..., None, None], cov_eigenvalues * factor[..., None]
+    return F, cov_n, cov_eigenvalues, eigenvectors
 
 
 def degenerate_note(ident: IdentifiabilityReport, allow_degenerate: bool) -> str | None:

@@ -32,25 +32,80 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import FitError, InputError, SolverError
-from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, finish
+from optcal.families.accel.base import Normaliser, Stopwatch, finish
 from optcal.core.model import canonical_T, theta_from
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import FrozenOptions, ProblemCache, freeze_options, problem_cache
 from optcal.core.fit_result import SolverInfo
 from optcal.families.accel.result import CalibrationResult
+from optcal.solvers.convergence import Remedy
 
 
 def design_matrix(u: NDArray) -> NDArray[np.float64]:
-    """Rows ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (Lu 2017, eq. 23, A symmetric)."""
-    x, y, z = u.T
-    return np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, x, y, z, np.ones_like(x)])
+    """Rows ``[x², y², z², 2xy, 2xz, 2yz, x, y, z, 1]`` (Lu 2017, eq. 23, A symmetric); ``u`` (..., n, 3)."""
+    x, y, z = u[..., 0], u[..., 1], u[..., 2]
+    return np.stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, x, y, z, np.ones_like(x)], axis=-1)
 
 
-def unpack_quadric(eta: NDArray) -> tuple[NDArray, NDArray, float]:
-    """η → (A, b, c) for η ordered as in :func:`design_matrix`."""
-    a11, a22, a33, a12, a13, a23 = eta[:6]
-    A = np.array([[a11, a12, a13], [a12, a22, a23], [a13, a23, a33]])
-    return A, np.asarray(eta[6:9], float), float(eta[9])
+def unpack_quadric(eta: NDArray) -> tuple[NDArray, NDArray, Any]:
+    """η → (A, b, c) for η ordered as in :func:`design_matrix`; η (10,) or a stack (..., 10)."""
+    eta = np.asarray(eta, dtype=float)
+    a11, a22, a33, a12, a13, a23 = (eta[..., i] for i in range(6))
+    A = np.stack([np.stack([a11, a12, a13], -1), np.stack([a12, a22, a23], -1), np.stack([a13, a23, a33], -1)], -2)
+    c = eta[..., 9]
+    return A, eta[..., 6:9], float(c) if c.ndim == 0 else c
+
+
+def kkt_polish(R: NDArray) -> NDArray[np.float64]:
+    """Exact solution of ``min ‖R η‖²`` s.t. ``tr A = 3`` from its KKT system; ``R`` (..., m, 10).
+
+    The KKT matrix ``[[2RᵀR, g], [gᵀ, 0]]`` (g selects the trace) is solved by least squares,
+    which also gives an answer (the smallest) when it is singular (a degenerate pose set).
+    """
+    R = np.asarray(R, dtype=float)
+    K = np.zeros(R.shape[:-2] + (11, 11))
+    K[..., :10, :10] = 2 * (np.swapaxes(R, -1, -2) @ R)
+    K[..., :3, 10] = K[..., 10, :3] = 1.0  # g: the trace of A
+    rhs = np.zeros(11)
+    rhs[10] = 3.0
+    systems = K.reshape(-1, 11, 11)
+    eta = np.empty((len(systems), 10))
+    for k, system in enumerate(systems):  # numpy's least squares takes one system at a time
+        eta[k] = np.linalg.lstsq(system, rhs, rcond=None)[0][:10]
+    return eta.reshape(R.shape[:-2] + (10,))
+
+
+#: What a fitted quadric is (:func:`quadric_to_calibrations`): a real ellipsoid, a hyperboloid
+#: (A indefinite) or an ellipsoid without real points.
+ELLIPSOID, HYPERBOLOID, IMAGINARY = 0, 1, 2
+
+
+def quadric_to_calibrations(eta: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Scale each quadric to ``‖T(a − o)‖ = 1`` (Lu 2017, eq. 19-21, 27-30); η (10,) or a stack (..., 10).
+
+    Returns
+    -------
+    T : ndarray, shape (..., 3, 3)
+        Lower-triangular, positive diagonal; NaN where the quadric is not a real ellipsoid.
+    o : ndarray, shape (..., 3)
+        NaN where the quadric is not a real ellipsoid.
+    kind : ndarray of int, shape (...)
+        :data:`ELLIPSOID`, :data:`HYPERBOLOID` or :data:`IMAGINARY`.
+    eigenvalues : ndarray, shape (..., 3)
+        Of the quadric's A, ascending.
+    """
+    A_s, b, c = unpack_quadric(eta)
+    eigenvalues = np.linalg.eigvalsh(A_s)
+    kind = np.where(eigenvalues[..., 0] * eigenvalues[..., -1] <= 0, HYPERBOLOID, ELLIPSOID)
+    A_s = np.where((kind == ELLIPSOID)[..., None, None], A_s, np.eye(3))
+    A_inv_b = np.linalg.solve(A_s, b[..., None])[..., 0]
+    o = -0.5 * A_inv_b  # Lu 2017, eq. 20
+    alpha = 1.0 / (0.25 * (b[..., None, :] @ A_inv_b[..., :, None])[..., 0, 0] - c)  # eq. 27
+    A = alpha[..., None, None] * A_s  # eq. 28
+    kind = np.where((kind == ELLIPSOID) & ~(np.linalg.eigvalsh(A)[..., 0] > 0), IMAGINARY, kind)
+    real = kind == ELLIPSOID
+    T = canonical_T(np.where(real[..., None, None], A, np.eye(3)))  # eq. 29-30, lower-triangular
+    return np.where(real[..., None, None], T, np.nan), np.where(real[..., None], o, np.nan), kind, eigenvalues
 
 
 def quadric_to_calibration(eta: NDArray) -> tuple[NDArray, NDArray]:
@@ -61,20 +116,16 @@ def quadric_to_calibration(eta: NDArray) -> tuple[NDArray, NDArray]:
     FitError
         When the quadric is not a real ellipsoid.
     """
-    A_s, b_s, c_s = unpack_quadric(eta)
-    eig = np.linalg.eigvalsh(A_s)
-    if eig[0] * eig[-1] <= 0:
+    T, o, kind, eig = quadric_to_calibrations(eta)
+    if kind == HYPERBOLOID:
         raise FitError(
             f"the algebraic fit is not an ellipsoid (eigenvalues of A: {', '.join(f'{e:.3g}' for e in eig)}: "
             "a hyperboloid); this happens when the poses cover only part of the sphere or the noise is "
             "large; use method=\"convex\", which constrains A to be positive definite"
         )
-    o = -0.5 * np.linalg.solve(A_s, b_s)  # Lu 2017, eq. 20
-    alpha = 1.0 / (0.25 * b_s @ np.linalg.solve(A_s, b_s) - c_s)  # eq. 27
-    A = alpha * A_s  # eq. 28
-    if np.linalg.eigvalsh(A)[0] <= 0:
+    if kind == IMAGINARY:
         raise FitError("the algebraic fit is an imaginary ellipsoid (no real points); check the data")
-    return canonical_T(A), o
+    return T, o
 
 
 class SVDEllipsoidFit:
@@ -236,7 +287,7 @@ class ConvexEllipsoidFit:
                 "ellipsoid (poses on part of the sphere or large noise); the answer is the nearest ellipsoid"
             )
         elif self.polish:
-            eta_v = self._kkt_polish(R)
+            eta_v = kkt_polish(R)
             message = "polished by KKT solve (semidefinite constraint inactive)"
         try:
             T_n, o_n = quadric_to_calibration(eta_v)
@@ -254,14 +305,3 @@ class ConvexEllipsoidFit:
             remedy=Remedy(stopped_early="raise the solver's iteration limit (solver_options) or try solver='SCS'",
                           failed="try solver='SCS'"),
         )
-
-    @staticmethod
-    def _kkt_polish(R: NDArray) -> NDArray[np.float64]:
-        """Exact solution of ``min ‖R η‖²`` s.t. ``tr A = 3`` (KKT system)."""
-        H = R.T @ R
-        g = np.zeros(10)
-        g[:3] = 1.0
-        K = np.block([[2 * H, g[:, None]], [g[None, :], np.zeros((1, 1))]])
-        rhs = np.concatenate([np.zeros(10), [3.0]])
-        sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
-        return sol[:10]

@@ -23,13 +23,19 @@ from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish
-from optcal.families.accel.mle import IPOPT_DEFAULTS, IPOPT_REMEDY, MaximumLikelihood, ipopt_nlpsol, run_nlpsol
+from optcal.families.accel.mle import IPOPT_REMEDY, MaximumLikelihood
 from optcal.core.model import theta_from, unpack_theta
 from optcal.core.norm_residual import casadi_lower_triangular
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import SolverInfo
 from optcal.families.accel.result import CalibrationResult
+from optcal.solvers.convergence import solver_record
+from optcal.solvers.nlp import nlp_solver
+
+#: IPOPT tuning of the errors-in-variables problem (on :data:`optcal.solvers.nlp.IPOPT_DEFAULTS`): its
+#: cost is not scaled by :func:`optcal.solvers.nlp.cost_scale` (9 + 3n variables and n constraints),
+#: so IPOPT's own scaled optimality error to 1e-10, and up to 500 iterations.
+EXACT_IPOPT_TUNING: dict[str, Any] = {"ipopt.tol": 1e-10, "ipopt.max_iter": 500}
 
 
 class ExactProblem:
@@ -54,11 +60,9 @@ class ExactProblem:
         e = a - ca.repmat(o, 1, n) - ca.mtimes(C, d)  # Lu 2017, eq. 8 residuals
         cost = ca.sum2(w * ca.sum1(e * e))
         g = ca.sum1(d * d).T - 1.0  # ‖ā_k‖² = 1
-        opts = dict(IPOPT_DEFAULTS)
-        opts.update({"ipopt.tol": 1e-10, "ipopt.max_iter": 500, "hess_lag": self._hessian(x, p, n)})
-        opts.update(ipopt_options or {})
         self.n = n
-        self.solver = ipopt_nlpsol("exact_ml_calibration", {"x": x, "p": p, "f": cost, "g": g}, opts)
+        self.solver = nlp_solver("exact_ml_calibration", {"x": x, "p": p, "f": cost, "g": g}, EXACT_IPOPT_TUNING,
+                                 functions={"hess_lag": self._hessian(x, p, n)}, solver_options=ipopt_options)
         self._lock = threading.Lock()
 
     @staticmethod
@@ -98,7 +102,7 @@ class ExactProblem:
     def solve(self, x0: NDArray, acc: NDArray, weights: NDArray, lbx: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``x0`` (C, o, directions) for normalised measurements (n, 3) and weights (n,)."""
         with self._lock:  # the solver keeps the statistics of its last call
-            return run_nlpsol(self.solver, x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
+            return self.solver.solve(x0=x0, p=np.concatenate([acc.ravel(), weights]), lbg=0.0, ubg=0.0, lbx=lbx)
 
 
 #: The errors-in-variables problems, keyed by (n, frozen IPOPT options).
@@ -116,7 +120,7 @@ class ExactMaximumLikelihood:
     allow_degenerate : bool
         Proceed (with a warning) when the poses do not identify every parameter.
     ipopt_options : dict, optional
-        Extra CasADi/IPOPT options.
+        Extra CasADi/IPOPT options; options IPOPT refuses are an :class:`~optcal.errors.InputError`.
     """
 
     name = "exact"
@@ -152,9 +156,7 @@ class ExactMaximumLikelihood:
             x, stats = problem.solve(x0, u, w, lbx)
         C, o_fit = unpack_theta(x[:9])
         theta = norm.theta_to_raw(theta_from(np.linalg.inv(C), o_fit))
-        success = bool(stats.get("success", False))
-        status = str(stats.get("return_status", "unknown"))
-        solver = SolverInfo("IPOPT", status, success, int(stats.get("iter_count", 0)), sw.seconds, f"errors-in-variables NLP, {x.size} variables")
+        solver = solver_record(stats, sw.seconds, "IPOPT", f"errors-in-variables NLP, {x.size} variables")
         directions = x[9:].reshape(poses.n, 3)
         return finish(
             method=self.name,

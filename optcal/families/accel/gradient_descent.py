@@ -19,12 +19,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish, pose_weights
+from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish, pose_weights
 from optcal.core.model import canonicalise, theta_from
 from optcal.core.norm_residual import NormResidualKernel
 from optcal.core.poses import PoseTable
 from optcal.core.fit_result import SolverInfo
 from optcal.families.accel.result import CalibrationResult
+from optcal.solvers.convergence import Remedy
 
 
 def cost_and_gradient(x: NDArray, u: NDArray | NormResidualKernel, w: NDArray) -> tuple[float, NDArray[np.float64]]:

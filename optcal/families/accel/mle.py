@@ -6,38 +6,44 @@ Model, problem and solver are built in separate steps (as in CasADi's ``sysid.py
    ``r_k = ‖T(a_k − o)‖ − 1`` (eq. 13) as a CasADi ``Function`` of θ and one measurement.
 2. The NLP ``min_θ c Σ_k ρ(√w_k r_k)`` (eq. 14 for the squared loss ρ(z) = z²) over the nine
    identifiable parameters (T lower-triangular, o), with the measurements, weights, loss
-   scale and cost scale ``c`` (:func:`cost_scale`) as data, in one of two forms, both solved by
-   IPOPT through ``nlpsol``:
+   scale and cost scale ``c`` (:func:`optcal.solvers.nlp.cost_scale`) as data, in one of two
+   forms, both built by :mod:`optcal.solvers.nlp` and solved by IPOPT:
 
    * :class:`MLProblem` (up to :attr:`MLProblem.SX_LIMIT` poses): the cost mapped over n poses
      and expanded into one SX graph with the exact Hessian; built once per (n, loss, options)
      and kept in :data:`ML_PROBLEMS` (:func:`optcal.solvers.cache.problem_cache`).
    * :class:`VectorisedMLProblem` (more poses): cost, gradient and Gauss–Newton Hessian
-     evaluated in numpy (:class:`NormResidualCost`) and handed to IPOPT as CasADi callbacks,
-     built per solve in milliseconds whatever n (10⁶ poses in about a second).
+     evaluated in numpy (:class:`NormResidualCost`) and handed to IPOPT as callbacks
+     (:class:`optcal.solvers.nlp.CallbackNLP`), built per solve in milliseconds whatever n
+     (10⁶ poses in about a second).
 3. :class:`MaximumLikelihood` — the estimator: starting point from an algebraic fit
-   (``convex`` by default, eq. 18-30), weights ``1/σ_r,k²`` when per-pose noise is known
-   (re-propagated until they settle), optional robust loss (Huber, Cauchy) and bounds on
-   named parameters (for example a known scale range), covariance from the Fisher information.
+   (``convex`` by default, eq. 18-30, :func:`convex_start`), weights ``1/σ_r,k²`` when per-pose
+   noise is known (re-propagated until they settle, :func:`weights_settled`), optional robust
+   loss (Huber, Cauchy) and bounds on named parameters (for example a known scale range),
+   covariance from the Fisher information.
+
+The cost (:class:`NormResidualCost`), the start (:func:`convex_start`), the cost scale
+(:func:`scaled_cost`) and the settling of the weights take a leading axis of units, so that
+:mod:`optcal.families.accel.batched` solves many calibrations by the same rules.
 """
 
 from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, InputError, SolverError
-from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish, pose_weights
-from optcal.core.model import PARAM_NAMES, theta_from, unpack_theta
+from optcal.errors import FitError, InputError
+from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish, pose_weights, propagated_weights
+from optcal.core.model import PARAM_NAMES, unpack_theta, theta_from
 from optcal.core.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import SolverInfo
+from optcal.solvers.convergence import Remedy, solver_record
+from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale, nlp_solver
 from optcal.families.accel.result import CalibrationResult
 
 LOSSES = ("squared", "huber", "cauchy")
@@ -48,16 +54,6 @@ IPOPT_REMEDY = Remedy(
     stopped_early="raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)",
     failed='check ipopt_options, or use method="convex"',
 )
-#: IPOPT options used unless overridden.
-IPOPT_DEFAULTS: dict[str, Any] = {
-    "ipopt.print_level": 0,
-    "ipopt.sb": "yes",
-    "print_time": False,
-    "ipopt.tol": 1e-12,
-    "ipopt.acceptable_tol": 1e-9,
-    "ipopt.max_iter": 200,
-    "ipopt.mu_strategy": "adaptive",
-}
 
 
 def robust_loss(z: Any, loss: str, delta: Any) -> Any:
@@ -98,92 +94,103 @@ def robust_loss_terms(z: NDArray, loss: str, delta: float) -> tuple[NDArray, NDA
 class NormResidualCost:
     """The ML cost ``c Σ ρ(√w_k r_k(θ))`` with its gradient and Gauss–Newton Hessian, in numpy.
 
+    Of one unit (``u`` (n, 3) normalised data, ``w`` (n,) weights, θ (9,)) or of a stack of K
+    units with n poses each (``u`` (K, n, 3), ``w`` (K, n), ``scale`` (K,) or one number, ``x``
+    the 9K stacked θ_j): ``Σ_j c_j Σ_k ρ(√w_jk r_jk(θ_j))``, separable, whose Hessian is
+    block diagonal (:meth:`gauss_newton_hessian` returns the (K, 9, 9) blocks).
+
     The residuals and their Jacobian come from :class:`optcal.core.norm_residual.NormResidualKernel`
-    (column by column, T lower-triangular).  The kernel's evaluation at the last θ is kept:
-    IPOPT asks for the cost, the gradient and the Hessian at the same point.  One instance
-    serves one solve (it is never shared between threads).
+    (Lu 2017, eq. 13 and 15-16, column by column, T lower-triangular).  The kernel's evaluation
+    at the last θ is kept: IPOPT asks for the cost, the gradient and the Hessian at the same
+    point.  One instance serves one solve (it is never shared between threads).
     """
 
-    def __init__(self, u: NDArray, w: NDArray, loss: str = "squared", delta: float = 1.0, scale: float = 1.0) -> None:
-        self.kernel = NormResidualKernel(u)
+    def __init__(self, u: NDArray, w: NDArray, loss: str = "squared", delta: float = 1.0,
+                 scale: float | NDArray = 1.0) -> None:
+        self.u = np.asarray(u, dtype=float)
+        self.kernel = NormResidualKernel(self.u)
         self.w = np.asarray(w, dtype=float)
         self.sqrt_w = np.sqrt(self.w)
-        self.loss, self.delta, self.scale = loss, float(delta), float(scale)
+        self.loss, self.delta = loss, float(delta)
+        self.scale: float | NDArray = scale
+        self.units = self.w.shape[:-1]  # () for one unit, (K,) for a stack
         self._x: NDArray | None = None
         self._point: NormResidualPoint | None = None
         self._J: NDArray | None = None
 
+    @property
+    def n(self) -> int:
+        """Poses per unit."""
+        return int(self.w.shape[-1])
+
     def _at(self, x: NDArray) -> NormResidualPoint:
         x = np.asarray(x, dtype=float).ravel()
         if self._point is None or self._x is None or not np.array_equal(x, self._x):
-            self._x, self._point, self._J = x.copy(), self.kernel.at_theta(x), None
+            self._x, self._point, self._J = x.copy(), self.kernel.at_theta(x.reshape(self.units + (9,))), None
         return self._point
 
     def residuals(self, x: NDArray) -> NDArray[np.float64]:
-        """``r_k = ‖T(u_k − o)‖ − 1`` (Lu 2017, eq. 13)."""
+        """``r_k = ‖T(u_k − o)‖ − 1`` (Lu 2017, eq. 13), shape (..., n)."""
         return self._at(x).residuals
 
     def jacobian(self, x: NDArray) -> NDArray[np.float64]:
-        """``∂r_k/∂θ`` as a (9, n) array (one row per parameter; Lu 2017, eq. 15-16)."""
+        """``∂r_k/∂θ``, shape (..., 9, n) (one row per parameter; Lu 2017, eq. 15-16)."""
         point = self._at(x)
         if self._J is None:
             self._J = point.jacobian()
         return self._J
 
     def normal_gain(self, x: NDArray) -> NDArray[np.float64]:
-        """``‖Tᵀ ā_k‖`` in normalised units (see :func:`optcal.core.norm_residual.normal_gain`)."""
+        """``‖Tᵀ ā_k‖`` in normalised units, shape (..., n) (see :func:`optcal.core.norm_residual.normal_gain`)."""
         return self._at(x).normal_gain()
 
-    def value(self, x: NDArray) -> float:
+    def unit_values(self, x: NDArray) -> NDArray[np.float64]:
+        """``Σ_k ρ(√w_k r_k)`` of each unit, unscaled, shape (...)."""
         rho, _, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
-        return self.scale * float(np.sum(rho))
+        return np.sum(rho, axis=-1)
+
+    def value(self, x: NDArray) -> float:
+        return float(np.sum(self.scale * self.unit_values(x)))
 
     def gradient(self, x: NDArray) -> tuple[float, NDArray[np.float64]]:
         J = self.jacobian(x)
         rho, drho, _ = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
-        return self.scale * float(np.sum(rho)), self.scale * (J @ (drho * self.sqrt_w))
+        scale = np.asarray(self.scale)[..., None]
+        g = scale * (J @ (drho * self.sqrt_w)[..., :, None])[..., 0]
+        return float(np.sum(self.scale * np.sum(rho, axis=-1))), g.ravel()
 
     def gauss_newton_hessian(self, x: NDArray) -> NDArray[np.float64]:
-        """``c Σ_k ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` (``2 c JᵀWJ`` for the squared loss)."""
+        """``c Σ_k ρ'(z_k)/z_k · w_k ∇r_k ∇r_kᵀ`` (``2 c JᵀWJ`` for the squared loss), shape (..., 9, 9).
+
+        The IRLS weight ``ρ'(z)/z`` (2 for the squared loss) is the Gauss–Newton curvature of ρ:
+        a positive semi-definite approximation of the Hessian (exact in the limit of zero
+        residuals for the squared loss).
+        """
         J = self.jacobian(x)
         _, _, irls = robust_loss_terms(self.sqrt_w * self.residuals(x), self.loss, self.delta)
-        Js = J * np.sqrt(irls * self.w)
-        return self.scale * (Js @ Js.T)
+        Js = J * np.sqrt(irls * self.w)[..., None, :]
+        return np.asarray(self.scale)[..., None, None] * (Js @ np.swapaxes(Js, -1, -2))
+
+    def objective(self) -> NumpyObjective:
+        """The functions IPOPT calls (:class:`optcal.solvers.nlp.CallbackNLP`)."""
+        return NumpyObjective(self.value, self.gradient, lambda x, lam_f: self.gauss_newton_hessian(x) * lam_f)
 
 
-#: Floor of the residual scale in :func:`cost_scale` (normalised units, ≈ g): 10 ng per g, far
-#: below the noise of any accelerometer and far above rounding (≈ 1e-16).
-MIN_RESIDUAL_RMS: float = 1e-8
+def scaled_cost(u: NDArray, w: NDArray, theta0: NDArray, loss: str = "squared", delta: float = 1.0) -> NormResidualCost:
+    """The cost of a solve from ``theta0``, scaled by :func:`optcal.solvers.nlp.cost_scale` (each unit by its own).
 
-
-def cost_scale(n: int, start_rms: float) -> float:
-    """Factor ``c = 1/(n s₀)`` applied to the cost Σ ρ (``s₀`` the rms standardised residual at the start).
-
-    IPOPT stops on the absolute size of the gradient, while the cost can only resolve a
-    decrease of about ``eps·f``: with the raw cost a tolerance is either too loose for small
-    residuals or out of floating-point reach for large ones (IPOPT then backtracks for tens of
-    iterations on a solution that is already exact).  With ``f ≈ n s²`` and a Hessian
-    ``≈ 2n``·O(1), scaling by ``1/(n s₀)`` makes ``f·λ(H)`` of order one whatever n, noise or
-    units, so one tolerance (:data:`ML_IPOPT_DEFAULTS`) sits just above the rounding floor and
-    leaves the parameters within ~1e-7·√n standard errors of the exact optimum.  ``s₀`` is
-    floored at :data:`MIN_RESIDUAL_RMS` so that noise-free data (residuals at rounding level)
-    are not scaled up into a spurious gradient.
+    ``s₀`` is the rms standardised residual at the start, ``√(Σ_k ρ(√w_k r_k)/n)``.
     """
-    return 1.0 / (n * max(float(start_rms), MIN_RESIDUAL_RMS))
+    cost = NormResidualCost(u, w, loss, delta)
+    cost.scale = cost_scale(cost.n, np.sqrt(cost.unit_values(theta0) / cost.n))
+    return cost
 
 
-#: IPOPT options of the ML problems: :data:`IPOPT_DEFAULTS` with the tolerance on the scaled
-#: cost of :func:`cost_scale`.  That scaling keeps the gradient at the start of order one, below
-#: IPOPT's gradient-based scaling threshold (100), so that step is switched off (it would only
-#: cost a gradient evaluation); the multipliers of the parameters are not needed.
-ML_IPOPT_DEFAULTS: dict[str, Any] = {
-    **IPOPT_DEFAULTS,
-    "ipopt.tol": 1e-10,
-    "ipopt.acceptable_tol": 1e-5,
-    "ipopt.acceptable_iter": 3,
-    "ipopt.nlp_scaling_method": "none",
-    "calc_lam_p": False,
-}
+def weights_settled(w: NDArray, w_used: NDArray | None, rtol: float) -> Any:
+    """Whether no weight changed by more than ``rtol`` (relative) since the last solve (per unit for a stack)."""
+    if w_used is None:
+        return np.zeros(np.shape(w)[:-1], dtype=bool)
+    return np.max(np.abs(w / w_used - 1.0), axis=-1) <= rtol
 
 
 class _MLSolve(ABC):
@@ -201,8 +208,7 @@ class _MLSolve(ABC):
         ubx: NDArray | None = None,
     ) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,); θ and IPOPT's statistics."""
-        cost = NormResidualCost(u, w, self.loss, delta)
-        cost.scale = cost_scale(len(u), np.sqrt(cost.value(theta0) / len(u)))
+        cost = scaled_cost(u, w, theta0, self.loss, delta)
         args: dict[str, Any] = {"x0": theta0}
         if lbx is not None:
             args["lbx"] = lbx
@@ -221,7 +227,8 @@ class MLProblem(_MLSolve):
     The cost is expanded into one CasADi SX graph with the exact Hessian (fastest
     derivatives for small and moderate n).  Building it takes about 0.4 ms per pose, so
     beyond :attr:`SX_LIMIT` poses :meth:`get` returns a :class:`VectorisedMLProblem` instead.
-    ``c`` is the scale of :func:`cost_scale`, a parameter like the data.
+    ``c`` is the scale of :func:`optcal.solvers.nlp.cost_scale`, a parameter like the data; the
+    IPOPT tuning is that of a scaled cost (:data:`optcal.solvers.nlp.SCALED_COST_IPOPT_OPTIONS`).
     """
 
     SX_LIMIT = 200
@@ -239,8 +246,8 @@ class MLProblem(_MLSolve):
         res = (r.map(n) if n > 1 else r)(x, data)  # 1 x n
         cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
         p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
-        opts = {**ML_IPOPT_DEFAULTS, **(ipopt_options or {})}
-        self.solver = ipopt_nlpsol("ml_calibration", {"x": x, "p": p, "f": cost}, opts)
+        self.solver = nlp_solver("ml_calibration", {"x": x, "p": p, "f": cost}, SCALED_COST_IPOPT_OPTIONS,
+                                 solver_options=ipopt_options)
         self._lock = threading.Lock()
 
     @classmethod
@@ -252,164 +259,72 @@ class MLProblem(_MLSolve):
         return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
 
     def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        u = cost.kernel.data.T  # (n, 3): vec() is column-major, so p holds a_1, a_2, ... stacked
-        p = np.concatenate([u.ravel(), cost.w, [cost.delta, cost.scale]])
+        # vec() is column-major, so p holds a_1, a_2, ... stacked
+        p = np.concatenate([cost.u.ravel(), cost.w, [cost.delta, cost.scale]])
         with self._lock:  # the solver keeps the statistics of its last call
-            return run_nlpsol(self.solver, p=p, **args)
-
-
-def numpy_callback(
-    name: str,
-    inputs: list[tuple[str, Any]],
-    outputs: list[tuple[str, Any]],
-    evaluate: Callable[[list], list],
-    reverse: Callable[[str, list, list, dict], Any] | None = None,
-    nonzeros: bool = False,
-) -> Any:
-    """A CasADi ``Callback`` evaluated in Python.
-
-    ``inputs`` and ``outputs`` are ``(name, sparsity)`` pairs; ``evaluate`` maps the list of
-    input values to the list of outputs; ``reverse(name, inames, onames, opts)``, if given,
-    returns the Function of the first-order reverse derivative.  With ``nonzeros``, the
-    values are exchanged through CasADi's buffers (``eval_buffer``) instead of ``DM`` s:
-    ``evaluate`` receives each input's nonzeros as a float array (a view, valid during the
-    call) and returns each output's nonzeros (arrays or floats, in the output sparsity's
-    order), which are copied into CasADi's memory; no element-wise conversion, which for
-    thousands of values costs more than the numpy work itself.
-    """
-    import casadi as ca
-
-    class NumpyCallback(ca.Callback):
-        def __init__(self) -> None:
-            ca.Callback.__init__(self)
-            self.construct(name, {})
-
-        def get_n_in(self) -> int:
-            return len(inputs)
-
-        def get_n_out(self) -> int:
-            return len(outputs)
-
-        def get_name_in(self, i: int) -> str:
-            return inputs[i][0]
-
-        def get_name_out(self, i: int) -> str:
-            return outputs[i][0]
-
-        def get_sparsity_in(self, i: int) -> Any:
-            return inputs[i][1]
-
-        def get_sparsity_out(self, i: int) -> Any:
-            return outputs[i][1]
-
-        def eval(self, arg: list) -> list:
-            return evaluate(arg)
-
-        def has_eval_buffer(self) -> bool:
-            return nonzeros
-
-        def eval_buffer(self, arg: list, res: list) -> int:
-            # an absent buffer: an input without nonzeros, or an output the caller does not need
-            values = evaluate([np.empty(0) if a is None else np.frombuffer(a, dtype=np.float64) for a in arg])
-            for buffer, value in zip(res, values):
-                if buffer is not None:
-                    np.frombuffer(buffer, dtype=np.float64)[:] = value
-            return 0
-
-        def has_reverse(self, nadj: int) -> bool:
-            return reverse is not None and nadj == 1
-
-        def get_reverse(self, nadj: int, fname: str, inames: list, onames: list, opts: dict) -> Any:
-            assert reverse is not None
-            return reverse(fname, inames, onames, opts)
-
-    return NumpyCallback()
+            return self.solver.solve(p=p, **args)
 
 
 class VectorisedMLProblem(_MLSolve):
     """The same NLP for any n, still solved by IPOPT in CasADi, with numpy doing the sums.
 
     The cost, its gradient and the Gauss–Newton Hessian (IRLS curvature for the robust
-    losses, :func:`robust_loss_terms`) of a :class:`NormResidualCost` are CasADi
-    ``Callback`` s handed to ``nlpsol`` (the gradient as the cost's reverse derivative and
+    losses, :func:`robust_loss_terms`) of a :class:`NormResidualCost` are callbacks of a
+    :class:`optcal.solvers.nlp.CallbackNLP` (the gradient as the cost's reverse derivative and
     as ``grad_f``, the Hessian as ``hess_lag``).  Nothing depends on n, and building the
-    callbacks and the NLP takes a few milliseconds, so each :meth:`solve` builds its own,
-    bound to that solve's data: the object holds only the loss and the options, and any
-    number of threads can solve with it at once.  One IPOPT iteration on 10⁶ poses costs a
-    few dozen vector operations.
+    callbacks and the NLP takes a few milliseconds, so each :meth:`solve` builds its own:
+    the object holds only the loss and the options, and any number of threads can solve with
+    it at once.  One IPOPT iteration on 10⁶ poses costs a few dozen vector operations.
     """
 
     def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
         self.loss = loss
         self.ipopt_options = dict(ipopt_options or {})
 
-    def _solver(self, cost: NormResidualCost) -> tuple[Any, list[Any]]:
-        """The NLP of ``cost`` and the callbacks it calls (kept alive by the caller during the solve)."""
-        import casadi as ca
-
-        dense9 = ca.Sparsity.dense(9, 1)
-        scalar = ca.Sparsity.dense(1, 1)
-        empty = ca.Sparsity(0, 1)
-
-        def theta(arg: list) -> NDArray:
-            return np.asarray(arg[0]).ravel()
-
-        gradient = numpy_callback(
-            "ml_grad_f", [("x", dense9), ("p", empty)], [("f", scalar), ("grad_f", dense9)],
-            lambda arg: list(cost.gradient(theta(arg))),
-        )
-
-        def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
-            x, out, adj = ca.MX.sym("x", 9), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-            _, g = gradient(x, ca.MX(0, 1))
-            return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
-
-        value = numpy_callback(
-            "ml_f", [("x", dense9)], [("f", scalar)], lambda arg: [cost.value(theta(arg))], reverse=cost_reverse
-        )
-        hessian = numpy_callback(
-            "ml_hess_lag",
-            [("x", dense9), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
-            [("triu_hess_gamma_x_x", ca.Sparsity.upper(9))],
-            lambda arg: [ca.triu(ca.DM(cost.gauss_newton_hessian(theta(arg)) * float(arg[2])))],
-        )
-        x = ca.MX.sym("theta", 9)
-        opts = {**ML_IPOPT_DEFAULTS, "grad_f": gradient, "hess_lag": hessian, **self.ipopt_options}
-        solver = ipopt_nlpsol("ml_calibration_vectorised", {"x": x, "f": value(x)}, opts)
-        return solver, [gradient, value, hessian]
-
     def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        solver, callbacks = self._solver(cost)
-        result = run_nlpsol(solver, **args)
-        del callbacks  # only now may the callbacks go
-        return result
-
-
-def ipopt_nlpsol(name: str, nlp: dict[str, Any], options: dict[str, Any]) -> Any:
-    """``casadi.nlpsol(name, "ipopt", nlp, options)``; options CasADi or IPOPT refuse are an :class:`InputError`."""
-    import casadi as ca
-
-    try:
-        return ca.nlpsol(name, "ipopt", nlp, options)
-    except RuntimeError as exc:
-        reason = str(exc).strip().splitlines()[-1].split(": ")[-1]  # CasADi's last line says why
-        raise InputError(f"IPOPT refused the options ({reason}); check ipopt_options") from exc
-
-
-def run_nlpsol(solver: Any, **args: Any) -> tuple[NDArray[np.float64], dict[str, Any]]:
-    """Call a CasADi ``nlpsol`` and read its statistics; an exception inside the solver is a :class:`SolverError`."""
-    try:
-        sol = solver(**args)
-    except RuntimeError as exc:
-        reason = str(exc).strip().splitlines()[-1]
-        raise SolverError(f"IPOPT raised an error in {solver.name()}: {reason}") from exc
-    return np.asarray(sol["x"]).ravel(), solver.stats()
+        nlp = CallbackNLP("ml_calibration_vectorised", 9, hessian_block_size=9, tuning=SCALED_COST_IPOPT_OPTIONS,
+                          solver_options=self.ipopt_options)
+        return nlp.solve(cost.objective(), **args)
 
 
 #: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
 ML_PROBLEMS: ProblemCache[MLProblem] = problem_cache(
     lambda n, loss, options: MLProblem(n, loss, dict(options)), maxsize=32
 )
+
+
+def design_factor(u: NDArray) -> NDArray[np.float64]:
+    """A factor R with ``RᵀR = DᵀD`` of the design matrix D of :func:`optcal.families.accel.ellipsoid.design_matrix`.
+
+    The 10×10 triangular factor of D's QR decomposition (Lu 2017, eq. 23) up to
+    :attr:`MLProblem.SX_LIMIT` poses; beyond, a factor of the Gram matrix ``DᵀD`` from its
+    eigendecomposition (same singular vectors, 20x cheaper than QR for 10⁶ poses).  ``u`` is
+    (n, 3) or a stack (K, n, 3).
+    """
+    from optcal.families.accel.ellipsoid import design_matrix
+
+    D = design_matrix(u)
+    if D.shape[-2] <= MLProblem.SX_LIMIT:
+        return np.linalg.qr(D, mode="r")
+    lam, V = np.linalg.eigh(np.swapaxes(D, -1, -2) @ D)
+    return np.sqrt(np.clip(lam, 0.0, None))[..., :, None] * np.swapaxes(V, -1, -2)
+
+
+def convex_start(u: NDArray, eps: float, R: NDArray | None = None) -> NDArray[np.float64]:
+    """The convex algebraic fit's θ in normalised coordinates where its constraint is inactive; NaN elsewhere.
+
+    The quadric of ``min ‖Rη‖²`` s.t. ``tr A = 3`` (the KKT solution of
+    :func:`optcal.families.accel.ellipsoid.kkt_polish`, R of :func:`design_factor`) *is* the
+    convex fit's answer whenever the semidefinite constraint ``A ⪰ εI`` is inactive, i.e. its A
+    clears ``2ε``; accepted when it is also a real ellipsoid (Lu 2017, eq. 19-21, 27-30).  ``u``
+    is (n, 3) or a stack (K, n, 3); the result (9,) or (K, 9).
+    """
+    from optcal.families.accel.ellipsoid import kkt_polish, quadric_to_calibrations, unpack_quadric
+
+    eta = kkt_polish(design_factor(u) if R is None else R)
+    inactive = np.linalg.eigvalsh(unpack_quadric(eta)[0])[..., 0] >= 2 * eps
+    T, o, _, _ = quadric_to_calibrations(eta)
+    return np.where(inactive[..., None], theta_from(T, o), np.nan)
 
 
 def _bounds_vectors(
@@ -468,7 +383,7 @@ class MaximumLikelihood:
         Proceed (with a warning) when the poses do not identify every parameter.
     ipopt_options : dict, optional
         Extra CasADi/IPOPT options (``{"ipopt.tol": 1e-9}``, on the scaled cost of
-        :func:`cost_scale`).
+        :func:`optcal.solvers.nlp.cost_scale`); options IPOPT refuses are an :class:`InputError`.
     """
 
     name = "mle"
@@ -517,24 +432,17 @@ class MaximumLikelihood:
     def initial_normalised(self, poses: PoseTable, norm: Normaliser, u: NDArray) -> tuple[NDArray[np.float64], str]:
         """The starting θ in normalised coordinates and the name of the fit that gave it.
 
-        The same algebraic fits as :meth:`initial`, without assembling a result: the
-        quadric comes from the 10×10 triangular factor ``R`` of the design matrix (eq. 23),
-        whose right singular vectors are those of the design matrix (``svd``), and whose
-        equality-constrained least-squares solution (``tr A = 3``) *is* the convex fit's
-        answer whenever the semidefinite constraint is inactive (checked here; otherwise the
+        The same algebraic fits as :meth:`initial`, without assembling a result: ``svd`` from
+        the triangular factor of the design matrix (:func:`design_factor`), ``convex`` from
+        :func:`convex_start` whenever the semidefinite constraint is inactive (otherwise the
         cvxpy problem is solved).
         """
-        from optcal.families.accel.ellipsoid import ConvexEllipsoidFit, design_matrix, quadric_to_calibration, unpack_quadric
+        from optcal.families.accel.ellipsoid import ConvexEllipsoidFit, quadric_to_calibration
 
         if isinstance(self.init, CalibrationResult):
             # θ of the result's calibration (a sixpos result's params are W and V, not θ)
             return norm.theta_to_normalised(self.init.calibration.lumped().theta), self.init.method
-        D = design_matrix(u)
-        if poses.n <= MLProblem.SX_LIMIT:
-            R = np.linalg.qr(D, mode="r")
-        else:  # a factor of the Gram matrix: same singular vectors, 20x cheaper than QR for 10⁶ poses
-            lam, V = np.linalg.eigh(D.T @ D)
-            R = np.sqrt(np.clip(lam, 0.0, None))[:, None] * V.T
+        R = design_factor(u)
         if self.init == "svd":
             try:
                 T_n, o_n = quadric_to_calibration(np.linalg.svd(R)[2][-1])  # Lu 2017, eq. 24-30
@@ -542,13 +450,9 @@ class MaximumLikelihood:
             except FitError:
                 pass
         convex = ConvexEllipsoidFit(allow_degenerate=True)
-        eta = ConvexEllipsoidFit._kkt_polish(R)
-        if np.linalg.eigvalsh(unpack_quadric(eta)[0])[0] >= 2 * convex.eps:
-            try:
-                T_n, o_n = quadric_to_calibration(eta)
-                return theta_from(T_n, o_n), "convex"
-            except FitError:
-                pass
+        theta_n = convex_start(u, convex.eps, R)
+        if np.all(np.isfinite(theta_n)):
+            return theta_n, "convex"
         return norm.theta_to_normalised(convex.fit(poses).params[:9]), "convex"
 
     def weights(self, poses: PoseTable, norm: Normaliser, u: NDArray, theta_n: NDArray) -> NDArray[np.float64]:
@@ -557,7 +461,7 @@ class MaximumLikelihood:
             T, o = unpack_theta(norm.theta_to_raw(theta_n))
             return pose_weights(poses, T, o, self.weighting)[0]
         gain = NormResidualCost(u, np.ones(poses.n)).normal_gain(theta_n) / norm.scale  # raw units
-        return 1.0 / (poses.sigma * gain) ** 2
+        return propagated_weights(poses.sigma, gain)
 
     def fit(self, poses: PoseTable) -> CalibrationResult:
         poses.validate()
@@ -584,9 +488,9 @@ class MaximumLikelihood:
         w_used: NDArray | None = None
         for _ in range(1 + max(self.reweight, 0)):
             w = self.weights(poses, norm, u, theta_n)
-            if w_used is not None and np.max(np.abs(w / w_used - 1.0)) <= self.reweight_rtol:
+            if weights_settled(w, w_used, self.reweight_rtol):
                 break  # the weights are consistent with the estimate
-            w_n = w / np.mean(w)  # scale-free weights: same optimum, better-scaled NLP
+            w_n = w / np.mean(w, axis=-1, keepdims=True)  # scale-free weights: same optimum, better-scaled NLP
             # threshold of the robust loss on the residuals as weighted by w_n
             delta_n = self.loss_scale * (residual_scale if residual_scale else 1.0 / np.sqrt(np.mean(w)))
             with Stopwatch() as sw:
@@ -595,8 +499,6 @@ class MaximumLikelihood:
             total_time += sw.seconds
             passes += 1
             w_used = w
-        status = str(stats.get("return_status", "unknown"))
-        success = bool(stats.get("success", False))
         theta = norm.theta_to_raw(theta_n)
         notes: list[str] = []
         extra: dict[str, Any] = {"init": init_method, "loss": self.loss, "passes": passes}
@@ -616,10 +518,8 @@ class MaximumLikelihood:
                     f"{', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
                 )
         form = "SX, exact Hessian" if isinstance(problem, MLProblem) else "numpy callbacks, Gauss-Newton Hessian"
-        solver = SolverInfo(
-            "IPOPT", status, success, total_iter, total_time,
-            f"CasADi nlpsol ({form}), {self.loss} loss, {passes} pass(es)",
-        )
+        solver = solver_record(stats, total_time, "IPOPT", f"CasADi nlpsol ({form}), {self.loss} loss, {passes} pass(es)",
+                               iterations=total_iter)
         return finish(
             method=self.name,
             poses=poses,

@@ -17,11 +17,12 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult, least_squares
 
 from optcal.errors import InputError
-from optcal.families.accel.base import Normaliser, Remedy, Stopwatch, check_pose_set, finish
+from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish
 from optcal.families.accel.mle import MaximumLikelihood, NormResidualCost
 from optcal.core.poses import PoseTable
 from optcal.core.fit_result import SolverInfo
 from optcal.families.accel.result import CalibrationResult
+from optcal.solvers.convergence import Remedy
 
 METHODS = ("lm", "trf")
 

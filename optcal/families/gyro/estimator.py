@@ -23,11 +23,10 @@
 
 from __future__ import annotations
 
-import threading
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,15 +41,23 @@ from optcal.data.units import GyroUnitsDecision
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.model import TRIL_INDEX, theta_from
 from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.core.fit_result import SolverInfo, chi_square
+from optcal.solvers.convergence import solver_record
+from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale
+from optcal.core.fit_result import chi_square
 from optcal.core.identifiability import RankReport
 from optcal.families.accel.result import CalibrationResult
+
+if TYPE_CHECKING:
+    from optcal.data import LoadedData
 
 ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
 #: IPOPT's tolerance on the gyro problem's scaled cost: the accelerometer's ML problem asks for
 #: 1e-10 so that a fleet batch reproduces a single fit, but here every iterate integrates every
 #: move, and 1e-7 already puts the gyro parameters within ~1e-7·√n standard errors of the optimum.
 GYRO_IPOPT_TOL: float = 1e-7
+#: The solver as the gyroscope's record names it.
+GYRO_SOLVER_NAME: str = "ipopt (CasADi, Gauss-Newton Hessian)"
+
 @dataclass(frozen=True)
 class GyroSettings:
     """Settings of :func:`calibrate_gyro`.
@@ -64,6 +71,8 @@ class GyroSettings:
     allow_degenerate : bool
         Proceed (with a note) when the moves do not excite three rotation axes.
     ipopt_options : dict
+        Extra CasADi/IPOPT options of the gyro problem (:class:`GyroProblem`); options IPOPT
+        refuses are an :class:`~optcal.errors.InputError`.
     """
 
     accelerometer: str = "fixed"
@@ -138,87 +147,52 @@ class GyroProblem:
     ``x = vec(X)`` (9, row-major) with ``T_g = s₀ (I + X)`` for a fixed accelerometer; jointly
     ``x = (vec X, y)`` with the accelerometer's ``y`` of :func:`accelerometer_directions`.
     Residuals and Jacobian come from the integrator :class:`GravityPredictor` (numpy, analytic
-    sensitivities) through the ``evaluate`` given to :meth:`solve` and are handed to ``nlpsol``
-    as callbacks (cost, gradient ``Jᵀr``, Gauss–Newton Hessian), evaluated once per iterate,
-    with the options and cost scaling of the accelerometer's ML problem
-    (:data:`optcal.families.accel.mle.ML_IPOPT_DEFAULTS`) but its own tolerance
-    (:data:`GYRO_IPOPT_TOL`).  The problem depends on ``nx`` and the
-    options only, so it is built once and kept in :data:`GYRO_PROBLEMS`; each solve holds its lock.
+    sensitivities) through the ``evaluate`` given to :meth:`solve` and are handed to IPOPT as
+    the callbacks of a :class:`optcal.solvers.nlp.CallbackNLP` (cost, gradient ``Jᵀr``,
+    Gauss–Newton Hessian), evaluated once per iterate, with the cost scaling of
+    :func:`optcal.solvers.nlp.cost_scale` and its IPOPT tuning
+    (:data:`optcal.solvers.nlp.SCALED_COST_IPOPT_OPTIONS`) but its own tolerance
+    (:data:`GYRO_IPOPT_TOL`).  The problem depends on ``nx`` and the options only, so it is built
+    once and kept in :data:`GYRO_PROBLEMS`; each solve holds its lock.
     """
 
     def __init__(self, nx: int, ipopt_options: dict[str, Any]) -> None:
-        import casadi as ca
-
-        from optcal.families.accel.mle import ML_IPOPT_DEFAULTS, numpy_callback
-
         self.nx = nx
-        self._lock = threading.Lock()
-        self.scale = 1.0  # the cost factor of cost_scale(), set by solve()
-        self.evaluate: Any = None  # x -> (r, J), set by solve()
-        self._cache: tuple[bytes, NDArray, NDArray] | None = None
-        problem = self
-
-        def rj(arg: list) -> tuple[NDArray, NDArray]:
-            x = np.asarray(arg[0], float).ravel()
-            key = x.tobytes()
-            if problem._cache is None or problem._cache[0] != key:
-                r, J = problem.evaluate(x)
-                problem._cache = (key, r, J)
-            return problem._cache[1], problem._cache[2]
-
-        dense = ca.Sparsity.dense(nx, 1)
-        scalar = ca.Sparsity.dense(1, 1)
-        empty = ca.Sparsity(0, 1)
-
-        def grad(arg: list) -> list:
-            r, J = rj(arg)
-            return [0.5 * problem.scale * float(r @ r), problem.scale * (J.T @ r)]
-
-        self._grad = numpy_callback("gyro_grad_f", [("x", dense), ("p", empty)], [("f", scalar), ("grad_f", dense)], grad)
-
-        def cost_reverse(name: str, inames: list, onames: list, opts: dict) -> Any:
-            x, out, adj = ca.MX.sym("x", nx), ca.MX.sym("f", 1), ca.MX.sym("adj", 1)
-            _, g = self._grad(x, ca.MX(0, 1))
-            return ca.Function(name, [x, out, adj], [adj * g], inames, onames, opts)
-
-        self._cost = numpy_callback("gyro_f", [("x", dense)], [("f", scalar)],
-                                    lambda arg: [0.5 * problem.scale * float(np.sum(rj(arg)[0] ** 2))], reverse=cost_reverse)
-
-        def hessian(arg: list) -> list:
-            _, J = rj(arg)
-            return [ca.triu(ca.DM(J.T @ J * (problem.scale * float(arg[2]))))]
-
-        self._hess = numpy_callback("gyro_hess_lag", [("x", dense), ("p", empty), ("lam_f", scalar), ("lam_g", empty)],
-                                    [("triu_hess_gamma_x_x", ca.Sparsity.upper(nx))], hessian)
-        x = ca.MX.sym("x", nx)
-        opts = {**ML_IPOPT_DEFAULTS, "ipopt.tol": GYRO_IPOPT_TOL, "grad_f": self._grad, "hess_lag": self._hess,
-                **ipopt_options}
-        self.solver = ca.nlpsol("gyro_calibration", "ipopt", {"x": x, "f": self._cost(x)}, opts)
+        self.nlp = CallbackNLP("gyro_calibration", nx, hessian_block_size=nx,
+                               tuning={**SCALED_COST_IPOPT_OPTIONS, "ipopt.tol": GYRO_IPOPT_TOL},
+                               solver_options=ipopt_options)
 
     def solve(self, evaluate: Any, x0: NDArray) -> "GyroSolution":
         """Solve from ``x0`` with ``evaluate(x) -> (r, J)``.
 
-        The cost is scaled by :func:`optcal.families.accel.mle.cost_scale` (one tolerance for any
+        The cost is scaled by :func:`optcal.solvers.nlp.cost_scale` (one tolerance for any
         number of moves, noise level or units, as in the accelerometer's ML problem).  The
         residuals at the start and at the solution are returned with it (each integration
         of the recording is done once).
         """
-        from optcal.families.accel.mle import cost_scale
-
         x0 = np.asarray(x0, float)
         start = evaluate(x0)
-        with self._lock:
-            self.evaluate, self._cache = evaluate, (x0.tobytes(), *start)
-            self.scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
-            t0 = time.perf_counter()
-            try:
-                sol = self.solver(x0=x0)
-                x = np.asarray(sol["x"]).ravel()
-                stats = self.solver.stats()
-                cached = self._cache
-                final = (cached[1], cached[2]) if cached is not None and cached[0] == x.tobytes() else evaluate(x)
-            finally:
-                self.evaluate, self._cache = None, None
+        scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
+        last: list[tuple[bytes, NDArray, NDArray]] = [(x0.tobytes(), *start)]  # the integration at the last x
+
+        def residuals(x: NDArray) -> tuple[NDArray, NDArray]:
+            key = np.asarray(x, float).tobytes()
+            if last[0][0] != key:
+                last[0] = (key, *evaluate(np.array(x, dtype=float).ravel()))
+            return last[0][1], last[0][2]
+
+        def gradient(x: NDArray) -> tuple[float, NDArray]:
+            r, J = residuals(x)
+            return 0.5 * scale * float(r @ r), scale * (J.T @ r)
+
+        def hessian(x: NDArray, lam_f: float) -> NDArray:
+            _, J = residuals(x)
+            return J.T @ J * (scale * lam_f)
+
+        objective = NumpyObjective(lambda x: 0.5 * scale * float(np.sum(residuals(x)[0] ** 2)), gradient, hessian)
+        t0 = time.perf_counter()
+        x, stats = self.nlp.solve(objective, x0=x0)
+        final = (last[0][1], last[0][2]) if last[0][0] == x.tobytes() else evaluate(x)
         return GyroSolution(x, stats, time.perf_counter() - t0, start[0], final[0], final[1])
 
 
@@ -236,17 +210,6 @@ class GyroSolution:
     r_start: NDArray[np.float64]
     r: NDArray[np.float64]
     J: NDArray[np.float64]
-
-
-def _solver_info(stats: dict[str, Any], seconds: float) -> SolverInfo:
-    return SolverInfo(
-        name="ipopt (CasADi, Gauss-Newton Hessian)",
-        status=str(stats.get("return_status", "")),
-        success=bool(stats.get("success", False)),
-        iterations=int(stats.get("iter_count", 0)),
-        solve_time_s=float(seconds),
-        message="",
-    )
 
 
 def initial_scale(moves: MoveSet, w: NDArray, u: NDArray) -> float:
@@ -371,7 +334,7 @@ def calibrate_gyro(
         angles_after_deg=angles_after,
         before=before,
         accelerometer_mode=settings.accelerometer,
-        solver=replace(_solver_info(stats, seconds), iterations=iterations),
+        solver=solver_record(stats, seconds, GYRO_SOLVER_NAME, iterations=iterations),
         identifiability=ident,
         exclusions=dict(moves.exclusions),
         notes=notes,
@@ -440,21 +403,24 @@ def _joint(
     return acc_joint, x, J / np.sqrt(factor), stats, seconds, predicted
 
 
-def calibrate_imu(
-    path: str,
+def calibrate_imu_loaded(
+    loaded: LoadedData,
     *,
     gyro_units: str | None = None,
     method: str = "default",
     settings: GyroSettings | None = None,
     acc_settings: dict[str, Any] | None = None,
-    **load_options: Any,
 ) -> ImuCalibration:
-    """Calibrate accelerometer and gyroscope from one raw recording with gyro channels.
+    """Calibrate accelerometer and gyroscope from one raw recording with gyro channels, as read.
+
+    The estimator reads no file: the caller reads the recording with
+    :func:`optcal.data.load_with_segmentation` (columns, units, rate, static-detection settings)
+    and hands over what it read.
 
     Parameters
     ----------
-    path : str
-        A raw recording (see :func:`optcal.data.load`).
+    loaded : optcal.data.LoadedData
+        The pose table and the static detection of a raw recording.
     gyro_units : {"counts", "rad/s", "deg/s"}, optional
         Units of the gyro samples (decided from the file and the data when omitted).
     method : str
@@ -462,25 +428,12 @@ def calibrate_imu(
     settings : GyroSettings, optional
     acc_settings : dict, optional
         Settings of the accelerometer estimator (e.g. ``allow_degenerate=True``).
-    **load_options
-        Passed to :func:`optcal.data.load_with_segmentation` (``columns=``, ``units=``,
-        ``rate=``, static-detection settings, ...).
+
+    Raises
+    ------
+    InputError
+        The data were read as a pose table (no moves between the poses).
     """
-    from optcal.data import load_with_segmentation
-
-    return calibrate_imu_loaded(load_with_segmentation(path, **load_options), gyro_units=gyro_units, method=method,
-                                settings=settings, acc_settings=acc_settings)
-
-
-def calibrate_imu_loaded(
-    loaded: Any,
-    *,
-    gyro_units: str | None = None,
-    method: str = "default",
-    settings: GyroSettings | None = None,
-    acc_settings: dict[str, Any] | None = None,
-) -> ImuCalibration:
-    """:func:`calibrate_imu` on what :func:`optcal.data.load_with_segmentation` read."""
     from optcal.families.accel.calibration import calibrate
     from optcal.families.gyro.moves import moves_from_segmentation
     from optcal.data.units import decide_gyro_units
