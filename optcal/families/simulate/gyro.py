@@ -148,7 +148,7 @@ def simulate_imu(
             R = U @ Vt
         motion.move(forces, omega)
     truth = motion.finish()
-    t = np.arange(truth.n) * dt
+    t = np.asarray(np.arange(truth.n) * dt, dtype=np.float64)
     f, omega = truth.specific_force, truth.rate
     acc = acc_model.measure(f) + white_noise(gen, acc_noise, f.shape)
     gyro_clean = gyro_model.measure(omega, f if gyro_model.g_sensitivity is not None else None)
