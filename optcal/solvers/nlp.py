@@ -75,7 +75,7 @@ SCALED_COST_IPOPT_OPTIONS: dict[str, Any] = {
 }
 
 
-def cost_scale(n: int, start_rms: float | NDArray) -> Any:
+def cost_scale(n: int, start_rms: float | NDArray) -> float | NDArray[np.float64]:
     """Factor ``c = 1/(n s₀)`` applied to a cost ``Σ ρ`` of n residuals (``s₀`` their rms at the start).
 
     IPOPT stops on the absolute size of the gradient, while the cost can only resolve a
@@ -290,7 +290,7 @@ def numpy_callback(
         def get_sparsity_out(self, i: int) -> Any:
             return outputs[i][1]
 
-        def eval(self, arg: list) -> list:
+        def eval(self, arg: Any) -> list[Any]:
             values = evaluate([np.asarray(a, dtype=float).ravel(order="F") for a in arg])
             return [ca.DM(sparsity, np.asarray(value, dtype=float).ravel())
                     for (_, sparsity), value in zip(outputs, values)]
@@ -298,7 +298,7 @@ def numpy_callback(
         def has_eval_buffer(self) -> bool:
             return True
 
-        def eval_buffer(self, arg: list, res: list) -> int:
+        def eval_buffer(self, arg: Any, res: Any) -> int:
             # an absent buffer: an input without nonzeros, or an output the caller does not need
             values = evaluate([np.empty(0) if a is None else np.frombuffer(a, dtype=np.float64) for a in arg])
             for buffer, value in zip(res, values):
@@ -309,7 +309,7 @@ def numpy_callback(
         def has_reverse(self, nadj: int) -> bool:
             return reverse is not None and nadj == 1
 
-        def get_reverse(self, nadj: int, fname: str, inames: list, onames: list, opts: dict) -> Any:
+        def get_reverse(self, nadj: int, fname: str, inames: Any, onames: Any, opts: Any) -> Any:
             assert reverse is not None
             return reverse(fname, inames, onames, opts)
 

@@ -177,18 +177,19 @@ class BatchedMaximumLikelihood:
         acc = np.stack([t.acc for t in tables])  # (K, n, 3)
         K, n, _ = acc.shape
         norm = Normaliser.of(acc)
+        scale = np.asarray(norm.scale)  # (K,)
         u = norm.forward(acc)
         ml = MaximumLikelihood()
         theta = convex_start(u, ConvexEllipsoidFit(allow_degenerate=True).eps)
         for j in np.flatnonzero(~np.all(np.isfinite(theta), axis=1)):  # the PSD constraint is active: mle's own start
-            theta[j] = ml.initial_normalised(tables[j], Normaliser(norm.centre[j], float(norm.scale[j])), u[j])[0]
+            theta[j] = ml.initial_normalised(tables[j], Normaliser(norm.centre[j], float(scale[j])), u[j])[0]
         sigma = np.stack([t.sigma if t.sigma is not None else np.full(n, np.nan) for t in tables])
         known = np.all(np.isfinite(sigma), axis=1)
         sigma_or_1 = np.where(known[:, None], sigma, 1.0)
 
         def weights(th: NDArray) -> NDArray:
             """The propagated weights in raw units (MaximumLikelihood.weights), 1 without noise."""
-            gain = NormResidualCost(u, np.ones((K, n))).normal_gain(th) / norm.scale[:, None]
+            gain = NormResidualCost(u, np.ones((K, n))).normal_gain(th) / scale[:, None]
             return np.where(known[:, None], propagated_weights(sigma_or_1, gain), 1.0)
 
         w_used: NDArray | None = None

@@ -186,11 +186,11 @@ def scaled_cost(u: NDArray, w: NDArray, theta0: NDArray, loss: str = "squared", 
     return cost
 
 
-def weights_settled(w: NDArray, w_used: NDArray | None, rtol: float) -> Any:
+def weights_settled(w: NDArray, w_used: NDArray | None, rtol: float) -> NDArray[np.bool_]:
     """Whether no weight changed by more than ``rtol`` (relative) since the last solve (per unit for a stack)."""
     if w_used is None:
         return np.zeros(np.shape(w)[:-1], dtype=bool)
-    return np.max(np.abs(w / w_used - 1.0), axis=-1) <= rtol
+    return np.asarray(np.max(np.abs(w / w_used - 1.0), axis=-1) <= rtol)
 
 
 class _MLSolve(ABC):
@@ -305,7 +305,7 @@ def design_factor(u: NDArray) -> NDArray[np.float64]:
 
     D = design_matrix(u)
     if D.shape[-2] <= MLProblem.SX_LIMIT:
-        return np.linalg.qr(D, mode="r")
+        return np.asarray(np.linalg.qr(D, mode="r"))
     lam, V = np.linalg.eigh(np.swapaxes(D, -1, -2) @ D)
     return np.sqrt(np.clip(lam, 0.0, None))[..., :, None] * np.swapaxes(V, -1, -2)
 
