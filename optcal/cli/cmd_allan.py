@@ -171,6 +171,7 @@ def allan(
     if figure is not None:
         click.echo(f"figure saved to {figure}")
 
+
 def allan_gyro(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_s: float | None,
                max_tau: float | None, reading: dict[str, Any]) -> None:
     """``optcal allan DATA --sensor gyro``: the gyro's noise parameters (and Kalibr's two numbers).
