@@ -27,7 +27,7 @@ import pytest
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from diagnosis_cases import make_case  # noqa: E402
+from helpers.diagnosis_cases import make_case  # noqa: E402
 
 from optcal.applications.diagnosis import diagnose  # noqa: E402
 
@@ -41,7 +41,7 @@ LARGE_BUDGETS = {2000: (20.0, 1500.0), 10000: (120.0, 1500.0)}
 LARGE_SCRIPT = """
 import json, resource, sys, time
 sys.path.insert(0, {tests!r})
-from diagnosis_cases import make_case
+from helpers.diagnosis_cases import make_case
 from optcal.applications.diagnosis import diagnose
 case = make_case("temperature_bias", 3, n_range=({n}, {n}))
 t0 = time.perf_counter()

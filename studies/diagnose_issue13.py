@@ -45,7 +45,7 @@ from study_mode import STUDIES as HERE  # noqa: E402
 
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from diagnosis_cases import make_case  # noqa: E402
+from helpers.diagnosis_cases import make_case  # noqa: E402
 
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings, diagnose  # noqa: E402
 from optcal.applications.diagnosis.effects import EFFECTS  # noqa: E402

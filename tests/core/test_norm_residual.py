@@ -18,7 +18,7 @@ from optcal.core.norm_residual import (
 )
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 
 @pytest.fixture

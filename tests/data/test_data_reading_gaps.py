@@ -16,7 +16,7 @@ from optcal.errors import InputError
 from optcal.core.model import lu2017_reference_model
 from optcal.families.simulate.poses import uniform_directions
 
-from conftest import SHARED
+from helpers.common import SHARED
 
 XSENS = SHARED / "data" / "imutk-xsens" / "xsens_imutk.csv"
 

@@ -22,7 +22,7 @@ from optcal.errors import InputError
 from optcal.core.model import LumpedModel, lu2017_reference_model
 from optcal.families.simulate.poses import tilted_sweeps, uniform_directions
 
-from conftest import SHARED
+from helpers.common import SHARED
 
 DATA = SHARED / "data"
 

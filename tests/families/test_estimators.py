@@ -12,7 +12,7 @@ from optcal.core.model import LumpedModel
 from optcal.core.poses import PoseTable
 from optcal.families.simulate.poses import cap_directions, lu2017_sweeps, simulate_poses, tilted_sweeps, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 METHODS = ["svd", "convex", "mle", "exact", "gd"]
 

@@ -20,7 +20,7 @@ from optcal.core.norm_residual import norm_residual_jacobian, normal_gain
 from optcal.core.model import unpack_theta
 from optcal.families.simulate.poses import simulate_poses, tilted_sweeps, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 
 def normalised_problem(model, n, sigma, seed, outliers=0):

@@ -16,7 +16,7 @@ from optcal.families.accel.mle import ML_PROBLEMS, MLProblem, VectorisedMLProble
 from optcal.solvers.cache import freeze_options, problem_cache
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 
 def test_cache_is_bounded_and_drops_the_least_recently_used():

@@ -16,7 +16,7 @@ from optcal.families.accel.mle import ML_PROBLEMS
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS
 from optcal.families.simulate.poses import cap_directions, lu2017_sweeps, simulate_poses, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 
 @pytest.fixture

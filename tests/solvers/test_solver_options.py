@@ -13,7 +13,7 @@ from optcal import calibrate
 from optcal.errors import InputError
 from optcal.families.simulate.poses import simulate_poses, uniform_directions
 
-from conftest import rngs
+from helpers.common import rngs
 
 #: A tolerance IPOPT refuses (it must be positive): IPOPT itself says only "Invalid options were detected".
 BAD = {"ipopt.tol": -1.0}
