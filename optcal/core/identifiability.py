@@ -105,7 +105,7 @@ def cramer_rao_bound(model: LumpedModel, directions: ArrayLike, sigma: float | A
     T = model.T_canonical
     acc = model.measure(d)
     F = fisher_information(T, model.o, acc, sigma)
-    return np.linalg.pinv(F, rcond=1e-14, hermitian=True)
+    return np.linalg.pinv(F, rcond=1e-14, hermitian=True)  # type: ignore[return-value]  # numpy stubs type pinv of float64 as floating[Any]
 
 
 @dataclass
@@ -320,10 +320,16 @@ def _describe_directions(vectors: NDArray, T: NDArray) -> list[dict[str, Any]]:
     _, _, piv = scipy.linalg.qr(M.T, pivoting=True)
     pivots = piv[:k]
     B = M @ np.linalg.inv(M[pivots, :])  # each column: unit change of one pivot entry
+    # An entry takes part in a combination when it moves by more than 1e-3 of its full scale per full
+    # scale of the pivot entry: A's entries against the largest diagonal of A (1 g per raw unit, squared),
+    # o's against 1 g in raw units (1 / min diag T), so that the same pose set names the same entries
+    # whether the data are in g, m/s^2 or counts.
+    full_scale = np.r_[np.full(6, np.max(np.diag(T.T @ T))), np.full(3, 1.0 / np.min(np.abs(np.diag(T))))]
     out = []
     for c in range(k):
         col = B[:, c]
-        combo = {names[i]: float(col[i]) for i in np.flatnonzero(np.abs(col) > 1e-3)}
+        relative = np.abs(col) * full_scale[pivots[c]] / full_scale  # (Δ entry / its scale) per (Δ pivot / its scale)
+        combo = {names[i]: float(col[i]) for i in np.flatnonzero(relative > 1e-3)}
         lead = names[pivots[c]]
         others = [f"{v:+.3g}·{n}" for n, v in combo.items() if n != lead]
         text = lead + (f" (together with {' '.join(others)})" if others else "")

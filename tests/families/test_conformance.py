@@ -84,16 +84,6 @@ TOLERANCE_FS: dict[str, tuple[float, str]] = {
 
 #: (check, method) → reason, for the estimators that fail a check (reported to the lead).
 KNOWN_FAILURES: dict[tuple[str, str], str] = {
-    ("rank_deficient", "svd"): (
-        "svd refuses 8 of the 9 two-cone designs (the sensor turned about one axis at two tilts: A_ii with "
-        "o_i undetermined) with FitError 'the algebraic fit is not an ellipsoid (... a hyperboloid); this "
-        "happens when the poses cover only part of the sphere or the noise is large; use method=\"convex\"' "
-        "instead of IdentifiabilityError naming A_ii and o_i (the ninth reaches the identifiability check by "
-        "the luck of rounding).  The design matrix has a two-dimensional null space (the pencil of quadrics "
-        "through the two circles), vt[-1] is an arbitrary member of it, and quadric_to_calibration rejects "
-        "that before finish() runs the identifiability check: the message blames noise or coverage on "
-        "noise-free data and sends the user to convex, which then raises IdentifiabilityError"
-    ),
 }
 
 
@@ -261,18 +251,20 @@ def two_cone_designs() -> list[tuple[str, str, NDArray[np.float64]]]:
     return designs
 
 
+@pytest.mark.parametrize("units", list(UNITS))
 @pytest.mark.parametrize("method", cases("rank_deficient"))
-def test_rank_deficient_pose_set_is_refused_or_identified(method: str) -> None:
+def test_rank_deficient_pose_set_is_refused_or_identified(method: str, units: str) -> None:
     """A self-calibrating method cannot tell the offset along the turning axis from the scale
     along it on :func:`two_cone_designs` and must refuse with IdentifiabilityError naming
-    them (A_ii together with o_i).  A method given the orientations does identify everything
-    from such a set (Yin 2014, eq. 4 needs only non-coplanar poses): it must then recover the
-    sensor in the reference frame and report full rank."""
-    model = realistic_model("g")
+    them (A_ii together with o_i), in every unit: which entries a combination names is judged
+    against their full scale, not in raw units.  A method given the orientations does identify
+    everything from such a set (Yin 2014, eq. 4 needs only non-coplanar poses): it must then
+    recover the sensor in the reference frame and report full rank."""
+    model = realistic_model(units)
     failures = []
     for design, axis, directions in two_cone_designs():
         try:
-            result = calibrate(pose_table(model, directions, "g"), method=method)
+            result = calibrate(pose_table(model, directions, units), method=method)
         except InputError as exc:
             if not isinstance(exc, IdentifiabilityError):
                 failures.append(f"{design}: {type(exc).__name__}, not IdentifiabilityError: {exc}")
@@ -284,7 +276,7 @@ def test_rank_deficient_pose_set_is_refused_or_identified(method: str) -> None:
                 failures.append(f"{design}: refused without naming A_{axis}{axis} with o_{axis}: {exc}")
             continue
         rank = result.identifiability.rank
-        error, frame = worst_error_fs(result.calibration, model, "g")
+        error, frame = worst_error_fs(result.calibration, model, units)
         if not (rank == result.identifiability.n_params == result.n_params
                 and frame == "reference frame" and error <= recovery_tolerance(method)[0]):
             failures.append(f"{design}: fitted (rank {rank}/{result.n_params}) with error {error:.3g} of full scale ({frame})")

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import FitError, InputError, SolverError
-from optcal.families.accel.base import Normaliser, Stopwatch, finish
+from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish
 from optcal.core.model import canonical_T, theta_from
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import FrozenOptions, ProblemCache, freeze_options, problem_cache
@@ -149,7 +149,15 @@ class SVDEllipsoidFit:
             J = design_matrix(norm.forward(poses.acc))
             _, s, vt = np.linalg.svd(J, full_matrices=False)
             eta = vt[-1]  # right singular vector of the smallest singular value
-            T_n, o_n = quadric_to_calibration(eta)
+            try:
+                T_n, o_n = quadric_to_calibration(eta)
+            except FitError:
+                # Poses that leave a pencil of quadrics through them (e.g. two cones about one axis) give
+                # an arbitrary member of it here, often a hyperboloid: name what the poses leave undetermined,
+                # judged at the unit sphere of the normalised data, before blaming noise or coverage.
+                sphere = norm.theta_to_raw(theta_from(np.eye(3), np.zeros(3)))
+                check_pose_set(poses, sphere, allow_degenerate=self.allow_degenerate)
+                raise
         solver = SolverInfo("numpy.linalg.svd", "solved", True, 0, sw.seconds, f"smallest singular value {s[-1]:.3g}")
         return finish(
             method=self.name,
