@@ -39,7 +39,8 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
 
         write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
                                     tolerance), report_path)
-    gyro_lines, gyro_out = [], {}
+    gyro_lines: list[str] = []
+    gyro_out: dict[str, Any] = {}
     if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
         gyro_lines, gyro_out = gravity_check_lines(cal, data, data_opts)
     if as_json:
@@ -67,10 +68,9 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
         f"max ||a|-1|: before {np.max(np.abs(result.before)) * 1e3:.4f} mg, after {np.max(np.abs(result.after)) * 1e3:.4f} mg"
     )
     click.echo("")
-    has_t = result.t is not None
     click.echo(f"{'pose':>5} {'t (s)':>9} {'n':>7} {'before (mg)':>12} {'after (mg)':>11} {'noise (mg)':>11}")
     for k in range(result.rows.size):
-        t = f"{result.t[k]:9.2f}" if has_t else f"{'':>9}"
+        t = f"{result.t[k]:9.2f}" if result.t is not None else f"{'':>9}"
         n = f"{int(result.n_samples[k]):7d}" if result.n_samples is not None else f"{'':>7}"
         noise = f"{result.noise[k] * 1e3:11.4f}" if result.noise is not None else f"{'':>11}"
         click.echo(f"{int(result.rows[k]):>5} {t} {n} {result.before[k] * 1e3:12.4f} {result.after[k] * 1e3:11.4f} {noise}")

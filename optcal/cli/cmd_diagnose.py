@@ -113,7 +113,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         poses, source = diag.poses, " + ".join(data)
     paths = save_figures(diag, figures_into) if figures_into else []
     calibration = diag.calibration() if output else None
-    if calibration is not None:
+    if calibration is not None and output:
         calibration.save(output_file(output))
     if report_path:
         from optcal.report.document import diagnosis_document

@@ -71,7 +71,7 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     if next_data is not None and criterion.upper() != "D":
         raise InputError("--next always uses the D criterion (the largest gain in log det); drop --criterion")
 
-    data_path = next_data or given_data
+    data_path = next_data or given_data or ""
     poses = load_data(data_path, **data_opts) if data_path else None
     if poses is not None and not as_json:
         click.echo(data_line(data_path, poses))
@@ -89,9 +89,11 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     else:
         candidates = sphere_candidates(grid, cap)
 
-    if next_data is not None:
+    if n_poses is None:  # --next DATA: exactly one of --poses and --next was given (checked above)
         from optcal.applications.plan import next_pose
 
+        if poses is None:
+            raise InputError("--next DATA needs the path of the poses taken, not an empty string")
         result: Any = next_pose(poses, prior=prior_model, sigma=sigma, candidates=candidates,
                                 target_stderr=target_stderr)
         planned, given_dirs = result.direction[None, :], result.given_directions
@@ -111,7 +113,7 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     if report_path:
         from optcal.report.plan_report import plan_document
 
-        write_report(plan_document(result, prior_model, command_line(), shown, cap, data_path or ""), report_path)
+        write_report(plan_document(result, prior_model, command_line(), shown, cap, data_path), report_path)
     if as_json:
         out = result.to_dict()
         if poses is not None:

@@ -44,7 +44,7 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
         text = segmentation_report(poses.meta, seg) if seg is not None else f"nothing to segment: {poses.n} poses, one per row"
         write_report(segmentation_document(poses, seg, data, command_line(), text), report_path)
     if as_json:
-        out = {"data": data_summary(data, poses)}
+        out: dict[str, Any] = {"data": data_summary(data, poses)}
         if seg is not None:
             out["segmentation"] = poses.meta["segmentation"]
         else:

@@ -15,7 +15,7 @@ population prior and what it did, and how the fleet was run.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -114,10 +114,12 @@ def fleet_population(result: FleetResult) -> FleetPopulation | None:
     stats = result.stats
     if stats is None:
         return None
-    members = [o for o in result.outcomes if o.calibrated and o.theta is not None and o.units == stats.units]
+    calibrated = [(o, o.theta) for o in result.outcomes
+                  if o.calibrated and o.theta is not None and o.units == stats.units]
+    members = [o for o, _ in calibrated]
     own = np.array([o.status == "calibrated" for o in members])
-    zero = nominal_conversion(stats.units, np.array([o.theta[6:9] for o in members])).offset
-    values = np.array([np.append(physical_vector(o.theta, zero), 1e3 * o.rms_g) for o in members])
+    zero = nominal_conversion(stats.units, np.array([theta[6:9] for _, theta in calibrated])).offset
+    values = np.array([np.append(physical_vector(theta, zero), 1e3 * o.rms_g) for o, theta in calibrated])
     med, spread = robust_location_spread(values[own])
     k = stats.threshold_n
     names = [(q.name, q.symbol, q.unit) for q in _quantities(stats.units, zero)] + [("rms residual", "rms", "mg")]
@@ -192,7 +194,7 @@ def _population_section(result: FleetResult, population: FleetPopulation | None)
     ]
     table = Table(["quantity", "symbol", "median", "robust SD", "band", "unit", "units outside"], rows,
                   "The population in engineers' units")
-    fmt = "png" if len(population.members) > SVG_MAX_UNITS else "svg"
+    fmt: Literal["png", "svg"] = "png" if len(population.members) > SVG_MAX_UNITS else "svg"
     figures = [embed(quantity_figure(population, j), f"{b.name} of every calibrated unit, the population's robust band "
                      "(shaded) and its median (line); flagged units circled in red", fmt)
                for j, b in enumerate(population.bands)]
@@ -233,8 +235,8 @@ def _prior_section(result: FleetResult, population: FleetPopulation | None) -> S
         weak_rows.append([o.unit, str(o.n_poses), ", ".join(strong) or "all below 0.1",
                           significant(1e3 * o.rms_g, 3)])
     moved = [np.abs(o.theta_with_prior - o.theta) / o.stderr for o in result.outcomes
-             if o.status == "calibrated" and o.theta_with_prior is not None and o.stderr is not None
-             and np.all(o.stderr > 0)]
+             if o.status == "calibrated" and o.theta is not None and o.theta_with_prior is not None
+             and o.stderr is not None and np.all(o.stderr > 0)]
     paragraphs = [
         f"The population prior is the mean and covariance of θ over {prior.n_units} well-determined units "
         "(empirical Bayes). Every unit with data was refitted with it as a penalty; a unit whose own poses do not "

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
 
     from optcal.applications.plan.candidates import Cap
 
@@ -62,7 +63,7 @@ def sphere_figure(planned: ArrayLike, given: ArrayLike | None = None, candidates
             if label == "planned":
                 for k, (x, y) in zip(np.flatnonzero(side) + 1, xy):
                     ax.annotate(str(k), (x, y), xytext=(5, 5), textcoords="offset points", fontsize=8)
-        if boundary is not None:
+        if cap is not None and boundary is not None:
             side = boundary[:, 2] >= 0 if hemisphere > 0 else boundary[:, 2] < 0
             xy = np.where(side[:, None], equal_area(boundary, hemisphere), np.nan)
             ax.plot(xy[:, 0], xy[:, 1], "b--", lw=1, label=f"cap ({cap.describe()})")
@@ -79,7 +80,7 @@ def sphere_figure(planned: ArrayLike, given: ArrayLike | None = None, candidates
     return fig
 
 
-def _circle():  # type: ignore[no-untyped-def]
+def _circle() -> "Circle":
     from matplotlib.patches import Circle
 
     return Circle((0, 0), 1.0, fill=False, color="k", lw=1)

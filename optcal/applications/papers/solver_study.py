@@ -43,6 +43,7 @@ from optcal.families.accel.ellipsoid import ConvexEllipsoidFit, SVDEllipsoidFit
 from optcal.families.accel.exact import ExactMaximumLikelihood
 from optcal.families.accel.gradient_descent import GradientDescent, descend
 from optcal.families.accel.mle import MaximumLikelihood, MLProblem, NormResidualCost
+from optcal.families.accel.result import CalibrationResult
 from optcal.families.accel.scipy_ls import ScipyLeastSquares, solve_least_squares
 from optcal.core.identifiability import analyse_design, cramer_rao_bound
 from optcal.core.model import PARAM_NAMES, LumpedModel, lu2017_reference_model, unpack_theta
@@ -80,9 +81,18 @@ def _progress(iterable: Any, desc: str, progress: bool, total: int | None = None
 def distorted_model(factor: float) -> LumpedModel:
     """Lu 2017's sensor with its scale and non-orthogonality errors multiplied by ``factor``."""
     scale = 1.0 + factor * (np.array([1.2, 0.8, 1.3]) - 1.0)
-    angles = factor * np.deg2rad([2.0, 1.0, 1.5])
+    rho, phi, lam = factor * np.deg2rad([2.0, 1.0, 1.5])
     mounting = np.eye(3) + np.array([[0, -0.02, -0.05], [0.02, 0, -0.05], [0.05, 0.05, 0]])
-    return LumpedModel.from_physical(scale, *angles, bias=[0.20, 0.15, 0.10], mounting=mounting)
+    return LumpedModel.from_physical(scale, rho, phi, lam, bias=[0.20, 0.15, 0.10], mounting=mounting)
+
+
+def mle_standard_errors(result: CalibrationResult) -> NDArray[np.float64]:
+    """Standard errors ``sqrt(diag Σ)`` of the parameters of an ``mle`` fit."""
+    # An mle result always carries the inverse Fisher information as its covariance
+    # (families.accel.base.finish): None here would be a bug, not a data problem.
+    if result.covariance is None:
+        raise RuntimeError("an mle calibration result without a covariance")
+    return np.sqrt(np.diag(result.covariance))
 
 
 @dataclass
@@ -329,11 +339,11 @@ def throughput(design: Design, fits: int, seed: int, progress: bool = True, batc
     t0, c0 = time.perf_counter(), time.process_time()
     fit = batched.fit_many(tables[:n_batched])
     elapsed_b, cpu_b = time.perf_counter() - t0, time.process_time() - c0
-    deviation = max(float(np.max(np.abs(fit.theta[k] - r.params[:9]) / np.sqrt(np.diag(r.covariance))))
+    deviation = max(float(np.max(np.abs(fit.theta[k] - r.params[:9]) / mle_standard_errors(r)))
                     for k, r in enumerate(singles))
     full_scale = max(float(np.max(np.abs(fit.theta[k] - r.params[:9]) / parameter_full_scale(r.params[:9])))
                      for k, r in enumerate(singles))
-    stderr_rel = max(float(np.max(np.abs(fit.stderr[k] / np.sqrt(np.diag(r.covariance)) - 1.0)))
+    stderr_rel = max(float(np.max(np.abs(fit.stderr[k] / mle_standard_errors(r) - 1.0)))
                      for k, r in enumerate(singles))
     return {"design": design.label, "fits": fits, "seconds": elapsed, "fits_per_s": fits / elapsed,
             "fits_per_cpu_s": fits / cpu,
@@ -356,7 +366,7 @@ def large(n: int, seed: int) -> dict[str, Any]:
     t0 = time.perf_counter()
     res = calibrate(poses, method="mle")
     elapsed = time.perf_counter() - t0
-    sd = np.sqrt(np.diag(res.covariance))
+    sd = mle_standard_errors(res)
     return {
         "n_poses": n,
         "mle_s": elapsed,

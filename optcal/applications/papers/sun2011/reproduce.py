@@ -20,7 +20,7 @@ import sys
 import time
 from collections import Counter
 from dataclasses import replace
-from typing import Any
+from typing import Any, Literal, TypedDict, get_args
 
 import click
 import numpy as np
@@ -71,8 +71,28 @@ DEFAULT_RUNS = 1000
 DEFAULT_ML_RUNS = 100
 QUICK_RUNS = 20
 QUICK_ML_RUNS = 3
+#: The settings of :class:`SimulationSettings` that are error sources of the budget.
+ErrorSource = Literal[
+    "angle_error_arcsec",
+    "non_orthogonality_arcsec",
+    "gyro_drift_deg_h",
+    "accel_noise_ug_rthz",
+    "gyro_noise_deg_h_rthz",
+]
+
+
+class ErrorSourceLevels(TypedDict, total=False):
+    """Levels of some error sources: keyword arguments of ``dataclasses.replace`` on :class:`SimulationSettings`."""
+
+    angle_error_arcsec: float
+    non_orthogonality_arcsec: float
+    gyro_drift_deg_h: float
+    accel_noise_ug_rthz: float
+    gyro_noise_deg_h_rthz: float
+
+
 #: Error sources of the budget: the settings that switch everything else off.
-_BUDGET_OFF = {
+_BUDGET_OFF: ErrorSourceLevels = {
     "angle_error_arcsec": 0.0,
     "non_orthogonality_arcsec": 0.0,
     "gyro_drift_deg_h": 0.0,
@@ -81,7 +101,7 @@ _BUDGET_OFF = {
 }
 #: The budget line with every error source off: the deterministic error of the method.
 DETERMINISTIC = "none (filter and model only)"
-BUDGET_SOURCES: dict[str, tuple[str, ...]] = {
+BUDGET_SOURCES: dict[str, tuple[ErrorSource, ...]] = {
     "turntable angle and axis errors": ("angle_error_arcsec", "non_orthogonality_arcsec"),
     "sensor white noise": ("accel_noise_ug_rthz", "gyro_noise_deg_h_rthz"),
     "gyro constant drift": ("gyro_drift_deg_h",),
@@ -89,10 +109,59 @@ BUDGET_SOURCES: dict[str, tuple[str, ...]] = {
 }
 
 
-def stats(samples: NDArray, set_value: float) -> dict[str, float]:
+class MonteCarloStats(TypedDict):
+    """Set value, Monte Carlo mean ("estimate") and standard deviation ("spread") of one parameter."""
+
+    set: float
+    estimate: float
+    spread: float
+
+
+class PathParams(TypedDict):
+    """``b_z`` and ``τ_zx`` estimated on one step-3 path."""
+
+    b_z: MonteCarloStats
+    tau_zx: MonteCarloStats
+
+
+class Table4Row(TypedDict):
+    """One step-3 path of Table 4: the paper's read-out (eq. 23), the joint solve (eq. 18), the paper's values."""
+
+    beta1_deg: float
+    beta2_deg: float
+    b_z: MonteCarloStats
+    tau_zx: MonteCarloStats
+    decoupled: bool
+    joint_solve: PathParams
+    paper: dict[str, float]
+
+
+class LimitCheck(TypedDict):
+    """An acceptance check of a relative error against a limit."""
+
+    check: str
+    value: float
+    limit: float
+    met: bool
+
+
+class PathsCheck(TypedDict):
+    """An acceptance check with one verdict per step-3 path."""
+
+    check: str
+    value: dict[str, bool]
+    met: bool
+
+
+def stats(samples: NDArray, set_value: float) -> MonteCarloStats:
     """``{"set", "estimate", "spread"}``: set value, Monte Carlo mean and standard deviation."""
     x = np.asarray(samples, dtype=float)
     return {"set": float(set_value), "estimate": float(np.mean(x)), "spread": float(np.std(x, ddof=1) if x.size > 1 else 0.0)}
+
+
+def limit_check(check: str, value: float, limit: float) -> LimitCheck:
+    """The check met when ``value <= limit``."""
+    return {"check": check, "value": value, "limit": limit, "met": bool(value <= limit)}
 
 
 def settings_record(s: SimulationSettings) -> dict[str, Any]:
@@ -160,7 +229,11 @@ def error_budget(settings: SimulationSettings, tuning: FilterTuning, runs: int, 
     out: dict[str, Any] = {}
     set_values = settings.set_errors().values
     for label, keep in BUDGET_SOURCES.items():
-        off = {k: v for k, v in _BUDGET_OFF.items() if k not in keep}
+        off: ErrorSourceLevels = {}
+        source: ErrorSource
+        for source in get_args(ErrorSource):
+            if source not in keep:
+                off[source] = _BUDGET_OFF[source]
         s = replace(settings, **off)
         session = TurntableRun.start(s, runs, seed=[seed, 7])
         est = run_scheme(session, tuning).estimates
@@ -270,7 +343,7 @@ def run(runs: int = DEFAULT_RUNS, seed: int = 0, quick: bool = False, progress: 
 
     table2 = {n: stats(scheme.estimates[:, col[n]], truth[col[n]]) for n in ("b_x", "b_y", "b_z")}
     table3 = {n: stats(scheme.estimates[:, col[n]], truth[col[n]]) for n in TAU_NAMES}
-    table4 = []
+    table4: list[Table4Row] = []
     for b1, b2 in TABLE4_PATHS_DEG:
         pe = path_estimates(session, tuning, scheme, np.deg2rad(b1), np.deg2rad(b2))
         pb, pt = PAPER_TABLE4[(b1, b2)]
@@ -298,15 +371,13 @@ def run(runs: int = DEFAULT_RUNS, seed: int = 0, quick: bool = False, progress: 
         > 2 * (abs(t45["b_z"]["estimate"] - t45["b_z"]["set"]) + t45["b_z"]["spread"])
         for t in table4 if not t["decoupled"]
     }
-    acceptance = [
-        {"check": "b_x, b_y within 10% of the set value (Monte Carlo mean)",
-         "value": max(abs(rel["b_x"]), abs(rel["b_y"])), "limit": 0.10},
-        {"check": "b_z within 30%", "value": abs(rel["b_z"]), "limit": 0.30},
-        {"check": "step-1 installation errors τ_xy, τ_yx within 15%",
-         "value": max(abs(rel["tau_xy"]), abs(rel["tau_yx"])), "limit": 0.15},
+    acceptance: list[LimitCheck | PathsCheck] = [
+        limit_check("b_x, b_y within 10% of the set value (Monte Carlo mean)",
+                    max(abs(rel["b_x"]), abs(rel["b_y"])), 0.10),
+        limit_check("b_z within 30%", abs(rel["b_z"]), 0.30),
+        limit_check("step-1 installation errors τ_xy, τ_yx within 15%",
+                    max(abs(rel["tau_xy"]), abs(rel["tau_yx"])), 0.15),
     ]
-    for a in acceptance:
-        a["met"] = bool(a["value"] <= a["limit"])
     acceptance.append(
         {"check": "paths (30°, 50°) and (20°, 60°): |error| + spread of b_z more than twice that of (±45°)",
          "value": worse, "met": all(worse.values())}

@@ -58,6 +58,7 @@ in the reproduction's output.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -403,7 +404,7 @@ class TurntableRun:
         cls,
         settings: SimulationSettings,
         runs: int,
-        seed: int | ArrayLike = 0,
+        seed: int | Sequence[int] = 0,
         errors: AccelerometerErrors | None = None,
     ) -> "TurntableRun":
         """A new session of ``runs`` Monte Carlo runs (errors default to the set values)."""

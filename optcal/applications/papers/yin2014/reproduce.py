@@ -82,7 +82,7 @@ def true_sensor() -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.
     rho, phi, lam = np.radians(TRUE_NON_ORTHOGONALITY_DEG)
     C = lumped_matrix(TRUE_SCALE, rho, phi, lam, mounting=np.array(TRUE_MOUNTING))
     o = np.array(TRUE_BIAS_G)
-    W = np.linalg.inv(C)
+    W: NDArray[np.float64] = np.linalg.inv(C)  # type: ignore[assignment]  # numpy stubs type inv of float64 as floating[Any]
     return C, o, W, -W @ o
 
 
@@ -180,6 +180,8 @@ def sixpos_against_truth(poses: PoseTable, mean_noise: NDArray[np.float64]) -> t
     V_true = -W_true @ (o + mean_noise)  # the bias during the calibration run
     result = SixPositionLeastSquares().fit(poses)
     W, V = result.W, result.V
+    if W is None or V is None:  # the six-position fit always returns its W and V (eq. 4)
+        raise RuntimeError("a six-position calibration result without W and V")
     W_se, V_se = result.extra["W_stderr"], result.extra["V_stderr"]
     W_z = np.abs(W - W_true) / W_se
     V_z = np.abs(V - V_true) / V_se
@@ -196,7 +198,7 @@ def sixpos_against_truth(poses: PoseTable, mean_noise: NDArray[np.float64]) -> t
             "V_true": V_true,
             "V_estimate": V,
             "V_stderr": V_se,
-            "pose_sigma_g": float(poses.sigma[0]),
+            "pose_sigma_g": None if poses.sigma is None else float(poses.sigma[0]),
             "rms_norm_residual_g": result.rms_norm_residual_g,
             "units": {"W": "g per g (dimensionless)", "V": "g"},
         },
