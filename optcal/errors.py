@@ -16,6 +16,19 @@ into its flags (:data:`optcal.cli.messages.CLI_SPELLING`).
 
 from __future__ import annotations
 
+from typing import Protocol
+
+
+class RankSummary(Protocol):
+    """The rank test an :class:`IdentifiabilityError` carries.
+
+    :class:`optcal.core.identifiability.RankReport` provides it (the accelerometer's
+    ``IdentifiabilityReport``, the gyro's ``GyroIdentifiability``).
+    """
+
+    rank: int
+    n_params: int
+
 
 class OptcalError(Exception):
     """Base class of all optcal errors."""
@@ -30,11 +43,12 @@ class IdentifiabilityError(InputError):
 
     Attributes
     ----------
-    report : optcal.core.identifiability.IdentifiabilityReport
-        Rank, conditioning and the unidentifiable parameter combinations.
+    report : RankSummary or None
+        Rank, conditioning and the unidentifiable parameter combinations (an
+        ``IdentifiabilityReport`` for the accelerometer, a ``GyroIdentifiability`` for the gyro).
     """
 
-    def __init__(self, message: str, report: object | None = None) -> None:
+    def __init__(self, message: str, report: RankSummary | None = None) -> None:
         super().__init__(message)
         self.report = report
 

@@ -77,7 +77,7 @@ class MarkovChain:
     def covariance(self) -> NDArray[np.float64]:
         """``P`` as a dense matrix (for tests and small problems)."""
         diag, off = self.precision()
-        return np.linalg.inv(np.diag(diag) + np.diag(off, 1) + np.diag(off, -1))
+        return np.linalg.inv(np.diag(diag) + np.diag(off, 1) + np.diag(off, -1))  # type: ignore[return-value]  # numpy stubs type inv of float64 as floating[Any]
 
     def scaled(self, factor: float) -> "MarkovChain":
         """The chain of ``√factor · x`` (every variance times ``factor``)."""

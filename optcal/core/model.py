@@ -100,11 +100,11 @@ def canonical_T(A: ArrayLike) -> NDArray[np.float64]:
     InputError
         If ``A`` (any of the stack) is not symmetric positive definite.
     """
-    A = np.asarray(A, dtype=float)
-    A = 0.5 * (A + np.swapaxes(A, -1, -2))
+    a = np.asarray(A, dtype=float)
+    a = 0.5 * (a + np.swapaxes(a, -1, -2))
     P = np.eye(3)[::-1]
     try:
-        L = np.linalg.cholesky(P @ A @ P)  # P A P = L Lᵀ
+        L = np.linalg.cholesky(P @ a @ P)  # P A P = L Lᵀ
     except np.linalg.LinAlgError as exc:
         raise InputError(
             "the fitted quadric is not an ellipsoid (A is not positive definite); "
@@ -208,7 +208,7 @@ class LumpedModel:
     @property
     def T(self) -> NDArray[np.float64]:
         """``T = C⁻¹`` (not canonicalised)."""
-        return np.linalg.inv(self.C)
+        return np.linalg.inv(self.C)  # type: ignore[return-value]  # numpy stubs type inv of float64 as floating[Any]
 
     @property
     def A(self) -> NDArray[np.float64]:

@@ -21,6 +21,10 @@ from optcal.errors import InputError
 #: Minimum number of poses for the nine identifiable parameters.
 MIN_POSES: int = 9
 
+#: The default of :attr:`PoseTable.rows`, told apart by identity: a table built without row
+#: numbers numbers its poses 0..n-1 (an empty array the caller passed is still checked).
+_UNNUMBERED: NDArray[np.int64] = np.empty(0, dtype=np.int64)
+
 
 class ReadingDecisions(Protocol):
     """How a data file was read, each decision with its reason: what a pose table keeps of it.
@@ -71,7 +75,7 @@ class PoseTable:
         Mean gyro reading of each pose (raw units).
     rows : ndarray of int, shape (n,)
         Row number of each pose in the user's file (or interval number for recordings),
-        used whenever a pose is named in a report.
+        used whenever a pose is named in a report; 0..n-1 when not given.
     units : str
         Units of ``acc`` and ``sigma``: ``"g"``, ``"m/s^2"`` or ``"counts"``.
     source : str
@@ -93,7 +97,7 @@ class PoseTable:
     t: NDArray[np.float64] | None = None
     temp: NDArray[np.float64] | None = None
     gyro: NDArray[np.float64] | None = None
-    rows: NDArray[np.int64] | None = None
+    rows: NDArray[np.int64] = field(default_factory=lambda: _UNNUMBERED)
     units: str = "g"
     source: str = "pose table"
     exclusions: dict[str, int] = field(default_factory=dict)
@@ -112,7 +116,7 @@ class PoseTable:
         self.t = _opt_array(self.t, n, "t")
         self.temp = _opt_array(self.temp, n, "temp")
         self.gyro = _opt_array(self.gyro, n, "gyro", (3,))
-        self.rows = np.arange(n) if self.rows is None else np.asarray(self.rows, dtype=int).reshape(n)
+        self.rows = np.arange(n) if self.rows is _UNNUMBERED else np.asarray(self.rows, dtype=int).reshape(n)
         if self.units not in ACCEL_UNITS:
             raise InputError(f"unknown units {self.units!r}; use one of {', '.join(ACCEL_UNITS)}")
         # copies: a table never shares (and so never corrupts) the caller's arrays

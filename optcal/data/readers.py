@@ -453,23 +453,23 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str
         if col in taken:
             continue
         norm = _normalise_name(col)
-        canon = None
+        found: str | None = None
         for candidate, unit in ((norm, None), _strip_unit(norm)):
             if candidate in INDEX_ALIASES:
-                canon = "index_or_count"
+                found = "index_or_count"
             else:
-                canon = next((c for c, al in ALIASES.items() if candidate in al), None)
-            if canon is not None:
+                found = next((c for c, al in ALIASES.items() if candidate in al), None)
+            if found is not None:
                 break
-        if canon is None or canon in ignored:
+        if found is None or found in ignored:
             continue
-        if canon == "index_or_count":
+        if found == "index_or_count":
             # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a
             # recording; which one is decided from the values in source_from_columns.
-            canon = "index"
-        if canon not in column_map:
-            column_map[canon] = col
-            units[canon] = unit
+            found = "index"
+        if found not in column_map:
+            column_map[found] = col
+            units[found] = unit
             taken.add(col)
     return column_map, units
 
@@ -534,14 +534,15 @@ def source_from_columns(
         ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric,
     )
     acc_units = {unit_words.get(c) for c in ACC}
-    if len(acc_units) == 1 and None not in acc_units and next(iter(acc_units)) in UNIT_ALIASES["accelerometer"]:
-        word = next(iter(acc_units))
+    word = next(iter(acc_units)) if len(acc_units) == 1 else None
+    if word is not None and word in UNIT_ALIASES["accelerometer"]:
         src.units_hint = normalise_units(word)
         src.units_reason = f"unit word {word!r} in the column names"
     if src.has(*GYRO):
         words = {unit_words.get(c) for c in GYRO}
-        if len(words) == 1 and next(iter(words)) in GYRO_UNIT_WORDS:
-            src.gyro_units = GYRO_UNIT_WORDS[next(iter(words))]
+        gyro_word = next(iter(words)) if len(words) == 1 else None
+        if gyro_word is not None and gyro_word in GYRO_UNIT_WORDS:
+            src.gyro_units = GYRO_UNIT_WORDS[gyro_word]
     if "t" in data:
         word = unit_words.get("t")
         name = column_map["t"]

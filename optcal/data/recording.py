@@ -147,7 +147,8 @@ def recording_from_source(
     acc = columns_block(src, ACC)
     gyro = columns_block(src, GYRO) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
-    row = np.arange(1, n + 1, dtype=np.int32 if n < 2**31 - 1 else np.int64)  # int32: half the memory
+    row: NDArray[np.int32] | NDArray[np.int64]  # int32 when it fits: half the memory
+    row = np.arange(1, n + 1, dtype=np.int32) if n < 2**31 - 1 else np.arange(1, n + 1, dtype=np.int64)
     if decisions.time_base.value == "rate":
         if src.has("index"):
             base = src.column("index")

@@ -14,11 +14,17 @@ from __future__ import annotations
 
 import struct
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from optcal.errors import InputError
+
+if TYPE_CHECKING:  # rosbags is optional (the ros extra); its names are only needed by the type checker
+    from rosbags.rosbag1 import Writer as Rosbag1Writer
+    from rosbags.rosbag2 import Writer as Rosbag2Writer
+    from rosbags.typesys.store import MsgType
 
 FORMATS: tuple[str, ...] = ("csv", "parquet", "ros1", "ros2", "ulog")
 
@@ -57,10 +63,11 @@ def write_rosbag(frame: pd.DataFrame, path: Path, version: int, topic: str = "/i
     temp = frame["temp"].to_numpy(float) if "temp" in frame.columns else None
     zeros9 = np.zeros(9, dtype=np.float64)
 
-    def header(i: int, stamp_ns: int) -> object:
+    def header(i: int, stamp_ns: int) -> MsgType:
         stamp = Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000))
         return Header(seq=i, stamp=stamp, frame_id="imu") if version == 1 else Header(stamp=stamp, frame_id="imu")
 
+    writer: Rosbag1Writer | Rosbag2Writer
     if version == 1:
         from rosbags.rosbag1 import Writer as Writer1
 
@@ -84,7 +91,7 @@ def write_rosbag(frame: pd.DataFrame, path: Path, version: int, topic: str = "/i
                 linear_acceleration_covariance=zeros9,
             )
             writer.write(conn, ns, serialize(msg, "sensor_msgs/msg/Imu"))
-            if tconn is not None:
+            if tconn is not None and temp is not None:  # tconn is made exactly when there is a temp column
                 tm = Temperature(header=header(i, ns), temperature=float(temp[i]), variance=0.0)
                 writer.write(tconn, ns, serialize(tm, "sensor_msgs/msg/Temperature"))
 

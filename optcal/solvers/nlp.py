@@ -28,7 +28,7 @@ import re
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,6 +75,10 @@ SCALED_COST_IPOPT_OPTIONS: dict[str, Any] = {
 }
 
 
+@overload
+def cost_scale(n: int, start_rms: float) -> float: ...
+@overload
+def cost_scale(n: int, start_rms: NDArray) -> float | NDArray[np.float64]: ...
 def cost_scale(n: int, start_rms: float | NDArray) -> float | NDArray[np.float64]:
     """Factor ``c = 1/(n s₀)`` applied to a cost ``Σ ρ`` of n residuals (``s₀`` their rms at the start).
 
