@@ -272,8 +272,8 @@ class ConvexEllipsoidFit:
         norm = Normaliser.of(poses.acc)
         J = design_matrix(norm.forward(poses.acc))
         R = np.zeros((10, 10))
-        R_qr = np.linalg.qr(J, mode="r")  # (min(n, 10), 10): pad for fewer than 10 poses
-        R[: R_qr.shape[0]] = R_qr
+        R_qr: NDArray[np.float64] = np.linalg.qr(J, mode="r")  # type: ignore[assignment]  # numpy stubs type R alone as QRResult
+        R[: R_qr.shape[0]] = R_qr  # (min(n, 10), 10): pad for fewer than 10 poses
         notes: list[str] = []
         with Stopwatch() as sw:
             try:

@@ -120,7 +120,7 @@ class CalibrationResult(FitResult):
     @property
     def C(self) -> NDArray[np.float64]:
         """``C = T⁻¹`` (raw units per g)."""
-        return np.linalg.inv(self.T)
+        return np.linalg.inv(self.T)  # type: ignore[return-value]  # numpy stubs type inv of float64 as floating[Any]
 
     @property
     def model(self) -> LumpedModel:

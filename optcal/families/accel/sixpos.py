@@ -166,7 +166,7 @@ class SixPositionLeastSquares:
             raise InputError("scale_covariance=False needs the per-pose noise column sigma")
 
         with Stopwatch() as watch:
-            weights = 1.0 / poses.sigma**2 if known else np.ones(poses.n)
+            weights = np.ones(poses.n) if poses.sigma is None else 1.0 / poses.sigma**2
             X1 = np.vstack([poses.acc.T, np.ones(poses.n)])  # X̃, 4×n
             # eq. 4, with the rows of X̃ scaled to unit rms for conditioning (X̃ has rank 4: validated)
             col_scale = np.sqrt(np.mean(X1**2, axis=1))

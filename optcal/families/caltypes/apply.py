@@ -16,10 +16,10 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from optcal.families.caltypes.base import Calibration, ValidityRangeWarning
 from optcal.errors import InputError
@@ -34,6 +34,17 @@ OUTPUT_UNITS: dict[str, tuple[float, str]] = {"g": (1.0, "g"), "m/s^2": (STANDAR
 #: Output file extensions → format.
 OUTPUT_FORMATS: dict[str, str] = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
 _G_FACTOR: dict[str, float] = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
+
+
+@runtime_checkable
+class CorrectsGyro(Protocol):
+    """A calibration that corrects the gyro columns as well (cal_type imu, :mod:`optcal.families.gyro.result`)."""
+
+    gyro_units: str
+
+    def correct_gyro(self, gyro: ArrayLike, acc: ArrayLike | None = None) -> NDArray[np.float64]:
+        """Body rate in rad/s for raw gyro samples (and raw ``acc``)."""
+        ...
 
 
 @dataclass
@@ -143,17 +154,20 @@ def apply_to_file(
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
         time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
+    needed: list[NDArray[np.float64]] = []
     for column in cal.needs:
-        if (temp if column == "temp" else t) is None:
+        values = temp if column == "temp" else t
+        if values is None:
             what = "temperature column (temp, °C)" if column == "temp" else "time column (t, s) or rate"
             raise InputError(
                 f"{path}: has no {what}, and the {cal.cal_type} calibration needs it (its terms depend on "
                 f"{'temperature' if column == 'temp' else 'time'}); add the column or map it with columns=\"{column}=NAME\""
             )
+        needed.append(values)
     raw = convert_samples(acc, units_in, cal.units)
     finite = np.all(np.isfinite(raw), axis=1)
-    for column in cal.needs:
-        finite &= np.isfinite(temp if column == "temp" else t)
+    for values in needed:
+        finite &= np.isfinite(values)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ValidityRangeWarning)
         corrected = np.full(raw.shape, np.nan)
@@ -191,14 +205,13 @@ def apply_to_file(
     frame = frame.drop(columns=names)
     for k, axis in enumerate("xyz"):
         frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
-    correct_gyro = getattr(cal, "correct_gyro", None)  # cal_type imu: gyro columns to rad/s as well
-    if correct_gyro is not None and src.has(*GYRO):
+    if isinstance(cal, CorrectsGyro) and src.has(*GYRO):  # cal_type imu: gyro columns to rad/s as well
         from optcal.core.units import normalise_units
 
         if src.gyro_units is not None and normalise_units(src.gyro_units, "gyro") != cal.gyro_units:
             raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
         gyro = np.full(raw.shape, np.nan)
-        gyro[finite] = correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
+        gyro[finite] = cal.correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
         gnames = [frame_column(c) for c in GYRO]
         gpos = min(list(frame.columns).index(n) for n in gnames)
         frame = frame.drop(columns=gnames)

@@ -148,9 +148,13 @@ class Calibration(ABC):
     """
 
     cal_type: ClassVar[str]
-    format_version: ClassVar[str] = FORMAT_VERSION
     units: str
     fitted_on: FitPoses | None
+
+    @property
+    def format_version(self) -> str:
+        """:data:`~optcal.core.jsonio.FORMAT_VERSION`; a type whose files may carry more says which minor version."""
+        return FORMAT_VERSION
 
     # ----------------------------------------------------------------- per type
     @abstractmethod
@@ -238,7 +242,7 @@ class Calibration(ABC):
         write_json(path, self.to_dict())
 
     def __eq__(self, other: object) -> bool:
-        return type(self) is type(other) and self.to_dict() == other.to_dict()  # type: ignore[attr-defined]
+        return type(self) is type(other) and self.to_dict() == other.to_dict()
 
     __hash__ = None  # type: ignore[assignment]
 

@@ -150,7 +150,7 @@ class BiasRepeatability:
     def from_dict(cls, d: dict[str, Any]) -> "BiasRepeatability":
         if not isinstance(d, dict) or "per_axis_g" not in d or "sessions" not in d:
             raise InputError("bias_repeatability must be an object with per_axis_g (3 numbers, g) and sessions")
-        return cls(tuple(d["per_axis_g"]), int(d["sessions"]))  # type: ignore[arg-type]
+        return cls(tuple(d["per_axis_g"]), int(d["sessions"]))
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,7 @@ class BiasRandomWalk:
         if not isinstance(d, dict) or any(k not in d for k in keys):
             raise InputError("bias_random_walk must be an object with K_g_per_sqrt_s, K_interval_g_per_sqrt_s "
                              "(2 numbers) and wander_rms_g")
-        return cls(float(d["K_g_per_sqrt_s"]), tuple(d["K_interval_g_per_sqrt_s"]), float(d["wander_rms_g"]))  # type: ignore[arg-type]
+        return cls(float(d["K_g_per_sqrt_s"]), tuple(d["K_interval_g_per_sqrt_s"]), float(d["wander_rms_g"]))
 
 
 @dataclass(frozen=True)
@@ -357,7 +357,7 @@ class ExtendedCalibration(Calibration):
     bias_random_walk: BiasRandomWalk | None = None
 
     @property
-    def format_version(self) -> str:  # type: ignore[override]
+    def format_version(self) -> str:
         """``2.2`` with :attr:`bias_random_walk`, ``2.1`` with :attr:`bias_repeatability`, else ``2.0``."""
         if self.bias_random_walk is not None:
             return "2.2"

@@ -75,7 +75,7 @@ class LumpedCalibration(Calibration):
         T = np.asarray(T, dtype=float).reshape(3, 3)
         if np.any(np.triu(T, 1) != 0) or np.any(np.diag(T) <= 0):
             T = canonicalise(T)
-        return cls(T, o, units, fitted_on)
+        return cls(T, np.asarray(o, dtype=float), units, fitted_on)
 
     @property
     def theta(self) -> NDArray[np.float64]:

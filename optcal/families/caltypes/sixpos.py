@@ -64,7 +64,7 @@ class SixPositionCalibration(Calibration):
     @property
     def o(self) -> NDArray[np.float64]:
         """The bias ``o = −W⁻¹ V`` in raw units (``ā = W (a − o)``)."""
-        return -np.linalg.solve(self.W, self.V)
+        return -np.linalg.solve(self.W, self.V)  # type: ignore[return-value]  # numpy stubs type solve of float64 as floating[Any]
 
     def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
         """``W a + V`` in g (Yin 2014, eq. 3); ``temp`` and ``t`` are not used."""

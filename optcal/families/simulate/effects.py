@@ -134,6 +134,8 @@ class HiddenEffect:
             return "no effect"
         if self.effect == "outliers":
             return f"outliers: {len(self.corrupt_times)} poses shifted by 15-40 mg while the sensor rested"
+        if self.value is None:  # impossible: recording_with_effect gives every parametric effect its value
+            raise AssertionError(f"the hidden effect {self.effect!r} has no value")
         return f"{self.effect} on axis {self.axis}: {format_value(self.effect, float(self.value))}"
 
     def corrupt_rows(self, poses: PoseTable) -> list[int]:

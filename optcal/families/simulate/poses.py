@@ -56,7 +56,7 @@ def tilted_sweeps(n_per_axis: int = 40, tilt_deg: float = 35.0) -> NDArray[np.fl
     """
     thetas = np.linspace(0.0, 2 * np.pi, n_per_axis, endpoint=False)
     tilt = np.deg2rad(tilt_deg)
-    rots = []
+    rots: list[NDArray[np.float64]] = []
     for u, v in (([0, 0, 1], [1, 1, 0]), ([1, 0, 0], [0, 1, 1]), ([0, 1, 0], [1, 0, 1])):
         R0 = quaternion_to_matrix(quaternion_from_axis_angle(tilt, v))
         rots.extend(R0 @ quaternion_to_matrix(quaternion_from_axis_angle(t, u)) for t in thetas)
@@ -214,8 +214,8 @@ def simulate_poses(
         acc=acc,
         sigma=pose_sigma if np.all(pose_sigma > 0) else None,
         n_samples=counts,
-        t=t,
-        temp=temp,
+        t=None if t is None else np.asarray(t, dtype=float),
+        temp=None if temp is None else np.asarray(temp, dtype=float),
         units=units,
         source="simulation",
         extra={"true_dx": d[:, 0], "true_dy": d[:, 1], "true_dz": d[:, 2]},
