@@ -21,8 +21,8 @@ from scipy import stats as sps
 
 from optcal.applications.diagnosis.correlation import CorrelationOperator
 from optcal.applications.diagnosis.effects import FITTED, describe_term, plain_term
-from optcal.applications.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, active_mask, session_shift,
-                                      to_model)
+from optcal.applications.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, ProblemData, active_mask,
+                                      session_shift, to_model)
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.families.accel.base import Normaliser
@@ -161,7 +161,8 @@ class Fitter:
         r0 = self.problem.residual_values(x0, p0)
         self.s0 = max(float(np.sqrt(np.sum(self.w * r0**2) / max(self.n - 9, 1))), 1e-12)
         self.folds = min(int(folds), self.n)
-        order = np.argsort(poses.t, kind="stable") if regressors.has_time else np.arange(self.n)
+        # has_time: the regressors of these poses found a usable time column
+        order = np.argsort(poses.t, kind="stable") if regressors.has_time and poses.t is not None else np.arange(self.n)
         self.fold = np.empty(self.n, dtype=int)
         self.fold[order] = np.arange(self.n) % self.folds
         self.time_order = order
@@ -170,7 +171,8 @@ class Fitter:
         self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ fitting
-    def params(self, w: NDArray, data: PoseData | None = None, scale: float | None = None, delta: float = 1.0) -> NDArray:
+    def params(self, w: NDArray, data: PoseData | None = None, scale: float | None = None,
+               delta: float = 1.0) -> ProblemData:
         """Problem parameters for relative weights ``w`` (divided by the noise scale²)."""
         s = self.s0 if scale is None else scale
         return (data or self.data).parameters(w / s**2, delta)
@@ -200,7 +202,7 @@ class Fitter:
         return Fit(dict(terms), frozenset(outliers), x, r, rss, n_params, bool(stats.get("success", False)))
 
     def generalised(self, x: NDArray, r: NDArray, terms: dict[tuple[str, int], int], outliers: frozenset[int],
-                    p: NDArray) -> tuple[NDArray, NDArray, float]:
+                    p: ProblemData) -> tuple[NDArray, NDArray, float]:
         """Gauss–Newton steps from ``x`` to the generalised least-squares fit under :attr:`correlation`.
 
         Minimises ``(e + Gδ)ᵀ R⁻¹ (e + Gδ)`` over the free parameters and one mean shift per outlier pose
@@ -279,7 +281,7 @@ class Fitter:
         """
         G, _ = self.jacobians(fit, self.w)
         H = np.column_stack([G, mean_shift_columns(self.n, fit.outliers)])
-        return H, np.linalg.pinv(H.T @ self.correlated_solve(H), rcond=1e-13, hermitian=True)
+        return H, np.linalg.pinv(H.T @ self.correlated_solve(H), rcond=1e-13, hermitian=True)  # type: ignore[return-value]  # numpy stubs type pinv of float64 as floating[Any]
 
     def generalised_solution(self, fit: Fit) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(Hᵀ R⁻¹ H)⁻¹`` (:meth:`generalised_system`) and the linearised generalised least-squares step at
@@ -315,7 +317,10 @@ class Fitter:
 
     def model(self, fit: Fit) -> ExtendedModel:
         """The physical extended model of ``fit``."""
-        return to_model(fit.x, self.norm.centre, self.norm.scale, self.reg)
+        scale = self.norm.scale
+        if not isinstance(scale, float):  # impossible: the normaliser of one pose set (n, 3) has a float scale
+            raise AssertionError("the normaliser of one pose set has an array scale")
+        return to_model(fit.x, self.norm.centre, scale, self.reg)
 
     def session_shift(self, fit: Fit) -> NDArray[np.float64]:
         """Raw bias of each pose's session relative to the first session's under ``fit`` (zeros for one session)."""

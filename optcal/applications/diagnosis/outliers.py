@@ -109,8 +109,8 @@ def elemental_partitions(u: NDArray, sqrt_w: NDArray, rows: NDArray, h: int, sta
     D = design_matrix(u[rows])
     out = []
     for j in np.argsort(value, kind="stable")[:keep]:
-        A = eta[j, [0, 3, 4, 3, 1, 5, 4, 5, 2]].reshape(3, 3)
-        e2 = (sqrt_w[rows] * (D @ eta[j])) ** 2 / np.maximum(np.sum((2 * u[rows] @ A + eta[j, 6:9]) ** 2, axis=1), 1e-300)
+        A_j = eta[j, [0, 3, 4, 3, 1, 5, 4, 5, 2]].reshape(3, 3)
+        e2 = (sqrt_w[rows] * (D @ eta[j])) ** 2 / np.maximum(np.sum((2 * u[rows] @ A_j + eta[j, 6:9]) ** 2, axis=1), 1e-300)
         out.append(frozenset(int(k) for k in rows[np.argsort(e2, kind="stable")[h:]]))
     return out
 

@@ -104,7 +104,7 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     single = x.ndim == 1
     X = x[None, :] if single else x
     col = [X[:, k : k + 1] for k in range(9)]
-    L = [[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]]  # T, lower-triangular
+    L: list[list[NDArray | int]] = [[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]]  # T, lower-triangular
     C = inverse_lower(L)
     used_set = set(range(N_BETA)) if used is None else {int(b) for b in used}
     powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)],

@@ -123,12 +123,12 @@ def compare_with_allan(still: MeasuredPoseNoise, K_g: float, K_interval_g: tuple
     out = AllanComparison(still.source, float(still.taus_s[-1]), bound * g_per_raw, at)
     if still.curves is not None:
         fitted = [fit_noise_parameters(curve) for curve in still.curves]
-        ks = [f.rate_random_walk for f in fitted]
-        cis = [f.ci.get("rate_random_walk") for f in fitted]
-        if all(k is not None for k in ks) and all(ci is not None for ci in cis):
-            out.K_allan_g = rms(ks) * g_per_raw  # type: ignore[arg-type]
-            out.K_allan_interval_g = (rms([ci[0] for ci in cis]) * g_per_raw,  # type: ignore[index]
-                                      rms([ci[1] for ci in cis]) * g_per_raw)  # type: ignore[index]
+        ks = [f.rate_random_walk for f in fitted if f.rate_random_walk is not None]
+        cis = [f.ci["rate_random_walk"] for f in fitted if f.ci.get("rate_random_walk") is not None]
+        if len(ks) == len(fitted) and len(cis) == len(fitted):  # every axis has its walk and interval
+            out.K_allan_g = rms(ks) * g_per_raw
+            out.K_allan_interval_g = (rms([ci[0] for ci in cis]) * g_per_raw,
+                                      rms([ci[1] for ci in cis]) * g_per_raw)
             out.allan_level = float(still.curves[0].confidence)
             out.consistent = bool(out.K_allan_interval_g[0] <= K_interval_g[1] and K_interval_g[0] <= out.K_allan_interval_g[1])
             return out

@@ -158,7 +158,7 @@ class Diagnosis:
             cal = ExtendedCalibration.from_model(model, units=self.poses.units, fitted_on=fitted_on)
             cal.bias_repeatability = BiasRepeatability(tuple(sessions.repeatability_vector()),
                                                        self.regressors.n_sessions)
-        if walk_named:
+        if walk is not None and walk.named:
             cal.bias_random_walk = BiasRandomWalk(walk.K_g, walk.K_interval_g, walk.wander_rms_g)
         return cal
 

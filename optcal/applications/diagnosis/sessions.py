@@ -114,7 +114,7 @@ def stack_sessions(tables: Sequence[PoseTable], names: Sequence[str] | None = No
                          "(the units decision of each can be overridden)")
     origins = [None if p.t is None or p.n == 0 else float(np.min(p.t)) for p in tables]
     t = _column(tables, "t", [0.0 if o is None else o for o in origins])
-    rows = [p.rows if p.rows is not None else np.arange(p.n) for p in tables]
+    rows = [p.rows for p in tables]
     exclusions: dict[str, int] = {}
     for p in tables:
         for key, count in p.exclusions.items():
@@ -175,7 +175,7 @@ def session_offsets(fitter: Fitter, fit: Fit, names: Sequence[str]) -> SessionOf
     if S < 2 or not axes:
         return None
     cov = fitter.covariance(fit)
-    free_beta = list(np.flatnonzero(active_mask(fit.terms)))
+    free_beta = [int(b) for b in np.flatnonzero(active_mask(fit.terms))]
     relative = session_offsets_g(fit.x, S)  # (3, S), first session 0
     # centred = M δ with δ the offsets of sessions 2..S from the first (its own is 0)
     M = np.vstack([np.zeros((1, S - 1)), np.eye(S - 1)]) - np.full((S, S - 1), 1.0 / S)

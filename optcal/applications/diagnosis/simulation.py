@@ -255,7 +255,7 @@ def simulation_check(
     kept = fit.kept(n)
     lam = float(np.sqrt(fit.rss * fitter.w_mean / max(kept.sum() - (fit.n_params - len(fit.outliers)), 1)))
     known = fitter.poses.sigma is not None
-    sigma = fitter.poses.sigma * np.ones(n) if known else np.full(n, lam)
+    sigma = np.full(n, lam) if fitter.poses.sigma is None else fitter.poses.sigma * np.ones(n)
     noise = (
         "noise: the per-pose σ given with the data" if known
         else "noise: estimated from these residuals (no per-pose σ given), so the rms is matched by construction"

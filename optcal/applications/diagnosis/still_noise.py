@@ -120,7 +120,7 @@ def pose_noise_from_still_parts(poses: PoseTable, segmentation: "Segmentation | 
         return MeasuredPoseNoise(None, POSE_TABLE_ONLY)
     rec = segmentation.recording
     by_number = {iv.number: iv for iv in segmentation.intervals}
-    if poses.rows is None or not all(int(r) in by_number for r in poses.rows):
+    if not all(int(r) in by_number for r in poses.rows):
         raise InputError("the poses do not come from this segmentation (their rows are not its interval numbers)")
     dwell = np.array([by_number[int(r)].n_samples / rec.rate_hz for r in poses.rows])
     longest = max(segmentation.intervals, key=lambda iv: iv.n_samples)

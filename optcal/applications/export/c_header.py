@@ -142,6 +142,8 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     raw, temp, t, out = sample_vector(cal)
     call = f"raw = {c_array(raw)}"
     if isinstance(cal, ExtendedCalibration):
+        if temp is None or t is None:  # impossible: sample_vector gives an extended calibration its reference values
+            raise AssertionError("the test vector of an extended calibration has no temperature or time")
         call += f", temp_c = {c_number(temp)}, t_s = {c_number(t)}  (optcal_apply_accel_tt)"
     lines = [
         f"/* optcal accelerometer calibration exported from {options.source}: {cal.describe()}.",

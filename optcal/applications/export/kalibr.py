@@ -100,7 +100,7 @@ def gyroscope_lines(gyro_allan: dict, random_walk_bound: bool = False) -> tuple[
         + (f" (UPPER BOUND on {', '.join(bounded)}: no +1/2 slope in the log)" if bounded else ""),
         f"gyroscope_noise_density: {max(arw.values()):.9g}  # [ rad / s / sqrt(Hz) ]",
         f"gyroscope_random_walk: {max(rrw.values()):.9g}  # [ rad / s^2 / sqrt(Hz) ]"
-        + (" UPPER BOUND" if max(rrw, key=rrw.get) in bounded else ""),
+        + (" UPPER BOUND" if max(rrw, key=rrw.__getitem__) in bounded else ""),
     ]
     return lines, [bound_note(gyro_allan, "gyroscope_random_walk", bounded)] if bounded else []
 
@@ -130,7 +130,7 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         f"update_rate: {rate:.9g}",
         f"accelerometer_noise_density: {max(density.values()):.9g}  # [ m / s^2 / sqrt(Hz) ]",
         f"accelerometer_random_walk: {max(walk.values()):.9g}  # [ m / s^3 / sqrt(Hz) ]"
-        + (" UPPER BOUND" if max(walk, key=walk.get) in bounded else ""),
+        + (" UPPER BOUND" if max(walk, key=walk.__getitem__) in bounded else ""),
     ]
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
     notes: list[str] = []

@@ -304,7 +304,8 @@ def run_fleet(
                 n_good = sum(o.status == "calibrated" and not o.flag for o in outcomes)
                 prior_note = f"not estimated: {n_good} well-determined unit(s), at least 20 needed"
             del reads, fits
-            for part in per_chunk if writer is not None else ():
-                writer.write(part)
+            if writer is not None:
+                for part in per_chunk:
+                    writer.write(part)
     return FleetResult(outcomes=outcomes, stats=stats, prior=fitted_prior, prior_note=prior_note,
                        engine=engine, seconds=time.perf_counter() - t0, chunk=size)

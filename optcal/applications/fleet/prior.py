@@ -70,7 +70,7 @@ class PopulationPrior:
     @property
     def precision(self) -> NDArray[np.float64]:
         """``P⁻¹``."""
-        return np.linalg.inv(self.covariance)
+        return np.linalg.inv(self.covariance)  # type: ignore[return-value]  # numpy stubs type inv of float64 as floating[Any]
 
 
 def estimate_prior(outcomes: list[UnitOutcome], units: str | None = None) -> PopulationPrior | None:
@@ -84,7 +84,7 @@ def estimate_prior(outcomes: list[UnitOutcome], units: str | None = None) -> Pop
         return None
     X = np.array([o.theta for o in good])
     S = np.cov(X, rowvar=False)
-    C_mean = np.mean([o.covariance for o in good], axis=0)
+    C_mean = np.mean([o.covariance for o in good if o.covariance is not None], axis=0)  # every good unit has one
     lam, V = np.linalg.eigh(S)
     S_half = V @ np.diag(np.sqrt(np.clip(lam, 1e-300, None))) @ V.T
     S_half_inv = V @ np.diag(1.0 / np.sqrt(np.clip(lam, 1e-300, None))) @ V.T
@@ -207,7 +207,8 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     theta_n = norm.theta_to_normalised(prior.mean if start is None else np.asarray(start, float))
     problem = PriorMLProblem.get(poses.n, ipopt_options)
     ml = MaximumLikelihood()
-    iterations, seconds, stats = 0, 0.0, {}
+    iterations, seconds = 0, 0.0
+    stats: dict[str, Any] = {}
     for _ in range(PRIOR_PASSES):
         w = ml.weights(poses, norm, u, theta_n) if poses.sigma is not None else np.full(poses.n, prior.noise_g**-2)
         with Stopwatch() as sw:

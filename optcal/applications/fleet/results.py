@@ -205,10 +205,11 @@ class FleetResult:
             sd = np.sqrt(np.diag(self.prior.covariance))
             lines += ["", f"Population prior from {self.prior.n_units} well-determined units (mean ± SD):",
                       "  " + ", ".join(f"{n} {m:.5g}±{s:.2g}" for n, m, s in zip(PARAM_NAMES, self.prior.mean, sd))]
-            weak = [o for o in self.outcomes if o.status == "calibrated_with_prior"]
-            for o in weak[:20]:
-                share = ", ".join(f"{n} {w:.2f}" for n, w in zip(PARAM_NAMES, o.prior_weight) if w >= 0.1)
-                lines.append(f"  {o.unit}: calibrated with the prior (share from the prior: {share or 'all < 0.1'})")
+            weak = [(o.unit, o.prior_weight) for o in self.outcomes  # the refit with the prior sets both
+                    if o.status == "calibrated_with_prior" and o.prior_weight is not None]
+            for unit, prior_weight in weak[:20]:
+                share = ", ".join(f"{n} {w:.2f}" for n, w in zip(PARAM_NAMES, prior_weight) if w >= 0.1)
+                lines.append(f"  {unit}: calibrated with the prior (share from the prior: {share or 'all < 0.1'})")
         else:
             lines += ["", f"Population prior: {self.prior_note}"]
         flagged = self.flagged

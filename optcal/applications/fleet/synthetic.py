@@ -31,8 +31,8 @@ def unit_model(rng: np.random.Generator, scale_error: float = 0.0) -> LumpedMode
     """One unit's sensor drawn from the population (``scale_error``: relative, added on x)."""
     scale = 1.0 + SCALE_SD * rng.standard_normal(3)
     scale[0] *= 1.0 + scale_error
-    angles = np.deg2rad(ANGLE_SD_DEG * rng.standard_normal(3))
-    return LumpedModel.from_physical(scale, *angles, bias=BIAS_SD * rng.standard_normal(3))
+    rho, phi, lam = np.deg2rad(ANGLE_SD_DEG * rng.standard_normal(3))
+    return LumpedModel.from_physical(scale, rho, phi, lam, bias=BIAS_SD * rng.standard_normal(3))
 
 
 @dataclass

@@ -210,17 +210,18 @@ def fit_units(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> li
     from optcal.core.model import PARAM_NAMES, unpack_theta
 
     outcomes: list[UnitOutcome | None] = [None] * len(units)
+    readable = {j: d for j, d in enumerate(data) if isinstance(d, PoseTable)}
     by_n: dict[int, list[int]] = {}
-    for j, d in enumerate(data):
-        if isinstance(d, PoseTable) and d.n > len(PARAM_NAMES):
-            by_n.setdefault(d.n, []).append(j)
+    for j, table in readable.items():
+        if table.n > len(PARAM_NAMES):
+            by_n.setdefault(table.n, []).append(j)
     batch: list[int] = []
     for group in by_n.values():
-        refused = invalid_tables([data[j] for j in group])
+        refused = invalid_tables([readable[j] for j in group])
         batch += [j for k, j in enumerate(group) if k not in refused]
-    tables = [data[j] for j in batch]
+    tables = [readable[j] for j in batch]
     try:
-        fit = BatchedMaximumLikelihood().fit_many(tables, validate=False) if batch else None  # type: ignore[arg-type]
+        fit = BatchedMaximumLikelihood().fit_many(tables, validate=False) if batch else None
     except Exception:  # noqa: BLE001 - the single-unit path below says what went wrong, unit by unit
         fit = None
     if fit is not None:

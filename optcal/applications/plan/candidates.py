@@ -45,20 +45,25 @@ def parse_axis(axis: str | ArrayLike) -> NDArray[np.float64]:
     return user_directions(np.asarray(axis, float).reshape(1, 3))[0]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Cap:
-    """Directions within ``half_angle_deg`` of ``axis`` (a device that cannot be turned over)."""
+    """Directions within ``half_angle_deg`` of ``axis`` (a device that cannot be turned over).
+
+    Built from an axis name (``"+z"``, ``"-x"``, ...) or a 3-vector (:func:`parse_axis`); ``axis``
+    is then the unit vector.
+    """
 
     axis: NDArray[np.float64]
     half_angle_deg: float
 
-    def __post_init__(self) -> None:
-        if not 0.0 < self.half_angle_deg <= 180.0:
+    def __init__(self, axis: str | ArrayLike, half_angle_deg: float) -> None:
+        if not 0.0 < half_angle_deg <= 180.0:
             raise InputError(
-                f"the cap half-angle must be in (0°, 180°], not {self.half_angle_deg:g}°: "
+                f"the cap half-angle must be in (0°, 180°], not {half_angle_deg:g}°: "
                 "a cap of 0° allows a single orientation, which determines no calibration"
             )
-        object.__setattr__(self, "axis", parse_axis(self.axis))
+        object.__setattr__(self, "axis", parse_axis(axis))
+        object.__setattr__(self, "half_angle_deg", half_angle_deg)
 
     @property
     def cos_half_angle(self) -> float:

@@ -82,6 +82,7 @@ def solve_relaxation(H: NDArray, n_poses: int, criterion: Criterion, base: NDArr
     M = cp.reshape(outer @ w, (p, p), order="C") * n_poses + M0w
     M = (M + M.T) / 2
     constraints = [cp.sum(w) == 1]
+    objective: cp.Maximize | cp.Minimize
     if criterion is Criterion.D:
         objective = cp.Maximize(cp.log_det(M))
     elif criterion is Criterion.A:

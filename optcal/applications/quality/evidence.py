@@ -420,6 +420,8 @@ def effect_sizes(findings: list[Any], poses: PoseTable) -> list[EffectSize]:
             coefs = np.asarray(f.coefficients[axis], dtype=float)
             if effect.startswith("temperature") or effect == "bias_drift":
                 column = poses.temp if effect.startswith("temperature") else poses.t
+                if column is None:  # impossible: the diagnosis tests such an effect only when its column is usable
+                    raise AssertionError(f"a {effect} finding on poses without that column")
                 ref = f.reference.get("temp_ref_c" if effect.startswith("temperature") else "t_ref_s", 0.0)
                 lo, hi = float(np.min(column)), float(np.max(column))
                 x = np.linspace(lo - ref, hi - ref, 201)
