@@ -39,6 +39,7 @@ CLI = "import sys; from optcal.cli.main import main; sys.exit(main())"
 def timed(tree: Path, args: list[str]) -> float:
     """Wall time of one ``optcal ARGS`` process importing optcal from ``tree``, seconds."""
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS=os.environ.get("OPENBLAS_NUM_THREADS", "1"))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # as installed, with byte-code: the warm-up run writes it for both trees
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CLI, *args], env=env, capture_output=True, text=True)
     elapsed = time.perf_counter() - start
