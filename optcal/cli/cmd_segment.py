@@ -5,12 +5,12 @@ from __future__ import annotations
 from typing import Any
 
 import click
-import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
 from optcal.cli.report_option import check_report_path, command_line, write_report
 from optcal.cli.outputs import echo_json, plot_file, plot_option
 from optcal.report.segmentation_figure import segmentation_figure
+from optcal.core.stats import rms
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "segments.png"
@@ -83,7 +83,7 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     for iv in seg.intervals:
         lines.append(
             f"{iv.number:>3} {iv.first_row:>6}-{iv.last_row:<6} {iv.t_start:>9.2f} {iv.duration_s:>6.2f} {iv.n_samples:>6}"
-            f" {iv.mean[0]:>11.5g} {iv.mean[1]:>11.5g} {iv.mean[2]:>11.5g} {float(np.sqrt(np.mean(iv.std**2))):>8.3g}"
+            f" {iv.mean[0]:>11.5g} {iv.mean[1]:>11.5g} {iv.mean[2]:>11.5g} {rms(iv.std):>8.3g}"
             f" {iv.sigma:>9.3g}" + (f" {iv.temp_mean:>6.2f}" if iv.temp_mean is not None else "")
         )
     lines.append("")

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from optcal.data.decisions import (
     KINDS,
@@ -35,6 +34,7 @@ from optcal.data.tables import load_pose_table, pose_table_from_source, read_csv
 from optcal.data.units import check_sensitivity
 from optcal.errors import InputError
 from optcal.core.poses import PoseTable
+from optcal.core.stats import rms
 
 __all__ = [
     "KINDS",
@@ -159,7 +159,7 @@ def load_with_segmentation(
     seg = detect_static(rec, settings)  # segmentation
     table = seg.pose_table()
     # the units decision, checked on the poses and their noise
-    check_sensitivity(table.acc, table.units, noise=[float(np.sqrt(np.mean(iv.std**2))) for iv in seg.intervals])
+    check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])
     table.meta.update(recording_meta(rec, decisions))
     table.decisions = decisions
     return LoadedData(table, decisions, seg)

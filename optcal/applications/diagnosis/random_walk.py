@@ -242,8 +242,8 @@ def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray
     except (np.linalg.LinAlgError, InputError, ValueError) as err:  # ValueError: a profile interval not bracketed
         return RandomWalkCheck(False, reason=f"the fit failed: {err}")
     g_per_raw = float(np.mean(np.abs(np.diag(T))))  # raw units → g (T maps raw to g)
-    rms_white = float(np.sqrt(np.mean(np.concatenate(white) ** 2)))
-    rms_walk = float(np.sqrt(np.mean(np.concatenate(walk) ** 2)))
+    rms_white = rms(np.concatenate(white))
+    rms_walk = rms(np.concatenate(walk))
     K_g = fit.K * g_per_raw
     K_interval_g = (fit.K_interval[0] * g_per_raw, fit.K_interval[1] * g_per_raw)
     return RandomWalkCheck(

@@ -26,6 +26,7 @@ from optcal.applications.diagnosis.fitting import Fit, Fitter, orthogonal_part
 from optcal.applications.diagnosis.problem import BETA_INDEX, PoseData
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
+from optcal.core.stats import rms
 
 #: Plain-words meaning of each residual statistic (the correlations are named per candidate).
 STAT_MEANING: dict[str, str] = {
@@ -213,7 +214,7 @@ def residual_statistics(
     kept = fit.kept(n)
     e = np.sqrt(fitter.w) * r
     scale = np.sqrt(np.sum(e[kept] ** 2) / max(kept.sum() - fit.n_params + len(fit.outliers), 1))
-    out = {"rms_g": float(np.sqrt(np.mean(r[kept] ** 2)))}
+    out = {"rms_g": rms(r[kept])}
     ek = e[kept]
     lags = max(1, min(5, int(kept.sum()) // 8))
     out["lag1_pose_order"] = autocorrelation(ek, 1)

@@ -40,6 +40,7 @@ from optcal.data.units import nominal_conversion
 from optcal.errors import InputError
 from optcal.applications.export.base import ExportOptions, ExportResult, LossReport
 from optcal.core.model import AXES, STANDARD_GRAVITY
+from optcal.core.stats import rms
 
 #: Highest order of the firmwares' thermal offset polynomials (ArduPilot ACC1..3, PX4 X1..X3).
 THERMAL_ORDER: int = 3
@@ -200,7 +201,7 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
     poses = loss_poses(cal, options)
     full = cal.norm_errors(poses.acc, poses.temp, poses.t)
     exported = np.linalg.norm(model.correct_ms2(model.raw_to_ms2(poses.acc), poses.temp), axis=1) / STANDARD_GRAVITY - 1.0
-    report = LossReport(poses.n, float(np.sqrt(np.mean(full**2))), float(np.sqrt(np.mean(exported**2))))
+    report = LossReport(poses.n, rms(full), rms(exported))
     if report.loss_g > options.max_loss_g:
         raise InputError(
             f"the {firmware} model (per-axis offsets and scales) would lose too much: {report.describe()}, more "

@@ -19,12 +19,13 @@ from optcal.applications.export.base import ExportOptions, ExportResult
 from optcal.applications.export.firmware import loss_poses
 from optcal.applications.export.kalibr import AXIS_NAMES, axis_values, update_rate
 from optcal.core.model import STANDARD_GRAVITY
+from optcal.core.stats import rms
 
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """A YAML line with the 9 covariance numbers, and how they were made."""
     poses = loss_poses(cal, options)
-    rms_g = float(np.sqrt(np.mean(cal.norm_errors(poses.acc, poses.temp, poses.t) ** 2)))
+    rms_g = rms(cal.norm_errors(poses.acc, poses.temp, poses.t))
     variance = np.full(3, (rms_g * STANDARD_GRAVITY) ** 2)
     lines = [
         f"# sensor_msgs/Imu linear_acceleration_covariance exported by optcal from {options.source}",

@@ -25,6 +25,7 @@ from optcal.errors import FitError, IdentifiabilityError, InputError, OptcalErro
 from optcal.applications.fleet.inputs import UnitInput, is_url
 from optcal.core.norm_residual import heldout_residuals
 from optcal.core.poses import PoseTable
+from optcal.core.stats import rms
 
 #: Unit statuses, in the order of the report.
 STATUSES: tuple[str, ...] = ("calibrated", "calibrated_with_prior", "refused", "failed")
@@ -154,8 +155,8 @@ def outcome_from_fit(unit: UnitInput, poses: PoseTable, theta: NDArray, covarian
         theta=np.asarray(theta[:9], dtype=float),
         stderr=None if cov is None else np.sqrt(np.clip(np.diag(cov), 0.0, None)),
         covariance=cov,
-        rms_g=float(np.sqrt(np.mean(r**2))),
-        heldout_rms_g=float(np.sqrt(np.mean(heldout**2))),
+        rms_g=rms(r),
+        heldout_rms_g=rms(heldout),
         n_poses=poses.n,
         exclusions=dict(poses.exclusions),
         units=poses.units,

@@ -33,6 +33,7 @@ from optcal.core.poses import PoseTable
 from optcal.applications.quality.bands import BandCheck
 from optcal.core.identifiability import IdentifiabilityReport
 from optcal.families.accel.result import CalibrationResult
+from optcal.core.stats import rms
 
 #: Level of the model check's band and of the outlier test (family-wise over the poses).
 BAND_LEVEL: float = 0.99
@@ -461,7 +462,7 @@ def gather(
     if poses.n != result.n_poses:
         raise InputError(f"poses has {poses.n} poses but the result was fitted to {result.n_poses}; pass the same poses")
     sigma_r = noise_floor(result, poses)
-    floor = float(np.sqrt(np.mean(sigma_r**2))) if sigma_r is not None else float("nan")
+    floor = rms(sigma_r) if sigma_r is not None else float("nan")
     simulated: list[BandCheck] = []
     simulation_note = ""  # a diagnosis brings its own simulation check
     if diagnosis is not None:

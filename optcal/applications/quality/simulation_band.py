@@ -33,6 +33,7 @@ from optcal.core.poses import PoseTable
 from optcal.applications.diagnosis.simulation import place_among_simulations
 from optcal.applications.quality.bands import BandCheck
 from optcal.families.accel.result import CalibrationResult
+from optcal.core.stats import rms
 
 #: Simulated data sets behind the band.
 SIMULATIONS: int = 200
@@ -90,7 +91,7 @@ def fit_statistics(T: NDArray[np.float64], o: NDArray[np.float64], acc: NDArray[
     weights = 1.0 / norm_noise(T, o, acc, sigma) ** 2
     r = point.residuals
     heldout = heldout_residuals(r, point.jacobian().T, weights)
-    return FitStatistics(float(np.sum(weights * r * r)), float(np.sqrt(np.mean(heldout**2))))
+    return FitStatistics(float(np.sum(weights * r * r)), rms(heldout))
 
 
 def band_text(check: BandCheck) -> str:

@@ -377,7 +377,7 @@ def judge_fleet(result: "FleetResult", tolerance_mg: float = DEFAULT_TOLERANCE_M
                               + _some([f"{o.unit} ({o.status}: {o.reason})" for o in bad]) + "."))
     if result.stats is None:
         reasons.append(Reason("usable with care", "population check",
-                              f"Fewer than five units were calibrated by their own data in the same units, so no unit "
+                              "Fewer than five units were calibrated by their own data in the same units, so no unit "
                               "could be compared with the population."))
     flagged = result.flagged
     words = flag_words or {}

@@ -32,6 +32,7 @@ from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration, FitPoses
 from optcal.families.caltypes.lumped import LumpedCalibration
 from optcal.families.caltypes.sixpos import SixPositionCalibration
+from optcal.core.stats import rms
 
 __all__ = ["CalibrationResult"]
 
@@ -135,7 +136,7 @@ class CalibrationResult(FitResult):
     @property
     def rms_norm_residual_g(self) -> float:
         """rms of ``‖ā_k‖ − 1`` over the poses, g."""
-        return float(np.sqrt(np.mean(self.residuals**2)))
+        return rms(self.residuals)
 
     def _T_entries(self) -> list[tuple[int, int, int]]:
         """``(position in params, row, column)`` of each estimated entry of ``T``: the full ``W``

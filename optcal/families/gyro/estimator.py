@@ -46,6 +46,7 @@ from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObje
 from optcal.core.fit_result import chi_square
 from optcal.core.identifiability import RankReport
 from optcal.families.accel.result import CalibrationResult
+from optcal.core.stats import rms
 
 if TYPE_CHECKING:
     from optcal.data import LoadedData
@@ -172,7 +173,7 @@ class GyroProblem:
         """
         x0 = np.asarray(x0, float)
         start = evaluate(x0)
-        scale = cost_scale(start[0].size, float(np.sqrt(np.mean(start[0] ** 2))))
+        scale = cost_scale(start[0].size, rms(start[0]))
         last: list[tuple[bytes, NDArray, NDArray]] = [(x0.tobytes(), *start)]  # the integration at the last x
 
         def residuals(x: NDArray) -> tuple[NDArray, NDArray]:
