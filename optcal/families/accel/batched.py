@@ -141,17 +141,17 @@ class BatchedMaximumLikelihood:
     ----------
     batch : int
         Units per IPOPT problem (:data:`DEFAULT_BATCH`).
-    reweight, reweight_rtol : int, float
-        As :class:`~optcal.families.accel.mle.MaximumLikelihood` (the same defaults).
+    reweight, reweight_rtol : int, float, optional
+        As :class:`~optcal.families.accel.mle.MaximumLikelihood`; by default its own.
     """
 
-    def __init__(self, batch: int = DEFAULT_BATCH, reweight: int = 2, reweight_rtol: float = 1e-3) -> None:
+    def __init__(self, batch: int = DEFAULT_BATCH, reweight: int | None = None, reweight_rtol: float | None = None) -> None:
         if batch < 1:
             raise InputError(f"batch must be at least 1, got {batch}")
         self.batch = int(batch)
         defaults = MaximumLikelihood()
-        self.reweight = int(reweight if reweight is not None else defaults.reweight)
-        self.reweight_rtol = float(reweight_rtol)
+        self.reweight = int(defaults.reweight if reweight is None else reweight)
+        self.reweight_rtol = float(defaults.reweight_rtol if reweight_rtol is None else reweight_rtol)
 
     def fit_many(self, tables: list[PoseTable], validate: bool = True) -> BatchedFit:
         """Calibrate every table (grouped by pose count, ``batch`` units per problem).
