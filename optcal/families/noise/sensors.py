@@ -21,13 +21,6 @@ from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.units import RAD_PER_UNIT, normalise_units
 
 
-def _accelerometer_units(units: str) -> str:
-    """``units`` when the accelerometer's analysis accepts it (g, m/s², counts)."""
-    if units not in ("g", "m/s^2", "counts"):
-        raise InputError(f"unknown units {units!r}; use one of g, m/s^2, counts")
-    return units
-
-
 @dataclass(frozen=True)
 class NoiseSensor:
     """What differs between the Allan analyses of the accelerometer and of the gyroscope.
@@ -122,7 +115,7 @@ _DEGREES_PER_RAD: float = float(np.degrees(1.0))
 ACCELEROMETER = NoiseSensor(
     name="acc",
     noise_density_name="velocity_random_walk",
-    canonical_units=_accelerometer_units,
+    canonical_units=partial(normalise_units, sensor="accelerometer"),
     si_per_physical_unit={"m/s^2": 1.0, "g": STANDARD_GRAVITY},
     counts_scale_unit="g",
     counts_scale_missing=("raw counts need a positive counts-per-g scale to report noise in physical units "
