@@ -31,7 +31,9 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
 
     cal = calibration_files.load(calibration)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
-    poses = load_data(data, **data_opts)
+    # an imu calibration also needs DATA's segmentation (its moves): the file is read once, with it
+    loaded = load_data_detailed(data, **data_opts) if cal.cal_type == "imu" else None
+    poses = loaded.poses if loaded is not None else load_data(data, **data_opts)
     result = check_calibration(cal, poses)
     if report_path:
         from optcal.applications.quality.validation import convert_to_units
@@ -41,8 +43,8 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
                                     tolerance), report_path)
     gyro_lines: list[str] = []
     gyro_out: dict[str, Any] = {}
-    if cal.cal_type == "imu":  # the gyro: gravity predicted across the moves, before and after
-        gyro_lines, gyro_out = gravity_check_lines(cal, data, data_opts)
+    if loaded is not None:  # the gyro: gravity predicted across the moves, before and after
+        gyro_lines, gyro_out = gravity_check_lines(cal, loaded)
     if as_json:
         out = {
             "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units, "n_poses": fitted},
@@ -78,17 +80,16 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
         click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in poses.exclusions.items()))
 
 
-def gravity_check_lines(cal: Any, data: str, data_opts: dict[str, Any]) -> tuple[list[str], dict[str, Any]]:
+def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any]]:
     """``optcal check`` on an IMU calibration: the gravity-prediction residual of DATA's moves, before and after.
 
     Parameters
     ----------
     cal : ImuCalibration
         The saved calibration (cal_type imu).
-    data : str
-        The recording checked (a raw recording with gyro columns; a pose table gives one line saying so).
-    data_opts : dict
-        The DATA reading options (:func:`optcal.cli.data_options.data_options`).
+    loaded : optcal.data.LoadedData
+        The recording checked, with its segmentation (a raw recording with gyro columns; a pose
+        table gives one line saying so).
 
     Returns
     -------
@@ -99,7 +100,6 @@ def gravity_check_lines(cal: Any, data: str, data_opts: dict[str, Any]) -> tuple
     """
     from optcal.families.gyro.check import gravity_prediction_check
 
-    loaded = load_data_detailed(data, **data_opts)
     if loaded.segmentation is None or loaded.segmentation.recording.gyro is None:
         return ["gyro: DATA has no raw gyro samples; the gravity-prediction check needs a raw recording with gx, gy, gz"], {}
     result = gravity_prediction_check(cal, loaded.segmentation)
