@@ -78,8 +78,11 @@ def decide_units(
     requested : str, optional
         The user's ``--units``; always wins.
     hint : str, optional
-        Units stated by the file (a unit word in the column names, or the file format, e.g.
-        ``m/s^2`` for ROS ``sensor_msgs/Imu``).
+        Units stated by the file (a unit word in the column names, a ``units`` attribute, or the
+        file format, e.g. ``m/s^2`` for ROS ``sensor_msgs/Imu``): evidence, checked against the
+        norm.  When the norm contradicts it and tells the units on its own (a netCDF attribute
+        ``m/s2`` on data whose median |a| is 0.996), the data are trusted and the reason says
+        so; when the norm contradicts it without telling, the file is refused naming ``--units``.
     hint_reason : str
         Where ``hint`` came from, for the report.
     norm : float, optional
@@ -88,7 +91,8 @@ def decide_units(
     Raises
     ------
     InputError
-        When nothing states the units and the norm is ambiguous.
+        When nothing states the units and the norm is ambiguous, or when ``requested`` (or a
+        ``hint`` that the norm does not replace) contradicts the norm.
     """
     if norm is None:
         if acc is None:
@@ -97,19 +101,35 @@ def decide_units(
     if requested is not None:
         return check_units(UnitsDecision(normalise_units(requested), "given with --units"), norm)
     if hint is not None:
-        return check_units(UnitsDecision(normalise_units(hint), hint_reason or "stated by the file"), norm)
+        stated = UnitsDecision(normalise_units(hint), hint_reason or "stated by the file")
+        try:
+            return check_units(stated, norm)
+        except InputError:  # what the file states is evidence: the data, when they tell, outweigh it
+            by_data = units_from_norm(norm)
+            if by_data is None:
+                raise
+            return UnitsDecision(by_data.units, f"{by_data.reason}; the file states {stated.units} ({stated.reason}), "
+                                                "which the data contradict: the data are trusted")
     if not np.isfinite(norm):
         raise InputError("no finite acceleration values; cannot tell the units")
+    found = units_from_norm(norm)
+    if found is not None:
+        return found
+    raise InputError(
+        f"cannot tell the units from the data (median |a| = {norm:.4g} is neither ≈ 1 g, "
+        f"≈ 9.8 m/s^2 nor a raw count scale); pass --units g, m/s^2 or counts"
+    )
+
+
+def units_from_norm(norm: float) -> UnitsDecision | None:
+    """The units the median ‖a‖ alone tells (g, m/s² or counts), or ``None`` when it does not."""
     if G_NORM_RANGE[0] <= norm <= G_NORM_RANGE[1]:
         return UnitsDecision("g", f"median |a| = {norm:.4g} ≈ 1 (g)")
     if MS2_NORM_RANGE[0] <= norm <= MS2_NORM_RANGE[1]:
         return UnitsDecision("m/s^2", f"median |a| = {norm:.4g} ≈ 9.8 (m/s^2)")
     if norm >= COUNTS_MIN_NORM:
         return UnitsDecision("counts", f"median |a| = {norm:.4g} ≫ 9.8 (raw counts)")
-    raise InputError(
-        f"cannot tell the units from the data (median |a| = {norm:.4g} is neither ≈ 1 g, "
-        f"≈ 9.8 m/s^2 nor a raw count scale); pass --units g, m/s^2 or counts"
-    )
+    return None
 
 
 #: Median norms that each unit allows (a wide margin for calibration errors and motion).
