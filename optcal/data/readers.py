@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.containers import container_type, read_container
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
@@ -259,6 +260,8 @@ def read_source(
         files): merged onto the accelerometer's times.
     """
     kind = detect_file_type(path)
+    if kind == "csv" and (container := container_type(path)) is not None:  # MATLAB, netCDF-4, HDF5
+        return Source(**read_container(path, container, topic=topic, columns=columns, gyro_file=gyro_file))
     if kind in ("csv", "parquet"):
         if topic is not None:
             raise InputError(f"topic applies to ROS bags and ULog files, not to a {kind} file")
