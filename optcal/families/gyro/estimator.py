@@ -323,6 +323,9 @@ def calibrate_gyro(
     cov[9:, 9:] = static.covariance
     notes.append("bias from the still intervals with white-noise standard errors; the Earth rate "
                  "(≤ 7.3e-5 rad/s) is part of the bias")
+    bridged = moves.bridging_note()
+    if bridged is not None:
+        notes.append(bridged)
     return ImuCalibration(
         accelerometer=acc_result,
         gyro=model,

@@ -6,8 +6,31 @@ that needs, flattened for a vectorised integrator: every integration step ``k`` 
 raw gyro samples at both ends (trapezoid: their mean over ``dt_k``), the raw specific
 force at the mid-point (for the g-sensitivity), and a flag marking the first step of each
 move; the per-interval raw accelerometer and gyro means give the gravity directions and
-the bias.  A move that crosses an unusable sample (non-finite, duplicated, saturated) or a
-gap in time cannot be integrated: it is dropped and counted in :attr:`MoveSet.exclusions`.
+the bias; the rests' noise (:func:`rest_noise`) says how much angle the gyro's noise alone
+makes over a move.
+
+Holes
+-----
+A step between two usable samples longer than :data:`HOLE_STEP_FACTOR` sample periods has
+lost samples: one excluded by the data layer (a repeated timestamp, a duplicated row, a
+non-finite or saturated sample) or never recorded.  The step is integrated like any other,
+from the usable sample before the hole to the one after it, over the time between their
+stamps (the true step, not a multiple of the period).  Its trapezoid error is
+``h³ ω̈ / 12`` for a rate with curvature ``ω̈`` (Davis & Rabinowitz, the trapezoid rule's
+remainder), so the bound of a hole of length ``h`` is ``e = h³ |ω̈|max / 12`` with
+``|ω̈|max`` the largest second divided difference of the rate over the usable samples
+beside the hole (as many on each side as the hole is periods long, at least
+:data:`CURVATURE_SAMPLES`).  A move is bridged when the bounds of its holes add up to at most
+the angle the gyro's white noise already integrates over that move,
+``N √T`` (angle random walk ``N`` from the rests, ``T`` the move's duration): the hole then
+adds at most as much as the noise the fit already carries, and the bound enters the noise
+model of :mod:`optcal.families.gyro.consistency`.  Otherwise the move is dropped and counted
+by reason in :attr:`MoveSet.exclusions`.  The rate's curvature measured beside a hole
+includes the noise's own (a white rate noise ``σ`` gives second differences of ``√6 σ/Δt²``),
+which caps the holes bridged on a still-ish stretch to about
+``(12 N √T Δt² / (√6 σ))^{1/3}``: four periods for a white-noise gyro sampled at 100 Hz
+over a 2-s move; during a fast turn a hole of one lost sample is already too long when the
+rate bends sharply there.
 """
 
 from __future__ import annotations
@@ -23,11 +46,55 @@ from optcal.errors import InputError
 if TYPE_CHECKING:
     from optcal.data.static import Segmentation
 
-#: A step longer than this many median steps is a gap: the move across it is dropped.
-MAX_GAP_STEPS: float = 5.0
-GAP_MOVES = "moves dropped: a gap in time or an unusable sample between two static intervals"
+#: A step longer than this many sample periods has lost at least one sample (a step of
+#: two periods is one lost sample; half a period of slack leaves the clock's jitter alone).
+HOLE_STEP_FACTOR: float = 1.5
+#: Fewest usable samples on each side of a hole whose second differences measure the rate's
+#: curvature there (two give the triples that end at the hole's ends).
+CURVATURE_SAMPLES: int = 2
+#: Length of the windows whose means the rests' Allan variance compares, seconds: five times the
+#: group delay of the slowest output filter MEMS gyros offer (InvenSense's 5 Hz DLPF, 19 ms), so
+#: that the filter's correlation between samples is gone and the variance is the white noise's
+#: ``N²/τ`` (per-sample variance underestimates a filtered gyro's angle random walk).
+ARW_WINDOW_S: float = 0.1
 #: Fewest moves accepted (Tedaldi 2014 use about 30; nine parameters need far fewer).
 MIN_MOVES: int = 6
+
+#: Reasons a move is dropped (keys of :attr:`MoveSet.exclusions`).
+HOLE_MOVES = ("moves dropped: a hole (lost or unusable samples) whose integration error bound exceeds "
+              "the angle random walk of the move")
+NO_SAMPLES_MOVES = "moves dropped: static intervals that touch or overlap, or without a usable sample"
+TIME_MOVES = "moves dropped: time not increasing across the move"
+
+
+@dataclass(frozen=True)
+class RestNoise:
+    """The gyro's noise measured on the rests (raw units).
+
+    Attributes
+    ----------
+    arw2 : ndarray, shape (3,)
+        Angle random walk density ``N²`` per axis, raw² · s (the variance of the angle the
+        white noise integrates in one second): ``τ`` times the Allan variance at
+        ``τ =`` :data:`ARW_WINDOW_S`, pooled over the rests, at least the quantisation's
+        ``q²/12 · Δt``.
+    sample_std : ndarray, shape (3,)
+        Per-sample standard deviation, pooled over the rests.
+    quantum : ndarray, shape (3,)
+        The smallest step between distinct readings of each axis (0 when none).
+    stamp_jitter_s : float
+        Standard deviation of the time stamps about a regular clock, from the spread of the
+        steps that are not holes (robust: 1.4826 × their median absolute deviation, over √2
+        because a step is the difference of two stamps).
+    period_s : float
+        Sample period (median step between usable samples).
+    """
+
+    arw2: NDArray[np.float64]
+    sample_std: NDArray[np.float64]
+    quantum: NDArray[np.float64]
+    stamp_jitter_s: float
+    period_s: float
 
 
 @dataclass
@@ -59,6 +126,13 @@ class MoveSet:
     last_step : ndarray of int, shape (m,)
         Index of the last step of each move.
     exclusions : dict of str to int
+        Moves dropped, by reason.
+    noise : RestNoise or None
+        The gyro's noise on the rests.
+    bridge_bound : ndarray, shape (m,)
+        Sum of the integration-error bounds of the holes bridged in each move, raw · s (0 without hole).
+    bridged_holes, bridged_samples : int
+        Holes bridged inside the moves kept, and the sample periods they lost.
     """
 
     acc_means: NDArray[np.float64]
@@ -74,6 +148,10 @@ class MoveSet:
     first_step: NDArray[np.bool_]
     last_step: NDArray[np.int64]
     exclusions: dict[str, int] = field(default_factory=dict)
+    noise: RestNoise | None = None
+    bridge_bound: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    bridged_holes: int = 0
+    bridged_samples: int = 0
 
     @property
     def n_moves(self) -> int:
@@ -86,6 +164,69 @@ class MoveSet:
     def gyro_mid(self) -> NDArray[np.float64]:
         """Raw gyro averaged over each step (trapezoid rule), shape (N, 3)."""
         return self.gyro_pairs.mean(axis=1)
+
+    def step_bounds(self) -> NDArray[np.int64]:
+        """Index of each move's first step, then one past the last step, shape (m + 1,)."""
+        return np.concatenate([[0], self.last_step + 1]).astype(np.int64)
+
+    def durations(self) -> NDArray[np.float64]:
+        """Length of each move in seconds, shape (m,)."""
+        ends = self.step_bounds()
+        return np.add.reduceat(self.dt, ends[:-1]) if self.n_moves else np.zeros(0)
+
+    def bridging_note(self) -> str | None:
+        """One line on the holes bridged inside the moves (``None`` without any)."""
+        if not self.bridged_holes:
+            return None
+        return (f"{self.bridged_holes} hole(s) inside the moves bridged over the true time step ({self.bridged_samples} "
+                f"sample period(s) lost or unusable); their integration-error bound is part of the noise model")
+
+
+def rest_noise(t: NDArray, gyro: NDArray, ok: NDArray, intervals: list[tuple[int, int]]) -> RestNoise:
+    """The gyro's noise on the rests: angle random walk, per-sample spread, quantum and stamp jitter."""
+    steps = np.diff(t[ok])
+    period = float(np.median(steps)) if steps.size else 1.0
+    regular = steps[steps <= HOLE_STEP_FACTOR * period]
+    jitter = float(1.4826 * np.median(np.abs(regular - np.median(regular))) / np.sqrt(2)) if regular.size else 0.0
+    width = max(1, int(round(ARW_WINDOW_S / period)))
+    differences, centred = [], []
+    for a, b in intervals:
+        g = gyro[a:b][ok[a:b]]
+        if g.shape[0] > 1:
+            centred.append(g - g.mean(axis=0))
+        k = g.shape[0] // width
+        if k >= 2:
+            means = g[: k * width].reshape(k, width, 3).mean(axis=1)
+            differences.append(np.diff(means, axis=0))
+    sample_std = np.sqrt(np.mean(np.concatenate(centred) ** 2, axis=0)) if centred else np.zeros(3)
+    if differences:
+        arw2 = 0.5 * np.mean(np.concatenate(differences) ** 2, axis=0) * width * period
+    else:  # rests shorter than two windows: the per-sample variance, as if white
+        arw2 = sample_std**2 * period
+    quantum = np.zeros(3)
+    for axis in range(3):
+        steps_axis = np.diff(np.unique(gyro[ok, axis]))
+        quantum[axis] = float(steps_axis.min()) if steps_axis.size else 0.0
+    arw2 = np.maximum(arw2, quantum**2 / 12.0 * period)
+    return RestNoise(arw2, sample_std, quantum, jitter, period)
+
+
+def hole_bound(t: NDArray, gyro: NDArray, usable_idx: NDArray, position: int, period: float) -> float:
+    """Bound of the trapezoid's error over the hole after ``usable_idx[position]``, raw · s.
+
+    ``h³ |ω̈|max / 12``: ``h`` the time across the hole, ``|ω̈|max`` the largest norm of the
+    second divided differences of the rate over the usable samples beside it (as many on each
+    side as the hole is sample periods long, at least :data:`CURVATURE_SAMPLES`).
+    """
+    h = float(t[usable_idx[position + 1]] - t[usable_idx[position]])
+    side = max(CURVATURE_SAMPLES, int(np.ceil(h / period)) if period > 0 else CURVATURE_SAMPLES)
+    near = usable_idx[max(0, position - side): position + 2 + side]
+    if near.size < 3:
+        return float("inf")
+    tn, gn = t[near], gyro[near]
+    slope = np.diff(gn, axis=0) / np.diff(tn)[:, None]
+    curvature = 2.0 * np.diff(slope, axis=0) / (tn[2:] - tn[:-2])[:, None]
+    return h**3 / 12.0 * float(np.max(np.linalg.norm(curvature, axis=1)))
 
 
 def moves_from_arrays(
@@ -107,7 +248,8 @@ def moves_from_arrays(
     intervals : list of (start, stop)
         Static intervals as sample ranges (``stop`` exclusive), in time order.
     usable : array_like of bool, shape (n,), optional
-        Samples that may be integrated (all when omitted).
+        Samples that may be integrated (all finite ones when omitted); the others are holes,
+        bridged when short enough (module docstring).
     acc_sigma : array_like, shape (p,), optional
         Standard deviation of each interval's accelerometer mean (default: white noise,
         ``std/√n``).
@@ -122,7 +264,8 @@ def moves_from_arrays(
     gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
     if not (t.size == acc.shape[0] == gyro.shape[0]):
         raise InputError(f"t, acc and gyro must have the same number of samples ({t.size}, {acc.shape[0]}, {gyro.shape[0]})")
-    ok = np.ones(t.size, bool) if usable is None else np.asarray(usable, bool)
+    ok = np.ones(t.size, bool) if usable is None else np.asarray(usable, bool).copy()
+    ok &= np.isfinite(t) & np.all(np.isfinite(acc), axis=1) & np.all(np.isfinite(gyro), axis=1)
     ivs = sorted((int(a), int(b)) for a, b in intervals)
     if len(ivs) < 2:
         raise InputError(f"found {len(ivs)} static interval(s); a gyro calibration needs the moves between several")
@@ -136,21 +279,30 @@ def moves_from_arrays(
                         for s, n in zip(sl, n_static)])
     else:
         sig = np.asarray(acc_sigma, float).reshape(len(ivs))
-    median_dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    pairs, mids, dts, first, last, frm, to = [], [], [], [], [], [], []
-    dropped = 0
-    n_steps = 0
+    noise = rest_noise(t, gyro, ok, ivs)
+    usable_idx = np.flatnonzero(ok)
+    pairs, mids, dts, first, last, frm, to, bounds = [], [], [], [], [], [], [], []
+    dropped: dict[str, int] = {}
+    n_steps = holes = lost = 0
     for i in range(len(ivs) - 1):
-        a = ivs[i][1] - 1  # last sample of interval i
-        b = ivs[i + 1][0]  # first sample of interval i + 1
-        if b <= a:
-            dropped += 1
+        before = usable_idx[(usable_idx >= ivs[i][0]) & (usable_idx < ivs[i][1])]
+        after = usable_idx[(usable_idx >= ivs[i + 1][0]) & (usable_idx < ivs[i + 1][1])]
+        if before.size == 0 or after.size == 0 or after[0] <= before[-1]:
+            dropped[NO_SAMPLES_MOVES] = dropped.get(NO_SAMPLES_MOVES, 0) + 1
             continue
-        idx = np.arange(a, b + 1)
+        lo, hi = np.searchsorted(usable_idx, [before[-1], after[0]])
+        idx = usable_idx[lo: hi + 1]
         step = np.diff(t[idx])
-        if not np.all(ok[idx]) or np.any(step <= 0) or np.any(step > MAX_GAP_STEPS * median_dt):
-            dropped += 1
+        if np.any(step <= 0):
+            dropped[TIME_MOVES] = dropped.get(TIME_MOVES, 0) + 1
             continue
+        gaps = np.flatnonzero(step > HOLE_STEP_FACTOR * noise.period_s)
+        bound = sum(hole_bound(t, gyro, usable_idx, lo + int(k), noise.period_s) for k in gaps)
+        if gaps.size and bound > np.sqrt(np.sum(noise.arw2) * (t[idx[-1]] - t[idx[0]])):
+            dropped[HOLE_MOVES] = dropped.get(HOLE_MOVES, 0) + 1
+            continue
+        holes += int(gaps.size)
+        lost += int(np.sum(np.round(step[gaps] / noise.period_s) - 1)) if gaps.size else 0
         g = gyro[idx]
         pairs.append(np.stack([g[:-1], g[1:]], axis=1))
         mids.append(0.5 * (acc[idx[:-1]] + acc[idx[1:]]))
@@ -162,11 +314,12 @@ def moves_from_arrays(
         last.append(n_steps - 1)
         frm.append(i)
         to.append(i + 1)
-    exclusions = {GAP_MOVES: dropped} if dropped else {}
+        bounds.append(float(bound))
     if len(frm) < MIN_MOVES:
+        reasons = "; ".join(f"{k}: {v}" for k, v in dropped.items()) or "none dropped"
         raise InputError(
-            f"only {len(frm)} usable move(s) between static intervals ({dropped} dropped for gaps or unusable "
-            f"samples); a gyro calibration needs at least {MIN_MOVES}: record more rotations between still poses"
+            f"only {len(frm)} usable move(s) between {len(ivs)} static intervals ({reasons}); a gyro calibration "
+            f"needs at least {MIN_MOVES}: record more rotations between still poses"
         )
     return MoveSet(
         acc_means=acc_means,
@@ -181,7 +334,11 @@ def moves_from_arrays(
         dt=np.concatenate(dts),
         first_step=np.concatenate(first),
         last_step=np.array(last),
-        exclusions=exclusions,
+        exclusions=dropped,
+        noise=noise,
+        bridge_bound=np.array(bounds),
+        bridged_holes=holes,
+        bridged_samples=lost,
     )
 
 
