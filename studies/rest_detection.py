@@ -1,0 +1,280 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+# ---
+
+# %% [markdown]
+# # Rest detection on a generated corpus with known rests (issue 26)
+#
+# How well does the rest detector (`optcal.data.static.detect_static` with its default settings) find the
+# rests of recordings whose rests are known, and how often does it find a rest where there is none?
+# The corpus is `optcal.families.simulate.rest_corpus`: six kinds of recording, each drawn per seed and
+# rendered in four variants that share the motion and the noise (with or without the gyro columns; float
+# m/s² and rad/s, or 16-bit counts at ±2 g and ±250 °/s), at a rate drawn in 50–400 Hz:
+#
+# * `hand_held`: 15–30 rests of 1.5–4 s, white noise σ drawn per rest in 0.02–0.06 m/s², hand tremor
+#   (3–8 Hz, 0.02–0.15° drawn per rest), moves of 1–3 s at tens to a couple of hundred °/s;
+# * `turntable`: trapezoidal turns (ramp, constant rate, ramp) between rests of 2.4–2.9 s, quiet noise;
+# * `low_pass`: a tag set down for 14–50 s at a time, the whole recording through a 4th-order
+#   Butterworth low-pass at 1–5 Hz;
+# * `holds_only`: N samples per hold (1–3 s) and nothing while moving: the holds follow each other by a jump;
+# * `slow_turns`: never at rest, turning at 2–30 °/s about axes that change every 5–30 s, a third of them
+#   2–15° from the vertical;
+# * `slow_drift`: never at rest, the orientation drifting at 0.1–1 °/s.
+#
+# Scores (`rest_corpus.score_case`): **recall**, the fraction of the true rests longer than the minimum
+# dwell matched by exactly one pose lying ≥ 80 % inside the rest; **false rests**, the poses lying in no
+# true rest, per recording and per minute, and for the never-resting kinds the fraction of recordings
+# where any pose is found (`with_pose`); the **pose error**, the pose mean against the true specific force
+# in units of the pose's own standard error of the mean (rms over the axes; ≈ 1 for a right σ and an
+# unbiased mean).
+#
+# Regenerate with `python studies/rest_detection.py` (writes `studies/results/rest_detection.md` and
+# `studies/results/figures/rest_detection_recall_by_duration.png`; seeded, so the same code gives the same
+# tables). Quick mode (`OPTCAL_STUDY_QUICK=1`) runs two seeds.
+
+# %%
+import hashlib
+import inspect
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import matplotlib.ticker
+import numpy as np
+import pandas as pd
+
+import optcal.data.static as static_module
+from optcal.data.static import StaticSettings, detect_static
+from optcal.errors import InputError
+from optcal.families.simulate.rest_corpus import KINDS, NEVER_RESTING, detected_poses, rest_corpus, score_case, summarise
+
+from study_mode import FIGURES as FIG  # noqa: E402
+from study_mode import RESULTS as OUT  # noqa: E402
+from study_mode import QUICK, show, size, wilson  # noqa: E402
+
+SEEDS = range(size(100, 2))
+SETTINGS = StaticSettings()
+RESTING = [k for k in KINDS if k not in NEVER_RESTING]
+pd.set_option("display.width", 200)
+pd.set_option("display.max_columns", 20)
+detector_source = hashlib.sha256(inspect.getsource(static_module).encode()).hexdigest()[:12]
+print(f"seeds {SEEDS.start}..{SEEDS.stop - 1} ({'quick' if QUICK else 'full'} run), settings {SETTINGS}")
+print(f"detector: {static_module.__name__}.detect_static, source sha256 {detector_source}")
+
+# %% [markdown]
+# ## 1. The corpus and the detector's poses
+#
+# Every case is generated, segmented and scored; the exclusions the detector counted are kept to say why
+# rests were missed.
+
+# %%
+started = time.process_time()
+scores, rests, reasons = [], [], []
+for case in rest_corpus(SEEDS):
+    try:
+        seg = detect_static(case.recording, SETTINGS)
+        score = score_case(case, detected_poses(seg), SETTINGS.min_dwell_s)
+        excluded = dict(getattr(seg, "exclusions", {}))
+    except InputError as exc:  # a refusal is no pose, counted in the table's `refused`
+        score = score_case(case, [], SETTINGS.min_dwell_s, refused=str(exc))
+        excluded = {}
+    scores.append(score)
+    variant = {"kind": case.kind, "seed": case.seed, "gyro": case.gyro, "quantised": case.quantised}
+    rests += [{**variant, "duration_s": b - a, "outcome": o} for (a, b), o in zip(case.rest_times, score.outcomes)]
+    reasons.append({**variant, "poses": score.poses, "recall": score.recall,
+                    **{k: v > 0 for k, v in excluded.items() if "stretches" in k and not k.startswith("samples")}})
+cpu_s = time.process_time() - started
+n_cases = len(scores)
+print(f"{n_cases} recordings ({len(SEEDS)} seeds × {len(KINDS)} kinds × 4 variants) generated, "
+      f"segmented and scored in {cpu_s:.1f} s of CPU")
+
+# %% [markdown]
+# ## 2. Per kind (the four variants pooled)
+#
+# `recall_ci` is the Wilson 95 % interval of the pooled recall over rests; rests of one recording are not
+# independent (a recording the detector refuses loses all of them), so it is narrower than the spread
+# from seed to seed, shown as `recordings_recall_below_0.5` (the fraction of resting recordings with a
+# recall under one half).
+
+# %%
+def per_kind(by: tuple[str, ...]) -> pd.DataFrame:
+    table = summarise(scores, by=by)
+    ci, low_recall = [], []
+    for _, row in table.iterrows():
+        picked = [s for s in scores if all(getattr(s, k) == row[k] for k in by)]
+        recalled, eligible = sum(s.recalled for s in picked), sum(s.eligible for s in picked)
+        lo, hi = wilson(recalled, eligible)
+        ci.append(f"{lo:.2f}–{hi:.2f}" if eligible else "")
+        resting = [s for s in picked if s.eligible]
+        low_recall.append(np.mean([s.recall < 0.5 for s in resting]) if resting else float("nan"))
+    table.insert(table.columns.get_loc("recall") + 1, "recall_ci", ci)
+    table.insert(table.columns.get_loc("recall_ci") + 1, "recordings_recall_below_0.5", low_recall)
+    return table.round(3)
+
+
+kind_table = per_kind(("kind",))
+kind_table
+
+# %% [markdown]
+# ## 3. Per kind, with or without the gyro, float or quantised
+
+# %%
+variant_table = per_kind(("kind", "gyro", "quantised"))
+variant_table
+
+# %% [markdown]
+# The same as two pivots: recall of the resting kinds, and the fraction of the never-resting recordings
+# with a (false) pose.
+
+# %%
+variant_frame = summarise(scores, by=("kind", "gyro", "quantised"))
+variant_frame["variant"] = [("gyro" if g else "no gyro") + (", counts" if q else ", float")
+                            for g, q in zip(variant_frame["gyro"], variant_frame["quantised"])]
+recall_pivot = variant_frame[variant_frame["kind"].isin(RESTING)].pivot(index="kind", columns="variant",
+                                                                           values="recall").loc[RESTING].round(3)
+false_pivot = variant_frame[variant_frame["kind"].isin(NEVER_RESTING)].pivot(
+    index="kind", columns="variant", values="with_pose").loc[list(NEVER_RESTING)].round(3)
+print("recall:")
+print(recall_pivot.to_string())
+print("\nfraction of never-resting recordings with a pose:")
+print(false_pivot.to_string())
+
+# %% [markdown]
+# ## 4. Recall by the rest's length
+#
+# Rests pooled over the variants, in bins of their true length (sextiles of each kind's lengths): left, every
+# recording; right, only the recordings in which the detector found at least one pose, which separates rests
+# missed one by one from whole recordings given up.
+
+# %%
+rest_frame = pd.DataFrame(rests)
+rest_frame = rest_frame[rest_frame["outcome"] != "short"]
+with_any_pose = {(r["kind"], r["seed"], r["gyro"], r["quantised"]) for r in reasons if r["poses"] > 0}
+rest_frame["recording_has_pose"] = [key in with_any_pose for key in
+                                    zip(rest_frame["kind"], rest_frame["seed"], rest_frame["gyro"], rest_frame["quantised"])]
+fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+for ax, subset, title in ((axes[0], rest_frame, "every recording"),
+                          (axes[1], rest_frame[rest_frame["recording_has_pose"]], "recordings with a pose")):
+    for kind in RESTING:
+        part = subset[subset["kind"] == kind]
+        if part.empty:
+            continue
+        edges = np.unique(np.quantile(part["duration_s"], np.linspace(0, 1, 7)))
+        grouped = part.groupby(pd.cut(part["duration_s"], edges, include_lowest=True), observed=True)["outcome"]
+        centres = [interval.mid for interval in grouped.groups.keys()]
+        ax.plot(centres, grouped.apply(lambda o: np.mean(o == "recalled")).to_numpy(), "o-", label=kind)
+    ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xticks([1, 2, 3, 5, 10, 20, 50])
+    ax.set_xlabel("true rest length, s")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+axes[0].set_ylabel("recall")
+axes[0].set_ylim(-0.02, 1.02)
+axes[0].legend()
+fig.suptitle(f"Rest detection on the corpus ({len(SEEDS)} seeds, 4 variants)")
+fig.tight_layout()
+figure_path = FIG / "rest_detection_recall_by_duration.png"
+fig.savefig(figure_path, dpi=110)
+plt.close(fig)
+show(figure_path)
+recall_with_pose = (rest_frame[rest_frame["recording_has_pose"]].groupby("kind")["outcome"]
+                    .apply(lambda o: np.mean(o == "recalled")).loc[RESTING].round(3))
+print("recall within the recordings that gave at least one pose:")
+print(recall_with_pose.to_string())
+
+# %% [markdown]
+# The same per variant: whether the rests of a recording the detector accepts are found.
+
+# %%
+accepted = rest_frame[rest_frame["recording_has_pose"]].copy()
+accepted["variant"] = [("gyro" if g else "no gyro") + (", counts" if q else ", float")
+                       for g, q in zip(accepted["gyro"], accepted["quantised"])]
+recall_accepted = (accepted.groupby(["kind", "variant"])["outcome"].apply(lambda o: np.mean(o == "recalled"))
+                   .unstack("variant").reindex(RESTING).round(3))
+recall_accepted
+
+# %% [markdown]
+# ## 5. Why rests are missed and false rests found
+#
+# For each kind, the fraction of recordings in which the detector counted stretches under each of its
+# exclusion reasons (the counters of stretches, not of samples; the names are the detector's own).
+
+# %%
+reason_frame = pd.DataFrame(reasons)
+reason_columns = [c for c in reason_frame.columns if c not in ("kind", "seed", "gyro", "quantised", "poses", "recall")]
+reason_frame[reason_columns] = reason_frame[reason_columns].eq(True)  # a reason not counted in a recording: False
+why = reason_frame.groupby("kind", sort=False)[reason_columns].mean().loc[list(KINDS)].T.round(2)
+why.index = [name[:110] for name in why.index]
+why
+
+# %% [markdown]
+# ## 6. Conclusion
+#
+# Written from the full run (100 seeds × 6 kinds × 4 variants = 2400 recordings, about half a minute of CPU)
+# of the detector committed at a9ee866 (source sha256 df8406404e97, printed above); the tables above are the
+# run this notebook carries.
+#
+# * **Turntable** rests (2.4–2.9 s, quiet, trapezoidal turns) are all found: recall 1.00 in every variant
+#   (8656 rests), no false rest, pose errors of one σ (rms 0.95, 95th percentile 1.5). This is the kind of
+#   recording the current detector was built for.
+# * **Hand-held** rests: recall 0.26 (0.31 in float or without the gyro, 0.11 with a quantised gyro), and the
+#   loss is whole recordings: in the recordings it accepts the detector finds every rest (recall 1.00 but for
+#   the quantised gyro). Half of the hand-held recordings (52 %) are given up by the rest-plateau test: noise
+#   that differs from rest to rest (σ over a 3× range) leaves the quietest windows without one shared noise
+#   level, which the test reads as "never rests". With a quantised gyro the tremor puts the gyro's noise
+#   floor above the 100-step cap (0.76 °/s), so almost every stretch is rejected as turning.
+# * **Holds-only** logs: recall 0.74 with no false rest; it is all or nothing by the hold's length: the logs
+#   whose holds last more than 1.5 s have every hold found, those of 1–1.5 s almost none (recall 0.05; a
+#   1 s window straddles a jump at both ends of the hold, leaving less than the 0.5 s minimum dwell).
+# * **Low-pass** filtered tags: recall 0.10. Half of the 14–50 s rests are split into several poses
+#   (the filtered noise is smooth, so the moving std of a 1 s window scatters widely and crosses the
+#   3× gate within a rest), and 38 % of the recordings give no pose (30 % by the rest-plateau test). The
+#   pose error (rms 1.7, 95th percentile 3.1 σ) says that the σ of these short poses of correlated noise
+#   is underestimated: poses far from the rest's edges are as far off as those near them.
+# * **Never resting**: the slow turns give a pose in 12 % of the recordings with the gyro (0.47 false
+#   poses per recording, 0.21 per minute) and in 33 % without it (1.0 per recording, 0.44 per minute).
+#   With the gyro, poses are found in turns of up to 21 °/s: the gyro bias is the median rate over the
+#   accelerometer-quiet samples, which in a recording that never rests are turning, so the bias absorbs
+#   the turn. The slow drift (0.1–1 °/s) gives a pose in 16 % of the recordings in every variant
+#   (2.2 false poses per recording): its rate is below the gyro gate (3× the per-sample noise) and the
+#   block means of a 5 s stretch move less than the accelerometer gate.
+# * Quantisation (16-bit counts) changes nothing but through the gyro's step cap (hand-held with the gyro).
+#
+# The new detector has to bring the hand-held, holds-only and low-pass recall up to the turntable's, and
+# the never-resting `with_pose` to zero, without losing the turntable.
+
+# %%
+def markdown(table: pd.DataFrame, index: bool = False) -> str:
+    """A markdown table of ``table`` (its index as the first column when ``index``)."""
+    frame = table.reset_index() if index else table
+    header = [str(c) for c in frame.columns]
+    rows = [["" if isinstance(v, float) and np.isnan(v) else f"{v:.3g}" if isinstance(v, float) else str(v)
+             for v in row] for row in frame.itertuples(index=False)]
+    return "\n".join(["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+                     + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+lines = ["# Rest detection on the generated corpus (issue 26)", "",
+         f"Generated by `studies/rest_detection.py`: {len(SEEDS)} seeds × {len(KINDS)} kinds × 4 variants = "
+         f"{n_cases} recordings, `detect_static` with `StaticSettings()` (detector source sha256 "
+         f"{detector_source}); {cpu_s:.0f} s of CPU.", "",
+         "## Per kind", "", markdown(kind_table), "",
+         "## Per kind and variant", "", markdown(variant_table), "",
+         "## Recall of the resting kinds by variant", "", markdown(recall_pivot, index=True), "",
+         "## Never-resting recordings with a pose, by variant", "", markdown(false_pivot, index=True), "",
+         "## Recall within the recordings that gave at least one pose", "",
+         markdown(recall_with_pose.to_frame("recall"), index=True), "",
+         "## Recall within the recordings that gave at least one pose, by variant", "",
+         markdown(recall_accepted, index=True), "",
+         "## Recordings with stretches excluded, by reason", "", markdown(why.rename_axis("reason"), index=True), ""]
+(OUT / "rest_detection.md").write_text("\n".join(lines), encoding="utf-8")
+print(f"wrote {OUT / 'rest_detection.md'}")
