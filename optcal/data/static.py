@@ -61,8 +61,8 @@ from optcal.data.window_stats import resolution
 from optcal.errors import InputError
 
 MOVING = "samples in moving blocks (a step or a gyro rate beyond the noise of a rest, or louder than a rest)"
-SHORT = "samples in quiet stretches shorter than the minimum dwell"
-SHORT_STRETCHES = "quiet stretches shorter than the minimum dwell"
+SHORT = "samples in quiet stretches shorter than the minimum dwell (or than the drift test's four blocks)"
+SHORT_STRETCHES = "quiet stretches shorter than the minimum dwell (or than the drift test's four blocks)"
 TRIMMED = "samples trimmed at the ends of static intervals"
 DRIFTING = "samples in quiet stretches whose mean drifts beyond its own noise (a slow turn or a creep)"
 DRIFTING_STRETCHES = "quiet stretches rejected because their mean drifts beyond its own noise"
@@ -405,7 +405,8 @@ def _test_blocks(blocks: Blocks, kappa: NDArray[np.float64], kappa_g: NDArray[np
         i0, i1 = int(bstarts[a]), int(bstops[b - 1])
         duration = float(t[i1 - 1] - t[i0]) + 1.0 / rate
         longest = max(longest, duration)
-        if duration < s.min_dwell_s:
+        if duration < s.min_dwell_s or (b - a < MIN_TREND_BLOCKS and np.isfinite(s.drift_threshold)):
+            # too short for the dwell, or for the drift test to show that its mean does not move
             n_short += 1
             short_samples += i1 - i0
             continue
