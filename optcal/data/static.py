@@ -1,35 +1,58 @@
-"""Static detection: a raw recording in, its rests found by a model of the recording, one pose per rest out.
+"""Static detection: a raw recording in, static intervals and one pose per interval out.
 
-The model (:mod:`optcal.data.rest_model`): a recording is a sequence of rests and moves; in a rest the
-accelerometer reads a constant plus stationary noise whose level is the rest's own and whose colour is
-the sensor's, and the gyro reads its bias plus noise.  The usable samples are cut into blocks
-(``window_s`` long, doubled while the noise is still correlated beyond the block,
-:func:`choose_block`); a block belongs to a rest when
+A sample is static when the centred moving window around it (``window_s``) is quiet:
 
-* its mean does not step away from its neighbours' beyond the noise of those means (**step**; a jump
-  between two holds with no motion samples between them is a boundary too);
-* its variance is not an outlier among its neighbours' (**spread**: a move starting in the block);
-* with a gyro, its mean rate sits at the bias within the noise of that mean (**gyro**: the primary
-  evidence of motion where it exists, and the only one for a turn about the vertical);
+* the moving standard deviation of the norm ``‖a − o_nom‖`` (``o_nom`` the nominal
+  zero, :func:`optcal.data.units.nominal_conversion`) stays below ``threshold`` times
+  its noise floor, **and**
+* the moving standard deviation summed over the three axes (IMU-TK's statistic,
+  Tedaldi et al. 2014) stays below ``threshold`` times its floor: the norm alone is blind
+  to a rotation, the axes are not;
+* the means of the two halves of the window differ by less than ``drift_threshold``
+  times the noise of that difference (``2 σ_axes/√window``, from the axes floor): a slow
+  creep that hides in the moving variance moves the mean;
+* when gyro columns exist, the windowed mean rate ``‖mean(ω) − b_ω‖`` (``b_ω`` the gyro
+  bias, the median gyro reading over the accelerometer-static samples) stays below
+  ``gyro_threshold`` times the gyro's per-sample noise floor (the floor of its moving
+  standard deviation, summed over the axes).  This is what catches a slow turn, above
+  all one about the vertical, which no accelerometer statistic can see.  The gyro's
+  spread itself is not gated: a hand-held pose trembles (the MPU-6050 log's poses show
+  5× the table-top gyro spread) without moving its mean.
 
-and a run of such blocks (a **stretch**) is a rest when its block means do not follow a line in time
-beyond their own scatter about it (**drift**: a slow turn or a creep, tested scale-free against the
-stretch's own noise of the mean) and it lasts at least ``min_dwell_s``.  The minimum dwell is a
-duration prior on rests: a stretch shorter than a dwell is not a rest, and an interruption shorter than
-a dwell between two stretches whose means agree within their noise is a twitch, not a move (the two are
-one pose).  Each test has the stated false-alarm probability ``false_alarm`` (a block, a pair of blocks
-or a stretch at rest fails it by chance with that probability); the threshold settings multiply the
-deviation each test tolerates (``1``: exactly that probability).  "Never rests" is the model's
-conclusion when no stretch passes, printed with its evidence and the flag that overrides each test.
+Each noise floor is measured on the recording itself: the ``floor_quantile`` quantile of
+the statistic over all windows (a calibration recording is mostly at rest, so the low
+quantiles are windows at rest), never below the resolution of the data; the axes floor
+is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, and the floor of quantised gyro
+data at :data:`GYRO_FLOOR_MAX_QUANTA` steps, so that a recording that never rests (its
+quietest windows still turn) is not taken for one at rest.  Windows at rest share one noise
+level, so the low quantiles of the axes statistic form a plateau; a recording whose
+``floor_quantile / 5`` quantile falls far below its floor (:func:`rest_plateau_limit`) has
+no rest, only the slowest moments of a motion, and gives no pose (with a gyro whose
+converter step does not settle it, or none).  Static runs are split at time gaps, runs
+shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of each remaining
+run, runs of one orientation interrupted for less than a window by a hand's twitch are joined
+into one pose (:func:`optcal.data.static_stretches.join_interrupted`), a stretch whose means
+over one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
+(:func:`optcal.data.static_stretches.sweep`: a turn about an axis near the vertical keeps ‖a‖
+and moves the axes by less than the noise within a window), and every sample that does not
+end in a pose is counted by reason.  The moving statistics take one cumulative sum per column
+in one set of reused buffers (:class:`optcal.data.window_stats.MovingWindow`); the gyro's are
+computed in a second thread beside the accelerometer's for recordings up to
+:data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose
+(:func:`optcal.data.static_poses.reduce_interval`): the mean, the per-axis standard
+deviation, the standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights,
+Lu 2017 eq. 14; by batch means, :func:`optcal.data.static_poses.sigma_of_mean`, since sensor
+noise is not white), the sample count, the mid time, the mean temperature and the mean gyro
+reading.
 
-Every sample that does not end in a pose is counted by reason.  Each rest gives one pose
-(:func:`optcal.data.static_poses.reduce_interval`): the mean, the per-axis standard deviation, the
-standard deviation of the mean ``σ_k`` by batch means (Lu 2017 eq. 14's weights), the sample count,
-the mid time, the mean temperature and the mean gyro reading.
+This module decides; the moving-window statistics and floors are
+:mod:`optcal.data.window_stats`, the runs of static samples and their grouping
+:mod:`optcal.data.static_stretches`, the pose of each interval :mod:`optcal.data.static_poses`.
 """
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -37,119 +60,108 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
+from optcal.data.quantiles import median, quantiles
 from optcal.data.recording import Recording
-from optcal.data.rest_model import (
-    MIN_TREND_BLOCKS,
-    MIN_COLOUR_PAIRS,
-    REST_QUANTILE_WHITE,
-    Blocks,
-    effective_dof,
-    f_quantile,
-    bias_wander,
-    chi2_quantile,
-    gyro_statistic,
-    half_sample_mode,
-    make_blocks,
-    noise_colour,
-    step_statistic,
-    t_quantile,
-    trend_statistic,
-)
 from optcal.data.static_poses import StaticInterval, reduce_interval
-from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
-from optcal.data.window_stats import resolution
+from optcal.data.static_stretches import (
+    group_positions,
+    join_interrupted,
+    reject_sweeping,
+    reject_turning,
+    split_runs,
+    true_runs,
+)
+from optcal.data.units import nominal_conversion
+from optcal.data.window_stats import STEP_CHUNK, HalfWindowDrift, MovingWindow, noise_floor, quantum, resolution
 from optcal.errors import InputError
 
-MOVING = "samples in moving blocks (a step or a gyro rate beyond the noise of a rest, or louder than a rest)"
-SHORT = "samples in quiet stretches shorter than the minimum dwell (or than the drift test's four blocks)"
-SHORT_STRETCHES = "quiet stretches shorter than the minimum dwell (or than the drift test's four blocks)"
+MOVING = "samples in non-static stretches"
+SHORT = "samples in static stretches shorter than the minimum dwell"
+SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
-DRIFTING = "samples in quiet stretches whose mean drifts beyond its own noise (a slow turn or a creep)"
-DRIFTING_STRETCHES = "quiet stretches rejected because their mean drifts beyond its own noise"
-ISOLATED = "samples isolated between holes in the time stamps (a block of one sample)"
-#: Fewest samples in a block: a variance needs a few degrees of freedom per axis.
-MIN_BLOCK_SAMPLES: int = 5
-#: Largest per-sample noise of a rest (norm over the axes), g: the bound of the units check of the poses
-#: (:data:`optcal.data.units.MAX_REST_NOISE_G`); a block above it is moving, whatever its neighbours do.
-RESTING_NOISE_MAX_G: float = MAX_REST_NOISE_G
-#: Batches a stretch is pooled into for the drift test (:func:`_drift_ratio`).
-DRIFT_BATCHES: int = 8
+TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
+TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
+SWEEPING = "samples in quiet stretches whose mean moves along the axes by more than the accelerometer gate (a slow turn)"
+SWEEPING_STRETCHES = "quiet stretches rejected because their mean moves along the axes by more than the accelerometer gate"
+NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
+NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
+#: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
+#: the low quantile (``floor_quantile / 5``) of the axes moving std to its floor quantile says
+#: that the quietest windows share no noise level: the recording never rests.  Windows at rest
+#: share the sensor's noise (the measured ratio is 0.94-0.96 on every resting recording of
+#: ../shared/data); the quietest windows of a continuous motion are its slowest moments, spread
+#: down to the noise (0.53-0.72 on the sunsided motion logs without their gyro).
+REST_PLATEAU_FRACTION: float = 0.85
+#: Windows a recording needs before the plateau of resting noise is looked for.
+PLATEAU_MIN_WINDOWS: int = 10
+#: Recordings up to this many samples compute the gyro's moving statistics in a second thread beside the
+#: accelerometer's (≈ 0.1 s less wall time for 10⁶ samples on two cores); the thread's own buffers and the
+#: three moving means it keeps until the gyro bias is known take seven columns (≤ 235 MB at this size).
+#: Longer recordings compute them after the accelerometer's, in the same buffers, holding less.
+PARALLEL_MAX_SAMPLES: int = 2**22
+#: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
+#: isotropic noise; twice that allows for axes of unequal noise).
+AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
+#: Largest gyro noise floor (per-sample std, norm over the axes) of quantised gyro data, in
+#: quantisation steps: a resting 16-bit MEMS gyro shows tens of steps (MPU-6050: 22-24, the
+#: Xsens MTi: 44); a floor of hundreds (the sunsided motion logs: 413-5245) means that the
+#: recording never rests and its quietest windows still turn.
+GYRO_FLOOR_MAX_QUANTA: float = 100.0
 
 
 @dataclass(frozen=True)
 class StaticSettings:
-    """Settings of the static detector (:mod:`optcal.data.static`).
+    """Settings of the static detector.
 
     Attributes
     ----------
     window_s : float
-        Length of the blocks the tests compare, seconds (at least :data:`MIN_BLOCK_SAMPLES` samples;
-        doubled up to :data:`optcal.data.rest_model.MAX_BLOCK_GROWTH` times while the noise is still
-        correlated beyond the block).
+        Width of the centred moving window, seconds.
     threshold : float
-        Multiplies the step and spread an accelerometer block may show at rest (1: the false-alarm
-        probability ``false_alarm``; larger accepts more).
+        Accelerometer gates, in multiples of the measured noise floor.
     gyro_threshold : float
-        Multiplies the mean rate a gyro block may show at rest.
+        Gate on the windowed mean rate, in multiples of the gyro's per-sample noise floor.
     drift_threshold : float
-        Multiplies the drift a stretch may show at rest (``inf``: no drift test).
+        Gate on the difference between the means of the two window halves, in multiples of
+        its noise (from the accelerometer noise floor).
     min_dwell_s : float
-        Shortest rest, seconds (the duration prior).
+        Shortest static interval kept, seconds (after the window, before trimming).
     trim_s : float
-        Cut from each end of every rest, seconds.
-    false_alarm : float
-        Probability that a block, a pair of blocks or a stretch at rest fails its test by chance.
-    use_gyro : bool
-        Whether the gyro is evidence of motion (``False``: rests from the accelerometer alone).
+        Cut from each end of every interval, seconds.
+    floor_quantile : float
+        Quantile of each windowed statistic taken as its noise floor.
     max_gap_s : float or None
-        A time step longer than this is a hole: no block straddles it (default: 5 sample periods).
+        A time step longer than this splits an interval (default: 5 sample periods).
     sigma_blocks : int
-        Blocks for the batch-means standard deviation of each pose mean (0: white noise, ``σ/√n``).
+        Blocks for the batch-means standard deviation of each pose mean (0: white noise
+        only, ``σ/√n``).
     """
 
-    window_s: float = 0.25
-    threshold: float = 1.0
-    gyro_threshold: float = 1.0
-    drift_threshold: float = 1.0
+    window_s: float = 1.0
+    threshold: float = 3.0
+    gyro_threshold: float = 3.0
+    drift_threshold: float = 6.0
     min_dwell_s: float = 0.5
     trim_s: float = 0.0
-    false_alarm: float = 1e-3
-    use_gyro: bool = True
+    floor_quantile: float = 0.1
     max_gap_s: float | None = None
     sigma_blocks: int = 10
 
     def __post_init__(self) -> None:
-        for name in ("window_s", "threshold", "gyro_threshold", "drift_threshold"):
+        for name in ("window_s", "threshold", "gyro_threshold"):
             if not getattr(self, name) > 0:
                 raise InputError(f"static detection: {name} must be positive, got {getattr(self, name)}")
         if self.min_dwell_s < 0 or self.trim_s < 0:
             raise InputError("static detection: the minimum dwell and the trim must not be negative")
         if self.sigma_blocks < 0 or self.sigma_blocks == 1:
             raise InputError("static detection: sigma_blocks must be 0 (white noise) or at least 2")
-        if not 0 < self.false_alarm < 0.5:
-            raise InputError(f"static detection: the false-alarm probability must lie in (0, 0.5), got {self.false_alarm}")
+        if not 0 < self.floor_quantile < 1:
+            raise InputError("static detection: floor_quantile must lie between 0 and 1")
 
     @classmethod
     def from_options(cls, **options: Any) -> "StaticSettings":
         """Settings from keyword options, ignoring those left as ``None``."""
         return cls(**{k: v for k, v in options.items() if v is not None})
-
-    def assumptions(self) -> list[str]:
-        """What the settings assume where they loosen the model's tests (printed as warnings)."""
-        out = []
-        if self.threshold > 1:
-            out.append(f"--static-threshold {self.threshold:g} accepts accelerometer steps and spreads {self.threshold:g}× "
-                       "what the noise of a rest explains: moves that slow may be taken for rests")
-        if self.gyro_threshold > 1:
-            out.append(f"--gyro-threshold {self.gyro_threshold:g} accepts mean rates {self.gyro_threshold:g}× what the "
-                       "gyro noise of a rest explains: slow turns may be taken for rests")
-        if self.drift_threshold > 1:
-            out.append("the drift test is off: stretches whose mean moves are taken for rests" if not np.isfinite(self.drift_threshold)
-                       else f"--drift-threshold {self.drift_threshold:g} accepts drifts {self.drift_threshold:g}× what a "
-                       "rest's noise explains: slow turns and creeps may be taken for rests")
-        if not self.use_gyro:
-            out.append("--no-gyro-rests: the gyro is not used as evidence of motion; a turn about the vertical is taken for a rest")
-        return out
 
 
 @dataclass
@@ -161,20 +173,19 @@ class Segmentation:
     recording : Recording
     settings : StaticSettings
     intervals : list of StaticInterval
-    noise_floor : dict of str to float
-        The model's noise evidence: the noise colour of each sensor axis (``acc_colour_x``, ...) and the
-        block length (``block_samples``).
-    thresholds : dict of str to float
-        The quantile each test's statistic is compared with (``step``, ``spread``, ``gyro``, ``drift``).
+    noise_floor, thresholds : dict of str to float
+        Per statistic (``acc_norm_std``, ``acc_axes_std``, ``acc_drift``, ``gyro_rate``), raw units.
     gyro_bias : ndarray or None
     exclusions : dict of str to int
         Everything excluded, from reading to trimming.
     trace : dict of str to ndarray
-        Per usable sample: ``t``, ``norm_g``, each test's statistic over its threshold, the static mask.
+        Per usable sample: ``t``, the statistics and the static mask (for plots).
     joined : int
-        Stretches joined to the one before as the same pose (an interruption shorter than a dwell).
-    evidence : dict of str to Any
-        Counts behind the decision: blocks, blocks failing each test, stretches, stretches rejected.
+        Static stretches joined to the previous one as the same pose (:func:`optcal.data.static_stretches.join_interrupted`).
+    rest_plateau : dict of str to float
+        The evidence that the recording rests (:func:`rest_plateau_limit`): the axes moving std at
+        its low quantile (``low``) and at the floor quantile (``floor``), and the smallest ratio
+        ``low / floor`` of windows at rest (``limit``); empty when the recording is too short.
     """
 
     recording: Recording
@@ -184,9 +195,9 @@ class Segmentation:
     thresholds: dict[str, float]
     gyro_bias: NDArray[np.float64] | None
     exclusions: dict[str, int]
-    trace: dict[str, Any] = field(default_factory=dict)
+    trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     joined: int = 0
-    evidence: dict[str, Any] = field(default_factory=dict)
+    rest_plateau: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -196,39 +207,18 @@ class Segmentation:
         """JSON-safe description for ``PoseTable.meta``."""
         rec = self.recording
         return {
-            "settings": {k: (v if not isinstance(v, float) or np.isfinite(v) else None)
-                         for k, v in asdict(self.settings).items()},
+            "settings": asdict(self.settings),
             "window_samples": int(self.trace.get("window_samples", 0)),
             "noise_floor": dict(self.noise_floor),
             "thresholds": dict(self.thresholds),
-            "evidence": dict(self.evidence),
-            "assumptions": self.settings.assumptions(),
             "gyro_bias": None if self.gyro_bias is None else self.gyro_bias.tolist(),
             "gyro_units": rec.gyro_units,
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
+            "rest_plateau": dict(self.rest_plateau),
             "intervals": [iv.to_dict() for iv in self.intervals],
         }
-
-    def summary(self) -> str:
-        """One line: the model's evidence and what it concluded."""
-        ev = self.evidence
-        colour = self.noise_floor
-        text = (
-            f"rests by the model: blocks of {ev.get('block_samples', 0)} samples "
-            f"({ev.get('block_s', float('nan')):.3g} s), accelerometer noise colour "
-            f"{colour.get('acc_colour', 1.0):.3g}× white; {ev.get('blocks', 0)} blocks, "
-            f"{ev.get('step_blocks', 0)} at a step, {ev.get('loud_blocks', 0)} louder than a rest"
-        )
-        if self.recording.gyro is not None and self.settings.use_gyro:
-            text += f", {ev.get('gyro_blocks', 0)} turning (gyro)"
-        text += (
-            f"; {ev.get('stretches', 0)} quiet stretches: {ev.get('short', 0)} shorter than "
-            f"{self.settings.min_dwell_s:g} s, {ev.get('drifting', 0)} drifting, {len(self.intervals)} rests "
-            f"(false-alarm probability {self.settings.false_alarm:g} per test)"
-        )
-        return text
 
     def pose_table(self) -> PoseTable:
         """One pose per interval (``source="raw recording"``)."""
@@ -255,56 +245,47 @@ class Segmentation:
 
 
 def no_static_message(seg: Segmentation) -> str:
-    """Why no rest was found, with the evidence and the flag that overrides the test that decided."""
     rec = seg.recording
-    ev = seg.evidence
-    head = f"{rec.path}: the recording never rests by its model ({rec.n} samples, {rec.duration_s:.1f} s): "
-    if ev.get("drifting"):
-        return head + (
-            f"{ev['drifting']} quiet stretch(es) drift (their means follow a line in time beyond their own noise: a slow "
-            "turn or a creep), " + _others(ev, seg) + "; if the sensor did rest, pass --drift-threshold inf "
-            "(no drift test) or a factor above 1"
+    thr = seg.thresholds
+    if seg.exclusions.get(NO_REST_STRETCHES):
+        plateau = seg.rest_plateau
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: the quietest windows share no noise level (the axes moving std at its "
+            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {plateau['low']:.3g}, "
+            f"{plateau['low'] / plateau['floor']:.2f} of its "
+            f"{100 * seg.settings.floor_quantile:g} % quantile {plateau['floor']:.3g} {rec.units}; windows at "
+            f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
+            "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
         )
-    if ev.get("short") and not ev.get("stretches_long"):
-        return head + (
-            f"{ev['short']} quiet stretch(es), all shorter than the minimum dwell {seg.settings.min_dwell_s:g} s (longest "
-            f"{ev.get('longest_s', 0):.3g} s); pass --min-dwell {max(ev.get('longest_s', 0) * 0.9, 0.01):.2g} if those are rests"
+    if seg.exclusions.get(SWEEPING_STRETCHES) and not seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the "
+            f"{seg.exclusions[SWEEPING_STRETCHES]} quiet stretch(es) turn slowly: their means move along the axes "
+            f"by more than the accelerometer gate ({thr.get('acc_axes_std', float('nan')):.3g} {rec.units}) while "
+            "|a| stays the same (a slow turn, e.g. about an axis near the vertical); record the sensor at rest "
+            "between moves, or add the gyro columns"
         )
-    gyro_part = ""
-    if rec.gyro is not None and seg.settings.use_gyro and ev.get("gyro_blocks"):
-        gyro_part = (f", {ev['gyro_blocks']} of {ev['blocks']} blocks turn by the gyro (pass --no-gyro-rests if the gyro "
-                     "columns are not the rates, or --gyro-threshold above 1)")
-    return head + (
-        f"{ev.get('step_blocks', 0)} of {ev.get('blocks', 0)} blocks step beyond the noise of a rest and "
-        f"{ev.get('loud_blocks', 0)} are louder than a rest ({RESTING_NOISE_MAX_G:g} g per sample){gyro_part}, and no quiet stretch lasts {seg.settings.min_dwell_s:g} s; if the sensor did "
-        "rest, pass --static-threshold above 1 (the factor on the tolerated step) or a shorter --static-window"
+    if seg.exclusions.get(TURNING_STRETCHES):
+        return (
+            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
+            f"never rests: its gyro noise floor ({seg.noise_floor['gyro_rate_measured']:.3g}, norm over the axes) "
+            f"is above a resting gyro's ({seg.noise_floor['gyro_rate']:.3g} = {GYRO_FLOOR_MAX_QUANTA:g} converter "
+            f"steps), and the {seg.exclusions[TURNING_STRETCHES]} quiet stretch(es) still turn; record the sensor "
+            "at rest between moves"
+        )
+    return (
+        f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
+        f"windows of {seg.settings.window_s:g} s must stay below {seg.settings.threshold:g}× the noise floor "
+        f"(|a| std ≤ {thr.get('acc_norm_std', float('nan')):.3g} {rec.units}) for at least "
+        f"{seg.settings.min_dwell_s:g} s; check that the sensor rests between moves, or loosen "
+        "--static-threshold / shorten --min-dwell"
     )
 
 
-def _others(ev: dict[str, Any], seg: Segmentation) -> str:
-    return (f"{ev.get('short', 0)} shorter than the minimum dwell {seg.settings.min_dwell_s:g} s, "
-            f"{ev.get('blocks', 0)} blocks of {ev.get('block_s', float('nan')):.3g} s")
-
-
 # ----------------------------------------------------------------------------- detection
-@dataclass
-class _Pass:
-    """One pass of the tests over the blocks, for one noise colour."""
-
-    quiet: NDArray[np.bool_]
-    stepping: NDArray[np.bool_]
-    loud: NDArray[np.bool_]
-    gyro_flag: NDArray[np.bool_]
-    step: NDArray[np.float64]
-    step_limit: NDArray[np.float64]
-    gyro_stat: NDArray[np.float64] | None
-    thresholds: dict[str, float]
-    accepted: list[tuple[int, int]]
-    counts: dict[str, Any]
-
-
 def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Segmentation:
-    """Find the rests of a recording by its model (module docstring).
+    """Find the static intervals of a recording.
 
     Parameters
     ----------
@@ -314,289 +295,284 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     Returns
     -------
     Segmentation
-        The rests (possibly none: :meth:`Segmentation.pose_table` then raises :class:`InputError`
-        with the model's evidence), the tests' thresholds, the noise colours and every exclusion counted.
+        The intervals (possibly none: :meth:`Segmentation.pose_table` then raises
+        :class:`InputError`), thresholds, noise floors and every exclusion counted.
     """
     s = settings or StaticSettings()
-    use = None if bool(rec.usable.all()) else np.flatnonzero(rec.usable)
+    every = bool(rec.usable.all())  # then no copies, and no index array of every sample
+    use = None if every else np.flatnonzero(rec.usable)
     t = rec.t if use is None else rec.t[use]
-    acc = rec.acc if use is None else rec.acc[use]
-    gyro_all = (rec.gyro if use is None else rec.gyro[use]) if rec.gyro is not None else None
-    gyro = gyro_all if s.use_gyro else None
+    acc = rec.acc if use is None else _usable_rows(rec.acc, use)
+    gyro = (rec.gyro if use is None else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
     m = acc.shape[0]
-    rate = rec.rate_hz if np.isfinite(rec.rate_hz) and rec.rate_hz > 0 else 1.0
-    first = max(MIN_BLOCK_SAMPLES, int(round(s.window_s * rate)))
-    max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
-    acc_floor = resolution(acc) ** 2
-    gyro_floor = resolution(gyro) ** 2 if gyro is not None else 0.0
-    blocks = make_blocks(t, acc, gyro, first, max_gap, acc_floor, gyro_floor)
+    rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
+    window = max(3, int(round(s.window_s * rate)))
     nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
-    # a rest's per-sample noise is far below RESTING_NOISE_MAX_G (in the recording's units)
-    loud = np.sqrt(np.sum(blocks.acc_var, axis=1)) > RESTING_NOISE_MAX_G * float(nominal.sensitivity)
-    doubled = make_blocks(t, acc, gyro, 2 * first, max_gap, acc_floor, gyro_floor)
-    colour = noise_colour(blocks, doubled=doubled)
-    kappa = np.ones(3) if colour is None else colour
-    gyro_bias = kappa_g = None
-    if gyro is not None and blocks.gyro_mean is not None:
-        # a MEMS gyro at rest is white at the block's scale (angle random walk; its bias-instability corner lies
-        # at tens of seconds): the first pass assumes it, the second measures the colour inside the rests found
-        kappa_g = np.ones(3)
-    first_pass = _test_blocks(blocks, kappa, kappa_g, None, loud, s, t, rate)
-    gyro_bias = first_pass.counts.get("gyro_bias")
-    # the noise colour again, measured inside the rests the first pass found (the quiet quarter of the steps
-    # of a recording that moves most of its time is not a rest's)
-    inside = _colour_inside(first_pass.accepted, blocks, "acc")
-    if inside is not None:
-        kappa = inside
-        if kappa_g is not None:
-            kappa_g = _colour_inside(first_pass.accepted, blocks, "gyro")
-    result = (_test_blocks(blocks, kappa, kappa_g, gyro_bias, loud, s, t, rate, first_pass.accepted)
-              if inside is not None else first_pass)
-    return _segmentation(rec, s, use, t, acc, gyro_all, blocks, kappa, kappa_g, result, nominal, rate, m)
-
-
-def _test_blocks(blocks: Blocks, kappa: NDArray[np.float64], kappa_g: NDArray[np.float64] | None,
-                 gyro_bias: NDArray[np.float64] | None, loud: NDArray[np.bool_], s: StaticSettings,
-                 t: NDArray[np.float64], rate: float, rests: list[tuple[int, int]] | None = None) -> _Pass:
-    """The block tests and the stretch tests at one noise colour (module docstring).
-
-    ``rests`` are the stretches a first pass accepted: the gyro bias's wander is measured inside them
-    (:func:`~optcal.data.rest_model.bias_wander`); without them (the first pass) the bias does not wander.
-    """
-    n, k_blocks = blocks.n, blocks.count
-    p = s.false_alarm
-    dof = np.asarray(effective_dof(n, kappa))
-    # step: consecutive block means against the noise of the two means (an F(3, dof) at rest)
-    step = step_statistic(blocks.acc_mean, blocks.acc_var, n, kappa)
-    step_limit = f_quantile(p, 3.0, dof[:-1] + dof[1:]) * s.threshold**2
-    boundary = (step > step_limit) | blocks.after_hole[1:]
-    stepping = np.zeros(k_blocks, dtype=bool)
-    stepping[:-1] |= step > step_limit
-    stepping[1:] |= step > step_limit
-    quiet = ~loud & (n >= 2)
-    thresholds = {"step": float(np.median(step_limit)) if step_limit.size else float("nan")}
-    counts: dict[str, Any] = {}
-    gyro_flag = np.zeros(k_blocks, dtype=bool)
-    gyro_stat = None
-    if kappa_g is not None and blocks.gyro_mean is not None and blocks.gyro_var is not None:
-        if gyro_bias is None:
-            calm = quiet & ~stepping
-            base = blocks.gyro_mean[calm] if calm.sum() >= 3 else blocks.gyro_mean
-            # the bias: the densest value of the block means (every rest sits there; moves spread)
-            gyro_bias = np.array([half_sample_mode(base[:, j]) for j in range(3)])
-        counts["gyro_bias"] = gyro_bias
-        wander = np.zeros(3) if rests is None else bias_wander(
-            blocks.gyro_mean, blocks.gyro_var, n, kappa_g, gyro_bias, _inside_blocks(rests, k_blocks))
-        counts["gyro_wander"] = wander
-        gyro_stat = gyro_statistic(blocks.gyro_mean, blocks.gyro_var, n, kappa_g, gyro_bias,
-                                   quiet & ~stepping, wander)
-        gyro_limit = chi2_quantile(p) * s.gyro_threshold**2
-        gyro_flag = gyro_stat > gyro_limit
-        quiet &= ~gyro_flag
-        thresholds["gyro"] = gyro_limit
-    # stretches: runs of quiet blocks with no boundary between them
-    starts_b, stops_b = _stretches(quiet, boundary)
-    accepted: list[tuple[int, int]] = []
-    n_short = n_drift = short_samples = drift_samples = 0
-    longest = 0.0
-    drift_ratios: list[float] = []
-    bstarts, bstops = blocks.starts, blocks.stops
-    for a, b in zip(starts_b, stops_b):
-        i0, i1 = int(bstarts[a]), int(bstops[b - 1])
-        duration = float(t[i1 - 1] - t[i0]) + 1.0 / rate
-        longest = max(longest, duration)
-        if duration < s.min_dwell_s or (b - a < MIN_TREND_BLOCKS and np.isfinite(s.drift_threshold)):
-            # too short for the dwell, or for the drift test to show that its mean does not move
-            n_short += 1
-            short_samples += i1 - i0
-            continue
-        ratio = _drift_ratio(blocks, a, b, p, s.drift_threshold)
-        if ratio is not None:
-            drift_ratios.append(ratio)
-            if ratio > 1.0:
-                n_drift += 1
-                drift_samples += i1 - i0
-                continue
-        accepted.append((a, b))
-    thresholds["drift"] = float(t_quantile(p / 3.0, DRIFT_BATCHES - 2) * s.drift_threshold)
-    counts.update(stretches=int(len(starts_b)), short=n_short, short_samples=short_samples, drifting=n_drift,
-                  drift_samples=drift_samples, longest_s=longest,
-                  largest_drift_ratio=max(drift_ratios) if drift_ratios else None)
-    return _Pass(quiet, stepping, loud, gyro_flag, step, step_limit, gyro_stat,
-                 thresholds, accepted, counts)
-
-
-def _drift_ratio(blocks: Blocks, a: int, b: int, p: float, scale: float) -> float | None:
-    """The largest trend t statistic of a stretch over its quantile (above 1: it drifts), or ``None`` (too short).
-
-    The stretch's blocks are pooled into at most :data:`DRIFT_BATCHES` consecutive batches; the slope of
-    each axis's batch means on time is tested against their own scatter about the line (Student's t with
-    ``batches − 2`` degrees of freedom, Bonferroni over the three axes).  Batches, not samples: the scatter
-    of batch means includes the noise's colour (flicker, filtering) at the stretch's own scale.
-    """
-    k = b - a
-    if k < MIN_TREND_BLOCKS or not np.isfinite(scale):
-        return None
-    batches = min(k, DRIFT_BATCHES)
-    edges = np.linspace(a, b, batches + 1).round().astype(int)
-    w = blocks.n[a:b]
-    cw = np.concatenate(([0.0], np.cumsum(w)))
-    cm = np.vstack([np.zeros(3), np.cumsum(blocks.acc_mean[a:b] * w[:, None], axis=0)])
-    ct = np.concatenate(([0.0], np.cumsum(blocks.t_mid[a:b] * w)))
-    lo, hi = edges[:-1] - a, edges[1:] - a
-    weight = cw[hi] - cw[lo]
-    means = (cm[hi] - cm[lo]) / weight[:, None]
-    times = (ct[hi] - ct[lo]) / weight
-    tstat = float(np.max(trend_statistic(means, times)))
-    return tstat / (t_quantile(p / 3.0, batches - 2) * scale)
-
-
-def _inside_blocks(rests: list[tuple[int, int]], count: int) -> NDArray[np.bool_]:
-    """Mask of the blocks inside the given stretches."""
-    mask = np.zeros(count, dtype=bool)
-    for a, b in rests:
-        mask[a:b] = True
-    return mask
-
-
-def _colour_inside(accepted: list[tuple[int, int]], blocks: Blocks, sensor: str) -> NDArray[np.float64] | None:
-    """The noise colour from the pairs of blocks inside the given rests (median ratio over χ²₁'s median)."""
-    mean, var = (blocks.acc_mean, blocks.acc_var) if sensor == "acc" else (blocks.gyro_mean, blocks.gyro_var)
-    if mean is None or var is None or not accepted:
-        return None
-    inside = np.zeros(blocks.count - 1, dtype=bool)
-    for a, b in accepted:
-        inside[a:b - 1] = True
-    inside &= blocks.linked()
-    if inside.sum() < MIN_COLOUR_PAIRS:
-        return None
-    d = np.diff(mean, axis=0)[inside]
-    w = var / blocks.n[:, None]
-    r = d * d / (w[:-1] + w[1:])[inside]
-    return np.maximum(np.median(r, axis=0) / REST_QUANTILE_WHITE, 1.0)
-
-
-def _segmentation(rec: Recording, s: StaticSettings, use: NDArray[np.int64] | None, t: NDArray[np.float64],
-                  acc: NDArray[np.float64], gyro_all: NDArray[np.float64] | None, blocks: Blocks,
-                  kappa: NDArray[np.float64], kappa_g: NDArray[np.float64] | None, res: _Pass, nominal: Any,
-                  rate: float, m: int) -> Segmentation:
-    """The poses of the accepted stretches (twitches joined, ends trimmed) and every exclusion counted."""
-    n, k_blocks = blocks.n, blocks.count
-    bstarts, bstops = blocks.starts, blocks.stops
-    groups = _join_twitches(res.accepted, blocks, t, s.threshold, s.min_dwell_s)
-    exclusions = dict(rec.exclusions)
-    trim = int(round(s.trim_s * rate))
-    intervals: list[StaticInterval] = []
-    in_pose = np.zeros(m, dtype=bool)
-    n_trim = 0
-    for group in groups:
-        ranges = [(int(bstarts[a]), int(bstops[b - 1])) for a, b in group]
-        g0, g1 = ranges[0][0], ranges[-1][1]
-        ranges[0] = (min(g0 + trim, ranges[0][1] - 1), ranges[0][1])
-        ranges[-1] = (ranges[-1][0], max(g1 - trim, ranges[-1][0] + 1))
-        n_trim += (ranges[0][0] - g0) + (g1 - ranges[-1][1])
-        pos: slice | NDArray[np.int64] = (slice(ranges[0][0], ranges[0][1]) if len(ranges) == 1
-                                          else np.concatenate([np.arange(i0, i1) for i0, i1 in ranges]))
-        for i0, i1 in ranges:
-            in_pose[i0:i1] = True
-        intervals.append(reduce_interval(len(intervals) + 1, rec, use, pos, gyro_all, s.sigma_blocks))
-    single = n < 2
-    c = res.counts
-    _add(exclusions, ISOLATED, int(np.sum(n[single])))
-    _add(exclusions, MOVING, int(np.sum(n[~res.quiet & ~single])))
-    _add(exclusions, SHORT, c["short_samples"])
-    _add(exclusions, SHORT_STRETCHES, c["short"])
-    _add(exclusions, DRIFTING, c["drift_samples"])
-    _add(exclusions, DRIFTING_STRETCHES, c["drifting"])
-    _add(exclusions, TRIMMED, n_trim)
-    floors = {"block_samples": float(np.median(n)) if k_blocks else 0.0, "acc_colour": float(np.mean(kappa))}
-    floors.update({f"acc_colour_{a}": float(v) for a, v in zip("xyz", kappa)})
-    if kappa_g is not None:
-        floors["gyro_colour"] = float(np.mean(kappa_g))
-    evidence: dict[str, Any] = {
-        "block_samples": int(np.median(n)) if k_blocks else 0,
-        "block_s": float(np.median(n)) / rate if k_blocks else float("nan"),
-        "blocks": k_blocks,
-        "step_blocks": int(np.sum(res.stepping)),
-        "loud_blocks": int(np.sum(res.loud)),
-        "gyro_blocks": int(np.sum(res.gyro_flag)),
-        "stretches": c["stretches"],
-        "short": c["short"],
-        "drifting": c["drifting"],
-        "stretches_long": c["stretches"] - c["short"],
-        "longest_s": c["longest_s"],
-        "largest_drift_ratio": c["largest_drift_ratio"],
-    }
-    block_of = np.repeat(np.arange(k_blocks), n.astype(np.int64))
-    ratio = res.step / res.step_limit
+    norm = _distance(acc, nominal.offset)
+    # the gyro's statistics that do not need its bias in a second thread (numpy releases the GIL
+    # in its loops), beside the accelerometer's: recordings up to PARALLEL_MAX_SAMPLES samples
+    gyro_job: Future[GyroWindows] | None = None
+    pool: ThreadPoolExecutor | None = None
+    if gyro is not None and m <= PARALLEL_MAX_SAMPLES:
+        pool = ThreadPoolExecutor(max_workers=1)
+        gyro_job = pool.submit(_gyro_windows, gyro, window, s.floor_quantile, MovingWindow(m, window), None)
+    # column by column in one set of buffers, the drift from the same cumulative sums
+    moving = MovingWindow(m, window)
+    sd_norm = np.sqrt(moving.column(norm)[1])
+    del norm  # made again for the trace at the end: one column less while the statistics are held
+    drift_sums = HalfWindowDrift(m, window)
+    sd_axes = np.zeros(m)
+    for j in range(3):
+        sd_axes += moving.column(acc[:, j], drift_sums)[1]
+    np.sqrt(sd_axes, out=sd_axes)
+    res_acc = resolution(acc)
+    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc, moving.scratch())
+    # At rest the three axes carry the noise of the norm about √3 times over; a much larger
+    # axes floor means the quietest windows still rotate (the norm does not see rotation),
+    # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
+    # the floor and the rest plateau's low quantile of the axes statistic from one partition
+    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile], moving.scratch())
+    floor_axes = min(max(axes_quantiles[1], res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
+    floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
+    rest_plateau: dict[str, float] = {}
+    never_rests = _never_rests(m, axes_quantiles, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
+    thresholds = {k: s.threshold * v for k, v in floors.items()}
+    # drift: the two halves of the window must agree within the noise of their means
+    drift = drift_sums.result()
+    del drift_sums  # its three columns freed before the gyro's statistics
+    floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
+    thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
+    static = (
+        (sd_norm <= thresholds["acc_norm_std"])
+        & (sd_axes <= thresholds["acc_axes_std"])
+        & (drift <= thresholds["acc_drift"])
+    )
     trace: dict[str, Any] = {
         "t": t,
-        "window_samples": evidence["block_samples"],
-        "step": np.maximum(np.append(ratio, 0.0), np.insert(ratio, 0, 0.0))[block_of],
-        "static": in_pose,
+        "acc_norm_std": sd_norm,
+        "acc_axes_std": sd_axes,
+        "acc_drift": drift,
+        "window_samples": window,
     }
-    if res.gyro_stat is not None:
-        trace["gyro"] = (res.gyro_stat / res.thresholds["gyro"])[block_of]
-    trace["norm_g"] = np.linalg.norm(acc - nominal.offset, axis=1) / nominal.sensitivity
-    gyro_bias = c.get("gyro_bias")
-    seg = Segmentation(rec, s, intervals, floors, dict(res.thresholds), gyro_bias, exclusions, trace)
-    seg.joined = sum(len(g) - 1 for g in groups)
-    seg.evidence = evidence
+
+    gyro_bias = None
+    resting_gyro_std: float | None = None
+    if gyro is not None:
+        base = static if static.any() else np.ones(m, dtype=bool)
+        # column by column: the static samples gathered into a free window buffer, partitioned there
+        gyro_bias = np.array([median(_gather(gyro[:, j], base, moving.scratch()), overwrite_input=True)
+                              for j in range(3)])
+        if gyro_job is not None and pool is not None:
+            windows = gyro_job.result()
+            pool.shutdown()
+        else:  # after the accelerometer's, in its buffers, the mean rate from the bias at once
+            windows = _gyro_windows(gyro, window, s.floor_quantile, moving, gyro_bias)
+        del moving
+        rate_dev = windows.rate_deviation(gyro_bias)
+        # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
+        floors["gyro_rate"] = windows.floor
+        q = windows.quantum
+        if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
+            # the quietest windows of a recording that never rests still turn: the floor is
+            # capped at a resting gyro's noise, and so is the noise inside every interval kept
+            floors["gyro_rate_measured"] = floors["gyro_rate"]
+            floors["gyro_rate"] = resting_gyro_std = GYRO_FLOOR_MAX_QUANTA * q
+        thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
+        static &= rate_dev <= thresholds["gyro_rate"]
+        trace["gyro_rate"] = rate_dev
+
+    # split at time gaps: a step longer than max_gap_s ends a run
+    max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
+    starts, stops = true_runs(static)
+    gap_after = np.flatnonzero(np.diff(t) > max_gap)
+    if gap_after.size:
+        starts, stops = split_runs(starts, stops, gap_after + 1)
+
+    exclusions = dict(rec.exclusions)
+    in_pose = np.zeros(m, dtype=bool)
+    n_short_samples = n_short = n_trim = 0
+    trim = int(round(s.trim_s * rate))
+    intervals: list[StaticInterval] = []
+    kept: list[tuple[int, int]] = []
+    for a, b in zip(starts, stops):
+        duration = t[b - 1] - t[a] + 1.0 / rate
+        if duration < s.min_dwell_s:
+            n_short += 1
+            n_short_samples += b - a
+            continue
+        a2, b2 = a + trim, b - trim
+        if b2 - a2 < 2:
+            n_short += 1
+            n_short_samples += b - a
+            continue
+        n_trim += (a2 - a) + (b - b2)
+        in_pose[a2:b2] = True
+        kept.append((a2, b2))
+    groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
+    groups, n_sweeping, n_sweeping_samples = reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
+    _add(exclusions, SWEEPING, n_sweeping_samples)
+    _add(exclusions, SWEEPING_STRETCHES, n_sweeping)
+    if resting_gyro_std is not None and gyro is not None:
+        groups, n_turning, n_turning_samples = reject_turning(groups, gyro, resting_gyro_std, in_pose)
+        _add(exclusions, TURNING, n_turning_samples)
+        _add(exclusions, TURNING_STRETCHES, n_turning)
+    elif never_rests:
+        n_dropped = sum(b - a for group in groups for a, b in group)
+        _add(exclusions, NO_REST, n_dropped)
+        _add(exclusions, NO_REST_STRETCHES, len(groups))
+        in_pose[:] = False
+        groups = []
+    for group in groups:
+        intervals.append(reduce_interval(len(intervals) + 1, rec, use, group_positions(group), gyro, s.sigma_blocks))
+    _add(exclusions, MOVING, int(np.sum(~static)))
+    _add(exclusions, SHORT, n_short_samples)
+    _add(exclusions, SHORT_STRETCHES, n_short)
+    _add(exclusions, TRIMMED, n_trim)
+    trace["static"] = in_pose
+    norm = _distance(acc, nominal.offset)
+    trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
+    seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
+    seg.joined = len(kept) - len(groups)
+    seg.rest_plateau = rest_plateau
     return seg
 
 
-def _per_sample(x: NDArray[np.float64], block_of: NDArray[np.int64]) -> NDArray[np.float64]:
-    out: NDArray[np.float64] = x[block_of]
-    return out
+def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:
+    """‖a − offset‖ of every sample, column by column into one array (no (m, 3) temporary)."""
+    norm = np.subtract(acc[:, 0], offset[0])
+    np.multiply(norm, norm, out=norm)
+    term = np.empty_like(norm)
+    for j in (1, 2):
+        np.subtract(acc[:, j], offset[j], out=term)
+        np.multiply(term, term, out=term)
+        norm += term
+    return np.sqrt(norm, out=norm)
 
 
-def _stretches(quiet: NDArray[np.bool_], boundary: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Runs of quiet blocks not cut by a boundary (``boundary[k]``: between blocks ``k`` and ``k + 1``)."""
-    k = quiet.size
-    if k == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    begins = quiet.copy()
-    begins[1:] &= ~quiet[:-1] | boundary
-    ends = quiet.copy()
-    ends[:-1] &= ~quiet[1:] | boundary
-    return np.flatnonzero(begins), np.flatnonzero(ends) + 1
+@dataclass
+class GyroWindows:
+    """The gyro's moving statistics (:func:`_gyro_windows`).
 
-
-def _join_twitches(
-    accepted: list[tuple[int, int]], blocks: Blocks, t: NDArray[np.float64], threshold: float, min_dwell: float,
-) -> list[list[tuple[int, int]]]:
-    """Group consecutive rests separated by less than a dwell whose means agree within their noise (one pose)."""
-    groups: list[list[tuple[int, int]]] = []
-    for a, b in accepted:
-        if groups:
-            pa, pb = groups[-1][-1]
-            gap = float(t[blocks.starts[a]] - t[blocks.stops[pb - 1] - 1])
-            no_hole = not bool(blocks.after_hole[pb:a + 1].any())
-            if gap < min_dwell and no_hole and _means_agree(groups[-1], (a, b), blocks, threshold):
-                groups[-1].append((a, b))
-                continue
-        groups.append([(a, b)])
-    return groups
-
-
-def _means_agree(group: list[tuple[int, int]], nxt: tuple[int, int], blocks: Blocks, threshold: float) -> bool:
-    """Whether an interruption moved the sensor by less than the noise of one sample (one pose, interrupted).
-
-    No sample can tell apart two orientations whose mean specific forces differ by less than the per-sample
-    noise (norm over the axes; the larger of the two stretches'); the merged mean's norm then shrinks by
-    ``δ²/(8 |a|)``, second order in the angle, and the merged pose's batch-means noise keeps the difference.
-    ``threshold`` (``--static-threshold``) multiplies the tolerance.
+    Attributes
+    ----------
+    floor : float
+        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise)
+        (:func:`optcal.data.window_stats.noise_floor`, at least the data's resolution).
+    quantum : float or None
+        The gyro's converter step (:func:`optcal.data.window_stats.quantum`).
+    means : list of ndarray or None
+        Moving mean of each axis, kept when the bias was not known yet.
+    squared_deviation : ndarray or None
+        ``‖mean(ω) − b_ω‖²`` when the bias was given.
     """
-    def moments(ranges: list[tuple[int, int]]) -> tuple[NDArray[np.float64], float]:
-        idx = np.concatenate([np.arange(a, b) for a, b in ranges])
-        w = blocks.n[idx]
-        mean = (blocks.acc_mean[idx] * w[:, None]).sum(axis=0) / w.sum()
-        noise = float(np.sqrt(np.sum((blocks.acc_var[idx] * w[:, None]).sum(axis=0) / w.sum())))
-        return mean, noise
 
-    m1, s1 = moments(group)
-    m2, s2 = moments([nxt])
-    return float(np.linalg.norm(m1 - m2)) <= threshold * max(s1, s2)
+    floor: float
+    quantum: float | None
+    means: list[NDArray[np.float64]] | None
+    squared_deviation: NDArray[np.float64] | None
+
+    def rate_deviation(self, bias: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The windowed mean rate ``‖mean(ω) − b_ω‖`` at each sample."""
+        dev2 = self.squared_deviation
+        if dev2 is None:
+            assert self.means is not None
+            dev2 = _add_squared_deviations(self.means, bias)
+            self.means = None
+        return np.sqrt(dev2, out=dev2)
+
+
+def _add_squared_deviations(means: list[NDArray[np.float64]], bias: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``Σ_j (mean_j − b_j)²`` column by column, each mean overwritten."""
+    dev2 = np.zeros(means[0].size)
+    for j, mean_j in enumerate(means):
+        mean_j -= bias[j]
+        mean_j *= mean_j
+        dev2 += mean_j
+    return dev2
+
+
+def _gyro_windows(
+    gyro: NDArray[np.float64], window: int, floor_quantile: float, moving: MovingWindow,
+    bias: NDArray[np.float64] | None,
+) -> GyroWindows:
+    """The gyro's moving statistics in ``moving``'s buffers: without ``bias`` the three moving means kept
+    (for :meth:`GyroWindows.rate_deviation`); with it (long recordings) the squared mean rate from a
+    second pass over the columns, so that the noise's and the rate's sums are never held at once."""
+    m = gyro.shape[0]
+    var_sum = np.zeros(m)
+    means: list[NDArray[np.float64]] = []
+    for j in range(3):
+        mean_j, var_j = moving.column(gyro[:, j])
+        var_sum += var_j
+        if bias is None:
+            means.append(mean_j.copy())
+    sd = np.sqrt(var_sum, out=var_sum)
+    floor = noise_floor(sd, floor_quantile, resolution(gyro) * np.sqrt(3), moving.scratch())
+    del sd, var_sum
+    dev2 = None
+    if bias is not None:
+        dev2 = np.zeros(m)
+        for j in range(3):  # as _add_squared_deviations, in the buffer
+            mean_j = moving.column(gyro[:, j])[0]
+            mean_j -= bias[j]
+            mean_j *= mean_j
+            dev2 += mean_j
+    return GyroWindows(floor, quantum(gyro), means if bias is None else None, dev2)
+
+
+def rest_plateau_limit(window: int, floor_quantile: float) -> float:
+    """Smallest ratio of the axes moving std's ``floor_quantile / 5`` quantile to its ``floor_quantile``
+    quantile that windows at rest give: :data:`REST_PLATEAU_FRACTION` of the ratio for white noise.
+
+    For white noise the std over ``window`` samples, summed over three axes, has a relative
+    spread ``r ≈ 1/√(6 (window − 1))`` (each axis ``1/√(2 (window − 1))``), so the ratio of
+    the two quantiles is ``(1 + z_low r) / (1 + z_floor r)`` with ``z`` the normal quantiles.
+    """
+    from statistics import NormalDist
+
+    r = 1.0 / np.sqrt(6.0 * max(1, window - 1))
+    z = NormalDist().inv_cdf
+    white = (1.0 + z(floor_quantile / 5) * r) / (1.0 + z(floor_quantile) * r)
+    return REST_PLATEAU_FRACTION * max(0.0, white)
+
+
+def _never_rests(
+    m: int, axes_quantiles: list[float], window: int, floor_quantile: float, resolution: float,
+    evidence: dict[str, float],
+) -> bool:
+    """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
+
+    ``axes_quantiles`` are the ``floor_quantile / 5`` and ``floor_quantile`` quantiles of the axes
+    moving std over ``m`` samples.  Both are taken at least at the data's ``resolution``
+    (noise-free or coarsely quantised rests sit there).  Decided only on recordings of at least
+    :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
+    """
+    if m < PLATEAU_MIN_WINDOWS * window:
+        return False
+    low, at_floor = (max(float(q), resolution) for q in axes_quantiles)
+    if not at_floor > 0:
+        return False
+    limit = rest_plateau_limit(window, floor_quantile)
+    evidence.update(low=float(low), floor=float(at_floor), limit=limit)
+    return bool(low < limit * at_floor)
+
+
+def _gather(x: NDArray[np.float64], mask: NDArray[np.bool_], out: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``x[mask]`` written into ``out`` chunk by chunk (no temporary of the data's length); a view of ``out``."""
+    filled = 0
+    for start in range(0, x.size, STEP_CHUNK):
+        chunk = x[start:start + STEP_CHUNK][mask[start:start + STEP_CHUNK]]
+        out[filled:filled + chunk.size] = chunk
+        filled += chunk.size
+    return out[:filled]
+
+
+def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The rows ``use`` of ``x`` (n, k) as a column-major copy (contiguous columns, as a recording's)."""
+    out = np.empty((use.size, x.shape[1]), order="F")
+    for j in range(x.shape[1]):
+        np.take(x[:, j], use, out=out[:, j])
+    return out
 
 
 def _add(d: dict[str, int], key: str, value: int) -> None:
