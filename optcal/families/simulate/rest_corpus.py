@@ -134,7 +134,27 @@ class RestCase:
 
 @dataclass
 class SimulatedKind:
-    """One draw of a kind (motion and noise), before it is rendered as a variant (:func:`render`)."""
+    """One draw of a kind (motion and noise), before it is rendered as a variant (:func:`render`).
+
+    Attributes
+    ----------
+    kind : str
+    seed : int
+    rate_hz : float
+        Sampling rate drawn in :data:`RATE_RANGE_HZ`.
+    motion : Motion
+        The held motion from :class:`MotionBuilder` (rests exactly still).
+    specific_force, body_rate : ndarray, shape (n, 3)
+        The true motion, g and rad/s, the hand's tremor included.
+    acc_noise : ndarray, shape (n, 3)
+        White noise of the accelerometer, m/s² (σ per segment).
+    gyro_noise : ndarray, shape (n, 3)
+        White noise of the gyro and its constant bias, rad/s.
+    lowpass_hz : float or None
+        Cut-off of the low-pass every channel goes through (the ``low_pass`` kind).
+    time_column : bool
+        Whether the logger stores a time column (not the ``holds_only`` kind: the row over the rate).
+    """
 
     kind: str
     seed: int
@@ -142,8 +162,8 @@ class SimulatedKind:
     motion: Motion
     specific_force: NDArray[np.float64]
     body_rate: NDArray[np.float64]
-    acc_noise: NDArray[np.float64]  # m/s², shape (n, 3)
-    gyro_noise: NDArray[np.float64]  # rad/s, shape (n, 3), the constant bias included
+    acc_noise: NDArray[np.float64]
+    gyro_noise: NDArray[np.float64]
     lowpass_hz: float | None = None
     time_column: bool = True
 
@@ -187,7 +207,7 @@ def trapezoid(angle: float, rate: float, ramp_s: float, rate_hz: float) -> tuple
     ramp down; the angle turned and its rate at the mid-points of the samples.
 
     The ramp is shortened to ``angle / rate`` when the turn is too short to reach ``rate`` (a triangle);
-    the profile is stretched to whole samples by lowering the constant rate.
+    the constant rate is adjusted so that the profile lasts a whole number of samples.
     """
     ramp = min(ramp_s, angle / rate)
     m = max(2, int(round((angle / rate + ramp) * rate_hz)))
@@ -339,7 +359,8 @@ def simulate_kind(kind: str, seed: int, max_samples: int = MAX_SAMPLES) -> Simul
         One of :data:`KINDS`.
     seed : int
     max_samples : int
-        The number of rests (or the duration) is trimmed so that the case has at most this many samples.
+        The number of rests (or the duration) is trimmed so that the case has at most this many samples
+        (but a ``low_pass`` case keeps two rests: up to 42,400 samples at 400 Hz).
     """
     _check_kind(kind)
     if max_samples < 1000:
