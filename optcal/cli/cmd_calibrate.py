@@ -28,11 +28,15 @@ from optcal.cli.report_option import command_line, report_options, write_report
               help="--imu: units of the gyro columns (default: from the column names or file, else from the data).")
 @click.option("--joint", is_flag=True, help="--imu: re-estimate the accelerometer jointly with the gyro.")
 @click.option("--g-sensitivity", is_flag=True, help="--imu: model the gyro's g-sensitivity.")
+@click.option("--accept-gyro-fit", is_flag=True,
+              help="--imu: keep a gyro calibration the moves do not support (residual far beyond the noise model, "
+                   "axes or scale of a column mapping, unit or time base), with a warning.")
 @report_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
-              joint: bool, g_sensitivity: bool, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
+              joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, report_path: str | None, tolerance: float,
+              **data_opts: Any) -> None:
     """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording.
 
     With --imu, DATA is a raw recording with gyro columns and the gyroscope is calibrated too.
@@ -42,11 +46,14 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
 
     if not imu and (gyro_units or joint or g_sensitivity):
         raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
+    if not imu and accept_gyro_fit:
+        raise InputError("--accept-gyro-fit applies with --imu only")
     if imu:
         if report_path:
             raise InputError("--report covers the accelerometer calibration; it is not available with --imu yet")
 
-        calibrate_imu(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts)
+        calibrate_imu(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts,
+                      accept_gyro_fit)
         return
     poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
@@ -89,7 +96,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
 
 def calibrate_imu(
     data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
-    gyro_units: str | None, joint: bool, g_sensitivity: bool, data_opts: dict[str, Any],
+    gyro_units: str | None, joint: bool, g_sensitivity: bool, data_opts: dict[str, Any], accept_gyro_fit: bool = False,
 ) -> None:
     """``optcal calibrate DATA --imu``: both sensors from one raw recording (cal_type imu).
 
@@ -113,14 +120,19 @@ def calibrate_imu(
         Model the gyro's g-sensitivity.
     data_opts : dict
         The DATA reading options (:func:`optcal.cli.data_options.data_options`).
+    accept_gyro_fit : bool
+        Keep a gyro calibration the moves do not support, with a warning (``--accept-gyro-fit``).
     """
+    from optcal.cli.messages import cli_message
     from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
 
     loaded = load_data_detailed(data, **data_opts)
     settings = GyroSettings(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
-                            allow_degenerate=allow_degenerate)
+                            allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit)
     cal = calibrate_imu_loaded(loaded, gyro_units=gyro_units, method=method, settings=settings,
                                acc_settings={"allow_degenerate": allow_degenerate})
+    if cal.fit_warning:
+        click.echo(f"warning: {cli_message(cal.fit_warning, 'calibrate')}", err=True)
     if output:
         cal.save(output_file(output))
     if as_json:

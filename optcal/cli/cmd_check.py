@@ -105,7 +105,10 @@ def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any
     result = gravity_prediction_check(cal, loaded.segmentation)
     lines = [f"gyro: gravity predicted across {result.angles_after_deg.size} moves, rms angle to the next pose: "
              f"before {result.rms_before_deg:.3f}° ({result.before}), after {result.rms_after_deg:.3f}°"]
-    return lines, {"gravity_prediction": {"n_moves": int(result.angles_after_deg.size),
+    verdict = result.verdict()  # "after" against DATA's noise model (flagged beyond its bound)
+    if verdict is not None:
+        lines.append(verdict)
+    return lines, {"gravity_prediction": {"n_moves": int(result.angles_after_deg.size), **result.to_dict(),
                                           "rms_deg_before": result.rms_before_deg, "rms_deg_after": result.rms_after_deg,
                                           "before": result.before, "exclusions": result.exclusions,
                                           "angles_deg_before": np.round(result.angles_before_deg, 6).tolist(),

@@ -34,6 +34,9 @@ CLI_SPELLING: dict[str, str] = {
     r"\ballan=": "--allan FILE",
     re.escape("random_walk_bound=True"): "--random-walk-bound",
     r"\bmax_loss_g( =)?": "--max-loss",
+    r"\baccept_gyro_fit(=True)?": "--accept-gyro-fit",
+    r"\bgyro_units=": "--gyro-units",
+    r"\brate= or the time column": "--rate or the time column",
 }
 
 #: Per command: wording that reads differently there (the same Python argument, another flag).

@@ -19,6 +19,11 @@
    freedom per move: the component along the gravity direction is second order); the
    identifiability from the excited rotation axes and the rank of ``JᵀJ``
    (:mod:`optcal.families.gyro.identifiability`).
+5. **Fit check** (:mod:`optcal.families.gyro.consistency`): the residual against the noise
+   model of the moves (angle random walk, bias between the rests, pose noise, time base,
+   integration), a gyro that sees the moves, axes and scale that are a sensor's, not a
+   column mapping, unit or time base; a calibration that cannot be right is refused
+   (:class:`~optcal.errors.InputError`) unless ``accept_gyro_fit``.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import IdentifiabilityError, InputError
+from optcal.families.gyro.consistency import GyroFitCheck, check_gyro_fit, residual_test
 from optcal.families.gyro.identifiability import excitation, fisher_rank, gyro_identifiability
 from optcal.core.gyro_model import BIAS_NAMES, G_NAMES, T_NAMES, GyroModel
 from optcal.families.gyro.moves import MoveSet
@@ -71,6 +77,11 @@ class GyroSettings:
         Model the gyro's g-sensitivity ``G_g`` (9 more parameters, from the still intervals).
     allow_degenerate : bool
         Proceed (with a note) when the moves do not excite three rotation axes.
+    accept_gyro_fit : bool
+        Keep a calibration the moves do not support (:mod:`optcal.families.gyro.consistency`:
+        a residual far beyond the noise model, a gyro that does not see the moves, axes or a
+        scale that are a column mapping, unit or time base), with a warning, instead of
+        refusing it.
     ipopt_options : dict
         Extra CasADi/IPOPT options of the gyro problem (:class:`GyroProblem`); options IPOPT
         refuses are an :class:`~optcal.errors.InputError`.
@@ -79,6 +90,7 @@ class GyroSettings:
     accelerometer: str = "fixed"
     g_sensitivity: bool = False
     allow_degenerate: bool = False
+    accept_gyro_fit: bool = False
     ipopt_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -258,9 +270,13 @@ def calibrate_gyro(
     ------
     IdentifiabilityError
         The moves excite fewer than three rotation axes (unless ``allow_degenerate``).
+    InputError
+        The calibration cannot be right (:mod:`optcal.families.gyro.consistency`), unless
+        ``accept_gyro_fit``: then kept, its ``fit_check`` carrying the findings and the warning.
     """
     settings = settings or GyroSettings()
     notes: list[str] = []
+    degenerate = False  # moves that leave part of T_g undetermined, allowed through
     f_static = accelerometer.correct(moves.acc_means)
     u = unit_rows(f_static)
     f_mid = accelerometer.correct(moves.acc_mid)
@@ -276,6 +292,7 @@ def calibrate_gyro(
             raise IdentifiabilityError(msg + ". Record moves that also turn the sensor about that axis "
                                        "(or pass allow_degenerate=True: the combination is then arbitrary)", report)
         notes.append("DEGENERATE MOVES: " + msg)
+        degenerate = True
     nominal = units.rad_per_unit
     s_fit = initial_scale(moves, w, u)
     scale0 = nominal if nominal is not None else s_fit
@@ -313,8 +330,14 @@ def calibrate_gyro(
         if not settings.allow_degenerate:
             raise IdentifiabilityError(msg + ". Record moves about more axes", ident)
         notes.append("DEGENERATE MOVES: " + msg)
+        degenerate = True
     model = GyroModel(Tg, static.bias, static.g_sensitivity)
     angles_after = angles_deg(predicted, u1)
+    check = fit_check(moves, acc_result, model, w, units, angles_after, settings.accept_gyro_fit,
+                      determined=not degenerate)
+    if check.refused and not settings.accept_gyro_fit:
+        raise InputError(check.refusal())
+    notes.append(check.note())
     names = list(T_NAMES) + list(BIAS_NAMES) + (list(G_NAMES) if static.g_sensitivity is not None else [])
     params = np.concatenate([Tg.ravel(), static.bias] + ([static.g_sensitivity.ravel()] if static.g_sensitivity is not None else []))
     k = len(names)
@@ -344,7 +367,37 @@ def calibrate_gyro(
         notes=notes,
         units=accelerometer.units,
         fitted_on=accelerometer.calibration.fitted_on,
+        fit_check=check.to_dict(),
     )
+
+
+def fit_check(
+    moves: MoveSet, accelerometer: CalibrationResult, model: GyroModel, w: NDArray, units: GyroUnitsDecision,
+    angles_after_deg: NDArray, accepted: bool, fitted: int = 9, determined: bool = True,
+) -> GyroFitCheck:
+    """The tests of :mod:`optcal.families.gyro.consistency` on a fitted gyro (``fitted`` parameters of the residual).
+
+    Parameters
+    ----------
+    moves : MoveSet
+    accelerometer : CalibrationResult
+        Gives the gravity directions (the joint one when re-estimated).
+    model : GyroModel
+        The fitted gyro.
+    w : ndarray, shape (N, 3)
+        Bias-free raw rates of the steps (g-sensitivity removed).
+    units : GyroUnitsDecision
+    angles_after_deg : ndarray, shape (m,)
+        The fit's gravity-prediction angles.
+    accepted : bool
+        The caller keeps the calibration whatever the findings.
+    fitted : int
+        Parameters fitted to the residual (nine; none when a saved calibration is checked).
+    determined : bool
+        The moves determine ``T_g`` (not a degenerate set allowed through): its axes and scales are tested.
+    """
+    residual = residual_test(moves, accelerometer, model, angles_after_deg, fitted)
+    return check_gyro_fit(residual, moves, w, model.T, units.units, units.rad_per_unit, accepted, determined)
 
 
 def _joint(

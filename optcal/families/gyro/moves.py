@@ -178,8 +178,9 @@ class MoveSet:
         """One line on the holes bridged inside the moves (``None`` without any)."""
         if not self.bridged_holes:
             return None
-        return (f"{self.bridged_holes} hole(s) inside the moves bridged over the true time step ({self.bridged_samples} "
-                f"sample period(s) lost or unusable); their integration-error bound is part of the noise model")
+        return (f"{self.bridged_holes} hole(s) inside the moves bridged over the true time step "
+                f"({self.bridged_samples} sample period(s) lost or unusable); their integration-error bound is part "
+                "of the noise model")
 
 
 def rest_noise(t: NDArray, gyro: NDArray, ok: NDArray, intervals: list[tuple[int, int]]) -> RestNoise:

@@ -81,6 +81,8 @@ class ImuCalibration(Calibration, FitRecord):
     units : str
         Accelerometer input units.
     fitted_on : FitPoses, optional
+    fit_check : dict, optional
+        The tests of the fit against the moves (:meth:`optcal.families.gyro.consistency.GyroFitCheck.to_dict`).
     """
 
     cal_type: ClassVar[str] = CAL_TYPE
@@ -96,6 +98,7 @@ class ImuCalibration(Calibration, FitRecord):
     identifiability: GyroIdentifiability | None = None
     units: str = "g"
     fitted_on: FitPoses | None = None
+    fit_check: dict[str, Any] | None = None
 
     @property
     def rms_angle_before_deg(self) -> float:
@@ -104,6 +107,11 @@ class ImuCalibration(Calibration, FitRecord):
     @property
     def rms_angle_after_deg(self) -> float:
         return rms(self.angles_after_deg)
+
+    @property
+    def fit_warning(self) -> str | None:
+        """The warning of the fit's tests (kept despite findings, or a flagged residual), if any."""
+        return None if self.fit_check is None else self.fit_check.get("warning")
 
     # ------------------------------------------------------------ Calibration
     def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -141,6 +149,7 @@ class ImuCalibration(Calibration, FitRecord):
                 "identifiability": {} if self.identifiability is None else self.identifiability.to_dict(),
                 "exclusions": self.exclusions,
                 "notes": self.notes,
+                **({"fit_check": self.fit_check} if self.fit_check is not None else {}),
             },
             "gravity_prediction": {
                 "n_moves": int(self.angles_after_deg.size),
@@ -176,6 +185,7 @@ class ImuCalibration(Calibration, FitRecord):
             notes=list(fit.get("notes") or []),
             units=units,
             fitted_on=fitted_on,
+            fit_check=dict(fit["fit_check"]) if fit.get("fit_check") else None,
         )
 
     def unit_fields(self) -> dict[str, str]:
