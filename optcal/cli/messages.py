@@ -37,6 +37,7 @@ CLI_SPELLING: dict[str, str] = {
     r"\baccept_gyro_fit(=True)?": "--accept-gyro-fit",
     r"\bgyro_units=": "--gyro-units",
     r"\brate= or the time column": "--rate or the time column",
+    r"\bg_sensitivity=True": "--g-sensitivity",
 }
 
 #: Per command: wording that reads differently there (the same Python argument, another flag).

@@ -200,3 +200,16 @@ def test_check_flags_another_units_calibration(shared_data: Path, tmp_path: Path
     assert test["ratio_to_bound"] > 10 * REFUSAL_MARGIN / 3 and test["refused"] and test["dof"] == 2 * 21
     code, out, _ = run_args(capsys, "check", str(cal_path), str(logs / "imu2.log"), "--rate", "100")
     assert "FLAG" not in out and "within the noise model" in out
+
+
+def test_xsens_flagged_until_its_g_sensitivity_is_modelled(shared_data: Path, capsys) -> None:
+    """imu_tk's Xsens log: 0.475° after, above the noise model's 99.9 % bound but well within the refusal margin:
+    kept, with a warning that names the g-sensitivity; modelled, it leaves 0.13°, within the model, no warning."""
+    path = str(shared_data / "imutk-xsens" / "xsens_imutk.csv")
+    code, out, err = run_args(capsys, "calibrate", path, "--imu", "--json")
+    check = json.loads(out)["gyro_fit"]["fit_check"]
+    assert code == 0 and check["findings"] == [] and 1.0 < check["residual"]["ratio_to_bound"] < REFUSAL_MARGIN
+    assert err.startswith("warning: gyro: gravity prediction") and "--g-sensitivity models it" in err
+    code, out, err = run_args(capsys, "calibrate", path, "--imu", "--g-sensitivity", "--json")
+    check = json.loads(out)["gyro_fit"]["fit_check"]
+    assert code == 0 and check["residual"]["ratio_to_bound"] < 1.0 and "warning" not in err

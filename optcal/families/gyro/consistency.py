@@ -351,6 +351,8 @@ class GyroFitCheck:
         Why the calibration cannot be right (empty: it may be).
     accepted : bool
         Kept despite findings (``accept_gyro_fit``).
+    hint : str
+        What to try when the residual is flagged (e.g. a model term not fitted), or empty.
     """
 
     residual: ResidualTest
@@ -358,6 +360,7 @@ class GyroFitCheck:
     signal_level: float
     findings: tuple[str, ...] = ()
     accepted: bool = False
+    hint: str = ""
 
     @property
     def refused(self) -> bool:
@@ -379,7 +382,7 @@ class GyroFitCheck:
             return (f"gyro calibration kept (accept_gyro_fit) although it cannot be right: {'; '.join(self.findings)}; "
                     f"this {OVERRIDE_ASSUMES}")
         if self.residual.flagged:
-            return f"gyro: {self.residual.describe()}"
+            return f"gyro: {self.residual.describe()}" + (f"; {self.hint}" if self.hint else "")
         return None
 
     def note(self) -> str:
@@ -405,6 +408,7 @@ def check_gyro_fit(
     rad_per_unit: float | None,
     accepted: bool = False,
     determined: bool = True,
+    hint: str = "",
 ) -> GyroFitCheck:
     """Run the four tests on a fitted gyro calibration (module docstring).
 
@@ -426,6 +430,8 @@ def check_gyro_fit(
     determined : bool
         ``T_g`` is determined by the moves; without (degenerate moves allowed) its axes and
         scales are partly arbitrary and tests 3-4 are skipped.
+    hint : str
+        What to try when the residual is flagged.
     """
     S, level = signal_to_noise(moves, w)
     findings: list[str] = []
@@ -438,4 +444,4 @@ def check_gyro_fit(
     if determined:
         findings += axis_findings(Tg)
         findings += scale_findings(Tg, units, rad_per_unit)
-    return GyroFitCheck(residual, S, level, tuple(findings), accepted)
+    return GyroFitCheck(residual, S, level, tuple(findings), accepted, hint)

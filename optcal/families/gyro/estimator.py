@@ -62,6 +62,9 @@ ACCELEROMETER_MODES: tuple[str, ...] = ("fixed", "joint")
 #: 1e-10 so that a fleet batch reproduces a single fit, but here every iterate integrates every
 #: move, and 1e-7 already puts the gyro parameters within ~1e-7·√n standard errors of the optimum.
 GYRO_IPOPT_TOL: float = 1e-7
+#: What a residual above the noise model's bound suggests when the g-sensitivity is not modelled: the rate it adds
+#: changes with the specific force along a move, which the rests' bias offsets do not follow.
+G_SENSITIVITY_HINT: str = "the gyro's g-sensitivity is not modelled (g_sensitivity=True models it)"
 #: The solver as the gyroscope's record names it.
 GYRO_SOLVER_NAME: str = "ipopt (CasADi, Gauss-Newton Hessian)"
 
@@ -397,7 +400,8 @@ def fit_check(
         The moves determine ``T_g`` (not a degenerate set allowed through): its axes and scales are tested.
     """
     residual = residual_test(moves, accelerometer, model, angles_after_deg, fitted)
-    return check_gyro_fit(residual, moves, w, model.T, units.units, units.rad_per_unit, accepted, determined)
+    hint = "" if model.g_sensitivity is not None else G_SENSITIVITY_HINT
+    return check_gyro_fit(residual, moves, w, model.T, units.units, units.rad_per_unit, accepted, determined, hint)
 
 
 def _joint(
