@@ -26,7 +26,8 @@ component along it is second order), the sum of
   ``⅔ (‖T_g‖ e_i)²``.
 
 Not modelled: the sensor's motion during the rests (a hand's tremor, the pose mean not the
-pose at the rest's ends), the accelerometer's model error, a rate beyond the gyro's range.
+pose at the rest's ends), the accelerometer's model error, a g-sensitivity left out of the
+fit (it changes with the specific force along a move), a rate beyond the gyro's range.
 They are why a residual beyond the noise model is first flagged, and refused only far
 beyond it.
 
@@ -44,8 +45,9 @@ Tests (:func:`check_gyro_fit`)
    :data:`REFUSAL_MARGIN`² times its :data:`BOUND_LEVEL` quantile: the gyro does not see the
    moves (with a scale free to grow, a fit on noise explains itself through test 1).
 3. **Axes**: the gyro's sensing axes (rows of ``T_g⁻¹``) against the accelerometer's.  An
-   axis more than :data:`AXIS_MATCH_DEG` from the accelerometer axis of its name lies nearer
-   another axis, or its own reversed: a column mapping or a sign, not a mounting error.
+   axis more than :data:`AXIS_MATCH_DEG` from the accelerometer axis of its name, half-way to
+   another axis or further, is no mounting error (those are a few degrees) but a column
+   mapping or a sign.
 4. **Scale** (gyro units with a nominal scale, rad/s and °/s): the fitted scale of each axis
    more than :data:`MAX_SCALE_ERROR` off the nominal is a unit, a full-scale setting or a
    time base, not a sensitivity error.
@@ -75,8 +77,8 @@ BOUND_LEVEL: float = 0.999
 #: How far beyond the bound (in angle, a factor on the rms) a residual is refused rather than flagged: at 3 the
 #: errors the noise model leaves out would have to carry 3² − 1 = 8 times its variance.
 REFUSAL_MARGIN: float = 3.0
-#: A gyro sensing axis further than this from the accelerometer axis of the same name lies nearer another axis (or
-#: its own reversed) than its own: a column mapping or sign, where mounting misalignments are a few degrees.
+#: A gyro sensing axis further than this from the accelerometer axis of the same name is half-way to another axis or
+#: beyond: a column mapping or sign, where mounting misalignments are a few degrees.
 AXIS_MATCH_DEG: float = 45.0
 #: Largest relative departure of a fitted gyro scale from the nominal of its units: a MEMS gyro's sensitivity is
 #: within a few % of nominal (InvenSense MPU-6050/9150: ±3 % at 25 °C, ±2 % more over temperature); 20 % is four

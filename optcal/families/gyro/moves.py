@@ -286,8 +286,8 @@ def moves_from_arrays(
     dropped: dict[str, int] = {}
     n_steps = holes = lost = 0
     for i in range(len(ivs) - 1):
-        before = usable_idx[(usable_idx >= ivs[i][0]) & (usable_idx < ivs[i][1])]
-        after = usable_idx[(usable_idx >= ivs[i + 1][0]) & (usable_idx < ivs[i + 1][1])]
+        before = usable_idx[np.searchsorted(usable_idx, ivs[i][0]): np.searchsorted(usable_idx, ivs[i][1])]
+        after = usable_idx[np.searchsorted(usable_idx, ivs[i + 1][0]): np.searchsorted(usable_idx, ivs[i + 1][1])]
         if before.size == 0 or after.size == 0 or after[0] <= before[-1]:
             dropped[NO_SAMPLES_MOVES] = dropped.get(NO_SAMPLES_MOVES, 0) + 1
             continue
