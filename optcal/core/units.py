@@ -50,6 +50,8 @@ ACCEL_UNITS: tuple[str, ...] = SENSOR_UNITS["accelerometer"]
 GYRO_UNITS: tuple[str, ...] = SENSOR_UNITS["gyro"]
 #: g per unit for the accelerometer units with a stated scale.
 G_PER_UNIT: dict[str, float] = {"g": 1.0, "m/s^2": 1.0 / STANDARD_GRAVITY}
+#: Seconds per unit of the time units a time column or ``--time-unit`` may state.
+SECONDS_PER_TIME_UNIT: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: rad/s per unit for the gyro units with a stated scale.
 RAD_PER_UNIT: dict[str, float] = {"rad/s": 1.0, "deg/s": float(np.pi / 180.0)}
 

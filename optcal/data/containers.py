@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.core.units import SECONDS_PER_TIME_UNIT
 from optcal.errors import InputError
 
 MAT5_HEADER = b"MATLAB 5.0 MAT-file"
@@ -114,7 +115,6 @@ TIME_UNIT_SPELLINGS: dict[str, str] = {
     **dict.fromkeys(("us", "µs", "μs", "microsecond", "microseconds"), "us"),
     **dict.fromkeys(("ns", "nanosecond", "nanoseconds"), "ns"),
 }
-TIME_FACTORS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: Attribute and scalar-variable names that give the sampling rate (Hz), as the rate keys of a text header.
 RATE_NAMES: tuple[str, ...] = ("sampling_rate", "sample_rate", "sampling_frequency", "sample_frequency", "fs", "rate",
                                "frequency", "freq", "sampling_rate_hz", "sample_rate_hz", "rate_hz", "samplingrate")
@@ -323,7 +323,7 @@ def role_of(var: Variable) -> str | None:
             return role
     if unit in GYRO_UNIT_SPELLINGS:
         return GYROSCOPE
-    if unit in ACCEL_UNIT_SPELLINGS and unit not in ("counts", "count", "lsb", "raw", "adc", "digits"):
+    if ACCEL_UNIT_SPELLINGS.get(unit, "counts") != "counts":  # counts are any sensor's
         return ACCELEROMETER
     if unit in TEMPERATURE_UNIT_SPELLINGS:
         return TEMPERATURE
@@ -578,8 +578,8 @@ def _companions(chosen: Choice, others: list[Variable], n: int, fields: dict[str
         if role == TIME:
             unit, why = time_unit_of(var)
             if unit is not None:
-                if TIME_FACTORS[unit] != 1.0:
-                    data["t"] = data["t"] * TIME_FACTORS[unit]
+                if SECONDS_PER_TIME_UNIT[unit] != 1.0:
+                    data["t"] = data["t"] * SECONDS_PER_TIME_UNIT[unit]
                 fields["time_unit"], fields["time_reason"] = unit, f"column {var.name!r} in {unit} ({why})"
             else:
                 fields["time_reason"] = f"column {var.name!r}"

@@ -138,9 +138,15 @@ def axis_between(
     cross = np.cross(d0, d1)
     angle = float(np.arctan2(np.linalg.norm(cross), np.dot(d0, d1)))
     if np.linalg.norm(cross) < SAME_DIRECTION_SINE:  # same or opposite direction: any perpendicular axis
-        perp = np.cross(d0, rng.standard_normal(3))
-        return perp / np.linalg.norm(perp), angle
+        return random_perpendicular(d0, rng), angle
     return cross / np.linalg.norm(cross), angle
+
+
+def random_perpendicular(d: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
+    """A random unit vector perpendicular to ``d`` (``d × n`` for a standard normal ``n`` drawn from ``rng``, normalised)."""
+    perp = np.cross(d, rng.standard_normal(3))
+    out: NDArray[np.float64] = perp / np.linalg.norm(perp)
+    return out
 
 
 def half_cosine_profile(m: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -31,7 +31,14 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.errors import InputError
 from optcal.core.model import LumpedModel
 from optcal.core.rotations import rotate_about_axis
-from optcal.families.simulate.kinematics import MotionBuilder, axis_between, half_cosine_profile, turn, white_noise
+from optcal.families.simulate.kinematics import (
+    MotionBuilder,
+    axis_between,
+    half_cosine_profile,
+    random_perpendicular,
+    turn,
+    white_noise,
+)
 from optcal.families.simulate.poses import user_directions
 
 
@@ -215,8 +222,7 @@ def synthesize_recording(
             f = np.tile(d0, (m_slow, 1))
             motion.move(f, slow_rate * f, slow=True)
             return d0
-        perp = np.cross(d0, rng.standard_normal(3))
-        perp /= np.linalg.norm(perp)
+        perp = random_perpendicular(d0, rng)
         angles = slow_rate * (np.arange(m_slow) + 0.5) / rate_hz
         motion.move(*turn(d0, perp, -angles, np.full(m_slow, -slow_rate)), slow=True)
         return rotate_about_axis(perp, np.array([slow_rate * m_slow / rate_hz]), d0)[0]

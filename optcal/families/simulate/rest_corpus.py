@@ -57,7 +57,14 @@ from optcal.core.rotations import rotate_about_axis
 from optcal.data.recording import Recording
 from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.errors import InputError
-from optcal.families.simulate.kinematics import Motion, MotionBuilder, half_cosine_profile, turn, white_noise
+from optcal.families.simulate.kinematics import (
+    Motion,
+    MotionBuilder,
+    half_cosine_profile,
+    random_perpendicular,
+    turn,
+    white_noise,
+)
 
 #: The kinds of recording, in the order of the tables.
 KINDS: tuple[str, ...] = ("hand_held", "turntable", "low_pass", "holds_only", "slow_turns", "slow_drift")
@@ -174,15 +181,9 @@ def _random_direction(rng: np.random.Generator) -> NDArray[np.float64]:
     return v / np.linalg.norm(v)
 
 
-def _perpendicular(d: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
-    """A random unit vector perpendicular to the unit vector ``d``."""
-    p = np.cross(d, rng.standard_normal(3))
-    return p / np.linalg.norm(p)
-
-
 def _tilted_axis(d: NDArray[np.float64], angle: float, rng: np.random.Generator) -> NDArray[np.float64]:
     """A unit axis at ``angle`` (rad) from the unit vector ``d``, in a random azimuth about it."""
-    return np.cos(angle) * d + np.sin(angle) * _perpendicular(d, rng)
+    return np.cos(angle) * d + np.sin(angle) * random_perpendicular(d, rng)
 
 
 def _end_of_turn(start: NDArray[np.float64], axis: NDArray[np.float64], angle: float) -> NDArray[np.float64]:
@@ -195,7 +196,7 @@ def _hand_move(motion: MotionBuilder, d0: NDArray[np.float64], m: int, rate_hz: 
     """A turn by ``angle`` about an axis perpendicular to ``d0`` over ``m`` samples (half-cosine speed), with a
     twist about the specific force peaking at ``twist_dps`` (invisible to the accelerometer, as in
     :func:`optcal.families.simulate.recording.synthesize_recording`); returns the direction reached."""
-    axis = _perpendicular(d0, rng)
+    axis = random_perpendicular(d0, rng)
     s, ds = half_cosine_profile(m)
     f, w = turn(d0, axis, angle * s, angle * ds * rate_hz / m)
     motion.move(f, w + np.deg2rad(twist_dps) * np.sin(np.pi * s)[:, None] * f)
