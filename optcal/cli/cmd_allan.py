@@ -68,11 +68,13 @@ def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> Still
     the Allan deviation of a moving sensor measures the motion.  ``sensor="gyro"`` takes the
     gyro samples (``units`` then says the gyro units as the file states them, or ``None``).
     """
+    from optcal.cli.data_options import decisions_on_error
     from optcal.data import load_recording
     from optcal.data.static import detect_static
     from optcal.errors import InputError
 
-    rec = load_recording(data, required_by="the allan command", **read_options)
+    with decisions_on_error(data):  # the decisions made before a refusal are printed with it
+        rec = load_recording(data, required_by="the allan command", **read_options)
     t = rec.t[rec.usable]
     samples = rec.acc[rec.usable]
     if sensor == "gyro":

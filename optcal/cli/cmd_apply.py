@@ -35,9 +35,12 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     import optcal.families.calibration_files as calibration_files
     from optcal.families.caltypes.apply import apply_to_file, write_table
 
+    from optcal.cli.data_options import decisions_on_error
+
     cal = calibration_files.load(calibration)
-    applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
-                            rate=rate, kind=data_format)
+    with decisions_on_error(data):  # the decisions made before a refusal are printed with it
+        applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
+                                rate=rate, kind=data_format)
     from optcal.cli.outputs import output_file
 
     fmt = write_table(applied, output_file(output))

@@ -13,12 +13,16 @@ Usage in a command module::
 ``--timing``, ``--gyro-file`` (:func:`read_options`, the reading options alone), ``--format``
 (pose table or raw recording) and the static-detection settings ``--static-window``,
 ``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``.
-:func:`load_data` passes them to :func:`optcal.data.load`.
+:func:`load_data` passes them to :func:`optcal.data.load`; when DATA is refused after some
+decisions about it were made, :func:`decisions_on_error` prints them on standard output, as
+:func:`data_line` prints them on success, before the one-line error on standard error (not
+with ``--json``, whose standard output stays empty on an error).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import click
@@ -126,18 +130,41 @@ def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+@contextmanager
+def decisions_on_error(path: str) -> Iterator[None]:
+    """Print the decisions made about DATA before it was refused, then let the error go on.
+
+    On standard output, where :func:`data_line` prints them on success (and the commands print them
+    before a refused fit), unless the command's ``--json`` keeps its standard output for one
+    JSON object; the one-line error follows on standard error (:func:`optcal.cli.main.main`).
+    """
+    from optcal.data.decisions import DataInputError
+
+    try:
+        yield
+    except DataInputError as exc:
+        context = click.get_current_context(silent=True)
+        as_json = context is not None and bool(context.params.get("as_json"))
+        if exc.decisions and not as_json:
+            click.echo("\n".join([f"DATA: {path} refused; the decisions made before:",
+                                   *("  " + line for line in exc.decisions)]))
+        raise
+
+
 def load_data(path: str, **opts: Any) -> PoseTable:
     """Load DATA with the options collected by :func:`data_options`."""
     from optcal.data import load
 
-    return load(path, **_load_kwargs(opts))
+    with decisions_on_error(path):
+        return load(path, **_load_kwargs(opts))
 
 
 def load_data_detailed(path: str, **opts: Any) -> Any:
     """Like :func:`load_data`, returning :class:`optcal.data.LoadedData` (with the segmentation)."""
     from optcal.data import load_with_segmentation
 
-    return load_with_segmentation(path, **_load_kwargs(opts))
+    with decisions_on_error(path):
+        return load_with_segmentation(path, **_load_kwargs(opts))
 
 
 def data_line(path: str, poses: PoseTable) -> str:

@@ -1,13 +1,16 @@
 """Measured data in: pose tables and raw recordings, readers, evidence, decisions, static detection.
 
 :func:`load` is the one entry point every command uses for DATA.  It runs the steps of
-:mod:`optcal.data.decisions` in order: **read** any supported file
-(:mod:`optcal.data.readers`), gather the **evidence** (one pass of statistics), make the
-**decisions** (pose table or raw recording, columns, units, time base, rate, exclusions;
-each with its reason), **convert** (a pose table, or a :class:`Recording`), and for a
-recording **segment** it into static poses (:mod:`optcal.data.static`).  The returned
-:class:`~optcal.core.poses.PoseTable` carries the :class:`DataDecisions` (``decisions``), and
-every excluded sample is counted in ``exclusions``.
+:mod:`optcal.data.decisions` in order, each module once: **read** any supported file
+(:mod:`optcal.data.readers`), gather the **evidence** (one pass of statistics,
+:mod:`optcal.data.evidence`), make the **decisions** (columns, pose table or raw recording,
+units, time base, rate, exclusions; each with its reason), **convert** (a pose table, or a
+:class:`Recording`), and for a recording **segment** it into static poses
+(:mod:`optcal.data.static`).  The returned :class:`~optcal.core.poses.PoseTable` carries the
+:class:`DataDecisions` (``decisions``), and every excluded sample is counted in
+``exclusions``.  An error met once decisions were made is a
+:class:`~optcal.data.decisions.DataInputError` that carries them (the command line prints
+them before the error).
 """
 
 from __future__ import annotations
@@ -22,11 +25,12 @@ from optcal.data.decisions import (
     POSE_TABLE,
     RAW_RECORDING,
     DataDecisions,
+    DataInputError,
     Decision,
-    Evidence,
     decide,
-    gather_evidence,
+    with_decisions,
 )
+from optcal.data.evidence import Evidence, gather_evidence
 from optcal.data.readers import Source, read_source
 from optcal.data.recording import Recording, recording_from_source
 from optcal.data.static import Segmentation, StaticSettings, detect_static
@@ -43,6 +47,7 @@ __all__ = [
     "decide",
     "gather_evidence",
     "DataDecisions",
+    "DataInputError",
     "Decision",
     "Evidence",
     "KindDecision",
@@ -85,10 +90,12 @@ def load_recording(
     ``required_by`` names what needs the raw recording (e.g. ``"the allan command"``); it is
     the reason the kind decision gives.
     """
-    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)
-    return recording_from_source(
-        src, units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
+    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)  # read
+    decisions = decide(  # evidence, then decisions
+        src, gather_evidence(src), kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing,
+        required_by=required_by,
     )
+    return recording_from_source(src, decisions)  # conversion
 
 
 def segment(
@@ -148,18 +155,22 @@ def load_with_segmentation(
     elif static_options:
         raise InputError("give static-detection settings either as settings= or as keywords, not both")
     src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)  # read
-    evidence = gather_evidence(src)  # evidence
-    decisions = decide(src, evidence, kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing)
-    if decisions.kind.value == POSE_TABLE:
-        poses = pose_table_from_source(src, decisions)  # conversion
-        check_sensitivity(poses.acc, poses.units)  # the units decision, checked on the poses
-        return LoadedData(poses, decisions)
-    rec = recording_from_source(src, decisions, evidence=evidence)  # conversion
-    del src, evidence  # the recording holds its own arrays: free the file's columns before segmenting
-    seg = detect_static(rec, settings)  # segmentation
-    table = seg.pose_table()
-    # the units decision, checked on the poses and their noise
-    check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])
+    decisions = decide(  # evidence, then decisions
+        src, gather_evidence(src), kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing
+    )
+    try:
+        if decisions.kind.value == POSE_TABLE:
+            poses = pose_table_from_source(src, decisions)  # conversion
+            check_sensitivity(poses.acc, poses.units)  # the units and columns decisions, checked on the poses
+            return LoadedData(poses, decisions)
+        rec = recording_from_source(src, decisions)  # conversion
+        del src  # the recording holds its own arrays: free the file's columns before segmenting
+        seg = detect_static(rec, settings)  # segmentation
+        table = seg.pose_table()
+        # the units and columns decisions, checked on the poses and their noise
+        check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])
+    except InputError as exc:
+        raise with_decisions(exc, decisions) from exc
     table.meta.update(recording_meta(rec, decisions))
     table.decisions = decisions
     return LoadedData(table, decisions, seg)

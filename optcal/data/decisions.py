@@ -1,21 +1,32 @@
-"""Evidence and decisions: what a file is, made from one pass of statistics over it.
+"""Decisions: what a file is, decided from the evidence, each with its reason and the flag that overrides it.
 
-The data layer runs in this order, each step in one place:
+The data layer runs in this order, each step in one place and each module visited once:
 
-1. **read** (:mod:`optcal.data.readers`): the file's columns under canonical names, and
-   what the file itself states (unit words, a rate line, the format's conventions);
-2. **evidence** (:func:`gather_evidence`): one pass of statistics over those columns
-   (rows, finite and absurd samples, the median norm and the step between rows, the time
-   column's steps, bursts and repeated stamps, file size);
-3. **decisions** (:func:`decide`): kind (pose table or raw recording), columns, units,
-   time base and rate, each with its reason and the flag that overrides it; evidence
-   that does not settle a question is refused with the reason and that flag;
+1. **read** (:mod:`optcal.data.readers`, :mod:`optcal.data.text`, :mod:`optcal.data.columns`):
+   the file's columns under canonical names, and what the file itself states (unit words,
+   a rate line, the format's conventions, names that leave the roles of columns open);
+2. **evidence** (:func:`optcal.data.evidence.gather_evidence`): one pass of statistics over
+   those columns (rows, finite and absurd samples, the median norm and the step between rows,
+   the time column's steps, bursts and repeated stamps, the nominal conversion's statistics,
+   and how candidate triples read at rest);
+3. **decisions** (:func:`decide`): columns, kind (pose table or raw recording), units, time
+   base and rate, each with its reason and the flag that overrides it; evidence that does
+   not settle a question, or that conflicts, is resolved toward the documented reading or
+   refused with the reason and the flags that settle it;
 4. **conversion** (:func:`optcal.data.recording.recording_from_source`,
    :func:`optcal.data.tables.pose_table_from_source`): the decisions applied, every
    excluded sample counted;
 5. **segmentation** (:mod:`optcal.data.static`).
 
-:class:`DataDecisions` is what every command prints and records in its JSON.
+:class:`DataDecisions` is what every command prints and records in its JSON; an error met
+after some decisions were made is a :class:`DataInputError` that carries them, and the
+command line prints them before the error.
+
+The kind is weighed from three pieces of evidence: the time column read in its stated unit
+(a unit word, ``--time-unit``, a rate stated in the header) or else in seconds as documented,
+the step between consecutive rows against what a recording at that rate can make
+(:func:`max_recording_step_g`), and the number of rows.  A time unit is never re-read from
+the spacing of the stamps alone.
 """
 
 from __future__ import annotations
@@ -26,10 +37,29 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.quantiles import median
-from optcal.data.readers import ACC, GYRO, Source, columns_block
-from optcal.data.units import decide_units, nominal_conversion
+from optcal.data.evidence import (
+    ABSURD,
+    ABSURD_G,
+    BURST_RATIO,
+    COARSE_REPEATED_FRACTION,
+    NON_FINITE,
+    ROLE_BLOCK_SAMPLES,
+    ZERO_ROWS,
+    Evidence,
+    TimeEvidence,
+    gather_evidence,
+    time_evidence,
+)
+from optcal.data.readers import Source
+from optcal.data.units import MAX_REST_NOISE_G, NominalConversion, units_and_nominal
 from optcal.errors import InputError
+
+__all__ = [
+    "ABSURD", "ABSURD_G", "BURST_RATIO", "COARSE_REPEATED_FRACTION", "KINDS", "NON_FINITE", "POSE_TABLE",
+    "RAW_RECORDING", "TIMINGS", "TIME_UNITS", "ZERO_ROWS", "DataDecisions", "DataInputError", "Decision",
+    "Evidence", "TimeEvidence", "decide", "gather_evidence", "max_recording_step_g", "time_evidence",
+    "with_decisions",
+]
 
 POSE_TABLE = "pose table"
 RAW_RECORDING = "raw recording"
@@ -40,194 +70,45 @@ TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: ``timing`` choices: decide, keep the stamps, or spread the samples evenly over the stamped span.
 TIMINGS: tuple[str, ...] = ("auto", "stamps", "uniform")
 
-#: Consecutive rows of a raw recording differ by less than this fraction of 1 g (median).
+#: Consecutive rows of a raw recording differ by less than this fraction of 1 g (median): the samples
+#: of a resting sensor differ by its noise, a few mg; distinct poses by the chord of a turn of more
+#: than a degree.
 RAW_STEP_RATIO: float = 0.02
-#: Consecutive rows of a pose table differ by more than this fraction of 1 g (median).
+#: Consecutive rows of a pose table differ by more than this fraction of 1 g (median): poses a turn
+#: of 6° or more apart.
 POSE_STEP_RATIO: float = 0.10
-#: A regular time column at this rate or more over this many rows is a recording.
+#: A regular time column at this rate or more over this many rows is a recording's (a pose is held
+#: for seconds: poses do not come five per second, and a table of poses has tens to hundreds of rows).
 RAW_MIN_RATE_HZ: float = 5.0
 RAW_MIN_ROWS: int = 200
 #: More rows than this without a time column: a recording (pose tables have tens to hundreds).
 MANY_ROWS: int = 2000
-#: An axis beyond this many g (by the median norm as 1 g) is beyond any accelerometer's full scale.
-ABSURD_G: float = 64.0
-#: Stamps are bursty when 1/median(Δt) exceeds (N−1)/duration by this factor.
-BURST_RATIO: float = 2.0
-#: Stamps are coarse when more than this fraction of the steps repeat the previous stamp.
-COARSE_REPEATED_FRACTION: float = 0.05
-#: Plausible sampling rates of a recording, Hz (for a stated assumption on the time unit).
+#: Plausible sampling rates of a recording, Hz: slower than 1 Hz no rest holds the samples of a
+#: static detection window; faster than 100 kHz is no MEMS inertial sensor's output rate.
 PLAUSIBLE_RATE_HZ: tuple[float, float] = (1.0, 100_000.0)
-#: A ``rate`` that differs from a regular time column's rate by more than this fraction is warned about.
+#: A ``rate`` that differs from a regular time column's rate by more than this fraction is warned
+#: about (and a rate stated in the header settles the time column's unit when one unit gives it within it).
 RATE_MISMATCH_FRACTION: float = 0.05
+#: The fastest turn of a sensor in a recording: 2000 °/s, the largest full scale of common MEMS
+#: gyroscopes (a hand turns a sensor at 1-20 rad/s at its peak, below 1150 °/s).
+MAX_TURN_RATE_DEG_S: float = 2000.0
+#: Rows of a pose table are poses held still and turned between: at least this far apart in time
+#: (the static detection's shortest dwell, ``--min-dwell 0.5``).
+MIN_POSE_SPACING_S: float = 0.5
 
-# exclusion counters (also the keys of ``PoseTable.exclusions``)
-NON_FINITE = "non-finite samples (empty, non-numeric or truncated cells)"
-ZERO_ROWS = "all-zero rows (an unfilled buffer)"
-ABSURD = f"samples beyond any full scale (an axis above {ABSURD_G:g} g)"
 
+def max_recording_step_g(rate_hz: float) -> float:
+    """The largest median change between consecutive samples of a recording at ``rate_hz``, in g.
 
-@dataclass(frozen=True)
-class TimeEvidence:
-    """Statistics of a time column over the usable rows (in the column's own unit).
-
-    Attributes
-    ----------
-    n : int
-    duration : float
-    median_step, min_positive_step : float
-    repeated : int
-        Steps of exactly zero (a repeated stamp).
-    backwards : int
-        Negative steps.
-    first_backwards : int or None
-        Index (into the usable rows) of the first sample after a negative step.
-    regular_fraction : float
-        Fraction of the steps within ±50 % of the median step (0 when the median step is not positive).
+    Model: the sensor is a rigid body turning at :data:`MAX_TURN_RATE_DEG_S` at most, so between
+    two samples gravity turns by at most ω/rate and the specific force changes by the chord
+    ``2 sin(ω / (2 rate))`` g (2 g at most, a reversal); the noise of two samples of a resting
+    accelerometer adds ``√6 ×`` :data:`~optcal.data.units.MAX_REST_NOISE_G` (√2 for a
+    difference, √3 over three axes).  The linear accelerations of the moves last a small part
+    of a recording and do not move the median.  At 100 Hz: 0.35 + 0.12 = 0.47 g.
     """
-
-    n: int
-    duration: float
-    median_step: float
-    min_positive_step: float
-    repeated: int
-    backwards: int
-    first_backwards: int | None
-    regular_fraction: float = 0.0
-
-    @property
-    def mean_step(self) -> float:
-        return self.duration / (self.n - 1) if self.n > 1 else float("nan")
-
-    @property
-    def repeated_fraction(self) -> float:
-        return self.repeated / max(1, self.n - 1)
-
-    @property
-    def bursty(self) -> bool:
-        """Host stamps in bursts: the typical step is far shorter than the mean step."""
-        return self.n > 10 and self.median_step > 0 and self.median_step * BURST_RATIO < self.mean_step
-
-    @property
-    def coarse(self) -> bool:
-        """Stamps coarser than the sampling: many samples share a stamp."""
-        return self.n > 10 and self.repeated_fraction > COARSE_REPEATED_FRACTION
-
-
-@dataclass(frozen=True)
-class Evidence:
-    """One pass of statistics over a :class:`~optcal.data.readers.Source`.
-
-    Attributes
-    ----------
-    n_rows : int
-    size_bytes : int
-    usable : ndarray of bool
-        Rows with finite accelerometer (and time, gyro, temperature) values, not all-zero,
-        not absurd.
-    non_finite, zero_rows, absurd : int
-        Rows excluded for each reason.
-    median_norm : float
-        Median ‖a‖ over the usable rows, raw units.
-    median_step : float
-        Median ‖a_k+1 − a_k‖ over consecutive usable rows, raw units.
-    time : TimeEvidence or None
-    """
-
-    n_rows: int
-    size_bytes: int
-    usable: NDArray[np.bool_]
-    non_finite: int
-    zero_rows: int
-    absurd: int
-    median_norm: float
-    median_step: float
-    time: TimeEvidence | None
-
-    def exclusions(self) -> dict[str, int]:
-        return {k: v for k, v in ((NON_FINITE, self.non_finite), (ZERO_ROWS, self.zero_rows), (ABSURD, self.absurd)) if v}
-
-
-def gather_evidence(src: Source) -> Evidence:
-    """The statistics every decision is made from, in one pass over the columns.
-
-    Column by column, with no copy of the samples when every row is usable (the common
-    case); the median norm over the usable rows is the one over the finite, non-zero rows
-    when no row is absurd (one median, not two).
-    """
-    n = src.n_rows
-    acc = [src.column(c) for c in ACC]  # column by column: no copy of the file's data
-    finite = np.ones(n, dtype=bool)
-    for name in (*ACC, "t", *GYRO, "temp"):
-        if src.has(name):
-            finite &= np.isfinite(src.column(name))
-    zero = finite.copy()
-    for name in (*ACC, *(GYRO if src.has(*GYRO) else ())):
-        zero &= src.column(name) == 0.0
-    ok = finite & ~zero
-    every_ok = bool(ok.all())
-    with np.errstate(over="ignore", invalid="ignore"):
-        # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        norm = acc[0] * acc[0]
-        for a in acc[1:]:
-            norm += a * a
-        np.sqrt(norm, out=norm)
-        med = median(norm if every_ok else norm[ok]) if ok.any() else float("nan")
-        absurd = np.zeros(n, dtype=bool)
-        if np.isfinite(med) and med > 0:
-            for a in acc:
-                absurd |= ok & (np.abs(a) > ABSURD_G * med)
-    n_absurd = int(np.count_nonzero(absurd))
-    usable = ok & ~absurd if n_absurd else ok
-    every = every_ok and not n_absurd
-    if usable.any():
-        median_norm = med if not n_absurd else median(norm[usable])
-        del norm
-        with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit
-            step = np.zeros(max(0, int(np.count_nonzero(usable)) - 1))
-            for a in acc:
-                d = np.diff(a if every else a[usable])
-                np.multiply(d, d, out=d)
-                step += d
-            np.sqrt(step, out=step)
-        median_step = median(step, overwrite_input=True) if step.size else 0.0
-        del step
-    else:
-        median_norm = median_step = float("nan")
-    if src.has("t") and np.count_nonzero(usable) > 1:
-        t = src.column("t")
-        time = time_evidence(t if every else t[usable])
-    else:
-        time = None
-    return Evidence(
-        n_rows=n,
-        size_bytes=src.size_bytes,
-        usable=usable,
-        non_finite=n - int(np.count_nonzero(finite)),
-        zero_rows=int(np.count_nonzero(zero)),
-        absurd=n_absurd,
-        median_norm=median_norm,
-        median_step=median_step,
-        time=time,
-    )
-
-
-def time_evidence(t: NDArray[np.float64]) -> TimeEvidence:
-    """Steps, repeats and reversals of a time column (one difference of the column, one median)."""
-    d = np.diff(t)
-    back = np.flatnonzero(d < 0)
-    positive = d > 0
-    med = median(d) if d.size else 0.0
-    regular = float(np.mean(np.abs(d - med) <= 0.5 * med)) if med > 0 else 0.0
-    return TimeEvidence(
-        n=int(t.size),
-        duration=float(t[-1] - t[0]),
-        median_step=med,
-        min_positive_step=float(d.min(where=positive, initial=np.inf)) if positive.any() else 0.0,
-        repeated=int(np.count_nonzero(d == 0)),
-        backwards=int(back.size),
-        first_backwards=int(back[0] + 1) if back.size else None,
-        regular_fraction=regular,
-    )
+    angle = min(np.pi, np.deg2rad(MAX_TURN_RATE_DEG_S) / rate_hz) if rate_hz > 0 else np.pi
+    return float(2.0 * np.sin(angle / 2.0) + np.sqrt(6.0) * MAX_REST_NOISE_G)
 
 
 @dataclass(frozen=True)
@@ -273,6 +154,12 @@ class DataDecisions:
         Rows excluded before segmentation, by reason (segmentation adds its own).
     warnings : list of str
         Choices given by the user that the evidence contradicts (the user's choice is kept).
+    nominal : NominalConversion or None
+        The nominal conversion of the units decided, from the evidence (the "before calibration"
+        baseline of the usable rows; not printed).
+    evidence : Evidence or None
+        The evidence of the file as the decisions read it (its columns' roles), for the
+        conversion (not printed).
     """
 
     kind: Decision
@@ -283,6 +170,8 @@ class DataDecisions:
     layout: str = ""
     exclusions: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    nominal: NominalConversion | None = field(default=None, repr=False, compare=False)
+    evidence: Evidence | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe form."""
@@ -299,23 +188,72 @@ class DataDecisions:
 
     def lines(self) -> list[str]:
         """One line per decision, for the text report of every command."""
-        kind_flag = f"; {self.kind.flag}" if self.kind.flag else ""
-        out = [
-            f"kind: {self.kind.value} ({self.kind.reason}{kind_flag})",
-            f"columns: {self.columns.value} ({self.columns.reason}; {self.columns.flag})",
-            f"units: {self.units.value} ({self.units.reason}; {self.units.flag})",
-        ]
-        if self.kind.value == RAW_RECORDING:
-            rate = "" if self.rate.value is None else f", {self.rate.value:.6g} Hz"
-            out.append(f"time: {self.time_base.value}{rate} ({self.time_base.reason}; {self.time_base.flag})")
-        elif self.time_base.value != "none":
-            out.append(f"time: {self.time_base.reason}")
-        if self.layout:
-            out.append(f"read: {self.layout}")
-        if self.exclusions:
-            out.append("excluded while reading: " + "; ".join(f"{k}: {v}" for k, v in self.exclusions.items()))
-        out.extend(f"warning: {w}" for w in self.warnings)
-        return out
+        return decision_lines(self.kind, self.columns, self.units, self.time_base, self.rate, self.layout,
+                              self.exclusions, self.warnings)
+
+
+def decision_lines(
+    kind: Decision | None,
+    columns: Decision | None,
+    units: Decision | None,
+    time_base: Decision | None,
+    rate: Decision | None,
+    layout: str,
+    exclusions: dict[str, int],
+    warnings: list[str],
+) -> list[str]:
+    """One line per decision made (``None``: not made), as :meth:`DataDecisions.lines` prints them."""
+    out = []
+    if kind is not None:
+        kind_flag = f"; {kind.flag}" if kind.flag else ""
+        out.append(f"kind: {kind.value} ({kind.reason}{kind_flag})")
+    if columns is not None:
+        out.append(f"columns: {columns.value} ({columns.reason}; {columns.flag})")
+    if units is not None:
+        out.append(f"units: {units.value} ({units.reason}; {units.flag})")
+    if time_base is not None:
+        if kind is None or kind.value == RAW_RECORDING:
+            hz = "" if rate is None or rate.value is None else f", {rate.value:.6g} Hz"
+            out.append(f"time: {time_base.value}{hz} ({time_base.reason}; {time_base.flag})")
+        elif time_base.value != "none":
+            out.append(f"time: {time_base.reason}")
+    if layout:
+        out.append(f"read: {layout}")
+    if exclusions:
+        out.append("excluded while reading: " + "; ".join(f"{k}: {v}" for k, v in exclusions.items()))
+    out.extend(f"warning: {w}" for w in warnings)
+    return out
+
+
+class DataInputError(InputError):
+    """Bad input met after some decisions about the data were made: the error carries them.
+
+    The command line prints them before the error line, so that the user sees what the file was
+    read as when it was refused.
+
+    Attributes
+    ----------
+    decisions : list of str
+        The decisions made before the error, one line each (as :meth:`DataDecisions.lines`).
+    """
+
+    def __init__(self, message: str, decisions: list[str]) -> None:
+        super().__init__(message)
+        self.decisions = list(decisions)
+
+
+def with_decisions(exc: InputError, decisions: DataDecisions | list[str]) -> InputError:
+    """``exc`` carrying ``decisions`` (a :class:`DataInputError` with its message), to raise in its place.
+
+    An error that already carries decisions, or is of a more specific kind
+    (:class:`~optcal.errors.IdentifiabilityError`, ...), is returned as it is.
+    """
+    if type(exc) is not InputError:
+        return exc
+    lines = decisions.lines() if isinstance(decisions, DataDecisions) else list(decisions)
+    error = DataInputError(str(exc), lines)
+    error.__cause__ = exc
+    return error
 
 
 def decide(
@@ -329,11 +267,13 @@ def decide(
     timing: str = "auto",
     required_by: str | None = None,
 ) -> DataDecisions:
-    """Decide kind, columns, units, time base and rate from the evidence (flags win).
+    """Decide columns, kind, units, time base and rate from the evidence (flags win).
 
     Parameters
     ----------
     src : Source
+        Read with the roles of its columns decided (``src.roles``: the decided triple is read as
+        the accelerometer, in place).
     ev : Evidence
     kind : {"auto", "poses", "raw"}
     units : str, optional
@@ -351,8 +291,10 @@ def decide(
     Raises
     ------
     InputError
+        An unknown option.
+    DataInputError
         A flag that contradicts the data (units against the norm), or evidence that does not
-        settle a decision (named with the flag that does).
+        settle a decision (named with the flag that does), with the decisions made before it.
     """
     if kind not in KINDS:
         raise InputError(f"unknown kind {kind!r}; use one of {', '.join(KINDS)}")
@@ -362,92 +304,160 @@ def decide(
         raise InputError(f"unknown time unit {time_unit!r}; use one of {', '.join(TIME_UNITS)}")
     if rate is not None and not rate > 0:
         raise InputError(f"rate must be positive, got {rate}")
-    if not ev.usable.any():
-        raise InputError(
-            f"{src.path}: no usable sample (of {ev.n_rows} rows: "
-            + "; ".join(f"{k}: {v}" for k, v in ev.exclusions().items()) + ")"
-        )
-    try:
-        found = decide_units(None, units, src.units_hint, src.units_reason, norm=ev.median_norm)
-        # the samples are gathered (a copy) only for counts, whose nominal 1 g comes from them
-        one_g = nominal_conversion(found.units, _acc(src, ev.usable) if found.units == "counts" else None,
-                                   median_norm=ev.median_norm).sensitivity
-    except InputError:  # refused below, once the kind is known
-        one_g = ev.median_norm
+    if required_by is not None and kind not in ("poses", "raw"):
+        raise InputError(f"required_by needs kind 'poses' or 'raw', got {kind!r}")
+    made: dict[str, Decision] = {}
     warnings: list[str] = []
-    if required_by is not None:
-        if kind not in ("poses", "raw"):
-            raise InputError(f"required_by needs kind 'poses' or 'raw', got {kind!r}")
-        what = POSE_TABLE if kind == "poses" else RAW_RECORDING
-        kind_decision = Decision(what, f"{required_by} requires a {what}", "")
-    else:
-        kind_decision = _decide_kind(src, ev, kind, one_g)
-        if kind != "auto":
-            warnings.extend(_kind_contradiction(src, ev, kind_decision, one_g))
-    if kind_decision.value == POSE_TABLE:
-        for canon, (count, row, value) in src.non_numeric.items():
+    try:
+        if not ev.usable.any():
             raise InputError(
-                f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
-                f"{value!r} on data row {row} ({count} such cell(s)); every cell of a pose table must be a number"
+                f"{src.path}: no usable sample (of {ev.n_rows} rows: "
+                + "; ".join(f"{k}: {v}" for k, v in ev.exclusions().items()) + ")"
             )
-    units_d = decide_units(None, units, src.units_hint, src.units_reason, norm=ev.median_norm)
-    units_decision = Decision(units_d.units, units_d.reason, "--units")
-    columns = Decision(src.describe_columns(), src.columns_reason, "--columns")
-    if kind_decision.value == POSE_TABLE:
-        if rate is not None:
-            raise InputError(f"rate applies to raw recordings; {src.path} was read as a pose table ({kind_decision.reason})")
-        time_base, rate_d = _pose_table_time(src, time_unit)
-    else:
-        time_base, rate_d = _recording_time(src, ev, rate, time_unit, timing)
-        warnings.extend(_rate_contradiction(src, ev, rate, time_unit))
+        made["columns"], ev = _decide_columns(src, ev)
+        units_error: InputError | None = None
+        nominal: NominalConversion | None = None
+        try:
+            found, nominal = units_and_nominal(units, src.units_hint, src.units_reason, norm=ev.median_norm,
+                                               extremes=ev.extremes, medians=ev.medians, midscale_norm=ev.midscale_norm)
+            one_g = nominal.sensitivity
+        except InputError as exc:  # refused once the kind is known (a pose table's bad cell is named first)
+            units_error, one_g = exc, ev.median_norm
+        if required_by is not None:
+            what = POSE_TABLE if kind == "poses" else RAW_RECORDING
+            made["kind"] = Decision(what, f"{required_by} requires a {what}", "")
+        else:
+            made["kind"] = _decide_kind(src, ev, kind, one_g, time_unit)
+            if kind != "auto":
+                warnings.extend(_kind_contradiction(src, ev, made["kind"], one_g, time_unit))
+            if units_error is None:
+                warnings.extend(_step_contradiction(src, ev, made["kind"], one_g, time_unit))
+        if made["kind"].value == POSE_TABLE:
+            for canon, (count, row, value) in src.non_numeric.items():
+                raise InputError(
+                    f"{src.path}: column {src.column_map.get(canon, canon)!r} has a non-numeric value "
+                    f"{value!r} on data row {row} ({count} such cell(s)); every cell of a pose table must be a number"
+                )
+        if units_error is not None:
+            if src.roles is not None:  # the columns were taken by a layout the data did not confirm
+                raise InputError(f"{units_error}; or, if these columns are not the accelerometer's, map them with "
+                                 "--columns (see the columns decision)")
+            raise units_error
+        made["units"] = Decision(found.units, found.reason, "--units")
+        if made["kind"].value == POSE_TABLE:
+            if rate is not None:
+                raise InputError(f"rate applies to raw recordings; {src.path} was read as a pose table ({made['kind'].reason})")
+            made["time_base"], made["rate"] = _pose_table_time(src, time_unit)
+        else:
+            made["time_base"], made["rate"] = _recording_time(src, ev, rate, time_unit, timing)
+            warnings.extend(_rate_contradiction(src, ev, rate, time_unit))
+    except InputError as exc:
+        raise with_decisions(exc, decision_lines(
+            made.get("kind"), made.get("columns"), made.get("units"), made.get("time_base"), made.get("rate"),
+            src.layout, ev.exclusions(), warnings)) from exc
     return DataDecisions(
-        kind_decision, columns, units_decision, time_base, rate_d, src.layout, ev.exclusions(), warnings
+        made["kind"], made["columns"], made["units"], made["time_base"], made["rate"], src.layout, ev.exclusions(),
+        warnings, nominal=nominal, evidence=ev,
     )
 
 
-def _kind_contradiction(src: Source, ev: Evidence, given: Decision, one_g: float) -> list[str]:
-    """A warning when the evidence alone would read the file as the other kind (the user's choice is kept)."""
-    try:
-        auto = _decide_kind(src, ev, "auto", one_g)
-    except InputError:
-        return []
-    if auto.value == given.value:
-        return []
-    return [
-        f"read as a {given.value} as given, but the evidence says {auto.value}: {auto.reason}"
-        + (f" ({int(ev.usable.sum())} rows would each be one pose)" if given.value == POSE_TABLE else "")
-    ]
-
-
-def _rate_contradiction(src: Source, ev: Evidence, rate: float | None, time_unit: str | None) -> list[str]:
-    """A warning when a given rate contradicts a regular time column (the given rate is kept)."""
-    te = ev.time
-    if rate is None or te is None or not src.has("t") or te.backwards or not te.duration > 0 or te.n < RAW_MIN_ROWS:
-        return []
-    if time_unit is not None and src.time_unit is None:
-        factor = TIME_UNITS[time_unit]
+# ----------------------------------------------------------------------------- columns
+def _decide_columns(src: Source, ev: Evidence) -> tuple[Decision, Evidence]:
+    """The columns as named, or, when the names leave the roles open, as the rest readings say
+    (``src`` is then read so, in place); and the evidence of that reading."""
+    roles, rest = src.roles, ev.roles
+    if roles is None or rest is None:
+        return Decision(src.describe_columns(), src.columns_reason, "--columns"), ev
+    time = src.column_map.get("t")
+    if rest.triples:
+        like = [t.acceleration_like for t in rest.triples]
+        said = [t.describe() for t in rest.triples]
     else:
-        factor = 1.0  # a unit named by the column is already in seconds
-    rate_t = 1.0 / (te.mean_step * factor)  # (N−1)/duration: robust to bursty stamps
-    if src.time_unit is None and time_unit is None and rate_t < PLAUSIBLE_RATE_HZ[0]:
-        rate_t *= 1e3  # an unnamed column of ms stamps (as in the kind decision)
-    if abs(rate / rate_t - 1.0) <= RATE_MISMATCH_FRACTION:
-        return []
-    return [
-        f"the given rate {rate:g} Hz differs by {100 * abs(rate / rate_t - 1.0):.0f} % from the time column "
-        f"{src.column_map.get('t', 't')!r} ({te.n} rows over {te.duration * factor:.6g} s: {rate_t:.4g} Hz); "
-        "the given rate is used (drop rate= to use the time column)"
-    ]
+        like = [False] * len(roles.triples)
+        said = [f"only {rest.quiet_blocks} of {rest.blocks} blocks of {ROLE_BLOCK_SAMPLES} rows are quiet"] * len(like)
+    if roles.conditional:
+        if not like[0]:
+            raise InputError(
+                f"{src.path}: {roles.positions(0)} are read as the accelerometer only when the data say acceleration, "
+                f"and they do not ({said[0]}; an accelerometer turned between rests reads on one sphere); map the "
+                "accelerometer with --columns ax=NAME,ay=NAME,az=NAME"
+            )
+        reason = (f"{roles.positions(0)} read as the accelerometer: the data say acceleration ({said[0]}, as an "
+                  f"accelerometer turned between rests reads)")
+        return Decision(src.describe_columns(), reason, "--columns"), ev
+    picks = [k for k, ok in enumerate(like) if ok]
+    if len(picks) == 1 and len(roles.triples) == 2:
+        k = picks[0]
+        if k != roles.acc:
+            src.assign_accelerometer(k)
+        reason = (
+            f"no header; {roles.positions(k)} read as the accelerometer by the data ({said[k]}: an accelerometer "
+            f"turned between rests), {roles.positions(1 - k)} as the gyroscope ({said[1 - k]}: a gyroscope reads its "
+            f"bias at rest in every orientation){_time_words(src, time)}; --columns {roles.columns_option(1 - k, time)} "
+            "reads them the other way"
+        )
+        return Decision(src.describe_columns(), reason, "--columns"), rest.readings[k]
+    why = ("both triples read as an accelerometer turned between rests" if len(picks) == 2 else
+           "neither triple's rest readings move on a sphere: the sensor was not turned through orientations"
+           if rest.triples else said[0])
+    reason = (f"{src.columns_reason}; the data do not tell which triple is the accelerometer ({why}), so the common "
+              f"layout; --columns {roles.columns_option(1 - roles.acc, time)} reads them the other way")
+    return Decision(src.describe_columns(), reason, "--columns"), ev
 
 
-def _acc(src: Source, rows: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """The accelerometer samples of ``rows`` (n, 3); a view of the file's columns when every row is taken."""
-    if rows.all():
-        return columns_block(src, ACC)
-    return np.column_stack([src.column(c)[rows] for c in ACC])
+def _time_words(src: Source, time: str | None) -> str:
+    if time is None:
+        return ""
+    return f", time in {time.replace('#', 'column ')} (it increases)"
 
 
-def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float) -> Decision:
+# ----------------------------------------------------------------------------- kind
+@dataclass(frozen=True)
+class _TimeReading:
+    """The time column read in one unit: the stated one, or seconds as documented."""
+
+    factor: float  # to seconds, applied to the column as it stands
+    unit: str
+    stated: bool  # by the column's name, --time-unit or a rate in the header (not the documented default)
+    why: str
+    spacing_s: float  # (N−1)/duration in seconds
+
+    @property
+    def rate_hz(self) -> float:
+        return 1.0 / self.spacing_s if self.spacing_s > 0 else float("inf")
+
+
+def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _TimeReading:
+    """The unit of the time column: its name's, ``--time-unit``'s, the header rate's, or seconds as documented.
+
+    Never the spacing's alone: a stated rate picks the unit whose stamps give it.
+    """
+    name = f"column {src.column_map.get('t', 't')!r}"
+    if src.time_unit is not None:  # the reader converted it to seconds
+        why = f"{name} {src.time_reason.split(' (')[0].removeprefix(name + ' ')}"
+        return _TimeReading(1.0, src.time_unit, True, why, te.mean_step)
+    if time_unit is not None:
+        factor = TIME_UNITS[time_unit]
+        return _TimeReading(factor, time_unit, True, f"{name} in {time_unit} (given with --time-unit)", te.mean_step * factor)
+    if src.rate_hint is not None and te.mean_step > 0:
+        for unit, factor in TIME_UNITS.items():
+            rate_u = 1.0 / (te.mean_step * factor)
+            if abs(rate_u / src.rate_hint - 1.0) <= RATE_MISMATCH_FRACTION:
+                why = f"{name} in {unit}: the header states {src.rate_hint:g} Hz ({src.rate_reason}), which it gives in {unit}"
+                return _TimeReading(factor, unit, unit != "s", why, te.mean_step * factor)
+    return _TimeReading(1.0, "s", False, f"{name} in seconds, as documented", te.mean_step)
+
+
+def _other_unit(te: TimeEvidence) -> str:
+    """``--time-unit ms (100 Hz)``: the first smaller unit giving a plausible rate, as a hint (never applied)."""
+    for unit in ("ms", "us", "ns"):
+        rate_u = 1.0 / (te.mean_step * TIME_UNITS[unit]) if te.mean_step > 0 else float("inf")
+        if PLAUSIBLE_RATE_HZ[0] <= rate_u <= PLAUSIBLE_RATE_HZ[1]:
+            return f"--time-unit {unit} ({rate_u:.4g} Hz)"
+    return "--time-unit UNIT"
+
+
+def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float, time_unit: str | None) -> Decision:
     flag = "--format"
     if requested == "poses":
         if src.always_raw:
@@ -463,19 +473,33 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float) -> Dec
         return Decision(RAW_RECORDING, f"its header gives a sampling rate ({src.rate_reason})", flag)
     n = int(ev.usable.sum())
     ratio = ev.median_step / one_g if one_g > 0 else float("nan")
-    step = f"consecutive rows differ by {100 * ratio:.2g} % of 1 g (median)"
+    step = f"consecutive rows differ by {100 * ratio:.3g} % of 1 g (median)"
     te = ev.time
-    if te is not None and te.n >= RAW_MIN_ROWS and te.duration > 0:
-        # the rate a time column in seconds would give (or in the unit its name states)
-        rate_s = 1.0 / te.mean_step
-        if src.time_unit is None and rate_s < PLAUSIBLE_RATE_HZ[0]:
-            rate_s = 1e3 / te.mean_step  # an unnamed column of ms stamps; seconds are decided later
-        regular = te.backwards == 0 and (te.bursty or te.coarse or _regular(te))
-        if regular and rate_s >= RAW_MIN_RATE_HZ:
+    if te is not None and te.n >= 2 and te.duration > 0 and te.backwards == 0:
+        reading = _time_reading(src, te, time_unit)
+        rate = reading.rate_hz
+        if te.series_like and te.n >= RAW_MIN_ROWS and rate >= RAW_MIN_RATE_HZ:
+            bound = max_recording_step_g(rate)
+            within = "within" if ratio <= bound else "beyond"
             return Decision(
                 RAW_RECORDING,
-                f"a regular time column ({te.n} rows at {rate_s:.4g} Hz on average), {step}",
+                f"a regular time column ({te.n} rows at {rate:.4g} Hz on average, {reading.why}), {step}, "
+                f"{within} the {100 * bound:.3g} % a recording at that rate can change",
                 flag,
+            )
+        if reading.spacing_s >= MIN_POSE_SPACING_S and ratio > POSE_STEP_RATIO:
+            return Decision(
+                POSE_TABLE,
+                f"{step}, as distinct poses do, {reading.spacing_s:.3g} s apart on average ({reading.why})"
+                + _not_a_recording(te, reading, ratio),
+                flag,
+            )
+        if ratio < RAW_STEP_RATIO and not reading.stated and not (PLAUSIBLE_RATE_HZ[0] <= rate <= PLAUSIBLE_RATE_HZ[1]):
+            raise InputError(
+                f"{src.path}: {step}, as samples of a time series do, but the time column ({reading.why}) puts them "
+                f"{reading.spacing_s:.4g} s apart ({rate:.4g} Hz), outside any recording's rates "
+                f"({PLAUSIBLE_RATE_HZ[0]:g} Hz to {PLAUSIBLE_RATE_HZ[1]:g} Hz); its unit is not re-read from the "
+                f"spacing alone: pass {_other_unit(te)} if that is its unit, or --format poses if the rows are poses"
             )
     if n < 3:
         return Decision(POSE_TABLE, "too few rows for a recording", flag)
@@ -488,14 +512,77 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float) -> Dec
     raise InputError(
         f"{src.path}: cannot tell a pose table from a raw recording: {step} (between the "
         f"≤ {100 * RAW_STEP_RATIO:g} % of a time series and the ≥ {100 * POSE_STEP_RATIO:g} % of distinct poses) "
-        f"over {n} rows" + ("" if te is None else ", and the time column is irregular")
+        f"over {n} rows" + ("" if te is None else ", and the time column does not settle it")
         + "; pass --format raw or --format poses"
     )
 
 
-def _regular(te: TimeEvidence) -> bool:
-    """Steps within ±50 % of their median for 90 % of the samples (a sampled time series)."""
-    return te.median_step > 0 and te.regular_fraction >= 0.9
+def _not_a_recording(te: TimeEvidence, reading: _TimeReading, ratio: float) -> str:
+    """Why the rows are not a recording's: too slow in the unit read, too steep in a unit that would not be."""
+    out = ""
+    if reading.rate_hz < PLAUSIBLE_RATE_HZ[0]:
+        out = f"; a recording at {reading.rate_hz:.3g} Hz would be slower than any"
+    if reading.stated:
+        return out
+    for unit in ("ms", "us", "ns"):
+        rate_u = reading.rate_hz / TIME_UNITS[unit]
+        if PLAUSIBLE_RATE_HZ[0] <= rate_u <= PLAUSIBLE_RATE_HZ[1]:
+            bound = max_recording_step_g(rate_u)
+            if ratio > bound:
+                out += (f"; were t in {unit}, a recording at {rate_u:.4g} Hz, its rows could differ by "
+                        f"{100 * bound:.3g} % at most (a turn at {MAX_TURN_RATE_DEG_S:g} °/s and a resting "
+                        "accelerometer's noise)")
+            break
+    return out
+
+
+def _step_contradiction(src: Source, ev: Evidence, kind: Decision, one_g: float, time_unit: str | None) -> list[str]:
+    """A warning when a recording read from a regular time column changes between rows more than any recording can."""
+    te = ev.time
+    if kind.value != RAW_RECORDING or te is None or te.n < 2 or not te.duration > 0 or te.backwards:
+        return []
+    reading = _time_reading(src, te, time_unit)
+    ratio = ev.median_step / one_g if one_g > 0 else float("nan")
+    bound = max_recording_step_g(reading.rate_hz)
+    if not ratio > bound:
+        return []
+    return [
+        f"consecutive rows differ by {100 * ratio:.3g} % of the nominal 1 g (median), more than the {100 * bound:.3g} % "
+        f"any recording at {reading.rate_hz:.4g} Hz can change (a turn at {MAX_TURN_RATE_DEG_S:g} °/s and a resting "
+        "accelerometer's noise): if the columns are not the accelerometer's, map them with --columns; if the rows are "
+        "poses, pass --format poses (and --time-unit)"
+    ]
+
+
+def _kind_contradiction(src: Source, ev: Evidence, given: Decision, one_g: float, time_unit: str | None) -> list[str]:
+    """A warning when the evidence alone would read the file as the other kind (the user's choice is kept)."""
+    try:
+        auto = _decide_kind(src, ev, "auto", one_g, time_unit)
+    except InputError:
+        return []
+    if auto.value == given.value:
+        return []
+    return [
+        f"read as a {given.value} as given, but the evidence says {auto.value}: {auto.reason}"
+        + (f" ({int(ev.usable.sum())} rows would each be one pose)" if given.value == POSE_TABLE else "")
+    ]
+
+
+# ----------------------------------------------------------------------------- time
+def _rate_contradiction(src: Source, ev: Evidence, rate: float | None, time_unit: str | None) -> list[str]:
+    """A warning when a given rate contradicts a regular time column (the given rate is kept)."""
+    te = ev.time
+    if rate is None or te is None or not src.has("t") or te.backwards or not te.duration > 0 or te.n < RAW_MIN_ROWS:
+        return []
+    reading = _time_reading(src, te, time_unit)
+    rate_t = reading.rate_hz  # (N−1)/duration: robust to bursty stamps
+    if abs(rate / rate_t - 1.0) <= RATE_MISMATCH_FRACTION:
+        return []
+    return [
+        f"the given rate {rate:g} Hz differs by {100 * abs(rate / rate_t - 1.0):.0f} % from the time column "
+        f"({reading.why}; {te.n} rows over {te.duration * reading.factor:.6g} s: {rate_t:.4g} Hz); "
+        "the given rate is used (drop rate= to use the time column)"
+    ]
 
 
 def _refuse_backwards(src: Source, ev: Evidence, t: NDArray[np.float64], what: str) -> None:
@@ -551,32 +638,22 @@ def _recording_time(
         raise InputError(f"{src.path}: fewer than two usable samples with a time")
     if te.backwards:  # the evidence counted the steps back among the usable rows
         _refuse_backwards(src, ev, t, "time")
-    # the unit
-    if time_unit is not None:
-        if src.time_unit is not None and src.time_unit != time_unit:
-            raise InputError(f"{src.path}: time_unit {time_unit} contradicts the column name ({src.time_reason})")
-        factor, unit_why = TIME_UNITS[time_unit], f"in {time_unit} (given with --time-unit)"
-    elif src.time_unit is not None:
-        factor, unit_why = 1.0, src.time_reason.split(" (")[0].removeprefix(f"column {src.column_map['t']!r} ")
-    else:
-        factor, unit_why = 1.0, "in seconds"
-        rate_s = 1.0 / te.mean_step if te.mean_step > 0 else float("inf")
-        if rate_s < PLAUSIBLE_RATE_HZ[0] and te.n >= RAW_MIN_ROWS:
-            for unit in ("ms", "us", "ns"):
-                r = rate_s / TIME_UNITS[unit]
-                if PLAUSIBLE_RATE_HZ[0] <= r <= PLAUSIBLE_RATE_HZ[1]:
-                    factor = TIME_UNITS[unit]
-                    unit_why = (
-                        f"in {unit}: an assumption, since in seconds {te.n} samples would come at "
-                        f"{rate_s:.3g} Hz; pass --time-unit s to keep seconds"
-                    )
-                    break
+    if time_unit is not None and src.time_unit is not None and src.time_unit != time_unit:
+        raise InputError(f"{src.path}: time_unit {time_unit} contradicts the column name ({src.time_reason})")
+    reading = _time_reading(src, te, time_unit)
+    if not reading.stated and te.duration > 0 and not PLAUSIBLE_RATE_HZ[0] <= reading.rate_hz <= PLAUSIBLE_RATE_HZ[1]:
+        raise InputError(
+            f"{src.path}: the time column ({reading.why}) gives {te.n} samples at {reading.rate_hz:.4g} Hz, outside "
+            f"any recording's rates ({PLAUSIBLE_RATE_HZ[0]:g} Hz to {PLAUSIBLE_RATE_HZ[1]:g} Hz); its unit is not "
+            f"re-read from the spacing alone: pass {_other_unit(te)} if that is its unit (or --time-unit s to keep seconds)"
+        )
+    factor = reading.factor
     if factor != 1.0:
         t = t * factor
         src.data["t"] = t
     mean_step = te.mean_step * factor
     median_step = te.median_step * factor
-    name = f"column {src.column_map['t']!r} {unit_why}"
+    name = reading.why
     irregular = te.bursty or te.coarse
     if timing == "uniform" or (timing == "auto" and irregular and mean_step > 0):
         if not mean_step > 0:
@@ -603,3 +680,4 @@ def _recording_time(
         )
     rate_hz = 1.0 / median_step if median_step > 0 else float("nan")
     return Decision("stamps", name, "--timing"), Decision(rate_hz, "1/median time step", "--rate")
+

@@ -5,11 +5,13 @@ Every reader returns a :class:`Source`: the data under optcal's canonical column
 saturation.  Deciding whether the data are a pose table or a raw recording, and turning
 them into a :class:`~optcal.core.poses.PoseTable`, happens in :mod:`optcal.data`.
 
-Text files are laid out by :mod:`optcal.data.text` (any delimiter, decimal commas, with or
-without a header: a headerless file's columns are taken by position, :data:`HEADERLESS_LAYOUTS`).
-Column names are matched case-insensitively after removing a unit word
-(``acc_x_counts`` → ``acc_x`` in counts, ``t_s`` → ``t`` in seconds, ``gyr_x`` → ``gx``);
-``--columns ax=ACC1,ay=ACC2,...`` maps any other names.  The file type is recognised from
+Text files are laid out by :mod:`optcal.data.text` (any delimiter, decimal commas, a header
+row or a comment line naming the columns, or no header: a headerless file's columns are
+taken by the common layout of their number, :func:`optcal.data.columns.headerless_mapping`).
+Column names are matched by :mod:`optcal.data.columns` (case-insensitively, after removing
+a unit word: ``acc_x_counts`` → ``acc_x`` in counts, ``t_s`` → ``t`` in seconds, ``gyr_x`` →
+``gx``); ``--columns ax=ACC1,ay=ACC2,...`` maps any other names.  Columns whose names do not
+settle their roles are recorded as :class:`~optcal.data.columns.ColumnRoles` for the evidence.  The file type is recognised from
 its first bytes (ULog, ROS 1 bag, Parquet, SQLite/MCAP ROS 2 bag) or, for a directory, from
 its ROS 2 ``metadata.yaml``; everything else is read as delimited text.  ROS bags need
 ``pip install optcal[ros]`` (the ``rosbags`` library), ULog files ``pip install optcal[px4]``
@@ -18,70 +20,40 @@ its ROS 2 ``metadata.yaml``; everything else is read as delimited text.  ROS bag
 
 from __future__ import annotations
 
-import re
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.columns import (
+    ACC,
+    ALIASES,
+    CANONICAL,
+    GYRO,
+    GYRO_UNIT_WORDS,
+    NO_COLUMN,
+    RATE_KEYS,
+    TIME_UNITS,
+    ColumnRoles,
+    headerless_mapping,
+    normalise_name,
+    parse_columns_option,
+    resolve_columns,
+)
 from optcal.data.containers import container_type, read_container
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
-if TYPE_CHECKING:
-    from optcal.data.text import TextLayout
-
-#: optcal's column names: time, accelerometer, gyro, temperature, and the pose-table-only
-#: ``sigma`` (noise of each pose mean) and ``n_samples`` (samples averaged per pose).
-CANONICAL: tuple[str, ...] = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp", "sigma", "n_samples")
-ACC: tuple[str, str, str] = ("ax", "ay", "az")
-GYRO: tuple[str, str, str] = ("gx", "gy", "gz")
-
-#: Normalised column names recognised for each canonical column (after a unit word is removed).
-ALIASES: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time", "timestamp", "timestamps", "stamp", "time_stamp", "sec", "seconds", "elapsed",
-          "t_idx", "t_header", "t_sample", "t_host", "time_sample", "timestamp_sample", "header_stamp",
-          "host_time", "sensor_time", "time_idx", "epoch"),
-    "temp": ("temp", "temperature", "tmp", "imu_temp", "imu_temperature"),
-    "sigma": ("sigma", "noise", "std_mean"),
-    "n_samples": ("n_samples", "samples", "nsamples", "count"),
-}
-for _axis in "xyz":
-    ALIASES["a" + _axis] = tuple(
-        f.format(_axis)
-        for f in ("a{}", "acc{}", "acc_{}", "accel_{}", "accel{}", "accelerometer_{}", "a_{}",
-                  "acceleration_{}", "linear_acceleration_{}", "accelerometer_m_s2_{}")
-    )
-    ALIASES["g" + _axis] = tuple(
-        f.format(_axis)
-        for f in ("g{}", "gyr{}", "gyr_{}", "gyro_{}", "gyro{}", "gyroscope_{}", "omega_{}", "w{}",
-                  "w_{}", "angular_velocity_{}", "gyro_rad_{}")
-    )
-#: Names of a sample-index column (time then comes from --rate or the file header).
-INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n")
-
-#: Time unit words and their factor to seconds.
-TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-#: Gyro unit words at the end of column names (``gx_dps``, ``gyro_x_rad``), and the units they state.  Column
-#: names use words (``deg``, ``rad``, ``radps``) that are not spellings of ``--gyro-units``
-#: (:data:`optcal.core.units.UNIT_ALIASES`), and no ``/``.
-GYRO_UNIT_WORDS: dict[str, str] = {
-    "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
-    "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
-    "counts": "counts", "lsb": "counts", "raw": "counts",
-}
-TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
-_UNIT_WORDS = sorted(
-    set(UNIT_ALIASES["accelerometer"]) | set(TIME_UNITS) | set(GYRO_UNIT_WORDS) | set(TEMP_UNITS) | {"m_s_2"},
-    key=len,
-    reverse=True,
-)
-#: Keys of a metadata line before the header that give the sampling rate in Hz.
-RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq")
+__all__ = [  # the column names, for the modules and tests that read them here
+    "ACC", "ALIASES", "CANONICAL", "GYRO", "GYRO_UNIT_WORDS", "NO_COLUMN", "RATE_KEYS", "TIME_UNITS",
+    "ColumnRoles", "Source", "detect_file_type", "merge_gyro_file", "parse_columns_option",
+    "read_parquet", "read_rosbag", "read_source", "read_text", "read_ulog", "resolve_columns",
+    "source_from_columns", "source_from_frame", "ulog_is_cut",
+]
 
 ROS_IMU_TYPE = "sensor_msgs/msg/Imu"
 ROS_TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
@@ -132,6 +104,9 @@ class Source:
     notes : list of str
     exclusions : dict of str to int
         What the reader could not use, counted (e.g. a message cut off by truncation).
+    roles : ColumnRoles or None
+        Columns whose names do not settle their roles (a file without a header, ``tx, ty,
+        tz``), read in the common layout; the decisions read them as the evidence says.
     """
 
     path: str
@@ -156,6 +131,7 @@ class Source:
     size_bytes: int = 0
     notes: list[str] = field(default_factory=list)
     exclusions: dict[str, int] = field(default_factory=dict)
+    roles: ColumnRoles | None = None
 
     @property
     def n_rows(self) -> int:
@@ -172,43 +148,61 @@ class Source:
         """``ax←acc_x_counts, ...`` for reports."""
         return ", ".join(f"{k}←{v}" for k, v in self.column_map.items() if k != v) or "as named"
 
+    def block(self, names: tuple[str, ...]) -> NDArray[np.float64]:
+        """The columns ``names`` as one (n, k) array in column-major (Fortran) order.
 
-def columns_block(src: Source, names: tuple[str, ...]) -> NDArray[np.float64]:
-    """The columns ``names`` of ``src`` as one (n, k) array in column-major (Fortran) order.
+        Each column is contiguous, so the column-by-column statistics of the static detection and
+        the per-interval means read contiguous memory.  When the columns are already adjacent
+        columns, in this order, of one column-major block (a large text file is parsed into one,
+        :class:`optcal.data.text.ColumnBlock`), the result is a view of that block: no copy.
+        """
+        view = self._adjacent([self.column(name) for name in names])
+        if view is not None:
+            return view
+        block = np.empty((self.n_rows, len(names)), order="F")
+        for j, name in enumerate(names):
+            block[:, j] = self.column(name)
+        return block
 
-    Each column is contiguous, so the column-by-column statistics of the static detection and
-    the per-interval means read contiguous memory.  When the columns are already adjacent
-    columns, in this order, of one column-major block (a large text file is parsed into one,
-    :class:`optcal.data.text.ColumnBlock`), the result is a view of that block: no copy.
-    """
-    view = _adjacent_columns([src.column(name) for name in names])
-    if view is not None:
-        return view
-    block = np.empty((src.n_rows, len(names)), order="F")
-    for j, name in enumerate(names):
-        block[:, j] = src.column(name)
-    return block
-
-
-def _adjacent_columns(cols: list[NDArray[np.float64]]) -> NDArray[np.float64] | None:
-    """``base[:n, k:k + len(cols)]`` when ``cols`` are those columns of one column-major base, else ``None``."""
-    base = cols[0].base
-    if not isinstance(base, np.ndarray) or base.ndim != 2 or not base.flags.f_contiguous or base.dtype != np.float64:
-        return None
-    n = cols[0].size
-    start = base.__array_interface__["data"][0]
-    stride = base.strides[1]
-    first = cols[0].__array_interface__["data"][0] - start
-    if n > base.shape[0] or first % stride:
-        return None
-    k = first // stride
-    for j, col in enumerate(cols):
-        if (col.base is not base or col.ndim != 1 or col.size != n or col.strides != (8,)
-                or col.__array_interface__["data"][0] - start != (k + j) * stride):
+    @staticmethod
+    def _adjacent(cols: list[NDArray[np.float64]]) -> NDArray[np.float64] | None:
+        """``base[:n, k:k + len(cols)]`` when ``cols`` are those columns of one column-major base, else ``None``."""
+        base = cols[0].base
+        if not isinstance(base, np.ndarray) or base.ndim != 2 or not base.flags.f_contiguous or base.dtype != np.float64:
             return None
-    if k + len(cols) > base.shape[1]:
-        return None
-    return base[:n, k:k + len(cols)]
+        n = cols[0].size
+        start = base.__array_interface__["data"][0]
+        stride = base.strides[1]
+        first = cols[0].__array_interface__["data"][0] - start
+        if n > base.shape[0] or first % stride:
+            return None
+        k = first // stride
+        for j, col in enumerate(cols):
+            if (col.base is not base or col.ndim != 1 or col.size != n or col.strides != (8,)
+                    or col.__array_interface__["data"][0] - start != (k + j) * stride):
+                return None
+        if k + len(cols) > base.shape[1]:
+            return None
+        return base[:n, k:k + len(cols)]
+
+    def with_accelerometer(self, k: int) -> Source:
+        """This source read with candidate triple ``k`` of :attr:`roles` as the accelerometer (and the
+        other as the gyroscope): a copy that shares the arrays."""
+        if self.roles is None or k == self.roles.acc:
+            return self
+        by_name = {self.column_map[c]: self.data[c] for c in (*ACC, *GYRO) if c in self.data}
+        data, column_map = dict(self.data), dict(self.column_map)
+        for i, names in enumerate(self.roles.triples):
+            for canon, name in zip(ACC if i == k else GYRO, names):
+                data[canon], column_map[canon] = by_name[name], name
+        order = [c for c in self.column_map]  # the columns listed as before
+        roles = ColumnRoles(self.roles.triples, k, self.roles.layout, self.roles.conditional)
+        return replace(self, data=data, column_map={c: column_map[c] for c in order}, roles=roles)
+
+    def assign_accelerometer(self, k: int) -> None:
+        """Read candidate triple ``k`` of :attr:`roles` as the accelerometer from now on (in place)."""
+        other = self.with_accelerometer(k)
+        self.data, self.column_map, self.roles = other.data, other.column_map, other.roles
 
 
 # ----------------------------------------------------------------------------- file types
@@ -283,34 +277,25 @@ def read_source(
 
 
 # ----------------------------------------------------------------------------- tabular
-#: Canonical columns of a file without a header, by its number of fields (the layouts
-#: loggers write: imu_tk's ``t ax ay az``, ``ax ay az gx gy gz``, ...).  Layouts with a
-#: leading time column apply only when that column increases.
-HEADERLESS_LAYOUTS: dict[int, tuple[str, ...]] = {
-    3: ("ax", "ay", "az"),
-    4: ("t", "ax", "ay", "az"),
-    6: ("ax", "ay", "az", "gx", "gy", "gz"),
-    7: ("t", "ax", "ay", "az", "gx", "gy", "gz"),
-}
-
-
 def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source:
     """Read a delimited text file (any delimiter, with or without a header) into a :class:`Source`."""
-    from optcal.data.text import parse_numbers, sniff_layout
+    from optcal.data.text import read_numbers
 
     p = Path(path)
-    layout = sniff_layout(p)
-    parsed = parse_numbers(p, layout)
-    if parsed.n_rows == 0:
-        raise InputError(f"{p}: no data rows after the header")
-    names = layout.names
+    layout, parsed = read_numbers(p)
     mapping = dict(mapping or {})
+    if not layout.has_header and layout.comment_names is not None and _names_columns(layout.comment_names, mapping):
+        layout = layout.with_comment_header()
+    names = layout.names
     reason = "header names"
+    if layout.header_in_comment and layout.header_line is not None:
+        reason = f"names in the comment on line {layout.header_line + 1}"
+    roles = None
     if not layout.has_header:
         if mapping:
             reason = "no header; columns by position from --columns"
         else:
-            mapping, reason = _headerless_mapping(p, layout, parsed.columns)
+            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe())
     src = source_from_columns(
         names, parsed.columns, str(p), "csv", mapping, layout.metadata,
         {names[j]: v for j, v in parsed.non_numeric.items()},
@@ -318,33 +303,24 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
         src.columns_reason = reason
+        src.roles = roles
     elif any(v.isdigit() and v not in names for v in mapping.values()):
-        src.columns_reason = "header names and positions from --columns"
+        src.columns_reason = f"{reason} and positions from --columns"
+    elif src.roles is None:
+        src.columns_reason = reason
     src.layout = layout.describe()
     src.size_bytes = p.stat().st_size
     return src
 
 
-def _headerless_mapping(p: Path, layout: TextLayout, columns: list[NDArray[np.float64]]) -> tuple[dict[str, str], str]:
-    width = len(columns)
-    canon = HEADERLESS_LAYOUTS.get(width)
-    if canon is not None and canon[0] == "t":
-        t = columns[0][np.isfinite(columns[0])]
-        if t.size < 2 or not np.all(np.diff(t) >= 0):
-            canon = None
-    example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
-    if canon is None:
-        raise InputError(
-            f"{p}: the file has no header row ({layout.describe()}), and {width} unnamed columns fit no "
-            f"common layout; name them by 1-based position, e.g. {example}"
-        )
-    mapping = {c: str(j + 1) for j, c in enumerate(canon)}
-    what = " ".join(canon)
-    return mapping, (
-        f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
-        + ("; the first column increases" if canon[0] == "t" else "")
-        + f"); name them by position to change it, e.g. {example}"
-    )
+def _names_columns(names: list[str], mapping: dict[str, str]) -> bool:
+    """Whether a comment line's words name the columns: ``--columns`` names them, or optcal knows one of them."""
+    if any(v in names for v in mapping.values()):
+        return True
+    try:
+        return bool(resolve_columns(names, {}).column_map)
+    except InputError:
+        return False
 
 
 def read_parquet(path: str | Path) -> Any:
@@ -361,120 +337,6 @@ def read_parquet(path: str | Path) -> Any:
     if len(frame) == 0:
         raise InputError(f"{path}: no data rows")
     return frame
-
-
-#: The ``--columns`` value that makes optcal use no column as that name (``index=none``).
-NO_COLUMN: str = "none"
-
-
-def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]:
-    """Parse ``"ax=acc1,ay=acc2,t=time"`` (names, or 1-based positions) into {canonical: file column}.
-
-    A value of :data:`NO_COLUMN` (``"t=none"``, ``"index=none"``) keeps optcal from taking any
-    column as that name (a recognised column is then left unused).
-    """
-    if columns is None or columns == "":
-        return {}
-    if isinstance(columns, dict):
-        pairs = [(str(k), str(v)) for k, v in columns.items()]
-    else:
-        pairs = []
-        for item in str(columns).split(","):
-            if not item.strip():
-                continue
-            if "=" not in item:
-                raise InputError(
-                    f"columns item {item.strip()!r} is not NAME=COLUMN; write e.g. "
-                    "ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts, or by 1-based position t=1,ax=2,ay=3,az=4"
-                )
-            k, v = item.split("=", 1)
-            pairs.append((k.strip(), v.strip()))
-    out = {}
-    for k, v in pairs:
-        if k not in CANONICAL and k != "index":
-            raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
-        if k in ACC and v.lower() == NO_COLUMN:
-            raise InputError(f"columns {k}={v}: the accelerometer columns cannot be ignored; map {k} to a column")
-        out[k] = v
-    return out
-
-
-def _normalise_name(name: str) -> str:
-    s = re.sub(r"[^0-9a-z]+", "_", str(name).lower()).strip("_")
-    return s
-
-
-def _strip_unit(norm: str) -> tuple[str, str | None]:
-    for word in _UNIT_WORDS:
-        key = re.sub(r"[^0-9a-z]+", "_", word.lower()).strip("_")
-        if key and norm.endswith("_" + key) and len(norm) > len(key) + 1:
-            return norm[: -len(key) - 1], key
-    return norm, None
-
-
-def resolve_columns(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], dict[str, str | None]]:
-    """Match the file's column names to canonical names.
-
-    ``mapping`` values are column names, or 1-based positions (``"2"``) when no column has
-    that name.
-
-    Returns
-    -------
-    column_map : dict
-        canonical → file column.
-    unit_words : dict
-        canonical → the unit word found in its name (or None).
-    """
-    column_map: dict[str, str] = {}
-    units: dict[str, str | None] = {}
-    ignored = {canon for canon, col in mapping.items() if col.lower() == NO_COLUMN and col not in names}
-    # "samples" may be taken as index or as n_samples: ignoring one ignores the column for both
-    if ignored & {"index", "n_samples"}:
-        ignored |= {"index", "n_samples", "index_or_count"}
-    given: dict[str, str] = {}
-    for canon, col in mapping.items():
-        if canon in ignored:
-            continue
-        if col not in names:
-            if col.isdigit() and 1 <= int(col) <= len(names):
-                col = names[int(col) - 1]
-            else:
-                raise InputError(
-                    f"columns {canon}={col}: there is no column {col!r} "
-                    f"(the file has: {', '.join(names)}; or give a 1-based position 1..{len(names)})"
-                )
-        if col in given:
-            where = f"column {mapping[canon]} ({col!r})" if col != mapping[canon] else f"column {col!r}"
-            raise InputError(
-                f"columns: {given[col]} and {canon} both map to {where}; give each name its own column"
-            )
-        given[col] = canon
-        column_map[canon] = col
-        units[canon] = _strip_unit(_normalise_name(col))[1]
-    taken = set(column_map.values())
-    for col in names:
-        if col in taken:
-            continue
-        norm = _normalise_name(col)
-        found: str | None = None
-        for candidate, unit in ((norm, None), _strip_unit(norm)):
-            if candidate in INDEX_ALIASES:
-                found = "index_or_count"
-            else:
-                found = next((c for c, al in ALIASES.items() if candidate in al), None)
-            if found is not None:
-                break
-        if found is None or found in ignored:
-            continue
-        if found == "index_or_count":
-            # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a
-            # recording; which one is decided from the values in source_from_columns.
-            found = "index"
-        if found not in column_map:
-            column_map[found] = col
-            units[found] = unit
-            taken.add(col)
-    return column_map, units
 
 
 def source_from_frame(
@@ -510,7 +372,7 @@ def source_from_columns(
     non_numeric_by_name: dict[str, tuple[int, int, str]] | None = None,
 ) -> Source:
     """Map named float columns to canonical columns (units and time unit as the names state them)."""
-    column_map, unit_words = resolve_columns(names, mapping or {})
+    column_map, unit_words, roles = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
     if missing:
         raise InputError(
@@ -534,8 +396,11 @@ def source_from_columns(
     ignored = [c for c in names if c not in used and c not in extra]
     src = Source(
         path=path, file_type=file_type, data=data, extra=extra, column_map=column_map,
-        ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric,
+        ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric, roles=roles,
     )
+    if roles is not None:
+        src.columns_reason = (f"{', '.join(roles.triples[0])} as the accelerometer when the data say acceleration "
+                              "(an acceleration in some loggers, a translation in others)")
     acc_units = {unit_words.get(c) for c in ACC}
     word = next(iter(acc_units)) if len(acc_units) == 1 else None
     if word is not None and word in UNIT_ALIASES["accelerometer"]:
@@ -558,7 +423,7 @@ def source_from_columns(
         else:
             src.time_reason = f"column {name!r}"
     for key, value in src.header.items():
-        if _normalise_name(key) in RATE_KEYS:
+        if normalise_name(key) in RATE_KEYS:
             try:
                 rate = float(value.replace(",", "."))
             except ValueError:

@@ -16,9 +16,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.decisions import NON_FINITE, DataDecisions, Decision, Evidence, decide, gather_evidence
+from optcal.data.columns import ACC, GYRO
+from optcal.data.decisions import DataDecisions, Decision, decide, with_decisions
+from optcal.data.evidence import NON_FINITE, Evidence, gather_evidence
 from optcal.data.quantiles import median
-from optcal.data.readers import ACC, GYRO, Source, columns_block
+from optcal.data.readers import Source
 from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
 
@@ -126,7 +128,8 @@ def recording_from_source(
         Made by :func:`optcal.data.decisions.decide`; made here (as a raw recording, with the
         keyword options) when omitted.
     evidence : Evidence, optional
-        The evidence the decisions were made from (gathered here when omitted).
+        The evidence the decisions were made from, when ``decisions`` do not hold it (gathered
+        here when neither has it).
     units, rate, time_unit, timing
         Options of :func:`optcal.data.decisions.decide` when ``decisions`` is omitted.
     required_by : str
@@ -135,17 +138,29 @@ def recording_from_source(
 
     Raises
     ------
-    InputError
-        No time and no rate, time running backwards, or no usable sample.
+    DataInputError
+        No time and no rate, time running backwards, or no usable sample (with the decisions made).
     """
-    ev = evidence if evidence is not None else gather_evidence(src)
     if decisions is None:
+        ev = evidence if evidence is not None else gather_evidence(src)
         decisions = decide(
             src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
         )
+    try:
+        return _convert(src, decisions, evidence)
+    except InputError as exc:
+        raise with_decisions(exc, decisions) from exc
+
+
+def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None) -> Recording:
+    """The decisions applied to ``src`` (see :func:`recording_from_source`)."""
+    if decisions.evidence is not None:  # the evidence of the columns as decided
+        ev = decisions.evidence
+    else:
+        ev = evidence if evidence is not None else gather_evidence(src)
     n = src.n_rows
-    acc = columns_block(src, ACC)
-    gyro = columns_block(src, GYRO) if src.has(*GYRO) else None
+    acc = src.block(ACC)
+    gyro = src.block(GYRO) if src.has(*GYRO) else None
     temp = src.column("temp") if src.has("temp") else None
     row: NDArray[np.int32] | NDArray[np.int64]  # int32 when it fits: half the memory
     row = np.arange(1, n + 1, dtype=np.int32) if n < 2**31 - 1 else np.arange(1, n + 1, dtype=np.int64)
@@ -180,10 +195,13 @@ def recording_from_source(
         _count(exclusions, DUPLICATED, int(np.sum(identical)))
         _count(exclusions, REPEATED_TIME, int(np.sum(~identical)))
     units = str(decisions.units.value)
-    # the evidence's median norm is the one over these rows when no duplicate was set aside
-    same_rows = int(np.count_nonzero(usable)) == int(np.count_nonzero(ev.usable))
-    nominal = nominal_conversion(units, acc if usable.all() else acc[usable],
-                                 median_norm=ev.median_norm if same_rows else None)
+    # the evidence's statistics are the ones over these rows when no duplicate was set aside
+    if int(np.count_nonzero(usable)) == int(np.count_nonzero(ev.usable)):
+        nominal = decisions.nominal if decisions.nominal is not None else nominal_conversion(
+            units, None, median_norm=ev.median_norm, extremes=ev.extremes, medians=ev.medians,
+            midscale_norm=ev.midscale_norm)
+    else:
+        nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
     sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
@@ -192,13 +210,13 @@ def recording_from_source(
         nominal = nominal_conversion(units, acc[usable])
     if not usable.any():
         raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
-    tu = t[usable]
-    steps = np.diff(tu)
-    if decisions.time_base.value == "stamps":
+    same_rows = int(np.count_nonzero(usable)) == int(np.count_nonzero(ev.usable))
+    if decisions.time_base.value == "stamps" and not same_rows:  # the median step of the samples left
+        steps = np.diff(t[usable])
         step = median(steps) if steps.size else 0.0
         rate_hz = float(1.0 / step) if step > 0 else float("nan")
         decisions.rate = Decision(rate_hz, decisions.rate.reason, decisions.rate.flag)
-    else:
+    else:  # the evidence's, as the decisions took it
         rate_hz = float(decisions.rate.value)
     decisions.exclusions = dict(exclusions)
     meta = {

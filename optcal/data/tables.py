@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from optcal.data.decisions import DataDecisions, decide, gather_evidence
+from optcal.data.decisions import DataDecisions, decide
+from optcal.data.evidence import gather_evidence
 from optcal.data.readers import ACC, GYRO, Source, read_source, source_from_frame
 from optcal.data.units import decide_units
 from optcal.errors import InputError

@@ -2,7 +2,9 @@
 
 The layout (:class:`TextLayout`) is sniffed from the first :data:`SNIFF_LINES` lines: the
 delimiter (comma, semicolon, tab, ``|`` or whitespace), a decimal comma, the header row
-(or none), and the metadata lines above it (``Fs,100``, ``# comments``).  The numbers are
+(or none; a comment line just above the data with one name per column, ``# time ax ay az``
+or ``% t ax ay az``, is offered as the header: :attr:`TextLayout.comment_names`), and the
+metadata lines above it (``Fs,100``, ``# comments``).  The numbers are
 then parsed in one place, :func:`parse_numbers`: numpy's C reader for small files (it
 needs no pandas import, which costs more than reading a file of 10⁵ rows), pyarrow for
 large files of plain numbers (multithreaded up to 128 MB, streamed above), pandas' C
@@ -16,7 +18,7 @@ from __future__ import annotations
 import re
 import warnings
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +36,8 @@ CHUNK_ROWS: int = 2**18
 #: Delimiters tried, in order of preference when several fit.
 DELIMITERS: tuple[str, ...] = ("\t", ";", "|", ",", " ")
 _NAMES = {"\t": "tab", ";": "semicolon", "|": "'|'", ",": "comma", " ": "whitespace"}
+#: Lines starting with one of these are comments (``#`` of most loggers and numpy, ``%`` of MATLAB).
+COMMENT_MARKS: tuple[str, ...] = ("#", "%")
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 _COMMA_NUMBER = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
 
@@ -56,6 +60,12 @@ class TextLayout:
         The header's column names, or ``"1"``, ``"2"``, ... (1-based positions) without one.
     metadata : dict of str to str
         ``key,value`` lines and comments above the header.
+    comment_names : list of str or None
+        The words of the comment line just above the data rows (``# time tx ty tz ...``) when the
+        file has no header row and that line has one word per column, none of them a number: the
+        columns' names if the reader takes them so (:meth:`with_comment_header`).
+    comment_line : int or None
+        0-based line of that comment.
     """
 
     delimiter: str
@@ -64,17 +74,35 @@ class TextLayout:
     first_data_line: int
     names: list[str]
     metadata: dict[str, str] = field(default_factory=dict)
+    comment_names: list[str] | None = None
+    comment_line: int | None = None
 
     @property
     def has_header(self) -> bool:
         return self.header_line is not None
+
+    @property
+    def header_in_comment(self) -> bool:
+        """The header is a comment line (:meth:`with_comment_header`)."""
+        return self.header_line is not None and self.header_line == self.comment_line
+
+    def with_comment_header(self) -> TextLayout:
+        """This layout with :attr:`comment_names` as the header (and that comment no longer a metadata line)."""
+        if self.comment_names is None or self.comment_line is None:
+            raise ValueError("no comment line names the columns")
+        key = next(iter(_metadata([" ".join(self.comment_names)])), None)
+        metadata = {k: v for k, v in self.metadata.items() if k != key}
+        return replace(self, header_line=self.comment_line, names=list(self.comment_names), metadata=metadata)
 
     def describe(self) -> str:
         """``comma-separated, header on line 5`` / ``whitespace-separated, no header``."""
         what = f"{_NAMES[self.delimiter]}-separated"
         if self.decimal_comma:
             what += " with decimal commas"
-        head = f"header on line {self.header_line + 1}" if self.header_line is not None else "no header"
+        if self.header_in_comment and self.header_line is not None:
+            head = f"header in the comment on line {self.header_line + 1}"
+        else:
+            head = f"header on line {self.header_line + 1}" if self.header_line is not None else "no header"
         return f"{what}, {head}, {len(self.names)} columns"
 
 
@@ -130,7 +158,7 @@ def sniff_layout(path: str | Path) -> TextLayout:
     """
     p = Path(path)
     lines = read_head(p)
-    content = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith("#")]
+    content = [(i, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.strip().startswith(COMMENT_MARKS)]
     if not content:
         raise InputError(f"{p}: the file is empty; expected data rows (with or without a header row)")
     best: tuple[int, int, TextLayout] | None = None
@@ -194,13 +222,35 @@ def _layout_for(
                     f"but line {first_data + 1} has {width} fields; every data row needs one value per column"
                 )
     meta_end = header_line if header_line is not None else first_data
-    return TextLayout(delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end])), None
+    comment_names, comment_line = None, None
+    if header_line is None:
+        comment_names, comment_line = _comment_names(lines, first_data, delim, decimal_comma, width)
+    return TextLayout(
+        delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end]), comment_names, comment_line
+    ), None
+
+
+def _comment_names(
+    lines: list[str], first_data: int, delim: str, decimal_comma: bool, width: int
+) -> tuple[list[str] | None, int | None]:
+    """The words of the comment line just above the data (blank lines between allowed) when they
+    are one name per column (at least two, none a number), and that line."""
+    i = first_data - 1
+    while i >= 0 and not lines[i].strip():
+        i -= 1
+    if i < 0 or not lines[i].strip().startswith(COMMENT_MARKS):
+        return None, None
+    text = lines[i].strip().lstrip("".join(COMMENT_MARKS)).strip()
+    words = [w.strip().strip('"').strip("'") for w in _split(text, delim)]
+    if width >= 2 and len(words) == width and all(w and not _is_number(w, decimal_comma) for w in words):
+        return words, i
+    return None, None
 
 
 def _metadata(lines: list[str]) -> dict[str, str]:
     out: dict[str, str] = {}
     for line in lines:
-        s = line.strip().lstrip("#").strip()
+        s = line.strip().lstrip("".join(COMMENT_MARKS)).strip()
         if not s:
             continue
         m = re.match(r"^([^,;:=\t|]+)[,;:=\t|]\s*(.*)$", s)
@@ -209,6 +259,21 @@ def _metadata(lines: list[str]) -> dict[str, str]:
         else:
             out[s] = ""
     return out
+
+
+def read_numbers(path: str | Path) -> tuple[TextLayout, ParsedNumbers]:
+    """The layout of a delimited text file and its numbers (:func:`sniff_layout`, then :func:`parse_numbers`).
+
+    Raises
+    ------
+    InputError
+        No layout found, or no data rows.
+    """
+    layout = sniff_layout(path)
+    parsed = parse_numbers(path, layout)
+    if parsed.n_rows == 0:
+        raise InputError(f"{path}: no data rows after the header")
+    return layout, parsed
 
 
 @dataclass

@@ -182,29 +182,41 @@ MIN_SPREAD_TO_NORM: float = 0.035
 ONE_G_TOLERANCE: float = 0.2
 
 
-def implied_sensitivity(means: ArrayLike) -> float:
-    """Radius of the least-squares sphere through pose means: the raw units of 1 g they imply.
+def sphere_through(points: ArrayLike) -> tuple[NDArray[np.float64], float]:
+    """Centre and radius of the least-squares sphere through points (pose means, or rest readings).
 
     The algebraic sphere fit ``‖a‖² = 2 a·c + (r² − ‖c‖²)`` (linear in ``c`` and the
-    constant), solved on means centred and scaled by their spread so that a tight cluster
-    far from zero is as well conditioned as a sphere around it.  NaN when the means do not
-    determine a sphere.
+    constant), solved on points centred and scaled by their spread so that a tight cluster
+    far from zero is as well conditioned as a sphere around it.  The radius is NaN when the
+    points do not determine a sphere (fewer than four, or all in one plane), 0 when they are
+    all one point.
     """
-    a = np.asarray(means, dtype=float).reshape(-1, 3)
+    a = np.asarray(points, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
+    nowhere = np.full(3, np.nan)
     if a.shape[0] < 4:
-        return float("nan")
+        return nowhere, float("nan")
     centre0 = a.mean(axis=0)
     scale = float(np.sqrt(np.mean(np.sum((a - centre0) ** 2, axis=1))))
     if not scale > 0:
-        return 0.0
+        return centre0, 0.0
     u = (a - centre0) / scale
     design = np.column_stack([2.0 * u, np.ones(len(u))])
     sol, _, rank, _ = np.linalg.lstsq(design, np.sum(u * u, axis=1), rcond=None)
     if rank < 4:
-        return float("nan")
+        return nowhere, float("nan")
     r2 = float(sol[3] + sol[:3] @ sol[:3])
-    return float(np.sqrt(r2)) * scale if r2 > 0 else float("nan")
+    if not r2 > 0:
+        return nowhere, float("nan")
+    return centre0 + scale * sol[:3], float(np.sqrt(r2)) * scale
+
+
+def implied_sensitivity(means: ArrayLike) -> float:
+    """Radius of the least-squares sphere through pose means (:func:`sphere_through`): the raw units of 1 g they imply.
+
+    NaN when the means do not determine a sphere.
+    """
+    return sphere_through(means)[1]
 
 
 def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = None) -> None:
@@ -292,9 +304,33 @@ class NominalConversion:
 
 #: Mid-scale of unsigned 16-bit converters (e.g. the Xsens MTi raw counts of IMU-TK).
 UNSIGNED_16_MIDSCALE: float = 32768.0
+#: The largest value of an unsigned 16-bit converter.
+UNSIGNED_16_MAX: float = 65535.0
+#: Counts whose every axis has its median within this of mid-scale sit around it (a quarter of the
+#: converter's range: an accelerometer's 1 g is a few thousand counts of it).
+MIDSCALE_SPAN: float = 16384.0
 
 
-def nominal_conversion(units: str, acc: ArrayLike | None, *, median_norm: float | None = None) -> NominalConversion:
+def in_unsigned_16_range(minimum: float, maximum: float) -> bool:
+    """Samples that an unsigned 16-bit converter can give: all in 0..65535."""
+    return bool(minimum >= 0 and maximum <= UNSIGNED_16_MAX)
+
+
+def around_midscale(medians: ArrayLike) -> bool:
+    """Each axis's median within :data:`MIDSCALE_SPAN` of mid-scale (with :func:`in_unsigned_16_range`:
+    unsigned 16-bit counts around their mid-scale zero)."""
+    return bool(np.all(np.abs(np.asarray(medians, dtype=float) - UNSIGNED_16_MIDSCALE) < MIDSCALE_SPAN))
+
+
+def nominal_conversion(
+    units: str,
+    acc: ArrayLike | None,
+    *,
+    median_norm: float | None = None,
+    extremes: tuple[float, float] | None = None,
+    medians: ArrayLike | None = None,
+    midscale_norm: float | None = None,
+) -> NominalConversion:
     """The "before calibration" conversion to g for data in ``units``.
 
     ``g`` and ``m/s^2`` use their exact unit factors with no offset.  Counts have no
@@ -310,14 +346,27 @@ def nominal_conversion(units: str, acc: ArrayLike | None, *, median_norm: float 
         Pose means (or samples) used to choose the counts baseline (required for counts only).
     median_norm : float, optional
         The median of ``‖acc‖`` over its finite rows when already computed (the evidence's,
-        :func:`optcal.data.decisions.gather_evidence`): used as the sensitivity when no mid-scale
+        :func:`optcal.data.evidence.gather_evidence`): used as the sensitivity when no mid-scale
         offset is taken, instead of a second pass over the samples.
+    extremes, medians, midscale_norm : optional
+        The smallest and largest sample, each axis's median and the median of ``‖acc − 32768‖``
+        (NaN when the samples are not all in 0..65535), when the evidence has them
+        (:class:`optcal.data.evidence.Evidence`): with ``median_norm`` the conversion then reads no
+        sample (``acc`` may be ``None``).
     """
     units = normalise_units(units)
     factor = to_g_factor(units)
     if factor is not None:
         name = "1 g = 1" if units == "g" else f"1 g = {STANDARD_GRAVITY} m/s^2"
         return NominalConversion(np.zeros(3), 1.0 / factor, f"nominal: {name}, no bias")
+    if extremes is not None and median_norm is not None:  # the evidence's statistics: no pass over the samples
+        if in_unsigned_16_range(*extremes) and medians is not None and around_midscale(medians):
+            if midscale_norm is not None and np.isfinite(midscale_norm):
+                what = "offset 32768 (unsigned 16-bit mid-scale)"
+                return NominalConversion(np.full(3, UNSIGNED_16_MIDSCALE), float(midscale_norm),
+                                         _counts_description(what, midscale_norm))
+        else:
+            return NominalConversion(np.zeros(3), float(median_norm), _counts_description("no offset", median_norm))
     if acc is None:
         raise InputError("the nominal conversion of counts needs the samples (acc)")
     a = np.asarray(acc, dtype=float).reshape(-1, 3)
@@ -326,14 +375,42 @@ def nominal_conversion(units: str, acc: ArrayLike | None, *, median_norm: float 
         a = a[finite]
     offset = np.zeros(3)
     what = "no offset"
-    if a.size and a.min() >= 0 and a.max() <= 65535 and np.all(np.abs(column_medians(a) - UNSIGNED_16_MIDSCALE) < 16384):
+    if a.size and in_unsigned_16_range(a.min(), a.max()) and around_midscale(column_medians(a)):
         offset = np.full(3, UNSIGNED_16_MIDSCALE)
         what = "offset 32768 (unsigned 16-bit mid-scale)"
     if median_norm is not None and not offset.any():
         sens = float(median_norm)
     else:  # column by column: temporaries of one column, not of three
         sens = median(np.sqrt(sum((a[:, j] - offset[j]) ** 2 for j in range(3))), overwrite_input=True) if a.size else 1.0
-    return NominalConversion(offset, sens, f"nominal for counts: {what}, one sensitivity {sens:.6g} counts/g (median norm)")
+    return NominalConversion(offset, sens, _counts_description(what, sens))
+
+
+def units_and_nominal(
+    requested: str | None,
+    hint: str | None,
+    hint_reason: str,
+    *,
+    norm: float,
+    extremes: tuple[float, float] | None = None,
+    medians: ArrayLike | None = None,
+    midscale_norm: float | None = None,
+) -> tuple[UnitsDecision, NominalConversion]:
+    """The units decision (:func:`decide_units`) and its nominal conversion (:func:`nominal_conversion`),
+    both from the evidence's statistics (:class:`optcal.data.evidence.Evidence`): no pass over the samples.
+
+    Raises
+    ------
+    InputError
+        As :func:`decide_units`.
+    """
+    found = decide_units(None, requested, hint, hint_reason, norm=norm)
+    nominal = nominal_conversion(found.units, None, median_norm=norm, extremes=extremes, medians=medians,
+                                 midscale_norm=midscale_norm)
+    return found, nominal
+
+
+def _counts_description(what: str, sensitivity: float) -> str:
+    return f"nominal for counts: {what}, one sensitivity {sensitivity:.6g} counts/g (median norm)"
 
 
 #: Peak rate (99th percentile of the bias-free rate norm) above which float gyro data are °/s.

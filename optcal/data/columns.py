@@ -1,0 +1,359 @@
+"""Column names: optcal's canonical names, the names files use for them, and the layouts of unnamed columns.
+
+Part of the *read* step (:mod:`optcal.data.readers`).  Column names are matched
+case-insensitively after removing a unit word (``acc_x_counts`` → ``acc_x`` in counts,
+``t_s`` → ``t`` in seconds, ``gyr_x`` → ``gx``): exactly (:data:`ALIASES`), then by the end
+of a longer name (``field.linear_acceleration.x``, ``imu_acc_x``: :func:`resolve_columns`).
+``--columns ax=ACC1,ay=ACC2,...`` (:func:`parse_columns_option`) maps any other names, or
+1-based positions.
+
+Some columns have names that do not settle their roles: the fields of a file without a
+header, and ``tx, ty, tz`` (an acceleration in some loggers, a translation in others).  They
+are read in the common layout, and the candidates are recorded as :class:`ColumnRoles`; the
+evidence (:mod:`optcal.data.evidence`) then says which triple is the accelerometer, and the
+decisions (:mod:`optcal.data.decisions`) read them so, or refuse, naming ``--columns``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.core.units import UNIT_ALIASES
+from optcal.errors import InputError
+
+#: optcal's column names: time, accelerometer, gyro, temperature, and the pose-table-only
+#: ``sigma`` (noise of each pose mean) and ``n_samples`` (samples averaged per pose).
+CANONICAL: tuple[str, ...] = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp", "sigma", "n_samples")
+ACC: tuple[str, str, str] = ("ax", "ay", "az")
+GYRO: tuple[str, str, str] = ("gx", "gy", "gz")
+
+#: Normalised column names recognised for each canonical column (after a unit word is removed).
+ALIASES: dict[str, tuple[str, ...]] = {
+    "t": ("t", "time", "timestamp", "timestamps", "stamp", "time_stamp", "sec", "seconds", "elapsed",
+          "t_idx", "t_header", "t_sample", "t_host", "time_sample", "timestamp_sample", "header_stamp",
+          "host_time", "sensor_time", "time_idx", "epoch"),
+    "temp": ("temp", "temperature", "tmp", "imu_temp", "imu_temperature"),
+    "sigma": ("sigma", "noise", "std_mean"),
+    "n_samples": ("n_samples", "samples", "nsamples", "count"),
+}
+for _axis in "xyz":
+    ALIASES["a" + _axis] = tuple(
+        f.format(_axis)
+        for f in ("a{}", "acc{}", "acc_{}", "accel_{}", "accel{}", "accelerometer_{}", "accelerometer{}", "a_{}",
+                  "acceleration_{}", "acceleration{}", "linear_acceleration_{}", "linear_acc_{}", "lin_acc_{}",
+                  "accelerometer_m_s2_{}")
+    )
+    ALIASES["g" + _axis] = tuple(
+        f.format(_axis)
+        for f in ("g{}", "gyr{}", "gyr_{}", "gyro_{}", "gyro{}", "gyroscope_{}", "gyroscope{}", "omega_{}", "omega{}",
+                  "w{}", "w_{}", "angular_velocity_{}", "angular_velocity{}", "angular_rate_{}", "ang_vel_{}",
+                  "angvel_{}", "gyro_rad_{}")
+    )
+#: Aliases of the sensors' axes and the temperature this long or longer are also recognised at the end
+#: of a longer name, after a prefix (``field.linear_acceleration.x`` of a ``rostopic echo -p`` dump,
+#: ``imu_acc_x``, ``board_temperature``); shorter ones (``ax``, ``w_x``, ``a_x``) only as the whole name.
+SUFFIX_MIN_CHARS: int = 5
+#: Time names recognised at the end of a longer name (``field.header.stamp``): a message header's stamp.
+SUFFIX_TIME_ALIASES: tuple[str, ...] = ("header_stamp",)
+#: Names of an accelerometer triple only when the data say acceleration (``tx, ty, tz``: some
+#: loggers' acceleration, others' translation): see :class:`ColumnRoles`.
+CONDITIONAL_ACC_ALIASES: tuple[str, ...] = ("t{}", "t_{}")
+#: Names of a sample-index column (time then comes from --rate or the file header).
+INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n")
+
+#: Time unit words and their factor to seconds.
+TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: Gyro unit words at the end of column names (``gx_dps``, ``gyro_x_rad``), and the units they state.  Column
+#: names use words (``deg``, ``rad``, ``radps``) that are not spellings of ``--gyro-units``
+#: (:data:`optcal.core.units.UNIT_ALIASES`), and no ``/``.
+GYRO_UNIT_WORDS: dict[str, str] = {
+    "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
+    "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
+    "counts": "counts", "lsb": "counts", "raw": "counts",
+}
+TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
+_UNIT_WORDS = sorted(
+    set(UNIT_ALIASES["accelerometer"]) | set(TIME_UNITS) | set(GYRO_UNIT_WORDS) | set(TEMP_UNITS) | {"m_s_2"},
+    key=len,
+    reverse=True,
+)
+#: Keys of a metadata line before the header that give the sampling rate in Hz.
+RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq")
+
+#: The ``--columns`` value that makes optcal use no column as that name (``index=none``).
+NO_COLUMN: str = "none"
+
+
+@dataclass(frozen=True)
+class ColumnRoles:
+    """Columns whose names do not settle their roles, read in the common layout until the evidence does.
+
+    Attributes
+    ----------
+    triples : tuple of (str, str, str)
+        The file's names (``#N`` for the N-th field of a file without a header) of each
+        candidate triple, in file order.
+    acc : int
+        The triple read as the accelerometer as read (the common layout); with two triples the
+        other one is read as the gyroscope.
+    layout : str
+        The layout as read, for the reason (``"t ax ay az gx gy gz"``).
+    conditional : bool
+        The one triple is read as the accelerometer only when the data say acceleration
+        (``tx, ty, tz``); otherwise the file is refused, naming ``--columns``.
+    """
+
+    triples: tuple[tuple[str, str, str], ...]
+    acc: int = 0
+    layout: str = ""
+    conditional: bool = False
+
+    def positions(self, k: int) -> str:
+        """``columns 5-7`` or ``columns tx, ty, tz``: triple ``k`` as the reasons name it."""
+        names = self.triples[k]
+        if all(n.startswith("#") for n in names):
+            return f"columns {names[0][1:]}-{names[2][1:]}"
+        return "columns " + ", ".join(names)
+
+    def columns_option(self, k: int, time: str | None) -> str:
+        """The ``--columns`` value that reads triple ``k`` as the accelerometer (and the other as the gyroscope)."""
+        def ref(name: str) -> str:
+            return name[1:] if name.startswith("#") else name
+
+        items = [] if time is None else [f"t={ref(time)}"]
+        items += [f"{c}={ref(n)}" for c, n in zip(ACC, self.triples[k])]
+        if len(self.triples) == 2:
+            items += [f"{c}={ref(n)}" for c, n in zip(GYRO, self.triples[1 - k])]
+        return ",".join(items)
+
+
+def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]:
+    """Parse ``"ax=acc1,ay=acc2,t=time"`` (names, or 1-based positions) into {canonical: file column}.
+
+    A value of :data:`NO_COLUMN` (``"t=none"``, ``"index=none"``) keeps optcal from taking any
+    column as that name (a recognised column is then left unused).
+    """
+    if columns is None or columns == "":
+        return {}
+    if isinstance(columns, dict):
+        pairs = [(str(k), str(v)) for k, v in columns.items()]
+    else:
+        pairs = []
+        for item in str(columns).split(","):
+            if not item.strip():
+                continue
+            if "=" not in item:
+                raise InputError(
+                    f"columns item {item.strip()!r} is not NAME=COLUMN; write e.g. "
+                    "ax=acc_x_counts,ay=acc_y_counts,az=acc_z_counts, or by 1-based position t=1,ax=2,ay=3,az=4"
+                )
+            k, v = item.split("=", 1)
+            pairs.append((k.strip(), v.strip()))
+    out = {}
+    for k, v in pairs:
+        if k not in CANONICAL and k != "index":
+            raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
+        if k in ACC and v.lower() == NO_COLUMN:
+            raise InputError(f"columns {k}={v}: the accelerometer columns cannot be ignored; map {k} to a column")
+        out[k] = v
+    return out
+
+
+def normalise_name(name: str) -> str:
+    """Lower case, every run of other characters than letters and digits one ``_``, none at the ends."""
+    return re.sub(r"[^0-9a-z]+", "_", str(name).lower()).strip("_")
+
+
+def strip_unit(norm: str) -> tuple[str, str | None]:
+    """A normalised name without its trailing unit word, and that word (or ``None``)."""
+    for word in _UNIT_WORDS:
+        key = normalise_name(word)
+        if key and norm.endswith("_" + key) and len(norm) > len(key) + 1:
+            return norm[: -len(key) - 1], key
+    return norm, None
+
+
+class ResolvedColumns(NamedTuple):
+    """What :func:`resolve_columns` found.
+
+    Attributes
+    ----------
+    column_map : dict
+        canonical → file column.
+    unit_words : dict
+        canonical → the unit word found in its name (or None).
+    roles : ColumnRoles or None
+        An accelerometer read from names that say acceleration only with the data's word
+        (:data:`CONDITIONAL_ACC_ALIASES`).
+    """
+
+    column_map: dict[str, str]
+    unit_words: dict[str, str | None]
+    roles: ColumnRoles | None
+
+
+def _canonical_of(candidate: str, suffix: bool) -> str | None:
+    """The canonical name (or ``index_or_count``) of a normalised name, whole or by its end."""
+    if not suffix:
+        if candidate in INDEX_ALIASES:
+            return "index_or_count"
+        return next((c for c, al in ALIASES.items() if candidate in al), None)
+    if any(candidate.endswith("_" + a) for a in SUFFIX_TIME_ALIASES):
+        return "t"
+    for canon, aliases in ALIASES.items():
+        if canon in ACC or canon in GYRO or canon == "temp":
+            if any(len(a) >= SUFFIX_MIN_CHARS and candidate.endswith("_" + a) for a in aliases):
+                return canon
+    return None
+
+
+def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumns:
+    """Match the file's column names to canonical names.
+
+    ``mapping`` values are column names, or 1-based positions (``"2"``) when no column has
+    that name.  Names are matched whole first, then by their end (:data:`SUFFIX_MIN_CHARS`),
+    then, for an accelerometer no name gave, by :data:`CONDITIONAL_ACC_ALIASES`.
+    """
+    column_map: dict[str, str] = {}
+    units: dict[str, str | None] = {}
+    ignored = {canon for canon, col in mapping.items() if col.lower() == NO_COLUMN and col not in names}
+    # "samples" may be taken as index or as n_samples: ignoring one ignores the column for both
+    if ignored & {"index", "n_samples"}:
+        ignored |= {"index", "n_samples", "index_or_count"}
+    given: dict[str, str] = {}
+    for canon, col in mapping.items():
+        if canon in ignored:
+            continue
+        if col not in names:
+            if col.isdigit() and 1 <= int(col) <= len(names):
+                col = names[int(col) - 1]
+            else:
+                raise InputError(
+                    f"columns {canon}={col}: there is no column {col!r} "
+                    f"(the file has: {', '.join(names)}; or give a 1-based position 1..{len(names)})"
+                )
+        if col in given:
+            where = f"column {mapping[canon]} ({col!r})" if col != mapping[canon] else f"column {col!r}"
+            raise InputError(
+                f"columns: {given[col]} and {canon} both map to {where}; give each name its own column"
+            )
+        given[col] = canon
+        column_map[canon] = col
+        units[canon] = strip_unit(normalise_name(col))[1]
+    for suffix in (False, True):
+        taken = set(column_map.values())
+        for col in names:
+            if col in taken:
+                continue
+            norm = normalise_name(col)
+            found: str | None = None
+            unit: str | None = None
+            for candidate, unit in ((norm, None), strip_unit(norm)):
+                found = _canonical_of(candidate, suffix)
+                if found is not None:
+                    break
+            if found is None or found in ignored:
+                continue
+            if found == "index_or_count":
+                # "n_samples"/"samples" is a per-pose count in a pose table and a sample index in a
+                # recording; which one is decided from the values in source_from_columns.
+                found = "index"
+            if found not in column_map:
+                column_map[found] = col
+                units[found] = unit
+                taken.add(col)
+    roles = None
+    if not any(c in column_map for c in ACC):
+        conditional = _conditional_triple(names, set(column_map.values()))
+        if conditional is not None:
+            for canon, col in zip(ACC, conditional):
+                column_map[canon] = col
+                units[canon] = strip_unit(normalise_name(col))[1]
+            roles = ColumnRoles((conditional,), 0, " ".join(conditional), conditional=True)
+    return ResolvedColumns(column_map, units, roles)
+
+
+def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, str] | None:
+    """The columns named by :data:`CONDITIONAL_ACC_ALIASES` for x, y and z, when all three are there and free."""
+    for pattern in CONDITIONAL_ACC_ALIASES:
+        found = []
+        for axis in "xyz":
+            col = next((c for c in names if c not in taken and strip_unit(normalise_name(c))[0] == pattern.format(axis)), None)
+            if col is None:
+                break
+            found.append(col)
+        if len(found) == 3:
+            return found[0], found[1], found[2]
+    return None
+
+
+# ----------------------------------------------------------------------------- files without a header
+#: Loggers' layouts of a file without a header, by the number of fields besides a time column:
+#: an accelerometer, or an accelerometer and a gyroscope (imu_tk's ``t ax ay az``, mikoff's
+#: ``ax ay az gx gy gz``).  Which of two triples is the accelerometer is then decided from the data.
+HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6)
+
+
+def _increasing(col: NDArray[np.float64]) -> bool:
+    """A time column: its finite values never decrease, and the last exceeds the first."""
+    v = col[np.isfinite(col)]
+    return v.size >= 2 and bool(np.all(np.diff(v) >= 0)) and bool(v[-1] > v[0])
+
+
+def _field_names(fields: list[int]) -> tuple[str, str, str]:
+    """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
+    return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
+
+
+def headerless_mapping(
+    path: str, columns: list[NDArray[np.float64]], described: str
+) -> tuple[dict[str, str], str, ColumnRoles | None]:
+    """Canonical columns of a file without a header, by the common layout of its width.
+
+    A time column is the first (or else the last) field when it increases and 3 or 6 fields
+    remain; the first three of the others are the accelerometer, the next three the gyroscope,
+    and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).
+
+    Returns
+    -------
+    mapping : dict
+        canonical → 1-based position.
+    reason : str
+    roles : ColumnRoles or None
+
+    Raises
+    ------
+    InputError
+        A width no common layout has, with the ``--columns`` that names them.
+    """
+    width = len(columns)
+    time_at: int | None = None
+    if width - 1 in HEADERLESS_TRIPLES:
+        if _increasing(columns[0]):
+            time_at = 0
+        elif _increasing(columns[-1]):
+            time_at = width - 1
+    rest = [j for j in range(width) if j != time_at]
+    example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
+    if len(rest) not in HEADERLESS_TRIPLES:
+        raise InputError(
+            f"{path}: the file has no header row ({described}), and {width} unnamed columns fit no "
+            f"common layout; name them by 1-based position, e.g. {example}"
+        )
+    canon: dict[str, int] = {} if time_at is None else {"t": time_at}
+    canon.update({c: j for j, c in zip(rest, ACC + GYRO)})
+    mapping = {c: str(j + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
+    what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
+    roles = None
+    if len(rest) == 6:
+        roles = ColumnRoles((_field_names(rest[0:3]), _field_names(rest[3:6])), 0, what)
+    where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
+    return mapping, (
+        f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
+        f"name them by position to change it, e.g. {example}"
+    ), roles
