@@ -68,14 +68,12 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     s = seg.settings
     lines = [
         f"time: {meta.get('time')}; units: {rec.units} ({rec.units_reason})",
-        f"detector: window {s.window_s:g} s ({seg.trace['window_samples']} samples), "
-        f"gates at {s.threshold:g}× the noise floor"
-        + (f", gyro rate at {s.gyro_threshold:g}× the gyro floor" if rec.gyro is not None else ", no gyro columns")
+        f"detector: blocks of {s.window_s:g} s ({seg.trace['window_samples']} samples), tests at false-alarm "
+        f"{s.false_alarm:g} (steps ×{s.threshold:g}, drift ×{s.drift_threshold:g}"
+        + (f", gyro ×{s.gyro_threshold:g})" if rec.gyro is not None and s.use_gyro else "; no gyro evidence)")
         + f", minimum dwell {s.min_dwell_s:g} s, trim {s.trim_s:g} s",
-        "noise floor / threshold ("
-        + rec.units
-        + "): "
-        + "; ".join(f"{k} {seg.noise_floor[k]:.4g} / {seg.thresholds[k]:.4g}" for k in seg.noise_floor),
+        "noise measured: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.noise_floor.items()),
+        "critical values: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.thresholds.items()),
         "",
         f"{'#':>3} {'rows':>13} {'t start':>9} {'dur s':>6} {'n':>6} {'mean x':>11} {'mean y':>11} {'mean z':>11}"
         f" {'std':>8} {'σ mean':>9}" + (f" {'temp':>6}" if rec.temp is not None else ""),

@@ -36,7 +36,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 #: Keyword names that :func:`data_options` adds to a command.
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
-    "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim",
+    "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -68,15 +68,18 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
                  help="Read DATA as a pose table (one row per static pose) or a raw recording (a time series); auto decides and says why."),
     click.option("--static-window", type=_POSITIVE, default=None, metavar="S",
-                 help="Static detection: moving-window width, seconds [1.0]."),
+                 help="Rest detection: block length, seconds [0.25]."),
     click.option("--static-threshold", type=_POSITIVE, default=None, metavar="K",
-                 help="Static detection: accelerometer gates at K times the measured noise floor [3]."),
+                 help="Rest detection: accept steps between block means up to K times the step test's critical value "
+                      "(false alarm 1e-3) [1]."),
     click.option("--gyro-threshold", type=_POSITIVE, default=None, metavar="K",
-                 help="Static detection: mean gyro rate below K times the gyro noise floor [3]."),
+                 help="Rest detection: accept gyro rates off the bias, and orientation wobble, up to K times their critical values [1]."),
     click.option("--drift-threshold", type=_POSITIVE, default=None, metavar="K",
-                 help="Static detection: the two halves of each window agree within K times the noise of their means [6]."),
+                 help="Rest detection: accept a creep of a stretch's mean up to K times the trend test's critical value [1]."),
+    click.option("--no-gyro-gate", is_flag=True, default=False,
+                 help="Rest detection: ignore the gyro columns as evidence of motion (a warning says so)."),
     click.option("--min-dwell", type=_NON_NEGATIVE, default=None, metavar="S",
-                 help="Static detection: shortest static interval kept, seconds [0.5]."),
+                 help="Rest detection: shortest rest kept, and longest interruption joined inside one pose, seconds [0.5]."),
     click.option("--trim", type=_NON_NEGATIVE, default=None, metavar="S",
                  help="Static detection: cut this much from both ends of every interval, seconds [0]."),
 )
@@ -127,6 +130,7 @@ def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
         "drift_threshold": opts.get("drift_threshold"),
         "min_dwell_s": opts.get("min_dwell"),
         "trim_s": opts.get("trim"),
+        "use_gyro": False if opts.get("no_gyro_gate") else None,
     }
 
 

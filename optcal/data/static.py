@@ -1,58 +1,33 @@
-"""Static detection: a raw recording in, static intervals and one pose per interval out.
+"""Static detection: a raw recording in, its rests found by a model of the recording, one pose per rest out.
 
-A sample is static when the centred moving window around it (``window_s``) is quiet:
+The model (:mod:`optcal.data.rest_model`): the samples are cut into blocks of ``window_s`` (never
+across a time gap); at rest, consecutive block means differ only by the noise of a block mean,
+measured where they are (the two blocks' own variance, times the noise colour ``κ²`` the recording
+shows between quiet blocks); the gyro's block mean sits at its bias within the noise of its mean and
+the bias' wander between rests; a rest's batch means show no trend.  Each test has a threshold at
+its distribution's ``1 − false_alarm`` quantile (``false_alarm`` = 10⁻³ per test by default), times
+the user's multiplier (``--static-threshold`` for steps, ``--gyro-threshold``, ``--drift-threshold``).
 
-* the moving standard deviation of the norm ``‖a − o_nom‖`` (``o_nom`` the nominal
-  zero, :func:`optcal.data.units.nominal_conversion`) stays below ``threshold`` times
-  its noise floor, **and**
-* the moving standard deviation summed over the three axes (IMU-TK's statistic,
-  Tedaldi et al. 2014) stays below ``threshold`` times its floor: the norm alone is blind
-  to a rotation, the axes are not;
-* the means of the two halves of the window differ by less than ``drift_threshold``
-  times the noise of that difference (``2 σ_axes/√window``, from the axes floor): a slow
-  creep that hides in the moving variance moves the mean;
-* when gyro columns exist, the windowed mean rate ``‖mean(ω) − b_ω‖`` (``b_ω`` the gyro
-  bias, the median gyro reading over the accelerometer-static samples) stays below
-  ``gyro_threshold`` times the gyro's per-sample noise floor (the floor of its moving
-  standard deviation, summed over the axes).  This is what catches a slow turn, above
-  all one about the vertical, which no accelerometer statistic can see.  The gyro's
-  spread itself is not gated: a hand-held pose trembles (the MPU-6050 log's poses show
-  5× the table-top gyro spread) without moving its mean.
+A **rest** is then a run of blocks with no step between them and no gyro motion in them, its first
+and last blocks peeled off while their mean differs from the rest of the run (a low-pass filter's
+tail, a hand settling), that shows no trend of its accelerometer means (a slow turn) nor, with a
+gyro, a mean rate off the bias beyond its batch means' scatter (a turn about the vertical, which the
+accelerometer does not see), that is no noisier per sample than :data:`~optcal.data.units.MAX_REST_NOISE_G`
+of 1 g, and that lasts at least ``min_dwell_s`` (and two blocks).  The minimum dwell is also the prior
+that joins two rests of one orientation separated by less than a dwell (a twitch: their means differ by
+less than one sample's noise).  A jump between two holds is a step like any other, so a logger that
+stores only its holds is cut at each jump.  When no run qualifies, the recording **never rests**, a
+conclusion printed with its evidence and the flag that overrides each test.  Every sample that does not
+end in a pose is counted by reason.
 
-Each noise floor is measured on the recording itself: the ``floor_quantile`` quantile of
-the statistic over all windows (a calibration recording is mostly at rest, so the low
-quantiles are windows at rest), never below the resolution of the data; the axes floor
-is capped at :data:`AXES_TO_NORM_MAX` times the norm floor, and the floor of quantised gyro
-data at :data:`GYRO_FLOOR_MAX_QUANTA` steps, so that a recording that never rests (its
-quietest windows still turn) is not taken for one at rest.  Windows at rest share one noise
-level, so the low quantiles of the axes statistic form a plateau; a recording whose
-``floor_quantile / 5`` quantile falls far below its floor (:func:`rest_plateau_limit`) has
-no rest, only the slowest moments of a motion, and gives no pose (with a gyro whose
-converter step does not settle it, or none).  Static runs are split at time gaps, runs
-shorter than ``min_dwell_s`` are dropped, ``trim_s`` is cut from both ends of each remaining
-run, runs of one orientation interrupted for less than a window by a hand's twitch are joined
-into one pose (:func:`optcal.data.static_stretches.join_interrupted`), a stretch whose means
-over one-window blocks sweep further than the accelerometer gate is a slow turn, not a rest
-(:func:`optcal.data.static_stretches.sweep`: a turn about an axis near the vertical keeps ‖a‖
-and moves the axes by less than the noise within a window), and every sample that does not
-end in a pose is counted by reason.  The moving statistics take one cumulative sum per column
-in one set of reused buffers (:class:`optcal.data.window_stats.MovingWindow`); the gyro's are
-computed in a second thread beside the accelerometer's for recordings up to
-:data:`PARALLEL_MAX_SAMPLES` samples.  Each interval gives one pose
-(:func:`optcal.data.static_poses.reduce_interval`): the mean, the per-axis standard
-deviation, the standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights,
-Lu 2017 eq. 14; by batch means, :func:`optcal.data.static_poses.sigma_of_mean`, since sensor
-noise is not white), the sample count, the mid time, the mean temperature and the mean gyro
-reading.
-
-This module decides; the moving-window statistics and floors are
-:mod:`optcal.data.window_stats`, the runs of static samples and their grouping
-:mod:`optcal.data.static_stretches`, the pose of each interval :mod:`optcal.data.static_poses`.
+Each rest gives one pose (:func:`optcal.data.static_poses.reduce_interval`): the mean, the per-axis
+standard deviation, the standard deviation of the mean ``σ_k`` (for the maximum-likelihood weights,
+Lu 2017 eq. 14; by batch means, :func:`optcal.data.static_poses.sigma_of_mean`, since sensor noise
+is not white), the sample count, the mid time, the mean temperature and the mean gyro reading.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -60,103 +35,94 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
-from optcal.data.quantiles import median, quantiles
+from optcal.data import rest_model as rm
 from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, reduce_interval
-from optcal.data.static_stretches import (
-    group_positions,
-    join_interrupted,
-    reject_sweeping,
-    reject_turning,
-    split_runs,
-    true_runs,
-)
-from optcal.data.units import nominal_conversion
-from optcal.data.window_stats import STEP_CHUNK, HalfWindowDrift, MovingWindow, noise_floor, quantum, resolution
+from optcal.data.static_stretches import group_positions, true_runs
+from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
+from optcal.core.units import RAD_PER_UNIT
+from optcal.data.window_stats import quantum
 from optcal.errors import InputError
 
-MOVING = "samples in non-static stretches"
-SHORT = "samples in static stretches shorter than the minimum dwell"
-SHORT_STRETCHES = "static stretches shorter than the minimum dwell"
+MOVING = "samples in blocks that move (a step between block means, or a gyro rate off its bias)"
+EDGES = "samples at the ends of still stretches whose mean still settles"
+SHORT = "samples in still stretches shorter than the minimum dwell"
+SHORT_STRETCHES = "still stretches shorter than the minimum dwell"
 TRIMMED = "samples trimmed at the ends of static intervals"
-TURNING = "samples in quiet stretches whose gyro noise is above a resting gyro's (the recording never rests)"
-TURNING_STRETCHES = "quiet stretches rejected because their gyro noise is above a resting gyro's"
-SWEEPING = "samples in quiet stretches whose mean moves along the axes by more than the accelerometer gate (a slow turn)"
-SWEEPING_STRETCHES = "quiet stretches rejected because their mean moves along the axes by more than the accelerometer gate"
-NO_REST = "samples in quiet stretches of a recording whose quietest windows share no noise level (it never rests)"
-NO_REST_STRETCHES = "quiet stretches rejected because the recording never rests (no plateau of resting noise)"
-#: Fraction of the white-noise expectation (:func:`rest_plateau_limit`) below which the ratio of
-#: the low quantile (``floor_quantile / 5``) of the axes moving std to its floor quantile says
-#: that the quietest windows share no noise level: the recording never rests.  Windows at rest
-#: share the sensor's noise (the measured ratio is 0.94-0.96 on every resting recording of
-#: ../shared/data); the quietest windows of a continuous motion are its slowest moments, spread
-#: down to the noise (0.53-0.72 on the sunsided motion logs without their gyro).
-REST_PLATEAU_FRACTION: float = 0.85
-#: Windows a recording needs before the plateau of resting noise is looked for.
-PLATEAU_MIN_WINDOWS: int = 10
-#: Recordings up to this many samples compute the gyro's moving statistics in a second thread beside the
-#: accelerometer's (≈ 0.1 s less wall time for 10⁶ samples on two cores); the thread's own buffers and the
-#: three moving means it keeps until the gyro bias is known take seven columns (≤ 235 MB at this size).
-#: Longer recordings compute them after the accelerometer's, in the same buffers, holding less.
-PARALLEL_MAX_SAMPLES: int = 2**22
-#: Largest ratio of the axes-std floor to the norm-std floor accepted as noise (√3 for
-#: isotropic noise; twice that allows for axes of unequal noise).
-AXES_TO_NORM_MAX: float = 2.0 * np.sqrt(3.0)
-#: Largest gyro noise floor (per-sample std, norm over the axes) of quantised gyro data, in
-#: quantisation steps: a resting 16-bit MEMS gyro shows tens of steps (MPU-6050: 22-24, the
-#: Xsens MTi: 44); a floor of hundreds (the sunsided motion logs: 413-5245) means that the
-#: recording never rests and its quietest windows still turn.
-GYRO_FLOOR_MAX_QUANTA: float = 100.0
+SWEEPING = "samples in still stretches whose mean creeps (a trend of its batch means: a slow turn)"
+SWEEPING_STRETCHES = "still stretches rejected because their mean creeps (a slow turn)"
+TURNING = "samples in still stretches whose gyro mean is off the bias beyond its noise (a slow turn)"
+TURNING_STRETCHES = "still stretches rejected because their gyro mean is off the bias (a slow turn)"
+WOBBLE = "samples in still stretches whose orientation wobbles (by the gyro) beyond what a pose mean tolerates"
+WOBBLE_STRETCHES = "still stretches rejected because their orientation wobbles (by the gyro)"
+LOUD = "samples in still stretches noisier per sample than a resting accelerometer"
+LOUD_STRETCHES = "still stretches rejected as noisier per sample than a resting accelerometer"
+#: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
+MIN_BLOCK_SAMPLES: int = 4
+#: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
+#: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
+#: pieces of one rest), far below any change of orientation a calibration uses.
+SAME_POSE_SAMPLE_SIGMAS: float = 3.0
+#: Largest shrink of a pose mean's norm, relative to 1 g, that an orientation wobbling about its mean may cause:
+#: a wobble of rms angle θ shrinks the mean of gravity's projection by about θ²/2, so a rest must hold its
+#: orientation within θ = √(2 × 10⁻⁴) ≈ 0.8° rms (0.1 mg, the accuracy the calibrations here are judged at).
+WOBBLE_SHRINK: float = 1e-4
+#: Dwells over which the wobble is measured: long enough to see a hand's slow sway (about 1 Hz), short
+#: enough that the gyro's own angle random walk and bias wander, integrated over it, stay far below the tolerance.
+WOBBLE_DWELLS: float = 8.0
+#: Fewest blocks in a rest: one pair of block means is the least that shows that the mean does not move.
+MIN_REST_BLOCKS: int = 2
 
 
 @dataclass(frozen=True)
 class StaticSettings:
-    """Settings of the static detector.
+    """Settings of the rest detector (:mod:`optcal.data.rest_model`).
 
     Attributes
     ----------
     window_s : float
-        Width of the centred moving window, seconds.
+        Block length, seconds (at least :data:`MIN_BLOCK_SAMPLES` samples).
     threshold : float
-        Accelerometer gates, in multiples of the measured noise floor.
+        Multiplier of the step test's critical value (``--static-threshold``; above 1 accepts larger steps).
     gyro_threshold : float
-        Gate on the windowed mean rate, in multiples of the gyro's per-sample noise floor.
+        Multiplier of the gyro test's critical value.
     drift_threshold : float
-        Gate on the difference between the means of the two window halves, in multiples of
-        its noise (from the accelerometer noise floor).
+        Multiplier of the trend test's critical value.
     min_dwell_s : float
-        Shortest static interval kept, seconds (after the window, before trimming).
+        Shortest rest, seconds; also the longest interruption joined inside one pose.
     trim_s : float
-        Cut from each end of every interval, seconds.
-    floor_quantile : float
-        Quantile of each windowed statistic taken as its noise floor.
+        Cut from each end of every rest, seconds.
+    false_alarm : float
+        Probability that a test calls motion where the sensor rests (per test).
+    use_gyro : bool
+        Whether the gyro columns are evidence of motion (``--no-gyro-gate`` turns them off).
     max_gap_s : float or None
-        A time step longer than this splits an interval (default: 5 sample periods).
+        A time step longer than this ends a block and a rest (default: 5 sample periods).
     sigma_blocks : int
-        Blocks for the batch-means standard deviation of each pose mean (0: white noise
-        only, ``σ/√n``).
+        Blocks for the batch-means standard deviation of each pose mean (0: white noise only, ``σ/√n``).
     """
 
-    window_s: float = 1.0
-    threshold: float = 3.0
-    gyro_threshold: float = 3.0
-    drift_threshold: float = 6.0
+    window_s: float = 0.25
+    threshold: float = 1.0
+    gyro_threshold: float = 1.0
+    drift_threshold: float = 1.0
     min_dwell_s: float = 0.5
     trim_s: float = 0.0
-    floor_quantile: float = 0.1
+    false_alarm: float = 1e-3
+    use_gyro: bool = True
     max_gap_s: float | None = None
     sigma_blocks: int = 10
 
     def __post_init__(self) -> None:
-        for name in ("window_s", "threshold", "gyro_threshold"):
+        for name in ("window_s", "threshold", "gyro_threshold", "drift_threshold"):
             if not getattr(self, name) > 0:
                 raise InputError(f"static detection: {name} must be positive, got {getattr(self, name)}")
         if self.min_dwell_s < 0 or self.trim_s < 0:
             raise InputError("static detection: the minimum dwell and the trim must not be negative")
         if self.sigma_blocks < 0 or self.sigma_blocks == 1:
             raise InputError("static detection: sigma_blocks must be 0 (white noise) or at least 2")
-        if not 0 < self.floor_quantile < 1:
-            raise InputError("static detection: floor_quantile must lie between 0 and 1")
+        if not 0 < self.false_alarm < 0.5:
+            raise InputError("static detection: false_alarm must lie between 0 and 0.5")
 
     @classmethod
     def from_options(cls, **options: Any) -> "StaticSettings":
@@ -173,19 +139,22 @@ class Segmentation:
     recording : Recording
     settings : StaticSettings
     intervals : list of StaticInterval
-    noise_floor, thresholds : dict of str to float
-        Per statistic (``acc_norm_std``, ``acc_axes_std``, ``acc_drift``, ``gyro_rate``), raw units.
+    noise_floor : dict of str to float
+        The noise the model measured: the quietest and the median rest's per-sample noise (raw
+        units, norm over the axes), the noise colour ``κ²`` per axis (accelerometer, gyro), the gyro
+        bias' wander.
+    thresholds : dict of str to float
+        The critical values of the tests (step, gyro, trend) with the multipliers applied.
     gyro_bias : ndarray or None
     exclusions : dict of str to int
         Everything excluded, from reading to trimming.
     trace : dict of str to ndarray
-        Per usable sample: ``t``, the statistics and the static mask (for plots).
+        Per usable sample: ``t``, ``norm_g``, the step and gyro statistics over their critical
+        values (``step``, ``gyro``) and the pose mask ``static`` (for plots).
     joined : int
-        Static stretches joined to the previous one as the same pose (:func:`optcal.data.static_stretches.join_interrupted`).
-    rest_plateau : dict of str to float
-        The evidence that the recording rests (:func:`rest_plateau_limit`): the axes moving std at
-        its low quantile (``low``) and at the floor quantile (``floor``), and the smallest ratio
-        ``low / floor`` of windows at rest (``limit``); empty when the recording is too short.
+        Rests joined to the previous one as the same pose (an interruption shorter than the dwell).
+    evidence : dict of str to float
+        Counts of the still stretches each test rejected, and the blocks and pairs tested.
     """
 
     recording: Recording
@@ -195,9 +164,9 @@ class Segmentation:
     thresholds: dict[str, float]
     gyro_bias: NDArray[np.float64] | None
     exclusions: dict[str, int]
-    trace: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    trace: dict[str, Any] = field(default_factory=dict)
     joined: int = 0
-    rest_plateau: dict[str, float] = field(default_factory=dict)
+    evidence: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -216,7 +185,7 @@ class Segmentation:
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
-            "rest_plateau": dict(self.rest_plateau),
+            "evidence": dict(self.evidence),
             "intervals": [iv.to_dict() for iv in self.intervals],
         }
 
@@ -245,47 +214,39 @@ class Segmentation:
 
 
 def no_static_message(seg: Segmentation) -> str:
+    """Why no rest was found: the model's conclusion with its evidence, and the flag that overrides each test."""
     rec = seg.recording
-    thr = seg.thresholds
-    if seg.exclusions.get(NO_REST_STRETCHES):
-        plateau = seg.rest_plateau
-        return (
-            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
-            f"never rests: the quietest windows share no noise level (the axes moving std at its "
-            f"{100 * seg.settings.floor_quantile / 5:g} % quantile is {plateau['low']:.3g}, "
-            f"{plateau['low'] / plateau['floor']:.2f} of its "
-            f"{100 * seg.settings.floor_quantile:g} % quantile {plateau['floor']:.3g} {rec.units}; windows at "
-            f"rest give at least {plateau['limit']:.2f}), so the {seg.exclusions[NO_REST_STRETCHES]} quiet "
-            "stretch(es) are the slowest moments of a motion, not rests; record the sensor at rest between moves"
-        )
-    if seg.exclusions.get(SWEEPING_STRETCHES) and not seg.exclusions.get(TURNING_STRETCHES):
-        return (
-            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the "
-            f"{seg.exclusions[SWEEPING_STRETCHES]} quiet stretch(es) turn slowly: their means move along the axes "
-            f"by more than the accelerometer gate ({thr.get('acc_axes_std', float('nan')):.3g} {rec.units}) while "
-            "|a| stays the same (a slow turn, e.g. about an axis near the vertical); record the sensor at rest "
-            "between moves, or add the gyro columns"
-        )
-    if seg.exclusions.get(TURNING_STRETCHES):
-        return (
-            f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): the recording "
-            f"never rests: its gyro noise floor ({seg.noise_floor['gyro_rate_measured']:.3g}, norm over the axes) "
-            f"is above a resting gyro's ({seg.noise_floor['gyro_rate']:.3g} = {GYRO_FLOOR_MAX_QUANTA:g} converter "
-            f"steps), and the {seg.exclusions[TURNING_STRETCHES]} quiet stretch(es) still turn; record the sensor "
-            "at rest between moves"
-        )
-    return (
-        f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
-        f"windows of {seg.settings.window_s:g} s must stay below {seg.settings.threshold:g}× the noise floor "
-        f"(|a| std ≤ {thr.get('acc_norm_std', float('nan')):.3g} {rec.units}) for at least "
-        f"{seg.settings.min_dwell_s:g} s; check that the sensor rests between moves, or loosen "
-        "--static-threshold / shorten --min-dwell"
-    )
+    s = seg.settings
+    ev = seg.exclusions
+    head = f"{rec.path}: no static interval found in {rec.n} samples ({rec.duration_s:.1f} s): "
+    reasons = []
+    if ev.get(SWEEPING_STRETCHES):
+        reasons.append(f"{ev[SWEEPING_STRETCHES]} still stretch(es) whose mean creeps beyond the trend test "
+                       f"(|t| > {seg.thresholds.get('trend', float('nan')):.3g}; a slow turn: --drift-threshold N accepts "
+                       "N times more)")
+    if ev.get(TURNING_STRETCHES):
+        reasons.append(f"{ev[TURNING_STRETCHES]} still stretch(es) whose gyro mean is off the bias (a turn the "
+                       "accelerometer does not see: --gyro-threshold N accepts N times more, --no-gyro-gate ignores the gyro)")
+    if ev.get(WOBBLE_STRETCHES):
+        reasons.append(f"{ev[WOBBLE_STRETCHES]} still stretch(es) whose orientation wobbles by more than "
+                       f"{np.degrees(np.sqrt(2 * WOBBLE_SHRINK)):.2g}° rms by the gyro (a pose mean would shrink by more than "
+                       f"{WOBBLE_SHRINK * 1e3:g} mg: --gyro-threshold N accepts N times more)")
+    if ev.get(LOUD_STRETCHES):
+        reasons.append(f"{ev[LOUD_STRETCHES]} still stretch(es) noisier than {MAX_REST_NOISE_G:g} g per sample "
+                       "(vibration, or columns that are not an accelerometer: --columns)")
+    if ev.get(SHORT_STRETCHES):
+        reasons.append(f"{ev[SHORT_STRETCHES]} still stretch(es) shorter than the minimum dwell {s.min_dwell_s:g} s "
+                       "(--min-dwell S, --static-window S for shorter blocks)")
+    if not reasons:
+        reasons.append(f"every pair of {s.window_s:g} s blocks differs by more than the noise of their means allows "
+                       f"(false-alarm {s.false_alarm:g}; --static-threshold N accepts steps N times larger, "
+                       "--static-window S changes the blocks)")
+    return head + "the recording never rests by the model: " + "; ".join(reasons) + "; record the sensor at rest between moves"
 
 
 # ----------------------------------------------------------------------------- detection
 def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Segmentation:
-    """Find the static intervals of a recording.
+    """Find the rests of a recording by the model of :mod:`optcal.data.rest_model`.
 
     Parameters
     ----------
@@ -296,145 +257,373 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     -------
     Segmentation
         The intervals (possibly none: :meth:`Segmentation.pose_table` then raises
-        :class:`InputError`), thresholds, noise floors and every exclusion counted.
+        :class:`InputError` with the model's conclusion), the noise measured, the tests'
+        critical values and every exclusion counted.
     """
     s = settings or StaticSettings()
-    every = bool(rec.usable.all())  # then no copies, and no index array of every sample
+    every = bool(rec.usable.all())
     use = None if every else np.flatnonzero(rec.usable)
     t = rec.t if use is None else rec.t[use]
     acc = rec.acc if use is None else _usable_rows(rec.acc, use)
-    gyro = (rec.gyro if use is None else _usable_rows(rec.gyro, use)) if rec.gyro is not None else None
+    gyro = None
+    if rec.gyro is not None and s.use_gyro:
+        gyro = rec.gyro if use is None else _usable_rows(rec.gyro, use)
     m = acc.shape[0]
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
-    window = max(3, int(round(s.window_s * rate)))
-    nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
-    norm = _distance(acc, nominal.offset)
-    # the gyro's statistics that do not need its bias in a second thread (numpy releases the GIL
-    # in its loops), beside the accelerometer's: recordings up to PARALLEL_MAX_SAMPLES samples
-    gyro_job: Future[GyroWindows] | None = None
-    pool: ThreadPoolExecutor | None = None
-    if gyro is not None and m <= PARALLEL_MAX_SAMPLES:
-        pool = ThreadPoolExecutor(max_workers=1)
-        gyro_job = pool.submit(_gyro_windows, gyro, window, s.floor_quantile, MovingWindow(m, window), None)
-    # column by column in one set of buffers, the drift from the same cumulative sums
-    moving = MovingWindow(m, window)
-    sd_norm = np.sqrt(moving.column(norm)[1])
-    del norm  # made again for the trace at the end: one column less while the statistics are held
-    drift_sums = HalfWindowDrift(m, window)
-    sd_axes = np.zeros(m)
-    for j in range(3):
-        sd_axes += moving.column(acc[:, j], drift_sums)[1]
-    np.sqrt(sd_axes, out=sd_axes)
-    res_acc = resolution(acc)
-    floor_norm = noise_floor(sd_norm, s.floor_quantile, res_acc, moving.scratch())
-    # At rest the three axes carry the noise of the norm about √3 times over; a much larger
-    # axes floor means the quietest windows still rotate (the norm does not see rotation),
-    # so the axes floor is capped at AXES_TO_NORM_MAX times the norm floor.
-    # the floor and the rest plateau's low quantile of the axes statistic from one partition
-    axes_quantiles = quantiles(sd_axes, [s.floor_quantile / 5, s.floor_quantile], moving.scratch())
-    floor_axes = min(max(axes_quantiles[1], res_acc * np.sqrt(3)), AXES_TO_NORM_MAX * floor_norm)
-    floors = {"acc_norm_std": floor_norm, "acc_axes_std": floor_axes}
-    rest_plateau: dict[str, float] = {}
-    never_rests = _never_rests(m, axes_quantiles, window, s.floor_quantile, res_acc * np.sqrt(3), rest_plateau)
-    thresholds = {k: s.threshold * v for k, v in floors.items()}
-    # drift: the two halves of the window must agree within the noise of their means
-    drift = drift_sums.result()
-    del drift_sums  # its three columns freed before the gyro's statistics
-    floors["acc_drift"] = floor_axes * 2.0 / np.sqrt(window)
-    thresholds["acc_drift"] = s.drift_threshold * floors["acc_drift"]
-    static = (
-        (sd_norm <= thresholds["acc_norm_std"])
-        & (sd_axes <= thresholds["acc_axes_std"])
-        & (drift <= thresholds["acc_drift"])
-    )
-    trace: dict[str, Any] = {
-        "t": t,
-        "acc_norm_std": sd_norm,
-        "acc_axes_std": sd_axes,
-        "acc_drift": drift,
-        "window_samples": window,
-    }
-
-    gyro_bias = None
-    resting_gyro_std: float | None = None
-    if gyro is not None:
-        base = static if static.any() else np.ones(m, dtype=bool)
-        # column by column: the static samples gathered into a free window buffer, partitioned there
-        gyro_bias = np.array([median(_gather(gyro[:, j], base, moving.scratch()), overwrite_input=True)
-                              for j in range(3)])
-        if gyro_job is not None and pool is not None:
-            windows = gyro_job.result()
-            pool.shutdown()
-        else:  # after the accelerometer's, in its buffers, the mean rate from the bias at once
-            windows = _gyro_windows(gyro, window, s.floor_quantile, moving, gyro_bias)
-        del moving
-        rate_dev = windows.rate_deviation(gyro_bias)
-        # the per-sample gyro noise (norm over the axes) bounds the mean rate of a resting sensor
-        floors["gyro_rate"] = windows.floor
-        q = windows.quantum
-        if q is not None and floors["gyro_rate"] > GYRO_FLOOR_MAX_QUANTA * q:
-            # the quietest windows of a recording that never rests still turn: the floor is
-            # capped at a resting gyro's noise, and so is the noise inside every interval kept
-            floors["gyro_rate_measured"] = floors["gyro_rate"]
-            floors["gyro_rate"] = resting_gyro_std = GYRO_FLOOR_MAX_QUANTA * q
-        thresholds["gyro_rate"] = s.gyro_threshold * floors["gyro_rate"]
-        static &= rate_dev <= thresholds["gyro_rate"]
-        trace["gyro_rate"] = rate_dev
-
-    # split at time gaps: a step longer than max_gap_s ends a run
+    block = max(MIN_BLOCK_SAMPLES, int(round(s.window_s * rate)))
     max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
-    starts, stops = true_runs(static)
-    gap_after = np.flatnonzero(np.diff(t) > max_gap)
-    if gap_after.size:
-        starts, stops = split_runs(starts, stops, gap_after + 1)
-
+    breaks = np.flatnonzero(np.diff(t) > max_gap) + 1 if m > 1 else np.zeros(0, dtype=np.int64)
+    nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
     exclusions = dict(rec.exclusions)
+    noise: dict[str, float] = {}
+    limits: dict[str, float] = {}
+    evidence: dict[str, float] = {}
+    trace: dict[str, Any] = {"t": t, "window_samples": block}
+    if m < 2 * MIN_BLOCK_SAMPLES:
+        _add(exclusions, MOVING, m)
+        trace["static"] = np.zeros(m, dtype=bool)
+        return Segmentation(rec, s, [], noise, limits, None, exclusions, trace, 0, evidence)
+
+    model = _RestModel(s, t, acc, gyro, block, breaks, rate)
+    runs = model.runs()
+    evidence.update(blocks=model.b.count, pairs=int(model.valid.sum()))
+    # ------------------------------------------------------------- each run judged as a rest
+    one_g = float(nominal.sensitivity)
     in_pose = np.zeros(m, dtype=bool)
-    n_short_samples = n_short = n_trim = 0
     trim = int(round(s.trim_s * rate))
-    intervals: list[StaticInterval] = []
-    kept: list[tuple[int, int]] = []
-    for a, b in zip(starts, stops):
-        duration = t[b - 1] - t[a] + 1.0 / rate
-        if duration < s.min_dwell_s:
-            n_short += 1
-            n_short_samples += b - a
+    kept: list[tuple[int, int, int, int]] = []  # sample range and block range
+    counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
+                                 TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, TRIMMED)}
+    rest_noise: list[float] = []
+    gyro_scale = _gyro_rad_per_unit(rec, gyro, model.bias)
+    if gyro_scale is not None:
+        evidence["gyro_rad_per_unit"] = gyro_scale
+    b = model.b
+    for k0, k1 in model.split_by_noise(runs):
+        j0, j1 = model.peel(k0, k1)
+        counts[EDGES] += int(b.stop[k1 - 1] - b.start[k0]) - int(b.stop[j1 - 1] - b.start[j0])
+        a, z = int(b.start[j0]), int(b.stop[j1 - 1])
+        duration = t[z - 1] - t[a] + 1.0 / rate
+        if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
+            counts[SHORT] += z - a
+            counts[SHORT_STRETCHES] += 1
             continue
-        a2, b2 = a + trim, b - trim
-        if b2 - a2 < 2:
-            n_short += 1
-            n_short_samples += b - a
+        per_sample = model.spread(j0, j1)
+        if per_sample > MAX_REST_NOISE_G * one_g:
+            counts[LOUD] += z - a
+            counts[LOUD_STRETCHES] += 1
             continue
-        n_trim += (a2 - a) + (b - b2)
-        in_pose[a2:b2] = True
-        kept.append((a2, b2))
-    groups = join_interrupted(kept, t, acc, s.window_s, thresholds["acc_axes_std"])
-    groups, n_sweeping, n_sweeping_samples = reject_sweeping(groups, acc, window, thresholds["acc_axes_std"], in_pose)
-    _add(exclusions, SWEEPING, n_sweeping_samples)
-    _add(exclusions, SWEEPING_STRETCHES, n_sweeping)
-    if resting_gyro_std is not None and gyro is not None:
-        groups, n_turning, n_turning_samples = reject_turning(groups, gyro, resting_gyro_std, in_pose)
-        _add(exclusions, TURNING, n_turning_samples)
-        _add(exclusions, TURNING_STRETCHES, n_turning)
-    elif never_rests:
-        n_dropped = sum(b - a for group in groups for a, b in group)
-        _add(exclusions, NO_REST, n_dropped)
-        _add(exclusions, NO_REST_STRETCHES, len(groups))
-        in_pose[:] = False
-        groups = []
+        if model.creeps(j0, j1):
+            counts[SWEEPING] += z - a
+            counts[SWEEPING_STRETCHES] += 1
+            continue
+        if gyro_scale is not None and _wobble(gyro[a:z], t[a:z], gyro_scale, max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
+            counts[WOBBLE] += z - a
+            counts[WOBBLE_STRETCHES] += 1
+            continue
+        if model.turns(j0, j1):
+            counts[TURNING] += z - a
+            counts[TURNING_STRETCHES] += 1
+            continue
+        a2, z2 = a + trim, z - trim
+        if z2 - a2 < 2:
+            counts[SHORT] += z - a
+            counts[SHORT_STRETCHES] += 1
+            continue
+        counts[TRIMMED] += (a2 - a) + (z - z2)
+        kept.append((a2, z2, j0, j1))
+        rest_noise.append(per_sample)
+    groups = _join_twitches(kept, t, model, s.min_dwell_s)
     for group in groups:
-        intervals.append(reduce_interval(len(intervals) + 1, rec, use, group_positions(group), gyro, s.sigma_blocks))
-    _add(exclusions, MOVING, int(np.sum(~static)))
-    _add(exclusions, SHORT, n_short_samples)
-    _add(exclusions, SHORT_STRETCHES, n_short)
-    _add(exclusions, TRIMMED, n_trim)
+        for a, z in group:
+            in_pose[a:z] = True
+    intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro, s.sigma_blocks)
+                 for i, group in enumerate(groups)]
+    in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in model.split_by_noise(runs))
+    _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
+    for key, value in counts.items():
+        _add(exclusions, key, value)
+    for key in (SHORT_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES):
+        evidence[key] = counts[key]
+    evidence["still_stretches"] = len(runs)
+    noise.update(model.noise())
+    if rest_noise:
+        noise["rest_noise_min"] = float(min(rest_noise))
+        noise["rest_noise_median"] = float(np.median(rest_noise))
+    limits.update(model.limits())
+    trace.update(model.trace(m))
     trace["static"] = in_pose
     norm = _distance(acc, nominal.offset)
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
-    seg = Segmentation(rec, s, intervals, floors, thresholds, gyro_bias, exclusions, trace)
-    seg.joined = len(kept) - len(groups)
-    seg.rest_plateau = rest_plateau
-    return seg
+    return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
+                        len(kept) - len(groups), evidence)
+
+
+class _RestModel:
+    """The blocks of one recording and the tests of :mod:`optcal.data.rest_model` on them, measured in two passes."""
+
+    def __init__(self, s: StaticSettings, t: NDArray[np.float64], acc: NDArray[np.float64],
+                 gyro: NDArray[np.float64] | None, block: int, breaks: NDArray[np.int64], rate: float) -> None:
+        self.s = s
+        self.rate = rate
+        qa = quantum(acc) or 0.0
+        qg = (quantum(gyro) or 0.0) if gyro is not None else 0.0
+        self.block = block
+        self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
+        self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
+        b.var_ref = rm.local_noise(b.var, b.joined, self.half_width)
+        self.valid = b.joined[1:]
+        self.dof = b.n[1:] + b.n[:-1] - 2.0
+        self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
+        dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
+        # Noise colour, first from the quietest quarter of the pairs (mostly inside rests)
+        self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
+        self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
+        self.bias: NDArray[np.float64] | None = None
+        self.gkappa2 = np.ones(3)
+        self.wander2 = np.zeros(3)
+        self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
+        self.still = np.ones(b.count, dtype=bool)
+        self._pass(first=True)
+        # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
+        inside = self._pairs_inside(self.runs())
+        if inside.sum() >= 8:
+            self.kappa2 = rm.noise_colour(self.ratios[inside], dof0, 0.5)
+        self._pass(first=False)
+
+    def _pass(self, first: bool) -> None:
+        b = self.b
+        self.step = rm.step_statistic(self.ratios, self.kappa2)
+        if first:
+            self.var_steps = rm.log_variance_steps(b.var)
+            self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm) * self.s.threshold
+        self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
+        if b.gmean is None or b.gvar is None:
+            return
+        acc_still = np.zeros(b.count, dtype=bool)
+        acc_still[1:] |= self.quiet
+        acc_still[:-1] |= self.quiet
+        base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
+        if first:
+            self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
+            gratios = rm.pair_ratios(b.gmean, b.gvar, b.n)
+            pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
+            self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
+        else:
+            self._measure_wander()
+        assert self.bias is not None
+        self.gstat = rm.gyro_statistic(b.gmean, b.gvar, b.n, self.bias, self.gkappa2, self.wander2)
+        self.still = self.gstat <= self.gyro_limit
+
+    def _measure_wander(self) -> None:
+        """The gyro bias' wander between rests: the scatter of the first rests' mean rates beyond their noise."""
+        b = self.b
+        assert self.bias is not None and b.gmean is not None and b.gvar is not None
+        means, noise2 = [], []
+        for k0, k1 in self.runs():
+            n = b.n[k0:k1].sum()
+            means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
+            noise2.append(self.gkappa2 * np.median(b.gvar[k0:k1], axis=0) / n)
+        if len(means) >= 3:
+            dev = np.asarray(means) - self.bias
+            robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
+            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
+
+    def runs(self) -> list[tuple[int, int]]:
+        """Block ranges ``[k0, k1)`` of still blocks joined by quiet pairs."""
+        link = self.quiet & self.still[1:] & self.still[:-1]
+        out: list[tuple[int, int]] = []
+        k0 = 0
+        for k in range(1, self.b.count + 1):
+            if k == self.b.count or not link[k - 1]:
+                if k - k0 >= 1 and self.still[k0:k].all():
+                    out.append((k0, k))
+                k0 = k
+        return out
+
+    def _pairs_inside(self, runs: list[tuple[int, int]]) -> NDArray[np.bool_]:
+        inside = np.zeros(self.valid.size, dtype=bool)
+        for k0, k1 in runs:
+            inside[k0:k1 - 1] = True
+        return inside & self.valid
+
+    def split_by_noise(self, runs: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        """Cut out of each run the blocks far noisier than the run's quieter quarter: a rest has one noise level.
+
+        A smooth motion (all of a low-pass filtered recording's motion) changes the block means and the
+        block variances gradually, so that no pair of consecutive blocks tells it from the noise; its
+        blocks are still many times noisier than the rest around them.  The critical value is the
+        variance-step test's (:func:`optcal.data.rest_model.variance_step_limit`).
+        """
+        b = self.b
+        out: list[tuple[int, int]] = []
+        total = np.maximum(b.var.sum(axis=1), np.finfo(float).tiny)
+        for k0, k1 in runs:
+            if k1 - k0 < 3:
+                out.append((k0, k1))
+                continue
+            level = float(np.quantile(total[k0:k1], rm.QUIET_PAIRS_QUANTILE))
+            calm = np.log(total[k0:k1] / level) <= self.var_limit
+            starts, stops = true_runs(calm)
+            out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
+        return out
+
+    def peel(self, k0: int, k1: int) -> tuple[int, int]:
+        """Drop the run's end blocks while their mean differs from the rest of the run's (a settling tail)."""
+        b = self.b
+        while k1 - k0 >= 3:
+            changed = False
+            for end in (k0, k1 - 1):
+                # against the blocks next to it: a rest's mean may wander (flicker) over its length
+                others = slice(k0 + 1, min(k1, k0 + 1 + self.half_width)) if end == k0 else slice(max(k0, k1 - 1 - self.half_width), k1 - 1)
+                n_rest = float(b.n[others].sum())
+                rest_mean = (b.mean[others] * b.n[others, None]).sum(axis=0) / n_rest
+                stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest)
+                if stat > float(rm.step_limit(self.s.false_alarm, b.n[end] - 1.0)) * self.s.threshold:
+                    if end == k0:
+                        k0 += 1
+                    else:
+                        k1 -= 1
+                    changed = True
+                    break
+            if not changed:
+                break
+        return k0, k1
+
+    def spread(self, k0: int, k1: int) -> float:
+        """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
+        block means included, so that a stretch that moves is as loud as its motion)."""
+        b = self.b
+        w = b.n[k0:k1, None]
+        mean = (b.mean[k0:k1] * w).sum(axis=0) / w.sum()
+        total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
+        return float(np.sqrt(total.sum()))
+
+    def creeps(self, k0: int, k1: int) -> bool:
+        """Whether the run's accelerometer batch means trend (a slow turn): significantly, and by more than the
+        samples' own spread (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ; a creep hidden in it, such as a
+        flicker noise's or a warming sensor's, moves no pose a calibration uses)."""
+        b = self.b
+        tstat, dof, change = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
+        noise = float(np.sqrt(np.sum(np.median(b.var[k0:k1], axis=0))))
+        return (dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * self.s.drift_threshold
+                and change > SAME_POSE_SAMPLE_SIGMAS * noise * self.s.drift_threshold)
+
+    def turns(self, k0: int, k1: int) -> bool:
+        """Whether the run's mean rate is off the bias beyond its batch means' scatter and the bias' wander."""
+        b = self.b
+        if b.gmean is None or self.bias is None:
+            return False
+        k = k1 - k0
+        nb = min(rm.TREND_BATCHES, k)
+        if nb < rm.TREND_MIN_BATCHES:
+            return False
+        groups = np.array_split(np.arange(k0, k1), nb)
+        xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
+        se2 = xb.var(axis=0, ddof=1) / nb + self.wander2
+        z = np.abs(xb.mean(axis=0) - self.bias) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
+        return bool(np.max(z) > rm.trend_limit(self.s.false_alarm, nb - 1) * self.s.gyro_threshold)
+
+    def noise(self) -> dict[str, float]:
+        out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
+        if self.bias is not None:
+            out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
+            out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
+        return out
+
+    def limits(self) -> dict[str, float]:
+        out = {"step": float(np.median(self.step_limit)) if self.step_limit.size else float("nan"),
+               "trend": rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 2) * self.s.drift_threshold}
+        if self.bias is not None:
+            out["gyro"] = float(np.median(self.gyro_limit))
+        return out
+
+    def trace(self, m: int) -> dict[str, NDArray[np.float64]]:
+        """The step and gyro statistics over their critical values, per sample (the larger of a block's two pairs)."""
+        b = self.b
+        ratio = np.where(self.valid, self.step / self.step_limit, 0.0)
+        per_block = np.zeros(b.count)
+        per_block[1:] = ratio
+        per_block[:-1] = np.maximum(per_block[:-1], ratio)
+        lengths = (b.stop - b.start).astype(int)
+        out = {"step": np.repeat(per_block, lengths)}
+        if self.bias is not None:
+            out["gyro"] = np.repeat(self.gstat / self.gyro_limit, lengths)
+        return out
+
+
+#: Fastest turn of a hand or a table, rad/s (about 1150 °/s): gyro readings whose moves exceed it are in °/s.
+MAX_TURN_RAD_S: float = 20.0
+
+
+def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None) -> float | None:
+    """Radians per second per gyro unit: from the recording's units, else rad/s unless the moves exceed
+    :data:`MAX_TURN_RAD_S` (then °/s); ``None`` for counts (their scale is the sensor's)."""
+    if gyro is None:
+        return None
+    if rec.gyro_units in RAD_PER_UNIT:
+        return RAD_PER_UNIT[rec.gyro_units]
+    if rec.gyro_units is not None or bias is None or rec.units == "counts":
+        return None  # counts, or beside an accelerometer in counts: the scale is the sensor's
+    peak = float(np.quantile(np.linalg.norm(gyro[:: max(1, gyro.shape[0] // 20000)] - bias, axis=1), 0.99))
+    return RAD_PER_UNIT["deg/s"] if peak > MAX_TURN_RAD_S else RAD_PER_UNIT["rad/s"]
+
+
+def _wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
+    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
+
+    In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
+    steady turn, which :meth:`_RestModel.turns` tests) are integrated by the trapezoid rule over the true time
+    steps; over a window the gyro's own angle random walk and bias wander stay far below the tolerance, a
+    hand's tremor or a vibration do not.
+    """
+    m = gyro.shape[0]
+    if m < 3:
+        return 0.0
+    total, count = 0.0, 0
+    for a in range(0, m, window):
+        w = gyro[a:a + window] * rad_per_unit
+        if w.shape[0] < 3:
+            continue
+        w = w - w.mean(axis=0)
+        dt = np.diff(t[a:a + window])[:, None]
+        angle = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (w[1:] + w[:-1]) * dt, axis=0)])
+        angle -= angle.mean(axis=0)
+        total += float(np.sum(angle * angle))
+        count += w.shape[0]
+    return float(np.sqrt(total / max(count, 1)))
+
+
+def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: _RestModel,
+                   dwell_s: float) -> list[list[tuple[int, int]]]:
+    """Group consecutive rests separated by less than the dwell whose means do not differ (the dwell as a prior).
+
+    Two rests closer than a dwell cannot be two poses: the sensor would have to move and settle in less
+    time than it rests.  They are one pose interrupted (a twitch, a test's false alarm) when their means
+    differ by less than the noise of the difference (each mean's variance from the scatter of its block
+    means, at least ``κ² v / n``), or when the shift is hidden in the samples' own spread
+    (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ: a flicker noise's wander between two pieces of one rest).
+    """
+    b = model.b
+    groups: list[list[tuple[int, int]]] = []
+    last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
+    for a, z, j0, j1 in kept:
+        w = b.n[j0:j1, None]
+        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
+        white = model.kappa2 * np.median(b.var[j0:j1], axis=0) / w.sum()
+        scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
+        se2 = np.maximum(white, scatter)
+        sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
+        if groups and last is not None and t[a] - t[groups[-1][-1][1] - 1] < dwell_s:
+            d = mean - last[0]
+            stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
+            if stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
+                    or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2]):
+                groups[-1].append((a, z))
+                continue
+        groups.append([(a, z)])
+        last = (mean, se2, sd)
+    return groups
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -449,124 +638,6 @@ def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[
     return np.sqrt(norm, out=norm)
 
 
-@dataclass
-class GyroWindows:
-    """The gyro's moving statistics (:func:`_gyro_windows`).
-
-    Attributes
-    ----------
-    floor : float
-        The noise floor of the moving standard deviation, norm over the axes (the per-sample noise)
-        (:func:`optcal.data.window_stats.noise_floor`, at least the data's resolution).
-    quantum : float or None
-        The gyro's converter step (:func:`optcal.data.window_stats.quantum`).
-    means : list of ndarray or None
-        Moving mean of each axis, kept when the bias was not known yet.
-    squared_deviation : ndarray or None
-        ``‖mean(ω) − b_ω‖²`` when the bias was given.
-    """
-
-    floor: float
-    quantum: float | None
-    means: list[NDArray[np.float64]] | None
-    squared_deviation: NDArray[np.float64] | None
-
-    def rate_deviation(self, bias: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The windowed mean rate ``‖mean(ω) − b_ω‖`` at each sample."""
-        dev2 = self.squared_deviation
-        if dev2 is None:
-            assert self.means is not None
-            dev2 = _add_squared_deviations(self.means, bias)
-            self.means = None
-        return np.sqrt(dev2, out=dev2)
-
-
-def _add_squared_deviations(means: list[NDArray[np.float64]], bias: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``Σ_j (mean_j − b_j)²`` column by column, each mean overwritten."""
-    dev2 = np.zeros(means[0].size)
-    for j, mean_j in enumerate(means):
-        mean_j -= bias[j]
-        mean_j *= mean_j
-        dev2 += mean_j
-    return dev2
-
-
-def _gyro_windows(
-    gyro: NDArray[np.float64], window: int, floor_quantile: float, moving: MovingWindow,
-    bias: NDArray[np.float64] | None,
-) -> GyroWindows:
-    """The gyro's moving statistics in ``moving``'s buffers: without ``bias`` the three moving means kept
-    (for :meth:`GyroWindows.rate_deviation`); with it (long recordings) the squared mean rate from a
-    second pass over the columns, so that the noise's and the rate's sums are never held at once."""
-    m = gyro.shape[0]
-    var_sum = np.zeros(m)
-    means: list[NDArray[np.float64]] = []
-    for j in range(3):
-        mean_j, var_j = moving.column(gyro[:, j])
-        var_sum += var_j
-        if bias is None:
-            means.append(mean_j.copy())
-    sd = np.sqrt(var_sum, out=var_sum)
-    floor = noise_floor(sd, floor_quantile, resolution(gyro) * np.sqrt(3), moving.scratch())
-    del sd, var_sum
-    dev2 = None
-    if bias is not None:
-        dev2 = np.zeros(m)
-        for j in range(3):  # as _add_squared_deviations, in the buffer
-            mean_j = moving.column(gyro[:, j])[0]
-            mean_j -= bias[j]
-            mean_j *= mean_j
-            dev2 += mean_j
-    return GyroWindows(floor, quantum(gyro), means if bias is None else None, dev2)
-
-
-def rest_plateau_limit(window: int, floor_quantile: float) -> float:
-    """Smallest ratio of the axes moving std's ``floor_quantile / 5`` quantile to its ``floor_quantile``
-    quantile that windows at rest give: :data:`REST_PLATEAU_FRACTION` of the ratio for white noise.
-
-    For white noise the std over ``window`` samples, summed over three axes, has a relative
-    spread ``r ≈ 1/√(6 (window − 1))`` (each axis ``1/√(2 (window − 1))``), so the ratio of
-    the two quantiles is ``(1 + z_low r) / (1 + z_floor r)`` with ``z`` the normal quantiles.
-    """
-    from statistics import NormalDist
-
-    r = 1.0 / np.sqrt(6.0 * max(1, window - 1))
-    z = NormalDist().inv_cdf
-    white = (1.0 + z(floor_quantile / 5) * r) / (1.0 + z(floor_quantile) * r)
-    return REST_PLATEAU_FRACTION * max(0.0, white)
-
-
-def _never_rests(
-    m: int, axes_quantiles: list[float], window: int, floor_quantile: float, resolution: float,
-    evidence: dict[str, float],
-) -> bool:
-    """Whether the quietest windows share no noise level (the recording never rests); the figures go to ``evidence``.
-
-    ``axes_quantiles`` are the ``floor_quantile / 5`` and ``floor_quantile`` quantiles of the axes
-    moving std over ``m`` samples.  Both are taken at least at the data's ``resolution``
-    (noise-free or coarsely quantised rests sit there).  Decided only on recordings of at least
-    :data:`PLATEAU_MIN_WINDOWS` windows (else ``False``).
-    """
-    if m < PLATEAU_MIN_WINDOWS * window:
-        return False
-    low, at_floor = (max(float(q), resolution) for q in axes_quantiles)
-    if not at_floor > 0:
-        return False
-    limit = rest_plateau_limit(window, floor_quantile)
-    evidence.update(low=float(low), floor=float(at_floor), limit=limit)
-    return bool(low < limit * at_floor)
-
-
-def _gather(x: NDArray[np.float64], mask: NDArray[np.bool_], out: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``x[mask]`` written into ``out`` chunk by chunk (no temporary of the data's length); a view of ``out``."""
-    filled = 0
-    for start in range(0, x.size, STEP_CHUNK):
-        chunk = x[start:start + STEP_CHUNK][mask[start:start + STEP_CHUNK]]
-        out[filled:filled + chunk.size] = chunk
-        filled += chunk.size
-    return out[:filled]
-
-
 def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.float64]:
     """The rows ``use`` of ``x`` (n, k) as a column-major copy (contiguous columns, as a recording's)."""
     out = np.empty((use.size, x.shape[1]), order="F")
@@ -578,3 +649,4 @@ def _usable_rows(x: NDArray[np.float64], use: NDArray[np.int64]) -> NDArray[np.f
 def _add(d: dict[str, int], key: str, value: int) -> None:
     if value:
         d[key] = d.get(key, 0) + int(value)
+

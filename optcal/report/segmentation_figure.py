@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 
 
 def segmentation_figure(seg: Segmentation) -> Figure:
-    """|a| (nominal g) with the intervals shaded, the accelerometer statistics and gyro rate.
+    """|a| (nominal g) with the intervals shaded, and the rest model's step and gyro tests over their critical values.
 
     Drawn on a :class:`matplotlib.figure.Figure` of its own (no pyplot state, the backend untouched).
 
@@ -30,7 +30,7 @@ def segmentation_figure(seg: Segmentation) -> Figure:
 
     tr = seg.trace
     t = tr["t"]
-    has_gyro = "gyro_rate" in tr
+    has_gyro = "gyro" in tr
     fig = Figure(figsize=(11, 7 if has_gyro else 5))
     axes = fig.subplots(3 if has_gyro else 2, 1, sharex=True)
     ax = axes[0]
@@ -41,17 +41,15 @@ def segmentation_figure(seg: Segmentation) -> Figure:
     ax.set_ylabel("|a| (nominal g)")
     ax.set_title(f"{seg.recording.path}: {len(seg.intervals)} static intervals")
     ax = axes[1]
-    ax.semilogy(t, np.maximum(tr["acc_axes_std"], 1e-12), lw=0.5, label="moving std, axes")
-    ax.semilogy(t, np.maximum(tr["acc_norm_std"], 1e-12), lw=0.5, label="moving std, |a|")
-    ax.axhline(seg.thresholds["acc_axes_std"], color="C0", ls="--", lw=0.8)
-    ax.axhline(seg.thresholds["acc_norm_std"], color="C1", ls="--", lw=0.8)
-    ax.set_ylabel(f"std ({seg.recording.units})")
+    ax.semilogy(t, np.maximum(tr["step"], 1e-3), lw=0.5, label="step between block means / its critical value")
+    ax.axhline(1.0, color="C0", ls="--", lw=0.8)
+    ax.set_ylabel("step test")
     ax.legend(loc="upper right", fontsize=8)
     if has_gyro:
         ax = axes[2]
-        ax.semilogy(t, np.maximum(tr["gyro_rate"], 1e-12), lw=0.5, color="C2")
-        ax.axhline(seg.thresholds["gyro_rate"], color="C2", ls="--", lw=0.8)
-        ax.set_ylabel(f"|mean ω − bias| ({seg.recording.gyro_units or 'gyro units'})")
+        ax.semilogy(t, np.maximum(tr["gyro"], 1e-3), lw=0.5, color="C2")
+        ax.axhline(1.0, color="C2", ls="--", lw=0.8)
+        ax.set_ylabel("gyro test (block mean rate off the bias)")
     axes[-1].set_xlabel("t (s)")
     fig.tight_layout()
     return fig

@@ -1,0 +1,266 @@
+"""The statistical model of a recording's rests: blocks, and the tests that say where the sensor moves.
+
+A rest is a stretch over which the true specific force (and, with a gyro, the true rate, zero)
+does not change, so that every block of samples in it has the same mean up to the noise of a
+block mean.  The model makes no assumption about how noisy a rest is, nor that every rest is as
+noisy as the others: every test compares a change with the noise measured where the change is.
+
+* **Blocks.**  The usable samples are cut into blocks of ``window_s`` (never across a time gap),
+  and each block reduced to its mean and variance per axis (:func:`make_blocks`), with the
+  converter's quantisation variance ``q²/12`` added (a quantised rest may show no spread at all).
+* **Noise colour.**  Sensor noise is not white (MEMS flicker, a logger's low-pass filter, a hand's
+  tremor), so the scatter of block means exceeds ``σ²/n`` by a factor ``κ²``.  ``κ²`` is measured
+  on the recording itself (:func:`noise_colour`): the ratio of the squared change between
+  consecutive block means to its white-noise expectation, at the quietest quarter of the pairs
+  (recordings are mostly at rest, so the quarter of smallest changes are pairs inside a rest), and
+  again inside the rests first found; never below 1.
+* **A step** between consecutive blocks (:func:`step_statistic`): ``Σ_j d_j² / (κ_j² v_j (1/n_a +
+  1/n_b))`` with ``v_j`` the pooled variance of the two blocks, which at rest follows ``3 F(3,
+  n_a + n_b − 2)``; a step beyond its ``1 − false_alarm`` quantile is motion, or a jump between
+  two holds with no motion stored.
+* **The gyro** (:func:`gyro_statistic`): a block's mean rate against the bias, ``Σ_j (ω̄_j −
+  b_j)² / (κ_j² v_j / n + u_j²)`` with ``u_j²`` the bias' wander between rests, against ``3 F(3, n
+  − 1)``.  The bias is the half-sample mode of the block means the accelerometer calls still
+  (:func:`half_sample_mode`), the wander the scatter of the rests' own means beyond their noise.
+* **Drift** (:func:`trend_statistic`): a stretch whose mean creeps (a slow turn, seen or not by
+  a gyro) is found by the t statistic of the slope of its batch means against their own scatter
+  (scale-free, coloured noise included), against Student's ``t`` at ``false_alarm`` (Bonferroni over
+  the axes).
+
+Every threshold is a quantile of the test's distribution at rest at the stated false-alarm
+probability, times a user's multiplier (``--static-threshold``, ``--gyro-threshold``,
+``--drift-threshold``; 1 by default).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+#: Quantile of the pairs' squared changes taken as the quiet ones when the noise colour is first measured.
+QUIET_PAIRS_QUANTILE: float = 0.25
+#: Batch means over which a stretch's trend is tested (Brockwell & Davis' batch means: few enough that each
+#: batch mean carries the noise of many samples, enough to measure their scatter: 8 leave 6 degrees of freedom).
+TREND_BATCHES: int = 8
+#: Fewest batches a trend test is made on (3 leave one degree of freedom for the scatter).
+TREND_MIN_BATCHES: int = 4
+
+
+@dataclass
+class Blocks:
+    """A recording cut into blocks of consecutive usable samples.
+
+    Attributes
+    ----------
+    start, stop : ndarray of int
+        Sample positions ``[start, stop)`` of each block (in the usable samples).
+    n : ndarray of float
+        Samples per block.
+    mean, var : ndarray (nb, 3)
+        Accelerometer mean and variance (``ddof=1``, plus ``q²/12``) per axis.
+    gmean, gvar : ndarray (nb, 3) or None
+        The same for the gyro.
+    joined : ndarray of bool
+        ``joined[k]``: block ``k`` follows block ``k − 1`` with no time gap between them.
+    t_mid : ndarray of float
+        Mid time of each block.
+    var_ref : ndarray (nb, 3) or None
+        The noise each block's mean is measured against (:func:`local_noise`).
+    """
+
+    start: NDArray[np.int64]
+    stop: NDArray[np.int64]
+    n: NDArray[np.float64]
+    mean: NDArray[np.float64]
+    var: NDArray[np.float64]
+    gmean: NDArray[np.float64] | None
+    gvar: NDArray[np.float64] | None
+    joined: NDArray[np.bool_]
+    t_mid: NDArray[np.float64]
+    var_ref: NDArray[np.float64] | None = None
+
+    @property
+    def count(self) -> int:
+        return int(self.start.size)
+
+
+def block_edges(m: int, block: int, breaks: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Start positions of blocks of about ``block`` samples over ``m`` samples, new segments at ``breaks``.
+
+    Each segment between breaks is cut into ``max(1, L // block)`` blocks of equal length (± 1); the
+    second array says which blocks continue the previous one without a break.
+    """
+    bounds = np.concatenate([[0], np.asarray(breaks, dtype=np.int64), [m]])
+    starts: list[NDArray[np.int64]] = []
+    joined: list[NDArray[np.bool_]] = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        length = int(b - a)
+        if length <= 0:
+            continue
+        nb = max(1, length // block)
+        s = a + (np.arange(nb) * length) // nb
+        starts.append(s.astype(np.int64))
+        j = np.ones(nb, dtype=bool)
+        j[0] = False
+        joined.append(j)
+    return np.concatenate(starts), np.concatenate(joined)
+
+
+def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray[np.float64],
+                   quant_var: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    mean = np.empty((starts.size, 3))
+    var = np.empty((starts.size, 3))
+    for j in range(3):
+        col = x[:, j]
+        centre = float(np.median(col[:: max(1, col.size // 1000)]))
+        dev = col - centre
+        s1 = np.add.reduceat(dev, starts)
+        s2 = np.add.reduceat(dev * dev, starts)
+        mu = s1 / n
+        mean[:, j] = mu + centre
+        var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var
+    return mean, var
+
+
+def make_blocks(t: NDArray[np.float64], acc: NDArray[np.float64], gyro: NDArray[np.float64] | None, block: int,
+                breaks: NDArray[np.int64], acc_quantum: float, gyro_quantum: float) -> Blocks:
+    """Cut the samples into blocks (:func:`block_edges`) and reduce each to its mean and variance."""
+    m = acc.shape[0]
+    starts, joined = block_edges(m, block, breaks)
+    stops = np.append(starts[1:], m)
+    n = (stops - starts).astype(float)
+    mean, var = _block_moments(acc, starts, n, acc_quantum**2 / 12.0)
+    gmean = gvar = None
+    if gyro is not None:
+        gmean, gvar = _block_moments(gyro, starts, n, gyro_quantum**2 / 12.0)
+    t_mid = 0.5 * (t[starts] + t[stops - 1])
+    return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid)
+
+
+def local_noise(var: NDArray[np.float64], joined: NDArray[np.bool_], half_width: int) -> NDArray[np.float64]:
+    """Per block and axis, the smallest block variance within ``half_width`` blocks on either side.
+
+    The noise a block's mean is measured against.  A block's own variance will not do: a smooth
+    motion (and any motion of a low-pass filtered recording) spreads a block's samples by its own
+    slope, so that its change of mean looks like its noise.  A rest is one noise level for at least a
+    dwell, so the quietest block near a block is its rest's noise, or a quieter neighbour's, which
+    makes the test stricter, never more lenient; the minimum's low bias is absorbed by the noise
+    colour, measured with the same statistic (:func:`noise_colour`).
+    """
+    out = var.copy()
+    for shift in range(1, half_width + 1):
+        out[shift:] = np.minimum(out[shift:], var[:-shift])
+        out[:-shift] = np.minimum(out[:-shift], var[shift:])
+    return out
+
+
+def pair_ratios(mean: NDArray[np.float64], var: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per axis, the squared change between consecutive block means over its white-noise variance (nb − 1, 3)."""
+    d = np.diff(mean, axis=0)
+    pooled = 0.5 * (var[1:] + var[:-1])
+    scale = pooled * (1.0 / n[1:] + 1.0 / n[:-1])[:, None]
+    return np.asarray(d * d / np.maximum(scale, np.finfo(float).tiny))
+
+
+def log_variance_steps(var: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``|ln(v_{k+1} / v_k)|`` of the total (summed over the axes) variance of consecutive blocks."""
+    total = np.maximum(var.sum(axis=1), np.finfo(float).tiny)
+    return np.asarray(np.abs(np.diff(np.log(total))))
+
+
+def variance_step_limit(steps: NDArray[np.float64], false_alarm: float) -> float:
+    """The critical value of :func:`log_variance_steps` at rest, scaled from the pairs themselves.
+
+    At rest the log-ratio of two variance estimates is close to normal with mean 0; its spread (larger
+    than the white-noise ``2/√(n − 1)`` for coloured noise or a tremor) is taken from the pairs' median
+    absolute value (most pairs lie inside rests; ``median |x| = 0.6745 σ`` for a normal ``x``), and the
+    critical value is the normal two-sided ``false_alarm`` quantile of that spread.
+    """
+    if steps.size == 0:
+        return float("inf")
+    spread = float(np.median(steps)) / 0.6744897501960817
+    return float(stats.norm.isf(false_alarm / 2.0)) * spread
+
+
+def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> NDArray[np.float64]:
+    """``κ²`` per axis: the ``quantile`` of the pairs' ratios over the same quantile of ``F(1, dof)`` (at least 1)."""
+    if ratios.shape[0] == 0:
+        return np.ones(ratios.shape[1])
+    expected = float(stats.f.ppf(quantile, 1, max(dof, 1.0)))
+    return np.asarray(np.maximum(np.quantile(ratios, quantile, axis=0) / expected, 1.0))
+
+
+def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``Σ_j ratio_j / κ_j²`` of each consecutive pair: ``3 F(3, dof)`` at rest."""
+    return np.asarray((ratios / kappa2).sum(axis=1))
+
+
+def step_limit(false_alarm: float, dof: NDArray[np.float64] | float) -> NDArray[np.float64]:
+    """The ``1 − false_alarm`` quantile of ``3 F(3, dof)``."""
+    return np.asarray(3.0 * stats.f.isf(false_alarm, 3, np.maximum(dof, 1.0)))
+
+
+def half_sample_mode(x: NDArray[np.float64]) -> float:
+    """Bickel & Frühwirth's half-sample mode of ``x``: the densest half, halved until two or three values remain."""
+    y = np.sort(np.asarray(x, dtype=float)[np.isfinite(x)])
+    while y.size > 3:
+        h = (y.size + 1) // 2
+        widths = y[h - 1:] - y[: y.size - h + 1]
+        i = int(np.argmin(widths))
+        y = y[i:i + h]
+    if y.size == 3:
+        return float(y[:2].mean() if y[1] - y[0] < y[2] - y[1] else (y[1:].mean() if y[1] - y[0] > y[2] - y[1] else y[1]))
+    return float(y.mean()) if y.size else float("nan")
+
+
+def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDArray[np.float64],
+                   bias: NDArray[np.float64], kappa2: NDArray[np.float64], wander2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``Σ_j (ω̄_j − b_j)² / (κ_j² v_j / n + u_j²)`` of each block: ``3 F(3, n − 1)`` at rest."""
+    d = gmean - bias
+    scale = kappa2 * gvar / n[:, None] + wander2
+    return np.asarray((d * d / np.maximum(scale, np.finfo(float).tiny)).sum(axis=1))
+
+
+def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
+                    batches: int = TREND_BATCHES) -> tuple[float, int, float]:
+    """The largest |t| over the axes of the slope of ``x``'s batch means against time, and its degrees of freedom.
+
+    ``x`` (k, 3) are the block means of a stretch, ``t`` their times; they are grouped into
+    ``min(batches, k)`` batches of consecutive blocks, each batch's mean regressed on its time, and
+    the slope divided by its standard error from the residual scatter (``batches − 2`` dof).
+    Also returns the size of the fitted change over the stretch (norm over the axes).  Returns
+    ``(0, 0, 0)`` for fewer than :data:`TREND_MIN_BATCHES` batches.
+    """
+    k = x.shape[0]
+    nb = min(batches, k)
+    if nb < TREND_MIN_BATCHES:
+        return 0.0, 0, 0.0
+    groups = np.array_split(np.arange(k), nb)
+    tb = np.array([t[g].mean() for g in groups])
+    xb = np.array([x[g].mean(axis=0) for g in groups])
+    tc = tb - tb.mean()
+    sxx = float(tc @ tc)
+    if sxx <= 0:
+        return 0.0, 0, 0.0
+    slope = tc @ (xb - xb.mean(axis=0)) / sxx
+    resid = xb - xb.mean(axis=0) - np.outer(tc, slope)
+    s2 = (resid * resid).sum(axis=0) / (nb - 2)
+    se = np.sqrt(np.maximum(s2, np.finfo(float).tiny) / sxx)
+    change = float(np.linalg.norm(slope) * (t[-1] - t[0]))
+    return float(np.max(np.abs(slope) / se)), nb - 2, change
+
+
+def trend_limit(false_alarm: float, dof: int, axes: int = 3) -> float:
+    """Two-sided Student ``t`` quantile at ``false_alarm`` shared over ``axes`` (Bonferroni)."""
+    return float(stats.t.isf(false_alarm / (2 * axes), max(dof, 1)))
+
+
+def mean_shift_statistic(block_mean: NDArray[np.float64], block_var: NDArray[np.float64], n_block: float,
+                         rest_mean: NDArray[np.float64], kappa2: NDArray[np.float64], n_rest: float) -> float:
+    """A block's mean against the mean of the rest of its stretch, in units of their noise: ``3 F(3, ·)`` at rest."""
+    d = block_mean - rest_mean
+    scale = kappa2 * block_var * (1.0 / n_block + 1.0 / max(n_rest, 1.0))
+    return float((d * d / np.maximum(scale, np.finfo(float).tiny)).sum())
