@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from optcal.core.poses import PoseTable
 from optcal.data import rest_model as rm
@@ -284,7 +285,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         trace["static"] = np.zeros(m, dtype=bool)
         return Segmentation(rec, s, [], noise, limits, None, exclusions, trace, 0, evidence)
 
-    model = _RestModel(s, t, acc, gyro, block, breaks, rate)
+    model = _RestModel(rec, s, t, acc, gyro, block, breaks, rate)
     runs = model.runs()
     evidence.update(blocks=model.b.count, pairs=int(model.valid.sum()))
     # ------------------------------------------------------------- each run judged as a rest
@@ -295,7 +296,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, TRIMMED)}
     rest_noise: list[float] = []
-    gyro_scale = _gyro_rad_per_unit(rec, gyro, model.bias)
+    gyro_scale = model.gyro_scale
     if gyro_scale is not None:
         evidence["gyro_rad_per_unit"] = gyro_scale
     b = model.b
@@ -333,7 +334,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         counts[TRIMMED] += (a2 - a) + (z - z2)
         kept.append((a2, z2, j0, j1))
         rest_noise.append(per_sample)
-    groups = _join_twitches(kept, t, model, s.min_dwell_s)
+    groups = _join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale)
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
@@ -362,7 +363,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
 class _RestModel:
     """The blocks of one recording and the tests of :mod:`optcal.data.rest_model` on them, measured in two passes."""
 
-    def __init__(self, s: StaticSettings, t: NDArray[np.float64], acc: NDArray[np.float64],
+    def __init__(self, rec: Recording, s: StaticSettings, t: NDArray[np.float64], acc: NDArray[np.float64],
                  gyro: NDArray[np.float64] | None, block: int, breaks: NDArray[np.int64], rate: float) -> None:
         self.s = s
         self.rate = rate
@@ -380,11 +381,13 @@ class _RestModel:
         self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
         self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
         self.bias: NDArray[np.float64] | None = None
+        self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
         self.gkappa2 = np.ones(3)
         self.wander2 = np.zeros(3)
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
         self._pass(first=True)
+        self.gyro_scale = _gyro_rad_per_unit(rec, gyro, self.bias)
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
@@ -406,13 +409,14 @@ class _RestModel:
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
             self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
-            gratios = rm.pair_ratios(b.gmean, b.gvar, b.n)
+            self.gvar_ref = rm.local_noise(b.gvar, b.joined, self.half_width)
+            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n)
             pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
             self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
         assert self.bias is not None
-        self.gstat = rm.gyro_statistic(b.gmean, b.gvar, b.n, self.bias, self.gkappa2, self.wander2)
+        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2)
         self.still = self.gstat <= self.gyro_limit
 
     def _measure_wander(self) -> None:
@@ -424,10 +428,16 @@ class _RestModel:
             n = b.n[k0:k1].sum()
             means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
             noise2.append(self.gkappa2 * np.median(b.gvar[k0:k1], axis=0) / n)
+        if means:
+            # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
+            # its own error, integrated over a long rest, would look like a turn)
+            self.bias = np.median(np.asarray(means), axis=0)
         if len(means) >= 3:
             dev = np.asarray(means) - self.bias
             robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
+            if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
+                self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
 
     def runs(self) -> list[tuple[int, int]]:
         """Block ranges ``[k0, k1)`` of still blocks joined by quiet pairs."""
@@ -510,19 +520,38 @@ class _RestModel:
                 and change > SAME_POSE_SAMPLE_SIGMAS * noise * self.s.drift_threshold)
 
     def turns(self, k0: int, k1: int) -> bool:
-        """Whether the run's mean rate is off the bias beyond its batch means' scatter and the bias' wander."""
+        """Whether the run's mean rate is off the bias, significantly and through more than a pose's wobble tolerance.
+
+        The noise of the run's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
+        batch means (a hand's tremor and flicker included; Student's t with their dof) when the run has as many
+        blocks, else the blocks' own noise of the mean times the gyro's noise colour (normal); the bias' wander
+        between rests is added.  A significant offset that turns the sensor through less than
+        ``√(2 WOBBLE_SHRINK)`` over the run, or over :data:`WOBBLE_DWELLS` dwells if the run is longer (a hand
+        sagging by a fraction of a degree, a bias wandering over minutes), moves no pose.
+        """
         b = self.b
         if b.gmean is None or self.bias is None:
             return False
         k = k1 - k0
-        nb = min(rm.TREND_BATCHES, k)
-        if nb < rm.TREND_MIN_BATCHES:
-            return False
-        groups = np.array_split(np.arange(k0, k1), nb)
-        xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
-        se2 = xb.var(axis=0, ddof=1) / nb + self.wander2
-        z = np.abs(xb.mean(axis=0) - self.bias) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
-        return bool(np.max(z) > rm.trend_limit(self.s.false_alarm, nb - 1) * self.s.gyro_threshold)
+        w = b.n[k0:k1, None]
+        off = (b.gmean[k0:k1] * w).sum(axis=0) / w.sum() - self.bias
+        if k >= rm.TREND_BATCHES:
+            groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
+            xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
+            se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
+            limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
+        else:
+            se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
+            limit = float(stats.norm.isf(self.s.false_alarm / 6.0))
+        z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
+        significant = bool(np.max(z) > limit * self.s.gyro_threshold)
+        if not significant or self.gyro_scale is None:
+            return significant
+        # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
+        duration = min(float(b.t_mid[k1 - 1] - b.t_mid[k0]) + float(b.n[k0]) / self.rate,
+                       WOBBLE_DWELLS * self.s.min_dwell_s)
+        turned = float(np.linalg.norm(off)) * self.gyro_scale * duration
+        return turned > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold
 
     def noise(self) -> dict[str, float]:
         out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
@@ -552,13 +581,18 @@ class _RestModel:
         return out
 
 
+#: Largest change of a MEMS gyro's bias between the rests of one session, rad/s (1 °/s): in-run bias stability is
+#: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
+#: rates scatter more are not all rests.
+MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
 #: Fastest turn of a hand or a table, rad/s (about 1150 °/s): gyro readings whose moves exceed it are in °/s.
 MAX_TURN_RAD_S: float = 20.0
 
 
 def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None) -> float | None:
-    """Radians per second per gyro unit: from the recording's units, else rad/s unless the moves exceed
-    :data:`MAX_TURN_RAD_S` (then °/s); ``None`` for counts (their scale is the sensor's)."""
+    """Radians per second per gyro unit: from the recording's units; else °/s when the moves exceed
+    :data:`MAX_TURN_RAD_S`, else the convention of the accelerometer's units (rad/s beside m/s², °/s beside g);
+    ``None`` for counts (their scale is the sensor's)."""
     if gyro is None:
         return None
     if rec.gyro_units in RAD_PER_UNIT:
@@ -566,7 +600,11 @@ def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: N
     if rec.gyro_units is not None or bias is None or rec.units == "counts":
         return None  # counts, or beside an accelerometer in counts: the scale is the sensor's
     peak = float(np.quantile(np.linalg.norm(gyro[:: max(1, gyro.shape[0] // 20000)] - bias, axis=1), 0.99))
-    return RAD_PER_UNIT["deg/s"] if peak > MAX_TURN_RAD_S else RAD_PER_UNIT["rad/s"]
+    if peak > MAX_TURN_RAD_S:
+        return RAD_PER_UNIT["deg/s"]
+    # no move fast enough to tell: the convention that goes with the accelerometer's units (SI with SI, as ROS's
+    # sensor_msgs/Imu; g with °/s, as the datasheets)
+    return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
 
 
 def _wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
@@ -595,16 +633,20 @@ def _wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
 
 
 def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: _RestModel,
-                   dwell_s: float) -> list[list[tuple[int, int]]]:
-    """Group consecutive rests separated by less than the dwell whose means do not differ (the dwell as a prior).
+                   dwell_s: float, gyro: NDArray[np.float64] | None,
+                   gyro_scale: float | None) -> list[list[tuple[int, int]]]:
+    """Group consecutive rests that are one pose interrupted (a twitch, a test's false alarm).
 
-    Two rests closer than a dwell cannot be two poses: the sensor would have to move and settle in less
-    time than it rests.  They are one pose interrupted (a twitch, a test's false alarm) when their means
-    differ by less than the noise of the difference (each mean's variance from the scatter of its block
-    means, at least ``κ² v / n``), or when the shift is hidden in the samples' own spread
-    (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ: a flicker noise's wander between two pieces of one rest).
+    Two consecutive rests are one pose when their means do not differ -- by less than the noise of the
+    difference (each mean's variance from the scatter of its block means, at least ``κ² v / n``), or by
+    less than :data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ (a flicker noise's wander between two pieces
+    of one rest) -- and the sensor did not turn between them: by the gyro (in known units) through less
+    than the wobble a pose tolerates (``√(2 WOBBLE_SHRINK)``, a turn that comes back to the same
+    orientation is a move); without one, when the interruption is shorter than the dwell (the dwell as a
+    prior: no pose is left and regained in less time than one is held).
     """
     b = model.b
+    block_s = model.block / model.rate  # the pieces' ends fall on block edges: the interruption is known to a block
     groups: list[list[tuple[int, int]]] = []
     last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
     for a, z, j0, j1 in kept:
@@ -614,11 +656,20 @@ def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64]
         scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
         se2 = np.maximum(white, scatter)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
-        if groups and last is not None and t[a] - t[groups[-1][-1][1] - 1] < dwell_s:
+        if groups and last is not None:
+            end = groups[-1][-1][1]
+            if gyro is not None and gyro_scale is not None and model.bias is not None:
+                between = (gyro[end:a] - model.bias) * gyro_scale
+                dt = np.diff(t[end - 1:a + 1])[:, None] if a > end else np.zeros((0, 1))
+                turned = float(np.linalg.norm((between * dt[:between.shape[0]]).sum(axis=0))) if a > end else 0.0
+                still_between = turned < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
+            else:
+                still_between = t[a] - t[end - 1] < dwell_s + block_s
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
-            if stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
-                    or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2]):
+            same = stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
+                or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
+            if still_between and same:
                 groups[-1].append((a, z))
                 continue
         groups.append([(a, z)])
