@@ -67,8 +67,8 @@ class Blocks:
         ``joined[k]``: block ``k`` follows block ``k − 1`` with no time gap between them.
     t_mid : ndarray of float
         Mid time of each block.
-    var_ref : ndarray (nb, 3) or None
-        The noise each block's mean is measured against (:func:`local_noise`).
+    var_ref : ndarray (nb, 3)
+        The noise each block's mean is measured against (:func:`local_noise`; the block's own until set).
     """
 
     start: NDArray[np.int64]
@@ -80,7 +80,7 @@ class Blocks:
     gvar: NDArray[np.float64] | None
     joined: NDArray[np.bool_]
     t_mid: NDArray[np.float64]
-    var_ref: NDArray[np.float64] | None = None
+    var_ref: NDArray[np.float64]
 
     @property
     def count(self) -> int:
@@ -137,7 +137,7 @@ def make_blocks(t: NDArray[np.float64], acc: NDArray[np.float64], gyro: NDArray[
     if gyro is not None:
         gmean, gvar = _block_moments(gyro, starts, n, gyro_quantum**2 / 12.0)
     t_mid = 0.5 * (t[starts] + t[stops - 1])
-    return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid)
+    return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid, var)
 
 
 def local_noise(var: NDArray[np.float64], joined: NDArray[np.bool_], half_width: int) -> NDArray[np.float64]:

@@ -297,6 +297,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, TRIMMED)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
+    wobble_window = max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))
     if gyro_scale is not None:
         evidence["gyro_rad_per_unit"] = gyro_scale
     b = model.b
@@ -318,7 +319,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             counts[SWEEPING] += z - a
             counts[SWEEPING_STRETCHES] += 1
             continue
-        if gyro_scale is not None and _wobble(gyro[a:z], t[a:z], gyro_scale, max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
+        if gyro is not None and gyro_scale is not None and _wobble(
+                gyro[a:z], t[a:z], gyro_scale, wobble_window) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
             counts[WOBBLE] += z - a
             counts[WOBBLE_STRETCHES] += 1
             continue
@@ -334,7 +336,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         counts[TRIMMED] += (a2 - a) + (z - z2)
         kept.append((a2, z2, j0, j1))
         rest_noise.append(per_sample)
-    groups = _join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale)
+    groups = _join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
@@ -383,6 +385,7 @@ class _RestModel:
         self.bias: NDArray[np.float64] | None = None
         self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
         self.gkappa2 = np.ones(3)
+        self.gvar_ref: NDArray[np.float64] | None = None
         self.wander2 = np.zeros(3)
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
@@ -415,7 +418,7 @@ class _RestModel:
             self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
-        assert self.bias is not None
+        assert self.bias is not None and self.gvar_ref is not None
         self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2)
         self.still = self.gstat <= self.gyro_limit
 
@@ -541,6 +544,7 @@ class _RestModel:
             se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
             limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
         else:
+            assert self.gvar_ref is not None
             se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
             limit = float(stats.norm.isf(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
@@ -632,18 +636,42 @@ def _wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     return float(np.sqrt(total / max(count, 1)))
 
 
+def _no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, start: int, model: _RestModel,
+                 block: int, gyro_scale: float | None) -> bool:
+    """Whether the gyro shows no net turn between samples ``end`` and ``start`` (a twitch that came back).
+
+    The rates less the bias integrated over the interruption, against the noise of that integral (the
+    per-sample noise of the next rest's blocks times the noise colour, as a random walk, and the bias'
+    wander over the interruption): χ²₃ at the false-alarm probability; a significant net turn smaller than
+    a pose's wobble tolerance (gyro in known units) is no turn either.
+    """
+    if model.bias is None or model.gvar_ref is None:
+        return False
+    if start <= end:
+        return True
+    dt = np.diff(t[end - 1:start + 1])
+    rates = gyro[end:start] - model.bias
+    net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
+    span = float(dt.sum())
+    var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
+    stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
+    if stat <= float(stats.chi2.isf(model.s.false_alarm, 3)) * model.s.gyro_threshold:
+        return True
+    return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
+
+
 def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: _RestModel,
                    dwell_s: float, gyro: NDArray[np.float64] | None,
-                   gyro_scale: float | None) -> list[list[tuple[int, int]]]:
+                   gyro_scale: float | None, max_gap: float) -> list[list[tuple[int, int]]]:
     """Group consecutive rests that are one pose interrupted (a twitch, a test's false alarm).
 
     Two consecutive rests are one pose when their means do not differ -- by less than the noise of the
     difference (each mean's variance from the scatter of its block means, at least ``κ² v / n``), or by
     less than :data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ (a flicker noise's wander between two pieces
-    of one rest) -- and the sensor did not turn between them: by the gyro (in known units) through less
-    than the wobble a pose tolerates (``√(2 WOBBLE_SHRINK)``, a turn that comes back to the same
-    orientation is a move); without one, when the interruption is shorter than the dwell (the dwell as a
-    prior: no pose is left and regained in less time than one is held).
+    of one rest) -- and the sensor did not turn between them: by the gyro, no net turn
+    (:func:`_no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
+    move), or when the interruption is shorter than the dwell (the dwell as a prior: no pose is left and
+    regained in less time than one is held).  Never across a time gap.
     """
     b = model.b
     block_s = model.block / model.rate  # the pieces' ends fall on block edges: the interruption is known to a block
@@ -658,13 +686,12 @@ def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64]
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
         if groups and last is not None:
             end = groups[-1][-1][1]
-            if gyro is not None and gyro_scale is not None and model.bias is not None:
-                between = (gyro[end:a] - model.bias) * gyro_scale
-                dt = np.diff(t[end - 1:a + 1])[:, None] if a > end else np.zeros((0, 1))
-                turned = float(np.linalg.norm((between * dt[:between.shape[0]]).sum(axis=0))) if a > end else 0.0
-                still_between = turned < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
+            gap = bool(a > end and np.max(np.diff(t[end - 1:a + 1])) > max_gap)
+            if gap:
+                still_between = False  # nothing is known of what the sensor did in a gap of the recording
             else:
-                still_between = t[a] - t[end - 1] < dwell_s + block_s
+                still_between = t[a] - t[end - 1] < dwell_s + block_s or (
+                    gyro is not None and _no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
             same = stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
