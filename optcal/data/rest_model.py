@@ -42,6 +42,8 @@ from scipy import stats
 
 #: Quantile of the pairs' squared changes taken as the quiet ones when the noise colour is first measured.
 QUIET_PAIRS_QUANTILE: float = 0.25
+#: Fewest pairs of calm blocks on which the noise colour is measured (else on the quietest pairs).
+MIN_COLOUR_PAIRS: int = 8
 #: Batch means over which a stretch's trend is tested (Brockwell & Davis' batch means: few enough that each
 #: batch mean carries the noise of many samples, enough to measure their scatter: 8 leave 6 degrees of freedom).
 TREND_BATCHES: int = 8
@@ -185,6 +187,13 @@ def variance_step_limit(steps: NDArray[np.float64], false_alarm: float) -> float
     return float(stats.norm.isf(false_alarm / 2.0)) * spread
 
 
+def calm_pairs(var: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Pairs of consecutive blocks both among the quietest :data:`QUIET_PAIRS_QUANTILE` of the blocks (total variance)."""
+    total = var.sum(axis=1)
+    calm = total <= np.quantile(total, QUIET_PAIRS_QUANTILE)
+    return np.asarray(valid & calm[1:] & calm[:-1])
+
+
 def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> NDArray[np.float64]:
     """``κ²`` per axis: the ``quantile`` of the pairs' ratios over the same quantile of ``F(1, dof)`` (at least 1)."""
     if ratios.shape[0] == 0:
@@ -225,32 +234,33 @@ def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDA
 
 
 def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
-                    batches: int = TREND_BATCHES) -> tuple[float, int, float]:
+                    batches: int = TREND_BATCHES) -> tuple[float, int, float, float]:
     """The largest |t| over the axes of the slope of ``x``'s batch means against time, and its degrees of freedom.
 
     ``x`` (k, 3) are the block means of a stretch, ``t`` their times; they are grouped into
     ``min(batches, k)`` batches of consecutive blocks, each batch's mean regressed on its time, and
     the slope divided by its standard error from the residual scatter (``batches − 2`` dof).
-    Also returns the size of the fitted change over the stretch (norm over the axes).  Returns
-    ``(0, 0, 0)`` for fewer than :data:`TREND_MIN_BATCHES` batches.
+    Also returns the size of the fitted change over the stretch and the range of the batch means (norms
+    over the axes).  Returns zeros for fewer than :data:`TREND_MIN_BATCHES` batches.
     """
     k = x.shape[0]
     nb = min(batches, k)
     if nb < TREND_MIN_BATCHES:
-        return 0.0, 0, 0.0
+        return 0.0, 0, 0.0, 0.0
     groups = np.array_split(np.arange(k), nb)
     tb = np.array([t[g].mean() for g in groups])
     xb = np.array([x[g].mean(axis=0) for g in groups])
     tc = tb - tb.mean()
     sxx = float(tc @ tc)
     if sxx <= 0:
-        return 0.0, 0, 0.0
+        return 0.0, 0, 0.0, 0.0
     slope = tc @ (xb - xb.mean(axis=0)) / sxx
     resid = xb - xb.mean(axis=0) - np.outer(tc, slope)
     s2 = (resid * resid).sum(axis=0) / (nb - 2)
     se = np.sqrt(np.maximum(s2, np.finfo(float).tiny) / sxx)
     change = float(np.linalg.norm(slope) * (t[-1] - t[0]))
-    return float(np.max(np.abs(slope) / se)), nb - 2, change
+    spread = float(np.linalg.norm(xb.max(axis=0) - xb.min(axis=0)))
+    return float(np.max(np.abs(slope) / se)), nb - 2, change, spread
 
 
 def trend_limit(false_alarm: float, dof: int, axes: int = 3) -> float:

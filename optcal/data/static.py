@@ -379,11 +379,18 @@ class _RestModel:
         self.dof = b.n[1:] + b.n[:-1] - 2.0
         self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
         dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
-        # Noise colour, first from the quietest quarter of the pairs (mostly inside rests)
-        self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
+        # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
+        # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
+        calm = rm.calm_pairs(b.var, self.valid)
+        if calm.sum() >= rm.MIN_COLOUR_PAIRS:
+            self.kappa2 = rm.noise_colour(self.ratios[calm], dof0, 0.5)
+        else:
+            self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
         self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
         self.bias: NDArray[np.float64] | None = None
         self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
+        nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
+        self.one_g = float(nominal.sensitivity)
         self.gkappa2 = np.ones(3)
         self.gvar_ref: NDArray[np.float64] | None = None
         self.wander2 = np.zeros(3)
@@ -513,17 +520,28 @@ class _RestModel:
         return float(np.sqrt(total.sum()))
 
     def creeps(self, k0: int, k1: int) -> bool:
-        """Whether the run's accelerometer batch means trend (a slow turn): significantly, and by more than the
-        samples' own spread (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ; a creep hidden in it, such as a
-        flicker noise's or a warming sensor's, moves no pose a calibration uses)."""
+        """Whether the run's accelerometer mean moves (a slow turn).
+
+        Either its batch means trend significantly (Student's t of their slope) by more than the samples' own
+        spread (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ; a creep hidden in it, a flicker noise's or a
+        warming sensor's, moves no pose) or than a pose tolerates (a steady creep through Δ shrinks the mean's
+        norm by Δ²/24: ``√(24 WOBBLE_SHRINK)`` g); or its batch means range over more than both, which no
+        noise does whatever its colour (a batch mean scatters less than the samples) and a turn along a
+        curved path does without a straight trend.
+        """
         b = self.b
-        tstat, dof, change = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
-        noise = float(np.sqrt(np.sum(np.median(b.var[k0:k1], axis=0))))
-        return (dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * self.s.drift_threshold
-                and change > SAME_POSE_SAMPLE_SIGMAS * noise * self.s.drift_threshold)
+        tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
+        if dof <= 0:
+            return False
+        noise = SAME_POSE_SAMPLE_SIGMAS * float(np.sqrt(np.sum(np.median(b.var[k0:k1], axis=0))))
+        pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
+        k = self.s.drift_threshold
+        trending = tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
+        return bool(trending or spread > max(noise, pose) * k)
 
     def turns(self, k0: int, k1: int) -> bool:
-        """Whether the run's mean rate is off the bias, significantly and through more than a pose's wobble tolerance.
+        """Whether the run's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias moves
+        (:data:`MAX_BIAS_WANDER_RAD_S`) -- through more than a pose's wobble tolerance.
 
         The noise of the run's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
         batch means (a hand's tremor and flicker included; Student's t with their dof) when the run has as many
@@ -549,8 +567,13 @@ class _RestModel:
             limit = float(stats.norm.isf(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
         significant = bool(np.max(z) > limit * self.s.gyro_threshold)
-        if not significant or self.gyro_scale is None:
+        if self.gyro_scale is None:
             return significant
+        # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
+        # statistics of a stretch that shakes say of its noise
+        beyond_bias = float(np.linalg.norm(off)) * self.gyro_scale > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
+        if not (significant or beyond_bias):
+            return False
         # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
         duration = min(float(b.t_mid[k1 - 1] - b.t_mid[k0]) + float(b.n[k0]) / self.rate,
                        WOBBLE_DWELLS * self.s.min_dwell_s)
