@@ -397,7 +397,7 @@ class _RestModel:
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
         self._pass(first=True)
-        self.gyro_scale = _gyro_rad_per_unit(rec, gyro, self.bias)
+        self.gyro_scale = _gyro_rad_per_unit(rec, gyro, self.bias, self.b)
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
@@ -612,25 +612,42 @@ class _RestModel:
 #: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
 #: rates scatter more are not all rests.
 MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
-#: Fastest turn of a hand or a table, rad/s (about 1150 °/s): gyro readings whose moves exceed it are in °/s.
-MAX_TURN_RAD_S: float = 20.0
+
+#: Quantile of the block-to-block rates at which the gyro's readings are set against the accelerometer's turn rate:
+#: the fast moves, where a gyro's bias is small beside the rate.
+UNIT_RATE_QUANTILE: float = 0.9
 
 
-def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None) -> float | None:
-    """Radians per second per gyro unit: from the recording's units; else °/s when the moves exceed
-    :data:`MAX_TURN_RAD_S`, else the convention of the accelerometer's units (rad/s beside m/s², °/s beside g);
-    ``None`` for counts (their scale is the sensor's)."""
+def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None,
+                       blocks: rm.Blocks) -> float | None:
+    """Radians per second per gyro unit, for a gyro whose unit the file does not state.
+
+    The moves say it: gravity's direction in the sensor turns no faster than the sensor, so between
+    consecutive blocks the accelerometer's turn rate |Δĝ|/Δt is at most the gyro's rate; at the fast moves
+    (the :data:`UNIT_RATE_QUANTILE` quantile of both) the gyro reads 1-3 times the accelerometer's turn rate
+    in rad/s and 57 times more in °/s.  A ratio above √57.3 (half-way on the log scale) says °/s.  A recording
+    that never turns (its accelerometer's fast quantile within its noise) keeps the convention of the
+    accelerometer's units: rad/s beside m/s² (ROS's ``sensor_msgs/Imu``), °/s beside g (datasheets).
+    ``None`` for counts (their scale is the sensor's).
+    """
     if gyro is None:
         return None
     if rec.gyro_units in RAD_PER_UNIT:
         return RAD_PER_UNIT[rec.gyro_units]
-    if rec.gyro_units is not None or bias is None or rec.units == "counts":
+    if rec.gyro_units is not None or bias is None or blocks.gmean is None or rec.units == "counts":
         return None  # counts, or beside an accelerometer in counts: the scale is the sensor's
-    peak = float(np.quantile(np.linalg.norm(gyro[:: max(1, gyro.shape[0] // 20000)] - bias, axis=1), 0.99))
-    if peak > MAX_TURN_RAD_S:
-        return RAD_PER_UNIT["deg/s"]
-    # no move fast enough to tell: the convention that goes with the accelerometer's units (SI with SI, as ROS's
-    # sensor_msgs/Imu; g with °/s, as the datasheets)
+    u = blocks.mean / np.linalg.norm(blocks.mean, axis=1, keepdims=True)
+    dt = np.diff(blocks.t_mid)
+    ok = blocks.joined[1:] & (dt > 0)
+    if ok.sum() >= 2:
+        turn = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))[ok] / dt[ok]
+        # the accelerometer's turn rate that its noise alone gives: two block means' noise over the block step
+        noise = np.sqrt(2.0 * np.median(blocks.var.sum(axis=1) / blocks.n)) / np.median(np.linalg.norm(blocks.mean, axis=1))
+        acc_fast = float(np.quantile(turn, UNIT_RATE_QUANTILE))
+        if acc_fast > 3.0 * noise / float(np.median(dt)):
+            gyro_fast = float(np.quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE))
+            ratio = gyro_fast / acc_fast
+            return RAD_PER_UNIT["deg/s"] if ratio > np.sqrt(1.0 / RAD_PER_UNIT["deg/s"]) else RAD_PER_UNIT["rad/s"]
     return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
 
 
