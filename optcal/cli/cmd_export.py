@@ -11,7 +11,7 @@ from optcal.cli.data_options import DATA_PATH
 
 @click.command()
 @click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL")
-@click.option("--format", "fmt", required=True, type=click.Choice(["ardupilot", "px4", "kalibr", "ros", "c"]),
+@click.option("--format", "fmt", required=True, type=click.Choice(["ardupilot", "px4", "kalibr", "ros", "c", "imucal"]),
               help="ardupilot (param file), px4 (param set lines), kalibr (imu.yaml), ros (Imu covariance), c (C99 header).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Write the file here (default: standard output, with the report on standard error).")

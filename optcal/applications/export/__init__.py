@@ -36,6 +36,7 @@ EXPORTERS: dict[str, str] = {
     "kalibr": "optcal.applications.export.kalibr:export",
     "ros": "optcal.applications.export.ros:export",
     "c": "optcal.applications.export.c_header:export",
+    "imucal": "optcal.applications.export.imucal:export",
 }
 
 

@@ -57,6 +57,8 @@ class PeerComparison:
         Peer minus optcal: ``bias_mg``, ``scale_ppm`` (per axis), ``angles_deg`` (ρ, φ, λ of Lu 2017, eq. 1).
     explained : dict of str to float
         The peer's rms (g) with each group of :data:`GROUPS` replaced by optcal's.
+    folds : int
+        Folds of :attr:`own_heldout`.
     """
 
     peer: str
@@ -69,6 +71,7 @@ class PeerComparison:
     own_heldout: NDArray[np.float64] | None = None
     differences: dict[str, Any] = field(default_factory=dict)
     explained: dict[str, float] = field(default_factory=dict)
+    folds: int = FOLDS
 
     @property
     def has_own(self) -> bool:
@@ -87,7 +90,7 @@ class PeerComparison:
                        f"{np.max(np.abs(self.own_after)) * mg:9.4f}   ({self.own})")
             if self.own_heldout is not None:
                 out.append(f"  {'optcal (held out)':<{width}} {rms(self.own_heldout) * mg:9.4f} "
-                           f"{np.max(np.abs(self.own_heldout)) * mg:9.4f}   ({FOLDS}-fold: each pose predicted by a fit "
+                           f"{np.max(np.abs(self.own_heldout)) * mg:9.4f}   ({self.folds}-fold: each pose predicted by a fit "
                            "on the others)")
         else:
             out.append(f"  optcal's own: {self.own}")
@@ -117,7 +120,7 @@ class PeerComparison:
             "peer": self.peer, "source": self.source, "n_poses": int(self.rows.size),
             "peer_after": stats(self.peer_after),
             "own": self.own, "own_in_sample": stats(self.own_after), "own_heldout": stats(self.own_heldout),
-            "own_heldout_folds": FOLDS if self.own_heldout is not None else None,
+            "own_heldout_folds": self.folds if self.own_heldout is not None else None,
             "rms_noise_g": None if self.noise is None else rms(self.noise),
             "differences_peer_minus_own": self.differences or None,
             "peer_rms_g_with_own": self.explained or None,
@@ -159,7 +162,7 @@ def differences(peer: LumpedModel, own: LumpedModel, acc: NDArray[np.float64]) -
 
 def compare_with_peer(cal: Any, poses: PoseTable, noise: NDArray[np.float64] | None, own: Any | None = None,
                       own_label: str = "", own_heldout: NDArray[np.float64] | None = None,
-                      method: str = "default") -> PeerComparison:
+                      method: str = "default", folds: int = FOLDS) -> PeerComparison:
     """The peer's calibration ``cal`` next to optcal's on ``poses`` (in ``cal``'s units).
 
     Parameters
@@ -176,19 +179,26 @@ def compare_with_peer(cal: Any, poses: PoseTable, noise: NDArray[np.float64] | N
         What ``own`` is.
     own_heldout : ndarray, optional
         ``own``'s held-out residuals, g.
+    method : str
+        optcal's estimator when ``own`` is not given.
+    folds : int
+        Folds of the held-out error (the one computed here, or ``own_heldout``'s).
     """
-    from optcal.applications.quality.validation import held_out_validation
+    from optcal.applications.quality.validation import held_out_validation, norm_noise
     from optcal.families.accel.calibration import calibrate
 
+    if noise is None and poses.sigma is not None:
+        lumped = cal.lumped()
+        noise = norm_noise(lumped.T, lumped.o, poses.acc, poses.sigma)
     peer_after = cal.norm_errors(poses.acc)
-    result = PeerComparison(cal.label, cal.source, poses.rows.copy(), peer_after, noise, own_label)
+    result = PeerComparison(cal.label, cal.source, poses.rows.copy(), peer_after, noise, own_label, folds=folds)
     if own is None:
         try:
             fit = calibrate(poses, method)
             own = LumpedModel.from_T(fit.T, fit.o)
             result.own = f"{fit.method}, fitted on these {poses.n} poses"
             try:
-                own_heldout = held_out_validation(poses, folds=min(FOLDS, poses.n), method=method).residuals
+                own_heldout = held_out_validation(poses, folds=min(folds, poses.n), method=method).residuals
             except InputError as exc:
                 result.own += f"; no held-out error: {exc}"
         except InputError as exc:
