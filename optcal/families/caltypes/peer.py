@@ -132,7 +132,7 @@ class PeerCalibration(Calibration):
 
     def describe(self) -> str:
         gyro = f"; gyro {self.gyro_units} in, rad/s out" if self.gyro is not None else "; no gyro"
-        return (f"{self.label} calibration by {self.tool} ({self.units} in, g out, 1 g = {self.gravity_m_s2:g} m/s^2 "
+        return (f"{self.label} calibration ({self.units} in, g out, 1 g = {self.gravity_m_s2:g} m/s^2 "
                 f"[{self.gravity_reason}]{gyro}); {self.read_as}")
 
     # ------------------------------------------------------------- Calibration
