@@ -25,7 +25,10 @@ from optcal.cli.data_options import DATA_PATH
 @click.option("--max-loss", type=click.FloatRange(min=0), default=5.0, show_default=True, metavar="MG",
               help="ardupilot/px4: refuse when the per-axis model's rms |a|-1 exceeds the full model's by more (mg).")
 @click.option("--poses", type=DATA_PATH, default=None,
-              help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures).")
+              help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures); "
+                   "ardupilot/px4 with an imu calibration: a raw recording's moves also measure the gyro's loss.")
+@click.option("--poses-rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+              help="The sample rate of the --poses recording when it has no time column.")
 @click.option("--allan", type=click.Path(dir_okay=False), default=None,
               help="kalibr (required), ros (the sensor noise; without it the calibration residual): an `optcal allan --json` result.")
 @click.option("--gyro-allan", type=click.Path(dir_okay=False), default=None,
@@ -51,7 +54,7 @@ from optcal.cli.data_options import DATA_PATH
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
            max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
            rate: float | None, rostopic: str, device_id: int | None, gyro_device_id: int | None, instance: int,
-           counts_per_dps: float | None, gyro_rate: float, vehicle_id: int) -> None:
+           counts_per_dps: float | None, gyro_rate: float, vehicle_id: int, poses_rate: float | None) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
@@ -69,13 +72,16 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     from optcal.applications.export.base import ExportOptions
 
     cal = calibration_files.load(calibration)
-    fit_poses = None
+    fit_poses = recording = None
     if poses is not None:
         from optcal.families.caltypes import FitPoses
-        from optcal.data import load
+        from optcal.cli.data_options import load_data_detailed
 
-        table = load(poses)
+        loaded = load_data_detailed(poses, rate=poses_rate)
+        table = loaded.poses
         fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
+        if cal.cal_type == "imu" and loaded.segmentation is not None and loaded.segmentation.recording.gyro is not None:
+            recording = loaded.segmentation  # the gyro's loss across its moves
     options = ExportOptions(
         counts_per_g=counts_per_g,
         counts_zero=counts_zero,
@@ -93,6 +99,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         counts_per_dps=counts_per_dps,
         gyro_rate_deg_s=gyro_rate,
         vehicle_id=vehicle_id,
+        recording=recording,
     )
     result = run_export(cal, fmt, options)
     report = [f"calibration: {calibration}: {cal.describe()}"]

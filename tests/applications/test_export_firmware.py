@@ -148,6 +148,10 @@ def test_px4_qgc_file_loads_every_line_and_reproduces_the_losses(imu_cals, capsy
     assert worst * 0.995 - PERCENT_ROUNDING < ratio.max() <= worst + PERCENT_ROUNDING
     assert np.sqrt(np.mean(ratio**2)) == pytest.approx(rms, rel=0.03)
     assert f"{worst * 100:.4g} deg/s at 100 deg/s" in err
+    # each axis's scale error: PX4's reading of a turn about that gyro's own sensing axis, per rad/s
+    axes = cal.gyro.physical().axes
+    per_axis = np.diag(px4_gyro(p, cal.gyro.measure(axes))) - 1.0
+    assert "gyro scale (" + ", ".join(f"{100 * e:+.3f}%" for e in per_axis) + " on x, y, z)" in err
     assert "not exported: gyro scale" in err and "not exported: gyro temperature terms: the calibration has none" in err
 
 
@@ -353,3 +357,19 @@ def test_ardupilot_thermal_terms_of_the_second_imu_load_in_pymavlink(tmp_path, c
     v = cal.fitted_on.acc * G / 16384 - poly(np.clip(temp, lo, hi) - 35.0) + poly(np.clip(p["INS_ACC2_CALTEMP"], lo, hi) - 35.0)
     v = (v - [p[f"INS_ACC2OFFS_{a}"] for a in "XYZ"]) * [p[f"INS_ACC2SCAL_{a}"] for a in "XYZ"]
     np.testing.assert_allclose(v / G, cal.correct(cal.fitted_on.acc, temp), atol=2e-8)  # axis-aligned: exact
+
+
+def test_gyro_loss_across_the_recordings_moves(imu_cals, shared_data, capsys):
+    """``--poses RECORDING``: the firmware's gyro (bias only, rad/s as read) carries gravity across the moves as the
+    fit's own "before" (bias removed, nominal rad/s scale) did, and the full model as its "after"."""
+    path = imu_cals["mikoff"]
+    fit = calibration_files.load(path)
+    code, out, err = run(["export", path, "--format", "ardupilot", "--poses", shared_data / "mikoff-mpu9150" / "imu0.log",
+                          "--poses-rate", 100], capsys)
+    assert code == 0, err
+    assert fit.before == "bias removed, nominal rad/s scale"
+    line = (f"gravity carried across the recording's {fit.angles_after_deg.size} moves, rms angle to the next pose: "
+            f"full gyro model {fit.rms_angle_after_deg:.3f} deg, the firmware's offsets only "
+            f"{fit.rms_angle_before_deg:.3f} deg")
+    assert f"note: {line}" in err and f"# {line}" in out
+    assert fit.rms_angle_before_deg > 3 * fit.rms_angle_after_deg

@@ -65,6 +65,10 @@ class ExportOptions:
     vehicle_id : int
         ``px4``: the vehicle's MAVLink system id written in each line (QGroundControl refuses a
         file saved from another system id).
+    recording : Segmentation, optional
+        ``ardupilot``/``px4``, ``imu`` calibrations: a segmented raw recording with gyro columns
+        (:class:`optcal.data.static.Segmentation`), across whose moves the gravity prediction of
+        the firmware's gyro model is compared with the full model's.
     """
 
     counts_per_g: float | None = None
@@ -83,6 +87,7 @@ class ExportOptions:
     counts_per_dps: float | None = None
     gyro_rate_deg_s: float = DEFAULT_GYRO_RATE_DEG_S
     vehicle_id: int = 1
+    recording: Any = None
 
 
 @dataclass(frozen=True)

@@ -333,11 +333,16 @@ def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareF
     if gyro is None and (options.gyro_device_id is not None or options.counts_per_dps is not None):
         raise InputError(f"gyro_device_id and counts_per_dps apply to an imu calibration (accelerometer and gyroscope); "
                          f"this is a {cal.cal_type!r} calibration, which has no gyroscope")
+    if gyro is None and options.recording is not None:
+        raise InputError("a recording's moves measure a gyroscope's loss; this is a "
+                         f"{cal.cal_type!r} calibration, which has no gyroscope")
     mapped = list(model.mapped) + (list(gyro.mapped) if gyro is not None else [])
     dropped = list(model.dropped) + (list(gyro.dropped) if gyro is not None else [])
     comments = [line.format(source=options.source, **fill) for line in firmware.header]
     comments += [firmware.gyro_header.format(**fill)] if gyro is not None else []
     comments.append(loss.describe())
+    if gyro is not None and gyro.moves_line is not None:
+        comments.append(gyro.moves_line)
     if model.zero_reason:
         comments.append(model.zero_reason)
     comments += [f"not exported: {d}" for d in dropped]
@@ -364,6 +369,7 @@ def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareF
             notes.append(firmware.gyro_id_missing.format(**fill))
         params += per_axis(names.gyro_offset, gyro.offset_rad_s)
         notes.append(firmware.gyro_note.format(**fill))
+        notes += [gyro.moves_line] if gyro.moves_line is not None else []
     if model.thermal is not None:
         thermal_params, thermal_notes = firmware.thermal_block(model.thermal, names, acc_id)
         params += thermal_params

@@ -21,7 +21,11 @@ the first term from the scale and misalignment (no firmware parameter), the seco
 g-sensitivity (none either).  :class:`GyroLoss` states both: the error as a fraction of the rate,
 in the worst direction (the largest singular value of ``E = k T_g⁻¹ − I``) and rms over all
 directions (``‖E‖_F / √3``, the mean of ``|E u|²`` over unit vectors ``u`` being ``tr(EᵀE)/3``),
-and at a stated rate; the g-sensitivity's in the worst direction of a 1 g specific force.
+and at a stated rate; the g-sensitivity's in the worst direction of a 1 g specific force.  Given a
+recording (``options.recording``), :func:`gravity_prediction_loss` also carries gravity across its
+moves with the firmware's gyro and with the full model (Tedaldi 2014, eq. 13-14,
+:mod:`optcal.families.gyro.propagation`), both from the full accelerometer's directions, so that
+the difference is the gyroscope's alone.
 No calibration type carries gyro temperature terms, so ``TC_G*`` and ``INS_TCALn_GYR*`` are not
 written (and say so).
 """
@@ -29,6 +33,7 @@ written (and say so).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,7 +42,10 @@ from optcal.applications.export.base import ExportOptions
 from optcal.core.units import RAD_PER_UNIT
 from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration
+from optcal.families.gyro.moves import moves_from_segmentation
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 from optcal.families.gyro.result import ImuCalibration
+from optcal.core.stats import rms
 
 
 def rad_s_per_gyro_unit(units: str, counts_per_dps: float | None) -> float:
@@ -64,7 +72,7 @@ class GyroLoss:
     rate_deg_s : float
         The rate the error is stated at, °/s.
     scale_error : ndarray, shape (3,)
-        ``k / K_g,i − 1``: each axis's scale error left in the firmware's output.
+        ``k K_g,i − 1``: each axis's scale error left in the firmware's output.
     misalignment_deg : ndarray, shape (3,)
         Each gyro sensing axis's angle to the accelerometer frame's axis, degrees.
     g_sensitivity_deg_s_per_g : float or None
@@ -115,6 +123,7 @@ class GyroOffsets:
     loss: GyroLoss
     mapped: tuple[str, ...]
     dropped: tuple[str, ...]
+    moves_line: str | None = None
 
     def correct(self, raw: NDArray[np.float64]) -> NDArray[np.float64]:
         """The firmware's ``k (g − z) − offset``, rad/s, of raw gyro samples."""
@@ -139,7 +148,7 @@ def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> G
     if model.g_sensitivity is not None:
         g_sens = float(np.degrees(np.linalg.norm(k * model.g_sensitivity, 2)))
     loss = GyroLoss(float(np.linalg.norm(E, 2)), float(np.linalg.norm(E) / np.sqrt(3.0)), float(options.gyro_rate_deg_s),
-                    k / phys.scale - 1.0, phys.misalignment_deg, g_sens)
+                    k * phys.scale - 1.0, phys.misalignment_deg, g_sens)
     mapped = [f"gyro bias b_g (offsets, rad/s{'; less the zero reading ' + format(z, 'g') if z else ''})"]
     dropped = [loss.describe_scale()]
     g_line = loss.describe_g_sensitivity()
@@ -147,4 +156,32 @@ def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> G
         dropped.append(g_line)
     dropped.append("gyro temperature terms: the calibration has none, so the firmware's gyro thermal parameters are "
                    "not written")
-    return GyroOffsets(k * (model.bias - z), k, z, loss, tuple(mapped), tuple(dropped))
+    offsets = GyroOffsets(k * (model.bias - z), k, z, loss, tuple(mapped), tuple(dropped))
+    if options.recording is None:
+        return offsets
+    n, full, firmware = gravity_prediction_loss(cal, offsets, options.recording)
+    line = (f"gravity carried across the recording's {n} moves, rms angle to the next pose: full gyro model "
+            f"{full:.3f} deg, the firmware's offsets only {firmware:.3f} deg (loss {firmware - full:.3f} deg)")
+    return GyroOffsets(offsets.offset_rad_s, k, z, loss, offsets.mapped, offsets.dropped, line)
+
+
+def gravity_prediction_loss(cal: ImuCalibration, offsets: GyroOffsets, recording: Any) -> tuple[int, float, float]:
+    """Moves, and the rms gravity-prediction angle of the full gyro model and of the firmware's, degrees.
+
+    ``recording`` is a :class:`optcal.data.static.Segmentation` of a raw recording in the
+    calibration's units with gyro columns; the gravity directions are the full accelerometer's.
+    """
+    rec = recording.recording
+    if rec.gyro is None:
+        raise InputError("the recording has no gyro columns: the gravity prediction across its moves needs gx, gy, gz")
+    gyro_units = rec.gyro_units or cal.gyro_units  # not stated by the file: the calibration's, as optcal check takes
+    if rec.units != cal.units or gyro_units != cal.gyro_units:
+        raise InputError(f"the recording is in {rec.units} and {gyro_units}, the calibration in {cal.units} and "
+                         f"{cal.gyro_units}: give the recording it was fitted on")
+    moves = moves_from_segmentation(recording)
+    u = unit_rows(cal.correct(moves.acc_means))
+    u0, u1 = u[moves.move_from], u[moves.move_to]
+    predictor = GravityPredictor(moves.first_step, moves.last_step)  # Tedaldi 2014, eq. 13-14
+    full = angles_deg(predictor(cal.correct_gyro(moves.gyro_mid(), moves.acc_mid), moves.dt, u0), u1)
+    firmware = angles_deg(predictor(offsets.correct(moves.gyro_mid()), moves.dt, u0), u1)
+    return int(moves.n_moves), rms(full), rms(firmware)
