@@ -1,4 +1,4 @@
-"""``optcal export CAL --format ardupilot|px4|kalibr|ros|c``: a calibration in another tool's format."""
+"""``optcal export CAL --format FORMAT``: a calibration in another tool's format (the formats: :data:`EXPORTERS`)."""
 
 from __future__ import annotations
 
@@ -6,13 +6,15 @@ from pathlib import Path
 
 import click
 
+from optcal.applications.export import EXPORTERS
 from optcal.cli.data_options import DATA_PATH
 
 
 @click.command()
 @click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL")
-@click.option("--format", "fmt", required=True, type=click.Choice(["ardupilot", "px4", "kalibr", "ros", "c", "imucal"]),
-              help="ardupilot (param file), px4 (param set lines), kalibr (imu.yaml), ros (Imu covariance), c (C99 header).")
+@click.option("--format", "fmt", required=True, type=click.Choice(list(EXPORTERS)),
+              help="ardupilot (param file), px4 (QGroundControl parameter file), px4-shell (param set lines), "
+                   "kalibr (imu.yaml), ros (Imu covariance), c (C99 header), imucal (imucal's calibration JSON); the others: see the README.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Write the file here (default: standard output, with the report on standard error).")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None,
@@ -23,7 +25,10 @@ from optcal.cli.data_options import DATA_PATH
 @click.option("--max-loss", type=click.FloatRange(min=0), default=5.0, show_default=True, metavar="MG",
               help="ardupilot/px4: refuse when the per-axis model's rms |a|-1 exceeds the full model's by more (mg).")
 @click.option("--poses", type=DATA_PATH, default=None,
-              help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures).")
+              help="The data the calibration was fitted on, when CAL holds no fitted poses (for the loss figures); "
+                   "ardupilot/px4 with an imu calibration: a raw recording's moves also measure the gyro's loss.")
+@click.option("--poses-rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+              help="The sample rate of the --poses recording when it has no time column.")
 @click.option("--allan", type=click.Path(dir_okay=False), default=None,
               help="kalibr (required), ros (the sensor noise; without it the calibration residual): an `optcal allan --json` result.")
 @click.option("--gyro-allan", type=click.Path(dir_okay=False), default=None,
@@ -33,16 +38,32 @@ from optcal.cli.data_options import DATA_PATH
 @click.option("--rate", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
               help="kalibr/ros: the IMU topic's rate (default: the Allan log's).")
 @click.option("--rostopic", default="/imu0", show_default=True, help="kalibr: the IMU topic.")
+@click.option("--device-id", type=click.IntRange(1, 2**32 - 1), default=None, metavar="N",
+              help="ardupilot/px4: the accelerometer's device id (INS_ACC_ID, CAL_ACC0_ID, TC_A0_ID); without it the "
+                   "firmware does not apply the calibration until the id is set.")
+@click.option("--gyro-device-id", type=click.IntRange(1, 2**32 - 1), default=None, metavar="N",
+              help="ardupilot/px4, imu calibrations: the gyroscope's device id (INS_GYR_ID, CAL_GYRO0_ID).")
+@click.option("--instance", type=click.IntRange(0, 2), default=0, show_default=True, metavar="K",
+              help="ardupilot/px4: the IMU (0, 1, 2) the parameters are for (INS_ACC2OFFS_*, CAL_ACC1_*, ...).")
+@click.option("--counts-per-dps", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="ardupilot/px4, a gyroscope in counts: the driver's sensitivity (counts per deg/s, from the datasheet).")
+@click.option("--gyro-rate", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True,
+              metavar="DEG_S", help="ardupilot/px4: the rate at which the gyro error the firmware cannot correct is stated.")
+@click.option("--vehicle-id", type=click.IntRange(1, 255), default=1, show_default=True,
+              help="px4: the vehicle's MAV_SYS_ID written in each line (QGroundControl refuses another).")
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
            max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
-           rate: float | None, rostopic: str) -> None:
+           rate: float | None, rostopic: str, device_id: int | None, gyro_device_id: int | None, instance: int,
+           counts_per_dps: float | None, gyro_rate: float, vehicle_id: int, poses_rate: float | None) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
     the loss of that model on the calibration's own poses is reported next to the full model's
     and the export is refused above --max-loss.  Their parameters are in m/s² of the driver's
     output, so a calibration in counts needs --counts-per-g (and --counts-zero when the driver
-    subtracts a zero reading that optcal cannot see in the poses).
+    subtracts a zero reading that optcal cannot see in the poses).  Of an imu calibration's
+    gyroscope they keep the bias offsets (rad/s; --counts-per-dps for counts); its scale,
+    misalignment and g-sensitivity are reported with the rate error they leave.
     """
     import optcal.families.calibration_files as calibration_files
     from optcal.cli.messages import cli_message
@@ -51,13 +72,16 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     from optcal.applications.export.base import ExportOptions
 
     cal = calibration_files.load(calibration)
-    fit_poses = None
+    fit_poses = recording = None
     if poses is not None:
         from optcal.families.caltypes import FitPoses
-        from optcal.data import load
+        from optcal.cli.data_options import load_data_detailed
 
-        table = load(poses)
+        loaded = load_data_detailed(poses, rate=poses_rate)
+        table = loaded.poses
         fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
+        if cal.cal_type == "imu" and loaded.segmentation is not None and loaded.segmentation.recording.gyro is not None:
+            recording = loaded.segmentation  # the gyro's loss across its moves
     options = ExportOptions(
         counts_per_g=counts_per_g,
         counts_zero=counts_zero,
@@ -69,6 +93,13 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         rate_hz=rate,
         rostopic=rostopic,
         source=Path(calibration).name,
+        device_id=device_id,
+        gyro_device_id=gyro_device_id,
+        instance=instance,
+        counts_per_dps=counts_per_dps,
+        gyro_rate_deg_s=gyro_rate,
+        vehicle_id=vehicle_id,
+        recording=recording,
     )
     result = run_export(cal, fmt, options)
     report = [f"calibration: {calibration}: {cal.describe()}"]

@@ -124,7 +124,8 @@ def px4_correct(p: dict[str, float], raw_ms2: np.ndarray, temp: np.ndarray) -> n
 def test_px4_reproduces_the_thermal_offsets_and_lists_what_it_drops(tmp_path, capsys):
     model = axis_aligned_sensor(temperature_bias=[[0, 0, 0], [0.7e-3, -3e-5, 0], [0, 0, 0]])
     cal = extended_file(tmp_path / "cal.json", model)
-    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4", "--counts-per-g", COUNTS_PER_G], capsys)
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4-shell", "--counts-per-g", COUNTS_PER_G],
+                         capsys)
     assert code == 0, err
     p = read_params(out, " ")
     acc, temp, t = cal.fitted_on.acc, cal.fitted_on.temp, cal.fitted_on.t
@@ -167,7 +168,7 @@ def test_firmware_export_of_unsigned_counts_subtracts_mid_scale(tmp_path, capsys
     code, out, err = run(argv + ["--counts-zero", 0], capsys)
     assert code == 0 and "mid-scale" not in err
     np.testing.assert_allclose(read_params(out, ",")["INS_ACCOFFS_X"], k * (base.o[0] + 32768.0), rtol=1e-8)
-    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4", "--counts-per-g", COUNTS_PER_G,
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4-shell", "--counts-per-g", COUNTS_PER_G,
                           "--counts-zero", 32000], capsys)
     assert code == 0 and "counts zero 32000 (given)" in out + err
     np.testing.assert_allclose(read_params(out, " ")["CAL_ACC0_XOFF"], k * (base.o[0] + 768.0), rtol=1e-8)

@@ -3,8 +3,9 @@
 =============  =================================================================  ==========================
 format         what is written                                                    module
 =============  =================================================================  ==========================
-``ardupilot``  ``INS_ACCOFFS_*``, ``INS_ACCSCAL_*`` (+ ``INS_TCAL1_*``) param file  :mod:`.ardupilot`
-``px4``        ``CAL_ACC0_*OFF/*SCALE`` (+ ``TC_A0_*``) as ``param set`` lines      :mod:`.px4`
+``ardupilot``  ``INS_ACC*OFFS/SCAL``, ``INS_GYR*OFFS``, ids (+ ``INS_TCALn_*``)   :mod:`.ardupilot`
+``px4``        ``CAL_ACCn_*``, ``CAL_GYROn_*OFF``, ids (+ ``TC_An_*``), QGC file  :mod:`.px4`
+``px4-shell``  the same as ``param set`` lines                                    :mod:`.px4`
 ``kalibr``     ``imu.yaml`` noise model from an ``optcal allan --json`` result      :mod:`.kalibr`
 ``ros``        ``sensor_msgs/Imu`` linear-acceleration covariance                  :mod:`.ros`
 ``c``          a C99 header that applies the calibration (numbers baked in)        :mod:`.c_header`
@@ -33,6 +34,7 @@ from optcal.applications.export.base import ExportOptions, ExportResult
 EXPORTERS: dict[str, str] = {
     "ardupilot": "optcal.applications.export.ardupilot:export",
     "px4": "optcal.applications.export.px4:export",
+    "px4-shell": "optcal.applications.export.px4:export_shell",
     "kalibr": "optcal.applications.export.kalibr:export",
     "ros": "optcal.applications.export.ros:export",
     "c": "optcal.applications.export.c_header:export",

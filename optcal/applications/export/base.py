@@ -13,6 +13,9 @@ from optcal.families.caltypes.base import FitPoses
 
 #: Default largest acceptable loss of a diagonal firmware model, g (5 mg).
 DEFAULT_MAX_LOSS_G: float = 5e-3
+#: Default rate at which a firmware's uncorrected gyroscope error is stated, °/s: a brisk turn of a
+#: hand-held or flying vehicle (the error grows in proportion; ``gyro_rate_deg_s`` states another).
+DEFAULT_GYRO_RATE_DEG_S: float = 100.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,27 @@ class ExportOptions:
         Topic of the IMU messages (``kalibr``).
     source : str
         Where the calibration came from (named in the file's comments).
+    device_id : int, optional
+        ``ardupilot``/``px4``: the accelerometer's device id (``INS_ACC_ID``, ``CAL_ACC0_ID``,
+        ``TC_A0_ID``); the firmware applies a calibration only to the device whose id it names.
+    gyro_device_id : int, optional
+        ``ardupilot``/``px4``, ``imu`` calibrations: the gyroscope's device id (``INS_GYR_ID``,
+        ``CAL_GYRO0_ID``); a different number from the accelerometer's, also on one chip.
+    instance : int
+        ``ardupilot``/``px4``: which IMU (0, 1 or 2) the parameters are for (``CAL_ACC1_*``,
+        ``INS_ACC2OFFS_*``, ...).
+    counts_per_dps : float, optional
+        ``ardupilot``/``px4``, a gyroscope in counts: the driver's sensitivity, counts per °/s.
+    gyro_rate_deg_s : float
+        ``ardupilot``/``px4``: the rate at which the gyroscope error the firmware cannot correct
+        is stated, °/s.
+    vehicle_id : int
+        ``px4``: the vehicle's MAVLink system id written in each line (QGroundControl refuses a
+        file saved from another system id).
+    recording : Segmentation, optional
+        ``ardupilot``/``px4``, ``imu`` calibrations: a segmented raw recording with gyro columns
+        (:class:`optcal.data.static.Segmentation`), across whose moves the gravity prediction of
+        the firmware's gyro model is compared with the full model's.
     """
 
     counts_per_g: float | None = None
@@ -57,6 +81,13 @@ class ExportOptions:
     rate_hz: float | None = None
     rostopic: str = "/imu0"
     source: str = "a calibration"
+    device_id: int | None = None
+    gyro_device_id: int | None = None
+    instance: int = 0
+    counts_per_dps: float | None = None
+    gyro_rate_deg_s: float = DEFAULT_GYRO_RATE_DEG_S
+    vehicle_id: int = 1
+    recording: Any = None
 
 
 @dataclass(frozen=True)
