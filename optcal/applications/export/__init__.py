@@ -52,6 +52,8 @@ def read_allan(path: str | Path) -> dict[str, Any]:
     """An ``optcal allan --json`` result, checked to have the per-axis noise parameters."""
     p = Path(path)
     d = read_json(p, "Allan result file", hint=f"save one with optcal allan LOG --json > {p.name}")
-    if not all(isinstance(d.get(a), dict) for a in "xyz") or "log" not in d:
+    parts = [d.get("accelerometer"), d.get("gyroscope")] if d.get("sensor") == "both" else [d]
+    if not all(isinstance(part, dict) and "log" in part and all(isinstance(part.get(a), dict) for a in "xyz")
+               for part in parts):
         raise InputError(f"{p}: not an optcal allan --json result (no per-axis x, y, z entries)")
     return d
