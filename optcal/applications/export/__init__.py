@@ -36,6 +36,13 @@ EXPORTERS: dict[str, str] = {
     "kalibr": "optcal.applications.export.kalibr:export",
     "ros": "optcal.applications.export.ros:export",
     "c": "optcal.applications.export.c_header:export",
+    "kalibr-imu": "optcal.applications.export.kalibr_imu:export",
+    "openvins": "optcal.applications.export.kalibr_imu:export_openvins",
+    "basalt": "optcal.applications.export.basalt:export",
+    "imutk": "optcal.applications.export.imutk:export",
+    "vins": "optcal.applications.export.noise:export_vins",
+    "orbslam3": "optcal.applications.export.noise:export_orbslam3",
+    "okvis": "optcal.applications.export.noise:export_okvis",
 }
 
 

@@ -135,10 +135,10 @@ class AllanAnalysis:
                 value, name = getattr(p, parameter), sensor.summary_name(parameter)
                 label = name.replace("_", " ")
                 if value is None:
-                    bound = rate_random_walk_confidence_bound(self.curves[axis])
-                    k_up = bound.value * self.si_per_unit
+                    k_bound = rate_random_walk_confidence_bound(self.curves[axis])
+                    k_up = k_bound.value * self.si_per_unit
                     lines.append(f"    {label:<22s} not present; K <= {k_up:.4g} {sensor.si_units[name]} at "
-                                 f"{bound.confidence:.0%} confidence (sigma's upper limit at tau = {bound.tau_s:.4g} s)")
+                                 f"{k_bound.confidence:.0%} confidence (sigma's upper limit at tau = {k_bound.tau_s:.4g} s)")
                     continue
                 shown = ", ".join(f"{value * f:.4g} {u}" for u, f in sensor.display_units[name])
                 bound = " (upper bound)" if parameter == "bias_instability" and p.bias_instability_bound else ""
