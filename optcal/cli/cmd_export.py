@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -14,7 +15,9 @@ from optcal.cli.data_options import DATA_PATH
 @click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL")
 @click.option("--format", "fmt", required=True, type=click.Choice(list(EXPORTERS)),
               help="ardupilot (param file), px4 (QGroundControl parameter file), px4-shell (param set lines), "
-                   "kalibr (imu.yaml), ros (Imu covariance), c (C99 header), imucal (imucal's calibration JSON); the others: see the README.")
+                   "kalibr (imu.yaml), ros (Imu covariance), c (C99 header), imucal (imucal's calibration JSON); "
+                   "IMU intrinsics: kalibr-imu (Kalibr scale-misalignment), openvins (kalibr_imu_chain.yaml), basalt "
+                   "(calibration.json IMU keys), imutk (.calib pair); noise: vins, orbslam3, okvis.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Write the file here (default: standard output, with the report on standard error).")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None,
@@ -51,10 +54,23 @@ from optcal.cli.data_options import DATA_PATH
               metavar="DEG_S", help="ardupilot/px4: the rate at which the gyro error the firmware cannot correct is stated.")
 @click.option("--vehicle-id", type=click.IntRange(1, 255), default=1, show_default=True,
               help="px4: the vehicle's MAV_SYS_ID written in each line (QGroundControl refuses another).")
+@click.option("--gyro-counts-per-rad-s", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
+              help="kalibr-imu/openvins/basalt with a gyroscope in counts: the driver's sensitivity (counts per rad/s).")
+@click.option("--gyro-counts-zero", type=click.FloatRange(min=0), default=None, metavar="COUNTS",
+              help="kalibr-imu/openvins/basalt: the raw gyro reading the driver subtracts (default: 32768 when the bias "
+                   "lies around the unsigned 16-bit mid-scale, else 0).")
+@click.option("--gravity", type=click.FloatRange(min=0, min_open=True), default=None, metavar="M_S2",
+              help="m/s^2 per g of the calibration (its local gravity) for the intrinsics and noise formats "
+                   "(default: standard gravity 9.80665).")
+@click.option("--inflate", default="1,1", show_default=True, metavar="WHITE,WALK",
+              help="vins/orbslam3/okvis/kalibr-imu/openvins/basalt: multiply the white-noise densities by WHITE and the "
+                   "random walks by WALK (written into the file's comments).")
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
            max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
            rate: float | None, rostopic: str, device_id: int | None, gyro_device_id: int | None, instance: int,
-           counts_per_dps: float | None, gyro_rate: float, vehicle_id: int, poses_rate: float | None) -> None:
+           counts_per_dps: float | None, gyro_rate: float, vehicle_id: int, poses_rate: float | None,
+           gyro_counts_per_rad_s: float | None, gyro_counts_zero: float | None, gravity: float | None,
+           inflate: str) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
@@ -82,6 +98,11 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
         if cal.cal_type == "imu" and loaded.segmentation is not None and loaded.segmentation.recording.gyro is not None:
             recording = loaded.segmentation  # the gyro's loss across its moves
+    # one gyro sensitivity, given in either unit (the firmware formats state it per °/s, the VIO ones per rad/s)
+    if counts_per_dps is None and gyro_counts_per_rad_s is not None:
+        counts_per_dps = gyro_counts_per_rad_s * math.pi / 180.0
+    elif gyro_counts_per_rad_s is None and counts_per_dps is not None:
+        gyro_counts_per_rad_s = counts_per_dps * 180.0 / math.pi
     options = ExportOptions(
         counts_per_g=counts_per_g,
         counts_zero=counts_zero,
@@ -100,7 +121,16 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         gyro_rate_deg_s=gyro_rate,
         vehicle_id=vehicle_id,
         recording=recording,
+        gyro_counts_per_rad_s=gyro_counts_per_rad_s,
+        gyro_counts_zero=gyro_counts_zero,
+        **({"gravity_m_s2": gravity} if gravity is not None else {}),
+        inflate=parse_inflate(inflate),
     )
+    if fmt == "kalibr" and options.inflate != (1.0, 1.0):
+        from optcal.errors import InputError
+
+        raise InputError("--inflate applies to vins, orbslam3, okvis, kalibr-imu, openvins and basalt; the kalibr "
+                         "format writes the measured noise (use kalibr-imu for an inflated Kalibr file)")
     result = run_export(cal, fmt, options)
     report = [f"calibration: {calibration}: {cal.describe()}"]
     if result.loss is not None:
@@ -109,6 +139,11 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     report += [f"not exported: {d}" for d in result.dropped]
     report += [f"note: {cli_message(n, 'export')}" for n in result.notes]
     if output is None:
+        if result.files:
+            from optcal.errors import InputError
+
+            raise InputError(f"the {fmt} format writes {1 + len(result.files)} files: give -o FILE (the others are "
+                             f"written beside it, {', '.join(result.files)} added to its name)")
         click.echo(result.text, nl=False)
         for line in report:
             click.echo(line, err=True)
@@ -119,3 +154,20 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
     for line in report:
         click.echo(line)
     click.echo(f"wrote {fmt} file {output}")
+    for suffix, text in result.files.items():
+        extra = Path(output).with_name(f"{Path(output).stem}{suffix}{Path(output).suffix}")
+        output_file(extra).write_text(text)
+        click.echo(f"wrote {fmt} file {extra}")
+
+
+def parse_inflate(text: str) -> tuple[float, float]:
+    """``--inflate WHITE,WALK`` as two positive factors."""
+    from optcal.errors import InputError
+
+    try:
+        white, walk = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"--inflate {text!r}: give two factors WHITE,WALK (e.g. 10,10; 1,1 for none)") from None
+    if not (white > 0 and walk > 0):
+        raise InputError(f"--inflate {text!r}: the factors must be positive")
+    return white, walk

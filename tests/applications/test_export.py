@@ -267,7 +267,7 @@ def test_kalibr_gyroscope_random_walk_bound_from_a_short_still_log(allan_json, t
     code, out, err = run([*args, "--random-walk-bound"], capsys)
     assert code == 0, err
     imu = yaml.safe_load(out)
-    bound = max(gyro_allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    bound = max(gyro_allan[a]["rate_random_walk_bound"]["value"] for a in "xyz")
     assert imu["gyroscope_random_walk"] == pytest.approx(bound, rel=1e-8)
     assert imu["gyroscope_noise_density"] == pytest.approx(gyro_allan["kalibr"]["gyroscope_noise_density"], rel=1e-8)
     assert "gyroscope_random_walk: " in out and out.split("gyroscope_random_walk: ")[1].splitlines()[0].endswith("UPPER BOUND")
@@ -316,15 +316,23 @@ def test_kalibr_writes_a_labelled_random_walk_bound_only_when_asked(tmp_path, ca
     code, out, err = run(argv + ["--random-walk-bound"], capsys)
     assert code == 0, err
     imu = yaml.safe_load(out)
-    bound = max(allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    bound = max(allan[a]["rate_random_walk_bound"]["value"] for a in "xyz")
     assert imu["accelerometer_random_walk"] == pytest.approx(bound, rel=1e-8)
     assert "UPPER BOUND" in out and "note: accelerometer_random_walk is an upper bound, not a measurement" in err
-    # white noise σ(τ) = N/√τ: the bound min σ(τ)√(3/τ) is N√3/τ at the longest τ of the curve
+    assert "95% one-sided confidence limit" in err
+    # white noise σ(τ) = N/√τ: the largest K consistent with the curve, min σ(τ)√(3/τ), is N√3/τ at the longest τ;
+    # the 95 % confidence bound reads σ's upper limit there, χ² with the edf: above it, by √(edf/χ²_0.05(edf))
+    from scipy.stats import chi2
+
     for a in "xyz":
-        tau = allan[a]["rate_random_walk_bound_tau_s"]
+        tau = allan[a]["rate_random_walk_largest_consistent_tau_s"]
         assert tau > 0.05 * n / rate
         expected = allan[a]["velocity_random_walk"] * np.sqrt(3.0) / tau
-        assert allan[a]["rate_random_walk_upper_bound"] == pytest.approx(expected, rel=0.5)
+        assert allan[a]["rate_random_walk_largest_consistent"] == pytest.approx(expected, rel=0.5)
+        b = allan[a]["rate_random_walk_bound"]
+        assert b["confidence"] == 0.95 and b["tau_s"] == pytest.approx(tau)
+        factor = np.sqrt(b["edf"] / chi2.ppf(0.05, b["edf"]))
+        assert b["value"] == pytest.approx(allan[a]["rate_random_walk_largest_consistent"] * factor, rel=1e-9)
 
 
 # ----------------------------------------------------------------------------- C header

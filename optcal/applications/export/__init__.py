@@ -39,6 +39,13 @@ EXPORTERS: dict[str, str] = {
     "ros": "optcal.applications.export.ros:export",
     "c": "optcal.applications.export.c_header:export",
     "imucal": "optcal.applications.export.imucal:export",
+    "kalibr-imu": "optcal.applications.export.kalibr_imu:export",
+    "openvins": "optcal.applications.export.kalibr_imu:export_openvins",
+    "basalt": "optcal.applications.export.basalt:export",
+    "imutk": "optcal.applications.export.imutk:export",
+    "vins": "optcal.applications.export.noise:export_vins",
+    "orbslam3": "optcal.applications.export.noise:export_orbslam3",
+    "okvis": "optcal.applications.export.noise:export_okvis",
 }
 
 
@@ -55,6 +62,8 @@ def read_allan(path: str | Path) -> dict[str, Any]:
     """An ``optcal allan --json`` result, checked to have the per-axis noise parameters."""
     p = Path(path)
     d = read_json(p, "Allan result file", hint=f"save one with optcal allan LOG --json > {p.name}")
-    if not all(isinstance(d.get(a), dict) for a in "xyz") or "log" not in d:
+    parts = [d.get("accelerometer"), d.get("gyroscope")] if d.get("sensor") == "both" else [d]
+    if not all(isinstance(part, dict) and "log" in part and all(isinstance(part.get(a), dict) for a in "xyz")
+               for part in parts):
         raise InputError(f"{p}: not an optcal allan --json result (no per-axis x, y, z entries)")
     return d

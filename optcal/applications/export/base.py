@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from optcal.core.model import STANDARD_GRAVITY
 from optcal.families.caltypes.base import FitPoses
 
 #: Default largest acceptable loss of a diagonal firmware model, g (5 mg).
@@ -69,6 +70,19 @@ class ExportOptions:
         ``ardupilot``/``px4``, ``imu`` calibrations: a segmented raw recording with gyro columns
         (:class:`optcal.data.static.Segmentation`), across whose moves the gravity prediction of
         the firmware's gyro model is compared with the full model's.
+    gyro_counts_per_rad_s : float, optional
+        The driver's gyro sensitivity (counts per rad/s) for a gyroscope calibrated in counts:
+        the VIO intrinsics (``kalibr-imu``, ``openvins``, ``basalt``) are in rad/s of the IMU topic.
+    gyro_counts_zero : float, optional
+        The raw gyro reading the driver subtracts (default: 32768 when the bias lies around the
+        unsigned 16-bit mid-scale, else 0).
+    gravity_m_s2 : float
+        m/s² per g of the calibration (its |ā| = 1 is the local gravity where it was recorded):
+        the VIO intrinsics and ``imutk`` are in m/s²; set the estimator's gravity to the same.
+    inflate : tuple of (float, float)
+        Factors applied to the noise densities (white) and the random walks (walk) of the noise
+        keys (``vins``, ``orbslam3``, ``okvis``, ``kalibr-imu``, ``openvins``, ``basalt``), written
+        into the file's comments.
     """
 
     counts_per_g: float | None = None
@@ -88,6 +102,10 @@ class ExportOptions:
     gyro_rate_deg_s: float = DEFAULT_GYRO_RATE_DEG_S
     vehicle_id: int = 1
     recording: Any = None
+    gyro_counts_per_rad_s: float | None = None
+    gyro_counts_zero: float | None = None
+    gravity_m_s2: float = STANDARD_GRAVITY
+    inflate: tuple[float, float] = (1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -126,6 +144,9 @@ class ExportResult:
         optcal terms the format cannot hold (with the reason).
     notes : list of str
         What the user must know (units, frames, parameters optcal cannot fill in).
+    files : dict of str to str
+        Further files of the format (``imutk``: the gyroscope's ``.calib``), by the suffix added to
+        the output file's stem.
     """
 
     format: str
@@ -134,3 +155,4 @@ class ExportResult:
     mapped: list[str] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    files: dict[str, str] = field(default_factory=dict)
