@@ -78,7 +78,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         raise InputError("--loss and --scale-range apply to the mle method only")
     try:
         result = run_calibration(poses, method=method, **settings)
-    except IdentifiabilityError:
+    except IdentifiabilityError as exc:
         if not as_json:  # what was read, so that the refusal can be judged against it
             click.echo(data_line(data, poses))
         if report_path:  # the report says what is missing and which poses would fix it; the error still ends the command
@@ -87,7 +87,9 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             forced = {**settings, "allow_degenerate": True}
             refused = run_calibration(poses, method=method, **forced)
             write_report(calibration_document(refused, poses, data, command_line(), method, forced, tolerance), report_path)
-        raise
+        raise _with_known_orientation_hint(exc, poses, method) from exc
+    except InputError as exc:  # too few poses for a self-calibration
+        raise _with_known_orientation_hint(exc, poses, method) from exc
     if output:
         result.save(output_file(output))
     if report_path:
@@ -160,3 +162,18 @@ def calibrate_imu(
     click.echo(imu_report(cal))
     if output:
         click.echo(f"saved to {output}")
+
+
+def _with_known_orientation_hint(exc: Exception, poses: Any, method: str) -> Exception:
+    """``exc`` with the known-orientation methods named when a self-calibration refuses the six faces of a cube."""
+    from optcal.errors import IdentifiabilityError, InputError
+    from optcal.families.accel.nominal import known_orientation_hint
+
+    if method in ("sixpos", "nominal") or not isinstance(exc, InputError):
+        return exc
+    hint = known_orientation_hint(poses, raw_with_gyro=poses.source == "raw recording" and poses.gyro is not None)
+    if hint is None:
+        return exc
+    if isinstance(exc, IdentifiabilityError):
+        return IdentifiabilityError(f"{exc}. {hint}", exc.report)
+    return InputError(f"{exc}. {hint}")
