@@ -660,8 +660,9 @@ def _recording_time(
             sections = _sections_explain_backwards(src, ev, src.column("index"))
             if sections is None:
                 _refuse_backwards(src, ev, src.column("index"), counter)
-            else:
+            else:  # the time is the row number: the counter is set aside (the recording would read it as time)
                 what = f"row number (not {counter}: {sections})"
+                src.data.pop("index")
         return Decision("rate", f"{what} / {rate_used:g} Hz ({why})", "--rate"), Decision(float(rate_used), why, "--rate")
     te = ev.time
     t = src.column("t")

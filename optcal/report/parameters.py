@@ -128,7 +128,7 @@ def theta_covariance(result: CalibrationResult) -> NDArray[np.float64] | None:
         e = np.zeros(12)
         e[k] = h
         J[:, k] = (theta(wv + e) - theta(wv - e)) / (2 * h)
-    return J @ cov[:12, :12] @ J.T  # type: ignore[no-any-return]
+    return J @ cov[:12, :12] @ J.T
 
 
 def result_parameters(result: CalibrationResult, zero: ArrayLike | None = None) -> EngineeringParameters:

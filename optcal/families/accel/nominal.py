@@ -171,7 +171,7 @@ class NominalOrientationML:
         J = np.vstack([J_data, J_prior])
         cov_x = np.linalg.pinv(J.T @ J)
         C, o = x[:9].reshape(3, 3), x[9:12]
-        W = np.linalg.inv(C)
+        W: NDArray[np.float64] = np.asarray(np.linalg.inv(C), dtype=float)
         V = -W @ o
         G = _wv_jacobian(x[:12])
         cov = G @ cov_x[:12, :12] @ G.T
@@ -191,7 +191,7 @@ class NominalOrientationML:
         ]
         return CalibrationResult(
             method="nominal",
-            T=W, o=-np.linalg.solve(W, V), units=poses.units,
+            T=W, o=np.array(o, dtype=float), units=poses.units,
             params=np.concatenate([W.ravel(), V]), param_names=list(WV_NAMES), covariance=cov,
             residuals=norm_residuals(W, o, u), weights=np.full(poses.n, 1.0) * weights,
             chisqr=cost,
@@ -234,7 +234,7 @@ class NominalOrientationML:
 def _directions(n: NDArray, tilts: NDArray) -> NDArray[np.float64]:
     B = _tangent_basis(n)
     f = n + tilts[:, :1] * B[:, 0] + tilts[:, 1:] * B[:, 1]
-    return f / np.linalg.norm(f, axis=1, keepdims=True)  # type: ignore[no-any-return]
+    return f / np.linalg.norm(f, axis=1, keepdims=True)
 
 
 def _joint_fit(u: NDArray, n: NDArray, sigma: NDArray, t_sigma: float, beta0: NDArray

@@ -67,7 +67,7 @@ from optcal.families.accel.sixpos import PARAM_NAMES as SIXPOS_PARAM_NAMES
 from optcal.families.ferraris.regions import AXIS_OF, FerrarisRegions
 from optcal.families.gyro.result import ImuCalibration
 
-__all__ = ["FerrarisFit", "TurnReading", "ferraris_equations", "ferraris_fit"]
+__all__ = ["FerrarisFit", "TurnReading", "ferraris_accelerometer", "ferraris_equations", "ferraris_fit"]
 
 #: Batches of the batch-means standard error of a section mean (as the static detection's default).
 SIGMA_BLOCKS: int = 10
@@ -119,16 +119,16 @@ class FerrarisMatrices:
     @property
     def W(self) -> NDArray[np.float64]:
         """``R_a⁻¹ K_a⁻¹``, g per raw unit."""
-        return np.linalg.inv(self.R_a) @ np.linalg.inv(self.K_a)  # type: ignore[no-any-return]
+        return np.linalg.inv(self.R_a) @ np.linalg.inv(self.K_a)
 
     @property
     def V(self) -> NDArray[np.float64]:
-        return -self.W @ self.b_a  # type: ignore[no-any-return]
+        return -self.W @ self.b_a
 
     @property
     def T_g_deg(self) -> NDArray[np.float64]:
         """``R_g⁻¹ K_g⁻¹``, the turn unit (degrees) per second per raw unit."""
-        return np.linalg.inv(self.R_g) @ np.linalg.inv(self.K_g)  # type: ignore[no-any-return]
+        return np.linalg.inv(self.R_g) @ np.linalg.inv(self.K_g)
 
     def theta(self) -> NDArray[np.float64]:
         """W row-major, V, T_g (rad/s per raw unit) row-major, b_g, G_g row-major."""
@@ -138,12 +138,19 @@ class FerrarisMatrices:
         return {k: getattr(self, k).tolist() for k in ("K_a", "R_a", "b_a", "K_g", "R_g", "b_g", "K_ga")}
 
 
-def ferraris_equations(x: FerrarisInputs, turn_angles_deg: NDArray[np.float64], grav: float = 1.0) -> FerrarisMatrices:
-    """imucal's ``FerrarisCalibration.compute`` on section statistics (module docstring)."""
-    b_a = np.diag((x.acc_p + x.acc_n) / 2)                      # eq. 19, 20
-    U_d = x.acc_p - x.acc_n                                      # eq. 21
+def ferraris_accelerometer(acc_p: NDArray[np.float64], acc_n: NDArray[np.float64], grav: float = 1.0
+                           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``K_a``, ``R_a``, ``b_a`` from the faces' mean readings (columns: +x, +y, +z up; −x, −y, −z up)."""
+    b_a = np.diag((acc_p + acc_n) / 2)                          # eq. 19, 20
+    U_d = acc_p - acc_n                                          # eq. 21
     K_a = np.diag(np.sqrt(np.diag(U_d @ U_d.T) / (4 * grav**2)))  # eq. 23
     R_a = np.linalg.inv(K_a) @ U_d / (2 * grav)                  # eq. 22
+    return K_a, R_a, b_a
+
+
+def ferraris_equations(x: FerrarisInputs, turn_angles_deg: NDArray[np.float64], grav: float = 1.0) -> FerrarisMatrices:
+    """imucal's ``FerrarisCalibration.compute`` on section statistics (module docstring)."""
+    K_a, R_a, b_a = ferraris_accelerometer(x.acc_p, x.acc_n, grav)
     counts = x.face_counts
     means = [x.gyr_p[:, 0], x.gyr_n[:, 0], x.gyr_p[:, 1], x.gyr_n[:, 1], x.gyr_p[:, 2], x.gyr_n[:, 2]]
     b_g = np.sum([n * m for n, m in zip(counts, means)], axis=0) / counts.sum()  # mean of every face sample

@@ -195,7 +195,7 @@ def find_regions(seg: Segmentation) -> FerrarisRegions:
             how += f" (rests {', '.join(map(str, others))} held out)"
         sections[name] = Section(name, _usable(rec, np.arange(iv.start, iv.stop, dtype=np.int64), name, "interval"), how,
                                  iv.number)
-    bias = np.mean([iv.gyro_mean for iv in seg.intervals], axis=0)
+    bias = np.mean([iv.gyro_mean for iv in seg.intervals if iv.gyro_mean is not None], axis=0)
     for name in TURN_NAMES:
         sections[name] = _find_turn(seg, faces, bias, AXIS_OF[name])
     return FerrarisRegions(sections, "found", _held_out(seg, sections))
