@@ -62,13 +62,11 @@ FACE_MAX_ANGLE_DEG: float = 20.0
 GLS_ITERATIONS: int = 5
 #: Search range of the placement scatter σ_t (degrees): from far below any placement to a crude one.
 TILT_SIGMA_RANGE_DEG: tuple[float, float] = (1e-4, 20.0)
+#: Smallest pose noise the REML search takes when the poses carry no sigma, relative to 1 g: far below any
+#: accelerometer's noise, far above rounding (noise-free data would drive it to zero).
+NOISE_FLOOR: float = 1e-9
 #: Relative eigenvalue below which a combination counts as undetermined by the data alone.
 RANK_TOL: float = 1e-9
-#: IPOPT tuning of the joint problem on top of the scaled-cost options: its tolerance 1e-8 (not 1e-10).  The
-#: prior makes the tilts' curvature far larger than the data's along the placement's directions, and at
-#: 1e-10 IPOPT can backtrack for hundreds of iterations on an optimum it already holds (simulated faces
-#: tilted by 1°: 200 iterations at 1e-10 against 15 at 1e-8, the same parameters to 4e-11).
-JOINT_TUNING: dict[str, Any] = {"ipopt.tol": 1e-8}
 IPOPT_REMEDY = Remedy(stopped_early="raise ipopt.max_iter", failed="use --method sixpos (the tilts taken as zero)")
 
 
@@ -163,11 +161,16 @@ class NominalOrientationML:
         nominal, source, notes = nominal_directions(poses)
         if np.linalg.matrix_rank(nominal, tol=1e-6) < 3:
             raise InputError("the nominal orientations lie in one plane: they cannot determine a 3-axis calibration")
-        u = poses.acc
+        from optcal.data.units import nominal_conversion
+
+        # normalised readings (≈ g, zero at zero force): one IPOPT tolerance for g, m/s² and counts
+        conv = nominal_conversion(poses.units, poses.acc)
+        zero, per_g = np.asarray(conv.offset, dtype=float), float(conv.sensitivity)
+        u = (poses.acc - zero) / per_g
         known = poses.sigma is not None
         with Stopwatch() as watch:
             beta0 = np.linalg.lstsq(_design(nominal).reshape(-1, 12), u.ravel(), rcond=None)[0]
-            sigma, t_sigma, why = self._variances(u, nominal, poses.sigma, beta0)
+            sigma, t_sigma, why = self._variances(u, nominal, None if poses.sigma is None else poses.sigma / per_g, beta0)
             beta_gls, _ = _gls(u, nominal, sigma**2, t_sigma**2, beta0)
             x, J_data, J_prior, cost, stats = _joint_fit(u, nominal, sigma, t_sigma, beta_gls)
         solver = solver_record(stats, watch.seconds, "IPOPT",
@@ -175,17 +178,21 @@ class NominalOrientationML:
         check_solver("nominal", solver, x, IPOPT_REMEDY)
         J = np.vstack([J_data, J_prior])
         cov_x = np.linalg.pinv(J.T @ J)
-        C, o = x[:9].reshape(3, 3), x[9:12]
+        # back to raw units: C = per_g C', o = per_g o' + zero
+        to_raw = np.full(12, per_g)
+        beta = x[:12] * to_raw + np.concatenate([np.zeros(9), zero])
+        C, o = beta[:9].reshape(3, 3), beta[9:12]
         W: NDArray[np.float64] = np.asarray(np.linalg.inv(C), dtype=float)
         V = -W @ o
-        G = _wv_jacobian(x[:12])
+        G = _wv_jacobian(beta) * to_raw
         cov = G @ cov_x[:12, :12] @ G.T
         tilts = x[12:].reshape(-1, 2)
         tilt_se = np.sqrt(np.clip(np.diag(cov_x)[12:], 0.0, None)).reshape(-1, 2)
         f = _directions(nominal, tilts)
-        residual = u @ W.T + V - f
-        weights = 1.0 / (sigma * float(np.mean(np.abs(np.diag(W))))) ** 2
-        rank, words = _data_alone(J_data, C, poses.n)
+        residual = poses.acc @ W.T + V - f
+        weights = 1.0 / (sigma * float(np.mean(np.abs(np.diag(W)))) * per_g) ** 2
+        rank, words = _data_alone(J_data, x[:9].reshape(3, 3), poses.n)
+        u = poses.acc
         tilt_deg = np.degrees(np.linalg.norm(tilts, axis=1))
         notes += [
             f"nominal orientations: {source}; each pose's tilt estimated (2 angles; a turn about the vertical does not "
@@ -229,11 +236,13 @@ class NominalOrientationML:
 
         def negll2(p: NDArray) -> float:
             t = float(np.exp(2 * np.clip(p[0], lo, hi))) if self.tilt_sigma_deg is None else np.radians(self.tilt_sigma_deg) ** 2
-            return -_gls(u, n, np.full(u.shape[0], (scale * np.exp(p[1])) ** 2), t, beta0)[1]
+            noise = scale * np.exp(max(p[1], np.log(NOISE_FLOOR)))  # noise-free data: the likelihood grows without bound
+            return -_gls(u, n, np.full(u.shape[0], noise**2), t, beta0)[1]
         res = minimize(negll2, np.array([np.log(np.radians(1.0)), np.log(1e-4)]), method="Nelder-Mead",
                        options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 2000})
         t_sigma = float(np.exp(np.clip(res.x[0], lo, hi))) if self.tilt_sigma_deg is None else float(np.radians(self.tilt_sigma_deg))
-        return np.full(u.shape[0], scale * float(np.exp(res.x[1]))), t_sigma, "REML, with the pose noise σ (no sigma column)"
+        noise = scale * float(np.exp(max(res.x[1], np.log(NOISE_FLOOR))))
+        return np.full(u.shape[0], noise), t_sigma, "REML, with the pose noise σ (no sigma column)"
 
 
 def _directions(n: NDArray, tilts: NDArray) -> NDArray[np.float64]:
@@ -244,12 +253,19 @@ def _directions(n: NDArray, tilts: NDArray) -> NDArray[np.float64]:
 
 def _joint_fit(u: NDArray, n: NDArray, sigma: NDArray, t_sigma: float, beta0: NDArray
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
-    """IPOPT on the joint problem (step 2): the solution, the Jacobians of the data and prior residuals,
-    the cost ``Σ ‖r_k/σ_k‖² + Σ ‖δ_k/σ_t‖²`` at the solution, the solver's statistics."""
+    """IPOPT on the joint problem (step 2): the solution, the Jacobians of the standardised data and prior
+    residuals (``r_k/σ_k``, ``δ_k/σ_t``), the cost ``Σ ‖r_k/σ_k‖² + Σ ‖δ_k/σ_t‖²`` at the solution, the
+    solver's statistics.
+
+    IPOPT sees the cost times ``σ̄²`` (σ̄ the rms pose noise): the data residuals in g with weights of order
+    one and the prior with weight ``(σ̄/σ_t)²``, so that its curvature is of order one whatever the noise
+    (standardised by a tiny σ, noise-free data put the rounding of the start far outside any tolerance).
+    """
     import casadi as ca
 
     k = u.shape[0]
     B = _tangent_basis(n)
+    s_ref = float(np.sqrt(np.mean(sigma**2)))
     x = ca.SX.sym("x", 12 + 2 * k)
     C = ca.reshape(x[:9], 3, 3).T  # row-major
     o = x[9:12]
@@ -257,17 +273,17 @@ def _joint_fit(u: NDArray, n: NDArray, sigma: NDArray, t_sigma: float, beta0: ND
     for j in range(k):
         d = n[j] + x[12 + 2 * j] * B[j, 0] + x[13 + 2 * j] * B[j, 1]
         f = d / ca.norm_2(d)
-        res_data.append((ca.DM(u[j]) - ca.mtimes(C, f) - o) / float(sigma[j]))
-    r_data = ca.vertcat(*res_data)
-    r_prior = x[12:] / t_sigma
+        res_data.append((ca.DM(u[j]) - ca.mtimes(C, f) - o) * (s_ref / float(sigma[j])))
+    r_data = ca.vertcat(*res_data)  # g, weighted by σ̄/σ_k
+    r_prior = x[12:] * (s_ref / t_sigma)
     start = np.concatenate([beta0, np.zeros(2 * k)])
     r0 = ca.Function("r0", [x], [ca.vertcat(r_data, r_prior)])(start)
     c = cost_scale(5 * k, float(np.sqrt(np.mean(np.square(np.asarray(r0))))))
     f_cost = c * (ca.sumsqr(r_data) + ca.sumsqr(r_prior))
-    solver = nlp_solver("nominal_orientation_ml", {"x": x, "f": f_cost}, {**SCALED_COST_IPOPT_OPTIONS, **JOINT_TUNING})
+    solver = nlp_solver("nominal_orientation_ml", {"x": x, "f": f_cost}, SCALED_COST_IPOPT_OPTIONS)
     sol, stats = solver.solve(x0=start)
     jac = ca.Function("nominal_residual_jacobians", [x], [ca.jacobian(r_data, x), ca.jacobian(r_prior, x), r_data, r_prior])
-    Jd, Jp, rd, rp = (np.asarray(v, dtype=float) for v in jac(sol))
+    Jd, Jp, rd, rp = (np.asarray(v, dtype=float) / s_ref for v in jac(sol))
     return sol, Jd, Jp, float(np.sum(rd**2) + np.sum(rp**2)), stats
 
 
