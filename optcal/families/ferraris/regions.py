@@ -234,6 +234,6 @@ def _find_turn(seg: Segmentation, faces: list[str], bias: NDArray[np.float64], a
     idx = np.arange(lo, hi, dtype=np.int64)
     share = abs(angle[axis]) / float(np.linalg.norm(angle))
     how = (f"the move from static interval {ivs[i].number} to {ivs[j].number} (both {faces[i]}): the gyro, rest bias "
-           f"removed, integrates to {angle[axis]:+.4g} {rec.gyro_units or 'raw units'}·s about {'xyz'[axis]} "
+           f"removed, integrates to {angle[axis]:+.4g} ({rec.gyro_units or 'gyro units'})·s about {'xyz'[axis]} "
            f"({100 * share:.1f} % of the integrated rotation), the largest such turn")
     return Section(name, _usable(rec, idx, name, "move"), how)
