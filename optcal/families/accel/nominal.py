@@ -340,7 +340,7 @@ def known_orientation_hint(poses: PoseTable, raw_with_gyro: bool = False) -> str
     raw_with_gyro : bool
         DATA is a raw recording with gyro columns (Ferraris' method applies).
     """
-    if poses.n < 6:
+    if poses.n < 6 or not np.all(np.isfinite(poses.acc)):
         return None
     try:
         nominal, _, _ = nominal_directions(PoseTable(acc=poses.acc, units=poses.units, rows=poses.rows))
