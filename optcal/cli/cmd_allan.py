@@ -13,6 +13,8 @@ from optcal.cli.outputs import echo_json, plot_file, plot_option
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "allan.png"
+#: File name of the gyroscope's figure when ``--plot`` names a folder.
+GYRO_FIGURE_NAME = "allan_gyro.png"
 
 #: Missing samples tolerated in a log (a few dropped samples barely change the Allan deviation),
 #: as a fraction of its samples; the log is treated as uniformly sampled and the count reported.
@@ -31,10 +33,15 @@ class StillLog:
     Attributes
     ----------
     samples : ndarray, shape (n, 3)
+        The analysed sensor's samples (the accelerometer's unless ``sensor="gyro"``).
     rate_hz : float
     units, units_reason : str
     exclusions : dict of str to int
     decisions : DataDecisions
+    gyro : ndarray, shape (n, 3) or None
+        The gyro samples of the same rows (when the log has gyro columns).
+    gyro_units : str or None
+        The gyro units the file states.
     """
 
     samples: np.ndarray
@@ -43,6 +50,8 @@ class StillLog:
     units_reason: str
     exclusions: dict[str, int]
     decisions: Any
+    gyro: np.ndarray | None = None
+    gyro_units: str | None = None
 
 
 def static_log(
@@ -57,7 +66,27 @@ def static_log(
     return log.samples, log.rate_hz, log.units, log.units_reason, log.exclusions
 
 
-def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> StillLog:
+def parse_window(window: str | None) -> tuple[float, float] | None:
+    """``START:END`` (seconds; either side may be empty) as ``(start, end)``, or None."""
+    from optcal.errors import InputError
+
+    if window is None:
+        return None
+    parts = window.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start = float(parts[0]) if parts[0].strip() else -np.inf
+        end = float(parts[1]) if parts[1].strip() else np.inf
+    except ValueError:
+        raise InputError(f"--window {window!r}: give START:END in seconds (e.g. 0:50, or :50 for the first 50 s)") from None
+    if not start < end:
+        raise InputError(f"--window {window!r}: START must be before END")
+    return start, end
+
+
+def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] | None = None,
+                   **read_options: Any) -> StillLog:
     """Read a still log for the Allan deviation.
 
     Unusable samples (non-finite, duplicated, saturated) are dropped and counted; a few
@@ -66,8 +95,13 @@ def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> Still
     gap is refused, because the Allan deviation needs uniform sampling.  A log that static
     detection does not find at rest (at least :data:`MIN_STILL_FRACTION` of it) is refused:
     the Allan deviation of a moving sensor measures the motion.  ``sensor="gyro"`` takes the
-    gyro samples (``units`` then says the gyro units as the file states them, or ``None``).
+    gyro samples (``units`` then says the gyro units as the file states them, or ``None``);
+    ``sensor="both"`` the accelerometer's with the gyro's beside them (``gyro``).  ``window``
+    keeps only the samples with ``start ≤ t ≤ end`` (the still part of a longer recording; the
+    rows outside it are counted).
     """
+    from dataclasses import replace
+
     from optcal.cli.data_options import decisions_on_error
     from optcal.data import load_recording
     from optcal.data.static import detect_static
@@ -75,13 +109,25 @@ def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> Still
 
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
         rec = load_recording(data, required_by="the allan command", **read_options)
+    exclusions = dict(rec.exclusions)
+    if window is not None:
+        keep = (rec.t >= window[0]) & (rec.t <= window[1])
+        if np.count_nonzero(keep & rec.usable) < 2:
+            raise InputError(f"{data}: no samples with {window[0]:g} <= t <= {window[1]:g} s (the log spans "
+                             f"{rec.t[0]:.6g} to {rec.t[-1]:.6g} s)")
+        outside = int(np.count_nonzero(~keep))
+        rec = replace(rec, t=rec.t[keep], acc=rec.acc[keep], gyro=None if rec.gyro is None else rec.gyro[keep],
+                      temp=None if rec.temp is None else rec.temp[keep], row=rec.row[keep], usable=rec.usable[keep],
+                      nominal=None)
+        if outside:
+            exclusions[f"samples outside --window {window[0]:g}:{window[1]:g} s"] = outside
     t = rec.t[rec.usable]
     samples = rec.acc[rec.usable]
-    if sensor == "gyro":
-        if rec.gyro is None:
-            raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
-        samples = rec.gyro[rec.usable]
-    exclusions = dict(rec.exclusions)
+    gyro = None if rec.gyro is None else rec.gyro[rec.usable]
+    if sensor in ("gyro", "both") and gyro is None:
+        raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
+    if sensor == "gyro" and gyro is not None:
+        samples = gyro
     steps = np.diff(t)
     if steps.size:
         step = float(np.median(steps))
@@ -102,25 +148,34 @@ def read_still_log(data: str, sensor: str = "acc", **read_options: Any) -> Still
         raise InputError(
             f"{data}: the log is not still: static detection finds only {100 * still:.0f} % of its samples at rest "
             f"({len(seg.intervals)} static interval(s)); the Allan deviation needs a log of a sensor that does not move"
+            + ("" if window is not None else " (--window START:END analyses the still part of a longer recording)")
         )
     if sensor == "gyro":
         return StillLog(samples, rec.rate_hz, rec.gyro_units or "", "stated by the file" if rec.gyro_units else "",
-                        exclusions, rec.decisions)
-    return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions)
+                        exclusions, rec.decisions, gyro, rec.gyro_units)
+    return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro, rec.gyro_units)
 
 
 @click.command()
 @click.argument("data", type=DATA_PATH)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (SI units) instead of the table.")
-@plot_option(f"the log-log Allan deviation with the fitted lines ({FIGURE_NAME})")
+@plot_option(f"the log-log Allan deviation with the fitted lines ({FIGURE_NAME}; {GYRO_FIGURE_NAME} for the gyroscope)")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
               help="Scale of raw counts, needed for counts (16384 for an MPU-6050 at ±2 g).")
-@click.option("--sensor", type=click.Choice(["acc", "gyro"]), default="acc", show_default=True,
-              help="Channels analysed: the accelerometer, or the gyro (angle random walk, bias instability, rate random walk).")
+@click.option("--sensor", type=click.Choice(["acc", "gyro", "both"]), default="acc", show_default=True,
+              help="Channels analysed: the accelerometer, the gyro (angle random walk, bias instability, rate random "
+                   "walk), or both (one JSON with 'accelerometer' and 'gyroscope': what optcal export --allan takes "
+                   "for Kalibr, VINS, ORB-SLAM3, OKVIS).")
 @click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
-              help="--sensor gyro: units of the gyro columns (default: from the column names or file, else from the data).")
+              help="--sensor gyro/both: units of the gyro columns (default: from the column names or file, else from the data).")
 @click.option("--counts-per-rad-s", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
-              help="--sensor gyro: scale of raw gyro counts (e.g. K_g of an IMU calibration).")
+              help="--sensor gyro/both: scale of raw gyro counts (e.g. K_g of an IMU calibration).")
+@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
+              help="Take the counts scales from a calibration instead of --counts-per-g / --counts-per-rad-s: each raw "
+                   "axis's counts per g (per rad/s for an imu calibration's gyroscope), their mean used.")
+@click.option("--window", default=None, metavar="START:END",
+              help="Analyse only the samples with START <= t <= END (s): the still part of a longer recording "
+                   "(e.g. :50 for the first 50 s).")
 @read_options
 @click.option("--max-tau", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
               help="Largest averaging time τ (default: the largest octave τ leaving 9 clusters).")
@@ -132,6 +187,8 @@ def allan(
     sensor: str,
     gyro_units: str | None,
     counts_per_rad_s: float | None,
+    calibration_path: str | None,
+    window: str | None,
     max_tau: float | None,
     **reading: Any,
 ) -> None:
@@ -140,73 +197,85 @@ def allan(
     DATA is a raw recording of a still sensor (CSV with ax, ay, az, a time column or a rate;
     Parquet, ROS bag or ULog).  Overlapping Allan deviation on octave-spaced τ with
     confidence intervals (allantools); the noise parameters are read from the fitted
-    −1/2, 0 and +1/2 slope lines as in Yin 2014.
+    −1/2, 0 and +1/2 slope lines as in Yin 2014.  Where no +1/2 slope shows, the rate random
+    walk's one-sided 95 % confidence bound from the longest τ is reported instead.
     """
+    from optcal.errors import InputError
     from optcal.families.noise.analysis import analyse_static_log, plot_allan
-    from optcal.families.noise.sensors import ACCELEROMETER
-
-    figure = plot_file(plot_path, FIGURE_NAME) if plot_path is not None else None
-    if sensor == "gyro":
-        allan_gyro(data, as_json, gyro_units, counts_per_rad_s, max_tau, reading_kwargs(reading))
-        return
-    log = read_still_log(data, **reading_kwargs(reading))
-    samples, rate_hz, units_used, units_reason, exclusions, decisions = (
-        log.samples, log.rate_hz, log.units, log.units_reason, log.exclusions, log.decisions)
-    ACCELEROMETER.si_per_unit(units_used, counts_per_g)  # fail early on counts without a scale
-    analysis = analyse_static_log(samples, rate_hz, units_used, counts_per_g, max_tau)
-    if figure is not None:
-        plot_allan(analysis, figure, title=f"Allan deviation of {data}")
-    if as_json:
-        out: dict[str, Any] = analysis.summary()
-        out["log"].update({"path": data, "units_reason": units_reason, "exclusions": exclusions,
-                           "decisions": decisions.to_dict()})
-        echo_json(out)
-        if figure is not None:
-            click.echo(f"figure saved to {figure}", err=True)
-        return
-    click.echo(f"DATA: {data}, a still log of {samples.shape[0]} samples at {rate_hz:.6g} Hz, units {units_used}")
-    for line in decisions.lines():
-        click.echo("  " + line)
-    if exclusions:
-        click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in exclusions.items()))
-    click.echo(analysis.report())
-    if figure is not None:
-        click.echo(f"figure saved to {figure}")
-
-
-def allan_gyro(data: str, as_json: bool, gyro_units: str | None, counts_per_rad_s: float | None,
-               max_tau: float | None, reading: dict[str, Any]) -> None:
-    """``optcal allan DATA --sensor gyro``: the gyro's noise parameters (and Kalibr's two numbers).
-
-    Parameters
-    ----------
-    data : str
-        The still log, with gyro columns.
-    as_json : bool
-        Print one JSON object instead of the table.
-    gyro_units : str, optional
-        Units of the gyro columns (``--gyro-units``; default: decided from the file and the data).
-    counts_per_rad_s : float, optional
-        Scale of raw gyro counts.
-    max_tau : float, optional
-        Largest averaging time τ, s.
-    reading : dict
-        Keywords of :func:`optcal.data.load_recording` (:func:`optcal.cli.data_options.reading_kwargs`).
-    """
-    from optcal.families.noise.analysis import analyse_static_log
-    from optcal.families.noise.sensors import GYROSCOPE
+    from optcal.families.noise.scales import scale_for
+    from optcal.families.noise.sensors import ACCELEROMETER, GYROSCOPE
     from optcal.data.units import decide_gyro_units
 
-    log = read_still_log(data, sensor="gyro", **reading)
-    decision = decide_gyro_units(log.samples, log.samples.mean(axis=0), gyro_units, log.units or None)
-    analysis = analyse_static_log(log.samples, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
+    scales: dict[str, Any] = {}
+    scale_lines: list[str] = []
+    if calibration_path is not None:
+        if counts_per_g is not None or counts_per_rad_s is not None:
+            raise InputError("--calibration gives the counts scales: drop --counts-per-g / --counts-per-rad-s, or --calibration")
+        import optcal.families.calibration_files as calibration_files
+        from optcal.families.noise.scales import calibration_scales
+
+        scales = calibration_scales(calibration_files.load(calibration_path))
+    log = read_still_log(data, sensor=sensor, window=parse_window(window), **reading_kwargs(reading))
+    analyses = {}
+    reasons: dict[str, str] = {}
+    if sensor in ("acc", "both"):
+        acc = log.samples
+        if calibration_path is not None:
+            counts_per_g = scale_for(scales, "acc", ACCELEROMETER.canonical_units(log.units), calibration_path)
+            if counts_per_g is not None:
+                scale_lines.append(scales["acc"].describe(calibration_path))
+        ACCELEROMETER.si_per_unit(log.units, counts_per_g)  # fail early on counts without a scale
+        analyses["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
+        reasons["acc"] = log.units_reason
+    if sensor in ("gyro", "both"):
+        gyro = log.samples if sensor == "gyro" else log.gyro
+        assert gyro is not None  # read_still_log refuses a log without gyro columns
+        decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None)
+        if calibration_path is not None:
+            counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
+            if counts_per_rad_s is not None:
+                scale_lines.append(scales["gyro"].describe(calibration_path))
+        analyses["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
+        reasons["gyro"] = decision.reason
+    figures = []
+    if plot_path is not None:
+        for name, analysis in analyses.items():
+            figure = plot_file(plot_path, FIGURE_NAME if name == "acc" else GYRO_FIGURE_NAME)
+            if name == "gyro" and "acc" in analyses and figure.name != GYRO_FIGURE_NAME:  # a file name given
+                figure = figure.with_name(f"{figure.stem}_gyro{figure.suffix}")
+            what = "accelerometer" if name == "acc" else "gyroscope"
+            plot_allan(analysis, figure, title=f"Allan deviation of {data} ({what})")
+            figures.append(figure)
     if as_json:
-        out = analysis.summary()
-        out["log"].update({"path": data, "units_reason": decision.reason, "exclusions": log.exclusions})
-        echo_json(out)
+        summaries: dict[str, Any] = {}
+        for name, analysis in analyses.items():
+            out: dict[str, Any] = analysis.summary()
+            out["log"].update({"path": data, "units_reason": reasons[name], "exclusions": log.exclusions,
+                               **({"window_s": list(parse_window(window) or ())} if window else {}),
+                               **({"scales": scale_lines} if scale_lines else {}),
+                               **({"decisions": log.decisions.to_dict()} if log.decisions is not None else {})})
+            summaries[name] = out
+        if sensor == "both":
+            echo_json({"sensor": "both", "log": summaries["acc"]["log"], "accelerometer": summaries["acc"],
+                       "gyroscope": summaries["gyro"]})
+        else:
+            echo_json(summaries[sensor])
+        for figure in figures:
+            click.echo(f"figure saved to {figure}", err=True)
         return
-    click.echo(f"DATA: {data}, a still log of {log.samples.shape[0]} samples at {log.rate_hz:.6g} Hz, "
-               f"gyro units {decision.units} ({decision.reason})")
+    units = "; ".join(f"{'gyro' if name == 'gyro' else 'acc'} units {a.units} ({reasons[name]})"
+                      for name, a in analyses.items())
+    click.echo(f"DATA: {data}, a still log of {log.samples.shape[0]} samples at {log.rate_hz:.6g} Hz, {units}")
+    if log.decisions is not None:
+        for line in log.decisions.lines():
+            click.echo("  " + line)
+    for line in scale_lines:
+        click.echo(line)
     if log.exclusions:
         click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in log.exclusions.items()))
-    click.echo(analysis.report())
+    for name, analysis in analyses.items():
+        if len(analyses) > 1:
+            click.echo("accelerometer:" if name == "acc" else "gyroscope:")
+        click.echo(analysis.report())
+    for figure in figures:
+        click.echo(f"figure saved to {figure}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from optcal.cli.data_options import DATA_PATH
+from optcal.cli.peer_options import load_calibration, peer_options
 
 
 @click.command()
@@ -23,21 +24,26 @@ from optcal.cli.data_options import DATA_PATH
               help="Sampling rate of a recording without a time column (time = row / rate).")
 @click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
               help="Read DATA as a pose table or a raw recording; auto decides and says why.")
+@peer_options
 def apply(calibration: str, data: str, output: str, units_out: str, data_units: str | None, columns: str | None,
-          topic: str | None, rate: float | None, data_format: str) -> None:
+          topic: str | None, rate: float | None, data_format: str, peer_gravity: float | None,
+          gyro_calib: str | None) -> None:
     """Correct every row of DATA with the calibration CAL (any cal_type) and write it to OUT.
 
     Time and every other column pass through unchanged; the accelerations are replaced by the
     calibrated ones and a column optcal_status marks each row: ok, out_of_range (outside the
     validity range of an extended calibration), excluded (duplicated, repeated timestamp or
     saturated sample of a recording) or non_finite.  No row is dropped.
+
+    CAL may be imucal's calibration JSON or imu_tk's .calib pair (recognised by content): the
+    rows are then corrected exactly as that tool corrects them (m/s² at its own g with --units
+    m/s^2; the gyro in rad/s).
     """
-    import optcal.families.calibration_files as calibration_files
     from optcal.families.caltypes.apply import apply_to_file, write_table
 
     from optcal.cli.data_options import decisions_on_error
 
-    cal = calibration_files.load(calibration)
+    cal = load_calibration(calibration, peer_gravity, gyro_calib)
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
         applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
                                 rate=rate, kind=data_format)
@@ -51,7 +57,9 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
         click.echo(f"time: {applied.time_reason}")
     if applied.units_in != cal.units:
         click.echo(f"DATA converted from {applied.units_in} to {cal.units}")
-    click.echo(f"wrote {applied.n_rows} rows to {output} ({fmt}), accelerations in {units_out}")
+    click.echo(f"wrote {applied.n_rows} rows to {output} ({fmt}), accelerations in {units_out}"
+               + (f" (1 g = {applied.gravity_m_s2:g} m/s^2, the calibration's own)"
+                  if units_out == "m/s^2" and cal.cal_type == "peer" else ""))
     click.echo("rows: " + ", ".join(f"{word} {n}" for word, n in applied.status_counts.items()))
     if applied.exclusions:
         click.echo("excluded (marked, not dropped): " + "; ".join(f"{k}: {v}" for k, v in applied.exclusions.items()))

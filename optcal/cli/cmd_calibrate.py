@@ -14,8 +14,9 @@ from optcal.cli.report_option import command_line, report_options, write_report
 
 @click.command()
 @click.argument("data", type=DATA_PATH)
-@click.option("--method", type=click.Choice(METHOD_CHOICES), default="default", show_default=True,
-              help="Estimator: convex+mle (default), svd, convex, mle, exact, gd, sixpos.")
+@click.option("--method", type=click.Choice((*METHOD_CHOICES, "ferraris")), default="default", show_default=True,
+              help="Estimator: convex+mle (default), svd, convex, mle, exact, gd, sixpos, nominal (known orientations, "
+                   "tilts estimated), ferraris (six faces and three turns of a raw recording, both sensors).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Save the calibration as JSON.")
 @click.option("--allow-degenerate", is_flag=True, help="Proceed (with a warning) when the poses do not identify every parameter.")
@@ -31,12 +32,16 @@ from optcal.cli.report_option import command_line, report_options, write_report
 @click.option("--accept-gyro-fit", is_flag=True,
               help="--imu: keep a gyro calibration the moves do not support (residual far beyond the noise model, "
                    "axes or scale of a column mapping, unit or time base), with a warning.")
+@click.option("--sections", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="--method ferraris: imucal's section list (JSON or CSV of start/end rows per section).")
+@click.option("--turn-angle", type=float, default=None, metavar="DEG",
+              help="--method ferraris: the angle of each turn (default: the whole turns the gyro reads; 360 for counts).")
 @report_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
-              joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, report_path: str | None, tolerance: float,
-              **data_opts: Any) -> None:
+              joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, sections: str | None, turn_angle: float | None,
+              report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording.
 
     With --imu, DATA is a raw recording with gyro columns and the gyroscope is calibrated too.
@@ -44,6 +49,14 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     from optcal.families.accel.calibration import calibrate as run_calibration
     from optcal.errors import IdentifiabilityError, InputError
 
+    if method == "ferraris" or sections or turn_angle is not None:
+        if method != "ferraris" or imu or report_path or joint or g_sensitivity or accept_gyro_fit:
+            raise InputError("--sections and --turn-angle apply with --method ferraris, which calibrates both sensors "
+                             "itself (no --imu, --joint, --g-sensitivity, --accept-gyro-fit; --report not yet)")
+        from optcal.cli.cmd_ferraris import calibrate_ferraris
+
+        calibrate_ferraris(data, sections, turn_angle, gyro_units, as_json, output, data_opts)
+        return
     if not imu and (gyro_units or joint or g_sensitivity):
         raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
     if not imu and accept_gyro_fit:
@@ -65,7 +78,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         raise InputError("--loss and --scale-range apply to the mle method only")
     try:
         result = run_calibration(poses, method=method, **settings)
-    except IdentifiabilityError:
+    except IdentifiabilityError as exc:
         if not as_json:  # what was read, so that the refusal can be judged against it
             click.echo(data_line(data, poses))
         if report_path:  # the report says what is missing and which poses would fix it; the error still ends the command
@@ -74,7 +87,9 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             forced = {**settings, "allow_degenerate": True}
             refused = run_calibration(poses, method=method, **forced)
             write_report(calibration_document(refused, poses, data, command_line(), method, forced, tolerance), report_path)
-        raise
+        raise _with_known_orientation_hint(exc, poses, method) from exc
+    except InputError as exc:  # too few poses for a self-calibration
+        raise _with_known_orientation_hint(exc, poses, method) from exc
     if output:
         result.save(output_file(output))
     if report_path:
@@ -147,3 +162,18 @@ def calibrate_imu(
     click.echo(imu_report(cal))
     if output:
         click.echo(f"saved to {output}")
+
+
+def _with_known_orientation_hint(exc: Exception, poses: Any, method: str) -> Exception:
+    """``exc`` with the known-orientation methods named when a self-calibration refuses the six faces of a cube."""
+    from optcal.errors import IdentifiabilityError, InputError
+    from optcal.families.accel.nominal import known_orientation_hint
+
+    if method in ("sixpos", "nominal") or not isinstance(exc, InputError):
+        return exc
+    hint = known_orientation_hint(poses, raw_with_gyro=poses.source == "raw recording" and poses.gyro is not None)
+    if hint is None:
+        return exc
+    if isinstance(exc, IdentifiabilityError):
+        return IdentifiabilityError(f"{exc}. {hint}", exc.report)
+    return InputError(f"{exc}. {hint}")

@@ -9,6 +9,7 @@ import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data, load_data_detailed
 from optcal.cli.outputs import echo_json
+from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
 
 
@@ -16,31 +17,43 @@ from optcal.cli.report_option import command_line, report_options, write_report
 @click.argument("calibration", type=click.Path(dir_okay=False), metavar="CAL.json")
 @click.argument("data", type=DATA_PATH)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
+@click.option("--method", type=click.Choice(["default", "mle", "convex", "svd", "exact", "gd"]), default="default",
+              show_default=True,
+              help="CAL from imucal or imu_tk: optcal's own calibration of DATA, shown next to it, by this method.")
+@peer_options
 @report_options
 @data_options
-def check(calibration: str, data: str, as_json: bool, report_path: str | None, tolerance: float,
-          **data_opts: Any) -> None:
+def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity: float | None, gyro_calib: str | None,
+          report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.
 
     DATA is a pose table or a raw recording (its static intervals are found as by
     ``optcal segment``).  "Before" is the nominal conversion to g (exact unit factors for g
     and m/s²; for counts, mid-scale offset if unsigned and one sensitivity from the median norm).
-    """
-    import optcal.families.calibration_files as calibration_files
-    from optcal.applications.quality.validation import check_calibration
 
-    cal = calibration_files.load(calibration)
+    CAL may be another tool's calibration (imucal's JSON, imu_tk's .calib pair; recognised by
+    content): its errors on DATA are then shown next to optcal's own calibration of DATA (fitted
+    by --method, in sample and held out), with what the peer's bias, scales and axis angles miss.
+    """
+    from optcal.applications.quality.validation import check_calibration, convert_to_units
+
+    cal = load_calibration(calibration, peer_gravity, gyro_calib)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
-    # an imu calibration also needs DATA's segmentation (its moves): the file is read once, with it
-    loaded = load_data_detailed(data, **data_opts) if cal.cal_type == "imu" else None
+    # an imu (or a peer's gyro) calibration also needs DATA's segmentation (its moves): the file is read once, with it
+    with_gyro = cal.cal_type == "imu" or bool(getattr(cal, "has_gyro", False))
+    loaded = load_data_detailed(data, **data_opts) if with_gyro else None
     poses = loaded.poses if loaded is not None else load_data(data, **data_opts)
     result = check_calibration(cal, poses)
+    comparison = None
+    if cal.cal_type == "peer":  # another tool's calibration: next to optcal's own fit of DATA
+        from optcal.applications.quality.peer import compare_with_peer
+
+        comparison = compare_with_peer(cal, convert_to_units(poses, cal.units), result.noise, method=method)
     if report_path:
-        from optcal.applications.quality.validation import convert_to_units
         from optcal.report.document import check_document
 
         write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
-                                    tolerance), report_path)
+                                    tolerance, comparison), report_path)
     gyro_lines: list[str] = []
     gyro_out: dict[str, Any] = {}
     if loaded is not None:  # the gyro: gravity predicted across the moves, before and after
@@ -52,6 +65,11 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
             **result.summary(),
             **gyro_out,
         }
+        if comparison is not None:
+            out["calibration"]["peer"] = {"tool": cal.tool, "cal_type": cal.peer_type, "read_as": cal.read_as,
+                                          "gravity_m_s2": cal.gravity_m_s2, "gravity_reason": cal.gravity_reason,
+                                          "notes": cal.notes}
+            out["peer_comparison"] = comparison.to_dict()
         echo_json(out)
         return
     click.echo(f"calibration: {calibration}: {cal.describe()}")
@@ -69,13 +87,24 @@ def check(calibration: str, data: str, as_json: bool, report_path: str | None, t
     click.echo(
         f"max ||a|-1|: before {np.max(np.abs(result.before)) * 1e3:.4f} mg, after {np.max(np.abs(result.after)) * 1e3:.4f} mg"
     )
+    for note in getattr(cal, "notes", []) if comparison is not None else []:
+        click.echo(f"note: {note}")
+    if comparison is not None:
+        for line in comparison.lines():
+            click.echo(line)
+    own = comparison.own_after if comparison is not None else None
+    heldout = comparison.own_heldout if comparison is not None else None
     click.echo("")
-    click.echo(f"{'pose':>5} {'t (s)':>9} {'n':>7} {'before (mg)':>12} {'after (mg)':>11} {'noise (mg)':>11}")
+    after_name = "after (mg)" if comparison is None else f"{cal.tool} (mg)"
+    click.echo(f"{'pose':>5} {'t (s)':>9} {'n':>7} {'before (mg)':>12} {after_name:>11} {'noise (mg)':>11}"
+               + (f" {'optcal (mg)':>11}" if own is not None else "") + (f" {'held out':>9}" if heldout is not None else ""))
     for k in range(result.rows.size):
         t = f"{result.t[k]:9.2f}" if result.t is not None else f"{'':>9}"
         n = f"{int(result.n_samples[k]):7d}" if result.n_samples is not None else f"{'':>7}"
         noise = f"{result.noise[k] * 1e3:11.4f}" if result.noise is not None else f"{'':>11}"
-        click.echo(f"{int(result.rows[k]):>5} {t} {n} {result.before[k] * 1e3:12.4f} {result.after[k] * 1e3:11.4f} {noise}")
+        extra = (f" {own[k] * 1e3:11.4f}" if own is not None else "") + (f" {heldout[k] * 1e3:9.4f}" if heldout is not None else "")
+        click.echo(f"{int(result.rows[k]):>5} {t} {n} {result.before[k] * 1e3:12.4f} {result.after[k] * 1e3:11.4f} {noise}"
+                   + extra)
     if poses.exclusions:
         click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in poses.exclusions.items()))
 
@@ -85,8 +114,8 @@ def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any
 
     Parameters
     ----------
-    cal : ImuCalibration
-        The saved calibration (cal_type imu).
+    cal : ImuCalibration or PeerCalibration
+        The saved calibration (cal_type imu, or a peer's with a gyroscope).
     loaded : optcal.data.LoadedData
         The recording checked, with its segmentation (a raw recording with gyro columns; a pose
         table gives one line saying so).

@@ -8,6 +8,7 @@ import click
 
 from optcal.families.accel.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
+from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.applications.diagnosis.effects import VOCABULARY
 
@@ -62,17 +63,20 @@ def progress_printer(quiet: bool) -> Any:
 @data_options
 @diagnosis_options
 @click.option("--baseline", "baseline_path", type=click.Path(dir_okay=False), default=None, metavar="CAL",
-              help="Start from this saved calibration (JSON) instead of calibrating with --method.")
+              help="Start from this saved calibration instead of calibrating with --method; imucal's JSON or imu_tk's "
+                   ".calib is set next to optcal's own fit of DATA (what each misses).")
 @click.option("--pose-correlation", type=click.Choice(["auto", "off", "on"]), default="auto", show_default=True,
               help="Pose noise correlated in time: used on evidence (auto), never (off: poses independent), or always (on).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
                    "with the temperature, time and |a| ranges it was fitted on.")
+@peer_options
 @report_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, as_json: bool,
-             output: str | None, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
+             output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
+             tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
     DATA is a pose table or a raw recording (anything `optcal calibrate` reads); several DATA
@@ -84,10 +88,11 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     poses; the candidate effects (temperature_bias, temperature_scale, bias_drift,
     scale_nonlinearity, outliers) are tried per axis by forward selection (likelihood-ratio test,
     BIC and k-fold held-out error); the findings, the final model and its gain on held-out poses
-    are reported.
+    are reported.  A --baseline from imucal or imu_tk (recognised by content) is shown next to
+    optcal's baseline fit of DATA: each one's error on DATA's poses (optcal's also held out), and
+    what the peer's bias, scales and axis angles miss.
     """
     from optcal.cli.data_options import data_line, data_summary, load_data_detailed
-    from optcal.families.calibration_files import load as load_calibration
     from optcal.applications.diagnosis import Diagnoser
     from optcal.report.diagnosis_figures import save_figures
     from optcal.report.diagnosis_text import diagnosis_report
@@ -96,7 +101,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
 
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation)
     figures_into = plot_folder(plot_dir) if plot_dir else None
-    baseline = load_calibration(baseline_path) if baseline_path else None
+    baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
     reporter = progress_printer(quiet)
     loaded = [load_data_detailed(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
     sessions = [item.poses for item in loaded]
@@ -111,6 +116,13 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     else:
         diag = diagnoser.run_sessions(sessions, baseline, names=list(data), still_parts=still_parts)
         poses, source = diag.poses, " + ".join(data)
+    if baseline is not None and baseline.cal_type == "peer":  # another tool's calibration next to optcal's own fit
+        from optcal.applications.quality.peer import compare_with_peer
+        from optcal.applications.quality.validation import convert_to_units
+
+        diag.peer = compare_with_peer(baseline, convert_to_units(diag.poses, baseline.units), None,
+                                      own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
+                                      f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
     paths = save_figures(diag, figures_into) if figures_into else []
     calibration = diag.calibration() if output else None
     if calibration is not None and output:

@@ -598,6 +598,32 @@ def _refuse_backwards(src: Source, ev: Evidence, t: NDArray[np.float64], what: s
         )
 
 
+def _sections_explain_backwards(src: Source, ev: Evidence, counter: NDArray[np.float64]) -> str | None:
+    """Why a sample counter that runs backwards is no reason to refuse the file, or ``None``.
+
+    A file of labelled sections (imucal's annotated session: a ``part`` column names the section
+    of each row, and the rows are grouped by section) keeps each section's sample numbers: the
+    counter steps back where one section ends and the next begins.  When every step back falls on
+    a change of the label, the counter is a sample number, not time; the time is the row number
+    over the rate, and the sections are read by their label.
+    """
+    from optcal.data.sections import label_column_of, read_label_column
+
+    rows = np.flatnonzero(ev.usable & np.isfinite(counter))
+    back = np.flatnonzero(np.diff(counter[rows]) < 0)
+    name = label_column_of(src.ignored_columns)
+    if not back.size or name is None or src.file_type != "csv":
+        return None
+    labels = read_label_column(src.path, name)
+    if labels.size != counter.size:
+        return None
+    before, after = rows[back], rows[back + 1]
+    if not np.all(labels[before] != labels[after]):
+        return None
+    return (f"a sample counter; it steps back {back.size} time(s), each where the section in column {name!r} "
+            "changes: sections stored by label, not time")
+
+
 def _pose_table_time(src: Source, time_unit: str | None) -> tuple[Decision, Decision]:
     no_rate = Decision(None, "a pose table has no sampling rate", "--rate")
     if not src.has("t"):
@@ -630,7 +656,13 @@ def _recording_time(
         if src.has("t"):
             why += ", instead of the time column"
         if src.has("index"):
-            _refuse_backwards(src, ev, src.column("index"), f"column {src.column_map['index']!r}")
+            counter = f"column {src.column_map['index']!r}"
+            sections = _sections_explain_backwards(src, ev, src.column("index"))
+            if sections is None:
+                _refuse_backwards(src, ev, src.column("index"), counter)
+            else:  # the time is the row number: the counter is set aside (the recording would read it as time)
+                what = f"row number (not {counter}: {sections})"
+                src.data.pop("index")
         return Decision("rate", f"{what} / {rate_used:g} Hz ({why})", "--rate"), Decision(float(rate_used), why, "--rate")
     te = ev.time
     t = src.column("t")

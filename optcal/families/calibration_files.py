@@ -14,6 +14,12 @@ It sits here, in a module of its own above :mod:`optcal.families.caltypes` and
 imports the calibration types, so naming it from ``caltypes`` would close the cycle
 ``caltypes → gyro → caltypes``.  Nothing below the applications needs to read a file of an
 unknown type, so the registry costs no layer anything.
+
+Other tools' files are recognised here too, by their content (:mod:`optcal.families.peer_files`):
+imucal's calibration JSON (``cal_type`` ``Ferraris``/``Turntable``, ``_format_version`` 2.x) and
+imu_tk's ``.calib`` pair become a ``peer`` calibration
+(:class:`~optcal.families.caltypes.peer.PeerCalibration`) that applies exactly what the tool applies;
+its description says how the file was read.  Every command that takes a calibration reads it here.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ CAL_TYPES: dict[str, str] = {
     "sixpos_full": "optcal.families.caltypes.sixpos:SixPositionCalibration",
     "extended": "optcal.families.caltypes.extended:ExtendedCalibration",
     "imu": "optcal.families.gyro.result:ImuCalibration",
+    "peer": "optcal.families.caltypes.peer:PeerCalibration",
 }
 
 
@@ -104,18 +111,46 @@ def from_dict(d: dict[str, Any]) -> Calibration:
     return calibration_class(str(d["cal_type"])).from_dict(d)
 
 
-def load(source: str | Path | dict[str, Any]) -> Calibration:
+def load(source: str | Path | dict[str, Any], *, gyro: str | Path | None = None,
+         gravity: float | None = None) -> Calibration:
     """Read a calibration file (or its dictionary) as the class named by its ``cal_type``.
+
+    Another tool's file (imucal's JSON, imu_tk's ``.calib``) is recognised by its content and
+    read as a ``peer`` calibration (:mod:`optcal.families.peer_files`).
+
+    Parameters
+    ----------
+    source : str, Path or dict
+    gyro : str or Path, optional
+        imu_tk: the gyroscope's ``.calib`` (default: the name with ``acc`` replaced by ``gyro``,
+        next to ``source``).
+    gravity : float, optional
+        A peer file: the g (m/s²) its accelerometer output was scaled to (default: the tool's own
+        default, 9.81 for imucal and imu_tk, or what an optcal-written file states).
 
     Raises
     ------
     InputError
         Missing or broken file, unknown ``cal_type``, newer major ``format_version``.
     """
+    from optcal.families.peer_files import from_imucal, is_imucal, read_peer_text
+
     if isinstance(source, dict):
-        return from_dict(source)
+        return from_imucal(source, "a dictionary", gravity) if is_imucal(source) else from_dict(source)
+    p = Path(source)
+    if p.is_file():
+        try:
+            text = p.read_text()
+        except (OSError, UnicodeDecodeError):
+            text = ""
+        try:
+            peer = read_peer_text(p, text, gyro, gravity)
+        except InputError as exc:
+            raise InputError(f"{source}: {exc}" if not str(exc).startswith(str(source)) else str(exc)) from exc
+        if peer is not None:
+            return peer
     try:
-        return from_dict(read_json(source))
+        return from_dict(read_json(source, hint="optcal reads its own calibration files, imucal's JSON and imu_tk's .calib"))
     except InputError as exc:
         if str(exc).startswith(str(source)):
             raise

@@ -113,6 +113,19 @@ def session_lines(sessions: SessionOffsets) -> list[str]:
     return lines
 
 
+def peer_lines(diag: Diagnosis) -> list[str]:
+    """A peer's calibration (``--baseline`` from imucal or imu_tk) next to optcal's own: what each misses."""
+    peer = diag.peer
+    lines = ["The given calibration next to optcal's: " + peer.lines()[0]] + ["  " + line for line in peer.lines()[1:]]
+    if diag.findings:
+        named = ", ".join(dict.fromkeys(f.effect for f in diag.findings))
+        lines.append(f"   neither {peer.peer} nor the paper's model holds what the diagnosis named ({named}); "
+                     f"the final model does: held-out {diag.final_heldout_rms() * MG:.3g} mg")
+    else:
+        lines.append(f"   the diagnosis named no effect beyond the paper's model that {peer.peer} would also miss")
+    return lines
+
+
 def diagnosis_report(diag: Diagnosis) -> str:
     """Readable report: what the simulation gets wrong, the causes, the extended model, the gain."""
     settings = diag.settings
@@ -197,5 +210,7 @@ def diagnosis_report(diag: Diagnosis) -> str:
         )
     if diag.simulation_after is not None:
         lines += ["", "6. " + simulation_text(diag.simulation_after, indent="   ", after=True)]
+    if diag.peer is not None:
+        lines += ["", *peer_lines(diag)]
     lines += [f"note: {note}" for note in diag.notes]
     return "\n".join(lines)

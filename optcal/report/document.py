@@ -297,17 +297,35 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
         if findings_rows else [],
         figures,
     )
-    sections = [diagnosis, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
+    peer = [peer_section(diag.peer)] if getattr(diag, "peer", None) is not None else []
+    sections = [diagnosis, *peer, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
                 data_section(data_path, poses),
                 Section("Text report", preformatted=diagnosis_report(diag))]
     return ReportDocument(f"Diagnosis of {data_path}", data_path, verdict, sections, command, versions(), now_utc())
 
 
+def peer_section(comparison: Any) -> Section:
+    """A peer's calibration next to optcal's own (:class:`optcal.applications.quality.peer.PeerComparison`)."""
+    c = comparison
+    lines = c.lines()
+
+    def mg(r: Any, k: int) -> str:
+        return "" if r is None else f"{r[k] * 1e3:+.4f}"
+
+    table = Table(["pose", f"{c.peer} (mg)", "optcal in sample (mg)", "optcal held out (mg)", "noise σ (mg)"],
+                  [[f"pose {int(c.rows[k])}", mg(c.peer_after, k), mg(c.own_after, k), mg(c.own_heldout, k),
+                    "" if c.noise is None else f"{c.noise[k] * 1e3:.4f}"] for k in range(c.rows.size)],
+                  f"|a| − 1 of each pose under {c.peer}'s calibration ({c.source}) and optcal's own")
+    return Section(f"{c.peer} next to optcal", [lines[0]] + [line for line in lines[1:] if not line.startswith("  ")],
+                   [table], [], "\n".join(lines))
+
+
 def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_path: str, command: str,
-                   tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> ReportDocument:
+                   tolerance_mg: float = DEFAULT_TOLERANCE_MG, comparison: Any = None) -> ReportDocument:
     """Report of ``optcal check``: a saved calibration (any :mod:`optcal.families.caltypes` type) on other data, before and after.
 
-    ``poses`` are in the calibration's units; ``check`` is :func:`optcal.applications.quality.validation.check_calibration`'s result.
+    ``poses`` are in the calibration's units; ``check`` is :func:`optcal.applications.quality.validation.check_calibration`'s result;
+    ``comparison`` (a peer's calibration) sets optcal's own calibration of the data next to it.
     """
     verdict = judge_check(check.rms_after, check.rms_noise, check.rows.size, tolerance_mg)
     labels = [str(int(r)) for r in check.rows]
@@ -329,8 +347,9 @@ def check_document(cal: Any, cal_path: str, poses: PoseTable, check: Any, data_p
     lumped = cal.lumped()
     params = parameters_section(engineering_parameters(lumped.model, cal.units, None, _zero_of(poses)),
                                 lumped.model.T_canonical, "not stored in the calibration file (see the report of its fit)")
+    peer = [peer_section(comparison)] if comparison is not None else []
     return ReportDocument(f"Check of {cal_path} on {data_path}", f"{cal_path} on {data_path}", verdict,
-                          [section, params, data_section(data_path, poses)], command, versions(), now_utc())
+                          [section, *peer, params, data_section(data_path, poses)], command, versions(), now_utc())
 
 
 def segmentation_document(poses: PoseTable, segmentation: Any, data_path: str, command: str, text: str) -> ReportDocument:

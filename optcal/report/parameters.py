@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from optcal.core.model import AXES, PARAM_NAMES, STANDARD_GRAVITY, LumpedModel
+from optcal.core.model import AXES, PARAM_NAMES, STANDARD_GRAVITY, LumpedModel, theta_from
 from optcal.families.accel.result import CalibrationResult
 
 #: Two-sided 95 % normal quantile: the half-width of a 95 % confidence interval in standard errors.
@@ -101,11 +101,34 @@ def physical_vector(theta: NDArray[np.float64], zero: NDArray[np.float64]) -> ND
     return np.concatenate([phys.scale, np.rad2deg([phys.rho, phys.phi, phys.lam]), 1e3 * bias_g])
 
 
+#: Relative step of the central differences that carry a full ``(W, V)`` covariance over to θ.
+_WV_STEP: float = 1e-7
+
+
 def theta_covariance(result: CalibrationResult) -> NDArray[np.float64] | None:
-    """Covariance of the nine lumped-model parameters θ, when the result has it in θ order."""
-    if result.covariance is None or tuple(result.param_names[:9]) != PARAM_NAMES:
+    """Covariance of the nine lumped-model parameters θ: the result's own when it is in θ order;
+    for a fit of the full ``ā = W a + V`` (six positions, Ferraris, known orientations) that of
+    ``θ(W, −W⁻¹V)`` by the delta method (the Jacobian by central differences)."""
+    if result.covariance is None:
         return None
-    return np.asarray(result.covariance, dtype=float)[:9, :9]
+    cov = np.asarray(result.covariance, dtype=float)
+    if tuple(result.param_names[:9]) == PARAM_NAMES:
+        return cov[:9, :9]
+    if result.W is None or result.V is None or cov.shape[0] < 12:
+        return None
+    wv = np.concatenate([result.W.ravel(), result.V])
+
+    def theta(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        W = x[:9].reshape(3, 3)
+        return theta_from(W, -np.linalg.solve(W, x[9:]))
+
+    steps = _WV_STEP * np.maximum(np.abs(wv), np.max(np.abs(wv[:9])))
+    J = np.empty((9, 12))
+    for k, h in enumerate(steps):
+        e = np.zeros(12)
+        e[k] = h
+        J[:, k] = (theta(wv + e) - theta(wv - e)) / (2 * h)
+    return J @ cov[:12, :12] @ J.T
 
 
 def result_parameters(result: CalibrationResult, zero: ArrayLike | None = None) -> EngineeringParameters:

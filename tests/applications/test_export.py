@@ -124,7 +124,8 @@ def px4_correct(p: dict[str, float], raw_ms2: np.ndarray, temp: np.ndarray) -> n
 def test_px4_reproduces_the_thermal_offsets_and_lists_what_it_drops(tmp_path, capsys):
     model = axis_aligned_sensor(temperature_bias=[[0, 0, 0], [0.7e-3, -3e-5, 0], [0, 0, 0]])
     cal = extended_file(tmp_path / "cal.json", model)
-    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4", "--counts-per-g", COUNTS_PER_G], capsys)
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4-shell", "--counts-per-g", COUNTS_PER_G],
+                         capsys)
     assert code == 0, err
     p = read_params(out, " ")
     acc, temp, t = cal.fitted_on.acc, cal.fitted_on.temp, cal.fitted_on.t
@@ -167,7 +168,7 @@ def test_firmware_export_of_unsigned_counts_subtracts_mid_scale(tmp_path, capsys
     code, out, err = run(argv + ["--counts-zero", 0], capsys)
     assert code == 0 and "mid-scale" not in err
     np.testing.assert_allclose(read_params(out, ",")["INS_ACCOFFS_X"], k * (base.o[0] + 32768.0), rtol=1e-8)
-    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4", "--counts-per-g", COUNTS_PER_G,
+    code, out, err = run(["export", tmp_path / "cal.json", "--format", "px4-shell", "--counts-per-g", COUNTS_PER_G,
                           "--counts-zero", 32000], capsys)
     assert code == 0 and "counts zero 32000 (given)" in out + err
     np.testing.assert_allclose(read_params(out, " ")["CAL_ACC0_XOFF"], k * (base.o[0] + 768.0), rtol=1e-8)
@@ -266,7 +267,7 @@ def test_kalibr_gyroscope_random_walk_bound_from_a_short_still_log(allan_json, t
     code, out, err = run([*args, "--random-walk-bound"], capsys)
     assert code == 0, err
     imu = yaml.safe_load(out)
-    bound = max(gyro_allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    bound = max(gyro_allan[a]["rate_random_walk_bound"]["value"] for a in "xyz")
     assert imu["gyroscope_random_walk"] == pytest.approx(bound, rel=1e-8)
     assert imu["gyroscope_noise_density"] == pytest.approx(gyro_allan["kalibr"]["gyroscope_noise_density"], rel=1e-8)
     assert "gyroscope_random_walk: " in out and out.split("gyroscope_random_walk: ")[1].splitlines()[0].endswith("UPPER BOUND")
@@ -315,15 +316,23 @@ def test_kalibr_writes_a_labelled_random_walk_bound_only_when_asked(tmp_path, ca
     code, out, err = run(argv + ["--random-walk-bound"], capsys)
     assert code == 0, err
     imu = yaml.safe_load(out)
-    bound = max(allan[a]["rate_random_walk_upper_bound"] for a in "xyz")
+    bound = max(allan[a]["rate_random_walk_bound"]["value"] for a in "xyz")
     assert imu["accelerometer_random_walk"] == pytest.approx(bound, rel=1e-8)
     assert "UPPER BOUND" in out and "note: accelerometer_random_walk is an upper bound, not a measurement" in err
-    # white noise σ(τ) = N/√τ: the bound min σ(τ)√(3/τ) is N√3/τ at the longest τ of the curve
+    assert "95% one-sided confidence limit" in err
+    # white noise σ(τ) = N/√τ: the largest K consistent with the curve, min σ(τ)√(3/τ), is N√3/τ at the longest τ;
+    # the 95 % confidence bound reads σ's upper limit there, χ² with the edf: above it, by √(edf/χ²_0.05(edf))
+    from scipy.stats import chi2
+
     for a in "xyz":
-        tau = allan[a]["rate_random_walk_bound_tau_s"]
+        tau = allan[a]["rate_random_walk_largest_consistent_tau_s"]
         assert tau > 0.05 * n / rate
         expected = allan[a]["velocity_random_walk"] * np.sqrt(3.0) / tau
-        assert allan[a]["rate_random_walk_upper_bound"] == pytest.approx(expected, rel=0.5)
+        assert allan[a]["rate_random_walk_largest_consistent"] == pytest.approx(expected, rel=0.5)
+        b = allan[a]["rate_random_walk_bound"]
+        assert b["confidence"] == 0.95 and b["tau_s"] == pytest.approx(tau)
+        factor = np.sqrt(b["edf"] / chi2.ppf(0.05, b["edf"]))
+        assert b["value"] == pytest.approx(allan[a]["rate_random_walk_largest_consistent"] * factor, rel=1e-9)
 
 
 # ----------------------------------------------------------------------------- C header

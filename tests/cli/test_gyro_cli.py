@@ -79,9 +79,10 @@ def test_allan_gyro_angle_random_walk(tmp_path, capsys) -> None:
     for axis in "xyz":
         assert out[axis]["angle_random_walk"] == pytest.approx(sigma / np.sqrt(fs), rel=0.1)
         # white noise only: no rate random walk, and its upper bound σ(τ)√(3/τ) = N√3/τ at the longest τ
-        tau = out[axis]["rate_random_walk_bound_tau_s"]
+        tau = out[axis]["rate_random_walk_largest_consistent_tau_s"]
         assert out[axis]["rate_random_walk"] is None and out[axis]["ci"]["rate_random_walk"] is None
-        assert out[axis]["rate_random_walk_upper_bound"] == pytest.approx(sigma / np.sqrt(fs) * np.sqrt(3) / tau, rel=0.5)
+        assert out[axis]["rate_random_walk_largest_consistent"] == pytest.approx(sigma / np.sqrt(fs) * np.sqrt(3) / tau, rel=0.5)
+        assert out[axis]["rate_random_walk_bound"]["value"] > out[axis]["rate_random_walk_largest_consistent"]
     assert out["kalibr"]["gyroscope_noise_density"] == pytest.approx(sigma / np.sqrt(fs), rel=0.1)
     assert out["kalibr"]["gyroscope_random_walk"] is None
     assert main(["allan", str(path), "--sensor", "gyro", "--gyro-units", "counts"]) == 2

@@ -85,6 +85,12 @@ def test_held_out_error_against_the_tolerance(good_evidence) -> None:
     assert judge(with_held_out(0.02)).level == "not usable"
     failed = dataclasses.replace(good_evidence, held_out=HeldOut(float("nan"), 1e-4, 10, "10-fold", "too few poses"))
     assert judge(failed).level == "usable with care"
+    # no held-out error and an in-sample error already above the tolerance (the six-position fit of issue 28): said so
+    above = judge(dataclasses.replace(good_evidence, held_out=HeldOut(float("nan"), 1.14e-3, 6, "", "too few poses")))
+    held = next(r for r in above.reasons if r.topic == "held-out error")
+    assert above.level == "usable with care" and "above the tolerance of 1 mg" in held.text and "1.14 mg" in held.text
+    far = judge(dataclasses.replace(good_evidence, held_out=HeldOut(float("nan"), 0.02, 6, "", "too few poses")))
+    assert far.level == "not usable"
 
 
 def test_check_and_segmentation_verdicts() -> None:

@@ -180,7 +180,8 @@ class Diagnoser:
                     f"the baseline calibration is for data in {units} but the poses are in {poses.units}; "
                     f"give a baseline fitted on {poses.units} data, or the data in {units}"
                 )
-            return canonicalise(T), np.asarray(o, float), "the given calibration"
+            label = getattr(baseline, "label", None)  # a peer's calibration (imucal, imu_tk) is named by its tool
+            return canonicalise(T), np.asarray(o, float), f"the given {label} calibration" if label else "the given calibration"
         from optcal.families.accel.calibration import calibrate
 
         with self.reporter.stage(f"fitting the paper's model ({self.settings.method})"):
@@ -292,7 +293,7 @@ class Diagnoser:
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
             given_rms_g=rms(given.residuals), detection_limits=limits, outlier_limit=pose_limit, noise_model=noise,
-            sessions=stack,
+            sessions=stack, baseline_model=fitter.model(base).base,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
         noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)

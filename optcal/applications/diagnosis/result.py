@@ -20,7 +20,7 @@ from optcal.applications.diagnosis.selection import Step, TemperatureTimeDecisio
 from optcal.applications.diagnosis.sessions import SessionStack
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import ExtendedModel
-from optcal.core.model import AXES
+from optcal.core.model import AXES, LumpedModel
 from optcal.core.poses import PoseTable
 from optcal.core.stats import rms
 
@@ -68,6 +68,11 @@ class Diagnosis:
         Whether the given per-pose σ describes the scatter, and the extended noise model when not.
     sessions : SessionStack or None
         The sessions when several sessions of one sensor were diagnosed together.
+    baseline_model : LumpedModel or None
+        The baseline fit (the paper's model refitted on these poses) as a lumped model.
+    peer : PeerComparison or None
+        A peer's calibration given as the baseline (imucal, imu_tk) next to optcal's baseline fit
+        (:class:`optcal.applications.quality.peer.PeerComparison`, set by the caller).
     """
 
     poses: PoseTable
@@ -93,6 +98,8 @@ class Diagnosis:
     outlier_limit: OutlierLimit | None = None
     noise_model: NoiseModelCheck | None = None
     sessions: SessionStack | None = None
+    baseline_model: LumpedModel | None = None
+    peer: Any = None
 
     @property
     def n(self) -> int:
@@ -136,7 +143,6 @@ class Diagnosis:
         from optcal.families.caltypes.base import FitPoses
         from optcal.families.caltypes.extended import BiasRandomWalk, BiasRepeatability, ExtendedCalibration
         from optcal.families.caltypes.lumped import LumpedCalibration
-        from optcal.core.model import LumpedModel
 
         kept = self.kept
         temp = self.poses.temp[kept] if self.poses.temp is not None and self.regressors.has_temp else None
@@ -213,4 +219,5 @@ class Diagnosis:
             "selection": [s.to_dict() for s in self.steps],
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),
+            **({"peer_comparison": self.peer.to_dict()} if self.peer is not None else {}),
         }

@@ -3,8 +3,9 @@
 =============  =================================================================  ==========================
 format         what is written                                                    module
 =============  =================================================================  ==========================
-``ardupilot``  ``INS_ACCOFFS_*``, ``INS_ACCSCAL_*`` (+ ``INS_TCAL1_*``) param file  :mod:`.ardupilot`
-``px4``        ``CAL_ACC0_*OFF/*SCALE`` (+ ``TC_A0_*``) as ``param set`` lines      :mod:`.px4`
+``ardupilot``  ``INS_ACC*OFFS/SCAL``, ``INS_GYR*OFFS``, ids (+ ``INS_TCALn_*``)   :mod:`.ardupilot`
+``px4``        ``CAL_ACCn_*``, ``CAL_GYROn_*OFF``, ids (+ ``TC_An_*``), QGC file  :mod:`.px4`
+``px4-shell``  the same as ``param set`` lines                                    :mod:`.px4`
 ``kalibr``     ``imu.yaml`` noise model from an ``optcal allan --json`` result      :mod:`.kalibr`
 ``ros``        ``sensor_msgs/Imu`` linear-acceleration covariance                  :mod:`.ros`
 ``c``          a C99 header that applies the calibration (numbers baked in)        :mod:`.c_header`
@@ -33,9 +34,18 @@ from optcal.applications.export.base import ExportOptions, ExportResult
 EXPORTERS: dict[str, str] = {
     "ardupilot": "optcal.applications.export.ardupilot:export",
     "px4": "optcal.applications.export.px4:export",
+    "px4-shell": "optcal.applications.export.px4:export_shell",
     "kalibr": "optcal.applications.export.kalibr:export",
     "ros": "optcal.applications.export.ros:export",
     "c": "optcal.applications.export.c_header:export",
+    "imucal": "optcal.applications.export.imucal:export",
+    "kalibr-imu": "optcal.applications.export.kalibr_imu:export",
+    "openvins": "optcal.applications.export.kalibr_imu:export_openvins",
+    "basalt": "optcal.applications.export.basalt:export",
+    "imutk": "optcal.applications.export.imutk:export",
+    "vins": "optcal.applications.export.noise:export_vins",
+    "orbslam3": "optcal.applications.export.noise:export_orbslam3",
+    "okvis": "optcal.applications.export.noise:export_okvis",
 }
 
 
@@ -52,6 +62,8 @@ def read_allan(path: str | Path) -> dict[str, Any]:
     """An ``optcal allan --json`` result, checked to have the per-axis noise parameters."""
     p = Path(path)
     d = read_json(p, "Allan result file", hint=f"save one with optcal allan LOG --json > {p.name}")
-    if not all(isinstance(d.get(a), dict) for a in "xyz") or "log" not in d:
+    parts = [d.get("accelerometer"), d.get("gyroscope")] if d.get("sensor") == "both" else [d]
+    if not all(isinstance(part, dict) and "log" in part and all(isinstance(part.get(a), dict) for a in "xyz")
+               for part in parts):
         raise InputError(f"{p}: not an optcal allan --json result (no per-axis x, y, z entries)")
     return d

@@ -9,10 +9,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from optcal.core.model import STANDARD_GRAVITY
 from optcal.families.caltypes.base import FitPoses
 
 #: Default largest acceptable loss of a diagonal firmware model, g (5 mg).
 DEFAULT_MAX_LOSS_G: float = 5e-3
+#: Default rate at which a firmware's uncorrected gyroscope error is stated, °/s: a brisk turn of a
+#: hand-held or flying vehicle (the error grows in proportion; ``gyro_rate_deg_s`` states another).
+DEFAULT_GYRO_RATE_DEG_S: float = 100.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,40 @@ class ExportOptions:
         Topic of the IMU messages (``kalibr``).
     source : str
         Where the calibration came from (named in the file's comments).
+    device_id : int, optional
+        ``ardupilot``/``px4``: the accelerometer's device id (``INS_ACC_ID``, ``CAL_ACC0_ID``,
+        ``TC_A0_ID``); the firmware applies a calibration only to the device whose id it names.
+    gyro_device_id : int, optional
+        ``ardupilot``/``px4``, ``imu`` calibrations: the gyroscope's device id (``INS_GYR_ID``,
+        ``CAL_GYRO0_ID``); a different number from the accelerometer's, also on one chip.
+    instance : int
+        ``ardupilot``/``px4``: which IMU (0, 1 or 2) the parameters are for (``CAL_ACC1_*``,
+        ``INS_ACC2OFFS_*``, ...).
+    counts_per_dps : float, optional
+        ``ardupilot``/``px4``, a gyroscope in counts: the driver's sensitivity, counts per °/s.
+    gyro_rate_deg_s : float
+        ``ardupilot``/``px4``: the rate at which the gyroscope error the firmware cannot correct
+        is stated, °/s.
+    vehicle_id : int
+        ``px4``: the vehicle's MAVLink system id written in each line (QGroundControl refuses a
+        file saved from another system id).
+    recording : Segmentation, optional
+        ``ardupilot``/``px4``, ``imu`` calibrations: a segmented raw recording with gyro columns
+        (:class:`optcal.data.static.Segmentation`), across whose moves the gravity prediction of
+        the firmware's gyro model is compared with the full model's.
+    gyro_counts_per_rad_s : float, optional
+        The driver's gyro sensitivity (counts per rad/s) for a gyroscope calibrated in counts:
+        the VIO intrinsics (``kalibr-imu``, ``openvins``, ``basalt``) are in rad/s of the IMU topic.
+    gyro_counts_zero : float, optional
+        The raw gyro reading the driver subtracts (default: 32768 when the bias lies around the
+        unsigned 16-bit mid-scale, else 0).
+    gravity_m_s2 : float
+        m/s² per g of the calibration (its |ā| = 1 is the local gravity where it was recorded):
+        the VIO intrinsics and ``imutk`` are in m/s²; set the estimator's gravity to the same.
+    inflate : tuple of (float, float)
+        Factors applied to the noise densities (white) and the random walks (walk) of the noise
+        keys (``vins``, ``orbslam3``, ``okvis``, ``kalibr-imu``, ``openvins``, ``basalt``), written
+        into the file's comments.
     """
 
     counts_per_g: float | None = None
@@ -57,6 +95,17 @@ class ExportOptions:
     rate_hz: float | None = None
     rostopic: str = "/imu0"
     source: str = "a calibration"
+    device_id: int | None = None
+    gyro_device_id: int | None = None
+    instance: int = 0
+    counts_per_dps: float | None = None
+    gyro_rate_deg_s: float = DEFAULT_GYRO_RATE_DEG_S
+    vehicle_id: int = 1
+    recording: Any = None
+    gyro_counts_per_rad_s: float | None = None
+    gyro_counts_zero: float | None = None
+    gravity_m_s2: float = STANDARD_GRAVITY
+    inflate: tuple[float, float] = (1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -95,6 +144,9 @@ class ExportResult:
         optcal terms the format cannot hold (with the reason).
     notes : list of str
         What the user must know (units, frames, parameters optcal cannot fill in).
+    files : dict of str to str
+        Further files of the format (``imutk``: the gyroscope's ``.calib``), by the suffix added to
+        the output file's stem.
     """
 
     format: str
@@ -103,3 +155,4 @@ class ExportResult:
     mapped: list[str] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    files: dict[str, str] = field(default_factory=dict)

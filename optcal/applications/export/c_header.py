@@ -5,9 +5,14 @@
 to round-off: ``T (raw − o)`` for ``lumped``, ``W raw + V`` for ``sixpos_full``.  For
 ``extended`` the header also declares ``optcal_apply_accel_tt(raw, temp_c, t_s, out_g)``, the
 per-axis closed-form inversion of :func:`optcal.core.extended_model.invert_axis` followed by ``T y``;
-``optcal_apply_accel`` then applies it at the reference temperature and time.  The functions
-are ``static inline`` so that the header can be included in several translation units.  No
-validity-range check is made in C: the range is written in a comment.
+``optcal_apply_accel`` then applies it at the reference temperature and time.  For ``imu`` (an
+accelerometer and a gyroscope) the header also declares ``optcal_apply_gyro(raw, out_rad_s)``,
+``T_g (g − b_g)`` (Tedaldi 2014, eq. 9; :meth:`ImuCalibration.correct_gyro
+<optcal.families.gyro.result.ImuCalibration.correct_gyro>`), or with a g-sensitivity
+``optcal_apply_gyro(raw, raw_acc, out_rad_s)``, ``T_g (g − b_g − G_g ā)`` with ``ā`` the
+calibrated accelerometer sample.  The functions are ``static inline`` so that the header can be
+included in several translation units.  No validity-range check is made in C: the range is
+written in a comment.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from numpy.typing import NDArray
 from optcal.families.caltypes.base import Calibration, ValidityRangeWarning
 from optcal.families.caltypes.extended import ExtendedCalibration
 from optcal.families.caltypes.sixpos import SixPositionCalibration
+from optcal.families.gyro.result import ImuCalibration
 from optcal.core.extended_model import MAX_ORDER
 from optcal.applications.export.base import ExportOptions, ExportResult
 
@@ -90,6 +96,62 @@ def linear_body(cal: Calibration) -> list[str]:
     ]
 
 
+def imu_body(cal: ImuCalibration) -> list[str]:
+    """Constants and functions of an imu calibration: the accelerometer's ``T (a − o)`` and the gyroscope's."""
+    acc, gyro = cal.accelerometer, cal.gyro
+    G = gyro.g_sensitivity
+    lines = [
+        "/* out_g = T (raw - o) (Lu 2017, eq. 6) */",
+        f"static const double OPTCAL_T[3][3] = {c_array(acc.T)};",
+        f"static const double OPTCAL_O[3] = {c_array(acc.o)};",
+        "",
+        "static inline void optcal_apply_accel(const double raw[3], double out_g[3])",
+        "{",
+        "    const double d[3] = {raw[0] - OPTCAL_O[0], raw[1] - OPTCAL_O[1], raw[2] - OPTCAL_O[2]};",
+        "    for (int i = 0; i < 3; ++i) {",
+        "        out_g[i] = OPTCAL_T[i][0] * d[0] + OPTCAL_T[i][1] * d[1] + OPTCAL_T[i][2] * d[2];",
+        "    }",
+        "}",
+        "",
+        "/* out_rad_s = Tg (raw - bg" + (" - Gg out_g(raw_acc)" if G is not None else "")
+        + ") (Tedaldi 2014, eq. 9), rad/s in the calibrated accelerometer frame */",
+        f"static const double OPTCAL_TG[3][3] = {c_array(gyro.T)};",
+        f"static const double OPTCAL_BG[3] = {c_array(gyro.bias)};",
+    ]
+    if G is not None:
+        lines += [
+            f"static const double OPTCAL_GG[3][3] = {c_array(G)};",
+            "",
+            "static inline void optcal_apply_gyro(const double raw[3], const double raw_acc[3], double out_rad_s[3])",
+            "{",
+            "    double f[3], d[3];",
+            "    optcal_apply_accel(raw_acc, f);",
+            "    for (int i = 0; i < 3; ++i) {",
+            "        d[i] = raw[i] - OPTCAL_BG[i] - (OPTCAL_GG[i][0] * f[0] + OPTCAL_GG[i][1] * f[1] + OPTCAL_GG[i][2] * f[2]);",
+            "    }",
+        ]
+    else:
+        lines += [
+            "",
+            "static inline void optcal_apply_gyro(const double raw[3], double out_rad_s[3])",
+            "{",
+            "    const double d[3] = {raw[0] - OPTCAL_BG[0], raw[1] - OPTCAL_BG[1], raw[2] - OPTCAL_BG[2]};",
+        ]
+    return lines + [
+        "    for (int i = 0; i < 3; ++i) {",
+        "        out_rad_s[i] = OPTCAL_TG[i][0] * d[0] + OPTCAL_TG[i][1] * d[1] + OPTCAL_TG[i][2] * d[2];",
+        "    }",
+        "}",
+    ]
+
+
+def gyro_vector(cal: ImuCalibration, raw_acc: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A raw gyro sample reading a turn of (0.1, -0.2, 0.3) rad/s at the accelerometer sample ``raw_acc``, and its output."""
+    rate = np.array([0.1, -0.2, 0.3])  # rad/s: a slow turn about every axis at once
+    raw = cal.gyro.measure(rate, cal.correct(raw_acc) if cal.gyro.g_sensitivity is not None else None)[0]
+    return raw, cal.correct_gyro(raw, raw_acc)[0]
+
+
 def extended_body(cal: ExtendedCalibration) -> list[str]:
     """Constants and the two functions of an extended calibration."""
     model = cal.model
@@ -145,12 +207,19 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         if temp is None or t is None:  # impossible: sample_vector gives an extended calibration its reference values
             raise AssertionError("the test vector of an extended calibration has no temperature or time")
         call += f", temp_c = {c_number(temp)}, t_s = {c_number(t)}  (optcal_apply_accel_tt)"
+    imu = isinstance(cal, ImuCalibration)
     lines = [
-        f"/* optcal accelerometer calibration exported from {options.source}: {cal.describe()}.",
+        f"/* optcal {'IMU' if imu else 'accelerometer'} calibration exported from {options.source}: {cal.describe()}.",
         f" * raw in {cal.units}, out_g in g.  Generated by optcal export --format c.",
         f" * Test vector: {call}",
         f" *   -> out_g = {c_array(out)}",
     ]
+    if isinstance(cal, ImuCalibration):
+        raw_gyro, out_gyro = gyro_vector(cal, raw)
+        with_acc = ", raw_acc = the accelerometer's test vector" if cal.gyro.g_sensitivity is not None else ""
+        lines += [f" * Gyroscope: raw in {cal.gyro_units}, out_rad_s in rad/s (accelerometer frame).",
+                  f" * Gyro test vector: raw = {c_array(raw_gyro)}{with_acc}",
+                  f" *   -> out_rad_s = {c_array(out_gyro)}"]
     if isinstance(cal, ExtendedCalibration):
         v = cal.validity
         ranges = [f"{name} {span[0]:.6g}..{span[1]:.6g} {unit}" for name, span, unit in
@@ -158,7 +227,14 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         terms = ", ".join(f"{term.effect}({term.axis}, order {term.order})" for term in cal.terms) or "none"
         lines.append(f" * Terms: {terms}.  Fitted on: {'; '.join(ranges) or 'no range stored'} (not checked here).")
     lines += [" */", f"#ifndef {GUARD}", f"#define {GUARD}", "", "#include <math.h>", ""]
-    lines += extended_body(cal) if isinstance(cal, ExtendedCalibration) else linear_body(cal)
+    if isinstance(cal, ImuCalibration):
+        lines += imu_body(cal)
+        mapped = ["the whole accelerometer model T (a - o) (optcal_apply_accel)",
+                  "the whole gyroscope model T_g (g - b_g" + (" - G_g a)" if cal.gyro.g_sensitivity is not None else ")")
+                  + ": scale, misalignment, bias" + (", g-sensitivity" if cal.gyro.g_sensitivity is not None else "")
+                  + " (optcal_apply_gyro, rad/s)"]
+    else:
+        lines += extended_body(cal) if isinstance(cal, ExtendedCalibration) else linear_body(cal)
+        mapped = ["the whole model (optcal_apply_accel)"] + [f"{term.effect} on {term.axis}" for term in getattr(cal, "terms", ())]
     lines += ["", f"#endif /* {GUARD} */"]
-    mapped = ["the whole model"] + [f"{term.effect} on {term.axis}" for term in getattr(cal, "terms", ())]
     return ExportResult("c", "\n".join(lines) + "\n", None, mapped, [], [])

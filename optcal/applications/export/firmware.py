@@ -212,6 +212,52 @@ def measure_loss(cal: Calibration, model: DiagonalModel, options: ExportOptions,
     return report
 
 
+#: The IMU instances both firmwares name in their classic parameters (ArduPilot's first three IMUs,
+#: PX4's calibration slots 0-2).
+INSTANCES: tuple[int, ...] = (0, 1, 2)
+#: Device ids are unsigned 32-bit numbers that both firmwares store in an int32 parameter.
+DEVICE_ID_LIMIT: int = 2**32
+
+
+@dataclass(frozen=True)
+class Param:
+    """One firmware parameter: its name, its value and whether the firmware stores it as an int32."""
+
+    name: str
+    value: float
+    integer: bool = False
+
+    def text(self) -> str:
+        """The value as written: an integer's digits, a float to 9 significant digits (float32 exactly)."""
+        return str(int(self.value)) if self.integer else f"{self.value:.9g}"
+
+
+def per_axis(template: str, values: ArrayLike) -> list[Param]:
+    """One float parameter per axis: ``template`` with ``{axis}`` (X, Y, Z) filled in."""
+    return [Param(template.format(axis=axis), float(v)) for axis, v in zip("XYZ", np.asarray(values, dtype=float))]
+
+
+def device_id_param(name: str, device_id: int, what: str) -> tuple[Param, str | None]:
+    """The int32 parameter of an unsigned 32-bit device id, and a note when the two spellings differ."""
+    if not 0 < device_id < DEVICE_ID_LIMIT:
+        raise InputError(f"the {what} device id must be a positive 32-bit number, got {device_id}")
+    stored = device_id - DEVICE_ID_LIMIT if device_id >= DEVICE_ID_LIMIT // 2 else device_id
+    note = None if stored == device_id else f"{name} = {device_id} is written as the int32 the firmware stores, {stored}"
+    return Param(name, stored, integer=True), note
+
+
+@dataclass(frozen=True)
+class FirmwareNames:
+    """The parameter names of one IMU instance (``{axis}``: X, Y, Z) and of its thermal group."""
+
+    acc_offset: str
+    acc_scale: str
+    acc_id: str
+    gyro_offset: str
+    gyro_id: str
+    thermal: str
+
+
 @dataclass(frozen=True)
 class FirmwareFormat:
     """How one firmware's parameter file writes the per-axis model.
@@ -221,30 +267,47 @@ class FirmwareFormat:
     name : str
         The export format (``"ardupilot"``), named in the loss refusal and the result.
     header : tuple of str
-        The file's first lines; ``{source}`` is filled in with where the calibration came from.
-    offset_line, scale_line : str
-        :func:`per_axis` templates of one offset and one scale parameter.
+        The file's first comments; ``{source}``, ``{imu}`` (1, 2, 3) and the :class:`FirmwareNames`
+        fields are filled in.
+    names : callable
+        The :class:`FirmwareNames` of an instance (0, 1, 2).
     note : str
-        What the user must always know about the file (frames, ids optcal cannot fill in).
+        What the user must always know about the file (frames).
+    id_missing, gyro_id_missing : str
+        The notes when the accelerometer's (gyroscope's) device id is not given (names filled in).
+    gyro_note : str
+        What the user must know about the gyro offsets.
+    thermal_untouched : str
+        The note when the file writes no thermal terms (names filled in).
+    gyro_header : str
+        The comment saying how the firmware applies the gyro offsets (``imu`` calibrations).
     thermal_block : callable
-        The lines and notes of the thermal offset polynomial, from the model's :class:`ThermalOffset`.
+        ``(thermal, names, acc_id_param)`` → the parameters and notes of the thermal offset polynomial.
+    render : callable
+        ``(comments, params, options)`` → the file's text.
     """
 
     name: str
     header: tuple[str, ...]
-    offset_line: str
-    scale_line: str
+    names: Callable[[int], FirmwareNames]
     note: str
-    thermal_block: Callable[[ThermalOffset], tuple[list[str], list[str]]]
+    id_missing: str
+    gyro_id_missing: str
+    gyro_note: str
+    thermal_untouched: str
+    gyro_header: str
+    thermal_block: Callable[[ThermalOffset, FirmwareNames, "Param | None"], tuple[list[Param], list[str]]]
+    render: Callable[[list[str], list[Param], ExportOptions], str]
 
 
 def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareFormat) -> ExportResult:
     """The parameter file of ``firmware`` for ``cal``: its per-axis model, refused above ``options.max_loss_g``.
 
-    The file is the header (``{source}`` filled in), the loss figures, the zero reading subtracted
-    from counts (when one is) and every term the model cannot hold as comments, then the offsets
-    and scales, then the thermal block when the model has one.  The notes are the format's own
-    note, the zero reading's and the thermal block's.
+    The comments are the header, the loss figures, the zero reading subtracted from counts (when
+    one is) and every term the file cannot hold, with what it costs; the parameters are the
+    device ids (when given), the accelerometer's offsets and scales, the gyroscope's offsets (an
+    ``imu`` calibration, :mod:`.firmware_gyro`) and the thermal block (when the model has one).
+    The notes say what the firmware needs besides the file (device ids, its own settings).
 
     Parameters
     ----------
@@ -256,23 +319,71 @@ def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareF
     -------
     ExportResult
     """
+    from optcal.applications.export.firmware_gyro import gyro_offsets
+
+    if options.instance not in INSTANCES:
+        raise InputError(f"instance must be one of {', '.join(map(str, INSTANCES))} (the first, second or third IMU), "
+                         f"got {options.instance}")
+    names = firmware.names(options.instance)
+    fill = {"imu": options.instance + 1, "instance": options.instance,
+            **{k: v.replace("{axis}", "*") for k, v in names.__dict__.items()}}  # CAL_ACC0_*OFF in prose
     model = diagonal_model(cal, options)
     loss = measure_loss(cal, model, options, firmware.name)
-    lines = [line.format(source=options.source) for line in firmware.header] + [f"# {loss.describe()}"]
+    gyro = gyro_offsets(cal, options, model.raw_zero)
+    if gyro is None and (options.gyro_device_id is not None or options.counts_per_dps is not None):
+        raise InputError(f"gyro_device_id and counts_per_dps apply to an imu calibration (accelerometer and gyroscope); "
+                         f"this is a {cal.cal_type!r} calibration, which has no gyroscope")
+    if gyro is None and options.recording is not None:
+        raise InputError("a recording's moves measure a gyroscope's loss; this is a "
+                         f"{cal.cal_type!r} calibration, which has no gyroscope")
+    mapped = list(model.mapped) + (list(gyro.mapped) if gyro is not None else [])
+    dropped = list(model.dropped) + (list(gyro.dropped) if gyro is not None else [])
+    comments = [line.format(source=options.source, **fill) for line in firmware.header]
+    comments += [firmware.gyro_header.format(**fill)] if gyro is not None else []
+    comments.append(loss.describe())
+    if gyro is not None and gyro.moves_line is not None:
+        comments.append(gyro.moves_line)
     if model.zero_reason:
-        lines.append(f"# {model.zero_reason}")
-    lines += [f"# not exported: {d}" for d in model.dropped]
-    lines += per_axis(firmware.offset_line, model.offset_ms2) + per_axis(firmware.scale_line, model.scale)
+        comments.append(model.zero_reason)
+    comments += [f"not exported: {d}" for d in dropped]
     notes = [firmware.note]
+    params: list[Param] = []
+    acc_id = None
+    if options.device_id is not None:
+        acc_id, id_note = device_id_param(names.acc_id, options.device_id, "accelerometer")
+        params.append(acc_id)
+        mapped.append(f"accelerometer device id ({names.acc_id} = {options.device_id})")
+        notes += [id_note] if id_note else []
+    else:
+        notes.append(firmware.id_missing.format(**fill))
+    params += per_axis(names.acc_offset, model.offset_ms2) + per_axis(names.acc_scale, model.scale)
     if model.zero_reason:
         notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
+    if gyro is not None:
+        if options.gyro_device_id is not None:
+            gyro_id, id_note = device_id_param(names.gyro_id, options.gyro_device_id, "gyroscope")
+            params.append(gyro_id)
+            mapped.append(f"gyroscope device id ({names.gyro_id} = {options.gyro_device_id})")
+            notes += [id_note] if id_note else []
+        else:
+            notes.append(firmware.gyro_id_missing.format(**fill))
+        params += per_axis(names.gyro_offset, gyro.offset_rad_s)
+        notes.append(firmware.gyro_note.format(**fill))
+        notes += [gyro.moves_line] if gyro.moves_line is not None else []
     if model.thermal is not None:
-        thermal_lines, thermal_notes = firmware.thermal_block(model.thermal)
-        lines += thermal_lines
+        thermal_params, thermal_notes = firmware.thermal_block(model.thermal, names, acc_id)
+        params += thermal_params
         notes += thermal_notes
-    return ExportResult(firmware.name, "\n".join(lines) + "\n", loss, list(model.mapped), list(model.dropped), notes)
+    else:
+        notes.append(firmware.thermal_untouched.format(**fill))
+    return ExportResult(firmware.name, firmware.render(comments, params, options), loss, mapped, dropped, notes)
 
 
-def per_axis(template: str, values: ArrayLike) -> list[str]:
-    """One line per axis: ``template`` with ``{axis}`` (X, Y, Z) and ``{value}`` filled in."""
-    return [template.format(axis=axis, value=float(v)) for axis, v in zip("XYZ", np.asarray(values, dtype=float))]
+def render_lines(prefix: str, separator: str) -> Callable[[list[str], list[Param], ExportOptions], str]:
+    """A renderer writing ``# comment`` lines, then ``prefix NAME separator VALUE`` per parameter."""
+
+    def render(comments: list[str], params: list[Param], options: ExportOptions) -> str:
+        lines = [f"# {c}" for c in comments] + [f"{prefix}{p.name}{separator}{p.text()}" for p in params]
+        return "\n".join(lines) + "\n"
+
+    return render

@@ -8,14 +8,16 @@ bias diffusion); both must be positive.  optcal's Allan result gives the velocit
 ``N`` in m/s/√s (= m/s²/√Hz) and the rate random walk ``K`` in m/s²/√s (= m/s³/√Hz) per axis
 (Yin 2014; :mod:`optcal.families.noise.allan`): the largest over the axes is written, each axis in a comment.
 A log too short to show the rate random walk's +1/2 slope has no ``K``; with
-``ExportOptions.random_walk_bound`` the Allan result's upper bound ``K ≤ min_τ σ(τ)·√(3/τ)``
-(reached near the longest τ) is written instead, labelled as a bound in the file and the notes.
+``ExportOptions.random_walk_bound`` the Allan result's one-sided 95 % confidence bound is written
+instead (``K ≤ σ_up(τ_L)·√(3/τ_L)``, σ_up the χ² upper confidence limit of the Allan deviation at
+the longest τ with Greenhall's equivalent degrees of freedom,
+:func:`optcal.families.noise.allan.rate_random_walk_confidence_bound`), labelled as a bound in the
+file and the notes.
 The gyroscope keys ``gyroscope_noise_density`` (rad/s/√Hz) and ``gyroscope_random_walk``
-(rad/s²/√Hz) come from an ``optcal allan --sensor gyro --json`` result when one is given
-(``gyro_allan``; the angle random walk and the rate random walk of the largest axis, as its
-``kalibr`` entry gives them, :meth:`optcal.families.noise.analysis.AllanAnalysis.kalibr`; the
-rate random walk's bound with ``random_walk_bound``, as for the accelerometer), else they are
-left as comments.
+(rad/s²/√Hz) come from the gyroscope's Allan result: the ``gyroscope`` half of an
+``optcal allan --sensor both --json`` result, or an ``optcal allan --sensor gyro --json`` result
+(``gyro_allan``); the angle random walk and the rate random walk of the largest axis (its bound
+with ``random_walk_bound``, as for the accelerometer).  Without one they are left as comments.
 """
 
 from __future__ import annotations
@@ -40,19 +42,44 @@ def update_rate(allan: dict, options: ExportOptions) -> float:
     return float(rate)
 
 
+def split_allan(options: ExportOptions) -> tuple[dict | None, dict | None]:
+    """The accelerometer's and the gyroscope's Allan results of ``options`` (either may be None).
+
+    ``options.allan`` is an accelerometer result, or an ``optcal allan --sensor both`` result
+    holding both; ``options.gyro_allan`` a gyroscope result.
+
+    Raises
+    ------
+    InputError
+        A gyroscope result given as ``allan``, or the gyroscope given twice.
+    """
+    acc, gyro = options.allan, options.gyro_allan
+    if acc is not None and acc.get("sensor") == "both":
+        if gyro is not None:
+            raise InputError("allan already holds the gyroscope (optcal allan --sensor both): drop gyro_allan")
+        acc, gyro = acc["accelerometer"], acc["gyroscope"]
+    if acc is not None and acc.get("sensor") == "gyro":
+        raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan "
+                         "(or one optcal allan LOG --sensor both --json result as allan)")
+    if gyro is not None and gyro.get("sensor") != "gyro":
+        raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json "
+                         "(or --sensor both, passed as allan)")
+    return acc, gyro
+
+
 def random_walk_per_axis(allan: dict, random_walk_bound: bool, key: str,
                          result: str = "the Allan result") -> tuple[dict[str, float], list[str]]:
-    """The rate random walk per axis of an Allan result, and the axes where it is only the upper bound.
+    """The rate random walk per axis of an Allan result, and the axes where it is only the confidence bound.
 
     Parameters
     ----------
     allan : dict
         An ``optcal allan --json`` result, either sensor.
     random_walk_bound : bool
-        Write the result's ``rate_random_walk_upper_bound`` on axes whose log shows no +1/2 slope
-        (``K ≤ min_τ σ(τ)·√(3/τ)``), instead of leaving them out.
+        Write the result's ``rate_random_walk_bound`` (the one-sided confidence bound from the
+        longest τ) on axes whose log shows no +1/2 slope, instead of leaving them out.
     key : str
-        The Kalibr key the value goes to (named in the refusal).
+        The key the value goes to (named in the refusal).
     result : str
         How the refusal names the result.
 
@@ -64,14 +91,14 @@ def random_walk_per_axis(allan: dict, random_walk_bound: bool, key: str,
     walk = axis_values(allan, "rate_random_walk")
     bounded = [a for a in AXIS_NAMES if a not in walk]
     if bounded and random_walk_bound:
-        bounds = axis_values(allan, "rate_random_walk_upper_bound")
-        if any(a not in bounds for a in bounded):
-            raise InputError(f"{result} has no rate_random_walk_upper_bound; run optcal allan again to get one")
-        walk.update({a: bounds[a] for a in bounded})
+        if any(not isinstance(allan[a].get("rate_random_walk_bound"), dict) for a in bounded):
+            raise InputError(f"{result} has no rate_random_walk_bound (an older optcal wrote it); "
+                             "run optcal allan again to get one")
+        walk.update({a: float(allan[a]["rate_random_walk_bound"]["value"]) for a in bounded})
     elif not walk:
         raise InputError(
             f"{result} has no rate random walk on any axis (the log is too short to show the +1/2 slope); "
-            f"Kalibr needs {key} > 0: record a longer static log, or pass random_walk_bound=True "
+            f"the estimator needs {key} > 0: record a longer static log, or pass random_walk_bound=True "
             "to write the upper bound the log allows"
         )
     else:
@@ -80,15 +107,18 @@ def random_walk_per_axis(allan: dict, random_walk_bound: bool, key: str,
 
 
 def bound_note(allan: dict, key: str, bounded: list[str]) -> str:
-    """The note saying that ``key`` is an upper bound on the axes ``bounded``, with the τ that sets each."""
-    taus = ", ".join(f"{a} at tau {allan[a]['rate_random_walk_bound_tau_s']:.4g} s" for a in bounded)
+    """The note saying that ``key`` is an upper confidence bound on the axes ``bounded``, with the τ of each."""
+    first = allan[bounded[0]]["rate_random_walk_bound"]
+    taus = ", ".join(f"{a} at tau {allan[a]['rate_random_walk_bound']['tau_s']:.4g} s" for a in bounded)
     return (f"{key} is an upper bound, not a measurement, on axes {', '.join(bounded)}: the log "
-            f"shows no +1/2 slope, so K <= sigma(tau)*sqrt(3/tau) ({taus}); a longer static log measures it")
+            f"shows no +1/2 slope, so K <= sigma_up(tau)*sqrt(3/tau), sigma_up the {first['confidence']:.0%} "
+            f"one-sided confidence limit of the Allan deviation at the longest tau ({taus}); "
+            "a longer static log measures it")
 
 
 def gyroscope_lines(gyro_allan: dict, random_walk_bound: bool = False) -> tuple[list[str], list[str]]:
     """The Kalibr gyroscope keys from an ``optcal allan --sensor gyro --json`` result, each axis in a comment, and notes."""
-    if gyro_allan.get("sensor") != "gyro" or not isinstance(gyro_allan.get("kalibr"), dict):
+    if gyro_allan.get("sensor") != "gyro":
         raise InputError("gyro_allan is not a gyro Allan result: save one with optcal allan LOG --sensor gyro --json")
     arw = axis_values(gyro_allan, "angle_random_walk")
     if not arw or not max(arw.values()) > 0:
@@ -107,15 +137,15 @@ def gyroscope_lines(gyro_allan: dict, random_walk_bound: bool = False) -> tuple[
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
-    if options.allan is None:
-        raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result)")
-    if options.allan.get("sensor") == "gyro":
-        raise InputError("allan is a gyro Allan result: pass it as gyro_allan, and the accelerometer's as allan")
-    density = axis_values(options.allan, "velocity_random_walk")
+    acc_allan, gyro_allan = split_allan(options)
+    if acc_allan is None:
+        raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result); "
+                         "optcal allan LOG --sensor both --json gives both sensors")
+    density = axis_values(acc_allan, "velocity_random_walk")
     if not density:
         raise InputError("the Allan result has no velocity random walk on any axis; Kalibr needs accelerometer_noise_density > 0")
-    walk, bounded = random_walk_per_axis(options.allan, options.random_walk_bound, "accelerometer_random_walk")
-    rate = update_rate(options.allan, options)
+    walk, bounded = random_walk_per_axis(acc_allan, options.random_walk_bound, "accelerometer_random_walk")
+    rate = update_rate(acc_allan, options)
 
     def per_axis(values: dict[str, float]) -> str:
         return ", ".join(f"{a} {v:.4g}" for a, v in values.items())
@@ -135,9 +165,9 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     mapped = ["Allan velocity random walk (noise density)", "Allan rate random walk (random walk)"]
     notes: list[str] = []
     if bounded:
-        notes.append(bound_note(options.allan, "accelerometer_random_walk", bounded))
-    if options.gyro_allan is not None:
-        gyro_lines, gyro_notes = gyroscope_lines(options.gyro_allan, options.random_walk_bound)
+        notes.append(bound_note(acc_allan, "accelerometer_random_walk", bounded))
+    if gyro_allan is not None:
+        gyro_lines, gyro_notes = gyroscope_lines(gyro_allan, options.random_walk_bound)
         lines += gyro_lines
         notes += gyro_notes
         mapped += ["gyro Allan angle random walk (gyroscope noise density)",
@@ -146,5 +176,9 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
         lines += ["# gyroscope_noise_density: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s/sqrt(Hz))",
                   "# gyroscope_random_walk: not given (optcal allan LOG --sensor gyro --json); fill in (rad/s^2/sqrt(Hz))"]
         notes.append("Kalibr also needs gyroscope_noise_density and gyroscope_random_walk: give an "
-                     "optcal allan --sensor gyro --json result (gyro_allan) or fill them in")
-    return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, [], notes)
+                     "optcal allan --sensor both --json result (allan), or a --sensor gyro one (gyro_allan), "
+                     "or fill them in")
+    dropped = [f"the calibration itself ({cal.describe()}: biases, scales, misalignment): Kalibr's imu.yaml holds "
+               "only the noise model (--format kalibr-imu writes the intrinsics)",
+               "bias instability (Kalibr's noise model has no such term)"]
+    return ExportResult("kalibr", "\n".join(lines) + "\n", None, mapped, dropped, notes)

@@ -80,11 +80,18 @@ class Prior:
 
     @classmethod
     def load(cls, path: str) -> "Prior":
-        """A saved lumped calibration (``optcal calibrate -o``; read by :func:`optcal.families.calibration_files.load`)."""
+        """A saved lumped calibration (``optcal calibrate -o``; read by :func:`optcal.families.calibration_files.load`).
+
+        Another tool's calibration (imucal's JSON, imu_tk's ``.calib``) is planned for through
+        its lumped part (the same norms, :meth:`PeerCalibration.lumped
+        <optcal.families.caltypes.peer.PeerCalibration.lumped>`): it holds no other terms.
+        """
         from optcal.families.calibration_files import load
         from optcal.families.caltypes import LumpedCalibration
 
         cal = load(path)
+        if cal.cal_type == "peer":
+            return cls(cal.lumped().model, cal.units, f"{path}: {cal.describe()}; planned for through its lumped part")
         if not isinstance(cal, LumpedCalibration):
             raise InputError(
                 f"{path}: a {cal.cal_type} calibration; poses are planned for the lumped model, so give a lumped "

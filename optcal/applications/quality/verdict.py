@@ -148,9 +148,14 @@ def _determination(ev: Evidence) -> list[Reason]:
 def _held_out(ev: Evidence, tol_g: float) -> Reason:
     ho = ev.held_out
     if not ho.available:
+        head = f"The error on poses not used in the fit could not be measured ({ho.failure}); the in-sample rms is {_mg(ho.rms_in_sample_g)}"
+        # an in-sample error is optimistic for new data: above the tolerance on the fit's own poses, it fails it
+        beyond = _beyond_tolerance(head + ", on the poses of the fit itself", ho.rms_in_sample_g, tol_g, "held-out error")
+        if beyond is not None:
+            return beyond
         return Reason("usable with care", "held-out error",
-                      f"The error on poses not used in the fit could not be measured ({ho.failure}); "
-                      f"the in-sample rms is {_mg(ho.rms_in_sample_g)}, which says little about new data.")
+                      f"{head}, within the tolerance of {_mg(tol_g)} but on the fit's own poses, which says little "
+                      "about new data.")
     floor = ev.noise_floor_g
     vs_floor = (f", {ho.rms_g / floor:.3g}× the noise floor of {_mg(floor)}" if np.isfinite(floor) and floor > 0
                 else " (no per-pose noise known, so no noise floor to compare with)")

@@ -25,6 +25,7 @@ ESTIMATORS: dict[str, str] = {
     "exact": "optcal.families.accel.exact:ExactMaximumLikelihood",
     "gd": "optcal.families.accel.gradient_descent:GradientDescent",
     "sixpos": "optcal.families.accel.sixpos:SixPositionLeastSquares",
+    "nominal": "optcal.families.accel.nominal:NominalOrientationML",
 }
 DEFAULT_METHOD = "mle"
 METHOD_CHOICES: tuple[str, ...] = ("default", *ESTIMATORS)

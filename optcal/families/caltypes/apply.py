@@ -38,9 +38,9 @@ _G_FACTOR: dict[str, float] = {"g": 1.0, "m/s^2": STANDARD_GRAVITY}
 
 @runtime_checkable
 class CorrectsGyro(Protocol):
-    """A calibration that corrects the gyro columns as well (cal_type imu, :mod:`optcal.families.gyro.result`)."""
+    """A calibration that corrects the gyro columns as well (cal_type imu, :mod:`optcal.families.gyro.result`; a peer's with a gyro)."""
 
-    gyro_units: str
+    gyro_units: str | None
 
     def correct_gyro(self, gyro: ArrayLike, acc: ArrayLike | None = None) -> NDArray[np.float64]:
         """Body rate in rad/s for raw gyro samples (and raw ``acc``)."""
@@ -70,6 +70,9 @@ class AppliedFile:
         Metadata lines above the CSV header, written back above it.
     time_reason : str
         How the time column was read (unit and scale), when there is one.
+    gravity_m_s2 : float
+        m/s² per g of the m/s² output: the standard gravity, or a peer calibration's own g (its
+        m/s² are then the peer's own output).
     """
 
     frame: Any
@@ -83,6 +86,7 @@ class AppliedFile:
     range_notes: list[str] = field(default_factory=list)
     header: dict[str, str] = field(default_factory=dict)
     time_reason: str = ""
+    gravity_m_s2: float = STANDARD_GRAVITY
 
     @property
     def n_rows(self) -> int:
@@ -182,6 +186,10 @@ def apply_to_file(
     status[~usable] = "excluded"
     status[~finite] = "non_finite"
     factor, word = OUTPUT_UNITS[units_out]
+    # a peer's calibration (imucal, imu_tk) outputs m/s² at its own g: written as the peer writes them
+    gravity = float(getattr(cal, "gravity_m_s2", STANDARD_GRAVITY))
+    if units_out == "m/s^2":
+        factor = gravity
 
     if src.file_type in ("csv", "parquet"):
         frame, header = read_frame(path) if src.file_type == "csv" else (read_parquet(path), {})
@@ -205,7 +213,7 @@ def apply_to_file(
     frame = frame.drop(columns=names)
     for k, axis in enumerate("xyz"):
         frame.insert(position + k, f"a{axis}_{word}", corrected[:, k] * factor)
-    if isinstance(cal, CorrectsGyro) and src.has(*GYRO):  # cal_type imu: gyro columns to rad/s as well
+    if isinstance(cal, CorrectsGyro) and getattr(cal, "has_gyro", True) and src.has(*GYRO):  # imu, peer: gyro to rad/s
         from optcal.core.units import normalise_units
 
         if src.gyro_units is not None and normalise_units(src.gyro_units, "gyro") != cal.gyro_units:
@@ -221,7 +229,7 @@ def apply_to_file(
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
     return AppliedFile(
         frame, decision.value, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
-        time_reason if t is not None else "",
+        time_reason if t is not None else "", gravity,
     )
 
 

@@ -41,8 +41,10 @@ three lines of the fit: N is the −1/2 line at τ = 1 s, B the flat line divide
 +1/2 line at τ = 3 s.  A term is reported as present when its coefficient exceeds twice its
 standard error; otherwise rate random walk is ``None`` and bias instability is the upper bound
 ``σ_min / 0.664`` (the paper's reading), with a note saying so.  Every term is non-negative, so
-the curve bounds the rate random walk from above whether or not it shows it:
-``K ≤ min_τ σ(τ) √(3/τ)`` (:func:`rate_random_walk_bound`).
+the curve bounds the rate random walk from above whether or not it shows it: the largest K
+consistent with the measured curve is ``min_τ σ̂(τ) √(3/τ)`` (:func:`rate_random_walk_bound`, a
+point value), and the bound at a stated confidence reads the upper confidence limit of σ(τ) at
+the longest τ instead (:func:`rate_random_walk_confidence_bound`, χ² with Greenhall's edf).
 
 Units: parameters are kept in the log's units ``u`` (g, m/s², rad/s, °/s or counts): N in
 u·√s (= u/√Hz), B in u, K in u/√s.  The sensor converts them to SI
@@ -61,7 +63,7 @@ import allantools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from optcal.errors import InputError
 from optcal.families.noise.sensors import ACCELEROMETER, NoiseSensor
@@ -294,16 +296,70 @@ class NoiseParameters:
 
 
 def rate_random_walk_bound(taus: ArrayLike, adev: ArrayLike) -> tuple[float, float]:
-    """The largest rate random walk an Allan curve allows, and the τ that sets it.
+    """The largest rate random walk consistent with the measured Allan curve, and the τ that sets it.
 
     Every noise term adds to the Allan variance, so the +½ line ``K² τ/3`` (the term of
     :meth:`NoiseParameters.model_adev`) lies below the curve at every τ: ``K ≤ σ(τ) √(3/τ)``, the
     tightest at the τ where that is least (usually the longest).  Returns ``(K_max, τ)``.
+
+    This reads the *estimated* σ(τ) as if it were exact: a point value, not a confidence bound
+    (the estimate at the longest τ rests on a few clusters and may lie well below the true
+    σ(τ)).  :func:`rate_random_walk_confidence_bound` is the bound at a stated confidence.
     """
     t, a = np.asarray(taus, dtype=float), np.asarray(adev, dtype=float)
     bounds = a * np.sqrt(3.0 / t)
     k = int(np.argmin(bounds))
     return float(bounds[k]), float(t[k])
+
+
+#: One-sided confidence of :func:`rate_random_walk_confidence_bound` (what ``optcal allan`` reports).
+RRW_BOUND_CONFIDENCE: float = 0.95
+
+
+@dataclass(frozen=True)
+class RandomWalkBound:
+    """A one-sided confidence bound of the rate random walk from the longest τ of an Allan curve.
+
+    Attributes
+    ----------
+    value : float
+        ``K_up``, input units/√s: ``K ≤ K_up`` at :attr:`confidence`.
+    confidence : float
+        One-sided confidence level.
+    tau_s : float
+        The τ it is read at (the curve's longest, chosen before looking at the data).
+    edf : float
+        Greenhall's equivalent degrees of freedom of σ̂²(τ) there.
+    adev_upper : float
+        The upper confidence limit of σ(τ) there, input units.
+    """
+
+    value: float
+    confidence: float
+    tau_s: float
+    edf: float
+    adev_upper: float
+
+    def to_dict(self, factor: float = 1.0) -> dict[str, float]:
+        """JSON-safe, values multiplied by ``factor`` (a unit change)."""
+        return {"value": self.value * factor, "confidence": self.confidence, "tau_s": self.tau_s,
+                "edf": self.edf, "adev_upper": self.adev_upper * factor}
+
+
+def rate_random_walk_confidence_bound(curve: AllanCurve, confidence: float = RRW_BOUND_CONFIDENCE) -> RandomWalkBound:
+    """The rate random walk's upper bound at one-sided ``confidence``, from the curve's longest τ.
+
+    ``edf · σ̂²(τ) / σ²(τ)`` is χ² with ``edf`` degrees of freedom (NIST SP 1065, section 5.3;
+    ``edf`` Greenhall's, :attr:`AllanCurve.edf`), so ``σ(τ) ≤ σ̂(τ) √(edf / χ²_{1−p}(edf))`` with
+    probability ``p``; every noise term adds to the Allan variance, so ``K² τ/3 ≤ σ²(τ)`` and
+    ``K ≤ σ_up(τ) √(3/τ)`` with at least that probability.  The τ is the longest, fixed in advance
+    (taking the least over every τ would need a multiple-comparison correction).
+    """
+    if not 0.0 < confidence < 1.0:
+        raise InputError(f"the confidence of the rate random walk bound must lie in (0, 1), got {confidence}")
+    tau, adev, edf = float(curve.taus[-1]), float(curve.adev[-1]), float(max(curve.edf[-1], 1.0))
+    upper = adev * math.sqrt(edf / float(chi2.ppf(1.0 - confidence, edf)))
+    return RandomWalkBound(upper * math.sqrt(3.0 / tau), float(confidence), tau, edf, upper)
 
 
 def _design(taus: NDArray[np.float64], terms: list[int]) -> NDArray[np.float64]:

@@ -25,6 +25,7 @@ from optcal.families.noise.allan import (
     allan_deviation,
     fit_noise_parameters,
     rate_random_walk_bound,
+    rate_random_walk_confidence_bound,
 )
 from optcal.families.noise.sensors import ACCELEROMETER, NoiseSensor
 
@@ -89,9 +90,12 @@ class AllanAnalysis:
         gyroscope's also ``"sensor": "gyro"`` and ``"kalibr"``, :meth:`kalibr`); each axis has the
         noise density (:attr:`NoiseSensor.noise_density_name`), ``bias_instability``,
         ``rate_random_walk`` (or None), ``ci`` and ``notes``; ``log`` gives the rate, sample count
-        and duration.  ``rate_random_walk_upper_bound`` (with ``rate_random_walk_bound_tau_s``) is
-        the largest K the measured curve allows: every term of σ²(τ) is non-negative, so
-        K²τ/3 ≤ σ²(τ) at every τ and K ≤ min_τ σ(τ)·√(3/τ), reached near the longest τ.
+        and duration.  Two figures bound the rate random walk whether or not the log shows it
+        (every term of σ²(τ) is non-negative, so K²τ/3 ≤ σ²(τ) at every τ):
+        ``rate_random_walk_largest_consistent`` (with ``..._tau_s``) is ``min_τ σ̂(τ)·√(3/τ)``, the
+        largest K the *measured* curve allows (a point value, not a confidence bound), and
+        ``rate_random_walk_bound`` the one-sided 95 % confidence bound from the upper confidence
+        limit of σ(τ) at the longest τ (:func:`~optcal.families.noise.allan.rate_random_walk_confidence_bound`).
         """
         sensor = self.sensor
         out: dict[str, Any] = {} if sensor.summary_tag is None else {"sensor": sensor.summary_tag}
@@ -101,13 +105,14 @@ class AllanAnalysis:
             out["kalibr"] = {k: (v if np.isfinite(v) else None) for k, v in self.kalibr().items()}
         for axis, p in self.si_parameters().items():
             curve = self.curves[axis]
-            k_bound, at_tau = rate_random_walk_bound(curve.taus, curve.adev)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
+            k_largest, at_tau = rate_random_walk_bound(curve.taus, curve.adev)  # K²τ/3 ≤ σ²(τ) (Yin 2014, Table 1)
             entry: dict[str, Any] = {
                 sensor.noise_density_name: p.noise_density,
                 "bias_instability": p.bias_instability,
                 "rate_random_walk": p.rate_random_walk,
-                "rate_random_walk_upper_bound": k_bound * self.si_per_unit,
-                "rate_random_walk_bound_tau_s": at_tau,
+                "rate_random_walk_largest_consistent": k_largest * self.si_per_unit,
+                "rate_random_walk_largest_consistent_tau_s": at_tau,
+                "rate_random_walk_bound": rate_random_walk_confidence_bound(curve).to_dict(self.si_per_unit),
             }
             if sensor.bound_flag_beside_values:
                 entry["bias_instability_is_upper_bound"] = p.bias_instability_bound
@@ -130,14 +135,18 @@ class AllanAnalysis:
                 value, name = getattr(p, parameter), sensor.summary_name(parameter)
                 label = name.replace("_", " ")
                 if value is None:
-                    lines.append(f"    {label:<22s} not present")
+                    k_bound = rate_random_walk_confidence_bound(self.curves[axis])
+                    k_up = k_bound.value * self.si_per_unit
+                    lines.append(f"    {label:<22s} not present; K <= {k_up:.4g} {sensor.si_units[name]} at "
+                                 f"{k_bound.confidence:.0%} confidence (sigma's upper limit at tau = {k_bound.tau_s:.4g} s)")
                     continue
                 shown = ", ".join(f"{value * f:.4g} {u}" for u, f in sensor.display_units[name])
                 bound = " (upper bound)" if parameter == "bias_instability" and p.bias_instability_bound else ""
                 lines.append(f"    {label:<22s} {value:.4g} {sensor.si_units[name]} = {shown}{bound}")
             lines.extend(f"    note: {n}" for n in p.notes)
         if sensor.kalibr_keys is not None:
-            lines.append("Kalibr: " + ", ".join(f"{k} {v:.4g}" for k, v in self.kalibr().items()))
+            lines.append("Kalibr: " + ", ".join(f"{k} {v:.4g}" if np.isfinite(v) else f"{k} not present"
+                                             for k, v in self.kalibr().items()))
         return "\n".join(lines)
 
 
