@@ -374,6 +374,7 @@ class _RestModel:
         self.block = block
         self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
         self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
+        self.dwell_blocks = max(1, int(np.ceil(s.min_dwell_s * rate / block)))
         b.var_ref = rm.local_noise(b.var, b.joined, self.half_width)
         self.valid = b.joined[1:]
         self.dof = b.n[1:] + b.n[:-1] - 2.0
@@ -479,10 +480,10 @@ class _RestModel:
         out: list[tuple[int, int]] = []
         total = np.maximum(b.var.sum(axis=1), np.finfo(float).tiny)
         for k0, k1 in runs:
-            if k1 - k0 < 3:
-                out.append((k0, k1))
-                continue
-            level = float(np.quantile(total[k0:k1], rm.QUIET_PAIRS_QUANTILE))
+            # the quieter blocks of the run and of a dwell on either side: a short stretch of a move's tail is
+            # measured against the rest it settles into
+            w = self.dwell_blocks
+            level = float(np.quantile(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE))
             calm = np.log(total[k0:k1] / level) <= self.var_limit
             starts, stops = true_runs(calm)
             out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
@@ -531,12 +532,12 @@ class _RestModel:
         """
         b = self.b
         tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
-        if dof <= 0:
-            return False
+        if dof <= 0:  # too few blocks for batches: the blocks' own means are the batch means
+            spread = float(np.linalg.norm(b.mean[k0:k1].max(axis=0) - b.mean[k0:k1].min(axis=0)))
         noise = SAME_POSE_SAMPLE_SIGMAS * float(np.sqrt(np.sum(np.median(b.var[k0:k1], axis=0))))
         pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
         k = self.s.drift_threshold
-        trending = tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
+        trending = dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
         return bool(trending or spread > max(noise, pose) * k)
 
     def turns(self, k0: int, k1: int) -> bool:
