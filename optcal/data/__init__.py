@@ -166,6 +166,7 @@ def load_with_segmentation(
         rec = recording_from_source(src, decisions)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
         seg = detect_static(rec, settings)  # segmentation
+        decisions.warnings.extend(seg.override_warnings())  # an override says what it assumes, on the error path too
         table = seg.pose_table()
         # the units and columns decisions, checked on the poses and their noise
         check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])

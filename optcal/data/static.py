@@ -169,6 +169,20 @@ class Segmentation:
     joined: int = 0
     evidence: dict[str, float] = field(default_factory=dict)
 
+    def override_warnings(self) -> list[str]:
+        """What each flag that loosened a test of the rest model assumes (printed as warnings)."""
+        s, out = self.settings, []
+        if not s.use_gyro and self.recording.gyro is not None:
+            out.append("--no-gyro-gate: the gyro is not evidence of motion; a turn about the vertical, which the "
+                       "accelerometer does not see, passes as a rest")
+        for value, flag, what in ((s.threshold, "--static-threshold", "steps between block means"),
+                                  (s.gyro_threshold, "--gyro-threshold", "gyro rates off the bias and orientation wobble"),
+                                  (s.drift_threshold, "--drift-threshold", "a creep of a stretch's mean")):
+            if value > 1:
+                out.append(f"{flag} {value:g}: {what} up to {value:g}× the test's critical value are taken for noise "
+                           f"(a false-alarm probability far below {s.false_alarm:g}); a slow motion may pass as a rest")
+        return out
+
     @property
     def n_used(self) -> int:
         return int(sum(iv.n_samples for iv in self.intervals))
@@ -233,11 +247,18 @@ def no_static_message(seg: Segmentation) -> str:
                        f"{np.degrees(np.sqrt(2 * WOBBLE_SHRINK)):.2g}° rms by the gyro (a pose mean would shrink by more than "
                        f"{WOBBLE_SHRINK * 1e3:g} mg: --gyro-threshold N accepts N times more)")
     if ev.get(LOUD_STRETCHES):
-        reasons.append(f"{ev[LOUD_STRETCHES]} still stretch(es) noisier than {MAX_REST_NOISE_G:g} g per sample "
-                       "(vibration, or columns that are not an accelerometer: --columns)")
+        reasons.append(f"{ev[LOUD_STRETCHES]} still stretch(es) noisier than {MAX_REST_NOISE_G:g} g per sample, a "
+                       f"resting accelerometer's most (the quietest: "
+                       f"{seg.evidence.get('loud_noise_min_g', float('nan')):.3g} g by the nominal conversion): a "
+                       "vibration, or columns that are not an accelerometer's (gyroscope columns? map the "
+                       "accelerometer's with --columns)")
     if ev.get(SHORT_STRETCHES):
         reasons.append(f"{ev[SHORT_STRETCHES]} still stretch(es) shorter than the minimum dwell {s.min_dwell_s:g} s "
                        "(--min-dwell S, --static-window S for shorter blocks)")
+    if not reasons and seg.evidence.get("blocks_turning"):
+        reasons.append(f"{int(seg.evidence['blocks_turning'])} block(s) that the accelerometer calls still turn by the "
+                       "gyro (its mean rate off the bias beyond the noise of its mean: a turn about the vertical; "
+                       "--gyro-threshold N accepts N times more, --no-gyro-gate ignores the gyro)")
     if not reasons:
         reasons.append(f"every pair of {s.window_s:g} s blocks differs by more than the noise of their means allows "
                        f"(false-alarm {s.false_alarm:g}; --static-threshold N accepts steps N times larger, "
@@ -266,9 +287,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     use = None if every else np.flatnonzero(rec.usable)
     t = rec.t if use is None else rec.t[use]
     acc = rec.acc if use is None else _usable_rows(rec.acc, use)
-    gyro = None
-    if rec.gyro is not None and s.use_gyro:
-        gyro = rec.gyro if use is None else _usable_rows(rec.gyro, use)
+    gyro_rows = None if rec.gyro is None else (rec.gyro if use is None else _usable_rows(rec.gyro, use))
+    gyro = gyro_rows if s.use_gyro else None  # the gyro as evidence of motion (its means go into the poses anyway)
     m = acc.shape[0]
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     block = max(MIN_BLOCK_SAMPLES, int(round(s.window_s * rate)))
@@ -287,7 +307,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
 
     model = _RestModel(rec, s, t, acc, gyro, block, breaks, rate)
     runs = model.runs()
-    evidence.update(blocks=model.b.count, pairs=int(model.valid.sum()))
+    evidence.update(blocks=model.b.count, pairs=int(model.valid.sum()), blocks_turning=model.turning_blocks())
     # ------------------------------------------------------------- each run judged as a rest
     one_g = float(nominal.sensitivity)
     in_pose = np.zeros(m, dtype=bool)
@@ -314,6 +334,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         if per_sample > MAX_REST_NOISE_G * one_g:
             counts[LOUD] += z - a
             counts[LOUD_STRETCHES] += 1
+            evidence["loud_noise_min_g"] = min(evidence.get("loud_noise_min_g", np.inf), per_sample / one_g)
             continue
         if model.creeps(j0, j1):
             counts[SWEEPING] += z - a
@@ -340,7 +361,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
-    intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro, s.sigma_blocks)
+    intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro_rows, s.sigma_blocks)
                  for i, group in enumerate(groups)]
     in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in model.split_by_noise(runs))
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
@@ -449,6 +470,13 @@ class _RestModel:
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
             if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
                 self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
+
+    def turning_blocks(self) -> int:
+        """Blocks the accelerometer calls still (a quiet pair on either side) whose gyro mean is off the bias."""
+        acc_still = np.zeros(self.b.count, dtype=bool)
+        acc_still[1:] |= self.quiet
+        acc_still[:-1] |= self.quiet
+        return int(np.sum(acc_still & ~self.still))
 
     def runs(self) -> list[tuple[int, int]]:
         """Block ranges ``[k0, k1)`` of still blocks joined by quiet pairs."""

@@ -11,7 +11,6 @@ import pytest
 
 from helpers.cli_run import run
 from optcal.data import load
-from optcal.data.static import TURNING, TURNING_STRETCHES
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.data.units import implied_sensitivity
 from optcal.errors import InputError
@@ -53,32 +52,59 @@ def test_1_gyro_columns_as_accelerometer_are_refused(recording, tmp_path, capsys
     code, _, err = run(["segment", tmp_path / "imu.csv", "--columns", "ax=gx_counts,ay=gy_counts,az=gz_counts"],
                        capsys)
     assert code == 2
-    assert "do not look like an accelerometer's" in err and "median |a| is 5.6" in err
-    assert "gyroscope columns" in err and len(err.strip().splitlines()) == 1
+    # the rest model's conclusion: no still stretch is as quiet as a resting accelerometer, with the likely cause
+    assert "noisier than 0.05 g per sample" in err and "gyroscope columns? map the accelerometer's with --columns" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 # 4: a recording that never rests ------------------------------------------------------------------
-def test_4_quiet_stretches_of_a_never_resting_gyro_are_rejected_and_counted(recording, tmp_path):
+def test_4_a_noisy_gyro_at_rest_is_no_motion(recording, tmp_path):
+    """A gyro with 20 times a resting MEMS gyro's white noise (400 counts) beside a still accelerometer: its mean
+    still sits at its bias, so the rests are found (the old detector refused them by a cap in converter steps)."""
     rng = np.random.default_rng(6)
     counts_frame(recording, 20.0, rng).to_csv(tmp_path / "rests.csv", index=False)
-    assert load(tmp_path / "rests.csv").n == 12  # a resting gyro's noise: 20 counts
-    counts_frame(recording, 400.0, rng).to_csv(tmp_path / "shakes.csv", index=False)
-    with pytest.raises(InputError, match="never rests") as caught:
-        load(tmp_path / "shakes.csv")
+    assert load(tmp_path / "rests.csv").n == 12
+    counts_frame(recording, 400.0, rng).to_csv(tmp_path / "noisy.csv", index=False)
+    assert load(tmp_path / "noisy.csv").n == 12
+
+
+def turning_in_every_rest(recording) -> pd.DataFrame:
+    """The recording with every rest turning at 5 °/s about its own vertical (which the accelerometer does not see)."""
+    from optcal.data.readers import source_from_frame
+    from optcal.data.recording import recording_from_source
+    from optcal.data.static import detect_static
+
+    f = recording.frame.copy()
+    seg = detect_static(recording_from_source(source_from_frame(f, "mem", "csv")))
+    assert len(seg.intervals) == 12
+    gyro = f[["gx", "gy", "gz"]].to_numpy(copy=True)
+    for iv in seg.intervals:
+        gyro[iv.start:iv.stop] += 5.0 * iv.mean / np.linalg.norm(iv.mean)
+    f[["gx", "gy", "gz"]] = gyro
+    return f
+
+
+def test_4_a_recording_whose_rests_turn_about_the_vertical_never_rests(recording, tmp_path):
+    f = turning_in_every_rest(recording)
+    f.to_csv(tmp_path / "turns.csv", index=False)
+    with pytest.raises(InputError, match="never rests by the model") as caught:
+        load(tmp_path / "turns.csv")
+    assert "turn by the gyro" in str(caught.value) and "--no-gyro-gate" in str(caught.value)
     assert "record the sensor at rest" in str(caught.value)
+    # the override says what it assumes: without the gyro as evidence, the turns are rests
+    assert load(tmp_path / "turns.csv", use_gyro=False).n == 12
 
 
 def test_4_rejections_are_counted(recording):
     from optcal.data.readers import source_from_frame
     from optcal.data.recording import recording_from_source
-    from optcal.data.static import detect_static
+    from optcal.data.static import MOVING, detect_static
 
-    f = counts_frame(recording, 400.0, np.random.default_rng(7))
-    f.columns = ["t", "ax", "ay", "az", "gx", "gy", "gz"]
+    f = turning_in_every_rest(recording)
     seg = detect_static(recording_from_source(source_from_frame(f, "mem", "csv")))
-    assert not seg.intervals
-    assert seg.exclusions[TURNING_STRETCHES] >= 1 and seg.exclusions[TURNING] > 0
-    assert seg.noise_floor["gyro_rate_measured"] > seg.noise_floor["gyro_rate"] == pytest.approx(100.0)
+    assert not seg.intervals and seg.evidence["blocks_turning"] > 0
+    assert sum(v for k, v in seg.exclusions.items() if k.startswith("samples")) == len(f)
+    assert seg.exclusions[MOVING] > 0
 
 
 # 11: ignoring a recognised column -----------------------------------------------------------------
