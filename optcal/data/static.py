@@ -755,7 +755,7 @@ def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64]
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
         if groups and last is not None:
             end = groups[-1][-1][1]
-            gap = bool(a > end and np.max(np.diff(t[end - 1:a + 1])) > max_gap)
+            gap = bool(np.max(np.diff(t[end - 1:a + 1])) > max_gap)
             if gap:
                 still_between = False  # nothing is known of what the sensor did in a gap of the recording
             else:

@@ -56,14 +56,3 @@ def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch,
     assert parsed.engine == "pyarrow" and all(np.array_equal(a, b) for a, b in zip(parsed.columns, streamed.columns()))
 
 
-def test_gyro_statistics_in_a_second_thread_give_the_sequential_segmentation(monkeypatch, counts_recording):
-    rec = recording_from_source(source_from_frame(counts_recording.frame, "synthetic", "csv"))
-    beside = static.detect_static(rec)
-    monkeypatch.setattr(static, "PARALLEL_MAX_SAMPLES", 0)  # every recording on the sequential path
-    after = static.detect_static(rec)
-    assert len(beside.intervals) == len(after.intervals) == 10
-    assert beside.thresholds == after.thresholds and beside.noise_floor == after.noise_floor
-    assert np.array_equal(beside.trace["gyro_rate"], after.trace["gyro_rate"])
-    for a, b in zip(beside.intervals, after.intervals):
-        assert (a.start, a.stop) == (b.start, b.stop)
-        assert np.array_equal(a.mean, b.mean) and np.array_equal(a.gyro_mean, b.gyro_mean) and a.sigma == b.sigma

@@ -45,8 +45,10 @@ def test_xsens_is_read_as_raw_counts(xsens):
     assert p.source == "raw recording" and p.units == "counts"
     assert p.meta["rate_hz"] == pytest.approx(100.0, rel=1e-3)
     assert p.gyro is not None
-    # nothing saturated, non-finite or duplicated: only motion and a few short rests excluded
-    assert all("stretches" in k for k in p.exclusions)
+    # nothing saturated, non-finite or duplicated: only motion and a few short still stretches excluded
+    from optcal.data.static import MOVING, SHORT, SHORT_STRETCHES
+
+    assert set(p.exclusions) <= {MOVING, SHORT, SHORT_STRETCHES}
 
 
 def test_xsens_static_intervals_as_imu_tk(xsens):
@@ -86,11 +88,17 @@ def test_mpu6050_intervals_match_the_upstream_ones():
     loaded = load_with_segmentation(need(MPU / "example_data_calibration.csv"))
     assert loaded.kind.value == "raw recording" and "Fs,100" in loaded.kind.reason
     ivs = loaded.segmentation.intervals
-    assert len(ivs) == 10
     upstream = np.loadtxt(MPU / "upstream_static_intervals.csv", delimiter=",")  # row 0 starts, row 1 ends (samples)
-    for iv, (start, end) in zip(ivs, upstream.T):
-        gap = max(iv.start, start) - min(iv.stop, end)  # negative when they overlap
-        assert gap <= 30
+    # each upstream interval within 0.3 s of one of ours, in order; ours may hold one more: the fifth rest is
+    # held through a 0.75 s twitch that the gyro shows turning and back, kept as two poses of one orientation
+    assert 10 <= len(ivs) <= 11
+    matched = []
+    for start, end in upstream.T:
+        gaps = [max(iv.start, start) - min(iv.stop, end) for iv in ivs]  # negative when they overlap
+        k = int(np.argmin(gaps))
+        assert gaps[k] <= 30
+        matched.append(k)
+    assert matched == sorted(matched) and len(set(matched)) == 10
 
 
 def test_mpu6050_long_static_logs_are_one_pose():
@@ -125,7 +133,13 @@ def test_annotated_session_is_out_of_order():
     assert "sample counter" in poses.decisions.time_base.reason and "'part'" in poses.decisions.time_base.reason
     frame = pd.read_csv(path).sort_values("samples")
     seg = detect_static(recording_from_source(source_from_frame(frame, str(path), "csv"), rate=204.8))
-    assert len(seg.intervals) == 6 and seg.recording.units == "counts"
+    assert seg.recording.units == "counts"
+    # one pose per face, each inside its section; the other rests are the still starts of turn sections
+    parts = frame["part"].to_numpy()
+    labels = [set(parts[iv.start:iv.stop]) for iv in seg.intervals]
+    faces = [next(iter(lab)) for lab in labels if len(lab) == 1 and not next(iter(lab)).endswith("_rot")]
+    assert sorted(faces) == sorted(["x_p", "x_a", "y_p", "y_a", "z_p", "z_a"])
+    assert all(len(lab) == 1 for lab in labels) and len(seg.intervals) <= 9
 
 
 # ----------------------------------------------------------------------------- sunsided MPU-6050 (bursty host stamps)

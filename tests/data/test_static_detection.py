@@ -136,15 +136,26 @@ def test_short_dwells_are_dropped_and_counted():
     assert all(iv.duration_s >= 2.0 - 0.011 for iv in seg.intervals)
 
 
-def test_thresholds_follow_the_noise_floor():
-    found, floors = [], []
+def test_the_noise_is_measured_not_assumed():
+    """The same recording at 1× and 10× the noise: the same 12 rests, each test at its distribution's quantile
+    (the same critical values), the rests' measured noise 10 times larger."""
+    found, noise, limits = [], [], []
     for sigma in (SIGMA, 10 * SIGMA):
         syn = synthesize_recording(lu2017_reference_model(), uniform_directions(12, rng=7), sigma=sigma, rng=8)
         seg = detect(syn.frame)
         found.append(len(seg.intervals))
-        floors.append(seg.noise_floor["acc_norm_std"])
+        noise.append(seg.noise_floor["rest_noise_median"])
+        limits.append(seg.thresholds)
     assert found == [12, 12]
-    assert floors[1] / floors[0] == pytest.approx(10, rel=0.1)
+    assert noise[1] / noise[0] == pytest.approx(10, rel=0.1)
+    assert limits[0] == limits[1]
+
+
+def test_multipliers_scale_the_critical_values():
+    syn = synthesize_recording(lu2017_reference_model(), uniform_directions(12, rng=7), sigma=SIGMA, rng=8)
+    base = detect(syn.frame).thresholds
+    loose = detect(syn.frame, StaticSettings(threshold=2.0, drift_threshold=3.0)).thresholds
+    assert loose["step"] == pytest.approx(2 * base["step"]) and loose["trend"] == pytest.approx(3 * base["trend"])
 
 
 def test_time_gap_splits_an_interval():

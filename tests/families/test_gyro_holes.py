@@ -172,7 +172,9 @@ def test_xsens_with_a_hole_in_every_move_still_calibrates(shared_data: Path, tmp
     assert holed_moves.n_moves == clean_moves.n_moves == planted.n_moves
     assert holed_moves.bridged_holes == (planted.n_moves if mode == "repeat" else 0)
     assert abs(holed.rms_angle_after_deg - clean.rms_angle_after_deg) < 0.01
-    assert np.allclose(holed.gyro.T, clean.gyro.T, rtol=5e-3)
+    # T_g as without them to 0.5 % of its scale (a dropped sample shifts the later blocks' edges by one
+    # sample, and with them where a rest ends: the small cross-axis terms move by 1e-8 of a 2e-4 scale)
+    assert np.allclose(holed.gyro.T, clean.gyro.T, rtol=0, atol=5e-3 * np.abs(clean.gyro.T).max())
 
 
 def test_mikoff_with_a_repeated_stamp_in_every_move_still_calibrates(shared_data: Path, tmp_path: Path) -> None:
