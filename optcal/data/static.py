@@ -56,6 +56,8 @@ TURNING = "samples in still stretches whose gyro mean is off the bias beyond its
 TURNING_STRETCHES = "still stretches rejected because their gyro mean is off the bias (a slow turn)"
 WOBBLE = "samples in still stretches whose orientation wobbles (by the gyro) beyond what a pose mean tolerates"
 WOBBLE_STRETCHES = "still stretches rejected because their orientation wobbles (by the gyro)"
+ODD = "samples in still stretches far noisier than the recording's rests (a move's settling oscillation)"
+ODD_STRETCHES = "still stretches rejected as far noisier than the recording's rests"
 LOUD = "samples in still stretches noisier per sample than a resting accelerometer"
 LOUD_STRETCHES = "still stretches rejected as noisier per sample than a resting accelerometer"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
@@ -246,6 +248,9 @@ def no_static_message(seg: Segmentation) -> str:
         reasons.append(f"{ev[WOBBLE_STRETCHES]} still stretch(es) whose orientation wobbles by more than "
                        f"{np.degrees(np.sqrt(2 * WOBBLE_SHRINK)):.2g}° rms by the gyro (a pose mean would shrink by more than "
                        f"{WOBBLE_SHRINK * 1e3:g} mg: --gyro-threshold N accepts N times more)")
+    if ev.get(ODD_STRETCHES):
+        reasons.append(f"{ev[ODD_STRETCHES]} still stretch(es) far noisier than the recording's rests (a move's settling "
+                       "oscillation: --static-threshold N accepts more)")
     if ev.get(LOUD_STRETCHES):
         reasons.append(f"{ev[LOUD_STRETCHES]} still stretch(es) noisier than {MAX_REST_NOISE_G:g} g per sample, a "
                        f"resting accelerometer's most (the quietest: "
@@ -314,7 +319,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     trim = int(round(s.trim_s * rate))
     kept: list[tuple[int, int, int, int]] = []  # sample range and block range
     counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
-                                 TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, TRIMMED)}
+                                 TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, ODD, ODD_STRETCHES,
+                                 TRIMMED)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
     wobble_window = max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))
@@ -357,6 +363,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         counts[TRIMMED] += (a2 - a) + (z - z2)
         kept.append((a2, z2, j0, j1))
         rest_noise.append(per_sample)
+    kept, n_odd, n_odd_samples = model.drop_odd_noise(kept)
+    counts[ODD] += n_odd_samples
+    counts[ODD_STRETCHES] += n_odd
     groups = _join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
     for group in groups:
         for a, z in group:
@@ -367,7 +376,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
-    for key in (SHORT_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES):
+    for key in (SHORT_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES):
         evidence[key] = counts[key]
     evidence["still_stretches"] = len(runs)
     noise.update(model.noise())
@@ -547,6 +556,29 @@ class _RestModel:
         mean = (b.mean[k0:k1] * w).sum(axis=0) / w.sum()
         total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
         return float(np.sqrt(total.sum()))
+
+    def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
+                       ) -> tuple[list[tuple[int, int, int, int]], int, int]:
+        """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation).
+
+        A rest's noise differs from rest to rest, but not beyond what the recording's own blocks show: a
+        stretch whose block variance (median over its blocks, summed over the axes) exceeds the duration-weighted
+        median of the rests' by more than twice the variance-step test's critical value (in log variance: the
+        largest change between two blocks of one rest, once for the rest and once for the other) oscillates
+        inside its blocks, which block means cannot see.
+        """
+        b = self.b
+        if len(kept) < 3:
+            return kept, 0, 0
+        level = np.array([np.log(max(float(np.median(b.var[j0:j1].sum(axis=1))), np.finfo(float).tiny))
+                          for _, _, j0, j1 in kept])
+        weight = np.array([float(z - a) for a, z, _, _ in kept])
+        order = np.argsort(level)
+        cumulative = np.cumsum(weight[order])
+        typical = float(level[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
+        odd = level > typical + 2.0 * self.var_limit
+        dropped = [k for k, flag in zip(kept, odd) if flag]
+        return [k for k, flag in zip(kept, odd) if not flag], len(dropped), sum(z - a for a, z, _, _ in dropped)
 
     def creeps(self, k0: int, k1: int) -> bool:
         """Whether the run's accelerometer mean moves (a slow turn).

@@ -30,8 +30,9 @@ from optcal.errors import InputError
 
 #: Seeds of the corpus the current detector is scored on (each kind drawn per seed, in its four variants).
 SEEDS = range(4)
-#: Kinds whose rests the current detector finds (recall ≥ 0.9 asserted on them; the others are printed only).
-HANDLED_KINDS = ("turntable",)
+#: Least recall asserted per resting kind (the full study, 100 seeds: hand-held 0.987, turntable 1.00,
+#: holds-only 1.00, low-pass 0.899; studies/results/rest_detection.md), less the spread of four seeds.
+LEAST_RECALL = {"hand_held": 0.95, "turntable": 0.95, "holds_only": 0.95, "low_pass": 0.8}
 
 
 @pytest.fixture(scope="module")
@@ -245,7 +246,8 @@ def current_scores() -> list:
 
 
 def test_current_detector_figures(current_scores) -> None:
-    """The current detector's figures per kind and per variant, printed; recall ≥ 0.9 asserted where it is handled."""
+    """The current detector's figures per kind and per variant, printed; the recall of each resting kind, the
+    pose errors in σ and the never-resting recordings given a pose with the gyro asserted."""
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print("\nrest detector on the corpus (seeds %s), per kind:" % list(SEEDS))
         print(summarise(current_scores).round(3).to_string(index=False))
@@ -254,6 +256,13 @@ def test_current_detector_figures(current_scores) -> None:
     table = summarise(current_scores).set_index("kind")
     assert list(table.index) == list(KINDS)
     assert (table["recordings"] == 4 * len(SEEDS)).all()
-    for kind in HANDLED_KINDS:
+    for kind, least in LEAST_RECALL.items():
         recall = float(table.at[kind, "recall"])
-        assert recall >= 0.9, f"{kind}: recall {recall:.3f}"
+        assert recall >= least, f"{kind}: recall {recall:.3f}"
+        # a pose's σ says how far its mean is from the truth (rms ≈ 1 for a right σ and an unbiased mean)
+        assert float(table.at[kind, "pose_error_rms"]) < 1.3
+    by_variant = summarise(current_scores, by=("kind", "gyro")).set_index(["kind", "gyro"])
+    # with the gyro, a never-resting recording seldom gives a pose (the full study: 13 % of slow turns,
+    # 15 % of slow drifts); without it slow turns near the vertical do (66 %: the model's known weakness)
+    for kind in ("slow_turns", "slow_drift"):
+        assert float(by_variant.at[(kind, True), "with_pose"]) <= 0.3
