@@ -35,6 +35,7 @@ probability, times a user's multiplier (``--static-threshold``, ``--gyro-thresho
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -184,7 +185,7 @@ def variance_step_limit(steps: NDArray[np.float64], false_alarm: float) -> float
     if steps.size == 0:
         return float("inf")
     spread = float(np.median(steps)) / 0.6744897501960817
-    return float(stats.norm.isf(false_alarm / 2.0)) * spread
+    return normal_limit(false_alarm / 2.0) * spread
 
 
 def calm_pairs(var: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -207,9 +208,29 @@ def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> 
     return np.asarray((ratios / kappa2).sum(axis=1))
 
 
+@lru_cache(maxsize=4096)
+def _f_isf(false_alarm: float, d1: float, d2: float) -> float:
+    return float(stats.f.isf(false_alarm, d1, d2))
+
+
 def step_limit(false_alarm: float, dof: NDArray[np.float64] | float) -> NDArray[np.float64]:
-    """The ``1 − false_alarm`` quantile of ``3 F(3, dof)``."""
-    return np.asarray(3.0 * stats.f.isf(false_alarm, 3, np.maximum(dof, 1.0)))
+    """The ``1 − false_alarm`` quantile of ``3 F(3, dof)`` (each distinct dof computed once)."""
+    d = np.maximum(np.asarray(dof, dtype=float), 1.0)
+    unique, inverse = np.unique(d, return_inverse=True)
+    values = np.array([3.0 * _f_isf(false_alarm, 3.0, float(u)) for u in unique])
+    return np.asarray(values[inverse].reshape(d.shape))
+
+
+@lru_cache(maxsize=256)
+def chi2_limit(false_alarm: float, dof: int) -> float:
+    """The ``1 − false_alarm`` quantile of χ² with ``dof`` degrees of freedom."""
+    return float(stats.chi2.isf(false_alarm, dof))
+
+
+@lru_cache(maxsize=256)
+def normal_limit(false_alarm: float) -> float:
+    """The one-sided ``1 − false_alarm`` quantile of the standard normal."""
+    return float(stats.norm.isf(false_alarm))
 
 
 def half_sample_mode(x: NDArray[np.float64]) -> float:
@@ -247,9 +268,10 @@ def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
     nb = min(batches, k)
     if nb < TREND_MIN_BATCHES:
         return 0.0, 0, 0.0, 0.0
-    groups = np.array_split(np.arange(k), nb)
-    tb = np.array([t[g].mean() for g in groups])
-    xb = np.array([x[g].mean(axis=0) for g in groups])
+    starts = (np.arange(nb) * k) // nb  # as np.array_split: batches of consecutive blocks, sizes differing by one
+    sizes = np.diff(np.append(starts, k)).astype(float)
+    tb = np.add.reduceat(t, starts) / sizes
+    xb = np.add.reduceat(x, starts, axis=0) / sizes[:, None]
     tc = tb - tb.mean()
     sxx = float(tc @ tc)
     if sxx <= 0:
@@ -263,6 +285,7 @@ def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
     return float(np.max(np.abs(slope) / se)), nb - 2, change, spread
 
 
+@lru_cache(maxsize=256)
 def trend_limit(false_alarm: float, dof: int, axes: int = 3) -> float:
     """Two-sided Student ``t`` quantile at ``false_alarm`` shared over ``axes`` (Bonferroni)."""
     return float(stats.t.isf(false_alarm / (2 * axes), max(dof, 1)))

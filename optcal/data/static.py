@@ -327,10 +327,14 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     if gyro_scale is not None:
         evidence["gyro_rad_per_unit"] = gyro_scale
     b = model.b
-    for k0, k1 in model.split_by_noise(runs):
+    pieces = model.split_by_noise(runs)
+    for k0, k1 in pieces:
         j0, j1 = model.peel(k0, k1)
         counts[EDGES] += int(b.stop[k1 - 1] - b.start[k0]) - int(b.stop[j1 - 1] - b.start[j0])
         a, z = int(b.start[j0]), int(b.stop[j1 - 1])
+        a1, z1 = model.trim_outlying_samples(acc, a, z, j0, j1)
+        counts[EDGES] += (a1 - a) + (z - z1)
+        a, z = a1, z1
         duration = t[z - 1] - t[a] + 1.0 / rate
         if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
             counts[SHORT] += z - a
@@ -372,7 +376,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             in_pose[a:z] = True
     intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro_rows, s.sigma_blocks)
                  for i, group in enumerate(groups)]
-    in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in model.split_by_noise(runs))
+    in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in pieces)
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
@@ -557,6 +561,32 @@ class _RestModel:
         total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
         return float(np.sqrt(total.sum()))
 
+    def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
+        """Trim single samples off the ends of a rest while they lie outside its noise.
+
+        A block edge falls anywhere: the first or last block of a rest may hold a few samples of the jump or
+        move next to it (a logger that stores only holds, a block that straddles the start of a move).  A sample
+        whose χ²₃ distance from the rest's mean, in its per-sample noise (the median block variance), is beyond
+        the ``1 - false_alarm`` quantile is not of the rest; trimming stops at the first one within.
+        """
+        b = self.b
+        w = b.n[j0:j1, None]
+        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
+        var = np.maximum(np.median(b.var[j0:j1], axis=0), np.finfo(float).tiny)
+        limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
+
+        def outside(i: int) -> bool:
+            d = acc[i] - mean
+            return float(np.sum(d * d / var)) > limit
+
+        edge = max(1, int(b.n[j0]))  # at most one block's worth from each end
+        start, stop = a, z
+        while start < min(a + edge, stop - 2) and outside(start):
+            start += 1
+        while stop > max(z - edge, start + 2) and outside(stop - 1):
+            stop -= 1
+        return start, stop
+
     def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
                        ) -> tuple[list[tuple[int, int, int, int]], int, int]:
         """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation).
@@ -625,7 +655,7 @@ class _RestModel:
         else:
             assert self.gvar_ref is not None
             se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
-            limit = float(stats.norm.isf(self.s.false_alarm / 6.0))
+            limit = rm.normal_limit(self.s.false_alarm / 6.0)
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
         significant = bool(np.max(z) > limit * self.s.gyro_threshold)
         if self.gyro_scale is None:
@@ -756,7 +786,7 @@ def _no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, st
     span = float(dt.sum())
     var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
     stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
-    if stat <= float(stats.chi2.isf(model.s.false_alarm, 3)) * model.s.gyro_threshold:
+    if stat <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
         return True
     return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
 
@@ -775,7 +805,7 @@ def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64]
     regained in less time than one is held).  Never across a time gap.
     """
     b = model.b
-    block_s = model.block / model.rate  # the pieces' ends fall on block edges: the interruption is known to a block
+    block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
     groups: list[list[tuple[int, int]]] = []
     last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
     for a, z, j0, j1 in kept:
@@ -791,7 +821,7 @@ def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64]
             if gap:
                 still_between = False  # nothing is known of what the sensor did in a gap of the recording
             else:
-                still_between = t[a] - t[end - 1] < dwell_s + block_s or (
+                still_between = t[a] - t[end - 1] < dwell_s + 2.0 * block_s or (
                     gyro is not None and _no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))

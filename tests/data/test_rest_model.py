@@ -1,0 +1,133 @@
+"""The rest model (issue 26) on the recordings the old detector refused, and every refusal overridable.
+
+The shared files (../shared/data, skipped without it): ckexplorer's holds-only log (160 holds of 100 samples,
+no motion samples, no time), divemove's low-pass filtered tag (netCDF-4).  The rest model's own statistics
+(:mod:`optcal.data.rest_model`) against their distributions on white noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from optcal.data import load, load_with_segmentation
+from optcal.data import rest_model as rm
+from optcal.data.readers import source_from_frame
+from optcal.data.recording import recording_from_source
+from optcal.data.static import SHORT_STRETCHES, StaticSettings, detect_static
+from optcal.errors import InputError
+
+from helpers.common import SHARED
+
+CKEXPLORER = SHARED / "data" / "ckexplorer-holds" / "acc_log.csv"
+DIVEMOVE = SHARED / "data" / "divemove-tag" / "magnt_accel_calib.nc"
+
+
+def need(path):
+    if not path.exists():
+        pytest.skip(f"{path} is not present")
+    return path
+
+
+# ----------------------------------------------------------------------------- the statistics
+def test_step_statistic_has_its_stated_false_alarm_on_white_noise() -> None:
+    """Consecutive blocks of one white-noise rest: the step statistic exceeds its 1e-3 critical value about
+    once in a thousand pairs (κ² measured on the same pairs, as the detector does)."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(400_000, 3)) * [1.0, 2.0, 0.5]
+    b = rm.make_blocks(np.arange(x.shape[0]) / 100.0, x, None, 25, np.zeros(0, dtype=np.int64), 0.0, 0.0)
+    ratios = rm.pair_ratios(b.mean, b.var, b.n)
+    dof = b.n[1:] + b.n[:-1] - 2.0
+    kappa2 = rm.noise_colour(ratios, float(np.median(dof)), 0.5)
+    np.testing.assert_allclose(kappa2, 1.0, atol=0.1)
+    rate = float(np.mean(rm.step_statistic(ratios, kappa2) > rm.step_limit(1e-3, dof)))
+    assert 0.2e-3 < rate < 3e-3
+
+
+def test_noise_colour_of_filtered_noise_is_measured() -> None:
+    """Noise averaged over 10 samples (a moving-average filter): the block means scatter 10 times more than
+    the within-block spread says, and κ² says so."""
+    rng = np.random.default_rng(1)
+    white = rng.normal(size=(200_010, 3))
+    x = np.cumsum(white, axis=0)
+    x = (x[10:] - x[:-10]) / 10.0
+    b = rm.make_blocks(np.arange(x.shape[0]) / 100.0, x, None, 100, np.zeros(0, dtype=np.int64), 0.0, 0.0)
+    kappa2 = rm.noise_colour(rm.pair_ratios(b.mean, b.var, b.n), 198.0, 0.5)
+    assert np.all((kappa2 > 6.0) & (kappa2 < 14.0))
+
+
+def test_trend_statistic_is_student_t_on_a_rest_and_sees_a_creep() -> None:
+    rng = np.random.default_rng(2)
+    t = np.arange(64) * 0.25
+    flat = [rm.trend_statistic(t, rng.normal(size=(64, 3)))[0] for _ in range(2000)]
+    # the largest |t| of three axes with 6 dof beyond the Bonferroni quantile about once in a thousand
+    assert np.mean(np.array(flat) > rm.trend_limit(1e-3, 6)) < 5e-3
+    creep = rng.normal(size=(64, 3)) + np.outer(t, [0.5, 0.0, 0.0])
+    tstat, dof, change, spread = rm.trend_statistic(t, creep)
+    assert tstat > rm.trend_limit(1e-3, dof) and change == pytest.approx(0.5 * (t[-1] - t[0]), rel=0.1)
+
+
+def test_half_sample_mode_finds_the_bias_among_turning_rates() -> None:
+    rng = np.random.default_rng(3)
+    at_rest = 0.02 + 0.001 * rng.normal(size=600)
+    turning = rng.uniform(-2.0, 2.0, size=400)
+    assert rm.half_sample_mode(np.concatenate([at_rest, turning])) == pytest.approx(0.02, abs=0.002)
+    assert stats.median_abs_deviation(at_rest) < 0.002
+
+
+# ----------------------------------------------------------------------------- the recordings refused before
+@pytest.mark.parametrize("rate", [100.0, 50.0])
+def test_holds_only_log_gives_its_holds(rate: float) -> None:
+    """160 holds of 100 samples, back to back: each jump between holds is a step; 150-160 poses, each
+    inside one hold, whatever the rate given (the rest model has no rate-dependent constant but the dwell)."""
+    loaded = load_with_segmentation(need(CKEXPLORER), rate=rate)
+    ivs = loaded.segmentation.intervals
+    assert 150 <= len(ivs) <= 160
+    assert all(iv.start // 100 == (iv.stop - 1) // 100 for iv in ivs)
+
+
+def test_low_pass_filtered_tag_calibrates_to_its_noise() -> None:
+    """divemove's tag, stored low-pass filtered, opened as it is: about ten poses of its 14-50 s rests, and the
+    calibration's rms |a|-1 at most 0.3 mg (the moves' settling oscillations are not poses)."""
+    from optcal.families.accel.calibration import calibrate
+
+    poses = load(need(DIVEMOVE))
+    assert 10 <= poses.n <= 20
+    result = calibrate(poses)
+    assert result.rms_norm_residual_g <= 0.3e-3
+
+
+# ----------------------------------------------------------------------------- every refusal can be overridden
+def test_too_short_for_the_dwell_is_refused_naming_the_flag_and_passes_with_it() -> None:
+    frame = pd.read_csv(need(CKEXPLORER))
+    with pytest.raises(InputError, match=r"shorter than the minimum dwell 2 s \(--min-dwell S") as caught:
+        load(CKEXPLORER, rate=100.0, min_dwell_s=2.0)
+    assert "never rests by the model" in str(caught.value)
+    seg = detect_static(recording_from_source(source_from_frame(frame, "holds", "csv"), rate=100.0),
+                        StaticSettings(min_dwell_s=2.0))
+    assert seg.exclusions[SHORT_STRETCHES] >= 150
+    assert load(CKEXPLORER, rate=100.0, min_dwell_s=0.5).n >= 150
+
+
+def test_each_multiplier_loosens_its_test() -> None:
+    """A 10 s rest creeping at 1 mg/s (a slow turn) is no pose; --drift-threshold 100 accepts it and a
+    warning says what it assumes; --static-threshold and --gyro-threshold scale their critical values."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 1.0], (n, 1)) + 0.001 * rng.normal(size=(n, 3))
+    acc[1000:2000, 0] += 0.001 * (t[1000:2000] - t[1000])  # creeps by 10 mg over its 10 s
+    acc[:1000] = [0.3, 0.0, 0.954] + 0.001 * rng.normal(size=(1000, 3))  # two other rests, other orientations
+    acc[2000:] = [0.0, 0.3, 0.954] + 0.001 * rng.normal(size=(1000, 3))
+    frame = pd.DataFrame({"t": t, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2]})
+    rec = recording_from_source(source_from_frame(frame, "creep", "csv"))
+    strict = detect_static(rec)
+    assert not any(iv.start >= 1000 and iv.stop <= 2000 for iv in strict.intervals)
+    loose = detect_static(rec, StaticSettings(drift_threshold=100.0))
+    assert any(iv.start >= 1000 and iv.stop <= 2000 for iv in loose.intervals)
+    assert any("--drift-threshold 100" in w for w in loose.override_warnings())
+    base = strict.thresholds
+    wide = detect_static(rec, StaticSettings(threshold=3.0)).thresholds
+    assert wide["step"] == pytest.approx(3.0 * base["step"])
