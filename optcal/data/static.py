@@ -336,7 +336,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         counts[EDGES] += (a1 - a) + (z - z1)
         a, z = a1, z1
         duration = t[z - 1] - t[a] + 1.0 / rate
-        if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
+        if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS or model.effective_samples(a, z) < MIN_REST_BLOCKS:
             counts[SHORT] += z - a
             counts[SHORT_STRETCHES] += 1
             continue
@@ -561,6 +561,12 @@ class _RestModel:
         total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
         return float(np.sqrt(total.sum()))
 
+    def effective_samples(self, a: int, z: int) -> float:
+        """Independent samples in ``[a, z)``: the samples over the noise colour per sample (a block's ``κ²`` samples
+        carry the information of one when the noise is correlated over them)."""
+        per_sample = max(float(np.median(self.kappa2)) / self.block, 1.0 / self.block)
+        return (z - a) / max(per_sample * self.block, 1.0)
+
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.
 
@@ -614,8 +620,8 @@ class _RestModel:
         """Whether the run's accelerometer mean moves (a slow turn).
 
         Either its batch means trend significantly (Student's t of their slope) by more than the samples' own
-        spread (:data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ; a creep hidden in it, a flicker noise's or a
-        warming sensor's, moves no pose) or than a pose tolerates (a steady creep through Δ shrinks the mean's
+        spread about the stretch's mean (:data:`SAME_POSE_SAMPLE_SIGMAS` σ; a creep hidden in it, a flicker
+        noise's or a warming sensor's, moves no pose) or than a pose tolerates (a steady creep through Δ shrinks the mean's
         norm by Δ²/24: ``√(24 WOBBLE_SHRINK)`` g); or its batch means range over more than both, which no
         noise does whatever its colour (a batch mean scatters less than the samples) and a turn along a
         curved path does without a straight trend.
@@ -624,7 +630,7 @@ class _RestModel:
         tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
         if dof <= 0:  # too few blocks for batches: the blocks' own means are the batch means
             spread = float(np.linalg.norm(b.mean[k0:k1].max(axis=0) - b.mean[k0:k1].min(axis=0)))
-        noise = SAME_POSE_SAMPLE_SIGMAS * float(np.sqrt(np.sum(np.median(b.var[k0:k1], axis=0))))
+        noise = SAME_POSE_SAMPLE_SIGMAS * self.spread(k0, k1)
         pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
         k = self.s.drift_threshold
         trending = dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
