@@ -41,6 +41,30 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+#: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
+#: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
+#: pieces of one rest), far below any change of orientation a calibration uses.
+SAME_POSE_SAMPLE_SIGMAS: float = 3.0
+#: Largest shrink of a pose mean's norm, relative to 1 g, that an orientation wobbling about its mean may cause:
+#: a wobble of rms angle θ shrinks the mean of gravity's projection by about θ²/2, so a rest must hold its
+#: orientation within θ = √(2 × 10⁻⁴) ≈ 0.8° rms (0.1 mg, the accuracy the calibrations here are judged at).
+WOBBLE_SHRINK: float = 1e-4
+#: Dwells over which the wobble is measured: long enough to see a hand's slow sway (about 1 Hz), short
+#: enough that the gyro's own angle random walk and bias wander, integrated over it, stay far below the tolerance.
+WOBBLE_DWELLS: float = 8.0
+#: Per-sample noise, in g, below which two rests' noise levels are not told apart (1 µg: far below any
+#: accelerometer's noise; what is left below it is the rounding of simulated or converted values).
+NOISE_FLOOR_G: float = 1e-6
+#: Largest change of a MEMS gyro's bias between the rests of one session, rad/s (1 °/s): in-run bias stability is
+#: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
+#: rates scatter more are not all rests.
+MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
+#: Quantile of the block-to-block rates at which the gyro's readings are set against the accelerometer's turn rate:
+#: the fast moves, where a gyro's bias is small beside the rate.
+UNIT_RATE_QUANTILE: float = 0.9
+
+#: Units in the last place, per summed sample, allowed for the rounding of a block's sums.
+ROUNDING_ULPS: float = 8.0
 #: Quantile of the pairs' squared changes taken as the quiet ones when the noise colour is first measured.
 QUIET_PAIRS_QUANTILE: float = 0.25
 #: Fewest pairs of calm blocks on which the noise colour is measured (else on the quietest pairs).
@@ -124,7 +148,10 @@ def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray
         s2 = np.add.reduceat(dev * dev, starts)
         mu = s1 / n
         mean[:, j] = mu + centre
-        var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var
+        # the rounding of these sums: a noise-free rest shows this much spread, no less (else its blocks' log
+        # variances, at the mercy of rounding, would differ by orders of magnitude)
+        rounding = (ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * float(np.max(np.abs(dev), initial=0.0))) ** 2
+        var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var + rounding
     return mean, var
 
 
@@ -174,17 +201,19 @@ def log_variance_steps(var: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.asarray(np.abs(np.diff(np.log(total))))
 
 
-def variance_step_limit(steps: NDArray[np.float64], false_alarm: float) -> float:
+def variance_step_limit(steps: NDArray[np.float64], false_alarm: float, samples: float) -> float:
     """The critical value of :func:`log_variance_steps` at rest, scaled from the pairs themselves.
 
-    At rest the log-ratio of two variance estimates is close to normal with mean 0; its spread (larger
-    than the white-noise ``2/√(n − 1)`` for coloured noise or a tremor) is taken from the pairs' median
-    absolute value (most pairs lie inside rests; ``median |x| = 0.6745 σ`` for a normal ``x``), and the
-    critical value is the normal two-sided ``false_alarm`` quantile of that spread.
+    At rest the log-ratio of two variance estimates is close to normal with mean 0; its spread is taken
+    from the pairs' median absolute value (most pairs lie inside rests; ``median |x| = 0.6745 σ`` for a
+    normal ``x``), never below the white-noise ``√(4/(n − 1))`` of blocks of ``samples`` (their estimation
+    noise alone; a tremor or a coloured noise spreads them more), and the critical value is the normal
+    two-sided ``false_alarm`` quantile of that spread.
     """
     if steps.size == 0:
         return float("inf")
-    spread = float(np.median(steps)) / 0.6744897501960817
+    white = float(np.sqrt(4.0 / max(samples - 1.0, 1.0)))
+    spread = max(float(np.median(steps)) / 0.6744897501960817, white)
     return normal_limit(false_alarm / 2.0) * spread
 
 

@@ -33,16 +33,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from optcal.core.poses import PoseTable
-from optcal.data import rest_model as rm
 from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, reduce_interval
-from optcal.data.static_stretches import group_positions, true_runs
+from optcal.data.rest_model import WOBBLE_DWELLS, WOBBLE_SHRINK
+from optcal.data.rest_tests import RestModel
+from optcal.data.static_stretches import group_positions, join_twitches, wobble
 from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
-from optcal.core.units import RAD_PER_UNIT
-from optcal.data.window_stats import quantum
 from optcal.errors import InputError
 
 MOVING = "samples in blocks that move (a step between block means, or a gyro rate off its bias)"
@@ -62,17 +60,6 @@ LOUD = "samples in still stretches noisier per sample than a resting acceleromet
 LOUD_STRETCHES = "still stretches rejected as noisier per sample than a resting accelerometer"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
 MIN_BLOCK_SAMPLES: int = 4
-#: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
-#: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
-#: pieces of one rest), far below any change of orientation a calibration uses.
-SAME_POSE_SAMPLE_SIGMAS: float = 3.0
-#: Largest shrink of a pose mean's norm, relative to 1 g, that an orientation wobbling about its mean may cause:
-#: a wobble of rms angle θ shrinks the mean of gravity's projection by about θ²/2, so a rest must hold its
-#: orientation within θ = √(2 × 10⁻⁴) ≈ 0.8° rms (0.1 mg, the accuracy the calibrations here are judged at).
-WOBBLE_SHRINK: float = 1e-4
-#: Dwells over which the wobble is measured: long enough to see a hand's slow sway (about 1 Hz), short
-#: enough that the gyro's own angle random walk and bias wander, integrated over it, stay far below the tolerance.
-WOBBLE_DWELLS: float = 8.0
 #: Fewest blocks in a rest: one pair of block means is the least that shows that the mean does not move.
 MIN_REST_BLOCKS: int = 2
 
@@ -310,7 +297,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         trace["static"] = np.zeros(m, dtype=bool)
         return Segmentation(rec, s, [], noise, limits, None, exclusions, trace, 0, evidence)
 
-    model = _RestModel(rec, s, t, acc, gyro, block, breaks, rate)
+    model = RestModel(rec, s, t, acc, gyro, block, breaks, rate)
     runs = model.runs()
     evidence.update(blocks=model.b.count, pairs=int(model.valid.sum()), blocks_turning=model.turning_blocks())
     # ------------------------------------------------------------- each run judged as a rest
@@ -350,7 +337,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             counts[SWEEPING] += z - a
             counts[SWEEPING_STRETCHES] += 1
             continue
-        if gyro is not None and gyro_scale is not None and _wobble(
+        if gyro is not None and gyro_scale is not None and wobble(
                 gyro[a:z], t[a:z], gyro_scale, wobble_window) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
             counts[WOBBLE] += z - a
             counts[WOBBLE_STRETCHES] += 1
@@ -370,7 +357,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     kept, n_odd, n_odd_samples = model.drop_odd_noise(kept)
     counts[ODD] += n_odd_samples
     counts[ODD_STRETCHES] += n_odd
-    groups = _join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
+    groups = join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
@@ -394,451 +381,6 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
                         len(kept) - len(groups), evidence)
-
-
-class _RestModel:
-    """The blocks of one recording and the tests of :mod:`optcal.data.rest_model` on them, measured in two passes."""
-
-    def __init__(self, rec: Recording, s: StaticSettings, t: NDArray[np.float64], acc: NDArray[np.float64],
-                 gyro: NDArray[np.float64] | None, block: int, breaks: NDArray[np.int64], rate: float) -> None:
-        self.s = s
-        self.rate = rate
-        qa = quantum(acc) or 0.0
-        qg = (quantum(gyro) or 0.0) if gyro is not None else 0.0
-        self.block = block
-        self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
-        self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
-        self.dwell_blocks = max(1, int(np.ceil(s.min_dwell_s * rate / block)))
-        b.var_ref = rm.local_noise(b.var, b.joined, self.half_width)
-        self.valid = b.joined[1:]
-        self.dof = b.n[1:] + b.n[:-1] - 2.0
-        self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
-        dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
-        # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
-        # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
-        calm = rm.calm_pairs(b.var, self.valid)
-        if calm.sum() >= rm.MIN_COLOUR_PAIRS:
-            self.kappa2 = rm.noise_colour(self.ratios[calm], dof0, 0.5)
-        else:
-            self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
-        self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
-        self.bias: NDArray[np.float64] | None = None
-        self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
-        nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
-        self.one_g = float(nominal.sensitivity)
-        self.gkappa2 = np.ones(3)
-        self.gvar_ref: NDArray[np.float64] | None = None
-        self.wander2 = np.zeros(3)
-        self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
-        self.still = np.ones(b.count, dtype=bool)
-        self._pass(first=True)
-        self.gyro_scale = _gyro_rad_per_unit(rec, gyro, self.bias, self.b)
-        # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
-        inside = self._pairs_inside(self.runs())
-        if inside.sum() >= 8:
-            self.kappa2 = rm.noise_colour(self.ratios[inside], dof0, 0.5)
-        self._pass(first=False)
-
-    def _pass(self, first: bool) -> None:
-        b = self.b
-        self.step = rm.step_statistic(self.ratios, self.kappa2)
-        if first:
-            self.var_steps = rm.log_variance_steps(b.var)
-            self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm) * self.s.threshold
-        self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
-        if b.gmean is None or b.gvar is None:
-            return
-        acc_still = np.zeros(b.count, dtype=bool)
-        acc_still[1:] |= self.quiet
-        acc_still[:-1] |= self.quiet
-        base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
-        if first:
-            self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
-            self.gvar_ref = rm.local_noise(b.gvar, b.joined, self.half_width)
-            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n)
-            pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
-            self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
-        else:
-            self._measure_wander()
-        assert self.bias is not None and self.gvar_ref is not None
-        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2)
-        self.still = self.gstat <= self.gyro_limit
-
-    def _measure_wander(self) -> None:
-        """The gyro bias' wander between rests: the scatter of the first rests' mean rates beyond their noise."""
-        b = self.b
-        assert self.bias is not None and b.gmean is not None and b.gvar is not None
-        means, noise2 = [], []
-        for k0, k1 in self.runs():
-            n = b.n[k0:k1].sum()
-            means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
-            noise2.append(self.gkappa2 * np.median(b.gvar[k0:k1], axis=0) / n)
-        if means:
-            # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
-            # its own error, integrated over a long rest, would look like a turn)
-            self.bias = np.median(np.asarray(means), axis=0)
-        if len(means) >= 3:
-            dev = np.asarray(means) - self.bias
-            robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
-            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
-            if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
-                self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
-
-    def turning_blocks(self) -> int:
-        """Blocks the accelerometer calls still (a quiet pair on either side) whose gyro mean is off the bias."""
-        acc_still = np.zeros(self.b.count, dtype=bool)
-        acc_still[1:] |= self.quiet
-        acc_still[:-1] |= self.quiet
-        return int(np.sum(acc_still & ~self.still))
-
-    def runs(self) -> list[tuple[int, int]]:
-        """Block ranges ``[k0, k1)`` of still blocks joined by quiet pairs."""
-        link = self.quiet & self.still[1:] & self.still[:-1]
-        out: list[tuple[int, int]] = []
-        k0 = 0
-        for k in range(1, self.b.count + 1):
-            if k == self.b.count or not link[k - 1]:
-                if k - k0 >= 1 and self.still[k0:k].all():
-                    out.append((k0, k))
-                k0 = k
-        return out
-
-    def _pairs_inside(self, runs: list[tuple[int, int]]) -> NDArray[np.bool_]:
-        inside = np.zeros(self.valid.size, dtype=bool)
-        for k0, k1 in runs:
-            inside[k0:k1 - 1] = True
-        return inside & self.valid
-
-    def split_by_noise(self, runs: list[tuple[int, int]]) -> list[tuple[int, int]]:
-        """Cut out of each run the blocks far noisier than the run's quieter quarter: a rest has one noise level.
-
-        A smooth motion (all of a low-pass filtered recording's motion) changes the block means and the
-        block variances gradually, so that no pair of consecutive blocks tells it from the noise; its
-        blocks are still many times noisier than the rest around them.  The critical value is the
-        variance-step test's (:func:`optcal.data.rest_model.variance_step_limit`).
-        """
-        b = self.b
-        out: list[tuple[int, int]] = []
-        total = np.maximum(b.var.sum(axis=1), np.finfo(float).tiny)
-        for k0, k1 in runs:
-            # the quieter blocks of the run and of a dwell on either side: a short stretch of a move's tail is
-            # measured against the rest it settles into
-            w = self.dwell_blocks
-            level = float(np.quantile(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE))
-            calm = np.log(total[k0:k1] / level) <= self.var_limit
-            starts, stops = true_runs(calm)
-            out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
-        return out
-
-    def peel(self, k0: int, k1: int) -> tuple[int, int]:
-        """Drop the run's end blocks while their mean differs from the rest of the run's (a settling tail)."""
-        b = self.b
-        while k1 - k0 >= 3:
-            changed = False
-            for end in (k0, k1 - 1):
-                # against the blocks next to it: a rest's mean may wander (flicker) over its length
-                others = slice(k0 + 1, min(k1, k0 + 1 + self.half_width)) if end == k0 else slice(max(k0, k1 - 1 - self.half_width), k1 - 1)
-                n_rest = float(b.n[others].sum())
-                rest_mean = (b.mean[others] * b.n[others, None]).sum(axis=0) / n_rest
-                stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest)
-                if stat > float(rm.step_limit(self.s.false_alarm, b.n[end] - 1.0)) * self.s.threshold:
-                    if end == k0:
-                        k0 += 1
-                    else:
-                        k1 -= 1
-                    changed = True
-                    break
-            if not changed:
-                break
-        return k0, k1
-
-    def spread(self, k0: int, k1: int) -> float:
-        """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
-        block means included, so that a stretch that moves is as loud as its motion)."""
-        b = self.b
-        w = b.n[k0:k1, None]
-        mean = (b.mean[k0:k1] * w).sum(axis=0) / w.sum()
-        total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
-        return float(np.sqrt(total.sum()))
-
-    def effective_samples(self, a: int, z: int) -> float:
-        """Independent samples in ``[a, z)``: the samples over the noise colour per sample (a block's ``κ²`` samples
-        carry the information of one when the noise is correlated over them)."""
-        per_sample = max(float(np.median(self.kappa2)) / self.block, 1.0 / self.block)
-        return (z - a) / max(per_sample * self.block, 1.0)
-
-    def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
-        """Trim single samples off the ends of a rest while they lie outside its noise.
-
-        A block edge falls anywhere: the first or last block of a rest may hold a few samples of the jump or
-        move next to it (a logger that stores only holds, a block that straddles the start of a move).  A sample
-        whose χ²₃ distance from the rest's mean, in its per-sample noise (the median block variance), is beyond
-        the ``1 - false_alarm`` quantile is not of the rest; trimming stops at the first one within.
-        """
-        b = self.b
-        w = b.n[j0:j1, None]
-        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        var = np.maximum(np.median(b.var[j0:j1], axis=0), np.finfo(float).tiny)
-        limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
-
-        def outside(i: int) -> bool:
-            d = acc[i] - mean
-            return float(np.sum(d * d / var)) > limit
-
-        edge = max(1, int(b.n[j0]))  # at most one block's worth from each end
-        start, stop = a, z
-        while start < min(a + edge, stop - 2) and outside(start):
-            start += 1
-        while stop > max(z - edge, start + 2) and outside(stop - 1):
-            stop -= 1
-        return start, stop
-
-    def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
-                       ) -> tuple[list[tuple[int, int, int, int]], int, int]:
-        """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation).
-
-        A rest's noise differs from rest to rest, but not beyond what the recording's own blocks show: a
-        stretch whose block variance (median over its blocks, summed over the axes) exceeds the duration-weighted
-        median of the rests' by more than twice the variance-step test's critical value (in log variance: the
-        largest change between two blocks of one rest, once for the rest and once for the other) oscillates
-        inside its blocks, which block means cannot see.
-        """
-        b = self.b
-        if len(kept) < 3:
-            return kept, 0, 0
-        level = np.array([np.log(max(float(np.median(b.var[j0:j1].sum(axis=1))), np.finfo(float).tiny))
-                          for _, _, j0, j1 in kept])
-        weight = np.array([float(z - a) for a, z, _, _ in kept])
-        order = np.argsort(level)
-        cumulative = np.cumsum(weight[order])
-        typical = float(level[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
-        odd = level > typical + 2.0 * self.var_limit
-        dropped = [k for k, flag in zip(kept, odd) if flag]
-        return [k for k, flag in zip(kept, odd) if not flag], len(dropped), sum(z - a for a, z, _, _ in dropped)
-
-    def creeps(self, k0: int, k1: int) -> bool:
-        """Whether the run's accelerometer mean moves (a slow turn).
-
-        Either its batch means trend significantly (Student's t of their slope) by more than the samples' own
-        spread about the stretch's mean (:data:`SAME_POSE_SAMPLE_SIGMAS` σ; a creep hidden in it, a flicker
-        noise's or a warming sensor's, moves no pose) or than a pose tolerates (a steady creep through Δ shrinks the mean's
-        norm by Δ²/24: ``√(24 WOBBLE_SHRINK)`` g); or its batch means range over more than both, which no
-        noise does whatever its colour (a batch mean scatters less than the samples) and a turn along a
-        curved path does without a straight trend.
-        """
-        b = self.b
-        tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
-        if dof <= 0:  # too few blocks for batches: the blocks' own means are the batch means
-            spread = float(np.linalg.norm(b.mean[k0:k1].max(axis=0) - b.mean[k0:k1].min(axis=0)))
-        noise = SAME_POSE_SAMPLE_SIGMAS * self.spread(k0, k1)
-        pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
-        k = self.s.drift_threshold
-        trending = dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
-        return bool(trending or spread > max(noise, pose) * k)
-
-    def turns(self, k0: int, k1: int) -> bool:
-        """Whether the run's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias moves
-        (:data:`MAX_BIAS_WANDER_RAD_S`) -- through more than a pose's wobble tolerance.
-
-        The noise of the run's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
-        batch means (a hand's tremor and flicker included; Student's t with their dof) when the run has as many
-        blocks, else the blocks' own noise of the mean times the gyro's noise colour (normal); the bias' wander
-        between rests is added.  A significant offset that turns the sensor through less than
-        ``√(2 WOBBLE_SHRINK)`` over the run, or over :data:`WOBBLE_DWELLS` dwells if the run is longer (a hand
-        sagging by a fraction of a degree, a bias wandering over minutes), moves no pose.
-        """
-        b = self.b
-        if b.gmean is None or self.bias is None:
-            return False
-        k = k1 - k0
-        w = b.n[k0:k1, None]
-        off = (b.gmean[k0:k1] * w).sum(axis=0) / w.sum() - self.bias
-        if k >= rm.TREND_BATCHES:
-            groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
-            xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
-            se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
-            limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
-        else:
-            assert self.gvar_ref is not None
-            se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
-            limit = rm.normal_limit(self.s.false_alarm / 6.0)
-        z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
-        significant = bool(np.max(z) > limit * self.s.gyro_threshold)
-        if self.gyro_scale is None:
-            return significant
-        # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
-        # statistics of a stretch that shakes say of its noise
-        beyond_bias = float(np.linalg.norm(off)) * self.gyro_scale > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
-        if not (significant or beyond_bias):
-            return False
-        # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
-        duration = min(float(b.t_mid[k1 - 1] - b.t_mid[k0]) + float(b.n[k0]) / self.rate,
-                       WOBBLE_DWELLS * self.s.min_dwell_s)
-        turned = float(np.linalg.norm(off)) * self.gyro_scale * duration
-        return turned > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold
-
-    def noise(self) -> dict[str, float]:
-        out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
-        if self.bias is not None:
-            out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
-            out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
-        return out
-
-    def limits(self) -> dict[str, float]:
-        out = {"step": float(np.median(self.step_limit)) if self.step_limit.size else float("nan"),
-               "trend": rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 2) * self.s.drift_threshold}
-        if self.bias is not None:
-            out["gyro"] = float(np.median(self.gyro_limit))
-        return out
-
-    def trace(self, m: int) -> dict[str, NDArray[np.float64]]:
-        """The step and gyro statistics over their critical values, per sample (the larger of a block's two pairs)."""
-        b = self.b
-        ratio = np.where(self.valid, self.step / self.step_limit, 0.0)
-        per_block = np.zeros(b.count)
-        per_block[1:] = ratio
-        per_block[:-1] = np.maximum(per_block[:-1], ratio)
-        lengths = (b.stop - b.start).astype(int)
-        out = {"step": np.repeat(per_block, lengths)}
-        if self.bias is not None:
-            out["gyro"] = np.repeat(self.gstat / self.gyro_limit, lengths)
-        return out
-
-
-#: Largest change of a MEMS gyro's bias between the rests of one session, rad/s (1 °/s): in-run bias stability is
-#: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
-#: rates scatter more are not all rests.
-MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
-
-#: Quantile of the block-to-block rates at which the gyro's readings are set against the accelerometer's turn rate:
-#: the fast moves, where a gyro's bias is small beside the rate.
-UNIT_RATE_QUANTILE: float = 0.9
-
-
-def _gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None,
-                       blocks: rm.Blocks) -> float | None:
-    """Radians per second per gyro unit, for a gyro whose unit the file does not state.
-
-    The moves say it: gravity's direction in the sensor turns no faster than the sensor, so between
-    consecutive blocks the accelerometer's turn rate |Δĝ|/Δt is at most the gyro's rate; at the fast moves
-    (the :data:`UNIT_RATE_QUANTILE` quantile of both) the gyro reads 1-3 times the accelerometer's turn rate
-    in rad/s and 57 times more in °/s.  A ratio above √57.3 (half-way on the log scale) says °/s.  A recording
-    that never turns (its accelerometer's fast quantile within its noise) keeps the convention of the
-    accelerometer's units: rad/s beside m/s² (ROS's ``sensor_msgs/Imu``), °/s beside g (datasheets).
-    ``None`` for counts (their scale is the sensor's).
-    """
-    if gyro is None:
-        return None
-    if rec.gyro_units in RAD_PER_UNIT:
-        return RAD_PER_UNIT[rec.gyro_units]
-    if rec.gyro_units is not None or bias is None or blocks.gmean is None or rec.units == "counts":
-        return None  # counts, or beside an accelerometer in counts: the scale is the sensor's
-    u = blocks.mean / np.linalg.norm(blocks.mean, axis=1, keepdims=True)
-    dt = np.diff(blocks.t_mid)
-    ok = blocks.joined[1:] & (dt > 0)
-    if ok.sum() >= 2:
-        turn = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))[ok] / dt[ok]
-        # the accelerometer's turn rate that its noise alone gives: two block means' noise over the block step
-        noise = np.sqrt(2.0 * np.median(blocks.var.sum(axis=1) / blocks.n)) / np.median(np.linalg.norm(blocks.mean, axis=1))
-        acc_fast = float(np.quantile(turn, UNIT_RATE_QUANTILE))
-        if acc_fast > 3.0 * noise / float(np.median(dt)):
-            gyro_fast = float(np.quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE))
-            ratio = gyro_fast / acc_fast
-            return RAD_PER_UNIT["deg/s"] if ratio > np.sqrt(1.0 / RAD_PER_UNIT["deg/s"]) else RAD_PER_UNIT["rad/s"]
-    return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
-
-
-def _wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
-    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
-
-    In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
-    steady turn, which :meth:`_RestModel.turns` tests) are integrated by the trapezoid rule over the true time
-    steps; over a window the gyro's own angle random walk and bias wander stay far below the tolerance, a
-    hand's tremor or a vibration do not.
-    """
-    m = gyro.shape[0]
-    if m < 3:
-        return 0.0
-    total, count = 0.0, 0
-    for a in range(0, m, window):
-        w = gyro[a:a + window] * rad_per_unit
-        if w.shape[0] < 3:
-            continue
-        w = w - w.mean(axis=0)
-        dt = np.diff(t[a:a + window])[:, None]
-        angle = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (w[1:] + w[:-1]) * dt, axis=0)])
-        angle -= angle.mean(axis=0)
-        total += float(np.sum(angle * angle))
-        count += w.shape[0]
-    return float(np.sqrt(total / max(count, 1)))
-
-
-def _no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, start: int, model: _RestModel,
-                 block: int, gyro_scale: float | None) -> bool:
-    """Whether the gyro shows no net turn between samples ``end`` and ``start`` (a twitch that came back).
-
-    The rates less the bias integrated over the interruption, against the noise of that integral (the
-    per-sample noise of the next rest's blocks times the noise colour, as a random walk, and the bias'
-    wander over the interruption): χ²₃ at the false-alarm probability; a significant net turn smaller than
-    a pose's wobble tolerance (gyro in known units) is no turn either.
-    """
-    if model.bias is None or model.gvar_ref is None:
-        return False
-    if start <= end:
-        return True
-    dt = np.diff(t[end - 1:start + 1])
-    rates = gyro[end:start] - model.bias
-    net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
-    span = float(dt.sum())
-    var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
-    stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
-    if stat <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
-        return True
-    return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
-
-
-def _join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: _RestModel,
-                   dwell_s: float, gyro: NDArray[np.float64] | None,
-                   gyro_scale: float | None, max_gap: float) -> list[list[tuple[int, int]]]:
-    """Group consecutive rests that are one pose interrupted (a twitch, a test's false alarm).
-
-    Two consecutive rests are one pose when their means do not differ -- by less than the noise of the
-    difference (each mean's variance from the scatter of its block means, at least ``κ² v / n``), or by
-    less than :data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ (a flicker noise's wander between two pieces
-    of one rest) -- and the sensor did not turn between them: by the gyro, no net turn
-    (:func:`_no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
-    move), or when the interruption is shorter than the dwell (the dwell as a prior: no pose is left and
-    regained in less time than one is held).  Never across a time gap.
-    """
-    b = model.b
-    block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
-    groups: list[list[tuple[int, int]]] = []
-    last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
-    for a, z, j0, j1 in kept:
-        w = b.n[j0:j1, None]
-        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        white = model.kappa2 * np.median(b.var[j0:j1], axis=0) / w.sum()
-        scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
-        se2 = np.maximum(white, scatter)
-        sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
-        if groups and last is not None:
-            end = groups[-1][-1][1]
-            gap = bool(np.max(np.diff(t[end - 1:a + 1])) > max_gap)
-            if gap:
-                still_between = False  # nothing is known of what the sensor did in a gap of the recording
-            else:
-                still_between = t[a] - t[end - 1] < dwell_s + 2.0 * block_s or (
-                    gyro is not None and _no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
-            d = mean - last[0]
-            stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
-            same = stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
-                or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
-            if still_between and same:
-                groups[-1].append((a, z))
-                continue
-        groups.append([(a, z)])
-        last = (mean, se2, sd)
-    return groups
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

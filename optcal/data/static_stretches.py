@@ -1,17 +1,26 @@
-"""Static stretches of a recording: runs of static samples, split, joined into poses, or rejected.
+"""Still stretches of a recording: runs, the gyro's unit and wobble, and the pieces of one pose joined.
 
-The static detector (:func:`optcal.data.static.detect_static`) turns its mask of static samples
-into runs (:func:`true_runs`), splits them at time gaps (:func:`split_runs`), joins the runs of
-one orientation interrupted by a twitch into one pose (:func:`join_interrupted`), and rejects the
-groups that turn slowly (:func:`sweep`, :func:`reject_sweeping`) or whose gyro is not at rest
-(:func:`reject_turning`).  A group of stretches is a list of sample ranges ``[a, b)``
-(:func:`group_positions`).
+The rest model (:mod:`optcal.data.rest_tests`) finds runs of still blocks (:func:`true_runs`); these helpers
+read the gyro in radians (:func:`gyro_rad_per_unit`), measure how a stretch's orientation wobbles
+(:func:`wobble`), join the rests that are one pose interrupted (:func:`join_twitches`, :func:`no_net_turn`),
+and give a pose's sample positions (:func:`group_positions`).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
+
+from optcal.core.units import RAD_PER_UNIT
+from optcal.data import rest_model as rm
+from optcal.data.recording import Recording
+from optcal.data.rest_model import SAME_POSE_SAMPLE_SIGMAS, UNIT_RATE_QUANTILE, WOBBLE_SHRINK
+
+if TYPE_CHECKING:
+    from optcal.data.rest_tests import RestModel
+
 
 def true_runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
@@ -19,111 +28,130 @@ def true_runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.in
     return edges[::2], edges[1::2]
 
 
-def join_interrupted(
-    ranges: list[tuple[int, int]],
-    t: NDArray[np.float64],
-    acc: NDArray[np.float64],
-    window_s: float,
-    tolerance: float,
-) -> list[list[tuple[int, int]]]:
-    """Group static stretches that are one pose interrupted by a twitch.
+def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None,
+                       blocks: rm.Blocks) -> float | None:
+    """Radians per second per gyro unit, for a gyro whose unit the file does not state.
 
-    Consecutive stretches ``[a, b)`` separated by less than one window in time whose means
-    differ by less than ``tolerance`` (the accelerometer gate, raw units) are the same
-    orientation held by hand through a brief tremor: one pose, the samples between them
-    left out (and counted as moving).
+    The moves say it: gravity's direction in the sensor turns no faster than the sensor, so between
+    consecutive blocks the accelerometer's turn rate |Δĝ|/Δt is at most the gyro's rate; at the fast moves
+    (the :data:`UNIT_RATE_QUANTILE` quantile of both) the gyro reads 1-3 times the accelerometer's turn rate
+    in rad/s and 57 times more in °/s.  A ratio above √57.3 (half-way on the log scale) says °/s.  A recording
+    that never turns (its accelerometer's fast quantile within its noise) keeps the convention of the
+    accelerometer's units: rad/s beside m/s² (ROS's ``sensor_msgs/Imu``), °/s beside g (datasheets).
+    ``None`` for counts (their scale is the sensor's).
     """
-    groups: list[list[tuple[int, int]]] = []
-    last_mean: NDArray[np.float64] | None = None
-    for a, b in ranges:
-        mean = acc[a:b].mean(axis=0)
-        if (
-            groups
-            and last_mean is not None
-            and t[a] - t[groups[-1][-1][1] - 1] < window_s
-            and float(np.linalg.norm(mean - last_mean)) < tolerance
-        ):
-            groups[-1].append((a, b))
-            n = sum(y - x for x, y in groups[-1])
-            last_mean = np.sum([acc[x:y].sum(axis=0) for x, y in groups[-1]], axis=0) / n
-        else:
-            groups.append([(a, b)])
-            last_mean = mean
-    return groups
+    if gyro is None:
+        return None
+    if rec.gyro_units in RAD_PER_UNIT:
+        return RAD_PER_UNIT[rec.gyro_units]
+    if rec.gyro_units is not None or bias is None or blocks.gmean is None or rec.units == "counts":
+        return None  # counts, or beside an accelerometer in counts: the scale is the sensor's
+    u = blocks.mean / np.linalg.norm(blocks.mean, axis=1, keepdims=True)
+    dt = np.diff(blocks.t_mid)
+    ok = blocks.joined[1:] & (dt > 0)
+    if ok.sum() >= 2:
+        turn = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))[ok] / dt[ok]
+        # the accelerometer's turn rate that its noise alone gives: two block means' noise over the block step
+        noise = np.sqrt(2.0 * np.median(blocks.var.sum(axis=1) / blocks.n)) / np.median(np.linalg.norm(blocks.mean, axis=1))
+        acc_fast = float(np.quantile(turn, UNIT_RATE_QUANTILE))
+        if acc_fast > 3.0 * noise / float(np.median(dt)):
+            gyro_fast = float(np.quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE))
+            ratio = gyro_fast / acc_fast
+            return RAD_PER_UNIT["deg/s"] if ratio > np.sqrt(1.0 / RAD_PER_UNIT["deg/s"]) else RAD_PER_UNIT["rad/s"]
+    return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
 
 
-def split_runs(
-    starts: NDArray[np.int64], stops: NDArray[np.int64], breaks: NDArray[np.int64]
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Split runs ``[a, b)`` at the sample indices ``breaks`` (a new run starts there)."""
-    out_a, out_b = [], []
-    for a, b in zip(starts, stops):
-        inner = breaks[(breaks > a) & (breaks < b)]
-        edges = [a, *inner.tolist(), b]
-        out_a.extend(edges[:-1])
-        out_b.extend(edges[1:])
-    return np.asarray(out_a, dtype=int), np.asarray(out_b, dtype=int)
+def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
+    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
 
-
-def sweep(x: NDArray[np.float64], window: int) -> float:
-    """How far the mean of ``x`` (n, 3) moves across it: ‖max − min‖ over the axes of the means of
-    consecutive blocks of ``window`` samples (0 for fewer than two blocks).
-
-    A slow turn that keeps ‖a‖ (by hand about an axis near the vertical) moves the axes by less than
-    the noise within one window, so neither the moving standard deviation nor the half-window drift
-    sees it, but over a stretch of several windows its block means sweep far beyond the noise.
+    In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
+    steady turn, which :meth:`optcal.data.rest_tests.RestModel.turns` tests) are integrated by the trapezoid rule over the true time
+    steps; over a window the gyro's own angle random walk and bias wander stay far below the tolerance, a
+    hand's tremor or a vibration do not.
     """
-    blocks = x.shape[0] // window
-    if blocks < 2:
+    m = gyro.shape[0]
+    if m < 3:
         return 0.0
-    means = np.add.reduce(x[: blocks * window].T.reshape(x.shape[1], blocks, window), axis=2) / window
-    return float(np.linalg.norm(means.max(axis=1) - means.min(axis=1)))
-
-
-def reject_sweeping(
-    groups: list[list[tuple[int, int]]], acc: NDArray[np.float64], window: int, limit: float,
-    in_pose: NDArray[np.bool_],
-) -> tuple[list[list[tuple[int, int]]], int, int]:
-    """Drop the groups whose block means sweep by more than ``limit`` (the accelerometer gate, :func:`sweep`).
-
-    At rest the means of one-window blocks scatter by the noise of a mean, far below the gate
-    (≤ 0.72 of it over every static pose of the recordings in ../shared/data); ``in_pose`` is cleared
-    for the dropped samples; returns the kept groups, the number dropped and their samples.
-    """
-    kept: list[list[tuple[int, int]]] = []
-    n_dropped = n_samples = 0
-    for group in groups:
-        pos = group_positions(group)
-        if sweep(acc[pos], window) <= limit:
-            kept.append(group)
+    total, count = 0.0, 0
+    for a in range(0, m, window):
+        w = gyro[a:a + window] * rad_per_unit
+        if w.shape[0] < 3:
             continue
-        n_dropped += 1
-        n_samples += sum(b - a for a, b in group)
-        in_pose[pos] = False
-    return kept, n_dropped, n_samples
+        w = w - w.mean(axis=0)
+        dt = np.diff(t[a:a + window])[:, None]
+        angle = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (w[1:] + w[:-1]) * dt, axis=0)])
+        angle -= angle.mean(axis=0)
+        total += float(np.sum(angle * angle))
+        count += w.shape[0]
+    return float(np.sqrt(total / max(count, 1)))
 
 
-def reject_turning(
-    groups: list[list[tuple[int, int]]], gyro: NDArray[np.float64], limit: float, in_pose: NDArray[np.bool_]
-) -> tuple[list[list[tuple[int, int]]], int, int]:
-    """Drop the groups whose gyro standard deviation (norm over the axes) exceeds ``limit``.
+def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, start: int, model: RestModel,
+                 block: int, gyro_scale: float | None) -> bool:
+    """Whether the gyro shows no net turn between samples ``end`` and ``start`` (a twitch that came back).
 
-    Used when a recording's gyro noise floor is above a resting gyro's: its quiet stretches
-    are the slowest parts of a motion, not rests.  ``in_pose`` is cleared for the dropped
-    samples; returns the kept groups, the number dropped and their samples.
+    The rates less the bias integrated over the interruption, against the noise of that integral (the
+    per-sample noise of the next rest's blocks times the noise colour, as a random walk, and the bias'
+    wander over the interruption): χ²₃ at the false-alarm probability; a significant net turn smaller than
+    a pose's wobble tolerance (gyro in known units) is no turn either.
     """
-    kept: list[list[tuple[int, int]]] = []
-    n_dropped = n_samples = 0
-    for group in groups:
-        pos = np.concatenate([np.arange(a, b) for a, b in group])
-        spread = float(np.sqrt(np.sum(np.var(gyro[pos], axis=0, ddof=1))))
-        if spread <= limit:
-            kept.append(group)
-            continue
-        n_dropped += 1
-        n_samples += int(pos.size)
-        in_pose[pos] = False
-    return kept, n_dropped, n_samples
+    if model.bias is None or model.gvar_ref is None:
+        return False
+    if start <= end:
+        return True
+    dt = np.diff(t[end - 1:start + 1])
+    rates = gyro[end:start] - model.bias
+    net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
+    span = float(dt.sum())
+    var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
+    stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
+    if stat <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
+        return True
+    return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
+
+
+def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: RestModel,
+                   dwell_s: float, gyro: NDArray[np.float64] | None,
+                   gyro_scale: float | None, max_gap: float) -> list[list[tuple[int, int]]]:
+    """Group consecutive rests that are one pose interrupted (a twitch, a test's false alarm).
+
+    Two consecutive rests are one pose when their means do not differ -- by less than the noise of the
+    difference (each mean's variance from the scatter of its block means, at least ``κ² v / n``), or by
+    less than :data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ (a flicker noise's wander between two pieces
+    of one rest) -- and the sensor did not turn between them: by the gyro, no net turn
+    (:func:`_no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
+    move), or when the interruption is shorter than the dwell (the dwell as a prior: no pose is left and
+    regained in less time than one is held).  Never across a time gap.
+    """
+    b = model.b
+    block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
+    groups: list[list[tuple[int, int]]] = []
+    last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
+    for a, z, j0, j1 in kept:
+        w = b.n[j0:j1, None]
+        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
+        white = model.kappa2 * np.median(b.var[j0:j1], axis=0) / w.sum()
+        scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
+        se2 = np.maximum(white, scatter)
+        sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
+        if groups and last is not None:
+            end = groups[-1][-1][1]
+            gap = bool(np.max(np.diff(t[end - 1:a + 1])) > max_gap)
+            if gap:
+                still_between = False  # nothing is known of what the sensor did in a gap of the recording
+            else:
+                still_between = t[a] - t[end - 1] < dwell_s + 2.0 * block_s or (
+                    gyro is not None and no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
+            d = mean - last[0]
+            stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
+            same = stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
+                or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
+            if still_between and same:
+                groups[-1].append((a, z))
+                continue
+        groups.append([(a, z)])
+        last = (mean, se2, sd)
+    return groups
 
 
 def group_positions(group: list[tuple[int, int]]) -> slice | NDArray[np.int64]:

@@ -183,7 +183,7 @@ def slow_sphere(gyro: bool) -> pd.DataFrame:
 
 
 def true_turn_deg(frame: pd.DataFrame, iv) -> float:
-    """The angle the simulated sensor turns through over a pose, from its gyro columns (°/s, noise included)."""
+    """The path the simulated sensor turns through over a pose, from its gyro columns (°/s; their noise adds ≈ 0.2°)."""
     rates = np.radians(frame[["gx", "gy", "gz"]].to_numpy()[iv.start:iv.stop])
     return float(np.degrees(np.sum(np.linalg.norm(rates, axis=1)) * np.median(np.diff(frame["t"]))))
 
@@ -199,9 +199,11 @@ def test_never_resting_sphere_gives_too_few_rests_to_calibrate_and_each_is_a_nea
     assert sum(v for k, v in seg.exclusions.items() if k.startswith("samples")) + seg.n_used == len(frame)
     for iv in seg.intervals:
         assert abs(np.linalg.norm(iv.mean) - 1.0) < 3 * iv.sigma + 1e-4
-    if gyro:  # by the true rates, each pose is a moment of the sphere's slowest turning
-        turns = [true_turn_deg(slow_sphere(True), iv) for iv in seg.intervals]
-        assert np.median(turns) < 0.8 and max(turns) < 2.0
+    if gyro:  # by the true rates, each pose is a moment of the sphere's slowest turning: no faster than a MEMS
+        # gyro's bias may move (1 °/s, which the gyro cannot tell from a turn), through at most a pose's tolerance more
+        truth = slow_sphere(True)
+        for iv in seg.intervals:
+            assert true_turn_deg(truth, iv) <= 1.0 * (iv.t_end - iv.t_start) + 0.81 + 0.2
     else:
         assert len(seg.intervals) < 9
 

@@ -46,9 +46,9 @@ def test_xsens_is_read_as_raw_counts(xsens):
     assert p.meta["rate_hz"] == pytest.approx(100.0, rel=1e-3)
     assert p.gyro is not None
     # nothing saturated, non-finite or duplicated: only motion and a few short still stretches excluded
-    from optcal.data.static import MOVING, SHORT, SHORT_STRETCHES
+    from optcal.data.static import EDGES, MOVING, SHORT, SHORT_STRETCHES
 
-    assert set(p.exclusions) <= {MOVING, SHORT, SHORT_STRETCHES}
+    assert set(p.exclusions) <= {MOVING, EDGES, SHORT, SHORT_STRETCHES}
 
 
 def test_xsens_static_intervals_as_imu_tk(xsens):
@@ -118,7 +118,7 @@ def test_ferraris_session_has_six_orientations_and_is_not_identifiable():
     from optcal.families.accel.calibration import calibrate
 
     p = load(need(FERRARIS / "example_ferraris_session.csv"), rate=102.4)
-    assert p.units == "m/s^2" and p.n == 13
+    assert p.units == "m/s^2" and p.n == 12  # the first rest, 13 s held by hand, is one pose (a twitch joined)
     axes = {(int(np.argmax(np.abs(a))), int(np.sign(a[np.argmax(np.abs(a))]))) for a in p.acc}
     assert len(axes) == 6  # ±x, ±y, ±z: the six Ferraris positions, visited again around the rotations
     with pytest.raises(IdentifiabilityError):

@@ -1,0 +1,337 @@
+"""The rest model applied to one recording: its blocks, the noise measured on them, and the tests of each still stretch.
+
+:mod:`optcal.data.rest_model` states the statistics and their distributions; :class:`RestModel` measures the
+noise colour, the gyro's bias and wander on a recording (two passes: the second inside the rests the first
+found), and judges each still stretch (:meth:`RestModel.peel`, :meth:`~RestModel.creeps`,
+:meth:`~RestModel.turns`, ...).  :func:`optcal.data.static.detect_static` turns its verdicts into poses.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.data import rest_model as rm
+from optcal.data.recording import Recording
+from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
+from optcal.data.static_stretches import gyro_rad_per_unit, true_runs
+from optcal.data.units import nominal_conversion
+from optcal.data.window_stats import quantum
+
+if TYPE_CHECKING:
+    from optcal.data.static import StaticSettings
+
+
+class RestModel:
+    """The blocks of one recording and the tests of :mod:`optcal.data.rest_model` on them, measured in two passes."""
+
+    def __init__(self, rec: Recording, s: StaticSettings, t: NDArray[np.float64], acc: NDArray[np.float64],
+                 gyro: NDArray[np.float64] | None, block: int, breaks: NDArray[np.int64], rate: float) -> None:
+        self.s = s
+        self.rate = rate
+        qa = quantum(acc) or 0.0
+        qg = (quantum(gyro) or 0.0) if gyro is not None else 0.0
+        self.block = block
+        self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
+        self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
+        self.dwell_blocks = max(1, int(np.ceil(s.min_dwell_s * rate / block)))
+        b.var_ref = rm.local_noise(b.var, b.joined, self.half_width)
+        self.valid = b.joined[1:]
+        self.dof = b.n[1:] + b.n[:-1] - 2.0
+        self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
+        dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
+        # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
+        # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
+        calm = rm.calm_pairs(b.var, self.valid)
+        if calm.sum() >= rm.MIN_COLOUR_PAIRS:
+            self.kappa2 = rm.noise_colour(self.ratios[calm], dof0, 0.5)
+        else:
+            self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
+        self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
+        self.bias: NDArray[np.float64] | None = None
+        self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
+        nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
+        self.one_g = float(nominal.sensitivity)
+        self.gkappa2 = np.ones(3)
+        self.gvar_ref: NDArray[np.float64] | None = None
+        self.wander2 = np.zeros(3)
+        self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
+        self.still = np.ones(b.count, dtype=bool)
+        self._pass(first=True)
+        self.gyro_scale = gyro_rad_per_unit(rec, gyro, self.bias, self.b)
+        # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
+        inside = self._pairs_inside(self.runs())
+        if inside.sum() >= 8:
+            self.kappa2 = rm.noise_colour(self.ratios[inside], dof0, 0.5)
+        self._pass(first=False)
+
+    def _pass(self, first: bool) -> None:
+        b = self.b
+        self.step = rm.step_statistic(self.ratios, self.kappa2)
+        if first:
+            self.var_steps = rm.log_variance_steps(b.var)
+            self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm,
+                                                   float(np.median(b.n))) * self.s.threshold
+        self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
+        if b.gmean is None or b.gvar is None:
+            return
+        acc_still = np.zeros(b.count, dtype=bool)
+        acc_still[1:] |= self.quiet
+        acc_still[:-1] |= self.quiet
+        base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
+        if first:
+            self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
+            self.gvar_ref = rm.local_noise(b.gvar, b.joined, self.half_width)
+            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n)
+            pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
+            self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
+        else:
+            self._measure_wander()
+        assert self.bias is not None and self.gvar_ref is not None
+        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2)
+        self.still = self.gstat <= self.gyro_limit
+
+    def _measure_wander(self) -> None:
+        """The gyro bias' wander between rests: the scatter of the first rests' mean rates beyond their noise."""
+        b = self.b
+        assert self.bias is not None and b.gmean is not None and b.gvar is not None
+        means, noise2 = [], []
+        for k0, k1 in self.runs():
+            n = b.n[k0:k1].sum()
+            means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
+            noise2.append(self.gkappa2 * np.median(b.gvar[k0:k1], axis=0) / n)
+        if means:
+            # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
+            # its own error, integrated over a long rest, would look like a turn)
+            self.bias = np.median(np.asarray(means), axis=0)
+        if len(means) >= 3:
+            dev = np.asarray(means) - self.bias
+            robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
+            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
+            if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
+                self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
+
+    def turning_blocks(self) -> int:
+        """Blocks the accelerometer calls still (a quiet pair on either side) whose gyro mean is off the bias."""
+        acc_still = np.zeros(self.b.count, dtype=bool)
+        acc_still[1:] |= self.quiet
+        acc_still[:-1] |= self.quiet
+        return int(np.sum(acc_still & ~self.still))
+
+    def runs(self) -> list[tuple[int, int]]:
+        """Block ranges ``[k0, k1)`` of two or more still blocks joined by quiet pairs."""
+        link = self.quiet & self.still[1:] & self.still[:-1]
+        out: list[tuple[int, int]] = []
+        k0 = 0
+        for k in range(1, self.b.count + 1):
+            if k == self.b.count or not link[k - 1]:
+                if k - k0 >= 2 and self.still[k0:k].all():  # a lone block between two steps moves
+                    out.append((k0, k))
+                k0 = k
+        return out
+
+    def _pairs_inside(self, runs: list[tuple[int, int]]) -> NDArray[np.bool_]:
+        inside = np.zeros(self.valid.size, dtype=bool)
+        for k0, k1 in runs:
+            inside[k0:k1 - 1] = True
+        return inside & self.valid
+
+    def split_by_noise(self, runs: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        """Cut out of each run the blocks far noisier than the run's quieter quarter: a rest has one noise level.
+
+        A smooth motion (all of a low-pass filtered recording's motion) changes the block means and the
+        block variances gradually, so that no pair of consecutive blocks tells it from the noise; its
+        blocks are still many times noisier than the rest around them.  The critical value is the
+        variance-step test's (:func:`optcal.data.rest_model.variance_step_limit`).
+        """
+        b = self.b
+        out: list[tuple[int, int]] = []
+        total = np.maximum(b.var.sum(axis=1), np.finfo(float).tiny)
+        for k0, k1 in runs:
+            # the quieter blocks of the run and of a dwell on either side: a short stretch of a move's tail is
+            # measured against the rest it settles into
+            w = self.dwell_blocks
+            level = float(np.quantile(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE))
+            calm = np.log(total[k0:k1] / level) <= self.var_limit
+            starts, stops = true_runs(calm)
+            out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
+        return out
+
+    def peel(self, k0: int, k1: int) -> tuple[int, int]:
+        """Drop the run's end blocks while their mean differs from the rest of the run's (a settling tail)."""
+        b = self.b
+        while k1 - k0 >= 3:
+            changed = False
+            for end in (k0, k1 - 1):
+                # against the blocks next to it: a rest's mean may wander (flicker) over its length
+                others = slice(k0 + 1, min(k1, k0 + 1 + self.half_width)) if end == k0 else slice(max(k0, k1 - 1 - self.half_width), k1 - 1)
+                n_rest = float(b.n[others].sum())
+                rest_mean = (b.mean[others] * b.n[others, None]).sum(axis=0) / n_rest
+                stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest)
+                if stat > float(rm.step_limit(self.s.false_alarm, b.n[end] - 1.0)) * self.s.threshold:
+                    if end == k0:
+                        k0 += 1
+                    else:
+                        k1 -= 1
+                    changed = True
+                    break
+            if not changed:
+                break
+        return k0, k1
+
+    def spread(self, k0: int, k1: int) -> float:
+        """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
+        block means included, so that a stretch that moves is as loud as its motion)."""
+        b = self.b
+        w = b.n[k0:k1, None]
+        mean = (b.mean[k0:k1] * w).sum(axis=0) / w.sum()
+        total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
+        return float(np.sqrt(total.sum()))
+
+    def effective_samples(self, a: int, z: int) -> float:
+        """Independent samples in ``[a, z)``: the samples over the noise colour per sample (a block's ``κ²`` samples
+        carry the information of one when the noise is correlated over them)."""
+        per_sample = max(float(np.median(self.kappa2)) / self.block, 1.0 / self.block)
+        return (z - a) / max(per_sample * self.block, 1.0)
+
+    def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
+        """Trim single samples off the ends of a rest while they lie outside its noise.
+
+        A block edge falls anywhere: the first or last block of a rest may hold a few samples of the jump or
+        move next to it (a logger that stores only holds, a block that straddles the start of a move).  A sample
+        whose χ²₃ distance from the rest's mean, in its per-sample noise (the median block variance), is beyond
+        the ``1 - false_alarm`` quantile is not of the rest; trimming stops at the first one within.
+        """
+        b = self.b
+        w = b.n[j0:j1, None]
+        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
+        # at least the rounding of the data's own scale: a noise-free rest has no sample outside it
+        floor = (64.0 * np.finfo(float).eps * float(np.max(np.abs(mean)))) ** 2
+        var = np.maximum(np.median(b.var[j0:j1], axis=0), max(floor, np.finfo(float).tiny))
+        limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
+
+        def outside(i: int) -> bool:
+            d = acc[i] - mean
+            return float(np.sum(d * d / var)) > limit
+
+        edge = max(1, int(b.n[j0]))  # at most one block's worth from each end
+        start, stop = a, z
+        while start < min(a + edge, stop - 2) and outside(start):
+            start += 1
+        while stop > max(z - edge, start + 2) and outside(stop - 1):
+            stop -= 1
+        return start, stop
+
+    def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
+                       ) -> tuple[list[tuple[int, int, int, int]], int, int]:
+        """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation).
+
+        A rest's noise differs from rest to rest, but not beyond what the recording's own blocks show: a
+        stretch whose block variance (median over its blocks, summed over the axes) exceeds the duration-weighted
+        median of the rests' by more than twice the variance-step test's critical value (in log variance: the
+        largest change between two blocks of one rest, once for the rest and once for the other) oscillates
+        inside its blocks, which block means cannot see.
+        """
+        b = self.b
+        if len(kept) < 3:
+            return kept, 0, 0
+        floor = (NOISE_FLOOR_G * self.one_g) ** 2  # noise levels below it are the same for any calibration
+        level = np.array([np.log(max(float(np.median(b.var[j0:j1].sum(axis=1))), floor))
+                          for _, _, j0, j1 in kept])
+        weight = np.array([float(z - a) for a, z, _, _ in kept])
+        order = np.argsort(level)
+        cumulative = np.cumsum(weight[order])
+        typical = float(level[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
+        odd = level > typical + 2.0 * self.var_limit
+        dropped = [k for k, flag in zip(kept, odd) if flag]
+        return [k for k, flag in zip(kept, odd) if not flag], len(dropped), sum(z - a for a, z, _, _ in dropped)
+
+    def creeps(self, k0: int, k1: int) -> bool:
+        """Whether the run's accelerometer mean moves (a slow turn).
+
+        Either its batch means trend significantly (Student's t of their slope) by more than the samples' own
+        spread about the stretch's mean (:data:`SAME_POSE_SAMPLE_SIGMAS` σ; a creep hidden in it, a flicker
+        noise's or a warming sensor's, moves no pose) or than a pose tolerates (a steady creep through Δ shrinks the mean's
+        norm by Δ²/24: ``√(24 WOBBLE_SHRINK)`` g); or its batch means range over more than both, which no
+        noise does whatever its colour (a batch mean scatters less than the samples) and a turn along a
+        curved path does without a straight trend.
+        """
+        b = self.b
+        tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
+        if dof <= 0:  # too few blocks for batches: the blocks' own means are the batch means
+            spread = float(np.linalg.norm(b.mean[k0:k1].max(axis=0) - b.mean[k0:k1].min(axis=0)))
+        noise = SAME_POSE_SAMPLE_SIGMAS * self.spread(k0, k1)
+        pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
+        k = self.s.drift_threshold
+        trending = dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
+        return bool(trending or spread > max(noise, pose) * k)
+
+    def turns(self, k0: int, k1: int) -> bool:
+        """Whether the run's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias moves
+        (:data:`MAX_BIAS_WANDER_RAD_S`) -- through more than a pose's wobble tolerance.
+
+        The noise of the run's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
+        batch means (a hand's tremor and flicker included; Student's t with their dof) when the run has as many
+        blocks, else the blocks' own noise of the mean times the gyro's noise colour (normal); the bias' wander
+        between rests is added.  A significant offset that turns the sensor through less than
+        ``√(2 WOBBLE_SHRINK)`` over the run, or over :data:`WOBBLE_DWELLS` dwells if the run is longer (a hand
+        sagging by a fraction of a degree, a bias wandering over minutes), moves no pose.
+        """
+        b = self.b
+        if b.gmean is None or self.bias is None:
+            return False
+        k = k1 - k0
+        w = b.n[k0:k1, None]
+        off = (b.gmean[k0:k1] * w).sum(axis=0) / w.sum() - self.bias
+        if k >= rm.TREND_BATCHES:
+            groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
+            xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
+            se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
+            limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
+        else:
+            assert self.gvar_ref is not None
+            se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
+            limit = rm.normal_limit(self.s.false_alarm / 6.0)
+        z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
+        significant = bool(np.max(z) > limit * self.s.gyro_threshold)
+        if self.gyro_scale is None:
+            return significant
+        # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
+        # statistics of a stretch that shakes say of its noise
+        beyond_bias = float(np.linalg.norm(off)) * self.gyro_scale > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
+        if not (significant or beyond_bias):
+            return False
+        # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
+        duration = min(float(b.t_mid[k1 - 1] - b.t_mid[k0]) + float(b.n[k0]) / self.rate,
+                       WOBBLE_DWELLS * self.s.min_dwell_s)
+        turned = float(np.linalg.norm(off)) * self.gyro_scale * duration
+        return turned > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold
+
+    def noise(self) -> dict[str, float]:
+        out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
+        if self.bias is not None:
+            out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
+            out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
+        return out
+
+    def limits(self) -> dict[str, float]:
+        out = {"step": float(np.median(self.step_limit)) if self.step_limit.size else float("nan"),
+               "trend": rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 2) * self.s.drift_threshold}
+        if self.bias is not None:
+            out["gyro"] = float(np.median(self.gyro_limit))
+        return out
+
+    def trace(self, m: int) -> dict[str, NDArray[np.float64]]:
+        """The step and gyro statistics over their critical values, per sample (the larger of a block's two pairs)."""
+        b = self.b
+        ratio = np.where(self.valid, self.step / self.step_limit, 0.0)
+        per_block = np.zeros(b.count)
+        per_block[1:] = ratio
+        per_block[:-1] = np.maximum(per_block[:-1], ratio)
+        lengths = (b.stop - b.start).astype(int)
+        out = {"step": np.repeat(per_block, lengths)}
+        if self.bias is not None:
+            out["gyro"] = np.repeat(self.gstat / self.gyro_limit, lengths)
+        return out
