@@ -41,6 +41,9 @@ from optcal.families.accel.ellipsoid_projection import ClosestPoints, closest_po
 #: errors (``δᵀ JᵀWJ δ / σ̂² ≤ STEP_TOL_SE²``): far below any statistical meaning, and about where the
 #: cost's rounding (1e-16 of n terms) stops resolving a change.
 STEP_TOL_SE = 1e-7
+#: A step smaller than this in every component of θ (the data normalised, θ of order 1) is rounding:
+#: converged whatever the noise (noise-free data leave no σ̂ to measure the step in).
+STEP_TOL_ABS = 1e-12
 #: Iterations at most.  From the norm-residual ML's answer the profile cost's minimum is a few
 #: Gauss–Newton steps away (its residuals are O(σ), so Gauss–Newton converges fast).
 MAX_ITER = 100
@@ -126,6 +129,8 @@ def fit_profile(theta0: NDArray, a: NDArray, w: NDArray, sigma_known: bool) -> P
                 step = -np.linalg.solve(A, grad)
             except np.linalg.LinAlgError:
                 step = np.full(9, np.nan)
+            if np.all(np.isfinite(step)) and np.max(np.abs(step)) <= STEP_TOL_ABS * max(1.0, float(np.max(np.abs(theta)))):
+                return ProfileFit(theta, cost, it, proj_it, True, "converged", cp)
             if np.all(np.isfinite(step)):
                 T_new, _ = unpack_theta(theta + step)
                 if np.all(np.diag(T_new) > 0):
@@ -180,7 +185,8 @@ def fit_corrected_score(theta0: NDArray, a: NDArray, sigma2: NDArray | None) -> 
         T, o = unpack_theta(theta)
         cp = closest_points(np.linalg.inv(T), o, a)
         proj_it += cp.iterations
-        s2 = np.full(n, float(np.sum(cp.distance**2)) / max(n - 9, 1)) if sigma2 is None else sigma2
+        s2 = (np.full(n, max(float(np.sum(cp.distance**2)) / max(n - 9, 1), np.finfo(float).tiny))
+              if sigma2 is None else sigma2)
         w = 1.0 / s2
         res = cp.distance - 0.5 * s2 * curvature_sum(T, cp)
         cost = float(np.sum(w * res**2))
@@ -191,7 +197,8 @@ def fit_corrected_score(theta0: NDArray, a: NDArray, sigma2: NDArray | None) -> 
         except np.linalg.LinAlgError:
             return ProfileFit(theta, cost, it, proj_it, False, "singular", cp)
         theta = theta + step
-        if float(step @ F @ step) <= STEP_TOL_SE**2:
+        if (float(step @ F @ step) <= STEP_TOL_SE**2
+                or np.max(np.abs(step)) <= STEP_TOL_ABS * max(1.0, float(np.max(np.abs(theta))))):
             status = "converged"
             break
     T, o = unpack_theta(theta)
@@ -249,5 +256,5 @@ def profile_hessian(theta: NDArray, a: NDArray, w: NDArray, cp: ClosestPoints | 
     return G.T @ H @ G
 
 
-__all__ = ["DAMPING_DOWN", "DAMPING_START", "DAMPING_UP", "HESSIAN_BLOCK", "MAX_ITER", "STEP_TOL_SE", "ProfileFit",
+__all__ = ["DAMPING_DOWN", "DAMPING_START", "DAMPING_UP", "HESSIAN_BLOCK", "MAX_ITER", "STEP_TOL_ABS", "STEP_TOL_SE", "ProfileFit",
            "curvature_sum", "fit_corrected_score", "fit_profile", "profile_hessian", "residual_jacobian"]
