@@ -47,6 +47,11 @@ MAX_NEWTON = 60
 NEWTON_RTOL = 1e-15
 
 
+#: Smallest denominator ``s_i² + λ`` used: its square is still a normal float, so a component
+#: with ``s_i β_i = 0`` contributes exactly 0 where the denominator vanishes (the hard case).
+_FLOOR = float(np.sqrt(np.finfo(float).tiny))
+
+
 @dataclass(frozen=True)
 class ClosestPoints:
     """The closest points of an ellipsoid to n points (:func:`closest_points`).
@@ -80,11 +85,11 @@ class ClosestPoints:
 
 def _secular_terms(q: NDArray, gap: NDArray, mu: NDArray) -> tuple[NDArray, NDArray]:
     """``φ`` and ``φ'`` at μ for ``q = (s β)²`` (n, 3), ``gap = s² − s_min²`` (3,)."""
-    den = gap + mu[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(q > 0, q / den**2, 0.0)  # a zero component contributes nothing, even at den = 0
+    den = np.maximum(gap + mu[:, None], _FLOOR)  # a zero component contributes 0, even at den = 0
+    with np.errstate(over="ignore"):
+        t = q / (den * den)
         phi = t.sum(axis=1)
-        dphi = -2.0 * np.where(q > 0, t / den, 0.0).sum(axis=1)
+        dphi = -2.0 * (t / den).sum(axis=1)
     return phi, dphi
 
 
@@ -125,8 +130,7 @@ def closest_points(C: NDArray, o: NDArray, a: NDArray) -> ClosestPoints:
             break
     # hard case: the root sits at μ = 0 with the shortest axis's component free
     den = gap + mu[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        p = np.where(q > 0, sb / den, 0.0)
+    p = sb / np.maximum(den, _FLOOR)
     shortfall = 1.0 - np.sum(p**2, axis=1)
     hard = (mu <= tol) & (shortfall > np.sqrt(np.finfo(float).eps))
     if np.any(hard):

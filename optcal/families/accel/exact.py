@@ -224,7 +224,7 @@ class ExactMaximumLikelihood:
             allow_degenerate=self.allow_degenerate,
             remedy=remedy,
             extra={"init": start.method, "formulation": self.formulation,
-                   "curvature_correction": self.curvature_correction, "latent_directions": directions.tolist()},
+                   "curvature_correction": self.curvature_correction, "latent_directions": directions},
         )
         result.covariance = self._covariance(theta_n, u, w, known, norm, pf)
         return result

@@ -206,55 +206,73 @@ def fit_corrected_score(theta0: NDArray, a: NDArray, sigma2: NDArray | None) -> 
     return ProfileFit(theta, cost, it, proj_it + cp.iterations, status == "converged", status, cp)
 
 
+def tangent_bases(d: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two orthonormal vectors (n, 3) each spanning the tangent plane of the unit sphere at each ``d``."""
+    e = np.zeros_like(d)
+    e[np.arange(d.shape[0]), np.argmin(np.abs(d), axis=1)] = 1.0  # the axis least aligned with d
+    z1 = np.cross(d, e)
+    z1 /= np.linalg.norm(z1, axis=1, keepdims=True)
+    return z1, np.cross(d, z1)
+
+
 def profile_hessian(theta: NDArray, a: NDArray, w: NDArray, cp: ClosestPoints | None = None) -> NDArray[np.float64]:
     """The exact Hessian ``∇²f`` of the profile cost ``f(θ) = Σ w_k ρ_k²`` at a stationary θ (9 × 9).
 
     Per pose, in the variables ``p = (vec_tril C, o)`` and ``d`` of the full NLP, the Lagrangian
-    ``ℓ = w‖a − o − C d‖² + ν(‖d‖² − 1)`` (``ν = wλ``) has the blocks (``J_p = ∂r/∂p``, r linear in p)::
+    ``ℓ = w‖r‖² + ν(‖d‖² − 1)``, ``r = a − o − C d``, ``ν = wλ``, has the blocks (``J_p = ∂r/∂p``:
+    ``∂r/∂C_ij = −e_i d_j``, ``∂r/∂o = −I``; r is linear in p)::
 
-        H_pp = 2w J_pᵀJ_p,   H_pd = −2w J_pᵀC − 2w [r_i δ_jl]_(ij),l,   H_dd = 2w CᵀC + 2ν I
+        H_pp = 2w J_pᵀJ_p,   H_pd = −2w (J_pᵀC + [r_i δ_jl]_(ij),l),   H_dd = 2w CᵀC + 2ν I
 
-    and eliminating the direction on the tangent plane of its sphere (projector ``P = I − ddᵀ``) gives
-    the pose's share of the profile Hessian, ``H_pp − H_pd P (P H_dd P + ddᵀ)⁻¹ P H_pdᵀ`` — the Schur
-    complement of the full NLP's reduced Hessian.  At a stationary point the gradient vanishes, so the
-    Hessian in θ = (T, o) is ``Gᵀ H G`` with ``G = ∂p/∂θ`` (``dC = −C dT C``).
+    Eliminating the direction on the tangent plane of its sphere (orthonormal basis Z, 3 × 2) gives
+    the pose's share of the profile Hessian ``H_pp − K M⁻¹ Kᵀ`` with ``K = H_pd Z`` and
+    ``M = ZᵀH_dd Z = 2w (CZ)ᵀ(CZ) + 2ν I`` — the Schur complement of the full NLP's reduced Hessian.
+    With ``M = LLᵀ`` (2 × 2 Cholesky, in closed form) ``K M⁻¹ Kᵀ = YYᵀ``, ``Y = K L⁻ᵀ``, so the sum
+    over poses is two products of (n × 9) matrices.  At a stationary point the gradient vanishes, so
+    the Hessian in θ = (T, o) is ``Gᵀ H G`` with ``G = ∂p/∂θ`` (``dC = −C dT C``).
     """
     T, o = unpack_theta(theta)
     C = np.linalg.inv(T)
     if cp is None:
         cp = closest_points(C, o, a)
     n = a.shape[0]
-    CtC = C.T @ C
     H = np.zeros((9, 9))
-    eye = np.eye(3)
     for start in range(0, n, HESSIAN_BLOCK):
         sl = slice(start, min(start + HESSIAN_BLOCK, n))
-        d, r, wk, lam = cp.d[sl], cp.r[sl], w[sl], cp.lam[sl]
-        m = d.shape[0]
-        # J_p (m, 3, 9): ∂r/∂C_ij = −e_i d_j, ∂r/∂o = −I
-        Jp = np.zeros((m, 3, 9))
+        d, r, wk, nu = cp.d[sl], cp.r[sl], w[sl], w[sl] * cp.lam[sl]
+        # H_pp summed: Σ w d dᵀ in the (i,j),(i,l) entries, Σ w d in the C–o entries, Σ w in the o block
+        wd = d * wk[:, None]
+        Sdd, Sd, Sw = wd.T @ d, wd.sum(axis=0), float(wk.sum())
+        Hpp = np.zeros((9, 9))
         for k, (i, j) in enumerate(TRIL_INDEX):
-            Jp[:, i, k] = -d[:, j]
-        Jp[:, :, 6:] = -eye
-        H += 2.0 * np.einsum("k,kai,kaj->ij", wk, Jp, Jp)
-        # H_pd (m, 9, 3)
-        Hpd = -2.0 * np.einsum("kai,al->kil", Jp, C)
-        for k, (i, j) in enumerate(TRIL_INDEX):
-            Hpd[:, k, j] -= 2.0 * r[:, i]  # ∂²(‖r‖²/2)/∂C_ij∂d_l = −r_i δ_jl ... times 2
-        Hpd *= wk[:, None, None]
-        P = eye - d[:, :, None] * d[:, None, :]
-        Hdd = 2.0 * wk[:, None, None] * CtC + 2.0 * (wk * lam)[:, None, None] * eye
-        M = P @ Hdd @ P + d[:, :, None] * d[:, None, :]
-        K = Hpd @ P  # (m, 9, 3)
-        X = np.linalg.solve(M, np.swapaxes(K, 1, 2))  # (m, 3, 9)
-        H -= np.einsum("kia,kaj->ij", K, X)
+            for m_, (i2, l) in enumerate(TRIL_INDEX):
+                if i2 == i:
+                    Hpp[k, m_] = Sdd[j, l]
+            Hpp[k, 6 + i] = Hpp[6 + i, k] = Sd[j]
+        Hpp[6:, 6:] = Sw * np.eye(3)
+        H += 2.0 * Hpp
+        z1, z2 = tangent_bases(d)
+        cz1, cz2 = z1 @ C.T, z2 @ C.T
+        # K = H_pd Z, column by column: K_(ij) = 2w (d_j (CZ)_i − r_i Z_j), K_(o_b) = 2w (CZ)_b
+        K1 = 2.0 * wk[:, None] * np.concatenate([d[:, _TJ] * cz1[:, _TI] - r[:, _TI] * z1[:, _TJ], cz1], axis=1)
+        K2 = 2.0 * wk[:, None] * np.concatenate([d[:, _TJ] * cz2[:, _TI] - r[:, _TI] * z2[:, _TJ], cz2], axis=1)
+        m11 = 2.0 * (wk * np.sum(cz1 * cz1, axis=1) + nu)
+        m21 = 2.0 * wk * np.sum(cz1 * cz2, axis=1)
+        m22 = 2.0 * (wk * np.sum(cz2 * cz2, axis=1) + nu)
+        l11 = np.sqrt(m11)
+        l21 = m21 / l11
+        l22 = np.sqrt(m22 - l21**2)
+        Y1 = K1 / l11[:, None]
+        Y2 = (K2 - l21[:, None] * Y1) / l22[:, None]
+        H -= Y1.T @ Y1 + Y2.T @ Y2
     # p = (vec_tril C, o) → θ = (vec_tril T, o): dC = −C dT C
     G = np.eye(9)
     for k, (i, j) in enumerate(TRIL_INDEX):
-        for l, (p_, q_) in enumerate(TRIL_INDEX):
-            G[k, l] = -C[i, p_] * C[q_, j]
+        for m_, (p_, q_) in enumerate(TRIL_INDEX):
+            G[k, m_] = -C[i, p_] * C[q_, j]
     return G.T @ H @ G
 
 
 __all__ = ["DAMPING_DOWN", "DAMPING_START", "DAMPING_UP", "HESSIAN_BLOCK", "MAX_ITER", "STEP_TOL_ABS", "STEP_TOL_SE", "ProfileFit",
-           "curvature_sum", "fit_corrected_score", "fit_profile", "profile_hessian", "residual_jacobian"]
+           "curvature_sum", "fit_corrected_score", "fit_profile", "profile_hessian", "residual_jacobian",
+           "tangent_bases"]
