@@ -173,3 +173,14 @@ def test_formulation_arguments_are_checked(noisy):
         calibrate(noisy, method="exact", formulation="profile", ipopt_options={"ipopt.tol": 1e-8})
     with pytest.raises(InputError, match="curvature_correction=True needs formulation='profile'"):
         calibrate(noisy, method="exact", formulation="full", curvature_correction=True)
+
+
+def test_scaling_study_point():
+    """One size of `optcal reproduce lu2017 --scaling`: every method, the two formulations on the same optimum."""
+    from optcal.applications.papers.lu2017_scaling import METHODS, size_point
+
+    point = size_point(60, 3, seed=0, full_nlp=True)
+    assert set(point["methods"]) == set(METHODS)
+    assert all(r["runs"] == 3 and r["failures"] == 0 for r in point["methods"].values())
+    assert point["exact_vs_full_max_difference_in_stderr"] < 1e-5
+    assert point["methods"]["exact"]["efficiency"] == pytest.approx(point["methods"]["exact-full"]["efficiency"], rel=1e-6)
