@@ -20,7 +20,7 @@ from optcal.core.model import lu2017_reference_model, unpack_theta
 from optcal.errors import InputError
 from optcal.families.accel.ellipsoid_projection import closest_points
 from optcal.families.accel.exact_profile import curvature_sum, fit_corrected_score, fit_profile, profile_hessian
-from optcal.families.simulate.poses import simulate_poses, uniform_directions
+from optcal.families.simulate.poses import cap_directions, simulate_poses, uniform_directions
 
 #: A lower-triangular C (semi-axes about 1.3, 1.2, 0.8) and a bias, in g: Lu 2017's sensor, roughly.
 C_LU = np.array([[1.2, 0.0, 0.0], [0.03, 0.8, 0.0], [0.05, -0.02, 1.3]])
@@ -184,3 +184,17 @@ def test_scaling_study_point():
     assert all(r["runs"] == 3 and r["failures"] == 0 for r in point["methods"].values())
     assert point["exact_vs_full_max_difference_in_stderr"] < 1e-5
     assert point["methods"]["exact"]["efficiency"] == pytest.approx(point["methods"]["exact-full"]["efficiency"], rel=1e-6)
+
+
+def test_a_start_that_did_not_converge_is_replaced(lu_model):
+    """On a 60° cap the mle start stops early far away (a huge ellipsoid); the profile fit restarts from
+    the convex fit and reaches the full NLP's optimum, as the full NLP does from the same bad start."""
+    import warnings
+
+    poses = simulate_poses(lu_model, cap_directions(80, 60.0, np.random.default_rng(4)), 0.005, rng=np.random.default_rng(9))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        profile = calibrate(poses, method="exact", allow_degenerate=True)
+        full = calibrate(poses, method="exact", formulation="full", allow_degenerate=True)
+    assert profile.solver.success and "restarted from the convex fit (mle start did not converge)" in profile.solver.message
+    assert np.max(np.abs(profile.params - full.params) / np.sqrt(np.diag(full.covariance))) < 1e-5

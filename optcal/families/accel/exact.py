@@ -197,18 +197,27 @@ class ExactMaximumLikelihood:
         # absolute weights 1/σ_k² in normalised units when the noise is given (the covariance needs them)
         w = np.ones(poses.n) if poses.sigma is None else (norm.scale / poses.sigma) ** 2
         if self.formulation == "profile":
+            restart = ""
             with Stopwatch() as sw:
+                pf = fit_profile(theta0_n, u, w, known)
+                if not pf.converged:  # a start far from the optimum (e.g. an mle that stopped early): the algebraic fits
+                    for alt in ("convex", "svd"):
+                        if alt == self.init:
+                            continue
+                        other = MaximumLikelihood(init=alt, allow_degenerate=True).initial(poses)
+                        candidate = fit_profile(norm.theta_to_normalised(theta_from(other.T, other.o)), u, w, known)
+                        if candidate.converged:
+                            pf, restart = candidate, f"; restarted from the {alt} fit ({self.init} start did not converge)"
+                            break
                 if self.curvature_correction:
-                    pf = fit_corrected_score(fit_profile(theta0_n, u, w, known).theta, u, None if not known else 1.0 / w)
-                else:
-                    pf = fit_profile(theta0_n, u, w, known)
+                    pf = fit_corrected_score(pf.theta, u, None if not known else 1.0 / w)
             theta_n, directions = pf.theta, pf.points.d
             solver = SolverInfo(
                 name="Levenberg-Marquardt" if not self.curvature_correction else "Gauss-Newton",
                 status=pf.status, success=pf.converged, iterations=pf.iterations, solve_time_s=sw.seconds,
                 message=(f"{'curvature-corrected score of' if self.curvature_correction else 'profile likelihood of'} "
                          f"eq. 8 in 9 variables (variable projection; {poses.n} closest points by their secular "
-                         f"equations, {pf.projection_iterations} Newton steps)"),
+                         f"equations, {pf.projection_iterations} Newton steps{restart})"),
             )
             remedy = PROFILE_REMEDY
         else:
