@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError, SolverError
+from optcal.solvers.registry import NLP_SOLVERS, SolverChoice, choose_nlp_solver, quiet_stdout
 
 #: The plugin of every optcal NLP unless the caller names another one.
 DEFAULT_SOLVER: str = "ipopt"
@@ -110,13 +111,28 @@ def cost_scale(n: int, start_rms: float | NDArray) -> float | NDArray[np.float64
 
 
 def solver_label(solver: str) -> str:
-    """How messages name a plugin: ``"IPOPT"`` for ``"ipopt"``, otherwise the plugin's own name."""
+    """How messages name a solver: ``"IPOPT"`` for ``"ipopt"``, otherwise its catalogue name."""
     return solver.upper() if solver == DEFAULT_SOLVER else solver
 
 
 def plugin_defaults(solver: str) -> dict[str, Any]:
-    """The options a plugin starts from: :data:`IPOPT_DEFAULTS` for IPOPT, none for another plugin."""
-    return dict(IPOPT_DEFAULTS) if solver == DEFAULT_SOLVER else {}
+    """The options a solver starts from: :data:`IPOPT_DEFAULTS` for IPOPT, the catalogue's for another
+    (:data:`optcal.solvers.registry.NLP_SOLVERS`), none for a plugin outside it."""
+    if solver == DEFAULT_SOLVER:
+        return dict(IPOPT_DEFAULTS)
+    spec = NLP_SOLVERS.get(solver)
+    return {"print_time": False, **(spec.defaults if spec else {})}
+
+
+def as_choice(solver: str | SolverChoice | None, solver_options: Mapping[str, Any] | None = None,
+              constraints: bool = False) -> SolverChoice:
+    """A :class:`~optcal.solvers.registry.SolverChoice` from a name and the user's options (or as given)."""
+    if isinstance(solver, SolverChoice):
+        if solver_options:
+            merged = {**solver.user_option_dict(), **dict(solver_options)}
+            return choose_nlp_solver(solver.name, merged, constraints=constraints)
+        return solver
+    return choose_nlp_solver(solver, solver_options, constraints=constraints)
 
 
 @dataclass(frozen=True)
@@ -134,6 +150,7 @@ class NLPSolver:
 
     function: Any
     solver: str = DEFAULT_SOLVER
+    writes_stdout: bool = False
 
     def solve(self, **args: Any) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Run the solver (``x0``, ``p``, ``lbx``, ``ubx``, ``lbg``, ``ubg``) and read its statistics.
@@ -151,7 +168,11 @@ class NLPSolver:
             The solver raised an exception (an error inside a callback, a failed factorisation).
         """
         try:
-            sol = self.function(**args)
+            if self.writes_stdout:
+                with quiet_stdout():
+                    sol = self.function(**args)
+            else:
+                sol = self.function(**args)
         except RuntimeError as exc:
             reason = str(exc).strip().splitlines()[-1]
             raise SolverError(f"{solver_label(self.solver)} raised an error in {self.function.name()}: {reason}") from exc
@@ -166,7 +187,7 @@ _NAMED_IN_MESSAGE = (
 )
 
 
-def _refused_options(exc: RuntimeError, solver: str, solver_options: Mapping[str, Any]) -> list[str]:
+def _refused_options(exc: RuntimeError, choice: SolverChoice, solver_options: Mapping[str, Any]) -> list[str]:
     """The user's options that ``solver`` refuses: named by CasADi's message, else found one by one.
 
     IPOPT says only "Invalid options were detected" for a value out of range (it prints the
@@ -186,7 +207,7 @@ def _refused_options(exc: RuntimeError, solver: str, solver_options: Mapping[str
     refused = []
     for key, value in solver_options.items():
         try:
-            ca.nlpsol("option_probe", solver, {"x": x, "f": x * x}, {**plugin_defaults(solver), key: value})
+            ca.nlpsol("option_probe", choice.plugin, {"x": x, "f": x * x}, {**plugin_defaults(choice.name), key: value})
         except RuntimeError:
             refused.append(key)
     return refused
@@ -198,15 +219,16 @@ def nlp_solver(
     tuning: Mapping[str, Any] | None = None,
     *,
     functions: Mapping[str, Any] | None = None,
-    solver: str = DEFAULT_SOLVER,
+    solver: str | SolverChoice = DEFAULT_SOLVER,
     solver_options: Mapping[str, Any] | None = None,
     options_argument: str = "ipopt_options",
 ) -> NLPSolver:
-    """``casadi.nlpsol(name, solver, nlp, options)`` with optcal's options; refused options are bad input.
+    """``casadi.nlpsol(name, plugin, nlp, options)`` with optcal's options; refused options are bad input.
 
-    The options are, later ones overriding earlier ones: the plugin's defaults
-    (:data:`IPOPT_DEFAULTS` for IPOPT), the problem's ``tuning`` (IPOPT options, so applied with
-    IPOPT only), the problem's ``functions`` and the user's ``solver_options``.
+    The options are, later ones overriding earlier ones: the solver's defaults
+    (:data:`IPOPT_DEFAULTS` for IPOPT, the catalogue's for another,
+    :data:`optcal.solvers.registry.NLP_SOLVERS`), the problem's ``tuning`` (IPOPT options, so
+    applied with IPOPT only), the problem's ``functions`` and the user's ``solver_options``.
 
     Parameters
     ----------
@@ -219,8 +241,9 @@ def nlp_solver(
     functions : mapping, optional
         Options that hold the problem's own functions and hold for any plugin (``grad_f``,
         ``hess_lag``).
-    solver : str
-        The ``nlpsol`` plugin.
+    solver : str or SolverChoice
+        A solver of the catalogue by name (``"ipopt"``, ``"sqpmethod+osqp"``), or resolved by
+        :func:`optcal.solvers.registry.choose_nlp_solver` (its user options included).
     solver_options : mapping, optional
         The user's options.
     options_argument : str
@@ -229,26 +252,30 @@ def nlp_solver(
     Raises
     ------
     InputError
-        CasADi has no such plugin, or the plugin refused one of the user's options (the
-        message names it).
+        The solver is not in the catalogue, does not run here or does not suit the problem (the
+        message names those that do), or it refused one of the user's options (the message names it).
     SolverError
         The plugin refused the problem with optcal's own options (a defect of optcal).
     """
     import casadi as ca
 
-    if not ca.has_nlpsol(solver):
-        raise InputError(f"CasADi has no nlpsol plugin {solver!r} (ipopt, sqpmethod, ...)")
-    user = dict(solver_options or {})
-    options = {**plugin_defaults(solver), **(dict(tuning or {}) if solver == DEFAULT_SOLVER else {}),
+    choice = as_choice(solver, solver_options, constraints=nlp.get("g") is not None)
+    user = choice.user_option_dict()
+    options = {**plugin_defaults(choice.name), **(dict(tuning or {}) if choice.name == DEFAULT_SOLVER else {}),
                **dict(functions or {}), **user}
     try:
-        return NLPSolver(ca.nlpsol(name, solver, dict(nlp), options), solver)
+        if choice.writes_stdout:
+            with quiet_stdout():
+                built = ca.nlpsol(name, choice.plugin, dict(nlp), options)
+        else:
+            built = ca.nlpsol(name, choice.plugin, dict(nlp), options)
+        return NLPSolver(built, choice.name, choice.writes_stdout)
     except RuntimeError as exc:
         reason = str(exc).strip().splitlines()[-1].split(": ")[-1]  # CasADi's last line says why
-        label = solver_label(solver)
+        label = solver_label(choice.name)
         if not user:
             raise SolverError(f"{label} refused the options of {name} ({reason})") from exc
-        refused = _refused_options(exc, solver, user) or list(user)
+        refused = _refused_options(exc, choice, user) or list(user)
         listed = ", ".join(f"{key!r}: {user[key]!r}" for key in refused)
         raise InputError(f"{label} refused the options {{{listed}}} ({reason}); check {options_argument}") from exc
 
@@ -377,7 +404,7 @@ class CallbackNLP:
         hessian_block_size: int | None = None,
         constraints: Callable[[Any], Any] | None = None,
         tuning: Mapping[str, Any] | None = None,
-        solver: str = DEFAULT_SOLVER,
+        solver: str | SolverChoice = DEFAULT_SOLVER,
         solver_options: Mapping[str, Any] | None = None,
         options_argument: str = "ipopt_options",
     ) -> None:
@@ -455,6 +482,7 @@ __all__ = [
     "CallbackNLP",
     "NLPSolver",
     "NumpyObjective",
+    "as_choice",
     "cost_scale",
     "nlp_solver",
     "numpy_callback",
