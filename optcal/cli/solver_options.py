@@ -85,7 +85,7 @@ def estimator_settings(method: str, solver: str | None = None, solver_option: tu
     from optcal.solvers.registry import choose_conic_solver
 
     name = DEFAULT_METHOD if method == "default" else method
-    params = inspect.signature(estimator_class(method).__init__).parameters
+    params = inspect.signature(estimator_class(method)).parameters
     settings: dict[str, Any] = {}
     nlp = nlp_settings(solver, solver_option)
     if nlp:

@@ -84,6 +84,7 @@ def norm_residual_ml(poses: PoseTable, **settings: Any) -> Formulation:
         values=values,
         constraints=constraints,
         tuning=dict(SCALED_COST_IPOPT_OPTIONS),
+        structure=("norm-residual ML", poses.n, ml.loss, setup.physical),
     )
 
 
@@ -129,6 +130,7 @@ def exact_ml(poses: PoseTable, start: NDArray | None = None) -> Formulation:
         values={"x0": x0, "p": np.concatenate([u.ravel(), w]), "lbx": lbx, "lbg": np.zeros(n), "ubg": np.zeros(n)},
         constraints=[f"‖ā_k‖² = 1 for each of the {n} poses"],
         tuning={"ipopt.tol": 1e-10, "ipopt.max_iter": 500},
+        structure=("exact ML", n),
     )
 
 

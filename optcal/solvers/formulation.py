@@ -21,8 +21,10 @@ The builders of optcal's calibration problems are :mod:`optcal.problems`.
 
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Callable, Mapping
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,6 +97,9 @@ class Formulation:
     callback : callable, optional
         ``solver choice -> CallbackNLP`` for a problem evaluated in numpy; ``objective`` its functions.
     objective : NumpyObjective, optional
+    structure : hashable, optional
+        What the symbolic problem depends on (its kind and sizes, not its data): formulations
+        with the same structure share their built solvers (:data:`BUILT_SOLVERS`).
     """
 
     name: str
@@ -109,6 +114,7 @@ class Formulation:
     functions: dict[str, Any] = field(default_factory=dict)
     callback: Callable[[SolverChoice], CallbackNLP] | None = None
     objective: NumpyObjective | None = None
+    structure: Hashable | None = None
 
     @property
     def has_constraints(self) -> bool:
@@ -141,14 +147,34 @@ class Formulation:
             seconds = time.perf_counter() - t0
             value = float(self.objective.value(x))
         else:
-            nlp = nlp_solver(self.name.replace(" ", "_").replace("-", "_"), self.nlp_dict, self.tuning,
-                             functions=self.functions, solver=choice, options_argument="options")
-            t0 = time.perf_counter()
-            x, stats = nlp.solve(**args)
-            seconds = time.perf_counter() - t0
+            nlp, lock = self._built(choice)
+            with lock:  # a built solver keeps the statistics of its last call
+                t0 = time.perf_counter()
+                x, stats = nlp.solve(**args)
+                seconds = time.perf_counter() - t0
             value = _objective_value(self.nlp_dict, x, self.values.get("p"))
         return Solution(x, value, choice.name, plugin_status(stats), bool(stats.get("success", False)),
                         plugin_iterations(stats), seconds)
+
+    def _built(self, choice: SolverChoice) -> tuple[Any, threading.Lock]:
+        """The solver built for this formulation (shared by formulations of the same structure)."""
+        def build() -> Any:
+            return nlp_solver(self.name.replace(" ", "_").replace("-", "_"), self.nlp_dict, self.tuning,
+                              functions=self.functions, solver=choice, options_argument="options")
+
+        if self.structure is None:
+            return build(), threading.Lock()
+        key = (self.structure, choice)
+        with _BUILT_LOCK:
+            if key in BUILT_SOLVERS:
+                BUILT_SOLVERS.move_to_end(key)
+                return BUILT_SOLVERS[key]
+        built = (build(), threading.Lock())
+        with _BUILT_LOCK:
+            BUILT_SOLVERS[key] = built
+            while len(BUILT_SOLVERS) > BUILT_MAXSIZE:
+                BUILT_SOLVERS.popitem(last=False)
+        return built
 
     def describe(self) -> str:
         """The formulation in words: equation, variables, parameters, constraints, bounds, scaling."""
@@ -172,6 +198,13 @@ class Formulation:
         return [(names[k], float(lo[k]), float(hi[k])) for k in range(n) if np.isfinite(lo[k]) or np.isfinite(hi[k])]
 
 
+#: Built solvers of formulations with a ``structure``, by (structure, solver choice), least
+#: recently used dropped first beyond :data:`BUILT_MAXSIZE`.
+BUILT_SOLVERS: OrderedDict[tuple[Hashable, SolverChoice], tuple[Any, threading.Lock]] = OrderedDict()
+BUILT_MAXSIZE: int = 64
+_BUILT_LOCK = threading.Lock()
+
+
 def _size(x: Any) -> int:
     return int(x.numel()) if hasattr(x, "numel") else int(np.size(x))
 
@@ -182,7 +215,7 @@ def _objective_value(nlp: dict[str, Any], x: NDArray, p: NDArray | None) -> floa
     args = [nlp["x"]] + ([nlp["p"]] if nlp.get("p") is not None else [])
     f = ca.Function("objective", args, [nlp["f"]])
     values = [x] + ([p] if nlp.get("p") is not None else [])
-    return float(f(*values))
+    return float(np.asarray(f(*values), dtype=float).ravel()[0])
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError, SolverError
-from optcal.solvers.registry import NLP_SOLVERS, SolverChoice, choose_nlp_solver, quiet_stdout
+from optcal.solvers.registry import NLP_SOLVERS, SolverChoice, choose_nlp_solver, plugin_accepts, quiet_stdout
 
 #: The plugin of every optcal NLP unless the caller names another one.
 DEFAULT_SOLVER: str = "ipopt"
@@ -125,14 +125,14 @@ def plugin_defaults(solver: str) -> dict[str, Any]:
 
 
 def as_choice(solver: str | SolverChoice | None, solver_options: Mapping[str, Any] | None = None,
-              constraints: bool = False) -> SolverChoice:
+              constraints: bool = False, callbacks: bool = False) -> SolverChoice:
     """A :class:`~optcal.solvers.registry.SolverChoice` from a name and the user's options (or as given)."""
     if isinstance(solver, SolverChoice):
-        if solver_options:
-            merged = {**solver.user_option_dict(), **dict(solver_options)}
-            return choose_nlp_solver(solver.name, merged, constraints=constraints)
+        if solver_options or callbacks:
+            merged = {**solver.user_option_dict(), **dict(solver_options or {})}
+            return choose_nlp_solver(solver.name, merged, constraints=constraints, callbacks=callbacks)
         return solver
-    return choose_nlp_solver(solver, solver_options, constraints=constraints)
+    return choose_nlp_solver(solver, solver_options, constraints=constraints, callbacks=callbacks)
 
 
 @dataclass(frozen=True)
@@ -259,10 +259,13 @@ def nlp_solver(
     """
     import casadi as ca
 
-    choice = as_choice(solver, solver_options, constraints=nlp.get("g") is not None)
+    functions = dict(functions or {})
+    choice = as_choice(solver, solver_options, constraints=nlp.get("g") is not None, callbacks="hess_lag" in functions)
+    if not plugin_accepts(choice.plugin, "grad_f"):
+        functions.pop("grad_f", None)  # the plugin differentiates f itself (a callback's reverse derivative)
     user = choice.user_option_dict()
     options = {**plugin_defaults(choice.name), **(dict(tuning or {}) if choice.name == DEFAULT_SOLVER else {}),
-               **dict(functions or {}), **user}
+               **functions, **user}
     try:
         if choice.writes_stdout:
             with quiet_stdout():
@@ -431,8 +434,12 @@ class CallbackNLP:
                                lambda arg: [self._current().value(arg[0])], reverse=value_reverse)
         self._callbacks = [gradient, value]  # alive as long as the solver
         functions: dict[str, Any] = {"grad_f": gradient}
+        choice = as_choice(solver, solver_options, constraints=constraints is not None,
+                           callbacks=hessian_block_size is not None)
         if hessian_block_size is not None:
-            sparsity, upper = _block_upper_triangles(n, hessian_block_size)
+            # IPOPT (and Bonmin, IPOPT inside) take the upper triangle of the Hessian, the SQP methods the whole
+            triangle = choice.plugin in TRIANGULAR_HESSIAN_PLUGINS
+            sparsity, upper = (_block_upper_triangles if triangle else _block_entries)(n, hessian_block_size)
 
             def hessian(arg: list) -> list:
                 objective = self._current()
@@ -443,12 +450,14 @@ class CallbackNLP:
                                       [("triu_hess_gamma_x_x", sparsity)], hessian)
             self._callbacks.append(hess_lag)
             functions["hess_lag"] = hess_lag
+        elif choice.plugin != DEFAULT_SOLVER and plugin_accepts(choice.plugin, "hessian_approximation"):
+            # no Hessian of a numpy objective: the plugin approximates one (IPOPT's tuning says so for IPOPT)
+            functions["hessian_approximation"] = "limited-memory"
         x = ca.MX.sym("x", n)
         nlp = {"x": x, "f": value(x)}
         if constraints is not None:
             nlp["g"] = constraints(x)
-        self.solver = nlp_solver(name, nlp, tuning, functions=functions, solver=solver, solver_options=solver_options,
-                                 options_argument=options_argument)
+        self.solver = nlp_solver(name, nlp, tuning, functions=functions, solver=choice, options_argument=options_argument)
 
     def _current(self) -> NumpyObjective:
         assert self._objective is not None, "solve() sets the objective"
@@ -462,6 +471,19 @@ class CallbackNLP:
                 return self.solver.solve(**args)
             finally:
                 self._objective = None
+
+
+#: Plugins whose ``hess_lag`` returns the upper triangle of the Hessian (IPOPT's convention).
+TRIANGULAR_HESSIAN_PLUGINS: frozenset[str] = frozenset({"ipopt", "bonmin"})
+
+
+def _block_entries(n: int, block: int) -> tuple[Any, NDArray[np.intp]]:
+    """As :func:`_block_upper_triangles`, every entry of the diagonal blocks (a symmetric sparsity)."""
+    import casadi as ca
+
+    index, col, row = np.array([(k, c, r) for k in range(n // block) for c in range(block) for r in range(block)]).T
+    sparsity = ca.Sparsity.triplet(n, n, (block * index + row).tolist(), (block * index + col).tolist())
+    return sparsity, index * block * block + row * block + col
 
 
 def _block_upper_triangles(n: int, block: int) -> tuple[Any, NDArray[np.intp]]:

@@ -22,6 +22,7 @@ QP solver), so the solver study can compare them like plugins.
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import sys
 import threading
@@ -41,11 +42,14 @@ DEFAULT_CONIC_SOLVER: str = "CLARABEL"
 _SQP_QUIET: dict[str, Any] = {"print_header": False, "print_iteration": False, "print_status": False}
 #: CasADi's own QP solver, quiet.
 _QRQP_QUIET: dict[str, Any] = {"print_iter": False, "print_header": False, "print_info": False}
-#: Convergence of the SQP methods: primal and dual infeasibility to 1e-10 (the cost is scaled to
-#: order one by :func:`optcal.solvers.nlp.cost_scale`, so this sits just above its rounding
-#: floor like IPOPT's ``tol`` of :data:`optcal.solvers.nlp.SCALED_COST_IPOPT_OPTIONS`); 200
-#: iterations as IPOPT's limit.
-_SQP_TOLERANCES: dict[str, Any] = {"tol_pr": 1e-10, "tol_du": 1e-10, "max_iter": 200}
+#: Convergence of the SQP methods: primal and dual infeasibility to 1e-8 on the cost scaled to
+#: order one by :func:`optcal.solvers.nlp.cost_scale` (at 1e-10 their line search stops first,
+#: "Search_Direction_Becomes_Too_Small", on optima already exact to 1e-13 in the objective: 5
+#: of the 25 instances of the quick solver study); 200 iterations as IPOPT's limit.  The exact
+#: Hessian of a robust loss, or far from the optimum, is indefinite, which a convex QP solver
+#: (OSQP, and qrqp's factorisation) refuses: its negative eigenvalues are clipped
+#: (``convexify_strategy`` eigen-clip), which leaves the fixed points, hence the optimum, unchanged.
+_SQP_TOLERANCES: dict[str, Any] = {"tol_pr": 1e-8, "tol_du": 1e-8, "max_iter": 200, "convexify_strategy": "eigen-clip"}
 
 
 @dataclass(frozen=True)
@@ -64,8 +68,9 @@ class NLPSolverSpec:
     constraints : bool
         Handles general (nonlinear) constraints ``lbg ≤ g(x) ≤ ubg``, not only bounds.
     writes_stdout : bool
-        Prints to standard output whatever its options say (a debugging line, a banner): its
-        solves run with the process's standard output silenced (:func:`quiet_stdout`).
+        Prints whatever its options say (a debugging line, a banner, the QP solver's matrix
+        when a QP fails): its solves run with the process's standard output and error silenced
+        (:func:`quiet_stdout`).  True for every plugin but IPOPT, whose ``print_level`` 0 holds.
     description : str
         What it is, in a few words.
     """
@@ -74,7 +79,7 @@ class NLPSolverSpec:
     plugin: str
     defaults: dict[str, Any] = field(default_factory=dict)
     constraints: bool = True
-    writes_stdout: bool = False
+    writes_stdout: bool = True
     description: str = ""
 
 
@@ -85,12 +90,12 @@ def _sqp(qpsol: str, qp_options: dict[str, Any] | None = None) -> dict[str, Any]
 #: The NLP solvers optcal knows how to start quietly, in the order they are listed.  Whether
 #: each runs here is measured by :func:`probe_nlp_solver`.
 NLP_SOLVERS: dict[str, NLPSolverSpec] = {spec.name: spec for spec in (
-    NLPSolverSpec("ipopt", "ipopt", description="interior point, MUMPS (Wächter & Biegler 2006)"),
+    NLPSolverSpec("ipopt", "ipopt", writes_stdout=False, description="interior point, MUMPS (Wächter & Biegler 2006)"),
     NLPSolverSpec("sqpmethod", "sqpmethod", _sqp("qrqp", _QRQP_QUIET),
                   description="CasADi's SQP with its active-set QP solver qrqp"),
     NLPSolverSpec("sqpmethod+osqp", "sqpmethod", _sqp("osqp", {"osqp": {"verbose": False, "eps_abs": 1e-12, "eps_rel": 1e-12}}),
                   description="CasADi's SQP with the ADMM QP solver OSQP"),
-    NLPSolverSpec("sqpmethod+qpoases", "sqpmethod", _sqp("qpoases", {"printLevel": "none"}), writes_stdout=True,
+    NLPSolverSpec("sqpmethod+qpoases", "sqpmethod", _sqp("qpoases", {"printLevel": "none"}),
                   description="CasADi's SQP with the active-set QP solver qpOASES"),
     NLPSolverSpec("sqpmethod+proxqp", "sqpmethod", _sqp("proxqp"),
                   description="CasADi's SQP with the proximal QP solver ProxQP"),
@@ -100,15 +105,15 @@ NLP_SOLVERS: dict[str, NLPSolverSpec] = {spec.name: spec for spec in (
                   description="structure-exploiting interior point (Vanroye et al. 2023)"),
     NLPSolverSpec("feasiblesqpmethod", "feasiblesqpmethod",
                   {**_SQP_QUIET, "qpsol": "qrqp", "qpsol_options": dict(_QRQP_QUIET), "max_iter": 200,
-                   "tol_pr": 1e-10, "tol_du": 1e-10, "optim_tol": 1e-10, "feas_tol": 1e-10},
-                  writes_stdout=True, description="feasible SQP with a trust region (FSLP)"),
+                   "tol_pr": 1e-8, "tol_du": 1e-8, "optim_tol": 1e-10, "feas_tol": 1e-10},
+                  description="feasible SQP with a trust region (FSLP)"),
     NLPSolverSpec("uno", "uno", {"uno.logger": "SILENT"}, description="Uno, unified SQP / interior point (Vanaret & Leyffer)"),
     NLPSolverSpec("alpaqa", "alpaqa", description="augmented Lagrangian with PANOC (Pas et al. 2022)"),
-    NLPSolverSpec("sleqp", "sleqp", writes_stdout=True, description="SLEQP, sequential linear-equality QP"),
+    NLPSolverSpec("sleqp", "sleqp", description="SLEQP, sequential linear-equality QP"),
     NLPSolverSpec("madnlp", "madnlp", description="MadNLP, interior point in Julia"),
     NLPSolverSpec("bonmin", "bonmin", {"bonmin.print_level": 0, "bonmin.bb_log_level": 0, "bonmin.nlp_log_level": 0,
                                        "bonmin.sb": "yes"},
-                  writes_stdout=True, description="Bonmin (MINLP; on a continuous problem one IPOPT solve)"),
+                  description="Bonmin (MINLP; on a continuous problem one IPOPT solve)"),
     NLPSolverSpec("knitro", "knitro", description="Artelys Knitro (commercial licence)"),
     NLPSolverSpec("snopt", "snopt", description="SNOPT (commercial licence)"),
     NLPSolverSpec("worhp", "worhp", description="WORHP (licence)"),
@@ -137,16 +142,31 @@ def quiet_stdout() -> Iterator[None]:
             yield
             return
         devnull = os.open(os.devnull, os.O_WRONLY)
+        sink = io.StringIO()  # CasADi's Python build writes through sys.stdout as well as to the descriptors
         try:
             os.dup2(devnull, 1)
             os.dup2(devnull, 2)
-            yield
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield
         finally:
+            sys.stdout.flush()  # what CasADi wrote through Python, or the C library buffered, goes to /dev/null
+            sys.stderr.flush()
+            _flush_c_streams()
             os.dup2(saved[0], 1)
             os.dup2(saved[1], 2)
             os.close(devnull)
             for fd in saved:
                 os.close(fd)
+
+
+def _flush_c_streams() -> None:
+    """``fflush(NULL)``: the C library's buffered output of every stream, written now."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # no C library to reach (not on a POSIX system): nothing buffered there to lose
+        pass
 
 
 @dataclass(frozen=True)
@@ -196,10 +216,35 @@ def _ipopt_quiet() -> dict[str, Any]:
     return {"ipopt.print_level": 0, "ipopt.sb": "yes"}
 
 
-def available_nlp_solvers(constraints: bool = False) -> list[str]:
-    """The catalogue's solvers that run here (and take general constraints when ``constraints``)."""
+@lru_cache(maxsize=None)
+def plugin_accepts(plugin: str, option: str) -> bool:
+    """Whether the ``nlpsol`` plugin has the option (``hess_lag``: it takes the problem's own Hessian function)."""
+    import casadi as ca
+
+    try:
+        return option in ca.nlpsol_options(plugin)
+    except RuntimeError:
+        return False
+
+
+def takes_callbacks(name: str) -> bool:
+    """Whether the solver takes a problem evaluated in numpy (:class:`optcal.solvers.nlp.CallbackNLP`).
+
+    Such a problem hands the plugin its own Hessian (``hess_lag``) or lets it approximate one
+    (``hessian_approximation``): CasADi cannot differentiate a numpy callback twice.
+    """
+    spec = NLP_SOLVERS.get(name)
+    plugin = spec.plugin if spec else name
+    # feasiblesqpmethod has the options but asserts a one-output grad_f (CasADi 3.7's feasiblesqpmethod.cpp:287)
+    return plugin_accepts(plugin, "hess_lag") and plugin != "feasiblesqpmethod"
+
+
+def available_nlp_solvers(constraints: bool = False, callbacks: bool = False) -> list[str]:
+    """The catalogue's solvers that run here (and take general constraints when ``constraints``,
+    numpy callbacks when ``callbacks``)."""
     return [name for name, spec in NLP_SOLVERS.items()
-            if probe_nlp_solver(name).available and (spec.constraints or not constraints)]
+            if probe_nlp_solver(name).available and (spec.constraints or not constraints)
+            and (not callbacks or takes_callbacks(name))]
 
 
 @dataclass(frozen=True)
@@ -245,7 +290,7 @@ def _is_frozen(value: Any) -> bool:
 
 
 def choose_nlp_solver(name: str | None = None, options: Mapping[str, Any] | None = None, *,
-                      constraints: bool = False, problem: str = "this problem") -> SolverChoice:
+                      constraints: bool = False, callbacks: bool = False, problem: str = "this problem") -> SolverChoice:
     """Resolve a solver name (and the user's options) or refuse it in one line naming those that run.
 
     Parameters
@@ -258,6 +303,9 @@ def choose_nlp_solver(name: str | None = None, options: Mapping[str, Any] | None
     constraints : bool
         The problem has general constraints ``g(x)`` (a fixed physical parameter, the
         errors-in-variables problem): a solver that handles only bounds is not suited.
+    callbacks : bool
+        The problem is evaluated in numpy (:func:`takes_callbacks`): a solver that cannot take
+        its Hessian function is not suited.
     problem : str
         The problem, named in the refusal.
 
@@ -279,7 +327,11 @@ def choose_nlp_solver(name: str | None = None, options: Mapping[str, Any] | None
                          f"the ones that run here: {', '.join(available_nlp_solvers(constraints))}")
     if constraints and not spec.constraints:
         raise InputError(f"NLP solver {name!r} does not take the general constraints of {problem}; "
-                         f"suited ones that run here: {', '.join(available_nlp_solvers(constraints))}")
+                         f"suited ones that run here: {', '.join(available_nlp_solvers(constraints, callbacks))}")
+    if callbacks and not takes_callbacks(name):
+        raise InputError(f"NLP solver {name!r} does not take {problem}, whose objective is evaluated in numpy "
+                         f"(it cannot be handed the problem's Hessian); suited ones that run here: "
+                         f"{', '.join(available_nlp_solvers(constraints, callbacks))}")
     return SolverChoice(name, spec.plugin, freeze({**spec.defaults, **user}), freeze(user), spec.writes_stdout)
 
 
@@ -344,5 +396,6 @@ def parse_solver_options(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
 __all__ = [
     "DEFAULT_CONIC_SOLVER", "DEFAULT_NLP_SOLVER", "NLP_SOLVERS", "NLPSolverSpec", "Probe", "SDP_SOLVERS", "SolverChoice",
     "available_conic_solvers", "available_nlp_solvers", "choose_conic_solver", "choose_nlp_solver", "freeze",
-    "parse_option_value", "parse_solver_options", "probe_nlp_solver", "quiet_stdout", "thaw",
+    "parse_option_value", "parse_solver_options", "plugin_accepts", "probe_nlp_solver", "quiet_stdout",
+    "takes_callbacks", "thaw",
 ]

@@ -320,7 +320,7 @@ def constrained_fisher(poses: PoseTable, theta: NDArray, fisher: FisherAtFit, co
 
     def stderr(name: str) -> float:
         g = parameter_gradient(theta, name)
-        return float(np.sqrt(max(g @ unconstrained @ g, 0.0)))
+        return float(np.sqrt(max(float(g @ unconstrained @ g), 0.0)))
 
     report = constraint_report(constraints, theta, stderr)
     if not report.held:

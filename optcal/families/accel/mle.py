@@ -46,7 +46,7 @@ from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, problem_cache
 from optcal.solvers.convergence import Remedy, plugin_iterations, solver_record
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale, nlp_solver
-from optcal.solvers.registry import SolverChoice, choose_conic_solver, choose_nlp_solver
+from optcal.solvers.registry import SolverChoice, choose_conic_solver, choose_nlp_solver, takes_callbacks
 from optcal.families.accel.result import CalibrationResult
 
 LOSSES = ("squared", "huber", "cauchy")
@@ -284,9 +284,10 @@ class MLProblem(_MLSolve):
             solver: SolverChoice | None = None, physical: tuple[str, ...] = ()) -> "MLProblem | VectorisedMLProblem":
         """The problem for n poses: the SX problem up to :attr:`SX_LIMIT` poses, built once and
         kept in :data:`ML_PROBLEMS`; beyond, a :class:`VectorisedMLProblem` (nothing to keep),
-        unless physical parameters are constrained (their constraints are SX expressions)."""
+        unless physical parameters are constrained (their constraints are SX expressions) or the
+        solver cannot take numpy callbacks (:func:`optcal.solvers.registry.takes_callbacks`)."""
         choice = solver or choose_nlp_solver(None, ipopt_options)
-        if n > cls.SX_LIMIT and not physical:
+        if n > cls.SX_LIMIT and not physical and takes_callbacks(choice.name):
             return VectorisedMLProblem(loss, solver=choice)
         return ML_PROBLEMS.get(n, loss, choice, tuple(physical))
 
