@@ -176,7 +176,12 @@ class NLPSolver:
         except RuntimeError as exc:
             reason = str(exc).strip().splitlines()[-1]
             raise SolverError(f"{solver_label(self.solver)} raised an error in {self.function.name()}: {reason}") from exc
-        return np.asarray(sol["x"]).ravel(), self.function.stats()
+        try:
+            stats = self.function.stats()
+        except RuntimeError as exc:  # CasADi 3.7's sqpmethod can leave its status unset ("construction from null")
+            reason = " ".join(str(exc).strip().splitlines()[-1].split())
+            stats = {"return_status": f"no statistics ({reason})", "success": False}
+        return np.asarray(sol["x"]).ravel(), stats
 
 
 #: What CasADi's message says about an option it refused: the option's name is the group.
