@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 # ---
 
 # %% [markdown]
@@ -30,7 +32,7 @@
 #   evaluations, bonmin branch-and-bound nodes).  Solve times are the best of three solves of an
 #   already built solver (building the CasADi function is left out: it is the same for all).
 #
-#     python studies/solver_profiles.py                        # full run: every solver (about 6.5 min on 2 cores)
+#     python studies/solver_profiles.py                        # full run: every solver (about 4 min on 2 cores)
 #     OPTCAL_STUDY_QUICK=1 python studies/solver_profiles.py   # quick: 5 solvers, the quick library
 #     OPTCAL_STUDY_REUSE=1 python studies/solver_profiles.py   # redraw from the saved full run
 #
@@ -66,6 +68,28 @@ else:
     res = run(quick=QUICK, seed=0, progress=sys.stderr.isatty())
     (OUT / "solver_profiles.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=str))
 print(format_profile(res))
+
+# %% [markdown]
+# ## Findings (full run: 36 instances, 12 of them real recordings, every solver that runs here)
+#
+# * On the well-posed instances — every size from 12 to 3000 poses, every noise level, distortion up to ×4,
+#   the full sphere and 90-120° caps, outliers under the squared loss, 10 of the 12 recordings — **every
+#   solver reaches the same optimum** (relative objective gaps 1e-16 to 1e-9).  The MPU-6050 example's 10
+#   poses (one degree of freedom) defeat the SQP methods and sleqp.  The SQP methods and fatrop
+#   are the fastest there (median 0.35-0.4 ms against IPOPT's 1.2 ms: IPOPT's per-solve set-up dominates
+#   a 9-variable problem), IPOPT and fatrop the most reliable of the fast ones (92 %).
+# * **The robust losses** separate them: CasADi's sqpmethod, whatever its QP solver, fails on the Huber
+#   and Cauchy instances (non-regular sensitivities, QP failures, iteration limit), where the
+#   interior-point and augmented-Lagrangian solvers succeed.
+# * **Narrow coverage** (60° and 45° caps: weakly determined problems) defeats every solver but Bonmin,
+#   whose embedded IPOPT runs with its own defaults; IPOPT with optcal's scaled-cost tuning reaches its
+#   iteration limit there.  imucal's Ferraris session (13 poses that leave o_z undetermined) is the real
+#   recording on which no solver reports success (uno reaches the lowest objective and says it is not
+#   optimal; CasADi cannot even read sqpmethod's statistics afterwards).
+# * Iteration counts say little between families: 2-6 for the Newton-type methods on every
+#   well-posed instance; the time profile is the informative one.
+# * The convex fit: Clarabel and SCS agree to 2e-6 (normalised θ) on every instance, 1e-15 or better
+#   where the semidefinite constraint is inactive.
 
 # %% [markdown]
 # ## The profiles

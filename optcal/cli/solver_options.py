@@ -95,9 +95,7 @@ def estimator_settings(method: str, solver: str | None = None, solver_option: tu
         settings.update(nlp)
     if conic_solver is not None:
         chosen = choose_conic_solver(conic_solver)
-        if name == "convex":
-            settings["solver"] = chosen
-        elif "conic_solver" in params:
+        if "conic_solver" in params:
             settings["conic_solver"] = chosen
         else:
             raise InputError(f"--conic-solver applies to the convex fit and to mle's convex start; not to {name}")

@@ -303,17 +303,21 @@ def profile_figure(res: dict[str, Any]) -> Any:
     """Two panels: the time and the iterations profiles (ρ_s(τ) against τ, log scale)."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True)
+    style = {s: (f"C{k % 10}", "-" if k < 10 else "--") for k, s in enumerate(res["solvers"])}  # one look per solver
     for ax, key, title in ((axes[0], "time", "solve time"), (axes[1], "iterations", "iterations")):
         prof = res[key]
         for s in prof["solvers"]:
-            ax.step(prof["tau"], prof["rho"][s], where="post", label=s)
+            ax.step(prof["tau"], prof["rho"][s], where="post", label=s, color=style[s][0], linestyle=style[s][1])
         ax.set_xscale("log")
         ax.set_xlabel("τ (within a factor τ of the best)")
         ax.set_title(f"{title}: {res['n_instances']} instances ({res['n_real_instances']} real)")
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("share of instances ρ_s(τ)")
-    axes[1].legend(fontsize=8, loc="lower right")
+    axes[0].legend(fontsize=7, loc="lower right", ncol=2)
+    if res["iterations_not_counted"]:
+        axes[1].text(0.98, 0.02, "not counted: " + ", ".join(f"{k} ({v})" for k, v in res["iterations_not_counted"].items()),
+                     transform=axes[1].transAxes, ha="right", va="bottom", fontsize=7)
     fig.tight_layout()
     return fig
 

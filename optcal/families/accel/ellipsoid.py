@@ -265,7 +265,10 @@ class ConvexEllipsoidFit:
     allow_degenerate : bool
         Return a result for pose sets that do not identify every parameter.
     solver_options : dict, optional
-        Passed to ``problem.solve``.
+        Passed to ``problem.solve`` (on top of :data:`CONIC_DEFAULTS`).
+    conic_solver : str, optional
+        The same as ``solver`` (the spelling every estimator shares: ``optcal.calibrate(poses,
+        method="convex", conic_solver="SCS")``); it wins when both are given.
     """
 
     name = "convex"
@@ -277,10 +280,11 @@ class ConvexEllipsoidFit:
         polish: bool = True,
         allow_degenerate: bool = False,
         solver_options: dict[str, Any] | None = None,
+        conic_solver: str | None = None,
     ) -> None:
         from optcal.solvers.registry import choose_conic_solver
 
-        self.solver = choose_conic_solver(solver)
+        self.solver = choose_conic_solver(conic_solver or solver)
         self.eps = float(eps)
         self.polish = polish
         self.allow_degenerate = allow_degenerate
