@@ -301,9 +301,10 @@ def format_profile(res: dict[str, Any]) -> str:
 
 def profile_figure(res: dict[str, Any]) -> Any:
     """Two panels: the time and the iterations profiles (ρ_s(τ) against τ, log scale)."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True)
+    fig = Figure(figsize=(11, 4.6))
+    axes = fig.subplots(1, 2, sharey=True)
     style = {s: (f"C{k % 10}", "-" if k < 10 else "--") for k, s in enumerate(res["solvers"])}  # one look per solver
     for ax, key, title in ((axes[0], "time", "solve time"), (axes[1], "iterations", "iterations")):
         prof = res[key]
