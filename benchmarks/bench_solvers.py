@@ -147,3 +147,52 @@ def test_exact_efficiency(benchmark):
     assert res["methods"]["exact"]["failures"] == 0
     if STRICT and not QUICK:
         assert eff <= 1.10
+
+
+def test_exact_large(benchmark):
+    """Issue 29: the exact ML (Lu 2017 eq. 8, variable projection) at 10⁵ poses (quick mode and full)
+    and 10⁶ (full), against the norm-residual ML in the same run (complete ``calibrate`` calls,
+    interleaved, best of 3 each).  Target: exact within 20× mle's time at 10⁵ poses.  Full mode
+    also times the 9 + 3n-variable NLP (``formulation="full"``) at 10⁴ poses against the profile
+    formulation on the same table, and checks they reach the same optimum."""
+    import time
+
+    from optcal.applications.papers.lu2017_scaling import SIGMA
+
+    sizes = (100_000,) if QUICK else (100_000, 1_000_000)
+    calibrate(uniform_design(20_000, SIGMA, SEED).poses(SEED, 0), method="exact")  # warm-up: imports, problems
+    figures: dict[str, float] = {}
+
+    def best_of_3(poses, **settings):
+        best = np.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            res = calibrate(poses, **settings)
+            best = min(best, time.perf_counter() - t0)
+        return best, res
+
+    def measure():
+        for n in sizes:
+            poses = uniform_design(n, SIGMA, SEED).poses(SEED, 1)
+            t_mle, mle = best_of_3(poses, method="mle")
+            t_exact, exact = best_of_3(poses, method="exact")
+            assert mle.solver.success and exact.solver.success
+            figures[f"mle_s_{n}"], figures[f"exact_s_{n}"] = t_mle, t_exact
+            figures[f"exact_over_mle_{n}"] = t_exact / t_mle
+            print(f"\n{n} poses: mle {t_mle:.2f} s, exact (profile) {t_exact:.2f} s: ×{t_exact / t_mle:.1f}")
+        if not QUICK:
+            poses = uniform_design(10_000, SIGMA, SEED).poses(SEED, 1)
+            t_profile, profile = best_of_3(poses, method="exact")
+            t0 = time.perf_counter()
+            full = calibrate(poses, method="exact", formulation="full")
+            t_full = time.perf_counter() - t0
+            gap = float(np.max(np.abs(profile.params - full.params) / np.sqrt(np.diag(full.covariance))))
+            figures.update({"full_nlp_s_10000": t_full, "profile_s_10000": t_profile, "profile_vs_full_in_stderr": gap})
+            print(f"10⁴ poses: full NLP {t_full:.2f} s (built and solved), profile {t_profile:.2f} s; "
+                  f"max |Δθ| = {gap:.1e} standard errors")
+            assert gap < 1e-4
+
+    benchmark.pedantic(measure, rounds=1, iterations=1)
+    benchmark.extra_info.update(figures)
+    if STRICT:
+        assert figures["exact_over_mle_100000"] <= 20, figures

@@ -28,6 +28,7 @@ LAYERS: dict[str, int] = {
     "optcal.data": 3,          # reading files, evidence, decisions, static detection
     "optcal.families": 4,      # accelerometer, gyroscope, calibration types, noise, simulation
     "optcal.applications": 5,  # quality, diagnosis, plan, fleet, export, paper reproductions
+    "optcal.problems": 5,      # the calibration problems as formulations (families' and applications' builders)
     "optcal.report": 6,        # presentation: text reports, figures, HTML
     "optcal.cli": 7,           # the command line
     "optcal": 8,               # the package's front door (lazy names), on top of everything

@@ -10,6 +10,7 @@ from optcal.families.accel.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data, load_data_detailed
 from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
+from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 
 
 @click.command()
@@ -37,6 +38,7 @@ from optcal.cli.report_option import command_line, report_options, write_report
 @click.option("--turn-angle", type=float, default=None, metavar="DEG",
               help="--method ferraris: the angle of each turn (default: the whole turns the gyro reads; 360 for counts).")
 @report_options
+@solver_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
@@ -49,14 +51,19 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     from optcal.families.accel.calibration import calibrate as run_calibration
     from optcal.errors import IdentifiabilityError, InputError
 
+    solver_opts = pop_solver_options(data_opts)
     if method == "ferraris" or sections or turn_angle is not None:
         if method != "ferraris" or imu or report_path or joint or g_sensitivity or accept_gyro_fit:
             raise InputError("--sections and --turn-angle apply with --method ferraris, which calibrates both sensors "
                              "itself (no --imu, --joint, --g-sensitivity, --accept-gyro-fit; --report not yet)")
         from optcal.cli.cmd_ferraris import calibrate_ferraris
 
+        if any(v not in (None, (), {}) for v in solver_opts.values()):
+            raise InputError("--method ferraris solves no optimisation problem (its means are Ferraris' closed form): "
+                             "drop --solver, --solver-option, --conic-solver, --fix and --bound")
         calibrate_ferraris(data, sections, turn_angle, gyro_units, as_json, output, data_opts)
         return
+    fit_settings = estimator_settings(method, **solver_opts)
     if not imu and (gyro_units or joint or g_sensitivity):
         raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
     if not imu and accept_gyro_fit:
@@ -66,7 +73,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             raise InputError("--report covers the accelerometer calibration; it is not available with --imu yet")
 
         calibrate_imu(data, method, as_json, output, allow_degenerate, gyro_units, joint, g_sensitivity, data_opts,
-                      accept_gyro_fit)
+                      accept_gyro_fit, fit_settings)
         return
     poses = load_data(data, **data_opts)
     settings: dict = {"allow_degenerate": allow_degenerate}
@@ -76,6 +83,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             settings["scale_range"] = tuple(scale_range)
     elif loss != "squared" or scale_range:
         raise InputError("--loss and --scale-range apply to the mle method only")
+    settings.update(fit_settings)
     try:
         result = run_calibration(poses, method=method, **settings)
     except IdentifiabilityError as exc:
@@ -112,6 +120,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
 def calibrate_imu(
     data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
     gyro_units: str | None, joint: bool, g_sensitivity: bool, data_opts: dict[str, Any], accept_gyro_fit: bool = False,
+    fit_settings: dict[str, Any] | None = None,
 ) -> None:
     """``optcal calibrate DATA --imu``: both sensors from one raw recording (cal_type imu).
 
@@ -137,15 +146,20 @@ def calibrate_imu(
         The DATA reading options (:func:`optcal.cli.data_options.data_options`).
     accept_gyro_fit : bool
         Keep a gyro calibration the moves do not support, with a warning (``--accept-gyro-fit``).
+    fit_settings : dict, optional
+        The accelerometer estimator's settings from :func:`optcal.cli.solver_options.estimator_settings`;
+        its ``solver`` and ``solver_options`` serve the gyroscope's problem too.
     """
     from optcal.cli.messages import cli_message
     from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
 
     loaded = load_data_detailed(data, **data_opts)
+    fit_settings = dict(fit_settings or {})
     settings = GyroSettings(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
-                            allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit)
+                            allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit,
+                            solver=fit_settings.get("solver"), ipopt_options=dict(fit_settings.get("solver_options") or {}))
     cal = calibrate_imu_loaded(loaded, gyro_units=gyro_units, method=method, settings=settings,
-                               acc_settings={"allow_degenerate": allow_degenerate})
+                               acc_settings={"allow_degenerate": allow_degenerate, **fit_settings})
     if cal.fit_warning:
         click.echo(f"warning: {cli_message(cal.fit_warning, 'calibrate')}", err=True)
     if output:

@@ -10,6 +10,7 @@ from optcal.families.accel.calibration import METHOD_CHOICES
 from optcal.cli.data_options import DATA_PATH, data_options
 from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
+from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 from optcal.applications.diagnosis.effects import VOCABULARY
 
 EFFECTS_HELP = (
@@ -43,12 +44,12 @@ def diagnosis_options(func: Any) -> Any:
 
 
 def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-                  pose_correlation: str = "auto") -> Any:
+                  pose_correlation: str = "auto", calibration: dict[str, Any] | None = None) -> Any:
     """The :class:`~optcal.applications.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
     from optcal.applications.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
-                             pose_correlation=pose_correlation)
+                             pose_correlation=pose_correlation, calibration=dict(calibration or {}))
 
 
 def progress_printer(quiet: bool) -> Any:
@@ -73,6 +74,7 @@ def progress_printer(quiet: bool) -> Any:
                    "with the temperature, time and |a| ranges it was fitted on.")
 @peer_options
 @report_options
+@solver_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
@@ -98,8 +100,13 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     from optcal.report.diagnosis_text import diagnosis_report
 
     from optcal.cli.outputs import echo_json, output_file, plot_folder
+    from optcal.errors import InputError
 
-    settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation)
+    fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
+    if fit_settings and baseline_path:
+        raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
+                         "not with --baseline, which gives it")
+    settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
     reporter = progress_printer(quiet)

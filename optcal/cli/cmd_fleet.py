@@ -10,6 +10,7 @@ import click
 from optcal.cli.data_options import data_options
 from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import command_line, report_options, write_report
+from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 
 
 @click.command()
@@ -42,6 +43,7 @@ from optcal.cli.report_option import command_line, report_options, write_report
               help="Units per Dask task [about eight tasks per worker, at most 64 units].")
 @click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on standard error.")
 @report_options
+@solver_options
 @data_options
 def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | None, scheduler: str | None,
           tls_ca_file: str | None, tls_cert: str | None, tls_key: str | None, dask_config: str | None,
@@ -65,6 +67,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
 
     if not Path(output).resolve().parent.is_dir():
         raise InputError(f"{output}: its folder does not exist; create it or give another -o path")
+    fit_settings = estimator_settings("default", **pop_solver_options(data_opts))
     units = expand_inputs(list(inputs))
     settings = ClusterSettings(workers=workers, scheduler=scheduler, dashboard=dashboard, tls_ca_file=tls_ca_file,
                                tls_cert=tls_cert, tls_key=tls_key, dask_config=dask_config)
@@ -74,6 +77,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         board = f"dashboard {fc.dashboard_link}" if fc.dashboard_link else "dashboard off"
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
         result = run_fleet(units, fc.client, engine=fc.engine, load_options=_load_kwargs(data_opts),
+                           fit_settings=fit_settings,
                            flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress, output=output)
     if plot:
         _write_figures(result, Path(plot))

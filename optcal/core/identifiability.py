@@ -170,6 +170,9 @@ class IdentifiabilityReport(RankReport):
 
     unidentified: list[dict[str, Any]] = field(default_factory=list)
     weak: list[dict[str, Any]] = field(default_factory=list)
+    #: Parameters the user held (fixed, or a bound active at the optimum): counted as exactly
+    #: measured, so what the poses must determine is the rest (:mod:`optcal.core.constraints`).
+    constrained: list[str] = field(default_factory=list)
 
     @property
     def identifiable(self) -> bool:
@@ -178,6 +181,9 @@ class IdentifiabilityReport(RankReport):
 
     def describe(self) -> str:
         """One sentence: what the pose set determines, and what it does not."""
+        if self.identifiable and self.constrained:
+            return (f"all {self.n_params} parameters identifiable with {', '.join(self.constrained)} held by the user "
+                    f"(the poses determine the other {self.n_params - len(self.constrained)} directions)")
         if self.identifiable:
             return (
                 f"all {self.n_params} parameters identifiable (Fisher condition number "
@@ -205,6 +211,7 @@ class IdentifiabilityReport(RankReport):
             "condition_number": self.condition_number,
             "unidentified": self.unidentified,
             "weak": self.weak,
+            "constrained": list(self.constrained),
             "description": self.describe(),
         }
 
@@ -217,6 +224,7 @@ class IdentifiabilityReport(RankReport):
             condition_number=_condition_number(d.get("condition_number")),
             unidentified=[dict(u) for u in d.get("unidentified") or []],
             weak=[dict(u) for u in d.get("weak") or []],
+            constrained=[str(c) for c in d.get("constrained") or []],
         )
 
 

@@ -28,6 +28,8 @@ SOLVER_FAILURES: frozenset[str] = frozenset({
     "Not_Enough_Degrees_Of_Freedom", "Invalid_Problem_Definition", "Invalid_Option", "Invalid_Number_Detected",
     "Unrecoverable_Exception", "NonIpopt_Exception_Thrown", "Insufficient_Memory", "Internal_Error",
     "diverged",
+    # CasADi's plugin-independent statuses (``unified_return_status``) that mean no usable answer
+    "SOLVER_RET_NAN", "SOLVER_RET_INFEASIBLE", "SOLVER_RET_EXCEPTION",
 })
 
 
@@ -58,12 +60,35 @@ def solver_record(stats: dict[str, Any], seconds: float, name: str = "IPOPT", me
     """
     return SolverInfo(
         name=name,
-        status=str(stats.get("return_status", "unknown")),
+        status=plugin_status(stats),
         success=bool(stats.get("success", False)),
-        iterations=int(stats.get("iter_count", 0)) if iterations is None else int(iterations),
+        iterations=plugin_iterations(stats) if iterations is None else int(iterations),
         solve_time_s=float(seconds),
         message=message,
     )
+
+
+def plugin_status(stats: dict[str, Any]) -> str:
+    """The plugin's own status (``return_status``), or CasADi's unified one when the plugin gives none.
+
+    A plugin's numeric status (fatrop's 0) is kept with its unified meaning: ``"0 (SOLVER_RET_SUCCESS)"``.
+    """
+    own = stats.get("return_status")
+    unified = stats.get("unified_return_status")
+    if own is None or own == "":
+        return str(unified or "unknown")
+    if not isinstance(own, str) and unified:
+        return f"{own} ({unified})"
+    return str(own)
+
+
+def plugin_iterations(stats: dict[str, Any]) -> int:
+    """The plugin's iteration count; for a plugin that reports none (alpaqa), its gradient evaluations."""
+    count = stats.get("iter_count")
+    if count is not None:
+        return int(count)
+    gradients = [int(v) for k, v in stats.items() if k.startswith("n_call_nlp_grad") and isinstance(v, (int, float))]
+    return max(gradients, default=0)
 
 
 def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy | None = None) -> None:
@@ -89,4 +114,4 @@ def check_solver(method: str, solver: SolverInfo, theta: NDArray, remedy: Remedy
         )
 
 
-__all__ = ["SOLVER_FAILURES", "Remedy", "check_solver", "solver_record"]
+__all__ = ["SOLVER_FAILURES", "Remedy", "check_solver", "plugin_iterations", "plugin_status", "solver_record"]

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError, SolverError
+from optcal.solvers.registry import NLP_SOLVERS, SolverChoice, choose_nlp_solver, plugin_accepts, quiet_stdout
 
 #: The plugin of every optcal NLP unless the caller names another one.
 DEFAULT_SOLVER: str = "ipopt"
@@ -110,13 +111,28 @@ def cost_scale(n: int, start_rms: float | NDArray) -> float | NDArray[np.float64
 
 
 def solver_label(solver: str) -> str:
-    """How messages name a plugin: ``"IPOPT"`` for ``"ipopt"``, otherwise the plugin's own name."""
+    """How messages name a solver: ``"IPOPT"`` for ``"ipopt"``, otherwise its catalogue name."""
     return solver.upper() if solver == DEFAULT_SOLVER else solver
 
 
 def plugin_defaults(solver: str) -> dict[str, Any]:
-    """The options a plugin starts from: :data:`IPOPT_DEFAULTS` for IPOPT, none for another plugin."""
-    return dict(IPOPT_DEFAULTS) if solver == DEFAULT_SOLVER else {}
+    """The options a solver starts from: :data:`IPOPT_DEFAULTS` for IPOPT, the catalogue's for another
+    (:data:`optcal.solvers.registry.NLP_SOLVERS`), none for a plugin outside it."""
+    if solver == DEFAULT_SOLVER:
+        return dict(IPOPT_DEFAULTS)
+    spec = NLP_SOLVERS.get(solver)
+    return {"print_time": False, **(spec.defaults if spec else {})}
+
+
+def as_choice(solver: str | SolverChoice | None, solver_options: Mapping[str, Any] | None = None,
+              constraints: bool = False, callbacks: bool = False) -> SolverChoice:
+    """A :class:`~optcal.solvers.registry.SolverChoice` from a name and the user's options (or as given)."""
+    if isinstance(solver, SolverChoice):
+        if solver_options or callbacks:
+            merged = {**solver.user_option_dict(), **dict(solver_options or {})}
+            return choose_nlp_solver(solver.name, merged, constraints=constraints, callbacks=callbacks)
+        return solver
+    return choose_nlp_solver(solver, solver_options, constraints=constraints, callbacks=callbacks)
 
 
 @dataclass(frozen=True)
@@ -134,6 +150,7 @@ class NLPSolver:
 
     function: Any
     solver: str = DEFAULT_SOLVER
+    writes_stdout: bool = False
 
     def solve(self, **args: Any) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Run the solver (``x0``, ``p``, ``lbx``, ``ubx``, ``lbg``, ``ubg``) and read its statistics.
@@ -151,11 +168,20 @@ class NLPSolver:
             The solver raised an exception (an error inside a callback, a failed factorisation).
         """
         try:
-            sol = self.function(**args)
+            if self.writes_stdout:
+                with quiet_stdout():
+                    sol = self.function(**args)
+            else:
+                sol = self.function(**args)
         except RuntimeError as exc:
             reason = str(exc).strip().splitlines()[-1]
             raise SolverError(f"{solver_label(self.solver)} raised an error in {self.function.name()}: {reason}") from exc
-        return np.asarray(sol["x"]).ravel(), self.function.stats()
+        try:
+            stats = self.function.stats()
+        except RuntimeError as exc:  # CasADi 3.7's sqpmethod can leave its status unset ("construction from null")
+            reason = " ".join(str(exc).strip().splitlines()[-1].split())
+            stats = {"return_status": f"no statistics ({reason})", "success": False}
+        return np.asarray(sol["x"]).ravel(), stats
 
 
 #: What CasADi's message says about an option it refused: the option's name is the group.
@@ -166,7 +192,7 @@ _NAMED_IN_MESSAGE = (
 )
 
 
-def _refused_options(exc: RuntimeError, solver: str, solver_options: Mapping[str, Any]) -> list[str]:
+def _refused_options(exc: RuntimeError, choice: SolverChoice, solver_options: Mapping[str, Any]) -> list[str]:
     """The user's options that ``solver`` refuses: named by CasADi's message, else found one by one.
 
     IPOPT says only "Invalid options were detected" for a value out of range (it prints the
@@ -186,7 +212,7 @@ def _refused_options(exc: RuntimeError, solver: str, solver_options: Mapping[str
     refused = []
     for key, value in solver_options.items():
         try:
-            ca.nlpsol("option_probe", solver, {"x": x, "f": x * x}, {**plugin_defaults(solver), key: value})
+            ca.nlpsol("option_probe", choice.plugin, {"x": x, "f": x * x}, {**plugin_defaults(choice.name), key: value})
         except RuntimeError:
             refused.append(key)
     return refused
@@ -198,15 +224,16 @@ def nlp_solver(
     tuning: Mapping[str, Any] | None = None,
     *,
     functions: Mapping[str, Any] | None = None,
-    solver: str = DEFAULT_SOLVER,
+    solver: str | SolverChoice = DEFAULT_SOLVER,
     solver_options: Mapping[str, Any] | None = None,
     options_argument: str = "ipopt_options",
 ) -> NLPSolver:
-    """``casadi.nlpsol(name, solver, nlp, options)`` with optcal's options; refused options are bad input.
+    """``casadi.nlpsol(name, plugin, nlp, options)`` with optcal's options; refused options are bad input.
 
-    The options are, later ones overriding earlier ones: the plugin's defaults
-    (:data:`IPOPT_DEFAULTS` for IPOPT), the problem's ``tuning`` (IPOPT options, so applied with
-    IPOPT only), the problem's ``functions`` and the user's ``solver_options``.
+    The options are, later ones overriding earlier ones: the solver's defaults
+    (:data:`IPOPT_DEFAULTS` for IPOPT, the catalogue's for another,
+    :data:`optcal.solvers.registry.NLP_SOLVERS`), the problem's ``tuning`` (IPOPT options, so
+    applied with IPOPT only), the problem's ``functions`` and the user's ``solver_options``.
 
     Parameters
     ----------
@@ -219,8 +246,9 @@ def nlp_solver(
     functions : mapping, optional
         Options that hold the problem's own functions and hold for any plugin (``grad_f``,
         ``hess_lag``).
-    solver : str
-        The ``nlpsol`` plugin.
+    solver : str or SolverChoice
+        A solver of the catalogue by name (``"ipopt"``, ``"sqpmethod+osqp"``), or resolved by
+        :func:`optcal.solvers.registry.choose_nlp_solver` (its user options included).
     solver_options : mapping, optional
         The user's options.
     options_argument : str
@@ -229,26 +257,33 @@ def nlp_solver(
     Raises
     ------
     InputError
-        CasADi has no such plugin, or the plugin refused one of the user's options (the
-        message names it).
+        The solver is not in the catalogue, does not run here or does not suit the problem (the
+        message names those that do), or it refused one of the user's options (the message names it).
     SolverError
         The plugin refused the problem with optcal's own options (a defect of optcal).
     """
     import casadi as ca
 
-    if not ca.has_nlpsol(solver):
-        raise InputError(f"CasADi has no nlpsol plugin {solver!r} (ipopt, sqpmethod, ...)")
-    user = dict(solver_options or {})
-    options = {**plugin_defaults(solver), **(dict(tuning or {}) if solver == DEFAULT_SOLVER else {}),
-               **dict(functions or {}), **user}
+    functions = dict(functions or {})
+    choice = as_choice(solver, solver_options, constraints=nlp.get("g") is not None, callbacks="hess_lag" in functions)
+    if not plugin_accepts(choice.plugin, "grad_f"):
+        functions.pop("grad_f", None)  # the plugin differentiates f itself (a callback's reverse derivative)
+    user = choice.user_option_dict()
+    options = {**plugin_defaults(choice.name), **(dict(tuning or {}) if choice.name == DEFAULT_SOLVER else {}),
+               **functions, **user}
     try:
-        return NLPSolver(ca.nlpsol(name, solver, dict(nlp), options), solver)
+        if choice.writes_stdout:
+            with quiet_stdout():
+                built = ca.nlpsol(name, choice.plugin, dict(nlp), options)
+        else:
+            built = ca.nlpsol(name, choice.plugin, dict(nlp), options)
+        return NLPSolver(built, choice.name, choice.writes_stdout)
     except RuntimeError as exc:
         reason = str(exc).strip().splitlines()[-1].split(": ")[-1]  # CasADi's last line says why
-        label = solver_label(solver)
+        label = solver_label(choice.name)
         if not user:
             raise SolverError(f"{label} refused the options of {name} ({reason})") from exc
-        refused = _refused_options(exc, solver, user) or list(user)
+        refused = _refused_options(exc, choice, user) or list(user)
         listed = ", ".join(f"{key!r}: {user[key]!r}" for key in refused)
         raise InputError(f"{label} refused the options {{{listed}}} ({reason}); check {options_argument}") from exc
 
@@ -377,7 +412,7 @@ class CallbackNLP:
         hessian_block_size: int | None = None,
         constraints: Callable[[Any], Any] | None = None,
         tuning: Mapping[str, Any] | None = None,
-        solver: str = DEFAULT_SOLVER,
+        solver: str | SolverChoice = DEFAULT_SOLVER,
         solver_options: Mapping[str, Any] | None = None,
         options_argument: str = "ipopt_options",
     ) -> None:
@@ -404,8 +439,12 @@ class CallbackNLP:
                                lambda arg: [self._current().value(arg[0])], reverse=value_reverse)
         self._callbacks = [gradient, value]  # alive as long as the solver
         functions: dict[str, Any] = {"grad_f": gradient}
+        choice = as_choice(solver, solver_options, constraints=constraints is not None,
+                           callbacks=hessian_block_size is not None)
         if hessian_block_size is not None:
-            sparsity, upper = _block_upper_triangles(n, hessian_block_size)
+            # IPOPT (and Bonmin, IPOPT inside) take the upper triangle of the Hessian, the SQP methods the whole
+            triangle = choice.plugin in TRIANGULAR_HESSIAN_PLUGINS
+            sparsity, upper = (_block_upper_triangles if triangle else _block_entries)(n, hessian_block_size)
 
             def hessian(arg: list) -> list:
                 objective = self._current()
@@ -416,12 +455,14 @@ class CallbackNLP:
                                       [("triu_hess_gamma_x_x", sparsity)], hessian)
             self._callbacks.append(hess_lag)
             functions["hess_lag"] = hess_lag
+        elif choice.plugin != DEFAULT_SOLVER and plugin_accepts(choice.plugin, "hessian_approximation"):
+            # no Hessian of a numpy objective: the plugin approximates one (IPOPT's tuning says so for IPOPT)
+            functions["hessian_approximation"] = "limited-memory"
         x = ca.MX.sym("x", n)
         nlp = {"x": x, "f": value(x)}
         if constraints is not None:
             nlp["g"] = constraints(x)
-        self.solver = nlp_solver(name, nlp, tuning, functions=functions, solver=solver, solver_options=solver_options,
-                                 options_argument=options_argument)
+        self.solver = nlp_solver(name, nlp, tuning, functions=functions, solver=choice, options_argument=options_argument)
 
     def _current(self) -> NumpyObjective:
         assert self._objective is not None, "solve() sets the objective"
@@ -435,6 +476,19 @@ class CallbackNLP:
                 return self.solver.solve(**args)
             finally:
                 self._objective = None
+
+
+#: Plugins whose ``hess_lag`` returns the upper triangle of the Hessian (IPOPT's convention).
+TRIANGULAR_HESSIAN_PLUGINS: frozenset[str] = frozenset({"ipopt", "bonmin"})
+
+
+def _block_entries(n: int, block: int) -> tuple[Any, NDArray[np.intp]]:
+    """As :func:`_block_upper_triangles`, every entry of the diagonal blocks (a symmetric sparsity)."""
+    import casadi as ca
+
+    index, col, row = np.array([(k, c, r) for k in range(n // block) for c in range(block) for r in range(block)]).T
+    sparsity = ca.Sparsity.triplet(n, n, (block * index + row).tolist(), (block * index + col).tolist())
+    return sparsity, index * block * block + row * block + col
 
 
 def _block_upper_triangles(n: int, block: int) -> tuple[Any, NDArray[np.intp]]:
@@ -455,6 +509,7 @@ __all__ = [
     "CallbackNLP",
     "NLPSolver",
     "NumpyObjective",
+    "as_choice",
     "cost_scale",
     "nlp_solver",
     "numpy_callback",

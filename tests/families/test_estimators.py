@@ -177,14 +177,15 @@ def test_mle_bounds_respected(lu_model):
 
 def test_mle_reuses_problem(lu_model):
     from optcal.families.accel.mle import ML_PROBLEMS
+    from optcal.solvers.registry import SolverChoice
 
     poses = simulate_poses(lu_model, tilted_sweeps(20), 0.01, rng=np.random.default_rng(9))
     calibrate(poses, method="mle")
-    problem = ML_PROBLEMS.get(poses.n, "squared", ())
+    problem = ML_PROBLEMS.get(poses.n, "squared", SolverChoice(), ())
     n_before = len(ML_PROBLEMS)
     for k in range(3):
         calibrate(simulate_poses(lu_model, tilted_sweeps(20), 0.01, rng=np.random.default_rng(k)), method="mle")
-    assert len(ML_PROBLEMS) == n_before and ML_PROBLEMS.get(poses.n, "squared", ()) is problem
+    assert len(ML_PROBLEMS) == n_before and ML_PROBLEMS.get(poses.n, "squared", SolverChoice(), ()) is problem
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,7 @@ from optcal.core.norm_residual import norm_residual_jacobian, normal_gain
 from optcal.core.model import unpack_theta
 from optcal.families.simulate.poses import simulate_poses, tilted_sweeps, uniform_directions
 
-from helpers.common import rngs
+from helpers.common import SHARED, rngs
 
 
 def normalised_problem(model, n, sigma, seed, outliers=0):
@@ -134,7 +134,7 @@ def test_scipy_least_squares_reaches_the_ml_optimum(lu_model, method):
 
 def test_reproduce_solvers_quick_json(capsys):
     """The study command prints one JSON object with the figures of the issue, no NaN."""
-    code = main(["reproduce", "solvers", "--json", "--quick", "--runs", "2"])
+    code = main(["reproduce", "solvers", "--json", "--quick", "--runs", "2", "--profile-solvers", "ipopt,sqpmethod"])
     assert code in (0, None)
     out = capsys.readouterr().out
     res = json.loads(out)  # exactly one JSON object on stdout
@@ -147,6 +147,22 @@ def test_reproduce_solvers_quick_json(capsys):
     assert "NaN" not in out
     table1 = res["details"]["experiments"]["table1"]["methods"]
     assert set(table1) == {"svd", "convex-clarabel", "convex-scs", "mle", "exact", "gd", "scipy-lm", "scipy-trf"}
+    profile = res["performance_profile"]  # issue 29: the quick mode's library, 20 instances or more, 5 real or more
+    assert profile["solvers"] == ["ipopt", "sqpmethod"]
+    assert profile["n_instances"] >= 20
+    if (SHARED / "data").is_dir():
+        assert profile["n_real_instances"] >= 5
+    for metric in ("time", "iterations"):
+        curves = profile[metric]
+        assert len(curves["tau"]) == len(curves["rho"]["ipopt"]) and curves["tau"][0] == 1.0
+        assert all(0.0 <= v <= 1.0 for v in curves["rho"]["ipopt"])
+    assert profile["success_rate"]["ipopt"] > 0.5
+
+
+def test_reproduce_solvers_refuses_a_solver_that_does_not_run(capsys):
+    code = main(["reproduce", "solvers", "--quick", "--profile-solvers", "ipopt,nope"])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown NLP solver 'nope'" in err and err.count("\n") == 1
 
 
 def test_reproduce_solvers_bad_runs(capsys):

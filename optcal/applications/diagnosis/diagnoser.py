@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -83,6 +83,9 @@ class DiagnosisSettings:
         The pose noise correlated in time (:mod:`optcal.applications.diagnosis.correlation`): ``auto`` uses it
         on evidence (its own test, or the still parts' noise at the pose time scale), ``off`` treats
         the poses as independent, ``on`` uses the estimate whatever the evidence.
+    calibration : dict
+        Further settings of the baseline's estimator (``solver``, ``solver_options``, ``fix``,
+        ``bounds``, ``conic_solver``: :func:`optcal.calibrate`'s keywords).
     """
 
     effects: str | tuple[str, ...] | None = None
@@ -93,6 +96,7 @@ class DiagnosisSettings:
     seed: int = 0
     method: str = "mle"
     pose_correlation: str = "auto"
+    calibration: dict[str, Any] = field(default_factory=dict, hash=False)
 
     def __post_init__(self) -> None:
         if self.pose_correlation not in POSE_CORRELATION_CHOICES:
@@ -112,6 +116,7 @@ class DiagnosisSettings:
     def to_dict(self) -> dict[str, Any]:
         return {"folds": self.folds, "simulations": self.simulations, "alpha": self.alpha, "band": self.band,
                 "seed": self.seed, "min_dof": MIN_DOF, "method": self.method, "pose_correlation": self.pose_correlation,
+                "calibration": dict(self.calibration),
                 "effects": None if self.effects is None else (
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
 
@@ -185,7 +190,7 @@ class Diagnoser:
         from optcal.families.accel.calibration import calibrate
 
         with self.reporter.stage(f"fitting the paper's model ({self.settings.method})"):
-            result = calibrate(poses, self.settings.method)
+            result = calibrate(poses, self.settings.method, **self.settings.calibration)
         return canonicalise(result.T), np.asarray(result.o, float), f"the {self.settings.method} calibration"
 
     def prepare(self, poses: PoseTable, baseline: LumpedCalibration | None = None,

@@ -140,7 +140,8 @@ class FleetClient:
         self.close()
 
 
-def refit_unit(outcome: UnitOutcome, data: PoseTable | ReadFailure, prior: PopulationPrior) -> UnitOutcome:
+def refit_unit(outcome: UnitOutcome, data: PoseTable | ReadFailure, prior: PopulationPrior,
+               solver: tuple[str | None, dict[str, Any]] = (None, {})) -> UnitOutcome:
     """Refit one unit with the population prior (a Dask task; never raises).
 
     A unit calibrated by its own data keeps that calibration and gets the prior fit in
@@ -149,7 +150,7 @@ def refit_unit(outcome: UnitOutcome, data: PoseTable | ReadFailure, prior: Popul
     if isinstance(data, ReadFailure) or not (outcome.status == "calibrated" or outcome.prior_candidate):
         return outcome
     try:
-        fit = fit_with_prior(data, prior, start=outcome.theta)
+        fit = fit_with_prior(data, prior, start=outcome.theta, solver=solver[0], ipopt_options=solver[1])
     except Exception as exc:  # noqa: BLE001 - the unit keeps its first outcome, with the reason
         return replace(outcome, reason="; ".join(x for x in (outcome.reason, f"prior refit failed: {exc}") if x))
     se = np.sqrt(np.clip(np.diag(fit.result.covariance), 0.0, None))
@@ -177,15 +178,17 @@ def read_chunk(units: list[UnitInput], load_options: dict[str, Any]) -> list[Pos
     return [read_unit(u, load_options) for u in units]
 
 
-def fit_chunk(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> list[UnitOutcome]:
+def fit_chunk(units: list[UnitInput], data: list[PoseTable | ReadFailure],
+              settings: dict[str, Any] | None = None) -> list[UnitOutcome]:
     """The units of a chunk calibrated together (:func:`~optcal.applications.fleet.unit.fit_units`; one Dask task)."""
-    return fit_units(units, data)
+    return fit_units(units, data, settings)
 
 
 def refit_chunk(outcomes: list[UnitOutcome], data: list[PoseTable | ReadFailure], prior: PopulationPrior,
-                stats: PopulationStats | None = None) -> list[UnitOutcome]:
+                stats: PopulationStats | None = None, settings: dict[str, Any] | None = None) -> list[UnitOutcome]:
     """:func:`refit_unit` for a chunk of units, then their flags from ``stats`` (one Dask task)."""
-    refitted = [refit_unit(o, d, prior) for o, d in zip(outcomes, data)]
+    solver = ((settings or {}).get("solver"), dict((settings or {}).get("solver_options") or {}))
+    refitted = [refit_unit(o, d, prior, solver) for o, d in zip(outcomes, data)]
     if stats is not None:
         flag_units(refitted, stats)
     return refitted
@@ -231,6 +234,7 @@ def run_fleet(
     *,
     engine: str = "dask.distributed",
     load_options: dict[str, Any] | None = None,
+    fit_settings: dict[str, Any] | None = None,
     flag_threshold: float = DEFAULT_FLAG_THRESHOLD,
     prior: str = "population",
     chunk: int | None = None,
@@ -248,6 +252,11 @@ def run_fleet(
         Description of the cluster for the summary.
     load_options : dict, optional
         Keyword arguments of :func:`optcal.data.load` (columns, units, static detection, ...).
+    fit_settings : dict, optional
+        Settings of every unit's estimator (:func:`optcal.calibrate`'s: ``solver``,
+        ``solver_options``, ``fix``, ``bounds``, ``conic_solver``); the solver and its options
+        serve the prior refit too.  With fixed or bounded parameters the prior refit is not run
+        (it would move what the user holds), and the summary says so.
     flag_threshold : float
         ``k`` of the flag rule (:mod:`optcal.applications.fleet.population`).
     prior : {"population", "none"}
@@ -276,7 +285,8 @@ def run_fleet(
     chunks = [units[s:s + size] for s in range(0, len(units), size)]
     sizes = [len(c) for c in chunks]
     reads = [client.submit(read_chunk, c, opts, key=f"read-{j}-{uuid}") for j, c in enumerate(chunks)]
-    fits = [client.submit(fit_chunk, c, r, key=f"fit-{j}-{uuid}") for j, (c, r) in enumerate(zip(chunks, reads))]
+    settings = dict(fit_settings or {})
+    fits = [client.submit(fit_chunk, c, r, settings, key=f"fit-{j}-{uuid}") for j, (c, r) in enumerate(zip(chunks, reads))]
     per_chunk = _gather(
         fits, sizes, "calibrating", progress,
         lambda j, exc: [UnitOutcome(u.unit, u.path, "failed", f"task lost: {type(exc).__name__}: {exc}") for u in chunks[j]],
@@ -285,7 +295,8 @@ def run_fleet(
     stats = population_stats(outcomes, flag_threshold)
     if stats is not None:
         flag_units(outcomes, stats)
-    fitted_prior = estimate_prior(outcomes, stats.units if stats else None) if prior == "population" else None
+    held = bool(settings.get("fix") or settings.get("bounds"))
+    fitted_prior = estimate_prior(outcomes, stats.units if stats else None) if prior == "population" and not held else None
     prior_note = "not asked for" if prior == "none" else ""
     meta_keys = sorted({k for u in units for k in u.metadata})
     with contextlib.ExitStack() as stack:
@@ -293,14 +304,16 @@ def run_fleet(
         if fitted_prior is not None:
             prior_future = client.scatter(fitted_prior, broadcast=True)
             # the first outcomes stay on the workers (the fit futures); flags are set where the refit runs
-            refits = [client.submit(refit_chunk, fits[j], reads[j], prior_future, stats, key=f"prior-{j}-{uuid}")
+            refits = [client.submit(refit_chunk, fits[j], reads[j], prior_future, stats, settings, key=f"prior-{j}-{uuid}")
                       for j in range(len(chunks))]
             del reads, fits
             kept = _gather(refits, sizes, "refitting with the prior", progress, lambda j, exc: per_chunk[j],
                            consume=writer.write if writer is not None else None, release=True)
             outcomes = [o for part in kept for o in part]
         else:
-            if prior == "population":
+            if prior == "population" and held:
+                prior_note = "not estimated: --fix/--bound hold parameters that the population prior would move"
+            elif prior == "population":
                 n_good = sum(o.status == "calibrated" and not o.flag for o in outcomes)
                 prior_note = f"not estimated: {n_good} well-determined unit(s), at least 20 needed"
             del reads, fits

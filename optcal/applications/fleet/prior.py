@@ -32,8 +32,9 @@ from numpy.typing import NDArray
 from optcal.errors import InputError
 from optcal.applications.fleet.unit import UnitOutcome
 from optcal.core.poses import PoseTable
-from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.solvers.convergence import solver_record
+from optcal.solvers.cache import ProblemCache, problem_cache
+from optcal.solvers.convergence import plugin_iterations, solver_record
+from optcal.solvers.registry import SolverChoice, choose_nlp_solver
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, cost_scale, nlp_solver
 
 #: Fewest well-determined units for a prior (a 9 × 9 covariance needs well over 9).
@@ -112,7 +113,7 @@ class PriorMLProblem:
     the cost scale ``c`` are parameters of the NLP.
     """
 
-    def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None) -> None:
+    def __init__(self, n: int, ipopt_options: dict[str, Any] | None = None, solver: SolverChoice | None = None) -> None:
         import casadi as ca
 
         from optcal.core.norm_residual import casadi_norm_residual
@@ -128,14 +129,15 @@ class PriorMLProblem:
         penalty = ca.sumsqr(ca.mtimes(L, x - mu))
         cost = scale * (ca.sum2(w * r**2) + penalty)  # eq. 14 plus −2 log prior
         p = ca.vertcat(ca.vec(data), ca.vec(w), mu, ca.vec(L), scale)
-        self.solver = nlp_solver("ml_with_prior", {"x": x, "p": p, "f": cost}, SCALED_COST_IPOPT_OPTIONS,
-                                 solver_options=ipopt_options)
+        self.nlp: dict[str, Any] = {"x": x, "p": p, "f": cost}
+        self.solver = nlp_solver("ml_with_prior", self.nlp, SCALED_COST_IPOPT_OPTIONS,
+                                 solver=solver or "ipopt", solver_options=None if solver else ipopt_options)
         self._lock = threading.Lock()  # the solver keeps the statistics of its last call
 
     @staticmethod
-    def get(n: int, ipopt_options: dict[str, Any] | None = None) -> "PriorMLProblem":
+    def get(n: int, ipopt_options: dict[str, Any] | None = None, solver: SolverChoice | None = None) -> "PriorMLProblem":
         """The problem serving n poses (size :func:`padded_size`), built on first use (:data:`PRIOR_PROBLEMS`)."""
-        return PRIOR_PROBLEMS.get(padded_size(n), freeze_options(ipopt_options))
+        return PRIOR_PROBLEMS.get(padded_size(n), solver or choose_nlp_solver(None, ipopt_options))
 
     def solve(self, theta0: NDArray, u: NDArray, w: NDArray, mu: NDArray, L: NDArray) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Solve from ``theta0`` for normalised data ``u`` (n, 3) with absolute weights ``w``."""
@@ -156,7 +158,7 @@ class PriorMLProblem:
 
 
 #: Built :class:`PriorMLProblem` s by padded size and frozen IPOPT options (:func:`optcal.solvers.cache.problem_cache`).
-PRIOR_PROBLEMS: ProblemCache[PriorMLProblem] = problem_cache(lambda n, options: PriorMLProblem(n, dict(options)),
+PRIOR_PROBLEMS: ProblemCache[PriorMLProblem] = problem_cache(lambda n, choice: PriorMLProblem(n, solver=choice),
                                                              maxsize=8)
 
 
@@ -177,7 +179,7 @@ class PriorFit:
 
 
 def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | None = None,
-                   ipopt_options: dict[str, Any] | None = None) -> PriorFit:
+                   ipopt_options: dict[str, Any] | None = None, solver: str | None = None) -> PriorFit:
     """Refit one unit's poses with the population prior (see the module docstring).
 
     Parameters
@@ -188,7 +190,10 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     start : ndarray, shape (9,), optional
         Starting θ (the unit's own fit); the prior mean when omitted.
     ipopt_options : dict, optional
-        Extra CasADi/IPOPT options; options IPOPT refuses are an :class:`InputError`.
+        Extra CasADi/IPOPT options (the options of ``solver`` when another is named); options
+        it refuses are an :class:`InputError`.
+    solver : str, optional
+        The NLP solver by name (:data:`optcal.solvers.registry.NLP_SOLVERS`; IPOPT by default).
     """
     from optcal.families.accel.base import Normaliser, Stopwatch, finish
     from optcal.families.accel.mle import MaximumLikelihood
@@ -205,7 +210,8 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
     mu_n = np.linalg.solve(D, prior.mean - offset)
     L = np.linalg.cholesky(D @ prior.precision @ D).T  # LᵀL = D P⁻¹ D
     theta_n = norm.theta_to_normalised(prior.mean if start is None else np.asarray(start, float))
-    problem = PriorMLProblem.get(poses.n, ipopt_options)
+    choice = choose_nlp_solver(solver, ipopt_options)
+    problem = PriorMLProblem.get(poses.n, solver=choice)
     ml = MaximumLikelihood()
     iterations, seconds = 0, 0.0
     stats: dict[str, Any] = {}
@@ -213,11 +219,12 @@ def fit_with_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | No
         w = ml.weights(poses, norm, u, theta_n) if poses.sigma is not None else np.full(poses.n, prior.noise_g**-2)
         with Stopwatch() as sw:
             theta_n, stats = problem.solve(theta_n, u, w, mu_n, L)
-        iterations += int(stats.get("iter_count", 0))
+        iterations += plugin_iterations(stats)
         seconds += sw.seconds
-    solver = solver_record(stats, seconds, "IPOPT", f"CasADi nlpsol (SX, exact Hessian), norm residual + population prior, "
-                                                    f"{PRIOR_PASSES} pass(es)", iterations=iterations)
-    result = finish(method="mle+prior", poses=poses, theta=norm.theta_to_raw(theta_n), solver=solver,
+    record = solver_record(stats, seconds, choice.label,
+                           f"CasADi nlpsol {choice.plugin} (SX, exact Hessian), norm residual + population prior, "
+                           f"{PRIOR_PASSES} pass(es)", iterations=iterations)
+    result = finish(method="mle+prior", poses=poses, theta=norm.theta_to_raw(theta_n), solver=record,
                     allow_degenerate=True, extra={"prior_units": prior.n_units})
     # posterior covariance (F + P⁻¹)⁻¹, inverted in normalised coordinates
     T, o = unpack_theta(result.params)

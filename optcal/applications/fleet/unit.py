@@ -171,8 +171,9 @@ def outcome_from_result(unit: UnitInput, poses: PoseTable, result: Any, status: 
                             result.sigma_known, "" if result.solver.success else f"solver: {result.solver.status}", status)
 
 
-def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
-    """Calibrate one unit as ``optcal calibrate`` does (default method and settings).
+def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure, settings: dict[str, Any] | None = None) -> UnitOutcome:
+    """Calibrate one unit as ``optcal calibrate`` does (default method; ``settings`` for its estimator:
+    ``solver``, ``solver_options``, ``fix``, ``bounds``, ``conic_solver``).
 
     Never raises: a read failure or an unexpected error gives status ``failed``; a pose set
     that does not identify the calibration (or too few poses, or a collapsed fit) gives
@@ -183,7 +184,7 @@ def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
     if isinstance(data, ReadFailure):
         return UnitOutcome(unit.unit, unit.path, "failed", data.error, metadata=dict(unit.metadata))
     try:
-        return outcome_from_result(unit, data, calibrate(data))
+        return outcome_from_result(unit, data, calibrate(data, **(settings or {})))
     except (IdentifiabilityError, FitError, InputError) as exc:
         usable = data.n >= MIN_PRIOR_POSES and bool(np.all(np.isfinite(data.acc)))
         return UnitOutcome(unit.unit, unit.path, "refused", str(exc), n_poses=data.n, exclusions=dict(data.exclusions),
@@ -194,8 +195,12 @@ def fit_unit(unit: UnitInput, data: PoseTable | ReadFailure) -> UnitOutcome:
                            metadata=dict(unit.metadata))
 
 
-def fit_units(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> list[UnitOutcome]:
+def fit_units(units: list[UnitInput], data: list[PoseTable | ReadFailure],
+              settings: dict[str, Any] | None = None) -> list[UnitOutcome]:
     """:func:`fit_unit` for many units, the readable ones solved together in batched IPOPT problems.
+
+    With estimator ``settings`` (a solver by name, its options, fixed or bounded parameters)
+    every unit is fitted alone by :func:`fit_unit` with them: the batch is IPOPT's, unconstrained.
 
     The default calibration of every unit whose table :meth:`PoseTable.validate` accepts is
     solved by :class:`optcal.families.accel.batched.BatchedMaximumLikelihood` (the same start,
@@ -210,6 +215,8 @@ def fit_units(units: list[UnitInput], data: list[PoseTable | ReadFailure]) -> li
     from optcal.families.accel.batched import BatchedMaximumLikelihood, invalid_tables
     from optcal.core.model import PARAM_NAMES, unpack_theta
 
+    if settings:
+        return [fit_unit(u, d, settings) for u, d in zip(units, data)]
     outcomes: list[UnitOutcome | None] = [None] * len(units)
     readable = {j: d for j, d in enumerate(data) if isinstance(d, PoseTable)}
     by_n: dict[int, list[int]] = {}

@@ -49,6 +49,8 @@ from optcal.core.identifiability import analyse_design, cramer_rao_bound
 from optcal.core.model import PARAM_NAMES, LumpedModel, lu2017_reference_model, unpack_theta
 from optcal.core.poses import PoseTable
 from optcal.applications.papers.command_output import show_progress
+from optcal.applications.papers.solver_profiles import distorted_model, format_profile
+from optcal.applications.papers.solver_profiles import run as run_profiles
 from optcal.core.jsonio import json_text, jsonable
 from optcal.families.simulate.poses import cap_directions, simulate_poses, tilted_sweeps, uniform_directions
 
@@ -76,14 +78,6 @@ def _progress(iterable: Any, desc: str, progress: bool, total: int | None = None
     from tqdm import tqdm
 
     return tqdm(iterable, desc=desc, disable=not progress, total=total, leave=False)
-
-
-def distorted_model(factor: float) -> LumpedModel:
-    """Lu 2017's sensor with its scale and non-orthogonality errors multiplied by ``factor``."""
-    scale = 1.0 + factor * (np.array([1.2, 0.8, 1.3]) - 1.0)
-    rho, phi, lam = factor * np.deg2rad([2.0, 1.0, 1.5])
-    mounting = np.eye(3) + np.array([[0, -0.02, -0.05], [0.02, 0, -0.05], [0.05, 0.05, 0]])
-    return LumpedModel.from_physical(scale, rho, phi, lam, bias=[0.20, 0.15, 0.10], mounting=mounting)
 
 
 def mle_standard_errors(result: CalibrationResult) -> NDArray[np.float64]:
@@ -415,10 +409,17 @@ SWEEP_METHODS = ("svd", "convex-clarabel", "mle", "exact", "gd", "scipy-lm")
 EXACT_MAX_POSES = 10_000
 
 
-def run(quick: bool = False, runs: int | None = None, seed: int = 0, progress: bool = True) -> dict[str, Any]:
-    """The whole study; returns a JSON-safe dict (see the module docstring)."""
+def run(quick: bool = False, runs: int | None = None, seed: int = 0, progress: bool = True,
+        profile_solvers: list[str] | None = None) -> dict[str, Any]:
+    """The whole study; returns a JSON-safe dict (see the module docstring).
+
+    ``performance_profile`` is every installed NLP solver on the instance library of
+    :mod:`optcal.applications.papers.solver_profiles` (``profile_solvers`` to name them; the
+    quick mode's :data:`~optcal.applications.papers.solver_profiles.QUICK_SOLVERS` otherwise).
+    """
     plan = Plan.make(quick, runs)
     t_start = time.perf_counter()
+    profiles = run_profiles(quick=quick, seed=seed, solvers=profile_solvers, progress=progress)
     experiments: dict[str, Any] = {}
     experiments["table1"] = monte_carlo(table1_design(), ALL_METHODS, plan.runs, seed, progress)
     eff_design = uniform_design(140, 0.010, seed, label="uniform, 140 poses, 10 mg")
@@ -485,6 +486,7 @@ def run(quick: bool = False, runs: int | None = None, seed: int = 0, progress: b
             "throughput_fits_per_cpu_s": thr["batched"]["fits_per_cpu_s"],
             "throughput_max_deviation_full_scale": thr["batched"]["max_deviation_from_single_full_scale"],
             "large": {"n_poses": big["n_poses"], "mle_s": big["mle_s"]},
+            "performance_profile": profiles,
             "details": {"experiments": experiments, "speed": speed, "throughput": thr, "large": big},
             "runtime_s": time.perf_counter() - t_start,
         }
@@ -519,6 +521,7 @@ def format_report(res: dict[str, Any]) -> str:
               f"({res['throughput_single_fits_per_s']:.0f} one at a time; equal to within "
               f"{res['throughput_max_deviation_full_scale']:.1e} of full scale)",
               f"Large: {res['large']['n_poses']} poses through mle in {res['large']['mle_s']:.2f} s",
+              "", format_profile(res["performance_profile"]),
               f"runtime {res['runtime_s']:.0f} s"]
     return "\n".join(lines)
 
@@ -528,9 +531,20 @@ def format_report(res: dict[str, Any]) -> str:
 @click.option("--quick", is_flag=True, help="A smaller run (fewer runs, shorter sweeps, 10⁵ poses for 'large').")
 @click.option("--runs", type=click.IntRange(1), default=None, help="Monte Carlo runs per design point [200; quick 20].")
 @click.option("--seed", type=int, default=0, show_default=True)
-def command(as_json: bool, quick: bool, runs: int | None, seed: int) -> None:
-    """Solver comparison: Cramér–Rao efficiency, speed against gd and scipy, scaling to 10⁶ poses."""
-    res = run(quick=quick, runs=runs, seed=seed, progress=show_progress())
+@click.option("--profile-solvers", default=None, metavar="LIST",
+              help="NLP solvers of the performance profiles, comma-separated [every installed one; quick: "
+                   "ipopt, sqpmethod, sqpmethod+osqp, fatrop, uno].")
+def command(as_json: bool, quick: bool, runs: int | None, seed: int, profile_solvers: str | None) -> None:
+    """Solver comparison: Cramér–Rao efficiency, speed against gd and scipy, scaling to 10⁶ poses; every
+    installed NLP solver on an instance library (performance profiles)."""
+    from optcal.solvers.registry import choose_nlp_solver
+
+    names = None
+    if profile_solvers:
+        names = [n.strip().lower() for n in profile_solvers.split(",") if n.strip()]
+        for name in names:
+            choose_nlp_solver(name)  # refused in one line, naming those that run
+    res = run(quick=quick, runs=runs, seed=seed, progress=show_progress(), profile_solvers=names)
     if as_json:
         click.echo(json_text(res))
     else:

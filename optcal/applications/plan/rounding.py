@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from optcal.applications.plan.candidates import Cap
 from optcal.applications.plan.information import Criterion, criterion_gradient, criterion_value, criterion_values, information
+from optcal.solvers.convergence import plugin_status
 from optcal.solvers.nlp import CallbackNLP, NumpyObjective
 
 #: Step of the central differences of the information vectors (unit directions).
@@ -121,15 +123,26 @@ def information_derivative(vectors: Callable[[NDArray], NDArray], directions: ND
     return np.swapaxes((plus - minus) / (2 * DIFF_STEP), 1, 2)
 
 
-def refine(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion: Criterion,
-           base: NDArray | None = None, cap: Cap | None = None,
-           ipopt_options: dict[str, Any] | None = None) -> tuple[NDArray[np.float64], str]:
-    """Move all K directions on the sphere (in the cap) to a local optimum of the criterion (IPOPT).
+@dataclass(frozen=True)
+class RefineProblem:
+    """The refinement on the sphere as an NLP evaluated in numpy (:func:`refine_problem`).
 
-    Returns the refined directions (the start when IPOPT does not improve on it) and IPOPT's
-    return status.  ``ipopt_options`` override :data:`REFINE_IPOPT_TUNING`; options IPOPT refuses
-    are an :class:`~optcal.errors.InputError`.
+    ``objective`` is ``−Φ(M)/|Φ(M₀)|`` with its gradient; ``constraints(x)`` the CasADi
+    expressions ``‖d_k‖² − 1`` (= 0) and, with a cap, ``d_k · axis`` (≥ cos of its half-angle);
+    ``lbg``, ``ubg`` their bounds; ``start_value`` the criterion at the start.
     """
+
+    objective: NumpyObjective
+    constraints: Callable[[Any], Any]
+    lbg: NDArray[np.float64]
+    ubg: NDArray[np.float64]
+    start_value: float
+    n: int
+
+
+def refine_problem(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion: Criterion,
+                   base: NDArray | None = None, cap: Cap | None = None) -> RefineProblem:
+    """The NLP that moves all K directions on the sphere (in the cap) to a local optimum of the criterion."""
     import casadi as ca
 
     K = len(directions)
@@ -161,17 +174,34 @@ def refine(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion
     if cap is not None:
         lbg.append(np.full(K, cap.cos_half_angle))
         ubg.append(np.full(K, np.inf))
-    nlp = CallbackNLP("plan_refine", 3 * K, constraints=constraints, tuning=REFINE_IPOPT_TUNING,
-                      solver_options=ipopt_options)
-    x, stats = nlp.solve(NumpyObjective(lambda x: cost_and_gradient(x)[0], cost_and_gradient),
-                         x0=directions.ravel(), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
-    status = str(stats.get("return_status", "unknown"))
+    return RefineProblem(NumpyObjective(lambda x: cost_and_gradient(x)[0], cost_and_gradient), constraints,
+                         np.concatenate(lbg), np.concatenate(ubg), float(start_value), 3 * K)
+
+
+def refine(vectors: Callable[[NDArray], NDArray], directions: NDArray, criterion: Criterion,
+           base: NDArray | None = None, cap: Cap | None = None,
+           ipopt_options: dict[str, Any] | None = None, solver: str | None = None) -> tuple[NDArray[np.float64], str]:
+    """Move all K directions on the sphere (in the cap) to a local optimum of the criterion (IPOPT).
+
+    Returns the refined directions (the start when IPOPT does not improve on it) and IPOPT's
+    return status.  ``ipopt_options`` override :data:`REFINE_IPOPT_TUNING`; options IPOPT refuses
+    are an :class:`~optcal.errors.InputError`.  ``solver`` names another NLP solver of
+    :data:`optcal.solvers.registry.NLP_SOLVERS` (``ipopt_options`` are then its options).
+    """
+    K = len(directions)
+    p = vectors(directions[:1]).shape[1]
+    M0 = np.zeros((p, p)) if base is None else base
+    problem = refine_problem(vectors, directions, criterion, base, cap)
+    nlp = CallbackNLP("plan_refine", problem.n, constraints=problem.constraints, tuning=REFINE_IPOPT_TUNING,
+                      solver=solver or "ipopt", solver_options=ipopt_options)
+    x, stats = nlp.solve(problem.objective, x0=directions.ravel(), lbg=problem.lbg, ubg=problem.ubg)
+    status = plugin_status(stats)
     refined = x.reshape(K, 3)
     refined = refined / np.linalg.norm(refined, axis=1, keepdims=True)
     if cap is not None and not np.all(cap.contains(refined, slack=1e-7)):
         return directions, status
     value = criterion_value(information(vectors(refined), base=M0), criterion)
-    return (refined, status) if value > start_value else (directions, status)
+    return (refined, status) if value > problem.start_value else (directions, status)
 
 
-__all__ = ["apportion", "exchange", "information_derivative", "refine", "sequential"]
+__all__ = ["RefineProblem", "apportion", "exchange", "information_derivative", "refine", "refine_problem", "sequential"]

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import FitError, IdentifiabilityError, InputError
+from optcal.core.constraints import ConstraintReport, ParameterConstraints, constrained_covariance, constraint_report, parameter_gradient
 from optcal.core.identifiability import IdentifiabilityReport, add_weak_directions, analyse, pseudo_inverse
 from optcal.core.model import PARAM_NAMES, canonicalise, theta_from, unpack_theta
 from optcal.core.norm_residual import NormResidualKernel, normal_gain
@@ -237,6 +238,7 @@ def finish(
     extra: dict[str, Any] | None = None,
     covariance_scale: str = "auto",
     remedy: Remedy | None = None,
+    constraints: ParameterConstraints | None = None,
 ) -> CalibrationResult:
     """Assemble a :class:`CalibrationResult` from θ in raw units.
 
@@ -245,7 +247,9 @@ def finish(
     directions eliminated, see :mod:`optcal.core.identifiability`), its inverse as covariance
     (scaled by the reduced chi-square when the noise is not known) and the identifiability
     report; refuses a pose set that does not identify θ unless ``allow_degenerate``.  An early
-    stop of the solver is warned about only for a pose set that is not refused.
+    stop of the solver is warned about only for a pose set that is not refused.  With user
+    ``constraints`` the covariance and the identifiability are those of the free subspace
+    (:func:`constrained_fisher`), and the result's ``extra["constraints"]`` says which bound is active.
     """
     finite = bool(np.all(np.isfinite(theta)))
     if solver.status in SOLVER_FAILURES or not finite:
@@ -262,6 +266,11 @@ def finish(
     theta = theta_from(T, o)
     notes = list(notes or [])
     fisher = fisher_at_fit(poses, T, o, weighting, covariance_scale)
+    extra = dict(extra or {})
+    if constraints:
+        fisher, held = constrained_fisher(poses, theta, fisher, constraints, covariance_scale)
+        extra["constraints"] = held.to_dict()
+        notes += ["constraints: " + line for line in held.lines()]
     ident = fisher.identifiability
     note = degenerate_note(ident, allow_degenerate)
     if note:
@@ -287,8 +296,55 @@ def finish(
         exclusions=dict(poses.exclusions),
         identifiability=ident,
         notes=notes,
-        extra=dict(extra or {}),
+        extra=extra,
     )
+
+
+#: Weight of a held constraint in the identifiability test, relative to the largest diagonal
+#: entry of the Fisher information in correlation form: a held parameter counts as measured far
+#: better than any combination the poses determine (its standard error is zero).
+HELD_INFORMATION: float = 1e6
+
+
+def constrained_fisher(poses: PoseTable, theta: NDArray, fisher: FisherAtFit, constraints: ParameterConstraints,
+                       covariance_scale: str = "auto") -> tuple[FisherAtFit, ConstraintReport]:
+    """The covariance and identifiability at θ with the fixed parameters and active bounds held.
+
+    The bound test uses the unconstrained standard errors (:func:`optcal.core.constraints.constraint_report`);
+    the covariance is :func:`optcal.core.constraints.constrained_covariance` in normalised
+    coordinates (scaled by ``χ²/(n − 9 + m)`` when the noise is not known, m the held
+    constraints); the identifiability test counts each held constraint as an exactly measured
+    combination, so a pose set that leaves only a fixed parameter undetermined identifies the rest.
+    """
+    unconstrained = fisher.covariance
+
+    def stderr(name: str) -> float:
+        g = parameter_gradient(theta, name)
+        return float(np.sqrt(max(float(g @ unconstrained @ g), 0.0)))
+
+    report = constraint_report(constraints, theta, stderr)
+    if not report.held:
+        return fisher, report
+    T, o = unpack_theta(theta)
+    point = NormResidualKernel(poses.acc).at(T, o)
+    J = point.jacobian().T
+    F = J.T @ (J * fisher.weights[:, None])
+    D = Normaliser.of(poses.acc).jacobian()
+    G_n = np.array([parameter_gradient(theta, name) for name in report.held]) @ D
+    cov_n = constrained_covariance(D @ F @ D, G_n)
+    if covariance_scale == "auto" and not fisher.sigma_known:
+        dof = poses.n - len(PARAM_NAMES) + len(report.held)
+        cov_n = cov_n * (float(np.sum(fisher.weights * fisher.residuals**2)) / dof if dof > 0 else np.nan)
+    # each held constraint as an exactly measured combination: w g gᵀ with w large against the
+    # largest diagonal entry of the information in normalised coordinates (D F D)
+    G = np.array([parameter_gradient(theta, name) for name in report.held])
+    weights = HELD_INFORMATION * float(np.max(np.diag(D @ F @ D))) / np.maximum(np.sum(G_n**2, axis=1), 1e-300)
+    held_information = (G.T * weights) @ G  # = D⁻¹ (Σ w g_n g_nᵀ) D⁻¹, g_n = g D
+    ident = analyse(T, o, poses.acc, poses.sigma, information=F + held_information)
+    ident.constrained = list(report.held)
+    if ident.rank == ident.n_params and np.all(np.isfinite(cov_n)):
+        add_weak_directions(ident, cov_n, T * Normaliser.of(poses.acc).scale)
+    return FisherAtFit(ident, D @ cov_n @ D, fisher.residuals, fisher.weights, fisher.sigma_known), report
 
 
 class Stopwatch:

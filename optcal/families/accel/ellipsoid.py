@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import FitError, InputError, SolverError
+from optcal.errors import FitError, SolverError
 from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish
 from optcal.core.model import canonical_T, theta_from
 from optcal.core.poses import PoseTable
@@ -210,6 +210,12 @@ class ConvexEllipsoidProblem:
         self.solver, self.options = solver, dict(options)
         self._lock = threading.Lock()
 
+    def with_data(self, R: NDArray) -> tuple[Any, dict[str, Any]]:
+        """The cvxpy problem with ``R`` set, and its variables ``eta`` (the quadric) and ``A`` (for a
+        :class:`optcal.solvers.formulation.ConicFormulation`; not shared between threads)."""
+        self._R.value = R
+        return self._problem, {"eta": self._eta, "A": self._A}
+
     def solve(self, R: NDArray) -> ConvexSolution:
         """Solve for the triangular factor ``R`` (10×10) of the design matrix."""
         with self._lock:
@@ -230,13 +236,28 @@ class ConvexEllipsoidProblem:
 CONVEX_PROBLEMS: ProblemCache[ConvexEllipsoidProblem] = problem_cache(ConvexEllipsoidProblem, maxsize=8)
 
 
+#: Options each conic solver starts from (the user's ``solver_options`` go on top).  The cost
+#: ‖Rη‖² of normalised data is about n σ² (1e-6 for a 5 mg sensor's hundred poses), so the
+#: solvers' default absolute tolerances (1e-8 for Clarabel's duality gap, 1e-4 for SCS) are a
+#: percent of it: where the semidefinite constraint is active (the KKT polish does not apply)
+#: Clarabel stopped with min eig(A) at 1.047 ε instead of ε and its θ 7e-3 (normalised) from
+#: SCS's on imucal's Ferraris session.  At 1e-12 (gap and feasibility) both agree to 2e-6 there
+#: (a pose set that leaves o_z undetermined) and to 1e-14 on imu_tk's Xsens log.
+CONIC_DEFAULTS: dict[str, dict[str, Any]] = {
+    "SCS": {"eps_abs": 1e-10, "eps_rel": 1e-10, "max_iters": 200_000},
+    "CLARABEL": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12},
+}
+
+
 class ConvexEllipsoidFit:
     """The algebraic ellipsoid fit as a semidefinite-constrained convex problem in cvxpy.
 
     Parameters
     ----------
     solver : str
-        cvxpy solver name; ``"CLARABEL"`` by default (``"SCS"`` also works).
+        cvxpy solver name; ``"CLARABEL"`` by default.  Any installed solver that takes the
+        semidefinite constraint (:func:`optcal.solvers.registry.available_conic_solvers`:
+        CLARABEL, SCS, CVXOPT, MOSEK, ...); another is refused naming those.
     eps : float
         Lower bound on the eigenvalues of the normalised ``A`` (whose trace is 3).
     polish : bool
@@ -244,7 +265,10 @@ class ConvexEllipsoidFit:
     allow_degenerate : bool
         Return a result for pose sets that do not identify every parameter.
     solver_options : dict, optional
-        Passed to ``problem.solve``.
+        Passed to ``problem.solve`` (on top of :data:`CONIC_DEFAULTS`).
+    conic_solver : str, optional
+        The same as ``solver`` (the spelling every estimator shares: ``optcal.calibrate(poses,
+        method="convex", conic_solver="SCS")``); it wins when both are given.
     """
 
     name = "convex"
@@ -256,19 +280,20 @@ class ConvexEllipsoidFit:
         polish: bool = True,
         allow_degenerate: bool = False,
         solver_options: dict[str, Any] | None = None,
+        conic_solver: str | None = None,
     ) -> None:
-        self.solver = solver.upper()
+        from optcal.solvers.registry import choose_conic_solver
+
+        self.solver = choose_conic_solver(conic_solver or solver)
         self.eps = float(eps)
         self.polish = polish
         self.allow_degenerate = allow_degenerate
-        self.solver_options = dict(solver_options or {})
+        self.solver_options = {**CONIC_DEFAULTS.get(self.solver, {}), **dict(solver_options or {})}
 
     def fit(self, poses: PoseTable) -> CalibrationResult:
         import cvxpy as cp
 
         poses.validate()
-        if self.solver not in cp.installed_solvers():
-            raise InputError(f"cvxpy solver {self.solver} is not installed (installed: {', '.join(cp.installed_solvers())})")
         norm = Normaliser.of(poses.acc)
         J = design_matrix(norm.forward(poses.acc))
         R = np.zeros((10, 10))

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -38,12 +39,14 @@ from numpy.typing import NDArray
 
 from optcal.errors import FitError, InputError
 from optcal.families.accel.base import Normaliser, Stopwatch, check_pose_set, finish, pose_weights, propagated_weights
-from optcal.core.model import PARAM_NAMES, unpack_theta, theta_from
+from optcal.core.constraints import PHYSICAL_NAMES, ParameterConstraints, physical_of_theta
+from optcal.core.model import unpack_theta, theta_from
 from optcal.core.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.core.poses import PoseTable
-from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.solvers.convergence import Remedy, solver_record
+from optcal.solvers.cache import ProblemCache, problem_cache
+from optcal.solvers.convergence import Remedy, plugin_iterations, solver_record
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale, nlp_solver
+from optcal.solvers.registry import SolverChoice, choose_conic_solver, choose_nlp_solver, takes_callbacks
 from optcal.families.accel.result import CalibrationResult
 
 LOSSES = ("squared", "huber", "cauchy")
@@ -53,6 +56,11 @@ DEFAULT_LOSS_SCALE = {"squared": 1.0, "huber": 1.345, "cauchy": 2.385}
 IPOPT_REMEDY = Remedy(
     stopped_early="raise the iteration limit (ipopt_options={'ipopt.max_iter': 1000}) or start from another fit (init=...)",
     failed='check ipopt_options, or use method="convex"',
+)
+#: The same advice for a solver other than IPOPT (named with ``solver=``).
+SOLVER_REMEDY = Remedy(
+    stopped_early="raise the iteration limit (solver_options={'max_iter': 1000}) or use another solver (solver=...)",
+    failed="check solver_options, or use another solver (solver=...)",
 )
 
 
@@ -206,19 +214,48 @@ class _MLSolve(ABC):
         delta: float = 1.0,
         lbx: NDArray | None = None,
         ubx: NDArray | None = None,
+        lbg: NDArray | None = None,
+        ubg: NDArray | None = None,
     ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,); θ and IPOPT's statistics."""
+        """Solve from ``theta0`` for normalised data ``u`` (n, 3) and weights ``w`` (n,); θ and the solver's statistics.
+
+        ``lbg``, ``ubg`` bound the physical parameters the problem was built with (:class:`MLProblem`'s ``physical``).
+        """
         cost = scaled_cost(u, w, theta0, self.loss, delta)
         args: dict[str, Any] = {"x0": theta0}
-        if lbx is not None:
-            args["lbx"] = lbx
-        if ubx is not None:
-            args["ubx"] = ubx
+        for key, value in (("lbx", lbx), ("ubx", ubx), ("lbg", lbg), ("ubg", ubg)):
+            if value is not None:
+                args[key] = value
         return self._solve(cost, args)
 
     @abstractmethod
     def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
         """Run IPOPT on ``cost`` with the start and bounds in ``args``."""
+
+
+def ml_nlp(n: int, loss: str = "squared", physical: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The NLP ``min_θ c Σ_k ρ(√w_k r_k(θ))`` (Lu 2017, eq. 13-14) for n poses as a CasADi SX dictionary.
+
+    ``x`` is θ in normalised coordinates; ``p`` stacks the normalised measurements (column-major
+    3×n), the weights (scaled to mean one), the robust loss's threshold δ and the cost scale c;
+    ``g``, when ``physical`` names parameters of :data:`optcal.core.constraints.PHYSICAL_NAMES`,
+    holds their values at θ (scale factors in normalised units, ``S' = S/s``; angles in degrees).
+    """
+    import casadi as ca
+
+    r = casadi_norm_residual()
+    x = ca.SX.sym("theta", 9)
+    data = ca.SX.sym("a", 3, n)
+    w = ca.SX.sym("w", 1, n)
+    delta = ca.SX.sym("delta")
+    scale = ca.SX.sym("scale")
+    res = (r.map(n) if n > 1 else r)(x, data)  # 1 x n
+    cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
+    nlp: dict[str, Any] = {"x": x, "p": ca.vertcat(ca.vec(data), ca.vec(w), delta, scale), "f": cost}
+    if physical:
+        values = physical_of_theta(x, _CASADI_MATH)
+        nlp["g"] = ca.vertcat(*[values[PHYSICAL_NAMES.index(name)] for name in physical])
+    return nlp
 
 
 class MLProblem(_MLSolve):
@@ -233,30 +270,26 @@ class MLProblem(_MLSolve):
 
     SX_LIMIT = 200
 
-    def __init__(self, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
-        import casadi as ca
-
-        self.n, self.loss = n, loss
-        r = casadi_norm_residual()
-        x = ca.SX.sym("theta", 9)
-        data = ca.SX.sym("a", 3, n)
-        w = ca.SX.sym("w", 1, n)
-        delta = ca.SX.sym("delta")
-        scale = ca.SX.sym("scale")
-        res = (r.map(n) if n > 1 else r)(x, data)  # 1 x n
-        cost = scale * ca.sum2(robust_loss(res * ca.sqrt(w), loss, delta))
-        p = ca.vertcat(ca.vec(data), ca.vec(w), delta, scale)
-        self.solver = nlp_solver("ml_calibration", {"x": x, "p": p, "f": cost}, SCALED_COST_IPOPT_OPTIONS,
-                                 solver_options=ipopt_options)
+    def __init__(self, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None,
+                 solver: SolverChoice | None = None, physical: tuple[str, ...] = ()) -> None:
+        self.n, self.loss, self.physical = n, loss, tuple(physical)
+        self.nlp = ml_nlp(n, loss, self.physical)
+        self.solver = nlp_solver("ml_calibration", self.nlp, SCALED_COST_IPOPT_OPTIONS,
+                                 solver=solver or "ipopt", solver_options=None if solver else ipopt_options,
+                                 options_argument="ipopt_options" if solver is None or solver.name == "ipopt" else "solver_options")
         self._lock = threading.Lock()
 
     @classmethod
-    def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> "MLProblem | VectorisedMLProblem":
+    def get(cls, n: int, loss: str = "squared", ipopt_options: dict[str, Any] | None = None,
+            solver: SolverChoice | None = None, physical: tuple[str, ...] = ()) -> "MLProblem | VectorisedMLProblem":
         """The problem for n poses: the SX problem up to :attr:`SX_LIMIT` poses, built once and
-        kept in :data:`ML_PROBLEMS`; beyond, a :class:`VectorisedMLProblem` (nothing to keep)."""
-        if n > cls.SX_LIMIT:
-            return VectorisedMLProblem(loss, ipopt_options)
-        return ML_PROBLEMS.get(n, loss, freeze_options(ipopt_options))
+        kept in :data:`ML_PROBLEMS`; beyond, a :class:`VectorisedMLProblem` (nothing to keep),
+        unless physical parameters are constrained (their constraints are SX expressions) or the
+        solver cannot take numpy callbacks (:func:`optcal.solvers.registry.takes_callbacks`)."""
+        choice = solver or choose_nlp_solver(None, ipopt_options)
+        if n > cls.SX_LIMIT and not physical and takes_callbacks(choice.name):
+            return VectorisedMLProblem(loss, solver=choice)
+        return ML_PROBLEMS.get(n, loss, choice, tuple(physical))
 
     def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
         # vec() is column-major, so p holds a_1, a_2, ... stacked
@@ -277,19 +310,45 @@ class VectorisedMLProblem(_MLSolve):
     it at once.  One IPOPT iteration on 10⁶ poses costs a few dozen vector operations.
     """
 
-    def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None) -> None:
+    def __init__(self, loss: str = "squared", ipopt_options: dict[str, Any] | None = None,
+                 solver: SolverChoice | None = None) -> None:
         self.loss = loss
         self.ipopt_options = dict(ipopt_options or {})
+        self.choice = solver or choose_nlp_solver(None, self.ipopt_options)
 
     def _solve(self, cost: NormResidualCost, args: dict[str, Any]) -> tuple[NDArray[np.float64], dict[str, Any]]:
         nlp = CallbackNLP("ml_calibration_vectorised", 9, hessian_block_size=9, tuning=SCALED_COST_IPOPT_OPTIONS,
-                          solver_options=self.ipopt_options)
+                          solver=self.choice)
         return nlp.solve(cost.objective(), **args)
 
 
-#: The SX problems of :class:`MLProblem`, keyed by (n, loss, frozen IPOPT options).
+class _CasadiMath:
+    """The functions :func:`optcal.core.constraints.physical_of_theta` needs, on CasADi symbols."""
+
+    @staticmethod
+    def sqrt(x: Any) -> Any:
+        import casadi as ca
+
+        return ca.sqrt(x)
+
+    @staticmethod
+    def asin(x: Any) -> Any:
+        import casadi as ca
+
+        return ca.asin(x)
+
+    @staticmethod
+    def cos(x: Any) -> Any:
+        import casadi as ca
+
+        return ca.cos(x)
+
+
+_CASADI_MATH = _CasadiMath()
+
+#: The SX problems of :class:`MLProblem`, keyed by (n, loss, solver choice, constrained physical parameters).
 ML_PROBLEMS: ProblemCache[MLProblem] = problem_cache(
-    lambda n, loss, options: MLProblem(n, loss, dict(options)), maxsize=32
+    lambda n, loss, choice, physical: MLProblem(n, loss, solver=choice, physical=physical), maxsize=32
 )
 
 
@@ -328,10 +387,11 @@ def convex_start(u: NDArray, eps: float, R: NDArray | None = None) -> NDArray[np
 
 
 def _bounds_vectors(
-    bounds: dict[str, tuple[float, float]] | None, scale_range: tuple[float, float] | None
+    constraints: ParameterConstraints, scale_range: tuple[float, float] | None
 ) -> tuple[NDArray, NDArray] | None:
-    """Bounds on θ (raw units) from named bounds and a scale-factor range."""
-    if not bounds and scale_range is None:
+    """Bounds on θ (raw units) from the θ entries fixed or bounded and a scale-factor range."""
+    theta_named = [n for n in (*constraints.fixed, *constraints.bounds) if n not in PHYSICAL_NAMES]
+    if not theta_named and scale_range is None:
         return None
     lb = np.full(9, -np.inf)
     ub = np.full(9, np.inf)
@@ -343,14 +403,36 @@ def _bounds_vectors(
             raise InputError("scale_range must be (low, high) with 0 < low < high, in raw units per g")
         for k in (0, 2, 5):  # diag(T) = 1/diag(C); diag(C) ≈ scale for small non-orthogonality
             lb[k], ub[k] = 1.0 / hi, 1.0 / lo
-    for name, (lo, hi) in (bounds or {}).items():
-        if name not in PARAM_NAMES:
-            raise InputError(f"unknown parameter {name!r} in bounds; use one of {', '.join(PARAM_NAMES)}")
-        k = PARAM_NAMES.index(name)
-        lb[k], ub[k] = max(lb[k], float(lo)), min(ub[k], float(hi))
-        if lb[k] > ub[k]:
-            raise InputError(f"empty bounds for {name}: low {lo} > high {hi}")
+    user_lb, user_ub = constraints.theta_bounds()
+    for k in range(9):
+        if np.isfinite(user_lb[k]) or np.isfinite(user_ub[k]):
+            lo, hi = user_lb[k], user_ub[k]
+            lb[k], ub[k] = max(lb[k], lo), min(ub[k], hi)
+            if lb[k] > ub[k]:
+                raise InputError(f"empty bounds for θ entry {k + 1}: low {lo} > high {hi} (with the positive "
+                                 "diagonal of T and scale_range)")
     return lb, ub
+
+
+@dataclass(frozen=True)
+class MLSetup:
+    """The maximum-likelihood problem at its start (:meth:`MaximumLikelihood.setup`).
+
+    ``u`` the normalised data, ``theta_n`` the start in normalised coordinates, the bounds on it
+    (``lbx``, ``ubx``) and on the constrained ``physical`` parameters (``lbg``, ``ubg``, scale
+    factors in normalised units), the robust loss's residual scale when no noise is given.
+    """
+
+    norm: Normaliser
+    u: NDArray[np.float64]
+    theta_n: NDArray[np.float64]
+    init_method: str
+    lbx: NDArray | None
+    ubx: NDArray | None
+    lbg: NDArray | None
+    ubg: NDArray | None
+    physical: tuple[str, ...]
+    residual_scale: float | None
 
 
 class MaximumLikelihood:
@@ -368,7 +450,12 @@ class MaximumLikelihood:
     loss_scale : float, optional
         Scale of the robust loss in standard deviations (1.345 Huber, 2.385 Cauchy).
     bounds : dict, optional
-        ``{"T_xx": (low, high), "o_z": (low, high), ...}`` in raw units.
+        ``{"T_xx": (low, high), "o_z": (low, high), "S_x": (low, high), "rho": (low, high), ...}``: θ
+        entries and physical parameters (scale factors in raw units per g, angles in degrees; see
+        :mod:`optcal.core.constraints`); ``±inf`` for a one-sided bound.
+    fix : dict, optional
+        ``{"o_x": value, "S_y": value, ...}``: parameters held at a known value (zero standard
+        error; the covariance is computed on the free subspace).
     scale_range : (float, float), optional
         Known range of the scale factors (raw units per g), applied to the diagonal of T.
     reweight : int
@@ -384,6 +471,15 @@ class MaximumLikelihood:
     ipopt_options : dict, optional
         Extra CasADi/IPOPT options (``{"ipopt.tol": 1e-9}``, on the scaled cost of
         :func:`optcal.solvers.nlp.cost_scale`); options IPOPT refuses are an :class:`InputError`.
+    solver : str, optional
+        The NLP solver by name (:data:`optcal.solvers.registry.NLP_SOLVERS`: ``"ipopt"``,
+        ``"sqpmethod"``, ``"sqpmethod+osqp"``, ``"fatrop"``, ``"uno"``, ...); one that does not run
+        here is an :class:`InputError` naming those that do.
+    solver_options : dict, optional
+        CasADi options of that solver (on top of its defaults and of ``ipopt_options``).
+    conic_solver : str, optional
+        The cvxpy solver of the convex start when its semidefinite constraint is active
+        (:class:`~optcal.families.accel.ellipsoid.ConvexEllipsoidFit`'s ``solver``).
     """
 
     name = "mle"
@@ -400,6 +496,10 @@ class MaximumLikelihood:
         reweight_rtol: float = 1e-3,
         allow_degenerate: bool = False,
         ipopt_options: dict[str, Any] | None = None,
+        solver: str | None = None,
+        solver_options: dict[str, Any] | None = None,
+        fix: dict[str, float] | None = None,
+        conic_solver: str | None = None,
     ) -> None:
         if loss not in LOSSES:
             raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
@@ -415,6 +515,11 @@ class MaximumLikelihood:
         self.reweight_rtol = float(reweight_rtol)
         self.allow_degenerate = allow_degenerate
         self.ipopt_options = dict(ipopt_options or {})
+        self.constraints = ParameterConstraints.of(fix, bounds)
+        self.conic_solver = None if conic_solver is None else choose_conic_solver(conic_solver)
+        self.choice = choose_nlp_solver(solver, {**self.ipopt_options, **dict(solver_options or {})},
+                                        constraints=bool(self.constraints.physical),
+                                        problem="the maximum-likelihood fit with constrained physical parameters")
 
     def initial(self, poses: PoseTable) -> CalibrationResult:
         """The starting point (an algebraic fit), falling back to ``convex`` if ``svd`` fails."""
@@ -427,7 +532,7 @@ class MaximumLikelihood:
                 return SVDEllipsoidFit(allow_degenerate=True).fit(poses)
             except FitError:
                 pass
-        return ConvexEllipsoidFit(allow_degenerate=True).fit(poses)
+        return ConvexEllipsoidFit(solver=self.conic_solver or "CLARABEL", allow_degenerate=True).fit(poses)
 
     def initial_normalised(self, poses: PoseTable, norm: Normaliser, u: NDArray) -> tuple[NDArray[np.float64], str]:
         """The starting θ in normalised coordinates and the name of the fit that gave it.
@@ -449,7 +554,7 @@ class MaximumLikelihood:
                 return theta_from(T_n, o_n), "svd"
             except FitError:
                 pass
-        convex = ConvexEllipsoidFit(allow_degenerate=True)
+        convex = ConvexEllipsoidFit(solver=self.conic_solver or "CLARABEL", allow_degenerate=True)
         theta_n = convex_start(u, convex.eps, R)
         if np.all(np.isfinite(theta_n)):
             return theta_n, "convex"
@@ -463,13 +568,19 @@ class MaximumLikelihood:
         gain = NormResidualCost(u, np.ones(poses.n)).normal_gain(theta_n) / norm.scale  # raw units
         return propagated_weights(poses.sigma, gain)
 
-    def fit(self, poses: PoseTable) -> CalibrationResult:
+    def setup(self, poses: PoseTable) -> "MLSetup":
+        """The problem at its start: normalised data, the starting θ, the bounds and the constrained physical parameters.
+
+        Refuses (as :meth:`fit` does) a pose set that does not identify θ at the start.
+        """
         poses.validate()
         norm = Normaliser.of(poses.acc)
         u = norm.forward(poses.acc)
         theta_n, init_method = self.initial_normalised(poses, norm, u)
-        check_pose_set(poses, norm.theta_to_raw(theta_n), self.weighting, self.allow_degenerate)
-        raw_bounds = _bounds_vectors(self.bounds, self.scale_range)
+        constraints = self.constraints
+        if not constraints.fixed:  # a fixed parameter may be what makes the pose set determine θ: finish() judges
+            check_pose_set(poses, norm.theta_to_raw(theta_n), self.weighting, self.allow_degenerate)
+        raw_bounds = _bounds_vectors(constraints, self.scale_range)
         lbx = ubx = None
         if raw_bounds is not None:
             lo_n = norm.theta_to_normalised(np.where(np.isfinite(raw_bounds[0]), raw_bounds[0], 0.0))
@@ -477,25 +588,44 @@ class MaximumLikelihood:
             lbx = np.where(np.isfinite(raw_bounds[0]), lo_n, -np.inf)
             ubx = np.where(np.isfinite(raw_bounds[1]), hi_n, np.inf)
             theta_n = np.clip(theta_n, lbx, ubx)
-        problem = MLProblem.get(poses.n, self.loss, self.ipopt_options)
-        total_iter, total_time, passes = 0, 0.0, 0
-        stats: dict[str, Any] = {}
+        physical = constraints.physical
+        lbg = ubg = None
+        if physical:  # scale factors in normalised units (S' = S/s); angles in degrees
+            units = np.array([1.0 / float(norm.scale) if name.startswith("S_") else 1.0 for name in physical])
+            lbg = np.array([constraints.range_of(name)[0] for name in physical]) * units
+            ubg = np.array([constraints.range_of(name)[1] for name in physical]) * units
         residual_scale = None
         if poses.sigma is None and self.loss != "squared":
             # no noise given: standardise by a robust scale of the starting point's residuals
             start_r = NormResidualCost(u, np.ones(poses.n)).residuals(theta_n)
             residual_scale = max(1.4826 * float(np.median(np.abs(start_r))), 1e-12)
+        return MLSetup(norm, u, theta_n, init_method, lbx, ubx, lbg, ubg, physical, residual_scale)
+
+    def pass_data(self, poses: PoseTable, setup: "MLSetup", theta_n: NDArray) -> tuple[NDArray, NDArray, float]:
+        """The weights at ``theta_n``, the same scaled to mean one (what the NLP sees) and the robust loss's threshold."""
+        w = self.weights(poses, setup.norm, setup.u, theta_n)
+        w_n = w / np.mean(w, axis=-1, keepdims=True)  # scale-free weights: same optimum, better-scaled NLP
+        # threshold of the robust loss on the residuals as weighted by w_n
+        delta_n = self.loss_scale * (setup.residual_scale if setup.residual_scale else 1.0 / np.sqrt(np.mean(w)))
+        return w, w_n, float(delta_n)
+
+    def fit(self, poses: PoseTable) -> CalibrationResult:
+        setup = self.setup(poses)
+        norm, u, theta_n, init_method = setup.norm, setup.u, setup.theta_n, setup.init_method
+        lbx, ubx, lbg, ubg, physical = setup.lbx, setup.ubx, setup.lbg, setup.ubg, setup.physical
+        constraints = self.constraints
+        residual_scale = setup.residual_scale
+        problem = MLProblem.get(poses.n, self.loss, solver=self.choice, physical=physical)
+        stats: dict[str, Any] = {}
+        total_iter, total_time, passes = 0, 0.0, 0
         w_used: NDArray | None = None
         for _ in range(1 + max(self.reweight, 0)):
-            w = self.weights(poses, norm, u, theta_n)
+            w, w_n, delta_n = self.pass_data(poses, setup, theta_n)
             if weights_settled(w, w_used, self.reweight_rtol):
                 break  # the weights are consistent with the estimate
-            w_n = w / np.mean(w, axis=-1, keepdims=True)  # scale-free weights: same optimum, better-scaled NLP
-            # threshold of the robust loss on the residuals as weighted by w_n
-            delta_n = self.loss_scale * (residual_scale if residual_scale else 1.0 / np.sqrt(np.mean(w)))
             with Stopwatch() as sw:
-                theta_n, stats = problem.solve(theta_n, u, w_n, delta_n, lbx, ubx)
-            total_iter += int(stats.get("iter_count", 0))
+                theta_n, stats = problem.solve(theta_n, u, w_n, delta_n, lbx, ubx, lbg, ubg)
+            total_iter += plugin_iterations(stats)
             total_time += sw.seconds
             passes += 1
             w_used = w
@@ -518,7 +648,9 @@ class MaximumLikelihood:
                     f"{', '.join(str(int(r)) for r in poses.rows[down][:20])}{' ...' if down.size > 20 else ''})"
                 )
         form = "SX, exact Hessian" if isinstance(problem, MLProblem) else "numpy callbacks, Gauss-Newton Hessian"
-        solver = solver_record(stats, total_time, "IPOPT", f"CasADi nlpsol ({form}), {self.loss} loss, {passes} pass(es)",
+        extra["solver_options"] = self.choice.user_option_dict()
+        solver = solver_record(stats, total_time, self.choice.label,
+                               f"CasADi nlpsol {self.choice.plugin} ({form}), {self.loss} loss, {passes} pass(es)",
                                iterations=total_iter)
         return finish(
             method=self.name,
@@ -529,6 +661,7 @@ class MaximumLikelihood:
             allow_degenerate=self.allow_degenerate,
             notes=notes,
             extra=extra,
-            remedy=IPOPT_REMEDY,
+            remedy=IPOPT_REMEDY if self.choice.name == "ipopt" else SOLVER_REMEDY,
+            constraints=constraints if constraints else None,
         )
 

@@ -195,6 +195,7 @@ class CalibrationResult(FitResult):
                 "aic": self.aic,
                 "bic": self.bic,
                 "solver": self.solver.to_dict(),
+                "constraints": self.extra.get("constraints"),
                 "identifiability": {} if self.identifiability is None else self.identifiability.to_dict(),
                 "exclusions": self.exclusions,
                 "notes": self.notes,
@@ -204,6 +205,13 @@ class CalibrationResult(FitResult):
         merged = {**calibration, **out}  # cal_type and format_version first
         merged.update({k: v for k, v in calibration.items() if k != "units"})
         return merged
+
+    @property
+    def constraints(self) -> Any:
+        """The user's fixed and bounded parameters (:class:`optcal.core.constraints.ParameterConstraints`, empty when none)."""
+        from optcal.core.constraints import ParameterConstraints
+
+        return ParameterConstraints.from_dict(self.extra.get("constraints"))
 
     def _saved_extra(self) -> dict[str, Any]:
         """:attr:`extra` as the file holds it (a six-position fit's also holds :data:`SIX_POSITION_EXTRA_KEYS`)."""

@@ -46,8 +46,9 @@ from optcal.families.gyro.result import ImuCalibration
 from optcal.data.units import GyroUnitsDecision
 from optcal.core.norm_residual import norm_residuals
 from optcal.core.model import TRIL_INDEX, theta_from
-from optcal.solvers.cache import ProblemCache, freeze_options, problem_cache
-from optcal.solvers.convergence import solver_record
+from optcal.solvers.cache import ProblemCache, problem_cache
+from optcal.solvers.convergence import plugin_iterations, solver_record
+from optcal.solvers.registry import SolverChoice, choose_nlp_solver
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale
 from optcal.core.fit_result import chi_square
 from optcal.core.identifiability import RankReport
@@ -67,6 +68,12 @@ GYRO_IPOPT_TOL: float = 1e-7
 G_SENSITIVITY_HINT: str = "the gyro's g-sensitivity is not modelled (g_sensitivity=True models it)"
 #: The solver as the gyroscope's record names it.
 GYRO_SOLVER_NAME: str = "ipopt (CasADi, Gauss-Newton Hessian)"
+
+
+def gyro_solver_name(settings: "GyroSettings") -> str:
+    """The solver record's name: :data:`GYRO_SOLVER_NAME` for IPOPT, the catalogue's name of another."""
+    name = settings.choice().name
+    return GYRO_SOLVER_NAME if name == "ipopt" else f"{name} (CasADi, Gauss-Newton Hessian)"
 
 @dataclass(frozen=True)
 class GyroSettings:
@@ -88,6 +95,9 @@ class GyroSettings:
     ipopt_options : dict
         Extra CasADi/IPOPT options of the gyro problem (:class:`GyroProblem`); options IPOPT
         refuses are an :class:`~optcal.errors.InputError`.
+    solver : str, optional
+        The NLP solver by name (:data:`optcal.solvers.registry.NLP_SOLVERS`; IPOPT by default),
+        ``ipopt_options`` then being that solver's options.
     """
 
     accelerometer: str = "fixed"
@@ -95,6 +105,11 @@ class GyroSettings:
     allow_degenerate: bool = False
     accept_gyro_fit: bool = False
     ipopt_options: dict[str, Any] = field(default_factory=dict)
+    solver: str | None = None
+
+    def choice(self) -> SolverChoice:
+        """The solver and its options, resolved (an unavailable one is an :class:`InputError`)."""
+        return choose_nlp_solver(self.solver, self.ipopt_options)
 
     def __post_init__(self) -> None:
         if self.accelerometer not in ACCELEROMETER_MODES:
@@ -172,11 +187,11 @@ class GyroProblem:
     once and kept in :data:`GYRO_PROBLEMS`; each solve holds its lock.
     """
 
-    def __init__(self, nx: int, ipopt_options: dict[str, Any]) -> None:
+    def __init__(self, nx: int, solver: SolverChoice) -> None:
         self.nx = nx
         self.nlp = CallbackNLP("gyro_calibration", nx, hessian_block_size=nx,
                                tuning={**SCALED_COST_IPOPT_OPTIONS, "ipopt.tol": GYRO_IPOPT_TOL},
-                               solver_options=ipopt_options)
+                               solver=solver)
 
     def solve(self, evaluate: Any, x0: NDArray) -> "GyroSolution":
         """Solve from ``x0`` with ``evaluate(x) -> (r, J)``.
@@ -187,33 +202,44 @@ class GyroProblem:
         of the recording is done once).
         """
         x0 = np.asarray(x0, float)
-        start = evaluate(x0)
-        scale = cost_scale(start[0].size, rms(start[0]))
-        last: list[tuple[bytes, NDArray, NDArray]] = [(x0.tobytes(), *start)]  # the integration at the last x
-
-        def residuals(x: NDArray) -> tuple[NDArray, NDArray]:
-            key = np.asarray(x, float).tobytes()
-            if last[0][0] != key:
-                last[0] = (key, *evaluate(np.array(x, dtype=float).ravel()))
-            return last[0][1], last[0][2]
-
-        def gradient(x: NDArray) -> tuple[float, NDArray]:
-            r, J = residuals(x)
-            return 0.5 * scale * float(r @ r), scale * (J.T @ r)
-
-        def hessian(x: NDArray, lam_f: float) -> NDArray:
-            _, J = residuals(x)
-            return J.T @ J * (scale * lam_f)
-
-        objective = NumpyObjective(lambda x: 0.5 * scale * float(np.sum(residuals(x)[0] ** 2)), gradient, hessian)
+        objective, start, last = least_squares_objective(evaluate, x0)
         t0 = time.perf_counter()
         x, stats = self.nlp.solve(objective, x0=x0)
         final = (last[0][1], last[0][2]) if last[0][0] == x.tobytes() else evaluate(x)
         return GyroSolution(x, stats, time.perf_counter() - t0, start[0], final[0], final[1])
 
 
+def least_squares_objective(evaluate: Any, x0: NDArray) -> tuple[NumpyObjective, tuple[NDArray, NDArray], list[Any]]:
+    """``½ c ‖r(x)‖²`` with its gradient ``c Jᵀr`` and Gauss–Newton Hessian ``c JᵀJ`` from ``evaluate(x) -> (r, J)``.
+
+    ``c`` is :func:`optcal.solvers.nlp.cost_scale` at ``x0``; the integration at the last x is
+    kept (``last[0]``: x's bytes, r, J), so cost, gradient and Hessian at one iterate integrate once.
+    Returns the objective, ``evaluate(x0)`` and that memory.
+    """
+    start = evaluate(x0)
+    scale = cost_scale(start[0].size, rms(start[0]))
+    last: list[tuple[bytes, NDArray, NDArray]] = [(x0.tobytes(), *start)]  # the integration at the last x
+
+    def residuals(x: NDArray) -> tuple[NDArray, NDArray]:
+        key = np.asarray(x, float).tobytes()
+        if last[0][0] != key:
+            last[0] = (key, *evaluate(np.array(x, dtype=float).ravel()))
+        return last[0][1], last[0][2]
+
+    def gradient(x: NDArray) -> tuple[float, NDArray]:
+        r, J = residuals(x)
+        return 0.5 * scale * float(r @ r), scale * (J.T @ r)
+
+    def hessian(x: NDArray, lam_f: float) -> NDArray:
+        _, J = residuals(x)
+        return J.T @ J * (scale * lam_f)
+
+    objective = NumpyObjective(lambda x: 0.5 * scale * float(np.sum(residuals(x)[0] ** 2)), gradient, hessian)
+    return objective, start, last
+
+
 #: Built gyro NLPs keyed by ``(nx, frozen IPOPT options)``: 9 (accelerometer fixed) and 18 (joint).
-GYRO_PROBLEMS: ProblemCache[GyroProblem] = problem_cache(lambda nx, options: GyroProblem(nx, dict(options)), maxsize=8)
+GYRO_PROBLEMS: ProblemCache[GyroProblem] = problem_cache(lambda nx, choice: GyroProblem(nx, choice), maxsize=8)
 
 
 @dataclass(frozen=True)
@@ -309,10 +335,10 @@ def calibrate_gyro(
         v, S, _ = predictor.evaluate(scale0 * (np.eye(3) + x.reshape(3, 3)), w, moves.dt, u0)
         return (v - u1).ravel(), scale0 * S.reshape(3 * m, 9)
 
-    sol = GYRO_PROBLEMS.get(9, freeze_options(settings.ipopt_options)).solve(fixed_residuals, np.zeros(9))
+    sol = GYRO_PROBLEMS.get(9, settings.choice()).solve(fixed_residuals, np.zeros(9))
     x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
     angles_before = angles_deg(sol.r_start.reshape(m, 3) + u1, u1)  # x = 0: T_g = s₀ I
-    iterations = int(stats.get("iter_count", 0))
+    iterations = plugin_iterations(stats)
     dof = 2 * m - 9
     sigma_g = float(np.sqrt(np.sum(r**2) / dof)) if dof > 0 else float("nan")
     acc_result = accelerometer
@@ -320,7 +346,7 @@ def calibrate_gyro(
     if settings.accelerometer == "joint":
         acc_result, x, J, stats, extra_s, predicted = _joint(moves, accelerometer, w, scale0, x, sigma_g, predictor, settings)
         seconds += extra_s
-        iterations += int(stats.get("iter_count", 0))
+        iterations += plugin_iterations(stats)
         u = unit_rows(acc_result.correct(moves.acc_means))
         u1 = u[moves.move_to]
         cov_x = np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)[:9, :9]
@@ -364,7 +390,7 @@ def calibrate_gyro(
         angles_after_deg=angles_after,
         before=before,
         accelerometer_mode=settings.accelerometer,
-        solver=solver_record(stats, seconds, GYRO_SOLVER_NAME, iterations=iterations),
+        solver=solver_record(stats, seconds, gyro_solver_name(settings), iterations=iterations),
         identifiability=ident,
         exclusions=dict(moves.exclusions),
         notes=notes,
@@ -434,7 +460,7 @@ def _joint(
                       [np.zeros((P, 9)), drn.reshape(P, 9) / sig_a[:, None]]])
         return r, J
 
-    sol = GYRO_PROBLEMS.get(18, freeze_options(settings.ipopt_options)).solve(joint_residuals,
+    sol = GYRO_PROBLEMS.get(18, settings.choice()).solve(joint_residuals,
                                                                          np.concatenate([x_gyro, np.zeros(9)]))
     x, stats, seconds, r, J = sol.x, sol.stats, sol.seconds, sol.r, sol.J
     dof = 2 * m + P - 18
