@@ -121,9 +121,12 @@ class LossReport:
         return self.rms_exported_g - self.rms_full_g
 
     def describe(self) -> str:
+        loss_mg = self.loss_g * 1e3
+        if abs(loss_mg) < 0.5e-4:  # below the printed digits: no loss, not a "-0.0000" gain
+            loss_mg = 0.0
         return (
             f"rms |a|-1 on the calibration's {self.n_poses} poses: full model {self.rms_full_g * 1e3:.4f} mg, "
-            f"exported {self.rms_exported_g * 1e3:.4f} mg (loss {self.loss_g * 1e3:.4f} mg)"
+            f"exported {self.rms_exported_g * 1e3:.4f} mg (loss {loss_mg:.4f} mg)"
         )
 
 

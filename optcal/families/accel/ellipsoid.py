@@ -312,7 +312,9 @@ class ConvexEllipsoidFit:
         eta_v = solution.eta
         iters = solution.iterations
         message = ""
-        min_eig = float(np.linalg.eigvalsh(solution.A)[0])
+        # to the solver's own precision (its gap is 1e-12): the digits below differ between two solves of the
+        # same cached problem, and the result must not
+        min_eig = float(f"{np.linalg.eigvalsh(solution.A)[0]:.9g}")
         active = min_eig < 2 * self.eps
         if active:
             notes.append(
