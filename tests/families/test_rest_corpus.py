@@ -30,9 +30,9 @@ from optcal.errors import InputError
 
 #: Seeds of the corpus the current detector is scored on (each kind drawn per seed, in its four variants).
 SEEDS = range(4)
-#: Least recall asserted per resting kind (the full study, 100 seeds: hand-held 0.987, turntable 1.00,
-#: holds-only 1.00, low-pass 0.899; studies/results/rest_detection.md), less the spread of four seeds.
-LEAST_RECALL = {"hand_held": 0.95, "turntable": 0.95, "holds_only": 0.95, "low_pass": 0.8}
+#: Least recall asserted per resting kind (the full study, 100 seeds: hand-held 0.986, turntable 1.00,
+#: holds-only 1.00, low-pass 0.72; studies/results/rest_detection.md), less the spread of four seeds.
+LEAST_RECALL = {"hand_held": 0.95, "turntable": 0.95, "holds_only": 0.95, "low_pass": 0.6}
 
 
 @pytest.fixture(scope="module")
@@ -262,7 +262,7 @@ def test_current_detector_figures(current_scores) -> None:
         # a pose's σ says how far its mean is from the truth (rms ≈ 1 for a right σ and an unbiased mean)
         assert float(table.at[kind, "pose_error_rms"]) < 1.3
     by_variant = summarise(current_scores, by=("kind", "gyro")).set_index(["kind", "gyro"])
-    # with the gyro, a never-resting recording seldom gives a pose (the full study: 13 % of slow turns,
-    # 15 % of slow drifts); without it slow turns near the vertical do (66 %: the model's known weakness)
+    # with the gyro, a never-resting recording seldom gives a pose (the full study: 1 % of slow turns,
+    # 9-10 % of slow drifts); without it slow turns near the vertical do more often (28 %)
     for kind in ("slow_turns", "slow_drift"):
-        assert float(by_variant.at[(kind, True), "with_pose"]) <= 0.3
+        assert float(by_variant.at[(kind, True), "with_pose"]) <= 0.25
