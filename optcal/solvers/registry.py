@@ -344,10 +344,17 @@ def available_conic_solvers() -> list[str]:
 
 
 def choose_conic_solver(name: str | None = None) -> str:
-    """A cvxpy solver name for the convex ellipsoid fit, or a one-line refusal naming the suited installed ones."""
+    """A cvxpy solver name for the convex ellipsoid fit, or a one-line refusal naming the suited installed ones.
+
+    The default (Clarabel, which cvxpy installs with itself) is taken without importing cvxpy: most fits never
+    solve the conic problem (the KKT solve answers when the semidefinite constraint is inactive), and cvxpy's
+    import is most of a short command's time.
+    """
+    name = DEFAULT_CONIC_SOLVER if name is None else str(name).strip().upper()
+    if name == DEFAULT_CONIC_SOLVER:
+        return name
     import cvxpy as cp
 
-    name = DEFAULT_CONIC_SOLVER if name is None else str(name).strip().upper()
     suited = available_conic_solvers()
     if name in suited:
         return name
