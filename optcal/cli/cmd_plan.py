@@ -36,6 +36,10 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
 @click.option("--grid", type=click.IntRange(100, 100_000), default=2000, show_default=True,
               help="Candidate directions on the sphere (or in the cap) for the relaxation.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random rounding start.")
+@click.option("--solver", default=None, metavar="NAME",
+              help="NLP solver of the refinement on the sphere (a CasADi nlpsol plugin; ipopt by default); one that "
+                   "does not run here is refused, naming those that do.")
+@click.option("--solver-option", multiple=True, metavar="KEY=VALUE", help="An option of --solver (repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("--plot", type=click.Path(), default=None, metavar="PATH",
               help="Save the orientation sphere into the folder PATH (plan.png; created when missing), or to PATH "
@@ -47,8 +51,9 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
 @data_options
 def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
-         given_data: str | None, target_stderr: float | None, grid: int, seed: int, as_json: bool,
-         plot: str | None, report_path: str | None, **data_opts: Any) -> None:
+         given_data: str | None, target_stderr: float | None, grid: int, seed: int, solver: str | None,
+         solver_option: tuple[str, ...], as_json: bool, plot: str | None, report_path: str | None,
+         **data_opts: Any) -> None:
     """Plan calibration poses before taking them (optimal experiment design for the lumped model).
 
     --poses K: the K orientations that determine the nine parameters best (convex relaxation
@@ -71,6 +76,9 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     if next_data is not None and criterion.upper() != "D":
         raise InputError("--next always uses the D criterion (the largest gain in log det); drop --criterion")
 
+    from optcal.cli.solver_options import nlp_settings
+
+    nlp = nlp_settings(solver=solver, solver_option=solver_option)  # a solver that cannot run: refused before reading
     data_path = next_data or given_data or ""
     poses = load_data(data_path, **data_opts) if data_path else None
     if poses is not None and not as_json:
@@ -95,13 +103,13 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         if poses is None:
             raise InputError("--next DATA needs the path of the poses taken, not an empty string")
         result: Any = next_pose(poses, prior=prior_model, sigma=sigma, candidates=candidates,
-                                target_stderr=target_stderr)
+                                target_stderr=target_stderr, **nlp)
         planned, given_dirs = result.direction[None, :], result.given_directions
     else:
         from optcal.applications.plan import plan_poses
 
         result = plan_poses(n_poses, criterion, prior=prior_model, sigma=sigma, candidates=candidates,
-                            given=poses, seed=seed)
+                            given=poses, seed=seed, **nlp)
         planned, given_dirs = result.directions, result.given_directions
     shown = None if candidates.continuous else candidates.directions
     if plot:

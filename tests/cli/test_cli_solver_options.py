@@ -14,6 +14,7 @@ from optcal.applications.fleet.inputs import expand_inputs
 from optcal.applications.fleet.prior import PopulationPrior, fit_with_prior
 from optcal.applications.fleet.synthetic import write_fleet
 from optcal.applications.fleet.unit import fit_units, read_unit
+from helpers.cli_run import run_args
 from optcal.cli.main import main
 from optcal.core.model import LumpedModel
 from optcal.families.simulate.poses import simulate_poses, six_position
@@ -60,3 +61,18 @@ def test_prior_refit_by_another_solver_reaches_ipopts_answer() -> None:
     se = np.sqrt(np.diag(ipopt.result.covariance))
     assert sqp.result.solver.name == "sqpmethod" and sqp.result.solver.success
     assert np.max(np.abs(sqp.result.params - ipopt.result.params) / se) < 1e-4
+
+
+# ----------------------------------------------------------------------------- plan: the refinement's solver
+def test_plan_refines_with_the_solver_named(capsys) -> None:
+    """The pose planner's refinement on the sphere is an NLP like the others: --solver names its plugin, the
+    plan is the same (the relaxation's efficiency bound reached), an unknown one is refused in one line."""
+    plans = {}
+    for solver in ("ipopt", "sqpmethod"):
+        code, out, err = run_args(capsys, "plan", "--poses", "12", "--solver", solver, "--json")
+        assert code == 0, err
+        plans[solver] = json.loads(out)
+    assert plans["sqpmethod"]["efficiency"] == pytest.approx(plans["ipopt"]["efficiency"], abs=1e-4)
+    assert plans["sqpmethod"]["refinement"] == "Solve_Succeeded"
+    code, _, err = run_args(capsys, "plan", "--poses", "12", "--solver", "nosuch")
+    assert code == 2 and "unknown NLP solver 'nosuch'" in err and len(err.strip().splitlines()) == 1

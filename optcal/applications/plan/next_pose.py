@@ -136,6 +136,8 @@ def next_pose(
     sigma: float | None = None,
     candidates: CandidateSet | None = None,
     target_stderr: float | None = None,
+    solver: str | None = None,
+    solver_options: dict[str, Any] | None = None,
 ) -> NextPose:
     """The single orientation that adds the most information (D criterion) to ``poses``.
 
@@ -153,6 +155,9 @@ def next_pose(
     target_stderr : float, optional
         Stop once every standard error is below this, in normalised units (T relative to 1, o in
         g).
+    solver, solver_options : str and dict, optional
+        The NLP solver of the refinement on the sphere (a CasADi ``nlpsol`` plugin, IPOPT by default)
+        and its options.
 
     Returns
     -------
@@ -171,7 +176,8 @@ def next_pose(
     direction = candidates.directions[index]
     full_before = np.isfinite(criterion_value(M0, Criterion.D))
     if candidates.continuous and full_before:
-        direction = refine(prior.information_vectors, direction[None, :], Criterion.D, M0, candidates.cap)[0][0]
+        direction = refine(prior.information_vectors, direction[None, :], Criterion.D, M0, candidates.cap,
+                           ipopt_options=solver_options, solver=solver)[0][0]
     M1 = information(prior.information_vectors(direction), base=M0)
     rank = [int(np.linalg.matrix_rank(M, tol=1e-10 * max(np.abs(M).max(), 1e-300))) for M in (M0, M1)]
     gain = criterion_value(M1, Criterion.D) - criterion_value(M0, Criterion.D) if full_before else math.inf

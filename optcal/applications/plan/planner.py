@@ -269,6 +269,8 @@ def plan_poses(
     given: PoseTable | ArrayLike | None = None,
     random_starts: int = 1,
     seed: int = 0,
+    solver: str | None = None,
+    solver_options: dict[str, Any] | None = None,
 ) -> PosePlan:
     """Plan ``n_poses`` orientations that determine the lumped calibration best.
 
@@ -287,6 +289,9 @@ def plan_poses(
         Feasible directions (free orientations on a 2000-point grid when omitted).
     given : PoseTable or array_like (n, 3), optional
         Poses already taken (their pose means in the prior's units).
+    solver, solver_options : str and dict, optional
+        The NLP solver of the refinement on the sphere (a CasADi ``nlpsol`` plugin, IPOPT by default;
+        :func:`optcal.solvers.registry.choose_nlp_solver`) and its options.
     random_starts : int
         Random K-subsets of the candidates rounded and refined besides the apportioned
         relaxation and the greedy design; the best is kept.
@@ -331,11 +336,13 @@ def plan_poses(
     for k, index in enumerate(designs):
         dirs, status = candidates.directions[index], refinement
         if candidates.continuous and k == len(starts) and crit is not Criterion.D:
-            dirs = refine(prior.information_vectors, dirs, Criterion.D, given_poses.information, candidates.cap)[0]
+            dirs = refine(prior.information_vectors, dirs, Criterion.D, given_poses.information, candidates.cap,
+                          ipopt_options=solver_options, solver=solver)[0]
         if candidates.continuous and crit is Criterion.E:
             status = "not refined: λ_min is not differentiable at an E-optimal design (multiple eigenvalue)"
         elif candidates.continuous:
-            dirs, status = refine(prior.information_vectors, dirs, crit, given_poses.information, candidates.cap)
+            dirs, status = refine(prior.information_vectors, dirs, crit, given_poses.information, candidates.cap,
+                                  ipopt_options=solver_options, solver=solver)
         value = criterion_value(information(prior.information_vectors(dirs), base=given_poses.information), crit)
         if value > best_value:
             best_value, best_dirs, refinement, best_index = value, dirs, status, index
