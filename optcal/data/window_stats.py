@@ -1,11 +1,10 @@
-"""Moving-window statistics of a recording's columns, and the floors they are gated against.
+"""Moving-window statistics of a recording's columns, the data's resolution and its converter's step.
 
-The static detector (:func:`optcal.data.static.detect_static`) gates centred moving windows of
-each column: their mean and variance (:class:`MovingWindow`, one cumulative sum per column in
-reused buffers), the drift between the two halves of each window (:class:`HalfWindowDrift`,
-from the same sums), and the noise floor of a windowed statistic (:func:`noise_floor`), which is
-never below what the data can resolve (:func:`resolution`) and, for quantised data, the
-converter's step (:func:`quantum`).
+The rest model (:mod:`optcal.data.rest_tests`) takes the converter's step from here (:func:`quantum`;
+its ``q²/12`` enters every block's variance).  The centred moving windows (:class:`MovingWindow`, one
+cumulative sum per column in reused buffers; :class:`HalfWindowDrift`; :func:`noise_floor`, never below
+:func:`resolution`) were the previous static detector's statistics; they are kept, with their tests, for
+moving statistics elsewhere, and no longer decide where a recording rests.
 """
 
 from __future__ import annotations
