@@ -170,7 +170,7 @@ def make_blocks(t: NDArray[np.float64], acc: NDArray[np.float64], gyro: NDArray[
     return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid, var)
 
 
-def local_noise(var: NDArray[np.float64], joined: NDArray[np.bool_], half_width: int) -> NDArray[np.float64]:
+def local_noise(var: NDArray[np.float64], half_width: int) -> NDArray[np.float64]:
     """Per block and axis, the smallest block variance within ``half_width`` blocks on either side.
 
     The noise a block's mean is measured against.  A block's own variance will not do: a smooth

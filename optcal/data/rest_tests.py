@@ -37,11 +37,11 @@ class RestModel:
         self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
         self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
         self.dwell_blocks = max(1, int(np.ceil(s.min_dwell_s * rate / block)))
-        b.var_ref = rm.local_noise(b.var, b.joined, self.half_width)
+        b.var_ref = rm.local_noise(b.var, self.half_width)
         self.valid = b.joined[1:]
         self.dof = b.n[1:] + b.n[:-1] - 2.0
         self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
-        dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
+        self.dof0 = dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
         # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
         # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
         calm = rm.calm_pairs(b.var, self.valid)
@@ -77,16 +77,14 @@ class RestModel:
         self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
         if b.gmean is None or b.gvar is None:
             return
-        acc_still = np.zeros(b.count, dtype=bool)
-        acc_still[1:] |= self.quiet
-        acc_still[:-1] |= self.quiet
+        acc_still = self._acc_still()
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
             self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
-            self.gvar_ref = rm.local_noise(b.gvar, b.joined, self.half_width)
+            self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
             gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n)
             pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
-            self.gkappa2 = rm.noise_colour(gratios[pairs], float(np.median(self.dof)), rm.QUIET_PAIRS_QUANTILE)
+            self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
         assert self.bias is not None and self.gvar_ref is not None
@@ -113,24 +111,23 @@ class RestModel:
             if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
                 self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
 
-    def turning_blocks(self) -> int:
-        """Blocks the accelerometer calls still (a quiet pair on either side) whose gyro mean is off the bias."""
+    def _acc_still(self) -> NDArray[np.bool_]:
+        """Blocks the accelerometer calls still: a quiet pair on either side."""
         acc_still = np.zeros(self.b.count, dtype=bool)
         acc_still[1:] |= self.quiet
         acc_still[:-1] |= self.quiet
-        return int(np.sum(acc_still & ~self.still))
+        return acc_still
+
+    def turning_blocks(self) -> int:
+        """Blocks the accelerometer calls still whose gyro mean is off the bias."""
+        return int(np.sum(self._acc_still() & ~self.still))
 
     def runs(self) -> list[tuple[int, int]]:
         """Block ranges ``[k0, k1)`` of two or more still blocks joined by quiet pairs."""
-        link = self.quiet & self.still[1:] & self.still[:-1]
-        out: list[tuple[int, int]] = []
-        k0 = 0
-        for k in range(1, self.b.count + 1):
-            if k == self.b.count or not link[k - 1]:
-                if k - k0 >= 2 and self.still[k0:k].all():  # a lone block between two steps moves
-                    out.append((k0, k))
-                k0 = k
-        return out
+        # a link needs both its blocks still, so every block of a run of links is; a lone block between two
+        # steps is in no run: it moves
+        starts, stops = true_runs(self.quiet & self.still[1:] & self.still[:-1])
+        return [(int(a), int(z) + 1) for a, z in zip(starts, stops)]
 
     def _pairs_inside(self, runs: list[tuple[int, int]]) -> NDArray[np.bool_]:
         inside = np.zeros(self.valid.size, dtype=bool)
@@ -193,8 +190,7 @@ class RestModel:
     def effective_samples(self, a: int, z: int) -> float:
         """Independent samples in ``[a, z)``: the samples over the noise colour per sample (a block's ``κ²`` samples
         carry the information of one when the noise is correlated over them)."""
-        per_sample = max(float(np.median(self.kappa2)) / self.block, 1.0 / self.block)
-        return (z - a) / max(per_sample * self.block, 1.0)
+        return (z - a) / max(float(np.median(self.kappa2)), 1.0)
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.

@@ -81,10 +81,15 @@ def linear_body(cal: Calibration) -> list[str]:
             "}",
         ]
     lumped = cal.lumped()
+    return accel_lines(lumped.T, lumped.o)
+
+
+def accel_lines(T: NDArray[np.float64], o: NDArray[np.float64]) -> list[str]:
+    """The accelerometer's constants and ``optcal_apply_accel``: ``out_g = T (raw − o)``."""
     return [
         "/* out_g = T (raw - o) (Lu 2017, eq. 6) */",
-        f"static const double OPTCAL_T[3][3] = {c_array(lumped.T)};",
-        f"static const double OPTCAL_O[3] = {c_array(lumped.o)};",
+        f"static const double OPTCAL_T[3][3] = {c_array(T)};",
+        f"static const double OPTCAL_O[3] = {c_array(o)};",
         "",
         "static inline void optcal_apply_accel(const double raw[3], double out_g[3])",
         "{",
@@ -101,17 +106,7 @@ def imu_body(cal: ImuCalibration) -> list[str]:
     acc, gyro = cal.accelerometer, cal.gyro
     G = gyro.g_sensitivity
     lines = [
-        "/* out_g = T (raw - o) (Lu 2017, eq. 6) */",
-        f"static const double OPTCAL_T[3][3] = {c_array(acc.T)};",
-        f"static const double OPTCAL_O[3] = {c_array(acc.o)};",
-        "",
-        "static inline void optcal_apply_accel(const double raw[3], double out_g[3])",
-        "{",
-        "    const double d[3] = {raw[0] - OPTCAL_O[0], raw[1] - OPTCAL_O[1], raw[2] - OPTCAL_O[2]};",
-        "    for (int i = 0; i < 3; ++i) {",
-        "        out_g[i] = OPTCAL_T[i][0] * d[0] + OPTCAL_T[i][1] * d[1] + OPTCAL_T[i][2] * d[2];",
-        "    }",
-        "}",
+        *accel_lines(acc.T, acc.o),
         "",
         "/* out_rad_s = Tg (raw - bg" + (" - Gg out_g(raw_acc)" if G is not None else "")
         + ") (Tedaldi 2014, eq. 9), rad/s in the calibrated accelerometer frame */",
