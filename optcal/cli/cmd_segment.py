@@ -62,6 +62,26 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
         click.echo(f"figure saved to {figure}")
 
 
+def _independent(s: Any, has_gyro: bool) -> str:
+    """The fewest independent samples a rest holds, as the detector applies them."""
+    from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO
+
+    if s.min_independent is not None:
+        return f"at least {s.min_independent:g} independent samples"
+    gyro = f" ({MIN_INDEPENDENT_GYRO:g} of the gyro)" if has_gyro and s.use_gyro else ""
+    return f"at least {MIN_INDEPENDENT_ACC:g} independent samples{gyro}"
+
+
+def _noise_unit(key: str, rec: Any) -> str:
+    """The unit of a measured noise figure: colours are ratios; per-sample noise in the accelerometer's unit,
+    the gyro's wander in the gyro's."""
+    if key.startswith("rest_noise"):
+        return f" {rec.units}"
+    if key.startswith("gyro_wander"):
+        return f" {rec.gyro_units or 'gyro units'}"
+    return ""
+
+
 def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
     """Text report: how time and units were read, thresholds, the interval table, exclusions."""
     rec = seg.recording
@@ -71,8 +91,8 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
         f"detector: blocks of {s.window_s:g} s ({seg.trace['window_samples']} samples), tests at false-alarm "
         f"{s.false_alarm:g} (steps ×{s.threshold:g}, drift ×{s.drift_threshold:g}"
         + (f", gyro ×{s.gyro_threshold:g})" if rec.gyro is not None and s.use_gyro else "; no gyro evidence)")
-        + f", minimum dwell {s.min_dwell_s:g} s, trim {s.trim_s:g} s",
-        "noise measured: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.noise_floor.items()),
+        + f", minimum dwell {s.min_dwell_s:g} s, {_independent(s, rec.gyro is not None)}, trim {s.trim_s:g} s",
+        "noise measured: " + "; ".join(f"{k} {v:.4g}{_noise_unit(k, rec)}" for k, v in seg.noise_floor.items()),
         "critical values: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.thresholds.items()),
         "",
         f"{'#':>3} {'rows':>13} {'t start':>9} {'dur s':>6} {'n':>6} {'mean x':>11} {'mean y':>11} {'mean z':>11}"

@@ -12,7 +12,8 @@ Usage in a command module::
 :func:`data_options` adds ``--columns``, ``--units``, ``--topic``, ``--rate``, ``--time-unit``,
 ``--timing``, ``--gyro-file`` (:func:`read_options`, the reading options alone), ``--format``
 (pose table or raw recording) and the static-detection settings ``--static-window``,
-``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``.
+``--static-threshold``, ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--min-independent``,
+``--trim``.
 :func:`load_data` passes them to :func:`optcal.data.load`; when DATA is refused after some
 decisions about it were made, :func:`decisions_on_error` prints them on standard output, as
 :func:`data_line` prints them on success, before the one-line error on standard error (not
@@ -37,6 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
+    "min_independent",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -80,6 +82,9 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
                  help="Rest detection: ignore the gyro columns as evidence of motion (a warning says so)."),
     click.option("--min-dwell", type=_NON_NEGATIVE, default=None, metavar="S",
                  help="Rest detection: shortest rest kept, and longest interruption joined inside one pose, seconds [0.5]."),
+    click.option("--min-independent", type=_NON_NEGATIVE, default=None, metavar="N",
+                 help="Rest detection: fewest independent samples (samples over the noise colour) a rest holds, of the "
+                      "accelerometer and the gyro alike [2 and 4] (a warning says what a lower value assumes)."),
     click.option("--trim", type=_NON_NEGATIVE, default=None, metavar="S",
                  help="Static detection: cut this much from both ends of every interval, seconds [0]."),
 )
@@ -131,6 +136,7 @@ def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
         "min_dwell_s": opts.get("min_dwell"),
         "trim_s": opts.get("trim"),
         "use_gyro": False if opts.get("no_gyro_gate") else None,
+        "min_independent": opts.get("min_independent"),
     }
 
 

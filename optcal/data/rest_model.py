@@ -74,6 +74,16 @@ MIN_COLOUR_PAIRS: int = 8
 TREND_BATCHES: int = 8
 #: Fewest batches a trend test is made on (3 leave one degree of freedom for the scatter).
 TREND_MIN_BATCHES: int = 4
+#: Fewest independent samples (samples over the noise colour ``κ²``) of the accelerometer in a rest: two
+#: independent means are the least that show that the mean does not move, against the range of the block
+#: means (:meth:`optcal.data.rest_tests.RestModel.creeps`), which needs no estimate of the noise of the mean.
+MIN_INDEPENDENT_ACC: float = 2.0
+#: Fewest independent samples of the gyro in a rest where the gyro is evidence of motion: its mean rate is
+#: tested against the noise of that mean (:meth:`optcal.data.rest_tests.RestModel.turns`), which a stretch
+#: measures only over :data:`TREND_MIN_BATCHES` batches of at least one independent sample each.  A shorter
+#: stretch lasts less than a few correlation times of its own rate noise: a hand's slow sway through it
+#: cannot be told from a rest.
+MIN_INDEPENDENT_GYRO: float = float(TREND_MIN_BATCHES)
 
 
 @dataclass

@@ -187,10 +187,39 @@ class RestModel:
         total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
         return float(np.sqrt(total.sum()))
 
-    def effective_samples(self, a: int, z: int) -> float:
-        """Independent samples in ``[a, z)``: the samples over the noise colour per sample (a block's ``κ²`` samples
-        carry the information of one when the noise is correlated over them)."""
-        return (z - a) / max(float(np.median(self.kappa2)), 1.0)
+    def effective_samples(self, a: int, z: int, k0: int, k1: int) -> float:
+        """Independent accelerometer samples in ``[a, z)`` (blocks ``[k0, k1)``): see :meth:`_independent`."""
+        return self._independent(self.b.mean, self.b.var, self.kappa2, a, z, k0, k1)
+
+    def effective_gyro_samples(self, a: int, z: int, k0: int, k1: int) -> float:
+        """Independent gyro samples in ``[a, z)`` by the gyro's own noise (infinite where the gyro is no evidence
+        of motion)."""
+        if self.bias is None or self.b.gmean is None or self.b.gvar is None:
+            return float("inf")
+        return self._independent(self.b.gmean, self.b.gvar, self.gkappa2, a, z, k0, k1)
+
+    def _independent(self, means: NDArray[np.float64], var: NDArray[np.float64], kappa2: NDArray[np.float64],
+                     a: int, z: int, k0: int, k1: int) -> float:
+        """Samples over the noise colour: a stretch's per-sample variance over the variance of its mean.
+
+        A stretch of :data:`~optcal.data.rest_model.TREND_BATCHES` blocks or more measures the variance of its
+        mean itself, from the scatter of its batch means (its own noise, whatever its colour: a filter's
+        smoothing that the pairs of blocks cannot measure, a hand's sway); a shorter one takes the recording's
+        colour ``κ²`` (a block's ``κ²`` samples carry the information of one).  The median over the axes.
+        """
+        b = self.b
+        k = k1 - k0
+        if k < rm.TREND_BATCHES:
+            return (z - a) / max(float(np.median(kappa2)), 1.0)
+        w = b.n[k0:k1, None]
+        n = float(w.sum())
+        mean = (means[k0:k1] * w).sum(axis=0) / n
+        per_sample = ((var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0)
+        groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
+        xb = np.array([(means[g] * b.n[g, None]).sum(axis=0) / b.n[g].sum() for g in groups])
+        var_mean = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES
+        ratio = per_sample / np.maximum(var_mean, np.finfo(float).tiny)
+        return float(min(np.median(ratio), n))
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.

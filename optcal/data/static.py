@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from optcal.core.poses import PoseTable
 from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, reduce_interval
-from optcal.data.rest_model import WOBBLE_DWELLS, WOBBLE_SHRINK
+from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.rest_tests import RestModel
 from optcal.data.static_stretches import group_positions, join_twitches, wobble
 from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
@@ -47,6 +47,9 @@ MOVING = "samples in blocks that move (a step between block means, or a gyro rat
 EDGES = "samples at the ends of still stretches whose mean still settles"
 SHORT = "samples in still stretches shorter than the minimum dwell"
 SHORT_STRETCHES = "still stretches shorter than the minimum dwell"
+FEW = ("samples in still stretches holding too few independent samples for the tests of their mean (shorter than a "
+       "few correlation times of their noise)")
+FEW_STRETCHES = "still stretches rejected as holding too few independent samples (a few correlation times of their noise)"
 TRIMMED = "samples trimmed at the ends of static intervals"
 SWEEPING = "samples in still stretches whose mean creeps (a trend of its batch means: a slow turn)"
 SWEEPING_STRETCHES = "still stretches rejected because their mean creeps (a slow turn)"
@@ -90,6 +93,10 @@ class StaticSettings:
         A time step longer than this ends a block and a rest (default: 5 sample periods).
     sigma_blocks : int
         Blocks for the batch-means standard deviation of each pose mean (0: white noise only, ``σ/√n``).
+    min_independent : float or None
+        Fewest independent samples (samples over the noise colour) a rest holds, of the accelerometer and of
+        the gyro alike (``--min-independent``); ``None``: :data:`~optcal.data.rest_model.MIN_INDEPENDENT_ACC`
+        and :data:`~optcal.data.rest_model.MIN_INDEPENDENT_GYRO`.
     """
 
     window_s: float = 0.25
@@ -102,6 +109,7 @@ class StaticSettings:
     use_gyro: bool = True
     max_gap_s: float | None = None
     sigma_blocks: int = 10
+    min_independent: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("window_s", "threshold", "gyro_threshold", "drift_threshold"):
@@ -111,6 +119,8 @@ class StaticSettings:
             raise InputError("static detection: the minimum dwell and the trim must not be negative")
         if self.sigma_blocks < 0 or self.sigma_blocks == 1:
             raise InputError("static detection: sigma_blocks must be 0 (white noise) or at least 2")
+        if self.min_independent is not None and not self.min_independent >= 0:
+            raise InputError("static detection: min_independent must not be negative")
         if not 0 < self.false_alarm < 0.5:
             raise InputError("static detection: false_alarm must lie between 0 and 0.5")
 
@@ -170,6 +180,11 @@ class Segmentation:
             if value > 1:
                 out.append(f"{flag} {value:g}: {what} up to {value:g}× the test's critical value are taken for noise "
                            f"(a false-alarm probability far below {s.false_alarm:g}); a slow motion may pass as a rest")
+        n = s.min_independent
+        if n is not None and (n < MIN_INDEPENDENT_ACC or (n < MIN_INDEPENDENT_GYRO and s.use_gyro and self.recording.gyro is not None)):
+            out.append(f"--min-independent {n:g}: a still stretch holding {n:g} independent samples is a rest (the "
+                       f"model asks for {MIN_INDEPENDENT_ACC:g} of the accelerometer, {MIN_INDEPENDENT_GYRO:g} of the gyro); "
+                       "a pause of a slow motion, shorter than a few correlation times of its noise, may pass as a rest")
         return out
 
     @property
@@ -244,6 +259,11 @@ def no_static_message(seg: Segmentation) -> str:
                        f"{seg.evidence.get('loud_noise_min_g', float('nan')):.3g} g by the nominal conversion): a "
                        "vibration, or columns that are not an accelerometer's (gyroscope columns? map the "
                        "accelerometer's with --columns)")
+    if ev.get(FEW_STRETCHES):
+        reasons.append(f"{ev[FEW_STRETCHES]} still stretch(es) holding fewer independent samples than the tests of "
+                       f"their mean need ({MIN_INDEPENDENT_ACC:g} of the accelerometer, {MIN_INDEPENDENT_GYRO:g} of the "
+                       "gyro: shorter than a few correlation times of their noise, so not told from a pause of a slow "
+                       "motion; --min-independent N accepts N, --no-gyro-gate ignores the gyro)")
     if ev.get(SHORT_STRETCHES):
         reasons.append(f"{ev[SHORT_STRETCHES]} still stretch(es) shorter than the minimum dwell {s.min_dwell_s:g} s "
                        "(--min-dwell S, --static-window S for shorter blocks)")
@@ -305,11 +325,13 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     in_pose = np.zeros(m, dtype=bool)
     trim = int(round(s.trim_s * rate))
     kept: list[tuple[int, int, int, int]] = []  # sample range and block range
-    counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
+    counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, FEW, FEW_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, ODD, ODD_STRETCHES,
                                  TRIMMED)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
+    min_acc = MIN_INDEPENDENT_ACC if s.min_independent is None else s.min_independent
+    min_gyro = MIN_INDEPENDENT_GYRO if s.min_independent is None else s.min_independent
     wobble_window = max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))
     if gyro_scale is not None:
         evidence["gyro_rad_per_unit"] = gyro_scale
@@ -323,9 +345,13 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         counts[EDGES] += (a1 - a) + (z - z1)
         a, z = a1, z1
         duration = t[z - 1] - t[a] + 1.0 / rate
-        if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS or model.effective_samples(a, z) < MIN_REST_BLOCKS:
+        if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
             counts[SHORT] += z - a
             counts[SHORT_STRETCHES] += 1
+            continue
+        if (model.effective_samples(a, z, j0, j1) < min_acc or model.effective_gyro_samples(a, z, j0, j1) < min_gyro):
+            counts[FEW] += z - a
+            counts[FEW_STRETCHES] += 1
             continue
         per_sample = model.spread(j0, j1)
         if per_sample > MAX_REST_NOISE_G * one_g:
@@ -367,7 +393,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
-    for key in (SHORT_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES):
+    for key in (SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES):
         evidence[key] = counts[key]
     evidence["still_stretches"] = len(runs)
     noise.update(model.noise())

@@ -228,7 +228,7 @@ def test_sunsided_motion_without_its_gyro_gives_no_pose(folder, request):
     if folder != "set-1/tilt-sphere":  # a known gap of the rest model: strict, so that a fix is noticed
         request.applymarker(pytest.mark.xfail(strict=True, reason=(
             "without a gyro, a hand's slow turn that the accelerometer barely sees passes the creep tests for "
-            "0.5-1 s: measured 1 pose (full-sphere) and 2 (roll-and-tilt)")))
+            "0.5-1 s: measured 1 pose (full-sphere) and 4 (roll-and-tilt)")))
     path = need(DATA / "sunsided-mpu6050" / folder / "mpu6050.csv")
     with pytest.raises(InputError, match="never rests"):
         load(path, columns="gx=none,gy=none,gz=none")
