@@ -235,11 +235,16 @@ why
 # * **Holds-only** logs: recall 1.00 (was 0.74): a jump between two holds is a step between block means
 #   like any other, with or without motion samples between them; single samples of the jump caught in a rest's
 #   last block are trimmed.
-# * **Low-pass** tags: recall 0.72 (was 0.10); 0.80-0.83 in counts, 0.62-0.64 in float.  The filtered noise
-#   is measured as the noise colour κ² of the calmest blocks; a rest must also hold as many independent samples
-#   (κ² samples count as one) as its creep test needs, which keeps a filtered move's slow still moments from
-#   being poses and costs the shortest (14 s) rests of the smoothest (float) tags.  8 % of these recordings
-#   give no pose.
+# * **Low-pass** tags: recall 0.85 (was 0.10): 1.00 with a float gyro, 0.89 with a gyro in counts, 0.83
+#   without a gyro in counts, 0.68 without a gyro in float.  The filtered noise is measured as the noise colour
+#   κ² of the calmest blocks; a rest must also hold enough independent samples: two of the accelerometer, four
+#   of the gyro where it is evidence (its mean rate is tested against the noise of that mean).  A stretch of
+#   eight blocks or more measures the noise of its own mean from its batch means, which a filter's smoothing
+#   does not fool (the pairs of blocks overstate κ² when a block is smoother than the noise between blocks);
+#   a shorter one counts κ² samples as one.  This keeps a filtered move's slow still moments, and a hand's
+#   short pauses, from being poses.  Without a gyro the float tags' rests are still often split in two (270
+#   splits in 837 rests): two pieces of one rest, interrupted longer than the dwell, are joined only on the
+#   gyro's evidence of no net turn.
 # * **Never resting, with the gyro**: a pose in 1 % of the slow-turn recordings and 9-10 % of the slow-drift
 #   ones (0.1-1 °/s, below what a MEMS gyro's bias may move within a session, 1 °/s, so told from a bias only
 #   through the accelerometer).

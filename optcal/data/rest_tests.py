@@ -203,9 +203,12 @@ class RestModel:
         """Samples over the noise colour: a stretch's per-sample variance over the variance of its mean.
 
         A stretch of :data:`~optcal.data.rest_model.TREND_BATCHES` blocks or more measures the variance of its
-        mean itself, from the scatter of its batch means (its own noise, whatever its colour: a filter's
-        smoothing that the pairs of blocks cannot measure, a hand's sway); a shorter one takes the recording's
-        colour ``κ²`` (a block's ``κ²`` samples carry the information of one).  The median over the axes.
+        mean itself, from its block means as a first-order autoregression (their variance over their number,
+        times ``(1 + ρ) / (1 − ρ)`` for their lag-one correlation ρ): its own noise, whatever its colour, so
+        neither a filter's smoothing, which the pairs of blocks overstate (a block smoother than the noise
+        between blocks), nor a sway correlated over several blocks is misread.  A shorter one takes the
+        recording's colour ``κ²`` (a block's ``κ²`` samples carry the information of one).  The median over
+        the axes.
         """
         b = self.b
         k = k1 - k0
@@ -215,10 +218,12 @@ class RestModel:
         n = float(w.sum())
         mean = (means[k0:k1] * w).sum(axis=0) / n
         per_sample = ((var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0)
-        groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
-        xb = np.array([(means[g] * b.n[g, None]).sum(axis=0) / b.n[g].sum() for g in groups])
-        var_mean = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES
-        ratio = per_sample / np.maximum(var_mean, np.finfo(float).tiny)
+        d = means[k0:k1] - means[k0:k1].mean(axis=0)
+        scatter = (d * d).sum(axis=0)
+        tiny = np.finfo(float).tiny
+        rho = np.clip((d[1:] * d[:-1]).sum(axis=0) / np.maximum(scatter, tiny), 0.0, 1.0 - 1.0 / k)
+        var_mean = scatter / (k - 1.0) / k * (1.0 + rho) / (1.0 - rho)
+        ratio = per_sample / np.maximum(var_mean, tiny)
         return float(min(np.median(ratio), n))
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:

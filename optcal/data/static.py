@@ -349,10 +349,6 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             counts[SHORT] += z - a
             counts[SHORT_STRETCHES] += 1
             continue
-        if (model.effective_samples(a, z, j0, j1) < min_acc or model.effective_gyro_samples(a, z, j0, j1) < min_gyro):
-            counts[FEW] += z - a
-            counts[FEW_STRETCHES] += 1
-            continue
         per_sample = model.spread(j0, j1)
         if per_sample > MAX_REST_NOISE_G * one_g:
             counts[LOUD] += z - a
@@ -371,6 +367,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         if model.turns(j0, j1):
             counts[TURNING] += z - a
             counts[TURNING_STRETCHES] += 1
+            continue
+        # last: what no test above could show moving but holds too little independent evidence to show at rest
+        if (model.effective_samples(a, z, j0, j1) < min_acc or model.effective_gyro_samples(a, z, j0, j1) < min_gyro):
+            counts[FEW] += z - a
+            counts[FEW_STRETCHES] += 1
             continue
         a2, z2 = a + trim, z - trim
         if z2 - a2 < 2:

@@ -16,7 +16,7 @@ from optcal.data import load, load_with_segmentation
 from optcal.data import rest_model as rm
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
-from optcal.data.static import SHORT_STRETCHES, StaticSettings, detect_static
+from optcal.data.static import FEW_STRETCHES, SHORT_STRETCHES, StaticSettings, detect_static
 from optcal.errors import InputError
 
 from helpers.common import SHARED
@@ -89,16 +89,75 @@ def test_holds_only_log_gives_its_holds(rate: float) -> None:
 
 
 def test_low_pass_filtered_tag_calibrates_to_its_noise() -> None:
-    """divemove's tag, stored low-pass filtered, opened as it is: about ten poses of its 14-50 s rests (a
-    stretch holds as many independent samples as the trend test needs, at κ² samples each), and the
-    calibration's rms |a|-1 at most 0.3 mg (the moves' settling oscillations are not poses)."""
+    """divemove's tag, stored low-pass filtered, opened as it is: about ten poses of its 14-50 s rests (a long
+    stretch measures the noise of its own mean from its batch means), and the calibration's rms |a|-1 at most
+    0.3 mg (the moves' settling oscillations are not poses)."""
     from optcal.families.accel.calibration import calibrate
 
     poses = load(need(DIVEMOVE))
     assert 9 <= poses.n <= 14
-    # the tag's orientations leave one combination (A_yz) weakly determined, which the identifiability check says
-    result = calibrate(poses, allow_degenerate=True)
-    assert result.rms_norm_residual_g <= 0.3e-3
+    assert calibrate(poses).rms_norm_residual_g <= 0.3e-3
+
+
+def test_a_long_rest_measures_its_own_noise_of_the_mean() -> None:
+    """A 1 Hz low-pass filtered float rest at 200 Hz: its samples are correlated over about 0.2 s (the
+    integrated autocorrelation time), so 20 s hold about a hundred independent samples.  The pairs of 0.25 s
+    blocks overstate the colour (a block is smoother than the noise between blocks: κ² of thousands); the
+    stretch's batch means measure it within their chi-square scatter."""
+    from scipy import signal
+
+    from optcal.data.rest_tests import RestModel
+
+    rng = np.random.default_rng(7)
+    n, rate = 4000, 200.0
+    sos = signal.butter(4, 1.0, fs=rate, output="sos")
+    noise = signal.sosfiltfilt(sos, rng.normal(size=(n + 2000, 6)), axis=0)[1000:-1000]
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * noise[:, :3] / noise[:, :3].std()
+    gyro = np.radians(0.05) * noise[:, 3:] / noise[:, 3:].std()
+    frame = pd.DataFrame({"t": np.arange(n) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+                          "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]})
+    rec = recording_from_source(source_from_frame(frame, "filtered", "csv"))
+    s = StaticSettings()
+    model = RestModel(rec, s, rec.t, rec.acc, rec.gyro, 50, np.zeros(0, dtype=np.int64), rate)
+    k = model.b.count
+    x = noise[:, 2] - noise[:, 2].mean()
+    acf = np.correlate(x, x, "full")[n - 1:] / (x @ x)
+    tau = 1.0 + 2.0 * acf[1:200].sum()  # the integrated autocorrelation time, samples
+    truth = n / tau
+    assert float(np.median(model.kappa2)) > 10 * tau  # what the block pairs say: far too few samples
+    for measured in (model.effective_samples(0, n, 0, k), model.effective_gyro_samples(0, n, 0, k)):
+        assert truth / 4 < measured < truth * 4
+    assert len(detect_static(rec).intervals) >= 1
+
+
+def test_a_short_stretch_with_correlated_gyro_noise_is_refused_naming_the_flag() -> None:
+    """Two rests of 2.5 s whose gyro sways with a 0.5 s correlation (a hand's slow sway through a pause):
+    fewer than four independent gyro samples each, so no rest; the refusal names --min-independent, which
+    lets them through with a warning, as --no-gyro-gate does."""
+    from scipy import signal
+
+    rng = np.random.default_rng(3)
+    rate, dwell = 100.0, 250
+    sos = signal.butter(2, 0.3, fs=rate, output="sos")
+    pieces, rates = [], []
+    for d in ([0.0, 0.0, 1.0], [1.0, 0.0, 0.0]):
+        pieces.append(np.array(d) + 1e-3 * rng.normal(size=(dwell, 3)))
+        sway = signal.sosfiltfilt(sos, rng.normal(size=(dwell + 600, 3)), axis=0)[300:-300]
+        rates.append(np.radians(0.02) * sway / sway.std())
+        pieces.append(np.linspace(d, [0.0, 1.0, 0.0], 60) + 1e-3 * rng.normal(size=(60, 3)))
+        rates.append(np.full((60, 3), np.radians(90.0)))
+    acc, gyro = np.vstack(pieces), np.vstack(rates) + np.radians(0.01) * rng.normal(size=(2 * (dwell + 60), 3))
+    frame = pd.DataFrame({"t": np.arange(acc.shape[0]) / rate, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+                          "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]})
+    rec = recording_from_source(source_from_frame(frame, "sway", "csv"))
+    seg = detect_static(rec)
+    assert seg.n_used == 0 and seg.evidence[FEW_STRETCHES] >= 2
+    with pytest.raises(InputError, match=r"fewer independent samples .*--min-independent N"):
+        seg.pose_table()
+    loose = detect_static(rec, StaticSettings(min_independent=1.0))
+    assert len(loose.intervals) == 2
+    assert any("--min-independent 1" in w for w in loose.override_warnings())
+    assert len(detect_static(rec, StaticSettings(use_gyro=False)).intervals) == 2
 
 
 # ----------------------------------------------------------------------------- every refusal can be overridden
