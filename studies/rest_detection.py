@@ -248,7 +248,7 @@ why
 # * **Never resting, with the gyro**: a pose in 1 % of the slow-turn recordings and 9-10 % of the slow-drift
 #   ones (0.1-1 °/s, below what a MEMS gyro's bias may move within a session, 1 °/s, so told from a bias only
 #   through the accelerometer).
-# * **Never resting, without the gyro**: slow turns give a pose in 28 % of the recordings, slow drift 2 %.  A
+# * **Never resting, without the gyro**: slow turns give a pose in 26 % of the recordings, slow drift 2 %.  A
 #   turn about an axis within a few degrees of the vertical moves gravity in the sensor by less than the
 #   samples' own spread over a stretch, so the model accepts it: for an accelerometer calibration such a pose is
 #   a mean on the sphere within its noise (the pose errors are in σ), for a gyro calibration it is not (the gyro

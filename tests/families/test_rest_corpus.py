@@ -266,6 +266,6 @@ def test_current_detector_figures(current_scores) -> None:
     # float gyro, 0.89 in counts; 0.73 when the colour of the block pairs stood for it)
     assert float(by_variant.at[("low_pass", True), "recall"]) >= 0.9
     # with the gyro, a never-resting recording seldom gives a pose (the full study: 1 % of slow turns,
-    # 9-10 % of slow drifts); without it slow turns near the vertical do more often (28 %)
+    # 9-10 % of slow drifts); without it slow turns near the vertical do more often (26 %)
     for kind in ("slow_turns", "slow_drift"):
         assert float(by_variant.at[(kind, True), "with_pose"]) <= 0.25
