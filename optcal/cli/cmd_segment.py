@@ -64,12 +64,9 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
 
 def _independent(s: Any, has_gyro: bool) -> str:
     """The fewest independent samples a rest holds, as the detector applies them."""
-    from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO
-
-    if s.min_independent is not None:
-        return f"at least {s.min_independent:g} independent samples"
-    gyro = f" ({MIN_INDEPENDENT_GYRO:g} of the gyro)" if has_gyro and s.use_gyro else ""
-    return f"at least {MIN_INDEPENDENT_ACC:g} independent samples{gyro}"
+    acc, gyro = s.independent_minimums()
+    of_gyro = f" ({gyro:g} of the gyro)" if has_gyro and s.use_gyro and gyro != acc else ""
+    return f"at least {acc:g} independent samples{of_gyro}"
 
 
 def _noise_unit(key: str, rec: Any) -> str:

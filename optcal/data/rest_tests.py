@@ -181,11 +181,16 @@ class RestModel:
     def spread(self, k0: int, k1: int) -> float:
         """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
         block means included, so that a stretch that moves is as loud as its motion)."""
-        b = self.b
-        w = b.n[k0:k1, None]
-        mean = (b.mean[k0:k1] * w).sum(axis=0) / w.sum()
-        total = ((b.var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (b.mean[k0:k1] - mean) ** 2).sum(axis=0)) / (w.sum() - 1.0)
-        return float(np.sqrt(total.sum()))
+        return float(np.sqrt(self._pooled_variance(self.b.mean, self.b.var, k0, k1).sum()))
+
+    def _pooled_variance(self, means: NDArray[np.float64], var: NDArray[np.float64], k0: int, k1: int
+                         ) -> NDArray[np.float64]:
+        """Per-axis variance of the samples of blocks ``[k0, k1)`` about their common mean (the blocks' own
+        variances and the spread of their means, pooled)."""
+        w = self.b.n[k0:k1, None]
+        n = float(w.sum())
+        mean = (means[k0:k1] * w).sum(axis=0) / n
+        return np.asarray(((var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0))
 
     def effective_samples(self, a: int, z: int, k0: int, k1: int) -> float:
         """Independent accelerometer samples in ``[a, z)`` (blocks ``[k0, k1)``): see :meth:`_independent`."""
@@ -214,10 +219,8 @@ class RestModel:
         k = k1 - k0
         if k < rm.TREND_BATCHES:
             return (z - a) / max(float(np.median(kappa2)), 1.0)
-        w = b.n[k0:k1, None]
-        n = float(w.sum())
-        mean = (means[k0:k1] * w).sum(axis=0) / n
-        per_sample = ((var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0)
+        n = float(b.n[k0:k1].sum())
+        per_sample = self._pooled_variance(means, var, k0, k1)
         d = means[k0:k1] - means[k0:k1].mean(axis=0)
         scatter = (d * d).sum(axis=0)
         tiny = np.finfo(float).tiny

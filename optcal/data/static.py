@@ -124,6 +124,12 @@ class StaticSettings:
         if not 0 < self.false_alarm < 0.5:
             raise InputError("static detection: false_alarm must lie between 0 and 0.5")
 
+    def independent_minimums(self) -> tuple[float, float]:
+        """Fewest independent samples a rest holds, of the accelerometer and of the gyro, as applied."""
+        if self.min_independent is None:
+            return MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO
+        return self.min_independent, self.min_independent
+
     @classmethod
     def from_options(cls, **options: Any) -> "StaticSettings":
         """Settings from keyword options, ignoring those left as ``None``."""
@@ -330,8 +336,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
                                  TRIMMED)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
-    min_acc = MIN_INDEPENDENT_ACC if s.min_independent is None else s.min_independent
-    min_gyro = MIN_INDEPENDENT_GYRO if s.min_independent is None else s.min_independent
+    min_acc, min_gyro = s.independent_minimums()
     wobble_window = max(3, int(round(WOBBLE_DWELLS * s.min_dwell_s * rate)))
     if gyro_scale is not None:
         evidence["gyro_rad_per_unit"] = gyro_scale
