@@ -86,6 +86,27 @@ MIN_INDEPENDENT_ACC: float = 2.0
 MIN_INDEPENDENT_GYRO: float = float(TREND_MIN_BATCHES)
 
 
+def column_median(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`numpy.median` along the first axis (the same values) by one partition: the tests call it once per
+    stretch, where numpy's general median costs more in its own overhead than in its work."""
+    k = x.shape[0]
+    h = k // 2
+    if k % 2:
+        return np.asarray(np.partition(x, h, axis=0)[h])
+    p = np.partition(x, (h - 1, h), axis=0)
+    return np.asarray(0.5 * (p[h - 1] + p[h]))
+
+
+def quantile_1d(x: NDArray[np.float64], q: float) -> float:
+    """:func:`numpy.quantile` of a 1-d array at ``q`` (its default, linear interpolation) by one partition."""
+    position = q * (x.size - 1)
+    lo = int(np.floor(position))
+    hi = min(lo + 1, x.size - 1)
+    p = np.partition(x, (lo, hi))
+    a, b, f = float(p[lo]), float(p[hi]), position - lo
+    return b - (b - a) * (1.0 - f) if f >= 0.5 else a + (b - a) * f  # numpy's lerp, from the nearer end
+
+
 @dataclass
 class Blocks:
     """A recording cut into blocks of consecutive usable samples.
@@ -252,11 +273,16 @@ def _f_isf(false_alarm: float, d1: float, d2: float) -> float:
     return float(stats.f.isf(false_alarm, d1, d2))
 
 
+def step_limit_one(false_alarm: float, dof: float) -> float:
+    """The ``1 − false_alarm`` quantile of ``3 F(3, dof)`` for one ``dof`` (at least 1)."""
+    return 3.0 * _f_isf(false_alarm, 3.0, max(float(dof), 1.0))
+
+
 def step_limit(false_alarm: float, dof: NDArray[np.float64] | float) -> NDArray[np.float64]:
-    """The ``1 − false_alarm`` quantile of ``3 F(3, dof)`` (each distinct dof computed once)."""
+    """:func:`step_limit_one` of each ``dof`` (each distinct dof computed once)."""
     d = np.maximum(np.asarray(dof, dtype=float), 1.0)
     unique, inverse = np.unique(d, return_inverse=True)
-    values = np.array([3.0 * _f_isf(false_alarm, 3.0, float(u)) for u in unique])
+    values = np.array([step_limit_one(false_alarm, float(u)) for u in unique])
     return np.asarray(values[inverse].reshape(d.shape))
 
 
@@ -293,6 +319,23 @@ def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDA
     return np.asarray((d * d / np.maximum(scale, np.finfo(float).tiny)).sum(axis=1))
 
 
+def batch_means(x: NDArray[np.float64], batches: int, larger_first: bool = False) -> NDArray[np.float64]:
+    """Means of ``x`` (along its first axis) over ``batches`` batches of consecutive rows, sizes differing by one:
+    spread evenly (batch ``i`` starts at row ``⌊i k / batches⌋``), or the larger first (as
+    :func:`numpy.array_split`).  The tests of a stretch each keep the grouping they were measured with: near its
+    critical value a test's verdict depends on which blocks share a batch."""
+    k = x.shape[0]
+    if larger_first:
+        size, extra = divmod(k, batches)
+        sizes = np.full(batches, float(size))
+        sizes[:extra] += 1.0
+        starts = np.concatenate([[0], np.cumsum(sizes[:-1])]).astype(np.intp)
+    else:
+        starts = (np.arange(batches) * k) // batches
+        sizes = np.diff(np.append(starts, k)).astype(float)
+    return np.asarray(np.add.reduceat(x, starts, axis=0) / (sizes if x.ndim == 1 else sizes[:, None]))
+
+
 def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
                     batches: int = TREND_BATCHES) -> tuple[float, int, float, float]:
     """The largest |t| over the axes of the slope of ``x``'s batch means against time, and its degrees of freedom.
@@ -307,10 +350,8 @@ def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
     nb = min(batches, k)
     if nb < TREND_MIN_BATCHES:
         return 0.0, 0, 0.0, 0.0
-    starts = (np.arange(nb) * k) // nb  # as np.array_split: batches of consecutive blocks, sizes differing by one
-    sizes = np.diff(np.append(starts, k)).astype(float)
-    tb = np.add.reduceat(t, starts) / sizes
-    xb = np.add.reduceat(x, starts, axis=0) / sizes[:, None]
+    tb = batch_means(t, nb)
+    xb = batch_means(x, nb)
     tc = tb - tb.mean()
     sxx = float(tc @ tc)
     if sxx <= 0:

@@ -59,6 +59,7 @@ class RestModel:
         self.wander2 = np.zeros(3)
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
+        self._pooled: dict[tuple[bool, int, int], NDArray[np.float64]] = {}
         self._pass(first=True)
         self.gyro_scale = gyro_rad_per_unit(rec, gyro, self.bias, self.b)
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
@@ -99,7 +100,7 @@ class RestModel:
         for k0, k1 in self.runs():
             n = b.n[k0:k1].sum()
             means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
-            noise2.append(self.gkappa2 * np.median(b.gvar[k0:k1], axis=0) / n)
+            noise2.append(self.gkappa2 * rm.column_median(b.gvar[k0:k1]) / n)
         if means:
             # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
             # its own error, integrated over a long rest, would look like a turn)
@@ -150,7 +151,7 @@ class RestModel:
             # the quieter blocks of the run and of a dwell on either side: a short stretch of a move's tail is
             # measured against the rest it settles into
             w = self.dwell_blocks
-            level = float(np.quantile(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE))
+            level = rm.quantile_1d(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE)
             calm = np.log(total[k0:k1] / level) <= self.var_limit
             starts, stops = true_runs(calm)
             out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
@@ -167,7 +168,7 @@ class RestModel:
                 n_rest = float(b.n[others].sum())
                 rest_mean = (b.mean[others] * b.n[others, None]).sum(axis=0) / n_rest
                 stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest)
-                if stat > float(rm.step_limit(self.s.false_alarm, b.n[end] - 1.0)) * self.s.threshold:
+                if stat > rm.step_limit_one(self.s.false_alarm, b.n[end] - 1.0) * self.s.threshold:
                     if end == k0:
                         k0 += 1
                     else:
@@ -181,30 +182,41 @@ class RestModel:
     def spread(self, k0: int, k1: int) -> float:
         """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
         block means included, so that a stretch that moves is as loud as its motion)."""
-        return float(np.sqrt(self._pooled_variance(self.b.mean, self.b.var, k0, k1).sum()))
+        return float(np.sqrt(self._pooled_variance(k0, k1).sum()))
 
-    def _pooled_variance(self, means: NDArray[np.float64], var: NDArray[np.float64], k0: int, k1: int
-                         ) -> NDArray[np.float64]:
+    def _moments(self, gyro: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The block means and variances of the accelerometer, or of the gyro."""
+        b = self.b
+        if not gyro:
+            return b.mean, b.var
+        assert b.gmean is not None and b.gvar is not None
+        return b.gmean, b.gvar
+
+    def _pooled_variance(self, k0: int, k1: int, gyro: bool = False) -> NDArray[np.float64]:
         """Per-axis variance of the samples of blocks ``[k0, k1)`` about their common mean (the blocks' own
-        variances and the spread of their means, pooled)."""
-        w = self.b.n[k0:k1, None]
-        n = float(w.sum())
-        mean = (means[k0:k1] * w).sum(axis=0) / n
-        return np.asarray(((var[k0:k1] * (w - 1.0)).sum(axis=0) + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0))
+        variances and the spread of their means, pooled); computed once per stretch (several tests ask)."""
+        key = (gyro, k0, k1)
+        if key not in self._pooled:
+            means, var = self._moments(gyro)
+            w = self.b.n[k0:k1, None]
+            n = float(w.sum())
+            mean = (means[k0:k1] * w).sum(axis=0) / n
+            self._pooled[key] = np.asarray(((var[k0:k1] * (w - 1.0)).sum(axis=0)
+                                            + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0))
+        return self._pooled[key]
 
     def effective_samples(self, a: int, z: int, k0: int, k1: int) -> float:
         """Independent accelerometer samples in ``[a, z)`` (blocks ``[k0, k1)``): see :meth:`_independent`."""
-        return self._independent(self.b.mean, self.b.var, self.kappa2, a, z, k0, k1)
+        return self._independent(False, self.kappa2, a, z, k0, k1)
 
     def effective_gyro_samples(self, a: int, z: int, k0: int, k1: int) -> float:
         """Independent gyro samples in ``[a, z)`` by the gyro's own noise (infinite where the gyro is no evidence
         of motion)."""
         if self.bias is None or self.b.gmean is None or self.b.gvar is None:
             return float("inf")
-        return self._independent(self.b.gmean, self.b.gvar, self.gkappa2, a, z, k0, k1)
+        return self._independent(True, self.gkappa2, a, z, k0, k1)
 
-    def _independent(self, means: NDArray[np.float64], var: NDArray[np.float64], kappa2: NDArray[np.float64],
-                     a: int, z: int, k0: int, k1: int) -> float:
+    def _independent(self, gyro: bool, kappa2: NDArray[np.float64], a: int, z: int, k0: int, k1: int) -> float:
         """Samples over the noise colour: a stretch's per-sample variance over the variance of its mean.
 
         A stretch of :data:`~optcal.data.rest_model.TREND_BATCHES` blocks or more measures the variance of its
@@ -218,16 +230,17 @@ class RestModel:
         b = self.b
         k = k1 - k0
         if k < rm.TREND_BATCHES:
-            return (z - a) / max(float(np.median(kappa2)), 1.0)
+            return (z - a) / max(float(np.sort(kappa2)[1]), 1.0)  # the median of the three axes
         n = float(b.n[k0:k1].sum())
-        per_sample = self._pooled_variance(means, var, k0, k1)
-        d = means[k0:k1] - means[k0:k1].mean(axis=0)
+        per_sample = self._pooled_variance(k0, k1, gyro)
+        means = self._moments(gyro)[0][k0:k1]
+        d = means - means.mean(axis=0)
         scatter = (d * d).sum(axis=0)
         tiny = np.finfo(float).tiny
         rho = np.clip((d[1:] * d[:-1]).sum(axis=0) / np.maximum(scatter, tiny), 0.0, 1.0 - 1.0 / k)
         var_mean = scatter / (k - 1.0) / k * (1.0 + rho) / (1.0 - rho)
         ratio = per_sample / np.maximum(var_mean, tiny)
-        return float(min(np.median(ratio), n))
+        return float(min(np.sort(ratio)[1], n))  # the median of the three axes
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.
@@ -242,7 +255,7 @@ class RestModel:
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
         # at least the rounding of the data's own scale: a noise-free rest has no sample outside it
         floor = (64.0 * np.finfo(float).eps * float(np.max(np.abs(mean)))) ** 2
-        var = np.maximum(np.median(b.var[j0:j1], axis=0), max(floor, np.finfo(float).tiny))
+        var = np.maximum(rm.column_median(b.var[j0:j1]), max(floor, np.finfo(float).tiny))
         limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
 
         def outside(i: int) -> bool:
@@ -271,7 +284,7 @@ class RestModel:
         if len(kept) < 3:
             return kept, 0, 0
         floor = (NOISE_FLOOR_G * self.one_g) ** 2  # noise levels below it are the same for any calibration
-        level = np.array([np.log(max(float(np.median(b.var[j0:j1].sum(axis=1))), floor))
+        level = np.array([np.log(max(float(rm.column_median(b.var[j0:j1].sum(axis=1))), floor))
                           for _, _, j0, j1 in kept])
         weight = np.array([float(z - a) for a, z, _, _ in kept])
         order = np.argsort(level)
@@ -319,13 +332,12 @@ class RestModel:
         w = b.n[k0:k1, None]
         off = (b.gmean[k0:k1] * w).sum(axis=0) / w.sum() - self.bias
         if k >= rm.TREND_BATCHES:
-            groups = np.array_split(np.arange(k0, k1), rm.TREND_BATCHES)
-            xb = np.array([b.gmean[g].mean(axis=0) for g in groups])
+            xb = rm.batch_means(b.gmean[k0:k1], rm.TREND_BATCHES, larger_first=True)
             se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
             limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
         else:
             assert self.gvar_ref is not None
-            se2 = self.gkappa2 * np.median(self.gvar_ref[k0:k1], axis=0) / w.sum() + self.wander2
+            se2 = self.gkappa2 * rm.column_median(self.gvar_ref[k0:k1]) / w.sum() + self.wander2
             limit = rm.normal_limit(self.s.false_alarm / 6.0)
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
         significant = bool(np.max(z) > limit * self.s.gyro_threshold)

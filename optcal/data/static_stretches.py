@@ -130,7 +130,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     for a, z, j0, j1 in kept:
         w = b.n[j0:j1, None]
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        white = model.kappa2 * np.median(b.var[j0:j1], axis=0) / w.sum()
+        white = model.kappa2 * rm.column_median(b.var[j0:j1]) / w.sum()
         scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
         se2 = np.maximum(white, scatter)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
@@ -144,7 +144,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
                     gyro is not None and no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
-            same = stat <= float(rm.step_limit(model.s.false_alarm, 1e6)) * model.s.threshold \
+            same = stat <= rm.step_limit_one(model.s.false_alarm, 1e6) * model.s.threshold \
                 or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
             if still_between and same:
                 groups[-1].append((a, z))

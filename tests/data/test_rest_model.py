@@ -32,6 +32,25 @@ def need(path):
 
 
 # ----------------------------------------------------------------------------- the statistics
+def test_fast_order_statistics_equal_numpys() -> None:
+    """The per-stretch median, quantile and batch means (written for speed) give numpy's values exactly, so the
+    detector's verdicts do not depend on which is used."""
+    rng = np.random.default_rng(3)
+    for k in range(1, 41):
+        x = rng.normal(size=(k, 3)) * rng.uniform(0.1, 10.0, 3)
+        assert np.array_equal(rm.column_median(x), np.median(x, axis=0))
+        assert np.array_equal(rm.column_median(x[:, 0]), np.median(x[:, 0]))
+        for q in (0.0, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0):
+            assert rm.quantile_1d(x[:, 0], q) == np.quantile(x[:, 0], q)
+        if k >= rm.TREND_BATCHES:
+            split = np.array([g.mean(axis=0) for g in np.array_split(x, rm.TREND_BATCHES)])
+            assert np.allclose(rm.batch_means(x, rm.TREND_BATCHES, larger_first=True), split, rtol=1e-13, atol=0.0)
+            even = (np.arange(rm.TREND_BATCHES) * k) // rm.TREND_BATCHES
+            assert np.allclose(rm.batch_means(x, rm.TREND_BATCHES),
+                               [g.mean(axis=0) for g in np.split(x, even[1:])], rtol=1e-13, atol=0.0)
+    assert rm.step_limit_one(1e-3, 40.0) == float(rm.step_limit(1e-3, np.array([40.0]))[0])
+
+
 def test_step_statistic_has_its_stated_false_alarm_on_white_noise() -> None:
     """Consecutive blocks of one white-noise rest: the step statistic exceeds its 1e-3 critical value about
     once in a thousand pairs (κ² measured on the same pairs, as the detector does)."""
