@@ -182,7 +182,7 @@ class RestModel:
     def spread(self, k0: int, k1: int) -> float:
         """Per-sample standard deviation of the stretch about its mean (norm over the axes; the spread of its
         block means included, so that a stretch that moves is as loud as its motion)."""
-        return float(np.sqrt(self._pooled_variance(k0, k1).sum()))
+        return float(np.sqrt(self.pooled_variance(k0, k1).sum()))
 
     def _moments(self, gyro: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The block means and variances of the accelerometer, or of the gyro."""
@@ -192,7 +192,7 @@ class RestModel:
         assert b.gmean is not None and b.gvar is not None
         return b.gmean, b.gvar
 
-    def _pooled_variance(self, k0: int, k1: int, gyro: bool = False) -> NDArray[np.float64]:
+    def pooled_variance(self, k0: int, k1: int, gyro: bool = False) -> NDArray[np.float64]:
         """Per-axis variance of the samples of blocks ``[k0, k1)`` about their common mean (the blocks' own
         variances and the spread of their means, pooled); computed once per stretch (several tests ask)."""
         key = (gyro, k0, k1)
@@ -232,7 +232,7 @@ class RestModel:
         if k < rm.TREND_BATCHES:
             return (z - a) / max(float(np.sort(kappa2)[1]), 1.0)  # the median of the three axes
         n = float(b.n[k0:k1].sum())
-        per_sample = self._pooled_variance(k0, k1, gyro)
+        per_sample = self.pooled_variance(k0, k1, gyro)
         means = self._moments(gyro)[0][k0:k1]
         d = means - means.mean(axis=0)
         scatter = (d * d).sum(axis=0)

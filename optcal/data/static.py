@@ -15,7 +15,9 @@ gyro, a mean rate off the bias beyond its batch means' scatter (a turn about the
 accelerometer does not see), that is no noisier per sample than :data:`~optcal.data.units.MAX_REST_NOISE_G`
 of 1 g, and that lasts at least ``min_dwell_s`` (and two blocks).  The minimum dwell is also the prior
 that joins two rests of one orientation separated by less than a dwell (a twitch: their means differ by
-less than one sample's noise).  A jump between two holds is a step like any other, so a logger that
+less than one sample's noise); a longer interruption is joined when the gyro shows no net turn through it
+or, without the gyro as evidence, when the accelerometer's block means never leave the pose
+(:func:`~optcal.data.static_stretches.stays_in_pose`: a knock, or a filter's smoothing that the step test cut).  A jump between two holds is a step like any other, so a logger that
 stores only its holds is cut at each jump.  When no run qualifies, the recording **never rests**, a
 conclusion printed with its evidence and the flag that overrides each test.  Every sample that does not
 end in a pose is counted by reason.
@@ -82,7 +84,7 @@ class StaticSettings:
     drift_threshold : float
         Multiplier of the trend test's critical value.
     min_dwell_s : float
-        Shortest rest, seconds; also the longest interruption joined inside one pose.
+        Shortest rest, seconds; also the longest interruption joined inside one pose without other evidence.
     trim_s : float
         Cut from each end of every rest, seconds.
     false_alarm : float
@@ -158,7 +160,8 @@ class Segmentation:
         Per usable sample: ``t``, ``norm_g``, the step and gyro statistics over their critical
         values (``step``, ``gyro``) and the pose mask ``static`` (for plots).
     joined : int
-        Rests joined to the previous one as the same pose (an interruption shorter than the dwell).
+        Rests joined to the previous one as the same pose (an interruption shorter than the dwell, with no net
+        turn by the gyro, or that never left the pose by the accelerometer).
     evidence : dict of str to float
         Counts of the still stretches each test rejected, and the blocks and pairs tested.
     """

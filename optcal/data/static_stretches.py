@@ -110,6 +110,27 @@ def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, sta
     return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
 
 
+def stays_in_pose(model: RestModel, k_from: int, k_to: int, mean: NDArray[np.float64],
+                  per_sample_var: NDArray[np.float64]) -> bool:
+    """Whether the accelerometer's block means ``[k_from, k_to)`` (an interruption between two pieces of a rest)
+    all stay within a pose's wobble tolerance of the pieces' common ``mean``.
+
+    A block mean may lie off ``mean`` by the critical value of its noise (the pieces' per-sample variance times
+    the noise colour over the block's samples; χ²₃ at the false-alarm probability shared over the blocks) plus
+    the orientation a rest is allowed to wobble through, ``√(2 WOBBLE_SHRINK)`` rad of the mean's norm: the
+    sensor never left the pose.  A move away and back to the same orientation (a pose revisited) leaves it.
+    """
+    b = model.b
+    if k_to <= k_from:
+        return True
+    d = b.mean[k_from:k_to] - mean
+    distance = np.sqrt((d * d).sum(axis=1))
+    noise2 = (model.kappa2 * per_sample_var).sum() / b.n[k_from:k_to]
+    limit = rm.chi2_limit(model.s.false_alarm / (k_to - k_from), 3) * model.s.threshold
+    allowed = np.sqrt(2.0 * WOBBLE_SHRINK) * float(np.linalg.norm(mean)) + np.sqrt(limit * noise2)
+    return bool(np.all(distance <= allowed))
+
+
 def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64], model: RestModel,
                    dwell_s: float, gyro: NDArray[np.float64] | None,
                    gyro_scale: float | None, max_gap: float) -> list[list[tuple[int, int]]]:
@@ -121,12 +142,15 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     of one rest) -- and the sensor did not turn between them: by the gyro, no net turn
     (:func:`_no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
     move), or when the interruption is shorter than the dwell (the dwell as a prior: no pose is left and
-    regained in less time than one is held).  Never across a time gap.
+    regained in less time than one is held); without the gyro as evidence, when the accelerometer shows that
+    the sensor never left the pose between them (:func:`stays_in_pose`: a filter's smoothing or a knock cut one
+    rest in two).  Never across a time gap.
     """
     b = model.b
     block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
     groups: list[list[tuple[int, int]]] = []
-    last: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
+    last: tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64]] | None = None  # the group's first piece
+    previous_end = 0  # the block after the previous piece
     for a, z, j0, j1 in kept:
         w = b.n[j0:j1, None]
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
@@ -140,17 +164,23 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
             if gap:
                 still_between = False  # nothing is known of what the sensor did in a gap of the recording
             else:
-                still_between = t[a] - t[end - 1] < dwell_s + 2.0 * block_s or (
-                    gyro is not None and no_net_turn(gyro, t, end, a, model, j0, gyro_scale))
+                short = t[a] - t[end - 1] < dwell_s + 2.0 * block_s
+                if gyro is not None:
+                    still_between = short or no_net_turn(gyro, t, end, a, model, j0, gyro_scale)
+                else:
+                    still_between = short or stays_in_pose(model, previous_end, j0, 0.5 * (mean + last[0]),
+                                                           0.5 * (model.pooled_variance(j0, j1) + last[3]))
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
             same = stat <= rm.step_limit_one(model.s.false_alarm, 1e6) * model.s.threshold \
                 or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
             if still_between and same:
                 groups[-1].append((a, z))
+                previous_end = j1
                 continue
         groups.append([(a, z)])
-        last = (mean, se2, sd)
+        last = (mean, se2, sd, model.pooled_variance(j0, j1))
+        previous_end = j1
     return groups
 
 

@@ -113,9 +113,15 @@ def test_low_pass_filtered_tag_calibrates_to_its_noise() -> None:
     0.3 mg (the moves' settling oscillations are not poses)."""
     from optcal.families.accel.calibration import calibrate
 
-    poses = load(need(DIVEMOVE))
+    loaded = load_with_segmentation(need(DIVEMOVE))
+    poses, ivs = loaded.poses, loaded.segmentation.intervals
     assert 9 <= poses.n <= 14
     assert calibrate(poses).rms_norm_residual_g <= 0.3e-3
+    # a rest the step test cut in two (a knock, the filter's smoothing) is one pose: no two consecutive poses'
+    # means lie within the model's "same pose" distance, 3 per-sample σ (the pieces split before lay 0.8-1.9 σ apart)
+    apart = [np.linalg.norm(q.mean - p.mean) / min(np.linalg.norm(p.std), np.linalg.norm(q.std))
+             for p, q in zip(ivs[:-1], ivs[1:])]
+    assert min(apart) > rm.SAME_POSE_SAMPLE_SIGMAS, np.round(apart, 2)
 
 
 def test_a_long_rest_measures_its_own_noise_of_the_mean() -> None:
@@ -211,3 +217,79 @@ def test_each_multiplier_loosens_its_test() -> None:
     base = strict.thresholds
     wide = detect_static(rec, StaticSettings(threshold=3.0)).thresholds
     assert wide["step"] == pytest.approx(3.0 * base["step"])
+
+
+# ----------------------------------------------------------------------------- one rest cut in two
+XSENS = SHARED / "data" / "imutk-xsens" / "xsens_imutk.csv"
+XSENS_GYRO = ["gyro_x_counts", "gyro_y_counts", "gyro_z_counts"]
+XSENS_ACC = ["acc_x_counts", "acc_y_counts", "acc_z_counts"]
+XSENS_ZERO = np.full(3, 32768.0)  # the counts' mid-scale (IMU-TK's log is offset binary)
+
+
+def _tilted(v: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """``v`` (n, 3) turned by ``angle_rad`` (n,) about an axis at right angles to its mean direction (Rodrigues)."""
+    m = v.mean(axis=0) / np.linalg.norm(v.mean(axis=0))
+    u = np.cross(m, [1.0, 0.0, 0.0] if abs(m[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    c, s = np.cos(angle_rad)[:, None], np.sin(angle_rad)[:, None]
+    return v * c + np.cross(u, v) * s + np.outer(v @ u, u) * (1.0 - c)
+
+
+def _xsens_with(change) -> tuple[object, object, int, int]:
+    """IMU-TK's Xsens log without its gyro, segmented before and after ``change(acc, t, a, b)`` rewrites the middle
+    of its longest rest ``[a, b)``."""
+    frame = pd.read_csv(need(XSENS)).drop(columns=XSENS_GYRO)
+    before = detect_static(recording_from_source(source_from_frame(frame, "xsens", "csv")))
+    longest = max(before.intervals, key=lambda iv: iv.n_samples)
+    a, b = longest.start, longest.stop
+    acc = frame[XSENS_ACC].to_numpy(dtype=float, copy=True)
+    change(acc, frame["t_s"].to_numpy(), a, b)
+    planted = frame.copy()
+    planted[XSENS_ACC] = acc
+    after = detect_static(recording_from_source(source_from_frame(planted, "xsens", "csv")))
+    return before, after, a, b
+
+
+def _poses_over(seg, a: int, b: int) -> list:
+    return [iv for iv in seg.intervals if iv.start < b and iv.stop > a]
+
+
+def test_a_knock_in_a_rest_without_gyro_leaves_one_pose() -> None:
+    """A knock in the middle of the Xsens log's longest rest (a decaying 8 Hz ring of 40 per-sample σ for 1.5 s, longer
+    than the dwell prior joins): the step test cuts the rest, and without a gyro the accelerometer's block means,
+    which never leave the pose's wobble tolerance, join the two pieces into one pose, whose mean is the rest's."""
+    sigma = {}
+
+    def knock(acc, t, a, b):
+        mid = (a + b) // 2
+        ring = (t[mid:] - t[mid] < 1.5).sum()
+        tau = t[mid:mid + ring] - t[mid]
+        sigma["per_sample"] = float(np.linalg.norm(acc[a:mid].std(axis=0)))
+        acc[mid:mid + ring] += np.outer(40.0 * sigma["per_sample"] * np.exp(-tau / 0.4) * np.sin(2 * np.pi * 8.0 * tau),
+                                        [0.6, 0.0, 0.8])
+
+    before, after, a, b = _xsens_with(knock)
+    assert len(_poses_over(before, a, b)) == 1
+    over = _poses_over(after, a, b)
+    assert len(over) == 1, [(iv.start, iv.stop) for iv in over]
+    assert len(after.intervals) == len(before.intervals)
+    original = _poses_over(before, a, b)[0]
+    assert over[0].n_samples >= 0.8 * original.n_samples  # all of the rest but the knock
+    assert np.linalg.norm(over[0].mean - original.mean) < sigma["per_sample"]
+
+
+def test_a_pose_left_and_regained_without_gyro_stays_two_poses() -> None:
+    """The same rest tilted away by 20° and back over 2 s in its middle (a move, not a rest): the two pieces
+    have the same mean, but the block means between them leave the pose, so they are two poses."""
+
+    def excursion(acc, t, a, b):
+        mid = (a + b) // 2
+        n = (t[mid:] - t[mid] < 2.0).sum()
+        angle = np.radians(20.0) * np.sin(np.pi * (t[mid:mid + n] - t[mid]) / 2.0)
+        acc[mid:mid + n] = _tilted(acc[mid:mid + n] - XSENS_ZERO, angle) + XSENS_ZERO
+
+    before, after, a, b = _xsens_with(excursion)
+    assert len(_poses_over(before, a, b)) == 1
+    over = _poses_over(after, a, b)
+    assert len(over) == 2
+    assert len(after.intervals) == len(before.intervals) + 1
