@@ -246,6 +246,21 @@ def device_id_param(name: str, device_id: int, what: str) -> tuple[Param, str | 
     return Param(name, stored, integer=True), note
 
 
+def device_id_entry(name: str, device_id: int | None, what: str, missing: str, params: list[Param], mapped: list[str],
+                    notes: list[str]) -> Param | None:
+    """One sensor's device id into a parameter file: its parameter (appended to ``params``, and returned), the line
+    saying it was mapped and the note on its int32 spelling; or, without an id, the note ``missing`` (what the
+    firmware needs)."""
+    if device_id is None:
+        notes.append(missing)
+        return None
+    param, note = device_id_param(name, device_id, what)
+    params.append(param)
+    mapped.append(f"{what} device id ({name} = {device_id})")
+    notes += [note] if note else []
+    return param
+
+
 @dataclass(frozen=True)
 class FirmwareNames:
     """The parameter names of one IMU instance (``{axis}``: X, Y, Z) and of its thermal group."""
@@ -348,25 +363,14 @@ def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareF
     comments += [f"not exported: {d}" for d in dropped]
     notes = [firmware.note]
     params: list[Param] = []
-    acc_id = None
-    if options.device_id is not None:
-        acc_id, id_note = device_id_param(names.acc_id, options.device_id, "accelerometer")
-        params.append(acc_id)
-        mapped.append(f"accelerometer device id ({names.acc_id} = {options.device_id})")
-        notes += [id_note] if id_note else []
-    else:
-        notes.append(firmware.id_missing.format(**fill))
+    acc_id = device_id_entry(names.acc_id, options.device_id, "accelerometer", firmware.id_missing.format(**fill),
+                             params, mapped, notes)
     params += per_axis(names.acc_offset, model.offset_ms2) + per_axis(names.acc_scale, model.scale)
     if model.zero_reason:
         notes.append(f"{model.zero_reason}; counts_zero=VALUE sets another zero reading")
     if gyro is not None:
-        if options.gyro_device_id is not None:
-            gyro_id, id_note = device_id_param(names.gyro_id, options.gyro_device_id, "gyroscope")
-            params.append(gyro_id)
-            mapped.append(f"gyroscope device id ({names.gyro_id} = {options.gyro_device_id})")
-            notes += [id_note] if id_note else []
-        else:
-            notes.append(firmware.gyro_id_missing.format(**fill))
+        device_id_entry(names.gyro_id, options.gyro_device_id, "gyroscope", firmware.gyro_id_missing.format(**fill),
+                        params, mapped, notes)
         params += per_axis(names.gyro_offset, gyro.offset_rad_s)
         notes.append(firmware.gyro_note.format(**fill))
         notes += [gyro.moves_line] if gyro.moves_line is not None else []
