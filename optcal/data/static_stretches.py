@@ -86,17 +86,22 @@ def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: floa
     return float(np.sqrt(total / max(count, 1)))
 
 
-def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, start: int, model: RestModel,
-                 block: int, gyro_scale: float | None) -> bool:
-    """Whether the gyro shows no net turn between samples ``end`` and ``start`` (a twitch that came back).
+def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple[int, int], after: tuple[int, int],
+                model: RestModel, block: int, gyro_scale: float | None) -> bool:
+    """Whether the gyro shows no net turn between the rests ``before`` and ``after`` (sample ranges): a twitch that
+    came back.
 
-    The rates less the bias integrated over the interruption, against the noise of that integral (the
-    per-sample noise of the next rest's blocks times the noise colour, as a random walk, and the bias'
-    wander over the interruption): χ²₃ at the false-alarm probability; a significant net turn smaller than
-    a pose's wobble tolerance (gyro in known units) is no turn either.
+    The rates less the bias integrated over the interruption, against the noise of that integral: the larger of
+    the model's (the per-sample noise of the next rest's blocks times the noise colour, as a random walk, and the
+    bias' wander over the interruption; χ²₃ at the false-alarm probability) and the integrals over windows of the
+    interruption's length inside the two rests themselves, which carry the gyro's noise over that time whatever
+    its colour (a filter's, or the rounding of a filtered rate; ``3 F(3, windows)``, from
+    :data:`~optcal.data.rest_model.TREND_MIN_BATCHES` windows).  A significant net turn smaller than a pose's
+    wobble tolerance (gyro in known units) is no turn either.
     """
     if model.bias is None or model.gvar_ref is None:
         return False
+    end, start = before[1], after[0]
     if start <= end:
         return True
     dt = np.diff(t[end - 1:start + 1])
@@ -104,10 +109,28 @@ def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], end: int, sta
     net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
     span = float(dt.sum())
     var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
+    limit = rm.chi2_limit(model.s.false_alarm, 3)
+    windows = [_window_integrals(gyro, t, piece, start - end, model.bias) for piece in (before, after)]
+    measured = np.concatenate(windows)
+    if measured.shape[0] >= rm.TREND_MIN_BATCHES:
+        var = np.maximum(var, (measured * measured).mean(axis=0))
+        limit = rm.step_limit_one(model.s.false_alarm, float(measured.shape[0]))
     stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
-    if stat <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
+    if stat <= limit * model.s.gyro_threshold:
         return True
     return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
+
+
+def _window_integrals(gyro: NDArray[np.float64], t: NDArray[np.float64], piece: tuple[int, int], length: int,
+                      bias: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The rates less ``bias`` integrated over consecutive windows of ``length`` samples inside ``piece`` (k, 3)."""
+    a, z = piece
+    count = (z - a - 1) // length
+    if count < 1:
+        return np.zeros((0, 3))
+    stop = a + 1 + count * length
+    increments = (gyro[a + 1:stop] - bias) * np.diff(t[a:stop])[:, None]
+    return np.asarray(np.add.reduceat(increments, np.arange(0, count * length, length), axis=0))
 
 
 def stays_in_pose(model: RestModel, k_from: int, k_to: int, mean: NDArray[np.float64],
@@ -140,7 +163,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     difference (each mean's variance from the scatter of its block means, at least ``κ² v / n``), or by
     less than :data:`SAME_POSE_SAMPLE_SIGMAS` per-sample σ (a flicker noise's wander between two pieces
     of one rest) -- and the sensor did not turn between them: by the gyro, no net turn
-    (:func:`_no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
+    (:func:`no_net_turn`; a turn that comes back to the same orientation, a full turn of a table, is a
     move), or when the interruption is shorter than the dwell (the dwell as a prior: no pose is left and
     regained in less time than one is held); without the gyro as evidence, when the accelerometer shows that
     the sensor never left the pose between them (:func:`stays_in_pose`: a filter's smoothing or a knock cut one
@@ -166,7 +189,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
             else:
                 short = t[a] - t[end - 1] < dwell_s + 2.0 * block_s
                 if gyro is not None:
-                    still_between = short or no_net_turn(gyro, t, end, a, model, j0, gyro_scale)
+                    still_between = short or no_net_turn(gyro, t, groups[-1][-1], (a, z), model, j0, gyro_scale)
                 else:
                     still_between = short or stays_in_pose(model, previous_end, j0, 0.5 * (mean + last[0]),
                                                            0.5 * (model.pooled_variance(j0, j1) + last[3]))
