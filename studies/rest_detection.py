@@ -66,7 +66,14 @@ SETTINGS = StaticSettings()
 RESTING = [k for k in KINDS if k not in NEVER_RESTING]
 pd.set_option("display.width", 200)
 pd.set_option("display.max_columns", 20)
-detector_source = hashlib.sha256(inspect.getsource(static_module).encode()).hexdigest()[:12]
+import optcal.data.rest_model as rest_model_module  # noqa: E402
+import optcal.data.rest_tests as rest_tests_module  # noqa: E402
+import optcal.data.static_stretches as static_stretches_module  # noqa: E402
+
+# the detector's source: the statistics, their use on a recording, the poses' joining, and detect_static
+detector_source = hashlib.sha256("".join(
+    inspect.getsource(m) for m in (rest_model_module, rest_tests_module, static_stretches_module, static_module)
+).encode()).hexdigest()[:12]
 print(f"seeds {SEEDS.start}..{SEEDS.stop - 1} ({'quick' if QUICK else 'full'} run), settings {SETTINGS}")
 print(f"detector: {static_module.__name__}.detect_static, source sha256 {detector_source}")
 
@@ -222,7 +229,8 @@ why
 # ## 6. Conclusion
 #
 # Written from the full run (100 seeds × 6 kinds × 4 variants = 2400 recordings, about a minute of CPU) of the
-# rest model (`optcal/data/rest_model.py`, `optcal/data/static.py`; source sha256 printed above); the tables
+# rest model (`optcal/data/rest_model.py`, `rest_tests.py`, `static_stretches.py`, `static.py`; source sha256
+# printed above); the tables
 # above are the run this notebook carries.  The detector it replaced (thresholds at multiples of a noise floor
 # per recording, a "rest plateau" ratio placed between the shared files' values) scored, on the same corpus:
 # recall hand-held 0.26, turntable 1.00, low-pass 0.10, holds-only 0.74; never-resting recordings with a
@@ -235,16 +243,19 @@ why
 # * **Holds-only** logs: recall 1.00 (was 0.74): a jump between two holds is a step between block means
 #   like any other, with or without motion samples between them; single samples of the jump caught in a rest's
 #   last block are trimmed.
-# * **Low-pass** tags: recall 0.85 (was 0.10): 1.00 with a float gyro, 0.89 with a gyro in counts, 0.83
-#   without a gyro in counts, 0.68 without a gyro in float.  The filtered noise is measured as the noise colour
-#   κ² of the calmest blocks; a rest must also hold enough independent samples: two of the accelerometer, four
-#   of the gyro where it is evidence (its mean rate is tested against the noise of that mean).  A stretch of
-#   eight blocks or more measures the noise of its own mean from its batch means, which a filter's smoothing
-#   does not fool (the pairs of blocks overstate κ² when a block is smoother than the noise between blocks);
-#   a shorter one counts κ² samples as one.  This keeps a filtered move's slow still moments, and a hand's
-#   short pauses, from being poses.  Without a gyro the float tags' rests are still often split in two (270
-#   splits in 837 rests): two pieces of one rest, interrupted longer than the dwell, are joined only on the
-#   gyro's evidence of no net turn.
+# * **Low-pass** tags: recall 0.99 (was 0.10): 1.00 with a float gyro and without a gyro, 0.95 with a gyro in
+#   counts.  The filtered noise is measured as the noise colour κ² of the calmest blocks; a rest must also hold
+#   enough independent samples: two of the accelerometer, four of the gyro where it is evidence (its mean rate
+#   is tested against the noise of that mean).  A stretch of eight blocks or more measures the noise of its own
+#   mean from its batch means, which a filter's smoothing does not fool (the pairs of blocks overstate κ² when a
+#   block is smoother than the noise between blocks); a shorter one counts κ² samples as one.  This keeps a
+#   filtered move's slow still moments, and a hand's short pauses, from being poses.  The step test often cuts
+#   a filtered rest in two; the pieces are one pose when nothing turned between them: by the gyro, its rate's
+#   integral over the interruption within the noise of that integral measured inside the two rests (windows of
+#   the interruption's length; a filtered rate rounded to counts wanders more than its blocks' q²/12 spread
+#   says); without the gyro, the accelerometer's block means never leaving the pose's wobble tolerance.  19
+#   splits in 837 rests remain with a gyro in counts (66 when the model alone gave the integral's noise, and
+#   270 without a gyro in float before the accelerometer's evidence joined them).
 # * **Never resting, with the gyro**: a pose in 1 % of the slow-turn recordings and 9-10 % of the slow-drift
 #   ones (0.1-1 °/s, below what a MEMS gyro's bias may move within a session, 1 °/s, so told from a bias only
 #   through the accelerometer).
