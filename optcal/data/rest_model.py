@@ -319,21 +319,105 @@ def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDA
     return np.asarray((d * d / np.maximum(scale, np.finfo(float).tiny)).sum(axis=1))
 
 
-def batch_means(x: NDArray[np.float64], batches: int, larger_first: bool = False) -> NDArray[np.float64]:
-    """Means of ``x`` (along its first axis) over ``batches`` batches of consecutive rows, sizes differing by one:
-    spread evenly (batch ``i`` starts at row ``⌊i k / batches⌋``), or the larger first (as
-    :func:`numpy.array_split`).  The tests of a stretch each keep the grouping they were measured with: near its
-    critical value a test's verdict depends on which blocks share a batch."""
-    k = x.shape[0]
+@dataclass(frozen=True)
+class Ranges:
+    """Disjoint ranges ``[start, stop)`` of rows (of blocks), in order, and their rows concatenated.
+
+    The tests of many stretches at once: a statistic of each range is a sum over its rows
+    (:meth:`sums`, by :func:`numpy.add.reduceat` on the concatenated rows), and a value of each range is
+    spread back to its rows by :attr:`owner`.
+    """
+
+    start: NDArray[np.intp]
+    stop: NDArray[np.intp]
+    rows: NDArray[np.intp]  # the rows of every range, concatenated
+    owner: NDArray[np.intp]  # the range of each concatenated row
+    offset: NDArray[np.intp]  # where each range begins among the concatenated rows
+
+    @classmethod
+    def of(cls, start: NDArray[np.intp] | list[int], stop: NDArray[np.intp] | list[int]) -> Ranges:
+        a = np.asarray(start, dtype=np.intp)
+        z = np.asarray(stop, dtype=np.intp)
+        length = z - a
+        if np.any(length < 1):
+            raise ValueError("every range holds at least one row")
+        offset = np.concatenate([[0], np.cumsum(length)[:-1]]).astype(np.intp)
+        owner = np.repeat(np.arange(a.size, dtype=np.intp), length)
+        rows = np.arange(int(length.sum()), dtype=np.intp) - offset[owner] + a[owner]
+        return cls(a, z, rows, owner, offset)
+
+    @property
+    def length(self) -> NDArray[np.intp]:
+        return np.asarray(self.stop - self.start)
+
+    @property
+    def count(self) -> int:
+        return int(self.start.size)
+
+    def sums(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per range, the sum of ``x`` (given over the concatenated rows) along its first axis."""
+        return np.asarray(np.add.reduceat(x, self.offset, axis=0))
+
+
+def batch_ranges(r: Ranges, batches: NDArray[np.intp] | int, larger_first: bool = False) -> tuple[Ranges, NDArray[np.intp]]:
+    """The batches of consecutive rows of each range: ``batches`` per range (at most its rows), sizes differing by
+    one, spread evenly (batch ``i`` of ``k`` rows starts at row ``⌊i k / batches⌋``) or the larger first (as
+    :func:`numpy.array_split`).  Returns the batches as ranges of the concatenated rows of ``r``, and each
+    batch's range.  The tests each keep the grouping they were measured with: near its critical value a
+    test's verdict depends on which blocks share a batch."""
+    k = r.length
+    nb = np.minimum(np.broadcast_to(np.asarray(batches, dtype=np.intp), k.shape), k)
+    owner = np.repeat(np.arange(r.count, dtype=np.intp), nb)
+    first = np.concatenate([[0], np.cumsum(nb)[:-1]]).astype(np.intp)
+    i = np.arange(int(nb.sum()), dtype=np.intp) - first[owner]
+    kb, nbb = k[owner], nb[owner]
     if larger_first:
-        size, extra = divmod(k, batches)
-        sizes = np.full(batches, float(size))
-        sizes[:extra] += 1.0
-        starts = np.concatenate([[0], np.cumsum(sizes[:-1])]).astype(np.intp)
+        size, extra = kb // nbb, kb % nbb
+        within = i * size + np.minimum(i, extra)
     else:
-        starts = (np.arange(batches) * k) // batches
-        sizes = np.diff(np.append(starts, k)).astype(float)
-    return np.asarray(np.add.reduceat(x, starts, axis=0) / (sizes if x.ndim == 1 else sizes[:, None]))
+        within = (i * kb) // nbb
+    start = r.offset[owner] + within
+    stop = np.append(start[1:], int(r.length.sum()))  # the ranges are concatenated: a range's last batch ends at the next's first
+    return Ranges.of(start, stop), owner
+
+
+def batch_means(x: NDArray[np.float64], batches: int, larger_first: bool = False) -> NDArray[np.float64]:
+    """Means of ``x`` (along its first axis) over ``batches`` batches of consecutive rows (:func:`batch_ranges`)."""
+    b, _ = batch_ranges(Ranges.of([0], [x.shape[0]]), batches, larger_first)
+    sizes = b.length.astype(float)
+    return np.asarray(b.sums(x) / (sizes if x.ndim == 1 else sizes[:, None]))
+
+
+def trend_statistics(t: NDArray[np.float64], x: NDArray[np.float64], r: Ranges, batches: int = TREND_BATCHES
+                     ) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`trend_statistic` of each range of rows ``r`` of ``t`` (nb,) and ``x`` (nb, 3): arrays of the
+    largest |t|, its degrees of freedom, the fitted change and the range of the batch means."""
+    nb = np.minimum(batches, r.length)
+    bt, owner = batch_ranges(r, batches)
+    sizes = bt.length.astype(float)
+    tb = bt.sums(t[r.rows]) / sizes
+    xb = bt.sums(x[r.rows]) / sizes[:, None]
+    tc = tb - (_range_sums(tb, nb) / nb)[owner]
+    xc = xb - (_range_sums(xb, nb) / nb[:, None])[owner]
+    sxx = _range_sums(tc * tc, nb)
+    tiny = np.finfo(float).tiny
+    slope = _range_sums(tc[:, None] * xc, nb) / np.maximum(sxx, tiny)[:, None]
+    resid = xc - tc[:, None] * slope[owner]
+    s2 = _range_sums(resid * resid, nb) / np.maximum(nb - 2, 1)[:, None]
+    se = np.sqrt(np.maximum(s2, tiny) / np.maximum(sxx, tiny)[:, None])
+    tstat = np.max(np.abs(slope) / se, axis=1)
+    change = np.linalg.norm(slope, axis=1) * (t[r.stop - 1] - t[r.start])
+    first = np.concatenate([[0], np.cumsum(nb)[:-1]]).astype(np.intp)
+    spread = np.linalg.norm(np.maximum.reduceat(xb, first, axis=0) - np.minimum.reduceat(xb, first, axis=0), axis=1)
+    valid = (nb >= TREND_MIN_BATCHES) & (sxx > 0)
+    zero = np.zeros(r.count)
+    return (np.where(valid, tstat, zero), np.where(valid, nb - 2, 0), np.where(valid, change, zero),
+            np.where(valid, spread, zero))
+
+
+def _range_sums(x: NDArray[np.float64], counts: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Sums of ``x`` over consecutive groups of ``counts`` rows."""
+    return np.asarray(np.add.reduceat(x, np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.intp), axis=0))
 
 
 def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
@@ -344,25 +428,11 @@ def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
     ``min(batches, k)`` batches of consecutive blocks, each batch's mean regressed on its time, and
     the slope divided by its standard error from the residual scatter (``batches − 2`` dof).
     Also returns the size of the fitted change over the stretch and the range of the batch means (norms
-    over the axes).  Returns zeros for fewer than :data:`TREND_MIN_BATCHES` batches.
+    over the axes).  Returns zeros for fewer than :data:`TREND_MIN_BATCHES` batches.  (One range of
+    :func:`trend_statistics`.)
     """
-    k = x.shape[0]
-    nb = min(batches, k)
-    if nb < TREND_MIN_BATCHES:
-        return 0.0, 0, 0.0, 0.0
-    tb = batch_means(t, nb)
-    xb = batch_means(x, nb)
-    tc = tb - tb.mean()
-    sxx = float(tc @ tc)
-    if sxx <= 0:
-        return 0.0, 0, 0.0, 0.0
-    slope = tc @ (xb - xb.mean(axis=0)) / sxx
-    resid = xb - xb.mean(axis=0) - np.outer(tc, slope)
-    s2 = (resid * resid).sum(axis=0) / (nb - 2)
-    se = np.sqrt(np.maximum(s2, np.finfo(float).tiny) / sxx)
-    change = float(np.linalg.norm(slope) * (t[-1] - t[0]))
-    spread = float(np.linalg.norm(xb.max(axis=0) - xb.min(axis=0)))
-    return float(np.max(np.abs(slope) / se)), nb - 2, change, spread
+    tstat, dof, change, spread = trend_statistics(t, x, Ranges.of([0], [x.shape[0]]), batches)
+    return float(tstat[0]), int(dof[0]), float(change[0]), float(spread[0])
 
 
 @lru_cache(maxsize=256)

@@ -8,6 +8,7 @@ found), and judges each still stretch (:meth:`RestModel.peel`, :meth:`~RestModel
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,6 +23,27 @@ from optcal.data.window_stats import quantum
 
 if TYPE_CHECKING:
     from optcal.data.static import StaticSettings
+
+
+@dataclass(frozen=True)
+class Verdicts:
+    """The tests of still stretches (:meth:`RestModel.judge`), one entry per stretch.
+
+    Attributes
+    ----------
+    per_sample : ndarray
+        Per-sample standard deviation about the stretch's mean (norm over the axes).
+    creeps, turns : ndarray of bool
+        The accelerometer's mean moves; the gyro's mean rate is off the bias (a slow turn).
+    independent, independent_gyro : ndarray
+        Independent samples of the accelerometer and of the gyro (infinite where it is no evidence).
+    """
+
+    per_sample: NDArray[np.float64]
+    creeps: NDArray[np.bool_]
+    turns: NDArray[np.bool_]
+    independent: NDArray[np.float64]
+    independent_gyro: NDArray[np.float64]
 
 
 class RestModel:
@@ -193,31 +215,36 @@ class RestModel:
         return b.gmean, b.gvar
 
     def pooled_variance(self, k0: int, k1: int, gyro: bool = False) -> NDArray[np.float64]:
-        """Per-axis variance of the samples of blocks ``[k0, k1)`` about their common mean (the blocks' own
-        variances and the spread of their means, pooled); computed once per stretch (several tests ask)."""
+        """Per-axis variance of the samples of blocks ``[k0, k1)`` about their common mean (:meth:`_pooled_variances`);
+        computed once per stretch (several tests ask)."""
         key = (gyro, k0, k1)
         if key not in self._pooled:
-            means, var = self._moments(gyro)
-            w = self.b.n[k0:k1, None]
-            n = float(w.sum())
-            mean = (means[k0:k1] * w).sum(axis=0) / n
-            self._pooled[key] = np.asarray(((var[k0:k1] * (w - 1.0)).sum(axis=0)
-                                            + (w * (means[k0:k1] - mean) ** 2).sum(axis=0)) / (n - 1.0))
+            self._pooled[key] = self._pooled_variances(rm.Ranges.of([k0], [k1]), gyro)[0]
         return self._pooled[key]
+
+    def _pooled_variances(self, r: rm.Ranges, gyro: bool) -> NDArray[np.float64]:
+        """Per range of blocks and axis, the variance of the samples about their common mean (the blocks' own
+        variances and the spread of their means, pooled) (P, 3)."""
+        means, var = self._moments(gyro)
+        w = self.b.n[r.rows, None]
+        n = r.sums(w)
+        mean = r.sums(means[r.rows] * w) / n
+        dev = means[r.rows] - mean[r.owner]
+        return np.asarray((r.sums(var[r.rows] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0))
 
     def effective_samples(self, a: int, z: int, k0: int, k1: int) -> float:
         """Independent accelerometer samples in ``[a, z)`` (blocks ``[k0, k1)``): see :meth:`_independent`."""
-        return self._independent(False, self.kappa2, a, z, k0, k1)
+        r = rm.Ranges.of([k0], [k1])
+        return float(self._independent(r, False, np.array([z - a], dtype=float))[0])
 
     def effective_gyro_samples(self, a: int, z: int, k0: int, k1: int) -> float:
         """Independent gyro samples in ``[a, z)`` by the gyro's own noise (infinite where the gyro is no evidence
         of motion)."""
-        if self.bias is None or self.b.gmean is None or self.b.gvar is None:
-            return float("inf")
-        return self._independent(True, self.gkappa2, a, z, k0, k1)
+        r = rm.Ranges.of([k0], [k1])
+        return float(self._independent(r, True, np.array([z - a], dtype=float))[0])
 
-    def _independent(self, gyro: bool, kappa2: NDArray[np.float64], a: int, z: int, k0: int, k1: int) -> float:
-        """Samples over the noise colour: a stretch's per-sample variance over the variance of its mean.
+    def _independent(self, r: rm.Ranges, gyro: bool, samples: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Samples over the noise colour: each stretch's per-sample variance over the variance of its mean.
 
         A stretch of :data:`~optcal.data.rest_model.TREND_BATCHES` blocks or more measures the variance of its
         mean itself, from its block means as a first-order autoregression (their variance over their number,
@@ -225,22 +252,40 @@ class RestModel:
         neither a filter's smoothing, which the pairs of blocks overstate (a block smoother than the noise
         between blocks), nor a sway correlated over several blocks is misread.  A shorter one takes the
         recording's colour ``κ²`` (a block's ``κ²`` samples carry the information of one).  The median over
-        the axes.
+        the axes.  ``samples``: each stretch's samples; infinite for the gyro where it is no evidence of motion.
         """
-        b = self.b
-        k = k1 - k0
-        if k < rm.TREND_BATCHES:
-            return (z - a) / max(float(np.sort(kappa2)[1]), 1.0)  # the median of the three axes
-        n = float(b.n[k0:k1].sum())
-        per_sample = self.pooled_variance(k0, k1, gyro)
-        means = self._moments(gyro)[0][k0:k1]
-        d = means - means.mean(axis=0)
-        scatter = (d * d).sum(axis=0)
+        if gyro and (self.bias is None or self.b.gmean is None):
+            return np.full(r.count, np.inf)
+        kappa2 = self.gkappa2 if gyro else self.kappa2
+        short = samples / max(float(np.sort(kappa2)[1]), 1.0)  # the median of the three axes
+        k = r.length.astype(float)
+        if not np.any(k >= rm.TREND_BATCHES):
+            return short
+        per_sample = self._pooled_variances(r, gyro)
+        means = self._moments(gyro)[0][r.rows]
+        d = means - (r.sums(means) / k[:, None])[r.owner]
+        scatter = r.sums(d * d)
+        lagged = np.zeros_like(d)
+        lagged[1:] = d[1:] * d[:-1]
+        lagged[r.offset] = 0.0  # a stretch's first block has no predecessor in it
         tiny = np.finfo(float).tiny
-        rho = np.clip((d[1:] * d[:-1]).sum(axis=0) / np.maximum(scatter, tiny), 0.0, 1.0 - 1.0 / k)
-        var_mean = scatter / (k - 1.0) / k * (1.0 + rho) / (1.0 - rho)
-        ratio = per_sample / np.maximum(var_mean, tiny)
-        return float(min(np.sort(ratio)[1], n))  # the median of the three axes
+        with np.errstate(divide="ignore", invalid="ignore"):  # the short stretches, whose values are not used
+            rho = np.clip(r.sums(lagged) / np.maximum(scatter, tiny), 0.0, (1.0 - 1.0 / k)[:, None])
+            var_mean = scatter / (k - 1.0)[:, None] / k[:, None] * (1.0 + rho) / (1.0 - rho)
+            ratio = np.sort(per_sample / np.maximum(var_mean, tiny), axis=1)[:, 1]  # the median of the three axes
+        n = r.sums(self.b.n[r.rows])
+        return np.where(k >= rm.TREND_BATCHES, np.minimum(ratio, n), short)
+
+    def judge(self, pieces: list[tuple[int, int, int, int]]) -> Verdicts:
+        """The tests of each still stretch ``(a, z, k0, k1)`` (samples ``[a, z)``, blocks ``[k0, k1)``), all at once."""
+        r = rm.Ranges.of([p[2] for p in pieces], [p[3] for p in pieces])
+        samples = np.array([p[1] - p[0] for p in pieces], dtype=float)
+        pooled = self._pooled_variances(r, False)
+        for (_, _, k0, k1), v in zip(pieces, pooled):
+            self._pooled[(False, k0, k1)] = v
+        per_sample = np.sqrt(pooled.sum(axis=1))
+        return Verdicts(per_sample, self._creeps(r, per_sample), self._turns(r),
+                        self._independent(r, False, samples), self._independent(r, True, samples))
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.
@@ -294,8 +339,8 @@ class RestModel:
         dropped = [k for k, flag in zip(kept, odd) if flag]
         return [k for k, flag in zip(kept, odd) if not flag], len(dropped), sum(z - a for a, z, _, _ in dropped)
 
-    def creeps(self, k0: int, k1: int) -> bool:
-        """Whether the run's accelerometer mean moves (a slow turn).
+    def _creeps(self, r: rm.Ranges, per_sample: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Whether each stretch's accelerometer mean moves (a slow turn).
 
         Either its batch means trend significantly (Student's t of their slope) by more than the samples' own
         spread about the stretch's mean (:data:`SAME_POSE_SAMPLE_SIGMAS` σ; a creep hidden in it, a flicker
@@ -305,54 +350,60 @@ class RestModel:
         curved path does without a straight trend.
         """
         b = self.b
-        tstat, dof, change, spread = rm.trend_statistic(b.t_mid[k0:k1], b.mean[k0:k1])
-        if dof <= 0:  # too few blocks for batches: the blocks' own means are the batch means
-            spread = float(np.linalg.norm(b.mean[k0:k1].max(axis=0) - b.mean[k0:k1].min(axis=0)))
-        noise = SAME_POSE_SAMPLE_SIGMAS * self.spread(k0, k1)
+        tstat, dof, change, spread = rm.trend_statistics(b.t_mid, b.mean, r)
+        means = b.mean[r.rows]  # too few blocks for batches: the blocks' own means are the batch means
+        blocks_range = np.linalg.norm(np.maximum.reduceat(means, r.offset) - np.minimum.reduceat(means, r.offset), axis=1)
+        spread = np.where(dof > 0, spread, blocks_range)
+        noise = SAME_POSE_SAMPLE_SIGMAS * per_sample
         pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
         k = self.s.drift_threshold
-        trending = dof > 0 and tstat > rm.trend_limit(self.s.false_alarm, dof) * k and change > min(noise, pose) * k
-        return bool(trending or spread > max(noise, pose) * k)
+        limit = np.array([rm.trend_limit(self.s.false_alarm, int(d)) if d > 0 else np.inf for d in dof])
+        trending = (dof > 0) & (tstat > limit * k) & (change > np.minimum(noise, pose) * k)
+        return np.asarray(trending | (spread > np.maximum(noise, pose) * k))
 
-    def turns(self, k0: int, k1: int) -> bool:
-        """Whether the run's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias moves
-        (:data:`MAX_BIAS_WANDER_RAD_S`) -- through more than a pose's wobble tolerance.
+    def _turns(self, r: rm.Ranges) -> NDArray[np.bool_]:
+        """Whether each stretch's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias
+        moves (:data:`MAX_BIAS_WANDER_RAD_S`) -- through more than a pose's wobble tolerance.
 
-        The noise of the run's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
-        batch means (a hand's tremor and flicker included; Student's t with their dof) when the run has as many
+        The noise of the stretch's mean rate is the scatter of its :data:`~optcal.data.rest_model.TREND_BATCHES`
+        batch means (a hand's tremor and flicker included; Student's t with their dof) when it has as many
         blocks, else the blocks' own noise of the mean times the gyro's noise colour (normal); the bias' wander
         between rests is added.  A significant offset that turns the sensor through less than
-        ``√(2 WOBBLE_SHRINK)`` over the run, or over :data:`WOBBLE_DWELLS` dwells if the run is longer (a hand
+        ``√(2 WOBBLE_SHRINK)`` over the stretch, or over :data:`WOBBLE_DWELLS` dwells if it is longer (a hand
         sagging by a fraction of a degree, a bias wandering over minutes), moves no pose.
         """
         b = self.b
-        if b.gmean is None or self.bias is None:
-            return False
-        k = k1 - k0
-        w = b.n[k0:k1, None]
-        off = (b.gmean[k0:k1] * w).sum(axis=0) / w.sum() - self.bias
-        if k >= rm.TREND_BATCHES:
-            xb = rm.batch_means(b.gmean[k0:k1], rm.TREND_BATCHES, larger_first=True)
-            se2 = xb.var(axis=0, ddof=1) / rm.TREND_BATCHES + self.wander2
-            limit = rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1)
-        else:
-            assert self.gvar_ref is not None
-            se2 = self.gkappa2 * rm.column_median(self.gvar_ref[k0:k1]) / w.sum() + self.wander2
-            limit = rm.normal_limit(self.s.false_alarm / 6.0)
+        if b.gmean is None or self.bias is None or self.gvar_ref is None:
+            return np.zeros(r.count, dtype=bool)
+        w = b.n[r.rows, None]
+        n = r.sums(b.n[r.rows])
+        off = r.sums(b.gmean[r.rows] * w) / n[:, None] - self.bias
+        k = r.length
+        long = k >= rm.TREND_BATCHES
+        se2 = np.empty((r.count, 3))
+        if long.any():
+            sub = rm.Ranges.of(r.start[long], r.stop[long])
+            batches, owner = rm.batch_ranges(sub, rm.TREND_BATCHES, larger_first=True)
+            xb = batches.sums(b.gmean[sub.rows]) / batches.length[:, None]
+            first = np.arange(sub.count) * rm.TREND_BATCHES
+            dev = xb - (np.add.reduceat(xb, first) / rm.TREND_BATCHES)[owner]
+            se2[long] = np.add.reduceat(dev * dev, first) / (rm.TREND_BATCHES - 1.0) / rm.TREND_BATCHES + self.wander2
+        for i in np.flatnonzero(~long):
+            se2[i] = self.gkappa2 * rm.column_median(self.gvar_ref[r.start[i]:r.stop[i]]) / n[i] + self.wander2
+        limit = np.where(long, rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1),
+                         rm.normal_limit(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
-        significant = bool(np.max(z) > limit * self.s.gyro_threshold)
+        significant = np.max(z, axis=1) > limit * self.s.gyro_threshold
         if self.gyro_scale is None:
-            return significant
+            return np.asarray(significant)
         # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
         # statistics of a stretch that shakes say of its noise
-        beyond_bias = float(np.linalg.norm(off)) * self.gyro_scale > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
-        if not (significant or beyond_bias):
-            return False
+        rate = np.linalg.norm(off, axis=1) * self.gyro_scale
+        beyond_bias = rate > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
         # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
-        duration = min(float(b.t_mid[k1 - 1] - b.t_mid[k0]) + float(b.n[k0]) / self.rate,
-                       WOBBLE_DWELLS * self.s.min_dwell_s)
-        turned = float(np.linalg.norm(off)) * self.gyro_scale * duration
-        return turned > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold
+        duration = np.minimum(b.t_mid[r.stop - 1] - b.t_mid[r.start] + b.n[r.start] / self.rate,
+                              WOBBLE_DWELLS * self.s.min_dwell_s)
+        return np.asarray((significant | beyond_bias) & (rate * duration > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold))
 
     def noise(self) -> dict[str, float]:
         out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}

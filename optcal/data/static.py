@@ -345,6 +345,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         evidence["gyro_rad_per_unit"] = gyro_scale
     b = model.b
     pieces = model.split_by_noise(runs)
+    candidates: list[tuple[int, int, int, int]] = []  # sample range and block range of each piece long enough
     for k0, k1 in pieces:
         j0, j1 = model.peel(k0, k1)
         counts[EDGES] += int(b.stop[k1 - 1] - b.start[k0]) - int(b.stop[j1 - 1] - b.start[j0])
@@ -357,13 +358,17 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             counts[SHORT] += z - a
             counts[SHORT_STRETCHES] += 1
             continue
-        per_sample = model.spread(j0, j1)
+        candidates.append((a, z, j0, j1))
+    verdicts = model.judge(candidates) if candidates else None
+    for i, (a, z, j0, j1) in enumerate(candidates):
+        assert verdicts is not None
+        per_sample = float(verdicts.per_sample[i])
         if per_sample > MAX_REST_NOISE_G * one_g:
             counts[LOUD] += z - a
             counts[LOUD_STRETCHES] += 1
             evidence["loud_noise_min_g"] = min(evidence.get("loud_noise_min_g", np.inf), per_sample / one_g)
             continue
-        if model.creeps(j0, j1):
+        if verdicts.creeps[i]:
             counts[SWEEPING] += z - a
             counts[SWEEPING_STRETCHES] += 1
             continue
@@ -372,12 +377,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             counts[WOBBLE] += z - a
             counts[WOBBLE_STRETCHES] += 1
             continue
-        if model.turns(j0, j1):
+        if verdicts.turns[i]:
             counts[TURNING] += z - a
             counts[TURNING_STRETCHES] += 1
             continue
         # last: what no test above could show moving but holds too little independent evidence to show at rest
-        if (model.effective_samples(a, z, j0, j1) < min_acc or model.effective_gyro_samples(a, z, j0, j1) < min_gyro):
+        if verdicts.independent[i] < min_acc or verdicts.independent_gyro[i] < min_gyro:
             counts[FEW] += z - a
             counts[FEW_STRETCHES] += 1
             continue

@@ -109,15 +109,16 @@ def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple
     net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
     span = float(dt.sum())
     var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
-    limit = rm.chi2_limit(model.s.false_alarm, 3)
+    tiny = np.finfo(float).tiny
+    if float(np.sum(net * net / np.maximum(var, tiny))) <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
+        return True  # within the model's noise, and so within the larger one measured below (its limit is larger too)
     windows = [_window_integrals(gyro, t, piece, start - end, model.bias) for piece in (before, after)]
     measured = np.concatenate(windows)
     if measured.shape[0] >= rm.TREND_MIN_BATCHES:
         var = np.maximum(var, (measured * measured).mean(axis=0))
         limit = rm.step_limit_one(model.s.false_alarm, float(measured.shape[0]))
-    stat = float(np.sum(net * net / np.maximum(var, np.finfo(float).tiny)))
-    if stat <= limit * model.s.gyro_threshold:
-        return True
+        if float(np.sum(net * net / np.maximum(var, tiny))) <= limit * model.s.gyro_threshold:
+            return True
     return gyro_scale is not None and float(np.linalg.norm(net)) * gyro_scale < np.sqrt(2.0 * WOBBLE_SHRINK) * model.s.gyro_threshold
 
 
@@ -170,7 +171,6 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     rest in two).  Never across a time gap.
     """
     b = model.b
-    block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
     groups: list[list[tuple[int, int]]] = []
     last: tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64]] | None = None  # the group's first piece
     previous_end = 0  # the block after the previous piece
@@ -182,22 +182,13 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
         se2 = np.maximum(white, scatter)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
         if groups and last is not None:
-            end = groups[-1][-1][1]
-            gap = bool(np.max(np.diff(t[end - 1:a + 1])) > max_gap)
-            if gap:
-                still_between = False  # nothing is known of what the sensor did in a gap of the recording
-            else:
-                short = t[a] - t[end - 1] < dwell_s + 2.0 * block_s
-                if gyro is not None:
-                    still_between = short or no_net_turn(gyro, t, groups[-1][-1], (a, z), model, j0, gyro_scale)
-                else:
-                    still_between = short or stays_in_pose(model, previous_end, j0, 0.5 * (mean + last[0]),
-                                                           0.5 * (model.pooled_variance(j0, j1) + last[3]))
             d = mean - last[0]
             stat = float(np.sum(d * d / np.maximum(se2 + last[1], np.finfo(float).tiny)))
             same = stat <= rm.step_limit_one(model.s.false_alarm, 1e6) * model.s.threshold \
                 or float(np.linalg.norm(d)) < SAME_POSE_SAMPLE_SIGMAS * min(sd, last[2])
-            if still_between and same:
+            if same and _still_between(groups[-1][-1], (a, z), previous_end, j0, t, model, dwell_s, gyro, gyro_scale,
+                                       max_gap, 0.5 * (mean + last[0]),
+                                       0.5 * (model.pooled_variance(j0, j1) + last[3])):
                 groups[-1].append((a, z))
                 previous_end = j1
                 continue
@@ -205,6 +196,22 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
         last = (mean, se2, sd, model.pooled_variance(j0, j1))
         previous_end = j1
     return groups
+
+
+def _still_between(before: tuple[int, int], after: tuple[int, int], k_from: int, k_to: int, t: NDArray[np.float64],
+                   model: RestModel, dwell_s: float, gyro: NDArray[np.float64] | None, gyro_scale: float | None,
+                   max_gap: float, mean: NDArray[np.float64], per_sample_var: NDArray[np.float64]) -> bool:
+    """Whether the sensor stayed in its pose between the rests ``before`` and ``after`` (sample ranges; blocks
+    ``[k_from, k_to)`` between them): see :func:`join_twitches`."""
+    end, a = before[1], after[0]
+    if float(np.max(np.diff(t[end - 1:a + 1]))) > max_gap:
+        return False  # nothing is known of what the sensor did in a gap of the recording
+    block_s = model.block / model.rate  # both pieces' ends fall on block edges: the interruption is known to two blocks
+    if t[a] - t[end - 1] < dwell_s + 2.0 * block_s:
+        return True
+    if gyro is not None:
+        return no_net_turn(gyro, t, before, after, model, k_to, gyro_scale)
+    return stays_in_pose(model, k_from, k_to, mean, per_sample_var)
 
 
 def group_positions(group: list[tuple[int, int]]) -> slice | NDArray[np.int64]:
