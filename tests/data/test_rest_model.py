@@ -293,3 +293,30 @@ def test_a_pose_left_and_regained_without_gyro_stays_two_poses() -> None:
     over = _poses_over(after, a, b)
     assert len(over) == 2
     assert len(after.intervals) == len(before.intervals) + 1
+
+
+@pytest.mark.parametrize("use_gyro", [True, False])
+def test_the_stretches_judged_together_are_judged_as_one_by_one(monkeypatch, use_gyro) -> None:
+    """The Xsens log's still stretches judged at once give, stretch by stretch, what each judged alone gives (no
+    statistic of one stretch reaches into its neighbour's blocks)."""
+    from optcal.data.rest_tests import RestModel
+
+    calls = []
+    judge = RestModel.judge
+
+    def recording(self, pieces):
+        calls.append((self, list(pieces)))
+        return judge(self, pieces)
+
+    monkeypatch.setattr(RestModel, "judge", recording)
+    frame = pd.read_csv(need(XSENS))
+    detect_static(recording_from_source(source_from_frame(frame, "xsens", "csv")), StaticSettings(use_gyro=use_gyro))
+    (model, pieces), = calls
+    assert len(pieces) > 30
+    together = judge(model, pieces)
+    for i, piece in enumerate(pieces):
+        alone = judge(model, [piece])
+        for field in ("per_sample", "independent", "independent_gyro"):
+            assert getattr(alone, field)[0] == pytest.approx(getattr(together, field)[i], rel=1e-9)
+        assert alone.creeps[0] == together.creeps[i] and alone.turns[0] == together.turns[i]
+    assert np.isfinite(together.independent_gyro).all() == use_gyro  # the gyro counted only where it is evidence
