@@ -39,7 +39,8 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+
+from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -259,7 +260,7 @@ def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> ND
     """``κ²`` per axis: the ``quantile`` of the pairs' ratios over the same quantile of ``F(1, dof)`` (at least 1)."""
     if ratios.shape[0] == 0:
         return np.ones(ratios.shape[1])
-    expected = float(stats.f.ppf(quantile, 1, max(dof, 1.0)))
+    expected = quantiles.f_ppf(quantile, 1.0, max(dof, 1.0))
     return np.asarray(np.maximum(np.quantile(ratios, quantile, axis=0) / expected, 1.0))
 
 
@@ -270,7 +271,7 @@ def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> 
 
 @lru_cache(maxsize=4096)
 def _f_isf(false_alarm: float, d1: float, d2: float) -> float:
-    return float(stats.f.isf(false_alarm, d1, d2))
+    return quantiles.f_isf(false_alarm, d1, d2)
 
 
 def step_limit_one(false_alarm: float, dof: float) -> float:
@@ -289,13 +290,13 @@ def step_limit(false_alarm: float, dof: NDArray[np.float64] | float) -> NDArray[
 @lru_cache(maxsize=256)
 def chi2_limit(false_alarm: float, dof: int) -> float:
     """The ``1 − false_alarm`` quantile of χ² with ``dof`` degrees of freedom."""
-    return float(stats.chi2.isf(false_alarm, dof))
+    return quantiles.chi2_isf(false_alarm, dof)
 
 
 @lru_cache(maxsize=256)
 def normal_limit(false_alarm: float) -> float:
     """The one-sided ``1 − false_alarm`` quantile of the standard normal."""
-    return float(stats.norm.isf(false_alarm))
+    return quantiles.norm_isf(false_alarm)
 
 
 def half_sample_mode(x: NDArray[np.float64]) -> float:
@@ -438,7 +439,7 @@ def trend_statistic(t: NDArray[np.float64], x: NDArray[np.float64],
 @lru_cache(maxsize=256)
 def trend_limit(false_alarm: float, dof: int, axes: int = 3) -> float:
     """Two-sided Student ``t`` quantile at ``false_alarm`` shared over ``axes`` (Bonferroni)."""
-    return float(stats.t.isf(false_alarm / (2 * axes), max(dof, 1)))
+    return quantiles.t_isf(false_alarm / (2 * axes), max(dof, 1))
 
 
 def mean_shift_statistic(block_mean: NDArray[np.float64], block_var: NDArray[np.float64], n_block: float,

@@ -88,3 +88,29 @@ def test_reproduce_lu2017_json(capsys):
     d = json.loads(out)
     assert d["literal_schedule"]["fisher_rank"] == 8
     assert set(d["monte_carlo"]["methods"]) == {"svd", "convex", "mle", "exact", "gd"}
+
+
+def test_calibrating_a_raw_recording_loads_no_heavy_library(tmp_path):
+    """`optcal calibrate` on a raw recording (read, rest detection, fit) starts no scipy, pandas, cvxpy or
+    matplotlib: the rest model's critical values come from optcal.core.quantiles (scipy.stats alone costs
+    0.5-0.8 s of a start that imu_tk finishes its whole calibration in, 0.30-0.38 s)."""
+    import subprocess
+    import sys
+
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import uniform_directions
+    from optcal.families.simulate.recording import synthesize_recording
+
+    path = tmp_path / "raw.csv"
+    synthesize_recording(lu2017_reference_model(), uniform_directions(12, rng=1), dwell_s=3.0, sigma=0.002,
+                         rng=2).to_csv(str(path))
+    script = ("import sys, io, contextlib\n"
+              "from optcal.cli.main import main\n"
+              f"sys.argv = ['optcal', 'calibrate', {str(path)!r}, '--json']\n"
+              "with contextlib.redirect_stdout(io.StringIO()):\n"
+              "    try:\n        main()\n    except SystemExit as e:\n        assert not e.code, e.code\n"
+              "print(sorted({m.split('.')[0] for m in sys.modules}))")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    loaded = set(eval(done.stdout.strip().splitlines()[-1]))
+    assert "numpy" in loaded and "casadi" in loaded
+    assert not loaded & {"scipy", "pandas", "cvxpy", "matplotlib", "pyarrow"}, loaded
