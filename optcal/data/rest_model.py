@@ -14,6 +14,9 @@ noisy as the others: every test compares a change with the noise measured where 
   consecutive block means to its white-noise expectation, at the quietest quarter of the pairs
   (recordings are mostly at rest, so the quarter of smallest changes are pairs inside a rest), and
   again inside the rests first found; never below 1.
+* **Rounding.**  Where the signal's own noise is below half a converter step (a filtered or very quiet
+  signal), the rounding does not average down in a block mean: each mean keeps ``q²/12``
+  (:func:`rounding_floor`), added to the white noise of a mean before the colour multiplies it.
 * **A step** between consecutive blocks (:func:`step_statistic`): ``Σ_j d_j² / (κ_j² v_j (1/n_a +
   1/n_b))`` with ``v_j`` the pooled variance of the two blocks, which at rest follows ``3 F(3,
   n_a + n_b − 2)``; a step beyond its ``1 − false_alarm`` quantile is motion, or a jump between
@@ -219,11 +222,30 @@ def local_noise(var: NDArray[np.float64], half_width: int) -> NDArray[np.float64
     return out
 
 
-def pair_ratios(mean: NDArray[np.float64], var: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Per axis, the squared change between consecutive block means over its white-noise variance (nb − 1, 3)."""
+def rounding_floor(var: NDArray[np.float64], quantum: float) -> NDArray[np.float64]:
+    """Per axis, the variance a block mean keeps from the converter's rounding: ``q²/12`` where the signal's own
+    noise is below the quantum, else 0.
+
+    Rounding adds white noise of ``q²/12`` per sample, which a block mean averages down, only while the signal's
+    own noise spans the quantum (Widrow's quantisation theorem: a standard deviation of half a quantum or
+    more); a quieter signal (a filtered one, or a very quiet sensor) is rounded to the same few values over many
+    samples, and its block means step by a fraction of a quantum as it drifts across a rounding edge.  The
+    signal's own variance is the calm blocks' (the :data:`QUIET_PAIRS_QUANTILE` quantile) less ``q²/12``.
+    """
+    if quantum <= 0 or var.shape[0] == 0:
+        return np.zeros(var.shape[1])
+    q2 = quantum * quantum / 12.0
+    own = np.quantile(var, QUIET_PAIRS_QUANTILE, axis=0) - q2
+    return np.where(own < 0.25 * quantum * quantum, q2, 0.0)
+
+
+def pair_ratios(mean: NDArray[np.float64], var: NDArray[np.float64], n: NDArray[np.float64],
+                floor: NDArray[np.float64] | float = 0.0) -> NDArray[np.float64]:
+    """Per axis, the squared change between consecutive block means over its white-noise variance, each mean's
+    rounding ``floor`` (:func:`rounding_floor`) added (nb − 1, 3)."""
     d = np.diff(mean, axis=0)
     pooled = 0.5 * (var[1:] + var[:-1])
-    scale = pooled * (1.0 / n[1:] + 1.0 / n[:-1])[:, None]
+    scale = pooled * (1.0 / n[1:] + 1.0 / n[:-1])[:, None] + 2.0 * np.asarray(floor)
     return np.asarray(d * d / np.maximum(scale, np.finfo(float).tiny))
 
 
@@ -313,10 +335,13 @@ def half_sample_mode(x: NDArray[np.float64]) -> float:
 
 
 def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDArray[np.float64],
-                   bias: NDArray[np.float64], kappa2: NDArray[np.float64], wander2: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``Σ_j (ω̄_j − b_j)² / (κ_j² v_j / n + u_j²)`` of each block: ``3 F(3, n − 1)`` at rest."""
+                   bias: NDArray[np.float64], kappa2: NDArray[np.float64], wander2: NDArray[np.float64],
+                   floor: NDArray[np.float64] | float = 0.0) -> NDArray[np.float64]:
+    """``Σ_j (ω̄_j − b_j)² / (κ_j² (v_j / n + f_j) + u_j²)`` of each block (``f``: the rounding floor of a block
+    mean, :func:`rounding_floor`; the colour ``κ²`` is measured against the same white noise, :func:`pair_ratios`):
+    ``3 F(3, n − 1)`` at rest."""
     d = gmean - bias
-    scale = kappa2 * gvar / n[:, None] + wander2
+    scale = kappa2 * (gvar / n[:, None] + floor) + wander2
     return np.asarray((d * d / np.maximum(scale, np.finfo(float).tiny)).sum(axis=1))
 
 
@@ -443,8 +468,10 @@ def trend_limit(false_alarm: float, dof: int, axes: int = 3) -> float:
 
 
 def mean_shift_statistic(block_mean: NDArray[np.float64], block_var: NDArray[np.float64], n_block: float,
-                         rest_mean: NDArray[np.float64], kappa2: NDArray[np.float64], n_rest: float) -> float:
-    """A block's mean against the mean of the rest of its stretch, in units of their noise: ``3 F(3, ·)`` at rest."""
+                         rest_mean: NDArray[np.float64], kappa2: NDArray[np.float64], n_rest: float,
+                         floor: NDArray[np.float64] | float = 0.0) -> float:
+    """A block's mean against the mean of the rest of its stretch, in units of their noise (each mean's rounding
+    ``floor`` added, :func:`rounding_floor`): ``3 F(3, ·)`` at rest."""
     d = block_mean - rest_mean
-    scale = kappa2 * block_var * (1.0 / n_block + 1.0 / max(n_rest, 1.0))
+    scale = kappa2 * (block_var * (1.0 / n_block + 1.0 / max(n_rest, 1.0)) + 2.0 * np.asarray(floor))
     return float((d * d / np.maximum(scale, np.finfo(float).tiny)).sum())

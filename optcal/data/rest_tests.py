@@ -62,7 +62,9 @@ class RestModel:
         b.var_ref = rm.local_noise(b.var, self.half_width)
         self.valid = b.joined[1:]
         self.dof = b.n[1:] + b.n[:-1] - 2.0
-        self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n)
+        self.floor = rm.rounding_floor(b.var, qa)
+        self.gfloor = rm.rounding_floor(b.gvar, qg) if b.gvar is not None else np.zeros(3)
+        self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n, self.floor)
         self.dof0 = dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
         # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
         # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
@@ -105,13 +107,13 @@ class RestModel:
         if first:
             self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
             self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
-            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n)
+            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
             pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
             self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
         assert self.bias is not None and self.gvar_ref is not None
-        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2)
+        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2, self.gfloor)
         self.still = self.gstat <= self.gyro_limit
 
     def _measure_wander(self) -> None:
@@ -189,7 +191,8 @@ class RestModel:
                 others = slice(k0 + 1, min(k1, k0 + 1 + self.half_width)) if end == k0 else slice(max(k0, k1 - 1 - self.half_width), k1 - 1)
                 n_rest = float(b.n[others].sum())
                 rest_mean = (b.mean[others] * b.n[others, None]).sum(axis=0) / n_rest
-                stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest)
+                stat = rm.mean_shift_statistic(b.mean[end], b.var_ref[end], float(b.n[end]), rest_mean, self.kappa2, n_rest,
+                                               self.floor)
                 if stat > rm.step_limit_one(self.s.false_alarm, b.n[end] - 1.0) * self.s.threshold:
                     if end == k0:
                         k0 += 1
@@ -389,7 +392,7 @@ class RestModel:
             dev = xb - (np.add.reduceat(xb, first) / rm.TREND_BATCHES)[owner]
             se2[long] = np.add.reduceat(dev * dev, first) / (rm.TREND_BATCHES - 1.0) / rm.TREND_BATCHES + self.wander2
         for i in np.flatnonzero(~long):
-            se2[i] = self.gkappa2 * rm.column_median(self.gvar_ref[r.start[i]:r.stop[i]]) / n[i] + self.wander2
+            se2[i] = self.gkappa2 * (rm.column_median(self.gvar_ref[r.start[i]:r.stop[i]]) / n[i] + self.gfloor) + self.wander2
         limit = np.where(long, rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1),
                          rm.normal_limit(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))

@@ -108,7 +108,7 @@ def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple
     rates = gyro[end:start] - model.bias
     net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
     span = float(dt.sum())
-    var = model.gkappa2 * model.gvar_ref[block] * float(np.sum(dt * dt)) + model.wander2 * span * span
+    var = model.gkappa2 * (model.gvar_ref[block] * float(np.sum(dt * dt)) + model.gfloor * span * span) + model.wander2 * span * span
     tiny = np.finfo(float).tiny
     if float(np.sum(net * net / np.maximum(var, tiny))) <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
         return True  # within the model's noise, and so within the larger one measured below (its limit is larger too)
@@ -149,7 +149,7 @@ def stays_in_pose(model: RestModel, k_from: int, k_to: int, mean: NDArray[np.flo
         return True
     d = b.mean[k_from:k_to] - mean
     distance = np.sqrt((d * d).sum(axis=1))
-    noise2 = (model.kappa2 * per_sample_var).sum() / b.n[k_from:k_to]
+    noise2 = (model.kappa2 * per_sample_var).sum() / b.n[k_from:k_to] + (model.kappa2 * model.floor).sum()
     limit = rm.chi2_limit(model.s.false_alarm / (k_to - k_from), 3) * model.s.threshold
     allowed = np.sqrt(2.0 * WOBBLE_SHRINK) * float(np.linalg.norm(mean)) + np.sqrt(limit * noise2)
     return bool(np.all(distance <= allowed))
@@ -177,7 +177,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     for a, z, j0, j1 in kept:
         w = b.n[j0:j1, None]
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        white = model.kappa2 * rm.column_median(b.var[j0:j1]) / w.sum()
+        white = model.kappa2 * (rm.column_median(b.var[j0:j1]) / w.sum() + model.floor)
         scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
         se2 = np.maximum(white, scatter)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included

@@ -320,3 +320,33 @@ def test_the_stretches_judged_together_are_judged_as_one_by_one(monkeypatch, use
             assert getattr(alone, field)[0] == pytest.approx(getattr(together, field)[i], rel=1e-9)
         assert alone.creeps[0] == together.creeps[i] and alone.turns[0] == together.turns[i]
     assert np.isfinite(together.independent_gyro).all() == use_gyro  # the gyro counted only where it is evidence
+
+
+def test_rounding_floor_only_where_the_signal_is_quieter_than_the_quantum() -> None:
+    """A block mean keeps the rounding's q²/12 only where the signal's own noise is below half a quantum
+    (undithered); a noisier signal's rounding averages down like white noise."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(20_000, 3)) * [3.0, 0.2, 0.45]
+    b = rm.make_blocks(np.arange(x.shape[0]) / 100.0, np.round(x), None, 25, np.zeros(0, dtype=np.int64), 1.0, 0.0)
+    floor = rm.rounding_floor(b.var, 1.0)
+    assert floor[0] == 0.0 and floor[1] == pytest.approx(1.0 / 12.0) and floor[2] == pytest.approx(1.0 / 12.0)
+    assert not rm.rounding_floor(b.var, 0.0).any()
+
+
+def test_a_recording_filtered_below_its_quantum_keeps_its_rests() -> None:
+    """IMU-TK's Xsens log through a 1 Hz 4th-order Butterworth and rounded back to counts, as a logger that
+    filters before it stores: the filtered noise is below one count, so block means step by a fraction of a count
+    as the slow signal crosses a rounding edge, which no white-noise model of the rounding allows (0 poses before
+    the rounding floor).  Most of its 38 rests are found and calibrate as the raw log does."""
+    from scipy import signal
+
+    from optcal.families.accel.calibration import calibrate
+
+    frame = pd.read_csv(need(XSENS))
+    b, a = signal.butter(4, 1.0 / 50.0)  # 1 Hz at 100 Hz
+    for column in XSENS_ACC + XSENS_GYRO:
+        x = frame[column].to_numpy(dtype=float)
+        frame[column] = np.round(signal.lfilter(b, a, x - x[0]) + x[0])
+    seg = detect_static(recording_from_source(source_from_frame(frame, "xsens", "csv")))
+    assert 30 <= len(seg.intervals) <= 38
+    assert calibrate(seg.pose_table()).rms_norm_residual_g <= 0.15e-3
