@@ -72,9 +72,9 @@ def _independent(s: Any, has_gyro: bool) -> str:
 def _noise_unit(key: str, rec: Any) -> str:
     """The unit of a measured noise figure: colours are ratios; per-sample noise in the accelerometer's unit,
     the gyro's wander in the gyro's."""
-    if key.startswith("rest_noise"):
+    if key.startswith(("rest_noise", "acc_rounding")):
         return f" {rec.units}"
-    if key.startswith("gyro_wander"):
+    if key.startswith(("gyro_wander", "gyro_rounding")):
         return f" {rec.gyro_units or 'gyro units'}"
     return ""
 

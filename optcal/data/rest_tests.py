@@ -409,10 +409,14 @@ class RestModel:
         return np.asarray((significant | beyond_bias) & (rate * duration > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold))
 
     def noise(self) -> dict[str, float]:
+        """The noise measured: colours, the gyro bias' wander, and the rounding floor of a block mean (its standard
+        deviation, q/√12) on the axes whose signal is quieter than the converter's step."""
         out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
+        out.update({f"acc_rounding_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.floor) if v > 0})
         if self.bias is not None:
             out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
             out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
+            out.update({f"gyro_rounding_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.gfloor) if v > 0})
         return out
 
     def limits(self) -> dict[str, float]:
