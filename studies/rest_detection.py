@@ -243,19 +243,21 @@ why
 # * **Holds-only** logs: recall 1.00 (was 0.74): a jump between two holds is a step between block means
 #   like any other, with or without motion samples between them; single samples of the jump caught in a rest's
 #   last block are trimmed.
-# * **Low-pass** tags: recall 0.99 (was 0.10): 1.00 with a float gyro and without a gyro, 0.95 with a gyro in
-#   counts.  The filtered noise is measured as the noise colour κ² of the calmest blocks; a rest must also hold
-#   enough independent samples: two of the accelerometer, four of the gyro where it is evidence (its mean rate
-#   is tested against the noise of that mean).  A stretch of eight blocks or more measures the noise of its own
-#   mean from its batch means, which a filter's smoothing does not fool (the pairs of blocks overstate κ² when a
-#   block is smoother than the noise between blocks); a shorter one counts κ² samples as one.  This keeps a
-#   filtered move's slow still moments, and a hand's short pauses, from being poses.  The step test often cuts
-#   a filtered rest in two; the pieces are one pose when nothing turned between them: by the gyro, its rate's
-#   integral over the interruption within the noise of that integral measured inside the two rests (windows of
-#   the interruption's length; a filtered rate rounded to counts wanders more than its blocks' q²/12 spread
-#   says); without the gyro, the accelerometer's block means never leaving the pose's wobble tolerance.  19
-#   splits in 837 rests remain with a gyro in counts (66 when the model alone gave the integral's noise, and
-#   270 without a gyro in float before the accelerometer's evidence joined them).
+# * **Low-pass** tags: recall 1.00 (0.997; was 0.10): 1.00 with a float gyro and without a gyro, 0.99 with a
+#   gyro in counts.  The filtered noise is measured as the noise colour κ² of the calmest blocks; a rest must
+#   also hold enough independent samples: two of the accelerometer, four of the gyro where it is evidence (its
+#   mean rate is tested against the noise of that mean).  A stretch of eight blocks or more measures the noise
+#   of its own mean from its batch means, which a filter's smoothing does not fool (the pairs of blocks
+#   overstate κ² when a block is smoother than the noise between blocks); a shorter one counts κ² samples as
+#   one.  This keeps a filtered move's slow still moments, and a hand's short pauses, from being poses.  The
+#   step test often cuts a filtered rest in two; the pieces are one pose when nothing turned between them: by
+#   the gyro, its rate's integral over the interruption within the noise of that integral measured inside the
+#   two rests (windows of the interruption's length); without the gyro, the accelerometer's block means never
+#   leaving the pose's wobble tolerance.  A filtered rate rounded to counts is quieter than the converter's
+#   step, so its block means keep the rounding's q²/12 instead of averaging it down (`rest_model.rounding_floor`).
+#   11 splits in 837 rests remain with a gyro in counts (66 when the model alone gave the integral's noise
+#   and the rounding averaged down, and 270 without a gyro in float before the accelerometer's evidence
+#   joined them).
 # * **Never resting, with the gyro**: a pose in 1 % of the slow-turn recordings and 9-10 % of the slow-drift
 #   ones (0.1-1 °/s, below what a MEMS gyro's bias may move within a session, 1 °/s, so told from a bias only
 #   through the accelerometer).
