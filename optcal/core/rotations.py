@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 #: Below this squared rotation angle (rad²) the coefficients of the right Jacobian use their Taylor series.
 SMALL_ANGLE_SQ: float = 1e-8
@@ -37,12 +36,24 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
     return S
 
 
-def exponential_map(rotation_vectors: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrices ``exp([θ]×)`` of rotation vectors ``θ`` (radians).
+def _series(theta: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+    """For rotation vectors ``θ`` (n, 3): ``α²``, ``c₁ = sin α/α``, ``c₂ = (1 − cos α)/α² = 2 sin²(α/2)/α²`` and
+    ``c₃ = (α − sin α)/α³`` (Taylor series below :data:`SMALL_ANGLE_SQ`)."""
+    a2 = np.einsum("ni,ni->n", theta, theta)
+    small = a2 < SMALL_ANGLE_SQ
+    a2_safe = np.where(small, 1.0, a2)
+    a = np.sqrt(a2_safe)
+    sin, half = np.sin(a), np.sin(0.5 * a)
+    c1 = np.where(small, 1.0 - a2 / 6 + a2**2 / 120, sin / a)
+    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, 2.0 * half * half / a2_safe)
+    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))
+    return a2, c1, c2, c3
 
-    Computed by scipy (``Rotation.from_rotvec``, through the unit quaternion
-    ``[cos(α/2), sin(α/2) θ/α]``, with its series for small ``α = ‖θ‖``); equal to Rodrigues'
-    ``I + (sin α/α)[θ]× + ((1 − cos α)/α²)[θ]×²``.
+
+def exponential_map(rotation_vectors: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrices ``exp([θ]×)`` of rotation vectors ``θ`` (radians), by Rodrigues' formula
+    ``I + (sin α/α)[θ]× + ((1 − cos α)/α²)[θ]×²``, ``α = ‖θ‖`` (:func:`_series`; numpy only: scipy.spatial
+    costs 0.2-0.4 s to import, more than a gyro calibration takes).
 
     Parameters
     ----------
@@ -52,7 +63,18 @@ def exponential_map(rotation_vectors: ArrayLike) -> NDArray[np.float64]:
     -------
     ndarray, shape (3, 3) or (n, 3, 3)
     """
-    return Rotation.from_rotvec(np.asarray(rotation_vectors, dtype=float)).as_matrix()
+    given = np.asarray(rotation_vectors, dtype=float)
+    theta = given.reshape(-1, 3)
+    _, c1, c2, _ = _series(theta)
+    return _rodrigues(skew(theta), c1, c2).reshape(given.shape[:-1] + (3, 3))
+
+
+def _rodrigues(K: NDArray[np.float64], c1: NDArray[np.float64], c2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``I + c₁ K + c₂ K²`` for each ``K = [θ]×`` (n, 3, 3)."""
+    R = c1[:, None, None] * K + c2[:, None, None] * (K @ K)
+    diagonal = np.arange(3)
+    R[:, diagonal, diagonal] += 1.0
+    return np.asarray(R)
 
 
 def exponential_map_with_right_jacobian(
@@ -61,26 +83,21 @@ def exponential_map_with_right_jacobian(
     """``exp([θ]×)`` (:func:`exponential_map`) and the right Jacobian ``J_r(−θ)`` for every row of ``θ`` (n, 3).
 
     ``J_r(−θ) = I + c₂[θ]× + c₃[θ]×² = (1 − c₃α²) I + c₂[θ]× + c₃θθᵀ`` with
-    ``c₂ = (1 − cos α)/α²``, ``c₃ = (α − sin α)/α³``, ``α = ‖θ‖`` (Taylor series below
-    :data:`SMALL_ANGLE_SQ`).  The derivative of ``exp([θ]×)ᵀ v`` with respect to ``θ`` is
-    ``exp([θ]×)ᵀ [v]× J_r(−θ)`` (used by :mod:`optcal.families.gyro.propagation`).
+    ``c₂ = (1 − cos α)/α²``, ``c₃ = (α − sin α)/α³``, ``α = ‖θ‖`` (:func:`_series`).  The derivative of
+    ``exp([θ]×)ᵀ v`` with respect to ``θ`` is ``exp([θ]×)ᵀ [v]× J_r(−θ)`` (used by
+    :mod:`optcal.families.gyro.propagation`).
 
     Returns
     -------
     E, Jr : ndarray, each shape (n, 3, 3)
     """
     theta = np.asarray(rotation_vectors, dtype=float).reshape(-1, 3)
-    a2 = np.einsum("ni,ni->n", theta, theta)
-    small = a2 < SMALL_ANGLE_SQ
-    a2_safe = np.where(small, 1.0, a2)
-    a = np.sqrt(a2_safe)
-    sin, cos = np.sin(a), np.cos(a)
-    c2 = np.where(small, 0.5 - a2 / 24 + a2**2 / 720, (1 - cos) / a2_safe)[:, None, None]
-    c3 = np.where(small, 1.0 / 6 - a2 / 120 + a2**2 / 5040, (a - sin) / (a2_safe * a))[:, None, None]
-    Jr = c2 * skew(theta) + c3 * (theta[:, :, None] * theta[:, None, :])
+    a2, c1, c2, c3 = _series(theta)
+    K = skew(theta)
+    Jr = c2[:, None, None] * K + c3[:, None, None] * (theta[:, :, None] * theta[:, None, :])
     diagonal = np.arange(3)
-    Jr[:, diagonal, diagonal] += 1 - c3[:, :, 0] * a2[:, None]
-    return exponential_map(theta), Jr
+    Jr[:, diagonal, diagonal] += 1 - c3[:, None] * a2[:, None]
+    return _rodrigues(K, c1, c2), Jr
 
 
 def logarithm_map(rotations: ArrayLike) -> NDArray[np.float64]:
@@ -89,6 +106,8 @@ def logarithm_map(rotations: ArrayLike) -> NDArray[np.float64]:
     For a near-identity ``R ≈ I + [θ×]`` this is the small rotation ``θ``.
     """
     R = np.asarray(rotations, dtype=float)
+    from scipy.spatial.transform import Rotation  # on first use: scipy.spatial costs 0.2-0.4 s to import
+
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-2] + (3,))
 
 

@@ -90,10 +90,12 @@ def test_reproduce_lu2017_json(capsys):
     assert set(d["monte_carlo"]["methods"]) == {"svd", "convex", "mle", "exact", "gd"}
 
 
-def test_calibrating_a_raw_recording_loads_no_heavy_library(tmp_path):
-    """`optcal calibrate` on a raw recording (read, rest detection, fit) starts no scipy, pandas, cvxpy or
-    matplotlib: the rest model's critical values come from optcal.core.quantiles (scipy.stats alone costs
-    0.5-0.8 s of a start that imu_tk finishes its whole calibration in, 0.30-0.38 s)."""
+@pytest.mark.parametrize("imu", [False, True])
+def test_calibrating_a_raw_recording_loads_no_heavy_library(tmp_path, imu):
+    """`optcal calibrate` (and `--imu`) on a raw recording (read, rest detection, fit) starts no scipy, pandas,
+    cvxpy or matplotlib: the rest model's and the gyro check's critical values come from optcal.core.quantiles,
+    rotations from Rodrigues' formula (scipy.stats alone costs 0.5-0.8 s of a start that imu_tk finishes its
+    whole accelerometer calibration in, 0.30-0.40 s)."""
     import subprocess
     import sys
 
@@ -103,10 +105,10 @@ def test_calibrating_a_raw_recording_loads_no_heavy_library(tmp_path):
 
     path = tmp_path / "raw.csv"
     synthesize_recording(lu2017_reference_model(), uniform_directions(12, rng=1), dwell_s=3.0, sigma=0.002,
-                         rng=2).to_csv(str(path))
+                         gyro_bias_dps=(0.5, -0.3, 0.2), gyro_sigma_dps=0.05, rng=2).to_csv(str(path))
     script = ("import sys, io, contextlib\n"
               "from optcal.cli.main import main\n"
-              f"sys.argv = ['optcal', 'calibrate', {str(path)!r}, '--json']\n"
+              f"sys.argv = ['optcal', 'calibrate', {str(path)!r}, '--json'] + {['--imu'] if imu else []!r}\n"
               "with contextlib.redirect_stdout(io.StringIO()):\n"
               "    try:\n        main()\n    except SystemExit as e:\n        assert not e.code, e.code\n"
               "print(sorted({m.split('.')[0] for m in sys.modules}))")

@@ -28,9 +28,9 @@ def test_f_upper_quantile(p: float, d1: float) -> None:
 
 @pytest.mark.parametrize("p", TAILS)
 def test_chi2_t_and_normal_upper_quantiles(p: float) -> None:
-    for dof in (1, 2, 3, 6, 7, 10, 100):
+    for dof in (1, 2, 3, 6, 7, 10, 100, 1000, 10000):
         assert quantiles.chi2_isf(p, dof) == pytest.approx(stats.chi2.isf(p, dof), rel=1e-12)
-        assert quantiles.t_isf(p, dof) == pytest.approx(stats.t.isf(p, dof), rel=1e-12)
+        assert quantiles.t_isf(p, dof) == pytest.approx(stats.t.isf(p, dof), rel=1e-9)  # through F(1, dof)
     assert quantiles.norm_isf(p) == pytest.approx(stats.norm.isf(p), rel=1e-14)
 
 

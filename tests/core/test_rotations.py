@@ -159,3 +159,19 @@ def test_roll_pitch_inverts_the_gravity_direction() -> None:
     # level, z up; and the specific force of a body pitched nose-up by 90°: along −x
     np.testing.assert_array_equal(gravity_direction(0.0, 0.0), [-0.0, 0.0, 1.0])
     np.testing.assert_allclose(gravity_direction(0.0, np.pi / 2), [-1.0, 0.0, 0.0], atol=1e-16)
+
+
+def test_exponential_map_is_scipys_rotation_at_every_angle() -> None:
+    """Rodrigues' formula (numpy, with its series below SMALL_ANGLE_SQ) against scipy's Rotation.from_rotvec,
+    from 1e-9 rad to nearly π, alone and with the right Jacobian."""
+    from scipy.spatial.transform import Rotation
+
+    from optcal.core.rotations import exponential_map, exponential_map_with_right_jacobian
+
+    rng = np.random.default_rng(0)
+    for scale in (1e-9, 1e-5, 1e-3, 0.1, 1.0, 3.1):
+        theta = rng.normal(size=(50, 3)) * scale
+        reference = Rotation.from_rotvec(theta).as_matrix()
+        assert np.abs(exponential_map(theta) - reference).max() < 1e-15
+        assert np.abs(exponential_map_with_right_jacobian(theta)[0] - reference).max() < 1e-15
+    assert exponential_map([0.1, 0.2, 0.3]).shape == (3, 3)

@@ -65,8 +65,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
+from optcal.core import quantiles
 from optcal.core.gyro_model import GyroModel
 from optcal.core.model import AXES
 from optcal.families.gyro.moves import MoveSet
@@ -220,7 +220,7 @@ class ResidualTest:
     @property
     def bound(self) -> float:
         """The :data:`BOUND_LEVEL` quantile of χ² with :attr:`dof` degrees of freedom."""
-        return float(stats.chi2.ppf(BOUND_LEVEL, max(self.dof, 1)))
+        return quantiles.chi2_isf(1.0 - BOUND_LEVEL, max(self.dof, 1))
 
     @property
     def ratio(self) -> float:
@@ -305,7 +305,7 @@ def signal_to_noise(moves: MoveSet, w: NDArray) -> tuple[float, float]:
     beta = np.add.reduceat(w * moves.dt[:, None], ends[:-1], axis=0)
     arw2 = np.where(moves.noise.arw2 > 0, moves.noise.arw2, np.inf)
     S = float(np.sum(beta**2 / (arw2[None, :] * moves.durations()[:, None])))
-    level = REFUSAL_MARGIN**2 * float(stats.chi2.ppf(BOUND_LEVEL, 3 * moves.n_moves))
+    level = REFUSAL_MARGIN**2 * quantiles.chi2_isf(1.0 - BOUND_LEVEL, 3 * moves.n_moves)
     return S, level
 
 
