@@ -175,17 +175,20 @@ def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray
                    quant_var: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     mean = np.empty((starts.size, 3))
     var = np.empty((starts.size, 3))
+    dev = np.empty(x.shape[0])  # two buffers for the three columns: no temporary of the data's length per column
+    square = np.empty(x.shape[0])
     for j in range(3):
         col = x[:, j]
         centre = float(np.median(col[:: max(1, col.size // 1000)]))
-        dev = col - centre
+        np.subtract(col, centre, out=dev)
         s1 = np.add.reduceat(dev, starts)
-        s2 = np.add.reduceat(dev * dev, starts)
+        s2 = np.add.reduceat(np.multiply(dev, dev, out=square), starts)
         mu = s1 / n
         mean[:, j] = mu + centre
         # the rounding of these sums: a noise-free rest shows this much spread, no less (else its blocks' log
         # variances, at the mercy of rounding, would differ by orders of magnitude)
-        rounding = (ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * float(np.max(np.abs(dev), initial=0.0))) ** 2
+        largest = max(float(dev.max()), -float(dev.min())) if dev.size else 0.0
+        rounding = (ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * largest) ** 2
         var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var + rounding
     return mean, var
 

@@ -306,16 +306,15 @@ class RestModel:
         var = np.maximum(rm.column_median(b.var[j0:j1]), max(floor, np.finfo(float).tiny))
         limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
 
-        def outside(i: int) -> bool:
-            d = acc[i] - mean
-            return float(np.sum(d * d / var)) > limit
+        def leading_outside(rows: NDArray[np.float64]) -> int:
+            """How many of ``rows``, from the first, lie outside the noise (up to the first within)."""
+            d = rows - mean
+            inside = (d * d / var).sum(axis=1) <= limit
+            return int(np.argmax(inside)) if inside.any() else rows.shape[0]
 
         edge = max(1, int(b.n[j0]))  # at most one block's worth from each end
-        start, stop = a, z
-        while start < min(a + edge, stop - 2) and outside(start):
-            start += 1
-        while stop > max(z - edge, start + 2) and outside(stop - 1):
-            stop -= 1
+        start = a + leading_outside(acc[a:max(a, min(a + edge, z - 2))])
+        stop = z - leading_outside(acc[max(z - edge, start + 2):z][::-1])
         return start, stop
 
     def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
