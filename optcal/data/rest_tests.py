@@ -318,8 +318,9 @@ class RestModel:
         return start, stop
 
     def drop_odd_noise(self, kept: list[tuple[int, int, int, int]]
-                       ) -> tuple[list[tuple[int, int, int, int]], int, int]:
-        """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation).
+                       ) -> tuple[list[tuple[int, int, int, int]], list[tuple[int, int, int, int]]]:
+        """Drop the still stretches whose noise is far above the recording's rests' (a move's settling oscillation):
+        the stretches kept, and those dropped.
 
         A rest's noise differs from rest to rest, but not beyond what the recording's own blocks show: a
         stretch whose block variance (median over its blocks, summed over the axes) exceeds the duration-weighted
@@ -329,7 +330,7 @@ class RestModel:
         """
         b = self.b
         if len(kept) < 3:
-            return kept, 0, 0
+            return kept, []
         floor = (NOISE_FLOOR_G * self.one_g) ** 2  # noise levels below it are the same for any calibration
         level = np.array([np.log(max(float(rm.column_median(b.var[j0:j1].sum(axis=1))), floor))
                           for _, _, j0, j1 in kept])
@@ -338,8 +339,7 @@ class RestModel:
         cumulative = np.cumsum(weight[order])
         typical = float(level[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
         odd = level > typical + 2.0 * self.var_limit
-        dropped = [k for k, flag in zip(kept, odd) if flag]
-        return [k for k, flag in zip(kept, odd) if not flag], len(dropped), sum(z - a for a, z, _, _ in dropped)
+        return [k for k, flag in zip(kept, odd) if not flag], [k for k, flag in zip(kept, odd) if flag]
 
     def _creeps(self, r: rm.Ranges, per_sample: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Whether each stretch's accelerometer mean moves (a slow turn).

@@ -345,6 +345,13 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         evidence["gyro_rad_per_unit"] = gyro_scale
     b = model.b
     pieces = model.split_by_noise(runs)
+    rejected: list[tuple[float, float, str]] = []  # each still stretch rejected: its time span and reason
+
+    def reject(a: int, z: int, samples: str, stretches: str) -> None:
+        counts[samples] += z - a
+        counts[stretches] += 1
+        rejected.append((float(t[a]), float(t[max(a, z - 1)]), stretches))
+
     candidates: list[tuple[int, int, int, int]] = []  # sample range and block range of each piece long enough
     for k0, k1 in pieces:
         j0, j1 = model.peel(k0, k1)
@@ -355,8 +362,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         a, z = a1, z1
         duration = t[z - 1] - t[a] + 1.0 / rate
         if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
-            counts[SHORT] += z - a
-            counts[SHORT_STRETCHES] += 1
+            reject(a, z, SHORT, SHORT_STRETCHES)
             continue
         candidates.append((a, z, j0, j1))
     verdicts = model.judge(candidates) if candidates else None
@@ -364,39 +370,27 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])
         if per_sample > MAX_REST_NOISE_G * one_g:
-            counts[LOUD] += z - a
-            counts[LOUD_STRETCHES] += 1
+            reject(a, z, LOUD, LOUD_STRETCHES)
             evidence["loud_noise_min_g"] = min(evidence.get("loud_noise_min_g", np.inf), per_sample / one_g)
-            continue
-        if verdicts.creeps[i]:
-            counts[SWEEPING] += z - a
-            counts[SWEEPING_STRETCHES] += 1
-            continue
-        if gyro is not None and gyro_scale is not None and wobble(
+        elif verdicts.creeps[i]:
+            reject(a, z, SWEEPING, SWEEPING_STRETCHES)
+        elif gyro is not None and gyro_scale is not None and wobble(
                 gyro[a:z], t[a:z], gyro_scale, wobble_window) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
-            counts[WOBBLE] += z - a
-            counts[WOBBLE_STRETCHES] += 1
-            continue
-        if verdicts.turns[i]:
-            counts[TURNING] += z - a
-            counts[TURNING_STRETCHES] += 1
-            continue
+            reject(a, z, WOBBLE, WOBBLE_STRETCHES)
+        elif verdicts.turns[i]:
+            reject(a, z, TURNING, TURNING_STRETCHES)
         # last: what no test above could show moving but holds too little independent evidence to show at rest
-        if verdicts.independent[i] < min_acc or verdicts.independent_gyro[i] < min_gyro:
-            counts[FEW] += z - a
-            counts[FEW_STRETCHES] += 1
-            continue
-        a2, z2 = a + trim, z - trim
-        if z2 - a2 < 2:
-            counts[SHORT] += z - a
-            counts[SHORT_STRETCHES] += 1
-            continue
-        counts[TRIMMED] += (a2 - a) + (z - z2)
-        kept.append((a2, z2, j0, j1))
-        rest_noise.append(per_sample)
-    kept, n_odd, n_odd_samples = model.drop_odd_noise(kept)
-    counts[ODD] += n_odd_samples
-    counts[ODD_STRETCHES] += n_odd
+        elif verdicts.independent[i] < min_acc or verdicts.independent_gyro[i] < min_gyro:
+            reject(a, z, FEW, FEW_STRETCHES)
+        elif z - a - 2 * trim < 2:
+            reject(a, z, SHORT, SHORT_STRETCHES)
+        else:
+            counts[TRIMMED] += 2 * trim
+            kept.append((a + trim, z - trim, j0, j1))
+            rest_noise.append(per_sample)
+    kept, odd = model.drop_odd_noise(kept)
+    for a, z, _, _ in odd:
+        reject(a, z, ODD, ODD_STRETCHES)
     groups = join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
     for group in groups:
         for a, z in group:
@@ -417,6 +411,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     limits.update(model.limits())
     trace.update(model.trace(m))
     trace["static"] = in_pose
+    trace["rejected"] = rejected
     norm = _distance(acc, nominal.offset)
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,

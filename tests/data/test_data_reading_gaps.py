@@ -56,6 +56,14 @@ def test_slow_turn_keeping_the_norm_is_not_a_pose_without_gyro():
     assert len(seg.intervals) == 11
     assert all(iv.stop <= a or iv.start >= b for iv in seg.intervals)
     assert seg.exclusions[SWEEPING_STRETCHES] == 1 and seg.exclusions[SWEEPING] > 0.8 * (b - a)
+    # the rejected stretch is in the trace with its reason, and the segmentation figure marks it
+    t = frame["t"].to_numpy()
+    (t0, t1, reason), = [r for r in seg.trace["rejected"] if r[2] == SWEEPING_STRETCHES]
+    assert t[a] <= t0 < t1 <= t[b - 1] and t1 - t0 > 0.8 * (t[b - 1] - t[a])
+    from optcal.report.segmentation_figure import segmentation_figure
+
+    labels = segmentation_figure(seg).axes[0].get_legend_handles_labels()[1]
+    assert "rejected: mean creeps" in labels and "static interval" in labels
     # the norm did not change: |a| alone cannot see it
     assert np.allclose(np.linalg.norm(acc[a:b], axis=1), np.linalg.norm(frame[["ax", "ay", "az"]].to_numpy()[a:b], axis=1))
 
