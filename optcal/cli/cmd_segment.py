@@ -74,7 +74,7 @@ def _noise_unit(key: str, rec: Any) -> str:
     the gyro's wander in the gyro's."""
     if key.startswith(("rest_noise", "acc_rounding")):
         return f" {rec.units}"
-    if key.startswith(("gyro_wander", "gyro_rounding")):
+    if key.startswith(("gyro_wander", "gyro_rounding", "gyro_bias_drift")):
         return f" {rec.gyro_units or 'gyro units'}"
     return ""
 

@@ -24,7 +24,9 @@ noisy as the others: every test compares a change with the noise measured where 
 * **The gyro** (:func:`gyro_statistic`): a block's mean rate against the bias, ``Σ_j (ω̄_j −
   b_j)² / (κ_j² v_j / n + u_j²)`` with ``u_j²`` the bias' wander between rests, against ``3 F(3, n
   − 1)``.  The bias is the half-sample mode of the block means the accelerometer calls still
-  (:func:`half_sample_mode`), the wander the scatter of the rests' own means beyond their noise.
+  (:func:`half_sample_mode`), then the median of the rests' own means, each over a minute
+  (:func:`bias_track`: a warming gyro's bias drifts, no faster than :data:`MAX_BIAS_DRIFT_RAD_S2`), the
+  wander the scatter of the rests' means about it beyond their noise.
 * **Drift** (:func:`trend_statistic`): a stretch whose mean creeps (a slow turn, seen or not by
   a gyro) is found by the t statistic of the slope of its batch means against their own scatter
   (scale-free, coloured noise included), against Student's ``t`` at ``false_alarm`` (Bonferroni over
@@ -37,6 +39,7 @@ probability, times a user's multiplier (``--static-threshold``, ``--gyro-thresho
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -63,6 +66,15 @@ NOISE_FLOOR_G: float = 1e-6
 #: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
 #: rates scatter more are not all rests.
 MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
+#: Span, seconds, over which the gyro's bias is taken as constant (:func:`bias_track`): a MEMS gyro's bias follows
+#: its temperature through the package's thermal time constant, minutes, so over a minute it moves by a fraction
+#: of its drift in a session, while a minute of a calibration recording holds several rests, enough for their
+#: mode to pass over one that turns.
+BIAS_SPAN_S: float = 60.0
+#: Fastest change of a MEMS gyro's bias within a session, rad/s per second (1 °/s per minute): its thermal
+#: sensitivity is at most about 0.16 °/s per °C (the MPU-6050's datasheet: ±20 °/s over 125 °C), and a package
+#: warms by a few °C per minute at most; a bias that seems to move faster is a turn.
+MAX_BIAS_DRIFT_RAD_S2: float = float(np.radians(1.0) / 60.0)
 #: Quantile of the block-to-block rates at which the gyro's readings are set against the accelerometer's turn rate:
 #: the fast moves, where a gyro's bias is small beside the rate.
 UNIT_RATE_QUANTILE: float = 0.9
@@ -335,6 +347,39 @@ def half_sample_mode(x: NDArray[np.float64]) -> float:
     if y.size == 3:
         return float(y[:2].mean() if y[1] - y[0] < y[2] - y[1] else (y[1:].mean() if y[1] - y[0] > y[2] - y[1] else y[1]))
     return float(y.mean()) if y.size else float("nan")
+
+
+def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArray[np.float64],
+               max_drift: float | None, estimate: Callable[[NDArray[np.float64]], float] | None = None
+               ) -> NDArray[np.float64]:
+    """The gyro's bias at each of ``times`` (m,), from the ``rates`` (k, 3) of still blocks or rests at ``t`` (k,).
+
+    Per axis, ``estimate`` (the half-sample mode by default) of the rates within :data:`BIAS_SPAN_S` centred on
+    points a quarter span apart, followed from the point nearest the whole recording's estimate with its change
+    limited to ``max_drift`` (gyro units per second; :data:`MAX_BIAS_DRIFT_RAD_S2` in the gyro's units), and
+    interpolated linearly between the points: a warming gyro's bias drifts through a session, a turn that
+    dominates a span does not move it.  Without ``max_drift`` (a gyro in counts: no rate is known), a recording
+    shorter than a span, or fewer than three rates: the whole recording's estimate, constant.
+    """
+    estimate = estimate or half_sample_mode
+    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
+    if max_drift is None or t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
+        return np.broadcast_to(whole, (times.size, 3)).copy()
+    step = BIAS_SPAN_S / 4.0
+    grid = np.arange(float(t[0]), float(t[-1]) + step, step)
+    lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
+    hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
+    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
+    limit = max_drift * step
+    track = np.empty_like(local)
+    for j in range(3):
+        anchor = int(np.argmin(np.abs(local[:, j] - whole[j])))
+        track[anchor, j] = local[anchor, j]
+        for i in range(anchor + 1, grid.size):
+            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
+        for i in range(anchor - 1, -1, -1):
+            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
+    return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
 
 
 def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDArray[np.float64],

@@ -14,9 +14,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
 from optcal.data.recording import Recording
-from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
+from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import gyro_rad_per_unit, true_runs
 from optcal.data.units import nominal_conversion
 from optcal.data.window_stats import quantum
@@ -74,8 +75,10 @@ class RestModel:
         else:
             self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
         self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
-        self.bias: NDArray[np.float64] | None = None
+        self.bias: NDArray[np.float64] | None = None  # the gyro's bias over the session (median of its track)
+        self.track = np.zeros((b.count, 3))  # the gyro's bias at each block (rm.bias_track)
         self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
+        self.gyro_units = rec.gyro_units
         nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
         self.one_g = float(nominal.sensitivity)
         self.gkappa2 = np.ones(3)
@@ -105,7 +108,8 @@ class RestModel:
         acc_still = self._acc_still()
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
-            self.bias = np.array([rm.half_sample_mode(b.gmean[base, j]) for j in range(3)])
+            self.track = rm.bias_track(b.t_mid[base], b.gmean[base], b.t_mid, self._max_drift())
+            self.bias = np.median(self.track, axis=0)
             self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
             gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
             pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
@@ -113,24 +117,37 @@ class RestModel:
         else:
             self._measure_wander()
         assert self.bias is not None and self.gvar_ref is not None
-        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.bias, self.gkappa2, self.wander2, self.gfloor)
+        self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.track, self.gkappa2, self.wander2, self.gfloor)
         self.still = self.gstat <= self.gyro_limit
+
+    def _max_drift(self) -> float | None:
+        """The fastest a MEMS gyro's bias moves, in the gyro's units per second (None while its unit is unknown)."""
+        scale = self.gyro_scale if self.gyro_scale is not None else RAD_PER_UNIT.get(self.gyro_units or "")
+        return None if scale is None else MAX_BIAS_DRIFT_RAD_S2 / scale
 
     def _measure_wander(self) -> None:
         """The gyro bias' wander between rests: the scatter of the first rests' mean rates beyond their noise."""
         b = self.b
         assert self.bias is not None and b.gmean is not None and b.gvar is not None
-        means, noise2 = [], []
-        for k0, k1 in self.runs():
+        means, noise2, mids = [], [], []
+        runs = self.runs()
+        for k0, k1 in runs:
             n = b.n[k0:k1].sum()
             means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
             noise2.append(self.gkappa2 * rm.column_median(b.gvar[k0:k1]) / n)
+            mids.append(0.5 * (b.t_mid[k0] + b.t_mid[k1 - 1]))
         if means:
             # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
-            # its own error, integrated over a long rest, would look like a turn)
-            self.bias = np.median(np.asarray(means), axis=0)
+            # its own error, integrated over a long rest, would look like a turn), their median over each span
+            at = np.asarray(mids)
+            rest_means = np.asarray(means)
+            drift = self._max_drift()
+            self.track = rm.bias_track(at, rest_means, b.t_mid, drift, estimate=lambda x: float(np.median(x)))
+            self.bias = np.median(rest_means, axis=0)
         if len(means) >= 3:
-            dev = np.asarray(means) - self.bias
+            # about the session's median, not the track: the track is a span's median, and the bias wanders about
+            # it within a span (a random walk) by as much as the rests' means scatter over the session
+            dev = rest_means - self.bias
             robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
             if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
@@ -379,7 +396,7 @@ class RestModel:
             return np.zeros(r.count, dtype=bool)
         w = b.n[r.rows, None]
         n = r.sums(b.n[r.rows])
-        off = r.sums(b.gmean[r.rows] * w) / n[:, None] - self.bias
+        off = r.sums((b.gmean[r.rows] - self.track[r.rows]) * w) / n[:, None]
         k = r.length
         long = k >= rm.TREND_BATCHES
         se2 = np.empty((r.count, 3))
@@ -408,14 +425,17 @@ class RestModel:
         return np.asarray((significant | beyond_bias) & (rate * duration > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold))
 
     def noise(self) -> dict[str, float]:
-        """The noise measured: colours, the gyro bias' wander, and the rounding floor of a block mean (its standard
-        deviation, q/√12) on the axes whose signal is quieter than the converter's step."""
+        """The noise measured: colours, the gyro bias' wander and its drift over the session (the range of its track),
+        and the rounding floor of a block mean (its standard deviation, q/√12) on the axes whose signal is quieter
+        than the converter's step."""
         out = {f"acc_colour_{a}": float(v) for a, v in zip("xyz", self.kappa2)}
         out.update({f"acc_rounding_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.floor) if v > 0})
         if self.bias is not None:
             out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
             out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
             out.update({f"gyro_rounding_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.gfloor) if v > 0})
+            drift = np.ptp(self.track, axis=0) if self.track.size else np.zeros(3)
+            out.update({f"gyro_bias_drift_{a}": float(v) for a, v in zip("xyz", drift) if v > 0})
         return out
 
     def limits(self) -> dict[str, float]:

@@ -105,14 +105,15 @@ def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple
     if start <= end:
         return True
     dt = np.diff(t[end - 1:start + 1])
-    rates = gyro[end:start] - model.bias
+    bias = model.track[block]  # the bias where the sensor rests again
+    rates = gyro[end:start] - bias
     net = (rates * dt[: rates.shape[0], None]).sum(axis=0)
     span = float(dt.sum())
     var = model.gkappa2 * (model.gvar_ref[block] * float(np.sum(dt * dt)) + model.gfloor * span * span) + model.wander2 * span * span
     tiny = np.finfo(float).tiny
     if float(np.sum(net * net / np.maximum(var, tiny))) <= rm.chi2_limit(model.s.false_alarm, 3) * model.s.gyro_threshold:
         return True  # within the model's noise, and so within the larger one measured below (its limit is larger too)
-    windows = [_window_integrals(gyro, t, piece, start - end, model.bias) for piece in (before, after)]
+    windows = [_window_integrals(gyro, t, piece, start - end, bias) for piece in (before, after)]
     measured = np.concatenate(windows)
     if measured.shape[0] >= rm.TREND_MIN_BATCHES:
         var = np.maximum(var, (measured * measured).mean(axis=0))

@@ -350,3 +350,36 @@ def test_a_recording_filtered_below_its_quantum_keeps_its_rests() -> None:
     seg = detect_static(recording_from_source(source_from_frame(frame, "xsens", "csv")))
     assert 30 <= len(seg.intervals) <= 38
     assert calibrate(seg.pose_table()).rms_norm_residual_g <= 0.15e-3
+
+
+def test_bias_track_follows_a_drift_and_not_a_turn() -> None:
+    """The bias track follows a linear drift within the fastest a MEMS bias moves, and passes over spans
+    dominated by a turn (a jump of 0.2 rad/s in the local mode, which the drift limit does not allow)."""
+    t = np.arange(0.0, 600.0, 0.25)
+    drift = np.radians(2.0) * t / 600.0  # 2 °/s over ten minutes
+    rates = np.column_stack([drift, -0.5 * drift, np.zeros_like(t)]) + np.random.default_rng(1).normal(0, 1e-4, (t.size, 3))
+    limit = rm.MAX_BIAS_DRIFT_RAD_S2
+    track = rm.bias_track(t, rates, t, limit)
+    assert np.abs(track[:, 0] - drift).max() < np.radians(0.1)
+    turning = rates.copy()
+    turning[(t > 280) & (t < 330), 2] += 0.2  # 50 s turning at 11 °/s, the densest rates of its spans
+    track = rm.bias_track(t, turning, t, limit)
+    assert np.abs(track[:, 2]).max() < 0.1 * 0.2  # the turn stays a turn against it
+    # a gyro in counts (no rate known for its drift): one bias for the session
+    assert np.ptp(rm.bias_track(t, rates, t, None), axis=0).max() == 0.0
+
+
+def test_a_gyro_whose_bias_drifts_two_degrees_per_second_keeps_the_rests() -> None:
+    """IMU-TK's Xsens log with its gyro in rad/s (imu_tk's own scale and bias) and a bias drifting by 2.4 °/s over
+    the session (a warming MEMS gyro, within 1 °/s per minute): the rests are found against the bias where they
+    are (0 poses against one bias for the session, which a drift beyond 1 °/s leaves behind)."""
+    frame = pd.read_csv(need(XSENS))
+    scale = np.array([0.000209295, 0.000209899, 0.000209483])  # IMUTK_REFERENCE.md: rad/s per count
+    zero = np.array([32777.1, 32459.8, 32511.8])
+    t = frame["t_s"].to_numpy()
+    gyro = (frame[XSENS_GYRO].to_numpy(dtype=float) - zero) * scale
+    gyro += np.radians(2.0) * ((t - t[0]) / (t[-1] - t[0]))[:, None] * np.array([1.0, -0.6, 0.3])
+    drifting = pd.DataFrame({"t": t, **{f"a{a}_counts": frame[c] for a, c in zip("xyz", XSENS_ACC)},
+                             **{f"g{a}_rad_s": gyro[:, j] for j, a in enumerate("xyz")}})
+    seg = detect_static(recording_from_source(source_from_frame(drifting, "xsens", "csv")))
+    assert len(seg.intervals) >= 36

@@ -270,8 +270,8 @@ def test_current_detector_figures(current_scores) -> None:
     # without a gyro, the pieces of a filtered rest that the step test cut are joined on the accelerometer's
     # evidence that the sensor never left the pose (the full study: 1.00, was 0.68 in float)
     assert float(by_variant.at[("low_pass", False), "recall"]) >= 0.95
-    # with the gyro, a never-resting recording seldom gives a pose (the full study: 1 % of slow turns,
-    # 9-10 % of slow drifts); without it slow turns near the vertical do more often (26 %)
+    # with the gyro, a never-resting recording seldom gives a pose (the full study: 1-2 % of slow turns,
+    # 9 % of slow drifts); without it slow turns near the vertical do more often (26 %)
     for kind in ("slow_turns", "slow_drift"):
         assert float(by_variant.at[(kind, True), "with_pose"]) <= 0.25
 
