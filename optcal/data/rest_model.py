@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
+from optcal.data.quantiles import median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -100,27 +101,6 @@ MIN_INDEPENDENT_ACC: float = 2.0
 #: stretch lasts less than a few correlation times of its own rate noise: a hand's slow sway through it
 #: cannot be told from a rest.
 MIN_INDEPENDENT_GYRO: float = float(TREND_MIN_BATCHES)
-
-
-def column_median(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`numpy.median` along the first axis (the same values) by one partition: the tests call it once per
-    stretch, where numpy's general median costs more in its own overhead than in its work."""
-    k = x.shape[0]
-    h = k // 2
-    if k % 2:
-        return np.asarray(np.partition(x, h, axis=0)[h])
-    p = np.partition(x, (h - 1, h), axis=0)
-    return np.asarray(0.5 * (p[h - 1] + p[h]))
-
-
-def quantile_1d(x: NDArray[np.float64], q: float) -> float:
-    """:func:`numpy.quantile` of a 1-d array at ``q`` (its default, linear interpolation) by one partition."""
-    position = q * (x.size - 1)
-    lo = int(np.floor(position))
-    hi = min(lo + 1, x.size - 1)
-    p = np.partition(x, (lo, hi))
-    a, b, f = float(p[lo]), float(p[hi]), position - lo
-    return b - (b - a) * (1.0 - f) if f >= 0.5 else a + (b - a) * f  # numpy's lerp, from the nearer end
 
 
 @dataclass
@@ -191,7 +171,7 @@ def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray
     square = np.empty(x.shape[0])
     for j in range(3):
         col = x[:, j]
-        centre = float(np.median(col[:: max(1, col.size // 1000)]))
+        centre = median(col[:: max(1, col.size // 1000)])
         np.subtract(col, centre, out=dev)
         s1 = np.add.reduceat(dev, starts)
         s2 = np.add.reduceat(np.multiply(dev, dev, out=square), starts)
@@ -453,13 +433,6 @@ def batch_ranges(r: Ranges, batches: NDArray[np.intp] | int, larger_first: bool 
     start = r.offset[owner] + within
     stop = np.append(start[1:], int(r.length.sum()))  # the ranges are concatenated: a range's last batch ends at the next's first
     return Ranges.of(start, stop), owner
-
-
-def batch_means(x: NDArray[np.float64], batches: int, larger_first: bool = False) -> NDArray[np.float64]:
-    """Means of ``x`` (along its first axis) over ``batches`` batches of consecutive rows (:func:`batch_ranges`)."""
-    b, _ = batch_ranges(Ranges.of([0], [x.shape[0]]), batches, larger_first)
-    sizes = b.length.astype(float)
-    return np.asarray(b.sums(x) / (sizes if x.ndim == 1 else sizes[:, None]))
 
 
 def trend_statistics(t: NDArray[np.float64], x: NDArray[np.float64], r: Ranges, batches: int = TREND_BATCHES

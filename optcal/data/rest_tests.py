@@ -16,11 +16,12 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
+from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import gyro_rad_per_unit, true_runs
 from optcal.data.units import nominal_conversion
-from optcal.data.window_stats import quantum
+from optcal.data.quantisation import quantum
 
 if TYPE_CHECKING:
     from optcal.data.static import StaticSettings
@@ -134,7 +135,7 @@ class RestModel:
         for k0, k1 in runs:
             n = b.n[k0:k1].sum()
             means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
-            noise2.append(self.gkappa2 * rm.column_median(b.gvar[k0:k1]) / n)
+            noise2.append(self.gkappa2 * column_medians(b.gvar[k0:k1]) / n)
             mids.append(0.5 * (b.t_mid[k0] + b.t_mid[k1 - 1]))
         if means:
             # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
@@ -192,7 +193,7 @@ class RestModel:
             # the quieter blocks of the run and of a dwell on either side: a short stretch of a move's tail is
             # measured against the rest it settles into
             w = self.dwell_blocks
-            level = rm.quantile_1d(total[max(0, k0 - w):min(b.count, k1 + w)], rm.QUIET_PAIRS_QUANTILE)
+            level = quantiles(total[max(0, k0 - w):min(b.count, k1 + w)], [rm.QUIET_PAIRS_QUANTILE])[0]
             calm = np.log(total[k0:k1] / level) <= self.var_limit
             starts, stops = true_runs(calm)
             out.extend((k0 + int(a), k0 + int(z)) for a, z in zip(starts, stops))
@@ -320,7 +321,7 @@ class RestModel:
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
         # at least the rounding of the data's own scale: a noise-free rest has no sample outside it
         floor = (64.0 * np.finfo(float).eps * float(np.max(np.abs(mean)))) ** 2
-        var = np.maximum(rm.column_median(b.var[j0:j1]), max(floor, np.finfo(float).tiny))
+        var = np.maximum(column_medians(b.var[j0:j1]), max(floor, np.finfo(float).tiny))
         limit = rm.chi2_limit(self.s.false_alarm, 3) * self.s.threshold
 
         def leading_outside(rows: NDArray[np.float64]) -> int:
@@ -349,7 +350,7 @@ class RestModel:
         if len(kept) < 3:
             return kept, []
         floor = (NOISE_FLOOR_G * self.one_g) ** 2  # noise levels below it are the same for any calibration
-        level = np.array([np.log(max(float(rm.column_median(b.var[j0:j1].sum(axis=1))), floor))
+        level = np.array([np.log(max(float(median(b.var[j0:j1].sum(axis=1))), floor))
                           for _, _, j0, j1 in kept])
         weight = np.array([float(z - a) for a, z, _, _ in kept])
         order = np.argsort(level)
@@ -408,7 +409,7 @@ class RestModel:
             dev = xb - (np.add.reduceat(xb, first) / rm.TREND_BATCHES)[owner]
             se2[long] = np.add.reduceat(dev * dev, first) / (rm.TREND_BATCHES - 1.0) / rm.TREND_BATCHES + self.wander2
         for i in np.flatnonzero(~long):
-            se2[i] = self.gkappa2 * (rm.column_median(self.gvar_ref[r.start[i]:r.stop[i]]) / n[i] + self.gfloor) + self.wander2
+            se2[i] = self.gkappa2 * (column_medians(self.gvar_ref[r.start[i]:r.stop[i]]) / n[i] + self.gfloor) + self.wander2
         limit = np.where(long, rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1),
                          rm.normal_limit(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))

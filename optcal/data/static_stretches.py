@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
+from optcal.data.quantiles import column_medians
 from optcal.data.recording import Recording
 from optcal.data.rest_model import SAME_POSE_SAMPLE_SIGMAS, UNIT_RATE_QUANTILE, WOBBLE_SHRINK
 
@@ -178,7 +179,7 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     for a, z, j0, j1 in kept:
         w = b.n[j0:j1, None]
         mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        white = model.kappa2 * (rm.column_median(b.var[j0:j1]) / w.sum() + model.floor)
+        white = model.kappa2 * (column_medians(b.var[j0:j1]) / w.sum() + model.floor)
         scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
         se2 = np.maximum(white, scatter)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included

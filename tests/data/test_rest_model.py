@@ -14,6 +14,7 @@ from scipy import stats
 
 from optcal.data import load, load_with_segmentation
 from optcal.data import rest_model as rm
+from optcal.data.quantiles import column_medians, quantiles
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
 from optcal.data.static import FEW_STRETCHES, SHORT_STRETCHES, StaticSettings, detect_static
@@ -33,21 +34,21 @@ def need(path):
 
 # ----------------------------------------------------------------------------- the statistics
 def test_fast_order_statistics_equal_numpys() -> None:
-    """The per-stretch median, quantile and batch means (written for speed) give numpy's values exactly, so the
-    detector's verdicts do not depend on which is used."""
+    """The per-stretch medians and quantiles (data.quantiles: one partition each) give numpy's values exactly, and
+    the batches of each range are numpy's groupings (array_split's, or evenly spread), so the detector's verdicts
+    do not depend on which is used."""
     rng = np.random.default_rng(3)
     for k in range(1, 41):
         x = rng.normal(size=(k, 3)) * rng.uniform(0.1, 10.0, 3)
-        assert np.array_equal(rm.column_median(x), np.median(x, axis=0))
-        assert np.array_equal(rm.column_median(x[:, 0]), np.median(x[:, 0]))
+        assert np.array_equal(column_medians(x), np.median(x, axis=0))
         for q in (0.0, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0):
-            assert rm.quantile_1d(x[:, 0], q) == np.quantile(x[:, 0], q)
+            assert quantiles(x[:, 0], [q])[0] == np.quantile(x[:, 0], q)
         if k >= rm.TREND_BATCHES:
-            split = np.array([g.mean(axis=0) for g in np.array_split(x, rm.TREND_BATCHES)])
-            assert np.allclose(rm.batch_means(x, rm.TREND_BATCHES, larger_first=True), split, rtol=1e-13, atol=0.0)
+            one = rm.Ranges.of([0], [k])
+            split = [len(g) for g in np.array_split(np.arange(k), rm.TREND_BATCHES)]
+            assert list(rm.batch_ranges(one, rm.TREND_BATCHES, larger_first=True)[0].length) == split
             even = (np.arange(rm.TREND_BATCHES) * k) // rm.TREND_BATCHES
-            assert np.allclose(rm.batch_means(x, rm.TREND_BATCHES),
-                               [g.mean(axis=0) for g in np.split(x, even[1:])], rtol=1e-13, atol=0.0)
+            assert list(rm.batch_ranges(one, rm.TREND_BATCHES)[0].start) == list(even)
     assert rm.step_limit_one(1e-3, 40.0) == float(rm.step_limit(1e-3, np.array([40.0]))[0])
 
 

@@ -16,7 +16,6 @@ from optcal.data.static import (
     TRIMMED,
     detect_static,
 )
-from optcal.data.window_stats import half_window_drift, moving_mean_var
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.core.model import LumpedModel, lu2017_reference_model
 from optcal.families.simulate.poses import tilted_sweeps, uniform_directions
@@ -175,20 +174,6 @@ def test_noise_free_recording_has_exact_poses():
     seg = detect(syn.frame)
     assert len(seg.intervals) == len(d)
     assert np.allclose(seg.pose_table().acc, model.measure(d), atol=1e-12)
-
-
-@pytest.mark.parametrize("window", [20, 21])
-def test_moving_statistics_match_direct_computation(window):
-    x = np.random.default_rng(0).standard_normal((300, 3)) * 3 + 30000
-    mean, var = moving_mean_var(x, window)
-    h = window // 2
-    for i in (0, 5, h, 150, 290, 299):
-        w = x[max(0, i - h):min(300, i - h + window)]
-        assert np.allclose(mean[i], w.mean(axis=0)) and np.allclose(var[i], w.var(axis=0), rtol=1e-9)
-    drift = half_window_drift(x, window)
-    for i in (h, 150, 300 - h):
-        assert drift[i] == pytest.approx(np.linalg.norm(x[i:i + h].mean(axis=0) - x[i - h:i].mean(axis=0)))
-    assert drift[h - 1] == 0 and drift[300 - h + 1] == 0
 
 
 def _z_scores(model, sigma, quantum, units, seed, tmp_path=None):

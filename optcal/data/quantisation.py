@@ -1,0 +1,62 @@
+"""The converter step of quantised data (:func:`quantum`).
+
+The rest model (:mod:`optcal.data.rest_tests`) adds the step's ``q²/12`` to every block's variance, and keeps it
+in a block mean where the signal is quieter than the step (:func:`optcal.data.rest_model.rounding_floor`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Steps per chunk of :func:`_abs_step_chunks` (temporaries of 2 MB, whatever the recording's length).
+STEP_CHUNK: int = 2**18
+
+
+def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
+    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps."""
+    for start in range(0, max(0, col.size - 1), STEP_CHUNK):
+        d = np.diff(col[start:start + STEP_CHUNK + 1])
+        yield np.abs(d, out=d)
+
+
+#: Steps on which :func:`quantum` checks that the steps are multiples of the smallest.
+QUANTUM_CHECK_STEPS: int = 100_000
+
+
+def quantum(x: NDArray[np.float64]) -> float | None:
+    """The converter step of quantised data, else ``None``.
+
+    Data are quantised when their steps are multiples of one step and their range spans at
+    most 2¹⁶ steps (a 16-bit converter); values printed with a fixed number of decimals
+    have a common step too, but span far more of them, or (a signal of small range) step by
+    exactly 10⁻ᵏ, which no converter in physical units does.  The multiples are checked on at most
+    :data:`QUANTUM_CHECK_STEPS` evenly strided non-zero steps (the smallest step over all of
+    them), column by column and chunk by chunk (:func:`_abs_step_chunks`): no temporary of the
+    data's length.
+    """
+    columns = x.reshape(x.shape[0], -1)
+    k = columns.shape[1]
+    stride = max(1, (columns.shape[0] - 1) * k // QUANTUM_CHECK_STEPS)
+    q, span, n_steps, sample = np.inf, 0.0, 0, []
+    for j in range(k):
+        col = columns[:, j]
+        column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
+        for d in _abs_step_chunks(col):
+            d = d[d > 0]
+            if d.size:
+                q = min(q, float(d.min()))
+                sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
+            column_steps += d.size
+        n_steps += column_steps
+        span = max(span, float(col.max() - col.min()))
+    if n_steps < 10:
+        return None
+    if span > (2**16 + 1) * q:
+        return None
+    if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
+        return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
+    ratio = np.concatenate(sample) / q
+    return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
