@@ -253,17 +253,6 @@ class RestModel:
         dev = means[r.rows] - mean[r.owner]
         return np.asarray((r.sums(var[r.rows] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0))
 
-    def effective_samples(self, a: int, z: int, k0: int, k1: int) -> float:
-        """Independent accelerometer samples in ``[a, z)`` (blocks ``[k0, k1)``): see :meth:`_independent`."""
-        r = rm.Ranges.of([k0], [k1])
-        return float(self._independent(r, False, np.array([z - a], dtype=float))[0])
-
-    def effective_gyro_samples(self, a: int, z: int, k0: int, k1: int) -> float:
-        """Independent gyro samples in ``[a, z)`` by the gyro's own noise (infinite where the gyro is no evidence
-        of motion)."""
-        r = rm.Ranges.of([k0], [k1])
-        return float(self._independent(r, True, np.array([z - a], dtype=float))[0])
-
     def _independent(self, r: rm.Ranges, gyro: bool, samples: NDArray[np.float64]) -> NDArray[np.float64]:
         """Samples over the noise colour: each stretch's per-sample variance over the variance of its mean.
 

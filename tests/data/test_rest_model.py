@@ -151,7 +151,8 @@ def test_a_long_rest_measures_its_own_noise_of_the_mean() -> None:
     tau = 1.0 + 2.0 * acf[1:200].sum()  # the integrated autocorrelation time, samples
     truth = n / tau
     assert float(np.median(model.kappa2)) > 10 * tau  # what the block pairs say: far too few samples
-    for measured in (model.effective_samples(0, n, 0, k), model.effective_gyro_samples(0, n, 0, k)):
+    verdict = model.judge([(0, n, 0, k)])
+    for measured in (verdict.independent[0], verdict.independent_gyro[0]):
         assert truth / 4 < measured < truth * 4
     assert len(detect_static(rec).intervals) >= 1
 
