@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration
@@ -57,10 +57,9 @@ class CountScale:
                 f"{axes}; each axis converted with the mean, at most {100 * self.spread:.2g} % off its own)")
 
 
-def axis_sensitivities(T: ArrayLike) -> tuple[float, float, float]:
-    """``‖row i of T⁻¹‖`` for each raw axis i: its reading per unit along its sensing direction."""
-    inverse = np.linalg.inv(np.asarray(T, dtype=float).reshape(3, 3))
-    x, y, z = (float(v) for v in np.linalg.norm(inverse, axis=1))
+def _per_axis(scale: NDArray[np.float64]) -> tuple[float, float, float]:
+    """A model's physical scale (``‖row i of T⁻¹‖``: each raw axis's reading per unit along its sensing direction)."""
+    x, y, z = (float(v) for v in scale)
     return x, y, z
 
 
@@ -72,10 +71,10 @@ def calibration_scales(cal: Calibration) -> dict[str, CountScale]:
     """
     out: dict[str, CountScale] = {}
     if cal.units == "counts":
-        out["acc"] = CountScale("acc", axis_sensitivities(cal.lumped().T), "g")
+        out["acc"] = CountScale("acc", _per_axis(cal.lumped().model.physical().scale), "g")
     gyro = getattr(cal, "gyro", None)
     if gyro is not None and getattr(cal, "gyro_units", None) == "counts":
-        out["gyro"] = CountScale("gyro", axis_sensitivities(gyro.T), "rad/s")
+        out["gyro"] = CountScale("gyro", _per_axis(gyro.physical().scale), "rad/s")
     return out
 
 
