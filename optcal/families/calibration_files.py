@@ -25,6 +25,7 @@ its description says how the file was read.  Every command that takes a calibrat
 from __future__ import annotations
 
 import importlib
+import json
 from pathlib import Path
 from typing import Any
 
@@ -133,25 +134,27 @@ def load(source: str | Path | dict[str, Any], *, gyro: str | Path | None = None,
     InputError
         Missing or broken file, unknown ``cal_type``, newer major ``format_version``.
     """
-    from optcal.families.peer_files import from_imucal, is_imucal, read_peer_text
+    from optcal.families.peer_files import from_imucal, is_imucal, parse_imutk, read_imutk
 
     if isinstance(source, dict):
         return from_imucal(source, "a dictionary", gravity) if is_imucal(source) else from_dict(source)
     p = Path(source)
-    if p.is_file():
+    if p.is_file():  # read and parsed once: optcal's JSON, imucal's JSON or imu_tk's .calib
         try:
             text = p.read_text()
         except (OSError, UnicodeDecodeError):
             text = ""
         try:
-            peer = read_peer_text(p, text, gyro, gravity)
+            d = json.loads(text)
+        except json.JSONDecodeError:
+            d = None
+        try:
+            if isinstance(d, dict):
+                return from_imucal(d, str(p), gravity) if is_imucal(d) else from_dict(d)
+            if d is None and parse_imutk(text) is not None:
+                return read_imutk(p, gyro, gravity)
         except InputError as exc:
             raise InputError(f"{source}: {exc}" if not str(exc).startswith(str(source)) else str(exc)) from exc
-        if peer is not None:
-            return peer
-    try:
-        return from_dict(read_json(source, hint="optcal reads its own calibration files, imucal's JSON and imu_tk's .calib"))
-    except InputError as exc:
-        if str(exc).startswith(str(source)):
-            raise
-        raise InputError(f"{source}: {exc}") from exc
+    # a missing file, or not one of those: read_json says which
+    read_json(source, hint="optcal reads its own calibration files, imucal's JSON and imu_tk's .calib")
+    raise InputError(f"{source}: not an optcal calibration file")

@@ -24,7 +24,6 @@ that module's docstring):
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Any
@@ -38,7 +37,7 @@ from optcal.core.gyro_model import GyroModel
 from optcal.errors import InputError
 from optcal.families.caltypes.peer import PeerCalibration
 
-__all__ = ["IMUCAL_GRAVITY", "IMUTK_GRAVITY", "from_imucal", "is_imucal", "parse_imutk", "read_imutk", "read_peer_text"]
+__all__ = ["IMUCAL_GRAVITY", "IMUTK_GRAVITY", "from_imucal", "is_imucal", "parse_imutk", "read_imutk"]
 
 #: imucal's default ``grav`` (``FerrarisCalibration.__init__``, ``imucal/ferraris_calibration.py``), m/s².
 IMUCAL_GRAVITY: float = 9.81
@@ -234,20 +233,3 @@ def read_imutk(path: str | Path, gyro: str | Path | None = None, gravity: float 
         peer["gyroscope"] = peer_g
     return PeerCalibration("imu_tk", "multi-position", T @ K / g, B, units, g, reason, model, gyro_units, source,
                            f"read as imu_tk's .calib (T, K, B; {paired})", peer, notes)
-
-
-def read_peer_text(path: str | Path, text: str, gyro: str | Path | None = None,
-                   gravity: float | None = None) -> PeerCalibration | None:
-    """A peer's calibration recognised in ``text`` (the content of ``path``), or ``None``.
-
-    JSON: imucal's; anything else: imu_tk's ``.calib`` when it parses as one.
-    """
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError:
-        if parse_imutk(text) is None:
-            return None
-        return read_imutk(path, gyro, gravity)
-    if isinstance(d, dict) and is_imucal(d):
-        return from_imucal(d, str(path), gravity)
-    return None
