@@ -197,7 +197,7 @@ def compare_with_peer(cal: Any, poses: PoseTable, noise: NDArray[np.float64] | N
             own = LumpedModel.from_T(fit.T, fit.o)
             result.own = f"{fit.method}, fitted on these {poses.n} poses"
             try:
-                own_heldout = held_out_validation(poses, folds=min(folds, poses.n), method=method).residuals
+                own_heldout = held_out_validation(poses, folds=min(folds, poses.n), method=method, full=fit).residuals
             except InputError as exc:
                 result.own += f"; no held-out error: {exc}"
         except InputError as exc:

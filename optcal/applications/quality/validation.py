@@ -193,6 +193,7 @@ def held_out_validation(
     folds: int = 5,
     method: str = "default",
     rng: np.random.Generator | int | None = 0,
+    full: CalibrationResult | None = None,
     **settings: Any,
 ) -> HeldOutResult:
     """Calibrate on the training poses, evaluate the norm error on the test poses.
@@ -207,6 +208,8 @@ def held_out_validation(
         Estimator (:func:`optcal.families.accel.calibration.calibrate`).
     rng : Generator or int, optional
         For the fold partition.
+    full : CalibrationResult, optional
+        The estimator's fit on all of ``poses`` with these settings, when the caller has it (not fitted again).
     **settings
         Passed to the estimator.
     """
@@ -225,7 +228,8 @@ def held_out_validation(
         residuals[test] = r
         records.append({"n_train": int(train.size), "n_test": int(test.size), "rms_test_g": rms(r),
                         "rms_train_g": cal.rms_norm_residual_g})
-    full = calibrate(poses, method=method, **settings)
+    if full is None:
+        full = calibrate(poses, method=method, **settings)
     return HeldOutResult(residuals, norm_residuals(full.T, full.o, poses.acc), records)
 
 
