@@ -34,17 +34,12 @@ from numpy.typing import NDArray
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.stats import rms
 from optcal.core.units import RAD_PER_UNIT
-from optcal.data.units import MIDSCALE_SPAN, UNSIGNED_16_MIDSCALE
+from optcal.data.units import UNSIGNED_16_MIDSCALE, around_midscale
 from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration
 from optcal.families.caltypes.lumped import LumpedCalibration
 from optcal.applications.export.base import ExportOptions, LossReport
 from optcal.applications.export.firmware import driver_zero, loss_poses, ms2_per_raw_unit
-
-#: A triangular matrix's element counts as zero below this fraction of the matrix's largest element
-#: (the rounding of a factorisation; optcal's own T is exactly lower-triangular).
-TRIANGULAR_TOLERANCE: float = 1e-12
-
 
 @dataclass(frozen=True)
 class SIModel:
@@ -71,8 +66,6 @@ class SIModel:
         How the topic's units were taken (the driver conversion, zero readings).
     acc_per_raw, acc_zero : float
         ``k`` and ``z``: the topic's accelerometer reading is ``k (a − z)``.
-    gyro_per_raw, gyro_zero : float
-        ``s`` and ``z_g``: the topic's gyro reading is ``s (r − z_g)``.
     """
 
     A: NDArray[np.float64]
@@ -85,20 +78,10 @@ class SIModel:
     driver: list[str]
     acc_per_raw: float = 1.0
     acc_zero: float = 0.0
-    gyro_per_raw: float = 1.0
-    gyro_zero: float = 0.0
 
     def topic_acc(self, raw: NDArray[np.float64]) -> NDArray[np.float64]:
         """The topic's accelerometer reading ``k (a − z)`` of raw samples, m/s²."""
         return self.acc_per_raw * (np.asarray(raw, float) - self.acc_zero)
-
-    def topic_gyro(self, raw: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The topic's gyro reading ``s (r − z_g)`` of raw samples, rad/s."""
-        return self.gyro_per_raw * (np.asarray(raw, float) - self.gyro_zero)
-
-    def specific_force(self, alpha: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``A (α − α₀)`` for topic samples (n, 3), m/s²."""
-        return (np.asarray(alpha, float) - self.acc_offset) @ self.A.T
 
 
 def gyro_driver(cal: Calibration, options: ExportOptions) -> tuple[float, float, str | None]:
@@ -125,7 +108,7 @@ def gyro_driver(cal: Calibration, options: ExportOptions) -> tuple[float, float,
         z = float(options.gyro_counts_zero)
         return s, z, (f"gyro counts zero {z:g} (given)" if z else None)
     bias = np.asarray(getattr(cal, "gyro").bias, float)
-    if np.all(np.abs(bias - UNSIGNED_16_MIDSCALE) < MIDSCALE_SPAN):
+    if around_midscale(bias):
         return s, UNSIGNED_16_MIDSCALE, (f"the gyro bias lies around the unsigned 16-bit mid-scale "
                                          f"{UNSIGNED_16_MIDSCALE:g}: a driver that outputs rad/s has removed it, "
                                          "so it is subtracted from the bias (gyro_counts_zero=VALUE sets another)")
@@ -162,7 +145,7 @@ def si_model(cal: Calibration, options: ExportOptions, needs_topic_units: bool =
     else:
         s, zg = 1.0, 0.0
     S = None if gyro.g_sensitivity is None else s * gyro.g_sensitivity / g
-    return SIModel(A, offset, gyro.T / s, s * (gyro.bias - zg), S, lumped, g, driver, k, z, s, zg)
+    return SIModel(A, offset, gyro.T / s, s * (gyro.bias - zg), S, lumped, g, driver, k, z)
 
 
 def proper_rotation(Q: NDArray[np.float64]) -> bool:
@@ -175,16 +158,8 @@ def lq(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]
     From the QR factorisation of ``Mᵀ`` (``Mᵀ = Q' R``: ``M = Rᵀ Q'ᵀ``).  A reflection (``det M < 0``, a
     left-handed set of axes) keeps ``Q`` proper and gives ``L`` a negative last diagonal element.
     """
-    q, r = np.linalg.qr(np.asarray(M, float).T)
-    signs = np.sign(np.diag(r))
-    signs[signs == 0] = 1.0
-    q, r = q * signs, r * signs[:, None]
-    L, Q = r.T, q.T
-    if not proper_rotation(Q):
-        flip = np.diag([1.0, 1.0, -1.0])
-        L, Q = L @ flip, flip @ Q
-    L = np.where(np.triu(np.ones((3, 3)), 1) > 0, 0.0, L)  # exact zeros above the diagonal
-    return L, Q
+    Q, U = qr_upper(np.asarray(M, float).T)
+    return U.T, Q.T
 
 
 def qr_upper(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -203,11 +178,6 @@ def qr_upper(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.fl
 def rotation_angle_deg(R: NDArray[np.float64]) -> float:
     """The angle of a rotation matrix, degrees."""
     return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
-
-
-def is_lower_triangular(M: NDArray[np.float64]) -> bool:
-    M = np.asarray(M, float)
-    return bool(np.all(np.abs(np.triu(M, 1)) <= TRIANGULAR_TOLERANCE * np.abs(M).max()))
 
 
 def accel_loss(cal: Calibration, options: ExportOptions, exported_g: Callable[[NDArray[np.float64]], NDArray[np.float64]],
@@ -254,5 +224,5 @@ def matrix_yaml(M: NDArray[np.float64], indent: str) -> list[str]:
     return [f"{indent}- [{', '.join(f'{v:.12g}' for v in row)}]" for row in np.asarray(M, float)]
 
 
-__all__ = ["SIModel", "accel_loss", "describe_gyro_loss", "gyro_driver", "gyro_loss", "is_lower_triangular", "lq",
+__all__ = ["SIModel", "accel_loss", "describe_gyro_loss", "gyro_driver", "gyro_loss", "lq",
            "matrix_yaml", "qr_upper", "rotation_angle_deg", "si_model", "STANDARD_GRAVITY"]
