@@ -32,7 +32,7 @@ written (and say so).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -162,7 +162,7 @@ def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> G
     n, full, firmware = gravity_prediction_loss(cal, offsets, options.recording)
     line = (f"gravity carried across the recording's {n} moves, rms angle to the next pose: full gyro model "
             f"{full:.3f} deg, the firmware's offsets only {firmware:.3f} deg (loss {firmware - full:.3f} deg)")
-    return GyroOffsets(offsets.offset_rad_s, k, z, loss, offsets.mapped, offsets.dropped, line)
+    return replace(offsets, moves_line=line)
 
 
 def gravity_prediction_loss(cal: ImuCalibration, offsets: GyroOffsets, recording: Any) -> tuple[int, float, float]:

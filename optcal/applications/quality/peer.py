@@ -14,7 +14,7 @@ in-sample error and against the pose noise alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -72,10 +72,6 @@ class PeerComparison:
     differences: dict[str, Any] = field(default_factory=dict)
     explained: dict[str, float] = field(default_factory=dict)
     folds: int = FOLDS
-
-    @property
-    def has_own(self) -> bool:
-        return self.own_after is not None
 
     def lines(self) -> list[str]:
         """The text report's lines."""
@@ -137,10 +133,10 @@ def _model(params: PhysicalParameters) -> LumpedModel:
 def _swap(peer: PhysicalParameters, own: PhysicalParameters, group: str) -> PhysicalParameters:
     """The peer's parameters with ``group`` taken from optcal's."""
     if group == "bias":
-        return PhysicalParameters(peer.scale, peer.rho, peer.phi, peer.lam, own.bias)
+        return replace(peer, bias=own.bias)
     if group == "scale":
-        return PhysicalParameters(own.scale, peer.rho, peer.phi, peer.lam, peer.bias)
-    return PhysicalParameters(peer.scale, own.rho, own.phi, own.lam, peer.bias)
+        return replace(peer, scale=own.scale)
+    return replace(peer, rho=own.rho, phi=own.phi, lam=own.lam)
 
 
 def differences(peer: LumpedModel, own: LumpedModel, acc: NDArray[np.float64]) -> tuple[dict[str, Any], dict[str, float]]:
