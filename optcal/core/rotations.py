@@ -111,6 +111,11 @@ def logarithm_map(rotations: ArrayLike) -> NDArray[np.float64]:
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-2] + (3,))
 
 
+def rotation_angle_deg(R: ArrayLike) -> float:
+    """The angle of a rotation matrix, degrees (``arccos((tr R − 1)/2)``)."""
+    return float(np.degrees(np.arccos(np.clip((np.trace(np.asarray(R, dtype=float)) - 1.0) / 2.0, -1.0, 1.0))))
+
+
 def rotate_about_axis(axis: ArrayLike, angles: ArrayLike, vector: ArrayLike) -> NDArray[np.float64]:
     """``vector`` turned about the unit ``axis`` by each of ``angles`` (active), shape (len(angles), 3).
 

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.model import STANDARD_GRAVITY
+from optcal.core.rotations import rotation_angle_deg
 from optcal.core.stats import rms
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data.units import UNSIGNED_16_MIDSCALE, around_midscale
@@ -173,11 +174,6 @@ def qr_upper(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.fl
         q, r = q @ flip, flip @ r
     r = np.where(np.tril(np.ones((3, 3)), -1) > 0, 0.0, r)
     return q, r
-
-
-def rotation_angle_deg(R: NDArray[np.float64]) -> float:
-    """The angle of a rotation matrix, degrees."""
-    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
 
 
 def accel_loss(cal: Calibration, options: ExportOptions, exported_g: Callable[[NDArray[np.float64]], NDArray[np.float64]],

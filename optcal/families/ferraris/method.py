@@ -53,6 +53,7 @@ from optcal.core.gyro_model import GyroModel
 from optcal.core.identifiability import RankReport
 from optcal.core.model import AXES
 from optcal.core.norm_residual import norm_residuals
+from optcal.core.rotations import exponential_map, rotation_angle_deg
 from optcal.core.stats import rms
 from optcal.data.recording import Recording
 from optcal.data.sections import FACE_NAMES, TURN_NAMES
@@ -64,7 +65,7 @@ from optcal.families.accel.base import Stopwatch
 from optcal.families.accel.result import CalibrationResult
 from optcal.families.caltypes.base import FitPoses
 from optcal.families.accel.sixpos import PARAM_NAMES as SIXPOS_PARAM_NAMES
-from optcal.families.ferraris.regions import AXIS_OF, FerrarisRegions
+from optcal.families.ferraris.regions import AXIS_OF, FerrarisRegions, sample_dt
 from optcal.families.gyro.result import ImuCalibration
 
 __all__ = ["FerrarisFit", "TurnReading", "ferraris_accelerometer", "ferraris_equations", "ferraris_fit"]
@@ -242,7 +243,7 @@ class FerrarisFit:
         units (NaN for counts, which have none); after, calibrated.
         """
         assert rec.gyro is not None
-        dt = np.diff(rec.t, append=rec.t[-1] + 1.0 / rec.rate_hz)
+        dt = sample_dt(rec)
         per_unit = RAD_PER_UNIT.get(self.gyro_units)
         before = []
         for name in TURN_NAMES:
@@ -265,7 +266,7 @@ class FerrarisFit:
         return dict(zip(GYRO_PARAM_NAMES, np.sqrt(np.clip(np.diag(self.gyro_covariance), 0.0, None)).tolist()))
 
 
-def _section_stats(rec: Recording, regions: FerrarisRegions) -> tuple[FerrarisInputs, NDArray[np.float64], NDArray[np.float64]]:
+def _section_stats(rec: Recording, regions: FerrarisRegions) -> tuple[FerrarisInputs, NDArray[np.float64]]:
     """The inputs, and the variance of each entry of :meth:`FerrarisInputs.vector` (independent sections)."""
     gyro = rec.gyro
     assert gyro is not None
@@ -284,17 +285,15 @@ def _section_stats(rec: Recording, regions: FerrarisRegions) -> tuple[FerrarisIn
         counts.append(idx.size)
         acc_noise.append(a.std(axis=0, ddof=1))
         gyr_noise.append(g.std(axis=0, ddof=1))
-    dt = np.diff(rec.t, append=rec.t[-1] + 1.0 / rec.rate_hz)
+    dt = sample_dt(rec)
     turn_g = np.zeros((3, 3))
     turn_a = np.zeros((3, 3))
     turn_t = np.zeros(3)
-    turn_n = np.zeros(3)
     for i, name in enumerate(TURN_NAMES):
         idx = regions.sections[name].samples
         turn_g[:, i] = (gyro[idx] * dt[idx, None]).sum(axis=0)
         turn_a[:, i] = (rec.acc[idx] * dt[idx, None]).sum(axis=0)
         turn_t[i] = dt[idx].sum()
-        turn_n[i] = idx.size
     p, n = ["x_p", "y_p", "z_p"], ["x_a", "y_a", "z_a"]
     x = FerrarisInputs(
         np.column_stack([acc_cols[k] for k in p]), np.column_stack([acc_cols[k] for k in n]),
@@ -313,7 +312,7 @@ def _section_stats(rec: Recording, regions: FerrarisRegions) -> tuple[FerrarisIn
         np.outer(sg2, dt2).ravel(),
         np.outer(sa2, dt2).ravel(),
     ])
-    return x, var, turn_n
+    return x, var
 
 
 def _turn_angles(rec: Recording, x: FerrarisInputs, turn_angle_deg: float | None, gyro_units: str | None
@@ -363,22 +362,14 @@ def _jacobian(x: FerrarisInputs, var: NDArray[np.float64], angles: NDArray[np.fl
 
 
 def _net_rotation_deg(omega_rad_s: NDArray[np.float64], dt: NDArray[np.float64]) -> float:
-    """Angle of the attitude ``Π exp(ω Δt)`` integrated over the samples (quaternions), degrees."""
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    for w, h in zip(omega_rad_s, dt):
-        angle = float(np.linalg.norm(w)) * h
-        if angle == 0.0:
-            continue
-        axis = w / np.linalg.norm(w)
-        s = np.sin(angle / 2)
-        r = np.array([np.cos(angle / 2), *(s * axis)])
-        q = np.array([
-            q[0] * r[0] - q[1] * r[1] - q[2] * r[2] - q[3] * r[3],
-            q[0] * r[1] + q[1] * r[0] + q[2] * r[3] - q[3] * r[2],
-            q[0] * r[2] - q[1] * r[3] + q[2] * r[0] + q[3] * r[1],
-            q[0] * r[3] + q[1] * r[2] - q[2] * r[1] + q[3] * r[0],
-        ])
-    return float(np.degrees(2 * np.arccos(min(1.0, abs(q[0])))))
+    """Angle of the attitude ``Π exp([ω Δt]×)`` integrated over the samples, degrees (the steps composed in order,
+    pairwise)."""
+    steps = exponential_map(np.asarray(omega_rad_s, dtype=float).reshape(-1, 3) * np.asarray(dt, dtype=float)[:, None])
+    while steps.shape[0] > 1:
+        if steps.shape[0] % 2:
+            steps = np.concatenate([steps, np.eye(3)[None]])
+        steps = steps[0::2] @ steps[1::2]
+    return rotation_angle_deg(steps[0]) if steps.shape[0] else 0.0
 
 
 def ferraris_fit(
@@ -410,7 +401,7 @@ def ferraris_fit(
     if rec.gyro is None:
         raise InputError("the Ferraris method needs the gyro columns (gx, gy, gz): its turns calibrate the gyroscope")
     with Stopwatch() as watch:
-        x, var, _ = _section_stats(rec, regions)
+        x, var = _section_stats(rec, regions)
         angles, angle_why, g_units, g_why = _turn_angles(rec, x, turn_angle_deg, gyro_units)
         mats = ferraris_equations(x, angles)
         J = _jacobian(x, var, angles)
@@ -462,7 +453,7 @@ def ferraris_fit(
     accelerometer.fitted_on = FitPoses(face_means[order].copy(), None, None)
     gyro = GyroModel(np.radians(mats.T_g_deg), mats.b_g, mats.K_ga)
     # the turns as the calibrated gyroscope reads them
-    dt = np.diff(rec.t, append=rec.t[-1] + 1.0 / rec.rate_hz)
+    dt = sample_dt(rec)
     turns = []
     assert rec.gyro is not None
     for i, name in enumerate(TURN_NAMES):
@@ -481,7 +472,7 @@ def ferraris_fit(
         notes.append("no rest outside the six faces: no held-out check (record a few rests in other orientations)")
     return FerrarisFit(
         matrices=mats, accelerometer=accelerometer, gyro=gyro, gyro_units=g_units, gyro_units_reason=g_why,
-        gyro_params=np.concatenate([np.radians(mats.T_g_deg).ravel(), mats.b_g, mats.K_ga.ravel()]),
+        gyro_params=mats.theta()[12:],  # T_g (rad/s per raw unit), b_g, G_g
         gyro_covariance=cov[12:, 12:], regions=regions, turns=turns, held_out=held,
         bias_check=B - mats.b_a[:, None], notes=list(regions.notes),
     )

@@ -201,13 +201,18 @@ def find_regions(seg: Segmentation) -> FerrarisRegions:
     return FerrarisRegions(sections, "found", _held_out(seg, sections))
 
 
+def sample_dt(rec: Recording) -> NDArray[np.float64]:
+    """Each sample's duration: the step to the next sample's time (the last one's, one sampling period)."""
+    return np.diff(rec.t, append=rec.t[-1] + 1.0 / rec.rate_hz)
+
+
 def _find_turn(seg: Segmentation, faces: list[str], bias: NDArray[np.float64], axis: int) -> Section:
     """The stretch between two rests on one face of ``axis`` with the largest integrated turn about it."""
     rec = seg.recording
     gyro = rec.gyro
     assert gyro is not None
     ivs = seg.intervals
-    dt = np.diff(rec.t, append=rec.t[-1] + 1.0 / rec.rate_hz)
+    dt = sample_dt(rec)
     best: tuple[float, int, int, NDArray[np.float64]] | None = None
     for i in range(len(ivs) - 1):
         if faces[i][0] != "xyz"[axis]:
