@@ -47,6 +47,7 @@ from optcal.core.norm_residual import norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.errors import InputError
 from optcal.families.accel.base import Stopwatch
+from optcal.families.accel.exact_profile import tangent_bases
 from optcal.families.accel.result import CalibrationResult
 from optcal.families.accel.sixpos import PARAM_NAMES as WV_NAMES
 from optcal.families.accel.sixpos import REFERENCE_COLUMNS, ANGLE_COLUMNS, reference_specific_force
@@ -101,14 +102,8 @@ def nominal_directions(poses: PoseTable) -> tuple[NDArray[np.float64], str, list
 
 
 def _tangent_basis(n: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(k, 2, 3): two unit vectors normal to each ``n_k`` and to each other."""
-    out = np.empty((n.shape[0], 2, 3))
-    for k, v in enumerate(n):
-        helper = np.eye(3)[int(np.argmin(np.abs(v)))]
-        t1 = np.cross(v, helper)
-        t1 /= np.linalg.norm(t1)
-        out[k] = (t1, np.cross(v, t1))
-    return out
+    """(k, 2, 3): two unit vectors normal to each ``n_k`` and to each other (:func:`tangent_bases`)."""
+    return np.stack(tangent_bases(n), axis=1)
 
 
 def _design(n: NDArray[np.float64]) -> NDArray[np.float64]:
