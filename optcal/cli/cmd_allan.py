@@ -215,7 +215,8 @@ def allan(
         from optcal.families.noise.scales import calibration_scales
 
         scales = calibration_scales(calibration_files.load(calibration_path))
-    log = read_still_log(data, sensor=sensor, window=parse_window(window), **reading_kwargs(reading))
+    span = parse_window(window)
+    log = read_still_log(data, sensor=sensor, window=span, **reading_kwargs(reading))
     analyses = {}
     reasons: dict[str, str] = {}
     if sensor in ("acc", "both"):
@@ -251,7 +252,7 @@ def allan(
         for name, analysis in analyses.items():
             out: dict[str, Any] = analysis.summary()
             out["log"].update({"path": data, "units_reason": reasons[name], "exclusions": log.exclusions,
-                               **({"window_s": list(parse_window(window) or ())} if window else {}),
+                               **({"window_s": list(span or ())} if window else {}),
                                **({"scales": scale_lines} if scale_lines else {}),
                                **({"decisions": log.decisions.to_dict()} if log.decisions is not None else {})})
             summaries[name] = out

@@ -45,15 +45,18 @@ def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity:
     poses = loaded.poses if loaded is not None else load_data(data, **data_opts)
     result = check_calibration(cal, poses)
     comparison = None
+    in_units = convert_to_units(poses, cal.units) if cal.cal_type == "peer" or report_path else None
     if cal.cal_type == "peer":  # another tool's calibration: next to optcal's own fit of DATA
         from optcal.applications.quality.peer import compare_with_peer
 
-        comparison = compare_with_peer(cal, convert_to_units(poses, cal.units), result.noise, method=method)
+        assert in_units is not None
+        comparison = compare_with_peer(cal, in_units, result.noise, method=method)
     if report_path:
         from optcal.report.document import check_document
 
-        write_report(check_document(cal, calibration, convert_to_units(poses, cal.units), result, data, command_line(),
-                                    tolerance, comparison), report_path)
+        assert in_units is not None
+        write_report(check_document(cal, calibration, in_units, result, data, command_line(), tolerance, comparison),
+                     report_path)
     gyro_lines: list[str] = []
     gyro_out: dict[str, Any] = {}
     if loaded is not None:  # the gyro: gravity predicted across the moves, before and after

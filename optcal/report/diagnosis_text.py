@@ -116,7 +116,8 @@ def session_lines(sessions: SessionOffsets) -> list[str]:
 def peer_lines(diag: Diagnosis) -> list[str]:
     """A peer's calibration (``--baseline`` from imucal or imu_tk) next to optcal's own: what each misses."""
     peer = diag.peer
-    lines = ["The given calibration next to optcal's: " + peer.lines()[0]] + ["  " + line for line in peer.lines()[1:]]
+    first, *rest = peer.lines()
+    lines = ["The given calibration next to optcal's: " + first] + ["  " + line for line in rest]
     if diag.findings:
         named = ", ".join(dict.fromkeys(f.effect for f in diag.findings))
         lines.append(f"   neither {peer.peer} nor the paper's model holds what the diagnosis named ({named}); "
