@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from optcal.applications.export import EXPORTERS
+from optcal.applications.export.base import DEFAULT_GYRO_RATE_DEG_S
 from optcal.cli.data_options import DATA_PATH
 
 
@@ -50,7 +51,7 @@ from optcal.cli.data_options import DATA_PATH
               help="ardupilot/px4: the IMU (0, 1, 2) the parameters are for (INS_ACC2OFFS_*, CAL_ACC1_*, ...).")
 @click.option("--counts-per-dps", type=click.FloatRange(min=0, min_open=True), default=None,
               help="ardupilot/px4, a gyroscope in counts: the driver's sensitivity (counts per deg/s, from the datasheet).")
-@click.option("--gyro-rate", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True,
+@click.option("--gyro-rate", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_GYRO_RATE_DEG_S, show_default=True,
               metavar="DEG_S", help="ardupilot/px4: the rate at which the gyro error the firmware cannot correct is stated.")
 @click.option("--vehicle-id", type=click.IntRange(1, 255), default=1, show_default=True,
               help="px4: the vehicle's MAV_SYS_ID written in each line (QGroundControl refuses another).")
@@ -126,11 +127,6 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         **({"gravity_m_s2": gravity} if gravity is not None else {}),
         inflate=parse_inflate(inflate),
     )
-    if fmt == "kalibr" and options.inflate != (1.0, 1.0):
-        from optcal.errors import InputError
-
-        raise InputError("--inflate applies to vins, orbslam3, okvis, kalibr-imu, openvins and basalt; the kalibr "
-                         "format writes the measured noise (use kalibr-imu for an inflated Kalibr file)")
     result = run_export(cal, fmt, options)
     report = [f"calibration: {calibration}: {cal.describe()}"]
     if result.loss is not None:

@@ -209,6 +209,16 @@ def test_kalibr_imu_yaml_from_an_allan_result(allan_json, tmp_path, capsys):
     assert imu["accelerometer_noise_density"] == pytest.approx(1e-3 * G / 10, rel=0.15)
     code, _, err = run(["export", tmp_path / "cal.json", "--format", "kalibr"], capsys)
     assert code == 2 and "needs the noise model" in err
+    # the kalibr format writes the measured noise: an inflation is refused, from the command line and the library
+    code, _, err = run(["export", tmp_path / "cal.json", "--format", "kalibr", "--allan", tmp_path / "allan.json",
+                        "--inflate", "2,2"], capsys)
+    assert code == 2 and "use kalibr-imu for an inflated Kalibr file" in err
+    from optcal.applications.export import kalibr
+    from optcal.applications.export.base import ExportOptions
+    from optcal.errors import InputError
+
+    with pytest.raises(InputError, match="the kalibr format writes the measured noise"):
+        kalibr.export(calibration_files.load(tmp_path / "cal.json"), ExportOptions(allan=allan, inflate=(2.0, 2.0)))
 
 
 def save_allan_results(gyro: np.ndarray, acc: np.ndarray, rate: float, allan_json, tmp_path, capsys) -> dict:

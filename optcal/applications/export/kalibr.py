@@ -136,7 +136,10 @@ def gyroscope_lines(gyro_allan: dict, random_walk_bound: bool = False) -> tuple[
 
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
-    """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan``."""
+    """The Kalibr ``imu.yaml`` of the Allan result in ``options.allan`` (the measured noise, never inflated)."""
+    if options.inflate != (1.0, 1.0):
+        raise InputError("inflate (--inflate) applies to vins, orbslam3, okvis, kalibr-imu, openvins and basalt; the "
+                         "kalibr format writes the measured noise (use kalibr-imu for an inflated Kalibr file)")
     acc_allan, gyro_allan = split_allan(options)
     if acc_allan is None:
         raise InputError("the kalibr format needs the noise model: pass allan= (an optcal allan --json result); "
