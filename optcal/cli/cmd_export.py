@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
@@ -99,11 +98,6 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         fit_poses = FitPoses(convert_samples(table.acc, table.units, cal.units), table.temp, table.t)
         if cal.cal_type == "imu" and loaded.segmentation is not None and loaded.segmentation.recording.gyro is not None:
             recording = loaded.segmentation  # the gyro's loss across its moves
-    # one gyro sensitivity, given in either unit (the firmware formats state it per °/s, the VIO ones per rad/s)
-    if counts_per_dps is None and gyro_counts_per_rad_s is not None:
-        counts_per_dps = gyro_counts_per_rad_s * math.pi / 180.0
-    elif gyro_counts_per_rad_s is None and counts_per_dps is not None:
-        gyro_counts_per_rad_s = counts_per_dps * 180.0 / math.pi
     options = ExportOptions(
         counts_per_g=counts_per_g,
         counts_zero=counts_zero,

@@ -370,3 +370,24 @@ def test_accelerometer_only_calibration_in_g_exports_identity_gyro_and_says_so(t
     cal = calibration_files.load(tmp_path / "cal.json")
     np.testing.assert_allclose(np.linalg.norm(a_i, axis=1) / G - 1, cal.norm_errors(acc), atol=1e-9)  # 12 digits in the file
     assert imu["update_rate"] == 200
+
+
+def test_one_gyro_sensitivity_given_in_either_unit_serves_every_format() -> None:
+    """ExportOptions holds the driver's gyro sensitivity once, per °/s or per rad/s: the VIO intrinsics take it given
+    per °/s and the firmware formats given per rad/s (a library caller was refused unless the command line had
+    copied it into the other field)."""
+    import math
+    from types import SimpleNamespace
+
+    from optcal.applications.export.base import ExportOptions
+    from optcal.applications.export.firmware_gyro import rad_s_per_gyro_unit
+    from optcal.applications.export.intrinsics import gyro_driver
+
+    per_dps = ExportOptions(counts_per_dps=131.0)
+    per_rad = ExportOptions(gyro_counts_per_rad_s=131.0 * 180.0 / math.pi)
+    assert per_rad.gyro_counts_per_dps() == pytest.approx(131.0) and per_dps.gyro_counts_per_rad() == pytest.approx(7505.747, rel=1e-6)
+    assert ExportOptions().gyro_counts_per_dps() is None and ExportOptions().gyro_counts_per_rad() is None
+    cal = SimpleNamespace(gyro_units="counts", gyro=SimpleNamespace(bias=np.array([10.0, -4.0, 3.0])))
+    s, zero, _ = gyro_driver(cal, per_dps)
+    assert s == pytest.approx(math.radians(1.0) / 131.0) and zero == 0.0
+    assert rad_s_per_gyro_unit("counts", per_rad.gyro_counts_per_dps()) == pytest.approx(s)

@@ -6,6 +6,8 @@ the registry in :mod:`optcal.applications.export` imports the format modules on 
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -106,6 +108,19 @@ class ExportOptions:
     gyro_counts_zero: float | None = None
     gravity_m_s2: float = STANDARD_GRAVITY
     inflate: tuple[float, float] = (1.0, 1.0)
+
+    def gyro_counts_per_dps(self) -> float | None:
+        """The driver's gyro sensitivity in counts per °/s, given as either :attr:`counts_per_dps` or
+        :attr:`gyro_counts_per_rad_s` (the firmware formats state it per °/s, the VIO ones per rad/s)."""
+        if self.counts_per_dps is not None:
+            return self.counts_per_dps
+        return None if self.gyro_counts_per_rad_s is None else self.gyro_counts_per_rad_s * math.pi / 180.0
+
+    def gyro_counts_per_rad(self) -> float | None:
+        """The same sensitivity in counts per rad/s (:meth:`gyro_counts_per_dps`)."""
+        if self.gyro_counts_per_rad_s is not None:
+            return self.gyro_counts_per_rad_s
+        return None if self.counts_per_dps is None else self.counts_per_dps * 180.0 / math.pi
 
 
 @dataclass(frozen=True)

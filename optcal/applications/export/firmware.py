@@ -345,7 +345,7 @@ def write_firmware(cal: Calibration, options: ExportOptions, firmware: FirmwareF
     model = diagonal_model(cal, options)
     loss = measure_loss(cal, model, options, firmware.name)
     gyro = gyro_offsets(cal, options, model.raw_zero)
-    if gyro is None and (options.gyro_device_id is not None or options.counts_per_dps is not None):
+    if gyro is None and (options.gyro_device_id is not None or options.gyro_counts_per_dps() is not None):
         raise InputError(f"gyro_device_id and counts_per_dps apply to an imu calibration (accelerometer and gyroscope); "
                          f"this is a {cal.cal_type!r} calibration, which has no gyroscope")
     if gyro is None and options.recording is not None:

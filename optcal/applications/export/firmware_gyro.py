@@ -139,7 +139,7 @@ def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> G
     """
     if not isinstance(cal, ImuCalibration):
         return None
-    k = rad_s_per_gyro_unit(cal.gyro_units, options.counts_per_dps)
+    k = rad_s_per_gyro_unit(cal.gyro_units, options.gyro_counts_per_dps())
     z = raw_zero if cal.gyro_units == "counts" else 0.0
     model = cal.gyro
     E = k * np.linalg.inv(model.T) - np.eye(3)  # ω_fw − ω = E ω (module docstring)

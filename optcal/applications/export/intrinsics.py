@@ -88,8 +88,8 @@ class SIModel:
 def gyro_driver(cal: Calibration, options: ExportOptions) -> tuple[float, float, str | None]:
     """``s`` (rad/s of the topic per raw gyro unit), ``z_g`` (the raw reading the driver subtracts) and why.
 
-    rad/s and °/s have their unit factor; counts need ``options.gyro_counts_per_rad_s`` (the
-    driver's sensitivity) and the zero reading ``options.gyro_counts_zero``, by default the
+    rad/s and °/s have their unit factor; counts need the driver's sensitivity
+    (:meth:`~optcal.applications.export.base.ExportOptions.gyro_counts_per_rad`) and the zero reading ``options.gyro_counts_zero``, by default the
     unsigned 16-bit mid-scale 32768 when the bias lies around it (as the accelerometer's,
     :func:`optcal.applications.export.firmware.driver_zero`), else 0.
     """
@@ -98,13 +98,14 @@ def gyro_driver(cal: Calibration, options: ExportOptions) -> tuple[float, float,
         if options.gyro_counts_zero:
             raise InputError(f"gyro_counts_zero applies to a gyroscope in counts; this one is in {units}")
         return RAD_PER_UNIT[units], 0.0, None
-    if options.gyro_counts_per_rad_s is None:
+    counts_per_rad_s = options.gyro_counts_per_rad()
+    if counts_per_rad_s is None:
         raise InputError(
             "the gyroscope's calibration takes raw counts, but the VIO tools read the IMU topic in rad/s: give "
             "gyro_counts_per_rad_s (the sensitivity the driver divides by, from the datasheet, e.g. 131 per deg/s "
             "= 7505.7 per rad/s for an MPU-6050 at ±250 deg/s)"
         )
-    s = 1.0 / float(options.gyro_counts_per_rad_s)
+    s = 1.0 / float(counts_per_rad_s)
     if options.gyro_counts_zero is not None:
         z = float(options.gyro_counts_zero)
         return s, z, (f"gyro counts zero {z:g} (given)" if z else None)
