@@ -17,6 +17,8 @@ _LAZY: dict[str, str] = {
     "LumpedModel": "optcal.core.model",
     "lu2017_reference_model": "optcal.core.model",
     "PoseTable": "optcal.core.poses",
+    "ReadOptions": "optcal.data.options",
+    "Reading": "optcal.data.options",
 }
 
 
@@ -34,10 +36,13 @@ __all__ = [
     "LumpedModel",
     "OptcalError",
     "PoseTable",
+    "ReadOptions",
+    "Reading",
     "SolverError",
     "lu2017_reference_model",
     "calibrate",
     "cramer_rao_bound",
+    "load",
     "__version__",
 ]
 
@@ -54,3 +59,28 @@ def cramer_rao_bound(model, directions, sigma):
     from optcal.core.identifiability import cramer_rao_bound as _crlb
 
     return _crlb(model, directions, sigma)
+
+
+def load(path: Any, options: Any = None, **overrides: Any) -> Any:
+    """Read DATA, a pose table or a raw recording: see :func:`optcal.data.options.read`.
+
+    Parameters
+    ----------
+    path : str or Path
+        Any file optcal reads (CSV/text, Parquet, MAT/netCDF/HDF5, ROS bags, PX4 ULog).
+    options : ReadOptions, optional
+        The reading options; every one left out is decided from the file, with its reason.
+    **overrides
+        Any field of :class:`ReadOptions` (``rate=100``, ``units="counts"``, ``kind="raw"``,
+        ``columns="ax=..."``) or static-detection setting (``min_dwell_s=1``).  An unknown
+        keyword is an :class:`InputError` naming the valid ones.
+
+    Returns
+    -------
+    Reading
+        The poses, every decision with its reason, the recording and its segmentation, and
+        every exclusion counted.
+    """
+    from optcal.data.options import read
+
+    return read(path, options, **overrides)

@@ -41,12 +41,13 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     """
     from optcal.families.caltypes.apply import apply_to_file, write_table
 
-    from optcal.cli.data_options import decisions_on_error
+    from optcal.cli.data_options import build_read_options, decisions_on_error
 
+    options = build_read_options({"columns": columns, "units": data_units, "topic": topic, "rate": rate,
+                                  "data_format": data_format})
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
-        applied = apply_to_file(cal, data, units_out=units_out, columns=columns, units=data_units, topic=topic,
-                                rate=rate, kind=data_format)
+        applied = apply_to_file(cal, data, options, units_out=units_out)
     from optcal.cli.outputs import output_file
 
     fmt = write_table(applied, output_file(output))

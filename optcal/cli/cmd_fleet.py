@@ -58,7 +58,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
     with --tls-ca-file/--tls-cert/--tls-key or a --dask-config file.  Unreadable or degenerate
     files never stop the run: they are listed with their reason.
     """
-    from optcal.cli.data_options import _load_kwargs
+    from optcal.cli.data_options import build_read_options
     from optcal.applications.fleet.engine import ClusterSettings, FleetClient, run_fleet
     from optcal.applications.fleet.inputs import expand_inputs
     from optcal.applications.fleet.population import DEFAULT_FLAG_THRESHOLD
@@ -76,7 +76,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         where = "listening on 127.0.0.1" if scheduler is None else "existing cluster"
         board = f"dashboard {fc.dashboard_link}" if fc.dashboard_link else "dashboard off"
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
-        result = run_fleet(units, fc.client, engine=fc.engine, load_options=_load_kwargs(data_opts),
+        result = run_fleet(units, fc.client, engine=fc.engine, load_options=build_read_options(data_opts),
                            fit_settings=fit_settings,
                            flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress, output=output)
     if plot:

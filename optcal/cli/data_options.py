@@ -110,34 +110,49 @@ def read_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def reading_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
     """Keywords of :func:`optcal.data.load_recording` from the options of :func:`read_options`."""
-    unknown = set(opts) - set(READ_OPTION_NAMES)
+    unknown = set(opts) - set(READ_OPTION_NAMES) - {"gyro_units"}
     if unknown:
         raise TypeError(f"not reading options: {', '.join(sorted(unknown))}")
-    return {k: opts.get(k) for k in READ_OPTION_NAMES} | {"timing": opts.get("timing") or "auto"}
+    return {"options": build_read_options(opts)}
 
 
-def _load_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
-    unknown = set(opts) - set(DATA_OPTION_NAMES)
+#: The :class:`~optcal.data.options.ReadOptions` field (or static-detection setting) of each flag
+#: whose keyword differs from it.
+_FLAG_FIELDS: dict[str, str] = {
+    "data_format": "kind", "static_window": "window_s", "static_threshold": "threshold", "min_dwell": "min_dwell_s",
+    "trim": "trim_s",
+}
+
+
+def build_read_options(opts: dict[str, Any]) -> Any:
+    """The :class:`~optcal.data.options.ReadOptions` of a command's DATA flags: the one place they are mapped.
+
+    Parameters
+    ----------
+    opts : dict
+        The keywords :func:`data_options` or :func:`read_options` added (and ``gyro_units``
+        where a command has it); those left at ``None`` let the evidence decide.
+
+    Returns
+    -------
+    ReadOptions
+
+    Raises
+    ------
+    TypeError
+        A keyword that is not a DATA flag (a programming error in a command).
+    InputError
+        A value out of its range (naming the field and its flag).
+    """
+    from optcal.data.options import ReadOptions
+
+    unknown = set(opts) - set(DATA_OPTION_NAMES) - {"gyro_units"}
     if unknown:
         raise TypeError(f"not DATA options: {', '.join(sorted(unknown))}")
-    return {
-        "columns": opts.get("columns"),
-        "units": opts.get("units"),
-        "topic": opts.get("topic"),
-        "rate": opts.get("rate"),
-        "kind": opts.get("data_format") or "auto",
-        "time_unit": opts.get("time_unit"),
-        "timing": opts.get("timing") or "auto",
-        "gyro_file": opts.get("gyro_file"),
-        "window_s": opts.get("static_window"),
-        "threshold": opts.get("static_threshold"),
-        "gyro_threshold": opts.get("gyro_threshold"),
-        "drift_threshold": opts.get("drift_threshold"),
-        "min_dwell_s": opts.get("min_dwell"),
-        "trim_s": opts.get("trim"),
-        "use_gyro": False if opts.get("no_gyro_gate") else None,
-        "min_independent": opts.get("min_independent"),
-    }
+    fields = {_FLAG_FIELDS.get(k, k): v for k, v in opts.items() if k != "no_gyro_gate"}
+    if opts.get("no_gyro_gate"):
+        fields["use_gyro"] = False
+    return ReadOptions.build(None, **fields)
 
 
 @contextmanager
@@ -162,19 +177,19 @@ def decisions_on_error(path: str) -> Iterator[None]:
 
 
 def load_data(path: str, **opts: Any) -> PoseTable:
-    """Load DATA with the options collected by :func:`data_options`."""
-    from optcal.data import load
-
-    with decisions_on_error(path):
-        return load(path, **_load_kwargs(opts))
+    """Load DATA with the options collected by :func:`data_options` (the poses of :func:`load_data_detailed`)."""
+    return load_data_detailed(path, **opts).poses
 
 
 def load_data_detailed(path: str, **opts: Any) -> Any:
-    """Like :func:`load_data`, returning :class:`optcal.data.LoadedData` (with the segmentation)."""
-    from optcal.data import load_with_segmentation
+    """Read DATA with the options collected by :func:`data_options`: the :class:`optcal.data.Reading`.
+
+    The decisions made before DATA is refused are printed with the error (:func:`decisions_on_error`).
+    """
+    from optcal.data.options import read
 
     with decisions_on_error(path):
-        return load_with_segmentation(path, **_load_kwargs(opts))
+        return read(path, build_read_options(opts))
 
 
 def data_line(path: str, poses: PoseTable) -> str:

@@ -15,7 +15,6 @@ them before the error).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,17 +27,14 @@ from optcal.data.decisions import (
     DataInputError,
     Decision,
     decide,
-    with_decisions,
 )
 from optcal.data.evidence import Evidence, gather_evidence
-from optcal.data.readers import Source, read_source
-from optcal.data.recording import Recording, recording_from_source
+from optcal.data.readers import Source
+from optcal.data.recording import Recording
+from optcal.data.options import READ_FIELDS, Reading, ReadOptions, read, read_recording, recording_meta
 from optcal.data.static import Segmentation, StaticSettings, detect_static
-from optcal.data.tables import load_pose_table, pose_table_from_source, read_csv_frame
-from optcal.data.units import check_sensitivity
-from optcal.errors import InputError
+from optcal.data.tables import read_csv_frame
 from optcal.core.poses import PoseTable
-from optcal.core.stats import rms
 
 __all__ = [
     "KINDS",
@@ -52,6 +48,8 @@ __all__ = [
     "Evidence",
     "KindDecision",
     "LoadedData",
+    "Reading",
+    "ReadOptions",
     "Recording",
     "Segmentation",
     "StaticSettings",
@@ -60,12 +58,17 @@ __all__ = [
     "load_pose_table",
     "load_recording",
     "load_with_segmentation",
+    "read",
     "read_csv_frame",
+    "recording_meta",
     "segment",
 ]
 
 #: The kind decision (``value`` is ``"pose table"`` or ``"raw recording"``).
 KindDecision = Decision
+
+#: What :func:`load_with_segmentation` returns (the :class:`Reading` of :func:`read`).
+LoadedData = Reading
 
 
 def decide_kind(src: Source, requested: str = "auto", units: str | None = None) -> Decision:
@@ -73,153 +76,69 @@ def decide_kind(src: Source, requested: str = "auto", units: str | None = None) 
     return decide(src, gather_evidence(src), kind=requested, units=units).kind
 
 
-def load_recording(
-    path: str | Path,
-    *,
-    columns: str | dict[str, str] | None = None,
-    units: str | None = None,
-    topic: str | None = None,
-    rate: float | None = None,
-    time_unit: str | None = None,
-    timing: str = "auto",
-    gyro_file: str | Path | None = None,
-    required_by: str = "reading a recording",
-) -> Recording:
+def _overrides(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The keywords of :func:`read`, ``settings=`` (the former name of ``static=``) renamed."""
+    if "settings" in overrides:
+        overrides = dict(overrides)
+        settings = overrides.pop("settings")
+        if settings is not None:
+            overrides["static"] = settings
+    return overrides
+
+
+def load_recording(path: str | Path, options: ReadOptions | None = None, *,
+                   required_by: str = "reading a recording", **overrides: Any) -> Recording:
     """Read a raw recording (any supported file) as a :class:`Recording` (``decisions`` say how).
 
     ``required_by`` names what needs the raw recording (e.g. ``"the allan command"``); it is
-    the reason the kind decision gives.
+    the reason the kind decision gives.  ``options`` and ``overrides`` as for :func:`read`.
     """
-    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)  # read
-    decisions = decide(  # evidence, then decisions
-        src, gather_evidence(src), kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing,
-        required_by=required_by,
-    )
-    return recording_from_source(src, decisions)  # conversion
+    return read_recording(path, options, required_by=required_by, **_overrides(overrides))
 
 
-def segment(
-    path: str | Path,
-    *,
-    columns: str | dict[str, str] | None = None,
-    units: str | None = None,
-    topic: str | None = None,
-    rate: float | None = None,
-    settings: StaticSettings | None = None,
-    **read_options: Any,
-) -> Segmentation:
-    """Read a raw recording and find its static intervals."""
-    rec = load_recording(path, columns=columns, units=units, topic=topic, rate=rate, **read_options)
-    return detect_static(rec, settings)
+def segment(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> Segmentation:
+    """Read a raw recording and find its static intervals (``options`` and ``overrides`` as for :func:`read`)."""
+    overrides = _overrides(overrides)
+    rec = read_recording(path, options, **{k: v for k, v in overrides.items() if k in READ_FIELDS and k != "static"})
+    return detect_static(rec, ReadOptions.build(options, **overrides).static)
 
 
-@dataclass
-class LoadedData:
-    """What :func:`load_with_segmentation` read: the pose table, and how it was made.
-
-    Attributes
-    ----------
-    poses : PoseTable
-    decisions : DataDecisions
-    segmentation : Segmentation or None
-        The static detection (raw recordings only).
-    """
-
-    poses: PoseTable
-    decisions: DataDecisions
-    segmentation: Segmentation | None = None
-
-    @property
-    def kind(self) -> Decision:
-        """The kind decision (pose table or raw recording) and its reason."""
-        return self.decisions.kind
+def load_with_segmentation(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> Reading:
+    """Like :func:`load`, also returning the decisions and the static detection (the :class:`Reading`)."""
+    return read(path, options, **_overrides(overrides))
 
 
-def load_with_segmentation(
-    path: str | Path,
-    *,
-    columns: str | dict[str, str] | None = None,
-    units: str | None = None,
-    topic: str | None = None,
-    rate: float | None = None,
-    kind: str = "auto",
-    time_unit: str | None = None,
-    timing: str = "auto",
-    gyro_file: str | Path | None = None,
-    settings: StaticSettings | None = None,
-    **static_options: Any,
-) -> LoadedData:
-    """Like :func:`load`, also returning the decisions and the static detection."""
-    if settings is None:
-        settings = StaticSettings.from_options(**static_options)
-    elif static_options:
-        raise InputError("give static-detection settings either as settings= or as keywords, not both")
-    src = read_source(path, columns=columns, topic=topic, gyro_file=gyro_file)  # read
-    decisions = decide(  # evidence, then decisions
-        src, gather_evidence(src), kind=kind, units=units, rate=rate, time_unit=time_unit, timing=timing
-    )
-    try:
-        if decisions.kind.value == POSE_TABLE:
-            poses = pose_table_from_source(src, decisions)  # conversion
-            check_sensitivity(poses.acc, poses.units)  # the units and columns decisions, checked on the poses
-            return LoadedData(poses, decisions)
-        rec = recording_from_source(src, decisions)  # conversion
-        del src  # the recording holds its own arrays: free the file's columns before segmenting
-        seg = detect_static(rec, settings)  # segmentation
-        decisions.warnings.extend(seg.override_warnings())  # an override says what it assumes, on the error path too
-        table = seg.pose_table()
-        # the units and columns decisions, checked on the poses and their noise
-        check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])
-    except InputError as exc:
-        raise with_decisions(exc, decisions) from exc
-    table.meta.update(recording_meta(rec, decisions))
-    table.decisions = decisions
-    return LoadedData(table, decisions, seg)
-
-
-def load(
-    path: str | Path,
-    *,
-    columns: str | dict[str, str] | None = None,
-    units: str | None = None,
-    topic: str | None = None,
-    rate: float | None = None,
-    kind: str = "auto",
-    time_unit: str | None = None,
-    timing: str = "auto",
-    gyro_file: str | Path | None = None,
-    settings: StaticSettings | None = None,
-    **static_options: Any,
-) -> PoseTable:
-    """Load DATA, a pose table or a raw recording, as a :class:`~optcal.core.poses.PoseTable`.
-
-    This is the one entry point every command uses for DATA.
+def load_pose_table(path: str | Path, units: str | None = None, columns: str | dict[str, str] | None = None) -> PoseTable:
+    """Read a pose table (CSV or Parquet), one row per static pose.
 
     Parameters
     ----------
     path : str or Path
-        CSV/text, Parquet, ROS 1 bag, ROS 2 bag (directory), or PX4 ULog file.
-    columns : str or dict, optional
-        ``"ax=NAME,ay=NAME,az=NAME,t=NAME,..."`` for columns with other names, or 1-based
-        positions (``"t=1,ax=2,ay=3,az=4"``), e.g. for a file without a header.
+        File with a header row and one row per static pose.
     units : {"g", "m/s^2", "counts"}, optional
-        Units of the accelerometer data; decided from the file when omitted.
-    topic : str, optional
-        ROS topic (``sensor_msgs/Imu``) or ULog topic (``sensor_accel[:N]``).
-    rate : float, optional
-        Sampling rate (Hz) of a recording without a time column.
-    kind : {"auto", "poses", "raw"}
-        Force the reading as a pose table or a raw recording (``auto`` decides and says why).
-    time_unit : {"s", "ms", "us", "ns"}, optional
-        Unit of a time column whose name does not say it (default: seconds, as documented).
-    timing : {"auto", "stamps", "uniform"}
-        Keep the time stamps, or spread the samples evenly over the stamped span (``auto``
-        does so for bursty or coarse stamps, and says so).
-    gyro_file : str or Path, optional
-        A second text file ``t gx gy gz`` merged on time (imu_tk's pair of files).
-    settings : StaticSettings, optional
-        Static-detection settings for raw recordings; or give them as keywords
-        (``window_s=``, ``threshold=``, ``min_dwell_s=``, ...).
+        Units of the acceleration columns; from the column names or the mean norm when omitted.
+    columns : str or dict, optional
+        Mapping of canonical names to the file's columns (``"ax=acc1,ay=acc2,az=acc3"``).
+    """
+    return read(path, columns=columns, units=units, kind="poses").poses
+
+
+def load(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> PoseTable:
+    """Load DATA, a pose table or a raw recording, as a :class:`~optcal.core.poses.PoseTable`.
+
+    The poses of :func:`read` (which also returns the decisions, the recording and its
+    segmentation: ``optcal.load``).
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV/text, Parquet, MAT/netCDF/HDF5, ROS 1 bag, ROS 2 bag (directory), or PX4 ULog file.
+    options : ReadOptions, optional
+        The reading options (:class:`ReadOptions`).
+    **overrides
+        Any field of :class:`ReadOptions` (``columns``, ``units``, ``topic``, ``rate``,
+        ``kind``, ``time_unit``, ``timing``, ``gyro_file``, ``gyro_units``, ``static``) or
+        static-detection setting (``window_s``, ``threshold``, ``min_dwell_s``, ...).
 
     Returns
     -------
@@ -231,25 +150,7 @@ def load(
     Raises
     ------
     InputError
-        Unreadable file, unknown columns, time running backwards, no static interval, ...
+        An unknown keyword, unreadable file, unknown columns, time running backwards, no
+        static interval, ...
     """
-    return load_with_segmentation(
-        path, columns=columns, units=units, topic=topic, rate=rate, kind=kind, time_unit=time_unit,
-        timing=timing, gyro_file=gyro_file, settings=settings, **static_options
-    ).poses
-
-
-def recording_meta(rec: Recording, decisions: DataDecisions) -> dict[str, Any]:
-    """Provenance of a recording for ``PoseTable.meta``."""
-    return {
-        "path": rec.path,
-        "file_type": rec.file_type,
-        "kind_reason": decisions.kind.reason,
-        "units_reason": rec.units_reason,
-        "time": rec.time_reason,
-        "rate_hz": rec.rate_hz,
-        "duration_s": rec.duration_s,
-        "n_usable": rec.n_usable,
-        "decisions": decisions.to_dict(),
-        **rec.meta,
-    }
+    return read(path, options, **_overrides(overrides)).poses

@@ -16,7 +16,7 @@ import numpy as np
 
 from optcal.data.decisions import DataDecisions, decide
 from optcal.data.evidence import gather_evidence
-from optcal.data.readers import ACC, GYRO, Source, read_source, source_from_frame
+from optcal.data.readers import ACC, GYRO, Source, source_from_frame
 from optcal.data.units import decide_units
 from optcal.errors import InputError
 from optcal.core.poses import PoseTable
@@ -83,27 +83,9 @@ def pose_table_from_source(src: Source, decisions: DataDecisions | str | None = 
     )
 
 
-def load_pose_table(path: str | Path, units: str | None = None, columns: str | dict[str, str] | None = None) -> PoseTable:
-    """Read a pose table (CSV or Parquet), one row per static pose.
-
-    Parameters
-    ----------
-    path : str or Path
-        File with a header row and one row per static pose.
-    units : {"g", "m/s^2", "counts"}, optional
-        Units of the acceleration columns; from the column names or the mean norm when omitted.
-    columns : str or dict, optional
-        Mapping of canonical names to the file's columns (``"ax=acc1,ay=acc2,az=acc3"``).
-    """
-    src = read_source(path, columns=columns)
-    if src.always_raw:
-        raise InputError(f"{path}: a {src.file_type} holds a raw recording, not a pose table")
-    return pose_table_from_source(src, units)
-
-
 def guess_units(acc: np.ndarray) -> str:
     """Guess the units from the typical norm (see :func:`optcal.data.units.decide_units`)."""
     return decide_units(acc).units
 
 
-__all__ = ["load_pose_table", "pose_table_from_source", "read_csv_frame", "guess_units", "source_from_frame"]
+__all__ = ["pose_table_from_source", "read_csv_frame", "guess_units", "source_from_frame"]

@@ -21,6 +21,7 @@ from optcal.applications.fleet.population import flag_units, population_stats
 from optcal.applications.fleet.prior import PopulationPrior, estimate_prior, fit_with_prior
 from optcal.applications.fleet.synthetic import write_fleet
 from optcal.applications.fleet.unit import UnitInput, UnitOutcome, read_unit
+from optcal.data.options import ReadOptions
 from optcal.core.norm_residual import heldout_residuals
 from optcal.core.model import PARAM_NAMES, LumpedModel
 from optcal.families.simulate.poses import simulate_poses, six_position, uniform_directions
@@ -96,7 +97,7 @@ def test_fit_units_in_batches_equal_to_one_at_a_time(tmp_path, monkeypatch):
 
     truth = write_fleet(tmp_path, 200, seed=23, scale_error_units=2, six_face_units=2, unreadable_units=2)
     units = expand_inputs([str(tmp_path)])
-    data = [read_unit(u, {}) for u in units]
+    data = [read_unit(u, ReadOptions()) for u in units]
     alone = [unit_module.fit_unit(u, d) for u, d in zip(units, data)]
     single_calls: list[str] = []
     original = unit_module.fit_unit
@@ -225,9 +226,9 @@ def test_read_unit_from_an_fsspec_url(tmp_path):
     write_fleet(tmp_path, 1, seed=2, scale_error_units=0, six_face_units=0, unreadable_units=0)
     with fsspec.open("memory://fleet/unit00000.csv", "wb") as fh:
         fh.write((tmp_path / "unit00000.csv").read_bytes())
-    poses = read_unit(UnitInput("u", "memory://fleet/unit00000.csv"), {})
+    poses = read_unit(UnitInput("u", "memory://fleet/unit00000.csv"), ReadOptions())
     assert np.array_equal(poses.acc, load(str(tmp_path / "unit00000.csv")).acc)
-    failure = read_unit(UnitInput("v", "memory://fleet/missing.csv"), {})
+    failure = read_unit(UnitInput("v", "memory://fleet/missing.csv"), ReadOptions())
     assert failure.error
 
 

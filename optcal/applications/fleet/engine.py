@@ -41,6 +41,7 @@ from optcal.applications.fleet.prior import PopulationPrior, estimate_prior, fit
 from optcal.applications.fleet.results import FleetResult, ResultsWriter
 from optcal.applications.fleet.unit import ReadFailure, UnitOutcome, fit_units, outcome_from_result, read_unit
 from optcal.core.poses import PoseTable
+from optcal.data.options import ReadOptions
 
 
 @dataclass(frozen=True)
@@ -173,7 +174,7 @@ def auto_chunk(n_units: int, n_workers: int) -> int:
     return int(min(MAX_CHUNK, max(1, n_units // (8 * max(n_workers, 1)))))
 
 
-def read_chunk(units: list[UnitInput], load_options: dict[str, Any]) -> list[PoseTable | ReadFailure]:
+def read_chunk(units: list[UnitInput], load_options: ReadOptions) -> list[PoseTable | ReadFailure]:
     """:func:`~optcal.applications.fleet.unit.read_unit` for a chunk of units (one Dask task)."""
     return [read_unit(u, load_options) for u in units]
 
@@ -233,7 +234,7 @@ def run_fleet(
     client: Any,
     *,
     engine: str = "dask.distributed",
-    load_options: dict[str, Any] | None = None,
+    load_options: ReadOptions | dict[str, Any] | None = None,
     fit_settings: dict[str, Any] | None = None,
     flag_threshold: float = DEFAULT_FLAG_THRESHOLD,
     prior: str = "population",
@@ -250,8 +251,8 @@ def run_fleet(
     client : distributed.Client
     engine : str
         Description of the cluster for the summary.
-    load_options : dict, optional
-        Keyword arguments of :func:`optcal.data.load` (columns, units, static detection, ...).
+    load_options : ReadOptions or dict, optional
+        How every unit's data is read (:class:`optcal.data.ReadOptions`, or its fields as a dict).
     fit_settings : dict, optional
         Settings of every unit's estimator (:func:`optcal.calibrate`'s: ``solver``,
         ``solver_options``, ``fix``, ``bounds``, ``conic_solver``); the solver and its options
@@ -277,7 +278,7 @@ def run_fleet(
     if not units:
         raise InputError("no units to calibrate")
     t0 = time.perf_counter()
-    opts = dict(load_options or {})
+    opts = load_options if isinstance(load_options, ReadOptions) else ReadOptions.build(None, **(load_options or {}))
     n_workers = len(client.scheduler_info().get("workers", {}))
     size = auto_chunk(len(units), n_workers) if chunk is None else int(chunk)
     if size < 1:

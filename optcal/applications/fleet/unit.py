@@ -16,7 +16,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +26,9 @@ from optcal.applications.fleet.inputs import UnitInput, is_url
 from optcal.core.norm_residual import heldout_residuals
 from optcal.core.poses import PoseTable
 from optcal.core.stats import rms
+
+if TYPE_CHECKING:
+    from optcal.data.options import ReadOptions
 
 #: Unit statuses, in the order of the report.
 STATUSES: tuple[str, ...] = ("calibrated", "calibrated_with_prior", "refused", "failed")
@@ -116,16 +119,16 @@ def _local_copy(url: str) -> str:
     return local
 
 
-def read_unit(unit: UnitInput, load_options: dict[str, Any]) -> PoseTable | ReadFailure:
-    """Read a unit's data with :func:`optcal.data.load` (a local path or an fsspec URL)."""
-    from optcal.data import load
+def read_unit(unit: UnitInput, load_options: ReadOptions) -> PoseTable | ReadFailure:
+    """Read a unit's data with :func:`optcal.data.read` (a local path or an fsspec URL)."""
+    from optcal.data.options import read
 
     local = None
     try:
         path = unit.path
         if is_url(path):
             local = path = _local_copy(path)
-        poses = load(path, **load_options)
+        poses = read(path, load_options).poses
         poses.meta["fleet_path"] = unit.path
         return poses
     except OptcalError as exc:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,6 +24,9 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.families.caltypes.base import Calibration, ValidityRangeWarning
 from optcal.errors import InputError
 from optcal.core.model import STANDARD_GRAVITY
+
+if TYPE_CHECKING:
+    from optcal.data.options import ReadOptions
 
 #: Name of the column that marks each row.
 STATUS_COLUMN: str = "optcal_status"
@@ -108,13 +111,10 @@ def convert_samples(acc: NDArray[np.float64], units: str, to_units: str) -> NDAr
 def apply_to_file(
     cal: Calibration,
     path: str | Path,
+    options: ReadOptions | None = None,
     *,
     units_out: str = "g",
-    columns: str | dict[str, str] | None = None,
-    units: str | None = None,
-    topic: str | None = None,
-    rate: float | None = None,
-    kind: str = "auto",
+    **overrides: Any,
 ) -> AppliedFile:
     """Correct every row of DATA with ``cal``.
 
@@ -123,10 +123,14 @@ def apply_to_file(
     cal : Calibration
     path : str or Path
         DATA: CSV, Parquet, ROS bag or ULog; a raw recording or a pose table.
+    options : ReadOptions, optional
+        How DATA is read (:class:`optcal.data.ReadOptions`; the static-detection settings are
+        not used: every row is corrected).
     units_out : {"g", "m/s^2"}
         Units of the calibrated accelerations.
-    columns, units, topic, rate, kind
-        As for :func:`optcal.data.load`.
+    **overrides
+        Any field of :class:`optcal.data.ReadOptions` (``columns``, ``units``, ``topic``,
+        ``rate``, ``kind``, ...) over ``options``.
 
     Raises
     ------
@@ -134,16 +138,15 @@ def apply_to_file(
         Unreadable DATA, units that cannot be converted, or a temperature or time column the
         calibration needs and DATA lacks.
     """
-    from optcal.data import POSE_TABLE, decide, gather_evidence
-    from optcal.data.readers import ACC, GYRO, read_parquet, read_source
+    from optcal.data import POSE_TABLE
+    from optcal.data.options import ReadOptions, read_decided
+    from optcal.data.readers import ACC, GYRO, read_parquet
     from optcal.data.recording import recording_from_source
     from optcal.data.text import read_frame
 
     if units_out not in OUTPUT_UNITS:
         raise InputError(f"unknown output units {units_out!r}; use g or m/s^2")
-    src = read_source(path, columns=columns, topic=topic)
-    evidence = gather_evidence(src)
-    decisions = decide(src, evidence, kind=kind, units=units, rate=rate)
+    src, decisions = read_decided(path, ReadOptions.build(options, **overrides))  # the one reading path
     decision = decisions.kind
     acc = np.column_stack([src.column(c) for c in ACC])
     temp = src.column("temp") if src.has("temp") else None
@@ -154,7 +157,7 @@ def apply_to_file(
         usable = np.ones(len(acc), dtype=bool)
         units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
-        rec = recording_from_source(src, decisions, evidence=evidence)
+        rec = recording_from_source(src, decisions)
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
         time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
