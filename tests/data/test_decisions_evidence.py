@@ -236,3 +236,40 @@ def test_the_path_through_the_data_layer_visits_each_step_once(tmp_path, how):
         entries = module_entries(lambda: load_recording(tmp_path / "counts.csv"))
     steps = [e.split(".")[0] for e in entries if e.split(".")[0] in ("readers", "evidence", "decisions", "recording")]
     assert steps == ["readers", "evidence", "decisions", "recording"], entries
+
+
+# Issue 36 (item 4) ------------------------------------------------------ stamps since 1970 are evidence
+@needs_xsens
+@pytest.mark.parametrize("unit, factor", [("ms", 1e3), ("us", 1e6), ("ns", 1e9), ("s", 1.0)])
+def test_stamps_since_1970_settle_the_unit_of_a_headerless_time_column(tmp_path, unit, factor):
+    """The Xsens log headerless (``t ax ay az gx gy gz``) with its time as Unix stamps from 2023-07-14: read
+    in seconds, milliseconds would be 53,000 years ahead and 0.1 Hz; the date is evidence, and decisive
+    (before: refused, '9.9 s apart, pass --time-unit ms').  The poses are the ones of the log's own t_s."""
+    x = pd.read_csv(XSENS)
+    start = 1_689_300_000.0  # 2023-07-14, seconds since 1970
+    t = (start + x["t_s"].to_numpy()) * factor
+    body = np.column_stack([t, x.iloc[:, 1:].to_numpy()])
+    np.savetxt(tmp_path / "log.txt", body, fmt=["%.0f" if unit != "s" else "%.6f"] + ["%d"] * 6, delimiter=" ")
+    loaded = load_with_segmentation(tmp_path / "log.txt")
+    reason = loaded.decisions.time_base.reason
+    assert f"in {unit} since 1970: the first stamp is 2023-07-14" in reason, reason
+    assert loaded.decisions.rate.value == pytest.approx(100.0, rel=0.02)
+    reference = load_with_segmentation(XSENS)
+    assert loaded.poses.n == reference.poses.n
+    if unit != "s":  # the override reads it otherwise: stamps in seconds, 1000x slower or more
+        overridden = load(tmp_path / "log.txt", time_unit="s")
+        assert "given with --time-unit" in overridden.decisions.time_base.reason
+        assert overridden.decisions.rate.value == pytest.approx(100.0 / factor, rel=0.02)
+
+
+def test_a_clock_from_power_on_is_not_an_epoch(tmp_path):
+    """A millisecond counter from power-on (19.6 days of uptime, 1.69e9 ms) read as seconds would be 2023, but
+    at 0.1 Hz, no recording's rate: no epoch is claimed, and the unit is not re-read from the spacing."""
+    n = 3000
+    rng = np.random.default_rng(7)
+    d = np.repeat(uniform_directions(6, rng=8), n // 6, axis=0)
+    acc = d + 0.002 * rng.standard_normal((n, 3))
+    t = 1.69e9 + 10.0 * np.arange(n)
+    pd.DataFrame({"time": t, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2]}).to_csv(tmp_path / "up.csv", index=False)
+    with pytest.raises(InputError, match="--time-unit ms"):
+        load(tmp_path / "up.csv")
