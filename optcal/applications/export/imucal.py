@@ -6,8 +6,9 @@ Upstream (mad-lab-fau/imucal, ``imucal/ferraris_calibration_info.py``, ``_calibr
     acc = R_a⁻¹ K_a⁻¹ (raw − b_a)                          m/s²
     gyr = R_g⁻¹ K_g⁻¹ (raw − K_ga acc − b_g)               deg/s
 
-optcal's calibration ``ā = M (a − o)`` (``M`` = ``W`` of a full-matrix type, else the lumped
-``T``, g per raw unit) is written with ``M_a = g M`` in m/s² per raw unit split as
+optcal's calibration ``ā = M (a − o)`` (``M`` the matrix ``optcal apply`` applies, in its own frame:
+``W`` of a full-matrix type, an ``imu`` calibration's accelerometer ``T`` (full for the Ferraris
+method), else the lumped ``T``; g per raw unit; :func:`~.base.linear_part`) is written with ``M_a = g M`` in m/s² per raw unit split as
 ``M_a⁻¹ = K_a R_a`` (``K_a`` diagonal, the norms of the rows of ``M_a⁻¹``; ``R_a`` then has unit
 rows, as imucal's own ``R_a = K_a⁻¹ U_a_d / 2g``, ``ferraris_calibration.py`` eq. 22), and
 ``b_a = o``: imucal's output is then optcal's in m/s², ``g = 9.80665`` (what ``optcal apply
@@ -25,7 +26,7 @@ from importlib import metadata
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.applications.export.base import ExportOptions, ExportResult
+from optcal.applications.export.base import ExportOptions, ExportResult, linear_part
 from optcal.core.jsonio import jsonable
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.families.caltypes.base import Calibration
@@ -53,14 +54,7 @@ def _version() -> str:
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """imucal's calibration JSON of ``cal`` (module docstring)."""
     g = float(getattr(cal, "gravity_m_s2", STANDARD_GRAVITY))
-    W = getattr(cal, "W", None)
-    if W is not None:  # a full matrix (sixpos_full, a peer's): its frame kept
-        M, o = np.asarray(W, float), np.asarray(getattr(cal, "o"), float)
-        matrix = "W (full)"
-    else:
-        lumped = cal.lumped()
-        M, o = lumped.T, lumped.o
-        matrix = "T (canonical lower-triangular)"
+    M, o, matrix = linear_part(cal)  # its own frame, in which the gyroscope's T_g is stated
     K_a, R_a = split(g * M)
     mapped = [f"accelerometer {matrix} x {g:g} m/s^2 -> K_a, R_a (m/s^2 per {cal.units}); o -> b_a ({cal.units})"]
     dropped: list[str] = []

@@ -57,10 +57,10 @@ def split_scale(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """imu_tk's accelerometer ``.calib`` (the text) and gyroscope ``.calib`` (``files``) of ``cal``."""
     model = si_model(cal, options, needs_topic_units=False)
-    Q, U = qr_upper(model.lumped.T)  # T_o = Q U: imu_tk's body frame is optcal's turned by R = Qᵀ
+    Q, U = qr_upper(model.M)  # T_o = Q U: imu_tk's body frame is optcal's turned by R = Qᵀ
     R = Q.T
     T_a, K_a = split_scale(model.gravity * U)
-    B_a = model.lumped.o
+    B_a = model.o
     loss = accel_loss(cal, options, lambda raw: (raw - B_a) @ (T_a @ K_a).T / model.gravity, "imutk")
     angle = rotation_angle_deg(R)
     mapped = ["accelerometer scale, misalignment and bias (T, K, B in raw units, m/s^2 out)"]
