@@ -381,8 +381,9 @@ def comment_vector(text: str, label: str) -> np.ndarray:
 
 
 def kalibr_imu(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """Kalibr's scale-misalignment model (ethz-asl/kalibr aslam_offline_calibration/kalibr/python/
-    kalibr_imu_camera_calibration/IccSensors.py, ``IccScaledMisalignedImu``: ``α = M_a a_i + b_a``, ``ω_m = M_g C_gyro_i
+    """Kalibr's scale-misalignment model (ethz-asl/kalibr @1f60227 aslam_offline_calibration/kalibr/python/
+    kalibr_imu_camera_calibration/IccSensors.py, ``IccScaledMisalignedImu`` line 912, its error terms lines 969 and 1015,
+    ``setIntrisicsMatrices`` line 933: ``α = M_a a_i + b_a``, ``ω_m = M_g C_gyro_i
     ω_i + A C_gyro_i a_i + b_g``) solved for ``a_i``, ``ω_i``; the biases from the file's comments (Kalibr estimates
     them)."""
     imu = yaml.safe_load(result.text)["imu0"]
@@ -405,8 +406,9 @@ def kalibr_imu(case: Case, result: ExportResult, tmp: Path) -> Consumed:
 
 
 def openvins(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """OpenVINS (rpng/open_vins ov_msckf/src/core/VioManagerOptions.h: ``Dw = Tw⁻¹``, ``Da = Ta⁻¹``, the kalibr model
-    keeping their lower triangles; ov_msckf/src/state/Propagator.cpp: ``a_I = R_ACCtoIMU Da (a_m − b_a)``,
+    """OpenVINS (rpng/open_vins @6948812 ov_msckf/src/core/VioManagerOptions.h lines 306-321: ``Tw``, ``Ta``,
+    ``R_IMUtoACC``, ``R_IMUtoGYRO``, ``Tg`` read from ``imu0``, ``Dw = Tw⁻¹``, ``Da = Ta⁻¹``, the kalibr model keeping
+    their lower triangles; ov_msckf/src/state/Propagator.cpp lines 184-190: ``a_I = R_ACCtoIMU Da (a_m − b_a)``,
     ``ω_I = R_GYROtoIMU Dw (ω_m − b_g − Tg a_I)``)."""
     assert result.text.startswith("%YAML:1.0")
     imu = yaml.safe_load(result.text.split("\n", 1)[1])["imu0"]
@@ -428,7 +430,8 @@ def openvins(case: Case, result: ExportResult, tmp: Path) -> Consumed:
 
 
 def basalt(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """Basalt (VladyslavUsenko/basalt-headers include/basalt/calibration/calib_bias.hpp: ``CalibAccelBias``
+    """Basalt (VladyslavUsenko/basalt-headers @a585db3 include/basalt/calibration/calib_bias.hpp, ``getBiasAndScale``
+    lines 91 and 179, ``getCalibrated`` lines 106 and 191: ``CalibAccelBias``
     ``a_c = (I + S_a) a_r − b``, ``S_a`` lower-triangular from ``s_1…s_6`` as ``getBiasAndScale`` fills it;
     ``CalibGyroBias`` ``ω_c = (I + S_g) ω_r − b``, ``S_g`` column-major from ``s_1…s_9``)."""
     value = json.loads(result.text)["value0"]
@@ -451,7 +454,7 @@ def basalt(case: Case, result: ExportResult, tmp: Path) -> Consumed:
 
 
 def imutk_triad(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """imu_tk's ``CalibratedTriad_::load`` (Kyle-ak/imu_tk include/imu_tk/calibration.h): 9 numbers row-major into
+    """imu_tk's ``CalibratedTriad_::load`` (Kyle-ak/imu_tk @7780270 include/imu_tk/calibration.h line 387): 9 numbers row-major into
     the misalignment T, 9 into the scale K, 3 into the bias B."""
     v = [float(x) for x in text.split()]
     assert len(v) == 21
@@ -459,7 +462,8 @@ def imutk_triad(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def imutk(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """imu_tk's ``unbiasNormalize``: ``X' = T K (X − B)`` on raw samples (m/s² at its g_mag, rad/s)."""
+    """imu_tk's ``unbiasNormalize`` (calibration.h line 163: ``ms_mat_ (raw − bias_vec_)``, ``ms_mat_ = mis_mat_
+    scale_mat_`` line 433): ``X' = T K (X − B)`` on raw samples (m/s² at its g_mag, rad/s)."""
     T_a, K_a, B_a = imutk_triad(result.text)
     gyro_text = result.files.get("_gyro")
 
@@ -474,7 +478,8 @@ def imutk(case: Case, result: ExportResult, tmp: Path) -> Consumed:
 
 
 def imucal(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """imucal itself (mad-lab-fau/imucal, installed): ``load_calibration_info`` and ``calibrate()``, m/s² and deg/s."""
+    """imucal itself (mad-lab-fau/imucal, installed; @8716e4c imucal/management.py line 238 ``load_calibration_info``,
+    imucal/ferraris_calibration_info.py lines 85 and 114 ``_calibrate_acc``, ``_calibrate_gyr``), m/s² and deg/s."""
     management = pytest.importorskip("imucal.management")
     path = tmp / "imucal.json"
     path.write_text(result.text)
