@@ -47,7 +47,10 @@ DEFAULT_SOLVER: str = "ipopt"
 #:   for the unscaled problems (the errors-in-variables problem loosens it to 1e-10);
 #: * ``max_iter`` 200: the problems converge in 5-40 iterations from their algebraic starts;
 #: * ``mu_strategy`` adaptive: the barrier parameter follows the progress (Nocedal, Wächter &
-#:   Waltz 2009), fewer iterations than the monotone rule on these least-squares problems.
+#:   Waltz 2009), fewer iterations than the monotone rule on these least-squares problems;
+#: * ``honor_original_bounds`` yes: IPOPT relaxes every bound by ``bound_relax_factor`` (1e-8)
+#:   while it iterates and, told so, returns its final point inside the user's bounds
+#:   (:meth:`NLPSolver.solve` projects onto them for every plugin as well).
 IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.print_level": 0,
     "ipopt.sb": "yes",
@@ -56,7 +59,16 @@ IPOPT_DEFAULTS: dict[str, Any] = {
     "ipopt.acceptable_tol": 1e-9,
     "ipopt.max_iter": 200,
     "ipopt.mu_strategy": "adaptive",
+    "ipopt.honor_original_bounds": "yes",
 }
+
+#: Largest move onto the bounds :meth:`NLPSolver.solve` accepts as a solver's own relaxation of
+#: them, relative to ``max(1, |bound|)`` of the variables as the NLP states them (optcal scales its
+#: unknowns to order one): IPOPT relaxes by ``bound_relax_factor`` 1e-8, the SQP plugins' QP
+#: solvers by their feasibility tolerances (1e-8 to 1e-12).  A final point farther outside did not
+#: solve the bounded problem; its projection is then no optimum and the solve is marked unsuccessful.
+BOUND_RELAXATION_RTOL: float = 1e-6
+
 
 #: Floor of the residual scale in :func:`cost_scale` (normalised units, ≈ g): 10 ng per g, far
 #: below the noise of any accelerometer and far above rounding (≈ 1e-16).
@@ -167,6 +179,11 @@ class NLPSolver:
         SolverError
             The solver raised an exception (an error inside a callback, a failed factorisation).
         """
+        spec = NLP_SOLVERS.get(self.solver)
+        if spec is not None and spec.no_bounds and _has_bounds(args):
+            runs = [name for name, other in NLP_SOLVERS.items() if not other.no_bounds][:4]
+            raise InputError(f"{solver_label(self.solver)} cannot solve a problem with bounds: {spec.no_bounds}; choose "
+                             f"another solver (--solver {' / '.join(runs)}) or drop the bounds (--bound)")
         try:
             if self.writes_stdout:
                 with quiet_stdout():
@@ -181,7 +198,44 @@ class NLPSolver:
         except RuntimeError as exc:  # CasADi 3.7's sqpmethod can leave its status unset ("construction from null")
             reason = " ".join(str(exc).strip().splitlines()[-1].split())
             stats = {"return_status": f"no statistics ({reason})", "success": False}
-        return np.asarray(sol["x"]).ravel(), stats
+        x, moved, beyond = project_to_bounds(np.asarray(sol["x"]).ravel(), args.get("lbx"), args.get("ubx"))
+        if moved > 0:
+            stats = {**stats, "bound_projection": moved}
+        if beyond:
+            stats = {**stats, "success": False,
+                     "return_status": f"{stats.get('return_status', '')}; its point lay {moved:.3g} outside the bounds "
+                                      f"(more than the relaxation {BOUND_RELAXATION_RTOL:g}): projected onto them"}
+        return x, stats
+
+
+def _has_bounds(args: Mapping[str, Any]) -> bool:
+    """Whether the solve's ``lbx`` or ``ubx`` bound any unknown (a finite entry)."""
+    return any(args.get(key) is not None and bool(np.any(np.isfinite(np.asarray(args[key], dtype=float))))
+               for key in ("lbx", "ubx"))
+
+
+def project_to_bounds(x: NDArray[np.float64], lbx: Any = None, ubx: Any = None) -> tuple[NDArray[np.float64], float, bool]:
+    """``x`` projected onto the box ``lbx ≤ x ≤ ubx`` (absent: unbounded), the largest move and whether it was
+    more than a solver's relaxation of its bounds (:data:`BOUND_RELAXATION_RTOL`).
+
+    A solver may return a point just outside its bounds (IPOPT relaxes them by ``bound_relax_factor``);
+    the user's bound then holds exactly at the returned point.
+    """
+    x = np.asarray(x, dtype=float)
+    lo, hi = _box_side(lbx, -np.inf, x.size), _box_side(ubx, np.inf, x.size)
+    projected = np.minimum(np.maximum(x, lo), hi)
+    move = np.abs(projected - x)
+    if not np.any(move > 0):
+        return x, 0.0, False
+    bound = np.where(x < lo, lo, hi)
+    beyond = bool(np.any(move > BOUND_RELAXATION_RTOL * np.maximum(1.0, np.abs(bound))))
+    return projected, float(move.max()), beyond
+
+
+def _box_side(value: Any, default: float, n: int) -> NDArray[np.float64]:
+    """One side of the box as ``n`` numbers: ``default`` where absent, a scalar spread over all (CasADi's own rule)."""
+    side = np.full(n, default) if value is None else np.asarray(value, dtype=float).ravel()
+    return np.full(n, side[0]) if side.size == 1 else side
 
 
 #: What CasADi's message says about an option it refused: the option's name is the group.

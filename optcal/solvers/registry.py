@@ -73,6 +73,9 @@ class NLPSolverSpec:
         (:func:`quiet_stdout`).  True for every plugin but IPOPT, whose ``print_level`` 0 holds.
     description : str
         What it is, in a few words.
+    no_bounds : str
+        Why it cannot solve a problem with bounds on its unknowns (``lbx``, ``ubx``: a user's
+        ``--bound``), measured here; empty when it can.  Such a problem is refused with it in one line.
     """
 
     name: str
@@ -81,6 +84,7 @@ class NLPSolverSpec:
     constraints: bool = True
     writes_stdout: bool = True
     description: str = ""
+    no_bounds: str = ""
 
 
 def _sqp(qpsol: str, qp_options: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -106,7 +110,10 @@ NLP_SOLVERS: dict[str, NLPSolverSpec] = {spec.name: spec for spec in (
     NLPSolverSpec("feasiblesqpmethod", "feasiblesqpmethod",
                   {**_SQP_QUIET, "qpsol": "qrqp", "qpsol_options": dict(_QRQP_QUIET), "max_iter": 200,
                    "tol_pr": 1e-8, "tol_du": 1e-8, "optim_tol": 1e-10, "feas_tol": 1e-10},
-                  description="feasible SQP with a trust region (FSLP)"),
+                  description="feasible SQP with a trust region (FSLP)",
+                  # CasADi 3.7: on imu_tk's Xsens log with T_xx bounded its trust-region QP gets lbx > ubx
+                  no_bounds="CasADi's feasiblesqpmethod builds its trust-region QP with crossed bounds on a bounded "
+                            "problem (\"LBX[0] <= UBX[0] was violated\")"),
     NLPSolverSpec("uno", "uno", {"uno.logger": "SILENT"}, description="Uno, unified SQP / interior point (Vanaret & Leyffer)"),
     NLPSolverSpec("alpaqa", "alpaqa", description="augmented Lagrangian with PANOC (Pas et al. 2022)"),
     NLPSolverSpec("sleqp", "sleqp", description="SLEQP, sequential linear-equality QP"),

@@ -12,9 +12,10 @@ s_6``); ``CalibGyroBias`` 12 numbers ``[b_x, b_y, b_z, s_1 … s_9]``, ``ω_c = 
 ``cam_time_offset_ns``, ``vignette``); the noise figures are continuous-time per axis
 (``calibration.hpp``: ``dicrete_time_accel_noise_std() = accel_noise_std · √imu_update_rate``).
 
-From :class:`~optcal.applications.export.intrinsics.SIModel` (``f = A (α − α₀)``): ``I + S_a`` is
-``A``'s lower triangle (all of it for optcal's lower-triangular T; anything above the diagonal is
-dropped and the loss measured) and ``b = (I + S_a) α₀``; ``I + S_g = W``, ``b = W ω₀`` (exact).
+From :class:`~optcal.applications.export.intrinsics.SIModel` (``f = A (α − α₀)``): ``R A = L``
+(:func:`ql`: ``R`` a rotation, ``L`` lower-triangular; ``R = I`` for optcal's lower-triangular T, a
+turn of Basalt's frame against optcal's for a full matrix, stated in the notes), ``I + S_a = L``,
+``b = L α₀``; ``I + S_g = R W``, ``b = R W ω₀``: both sensors exact in Basalt's frame.
 Basalt has no g-sensitivity: its rate error is reported.  optcal writes the IMU part of ``value0``
 only; the camera keys come from the camera calibration the user merges it into.
 """
@@ -24,10 +25,18 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from numpy.typing import NDArray
 
 from optcal.families.caltypes.base import Calibration
 from optcal.applications.export.base import ExportOptions, ExportResult
-from optcal.applications.export.intrinsics import accel_loss, describe_gyro_loss, gyro_loss, si_model
+from optcal.applications.export.intrinsics import (
+    accel_loss,
+    describe_gyro_loss,
+    gyro_loss,
+    qr_upper,
+    rotation_angle_deg,
+    si_model,
+)
 from optcal.applications.export.kalibr_imu import extra_terms
 from optcal.applications.export.noise import Figure, noise_model
 from optcal.applications.export.firmware import loss_poses
@@ -36,23 +45,35 @@ from optcal.applications.export.firmware import loss_poses
 CAMERA_KEYS: tuple[str, ...] = ("T_imu_cam", "intrinsics", "resolution", "cam_time_offset_ns", "vignette")
 
 
+def ql(A: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``R``, ``L`` with ``R A = L``: ``R`` a proper rotation, ``L`` lower-triangular (``R = I``, ``L = A`` when ``A``
+    already is).  From :func:`~.intrinsics.qr_upper` of ``A`` with its rows and columns reversed (``P A P = Q U``:
+    ``A = (P Q P)(P U P)``, ``P U P`` lower-triangular, ``P Q P`` proper as ``Q``).
+    """
+    A = np.asarray(A, dtype=float)
+    if not np.any(np.triu(A, 1) != 0):
+        return np.eye(3), A
+    Q, U = qr_upper(A[::-1, ::-1])
+    return Q[::-1, ::-1].T, U[::-1, ::-1]
+
+
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """The IMU part of Basalt's ``calibration.json`` for ``cal`` (module docstring)."""
     model = si_model(cal, options)
-    L = np.tril(model.A)  # CalibAccelBias: I + S_a lower-triangular
-    lost_upper = float(np.abs(np.triu(model.A, 1)).max())
+    R, L = ql(model.A)  # CalibAccelBias: I + S_a lower-triangular, in Basalt's frame R (optcal's turned)
     b_a = L @ model.acc_offset
     accel = [*b_a, L[0, 0] - 1.0, L[1, 0], L[2, 0], L[1, 1] - 1.0, L[2, 1], L[2, 2] - 1.0]
     loss = accel_loss(cal, options, lambda raw: (model.topic_acc(raw) @ L.T - b_a) / model.gravity, "basalt")
     mapped = ["accelerometer bias, scale and misalignment (calib_accel_bias: T, o)"]
     dropped = extra_terms(cal)
     notes = list(model.driver)
-    if lost_upper > 0:
-        dropped.append(f"the accelerometer matrix's terms above the diagonal (largest {lost_upper:.3g}): Basalt's is "
-                       "lower-triangular")
+    angle = rotation_angle_deg(R)
+    if angle > 0:
+        notes.append(f"optcal's accelerometer matrix is not lower-triangular: Basalt's IMU frame is optcal's turned by "
+                     f"{angle:.4g} deg (the accelerometer's and the gyroscope's alike)")
     imu: dict[str, object] = {"calib_accel_bias": [float(v) for v in accel]}
     if model.W is not None and model.gyro_offset is not None:
-        W = model.W
+        W = R @ model.W  # the rate in Basalt's frame
         gyro = [*(W @ model.gyro_offset), *(W - np.eye(3)).T.ravel()]  # column-major S_g after the bias
         imu["calib_gyro_bias"] = [float(v) for v in gyro]
         mapped.append("gyroscope bias, scale, misalignment and axes (calib_gyro_bias: Tg, bg)")

@@ -11,8 +11,11 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from optcal.core.model import STANDARD_GRAVITY
-from optcal.families.caltypes.base import FitPoses
+from optcal.families.caltypes.base import Calibration, FitPoses
 
 #: Default largest acceptable loss of a diagonal firmware model, g (5 mg).
 DEFAULT_MAX_LOSS_G: float = 5e-3
@@ -121,6 +124,28 @@ class ExportOptions:
         if self.gyro_counts_per_rad_s is not None:
             return self.gyro_counts_per_rad_s
         return None if self.counts_per_dps is None else self.counts_per_dps * 180.0 / math.pi
+
+
+def linear_part(cal: Calibration) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
+    """``M``, ``o`` and their name: the accelerometer map ``ā = M (a − o)`` that ``cal.correct`` applies.
+
+    ``M`` is the calibration's own matrix in its own frame (the full ``W`` of ``sixpos_full`` and of a
+    peer's file, the accelerometer ``T`` of an ``imu`` calibration, which the Ferraris method fits as
+    the full ``W``), not the canonical lower-triangular ``T`` of :meth:`Calibration.lumped`, which
+    is the same calibration turned into another frame (Lu 2017, eq. 6 against Yin 2014, eq. 3): a
+    format written from it would move the accelerometer's axes against the gyroscope's and against
+    ``optcal apply``.  ``extended``: the lumped part at its reference temperature and time.
+    """
+    W = getattr(cal, "W", None)
+    if W is not None:  # sixpos_full, a peer's: W, o
+        return np.asarray(W, float), np.asarray(getattr(cal, "o"), float), "W (full)"
+    acc = getattr(cal, "accelerometer", None)
+    if acc is not None:  # imu: the accelerometer's fit as correct() applies it
+        T = np.asarray(acc.T, float)
+        lower = not np.any(np.triu(T, 1) != 0)
+        return T, np.asarray(acc.o, float), "T (canonical lower-triangular)" if lower else "T (full)"
+    lumped = cal.lumped()
+    return lumped.T, lumped.o, "T (canonical lower-triangular)"
 
 
 @dataclass(frozen=True)

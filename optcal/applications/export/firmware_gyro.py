@@ -44,7 +44,6 @@ from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration
 from optcal.families.gyro.moves import moves_from_segmentation
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
-from optcal.families.gyro.result import ImuCalibration
 from optcal.core.stats import rms
 
 
@@ -131,17 +130,18 @@ class GyroOffsets:
 
 
 def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> GyroOffsets | None:
-    """The gyro offsets of ``cal`` (``None`` unless it is an ``imu`` calibration).
+    """The gyro offsets of ``cal`` (``None`` unless it has a gyroscope: ``imu``, a peer's file with one).
 
     ``raw_zero`` is the reading the accelerometer's driver subtracts
     (:func:`optcal.applications.export.firmware.driver_zero`): a gyro in counts is taken to come
     from the same converter, with the same zero reading; a gyro in rad/s or °/s has none.
     """
-    if not isinstance(cal, ImuCalibration):
+    model = getattr(cal, "gyro", None)
+    gyro_units = getattr(cal, "gyro_units", None)
+    if model is None or gyro_units is None:  # a peer's file without a gyroscope too
         return None
-    k = rad_s_per_gyro_unit(cal.gyro_units, options.gyro_counts_per_dps())
-    z = raw_zero if cal.gyro_units == "counts" else 0.0
-    model = cal.gyro
+    k = rad_s_per_gyro_unit(gyro_units, options.gyro_counts_per_dps())
+    z = raw_zero if gyro_units == "counts" else 0.0
     E = k * np.linalg.inv(model.T) - np.eye(3)  # ω_fw − ω = E ω (module docstring)
     phys = model.physical()
     g_sens = None
@@ -165,7 +165,7 @@ def gyro_offsets(cal: Calibration, options: ExportOptions, raw_zero: float) -> G
     return replace(offsets, moves_line=line)
 
 
-def gravity_prediction_loss(cal: ImuCalibration, offsets: GyroOffsets, recording: Any) -> tuple[int, float, float]:
+def gravity_prediction_loss(cal: Any, offsets: GyroOffsets, recording: Any) -> tuple[int, float, float]:
     """Moves, and the rms gravity-prediction angle of the full gyro model and of the firmware's, degrees.
 
     ``recording`` is a :class:`optcal.data.static.Segmentation` of a raw recording in the

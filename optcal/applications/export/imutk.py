@@ -9,7 +9,8 @@ them); ``load`` reads 9 numbers row-major into ``T``, 9 into ``K`` and 3 into ``
 the raw samples itself, so the matrices act on raw units; its output is m/s² (its ``g_mag``) and
 rad/s.
 
-From optcal's ``ā = T_o (a − o)`` (lower-triangular ``T_o``) and ``ω = T_g (r − b_g − G_g ā)``:
+From optcal's ``ā = T_o (a − o)`` (``T_o`` the matrix apply applies, :func:`~.base.linear_part`:
+lower-triangular for a lumped fit, full for the Ferraris method) and ``ω = T_g (r − b_g − G_g ā)``:
 imu_tk's body frame is the one in which the accelerometer's matrix is upper-triangular, optcal's
 turned by ``R`` with ``T_o = Rᵀ U`` (:func:`~optcal.applications.export.intrinsics.qr_upper`).  Then
 ``T K = g U`` (``K`` its diagonal, ``T`` unit upper-triangular), ``B = o``; the gyroscope in that
@@ -57,17 +58,18 @@ def split_scale(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     """imu_tk's accelerometer ``.calib`` (the text) and gyroscope ``.calib`` (``files``) of ``cal``."""
     model = si_model(cal, options, needs_topic_units=False)
-    Q, U = qr_upper(model.lumped.T)  # T_o = Q U: imu_tk's body frame is optcal's turned by R = Qᵀ
+    Q, U = qr_upper(model.M)  # T_o = Q U: imu_tk's body frame is optcal's turned by R = Qᵀ
     R = Q.T
     T_a, K_a = split_scale(model.gravity * U)
-    B_a = model.lumped.o
+    B_a = model.o
     loss = accel_loss(cal, options, lambda raw: (raw - B_a) @ (T_a @ K_a).T / model.gravity, "imutk")
     angle = rotation_angle_deg(R)
     mapped = ["accelerometer scale, misalignment and bias (T, K, B in raw units, m/s^2 out)"]
     dropped = extra_terms(cal)
+    ours = ("lower-triangular, the sensor's x axis" if not np.any(np.triu(model.M, 1) != 0)
+            else "its full matrix's, in which the gyroscope is stated")
     notes = [f"imu_tk's body frame (accelerometer misalignment upper-triangular, the sensor's z axis) is optcal's "
-             f"(lower-triangular, the sensor's x axis) turned by {angle:.4g} deg; 1 g = {model.gravity:.9g} m/s^2 "
-             "(imu_tk's g_mag)"]
+             f"({ours}) turned by {angle:.4g} deg; 1 g = {model.gravity:.9g} m/s^2 (imu_tk's g_mag)"]
     files: dict[str, str] = {}
     gyro = getattr(cal, "gyro", None)
     if gyro is not None:

@@ -7,7 +7,7 @@ and ``z_g`` the same for the gyroscope and ``g`` the gravity the calibration nor
 topic carries ``α = k (a − z)`` and ``ω_m = s (r − z_g)``.  optcal's model
 (:mod:`optcal.families.gyro.result`)::
 
-    ā = T (a − o)                      Lu 2017, eq. 6 (g; T lower-triangular, optcal's frame)
+    ā = T (a − o)                      Lu 2017, eq. 6 (g; T as apply applies it: base.linear_part)
     ω = T_g (r − b_g − G_g ā)          Tedaldi 2014, eq. 9 (rad/s, accelerometer frame)
 
 becomes, in the topic's units (``f = g ā`` the specific force, m/s²)::
@@ -38,8 +38,7 @@ from optcal.core.units import RAD_PER_UNIT
 from optcal.data.units import UNSIGNED_16_MIDSCALE, around_midscale
 from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration
-from optcal.families.caltypes.lumped import LumpedCalibration
-from optcal.applications.export.base import ExportOptions, LossReport
+from optcal.applications.export.base import ExportOptions, LossReport, linear_part
 from optcal.applications.export.firmware import driver_zero, loss_poses, ms2_per_raw_unit
 
 @dataclass(frozen=True)
@@ -59,8 +58,10 @@ class SIModel:
         ``ω₀``, rad/s of the topic.
     S : ndarray, shape (3, 3) or None
         g-sensitivity, (rad/s)/(m/s²) of the topic's gyroscope per specific force; None when not modelled.
-    lumped : LumpedCalibration
-        The accelerometer's lumped model the matrices come from.
+    M, o : ndarray, shape (3, 3) and (3,)
+        The accelerometer's ``ā = M (a − o)`` the matrices come from, as ``optcal apply`` applies it
+        (:func:`~optcal.applications.export.base.linear_part`: in the calibration's own frame, the
+        gyroscope's).
     gravity : float
         m/s² per g of the calibration.
     driver : list of str
@@ -74,7 +75,8 @@ class SIModel:
     W: NDArray[np.float64] | None
     gyro_offset: NDArray[np.float64] | None
     S: NDArray[np.float64] | None
-    lumped: LumpedCalibration
+    M: NDArray[np.float64]
+    o: NDArray[np.float64]
     gravity: float
     driver: list[str]
     acc_per_raw: float = 1.0
@@ -124,7 +126,7 @@ def si_model(cal: Calibration, options: ExportOptions, needs_topic_units: bool =
     tool that reads the raw samples itself (imu_tk).
     """
     g = float(options.gravity_m_s2)
-    lumped = cal.lumped()
+    M, o, _ = linear_part(cal)  # its own frame, in which T_g is stated (not the canonical T's)
     driver: list[str] = []
     if needs_topic_units:
         k = ms2_per_raw_unit(cal.units, options.counts_per_g)
@@ -134,11 +136,11 @@ def si_model(cal: Calibration, options: ExportOptions, needs_topic_units: bool =
             driver.append(zero_reason)
     else:
         k, z = 1.0, 0.0
-    A = (g / k) * lumped.T
-    offset = k * (lumped.o - z)
+    A = (g / k) * M
+    offset = k * (o - z)
     gyro = getattr(cal, "gyro", None)
     if gyro is None:
-        return SIModel(A, offset, None, None, None, lumped, g, driver, k, z)
+        return SIModel(A, offset, None, None, None, M, o, g, driver, k, z)
     if needs_topic_units:
         s, zg, zg_reason = gyro_driver(cal, options)
         driver.append(f"gyroscope topic = {s:.9g} rad/s per {getattr(cal, 'gyro_units')}" + (f" after subtracting {zg:g}" if zg else ""))
@@ -147,7 +149,7 @@ def si_model(cal: Calibration, options: ExportOptions, needs_topic_units: bool =
     else:
         s, zg = 1.0, 0.0
     S = None if gyro.g_sensitivity is None else s * gyro.g_sensitivity / g
-    return SIModel(A, offset, gyro.T / s, s * (gyro.bias - zg), S, lumped, g, driver, k, z)
+    return SIModel(A, offset, gyro.T / s, s * (gyro.bias - zg), S, M, o, g, driver, k, z)
 
 
 def proper_rotation(Q: NDArray[np.float64]) -> bool:
@@ -204,7 +206,7 @@ def gyro_loss(cal: Calibration, options: ExportOptions, model: SIModel) -> tuple
     if model.S is None or model.W is None:
         return 0.0, 0.0
     poses = loss_poses(cal, options)
-    f = model.gravity * model.lumped.correct(poses.acc)
+    f = model.gravity * (poses.acc - model.o) @ model.M.T
     f = model.gravity * f / np.linalg.norm(f, axis=1, keepdims=True)
     missed = np.linalg.norm(f @ (model.W @ model.S).T, axis=1)
     return rms(missed), float(missed.max())

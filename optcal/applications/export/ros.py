@@ -17,7 +17,7 @@ from optcal.families.caltypes.base import Calibration
 from optcal.errors import InputError
 from optcal.applications.export.base import ExportOptions, ExportResult
 from optcal.applications.export.firmware import loss_poses
-from optcal.applications.export.kalibr import AXIS_NAMES, axis_values, update_rate
+from optcal.applications.export.kalibr import AXIS_NAMES, axis_values, split_allan, update_rate
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.stats import rms
 
@@ -33,11 +33,12 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     ]
     residual = f"rms |a|-1 = {rms_g * 1e3:.4f} mg on its {poses.n} poses"
     notes: list[str] = []
-    if options.allan is not None:
-        density = axis_values(options.allan, "velocity_random_walk")
+    allan, _ = split_allan(options)  # an accelerometer's result, or the accelerometer's part of --sensor both
+    if allan is not None:
+        density = axis_values(allan, "velocity_random_walk")
         if len(density) < 3:
             raise InputError("the Allan result lacks the velocity random walk of an axis; it is needed for every axis")
-        rate = update_rate(options.allan, options)
+        rate = update_rate(allan, options)
         variance = np.array([density[a] ** 2 * rate for a in AXIS_NAMES])
         lines.append(f"# sensor noise per sample from the Allan result: N^2 * {rate:g} Hz on each axis")
         lines.append(f"# (the calibration residual, {residual}, is a systematic error and is not included)")

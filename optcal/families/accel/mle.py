@@ -630,6 +630,9 @@ class MaximumLikelihood:
             passes += 1
             w_used = w
         theta = norm.theta_to_raw(theta_n)
+        raw_bounds = _bounds_vectors(constraints, self.scale_range)
+        if raw_bounds is not None:  # the bounds hold exactly, also after the normalisation's rounding
+            theta = np.clip(theta, *raw_bounds)
         notes: list[str] = []
         extra: dict[str, Any] = {"init": init_method, "loss": self.loss, "passes": passes}
         if self.loss != "squared":
