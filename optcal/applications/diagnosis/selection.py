@@ -204,19 +204,24 @@ class ForwardSelection:
         self.loop = loop
 
     def room(self, fit: Fit) -> bool:
-        """Whether one more parameter leaves :data:`MIN_DOF` residual degrees of freedom."""
-        return self.fitter.n - fit.n_params - 1 >= MIN_DOF
+        """Whether one more parameter leaves the fitter's :attr:`~Fitter.min_dof` residual degrees of freedom
+        (:data:`MIN_DOF`, or one when the noise of the pose means was measured)."""
+        return self.fitter.n - fit.n_params - 1 >= self.fitter.min_dof
 
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
         """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
 
-        Only orders the regressor can carry and that leave :data:`MIN_DOF` degrees of freedom.
+        Only orders the regressor can carry and that leave the fitter's :attr:`~Fitter.min_dof` degrees of freedom.
         """
+        least = self.fitter.min_dof
         if not self.room(fit):
             if self.candidates or self.with_outliers:
+                why = ("with the noise of the pose means measured, a test keeps one to check that noise"
+                       if least < MIN_DOF else "a test that estimates the noise from the residuals needs "
+                       f"{MIN_DOF}; give poses with their σ measured from the samples to need only one")
                 self.note(
                     f"{self.fitter.n} poses leave too few degrees of freedom to test another term after "
-                    f"{fit.describe()} (a test needs {MIN_DOF} left: at least {fit.n_params + 1 + MIN_DOF} poses)"
+                    f"{fit.describe()} ({why}: at least {fit.n_params + 1 + least} poses)"
                 )
             return []
         out = []
@@ -226,7 +231,7 @@ class ForwardSelection:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
                 orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
                 out += [(e, a, order) for order in orders
-                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= MIN_DOF]
+                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= least]
         for (e, a), order in fit.terms.items():
             if e != SESSION_BIAS and order < MAX_ORDER[e] and self.supports_order(e, order + 1):
                 out.append((e, a, order + 1))
@@ -261,7 +266,10 @@ class ForwardSelection:
                 delta = fitter.bic(cand) - bic0
                 tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
                                        self.alpha_terms / m, bool(p < self.alpha_terms / m and delta < 0), fit=cand))
-            if self.with_outliers and self.room(current):
+            # the outlier test estimates the noise with its suspects set aside: it keeps MIN_DOF (a small session's
+            # real pose scatter, 2-2.5 times the rests' measured noise on IMU-TK's Xsens log, would otherwise make
+            # every pose off by that scatter an outlier)
+            if self.with_outliers and self.fitter.n - current.n_params - 1 >= MIN_DOF:
                 found = detect_outliers(fitter, current, self.alpha_outliers)
                 if found is not None:
                     delta = fitter.bic(found.fit) - bic0
