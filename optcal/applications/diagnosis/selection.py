@@ -20,7 +20,9 @@ linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` 
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
-more passes.
+more passes.  The outlier poses set aside are then tested again under the final model with all its effects
+(:meth:`ForwardSelection.recheck_outliers`): a pose set aside before a drift entered, whose departure the drift
+explains, is returned to the fit.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
@@ -31,14 +33,14 @@ adds anything (and that the two cannot be told apart when the recording makes th
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
-from optcal.applications.diagnosis.outliers import detect_outliers
+from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
 from optcal.core.stats import rms
@@ -296,8 +298,36 @@ class ForwardSelection:
             if accepted is None or accepted.fit is None:
                 break
             current = accepted.fit
+        current = self.recheck_outliers(current)
         level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def recheck_outliers(self, final: Fit) -> Fit:
+        """``final`` with its outlier poses tested again under its own terms, each returned whose departure they explain.
+
+        An outlier is accepted in the step it passes, against the model of that step; a later effect (a drift,
+        a temperature term) can explain its departure: a rest 2.6 σ from a fit without the drift is on the fit
+        with it.  Every pose set aside is tested by its deleted residual under ``final``'s terms with the others
+        aside (the test that set it aside, :func:`~optcal.applications.diagnosis.outliers.deleted_residual_p`,
+        Bonferroni over the poses at the outliers' family-wise level); the least significant is returned while it
+        is not significant, one at a time (a returned pose changes the others' noise scale).
+        """
+        aside = set(final.outliers)
+        returned: list[tuple[int, float]] = []
+        without = replace(final, outliers=frozenset())
+        while aside and self.fitter.n - (final.n_params - len(final.outliers) + len(aside)) > 0:
+            p_values = deleted_residual_p(self.fitter, without, frozenset(aside), final.x)
+            weakest = max(p_values, key=lambda k: (p_values[k], k))
+            if p_values[weakest] < self.alpha_outliers:
+                break
+            aside.discard(weakest)
+            returned.append((weakest, p_values[weakest]))
+        if not returned:
+            return final
+        rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
+        self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
+                  f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
+        return self.fitter.fit(final.terms, frozenset(aside), final.x)
 
     def step_down(self, accepted: Candidate, current: Fit) -> None:
         """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
