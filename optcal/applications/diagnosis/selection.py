@@ -316,7 +316,8 @@ class ForwardSelection:
         returned: list[tuple[int, float]] = []
         without = replace(final, outliers=frozenset())
         while aside and self.fitter.n - (final.n_params - len(final.outliers) + len(aside)) > 0:
-            p_values = deleted_residual_p(self.fitter, without, frozenset(aside), final.x)
+            same = aside == set(final.outliers)  # the refit with every pose aside is final itself
+            p_values = deleted_residual_p(self.fitter, without, frozenset(aside), final.x, final if same else None)
             weakest = max(p_values, key=lambda k: (p_values[k], k))
             if p_values[weakest] < self.alpha_outliers:
                 break
