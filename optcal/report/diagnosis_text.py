@@ -158,7 +158,8 @@ def diagnosis_report(diag: Diagnosis) -> str:
     noise_named = diag.noise_model is not None and diag.noise_model.named
     if not diag.findings:
         if noise_named:
-            lines.append("   no physical effect: the excess scatter is explained by the noise model (see 3)")
+            lines.append("   none named: no candidate effect passes the tests and the excess scatter is explained by the "
+                         "noise model (see 3); an effect below the detection limits (below) is not ruled out")
         elif "rms_g" in diag.simulation.outside_band:
             lines.append(
                 "   none: no candidate effect passes the tests, although the residuals are larger than the given "

@@ -33,7 +33,7 @@ def test_correlated_noise_is_named_and_the_extension_calibrates_chi2_and_standar
     assert 0.7 <= check.reduced_chi2_after <= 1.5
     assert abs(check.coverage_extended - 0.95) <= 0.05 < 0.95 - check.coverage_given_sigma
     report = diagnosis_report(diag)
-    assert "the simulation's noise model is wrong" in report and "no physical effect" in report
+    assert "the simulation's noise model is wrong" in report and "none named" in report and "not ruled out" in report
     assert diag.to_dict()["noise_model"]["named"] is True
 
 

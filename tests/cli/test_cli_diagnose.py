@@ -25,6 +25,8 @@ def test_json_is_exactly_one_object_with_the_finding(tmp_path: Path, capsys: pyt
     f = obj["findings"][0]
     assert f["axes"] == [case.axis] and f["estimate"][case.axis] == pytest.approx(case.value, rel=0.3)
     assert obj["final"]["gain"] > 1 and obj["final"]["heldout_rms_g"] < obj["baseline"]["heldout_rms_g"]
+    assert f["sensor"] == "accelerometer"  # issue 39's contract: one findings list for both sensors
+    assert obj["gain"] == pytest.approx(obj["baseline"]["heldout_rms_g"] / obj["final"]["heldout_rms_g"])
     assert {Path(p).name for p in obj["figures"]} == {"residuals.png", "simulation_check.png"}
     assert all(Path(p).stat().st_size > 1000 for p in obj["figures"])
 

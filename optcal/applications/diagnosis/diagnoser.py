@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from optcal.applications.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.applications.diagnosis.findings import build_findings
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.fitting import MIN_DOF, MIN_DOF_MEASURED, Fit, Fitter, measured_scale2
 from optcal.applications.diagnosis.noise_model import check_noise_model, pose_correlation
 from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.applications.diagnosis.progress import Progress
@@ -115,7 +115,7 @@ class DiagnosisSettings:
 
     def to_dict(self) -> dict[str, Any]:
         return {"folds": self.folds, "simulations": self.simulations, "alpha": self.alpha, "band": self.band,
-                "seed": self.seed, "min_dof": MIN_DOF, "method": self.method, "pose_correlation": self.pose_correlation,
+                "seed": self.seed, "min_dof": MIN_DOF, "min_dof_measured": MIN_DOF_MEASURED, "method": self.method, "pose_correlation": self.pose_correlation,
                 "calibration": dict(self.calibration),
                 "effects": None if self.effects is None else (
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
@@ -258,6 +258,8 @@ class Diagnoser:
         T, o, source = self.start(poses, baseline)
         loop = self.reporter.loop
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
+        # the noise of the pose means measured in the rests: a small session is tested against it (Fitter.noise_scale2)
+        fitter.measured_scale2 = measured_scale2(poses, fitter.w_mean, None if measured is None else measured.sigma)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
         correlation = pose_correlation(fitter, base, s.alpha, measured, s.pose_correlation)

@@ -62,6 +62,9 @@ class Finding:
         For outliers in several sessions diagnosed together: the session (file) of each row.
     pose_index : list of int or None
         For outliers: their positions among the diagnosed poses (unique across sessions).
+    sensor : str
+        The sensor the effect belongs to (``accelerometer``: the pose diagnosis; JSON ``"sensor"``, so that one
+        list of findings can hold a gyroscope's too).
     change_over_data : dict of str to float
         Peak-to-peak change of the term over the fitted poses per axis: g for a bias term,
         relative for a scale term, g at 1 g for the nonlinearity (what the polynomial does,
@@ -89,6 +92,7 @@ class Finding:
     sessions: "SessionOffsets | None" = None
     row_sessions: list[str] | None = None
     pose_index: list[int] | None = None
+    sensor: str = "accelerometer"
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)

@@ -35,9 +35,14 @@ BASELINE_MODEL = "T, o, white noise (Lu 2017, eq. 5)"
 #: Relative partial Fisher information below which a candidate is not identifiable from the poses.
 IDENTIFIABLE_TOL: float = 1e-6
 #: Residual degrees of freedom every test of the diagnosis keeps (a selection candidate on top of the current
-#: model, the outlier test with its suspects set aside, the correlation's estimate after its trend terms).
+#: model, the outlier test with its suspects set aside, the correlation's estimate after its trend terms) when the
+#: noise scale is estimated from the residuals alone: below 10, the scale's own uncertainty (χ² with 10 degrees of
+#: freedom: ±45 % in variance) takes most of a test's power.
 MIN_DOF: int = 10
-
+#: Residual degrees of freedom a test keeps when the noise of every pose mean was measured from its samples (a
+#: small session, :meth:`Fitter.noise_scale2`): the test then needs none to estimate the noise scale; one is kept
+#: so that the measured noise can itself be checked against the residuals.
+MIN_DOF_MEASURED: int = 1
 #: Sorted ``((effect, axis), order)`` pairs: a hashable set of terms.
 Terms = tuple[tuple[tuple[str, int], int], ...]
 
@@ -112,6 +117,26 @@ def orthogonal_part(g: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[n
     return g - G @ (inverse @ (G.T @ g))
 
 
+def measured_scale2(poses: PoseTable, w_mean: float, measured_sigma: NDArray | None = None) -> float | None:
+    """The variance of a residual of unit relative weight that the measured noise of the pose means implies.
+
+    The weights are ``1/(σ_k g_k)²`` relative to their mean ``w_mean`` (Lu 2017, eq. 14), so a pose mean whose
+    noise is its σ gives a weighted residual of variance ``1/w_mean``.  ``poses.sigma`` is the noise of each
+    pose mean measured from its samples, their colour included (batch means within the rest,
+    :func:`optcal.data.static_poses.sigma_of_mean`); ``measured_sigma`` (optional) is the same noise measured on
+    the recording's still parts at each pose's dwell (:mod:`optcal.applications.diagnosis.still_noise`), which
+    also sees noise slower than a rest.  The larger of the two is taken pose by pose (noise one of them missed
+    is still noise), as the mean of the squared ratios to σ.  ``None`` when the poses carry no σ.
+    """
+    if poses.sigma is None:
+        return None
+    sigma = np.asarray(poses.sigma, float)
+    ratio2 = np.ones_like(sigma)
+    if measured_sigma is not None:
+        ratio2 = np.maximum(np.asarray(measured_sigma, float) / sigma, 1.0) ** 2
+    return float(np.mean(ratio2)) / w_mean
+
+
 def mean_shift_columns(n: int, outliers: frozenset[int]) -> NDArray[np.float64]:
     """One indicator column per outlier pose: its free mean shift in a generalised least-squares fit."""
     columns = np.zeros((n, len(outliers)))
@@ -135,13 +160,18 @@ class Fitter:
     correlation : CorrelationOperator, optional
         The correlation of the pose noise in time (:mod:`optcal.applications.diagnosis.correlation`): every fit
         is then refined to generalised least squares and its ``rss`` is the generalised sum.
+    measured_scale2 : float, optional
+        The variance of a residual of unit relative weight that the noise of the pose means measured from their
+        samples implies (:func:`measured_scale2`); ``None`` when the poses carry no measured σ.  It is the noise
+        scale of the tests of a small session (:meth:`noise_scale2`).
     """
 
     #: Gauss–Newton steps from the weighted least-squares solution to the generalised one.
     GLS_STEPS: int = 2
 
     def __init__(self, poses: PoseTable, regressors: Regressors, T: NDArray, o: NDArray, folds: int,
-                 loop: Loop = plain_loop, correlation: CorrelationOperator | None = None) -> None:
+                 loop: Loop = plain_loop, correlation: CorrelationOperator | None = None,
+                 measured_scale2: float | None = None) -> None:
         from optcal.core.norm_residual import normal_gain
 
         self.poses = poses
@@ -168,6 +198,7 @@ class Fitter:
         self.time_order = order
         self.loop = loop
         self.correlation = correlation
+        self.measured_scale2 = measured_scale2
         self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ fitting
@@ -236,13 +267,45 @@ class Fitter:
         """``n log(RSS/n) + p log n`` (outliers as mean-shift parameters, so n is every pose)."""
         return float(self.n * np.log(max(fit.rss, 1e-300) / self.n) + fit.n_params * np.log(self.n))
 
+    @property
+    def min_dof(self) -> int:
+        """Residual degrees of freedom a test keeps: :data:`MIN_DOF`, or :data:`MIN_DOF_MEASURED` with the
+        noise of the pose means measured (:attr:`measured_scale2`)."""
+        return MIN_DOF if self.measured_scale2 is None else MIN_DOF_MEASURED
+
+    def noise_scale2(self, fit: Fit) -> tuple[float, float]:
+        """The noise scale of a unit relative weight under ``fit`` and the degrees of freedom it is known with.
+
+        With :data:`MIN_DOF` residual degrees of freedom or more, or without a measured noise, the scale is
+        estimated from the residuals, ``rss / (n − p)`` (as every session was tested before).  Below that, a small
+        session's scale is the larger of the one measured inside its rests (:attr:`measured_scale2`, known:
+        infinite degrees of freedom, so a likelihood-ratio test needs no residual degrees of freedom: a χ² test)
+        and the residuals' own (with its few degrees of freedom: an F test of lower power).  Real pose means
+        scatter more than their samples say (IMU-TK's Xsens log: 2.1-2.5 times the measured noise, by its
+        reduced χ²), and a test against the measured noise alone would name that scatter as effects and
+        outliers; the residuals' scale is never let below the measured one, so a lucky small residual sum
+        cannot make a test more confident than the rests' noise allows.
+        """
+        dof = self.n - fit.n_params
+        if self.measured_scale2 is None or dof >= MIN_DOF:
+            return fit.rss / max(dof, 1), float(dof)
+        if dof > 0 and fit.rss / dof > self.measured_scale2:
+            return fit.rss / dof, float(dof)
+        return self.measured_scale2, float("inf")
+
     def f_test(self, small: Fit, big: Fit) -> float:
-        """p value of the F form of the likelihood-ratio test of ``small`` inside ``big``."""
+        """p value of the F form of the likelihood-ratio test of ``small`` inside ``big``.
+
+        The noise scale is :meth:`noise_scale2`'s: estimated from ``big``'s residuals (an F test), or, for a
+        small session, measured in its rests (the likelihood-ratio statistic against χ²(q)).
+        """
         q = big.n_params - small.n_params
-        dof = self.n - big.n_params
+        scale2, dof = self.noise_scale2(big)
         if q <= 0 or dof <= 0:
             return 1.0
-        F = max(small.rss - big.rss, 0.0) / q / (big.rss / dof)
+        F = max(small.rss - big.rss, 0.0) / q / scale2
+        if np.isinf(dof):
+            return float(sps.chi2.sf(F * q, q))
         return float(sps.f.sf(F, q, dof))
 
     def heldout(self, fit: Fit) -> NDArray[np.float64]:
@@ -292,7 +355,7 @@ class Fitter:
 
     def covariance(self, fit: Fit) -> NDArray[np.float64]:
         """Covariance of the free normalised parameters (θ, then active β in layout order)."""
-        s2 = fit.rss / max(self.n - fit.n_params, 1)
+        s2 = self.noise_scale2(fit)[0]
         if self.correlation is not None:  # (Gᵀ R⁻¹ G)⁻¹ with a mean shift per outlier pose, kept to θ and β
             _, full = self.generalised_system(fit)
             p = full.shape[0] - len(fit.outliers)

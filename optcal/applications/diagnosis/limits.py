@@ -132,7 +132,7 @@ def pose_outlier_limits(fitter: Fitter, fit: Fit, level: float, rows: NDArray[np
 
 def outlier_limit(fitter: Fitter, fit: Fit, level: float) -> OutlierLimit | None:
     """The outlier test's detection limit under ``fit`` (module docstring); ``None`` without the room to test."""
-    if fitter.n - fit.n_params - 1 < MIN_DOF:  # the test's degrees of freedom with the pose set aside
+    if fitter.n - fit.n_params - 1 < MIN_DOF:  # the test's degrees of freedom with the pose set aside (selection)
         return None
     kept = np.flatnonzero(fit.kept(fitter.n))
     rows = kept[np.unique(np.linspace(0, kept.size - 1, min(kept.size, OUTLIER_LIMIT_POSES)).round().astype(int))]
@@ -144,12 +144,13 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
                      loop: Loop = plain_loop) -> list[DetectionLimit]:
     """Limits of the ``candidates`` not in ``fit``, each added alone to ``fit`` (module docstring).
 
-    Candidates the data have no room to test (fewer than ``MIN_DOF`` degrees of freedom left) get none.
+    Candidates the data have no room to test (fewer than the fitter's :attr:`~Fitter.min_dof` degrees of
+    freedom left) get none.  A small session's scale estimated from its few residual degrees of freedom
+    (:meth:`~Fitter.noise_scale2`) takes Student's quantile instead of the normal one.
     """
-    z = float(sps.norm.isf(level / 2))
     out = []
     for effect, axis in loop(candidates, "detection limits", len(candidates)):
-        if (effect, axis) in fit.terms or fitter.n - fit.n_params - 1 < MIN_DOF:
+        if (effect, axis) in fit.terms or fitter.n - fit.n_params - 1 < fitter.min_dof:
             continue
         terms = dict(fit.terms)
         terms[(effect, axis)] = fitter.reg.n_sessions - 1 if effect == SESSION_BIAS else 1  # every session's offset
@@ -157,6 +158,8 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
         free = np.flatnonzero(active_mask(terms))
         k = 9 + int(np.flatnonzero(free == BETA_INDEX[(effect, axis, 1)])[0])
         se = float(np.sqrt(max(fitter.covariance(bigger)[k, k], 0.0))) / fitter.reg.half_span(effect)
+        dof = fitter.noise_scale2(bigger)[1]
+        z = float(sps.norm.isf(level / 2)) if dof >= MIN_DOF else float(sps.t.isf(level / 2, dof))
         over = 2 * fitter.reg.t_half * z * se if effect == "bias_drift" else None
         out.append(DetectionLimit(describe_term(effect, axis, 1), effect, AXES[axis], z * se, UNITS[effect], level, over))
     return out

@@ -149,13 +149,16 @@ def trimmed_start(fitter: Fitter, fit: Fit) -> tuple[Fit, float]:
     return best, trimmed_scale(smallest, rows.size, p)
 
 
-def deleted_residual_p(fitter: Fitter, fit: Fit, suspects: frozenset[int], x: NDArray) -> dict[int, float]:
+def deleted_residual_p(fitter: Fitter, fit: Fit, suspects: frozenset[int], x: NDArray,
+                       inner: Fit | None = None) -> dict[int, float]:
     """Bonferroni p of each suspect's deleted residual (t test) under ``fit`` refitted without ``suspects``.
 
-    A suspect's p is 1 when the refit has no residual degrees of freedom left.
+    A suspect's p is 1 when the refit has no residual degrees of freedom left.  ``inner`` (optional) is that
+    refit when the caller has it (``fit``'s terms with ``fit.outliers | suspects`` set aside).
     """
     n = fitter.n
-    inner = fitter.fit(fit.terms, fit.outliers | suspects, x)
+    if inner is None:
+        inner = fitter.fit(fit.terms, fit.outliers | suspects, x)
     dof = n - inner.n_params
     if dof <= 0:
         return dict.fromkeys(suspects, 1.0)

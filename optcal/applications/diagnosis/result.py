@@ -192,6 +192,7 @@ class Diagnosis:
             baseline["given_rms_g"] = self.given_rms_g
         return {
             "n_poses": self.n,
+            "gain": self.gain(),  # held-out error of the paper's model over the final model's (also final.gain)
             "baseline": baseline,
             "simulation_check": {
                 **self.simulation.to_dict(),

@@ -20,7 +20,9 @@ linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` 
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
-more passes.
+more passes.  The outlier poses set aside are then tested again under the final model with all its effects
+(:meth:`ForwardSelection.recheck_outliers`): a pose set aside before a drift entered, whose departure the drift
+explains, is returned to the fit.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
@@ -31,14 +33,14 @@ adds anything (and that the two cannot be told apart when the recording makes th
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
-from optcal.applications.diagnosis.outliers import detect_outliers
+from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
 from optcal.core.stats import rms
@@ -204,19 +206,24 @@ class ForwardSelection:
         self.loop = loop
 
     def room(self, fit: Fit) -> bool:
-        """Whether one more parameter leaves :data:`MIN_DOF` residual degrees of freedom."""
-        return self.fitter.n - fit.n_params - 1 >= MIN_DOF
+        """Whether one more parameter leaves the fitter's :attr:`~Fitter.min_dof` residual degrees of freedom
+        (:data:`MIN_DOF`, or one when the noise of the pose means was measured)."""
+        return self.fitter.n - fit.n_params - 1 >= self.fitter.min_dof
 
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
         """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
 
-        Only orders the regressor can carry and that leave :data:`MIN_DOF` degrees of freedom.
+        Only orders the regressor can carry and that leave the fitter's :attr:`~Fitter.min_dof` degrees of freedom.
         """
+        least = self.fitter.min_dof
         if not self.room(fit):
             if self.candidates or self.with_outliers:
+                why = ("with the noise of the pose means measured, a test keeps one to check that noise"
+                       if least < MIN_DOF else "a test that estimates the noise from the residuals needs "
+                       f"{MIN_DOF}; give poses with their σ measured from the samples to need only one")
                 self.note(
                     f"{self.fitter.n} poses leave too few degrees of freedom to test another term after "
-                    f"{fit.describe()} (a test needs {MIN_DOF} left: at least {fit.n_params + 1 + MIN_DOF} poses)"
+                    f"{fit.describe()} ({why}: at least {fit.n_params + 1 + least} poses)"
                 )
             return []
         out = []
@@ -226,7 +233,7 @@ class ForwardSelection:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
                 orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
                 out += [(e, a, order) for order in orders
-                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= MIN_DOF]
+                        if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= least]
         for (e, a), order in fit.terms.items():
             if e != SESSION_BIAS and order < MAX_ORDER[e] and self.supports_order(e, order + 1):
                 out.append((e, a, order + 1))
@@ -261,7 +268,10 @@ class ForwardSelection:
                 delta = fitter.bic(cand) - bic0
                 tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
                                        self.alpha_terms / m, bool(p < self.alpha_terms / m and delta < 0), fit=cand))
-            if self.with_outliers and self.room(current):
+            # the outlier test estimates the noise with its suspects set aside: it keeps MIN_DOF (a small session's
+            # real pose scatter, 2-2.5 times the rests' measured noise on IMU-TK's Xsens log, would otherwise make
+            # every pose off by that scatter an outlier)
+            if self.with_outliers and self.fitter.n - current.n_params - 1 >= MIN_DOF:
                 found = detect_outliers(fitter, current, self.alpha_outliers)
                 if found is not None:
                     delta = fitter.bic(found.fit) - bic0
@@ -288,8 +298,37 @@ class ForwardSelection:
             if accepted is None or accepted.fit is None:
                 break
             current = accepted.fit
+        current = self.recheck_outliers(current)
         level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def recheck_outliers(self, final: Fit) -> Fit:
+        """``final`` with its outlier poses tested again under its own terms, each returned whose departure they explain.
+
+        An outlier is accepted in the step it passes, against the model of that step; a later effect (a drift,
+        a temperature term) can explain its departure: a rest 2.6 σ from a fit without the drift is on the fit
+        with it.  Every pose set aside is tested by its deleted residual under ``final``'s terms with the others
+        aside (the test that set it aside, :func:`~optcal.applications.diagnosis.outliers.deleted_residual_p`,
+        Bonferroni over the poses at the outliers' family-wise level); the least significant is returned while it
+        is not significant, one at a time (a returned pose changes the others' noise scale).
+        """
+        aside = set(final.outliers)
+        returned: list[tuple[int, float]] = []
+        without = replace(final, outliers=frozenset())
+        while aside and self.fitter.n - (final.n_params - len(final.outliers) + len(aside)) > 0:
+            same = aside == set(final.outliers)  # the refit with every pose aside is final itself
+            p_values = deleted_residual_p(self.fitter, without, frozenset(aside), final.x, final if same else None)
+            weakest = max(p_values, key=lambda k: (p_values[k], k))
+            if p_values[weakest] < self.alpha_outliers:
+                break
+            aside.discard(weakest)
+            returned.append((weakest, p_values[weakest]))
+        if not returned:
+            return final
+        rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
+        self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
+                  f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
+        return self.fitter.fit(final.terms, frozenset(aside), final.x)
 
     def step_down(self, accepted: Candidate, current: Fit) -> None:
         """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
