@@ -13,7 +13,7 @@ s_6``); ``CalibGyroBias`` 12 numbers ``[b_x, b_y, b_z, s_1 … s_9]``, ``ω_c = 
 (``calibration.hpp``: ``dicrete_time_accel_noise_std() = accel_noise_std · √imu_update_rate``).
 
 From :class:`~optcal.applications.export.intrinsics.SIModel` (``f = A (α − α₀)``): ``R A = L``
-(:func:`ql`: ``R`` a rotation, ``L`` lower-triangular; ``R = I`` for optcal's lower-triangular T, a
+(:func:`~.intrinsics.ql`: ``R`` a rotation, ``L`` lower-triangular; ``R = I`` for optcal's lower-triangular T, a
 turn of Basalt's frame against optcal's for a full matrix, stated in the notes), ``I + S_a = L``,
 ``b = L α₀``; ``I + S_g = R W``, ``b = R W ω₀``: both sensors exact in Basalt's frame.
 Basalt has no g-sensitivity: its rate error is reported.  optcal writes the IMU part of ``value0``
@@ -25,7 +25,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from numpy.typing import NDArray
 
 from optcal.families.caltypes.base import Calibration
 from optcal.applications.export.base import ExportOptions, ExportResult
@@ -33,7 +32,7 @@ from optcal.applications.export.intrinsics import (
     accel_loss,
     describe_gyro_loss,
     gyro_loss,
-    qr_upper,
+    ql,
     rotation_angle_deg,
     si_model,
 )
@@ -43,18 +42,6 @@ from optcal.applications.export.firmware import loss_poses
 
 #: The keys of ``basalt::Calibration`` that optcal does not write (the cameras'), in cereal's order.
 CAMERA_KEYS: tuple[str, ...] = ("T_imu_cam", "intrinsics", "resolution", "cam_time_offset_ns", "vignette")
-
-
-def ql(A: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``R``, ``L`` with ``R A = L``: ``R`` a proper rotation, ``L`` lower-triangular (``R = I``, ``L = A`` when ``A``
-    already is).  From :func:`~.intrinsics.qr_upper` of ``A`` with its rows and columns reversed (``P A P = Q U``:
-    ``A = (P Q P)(P U P)``, ``P U P`` lower-triangular, ``P Q P`` proper as ``Q``).
-    """
-    A = np.asarray(A, dtype=float)
-    if not np.any(np.triu(A, 1) != 0):
-        return np.eye(3), A
-    Q, U = qr_upper(A[::-1, ::-1])
-    return Q[::-1, ::-1].T, U[::-1, ::-1]
 
 
 def export(cal: Calibration, options: ExportOptions) -> ExportResult:

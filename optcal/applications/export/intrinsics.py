@@ -179,6 +179,18 @@ def qr_upper(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.fl
     return q, r
 
 
+def ql(A: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``R``, ``L`` with ``R A = L``: ``R`` a proper rotation, ``L`` lower-triangular (``R = I``, ``L = A`` when ``A``
+    already is).  From :func:`qr_upper` of ``A`` with its rows and columns reversed (``P A P = Q U``:
+    ``A = (P Q P)(P U P)``, ``P U P`` lower-triangular, ``P Q P`` proper as ``Q``).
+    """
+    A = np.asarray(A, dtype=float)
+    if not np.any(np.triu(A, 1) != 0):
+        return np.eye(3), A
+    Q, U = qr_upper(A[::-1, ::-1])
+    return Q[::-1, ::-1].T, U[::-1, ::-1]
+
+
 def accel_loss(cal: Calibration, options: ExportOptions, exported_g: Callable[[NDArray[np.float64]], NDArray[np.float64]],
                what: str) -> LossReport:
     """rms ``|a| − 1`` of the full calibration and of the exported model on the calibration's poses.
@@ -224,4 +236,4 @@ def matrix_yaml(M: NDArray[np.float64], indent: str) -> list[str]:
 
 
 __all__ = ["SIModel", "accel_loss", "describe_gyro_loss", "gyro_driver", "gyro_loss", "lq",
-           "matrix_yaml", "qr_upper", "rotation_angle_deg", "si_model", "STANDARD_GRAVITY"]
+           "matrix_yaml", "ql", "qr_upper", "rotation_angle_deg", "si_model", "STANDARD_GRAVITY"]

@@ -730,3 +730,17 @@ if __name__ == "__main__":  # rewrite the table in docs/exports.md from the suit
     text = DOCS.read_text()
     head, rest = text.split(BEGIN, 1)
     DOCS.write_text(head + BEGIN + "\n" + table_markdown() + "\n" + END + rest.split(END, 1)[1])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ql_factorisation_turns_a_full_matrix_lower_triangular_by_a_proper_rotation(seed: int) -> None:
+    from optcal.applications.export.intrinsics import ql
+
+    A = np.eye(3) + 0.05 * np.random.default_rng(seed).standard_normal((3, 3))
+    R, L = ql(A)
+    np.testing.assert_allclose(R @ A, L, atol=1e-14)
+    assert np.all(np.triu(L, 1) == 0) and np.all(np.diag(L) > 0)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-14)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    R, L = ql(np.tril(A))  # already lower-triangular: kept as it is
+    assert np.array_equal(R, np.eye(3)) and np.array_equal(L, np.tril(A))
