@@ -31,8 +31,6 @@ the spacing of the stamps alone.
 
 from __future__ import annotations
 
-import datetime
-
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -94,11 +92,6 @@ RATE_MISMATCH_FRACTION: float = 0.05
 #: The fastest turn of a sensor in a recording: 2000 °/s, the largest full scale of common MEMS
 #: gyroscopes (a hand turns a sensor at 1-20 rad/s at its peak, below 1150 °/s).
 MAX_TURN_RATE_DEG_S: float = 2000.0
-#: Stamps that count time since 1970 (Unix epoch) put a recording's start in the era of MEMS IMU
-#: loggers: after 1990 (no MEMS inertial logger wrote files before) and before 2100, in seconds.  The
-#: units differ by 1000×, more than this window's ratio (6.5×), so at most one unit puts a stamp in it:
-#: read in another unit the same stamp is millennia away (1.69e12 read as s: the year 55,500).
-EPOCH_WINDOW_S: tuple[float, float] = (631_152_000.0, 4_102_444_800.0)
 #: Rows of a pose table are poses held still and turned between: at least this far apart in time
 #: (the static detection's shortest dwell, ``--min-dwell 0.5``).
 MIN_POSE_SPACING_S: float = 0.5
@@ -446,9 +439,6 @@ def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _Time
     if time_unit is not None:
         factor = TIME_UNITS[time_unit]
         return _TimeReading(factor, time_unit, True, f"{name} in {time_unit} (given with --time-unit)", te.mean_step * factor)
-    epoch = _epoch_reading(te, name)
-    if epoch is not None:
-        return epoch
     if src.rate_hint is not None and te.mean_step > 0:
         for unit, factor in TIME_UNITS.items():
             rate_u = 1.0 / (te.mean_step * factor)
@@ -456,28 +446,6 @@ def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _Time
                 why = f"{name} in {unit}: the header states {src.rate_hint:g} Hz ({src.rate_reason}), which it gives in {unit}"
                 return _TimeReading(factor, unit, unit != "s", why, te.mean_step * factor)
     return _TimeReading(1.0, "s", False, f"{name} in seconds, as documented", te.mean_step)
-
-
-def _epoch_reading(te: TimeEvidence, name: str) -> _TimeReading | None:
-    """The unit in which the stamps are a date since 1970 in :data:`EPOCH_WINDOW_S`, at a plausible rate.
-
-    Decisive evidence, stated with the year the other reading would give; ``None`` when no unit does
-    (a clock that starts at power-on, or at 0).
-    """
-    if not np.isfinite(te.first) or te.first <= 0:
-        return None
-    for unit, factor in TIME_UNITS.items():
-        start_s = te.first * factor
-        rate_u = 1.0 / (te.mean_step * factor) if te.mean_step > 0 else float("nan")
-        if not EPOCH_WINDOW_S[0] <= start_s <= EPOCH_WINDOW_S[1]:
-            continue
-        if te.duration > 0 and not PLAUSIBLE_RATE_HZ[0] <= rate_u <= PLAUSIBLE_RATE_HZ[1]:
-            continue
-        date = datetime.datetime.fromtimestamp(start_s, tz=datetime.UTC).strftime("%Y-%m-%d")
-        as_s = f"; read as seconds it would be the year {1970 + te.first / 31_557_600:,.0f}" if unit != "s" else ""
-        why = (f"{name} in {unit} since 1970: the first stamp is {date}{as_s}; pass --time-unit to read it otherwise")
-        return _TimeReading(factor, unit, True, why, te.mean_step * factor)
-    return None
 
 
 def _other_unit(te: TimeEvidence) -> str:

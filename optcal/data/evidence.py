@@ -82,8 +82,6 @@ class TimeEvidence:
         Index (into the usable rows) of the first sample after a negative step.
     regular_fraction : float
         Fraction of the steps within ±50 % of the median step (0 when the median step is not positive).
-    first : float
-        The first usable stamp (NaN when unknown): evidence of an epoch (stamps since 1970).
     """
 
     n: int
@@ -94,7 +92,6 @@ class TimeEvidence:
     backwards: int
     first_backwards: int | None
     regular_fraction: float = 0.0
-    first: float = float("nan")
 
     @property
     def mean_step(self) -> float:
@@ -370,7 +367,6 @@ def time_evidence(t: NDArray[np.float64]) -> TimeEvidence:
         backwards=int(back.size),
         first_backwards=int(back[0] + 1) if back.size else None,
         regular_fraction=regular,
-        first=float(t[0]) if t.size else float("nan"),
     )
 
 
