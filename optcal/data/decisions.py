@@ -32,6 +32,7 @@ the spacing of the stamps alone.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
@@ -95,6 +96,15 @@ MAX_TURN_RATE_DEG_S: float = 2000.0
 #: Rows of a pose table are poses held still and turned between: at least this far apart in time
 #: (the static detection's shortest dwell, ``--min-dwell 0.5``).
 MIN_POSE_SPACING_S: float = 0.5
+#: Dates a recording's Unix stamps can hold, seconds since 1970-01-01: from 1990-01-01 (the first
+#: digital loggers of MEMS accelerometers) to 2100-01-01.  A first stamp inside this span read in
+#: one unit of :data:`TIME_UNITS` is evidence of that unit: the spans of the four units do not
+#: overlap (the span's end is 6.5 times its start, the units 1000 times apart), so at most one unit
+#: reads a given stamp as a date; what it protects against is a counter since power-on read as a
+#: date, which the rate check in :func:`_epoch_reading` catches as well.
+EPOCH_SPAN_S: tuple[float, float] = (631_152_000.0, 4_102_444_800.0)
+#: Seconds in a mean Gregorian year, to state how far from any date a stamp is in the wrong unit.
+YEAR_S: float = 31_556_952.0
 
 
 def max_recording_step_g(rate_hz: float) -> float:
@@ -445,7 +455,35 @@ def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _Time
             if abs(rate_u / src.rate_hint - 1.0) <= RATE_MISMATCH_FRACTION:
                 why = f"{name} in {unit}: the header states {src.rate_hint:g} Hz ({src.rate_reason}), which it gives in {unit}"
                 return _TimeReading(factor, unit, unit != "s", why, te.mean_step * factor)
+    epoch = _epoch_reading(name, te)
+    if epoch is not None:
+        return epoch
     return _TimeReading(1.0, "s", False, f"{name} in seconds, as documented", te.mean_step)
+
+
+def _epoch_reading(name: str, te: TimeEvidence) -> _TimeReading | None:
+    """The unit in which the first stamp is a date since 1970 and the samples come at a recording's rate.
+
+    Model: a logger that stamps with the host's clock writes Unix time in s, ms, µs or ns; the
+    first stamp read in its unit is a date within :data:`EPOCH_SPAN_S`, and the steps read in
+    that unit give a rate within :data:`PLAUSIBLE_RATE_HZ`.  Both must hold (a counter since
+    power-on that happens to read as a date in one unit gives no recording's rate in it).
+    """
+    if not (np.isfinite(te.start) and te.mean_step > 0):
+        return None
+    for unit, factor in TIME_UNITS.items():
+        start_s = te.start * factor
+        if not EPOCH_SPAN_S[0] <= start_s <= EPOCH_SPAN_S[1]:
+            continue
+        rate = 1.0 / (te.mean_step * factor)
+        if not PLAUSIBLE_RATE_HZ[0] <= rate <= PLAUSIBLE_RATE_HZ[1]:
+            return None
+        date = datetime.fromtimestamp(start_s, tz=timezone.utc).strftime("%Y-%m-%d")
+        why = f"{name} in {unit} since 1970: its first stamp {te.start:.10g} is {date} in {unit}"
+        if unit != "s":
+            why += f" (in seconds, the year {1970 + te.start / YEAR_S:,.0f})"
+        return _TimeReading(factor, unit, True, why + "; --time-unit overrides", te.mean_step * factor)
+    return None
 
 
 def _other_unit(te: TimeEvidence) -> str:

@@ -82,6 +82,8 @@ class TimeEvidence:
         Index (into the usable rows) of the first sample after a negative step.
     regular_fraction : float
         Fraction of the steps within ±50 % of the median step (0 when the median step is not positive).
+    start : float
+        The first stamp (NaN when unknown): a date since 1970 in one unit is evidence of that unit.
     """
 
     n: int
@@ -92,6 +94,7 @@ class TimeEvidence:
     backwards: int
     first_backwards: int | None
     regular_fraction: float = 0.0
+    start: float = float("nan")
 
     @property
     def mean_step(self) -> float:
@@ -367,6 +370,7 @@ def time_evidence(t: NDArray[np.float64]) -> TimeEvidence:
         backwards=int(back.size),
         first_backwards=int(back[0] + 1) if back.size else None,
         regular_fraction=regular,
+        start=float(t[0]) if t.size else float("nan"),
     )
 
 
