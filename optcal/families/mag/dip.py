@@ -106,10 +106,10 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
         v = m @ R.T
         r = np.sum(a * v, axis=1) + s
         J = np.column_stack([np.cross(v, a), np.ones(len(a))])
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        step = np.linalg.solve(J.T @ J, -(J.T @ r))  # normal equations: 4×4, linear in the samples
         R = exponential_map(step[:3]) @ R
         s = float(np.clip(s + step[3], -1.0, 1.0))
-        if np.linalg.norm(step) < 1e-12:
+        if np.linalg.norm(step) < 1e-10:  # radians: far below any standard error of the angles
             break
     v = m @ R.T
     r = np.sum(a * v, axis=1) + s
