@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import click
+import numpy as np
 
 
 def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool) -> bool:
@@ -72,3 +73,27 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     click.echo(mag_report(result))
     if output:
         click.echo(f"saved to {output}")
+
+
+def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None) -> None:
+    """``optcal apply mag.json DATA -o OUT``: the magnetometer's samples calibrated, in the calibration's units.
+
+    Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
+    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted.
+    """
+    from optcal.cli.outputs import output_file
+    from optcal.errors import InputError
+    from optcal.families.mag.samples import read_mag
+
+    samples = read_mag(data, columns=columns, topic=topic)
+    if samples.units.units != cal.units:
+        raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
+                         f"is in {cal.units}: apply it to samples in {cal.units}")
+    field = cal.field(samples.m)
+    table = np.column_stack([field, np.linalg.norm(field, axis=1) / cal.field_strength])
+    path = output_file(output)
+    np.savetxt(path, table, delimiter=",", header="mx,my,mz,norm", comments="", fmt="%.9g")
+    click.echo(f"calibration: {calibration}: {cal.describe()}")
+    for line in samples.decision_lines():
+        click.echo(line)
+    click.echo(f"wrote {samples.n} rows to {output} (csv), the field in {cal.units}; norm = |T(m - o)|")

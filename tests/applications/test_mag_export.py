@@ -85,3 +85,13 @@ def test_calibration_in_counts_is_refused_naming_mag_units(shared_data, tmp_path
     assert code == 0, err
     code, _, err = run_args(capsys, "export", str(tmp_path / "c.json"), "--format", "px4", "-o", str(tmp_path / "x"))
     assert code == 2 and "--mag-units" in err
+
+
+def test_apply_writes_the_calibrated_field(ckexplorer, capsys):
+    samples, cal, tmp = ckexplorer
+    code, out, err = run_args(capsys, "apply", str(tmp / "mag.json"), str(samples.path), "-o", str(tmp / "out.csv"))
+    assert code == 0, err
+    table = np.loadtxt(tmp / "out.csv", delimiter=",", skiprows=1)
+    assert table.shape == (samples.n, 4)
+    assert np.allclose(table[:, :3], cal.field(samples.m), rtol=1e-8, atol=1e-9)
+    assert np.sqrt(np.mean((table[:, 3] - 1) ** 2)) == pytest.approx(cal.info["rms_norm_residual"], rel=1e-6)
