@@ -46,6 +46,10 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     options = build_read_options({"columns": columns, "units": data_units, "topic": topic, "rate": rate,
                                   "data_format": data_format})
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
+    if cal.cal_type == "magnetometer":  # its samples are mx, my, mz, read by the magnetometer's reader
+        from optcal.cli.cmd_mag import apply_mag
+
+        return apply_mag(cal, calibration, data, output, columns, topic)
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
         applied = apply_to_file(cal, data, options, units_out=units_out)
     from optcal.cli.outputs import output_file

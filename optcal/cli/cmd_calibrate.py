@@ -37,12 +37,20 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
               help="--method ferraris: imucal's section list (JSON or CSV of start/end rows per section).")
 @click.option("--turn-angle", type=float, default=None, metavar="DEG",
               help="--method ferraris: the angle of each turn (default: the whole turns the gyro reads; 360 for counts).")
+@click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
+              help="The sensor to calibrate: the accelerometer (static poses) or the magnetometer (raw samples, mx, my, mz).")
+@click.option("--mag-form", type=click.Choice(["auto", "offsets", "diagonal", "full"]), default="auto", show_default=True,
+              help="--sensor mag: the model (hard iron only, with axis scales, or full soft iron); auto by evidence.")
+@click.option("--mag-units", default=None, metavar="UNIT",
+              help="--sensor mag: units of the magnetometer (uT, nT, gauss, mgauss, counts); default from the file or the data.")
+@click.option("--accept-mag-fit", is_flag=True, help="--sensor mag: keep samples that do not lie on an ellipsoid.")
 @report_options
 @solver_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
               joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, sections: str | None, turn_angle: float | None,
+              sensor: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
               report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Calibrate the accelerometer from DATA: a pose table (ax, ay, az per static pose) or a raw recording.
 
@@ -52,6 +60,17 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     from optcal.errors import IdentifiabilityError, InputError
 
     solver_opts = pop_solver_options(data_opts)
+    from optcal.cli.cmd_mag import calibrate_mag_command, mag_options_used
+
+    if sensor == "mag":
+        if imu or scale_range or report_path or sections or turn_angle is not None:
+            raise InputError("--imu, --scale-range, --report, --sections and --turn-angle apply to the accelerometer, "
+                             "not to --sensor mag")
+        calibrate_mag_command(data, method, as_json, output, allow_degenerate, loss, mag_form, mag_units,
+                              accept_mag_fit, solver_opts, data_opts)
+        return
+    if mag_options_used(mag_form, mag_units, accept_mag_fit):
+        raise InputError("--mag-form, --mag-units and --accept-mag-fit apply with --sensor mag")
     if method == "ferraris" or sections or turn_angle is not None:
         if method != "ferraris" or imu or report_path or joint or g_sensitivity or accept_gyro_fit:
             raise InputError("--sections and --turn-angle apply with --method ferraris, which calibrates both sensors "

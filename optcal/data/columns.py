@@ -54,6 +54,19 @@ for _axis in "xyz":
                   "w{}", "w_{}", "angular_velocity_{}", "angular_velocity{}", "angular_rate_{}", "ang_vel_{}",
                   "angvel_{}", "gyro_rad_{}")
     )
+#: The magnetometer's canonical names (read by :mod:`optcal.families.mag.samples`, not by the
+#: accelerometer's decisions) and the names files use for them, after a unit word is removed
+#: (``mag_x_uT`` → ``mag_x``).
+MAG: tuple[str, str, str] = ("mx", "my", "mz")
+MAG_ALIASES: dict[str, tuple[str, ...]] = {
+    "m" + _axis: tuple(
+        f.format(_axis)
+        for f in ("m{}", "m_{}", "mag{}", "mag_{}", "magn_{}", "magnt_{}", "magnetometer_{}", "magnetometer{}",
+                  "magnetic_{}", "magnetic_field_{}", "magnetic_density_{}", "compass_{}", "compass{}", "b{}", "b_{}",
+                  "magnetic_field{}", "field_{}")
+    )
+    for _axis in "xyz"
+}
 #: Aliases of the sensors' axes and the temperature this long or longer are also recognised at the end
 #: of a longer name, after a prefix (``field.linear_acceleration.x`` of a ``rostopic echo -p`` dump,
 #: ``imu_acc_x``, ``board_temperature``); shorter ones (``ax``, ``w_x``, ``a_x``) only as the whole name.
@@ -156,8 +169,8 @@ def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]
             pairs.append((k.strip(), v.strip()))
     out = {}
     for k, v in pairs:
-        if k not in CANONICAL and k != "index":
-            raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)} or index")
+        if k not in CANONICAL and k != "index" and k not in MAG:  # mx, my, mz: read by --sensor mag
+            raise InputError(f"columns: unknown name {k!r}; use {', '.join(CANONICAL)}, index, or mx, my, mz")
         if k in ACC and v.lower() == NO_COLUMN:
             raise InputError(f"columns {k}={v}: the accelerometer columns cannot be ignored; map {k} to a column")
         out[k] = v

@@ -44,6 +44,7 @@ CAL_TYPES: dict[str, str] = {
     "extended": "optcal.families.caltypes.extended:ExtendedCalibration",
     "imu": "optcal.families.gyro.result:ImuCalibration",
     "peer": "optcal.families.caltypes.peer:PeerCalibration",
+    "magnetometer": "optcal.families.mag.calibration:MagCalibration",
 }
 
 

@@ -98,8 +98,8 @@ def test_value_equality_sees_every_number():
 
 def test_unknown_type_and_newer_major_version_are_refused(tmp_path):
     d = every_type()[0].to_dict()
-    with pytest.raises(InputError, match="unknown cal_type 'magnetometer'.*extended, imu, lumped, peer, sixpos_full"):
-        calibration_files.load({**d, "cal_type": "magnetometer"})
+    with pytest.raises(InputError, match="unknown cal_type 'barometer'.*extended, imu, lumped, magnetometer, peer, sixpos_full"):
+        calibration_files.load({**d, "cal_type": "barometer"})
     path = tmp_path / "new.json"
     path.write_text(json.dumps({**d, "format_version": "3.0"}))
     with pytest.raises(InputError, match=r"new.json: .*format version 3.0, newer than this optcal reads \(2.x"):

@@ -54,6 +54,10 @@ def export(cal: Calibration, fmt: str, options: ExportOptions | None = None) -> 
     target = EXPORTERS.get(fmt)
     if target is None:
         raise InputError(f"unknown export format {fmt!r}; choose one of {', '.join(EXPORTERS)}")
+    if cal.cal_type == "magnetometer":  # its own module: the compass parameters, other formats refused
+        from optcal.applications.export.mag_firmware import export as export_mag
+
+        return export_mag(cal, fmt, options or ExportOptions())
     module, attr = target.split(":")
     return getattr(importlib.import_module(module), attr)(cal, options or ExportOptions())
 

@@ -1,0 +1,120 @@
+"""The magnetometer's calibration as the firmware's compass parameters: ArduPilot and PX4.
+
+Upstream conventions:
+
+* ArduPilot ``libraries/AP_Compass/AP_Compass_Backend.cpp``, ``correct_field``: ``field += offsets``
+  then ``field = mat * field`` with ``mat`` the symmetric matrix of ``COMPASS_DIA_{X,Y,Z}`` on the
+  diagonal and ``COMPASS_ODI_{X,Y,Z}`` = (xy, xz, yz) off it; the field in milligauss.  So
+  ``corrected = M (raw + OFS)``: ``M = F T``, ``OFS = −k o`` with F the field strength and k the
+  milligauss per data unit (the corrected field keeps the Earth's strength, as ArduPilot's own
+  calibrator leaves it).  Names: ``COMPASS_OFS_*``, ``COMPASS_DIA_*``, ``COMPASS_ODI_*``,
+  ``COMPASS_DEV_ID``; the second and third compass ``COMPASS_OFS2_*``/``DIA2``/``ODI2``/``DEV_ID2``
+  and ``...3`` (``AP_Compass.cpp``, ``var_info``).
+* PX4 ``src/lib/sensor_calibration/Magnetometer.cpp``: ``Correct`` returns
+  ``_rotation * (_scale * (data − _offset))`` in gauss; ``set_offdiagonal`` fills the symmetric
+  ``_scale`` from ``CAL_MAGn_{X,Y,Z}SCALE`` and ``CAL_MAGn_{X,Y,Z}ODIAG`` = (xy, xz, yz).  So
+  ``S = F T``, ``OFF = k o`` with k the gauss per data unit; ``CAL_MAGn_ID`` the device id.
+
+optcal's ``T`` is symmetric (:mod:`optcal.families.mag.fit`), the form both firmwares hold: the
+file reproduces optcal's calibrated field exactly.  What it cannot hold is the rotation between
+the magnetometer's and the accelerometer's frames (``R_mag_to_acc``, only 90° steps in
+``COMPASS_ORIENT``/``CAL_MAGn_ROT``): reported with its angle.  A calibration in counts has no
+field unit the firmware reads, and is refused naming ``--mag-units``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from optcal.applications.export.base import ExportOptions, ExportResult
+from optcal.applications.export.firmware import Param, device_id_param, per_axis, render_lines
+from optcal.errors import InputError
+from optcal.families.caltypes.base import Calibration
+from optcal.families.mag.units import UT_PER_UNIT
+
+#: The formats that hold a magnetometer calibration.
+MAG_FORMATS: tuple[str, ...] = ("ardupilot", "px4", "px4-shell")
+#: ArduPilot's largest accepted offset (COMPASS_OFFS_MAX's default, milligauss): beyond it the
+#: firmware's pre-arm check fails ("Compass offsets too high").
+ARDUPILOT_OFFS_MAX_MG: float = 1800.0
+
+
+def _scaled(cal: Calibration, ut_per_out: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(F T, k o, k)``: the matrix and offset for a firmware reading the field in a unit of ``ut_per_out`` µT."""
+    units = cal.units
+    if units not in UT_PER_UNIT:
+        raise InputError(f"the magnetometer calibration is in {units}, which the firmware cannot read; recalibrate "
+                         f"with --mag-units (uT, nT, gauss, mgauss) stating the driver's units")
+    k = UT_PER_UNIT[units] / ut_per_out
+    M = cal.field_strength * np.asarray(cal.T)  # type: ignore[attr-defined]
+    return M, k * np.asarray(cal.o), k  # type: ignore[attr-defined]
+
+
+def ardupilot_names(instance: int) -> tuple[str, str, str, str]:
+    """``COMPASS_OFS``, ``COMPASS_DIA``, ``COMPASS_ODI``, ``COMPASS_DEV_ID`` for compass ``instance`` (0, 1, 2)."""
+    if instance not in (0, 1, 2):
+        raise InputError(f"ArduPilot keeps three compasses' calibrations (instance 0, 1, 2), not {instance}")
+    n = "" if instance == 0 else str(instance + 1)
+    return f"COMPASS_OFS{n}", f"COMPASS_DIA{n}", f"COMPASS_ODI{n}", f"COMPASS_DEV_ID{n}"
+
+
+def _rotation_note(cal: Calibration) -> list[str]:
+    R = getattr(cal, "R_mag_to_acc", None)
+    if R is None:
+        return []
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
+    return [f"not held: the {angle:.2f} deg rotation of the magnetometer's frame into the accelerometer's "
+            f"(R_mag_to_acc in the calibration): the firmware's orientation parameter takes 90 deg steps only"]
+
+
+def export(cal: Calibration, fmt: str, options: ExportOptions) -> ExportResult:
+    """The compass parameters of a ``magnetometer`` calibration in ``fmt`` (module docstring).
+
+    Raises
+    ------
+    InputError
+        A format that holds no magnetometer calibration, or a calibration in counts.
+    """
+    if fmt not in MAG_FORMATS:
+        raise InputError(f"--format {fmt} holds no magnetometer calibration; export a magnetometer with "
+                         f"--format {', '.join(MAG_FORMATS)}")
+    comments = [f"magnetometer calibration exported by optcal from {options.source}"]
+    notes = _rotation_note(cal)
+    if fmt == "ardupilot":
+        M, ko, _ = _scaled(cal, 0.1)  # milligauss
+        ofs, dia, odi, dev = ardupilot_names(options.instance)
+        offsets = -ko
+        params = per_axis(ofs + "_{axis}", offsets) + per_axis(dia + "_{axis}", np.diag(M)) \
+            + per_axis(odi + "_{axis}", [M[0, 1], M[0, 2], M[1, 2]])
+        comments.append("applied upstream as field = M (raw + OFS), milligauss (AP_Compass_Backend.cpp, correct_field)")
+        if np.max(np.abs(offsets)) > ARDUPILOT_OFFS_MAX_MG:
+            notes.append(f"an offset of {np.max(np.abs(offsets)):.0f} mG exceeds COMPASS_OFFS_MAX ({ARDUPILOT_OFFS_MAX_MG:.0f}): "
+                         f"ArduPilot's pre-arm check will refuse it unless COMPASS_OFFS_MAX is raised")
+        if options.device_id is not None:
+            param, note = device_id_param(dev, options.device_id, "compass")
+            params.append(param)
+            notes += [note] if note else []
+        else:
+            notes.append(f"{dev} is not written (device_id=N writes it): ArduPilot applies the calibration to the "
+                         f"compass whose id is in {dev}")
+        text = render_lines("", ",")(comments + notes, params, options)
+    else:
+        M, ko, _ = _scaled(cal, 100.0)  # gauss
+        p = f"CAL_MAG{options.instance}_"
+        params = per_axis(p + "{axis}OFF", ko) + per_axis(p + "{axis}SCALE", np.diag(M)) \
+            + per_axis(p + "{axis}ODIAG", [M[0, 1], M[0, 2], M[1, 2]])
+        comments.append("applied upstream as field = S (raw - OFF), gauss (Magnetometer.cpp, Correct)")
+        if options.device_id is not None:
+            param, note = device_id_param(p + "ID", options.device_id, "compass")
+            params.append(param)
+            notes += [note] if note else []
+        else:
+            notes.append(f"{p}ID is not written (device_id=N writes it): PX4 applies the calibration to the sensor "
+                         f"whose id is in {p}ID")
+        if fmt == "px4":
+            from optcal.applications.export.px4 import render_qgc
+
+            text = render_qgc(comments + notes, params, options)
+        else:
+            text = render_lines("param set ", " ")(comments + notes, params, options)
+    return ExportResult(format=fmt, text=text, mapped=[q.name for q in params], dropped=[], notes=notes)

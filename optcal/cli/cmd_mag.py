@@ -1,0 +1,99 @@
+"""``optcal calibrate DATA --sensor mag``: the magnetometer's calibration from its raw samples.
+
+Called from :mod:`optcal.cli.cmd_calibrate`; the work is :mod:`optcal.families.mag`.  What was
+read and decided (columns, units, the form) is printed before the result or the refusal (on
+standard error with ``--json``, which prints one JSON object).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+import numpy as np
+
+
+def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool) -> bool:
+    """Whether a magnetometer option was given (refused without ``--sensor mag``)."""
+    return mag_form != "auto" or mag_units is not None or accept_mag_fit
+
+
+def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
+                          loss: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
+                          solver_opts: dict[str, Any], data_opts: dict[str, Any]) -> None:
+    """Read, fit and report (module docstring).
+
+    Parameters
+    ----------
+    data : str
+        The recording.
+    method : str
+        ``--method``: default (convex then ML), convex, mle, exact, gd or svd.
+    as_json, output, allow_degenerate, loss
+        As for the accelerometer.
+    mag_form : str
+        ``--mag-form``: auto, offsets, diagonal or full.
+    mag_units : str, optional
+        ``--mag-units``.
+    accept_mag_fit : bool
+        Keep samples that do not lie on an ellipsoid.
+    solver_opts, data_opts : dict
+        The solver options and the DATA options (``--columns``, ``--topic``; the rest detection's do not apply).
+    """
+    from optcal.cli.outputs import echo_json, output_file
+    from optcal.cli.solver_options import estimator_settings
+    from optcal.errors import InputError
+    from optcal.families.mag.calibration import calibrate_mag
+    from optcal.families.mag.fit import MagSettings
+    from optcal.families.mag.samples import read_mag
+
+    if method in ("sixpos", "nominal", "ferraris"):
+        raise InputError(f"--method {method} needs known orientations or rests; a magnetometer self-calibrates: "
+                         f"use --method default, convex, mle, exact, gd or svd")
+    settings = estimator_settings(method, **solver_opts) if method != "default" or any(solver_opts.values()) else {}
+    if loss != "squared":
+        if method not in ("default", "mle"):
+            raise InputError("--loss applies to the mle method only")
+        settings["loss"] = loss
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units)
+    say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
+    say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
+    for line in samples.decision_lines():
+        say(line)
+    result = calibrate_mag(samples, MagSettings(method=method, form=mag_form, allow_degenerate=allow_degenerate,
+                                                accept_fit=accept_mag_fit, estimator=settings))
+    cal = result.calibration
+    if output:
+        cal.save(output_file(output))
+    if as_json:
+        echo_json(result.summary())
+        return
+    from optcal.report.mag_text import mag_report
+
+    click.echo(mag_report(result))
+    if output:
+        click.echo(f"saved to {output}")
+
+
+def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None) -> None:
+    """``optcal apply mag.json DATA -o OUT``: the magnetometer's samples calibrated, in the calibration's units.
+
+    Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
+    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted.
+    """
+    from optcal.cli.outputs import output_file
+    from optcal.errors import InputError
+    from optcal.families.mag.samples import read_mag
+
+    samples = read_mag(data, columns=columns, topic=topic)
+    if samples.units.units != cal.units:
+        raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
+                         f"is in {cal.units}: apply it to samples in {cal.units}")
+    field = cal.field(samples.m)
+    table = np.column_stack([field, np.linalg.norm(field, axis=1) / cal.field_strength])
+    path = output_file(output)
+    np.savetxt(path, table, delimiter=",", header="mx,my,mz,norm", comments="", fmt="%.9g")
+    click.echo(f"calibration: {calibration}: {cal.describe()}")
+    for line in samples.decision_lines():
+        click.echo(line)
+    click.echo(f"wrote {samples.n} rows to {output} (csv), the field in {cal.units}; norm = |T(m - o)|")

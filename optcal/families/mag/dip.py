@@ -1,0 +1,131 @@
+"""The angle between the field and gravity (dip) and the rotation between the two sensors' frames.
+
+Where the sensor is still, the accelerometer reads the upward specific force ``â`` and the
+calibrated magnetometer the field direction ``m̂``; the field dips by the inclination ``δ``
+below the horizontal, so ``â · m̂ = −sin δ`` at every orientation (Kok & Schön 2016, sec. 3;
+Vasconcelos 2011, eq. 24).  The ellipsoid fit determines the magnetometer's ``T`` only up to
+a rotation, and the two sensors are mounted with a small misalignment: the rotation ``R`` of
+the magnetometer's calibrated frame into the accelerometer's is estimated jointly with δ
+from ``â_k · R m̂_k + sin δ = 0`` by Gauss–Newton (Papafotis 2019, eq. 20; Kok & Schön 2016,
+eq. 17 with the dip constraint), with standard errors from the Gauss–Newton Hessian
+inflated for correlated samples (:func:`optcal.families.mag.fit.correlation_inflation`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.core.rotations import exponential_map
+
+#: A sample is still when ``|a|`` is within this share of the session's median ``|a|`` (its
+#: gravity): a linear acceleration of 2 % of g tilts the measured vertical by at most 1.1°, the
+#: size of the dip spread a consumer magnetometer's noise gives.
+STILL_SHARE: float = 0.02
+#: Fewer still samples than this leave the dip unestimated (the rotation and δ are 4 unknowns,
+#: and the inflation for correlated samples needs a sequence to measure its correlation).
+MIN_STILL: int = 20
+#: The dip is estimated on at most this many still samples, evenly spaced in time: the standard
+#: error of 10⁵ correlated samples (inflated for their correlation) is already far below the
+#: spread a magnetometer's noise gives, and the fit of 4 unknowns costs linear time per step.
+MAX_DIP_SAMPLES: int = 100_000
+
+
+@dataclass(frozen=True)
+class DipResult:
+    """The dip over the still samples, before and after the two frames are aligned.
+
+    Attributes
+    ----------
+    dip_deg, dip_se_deg : float
+        The inclination (positive: the field points below the horizontal) and its standard error.
+    dip_std_deg : float
+        The spread (standard deviation) of the per-sample dip with the frames aligned.
+    dip_std_unaligned_deg : float
+        The same with ``R = I`` (the independent ML fit's frame).
+    R : ndarray, shape (3, 3)
+        Rotation of the calibrated magnetometer's frame into the accelerometer's.
+    rotation_deg, rotation_se_deg : float
+        Its angle and the standard error of that angle.
+    n_still, n_samples : int
+        Samples used (still) and offered.
+    """
+
+    dip_deg: float
+    dip_se_deg: float
+    dip_std_deg: float
+    dip_std_unaligned_deg: float
+    R: NDArray[np.float64]
+    rotation_deg: float
+    rotation_se_deg: float
+    n_still: int
+    n_samples: int
+
+    def lines(self) -> list[str]:
+        """The report's lines."""
+        return [
+            f"dip (inclination): {self.dip_deg:.2f} ± {self.dip_se_deg:.2f} deg over {self.n_still} still samples of "
+            f"{self.n_samples} (|a| within {100 * STILL_SHARE:g} % of its median)",
+            f"dip spread: {self.dip_std_deg:.3f} deg with the frames aligned, {self.dip_std_unaligned_deg:.3f} deg without",
+            f"magnetometer-to-accelerometer rotation: {self.rotation_deg:.2f} ± {self.rotation_se_deg:.2f} deg",
+        ]
+
+
+def still_mask(acc: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Samples whose ``|a|`` is within :data:`STILL_SHARE` of the median ``|a|`` (finite rows only)."""
+    norm = np.linalg.norm(acc, axis=1)
+    ok = np.isfinite(norm)
+    g = float(np.median(norm[ok])) if ok.any() else np.nan
+    return ok & (np.abs(norm - g) <= STILL_SHARE * g)
+
+
+def per_sample_dip(acc_unit: NDArray, field_unit: NDArray) -> NDArray[np.float64]:
+    """``δ_k = asin(−â_k · m̂_k)`` in degrees (module docstring)."""
+    return np.degrees(np.arcsin(np.clip(-np.sum(acc_unit * field_unit, axis=1), -1.0, 1.0)))
+
+
+def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50) -> DipResult | None:
+    """The dip and the frames' rotation (module docstring); ``None`` with fewer than :data:`MIN_STILL` still samples.
+
+    Parameters
+    ----------
+    acc : ndarray, shape (n, 3)
+        Accelerometer samples (any units: only the direction is used).
+    calibrated : ndarray, shape (n, 3)
+        The calibrated magnetometer samples ``T(m − o)``.
+    """
+    from optcal.families.mag.fit import correlation_inflation
+
+    still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
+    if np.count_nonzero(still) < MIN_STILL:
+        return None
+    index = np.flatnonzero(still)
+    index = index[:: max(1, len(index) // MAX_DIP_SAMPLES)]
+    a = acc[index] / np.linalg.norm(acc[index], axis=1, keepdims=True)
+    m = calibrated[index] / np.linalg.norm(calibrated[index], axis=1, keepdims=True)
+    unaligned = per_sample_dip(a, m)
+    R = np.eye(3)
+    s = float(np.sin(np.radians(np.mean(unaligned))))
+    for _ in range(max_iter):  # Gauss-Newton on r_k = â_k·R m̂_k + sin δ, R perturbed on the left: exp([φ]×) R
+        v = m @ R.T
+        r = np.sum(a * v, axis=1) + s
+        J = np.column_stack([np.cross(v, a), np.ones(len(a))])
+        step = np.linalg.solve(J.T @ J, -(J.T @ r))  # normal equations: 4×4, linear in the samples
+        R = exponential_map(step[:3]) @ R
+        s = float(np.clip(s + step[3], -1.0, 1.0))
+        if np.linalg.norm(step) < 1e-10:  # radians: far below any standard error of the angles
+            break
+    v = m @ R.T
+    r = np.sum(a * v, axis=1) + s
+    J = np.column_stack([np.cross(v, a), np.ones(len(a))])
+    dof = max(len(a) - 4, 1)
+    cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof * correlation_inflation(r) ** 2
+    aligned = per_sample_dip(a, v)
+    dip = float(np.degrees(np.arcsin(s)))
+    dip_se = float(np.degrees(np.sqrt(max(cov[3, 3], 0.0)) / max(np.sqrt(1 - s * s), 1e-12)))
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
+    rot_se = float(np.degrees(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))))
+    return DipResult(dip, dip_se, float(np.std(aligned)), float(np.std(unaligned)), R, angle, rot_se,
+                     int(np.count_nonzero(still)), int(len(acc)))

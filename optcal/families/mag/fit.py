@@ -1,0 +1,395 @@
+"""The magnetometer's calibration: hard and soft iron as the accelerometer's ellipsoid problem.
+
+A magnetometer turned through many orientations in a constant field traces the ellipsoid
+``m̄ = T (m − o)``, ``‖m̄‖ = 1`` (hard iron ``o``, soft iron and scale ``T``; the field strength
+is ``det(T)^(−1/3)`` in the data's units): the accelerometer's lumped model (Lu 2017, eq. 6,
+13) with the local field in place of gravity and every raw sample as a "pose" (no rests are
+needed, the noise is per sample).  So the same estimators fit it: the algebraic ellipsoid fit
+as a convex problem in cvxpy (``A ⪰ εI``), refined by maximum likelihood in CasADi
+(:mod:`optcal.families.accel.mle`: IPOPT or any solver by name, losses, ``fix``/``bounds``), and
+the paper's gradient-descent baseline (``method="gd"``), all through
+:func:`optcal.families.accel.calibration.calibrate`.
+
+Reduced forms, chosen by evidence (:func:`choose_form`): ``full`` (9 parameters), ``diagonal``
+(T diagonal: ``fix`` the three off-diagonal entries at 0, 6 parameters) and ``offsets`` (a
+sphere, ``T = I/r``: 4 parameters, solved by linear least squares then Gauss–Newton).  The
+richest form whose every parameter is determined to within :data:`RELEVANT_SHARE` of the field
+is kept: a parameter uncertain by 1 % of the field moves the calibrated field by that much,
+about 0.6° of heading at the equator (more where the field dips).
+
+The ellipsoid fit fixes ``T`` only up to a rotation (``‖R T u‖ = ‖T u‖``): the calibration
+holds the symmetric ``T = (TᵀT)^½`` (no rotation: the form the firmware's soft-iron matrix
+takes), and with an accelerometer the rotation between the two sensors' frames is estimated
+from the constant angle between field and gravity (:mod:`optcal.families.mag.dip`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.core.poses import PoseTable
+from optcal.errors import IdentifiabilityError, InputError, SolverError
+from optcal.families.mag.samples import MagSamples
+
+#: The reduced forms, richest last, with their parameter counts.
+FORMS: dict[str, int] = {"offsets": 4, "diagonal": 6, "full": 9}
+#: A form is kept when the standard error of each of its parameters (inflated for correlated
+#: samples, :func:`effective_share`) is below this share of the field: an error of 1 % of the
+#: field in a calibrated component is about 0.6° of heading at the equator (1/cos(dip) more
+#: elsewhere), the accuracy a consumer compass is quoted at.
+RELEVANT_SHARE: float = 0.01
+#: Without a form determined to :data:`RELEVANT_SHARE`, the best determined one is kept when its
+#: worst parameter is within a tenth of the field (about 6° of heading at the equator, the error of
+#: an uncalibrated phone compass): beyond it no form is a calibration, and the samples are refused.
+USABLE_SHARE: float = 0.1
+#: Samples whose raw values spread by less than this share of their magnitude hold one
+#: orientation: a rotation of θ moves the field by 2 sin(θ/2) of its magnitude, so 5 % is a turn
+#: of about 3° (hand tremor, not a calibration's rotation), while a hard iron of three fields
+#: still leaves a full rotation 15 % of the raw magnitude.
+ONE_ORIENTATION_SHARE: float = 0.05
+#: The largest rms of ‖T(m − o)‖ − 1 a magnetic field leaves: a field distorted by hard and soft
+#: iron lies on an ellipsoid (shared recordings: 0.3-1.3 %), and a local disturbance or motor
+#: current of a fifth of the field over the whole session is already no calibration.  Samples
+#: beyond it are not a field (a gyro or an accelerometer in motion mapped as mx, my, mz).
+NOT_A_FIELD_RMS: float = 0.2
+#: A field turned through the orientations of a calibration spans a large share of its strength
+#: (a full sphere: a standard deviation of 58 % of it along every axis; a ±30° cap still 20 %):
+#: samples that spread by less than 10 % of the fitted field strength are a cloud that a huge
+#: ellipsoid passes through, not a field seen from many sides (a gyro's or accelerometer's
+#: columns mapped as mx, my, mz).
+NOT_A_FIELD_SPAN: float = 0.1
+#: Coverage directions (the cube's 6 faces, 12 edges and 8 corners) and the angular radius within
+#: which a calibrated sample covers one: 30° leaves no point of the sphere farther than 30° from
+#: a covered direction when all are covered (the largest gap between the 26 directions is 35°).
+COVERAGE_CAP_DEG: float = 30.0
+#: Coverage is judged on at most this many samples, evenly spaced in time: a turn through a
+#: 30° cap at any hand speed leaves hundreds of samples in it at 10⁵ of a session.
+COVERAGE_SAMPLES: int = 100_000
+
+
+def _directions() -> tuple[NDArray[np.float64], list[str]]:
+    dirs, names = [], []
+    for v in np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T:
+        if not v.any():
+            continue
+        dirs.append(v / np.linalg.norm(v))
+        names.append("".join(f"{'+' if c > 0 else '-'}{a}" for c, a in zip(v, "xyz") if c))
+    return np.array(dirs), names
+
+
+COVERAGE_DIRECTIONS, COVERAGE_NAMES = _directions()
+
+
+@dataclass(frozen=True)
+class MagSettings:
+    """How to fit: the estimator, the form and the solver settings.
+
+    Attributes
+    ----------
+    method : str
+        Any method of :data:`optcal.families.accel.calibration.ESTIMATORS` that self-calibrates
+        (``default`` = convex then ML, ``convex``, ``mle``, ``exact``, ``gd``, ``svd``).
+    form : str
+        ``auto`` (by evidence), ``offsets``, ``diagonal`` or ``full``.
+    allow_degenerate : bool
+        Fit even when the samples do not determine the form's parameters.
+    accept_fit : bool
+        Keep a fit whose residual says the samples are not a field.
+    estimator : dict
+        Further estimator settings (``solver``, ``solver_options``, ``conic_solver``, ``loss``, ``fix``, ``bounds``).
+    """
+
+    method: str = "default"
+    form: str = "auto"
+    allow_degenerate: bool = False
+    accept_fit: bool = False
+    estimator: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FormFit:
+    """One form's fit: ``T`` (symmetric), ``o``, the residuals and the standard errors."""
+
+    form: str
+    T: NDArray[np.float64]
+    o: NDArray[np.float64]
+    residuals: NDArray[np.float64]
+    stderr: dict[str, float]
+    worst_share: float
+    method: str
+    solver: str
+
+    @property
+    def field_strength(self) -> float:
+        """``det(T)^(−1/3)``: the radius of the sphere of the ellipsoid's volume, data units."""
+        return float(np.linalg.det(self.T) ** (-1.0 / 3.0))
+
+    @property
+    def rms(self) -> float:
+        """rms of ``‖T(m − o)‖ − 1``."""
+        return float(np.sqrt(np.mean(self.residuals ** 2)))
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """Which directions of the sphere the calibrated samples reach.
+
+    Attributes
+    ----------
+    covered, missing : tuple of str
+        Direction names (``+z``, ``-x+y``, ...) with a sample within :data:`COVERAGE_CAP_DEG`, and without.
+    spread : ndarray, shape (3,)
+        Eigenvalues of the covariance of the unit directions, ascending (0 along the axis of a planar turn).
+    thinnest_axis : ndarray, shape (3,)
+        The eigenvector of the smallest eigenvalue.
+    """
+
+    covered: tuple[str, ...]
+    missing: tuple[str, ...]
+    spread: NDArray[np.float64]
+    thinnest_axis: NDArray[np.float64]
+
+    @property
+    def share(self) -> float:
+        """Share of the 26 directions covered."""
+        return len(self.covered) / len(COVERAGE_NAMES)
+
+
+def coverage(unit: NDArray[np.float64]) -> Coverage:
+    """The :class:`Coverage` of calibrated samples ``unit`` (n, 3), any norm (they are normalised)."""
+    stride = max(1, len(unit) // COVERAGE_SAMPLES)
+    u = unit[::stride] / np.linalg.norm(unit[::stride], axis=1, keepdims=True)
+    cos_cap = np.cos(np.radians(COVERAGE_CAP_DEG))
+    best = np.max(u @ COVERAGE_DIRECTIONS.T, axis=0)
+    hit = best >= cos_cap
+    values, vectors = np.linalg.eigh(np.cov(u.T))
+    return Coverage(tuple(n for n, h in zip(COVERAGE_NAMES, hit) if h), tuple(n for n, h in zip(COVERAGE_NAMES, hit) if not h),
+                    values, vectors[:, 0])
+
+
+def symmetric_T(T: NDArray) -> NDArray[np.float64]:
+    """The symmetric positive definite ``(TᵀT)^½``: the same ‖T u‖ for every u, no rotation."""
+    w, V = np.linalg.eigh(T.T @ T)
+    S: NDArray[np.float64] = (V * np.sqrt(w)) @ V.T
+    return 0.5 * (S + S.T)
+
+
+def correlation_inflation(residuals: NDArray) -> float:
+    """``√((1 + ρ)/(1 − ρ))``, ρ the lag-1 autocorrelation of the residuals in sample order.
+
+    Samples of a turned sensor are not independent (filters, slow turns, a model error that
+    changes smoothly with orientation): the variance of a mean of AR(1) samples is that of
+    independent ones times ``(1 + ρ)/(1 − ρ)``, so the standard errors are inflated by its root.
+    """
+    r = residuals - residuals.mean()
+    den = float(r @ r)
+    rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.999)  # 0.999: at most a 45-fold inflation (an effective sample every 2000)
+    return float(np.sqrt((1 + rho) / (1 - rho)))
+
+
+def _sphere_fit(m: NDArray) -> tuple[NDArray, float, NDArray]:
+    """Offsets-only fit: ``‖m − o‖ = r`` by linear least squares, refined by Gauss–Newton; returns o, r, covariance of (o, r)."""
+    J = np.column_stack([2 * m, np.ones(len(m))])
+    sol = np.linalg.lstsq(J, np.sum(m * m, axis=1), rcond=None)[0]
+    o = sol[:3]
+    r = float(np.sqrt(max(sol[3] + o @ o, 1e-300)))
+    for _ in range(20):  # Gauss-Newton on the geometric residuals ‖m − o‖ − r
+        d = m - o
+        n = np.linalg.norm(d, axis=1)
+        res = n - r
+        G = np.column_stack([-d / n[:, None], -np.ones(len(m))])
+        step = np.linalg.solve(G.T @ G, -(G.T @ res))  # normal equations: 4×4, linear in the samples
+        o, r = o + step[:3], r + float(step[3])
+        if np.linalg.norm(step) < 1e-10 * r:  # far below any standard error of a field's offset
+            break
+    d = m - o
+    n = np.linalg.norm(d, axis=1)
+    G = np.column_stack([-d / n[:, None], -np.ones(len(m))])
+    res = n - r
+    dof = max(len(m) - 4, 1)
+    cov = np.linalg.pinv(G.T @ G) * float(res @ res) / dof
+    return o, r, cov
+
+
+def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
+    """Fit one form (module docstring) to the samples."""
+    from optcal.families.accel.calibration import calibrate
+
+    m = samples.m
+    if form == "offsets":
+        o, r, cov = _sphere_fit(m)
+        T = np.eye(3) / r
+        resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
+        se = np.sqrt(np.clip(np.diag(cov), 0, None)) * correlation_inflation(resid)
+        stderr = {"o_x": se[0], "o_y": se[1], "o_z": se[2], "r": se[3]}
+        return FormFit(form, T, o, resid, {k: float(v) for k, v in stderr.items()}, float(np.max(se) / r),
+                       "sphere", "numpy least squares + Gauss-Newton")
+    est = dict(settings.estimator)
+    method = settings.method
+    if form == "diagonal":
+        method = "mle" if method in ("default", "convex", "svd") else method
+        est["fix"] = {**dict(est.get("fix") or {}), "T_yx": 0.0, "T_zx": 0.0, "T_zy": 0.0}
+        if method not in ("mle",):
+            raise InputError(f"--mag-form diagonal fixes T's off-diagonal entries, which the mle method does; "
+                             f"not {method} (use --method mle or --mag-form full)")
+    poses = PoseTable(acc=m, units="counts", source="raw recording")
+    result = calibrate(poses, method=method, allow_degenerate=True, **est)
+    T = symmetric_T(result.T)
+    o = np.asarray(result.o, dtype=float)
+    resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
+    infl = correlation_inflation(resid)
+    stderr = {k: float(v) * infl for k, v in result.stderr.items() if np.isfinite(v)}
+    r = float(np.linalg.det(T) ** (-1.0 / 3.0))
+    shares = []
+    for name, se in stderr.items():
+        if name.startswith("o_"):
+            shares.append(se / r)
+        elif name.startswith("T_") and name not in est.get("fix", {}):
+            shares.append(se * r)  # T is 1/field per unit: r·δT is the share of the field
+    if len(stderr) < len(result.stderr) or not shares:
+        shares.append(np.inf)
+    return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name)
+
+
+@dataclass(frozen=True)
+class MagFit:
+    """The chosen form's fit with the evidence for it.
+
+    Attributes
+    ----------
+    fit : FormFit
+    form_reason : str
+        Why this form (printed, with ``--mag-form`` to override).
+    tried : dict of str to FormFit
+        Every form fitted on the way.
+    coverage : Coverage
+    notes : list of str
+        Identifiability and coverage notes.
+    """
+
+    fit: FormFit
+    form_reason: str
+    tried: dict[str, FormFit]
+    coverage: Coverage
+    notes: list[str]
+
+
+def check_samples(samples: MagSamples, settings: MagSettings) -> None:
+    """Refuse samples no fit can use, in one line with the option that fixes or overrides it."""
+    need = FORMS["offsets"] if settings.form in ("auto", "offsets") else FORMS[settings.form]
+    if samples.n < max(need, 1) + 1:
+        raise InputError(f"{samples.n} magnetometer samples: the {settings.form if settings.form != 'auto' else 'smallest'} "
+                         f"form needs more than {need}; record the sensor turning through many orientations "
+                         f"(optcal plan --sensor mag)")
+    spread = float(np.sqrt(np.max(np.linalg.eigvalsh(np.cov(samples.m.T)))))
+    size = float(np.median(np.linalg.norm(samples.m, axis=1)))
+    if not settings.allow_degenerate and spread < ONE_ORIENTATION_SHARE * max(size, 1e-300):
+        raise InputError(f"the magnetometer samples hold one orientation only (they spread by {spread:.3g}, "
+                         f"{100 * spread / max(size, 1e-300):.2g} % of |m| = {size:.4g}; a calibration needs the sensor turned "
+                         f"through many orientations: optcal plan --sensor mag); --allow-degenerate fits anyway")
+
+
+def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:
+    """Fit the forms and keep the richest one the samples determine (module docstring), or the one asked for.
+
+    Raises
+    ------
+    InputError
+        Samples no fit can use (:func:`check_samples`) or that are not a field.
+    IdentifiabilityError
+        No form's parameters are determined to :data:`RELEVANT_SHARE` (unless ``allow_degenerate``).
+    """
+    check_samples(samples, settings)
+    tried: dict[str, FormFit] = {}
+    failed: list[str] = []
+    chosen: FormFit | None
+    if settings.form != "auto":
+        if settings.form not in FORMS:
+            raise InputError(f"unknown --mag-form {settings.form!r}; use auto, {', '.join(FORMS)}")
+        chosen = fit_form(samples, settings.form, settings)
+        tried[settings.form] = chosen
+        reason = "given with --mag-form"
+    else:
+        chosen = None
+        for form in ("full", "diagonal", "offsets"):
+            if samples.n <= FORMS[form]:
+                continue
+            try:
+                tried[form] = fit_form(samples, form, settings)
+            except SolverError as exc:
+                failed.append(f"the {form} form's fit failed ({exc}); the smaller forms were tried")
+                continue
+            if tried[form].worst_share < RELEVANT_SHARE:
+                chosen = tried[form]
+                break
+        if not tried:
+            raise SolverError("; ".join(failed))
+        if chosen is None:
+            _check_is_field(tried.get("offsets") or fit_form(samples, "offsets", settings), settings, samples.m)  # before "not determined"
+            chosen = min(tried.values(), key=lambda f: f.worst_share)
+            if chosen.worst_share >= USABLE_SHARE and not settings.allow_degenerate:
+                _refuse_undetermined(samples, tried)
+            reason = (f"no form is determined to {100 * RELEVANT_SHARE:g} % of the field; the best determined one, to "
+                      f"{100 * chosen.worst_share:.2g} % (" + ", ".join(f"{f}: {100 * t.worst_share:.2g} %" for f, t in tried.items())
+                      + ")")
+        else:
+            richer = [f for f in ("full", "diagonal") if f in tried and f != chosen.form]
+            reason = (f"every parameter determined to {100 * chosen.worst_share:.2g} % of the field "
+                      f"(< {100 * RELEVANT_SHARE:g} %)")
+            if richer:
+                reason += "; " + ", ".join(f"{f}: {100 * tried[f].worst_share:.2g} %" for f in richer)
+    assert chosen is not None
+    _check_is_field(chosen, settings, samples.m)
+    cov = coverage((samples.m - chosen.o) @ chosen.T.T)
+    notes = failed + coverage_notes(cov)
+    return MagFit(chosen, reason + " (override with --mag-form offsets|diagonal|full)", tried, cov, notes)
+
+
+def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None:
+    cov = coverage((samples.m - tried[next(iter(tried))].o) @ tried[next(iter(tried))].T.T)
+    worst = ", ".join(f"{f}: {100 * t.worst_share:.2g} %" for f, t in tried.items())
+    raise IdentifiabilityError(
+        f"the samples determine no form's parameters to {100 * RELEVANT_SHARE:g} % of the field ({worst}); "
+        f"{coverage_notes(cov)[0] if coverage_notes(cov) else 'turn the sensor through more orientations'}; "
+        f"--allow-degenerate or --mag-form offsets fits anyway"
+    )
+
+
+def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64]) -> None:
+    if settings.accept_fit:
+        return
+    spread = float(np.sqrt(np.max(np.linalg.eigvalsh(np.cov(m.T)))))
+    if spread < NOT_A_FIELD_SPAN * fit.field_strength:
+        raise InputError(f"the samples are not a magnetic field: they spread by {spread:.3g}, {100 * spread / fit.field_strength:.2g} % "
+                         f"of the fitted field strength {fit.field_strength:.4g} (a field turned through a calibration spans "
+                         f"tens of % of its strength); check that --columns maps mx, my, mz to the magnetometer (not a "
+                         f"gyro or accelerometer); --accept-mag-fit keeps it")
+    if fit.rms > NOT_A_FIELD_RMS:
+        raise InputError(f"the samples are not a magnetic field: they leave the fitted ellipsoid by {100 * fit.rms:.3g} % rms "
+                         f"(a field with hard and soft iron: a few %); check that --columns maps mx, my, mz to the "
+                         f"magnetometer (not a gyro or accelerometer); --accept-mag-fit keeps it")
+
+
+#: A planar turn leaves the direction covariance this small along its axis (a full sphere gives
+#: 1/3 on every axis, a turn about one axis with the field at 30° from it 0 along the axis, 0.125
+#: and 0.125 across): below 0.01 (a wobble of ±6° about the plane) the axis is not seen.
+PLANAR_SPREAD: float = 0.01
+
+
+def coverage_notes(cov: Coverage) -> list[str]:
+    """What the coverage leaves undetermined and the orientations that would fix it."""
+    notes = []
+    if cov.spread[0] < PLANAR_SPREAD:
+        axis = ", ".join(f"{c:+.2f}" for c in cov.thinnest_axis)
+        notes.append(f"the samples turn in one plane (direction spread {cov.spread[0]:.2g} along [{axis}]): the "
+                     f"ellipsoid's extent along that axis is not determined; add orientations that tilt that axis "
+                     f"towards and away from the field (e.g. roll the sensor 90° and turn it again)")
+    if cov.missing:
+        notes.append(f"coverage {len(cov.covered)}/{len(COVERAGE_NAMES)} directions; missing: {', '.join(cov.missing)} "
+                     f"(point those sensor directions along the field to fill them)")
+    return notes

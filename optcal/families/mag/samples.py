@@ -1,0 +1,258 @@
+"""Reading a magnetometer's samples from any file optcal reads: text, MAT/netCDF/HDF5, ULog.
+
+A magnetometer needs no rests (the field is constant in the world frame), so its samples are
+read as they are: :func:`read_mag` returns a :class:`MagSamples` with the magnetometer's
+columns (``mx, my, mz`` and the aliases of :data:`optcal.data.columns.MAG_ALIASES`), and where
+the file has them the accelerometer (for the dip), time, temperature and a current or
+throttle column (for the interference of a motor).  Every row with a non-finite
+magnetometer value is counted in :attr:`MagSamples.exclusions`, never silently dropped.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, normalise_name, parse_columns_option
+from optcal.errors import InputError
+from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
+
+#: Names of a motor current or throttle column (ArduPilot's COMPASS_MOT takes either).
+CURRENT_ALIASES: tuple[str, ...] = ("current", "curr", "i_batt", "battery_current", "amps", "ibat", "curr_a")
+THROTTLE_ALIASES: tuple[str, ...] = ("throttle", "thr", "thrust", "motor", "pwm")
+#: Aliases this long or longer also match the end of a longer name (``field.magnetic_field.x``).
+SUFFIX_MIN_CHARS: int = 5
+
+
+@dataclass
+class MagSamples:
+    """A magnetometer's raw samples and what else the file recorded beside them.
+
+    Attributes
+    ----------
+    m : ndarray, shape (n, 3)
+        Raw magnetometer samples (finite rows only), in :attr:`units`.
+    units : UnitDecision
+        The units and why.
+    acc : ndarray, shape (n, 3), optional
+        Accelerometer samples at the same rows (any units: only their direction is used).
+    t, temp, current, throttle : ndarray, shape (n,), optional
+    path : str
+    columns : dict of str to str
+        Canonical name → the file's name for it.
+    exclusions : dict of str to int
+        Rows not used, counted by reason.
+    notes : list of str
+    """
+
+    m: NDArray[np.float64]
+    units: UnitDecision
+    acc: NDArray[np.float64] | None = None
+    t: NDArray[np.float64] | None = None
+    temp: NDArray[np.float64] | None = None
+    current: NDArray[np.float64] | None = None
+    throttle: NDArray[np.float64] | None = None
+    path: str = ""
+    columns: dict[str, str] = field(default_factory=dict)
+    exclusions: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.m.shape[0])
+
+    def decision_lines(self) -> list[str]:
+        """What was read and decided, one line each (printed before any result or refusal)."""
+        cols = ", ".join(f"{k}={v}" for k, v in self.columns.items())
+        lines = [f"magnetometer columns: {cols} (override with --columns mx=NAME,my=NAME,mz=NAME)", self.units.line()]
+        lines += [f"excluded: {v} {k}" for k, v in self.exclusions.items() if v]
+        return lines + self.notes
+
+
+def _strip_mag_unit(norm: str) -> tuple[str, str | None]:
+    for word in MAG_UNIT_WORDS:
+        if norm.endswith("_" + word) and len(norm) > len(word) + 1:
+            return norm[: -len(word) - 1], word
+    return norm, None
+
+
+def _match(names: list[str], aliases: dict[str, tuple[str, ...]]) -> tuple[dict[str, str], dict[str, str | None]]:
+    """canonical → file name (whole names first, then the end of a longer name) and the unit word each carries."""
+    found: dict[str, str] = {}
+    words: dict[str, str | None] = {}
+    for suffix in (False, True):
+        for name in names:
+            base, word = _strip_mag_unit(normalise_name(name))
+            for canon, al in aliases.items():
+                if canon in found or name in found.values():
+                    continue
+                if (base in al) if not suffix else any(len(a) >= SUFFIX_MIN_CHARS and base.endswith("_" + a) for a in al):
+                    found[canon], words[canon] = name, word
+    return found, words
+
+
+def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], str | None]:
+    """The magnetometer's three columns (``--columns`` first) and the unit word their names carry."""
+    given = {k: v for k, v in mapping.items() if k in MAG}
+    for k, v in given.items():
+        if v not in names:
+            if v.isdigit() and 1 <= int(v) <= len(names):
+                given[k] = names[int(v) - 1]
+            else:
+                raise InputError(f"--columns {k}={v}: there is no column {v!r} (the file has: {', '.join(names)})")
+    found, words = _match([n for n in names if n not in given.values()], MAG_ALIASES)
+    cols = {**found, **given}
+    if set(cols) != set(MAG):
+        raise InputError(f"no magnetometer columns (mx, my, mz or mag_x, magX, ...) among {', '.join(names)}; "
+                         f"map them with --columns mx=NAME,my=NAME,mz=NAME")
+    unit_words = {words.get(k) for k in MAG if k not in given}
+    return cols, (unit_words.pop() if len(unit_words) == 1 else None)
+
+
+def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str | None, columns: dict[str, str],
+           others: dict[str, NDArray], notes: list[str]) -> MagSamples:
+    finite = np.all(np.isfinite(m), axis=1)
+    exclusions = {"rows with a non-finite magnetometer value": int(np.count_nonzero(~finite))}
+    units = decide_mag_units(m[finite], stated, where, mag_units)
+    pick = (lambda a: None if a is None else np.asarray(a, dtype=float)[finite])
+    acc = pick(others.get("acc"))
+    if acc is not None and not np.any(np.all(np.isfinite(acc), axis=1)):
+        acc = None
+    return MagSamples(m=np.ascontiguousarray(m[finite]), units=units, acc=acc, t=pick(others.get("t")),
+                      temp=pick(others.get("temp")), current=pick(others.get("current")),
+                      throttle=pick(others.get("throttle")), path=path, columns=columns, exclusions=exclusions, notes=notes)
+
+
+def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> MagSamples:
+    from optcal.data.text import read_numbers
+
+    layout, parsed = read_numbers(Path(path))
+    names = list(layout.names)
+    col = dict(zip(names, parsed.columns))
+    mag_cols, word = _mag_triple(names, mapping)
+    taken = set(mag_cols.values())
+    rest = [n for n in names if n not in taken]
+    extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "t": ALIASES["t"],
+                     "temp": ALIASES["temp"], "current": CURRENT_ALIASES, "throttle": THROTTLE_ALIASES}
+    found, _ = _match(rest, extra_aliases)
+    found.update({k: v for k, v in mapping.items() if k in extra_aliases and v in names})
+    others: dict[str, NDArray] = {k: col[v] for k, v in found.items() if k in ("t", "temp", "current", "throttle")}
+    if all(k in found for k in ("ax", "ay", "az")):
+        others["acc"] = np.column_stack([col[found[k]] for k in ("ax", "ay", "az")])
+    m = np.column_stack([col[mag_cols[k]] for k in MAG])
+    columns = {**mag_cols, **{k: v for k, v in found.items()}}
+    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, [])
+
+
+def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
+    from optcal.data.containers import (ACCELEROMETER, MAGNETOMETER, MAGNETIC_UNIT_SPELLINGS, MAT5, Variable,
+                                        orientations, read_hdf5, read_mat5, role_of)
+
+    contents = read_mat5(path) if kind == MAT5 else read_hdf5(path, kind)
+
+    def as_samples(var: Variable) -> NDArray | None:
+        values = np.asarray(var.values, dtype=np.float64)
+        shape = tuple(values.shape)
+        if len(shape) == 2 and 3 in shape:
+            return values if shape[1] == 3 and "rows" in orientations(shape) else values.T
+        return None
+
+    by_role: dict[str, list] = {}
+    for var in contents.variables:
+        by_role.setdefault(role_of(var) or "", []).append(var)
+    candidates = [v for v in by_role.get(MAGNETOMETER, []) if as_samples(v) is not None]
+    if topic is not None:
+        candidates = [v for v in contents.variables if v.name == topic and as_samples(v) is not None]
+    if len(candidates) != 1:
+        have = ", ".join(f"{v.name} ({v.shape_text})" for v in contents.variables) or "none"
+        what = "no" if not candidates else "more than one"
+        raise InputError(f"{path}: {what} magnetometer variable (by its name or units) among: {have}; "
+                         f"name it with --topic NAME")
+    var = candidates[0]
+    m = as_samples(var)
+    assert m is not None
+    unit_attr = var.text("units")
+    stated = unit_attr if unit_attr and re.sub(r"[\s_.·*]+", "", unit_attr.lower()) in MAGNETIC_UNIT_SPELLINGS else None
+    others: dict[str, NDArray] = {}
+    accs = [a for v in by_role.get(ACCELEROMETER, []) if (a := as_samples(v)) is not None and a.shape[0] == m.shape[0]]
+    columns = {k: f"{var.name}(:,{j + 1})" for j, k in enumerate(MAG)}
+    if len(accs) == 1:
+        others["acc"] = accs[0]
+    notes = [f"variable {var.name!r} ({var.shape_text}) read as the magnetometer"]
+    return _build(path, m, stated, f"the variable's units attribute {unit_attr!r}", mag_units, columns, others, notes)
+
+
+def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSamples:
+    from optcal.data.readers import _import_pyulog
+
+    ULog = _import_pyulog()
+    name, instance = (topic or "sensor_mag"), 0
+    if ":" in name:
+        name, inst = name.split(":", 1)
+        if not inst.isdigit():
+            raise InputError(f"--topic {topic!r}: the instance after ':' must be a number")
+        instance = int(inst)
+    try:
+        log = ULog(str(path), message_name_filter_list=[name, "sensor_accel"])
+        d = log.get_dataset(name, instance).data
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError(f"{path}: no ULog topic {name} instance {instance}; choose one with --topic sensor_mag:N") from exc
+    except Exception as exc:
+        raise InputError(f"{path}: not a readable ULog file ({exc.__class__.__name__}: {exc})") from exc
+    t = d["timestamp"].astype(float) * 1e-6
+    m = np.column_stack([d[k].astype(float) for k in "xyz"])
+    others: dict[str, NDArray] = {"t": t}
+    if "temperature" in d:
+        others["temp"] = d["temperature"].astype(float)
+    try:
+        a = log.get_dataset("sensor_accel", instance).data
+        ta = a["timestamp"].astype(float) * 1e-6
+        order = np.argsort(ta)
+        others["acc"] = np.column_stack([np.interp(t, ta[order], a[k].astype(float)[order]) for k in "xyz"])
+    except (KeyError, IndexError, ValueError):
+        pass
+    columns = {k: f"{name}.{a}" for k, a in zip(MAG, "xyz")}
+    return _build(path, m, "gauss", "PX4's sensor_mag (gauss)", mag_units, columns, others,
+                  [f"ULog topic {name}:{instance}"])
+
+
+def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
+             mag_units: str | None = None) -> MagSamples:
+    """Read a magnetometer's samples (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        A delimited text file, MAT-file, netCDF-4/HDF5 file or PX4 ULog.
+    columns : str or dict, optional
+        ``--columns mx=NAME,my=NAME,mz=NAME`` (names or 1-based positions; ``ax=...`` for the accelerometer).
+    topic : str, optional
+        The magnetometer's variable of a container, or the ULog topic (``sensor_mag:1``).
+    mag_units : str, optional
+        The units (``--mag-units``), instead of the file's word or the decision from the magnitude.
+
+    Raises
+    ------
+    InputError
+        No magnetometer found, or a file optcal cannot read.
+    """
+    from optcal.data.containers import container_type
+    from optcal.data.readers import detect_file_type
+
+    p = str(path)
+    if not Path(p).exists():
+        raise InputError(f"{p}: no such file")
+    kind = detect_file_type(p)
+    if kind == "csv" and (container := container_type(p)) is not None:
+        return _read_container(p, container, topic, mag_units)
+    if kind == "csv":
+        return _read_text(p, parse_columns_option(columns) if isinstance(columns, str) or columns else {}, mag_units)
+    if kind == "ulog":
+        return _read_ulog(p, topic, mag_units)
+    raise InputError(f"{p}: the magnetometer is read from text, MAT/netCDF/HDF5 and ULog files, not a {kind} yet; "
+                     f"export its mx, my, mz columns to CSV")

@@ -1,0 +1,121 @@
+"""Units of a magnetometer's samples: every spelling, the factor to microtesla, and the decision from the data.
+
+A magnetometer's file says its units by a word in the column names (``mag_x_uT``), by a
+variable's ``units`` attribute, or not at all.  When nothing says, the units are decided from
+the magnitude of the samples against the Earth's field, 25–65 µT at the surface (the World
+Magnetic Model's total intensity ranges from about 22 µT over South America to 67 µT near
+the magnetic poles), and the decision is printed with ``--mag-units`` to override it.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.errors import InputError
+
+#: Accepted spellings of the magnetometer's units (lower case, spaces and underscores removed), mapped to the unit.
+MAG_UNIT_ALIASES: dict[str, str] = {
+    **dict.fromkeys(("ut", "µt", "μt", "microtesla", "utesla", "micro_tesla"), "uT"),
+    **dict.fromkeys(("nt", "nanotesla", "ntesla"), "nT"),
+    **dict.fromkeys(("t", "tesla"), "T"),
+    **dict.fromkeys(("gauss", "gs", "ga", "g"), "gauss"),
+    **dict.fromkeys(("mgauss", "milligauss", "mgs", "mga", "mg"), "mgauss"),
+    **dict.fromkeys(("counts", "count", "lsb", "raw", "adc"), "counts"),
+}
+#: The units, in the order messages list them.
+MAG_UNITS: tuple[str, ...] = ("uT", "nT", "T", "gauss", "mgauss", "counts")
+#: Microtesla per unit for the units with a stated scale (1 gauss = 100 µT).
+UT_PER_UNIT: dict[str, float] = {"uT": 1.0, "nT": 1e-3, "T": 1e6, "gauss": 100.0, "mgauss": 0.1}
+#: Unit words recognised at the end of a magnetometer column's name (``mag_x_ut``, ``mx_mgauss``);
+#: ``g`` and ``mg`` are not among them (an accelerometer's words).
+MAG_UNIT_WORDS: tuple[str, ...] = ("microtesla", "milligauss", "nanotesla", "mgauss", "gauss", "ut", "nt", "counts", "lsb", "raw")
+#: The Earth's field at the surface, µT (WMM total intensity, rounded outward): a stated unit
+#: whose median field falls outside a factor 3 of this range is reported (a unit word or
+#: attribute that contradicts the data), and the unit decided from the data when none is stated.
+EARTH_FIELD_UT: tuple[float, float] = (25.0, 65.0)
+#: How far outside the Earth's range a raw (hard- and soft-iron distorted) field's median magnitude
+#: may be and still name a unit.  µT and mgauss are a factor 10 apart, so their widened ranges
+#: [25/f, 65 f] and [250/f, 650 f] stay apart only for f < sqrt(250/65) = 1.96: at 1.9 a median
+#: names at most one unit, and a hard iron up to about 1.9 times the field (more than most boards
+#: show after mounting) still reads in its unit.  Beyond it the samples are read as counts, and
+#: the decision says so with --mag-units.
+UNIT_TOLERANCE: float = 1.9
+
+
+def normalise_mag_units(units: str) -> str:
+    """Map a spelling (``"µT"``, ``"milligauss"``, ``"LSB"``) to one of :data:`MAG_UNITS`."""
+    key = re.sub(r"[\s_]+", "", units.strip().lower())
+    if key in MAG_UNIT_ALIASES:
+        return MAG_UNIT_ALIASES[key]
+    if units in MAG_UNITS:
+        return units
+    raise InputError(f"unknown magnetometer units {units!r}; use --mag-units with one of {', '.join(MAG_UNITS)}")
+
+
+@dataclass(frozen=True)
+class UnitDecision:
+    """The magnetometer's units and why.
+
+    Attributes
+    ----------
+    units : str
+        One of :data:`MAG_UNITS`.
+    reason : str
+        Where it came from (``--mag-units``, a column's unit word, an attribute, the magnitude).
+    median_field : float
+        Median ``|m|`` of the samples, in the units.
+    """
+
+    units: str
+    reason: str
+    median_field: float
+
+    def line(self) -> str:
+        """One line for the report."""
+        return f"magnetometer units: {self.units} ({self.reason}; override with --mag-units)"
+
+
+def units_from_magnitude(median: float) -> str | None:
+    """The unit whose Earth's field range (widened by :data:`UNIT_TOLERANCE`) holds ``median``, else ``None``."""
+    low, high = EARTH_FIELD_UT
+    fits = [u for u, k in UT_PER_UNIT.items() if u != "T"
+            and low / UNIT_TOLERANCE <= median * k <= high * UNIT_TOLERANCE]
+    return fits[0] if len(fits) == 1 else None
+
+
+def decide_mag_units(m: NDArray[np.float64], stated: str | None, where: str, override: str | None = None) -> UnitDecision:
+    """Decide the magnetometer's units (module docstring): ``override``, else ``stated`` (by ``where``), else the magnitude.
+
+    Parameters
+    ----------
+    m : ndarray, shape (n, 3)
+        Raw samples (non-finite rows ignored).
+    stated : str or None
+        Units the file states.
+    where : str
+        What stated them (for the reason).
+    override : str, optional
+        ``--mag-units``.
+    """
+    norm = np.linalg.norm(m[np.all(np.isfinite(m), axis=1)], axis=1)
+    median = float(np.median(norm)) if norm.size else float("nan")
+    if override:
+        return UnitDecision(normalise_mag_units(override), "given with --mag-units", median)
+    if stated is not None:
+        units = normalise_mag_units(stated)
+        reason = f"stated by {where}"
+        guess = units_from_magnitude(median)
+        if units != "counts" and guess is not None and guess != units:
+            reason += f"; note: the median |m| {median:.4g} is Earth's field in {guess}, not in {units}"
+        return UnitDecision(units, reason, median)
+    guess = units_from_magnitude(median)
+    if guess is not None:
+        low, high = EARTH_FIELD_UT
+        return UnitDecision(guess, f"from the data: median |m| {median:.4g} is the Earth's {low:g}-{high:g} µT "
+                                   f"(within a factor {UNIT_TOLERANCE:g}) only in {guess}", median)
+    return UnitDecision("counts", f"from the data: median |m| {median:.4g} is not the Earth's field in µT, nT, gauss "
+                                  f"or mgauss, so the samples are read as counts (the field strength is then in counts)", median)
