@@ -195,7 +195,24 @@ def apply(calibration: Any, data: Any, output: Any = None, options: Any = None, 
 
 
 def cramer_rao_bound(model, directions, sigma):
-    """Cramér–Rao bound of θ, directions as nuisance; see :func:`optcal.core.identifiability.cramer_rao_bound`."""
+    """Cramér–Rao bound of θ with the gravity directions as nuisance parameters (Lu 2017, eq. 13-14).
+
+    See :func:`optcal.core.identifiability.cramer_rao_bound`.
+
+    Parameters
+    ----------
+    model : LumpedModel
+        The sensor whose calibration is bounded.
+    directions : array_like, shape (n, 3)
+        The poses' gravity directions (unit vectors).
+    sigma : float or array_like
+        The noise of a pose mean, per pose or one for all, in the model's raw units.
+
+    Returns
+    -------
+    ndarray, shape (9, 9)
+        The smallest covariance of an unbiased estimate of θ.
+    """
     from optcal.core.identifiability import cramer_rao_bound as _crlb
 
     return _crlb(model, directions, sigma)

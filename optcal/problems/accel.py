@@ -26,6 +26,18 @@ def convex_fit(poses: PoseTable, eps: float = 1e-3) -> ConicFormulation:
     ``min ‖R η‖²`` s.t. ``A ⪰ εI``, ``tr A = 3``, with η the quadric ``(A, b, c)`` of the
     normalised data and R the triangular factor of its design matrix (eq. 23).  Solve with any
     installed cvxpy solver that takes the semidefinite constraint (``.solve("SCS")``).
+
+    Parameters
+    ----------
+    poses : PoseTable
+        The static poses (raw units).
+    eps : float
+        The smallest eigenvalue ε allowed to ``A`` (normalised units), which keeps the fit an ellipsoid.
+
+    Returns
+    -------
+    ConicFormulation
+        The cvxpy problem with its variables, equation and scaling.
     """
     poses.validate()
     norm = Normaliser.of(poses.acc)
@@ -46,7 +58,20 @@ def convex_fit(poses: PoseTable, eps: float = 1e-3) -> ConicFormulation:
 
 
 def theta_of(poses: PoseTable, x: NDArray) -> NDArray[np.float64]:
-    """θ in raw units from the first nine entries of a formulation's solution (normalised θ')."""
+    """θ in raw units from the first nine entries of a formulation's solution (normalised θ').
+
+    Parameters
+    ----------
+    poses : PoseTable
+        The poses the formulation was built from (their normalisation is undone).
+    x : ndarray
+        The formulation's solution; its first nine entries are the normalised θ'.
+
+    Returns
+    -------
+    ndarray, shape (9,)
+        θ in the poses' raw units (the convention of :mod:`optcal.core.model`).
+    """
     return Normaliser.of(poses.acc).theta_to_raw(np.asarray(x, dtype=float)[:9])
 
 
@@ -94,6 +119,18 @@ def exact_ml(poses: PoseTable, start: NDArray | None = None) -> Formulation:
     ``min Σ_k w_k ‖u_k − o' − C' ā_k‖²`` s.t. ``‖ā_k‖² = 1``, C' lower-triangular with a positive
     diagonal (the identifiable form), from ``start`` (θ in raw units; the norm-residual ML's
     answer by default) with the latent directions at their radial projections (eq. 10).
+
+    Parameters
+    ----------
+    poses : PoseTable
+        The static poses (raw units).
+    start : ndarray, optional
+        θ in raw units to start from; by default the norm-residual ML's answer.
+
+    Returns
+    -------
+    Formulation
+        The 9 + 3n NLP with its variables, constraints and scaling.
     """
     import casadi as ca
 
@@ -135,7 +172,20 @@ def exact_ml(poses: PoseTable, start: NDArray | None = None) -> Formulation:
 
 
 def exact_theta(poses: PoseTable, x: NDArray) -> NDArray[np.float64]:
-    """θ in raw units from a solution of :func:`exact_ml` (``T' = C'⁻¹``)."""
+    """θ in raw units from a solution of :func:`exact_ml` (``T' = C'⁻¹``).
+
+    Parameters
+    ----------
+    poses : PoseTable
+        The poses :func:`exact_ml` was built from.
+    x : ndarray
+        Its solution; the first nine entries are ``C'`` and ``o'``.
+
+    Returns
+    -------
+    ndarray, shape (9,)
+        θ in the poses' raw units.
+    """
     C, o = unpack_theta(np.asarray(x, dtype=float)[:9])
     return Normaliser.of(poses.acc).theta_to_raw(theta_from(np.linalg.inv(C), o))
 

@@ -46,6 +46,22 @@ def gyroscope(moves: MoveSet, accelerometer: CalibrationResult, units: GyroUnits
     measured at its end; bias (and g-sensitivity) from the still intervals, as
     :func:`optcal.families.gyro.estimator.calibrate_gyro` does.  Cost, gradient ``Jᵀr`` and the
     Gauss–Newton Hessian ``JᵀJ`` are numpy callbacks.
+
+    Parameters
+    ----------
+    moves : MoveSet
+        The recording's rests and the moves between them, with the gyroscope's samples.
+    accelerometer : CalibrationResult
+        The accelerometer's calibration, held fixed: it gives the measured gravity directions.
+    units : GyroUnitsDecision
+        The gyroscope's units (its nominal scale in rad/s per unit, when known).
+    g_sensitivity : bool
+        Also estimate the gyroscope's g-sensitivity ``G_g`` from the still intervals.
+
+    Returns
+    -------
+    Formulation
+        The NLP with numpy callbacks for cost, gradient and Gauss–Newton Hessian.
     """
     f_static = accelerometer.correct(moves.acc_means)
     u = unit_rows(f_static)
@@ -86,6 +102,20 @@ def fleet_prior(poses: PoseTable, prior: PopulationPrior, start: NDArray | None 
     ``min_θ' c [Σ_k w_k r_k(θ')² + ‖L(θ' − μ')‖²]`` in normalised coordinates, ``LᵀL = D P⁻¹ D``
     (:class:`optcal.applications.fleet.prior.PriorMLProblem`, padded to its size class with
     zero-weight poses).
+
+    Parameters
+    ----------
+    poses : PoseTable
+        One unit's static poses (raw units).
+    prior : PopulationPrior
+        The population's mean and precision of θ.
+    start : ndarray, optional
+        θ in raw units to start from.
+
+    Returns
+    -------
+    Formulation
+        The penalised NLP in normalised coordinates.
     """
     poses.validate(min_poses=3)
     norm = Normaliser.of(poses.acc)
@@ -124,6 +154,24 @@ def pose_refinement(vectors: Callable[[NDArray], NDArray], directions: NDArray, 
     ``vectors(d)`` gives the information vectors ``h`` of directions (K, 3) (the plan's
     ``information_vectors``); Φ the criterion (D: log det, A: −tr M⁻¹, E: λ_min), scaled by its
     value at the start; objective and gradient in numpy, constraints in CasADi.
+
+    Parameters
+    ----------
+    vectors : callable
+        ``vectors(d)``: the information vectors ``h`` of directions of shape (K, 3).
+    directions : ndarray, shape (K, 3)
+        The start: the rounded plan's gravity directions.
+    criterion : Criterion
+        D (log det), A (−tr M⁻¹) or E (λ_min).
+    base : ndarray, optional
+        The information ``M₀`` of poses already taken.
+    cap : Cap, optional
+        Orientations restricted to a cap about an axis.
+
+    Returns
+    -------
+    Formulation
+        The NLP over the K unit directions.
     """
     directions = np.asarray(directions, dtype=float)
     problem = refine_problem(vectors, directions, criterion, base, cap)

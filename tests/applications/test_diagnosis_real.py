@@ -1,6 +1,6 @@
 """Hidden effects in real recordings, and the same recording in other units (issue 13's families, in CI).
 
-The issue-13 study (`studies/diagnose_issue13.py`) runs these families over 120-400 seeds; these tests
+The hidden-effects study (`studies/diagnose_hidden_effects.py`) runs these families over 120-400 seeds; these tests
 run one or two cases each, so that a change that breaks a family fails here first.  The truth stays in
 the test: `diagnose` sees only the recording.
 """
