@@ -66,6 +66,7 @@ from optcal.families.caltypes.extended import ExtendedCalibration, ExtendedTerm,
 DATA = SHARED / "data"
 XSENS = DATA / "imutk-xsens" / "xsens_imutk.csv"
 FERRARIS = DATA / "imucal-ferraris" / "example_ferraris_session.csv"
+MAGNETIC = DATA / "ckexplorer-holds" / "acc_mag_log.csv"
 pytestmark = pytest.mark.skipif(not (XSENS.is_file() and FERRARIS.is_file()), reason="../shared/data is not present")
 
 G = 9.80665
@@ -117,6 +118,7 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     cli("calibrate", XSENS, "-o", d / "xsens_lumped.json")
     cli("calibrate", XSENS, "--imu", "-o", d / "xsens_imu.json")
     cli("calibrate", FERRARIS, "--rate", 102.4, "--method", "ferraris", "-o", d / "ferraris.json")
+    cli("calibrate", MAGNETIC, "--sensor", "mag", "-o", d / "mag.json")
     out = io.StringIO()
     from optcal.cli.main import main
 
@@ -132,6 +134,7 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "xsens_t": np.arange(len(xs)) * 0.03,
         "ferraris_acc": fe[["acc_x", "acc_y", "acc_z"]].to_numpy(float),
         "ferraris_gyro": fe[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(float),
+        "mag": pd.read_csv(MAGNETIC)[["mx", "my", "mz"]].to_numpy(float)[::4],
     }
 
 
@@ -211,6 +214,15 @@ G_SENSITIVE = {**ALL_EXACT, "basalt": "loss", "imutk": "loss"}
 #: An extended calibration: only the C header holds its terms; the others write the lumped part and report the loss.
 EXTENDED = formats(c="exact", imucal="loss", kalibr_imu="loss", openvins="loss", basalt="loss", imutk="loss")
 
+def magnetometer_case(r: dict[str, Any]) -> Case:
+    """The hand-turned session's magnetometer (gauss), its raw samples as the consumers' input."""
+    return Case(load(r["dir"] / "mag.json"), r["mag"], None, None, None, ExportOptions())
+
+
+#: A magnetometer: the compass parameters of the two firmwares hold its symmetric T and o exactly; no other format
+#: has a place for a magnetometer, and refuses it.
+MAGNETOMETER = {**{fmt: "refused" for fmt in EXPORTERS}, "ardupilot": "exact", "px4": "exact", "px4-shell": "exact"}
+
 #: One entry per calibration: the key is ``cal_type`` or ``cal_type/variant``.  A new calibration type is one entry.
 CALIBRATIONS: dict[str, Entry] = {
     "lumped": Entry(lambda r: xsens_case(r, load(r["dir"] / "xsens_lumped.json")), ALL_EXACT),
@@ -220,6 +232,7 @@ CALIBRATIONS: dict[str, Entry] = {
     "imu/tedaldi": Entry(lambda r: xsens_case(r, load(r["dir"] / "xsens_imu.json")), ALL_EXACT),
     **{f"extended/{effect}": Entry(lambda r, e=effect: extended_case(r, e), EXTENDED) for effect in PARAMETRIC},
     "peer/imucal": Entry(peer_case, G_SENSITIVE),
+    "magnetometer": Entry(magnetometer_case, MAGNETOMETER),
 }
 
 
@@ -583,6 +596,8 @@ def judge(case: Case, fmt: str, tmp: Path) -> str:
     except InputError as exc:
         assert "\n" not in str(exc) and str(exc), str(exc)
         return "refused"
+    if case.cal.cal_type == "magnetometer":
+        return judge_magnetometer(case, fmt, result, tmp)
     consumer = CONSUMERS[fmt]
     if consumer is None:
         noise_figures(case, fmt, result)
@@ -633,6 +648,44 @@ def judge(case: Case, fmt: str, tmp: Path) -> str:
     assert rms(exported) == pytest.approx(result.loss.rms_exported_g, rel=1e-6, abs=1e-9), (fmt, rms(exported), result.loss)
     return "loss"
 
+
+
+#: Milligauss (ArduPilot's compass unit) and gauss (PX4's) per magnetometer data unit.
+MILLIGAUSS_PER_UNIT: dict[str, float] = {"gauss": 1e3, "mgauss": 1.0, "uT": 10.0, "nT": 1e-2, "T": 1e7}
+
+
+def judge_magnetometer(case: Case, fmt: str, result: ExportResult, tmp: Path) -> str:
+    """The firmware's compass equation on the raw samples against ``optcal apply``'s field (data units).
+
+    ArduPilot (ArduPilot/ardupilot libraries/AP_Compass/AP_Compass_Backend.cpp, ``correct_field``: ``field +=
+    offsets; field = mat * field`` with ``mat`` the symmetric matrix of ``COMPASS_DIA`` on its diagonal and
+    ``COMPASS_ODI`` off it, milligauss; the file read by pymavlink's ``MAVParmDict.load``); PX4
+    (PX4/PX4-Autopilot src/lib/sensor_calibration/Magnetometer.cpp, ``Correct``: ``_rotation * (_scale * (data −
+    _offset))``, gauss, ``set_offdiagonal`` filling ``_scale`` with ``XODIAG, YODIAG, ZODIAG`` as (xy, xz, yz);
+    QGroundControl's file read as :func:`px4_params` reads it).
+    """
+    cal, m = case.cal, case.acc
+    if fmt == "ardupilot":
+        mavparm = pytest.importorskip("pymavlink.mavparm")
+        path = tmp / "mag.param"
+        path.write_text(result.text)
+        p = mavparm.MAVParmDict()
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert p.load(str(path))
+        ofs = np.array([p[f"COMPASS_OFS_{a}"] for a in "XYZ"])
+        d, od = [p[f"COMPASS_DIA_{a}"] for a in "XYZ"], [p[f"COMPASS_ODI_{a}"] for a in "XYZ"]
+        per_unit = MILLIGAUSS_PER_UNIT[cal.units]
+    else:
+        p = px4_params(result.text)
+        ofs = -np.array([p[f"CAL_MAG0_{a}OFF"] for a in "XYZ"])
+        d, od = [p[f"CAL_MAG0_{a}SCALE"] for a in "XYZ"], [p[f"CAL_MAG0_{a}ODIAG"] for a in "XYZ"]
+        per_unit = MILLIGAUSS_PER_UNIT[cal.units] * 1e-3
+    mat = np.array([[d[0], od[0], od[1]], [od[0], d[1], od[2]], [od[1], od[2], d[2]]])
+    theirs = (m * per_unit + ofs) @ mat.T / per_unit
+    ours = cal.field(m)  # type: ignore[attr-defined]
+    difference = float(np.max(np.linalg.norm(theirs - ours, axis=1)) / cal.field_strength)  # type: ignore[attr-defined]
+    assert difference <= WRITTEN_RTOL, (fmt, difference)
+    return "exact"
 
 
 # ----------------------------------------------------------------------------------- the tests
