@@ -98,7 +98,11 @@ def _write_figures(result: Any, folder: Path) -> None:
     if result.stats is None:
         click.echo("no figures: fewer than 5 units calibrated by their own data", err=True)
         return
-    folder.mkdir(parents=True, exist_ok=True)
+    from optcal.cli.outputs import plot_folder, writing
+
+    folder = plot_folder(folder)
     for name in STATISTICS:
-        parameter_figure(result.outcomes, result.stats, name).savefig(folder / f"{name}.png", dpi=110)
-    summary_figure(result.outcomes, result.stats).savefig(folder / "summary.png", dpi=90)
+        with writing(folder / f"{name}.png", "--plot") as tmp:  # whole or not at all
+            parameter_figure(result.outcomes, result.stats, name).savefig(tmp, dpi=110)
+    with writing(folder / "summary.png", "--plot") as tmp:
+        summary_figure(result.outcomes, result.stats).savefig(tmp, dpi=90)

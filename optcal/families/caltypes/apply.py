@@ -242,14 +242,17 @@ def write_table(applied: AppliedFile, path: str | Path) -> str:
     fmt = OUTPUT_FORMATS.get(p.suffix.lower())
     if fmt is None:
         raise InputError(f"{p}: give an output file ending in .csv or .parquet (the format follows the extension)")
-    if fmt == "parquet":
-        try:
-            applied.frame.to_parquet(p, index=False)
-        except ImportError as exc:
-            raise InputError("writing Parquet files needs pyarrow: pip install optcal[parquet]") from exc
-        return fmt
-    with p.open("w", newline="") as fh:
-        for key, value in applied.header.items():
-            fh.write(f"{key},{value}\n" if value else f"# {key}\n")
-        applied.frame.to_csv(fh, index=False)
+    from optcal.core.atomic import atomic_path
+
+    with atomic_path(p) as tmp:  # whole or not at all (a full disk or Ctrl-C leaves the target as it was)
+        if fmt == "parquet":
+            try:
+                applied.frame.to_parquet(tmp, index=False)
+            except ImportError as exc:
+                raise InputError("writing Parquet files needs pyarrow: pip install 'optcal[parquet]'") from exc
+            return fmt
+        with tmp.open("w", newline="") as fh:
+            for key, value in applied.header.items():
+                fh.write(f"{key},{value}\n" if value else f"# {key}\n")
+            applied.frame.to_csv(fh, index=False)
     return fmt
