@@ -87,9 +87,12 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         write_report(fleet_document(result, output, command_line(), tolerance), report_path)
     if as_json:
         echo_json(result.summary(output))
-        return
-    click.echo(result.report())
-    click.echo(f"results: {output}" + (f"; figures in {plot}" if plot else ""))
+    else:
+        click.echo(result.report())
+        click.echo(f"results: {output}" + (f"; figures in {plot}" if plot else ""))
+    calibrated = result.count("calibrated") + result.count("calibrated_with_prior")
+    if calibrated == 0:  # the results say why each unit failed; the run did not do its job
+        raise InputError(f"no unit of {len(result.outcomes)} was calibrated (the reasons are in {output} and above)")
 
 
 def _write_figures(result: Any, folder: Path) -> None:

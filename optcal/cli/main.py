@@ -21,7 +21,7 @@ from typing import Any
 import click
 
 from optcal.cli.lazy_group import LazyGroup
-from optcal.cli.messages import cli_message
+from optcal.cli.messages import cli_message, missing_extra_message
 from optcal.errors import ConvergenceWarning, InputError, SolverError
 
 #: Exit codes: bad input (the user can fix the data or options), a solver failure, and an interrupt
@@ -104,6 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     except BrokenPipeError:
         return 1
+    except ImportError as exc:  # an optional package missing: one line with the extra that installs it
+        message = missing_extra_message(exc, command)
+        if message is None:
+            raise
+        click.echo(f"error: {message}", err=True)
+        return EXIT_INPUT_ERROR
     except OSError as exc:  # a file that cannot be read or written (read-only folder, full disk, /proc): one line
         where = f"{exc.filename}: " if exc.filename else ""
         click.echo(f"error: {where}{exc.strerror or exc}", err=True)

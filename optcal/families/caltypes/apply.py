@@ -154,7 +154,10 @@ def apply_to_file(
     time_reason = src.time_reason
     if decision.value == POSE_TABLE:
         t = src.column("t") if src.has("t") else None
-        usable = np.ones(len(acc), dtype=bool)
+        # the rows the reader excluded (all-zero, absurd) are marked excluded, as a recording's samples are
+        evidence_usable = decisions.evidence.usable if decisions.evidence is not None else None
+        usable = np.ones(len(acc), dtype=bool) if evidence_usable is None else np.asarray(evidence_usable, dtype=bool)
+        exclusions = dict(decisions.exclusions) if not usable.all() else {}
         units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
         rec = recording_from_source(src, decisions)
