@@ -34,10 +34,12 @@ def export(cal: Calibration, options: ExportOptions) -> ExportResult:
     residual = f"rms |a|-1 = {rms_g * 1e3:.4f} mg on its {poses.n} poses"
     notes: list[str] = []
     if options.allan is not None:
-        density = axis_values(options.allan, "velocity_random_walk")
+        # an `optcal allan --sensor both` result holds the accelerometer's beside the gyroscope's
+        allan = options.allan["accelerometer"] if options.allan.get("sensor") == "both" else options.allan
+        density = axis_values(allan, "velocity_random_walk")
         if len(density) < 3:
             raise InputError("the Allan result lacks the velocity random walk of an axis; it is needed for every axis")
-        rate = update_rate(options.allan, options)
+        rate = update_rate(allan, options)
         variance = np.array([density[a] ** 2 * rate for a in AXIS_NAMES])
         lines.append(f"# sensor noise per sample from the Allan result: N^2 * {rate:g} Hz on each axis")
         lines.append(f"# (the calibration residual, {residual}, is a systematic error and is not included)")

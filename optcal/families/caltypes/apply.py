@@ -187,6 +187,8 @@ def apply_to_file(
     outside = np.zeros(len(raw), dtype=bool)
     outside[finite] = cal.out_of_range(corrected[finite], pick(temp), pick(t))
 
+    # a correction that overflows (a scale far outside a sensor's) is no corrected value: marked, never "ok"
+    finite &= np.all(np.isfinite(corrected), axis=1)
     status = np.full(len(raw), "ok", dtype=object)
     status[outside] = "out_of_range"
     status[~usable] = "excluded"
