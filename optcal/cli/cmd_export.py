@@ -138,15 +138,17 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         for line in report:
             click.echo(line, err=True)
         return
-    from optcal.cli.outputs import output_file
+    from optcal.cli.outputs import writing
 
-    output_file(output).write_text(result.text)
+    with writing(output) as tmp:  # whole or not at all
+        tmp.write_text(result.text)
     for line in report:
         click.echo(line)
     click.echo(f"wrote {fmt} file {output}")
     for suffix, text in result.files.items():
         extra = Path(output).with_name(f"{Path(output).stem}{suffix}{Path(output).suffix}")
-        output_file(extra).write_text(text)
+        with writing(extra) as tmp:
+            tmp.write_text(text)
         click.echo(f"wrote {fmt} file {extra}")
 
 

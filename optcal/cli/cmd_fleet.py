@@ -87,9 +87,12 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         write_report(fleet_document(result, output, command_line(), tolerance), report_path)
     if as_json:
         echo_json(result.summary(output))
-        return
-    click.echo(result.report())
-    click.echo(f"results: {output}" + (f"; figures in {plot}" if plot else ""))
+    else:
+        click.echo(result.report())
+        click.echo(f"results: {output}" + (f"; figures in {plot}" if plot else ""))
+    calibrated = result.count("calibrated") + result.count("calibrated_with_prior")
+    if calibrated == 0:  # the results say why each unit failed; the run did not do its job
+        raise InputError(f"no unit of {len(result.outcomes)} was calibrated (the reasons are in {output} and above)")
 
 
 def _write_figures(result: Any, folder: Path) -> None:
@@ -98,7 +101,11 @@ def _write_figures(result: Any, folder: Path) -> None:
     if result.stats is None:
         click.echo("no figures: fewer than 5 units calibrated by their own data", err=True)
         return
-    folder.mkdir(parents=True, exist_ok=True)
+    from optcal.cli.outputs import plot_folder, writing
+
+    folder = plot_folder(folder)
     for name in STATISTICS:
-        parameter_figure(result.outcomes, result.stats, name).savefig(folder / f"{name}.png", dpi=110)
-    summary_figure(result.outcomes, result.stats).savefig(folder / "summary.png", dpi=90)
+        with writing(folder / f"{name}.png", "--plot") as tmp:  # whole or not at all
+            parameter_figure(result.outcomes, result.stats, name).savefig(tmp, dpi=110)
+    with writing(folder / "summary.png", "--plot") as tmp:
+        summary_figure(result.outcomes, result.stats).savefig(tmp, dpi=90)

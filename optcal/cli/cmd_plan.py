@@ -114,10 +114,11 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
     shown = None if candidates.continuous else candidates.directions
     if plot:
         from optcal.report.plan_figure import sphere_figure
-        from optcal.cli.outputs import plot_file
+        from optcal.cli.outputs import plot_file, writing
 
         plot = str(plot_file(plot, "plan.png"))
-        sphere_figure(planned, given_dirs, shown, cap).savefig(plot, dpi=120)
+        with writing(plot, "--plot") as tmp:  # whole or not at all
+            sphere_figure(planned, given_dirs, shown, cap).savefig(tmp, dpi=120)
     if report_path:
         from optcal.report.plan_report import plan_document
 

@@ -37,7 +37,10 @@ def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | 
             click.echo(f"no plot: {data} is a pose table, not a time series", err=True)
             figure = None
         else:
-            segmentation_figure(seg).savefig(figure, dpi=120)
+            from optcal.cli.outputs import writing
+
+            with writing(figure, "--plot") as tmp:  # whole or not at all
+                segmentation_figure(seg).savefig(tmp, dpi=120)
     if report_path is not None:
         from optcal.report.document import segmentation_document
 

@@ -57,8 +57,9 @@ def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samp
         frame["sigma"] = poses.sigma
     if schedule == "sixpos" and not orientations:  # the known orientations of the six-position method
         frame["roll_deg"], frame["pitch_deg"] = angles_from_directions(directions)
-    from optcal.cli.outputs import output_file
+    from optcal.cli.outputs import writing
 
-    frame.to_csv(output_file(output), index=False, float_format="%.10g")
+    with writing(output) as tmp:  # whole or not at all
+        frame.to_csv(tmp, index=False, float_format="%.10g")
     click.echo(f"wrote {poses.n} poses ({'schedule ' + schedule if not orientations else orientations}, "
                f"sigma {sigma:g} g) to {output}", err=True)

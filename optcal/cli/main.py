@@ -4,7 +4,8 @@ Commands are loaded lazily (``COMMANDS`` maps a name to ``module:attribute``) so
 ``optcal --help`` does not import CasADi and cvxpy.  Every :class:`~optcal.errors.InputError`
 becomes one ``error: ...`` line on standard error and exit code 2 (bad input), every
 :class:`~optcal.errors.SolverError` one ``error: ...`` line and exit code 3 (a solver failed),
-without a traceback; optcal's warnings (:class:`~optcal.errors.ConvergenceWarning`) become one
+without a traceback; a file that cannot be read or written (:class:`OSError`) is one line and
+exit code 2, Ctrl-C exit code 130 with no partial output left; optcal's warnings (:class:`~optcal.errors.ConvergenceWarning`) become one
 ``warning: ...`` line.  Library messages name Python arguments; :func:`optcal.cli.messages.cli_message`
 puts the command line's flags in their place.
 """
@@ -20,12 +21,14 @@ from typing import Any
 import click
 
 from optcal.cli.lazy_group import LazyGroup
-from optcal.cli.messages import cli_message
+from optcal.cli.messages import cli_message, missing_extra_message
 from optcal.errors import ConvergenceWarning, InputError, SolverError
 
-#: Exit codes: bad input (the user can fix the data or options) and a solver failure.
+#: Exit codes: bad input (the user can fix the data or options), a solver failure, and an interrupt
+#: (128 + SIGINT, as a shell reports a command ended by Ctrl-C).
 EXIT_INPUT_ERROR = 2
 EXIT_SOLVER_ERROR = 3
+EXIT_INTERRUPTED = 130
 
 #: name -> "module:attribute" of a click command.  Add one line per command.
 COMMANDS: dict[str, str] = {
@@ -88,16 +91,29 @@ def main(argv: list[str] | None = None) -> int:
     except SolverError as exc:
         click.echo(f"error: {cli_message(str(exc), command)}", err=True)
         return EXIT_SOLVER_ERROR
-    except click.exceptions.Abort:
-        click.echo("aborted", err=True)
-        return 1
+    except click.exceptions.Abort:  # click's form of Ctrl-C; the outputs are written whole or not at all
+        click.echo("interrupted: nothing written", err=True)
+        return EXIT_INTERRUPTED
     except click.ClickException as exc:  # usage errors: bad option, missing argument, invalid value
         click.echo(f"error: {usage_message(exc)}", err=True)
         return EXIT_INPUT_ERROR
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
-    except (BrokenPipeError, KeyboardInterrupt):
+    except KeyboardInterrupt:  # an output being written is removed (optcal.core.atomic): nothing partial is left
+        click.echo("interrupted: nothing written", err=True)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
         return 1
+    except ImportError as exc:  # an optional package missing: one line with the extra that installs it
+        message = missing_extra_message(exc, command)
+        if message is None:
+            raise
+        click.echo(f"error: {message}", err=True)
+        return EXIT_INPUT_ERROR
+    except OSError as exc:  # a file that cannot be read or written (read-only folder, full disk, /proc): one line
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
+        return EXIT_INPUT_ERROR
     return exit_code if isinstance(exit_code, int) else 0
 
 

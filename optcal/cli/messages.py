@@ -73,3 +73,33 @@ def cli_message(message: str, command: str | None = None) -> str:
     for pattern, flag in (*COMMAND_SPELLING.get(command or "", {}).items(), *CLI_SPELLING.items()):
         message = re.sub(pattern, flag, message)
     return message
+
+
+#: The optional extra that installs each optional import (pyproject.toml's optional-dependencies).
+EXTRAS: dict[str, str] = {
+    "dask": "fleet", "distributed": "fleet", "pyarrow": "parquet", "rosbags": "ros", "pyulog": "px4", "h5py": "hdf5",
+    "mkdocs": "docs", "mkdocstrings": "docs", "mkdocs_click": "docs",
+}
+
+
+def missing_extra_message(exc: ImportError, command: str | None) -> str | None:
+    """The one line for an optional package that is not installed, with the ``pip install`` that fixes it.
+
+    Parameters
+    ----------
+    exc : ImportError
+        Raised by an import of an optional package (its ``name`` names the module).
+    command : str or None
+        The optcal command that needed it.
+
+    Returns
+    -------
+    str or None
+        ``None`` when the module is not one of an extra's (a broken installation: the error goes on).
+    """
+    module = (exc.name or "").split(".")[0]
+    extra = EXTRAS.get(module)
+    if extra is None:
+        return None
+    who = f"optcal {command}" if command else "optcal"
+    return f"{who} needs the {module} package, which is not installed: pip install 'optcal[{extra}]'"

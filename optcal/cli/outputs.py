@@ -8,17 +8,28 @@ written into it under their own names (``segments.png``, ``allan.png``, the diag
 figures).  Commands that draw one figure also take a file name with a figure suffix
 (``--plot seg.png``).  ``-o FILE`` creates its folder when missing.  A path that cannot
 be written (an existing folder given as a file, a file given as a folder) is one error line.
+
+Every output is written whole or not at all (:func:`writing`, :mod:`optcal.core.atomic`): a
+temporary file beside it, renamed when complete; a read-only folder or a full disk is one
+``error:`` line naming the path and the reason (exit 2) and leaves no file behind.  An output
+that is one of the command's input files is refused.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import click
 
 from optcal.errors import InputError
+
+#: The parameters of a command that name what it writes; every other parameter naming an existing
+#: file is an input, which an output must not overwrite.
+OUTPUT_PARAMS: frozenset[str] = frozenset({"output", "report_path", "plot_path", "plot", "plot_dir"})
 
 #: Suffixes that make ``--plot PATH`` a file name rather than a folder.
 FIGURE_SUFFIXES: tuple[str, ...] = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -58,7 +69,65 @@ def output_file(path: str | Path, option: str = "-o") -> Path:
         raise InputError(f"{option} {p}: cannot create its folder {p.parent} (a file of that name exists)") from exc
     except PermissionError as exc:
         raise InputError(f"{option} {p}: no permission to create the folder {p.parent}") from exc
+    refuse_input(p, option)
     return p
+
+
+def _inputs() -> list[str]:
+    """The files the running command reads: its parameters' values other than :data:`OUTPUT_PARAMS`."""
+    context = click.get_current_context(silent=True)
+    if context is None:
+        return []
+    found: list[str] = []
+    for name, value in context.params.items():
+        values = value if isinstance(value, (tuple, list)) else (value,)
+        if name not in OUTPUT_PARAMS:
+            found += [str(v) for v in values if isinstance(v, (str, Path)) and str(v)]
+    return found
+
+
+def refuse_input(path: Path, option: str = "-o") -> None:
+    """Refuse to write ``path`` when it is one of the command's inputs (the same file, by device and inode).
+
+    Raises
+    ------
+    InputError
+        Naming the input and the option that would have replaced it.
+    """
+    if not path.exists():
+        return
+    for given in _inputs():
+        try:
+            same = os.path.exists(given) and os.path.samefile(given, path)
+        except OSError:
+            same = False
+        if same:
+            raise InputError(f"{option} {path}: is the input {given}; writing it would destroy the input: "
+                             "give another output file")
+
+
+@contextmanager
+def writing(path: str | Path, option: str = "-o") -> Iterator[Path]:
+    """The temporary file to write an output to; it becomes ``path`` when the block completes.
+
+    ``path``'s folder is created when missing (:func:`output_file`), an input of the command
+    is refused, and a write that fails (read-only folder, full disk) is one
+    :class:`~optcal.errors.InputError` naming the path and the reason, with nothing left behind.
+
+    Parameters
+    ----------
+    path : str or Path
+    option : str
+        The flag that named the path (``-o``, ``--report``, ``--plot``), for the messages.
+    """
+    from optcal.core.atomic import atomic_path
+
+    target = output_file(path, option)
+    try:
+        with atomic_path(target) as tmp:
+            yield tmp
+    except OSError as exc:
+        raise InputError(f"{option} {target}: cannot write: {exc.strerror or exc}") from None
 
 
 def plot_file(plot_path: str | Path, name: str) -> Path:

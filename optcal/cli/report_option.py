@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import shlex
 import sys
+from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
@@ -61,5 +62,8 @@ def write_report(doc: Any, path: str) -> None:
     """Render ``doc`` to ``path`` and say so on standard error."""
     from optcal.report.render import write_html
 
-    write_html(doc, path)
+    from optcal.cli.outputs import refuse_input
+
+    refuse_input(Path(path), "--report")
+    write_html(doc, path)  # whole or not at all (optcal.core.atomic)
     click.echo(f"report: {path} (verdict: {doc.verdict.level})", err=True)

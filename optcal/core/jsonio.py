@@ -89,7 +89,9 @@ def write_json(path: str | Path, obj: Any) -> None:
     obj : Any
         Anything :func:`jsonable` converts.
     """
-    Path(path).write_text(json.dumps(jsonable(obj), indent=2, allow_nan=False) + "\n")
+    from optcal.core.atomic import write_text_atomic
+
+    write_text_atomic(path, json.dumps(jsonable(obj), indent=2, allow_nan=False) + "\n")  # whole or not at all
 
 
 def read_json(path: str | Path, what: str = "calibration file", hint: str = "") -> dict[str, Any]:

@@ -172,14 +172,23 @@ class ReadOptions:
 READ_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ReadOptions))
 
 
+#: The command-line flag of each numeric reading option (named in its messages).
+FLAGS: dict[str, str] = {
+    "rate": "--rate", "window_s": "--static-window", "threshold": "--static-threshold",
+    "gyro_threshold": "--gyro-threshold", "drift_threshold": "--drift-threshold", "min_dwell_s": "--min-dwell",
+    "trim_s": "--trim", "min_independent": "--min-independent",
+}
+
+
 def _number(name: str, value: Any) -> float:
-    """``value`` as a finite float, or an :class:`InputError` naming ``name``."""
+    """``value`` as a finite float, or an :class:`InputError` naming ``name`` and its flag."""
+    flag = f" ({FLAGS[name]})" if name in FLAGS else ""
     try:
         number = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
+        raise InputError(f"{name} must be a number, got {value!r}{flag}") from None
     if not math.isfinite(number):
-        raise InputError(f"{name} must be finite, got {value!r}")
+        raise InputError(f"{name} must be finite, got {value!r}{flag}")
     return number
 
 
@@ -315,6 +324,7 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
             return Reading(str(path), options, decisions, poses)
         rec = recording_from_source(src, decisions)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
+        check_static_settings(options.static, rec)
         seg = detect_static(rec, options.static)  # segmentation
         decisions.warnings.extend(seg.override_warnings())  # an override says what it assumes, on the error path too
         table = seg.pose_table()
@@ -325,6 +335,25 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
     table.meta.update(recording_meta(rec, decisions))
     table.decisions = decisions
     return Reading(str(path), options, decisions, table, rec, seg)
+
+
+def check_static_settings(static: StaticSettings, rec: Recording) -> None:
+    """Refuse rest-detection durations that no rest of ``rec`` can satisfy (longer than the whole recording).
+
+    A rest can be no longer than the recording: a longer ``--min-dwell``, ``--static-window`` or twice
+    ``--trim`` finds nothing by definition (and used to run for minutes before saying so).
+
+    Raises
+    ------
+    InputError
+        Naming the flag, its value and the recording's length.
+    """
+    duration = float(rec.duration_s)
+    for value, flag in ((static.min_dwell_s, "--min-dwell"), (static.window_s, "--static-window"),
+                        (2 * static.trim_s, "--trim (twice, from both ends)")):
+        if value > duration:
+            raise InputError(f"{flag} {value:g} s is longer than the recording ({duration:.4g} s): no rest can be "
+                             f"found; give a shorter {flag.split()[0]}")
 
 
 def recording_meta(rec: Recording, decisions: DataDecisions) -> dict[str, Any]:

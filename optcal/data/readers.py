@@ -14,7 +14,7 @@ a unit word: ``acc_x_counts`` → ``acc_x`` in counts, ``t_s`` → ``t`` in seco
 settle their roles are recorded as :class:`~optcal.data.columns.ColumnRoles` for the evidence.  The file type is recognised from
 its first bytes (ULog, ROS 1 bag, Parquet, SQLite/MCAP ROS 2 bag) or, for a directory, from
 its ROS 2 ``metadata.yaml``; everything else is read as delimited text.  ROS bags need
-``pip install optcal[ros]`` (the ``rosbags`` library), ULog files ``pip install optcal[px4]``
+``pip install 'optcal[ros]'`` (the ``rosbags`` library), ULog files ``pip install 'optcal[px4]'``
 (``pyulog``); both are imported only when such a file is read.
 """
 
@@ -330,7 +330,7 @@ def read_parquet(path: str | Path) -> Any:
     try:
         frame = pd.read_parquet(path)
     except ImportError as exc:
-        raise InputError("reading Parquet files needs pyarrow: pip install optcal[parquet]") from exc
+        raise InputError("reading Parquet files needs pyarrow: pip install 'optcal[parquet]'") from exc
     except Exception as exc:  # pyarrow raises several types for damaged files
         raise InputError(f"{path}: not a readable Parquet file, truncated or corrupt ({exc.__class__.__name__}: {str(exc).splitlines()[0]})") from exc
     frame.columns = [str(c).strip() for c in frame.columns]
@@ -468,7 +468,7 @@ def _import_rosbags() -> Any:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
     except ImportError as exc:
-        raise InputError("reading ROS bags needs the rosbags library: pip install optcal[ros]") from exc
+        raise InputError("reading ROS bags needs the rosbags library: pip install 'optcal[ros]'") from exc
     return AnyReader, Stores, get_typestore
 
 
@@ -555,7 +555,7 @@ def _import_pyulog() -> Any:
     try:
         from pyulog import ULog
     except ImportError as exc:
-        raise InputError("reading PX4 ULog files needs pyulog: pip install optcal[px4]") from exc
+        raise InputError("reading PX4 ULog files needs pyulog: pip install 'optcal[px4]'") from exc
     return ULog
 
 

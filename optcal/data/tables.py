@@ -54,9 +54,19 @@ def pose_table_from_source(src: Source, decisions: DataDecisions | str | None = 
         )
     if not isinstance(decisions, DataDecisions):
         decisions = decide(src, gather_evidence(src), kind="poses", units=decisions)
-    acc = np.column_stack([src.column(c) for c in ACC])
-    gyro = np.column_stack([src.column(c) for c in GYRO]) if src.has(*GYRO) else None
-    opt = {c: src.column(c) for c in ("t", "temp", "sigma", "n_samples") if src.has(c)}
+    # the rows the reader excluded (non-finite, all-zero, absurd: decisions.exclusions, printed as "excluded while
+    # reading") are left out of the poses and counted in their exclusions, as a recording's samples are
+    usable = decisions.evidence.usable if decisions.evidence is not None else None
+    keep = None if usable is None or bool(np.all(usable)) else np.asarray(usable, dtype=bool)
+
+    def column(name: str) -> np.ndarray:
+        values = src.column(name)
+        return values if keep is None else values[keep]
+
+    acc = np.column_stack([column(c) for c in ACC])
+    gyro = np.column_stack([column(c) for c in GYRO]) if src.has(*GYRO) else None
+    opt = {c: column(c) for c in ("t", "temp", "sigma", "n_samples") if src.has(c)}
+    rows = np.arange(1, src.n_rows + 1)
     meta = {
         "path": src.path,
         "file_type": src.file_type,
@@ -74,10 +84,11 @@ def pose_table_from_source(src: Source, decisions: DataDecisions | str | None = 
         t=opt.get("t"),
         temp=opt.get("temp"),
         gyro=gyro,
-        rows=np.arange(1, src.n_rows + 1),
+        rows=rows if keep is None else rows[keep],
         units=str(decisions.units.value),
         source="pose table",
-        extra=dict(src.extra),
+        exclusions=dict(decisions.exclusions) if keep is not None else {},
+        extra={k: (v if keep is None else np.asarray(v)[keep]) for k, v in src.extra.items()},
         meta=meta,
         decisions=decisions,
     )

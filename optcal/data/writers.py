@@ -50,7 +50,7 @@ def write_rosbag(frame: pd.DataFrame, path: Path, version: int, topic: str = "/i
     try:
         from rosbags.typesys import Stores, get_typestore
     except ImportError as exc:
-        raise InputError("writing ROS bags needs the rosbags library: pip install optcal[ros]") from exc
+        raise InputError("writing ROS bags needs the rosbags library: pip install 'optcal[ros]'") from exc
     ts = get_typestore(Stores.ROS1_NOETIC if version == 1 else Stores.ROS2_HUMBLE)
     types = ts.types
     Imu, Header, Time = types["sensor_msgs/msg/Imu"], types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -106,11 +107,58 @@ def from_dict(d: dict[str, Any]) -> Calibration:
     if "format_version" not in d:
         raise InputError("not an optcal calibration file (no format_version)")
     major, _ = check_version(d["format_version"])
+    check_numbers(d)
     if major == 1 and "cal_type" not in d:
         return _from_format_1(d)
     if "cal_type" not in d:
         raise InputError("not an optcal calibration file (no cal_type)")
     return calibration_class(str(d["cal_type"])).from_dict(d)
+
+
+#: The range of a calibration's scale, the row norms of ``T`` (output units per raw unit).  A MEMS accelerometer's
+#: raw unit is between about 1e-6 g (a 24-bit converter's count) and one physical unit (g or m/s², scale ≈ 1..10); this
+#: range, three orders beyond both ends, refuses only a file whose correction would overflow or vanish in float64
+#: (``T = 1e308·I`` corrects every sample to inf) or a broken edit, never a real sensor's calibration.
+SCALE_RANGE: tuple[float, float] = (1e-9, 1e6)
+
+
+def check_numbers(d: dict[str, Any], where: str = "") -> None:
+    """Refuse a calibration dictionary holding a number that is not finite, or a ``T`` out of :data:`SCALE_RANGE`.
+
+    optcal writes a number that is not finite as ``null``; ``NaN`` or ``Infinity`` in a file
+    (which Python's JSON parser accepts) come from an edit or another writer.
+
+    Raises
+    ------
+    InputError
+        Naming the entry and its value.
+    """
+    def walk(value: Any, path: str) -> None:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                walk(item, f"{path}.{key}" if path else str(key))
+        elif isinstance(value, list):
+            for k, item in enumerate(value):
+                walk(item, f"{path}[{k}]")
+        elif isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"{where}calibration entry {path} = {value}: every number of a calibration must be finite")
+
+    walk(d, "")
+    T = d.get("T")
+    if isinstance(T, list):
+        try:
+            rows = np.asarray(T, dtype=float)
+        except (TypeError, ValueError):
+            return  # the calibration class says what is wrong with its shape
+        if rows.ndim == 2 and rows.size:
+            with np.errstate(over="ignore"):
+                scales = np.sqrt(np.sum(rows * rows, axis=1))
+            low, high = SCALE_RANGE
+            if not np.all((scales >= low) & (scales <= high)):
+                raise InputError(
+                    f"{where}calibration T has row norms {', '.join(f'{v:.3g}' for v in scales)} (output units per raw "
+                    f"unit); a sensor's lie between {low:g} and {high:g}: the file is broken"
+                )
 
 
 def load(source: str | Path | dict[str, Any], *, gyro: str | Path | None = None,

@@ -106,6 +106,9 @@ def save_figures(diag: "Diagnosis", directory: str | Path) -> list[str]:
     for name, fig in (("residuals.png", residual_figure(diag)), ("simulation_check.png", simulation_figure(diag))):
         if fig is not None:
             path = out_dir / name
-            fig.savefig(path, dpi=110)
+            from optcal.core.atomic import atomic_path
+
+            with atomic_path(path) as tmp:  # whole or not at all
+                fig.savefig(tmp, dpi=110)
             paths.append(str(path))
     return paths

@@ -34,5 +34,7 @@ def write_html(doc: ReportDocument, path: str | Path) -> Path:
         raise InputError(f"report path {str(p)!r} must end in .html")
     if p.parent and not p.parent.exists():
         raise InputError(f"report path {str(p)!r}: the directory {str(p.parent)!r} does not exist")
-    p.write_text(render_html(doc), encoding="utf-8")
+    from optcal.core.atomic import write_text_atomic
+
+    write_text_atomic(p, render_html(doc))  # whole or not at all
     return p

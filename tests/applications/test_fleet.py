@@ -253,3 +253,12 @@ def test_results_writer_streams_the_table_in_row_groups(tmp_path):
     pd.testing.assert_frame_equal(streamed, pd.read_parquet(tmp_path / "whole.parquet"))
     assert streamed["meta_line"].isna().tolist() == [True, False] * 5
     assert streamed["T_xx"].isna().sum() == 4 and streamed["exclusions"][3] == '{"moving": 3}'
+
+
+def test_fleet_exits_2_when_no_unit_was_calibrated(tmp_path, capsys):
+    (tmp_path / "units").mkdir()
+    for k in range(2):
+        (tmp_path / "units" / f"u{k}.csv").write_text("ax,ay,az\n")  # an unfilled logger file: no pose
+    code = main(["fleet", str(tmp_path / "units"), "-o", str(tmp_path / "r.parquet"), "--workers", "1", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "no unit of 2 was calibrated" in err

@@ -88,9 +88,9 @@ def test_missing_extra_says_how_to_install(recording, tmp_path, monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_extras)
     for mod in [m for m in sys.modules if m.startswith(("rosbags", "pyulog"))]:
         monkeypatch.delitem(sys.modules, mod)
-    with pytest.raises(InputError, match=r"pip install optcal\[ros\]"):
+    with pytest.raises(InputError, match=r"pip install 'optcal\[ros\]'"):
         load(path)
-    with pytest.raises(InputError, match=r"pip install optcal\[px4\]"):
+    with pytest.raises(InputError, match=r"pip install 'optcal\[px4\]'"):
         load(ulg)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.model import STANDARD_GRAVITY
+from optcal.errors import InputError
 from optcal.families.caltypes.base import Calibration, FitPoses
 
 #: Default largest acceptable loss of a diagonal firmware model, g (5 mg).
@@ -111,6 +112,25 @@ class ExportOptions:
     gyro_counts_zero: float | None = None
     gravity_m_s2: float = STANDARD_GRAVITY
     inflate: tuple[float, float] = (1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        # every number written into a firmware or estimator file finite and in its range (an inf scale would be
+        # written as "inf" into a PX4 parameter file, which the firmware reads as a broken calibration)
+        positive = {"counts_per_g": "--counts-per-g", "counts_per_dps": "--counts-per-dps",
+                    "gyro_counts_per_rad_s": "--counts-per-rad-s", "rate_hz": "--rate",
+                    "gravity_m_s2": "--gravity", "gyro_rate_deg_s": "--gyro-rate"}
+        for name, flag in positive.items():
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise InputError(f"{name} must be a finite positive number, got {value} ({flag})")
+        for name, flag in {"counts_zero": "--counts-zero", "gyro_counts_zero": "--gyro-counts-zero"}.items():
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise InputError(f"{name} must be finite, got {value} ({flag})")
+        if not (math.isfinite(self.max_loss_g) and self.max_loss_g >= 0):
+            raise InputError(f"max_loss_g must be a finite number >= 0, got {self.max_loss_g} (--max-loss)")
+        if not all(math.isfinite(f) and f > 0 for f in self.inflate):
+            raise InputError(f"inflate factors must be finite and positive, got {self.inflate} (--inflate)")
 
     def gyro_counts_per_dps(self) -> float | None:
         """The driver's gyro sensitivity in counts per °/s, given as either :attr:`counts_per_dps` or

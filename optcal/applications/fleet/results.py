@@ -22,6 +22,7 @@ import numpy as np
 from optcal.applications.fleet.population import PopulationStats
 from optcal.applications.fleet.prior import PopulationPrior
 from optcal.applications.fleet.unit import STATUSES, UnitOutcome
+from optcal.core.atomic import atomic_path
 from optcal.core.model import PARAM_NAMES
 
 
@@ -85,7 +86,9 @@ class ResultsWriter:
         self.meta_keys = list(meta_keys)
         self.schema = results_schema(self.meta_keys)
         self.row_group = int(row_group) or ROW_GROUP
-        self._writer = pq.ParquetWriter(str(path), self.schema)
+        # written to a temporary file beside PATH and renamed when closed: a failed or interrupted run leaves no partial table
+        self._atomic: Any = atomic_path(path)
+        self._writer = pq.ParquetWriter(str(self._atomic.__enter__()), self.schema)
         self._pending: list[dict[str, Any]] = []
         self.rows = 0
 
@@ -104,14 +107,24 @@ class ResultsWriter:
             self._pending = []
 
     def close(self) -> None:
-        self._flush()
-        self._writer.close()
+        """Write the last rows and rename the table to its path."""
+        self.__exit__(None, None, None)
 
     def __enter__(self) -> "ResultsWriter":
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, *exc: Any) -> None:
+        if self._atomic is None:
+            return
+        atomic, self._atomic = self._atomic, None
+        try:
+            if exc[0] is None:
+                self._flush()
+            self._writer.close()
+        except BaseException as error:
+            atomic.__exit__(type(error), error, error.__traceback__)  # removes the temporary file
+            raise
+        atomic.__exit__(*exc)  # renamed when complete, removed after a failure
 
 
 @dataclass

@@ -154,7 +154,10 @@ def apply_to_file(
     time_reason = src.time_reason
     if decision.value == POSE_TABLE:
         t = src.column("t") if src.has("t") else None
-        usable = np.ones(len(acc), dtype=bool)
+        # the rows the reader excluded (all-zero, absurd) are marked excluded, as a recording's samples are
+        evidence_usable = decisions.evidence.usable if decisions.evidence is not None else None
+        usable = np.ones(len(acc), dtype=bool) if evidence_usable is None else np.asarray(evidence_usable, dtype=bool)
+        exclusions = dict(decisions.exclusions) if not usable.all() else {}
         units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
         rec = recording_from_source(src, decisions)
@@ -184,6 +187,8 @@ def apply_to_file(
     outside = np.zeros(len(raw), dtype=bool)
     outside[finite] = cal.out_of_range(corrected[finite], pick(temp), pick(t))
 
+    # a correction that overflows (a scale far outside a sensor's) is no corrected value: marked, never "ok"
+    finite &= np.all(np.isfinite(corrected), axis=1)
     status = np.full(len(raw), "ok", dtype=object)
     status[outside] = "out_of_range"
     status[~usable] = "excluded"
@@ -242,14 +247,17 @@ def write_table(applied: AppliedFile, path: str | Path) -> str:
     fmt = OUTPUT_FORMATS.get(p.suffix.lower())
     if fmt is None:
         raise InputError(f"{p}: give an output file ending in .csv or .parquet (the format follows the extension)")
-    if fmt == "parquet":
-        try:
-            applied.frame.to_parquet(p, index=False)
-        except ImportError as exc:
-            raise InputError("writing Parquet files needs pyarrow: pip install optcal[parquet]") from exc
-        return fmt
-    with p.open("w", newline="") as fh:
-        for key, value in applied.header.items():
-            fh.write(f"{key},{value}\n" if value else f"# {key}\n")
-        applied.frame.to_csv(fh, index=False)
+    from optcal.core.atomic import atomic_path
+
+    with atomic_path(p) as tmp:  # whole or not at all (a full disk or Ctrl-C leaves the target as it was)
+        if fmt == "parquet":
+            try:
+                applied.frame.to_parquet(tmp, index=False)
+            except ImportError as exc:
+                raise InputError("writing Parquet files needs pyarrow: pip install 'optcal[parquet]'") from exc
+            return fmt
+        with tmp.open("w", newline="") as fh:
+            for key, value in applied.header.items():
+                fh.write(f"{key},{value}\n" if value else f"# {key}\n")
+            applied.frame.to_csv(fh, index=False)
     return fmt

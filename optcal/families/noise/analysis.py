@@ -246,5 +246,8 @@ def plot_allan(analysis: AllanAnalysis, path: str | Path, title: str | None = No
     """Save :func:`allan_figure` to ``path`` (parent folders created); returns the path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    allan_figure(analysis, title).savefig(out, dpi=120)
+    from optcal.core.atomic import atomic_path
+
+    with atomic_path(out) as tmp:  # whole or not at all
+        allan_figure(analysis, title).savefig(tmp, dpi=120)
     return out
