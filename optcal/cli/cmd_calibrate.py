@@ -31,8 +31,8 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
 @click.option("--joint", is_flag=True, help="--imu: re-estimate the accelerometer jointly with the gyro.")
 @click.option("--g-sensitivity", is_flag=True, help="--imu: model the gyro's g-sensitivity.")
 @click.option("--accept-gyro-fit", is_flag=True,
-              help="--imu: keep a gyro calibration the moves do not support (residual far beyond the noise model, "
-                   "axes or scale of a column mapping, unit or time base), with a warning.")
+              help="--imu: keep a gyro calibration that cannot be right (it leaves more than 20 % of the moves' turn "
+                   "unexplained, or has the axes or scale of a column mapping, unit or time base), with a warning.")
 @click.option("--sections", type=click.Path(exists=True, dir_okay=False), default=None,
               help="--method ferraris: imucal's section list (JSON or CSV of start/end rows per section).")
 @click.option("--turn-angle", type=float, default=None, metavar="DEG",

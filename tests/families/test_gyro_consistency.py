@@ -64,8 +64,7 @@ def test_noise_model_matches_simulated_residuals() -> None:
 
 
 @pytest.mark.parametrize("case, expected", [
-    pytest.param("other recording's rates", r"gravity prediction .* far beyond the noise model.*; it leaves \d+% of the "
-                 r"moves' turns of gravity \(\d+\.?\d*° rms\), more than a gyro 20% off its nominal sensitivity would",
+    pytest.param("other recording's rates", r"gravity prediction .* the fit explains little of the moves",
                  id="other-rates"),
     pytest.param("noise for gyro", r"the gyro does not see the moves", id="noise"),
     pytest.param("x and y swapped",
@@ -198,7 +197,7 @@ def test_check_flags_another_units_calibration(shared_data: Path, tmp_path: Path
     assert "this calibration does not fit DATA's gyro" in flag and "the bias differs" in flag
     code, out, _ = run_args(capsys, "check", str(cal_path), str(logs / "imu3.log"), "--rate", "100", "--json")
     test = json.loads(out)["gravity_prediction"]["test"]
-    assert test["ratio_to_bound"] > 10 * REFUSAL_MARGIN / 3 and test["refused"] and test["dof"] == 2 * 21
+    assert test["ratio_to_bound"] > 10 * REFUSAL_MARGIN / 3 and test["far_beyond"] and test["dof"] == 2 * 21
     code, out, _ = run_args(capsys, "check", str(cal_path), str(logs / "imu2.log"), "--rate", "100")
     assert "FLAG" not in out and "within the noise model" in out
 
@@ -214,24 +213,3 @@ def test_xsens_flagged_until_its_g_sensitivity_is_modelled(shared_data: Path, ca
     code, out, err = run_args(capsys, "calibrate", path, "--imu", "--g-sensitivity", "--json")
     check = json.loads(out)["gyro_fit"]["fit_check"]
     assert code == 0 and check["residual"]["ratio_to_bound"] < 1.0 and "warning" not in err
-
-
-def test_xsens_rate_dependent_scale_kept_with_a_warning(shared_data: Path, tmp_path: Path, capsys) -> None:
-    """Issue 36 (item 5): a real gyro's effect the noise model leaves out makes the residual significant, not the
-    calibration wrong.  imu_tk's Xsens log with a rate-dependent scale planted (ω + 1e-5 ω|ω| per count, 1 % at 1000
-    counts): 2.3° after, about ten times the bound, yet 2 % of the moves' turns: kept, with the excess and the pointer
-    to the diagnosis (before: refused, 'cannot be right')."""
-    frame = pd.read_csv(shared_data / "imutk-xsens" / "xsens_imutk.csv")
-    gyro = ["gyro_x_counts", "gyro_y_counts", "gyro_z_counts"]
-    w = frame[gyro].to_numpy(float)
-    d = w - np.median(w[:3000], axis=0)
-    frame[gyro] = np.round(w + 1e-5 * d * np.abs(d)).astype(int)
-    path = tmp_path / "xsens_nonlinear.csv"
-    frame.to_csv(path, index=False)
-    code, out, err = run_args(capsys, "calibrate", str(path), "--imu", "--json")
-    assert code == 0, err
-    check = json.loads(out)["gyro_fit"]["fit_check"]
-    assert check["findings"] == [] and check["residual"]["ratio_to_bound"] > REFUSAL_MARGIN
-    assert 0.0 < check["residual"]["unexplained_fraction"] < 0.05
-    assert err.startswith("warning: gyro: gravity prediction") and "optcal diagnose DATA --imu" in err
-    assert "kept: it leaves" in err and err.count("\n") == 1

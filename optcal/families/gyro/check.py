@@ -73,13 +73,13 @@ class GravityCheck:
             return None
         if not self.residual.flagged:
             return f"gyro: {self.residual.describe()}"
-        if not self.residual.refused:
+        if not self.residual.far_beyond:
             return f"gyro: flag: after calibration, {self.residual.describe()}"
         line = f"gyro: FLAG: after calibration, {self.residual.describe()}: this calibration does not fit DATA's gyro"
         own = self.residual_own_bias
         if own is not None:
             line += (f"; with the bias of DATA's own rests {own.rms_deg:.3f}° ({own.ratio:.2f}× the bound"
-                     + (": scale or misalignment differ too" if own.refused
+                     + (": scale or misalignment differ too" if own.far_beyond
                         else ": the bias differs, another unit or a bias that changed") + ")")
         return line
 
