@@ -261,10 +261,11 @@ def read_decided(path: str | Path, options: ReadOptions, *, required_by: str | N
         Overrides ``options.kind`` (a command that takes only one kind).
     """
     src = read_source(path, columns=options.columns, topic=options.topic, gyro_file=options.gyro_file)  # read
-    extra: dict[str, Any] = {} if options.gyro_units is None else {"gyro_units": options.gyro_units}
+    if options.gyro_units is not None:  # the user's unit wins over the file's words and the data (the rest
+        src.gyro_units = options.gyro_units  # model's tolerances, the segment report and the gyro fit read it)
     decisions = decide(  # evidence, then decisions
         src, gather_evidence(src), kind=kind or options.kind, units=options.units, rate=options.rate,
-        time_unit=options.time_unit, timing=options.timing, required_by=required_by, **extra,
+        time_unit=options.time_unit, timing=options.timing, required_by=required_by,
     )
     return src, decisions
 
