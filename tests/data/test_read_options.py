@@ -96,3 +96,23 @@ def test_recording_read_through_one_path_equals_the_command_line_s(shared_data):
     assert reading.kind.value == "raw recording" and reading.segmentation is not None
     assert reading.poses.n == len(reading.segmentation.intervals)
     assert reading.poses == load(files[0])
+
+
+def test_gyro_units_given_reach_the_recording(shared_data, tmp_path):
+    """The Xsens log with plain names, its gyro converted to rad/s (imu_tk's own scale): gyro_units='rad/s' is the
+    recording's unit (the rest model reads its wander in rad/s), the same 38 poses; a unit given overrides the
+    file's own (here wrongly, and the rest model's refusal shows it was read)."""
+    import pandas as pd
+
+    x = pd.read_csv(shared_data / "imutk-xsens" / "xsens_imutk.csv")
+    gyro = x[["gyro_x_counts", "gyro_y_counts", "gyro_z_counts"]].to_numpy(float)
+    rad_s = (gyro - [32777.1, 32459.8, 32511.8]) * [0.000209295, 0.000209899, 0.000209483]  # IMUTK_REFERENCE.md
+    frame = pd.DataFrame({"t": x["t_s"], "ax": x["acc_x_counts"], "ay": x["acc_y_counts"], "az": x["acc_z_counts"],
+                          "gx": rad_s[:, 0], "gy": rad_s[:, 1], "gz": rad_s[:, 2]})
+    frame.to_csv(tmp_path / "plain.csv", index=False)
+    reading = optcal.load(tmp_path / "plain.csv", gyro_units="rad/s")
+    assert reading.recording is not None and reading.recording.gyro_units == "rad/s"
+    assert reading.poses.n == 38
+    # the file's counts given as deg/s reach the rest model: every rest then wobbles by degrees, and it says so
+    with pytest.raises(InputError, match="wobbles by more than"):
+        optcal.load(shared_data / "imutk-xsens" / "xsens_imutk.csv", gyro_units="deg/s")
