@@ -48,8 +48,6 @@ def test_simulate_then_calibrate(capsys, tmp_path):
 def bad_files():
     good = "\n".join(f"{np.cos(a):.6f},{np.sin(a):.6f},{0.3 * np.sin(3 * a):.6f}" for a in np.linspace(0, 6, 12))
     return {
-        "nan": ("ax,ay,az\n" + good + "\n0.5,nan,0.5\n", "NaN"),
-        "inf": ("ax,ay,az\n" + good + "\n0.5,inf,0.5\n", "infinite"),
         "few": ("ax,ay,az\n1,0,0\n0,1,0\n0,0,1\n-1,0,0\n0,-1,0\n", "at least 9"),
         "missing": ("ax,ay\n1,0\n0,1\n", "az"),
         "text": ("ax,ay,az\n" + good.replace("0.", "abc", 1) + "\n", "non-numeric"),
@@ -70,6 +68,28 @@ def test_calibrate_bad_input(capsys, tmp_path, case):
     assert "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
     assert out == "" or out.startswith(f"DATA: {path} refused; the decisions made before:")  # issue 26
+
+
+@pytest.mark.parametrize("cell", ["nan", "inf", ""])
+def test_a_non_finite_pose_is_excluded_counted_and_not_fitted(capsys, tmp_path, cell):
+    """A pose table row with a NaN, an infinity or an empty cell is excluded while reading, counted in the report and
+    the JSON, and the fit is the one of the other rows (issue 40: what the reader excludes is excluded everywhere)."""
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(24, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    good = "\n".join(",".join(f"{v:.6f}" for v in row) for row in d)
+    path = tmp_path / "poses.csv"
+    path.write_text("ax,ay,az\n" + good + f"\n0.5,{cell},0.5\n")
+    clean = tmp_path / "clean.csv"
+    clean.write_text("ax,ay,az\n" + good + "\n")
+    code, out, err = run(capsys, "calibrate", str(path), "--format", "poses", "--json")
+    assert code == 0, err
+    got = json.loads(out)
+    assert got["n_poses"] == 24 and sum(got["data"]["exclusions"].values()) == 1, got["data"]
+    code, out, _ = run(capsys, "calibrate", str(clean), "--format", "poses", "--json")
+    assert np.allclose(got["T"], json.loads(out)["T"], rtol=1e-9, atol=1e-12)
+    code, out, err = run(capsys, "calibrate", str(path), "--format", "poses")
+    assert code == 0 and "excluded while reading: non-finite samples" in out
 
 
 def test_missing_file(capsys, tmp_path):

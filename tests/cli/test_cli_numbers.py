@@ -80,7 +80,9 @@ def test_ros_export_takes_the_accelerometer_of_a_both_sensors_allan_result(cal_j
     axis = {"velocity_random_walk": 1e-4, "bias_instability": 1e-5}
     part = {"log": {"rate_hz": 100.0}, **{a: dict(axis) for a in "xyz"}}
     allan = tmp_path / "allan.json"
-    allan.write_text(json.dumps({"sensor": "both", "accelerometer": part, "gyroscope": part}))
+    # as `optcal allan --sensor both --json` writes it: each part says its sensor
+    allan.write_text(json.dumps({"sensor": "both", "accelerometer": {**part, "sensor": "accelerometer"},
+                                 "gyroscope": {**part, "sensor": "gyro"}}))
     code, out, err = run(["export", cal_json, "--format", "ros", "--allan", allan], capsys)
     assert code == 0, err
     assert "Allan" in out

@@ -273,17 +273,23 @@ def turned_by(result: ExportResult) -> float | None:
     return None
 
 
-def ardupilot(case: Case, result: ExportResult, tmp: Path) -> Consumed:
-    """ArduPilot (ArduPilot/ardupilot libraries/AP_InertialSensor/AP_InertialSensor_Backend.cpp,
-    ``_rotate_and_correct_accel``: ``accel -= offsets; accel *= scale`` per axis; AP_InertialSensor_tempcal.cpp,
-    ``TCal::correct_sensor``: ``v -= p(T - 35) - p(CALTEMP - 35)``, ``p(x) = (c1 + (c2 + c3 x) x) x · 1e-6``, T and
-    CALTEMP clamped to [TMIN, TMAX]).  The parameter file is read by pymavlink's own loader (``MAVParmDict.load``)."""
+def mavlink_params(result: ExportResult, tmp: Path) -> Any:
+    """The exported ArduPilot parameter file as pymavlink's own loader reads it (``MAVParmDict.load``)."""
     mavparm = pytest.importorskip("pymavlink.mavparm")
     path = tmp / "cal.param"
     path.write_text(result.text)
     p = mavparm.MAVParmDict()
     with contextlib.redirect_stdout(io.StringIO()):
         assert p.load(str(path))
+    return p
+
+
+def ardupilot(case: Case, result: ExportResult, tmp: Path) -> Consumed:
+    """ArduPilot (ArduPilot/ardupilot libraries/AP_InertialSensor/AP_InertialSensor_Backend.cpp,
+    ``_rotate_and_correct_accel``: ``accel -= offsets; accel *= scale`` per axis; AP_InertialSensor_tempcal.cpp,
+    ``TCal::correct_sensor``: ``v -= p(T - 35) - p(CALTEMP - 35)``, ``p(x) = (c1 + (c2 + c3 x) x) x · 1e-6``, T and
+    CALTEMP clamped to [TMIN, TMAX]).  The parameter file is read by pymavlink's own loader (``MAVParmDict.load``)."""
+    p = mavlink_params(result, tmp)
     k, z, _, _ = driver(case)
 
     def acc(raw: np.ndarray, temp: np.ndarray | None, t: np.ndarray | None) -> np.ndarray:
@@ -666,12 +672,7 @@ def judge_magnetometer(case: Case, fmt: str, result: ExportResult, tmp: Path) ->
     """
     cal, m = case.cal, case.acc
     if fmt == "ardupilot":
-        mavparm = pytest.importorskip("pymavlink.mavparm")
-        path = tmp / "mag.param"
-        path.write_text(result.text)
-        p = mavparm.MAVParmDict()
-        with contextlib.redirect_stdout(io.StringIO()):
-            assert p.load(str(path))
+        p = mavlink_params(result, tmp)
         ofs = np.array([p[f"COMPASS_OFS_{a}"] for a in "XYZ"])
         d, od = [p[f"COMPASS_DIA_{a}"] for a in "XYZ"], [p[f"COMPASS_ODI_{a}"] for a in "XYZ"]
         per_unit = MILLIGAUSS_PER_UNIT[cal.units]
