@@ -53,3 +53,22 @@ def test_readme_links_point_to_existing_files() -> None:
     assert local, "the README should link into the documentation"
     missing = [t for t in local if not (ROOT / t).exists()]
     assert not missing, f"README links to missing files: {missing}"
+
+
+def test_readme_python_quick_start_runs_and_equals_the_command_line(shared_data, tmp_path, monkeypatch) -> None:
+    """The README's Python block, run as written in a folder holding the Xsens log it names: the saved calibration is
+    the one the command line saves with the same flag (issue 40: the main job in five lines, shown and tested)."""
+    import json
+    import os
+
+    from optcal.cli.main import main
+
+    blocks = re.findall(r"```python\n(.*?)```", readme(), flags=re.S)
+    assert blocks, "the README has no Python quick start"
+    os.symlink(shared_data / "imutk-xsens" / "xsens_imutk.csv", tmp_path / "xsens_imutk.csv")
+    monkeypatch.chdir(tmp_path)
+    exec(compile(blocks[0], "README.md", "exec"), {})  # noqa: S102 - the README's own code
+    saved = json.loads((tmp_path / "c.json").read_text())
+    assert main(["calibrate", "xsens_imutk.csv", "--rate", "100", "-o", "cli.json"]) == 0
+    cli = json.loads((tmp_path / "cli.json").read_text())
+    assert saved["T"] == cli["T"] and saved["o"] == cli["o"]
