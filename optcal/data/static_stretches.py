@@ -114,7 +114,11 @@ MIN_MOVE_TURN_RAD: float = float(np.radians(5.0))
 #: the gyro's turn (a logger that stores only holds, columns that are not the moves' rates) and no scale is measured.
 MAX_UNEXPLAINED_TURN: float = 0.2
 #: The scales searched, rad/s per gyro unit, on a log grid: from a 24-bit converter at ±125 °/s (1.3e-7) to 1 rad/s.
-SCALE_GRID: NDArray[np.float64] = np.logspace(-7.5, 0.5, 161)
+SCALE_GRID: NDArray[np.float64] = np.logspace(-7.5, 0.5, 801)
+#: The grid's step, natural log (1 %: fine enough that a revolution's alias and the true scale are told apart).
+GRID_STEP_LOG: float = float(np.log(SCALE_GRID[1] / SCALE_GRID[0]))
+#: Local minima of the grid refined when a turn's aliases are sorted out.
+ALIAS_CANDIDATES: int = 8
 
 
 @dataclass(frozen=True)
@@ -156,8 +160,8 @@ def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scal
     return np.asarray(np.cos(phi) + (1.0 - np.cos(phi)) * along2)
 
 
-#: Golden-section steps refining the scale between the grid's second neighbours (a bracket of 1.12⁴ narrowed by 0.618
-#: per step: 1 % after 8, far finer than a unit's decision or a test's tolerance needs).
+#: Golden-section steps refining the scale between the grid's second neighbours (a bracket of 1.023⁴ narrowed by 0.618
+#: per step: 0.1 % after 8, far finer than a unit's decision or a test's tolerance needs).
 GOLDEN_STEPS: int = 8
 
 
@@ -233,13 +237,31 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
     # grid point's neighbours: a hand's axis changes within a move, which only the composition follows
     theta = increments.sum(axis=1)
     measured = np.sum(start * end, axis=1)
-    approximate = np.sum((_predicted_cosines(theta, start, SCALE_GRID) - measured) ** 2, axis=1)
+    def approximate(scales: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.sum((_predicted_cosines(theta, start, scales) - measured) ** 2, axis=1))
+
+    grid = approximate(SCALE_GRID)
     # a turn fits as well with whole revolutions added (a table's turns by multiples of 45° alias at larger scales):
-    # of the grid's local minima within twice the best cost, the smallest scale, the one without extra revolutions
-    interior = np.r_[True, approximate[1:] <= approximate[:-1]] & np.r_[approximate[:-1] <= approximate[1:], True]
-    good = np.flatnonzero(interior & (approximate <= 2.0 * float(approximate.min()) + 1e-12 * increments.shape[0]))
-    i = int(good[0]) if good.size else int(np.argmin(approximate))
-    lo, hi = np.log(SCALE_GRID[max(i - 2, 0)]), np.log(SCALE_GRID[min(i + 2, SCALE_GRID.size - 1)])
+    # each of the grid's lowest local minima refined, and of those within twice the best cost the smallest scale,
+    # the one without extra revolutions
+    interior = np.r_[True, grid[1:] <= grid[:-1]] & np.r_[grid[:-1] <= grid[1:], True]
+    candidates = np.flatnonzero(interior)
+    candidates = candidates[np.argsort(grid[candidates])[:ALIAS_CANDIDATES]]
+    refined = []
+    for c in candidates:
+        a, b = np.log(SCALE_GRID[max(c - 1, 0)]), np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)])
+        for _ in range(3 * GOLDEN_STEPS):
+            m1, m2 = a + 0.382 * (b - a), a + 0.618 * (b - a)
+            c1, c2 = approximate(np.exp(np.array([m1, m2])))
+            if c1 < c2:
+                b = m2
+            else:
+                a = m1
+        x = 0.5 * (a + b)
+        refined.append((float(approximate(np.exp(np.array([x])))[0]), x))
+    best_cost = min(r[0] for r in refined)
+    x = min(r[1] for r in refined if r[0] <= 2.0 * best_cost + 1e-9 * increments.shape[0])
+    lo, hi = x - 2.0 * GRID_STEP_LOG, x + 2.0 * GRID_STEP_LOG
     for _ in range(GOLDEN_STEPS):  # golden section on the log scale
         m1, m2 = lo + 0.382 * (hi - lo), lo + 0.618 * (hi - lo)
         c1, c2 = cost(np.exp(np.array([m1, m2])))
