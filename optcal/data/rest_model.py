@@ -345,6 +345,60 @@ def half_sample_mode(x: NDArray[np.float64]) -> float:
     return float(y.mean()) if y.size else float("nan")
 
 
+@dataclass(frozen=True)
+class SpanEstimates:
+    """The gyro bias estimated over spans of :data:`BIAS_SPAN_S` a quarter span apart (:func:`span_estimates`).
+
+    Attributes
+    ----------
+    whole : ndarray (3,)
+        The whole recording's estimate.
+    grid : ndarray (g,) or None
+        The spans' centres (None: a recording shorter than a span, or fewer than three rates).
+    local : ndarray (g, 3) or None
+        Each span's estimate (the whole recording's where a span holds fewer than three rates).
+    """
+
+    whole: NDArray[np.float64]
+    grid: NDArray[np.float64] | None
+    local: NDArray[np.float64] | None
+
+
+def span_estimates(t: NDArray[np.float64], rates: NDArray[np.float64],
+                   estimate: Callable[[NDArray[np.float64]], float] | None = None,
+                   step: float = BIAS_SPAN_S / 4.0) -> SpanEstimates:
+    """Per axis, ``estimate`` (the half-sample mode by default) of the ``rates`` (k, 3) at ``t`` (k,) over the whole
+    recording and within :data:`BIAS_SPAN_S` centred on points ``step`` apart (a quarter span by default)."""
+    estimate = estimate or half_sample_mode
+    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
+    if t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
+        return SpanEstimates(whole, None, None)
+    grid = np.arange(float(t[0]), float(t[-1]) + step, step)
+    lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
+    hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
+    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
+    return SpanEstimates(whole, grid, local)
+
+
+def follow_spans(spans: SpanEstimates, times: NDArray[np.float64], max_drift: float | None) -> NDArray[np.float64]:
+    """The bias at ``times`` from :func:`span_estimates`: followed from the span nearest the whole recording's
+    estimate with its change limited to ``max_drift`` per second, interpolated between the spans (constant, the
+    whole recording's, without ``max_drift`` or spans)."""
+    if max_drift is None or spans.grid is None or spans.local is None:
+        return np.broadcast_to(spans.whole, (times.size, 3)).copy()
+    grid, local = spans.grid, spans.local
+    limit = max_drift * (float(grid[1] - grid[0]) if grid.size > 1 else BIAS_SPAN_S)
+    track = np.empty_like(local)
+    for j in range(3):
+        anchor = int(np.argmin(np.abs(local[:, j] - spans.whole[j])))
+        track[anchor, j] = local[anchor, j]
+        for i in range(anchor + 1, grid.size):
+            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
+        for i in range(anchor - 1, -1, -1):
+            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
+    return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
+
+
 def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArray[np.float64],
                max_drift: float | None, estimate: Callable[[NDArray[np.float64]], float] | None = None
                ) -> NDArray[np.float64]:
@@ -356,26 +410,12 @@ def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArra
     interpolated linearly between the points: a warming gyro's bias drifts through a session, a turn that
     dominates a span does not move it.  Without ``max_drift`` (a gyro in counts: no rate is known), a recording
     shorter than a span, or fewer than three rates: the whole recording's estimate, constant.
+    (:func:`span_estimates`, then :func:`follow_spans`.)
     """
-    estimate = estimate or half_sample_mode
-    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
-    if max_drift is None or t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
+    if max_drift is None:
+        whole = np.array([(estimate or half_sample_mode)(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
         return np.broadcast_to(whole, (times.size, 3)).copy()
-    step = BIAS_SPAN_S / 4.0
-    grid = np.arange(float(t[0]), float(t[-1]) + step, step)
-    lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
-    hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
-    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
-    limit = max_drift * step
-    track = np.empty_like(local)
-    for j in range(3):
-        anchor = int(np.argmin(np.abs(local[:, j] - whole[j])))
-        track[anchor, j] = local[anchor, j]
-        for i in range(anchor + 1, grid.size):
-            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
-        for i in range(anchor - 1, -1, -1):
-            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
-    return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
+    return follow_spans(span_estimates(t, rates, estimate), times, max_drift)
 
 
 def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDArray[np.float64],
@@ -525,6 +565,9 @@ MIN_RESTS_PER_STEP: int = 2
 #: quarter of :data:`BIAS_SPAN_S` apart).  A level the gyro holds for less, among rests, cannot be told from a slow
 #: turn those rests took part in (cut into pieces by the accelerometer's steps), and a knock's step persists.
 MIN_STEP_HOLD_S: float = BIAS_SPAN_S / 4.0
+#: Split points a long segment's search tries first (then every point next to the best): the statistic changes
+#: smoothly with the split point on either side of a step.
+STEP_SEARCH_POINTS: int = 40
 #: Most bias steps looked for in one session (a knock each; the binary segmentation stops earlier when a step
 #: does not pay for its parameters).
 MAX_BIAS_STEPS: int = 8
@@ -612,13 +655,25 @@ def _levels(r: NDArray[np.float64], cuts: list[int]) -> NDArray[np.float64]:
     return np.array([np.median(r[a:z], axis=0) for a, z in zip(edges[:-1], edges[1:])])
 
 
+def _split_statistic(r: NDArray[np.float64], noise2: NDArray[np.float64], a: int, k: int, z: int) -> float:
+    """χ² of the difference of the medians of ``r[a:k]`` and ``r[k:z]`` over their robust variances (of a median)."""
+    left, right = r[a:k], r[k:z]
+    d = np.median(left, axis=0) - np.median(right, axis=0)
+    v = np.zeros(3)
+    for side in (left, right):
+        spread = (1.4826 * np.median(np.abs(side - np.median(side, axis=0)), axis=0)) ** 2
+        v += (np.pi / 2.0) * np.maximum(spread, noise2) / side.shape[0]  # variance of a median
+    return float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
+
+
 def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.float64]) -> list[int]:
     """Indices where the rests' residual rates ``r`` (k, 3; time order) step, by binary segmentation.
 
     A split of a segment is kept when its two sides' medians differ by more than their noise can (χ²₃ of the
     difference over the sides' robust variances of their medians, at the Bonferroni share of 1 % over the possible
-    split points), each side holding at least :data:`MIN_RESTS_PER_STEP` rests: a persistent change, which one rest
-    that turned cannot make.  Each side spans at least :data:`MIN_STEP_HOLD_S`.
+    split points), each side holding at least :data:`MIN_RESTS_PER_STEP` rests (a persistent change, which one rest
+    that turned cannot make) and spanning at least :data:`MIN_STEP_HOLD_S`.  A long segment's splits are tried on
+    :data:`STEP_SEARCH_POINTS` points first, then at every point next to the best.
     """
     out: list[int] = []
     queue = [(0, r.shape[0])]
@@ -626,21 +681,18 @@ def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.fl
         a, z = queue.pop()
         if z - a < 2 * MIN_RESTS_PER_STEP:
             continue
-        best, best_stat = -1, 0.0
-        for k in range(a + MIN_RESTS_PER_STEP, z - MIN_RESTS_PER_STEP + 1):
-            if t[k - 1] - t[a] < MIN_STEP_HOLD_S or t[z - 1] - t[k] < MIN_STEP_HOLD_S:
-                continue
-            left, right = r[a:k], r[k:z]
-            d = np.median(left, axis=0) - np.median(right, axis=0)
-            v = np.zeros(3)
-            for side in (left, right):
-                spread = (1.4826 * np.median(np.abs(side - np.median(side, axis=0)), axis=0)) ** 2
-                v += (np.pi / 2.0) * np.maximum(spread, noise2) / side.shape[0]  # variance of a median
-            stat = float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
-            if stat > best_stat:
-                best, best_stat = k, stat
+        ks = np.arange(a + MIN_RESTS_PER_STEP, z - MIN_RESTS_PER_STEP + 1)
+        ks = ks[(t[ks - 1] - t[a] >= MIN_STEP_HOLD_S) & (t[z - 1] - t[ks] >= MIN_STEP_HOLD_S)]
+        if not ks.size:
+            continue
+        stride = max(1, ks.size // STEP_SEARCH_POINTS)
+        coarse = {int(k): _split_statistic(r, noise2, a, int(k), z) for k in ks[::stride]}
+        centre = max(coarse, key=lambda k: coarse[k])
+        near = ks[(ks > centre - stride) & (ks < centre + stride)]
+        stats = {**coarse, **{int(k): _split_statistic(r, noise2, a, int(k), z) for k in near if int(k) not in coarse}}
+        best = max(stats, key=lambda k: stats[k])
         points = max(z - a - 2 * MIN_RESTS_PER_STEP + 1, 1)
-        if best > 0 and best_stat > chi2_limit(0.01 / points, 3):
+        if stats[best] > chi2_limit(0.01 / points, 3):
             out.append(best)
             queue += [(a, best), (best, z)]
     return _persistent(t, r, noise2, sorted(out))

@@ -96,6 +96,7 @@ class RestModel:
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
         self._pooled: dict[tuple[bool, int, int], NDArray[np.float64]] = {}
+        self._spans: rm.SpanEstimates | None = None
         self._pass(first=True)
         self.t, self.gyro = t, gyro
         self.scale_evidence = self._scale_from_moves()
@@ -104,7 +105,7 @@ class RestModel:
         if gyro is None:
             self.gyro_unit_reason = ""
         elif self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT:
-            self._pass(first=True)  # again, with the scale measured: the bias' drift limit and the turns' relevance
+            self._pass(first=True)  # again, with the scale measured: the bias track's drift limit
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
@@ -124,7 +125,9 @@ class RestModel:
         acc_still = self._acc_still()
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
-            self.track = rm.bias_track(b.t_mid[base], b.gmean[base], b.t_mid, self._max_drift())
+            if self._spans is None:  # the spans' estimates are the same whatever the drift limit: measured once
+                self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base])
+            self.track = rm.follow_spans(self._spans, b.t_mid, self._max_drift())
             self.bias = np.median(self.track, axis=0)
             self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
             gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
@@ -228,14 +231,15 @@ class RestModel:
         self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2), limit)
         modelled = model.at(at, direction)
         # what the model leaves (a thermal drift) followed over the session, each span's median
-        drift = rm.bias_track(at, rest_means - modelled, b.t_mid, self._max_drift(), estimate=lambda x: float(np.median(x)))
+        # (on spans a whole span apart: a package warms over minutes)
+        drift = rm.follow_spans(rm.span_estimates(at, rest_means - modelled, lambda x: float(np.median(x)), rm.BIAS_SPAN_S),
+                                b.t_mid, self._max_drift())
         self.track = model.at(b.t_mid, self.directions()) + drift
         self.bias = np.median(rest_means, axis=0)
         if len(means) >= 3:
             # about the model and its drift at each rest: the bias wanders about them (a random walk) by as much as
             # the rests' means scatter
-            dev = rest_means - modelled - rm.bias_track(at, rest_means - modelled, at, self._max_drift(),
-                                                         estimate=lambda x: float(np.median(x)))
+            dev = rest_means - modelled - np.column_stack([np.interp(at, b.t_mid, drift[:, j]) for j in range(3)])
             robust2 = (1.4826 * np.median(np.abs(dev - np.median(dev, axis=0)), axis=0)) ** 2
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
             if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
@@ -256,15 +260,18 @@ class RestModel:
         scale = self._scale()
         if scale is None or rows.size < 3 or b.gmean is None or self.bias is None:
             return False
+        w = b.n[rows, None]
+        omega = ((b.gmean[rows] * w).sum(axis=0) / w.sum() - self.bias) * scale
         t = b.t_mid[rows] - b.t_mid[rows].mean()
+        duration = float(t[-1] - t[0]) + float(b.n[rows[-1]]) / self.rate
+        if not bool(rm.turn_is_relevant(np.array([np.linalg.norm(omega)]), duration, 1.0)[0]):
+            return False  # the gyro says it turns through less than a pose's tolerance: its rest tells the bias
         sxx = float(np.sum(t * t))
         if sxx <= 0:
             return False
-        w = b.n[rows, None]
         a = (b.mean[rows] * w).sum(axis=0) / w.sum() - self.acc_zero
         slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
         se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np.median(b.n[rows])) + self.floor) / sxx)
-        omega = ((b.gmean[rows] * w).sum(axis=0) / w.sum() - self.bias) * scale
         predicted = -np.cross(omega, a)
         tiny = np.finfo(float).tiny
         moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)

@@ -106,6 +106,9 @@ def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: ND
 #: Fewest moves (between rests, turning the accelerometer's gravity by at least :data:`MIN_MOVE_TURN_RAD`) on which
 #: the gyro's scale is measured: a scale from one or two moves rests on their axes being across gravity.
 MIN_SCALE_MOVES: int = 3
+#: Most moves the scale is measured on (spread over the session): each move's misfit is a few tenths of a degree
+#: of tens of degrees, so 32 of them measure the scale far finer than any unit's decision or test needs.
+MAX_SCALE_MOVES: int = 32
 #: Least turn of gravity's direction, rad (5°), a move needs to weigh in the gyro's scale: far above the direction
 #: noise of two rests' means, and the gyro's bias integrated over a move of a few seconds.
 MIN_MOVE_TURN_RAD: float = float(np.radians(5.0))
@@ -161,8 +164,8 @@ def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scal
 
 
 #: Golden-section steps refining the scale between the grid's second neighbours (a bracket of 1.023⁴ narrowed by 0.618
-#: per step: 0.1 % after 8, far finer than a unit's decision or a test's tolerance needs).
-GOLDEN_STEPS: int = 8
+#: per step: 0.5 % after 6, far finer than a unit's decision or a test's tolerance needs).
+GOLDEN_STEPS: int = 6
 
 
 def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
@@ -226,6 +229,8 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
             and np.arccos(np.clip(np.dot(d0, d1), -1.0, 1.0)) >= MIN_MOVE_TURN_RAD]
     if len(keep) < MIN_SCALE_MOVES:
         return None
+    if len(keep) > MAX_SCALE_MOVES:  # spread over the session: enough moves to measure a scale to a fraction of 1 %
+        keep = [keep[i] for i in np.linspace(0, len(keep) - 1, MAX_SCALE_MOVES).round().astype(int)]
     increments = _move_increments(t, gyro, bias, [spans[i] for i in keep])
     start, end = before[keep], after[keep]
 
@@ -248,7 +253,7 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
     candidates = np.flatnonzero(interior)
     candidates = candidates[np.argsort(grid[candidates])[:ALIAS_CANDIDATES]]
     refined = []
-    for c in candidates:
+    for c in candidates.tolist():
         a, b = np.log(SCALE_GRID[max(c - 1, 0)]), np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)])
         for _ in range(3 * GOLDEN_STEPS):
             m1, m2 = a + 0.382 * (b - a), a + 0.618 * (b - a)
@@ -298,22 +303,26 @@ def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: floa
     if m < 3:
         return 0.0
     total, noise, count = 0.0, 0.0, 0
-    for a in range(0, m, window):
-        w = gyro[a:a + window] * rad_per_unit
-        if w.shape[0] < 3:
-            continue
+    full = (m // window) * window if m >= window else 0
+    pieces = [(0, full, window)] if full else []
+    if m - full >= 3:
+        pieces.append((full, m, m - full))
+    for a, z, size in pieces:  # the whole windows at once, then the rest
+        k = (z - a) // size
+        w = (gyro[a:z] * rad_per_unit).reshape(k, size, 3)
+        tt = t[a:z].reshape(k, size)
         # the gyro's own white noise, from its sample-to-sample differences (var(Δω) = 2σ² for white noise; a
         # tremor of a few hertz hardly changes from one sample to the next): integrated, a random walk whose
         # mean square about its mean over a window of T, the mean rate removed (a Brownian bridge), is σ² dt T / 12
-        white = float(np.sum(np.var(np.diff(w, axis=0), axis=0))) / 2.0
-        w = w - w.mean(axis=0)
-        dt = np.diff(t[a:a + window])[:, None]
-        angle = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (w[1:] + w[:-1]) * dt, axis=0)])
-        angle -= angle.mean(axis=0)
+        white = np.sum(np.var(np.diff(w, axis=1), axis=1), axis=1) / 2.0
+        w = w - w.mean(axis=1, keepdims=True)
+        dt = np.diff(tt, axis=1)[..., None]
+        angle = np.concatenate([np.zeros((k, 1, 3)), np.cumsum(0.5 * (w[:, 1:] + w[:, :-1]) * dt, axis=1)], axis=1)
+        angle -= angle.mean(axis=1, keepdims=True)
         total += float(np.sum(angle * angle))
-        span = float(t[min(a + window, m) - 1] - t[a])
-        noise += w.shape[0] * white * float(np.mean(dt)) * span / 12.0
-        count += w.shape[0]
+        span = tt[:, -1] - tt[:, 0]
+        noise += float(np.sum(size * white * dt[..., 0].mean(axis=1) * span / 12.0))
+        count += k * size
     if noise > RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * max(count, 1):
         return 0.0  # the gyro's own random walk is not below the tolerance: it cannot tell a wobble (the accelerometer's tests do)
     return float(np.sqrt(max(total - noise, 0.0) / max(count, 1)))
