@@ -26,8 +26,6 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
 @click.option("--scale-range", nargs=2, type=click.FloatRange(min=0, min_open=True), default=None, metavar="LOW HIGH",
               help="Known range of the scale factors (raw units per g), a bound in the mle fit.")
 @click.option("--imu", is_flag=True, help="Calibrate the gyroscope too, from the moves between the poses (Tedaldi 2014): cal_type imu.")
-@click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
-              help="--imu: units of the gyro columns (default: from the column names or file, else from the data).")
 @click.option("--joint", is_flag=True, help="--imu: re-estimate the accelerometer jointly with the gyro.")
 @click.option("--g-sensitivity", is_flag=True, help="--imu: model the gyro's g-sensitivity.")
 @click.option("--accept-gyro-fit", is_flag=True,
@@ -48,7 +46,7 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
 @solver_options
 @data_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
-              loss: str, scale_range: tuple[float, float] | None, imu: bool, gyro_units: str | None,
+              loss: str, scale_range: tuple[float, float] | None, imu: bool,
               joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, sections: str | None, turn_angle: float | None,
               sensor: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
               report_path: str | None, tolerance: float, **data_opts: Any) -> None:
@@ -60,6 +58,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     from optcal.errors import IdentifiabilityError, InputError
 
     solver_opts = pop_solver_options(data_opts)
+    gyro_units: str | None = data_opts.get("gyro_units")
     from optcal.cli.cmd_mag import calibrate_mag_command, mag_options_used
 
     if sensor == "mag":
@@ -83,8 +82,8 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         calibrate_ferraris(data, sections, turn_angle, gyro_units, as_json, output, data_opts)
         return
     fit_settings = estimator_settings(method, **solver_opts)
-    if not imu and (gyro_units or joint or g_sensitivity):
-        raise InputError("--gyro-units, --joint and --g-sensitivity apply with --imu only")
+    if not imu and (joint or g_sensitivity):
+        raise InputError("--joint and --g-sensitivity apply with --imu only")
     if not imu and accept_gyro_fit:
         raise InputError("--accept-gyro-fit applies with --imu only")
     if imu:

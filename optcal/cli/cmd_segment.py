@@ -92,6 +92,7 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
         f"{s.false_alarm:g} (steps ×{s.threshold:g}, drift ×{s.drift_threshold:g}"
         + (f", gyro ×{s.gyro_threshold:g})" if rec.gyro is not None and s.use_gyro else "; no gyro evidence)")
         + f", minimum dwell {s.min_dwell_s:g} s, {_independent(s, rec.gyro is not None)}, trim {s.trim_s:g} s",
+        *([f"gyro: {seg.gyro_unit}"] if seg.gyro_unit else []),
         "noise measured: " + "; ".join(f"{k} {v:.4g}{_noise_unit(k, rec)}" for k, v in seg.noise_floor.items()),
         "critical values: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.thresholds.items()),
         "",

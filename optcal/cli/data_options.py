@@ -38,7 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
-    "min_independent",
+    "min_independent", "gyro_units",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -69,6 +69,9 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     *_READ_OPTIONS,
     click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
                  help="Read DATA as a pose table (one row per static pose) or a raw recording (a time series); auto decides and says why."),
+    click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
+                 help="Units of the gyro columns (default: from the column names or file, else measured on the moves: "
+                      "the rate integral across each move against the accelerometer's turn; the decision is printed)."),
     click.option("--static-window", type=_POSITIVE, default=None, metavar="S",
                  help="Rest detection: block length, seconds [0.25]."),
     click.option("--static-threshold", type=_POSITIVE, default=None, metavar="K",

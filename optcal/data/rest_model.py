@@ -26,7 +26,11 @@ noisy as the others: every test compares a change with the noise measured where 
   − 1)``.  The bias is the half-sample mode of the block means the accelerometer calls still
   (:func:`half_sample_mode`), then the median of the rests' own means, each over a minute
   (:func:`bias_track`: a warming gyro's bias drifts, no faster than :data:`MAX_BIAS_DRIFT_RAD_S2`), the
-  wander the scatter of the rests' means about it beyond their noise.
+  wander the scatter of the rests' means about it beyond their noise.  In the second pass the bias is a real
+  gyro's (:func:`fit_bias_model`): ``b₀ + G f̂`` (g-sensitivity) with steps after knocks, fitted robustly to the
+  rests' mean rates, the rests whose accelerometer turns as their gyro says left out; a block or stretch whose
+  rate is off it significantly but turns the sensor through less than a pose's tolerance over the time it is
+  judged on is still (:func:`turn_is_relevant`).
 * **Drift** (:func:`trend_statistic`): a stretch whose mean creeps (a slow turn, seen or not by
   a gyro) is found by the t statistic of the slope of its batch means against their own scatter
   (scale-free, coloured noise included), against Student's ``t`` at ``false_alarm`` (Bonferroni over
@@ -79,6 +83,18 @@ MAX_BIAS_DRIFT_RAD_S2: float = float(np.radians(1.0) / 60.0)
 #: Quantile of the block-to-block rates at which the gyro's readings are set against the accelerometer's turn rate:
 #: the fast moves, where a gyro's bias is small beside the rate.
 UNIT_RATE_QUANTILE: float = 0.9
+
+def turn_is_relevant(rate_rad_s: NDArray[np.float64], duration_s: NDArray[np.float64] | float,
+                     multiplier: float = 1.0) -> NDArray[np.bool_]:
+    """Whether a turn at ``rate_rad_s`` held for ``duration_s`` moves a pose beyond its wobble tolerance.
+
+    A rest may hold its orientation within ``√(2 WOBBLE_SHRINK)`` rad (:data:`WOBBLE_SHRINK`: the shrink of the
+    pose mean's norm, 0.1 mg, that the calibrations here are judged at); a rate that turns the sensor through less
+    over the time it is judged on moves no pose, however significant it is: a real gyro's bias (g-sensitivity, a
+    step after a knock, the Earth's rate) differs from rest to rest by that much and more.
+    """
+    return np.asarray(np.asarray(rate_rad_s) * duration_s > np.sqrt(2.0 * WOBBLE_SHRINK) * multiplier)
+
 
 #: Units in the last place, per summed sample, allowed for the rounding of a block's sums.
 ROUNDING_ULPS: float = 8.0
@@ -329,6 +345,60 @@ def half_sample_mode(x: NDArray[np.float64]) -> float:
     return float(y.mean()) if y.size else float("nan")
 
 
+@dataclass(frozen=True)
+class SpanEstimates:
+    """The gyro bias estimated over spans of :data:`BIAS_SPAN_S` a quarter span apart (:func:`span_estimates`).
+
+    Attributes
+    ----------
+    whole : ndarray (3,)
+        The whole recording's estimate.
+    grid : ndarray (g,) or None
+        The spans' centres (None: a recording shorter than a span, or fewer than three rates).
+    local : ndarray (g, 3) or None
+        Each span's estimate (the whole recording's where a span holds fewer than three rates).
+    """
+
+    whole: NDArray[np.float64]
+    grid: NDArray[np.float64] | None
+    local: NDArray[np.float64] | None
+
+
+def span_estimates(t: NDArray[np.float64], rates: NDArray[np.float64],
+                   estimate: Callable[[NDArray[np.float64]], float] | None = None,
+                   step: float = BIAS_SPAN_S / 4.0) -> SpanEstimates:
+    """Per axis, ``estimate`` (the half-sample mode by default) of the ``rates`` (k, 3) at ``t`` (k,) over the whole
+    recording and within :data:`BIAS_SPAN_S` centred on points ``step`` apart (a quarter span by default)."""
+    estimate = estimate or half_sample_mode
+    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
+    if t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
+        return SpanEstimates(whole, None, None)
+    grid = np.arange(float(t[0]), float(t[-1]) + step, step)
+    lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
+    hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
+    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
+    return SpanEstimates(whole, grid, local)
+
+
+def follow_spans(spans: SpanEstimates, times: NDArray[np.float64], max_drift: float | None) -> NDArray[np.float64]:
+    """The bias at ``times`` from :func:`span_estimates`: followed from the span nearest the whole recording's
+    estimate with its change limited to ``max_drift`` per second, interpolated between the spans (constant, the
+    whole recording's, without ``max_drift`` or spans)."""
+    if max_drift is None or spans.grid is None or spans.local is None:
+        return np.broadcast_to(spans.whole, (times.size, 3)).copy()
+    grid, local = spans.grid, spans.local
+    limit = max_drift * (float(grid[1] - grid[0]) if grid.size > 1 else BIAS_SPAN_S)
+    track = np.empty_like(local)
+    for j in range(3):
+        anchor = int(np.argmin(np.abs(local[:, j] - spans.whole[j])))
+        track[anchor, j] = local[anchor, j]
+        for i in range(anchor + 1, grid.size):
+            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
+        for i in range(anchor - 1, -1, -1):
+            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
+    return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
+
+
 def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArray[np.float64],
                max_drift: float | None, estimate: Callable[[NDArray[np.float64]], float] | None = None
                ) -> NDArray[np.float64]:
@@ -340,26 +410,12 @@ def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArra
     interpolated linearly between the points: a warming gyro's bias drifts through a session, a turn that
     dominates a span does not move it.  Without ``max_drift`` (a gyro in counts: no rate is known), a recording
     shorter than a span, or fewer than three rates: the whole recording's estimate, constant.
+    (:func:`span_estimates`, then :func:`follow_spans`.)
     """
-    estimate = estimate or half_sample_mode
-    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
-    if max_drift is None or t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
+    if max_drift is None:
+        whole = np.array([(estimate or half_sample_mode)(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
         return np.broadcast_to(whole, (times.size, 3)).copy()
-    step = BIAS_SPAN_S / 4.0
-    grid = np.arange(float(t[0]), float(t[-1]) + step, step)
-    lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
-    hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
-    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
-    limit = max_drift * step
-    track = np.empty_like(local)
-    for j in range(3):
-        anchor = int(np.argmin(np.abs(local[:, j] - whole[j])))
-        track[anchor, j] = local[anchor, j]
-        for i in range(anchor + 1, grid.size):
-            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
-        for i in range(anchor - 1, -1, -1):
-            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
-    return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
+    return follow_spans(span_estimates(t, rates, estimate), times, max_drift)
 
 
 def gyro_statistic(gmean: NDArray[np.float64], gvar: NDArray[np.float64], n: NDArray[np.float64],
@@ -496,3 +552,227 @@ def mean_shift_statistic(block_mean: NDArray[np.float64], block_var: NDArray[np.
     d = block_mean - rest_mean
     scale = kappa2 * (block_var * (1.0 / n_block + 1.0 / max(n_rest, 1.0)) + 2.0 * np.asarray(floor))
     return float((d * d / np.maximum(scale, np.finfo(float).tiny)).sum())
+
+
+# ----------------------------------------------------------------------------- the gyro's bias as a real gyro's
+#: Fewest rests on which the gyro's g-sensitivity is fitted (4 coefficients per axis: the bias and the three
+#: terms of its row of ``G``, with as many rests again to judge them by).
+MIN_RESTS_G_SENSITIVITY: int = 8
+#: Fewest rests a bias step holds for: one rest off the others is a turn or a knock of its own, two or more that
+#: agree after a move are the bias that stepped.
+MIN_RESTS_PER_STEP: int = 2
+#: Least time, s, the rests on either side of a bias step span: the bias track's resolution (its points lie a
+#: quarter of :data:`BIAS_SPAN_S` apart).  A level the gyro holds for less, among rests, cannot be told from a slow
+#: turn those rests took part in (cut into pieces by the accelerometer's steps), and a knock's step persists.
+MIN_STEP_HOLD_S: float = BIAS_SPAN_S / 4.0
+#: Split points a long segment's search tries first (then every point next to the best): the statistic changes
+#: smoothly with the split point on either side of a step.
+STEP_SEARCH_POINTS: int = 40
+#: Most bias steps looked for in one session (a knock each; the binary segmentation stops earlier when a step
+#: does not pay for its parameters).
+MAX_BIAS_STEPS: int = 8
+#: Largest g-sensitivity term a MEMS gyro has, rad/s per g (0.5 °/s/g: 2.5 times the worst datasheet figure,
+#: 0.2 °/s/g).  A row of ``G`` fitted beyond it is not the gyro's: a turn about gravity, ``ω = ψ̇ f̂``, reads as
+#: ``G = ψ̇ I`` in the rests it happens in, and it is a turn.
+MAX_G_SENSITIVITY_RAD_S_PER_G: float = float(np.radians(0.5))
+#: Tukey's biweight constant (95 % efficiency at the normal): the rests whose mean rate is this many robust
+#: standard deviations off the model weigh nothing in the fit (a slow turn the accelerometer did not see).
+BIWEIGHT_C: float = 4.685
+
+
+@dataclass(frozen=True)
+class BiasModel:
+    """A real gyro's bias at rest (Tedaldi et al. 2014 §III; datasheets' g-sensitivity): ``b(t, f) = b₀ + G f̂ +
+    s(t)``, fitted to the rests' mean rates.
+
+    Attributes
+    ----------
+    b0 : ndarray (3,)
+        The bias, gyro units.
+    g_sensitivity : ndarray (3, 3)
+        ``G``: the rate error per unit specific force direction (gyro units per g; zero where the rests do not
+        pay for it by the Bayesian information criterion).
+    step_times : ndarray (k,)
+        Where the bias steps (between two rests: the knock is in the move).
+    step_levels : ndarray (k + 1, 3)
+        The bias' offset from ``b₀`` between the steps.
+    residual_scatter : ndarray (3,)
+        Robust standard deviation of the rests' mean rates about the model.
+    """
+
+    b0: NDArray[np.float64]
+    g_sensitivity: NDArray[np.float64]
+    step_times: NDArray[np.float64]
+    step_levels: NDArray[np.float64]
+    residual_scatter: NDArray[np.float64]
+
+    def at(self, t: NDArray[np.float64], direction: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The bias at times ``t`` (m,) with the specific force's unit ``direction`` (m, 3) (gyro units)."""
+        level = self.step_levels[_segment_of(t, self.step_times)]
+        return np.asarray(self.b0 + direction @ self.g_sensitivity.T + level)
+
+
+def _biweight_fit(x: NDArray[np.float64], y: NDArray[np.float64], iterations: int = 20) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Tukey-biweight regression of each column of ``y`` (n, 3) on ``x`` (n, p): coefficients (p, 3), weights (n, 3)."""
+    coef = np.linalg.lstsq(x, y, rcond=None)[0]
+    w = np.ones_like(y)
+    for _ in range(iterations):
+        r = y - x @ coef
+        scale = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+        scale = np.maximum(scale, np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
+        u = r / (BIWEIGHT_C * scale)
+        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        new = np.empty_like(coef)
+        for j in range(y.shape[1]):
+            sw = np.sqrt(w[:, j])
+            if np.count_nonzero(sw) < x.shape[1]:
+                new[:, j] = coef[:, j]
+                continue
+            new[:, j] = np.linalg.lstsq(x * sw[:, None], y[:, j] * sw, rcond=None)[0]
+        if np.allclose(new, coef, rtol=1e-9, atol=0.0):
+            coef = new
+            break
+        coef = new
+    return np.asarray(coef, dtype=float), np.asarray(w, dtype=float)
+
+
+def _robust_ss(r: NDArray[np.float64]) -> float:
+    """A robust sum of squares of ``r`` (k, m) about its median: ``k`` times the squared MAD-σ, summed over the columns."""
+    if r.shape[0] == 0:
+        return 0.0
+    d = r - np.median(r, axis=0)
+    return float(r.shape[0] * np.sum((1.4826 * np.median(np.abs(d), axis=0)) ** 2))
+
+
+def _segment_of(t: NDArray[np.float64], cut_times: NDArray[np.float64]) -> NDArray[np.intp]:
+    """The segment between bias steps (at ``cut_times``) of each time ``t``."""
+    return np.asarray(np.searchsorted(cut_times, t, side="right"), dtype=np.intp)
+
+
+def _levels(r: NDArray[np.float64], cuts: list[int]) -> NDArray[np.float64]:
+    """The median of ``r`` (k, 3) over each segment between the ``cuts`` (indices) (segments, 3)."""
+    edges = [0, *cuts, r.shape[0]]
+    return np.array([np.median(r[a:z], axis=0) for a, z in zip(edges[:-1], edges[1:])])
+
+
+def _split_statistic(r: NDArray[np.float64], noise2: NDArray[np.float64], a: int, k: int, z: int) -> float:
+    """χ² of the difference of the medians of ``r[a:k]`` and ``r[k:z]`` over their robust variances (of a median)."""
+    left, right = r[a:k], r[k:z]
+    d = np.median(left, axis=0) - np.median(right, axis=0)
+    v = np.zeros(3)
+    for side in (left, right):
+        spread = (1.4826 * np.median(np.abs(side - np.median(side, axis=0)), axis=0)) ** 2
+        v += (np.pi / 2.0) * np.maximum(spread, noise2) / side.shape[0]  # variance of a median
+    return float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
+
+
+def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.float64]) -> list[int]:
+    """Indices where the rests' residual rates ``r`` (k, 3; time order) step, by binary segmentation.
+
+    A split of a segment is kept when its two sides' medians differ by more than their noise can (χ²₃ of the
+    difference over the sides' robust variances of their medians, at the Bonferroni share of 1 % over the possible
+    split points), each side holding at least :data:`MIN_RESTS_PER_STEP` rests (a persistent change, which one rest
+    that turned cannot make) and spanning at least :data:`MIN_STEP_HOLD_S`.  A long segment's splits are tried on
+    :data:`STEP_SEARCH_POINTS` points first, then at every point next to the best.
+    """
+    out: list[int] = []
+    queue = [(0, r.shape[0])]
+    while queue and len(out) < MAX_BIAS_STEPS:
+        a, z = queue.pop()
+        if z - a < 2 * MIN_RESTS_PER_STEP:
+            continue
+        ks = np.arange(a + MIN_RESTS_PER_STEP, z - MIN_RESTS_PER_STEP + 1)
+        ks = ks[(t[ks - 1] - t[a] >= MIN_STEP_HOLD_S) & (t[z - 1] - t[ks] >= MIN_STEP_HOLD_S)]
+        if not ks.size:
+            continue
+        stride = max(1, ks.size // STEP_SEARCH_POINTS)
+        coarse = {int(k): _split_statistic(r, noise2, a, int(k), z) for k in ks[::stride]}
+        centre = max(coarse, key=lambda k: coarse[k])
+        near = ks[(ks > centre - stride) & (ks < centre + stride)]
+        stats = {**coarse, **{int(k): _split_statistic(r, noise2, a, int(k), z) for k in near if int(k) not in coarse}}
+        best = max(stats, key=lambda k: stats[k])
+        points = max(z - a - 2 * MIN_RESTS_PER_STEP + 1, 1)
+        if stats[best] > chi2_limit(0.01 / points, 3):
+            out.append(best)
+            queue += [(a, best), (best, z)]
+    return _persistent(t, r, noise2, sorted(out))
+
+
+def _persistent(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.float64], cuts: list[int]) -> list[int]:
+    """The ``cuts`` less the pairs whose bias comes back within :data:`BIAS_SPAN_S`: a knock's step persists, and a
+    level that returns to the one before it within a span is a turn the rests between took part in (a slow turn cut
+    into pieces by the accelerometer's steps), not the bias."""
+    out = list(cuts)
+    changed = True
+    while changed and len(out) >= 2:
+        changed = False
+        edges = [0, *out, r.shape[0]]
+        for i in range(len(out) - 1):
+            before, after = r[edges[i]:edges[i + 1]], r[edges[i + 2]:edges[i + 3]]
+            if t[edges[i + 2]] - t[edges[i + 1]] >= BIAS_SPAN_S:
+                continue
+            d = np.median(before, axis=0) - np.median(after, axis=0)
+            v = sum((np.pi / 2.0) * np.maximum((1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)) ** 2, noise2)
+                    / x.shape[0] for x in (before, after))
+            if float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny))) <= chi2_limit(0.01, 3):
+                del out[i:i + 2]
+                changed = True
+                break
+    return out
+
+
+def fit_bias_model(t: NDArray[np.float64], direction: NDArray[np.float64], rates: NDArray[np.float64],
+                   noise2: NDArray[np.float64], g_limit: float | None = None) -> BiasModel:
+    """Fit :class:`BiasModel` to the rests' mean ``rates`` (k, 3) at times ``t`` (k,) with their specific force's
+    unit ``direction`` (k, 3) and each mean's noise variance ``noise2`` (k, 3).
+
+    The bias steps first (:func:`_steps`, on the rates less their median), then ``b₀`` and ``G`` by Tukey's biweight
+    on the rates less the steps; ``G`` is kept when the Bayesian information criterion of the robust residuals
+    prefers it (its three terms per axis must explain more of the rests' scatter than ``3 ln k`` pays for) and the
+    directions span the sphere (the smallest singular value of the centred directions above a tenth: otherwise a
+    rest set about one axis, whose ``G`` is not determined), and no term of its row exceeds ``g_limit`` (gyro units
+    per g: :data:`MAX_G_SENSITIVITY_RAD_S_PER_G` in the gyro's unit; without it, a gyro whose unit is unknown, no
+    ``G`` is fitted).  Without :data:`MIN_RESTS_G_SENSITIVITY` rests: the
+    median and the steps only.
+    """
+    k = rates.shape[0]
+    zero = np.zeros(3)
+    if k == 0:
+        return BiasModel(zero, np.zeros((3, 3)), np.zeros(0), np.zeros((1, 3)), zero)
+    order = np.argsort(t)
+    t, direction, rates, noise2 = t[order], direction[order], rates[order], noise2[order]
+    floor = np.median(noise2, axis=0)
+
+    cuts = _steps(t, rates - np.median(rates, axis=0), floor)
+    ones = np.ones((k, 1))
+    g = np.zeros((3, 3))
+    b0 = np.zeros(3)
+    for _ in range(3):  # the steps, and b₀ and G, each on the rates less the other
+        cut_times = np.array([0.5 * (t[c - 1] + t[c]) for c in cuts])
+        levels = _levels(rates - direction @ g.T, cuts)
+        y = rates - (levels - levels[0])[_segment_of(t, cut_times)]
+        b0 = _biweight_fit(ones, y)[0][0]
+        g = np.zeros((3, 3))
+        if k >= MIN_RESTS_G_SENSITIVITY and g_limit is not None:
+            centred = direction - direction.mean(axis=0)
+            if np.linalg.svd(centred / np.sqrt(k), compute_uv=False)[-1] > 0.1:
+                x = np.column_stack([ones, direction])
+                coef = _biweight_fit(x, y)[0]
+                ss0 = np.array([_robust_ss((y - b0)[:, [j]]) for j in range(3)])
+                ss1 = np.array([_robust_ss((y - x @ coef)[:, [j]]) for j in range(3)])
+                tiny = np.finfo(float).tiny
+                bic0 = k * np.log(np.maximum(ss0 / k + floor, tiny))
+                bic1 = k * np.log(np.maximum(ss1 / k + floor, tiny)) + 3.0 * np.log(k)
+                keep = (bic1 < bic0) & np.all(np.abs(coef[1:]) <= g_limit, axis=0)
+                g = np.where(keep[:, None], coef[1:].T, 0.0)
+                b0 = np.where(keep, coef[0], b0)
+        new_cuts = _steps(t, rates - direction @ g.T - b0, floor)
+        if new_cuts == cuts:
+            break
+        cuts = new_cuts
+    cut_times = np.array([0.5 * (t[c - 1] + t[c]) for c in cuts])
+    levels = _levels(rates - direction @ g.T - b0, cuts)
+    model = BiasModel(np.asarray(b0, float), g, cut_times, levels, zero)
+    resid = rates - model.at(t, direction)
+    scatter = 1.4826 * np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
+    return BiasModel(model.b0, g, cut_times, levels, scatter)

@@ -19,12 +19,18 @@ from optcal.data import rest_model as rm
 from optcal.data.quantiles import column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
-from optcal.data.static_stretches import gyro_rad_per_unit, true_runs
+from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
 from optcal.data.units import nominal_conversion
 from optcal.data.quantisation import quantum
 
 if TYPE_CHECKING:
     from optcal.data.static import StaticSettings
+
+
+#: Standard errors (rms over the axes) within which the accelerometer's rate of change over a stretch agrees with
+#: the turn its gyro predicts (:meth:`RestModel._turns_by_both`): a turn's prediction is off by the gyro's bias
+#: error too, so agreement is looser than the test of the accelerometer's own motion.
+TURN_AGREEMENT_SE: float = 3.0
 
 
 @dataclass(frozen=True)
@@ -82,14 +88,24 @@ class RestModel:
         self.gyro_units = rec.gyro_units
         nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
         self.one_g = float(nominal.sensitivity)
+        self.acc_zero = np.asarray(nominal.offset, dtype=float)
+        self.bias_model: rm.BiasModel | None = None
         self.gkappa2 = np.ones(3)
         self.gvar_ref: NDArray[np.float64] | None = None
         self.wander2 = np.zeros(3)
         self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
         self._pooled: dict[tuple[bool, int, int], NDArray[np.float64]] = {}
+        self._spans: rm.SpanEstimates | None = None
         self._pass(first=True)
-        self.gyro_scale = gyro_rad_per_unit(rec, gyro, self.bias, self.b)
+        self.t, self.gyro = t, gyro
+        self.scale_evidence = self._scale_from_moves()
+        self.gyro_scale, self.gyro_unit_reason = decide_gyro_scale(rec, self.scale_evidence,
+                                                                   gyro_rad_per_unit(rec, gyro, self.bias, self.b))
+        if gyro is None:
+            self.gyro_unit_reason = ""
+        elif self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT:
+            self._pass(first=True)  # again, with the scale measured: the bias track's drift limit
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
@@ -109,7 +125,9 @@ class RestModel:
         acc_still = self._acc_still()
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
-            self.track = rm.bias_track(b.t_mid[base], b.gmean[base], b.t_mid, self._max_drift())
+            if self._spans is None:  # the spans' estimates are the same whatever the drift limit: measured once
+                self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base])
+            self.track = rm.follow_spans(self._spans, b.t_mid, self._max_drift())
             self.bias = np.median(self.track, axis=0)
             self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
             gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
@@ -120,34 +138,165 @@ class RestModel:
         assert self.bias is not None and self.gvar_ref is not None
         self.gstat = rm.gyro_statistic(b.gmean, self.gvar_ref, b.n, self.track, self.gkappa2, self.wander2, self.gfloor)
         self.still = self.gstat <= self.gyro_limit
+        scale = self._scale()
+        if scale is not None and not first:
+            # significant, but turning the sensor through less than a pose tolerates over the time a rest is judged
+            # on (WOBBLE_DWELLS dwells, as the stretches' own test): a real gyro's bias, not a move (not in the first
+            # pass, whose rests measure the bias: a smooth move's slow ends are not rests of the bias)
+            rate = np.linalg.norm(b.gmean - self.track, axis=1) * scale
+            self.still |= ~rm.turn_is_relevant(rate, WOBBLE_DWELLS * self.s.min_dwell_s, self.s.gyro_threshold)
+
+    def _scale_from_moves(self) -> ScaleEvidence | None:
+        """The gyro's scale measured across the moves between the first pass's rests (:func:`scale_from_moves`)."""
+        b = self.b
+        if self.gyro is None or self.bias is None:
+            return None
+        runs = self.runs()
+        spans, before, after = [], [], []
+        for (_, end), (start, _) in zip(runs[:-1], runs[1:]):
+            if not bool(b.joined[end:start + 1].all()):
+                continue  # a time gap: nothing is known of the move
+            d0 = b.mean[max(end - 2, 0):end].mean(axis=0) - self.acc_zero
+            d1 = b.mean[start:start + 2].mean(axis=0) - self.acc_zero
+            spans.append((int(b.start[end - 1]), int(b.stop[start])))
+            before.append(d0 / max(float(np.linalg.norm(d0)), np.finfo(float).tiny))
+            after.append(d1 / max(float(np.linalg.norm(d1)), np.finfo(float).tiny))
+        if not spans:
+            return None
+        return scale_from_moves(self.t, self.gyro, self.bias, spans, np.asarray(before), np.asarray(after))
+
+    def _scale(self) -> float | None:
+        """Radians per second per gyro unit: measured (:func:`gyro_rad_per_unit`), or stated; None while unknown."""
+        return self.gyro_scale if self.gyro_scale is not None else RAD_PER_UNIT.get(self.gyro_units or "")
 
     def _max_drift(self) -> float | None:
         """The fastest a MEMS gyro's bias moves, in the gyro's units per second (None while its unit is unknown)."""
-        scale = self.gyro_scale if self.gyro_scale is not None else RAD_PER_UNIT.get(self.gyro_units or "")
+        scale = self._scale()
         return None if scale is None else MAX_BIAS_DRIFT_RAD_S2 / scale
 
+    def directions(self, rows: NDArray[np.intp] | slice = slice(None)) -> NDArray[np.float64]:
+        """The specific force's unit direction of blocks ``rows`` by the nominal conversion (k, 3)."""
+        f = self.b.mean[rows] - self.acc_zero
+        return np.asarray(f / np.maximum(np.linalg.norm(f, axis=1, keepdims=True), np.finfo(float).tiny))
+
+    def _bias_rests(self) -> list[tuple[int, int]]:
+        """The stretches the gyro's bias is measured on: runs of blocks the accelerometer calls still (a real gyro's
+        bias differs from rest to rest, so the gyro cannot yet say which are rests) whose mean rate is within a MEMS
+        gyro's bias range of the first bias (:data:`MAX_BIAS_WANDER_RAD_S`, where the gyro's unit is known: a turn
+        about gravity, which the accelerometer does not see, is faster)."""
+        b = self.b
+        assert self.bias is not None and b.gmean is not None
+        limit = MAX_BIAS_WANDER_RAD_S / self.gyro_scale if self.gyro_scale is not None else np.inf
+        near = np.linalg.norm(b.gmean - self.bias, axis=1) <= limit
+        starts, stops = true_runs(self.quiet & near[1:] & near[:-1])
+        return [(int(a), int(z) + 1) for a, z in zip(starts, stops)]
+
     def _measure_wander(self) -> None:
-        """The gyro bias' wander between rests: the scatter of the first rests' mean rates beyond their noise."""
+        """The gyro's bias as a real gyro's (:func:`~optcal.data.rest_model.fit_bias_model`: a bias, its
+        g-sensitivity and its steps after knocks, fitted to the rests' mean rates; a thermal drift followed by the
+        track of what is left), and the wander between rests: the scatter of the rests' mean rates about it beyond
+        their noise."""
+        b = self.b
+        assert self.bias is not None and b.gmean is not None and b.gvar is not None
+        # the pieces of one stretch the accelerometer calls still (parted by blocks off the bias: a turn about
+        # gravity, a twitch) are one rest: a bias steps in a move, and the rests a step needs are distinct
+        groups: list[list[tuple[int, int]]] = []
+        previous = -1
+        for k0, k1 in self._bias_rests():
+            if groups and bool(np.all(self.quiet[previous:k0])):
+                groups[-1].append((k0, k1))
+            else:
+                groups.append([(k0, k1)])
+            previous = k1 - 1
+        means, noise2, mids, dirs = [], [], [], []
+        for group in groups:
+            rows = np.concatenate([np.arange(k0, k1) for k0, k1 in group])
+            # too short to be checked against the accelerometer (a piece of a slow turn), or turning by both sensors
+            if rows.size < rm.TREND_MIN_BATCHES or self._turns_by_both(rows):
+                continue
+            w = b.n[rows, None]
+            n = float(w.sum())
+            means.append((b.gmean[rows] * w).sum(axis=0) / n)
+            noise2.append(self.gkappa2 * column_medians(b.gvar[rows]) / n)
+            mids.append(0.5 * (b.t_mid[rows[0]] + b.t_mid[rows[-1]]))
+            f = (b.mean[rows] * w).sum(axis=0) / n - self.acc_zero
+            dirs.append(f / max(float(np.linalg.norm(f)), np.finfo(float).tiny))
+        if len(means) < rm.MIN_RESTS_G_SENSITIVITY:
+            return self._measure_wander_plain()
+        at = np.asarray(mids)
+        rest_means = np.asarray(means)
+        direction = np.asarray(dirs)
+        scale = self._scale()
+        limit = rm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale if scale is not None else None
+        self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2), limit)
+        modelled = model.at(at, direction)
+        # what the model leaves (a thermal drift) followed over the session, each span's median
+        # (on spans a whole span apart: a package warms over minutes)
+        drift = rm.follow_spans(rm.span_estimates(at, rest_means - modelled, lambda x: float(np.median(x)), rm.BIAS_SPAN_S),
+                                b.t_mid, self._max_drift())
+        self.track = model.at(b.t_mid, self.directions()) + drift
+        self.bias = np.median(rest_means, axis=0)
+        if len(means) >= 3:
+            # about the model and its drift at each rest: the bias wanders about them (a random walk) by as much as
+            # the rests' means scatter
+            dev = rest_means - modelled - np.column_stack([np.interp(at, b.t_mid, drift[:, j]) for j in range(3)])
+            robust2 = (1.4826 * np.median(np.abs(dev - np.median(dev, axis=0)), axis=0)) ** 2
+            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
+            if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
+                self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
+
+    def _turns_by_both(self, rows: NDArray[np.intp]) -> bool:
+        """Whether the blocks ``rows`` (a stretch the accelerometer calls still) turn by both sensors' evidence.
+
+        A turn not about gravity moves the accelerometer: at ``ω`` (the gyro's rate less the bias) its specific
+        force ``a`` changes at ``ȧ = −ω × a``.  The accelerometer's own rate of change over the stretch (the slope of
+        its block means on time, least squares, with its standard error from the blocks' noise times the noise
+        colour) is set against it: when it is off zero by more than :data:`TURN_AGREEMENT_SE` standard errors and
+        within as many of the gyro's prediction, both sensors see the same turn, and the stretch says nothing of
+        the bias.  A stretch whose accelerometer does not move while its gyro says it should is a rest whose bias
+        differs (g-sensitivity, a step after a knock).  Without the gyro's unit, or fewer than three blocks: no.
+        """
+        b = self.b
+        scale = self._scale()
+        if scale is None or rows.size < 3 or b.gmean is None or self.bias is None:
+            return False
+        w = b.n[rows, None]
+        omega = ((b.gmean[rows] * w).sum(axis=0) / w.sum() - self.bias) * scale
+        t = b.t_mid[rows] - b.t_mid[rows].mean()
+        duration = float(t[-1] - t[0]) + float(b.n[rows[-1]]) / self.rate
+        if not bool(rm.turn_is_relevant(np.array([np.linalg.norm(omega)]), duration, 1.0)[0]):
+            return False  # the gyro says it turns through less than a pose's tolerance: its rest tells the bias
+        sxx = float(np.sum(t * t))
+        if sxx <= 0:
+            return False
+        a = (b.mean[rows] * w).sum(axis=0) / w.sum() - self.acc_zero
+        slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
+        se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np.median(b.n[rows])) + self.floor) / sxx)
+        predicted = -np.cross(omega, a)
+        tiny = np.finfo(float).tiny
+        moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)
+        d = slope - predicted
+        agrees = float(np.sum(d * d / np.maximum(se * se, tiny))) <= TURN_AGREEMENT_SE**2 * 3.0
+        return bool(moves and agrees)
+
+    def _measure_wander_plain(self) -> None:
+        """The bias and its wander where too few rests say how a real gyro's bias differs between them
+        (:data:`~optcal.data.rest_model.MIN_RESTS_G_SENSITIVITY`): the first rests' mean rates, their median over
+        each span, and their scatter about the session's median beyond their noise."""
         b = self.b
         assert self.bias is not None and b.gmean is not None and b.gvar is not None
         means, noise2, mids = [], [], []
-        runs = self.runs()
-        for k0, k1 in runs:
+        for k0, k1 in self.runs():
             n = b.n[k0:k1].sum()
             means.append((b.gmean[k0:k1] * b.n[k0:k1, None]).sum(axis=0) / n)
             noise2.append(self.gkappa2 * column_medians(b.gvar[k0:k1]) / n)
             mids.append(0.5 * (b.t_mid[k0] + b.t_mid[k1 - 1]))
         if means:
-            # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
-            # its own error, integrated over a long rest, would look like a turn), their median over each span
             at = np.asarray(mids)
             rest_means = np.asarray(means)
-            drift = self._max_drift()
-            self.track = rm.bias_track(at, rest_means, b.t_mid, drift, estimate=lambda x: float(np.median(x)))
+            self.track = rm.bias_track(at, rest_means, b.t_mid, self._max_drift(), estimate=lambda x: float(np.median(x)))
             self.bias = np.median(rest_means, axis=0)
         if len(means) >= 3:
-            # about the session's median, not the track: the track is a span's median, and the bias wanders about
-            # it within a span (a random walk) by as much as the rests' means scatter over the session
             dev = rest_means - self.bias
             robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
@@ -408,11 +557,13 @@ class RestModel:
         # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
         # statistics of a stretch that shakes say of its noise
         rate = np.linalg.norm(off, axis=1) * self.gyro_scale
-        beyond_bias = rate > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
+        # beyond it by more than the noise of the stretch's mean rate (a noisy gyro's mean is off by its noise)
+        rate_low = np.maximum(rate - limit * np.sqrt(se2.sum(axis=1)) * self.gyro_scale, 0.0)
+        beyond_bias = rate_low > MAX_BIAS_WANDER_RAD_S * self.s.gyro_threshold
         # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
         duration = np.minimum(b.t_mid[r.stop - 1] - b.t_mid[r.start] + b.n[r.start] / self.rate,
                               WOBBLE_DWELLS * self.s.min_dwell_s)
-        return np.asarray((significant | beyond_bias) & (rate * duration > np.sqrt(2.0 * WOBBLE_SHRINK) * self.s.gyro_threshold))
+        return np.asarray((significant | beyond_bias) & rm.turn_is_relevant(rate, duration, self.s.gyro_threshold))
 
     def noise(self) -> dict[str, float]:
         """The noise measured: colours, the gyro bias' wander and its drift over the session (the range of its track),

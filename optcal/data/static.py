@@ -164,6 +164,9 @@ class Segmentation:
         turn by the gyro, or that never left the pose by the accelerometer).
     evidence : dict of str to float
         Counts of the still stretches each test rejected, and the blocks and pairs tested.
+    gyro_unit : str
+        How the gyro's unit (its radians per second per unit) was decided: stated, or measured on the moves
+        (:func:`optcal.data.static_stretches.decide_gyro_scale`); empty without a gyro.
     """
 
     recording: Recording
@@ -176,6 +179,7 @@ class Segmentation:
     trace: dict[str, Any] = field(default_factory=dict)
     joined: int = 0
     evidence: dict[str, float] = field(default_factory=dict)
+    gyro_unit: str = ""
 
     def override_warnings(self) -> list[str]:
         """What each flag that loosened a test of the rest model assumes (printed as warnings)."""
@@ -210,6 +214,7 @@ class Segmentation:
             "thresholds": dict(self.thresholds),
             "gyro_bias": None if self.gyro_bias is None else self.gyro_bias.tolist(),
             "gyro_units": rec.gyro_units,
+            "gyro_unit_decision": self.gyro_unit,
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
@@ -254,7 +259,8 @@ def no_static_message(seg: Segmentation) -> str:
                        "N times more)")
     if ev.get(TURNING_STRETCHES):
         reasons.append(f"{ev[TURNING_STRETCHES]} still stretch(es) whose gyro mean is off the bias (a turn the "
-                       "accelerometer does not see: --gyro-threshold N accepts N times more, --no-gyro-gate ignores the gyro)")
+                       "accelerometer does not see: --gyro-threshold N accepts N times more, --no-gyro-gate ignores the gyro"
+                       + (f"; gyro read as {seg.gyro_unit}" if seg.gyro_unit else "") + ")")
     if ev.get(WOBBLE_STRETCHES):
         reasons.append(f"{ev[WOBBLE_STRETCHES]} still stretch(es) whose orientation wobbles by more than "
                        f"{np.degrees(np.sqrt(2 * WOBBLE_SHRINK)):.2g}° rms by the gyro (a pose mean would shrink by more than "
@@ -415,7 +421,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     norm = _distance(acc, nominal.offset)
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
-                        len(kept) - len(groups), evidence)
+                        len(kept) - len(groups), evidence, model.gyro_unit_reason)
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

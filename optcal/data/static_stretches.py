@@ -8,6 +8,7 @@ and give a pose's sample positions (:func:`group_positions`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,6 +28,46 @@ def true_runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.in
     padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
     edges = np.flatnonzero(np.diff(padded))
     return edges[::2], edges[1::2]
+
+
+#: A measured scale names a unit when it lies within this factor of the unit's (rad/s, deg/s): the fixed-axis
+#: approximation of a hand's move and the bias err by tens of percent, the two units differ 57-fold.
+UNIT_MATCH_FACTOR: float = 2.0
+
+
+def decide_gyro_scale(rec: Recording, measured: ScaleEvidence | None, fallback: float | None) -> tuple[float | None, str]:
+    """The gyro's radians per second per unit, and the decision in words (printed by ``optcal segment``).
+
+    A unit the file or the user states (``--gyro-units``) is taken, and the moves' scale said beside it when it
+    disagrees by more than :data:`UNIT_MATCH_FACTOR`; a unit the names do not say is the one whose scale the moves'
+    (:func:`scale_from_moves`) lies within :data:`UNIT_MATCH_FACTOR` of, else the moves' scale itself (counts, or
+    a unit of its own); without moves, ``fallback`` (the convention of the accelerometer's unit, or None for counts).
+    """
+    flag = "--gyro-units to override"
+    if rec.gyro_units in RAD_PER_UNIT:
+        stated = RAD_PER_UNIT[rec.gyro_units]
+        note = ""
+        if measured is not None and abs(np.log(measured.rad_per_unit / stated)) > np.log(UNIT_MATCH_FACTOR):
+            note = (f"; the moves say {measured.rad_per_unit:.4g} rad/s per unit ({measured.moves} moves): check the "
+                    "columns' unit")
+        return stated, f"{rec.gyro_units} as stated{note}"
+    if measured is None:
+        none = (f"no moves measure its scale (fewer than {MIN_SCALE_MOVES} turning gravity by "
+                f"{np.degrees(MIN_MOVE_TURN_RAD):g}° within {MAX_MOVE_S:g} s, or their turn left more than "
+                f"{MAX_UNEXPLAINED_TURN:.0%} unexplained)")
+        if fallback is None:
+            return None, f"{rec.gyro_units or 'unit unstated'}: {none}; {flag}"
+        unit = "rad/s" if fallback == RAD_PER_UNIT["rad/s"] else "deg/s"
+        return fallback, f"{unit} by the convention beside {rec.units}: {none}; {flag}"
+    evidence = (f"the rate integral across {measured.moves} moves against the accelerometer's turn: "
+                f"{measured.rad_per_unit:.4g} rad/s per unit, {measured.rms_deg:.2g}° rms")
+    if rec.gyro_units is None:
+        for unit in ("rad/s", "deg/s"):
+            if abs(np.log(measured.rad_per_unit / RAD_PER_UNIT[unit])) <= np.log(UNIT_MATCH_FACTOR):
+                return RAD_PER_UNIT[unit], f"{unit} from {evidence} ({flag})"
+    per_dps = RAD_PER_UNIT["deg/s"] / measured.rad_per_unit
+    unit = rec.gyro_units or ("counts" if rec.units == "counts" else "a unit of its own")
+    return measured.rad_per_unit, f"{unit}, {per_dps:.4g} per °/s from {evidence} ({flag})"
 
 
 def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: NDArray[np.float64] | None,
@@ -62,29 +103,229 @@ def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: ND
     return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
 
 
+#: Fewest moves (between rests, turning the accelerometer's gravity by at least :data:`MIN_MOVE_TURN_RAD`) on which
+#: the gyro's scale is measured: a scale from one or two moves rests on their axes being across gravity.
+MIN_SCALE_MOVES: int = 3
+#: Most moves the scale is measured on (spread over the session): each move's misfit is a few tenths of a degree
+#: of tens of degrees, so 32 of them measure the scale far finer than any unit's decision or test needs.
+MAX_SCALE_MOVES: int = 32
+#: Least turn of gravity's direction, rad (5°), a move needs to weigh in the gyro's scale: far above the direction
+#: noise of two rests' means, and the gyro's bias integrated over a move of a few seconds.
+MIN_MOVE_TURN_RAD: float = float(np.radians(5.0))
+#: Largest share of the moves' turn (rms misfit of gravity's direction over the rms turn) a measured scale may leave
+#: unexplained, as a gyro calibration may (:mod:`optcal.families.gyro.consistency`): beyond it the moves do not carry
+#: the gyro's turn (a logger that stores only holds, columns that are not the moves' rates) and no scale is measured.
+MAX_UNEXPLAINED_TURN: float = 0.2
+#: The scales searched, rad/s per gyro unit, on a log grid: from a 24-bit converter at ±125 °/s (1.3e-7) to 1 rad/s.
+SCALE_GRID: NDArray[np.float64] = np.logspace(-7.5, 0.5, 801)
+#: The grid's step, natural log (1 %: fine enough that a revolution's alias and the true scale are told apart).
+GRID_STEP_LOG: float = float(np.log(SCALE_GRID[1] / SCALE_GRID[0]))
+#: Local minima of the grid refined when a turn's aliases are sorted out.
+ALIAS_CANDIDATES: int = 8
+
+
+@dataclass(frozen=True)
+class ScaleEvidence:
+    """The gyro's scale measured on the moves (:func:`scale_from_moves`).
+
+    Attributes
+    ----------
+    rad_per_unit : float
+        Radians per second per gyro unit.
+    moves : int
+        Moves it was measured on.
+    rms_deg : float
+        RMS misfit of gravity's direction after each move predicted by the scaled gyro, degrees.
+    """
+
+    rad_per_unit: float
+    moves: int
+    rms_deg: float
+
+
+#: Longest move, seconds, whose turn is integrated: a calibration's moves last seconds, and over longer the bias'
+#: error (0.1 °/s before the fit) integrates to a degree, while a stretch that long between two rests is seldom one
+#: clean move (a rest the first pass missed, a pause of a hand).
+MAX_MOVE_S: float = 10.0
+#: Longest step, seconds, over which a move's rates are summed before its turn is composed (a hand's 200 °/s turns
+#: 8° in a step: the error of composing such steps as fixed-axis rotations is far below a degree).
+MOVE_STEP_S: float = 0.04
+
+
+def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scales: NDArray[np.float64]
+                       ) -> NDArray[np.float64]:
+    """``cos`` of the angle between gravity before and after each move turned by ``scales × theta`` about the fixed
+    axis ``theta``/|theta| (Rodrigues: ``cos α = cos φ + (1 − cos φ)(n·u₀)²``) (scales, moves)."""
+    norm = np.linalg.norm(theta, axis=1)
+    n = theta / np.maximum(norm, np.finfo(float).tiny)[:, None]
+    along2 = np.sum(n * u0, axis=1) ** 2
+    phi = np.outer(scales, norm)
+    return np.asarray(np.cos(phi) + (1.0 - np.cos(phi)) * along2)
+
+
+#: Golden-section steps refining the scale between the grid's second neighbours (a bracket of 1.023⁴ narrowed by 0.618
+#: per step: 0.5 % after 6, far finer than a unit's decision or a test's tolerance needs).
+GOLDEN_STEPS: int = 6
+
+
+def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
+                     spans: list[tuple[int, int]]) -> NDArray[np.float64]:
+    """Each move's rotation increments (moves, steps, 3; gyro units × s): the rates less ``bias`` integrated by the
+    trapezoid rule and summed over steps of :data:`MOVE_STEP_S`, zero-padded to the longest move."""
+    pieces = []
+    for a, z in spans:
+        w = gyro[a:z] - bias
+        dt = np.diff(t[a:z])
+        inc = 0.5 * (w[1:] + w[:-1]) * dt[:, None]
+        step = max(1, int(round(MOVE_STEP_S / max(float(np.median(dt)) if dt.size else 1.0, 1e-12))))
+        edges = np.arange(0, inc.shape[0], step)
+        pieces.append(np.add.reduceat(inc, edges, axis=0) if inc.shape[0] else np.zeros((1, 3)))
+    length = max(p.shape[0] for p in pieces)
+    out = np.zeros((len(pieces), length, 3))
+    for i, p in enumerate(pieces):
+        out[i, :p.shape[0]] = p
+    return out
+
+
+def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Gravity's direction after each move, in the sensor frame, for each scale (scales, moves, 3).
+
+    The sensor's orientation composes the moves' increments scaled by ``s`` (quaternions, body-frame increments:
+    ``q ← q ⊗ exp(s φ / 2)``); a direction fixed in the world, ``u₀`` in the sensor before the move, is ``R(q)ᵀ u₀``
+    after it.
+    """
+    m = increments.shape[0]
+    w = np.ones((scales.size, m))
+    x, y, z = (np.zeros((scales.size, m)) for _ in range(3))
+    for j in range(increments.shape[1]):
+        rx, ry, rz = (np.outer(scales, increments[:, j, c]) for c in range(3))
+        angle = np.sqrt(rx * rx + ry * ry + rz * rz)
+        half = 0.5 * angle
+        k = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-300), 0.5)
+        dw, dx, dy, dz = np.cos(half), rx * k, ry * k, rz * k
+        w, x, y, z = (w * dw - x * dx - y * dy - z * dz, w * dx + dw * x + y * dz - z * dy,
+                      w * dy + dw * y + z * dx - x * dz, w * dz + dw * z + x * dy - y * dx)
+    w, v = w[..., None], np.stack([x, y, z], axis=-1)
+    u = np.broadcast_to(u0, v.shape)
+    # R(q)ᵀ u = u − 2w (v × u) + 2 v × (v × u)
+    c = np.cross(v, u)
+    return np.asarray(u - 2.0 * w * c + 2.0 * np.cross(v, c))
+
+
+def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
+                     spans: list[tuple[int, int]], before: NDArray[np.float64], after: NDArray[np.float64]
+                     ) -> ScaleEvidence | None:
+    """Radians per gyro unit from the moves: the rate integral across each move against the turn of gravity.
+
+    Each move (samples ``spans[i]``, between two rests whose specific force directions are ``before[i]`` and
+    ``after[i]``) is integrated (rates less ``bias``) and composed as rotations (:func:`_turned`); the scale is the
+    one whose turned ``before`` best meets ``after`` over the moves (least squares on a log grid, then refined
+    between the grid's neighbours).  None with fewer than :data:`MIN_SCALE_MOVES` moves turning gravity by
+    :data:`MIN_MOVE_TURN_RAD`, or when the best scale leaves more than :data:`MAX_UNEXPLAINED_TURN` of their turn
+    unexplained.
+    """
+    keep = [i for i, ((a, z), d0, d1) in enumerate(zip(spans, before, after))
+            if z - a >= 2 and t[z - 1] - t[a] <= MAX_MOVE_S
+            and np.arccos(np.clip(np.dot(d0, d1), -1.0, 1.0)) >= MIN_MOVE_TURN_RAD]
+    if len(keep) < MIN_SCALE_MOVES:
+        return None
+    if len(keep) > MAX_SCALE_MOVES:  # spread over the session: enough moves to measure a scale to a fraction of 1 %
+        keep = [keep[i] for i in np.linspace(0, len(keep) - 1, MAX_SCALE_MOVES).round().astype(int)]
+    increments = _move_increments(t, gyro, bias, [spans[i] for i in keep])
+    start, end = before[keep], after[keep]
+
+    def cost(scales: NDArray[np.float64]) -> NDArray[np.float64]:
+        d = _turned(increments, start, scales) - end
+        return np.asarray(np.sum(d * d, axis=(1, 2)))
+
+    # the grid on each move's whole turn about its mean axis (closed form), then the composed turns between the
+    # grid point's neighbours: a hand's axis changes within a move, which only the composition follows
+    theta = increments.sum(axis=1)
+    measured = np.sum(start * end, axis=1)
+    def approximate(scales: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.sum((_predicted_cosines(theta, start, scales) - measured) ** 2, axis=1))
+
+    grid = approximate(SCALE_GRID)
+    # a turn fits as well with whole revolutions added (a table's turns by multiples of 45° alias at larger scales):
+    # each of the grid's lowest local minima refined, and of those within twice the best cost the smallest scale,
+    # the one without extra revolutions
+    interior = np.r_[True, grid[1:] <= grid[:-1]] & np.r_[grid[:-1] <= grid[1:], True]
+    candidates = np.flatnonzero(interior)
+    candidates = candidates[np.argsort(grid[candidates])[:ALIAS_CANDIDATES]]
+    refined = []
+    for c in candidates.tolist():
+        a, b = np.log(SCALE_GRID[max(c - 1, 0)]), np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)])
+        for _ in range(3 * GOLDEN_STEPS):
+            m1, m2 = a + 0.382 * (b - a), a + 0.618 * (b - a)
+            c1, c2 = approximate(np.exp(np.array([m1, m2])))
+            if c1 < c2:
+                b = m2
+            else:
+                a = m1
+        x = 0.5 * (a + b)
+        refined.append((float(approximate(np.exp(np.array([x])))[0]), x))
+    best_cost = min(r[0] for r in refined)
+    x = min(r[1] for r in refined if r[0] <= 2.0 * best_cost + 1e-9 * increments.shape[0])
+    lo, hi = x - 2.0 * GRID_STEP_LOG, x + 2.0 * GRID_STEP_LOG
+    for _ in range(GOLDEN_STEPS):  # golden section on the log scale
+        m1, m2 = lo + 0.382 * (hi - lo), lo + 0.618 * (hi - lo)
+        c1, c2 = cost(np.exp(np.array([m1, m2])))
+        if c1 < c2:
+            hi = m2
+        else:
+            lo = m1
+    best = float(np.exp(0.5 * (lo + hi)))
+    fitted = _turned(increments, start, np.array([best]))[0]
+    misfit = np.degrees(np.arccos(np.clip(np.sum(fitted * end, axis=1), -1.0, 1.0)))
+    angles = np.degrees(np.arccos(np.clip(np.sum(start * end, axis=1), -1.0, 1.0)))
+    rms = float(np.sqrt(np.mean(misfit**2)))
+    if rms > MAX_UNEXPLAINED_TURN * float(np.sqrt(np.mean(angles**2))):
+        return None
+    return ScaleEvidence(best, len(keep), rms)
+
+
+#: Largest share of the wobble tolerance (``√(2 WOBBLE_SHRINK)``) the gyro's own angle random walk over a window may
+#: reach for the gyro to be evidence of a wobble: a mean square of a random walk over one window scatters by about
+#: its own size, so a noisier gyro's wobble is its noise, and the tolerance is left to the accelerometer's tests.
+RESOLVED_WOBBLE_SHARE: float = 0.5
+
+
 def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
     """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
 
     In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
     steady turn, which :meth:`optcal.data.rest_tests.RestModel.turns` tests) are integrated by the trapezoid rule over the true time
-    steps; over a window the gyro's own angle random walk and bias wander stay far below the tolerance, a
-    hand's tremor or a vibration do not.
+    steps, less what the gyro's own white noise gives (its angle random walk, from the rates' sample-to-sample
+    differences): a hand's tremor or a vibration is left.  0 when that random walk reaches
+    :data:`RESOLVED_WOBBLE_SHARE` of the tolerance: the gyro cannot resolve it.
     """
     m = gyro.shape[0]
     if m < 3:
         return 0.0
-    total, count = 0.0, 0
-    for a in range(0, m, window):
-        w = gyro[a:a + window] * rad_per_unit
-        if w.shape[0] < 3:
-            continue
-        w = w - w.mean(axis=0)
-        dt = np.diff(t[a:a + window])[:, None]
-        angle = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (w[1:] + w[:-1]) * dt, axis=0)])
-        angle -= angle.mean(axis=0)
+    total, noise, count = 0.0, 0.0, 0
+    full = (m // window) * window if m >= window else 0
+    pieces = [(0, full, window)] if full else []
+    if m - full >= 3:
+        pieces.append((full, m, m - full))
+    for a, z, size in pieces:  # the whole windows at once, then the rest
+        k = (z - a) // size
+        w = (gyro[a:z] * rad_per_unit).reshape(k, size, 3)
+        tt = t[a:z].reshape(k, size)
+        # the gyro's own white noise, from its sample-to-sample differences (var(Δω) = 2σ² for white noise; a
+        # tremor of a few hertz hardly changes from one sample to the next): integrated, a random walk whose
+        # mean square about its mean over a window of T, the mean rate removed (a Brownian bridge), is σ² dt T / 12
+        white = np.sum(np.var(np.diff(w, axis=1), axis=1), axis=1) / 2.0
+        w = w - w.mean(axis=1, keepdims=True)
+        dt = np.diff(tt, axis=1)[..., None]
+        angle = np.concatenate([np.zeros((k, 1, 3)), np.cumsum(0.5 * (w[:, 1:] + w[:, :-1]) * dt, axis=1)], axis=1)
+        angle -= angle.mean(axis=1, keepdims=True)
         total += float(np.sum(angle * angle))
-        count += w.shape[0]
-    return float(np.sqrt(total / max(count, 1)))
+        span = tt[:, -1] - tt[:, 0]
+        noise += float(np.sum(size * white * dt[..., 0].mean(axis=1) * span / 12.0))
+        count += k * size
+    if noise > RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * max(count, 1):
+        return 0.0  # the gyro's own random walk is not below the tolerance: it cannot tell a wobble (the accelerometer's tests do)
+    return float(np.sqrt(max(total - noise, 0.0) / max(count, 1)))
 
 
 def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple[int, int], after: tuple[int, int],

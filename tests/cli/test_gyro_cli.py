@@ -51,7 +51,7 @@ def test_calibrate_imu_check_apply(recording, tmp_path, capsys) -> None:
 def test_imu_options_need_imu(recording, capsys) -> None:
     path, _ = recording
     assert main(["calibrate", path, "--joint"]) == 2
-    assert capsys.readouterr().err.startswith("error: --gyro-units, --joint and --g-sensitivity apply with --imu only")
+    assert capsys.readouterr().err.startswith("error: --joint and --g-sensitivity apply with --imu only")
 
 
 def test_imu_without_gyro_columns(tmp_path, capsys) -> None:

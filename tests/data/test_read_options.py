@@ -113,6 +113,12 @@ def test_gyro_units_given_reach_the_recording(shared_data, tmp_path):
     reading = optcal.load(tmp_path / "plain.csv", gyro_units="rad/s")
     assert reading.recording is not None and reading.recording.gyro_units == "rad/s"
     assert reading.poses.n == 38
-    # the file's counts given as deg/s reach the rest model: every rest then wobbles by degrees, and it says so
-    with pytest.raises(InputError, match="wobbles by more than"):
-        optcal.load(shared_data / "imutk-xsens" / "xsens_imutk.csv", gyro_units="deg/s")
+    # the file's counts given as deg/s reach the rest model, which says that the moves measure another scale
+    # (0.000209 rad/s per count, imu_tk's); the accelerometer's rests are kept
+    wrong = optcal.load(shared_data / "imutk-xsens" / "xsens_imutk.csv", gyro_units="deg/s")
+    assert wrong.recording is not None and wrong.recording.gyro_units == "deg/s"
+    assert wrong.segmentation is not None
+    decision = wrong.segmentation.gyro_unit
+    assert decision.startswith("deg/s as stated; the moves say") and "check the columns' unit" in decision
+    measured = float(decision.split("the moves say ")[1].split()[0])
+    assert measured == pytest.approx(0.000209, rel=0.1)

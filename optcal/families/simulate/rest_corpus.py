@@ -54,7 +54,8 @@ from numpy.typing import NDArray
 
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.rotations import rotate_about_axis
-from optcal.data.recording import Recording
+from optcal.data.readers import source_from_frame
+from optcal.data.recording import Recording, recording_from_source
 from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.errors import InputError
 from optcal.families.simulate.kinematics import (
@@ -86,6 +87,87 @@ GYRO_NOISE_DPS: tuple[float, float] = (0.05, 0.15)
 GYRO_BIAS_DPS: float = 0.5
 #: A pose matches a true rest when at least this fraction of its time lies inside the rest.
 INSIDE_FRACTION: float = 0.8
+
+# ----------------------------------------------------------------------------- a real gyro's effects
+#: g-sensitivity of a MEMS gyro, °/s per g, drawn log-uniformly per recording (datasheets: 0.005 °/s/g for a
+#: tactical part, 0.1 °/s/g for the MPU-6050, 0.2 °/s/g for the worst consumer parts); each entry of the 3×3
+#: matrix is that level times a uniform draw in ±1 (mostly off-diagonal terms in measured parts).
+G_SENSITIVITY_DPS_PER_G: tuple[float, float] = (0.005, 0.2)
+#: A bias step after a knock, °/s, drawn log-uniformly (in-run steps of consumer MEMS gyros: 0.01-0.5 °/s), at
+#: one to :data:`MAX_BIAS_STEPS` moves of a recording, in a random direction.
+BIAS_STEP_DPS: tuple[float, float] = (0.01, 0.5)
+MAX_BIAS_STEPS: int = 3
+#: A warming gyro's thermal bias drift over the session, °/s (its full change, log-uniform), approached with a
+#: time constant drawn in :data:`WARMUP_TAU_S` (a package's thermal time constant, minutes).
+THERMAL_DRIFT_DPS: tuple[float, float] = (0.01, 0.2)
+WARMUP_TAU_S: tuple[float, float] = (60.0, 600.0)
+#: The Earth's rate, rad/s (IERS: 7.292115e-5).
+EARTH_RATE_RAD_S: float = 7.292115e-5
+
+
+@dataclass(frozen=True)
+class RealGyro:
+    """The effects a real MEMS gyro adds to its rate, which the ideal one of the corpus lacks.
+
+    Attributes
+    ----------
+    g_sensitivity : ndarray, shape (3, 3)
+        Rate error per specific force, rad/s per g (``ω_err = G f``).
+    step_at : ndarray of int
+        Samples from which each bias step holds (inside a move: the knock).
+    steps : ndarray, shape (k, 3)
+        Each step, rad/s.
+    drift : ndarray, shape (3,)
+        The thermal drift's full change, rad/s, approached as ``1 − exp(−t / tau_s)``.
+    tau_s : float
+    latitude_rad : float
+        Where the Earth's rate is felt: ``Ω sin φ`` about the vertical, ``Ω cos φ`` about a horizontal axis.
+    """
+
+    g_sensitivity: NDArray[np.float64]
+    step_at: NDArray[np.int64]
+    steps: NDArray[np.float64]
+    drift: NDArray[np.float64]
+    tau_s: float
+    latitude_rad: float
+
+    def rate_error(self, specific_force: NDArray[np.float64], rests: Sequence[tuple[int, int]], rate_hz: float,
+                   rng: np.random.Generator) -> NDArray[np.float64]:
+        """The rate these effects add, rad/s (n, 3), for the true ``specific_force`` (g, n × 3).
+
+        The Earth's rate about the vertical follows the specific force's direction exactly; its horizontal part
+        needs the heading, which the corpus does not keep: each rest takes a random horizontal axis (``rng``),
+        the moves none (a few thousandths of a °/s: far below any test's noise).
+        """
+        n = specific_force.shape[0]
+        out = specific_force @ self.g_sensitivity.T
+        for at, step in zip(self.step_at, self.steps):
+            out[int(at):] += step
+        t = np.arange(n) / rate_hz
+        out += np.outer(1.0 - np.exp(-t / self.tau_s), self.drift)
+        norm = np.maximum(np.linalg.norm(specific_force, axis=1, keepdims=True), 1e-9)
+        up = specific_force / norm
+        out += EARTH_RATE_RAD_S * np.sin(self.latitude_rad) * up
+        for a, b in rests:
+            out[a:b] += EARTH_RATE_RAD_S * np.cos(self.latitude_rad) * random_perpendicular(up[a], rng)
+        return np.asarray(out)
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def draw_real_gyro(rng: np.random.Generator, motion: Motion) -> RealGyro:
+    """Draw a :class:`RealGyro` for ``motion``: its bias steps fall in the moves before randomly chosen rests."""
+    level = np.radians(_log_uniform(rng, *G_SENSITIVITY_DPS_PER_G))
+    g = level * rng.uniform(-1.0, 1.0, (3, 3))
+    starts = [a for a, _ in motion.rests[1:]]
+    count = min(len(starts), int(rng.integers(1, MAX_BIAS_STEPS + 1)))
+    at = np.sort(rng.choice(starts, size=count, replace=False)).astype(np.int64) - 1 if count else np.zeros(0, np.int64)
+    steps = np.array([np.radians(_log_uniform(rng, *BIAS_STEP_DPS)) * _random_direction(rng) for _ in range(count)])
+    drift = np.radians(_log_uniform(rng, *THERMAL_DRIFT_DPS)) * _random_direction(rng)
+    return RealGyro(g, at, steps.reshape(-1, 3), drift, float(rng.uniform(*WARMUP_TAU_S)),
+                    float(np.radians(rng.uniform(-70.0, 70.0))))
 
 
 @dataclass
@@ -161,6 +243,10 @@ class SimulatedKind:
         Cut-off of the low-pass every channel goes through (the ``low_pass`` kind).
     time_column : bool
         Whether the logger stores a time column (not the ``holds_only`` kind: the row over the rate).
+    gyro_effects : ndarray, shape (n, 3), or None
+        The rate a real gyro adds (:class:`RealGyro`), rad/s; None for the ideal gyro.
+    real_gyro : RealGyro or None
+        The effects drawn.
     """
 
     kind: str
@@ -173,6 +259,8 @@ class SimulatedKind:
     gyro_noise: NDArray[np.float64]
     lowpass_hz: float | None = None
     time_column: bool = True
+    gyro_effects: NDArray[np.float64] | None = None
+    real_gyro: RealGyro | None = None
 
 
 # ----------------------------------------------------------------------------- motion pieces
@@ -351,7 +439,7 @@ def _check_kind(kind: str) -> None:
         raise InputError(f"unknown kind of recording {kind!r}; use one of {', '.join(KINDS)}")
 
 
-def simulate_kind(kind: str, seed: int, max_samples: int = MAX_SAMPLES) -> SimulatedKind:
+def simulate_kind(kind: str, seed: int, max_samples: int = MAX_SAMPLES, real: bool = False) -> SimulatedKind:
     """Draw one case of ``kind`` from ``seed``: rate, motion, tremor and noise (the same for every variant).
 
     Parameters
@@ -362,6 +450,10 @@ def simulate_kind(kind: str, seed: int, max_samples: int = MAX_SAMPLES) -> Simul
     max_samples : int
         The number of rests (or the duration) is trimmed so that the case has at most this many samples
         (but a ``low_pass`` case keeps two rests: up to 42,400 samples at 400 Hz).
+    real : bool
+        Give the gyro a real MEMS gyro's effects (:class:`RealGyro`: g-sensitivity, bias steps after knocks, a
+        thermal drift, the Earth's rate), drawn from a stream of their own: the motion and the noise are those of
+        the ideal case of the same seed.
     """
     _check_kind(kind)
     if max_samples < 1000:
@@ -382,14 +474,22 @@ def simulate_kind(kind: str, seed: int, max_samples: int = MAX_SAMPLES) -> Simul
     acc_noise = sigma[:, None] * rng.standard_normal((motion.n, 3))
     gyro_sd = np.radians(rng.uniform(*GYRO_NOISE_DPS))
     gyro_noise = white_noise(rng, gyro_sd, (motion.n, 3)) + np.radians(rng.uniform(-GYRO_BIAS_DPS, GYRO_BIAS_DPS, 3))
+    effects = real_gyro = None
+    if real:
+        effects_rng = np.random.default_rng([seed, KINDS.index(kind), 1])
+        real_gyro = draw_real_gyro(effects_rng, motion)
+        effects = real_gyro.rate_error(f, motion.rests, rate_hz, effects_rng)
     return SimulatedKind(kind, seed, rate_hz, motion, f, w, acc_noise, gyro_noise,
-                         lowpass_hz=extra.get("lowpass_hz"), time_column=bool(extra.get("time_column", True)))
+                         lowpass_hz=extra.get("lowpass_hz"), time_column=bool(extra.get("time_column", True)),
+                         gyro_effects=effects, real_gyro=real_gyro)
 
 
 def render(sim: SimulatedKind, gyro: bool, quantised: bool) -> RestCase:
     """The recording of one variant of ``sim``: with or without the gyro, float or 16-bit counts."""
     acc = sim.specific_force * STANDARD_GRAVITY + sim.acc_noise  # m/s²
     rate = sim.body_rate + sim.gyro_noise  # rad/s
+    if sim.gyro_effects is not None:
+        rate = rate + sim.gyro_effects
     if sim.lowpass_hz is not None:
         from scipy.signal import butter, sosfiltfilt
 
@@ -414,6 +514,73 @@ def render(sim: SimulatedKind, gyro: bool, quantised: bool) -> RestCase:
     force = np.array(sim.motion.rest_directions, float).reshape(-1, 3) * STANDARD_GRAVITY * scale
     return RestCase(sim.kind, sim.seed, gyro, quantised, rec, rests, rests / sim.rate_hz, force, sim.motion,
                     sim.specific_force, sim.body_rate, sim.lowpass_hz)
+
+
+#: Host stamps in bursts (:func:`render_read`): the logger's host stamps the samples as they arrive, this many
+#: at a time with one stamp (a USB or serial buffer), the stamps themselves jittered by a tenth of a burst.
+BURST_SAMPLES: int = 8
+
+
+def render_read(sim: SimulatedKind, gyro: bool, quantised: bool, plain: bool, bursts: bool) -> RestCase:
+    """A variant of ``sim`` written as a logger writes it and read back through optcal's reader.
+
+    Parameters
+    ----------
+    sim : SimulatedKind
+    gyro, quantised : bool
+        As :func:`render`.
+    plain : bool
+        Columns named ``t, ax, ay, az, gx, gy, gz`` (no unit in the names: the reader decides the units from
+        the data, and the rest model the gyro's); else ``t_s, ax_m_s2 ...`` / ``..._counts``, ``gx_rad_s ...``.
+    bursts : bool
+        Host stamps in bursts of :data:`BURST_SAMPLES` (the reader's time decision spreads them).
+    """
+    case = render(sim, gyro, quantised)
+    rec = case.recording
+    n = rec.n
+    t = rec.t.copy()
+    if bursts:
+        rng = np.random.default_rng([sim.seed, KINDS.index(sim.kind), 2])
+        period = BURST_SAMPLES / sim.rate_hz
+        arrival = (np.arange(n) // BURST_SAMPLES + 1) * period
+        t = arrival + rng.uniform(0.0, 0.1 * period, n // BURST_SAMPLES + 1)[np.arange(n) // BURST_SAMPLES]
+    acc_unit = "counts" if quantised else "m_s2"
+    gyro_unit = "counts" if quantised else "rad_s"
+    names = (["t"] + [f"a{a}" for a in "xyz"] + [f"g{a}" for a in "xyz"]) if plain else \
+        (["t_s"] + [f"a{a}_{acc_unit}" for a in "xyz"] + [f"g{a}_{gyro_unit}" for a in "xyz"])
+    columns = [t] + [rec.acc[:, j] for j in range(3)]
+    if gyro:
+        assert rec.gyro is not None
+        columns += [rec.gyro[:, j] for j in range(3)]
+    frame = pd.DataFrame(dict(zip(names, columns)))
+    if not sim.time_column:
+        frame = frame.drop(columns=names[0])
+    label = (f"rest corpus (read): {sim.kind}, seed {sim.seed}, {'gyro' if gyro else 'no gyro'}, "
+             f"{'counts' if quantised else 'float'}, {'plain' if plain else 'named'}{', bursts' if bursts else ''}")
+    read = recording_from_source(source_from_frame(frame, label, "csv"),
+                                 rate=sim.rate_hz if not sim.time_column else None)
+    return RestCase(case.kind, case.seed, gyro, quantised, read, case.rest_samples, case.rest_samples / sim.rate_hz,
+                    case.rest_force, case.motion, case.specific_force, case.body_rate, case.lowpass_hz)
+
+
+#: The variants of the real-sensor corpus (:func:`real_corpus`), ``(gyro, quantised, plain, bursts)``.
+REAL_VARIANTS: tuple[tuple[bool, bool, bool, bool], ...] = (
+    (True, False, False, False), (True, False, True, False), (True, True, True, False), (True, False, True, True),
+    (False, False, True, False),
+)
+
+
+def real_corpus(seeds: Iterable[int], kinds: Sequence[str] = KINDS,
+                max_samples: int = MAX_SAMPLES) -> Iterable[tuple[tuple[bool, bool, bool, bool], RestCase]]:
+    """Every kind for every seed with a real gyro's effects (:class:`RealGyro`), in the :data:`REAL_VARIANTS`,
+    each written and read back (:func:`render_read`)."""
+    for kind in kinds:
+        _check_kind(kind)
+    for kind in kinds:
+        for seed in seeds:
+            sim = simulate_kind(kind, seed, max_samples, real=True)
+            for variant in REAL_VARIANTS:
+                yield variant, render_read(sim, *variant)
 
 
 VARIANTS: tuple[tuple[bool, bool], ...] = ((True, False), (False, False), (True, True), (False, True))
