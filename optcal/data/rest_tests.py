@@ -198,6 +198,10 @@ class RestModel:
         their noise."""
         b = self.b
         assert self.bias is not None and b.gmean is not None and b.gvar is not None
+        if self._scale() is None:
+            # a gyro whose scale nothing states or measures: a real gyro's bias has no stated bounds in its units (its
+            # g-sensitivity, its steps, its range), and a turn about gravity cannot be told from it
+            return self._measure_wander_plain()
         # the pieces of one stretch the accelerometer calls still (parted by blocks off the bias: a turn about
         # gravity, a twitch) are one rest: a bias steps in a move, and the rests a step needs are distinct
         groups: list[list[tuple[int, int]]] = []
