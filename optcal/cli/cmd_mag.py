@@ -20,7 +20,8 @@ def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool)
 
 def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
                           loss: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
-                          solver_opts: dict[str, Any], data_opts: dict[str, Any]) -> None:
+                          solver_opts: dict[str, Any], data_opts: dict[str, Any], location: str | None = None,
+                          session_date: str | None = None) -> None:
     """Read, fit and report (module docstring).
 
     Parameters
@@ -39,6 +40,9 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         Keep samples that do not lie on an ellipsoid.
     solver_opts, data_opts : dict
         The solver options and the DATA options (``--columns``, ``--topic``; the rest detection's do not apply).
+    location, session_date : str, optional
+        ``--location LAT,LON[,ALT]`` and ``--date YYYY-MM-DD``: the field and dip against the World Magnetic Model
+        (:mod:`optcal.families.mag.wmm`).
     """
     from optcal.cli.outputs import echo_json, output_file
     from optcal.cli.solver_options import estimator_settings
@@ -55,6 +59,15 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         if method not in ("default", "mle"):
             raise InputError("--loss applies to the mle method only")
         settings["loss"] = loss
+    from optcal.families.mag.wmm import Location, compare_with_wmm, parse_date, wmm_lines, wmm_reference
+
+    if session_date is not None and location is None:
+        raise InputError("--date applies with --location (the World Magnetic Model's place)")
+    place = Location.parse(location) if location is not None else None
+    reference = None
+    if place is not None:  # before the fit: a missing extra or a bad date is said at once
+        day, day_reason = parse_date(session_date)
+        reference = wmm_reference(place, day)
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units)
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
@@ -63,6 +76,12 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     result = calibrate_mag(samples, MagSettings(method=method, form=mag_form, allow_degenerate=allow_degenerate,
                                                 accept_fit=accept_mag_fit, estimator=settings))
     cal = result.calibration
+    comparison = None
+    if reference is not None:
+        say(f"date: {day_reason}")
+        comparison = compare_with_wmm(reference, cal.field_strength, cal.units, cal.info.get("dip_deg"),
+                                      cal.info.get("dip_se_deg"))
+        cal.info["wmm"] = comparison
     if output:
         cal.save(output_file(output))
     if as_json:
@@ -71,6 +90,9 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     from optcal.report.mag_text import mag_report
 
     click.echo(mag_report(result))
+    if comparison is not None:
+        for line in wmm_lines(comparison):
+            click.echo(line)
     if output:
         click.echo(f"saved to {output}")
 

@@ -82,7 +82,8 @@ class MagCalibration(Calibration):
     @classmethod
     def from_parameters(cls, d: dict[str, Any], units: str, fitted_on: FitPoses | None) -> "MagCalibration":
         keep = ("n_samples", "rms_norm_residual", "form", "form_reason", "dip_deg", "dip_std_deg", "coverage_missing",
-                "method", "stderr", "decisions", "notes", "dip_se_deg", "dip_std_unaligned_deg", "rotation_deg", "rotation_se_deg")
+                "method", "stderr", "decisions", "notes", "dip_se_deg", "dip_std_unaligned_deg", "rotation_deg", "rotation_se_deg",
+                "wmm")
         R = read_matrix(d, "R_mag_to_acc", (3, 3)) if d.get("R_mag_to_acc") is not None else None
         return cls(read_matrix(d, "T", (3, 3)), read_matrix(d, "o", (3,)), units, float(d["field_strength"]), None, R,
                    {k: d[k] for k in keep if k in d})
