@@ -47,7 +47,14 @@ COMMANDS: dict[str, str] = {
 }
 
 
-@click.group(cls=LazyGroup, lazy_commands=COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
+def _before_command(context: click.Context) -> None:
+    """What every command checks on its parsed arguments before any work: no output is an input."""
+    from optcal.cli.outputs import refuse_outputs_over_inputs
+
+    refuse_outputs_over_inputs(context)
+
+
+@click.group(cls=LazyGroup, lazy_commands=COMMANDS, before_command=_before_command, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="optcal")
 def cli() -> None:
     """optcal: calibrate triaxial accelerometers as optimisation problems, and diagnose the model."""
