@@ -100,6 +100,14 @@ def main(argv: list[str] | None = None) -> int:
 
     progress.set_enabled(False)  # until the command's arguments decide (_before_command)
     try:
+        return _run(args, argv, command)
+    finally:
+        progress.set_enabled(False)  # a library call after main() in the same process draws nothing
+
+
+def _run(args: list[str], argv: list[str] | None, command: str | None) -> int:
+    """:func:`main`'s body: the command run, its failures turned into one line and an exit code."""
+    try:
         with warnings.catch_warnings():
             warnings.showwarning = functools.partial(_show_warning, warnings.showwarning, command)
             # without standalone mode click returns the code of a click.exceptions.Exit (e.g. a failed acceptance)

@@ -11,7 +11,7 @@ the same with and without it.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TypeVar
 
 __all__ = ["DELAY_S", "decide", "enabled", "progress", "set_enabled"]
@@ -66,7 +66,7 @@ def enabled() -> bool:
 
 
 def progress(iterable: Iterable[Item], total: float | None = None, desc: str = "", enabled: bool | None = None,
-             unit: str = "it", scale: bool = False) -> Iterator[Item]:
+             unit: str = "it", scale: bool = False, size: Callable[[Item], float] | None = None) -> Iterator[Item]:
     """``iterable``'s items, with a tqdm bar on standard error when enabled.
 
     Parameters
@@ -83,6 +83,8 @@ def progress(iterable: Iterable[Item], total: float | None = None, desc: str = "
         What one step counts (``"it"``, ``"B"`` for bytes).
     scale : bool
         Show the counts with SI prefixes (bytes, rows).
+    size : callable, optional
+        How many ``unit`` an item is (the rows of a block read); one each by default.
 
     Yields
     ------
@@ -94,5 +96,12 @@ def progress(iterable: Iterable[Item], total: float | None = None, desc: str = "
         return
     from tqdm import tqdm
 
-    yield from tqdm(iterable, total=total, desc=desc, file=sys.stderr, leave=False, delay=DELAY_S,
-                    mininterval=0.5, dynamic_ncols=True, unit=unit, unit_scale=scale)
+    options = dict(total=total, desc=desc, file=sys.stderr, leave=False, delay=DELAY_S, mininterval=0.5,
+                   dynamic_ncols=True, unit=unit, unit_scale=scale)
+    if size is None:
+        yield from tqdm(iterable, **options)
+        return
+    with tqdm(**options) as bar:
+        for item in iterable:
+            yield item
+            bar.update(size(item))

@@ -86,3 +86,21 @@ def test_allan_json_into_a_pipe_draws_no_bar(still_log, capsys, terminal):
     code, shown, err = _run(["allan", still_log, "--units", "g", "--json"], capsys)
     assert code == 0 and "Allan deviation" in err, err
     assert shown == piped
+
+
+def test_a_streamed_read_counts_its_rows_and_reads_the_same_numbers(still_log, capsys, terminal, monkeypatch):
+    import optcal.data.text as text
+    from optcal.data import load_recording
+
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 0)  # this small file read as a large one is: streamed
+    monkeypatch.setattr(text, "THREADED_READ_BYTES", 0)
+    quiet = load_recording(str(still_log), units="g")
+    assert "reading" not in capsys.readouterr().err  # a library call: no bar
+    progress_module.set_enabled(True)
+    try:
+        shown = load_recording(str(still_log), units="g")
+    finally:
+        progress_module.set_enabled(False)
+    err = capsys.readouterr().err
+    assert f"reading {still_log.name}" in err and "rows" in err, err
+    np.testing.assert_array_equal(shown.acc, quiet.acc)
