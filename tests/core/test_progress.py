@@ -104,3 +104,17 @@ def test_a_streamed_read_counts_its_rows_and_reads_the_same_numbers(still_log, c
     err = capsys.readouterr().err
     assert f"reading {still_log.name}" in err and "rows" in err, err
     np.testing.assert_array_equal(shown.acc, quiet.acc)
+
+
+def test_the_global_quiet_silences_diagnose(tmp_path, capsys):
+    """``optcal -q diagnose`` prints none of the stage messages diagnose prints to a non-terminal stderr."""
+    rng = np.random.default_rng(2)
+    g = rng.normal(size=(40, 3))
+    g /= np.linalg.norm(g, axis=1)[:, None]  # 40 poses of 1 g in random directions
+    table = tmp_path / "poses.csv"
+    table.write_text("ax,ay,az\n" + "\n".join(",".join(f"{v:.8f}" for v in row) for row in g + rng.normal(0, 1e-3, g.shape)))
+    code, talk, err = _run(["diagnose", table, "--simulations", "20"], capsys)
+    assert code == 0 and "... " in err, err
+    code, quiet, err = _run(["-q", "diagnose", table, "--simulations", "20"], capsys)
+    assert code == 0 and "... " not in err, err
+    assert quiet == talk
