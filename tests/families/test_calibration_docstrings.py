@@ -3,7 +3,9 @@
 Every public method of :class:`~optcal.families.caltypes.base.Calibration` (the interface each
 calibration type implements, and whose docstrings an override without its own inherits) that
 takes an argument has a ``Parameters`` section, and one that returns something has a
-``Returns`` section.  Read from the source with :mod:`ast`, so a missing section fails.
+``Returns`` section.  Read from the source with :mod:`ast`, so a missing section fails.  The
+same holds for :class:`~optcal.families.caltypes.lumped.LumpedCalibration`'s public methods, an
+override without a docstring of its own read with the one it inherits (:func:`inspect.getdoc`).
 """
 
 from __future__ import annotations
@@ -34,3 +36,24 @@ def test_public_method_has_its_numpydoc_sections(fn: ast.FunctionDef) -> None:
     returns = fn.returns is not None and not (isinstance(fn.returns, ast.Constant) and fn.returns.value is None)
     if returns and not _is_property(fn):  # a property is documented as an attribute
         assert "Returns\n-------" in doc, f"Calibration.{fn.name} returns a value: no Returns section"
+
+
+def _lumped_methods() -> list[str]:
+    from optcal.families.caltypes.lumped import LumpedCalibration
+
+    return [name for name, value in vars(LumpedCalibration).items()
+            if not name.startswith("_") and (isinstance(value, classmethod) or inspect.isfunction(value))]
+
+
+@pytest.mark.parametrize("name", _lumped_methods())
+def test_lumped_calibration_methods_have_their_numpydoc_sections(name: str) -> None:
+    from optcal.families.caltypes.lumped import LumpedCalibration
+
+    method = getattr(LumpedCalibration, name)
+    doc = inspect.getdoc(method) or ""  # an override without a docstring inherits Calibration's
+    signature = inspect.signature(method)
+    arguments = [p for p in signature.parameters if p not in ("self", "cls")]
+    if arguments:
+        assert "Parameters\n----------" in doc, f"LumpedCalibration.{name} takes {arguments}: no Parameters section"
+    if signature.return_annotation not in (None, "None", inspect.Signature.empty):
+        assert "Returns\n-------" in doc, f"LumpedCalibration.{name} returns a value: no Returns section"
