@@ -4,8 +4,9 @@ Every public method of :class:`~optcal.families.caltypes.base.Calibration` (the 
 calibration type implements, and whose docstrings an override without its own inherits) that
 takes an argument has a ``Parameters`` section, and one that returns something has a
 ``Returns`` section.  Read from the source with :mod:`ast`, so a missing section fails.  The
-same holds for :class:`~optcal.families.caltypes.lumped.LumpedCalibration`'s public methods, an
-override without a docstring of its own read with the one it inherits (:func:`inspect.getdoc`).
+same holds for the public methods of every calibration type (lumped, six-position, extended,
+peer), an override without a docstring of its own read with the one it inherits
+(:func:`inspect.getdoc`).
 """
 
 from __future__ import annotations
@@ -38,22 +39,24 @@ def test_public_method_has_its_numpydoc_sections(fn: ast.FunctionDef) -> None:
         assert "Returns\n-------" in doc, f"Calibration.{fn.name} returns a value: no Returns section"
 
 
-def _lumped_methods() -> list[str]:
+def _type_methods() -> list[tuple[type, str]]:
+    from optcal.families.caltypes.extended import ExtendedCalibration
     from optcal.families.caltypes.lumped import LumpedCalibration
+    from optcal.families.caltypes.peer import PeerCalibration
+    from optcal.families.caltypes.sixpos import SixPositionCalibration
 
-    return [name for name, value in vars(LumpedCalibration).items()
+    return [(cls, name) for cls in (LumpedCalibration, SixPositionCalibration, ExtendedCalibration, PeerCalibration)
+            for name, value in vars(cls).items()
             if not name.startswith("_") and (isinstance(value, classmethod) or inspect.isfunction(value))]
 
 
-@pytest.mark.parametrize("name", _lumped_methods())
-def test_lumped_calibration_methods_have_their_numpydoc_sections(name: str) -> None:
-    from optcal.families.caltypes.lumped import LumpedCalibration
-
-    method = getattr(LumpedCalibration, name)
+@pytest.mark.parametrize(("cls", "name"), _type_methods(), ids=[f"{c.__name__}.{n}" for c, n in _type_methods()])
+def test_calibration_type_methods_have_their_numpydoc_sections(cls: type, name: str) -> None:
+    method = getattr(cls, name)
     doc = inspect.getdoc(method) or ""  # an override without a docstring inherits Calibration's
     signature = inspect.signature(method)
     arguments = [p for p in signature.parameters if p not in ("self", "cls")]
     if arguments:
-        assert "Parameters\n----------" in doc, f"LumpedCalibration.{name} takes {arguments}: no Parameters section"
+        assert "Parameters\n----------" in doc, f"{cls.__name__}.{name} takes {arguments}: no Parameters section"
     if signature.return_annotation not in (None, "None", inspect.Signature.empty):
-        assert "Returns\n-------" in doc, f"LumpedCalibration.{name} returns a value: no Returns section"
+        assert "Returns\n-------" in doc, f"{cls.__name__}.{name} returns a value: no Returns section"
