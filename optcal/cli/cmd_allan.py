@@ -121,9 +121,11 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
                       nominal=None)
         if outside:
             exclusions[f"samples outside --window {window[0]:g}:{window[1]:g} s"] = outside
-    t = rec.t[rec.usable]
-    samples = rec.acc[rec.usable]
-    gyro = None if rec.gyro is None else rec.gyro[rec.usable]
+    # a log with every sample usable (the common case) is used as read: boolean indexing would copy it
+    every = bool(np.all(rec.usable))
+    t = rec.t if every else rec.t[rec.usable]
+    samples = rec.acc if every else rec.acc[rec.usable]
+    gyro = None if rec.gyro is None else rec.gyro if every else rec.gyro[rec.usable]
     if sensor in ("gyro", "both") and gyro is None:
         raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
     if sensor == "gyro" and gyro is not None:

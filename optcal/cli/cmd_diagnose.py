@@ -53,10 +53,12 @@ def settings_from(effects: str | None, folds: int, simulations: int, alpha: floa
 
 
 def progress_printer(quiet: bool) -> Any:
-    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet``."""
+    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet`` (``optcal -q`` too)."""
     from optcal.applications.diagnosis.progress import Progress
 
-    return Progress.for_terminal(quiet)
+    context = click.get_current_context(silent=True)
+    root = context.find_root().obj if context is not None else None
+    return Progress.for_terminal(quiet or bool(isinstance(root, dict) and root.get("quiet")))
 
 
 @click.command()

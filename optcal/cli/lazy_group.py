@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import importlib
+from collections.abc import Callable
 from typing import Any
 
 import click
@@ -15,11 +17,16 @@ class LazyGroup(click.Group):
     ----------
     lazy_commands : dict
         The sub-commands (``click.group(cls=LazyGroup, lazy_commands={...})``).
+    before_command : callable, optional
+        Called with each sub-command's context once its arguments are parsed and before its
+        body runs (checks every command shares, such as an output that is an input).
     """
 
-    def __init__(self, *args: Any, lazy_commands: dict[str, str], **kwargs: Any) -> None:
+    def __init__(self, *args: Any, lazy_commands: dict[str, str],
+                 before_command: Callable[[click.Context], None] | None = None, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.lazy_commands = lazy_commands
+        self.before_command = before_command
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(self.lazy_commands)
@@ -39,7 +46,23 @@ class LazyGroup(click.Group):
         if target is None:
             return None
         module, attr = target.split(":")
-        return getattr(importlib.import_module(module), attr)
+        command: click.Command = getattr(importlib.import_module(module), attr)
+        if self.before_command is not None and command.callback is not None \
+                and getattr(command.callback, "_optcal_before", None) is not self.before_command:
+            command.callback = _checked(command.callback, self.before_command)
+        return command
+
+
+def _checked(callback: Callable[..., Any], before: Callable[[click.Context], None]) -> Callable[..., Any]:
+    """``callback`` preceded by ``before(context)`` (the command's own context, arguments parsed)."""
+
+    @functools.wraps(callback)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        before(click.get_current_context())
+        return callback(*args, **kwargs)
+
+    run._optcal_before = before  # type: ignore[attr-defined]  # wrapped once per command object
+    return run
 
 
 def command_short_help(target: str, limit: int) -> str:

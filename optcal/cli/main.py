@@ -47,10 +47,26 @@ COMMANDS: dict[str, str] = {
 }
 
 
-@click.group(cls=LazyGroup, lazy_commands=COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
+def _before_command(context: click.Context) -> None:
+    """What every command does on its parsed arguments before any work: refuse an output that is
+    an input, and decide once whether long work draws progress bars (:func:`optcal.core.progress.decide`)."""
+    from optcal.cli.outputs import refuse_outputs_over_inputs
+    from optcal.core import progress
+
+    refuse_outputs_over_inputs(context)
+    root = context.find_root().obj
+    quiet = bool(context.params.get("quiet")) or bool(isinstance(root, dict) and root.get("quiet"))
+    progress.set_enabled(progress.decide(quiet, bool(context.params.get("as_json"))))
+
+
+@click.group(cls=LazyGroup, lazy_commands=COMMANDS, before_command=_before_command, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="optcal")
-def cli() -> None:
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars on standard error (they appear only in a terminal).")
+@click.pass_context
+def cli(context: click.Context, quiet: bool) -> None:
     """optcal: calibrate triaxial accelerometers as optimisation problems, and diagnose the model."""
+    if isinstance(context.obj, dict):
+        context.obj["quiet"] = quiet
 
 
 def command_name(argv: list[str]) -> str | None:
@@ -80,6 +96,17 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code (2 for bad input, 3 for a solver failure)."""
     args = list(sys.argv[1:] if argv is None else argv)
     command = command_name(args)
+    from optcal.core import progress
+
+    progress.set_enabled(False)  # until the command's arguments decide (_before_command)
+    try:
+        return _run(args, argv, command)
+    finally:
+        progress.set_enabled(False)  # a library call after main() in the same process draws nothing
+
+
+def _run(args: list[str], argv: list[str] | None, command: str | None) -> int:
+    """:func:`main`'s body: the command run, its failures turned into one line and an exit code."""
     try:
         with warnings.catch_warnings():
             warnings.showwarning = functools.partial(_show_warning, warnings.showwarning, command)

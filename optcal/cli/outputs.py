@@ -12,7 +12,9 @@ be written (an existing folder given as a file, a file given as a folder) is one
 Every output is written whole or not at all (:func:`writing`, :mod:`optcal.core.atomic`): a
 temporary file beside it, renamed when complete; a read-only folder or a full disk is one
 ``error:`` line naming the path and the reason (exit 2) and leaves no file behind.  An output
-that is one of the command's input files is refused.
+that is one of the command's input files is refused before the command does any work
+(:func:`refuse_outputs_over_inputs`, run by the ``optcal`` group on every command's parsed
+arguments) and again where the file is written.
 """
 
 from __future__ import annotations
@@ -86,6 +88,50 @@ def _inputs() -> list[str]:
     return found
 
 
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether ``a`` and ``b`` are one existing file: the same device and inode, which follows
+    symbolic links and sees hard links and other spellings of the path (``./x``, ``d/../x``).
+
+    An output that does not exist yet is no input, whatever its spelling."""
+    try:
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def refuse_outputs_over_inputs(context: click.Context) -> None:
+    """Refuse, before any work, a command whose output path is one of its inputs.
+
+    Every parameter in :data:`OUTPUT_PARAMS` with a value is compared with every other
+    parameter naming an existing file (:func:`_same_file`); the ``optcal`` group calls this on
+    the command's parsed arguments, before the command reads or fits anything.
+
+    Parameters
+    ----------
+    context : click.Context
+        The command's context (its ``params`` parsed).
+
+    Raises
+    ------
+    InputError
+        One line naming the flag, the output and the input it would have replaced.
+    """
+    flags = {p.name: (p.opts[0] if p.opts else p.name) for p in context.command.params}
+    inputs: list[str] = []
+    for name, value in context.params.items():
+        if name not in OUTPUT_PARAMS:
+            values = value if isinstance(value, (tuple, list)) else (value,)
+            inputs += [str(v) for v in values if isinstance(v, (str, Path)) and str(v) and os.path.isfile(v)]
+    for name in OUTPUT_PARAMS:
+        value = context.params.get(name)
+        if not isinstance(value, (str, Path)) or not str(value):
+            continue
+        for given in inputs:
+            if _same_file(given, value):
+                raise InputError(f"{flags.get(name, name)} {value}: is the input {given}; writing it would destroy "
+                                 "the input: give another output file")
+
+
 def refuse_input(path: Path, option: str = "-o") -> None:
     """Refuse to write ``path`` when it is one of the command's inputs (the same file, by device and inode).
 
@@ -97,11 +143,7 @@ def refuse_input(path: Path, option: str = "-o") -> None:
     if not path.exists():
         return
     for given in _inputs():
-        try:
-            same = os.path.exists(given) and os.path.samefile(given, path)
-        except OSError:
-            same = False
-        if same:
+        if _same_file(given, path):
             raise InputError(f"{option} {path}: is the input {given}; writing it would destroy the input: "
                              "give another output file")
 

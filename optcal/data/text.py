@@ -477,9 +477,13 @@ def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     blank_delimited = layout.delimiter == " "
     try:
         reader = pacsv.open_csv(p, **options)
-        block = ColumnBlock(width, estimated_rows(p, layout))
-        with reader:
-            for batch in reader:
+        rows = estimated_rows(p, layout)
+        block = ColumnBlock(width, rows)
+        from optcal.core.progress import progress
+
+        with reader:  # a bar (rows read) when the command line asked for one: only files streamed, > 128 MB
+            for batch in progress(reader, total=rows, desc=f"reading {p.name}", unit="rows", scale=True,
+                                  size=lambda b: b.num_rows):
                 if blank_delimited and any(batch.column(j).null_count for j in range(width)):
                     return None  # a run of blanks: fields are not single-blank separated
                 block.append([batch.column(j).to_numpy(zero_copy_only=False) for j in range(width)])

@@ -169,24 +169,60 @@ class Calibration(ABC):
             Temperature of each sample, °C (needed when the calibration has temperature terms).
         t : array_like, shape (n,), optional
             Time of each sample, s, on the time base of the fit (needed for drift terms).
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Specific force, g.
         """
 
     @abstractmethod
     def parameters(self) -> dict[str, Any]:
-        """The type's own numbers, JSON-safe (written next to ``cal_type`` and ``units``)."""
+        """The type's own numbers, JSON-safe (written next to ``cal_type`` and ``units``).
+
+        Returns
+        -------
+        dict
+            Parameter name to value (arrays as nested lists once made JSON-safe).
+        """
 
     @classmethod
     @abstractmethod
     def from_parameters(cls: type[CalibrationT], d: dict[str, Any], units: str, fitted_on: FitPoses | None) -> CalibrationT:
-        """Rebuild the calibration from the entries written by :meth:`parameters`."""
+        """Rebuild the calibration from the entries written by :meth:`parameters`.
+
+        Parameters
+        ----------
+        d : dict
+            The file's JSON object (the entries of :meth:`parameters` among others).
+        units : str
+            Input units (``g``, ``m/s^2`` or ``counts``).
+        fitted_on : FitPoses or None
+            The poses the calibration was fitted on, when the file records them.
+
+        Returns
+        -------
+        Calibration
+            Of the class it is called on.
+        """
 
     @abstractmethod
     def unit_fields(self) -> dict[str, str]:
-        """Units of each parameter, e.g. ``{"T": "g per counts", "o": "counts"}``."""
+        """Units of each parameter, e.g. ``{"T": "g per counts", "o": "counts"}``.
+
+        Returns
+        -------
+        dict of str to str
+        """
 
     @abstractmethod
     def lumped(self) -> Any:
-        """The closest :class:`~optcal.families.caltypes.lumped.LumpedCalibration` (``T`` canonical, ``o``)."""
+        """The closest :class:`~optcal.families.caltypes.lumped.LumpedCalibration` (``T`` canonical, ``o``).
+
+        Returns
+        -------
+        LumpedCalibration
+        """
 
     # ------------------------------------------------------------------- shared
     @property
@@ -197,15 +233,50 @@ class Calibration(ABC):
     def out_of_range(
         self, corrected: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None
     ) -> NDArray[np.bool_]:
-        """Which samples lie outside the range the calibration was fitted on (none, unless the type has one)."""
+        """Which samples lie outside the range the calibration was fitted on (none, unless the type has one).
+
+        Parameters
+        ----------
+        corrected : array_like, shape (n, 3)
+            Corrected samples, g (:meth:`correct`'s output).
+        temp : array_like, shape (n,), optional
+            Temperature of each sample, °C.
+        t : array_like, shape (n,), optional
+            Time of each sample, s.
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+            True where a sample lies outside the fitted range.
+        """
         return np.zeros(as_samples(corrected, "corrected").shape[0], dtype=bool)
 
     def norm_errors(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
-        """``‖ā_k‖ − 1`` in g for static samples or poses (Lu 2017, eq. 13)."""
+        """``‖ā_k‖ − 1`` in g for static samples or poses (Lu 2017, eq. 13).
+
+        Parameters
+        ----------
+        acc : array_like, shape (n, 3)
+            Raw static samples or poses in :attr:`units`.
+        temp, t : array_like, shape (n,), optional
+            As for :meth:`correct`.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The norm error of each, g.
+        """
         return np.linalg.norm(self.correct(acc, temp, t), axis=1) - 1.0
 
     def to_dict(self) -> dict[str, Any]:
-        """The file's JSON object."""
+        """The file's JSON object.
+
+        Returns
+        -------
+        dict
+            ``cal_type``, ``format_version``, ``units`` (input and each parameter's), the
+            :meth:`parameters` and, when known, ``fitted_on``.
+        """
         d: dict[str, Any] = {
             "cal_type": self.cal_type,
             "format_version": self.format_version,
@@ -218,7 +289,23 @@ class Calibration(ABC):
 
     @classmethod
     def from_dict(cls: type[CalibrationT], d: dict[str, Any]) -> CalibrationT:
-        """Rebuild a calibration of this type from :meth:`to_dict` (extra keys are ignored)."""
+        """Rebuild a calibration of this type from :meth:`to_dict` (extra keys are ignored).
+
+        Parameters
+        ----------
+        d : dict
+            The file's JSON object.
+
+        Returns
+        -------
+        Calibration
+            Of the class it is called on.
+
+        Raises
+        ------
+        InputError
+            Another ``cal_type``, an unknown format version or input units, or missing or malformed entries.
+        """
         if not isinstance(d, dict):
             raise InputError("a calibration is a JSON object (a dictionary)")
         found = d.get("cal_type")
@@ -238,7 +325,13 @@ class Calibration(ABC):
             raise InputError(f"not a valid {cls.cal_type!r} calibration ({exc.__class__.__name__}: {exc})") from exc
 
     def save(self, path: str | Path) -> None:
-        """Write the calibration as JSON (:func:`optcal.core.jsonio.write_json`)."""
+        """Write the calibration as JSON (:func:`optcal.core.jsonio.write_json`: whole or not at all).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file written (replaced when it exists).
+        """
         write_json(path, self.to_dict())
 
     def __eq__(self, other: object) -> bool:
@@ -247,6 +340,11 @@ class Calibration(ABC):
     __hash__ = None  # type: ignore[assignment]
 
     def describe(self) -> str:
-        """One line: type, units and the size of the fit set."""
+        """One line: type, units and the size of the fit set.
+
+        Returns
+        -------
+        str
+        """
         fitted = f", fitted on {self.fitted_on.n} poses" if self.fitted_on is not None else ""
         return f"{self.cal_type} calibration ({self.units} in, g out{fitted})"

@@ -388,6 +388,21 @@ class ExtendedCalibration(Calibration):
 
         ``model.base`` must have a canonical (lower-triangular) ``T``, as the extended fit
         returns; without ``validity``, the range is taken from ``fitted_on`` (else left open).
+
+        Parameters
+        ----------
+        model : ExtendedModel
+            The fitted extended model.
+        units : str
+            Input units (``g``, ``m/s^2`` or ``counts``).
+        validity : ValidityRange, optional
+            The temperature, time and ``|a|`` ranges the model holds in.
+        fitted_on : FitPoses, optional
+            The poses it was fitted on.
+
+        Returns
+        -------
+        ExtendedCalibration
         """
         T = np.linalg.inv(model.base.C)
         if np.all(np.abs(np.triu(T, 1)) <= 1e-14 * np.abs(T).max()):
@@ -439,6 +454,22 @@ class ExtendedCalibration(Calibration):
         Raises :class:`~optcal.errors.InputError` when a needed ``temp`` or ``t`` is missing;
         warns (:class:`~optcal.families.caltypes.base.ValidityRangeWarning`) when samples lie outside
         the validity range (``warn=False`` leaves the check to :meth:`out_of_range`).
+
+        Parameters
+        ----------
+        acc : array_like, shape (n, 3)
+            Raw samples in :attr:`units`.
+        temp : array_like, shape (n,), optional
+            Temperature of each sample, °C (needed by temperature terms).
+        t : array_like, shape (n,), optional
+            Time of each sample, s, on the time base of the fit (needed by drift terms).
+        warn : bool
+            Warn about samples outside the validity range.
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Specific force, g.
         """
         a = as_samples(acc)
         n = a.shape[0]
@@ -502,7 +533,12 @@ class ExtendedCalibration(Calibration):
         return {"T": f"g per {self.units}", "o": self.units, "temp_ref": "°C", "t_ref": "s"}
 
     def describe(self) -> str:
-        """One line; with :attr:`bias_repeatability`, how the bias was chosen and its uncertainty."""
+        """One line; with :attr:`bias_repeatability`, how the bias was chosen and its uncertainty.
+
+        Returns
+        -------
+        str
+        """
         text = super().describe()
         r = self.bias_repeatability
         if r is not None:
@@ -516,5 +552,10 @@ class ExtendedCalibration(Calibration):
         return text
 
     def lumped(self) -> LumpedCalibration:
-        """``T`` and ``o`` alone (the terms dropped): the model at ``T_ref``, ``t_ref`` and small forces."""
+        """``T`` and ``o`` alone (the terms dropped): the model at ``T_ref``, ``t_ref`` and small forces.
+
+        Returns
+        -------
+        LumpedCalibration
+        """
         return LumpedCalibration(self.T, self.o, self.units, self.fitted_on)

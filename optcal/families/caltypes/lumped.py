@@ -66,12 +66,43 @@ class LumpedCalibration(Calibration):
 
     @classmethod
     def from_model(cls, model: LumpedModel, units: str = "g", fitted_on: FitPoses | None = None) -> "LumpedCalibration":
-        """The calibration of a :class:`~optcal.core.model.LumpedModel` (``T`` canonicalised)."""
+        """The calibration of a :class:`~optcal.core.model.LumpedModel` (``T`` canonicalised).
+
+        Parameters
+        ----------
+        model : LumpedModel
+            The fitted model.
+        units : str
+            Input units (``g``, ``m/s^2`` or ``counts``).
+        fitted_on : FitPoses, optional
+            The poses it was fitted on.
+
+        Returns
+        -------
+        LumpedCalibration
+        """
         return cls(model.T_canonical, model.o, units, fitted_on)
 
     @classmethod
     def from_any_T(cls, T: ArrayLike, o: ArrayLike, units: str = "g", fitted_on: FitPoses | None = None) -> "LumpedCalibration":
-        """From any invertible ``T``: kept when already canonical, else mapped to the canonical form."""
+        """From any invertible ``T``: kept when already canonical, else mapped to the canonical form.
+
+        Parameters
+        ----------
+        T : array_like, shape (3, 3)
+            The correction matrix (g per input unit).
+        o : array_like, shape (3,)
+            The offset, input units.
+        units : str
+            Input units (``g``, ``m/s^2`` or ``counts``).
+        fitted_on : FitPoses, optional
+            The poses it was fitted on.
+
+        Returns
+        -------
+        LumpedCalibration
+            With ``T`` lower triangular with a positive diagonal (Lu 2017, eq. 6's canonical form).
+        """
         T = np.asarray(T, dtype=float).reshape(3, 3)
         if np.any(np.triu(T, 1) != 0) or np.any(np.diag(T) <= 0):
             T = canonicalise(T)
@@ -88,7 +119,20 @@ class LumpedCalibration(Calibration):
         return LumpedModel.from_T(self.T, self.o)
 
     def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
-        """``T (a − o)`` in g (Lu 2017, eq. 6); ``temp`` and ``t`` are not used."""
+        """``T (a − o)`` in g (Lu 2017, eq. 6); ``temp`` and ``t`` are not used.
+
+        Parameters
+        ----------
+        acc : array_like, shape (n, 3)
+            Raw samples in :attr:`units`.
+        temp, t : array_like, shape (n,), optional
+            Ignored (the lumped model has no temperature or time terms).
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Specific force, g.
+        """
         return (as_samples(acc) - self.o) @ self.T.T
 
     def parameters(self) -> dict[str, Any]:

@@ -137,11 +137,42 @@ class PeerCalibration(Calibration):
 
     # ------------------------------------------------------------- Calibration
     def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
-        """``W (a − o)`` in g: the peer's own output divided by its g (module docstring)."""
+        """``W (a − o)`` in g: the peer's own output divided by its g (module docstring).
+
+        Parameters
+        ----------
+        acc : array_like, shape (n, 3)
+            Raw samples in :attr:`units`.
+        temp, t : array_like, shape (n,), optional
+            Ignored (the peers' models have no temperature or time terms).
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Specific force, g.
+        """
         return (as_samples(acc) - self.o) @ self.W.T
 
     def correct_gyro(self, gyro: ArrayLike, acc: ArrayLike | None = None) -> NDArray[np.float64]:
-        """Body rate in rad/s, ``T_g (g − b_g − G_g ā)`` (``acc``: raw accelerometer samples, for ``G_g``)."""
+        """Body rate in rad/s, ``T_g (g − b_g − G_g ā)`` (``acc``: raw accelerometer samples, for ``G_g``).
+
+        Parameters
+        ----------
+        gyro : array_like, shape (n, 3)
+            Raw gyro samples in :attr:`gyro_units`.
+        acc : array_like, shape (n, 3), optional
+            Raw accelerometer samples of the same rows (needed when the peer has a g-sensitivity ``G_g``).
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Body rate, rad/s.
+
+        Raises
+        ------
+        InputError
+            The peer's file has no gyroscope part.
+        """
         if self.gyro is None:
             raise InputError(f"the {self.label} calibration ({self.source}) has no gyroscope part")
         f = None
@@ -181,7 +212,12 @@ class PeerCalibration(Calibration):
         return out
 
     def lumped(self) -> LumpedCalibration:
-        """The lumped calibration with the same norms (``A = WᵀW``, ``o``); the peer's frame is dropped."""
+        """The lumped calibration with the same norms (``A = WᵀW``, ``o``); the peer's frame is dropped.
+
+        Returns
+        -------
+        LumpedCalibration
+        """
         return LumpedCalibration.from_any_T(self.W, self.o, self.units, self.fitted_on)
 
 

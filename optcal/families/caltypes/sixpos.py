@@ -67,7 +67,20 @@ class SixPositionCalibration(Calibration):
         return -np.linalg.solve(self.W, self.V)  # type: ignore[return-value]  # numpy stubs type solve of float64 as floating[Any]
 
     def correct(self, acc: ArrayLike, temp: ArrayLike | None = None, t: ArrayLike | None = None) -> NDArray[np.float64]:
-        """``W a + V`` in g (Yin 2014, eq. 3); ``temp`` and ``t`` are not used."""
+        """``W a + V`` in g (Yin 2014, eq. 3); ``temp`` and ``t`` are not used.
+
+        Parameters
+        ----------
+        acc : array_like, shape (n, 3)
+            Raw samples in :attr:`units`.
+        temp, t : array_like, shape (n,), optional
+            Ignored (the six-position model has no temperature or time terms).
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Specific force, g.
+        """
         return as_samples(acc) @ self.W.T + self.V
 
     def parameters(self) -> dict[str, Any]:

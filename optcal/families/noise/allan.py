@@ -16,7 +16,8 @@ Allan variance is (Yin 2014, eq. 5)::
 "take the difference of the means of two consecutive clusters, square, sum, divide by a
 scaling factor, take the square root".  τ grows until only 9 clusters remain (K ≥ 9,
 :data:`MIN_CLUSTERS`).  optcal uses the *overlapping* estimator of the same quantity
-(NIST SP 1065, eq. 11), computed by ``allantools.oadev`` on octave-spaced τ = 2^j τ_0, with
+(NIST SP 1065, eq. 11), computed from the cumulative sum of the samples (:func:`overlapping_adev`,
+O(N) per τ, the numbers allantools' ``oadev`` gives) on octave-spaced τ = 2^j τ_0, with
 confidence intervals from allantools' lag-1 autocorrelation noise identification and
 Greenhall's equivalent degrees of freedom.
 
@@ -157,6 +158,74 @@ def octave_taus(n_samples: int, rate_hz: float, max_tau_s: float | None = None) 
     return (2.0**exponents) / rate_hz  # type: ignore[return-value]  # numpy stubs type float ** int array as floating[Any]
 
 
+def phase_from_rate(samples: NDArray[np.float64], rate_hz: float) -> NDArray[np.float64]:
+    """The phase (time integral) of a rate series: ``x_0 = 0``, ``x_{i+1} = x_i + (y_i − ȳ) / f_s``.
+
+    The mean is removed before the sum so that a large mean (1 g on a vertical accelerometer
+    axis) does not cost the fluctuations their digits over millions of samples (as allantools'
+    ``frequency2phase``, whose numbers this reproduces).  One array of ``n + 1`` numbers is
+    allocated; the sum and the scaling are done in place.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (n,)
+        Rate samples (any units).
+    rate_hz : float
+        Sample rate.
+
+    Returns
+    -------
+    ndarray, shape (n + 1,)
+        Phase, input units times seconds.
+    """
+    phase = np.empty(samples.size + 1)
+    phase[0] = 0.0
+    body = phase[1:]
+    np.subtract(samples, np.mean(samples), out=body)
+    np.cumsum(body, out=body)
+    body *= 1.0 / float(rate_hz)
+    return phase
+
+
+def overlapping_adev(phase: NDArray[np.float64], rate_hz: float, ms: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Overlapping Allan deviation from phase, O(N) per cluster length (Riley, NIST SP 1065, eq. 11).
+
+    σ²(mτ_0) = Σ_{i=1}^{N−2m} (x_{i+2m} − 2 x_{i+m} + x_i)² / (2 (N − 2m) (mτ_0)²), with x the
+    phase (:func:`phase_from_rate`): the difference of two consecutive cluster means of the
+    rate, each a difference of the cumulative sum.  One temporary of the phase's length is
+    used per τ (the second differences, summed by a dot product).
+
+    Parameters
+    ----------
+    phase : ndarray, shape (N,)
+        Phase samples (:func:`phase_from_rate`).
+    rate_hz : float
+        Sample rate.
+    ms : array_like of int
+        Cluster lengths m (τ = m / f_s), each with ``N − 2m ≥ 1``.
+
+    Returns
+    -------
+    adev : ndarray
+        σ(τ) for each m, the rate's units.
+    n_terms : ndarray of int
+        The number of second differences summed (N − 2m).
+    """
+    lengths = np.asarray(ms, dtype=int).reshape(-1)
+    adev = np.empty(lengths.size)
+    n_terms = np.empty(lengths.size, dtype=np.int64)
+    for i, m in enumerate(lengths):
+        n = phase.size - 2 * int(m)
+        if m < 1 or n < 1:
+            raise InputError(f"a cluster of {m} samples needs at least {2 * m + 1} phase points, got {phase.size}")
+        second = np.multiply(phase[m : m + n], -2.0)  # Riley, NIST SP 1065, eq. 11: x_{i+2m} − 2 x_{i+m} + x_i
+        second += phase[2 * m :]
+        second += phase[:n]
+        adev[i] = np.sqrt(float(np.dot(second, second)) / (2.0 * n)) / m * rate_hz
+        n_terms[i] = n
+    return adev, n_terms
+
+
 def _noise_alpha(phase: NDArray[np.float64], m: int) -> int | None:
     """allantools' lag-1 autocorrelation noise identification, or None when too few points.
 
@@ -204,9 +273,10 @@ def allan_deviation(
             "(a stuck sensor, or a quantisation step larger than the noise)"
         )
     taus = octave_taus(y.size, rate_hz, max_tau_s)
-    taus, adev, _, n_terms = allantools.oadev(y, rate=rate_hz, data_type="freq", taus=taus)
-    phase = allantools.frequency2phase(y, rate_hz)
     ms = np.rint(taus * rate_hz).astype(int)
+    taus = ms / rate_hz
+    phase = phase_from_rate(y, rate_hz)
+    adev, n_terms = overlapping_adev(phase, rate_hz, ms)
     alpha = np.zeros(ms.size, dtype=int)
     last: int | None = None
     for i, m in enumerate(ms):

@@ -180,7 +180,10 @@ def analyse_static_log(
     if data.ndim != 2 or data.shape[1] != 3:
         raise InputError(f"a static log needs three columns (x, y, z), got shape {data.shape}")
     factor = sensor.si_per_unit(units, counts_per_unit)
-    curves = {axis: allan_deviation(data[:, i], rate_hz, max_tau_s) for i, axis in enumerate(AXES)}
+    from optcal.core.progress import progress
+
+    axes = progress(enumerate(AXES), total=len(AXES), desc=f"Allan deviation ({sensor.name})")
+    curves = {axis: allan_deviation(data[:, i], rate_hz, max_tau_s) for i, axis in axes}
     return AllanAnalysis(
         curves=curves,
         parameters={axis: fit_noise_parameters(c, sensor) for axis, c in curves.items()},
