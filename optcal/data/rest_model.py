@@ -390,12 +390,14 @@ def follow_spans(spans: SpanEstimates, times: NDArray[np.float64], max_drift: fl
     limit = max_drift * (float(grid[1] - grid[0]) if grid.size > 1 else BIAS_SPAN_S)
     track = np.empty_like(local)
     for j in range(3):
+        values = local[:, j].tolist()  # Python floats: the walk is sequential, scalar numpy calls cost 20x more
+        out = list(values)
         anchor = int(np.argmin(np.abs(local[:, j] - spans.whole[j])))
-        track[anchor, j] = local[anchor, j]
         for i in range(anchor + 1, grid.size):
-            track[i, j] = np.clip(local[i, j], track[i - 1, j] - limit, track[i - 1, j] + limit)
+            out[i] = min(max(values[i], out[i - 1] - limit), out[i - 1] + limit)
         for i in range(anchor - 1, -1, -1):
-            track[i, j] = np.clip(local[i, j], track[i + 1, j] - limit, track[i + 1, j] + limit)
+            out[i] = min(max(values[i], out[i + 1] - limit), out[i + 1] + limit)
+        track[:, j] = out
     return np.column_stack([np.interp(times, grid, track[:, j]) for j in range(3)])
 
 
@@ -567,7 +569,7 @@ MIN_RESTS_PER_STEP: int = 2
 MIN_STEP_HOLD_S: float = BIAS_SPAN_S / 4.0
 #: Split points a long segment's search tries first (then every point next to the best): the statistic changes
 #: smoothly with the split point on either side of a step.
-STEP_SEARCH_POINTS: int = 40
+STEP_SEARCH_POINTS: int = 20
 #: Most bias steps looked for in one session (a knock each; the binary segmentation stops earlier when a step
 #: does not pay for its parameters).
 MAX_BIAS_STEPS: int = 8

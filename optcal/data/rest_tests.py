@@ -126,7 +126,7 @@ class RestModel:
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
         if first:
             if self._spans is None:  # the spans' estimates are the same whatever the drift limit: measured once
-                self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base])
+                self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base], step=rm.BIAS_SPAN_S / 2.0)
             self.track = rm.follow_spans(self._spans, b.t_mid, self._max_drift())
             self.bias = np.median(self.track, axis=0)
             self.gvar_ref = rm.local_noise(b.gvar, self.half_width)

@@ -381,7 +381,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
         elif verdicts.creeps[i]:
             reject(a, z, SWEEPING, SWEEPING_STRETCHES)
         elif gyro is not None and gyro_scale is not None and wobble(
-                gyro[a:z], t[a:z], gyro_scale, wobble_window) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
+                gyro[a:z], t[a:z], gyro_scale, wobble_window, np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold
+        ) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
             reject(a, z, WOBBLE, WOBBLE_STRETCHES)
         elif verdicts.turns[i]:
             reject(a, z, TURNING, TURNING_STRETCHES)

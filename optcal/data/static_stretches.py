@@ -107,8 +107,8 @@ def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: ND
 #: the gyro's scale is measured: a scale from one or two moves rests on their axes being across gravity.
 MIN_SCALE_MOVES: int = 3
 #: Most moves the scale is measured on (spread over the session): each move's misfit is a few tenths of a degree
-#: of tens of degrees, so 32 of them measure the scale far finer than any unit's decision or test needs.
-MAX_SCALE_MOVES: int = 32
+#: of tens of degrees, so 24 of them measure the scale far finer than any unit's decision or test needs.
+MAX_SCALE_MOVES: int = 24
 #: Least turn of gravity's direction, rad (5°), a move needs to weigh in the gyro's scale: far above the direction
 #: noise of two rests' means, and the gyro's bias integrated over a move of a few seconds.
 MIN_MOVE_TURN_RAD: float = float(np.radians(5.0))
@@ -290,7 +290,8 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
 RESOLVED_WOBBLE_SHARE: float = 0.5
 
 
-def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int) -> float:
+def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int,
+           tolerance: float | None = None) -> float:
     """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
 
     In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
@@ -298,10 +299,19 @@ def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: floa
     steps, less what the gyro's own white noise gives (its angle random walk, from the rates' sample-to-sample
     differences): a hand's tremor or a vibration is left.  0 when that random walk reaches
     :data:`RESOLVED_WOBBLE_SHARE` of the tolerance: the gyro cannot resolve it.
+
+    With ``tolerance`` (rad), a stretch whose wobble cannot reach it returns that bound instead: within a window
+    of ``T`` the angle moves from its mean by at most ``∫|ω − ω̄| ≤ T·rms(ω − ω̄)``, and the windows' mean squares
+    are at most the stretch's, so the wobble is at most ``T`` times the stretch's rate spread.
     """
     m = gyro.shape[0]
     if m < 3:
         return 0.0
+    if tolerance is not None:
+        window_s = float(t[min(window, m) - 1] - t[0])
+        bound = window_s * float(np.sqrt(np.sum(np.var(gyro, axis=0)))) * rad_per_unit
+        if bound <= tolerance:
+            return bound
     total, noise, count = 0.0, 0.0, 0
     full = (m // window) * window if m >= window else 0
     pieces = [(0, full, window)] if full else []
