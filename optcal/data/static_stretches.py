@@ -8,6 +8,7 @@ and give a pose's sample positions (:func:`group_positions`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -212,6 +213,19 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     return np.asarray(u - 2.0 * w * c + 2.0 * np.cross(v, c))
 
 
+def _golden_log(cost: Callable[[NDArray[np.float64]], NDArray[np.float64]], lo: float, hi: float, steps: int) -> float:
+    """Golden-section search of ``cost`` (of an array of scales) over ``[lo, hi]`` in the log of the scale: the
+    bracket's middle after ``steps`` steps (each evaluates the two inner points at once)."""
+    for _ in range(steps):
+        m1, m2 = lo + 0.382 * (hi - lo), lo + 0.618 * (hi - lo)
+        c1, c2 = cost(np.exp(np.array([m1, m2])))
+        if c1 < c2:
+            hi = m2
+        else:
+            lo = m1
+    return 0.5 * (lo + hi)
+
+
 def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
                      spans: list[tuple[int, int]], before: NDArray[np.float64], after: NDArray[np.float64]
                      ) -> ScaleEvidence | None:
@@ -254,27 +268,12 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
     candidates = candidates[np.argsort(grid[candidates])[:ALIAS_CANDIDATES]]
     refined = []
     for c in candidates.tolist():
-        a, b = np.log(SCALE_GRID[max(c - 1, 0)]), np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)])
-        for _ in range(3 * GOLDEN_STEPS):
-            m1, m2 = a + 0.382 * (b - a), a + 0.618 * (b - a)
-            c1, c2 = approximate(np.exp(np.array([m1, m2])))
-            if c1 < c2:
-                b = m2
-            else:
-                a = m1
-        x = 0.5 * (a + b)
+        x = _golden_log(approximate, np.log(SCALE_GRID[max(c - 1, 0)]),
+                        np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)]), 3 * GOLDEN_STEPS)
         refined.append((float(approximate(np.exp(np.array([x])))[0]), x))
     best_cost = min(r[0] for r in refined)
     x = min(r[1] for r in refined if r[0] <= 2.0 * best_cost + 1e-9 * increments.shape[0])
-    lo, hi = x - 2.0 * GRID_STEP_LOG, x + 2.0 * GRID_STEP_LOG
-    for _ in range(GOLDEN_STEPS):  # golden section on the log scale
-        m1, m2 = lo + 0.382 * (hi - lo), lo + 0.618 * (hi - lo)
-        c1, c2 = cost(np.exp(np.array([m1, m2])))
-        if c1 < c2:
-            hi = m2
-        else:
-            lo = m1
-    best = float(np.exp(0.5 * (lo + hi)))
+    best = float(np.exp(_golden_log(cost, x - 2.0 * GRID_STEP_LOG, x + 2.0 * GRID_STEP_LOG, GOLDEN_STEPS)))
     fitted = _turned(increments, start, np.array([best]))[0]
     misfit = np.degrees(np.arccos(np.clip(np.sum(fitted * end, axis=1), -1.0, 1.0)))
     angles = np.degrees(np.arccos(np.clip(np.sum(start * end, axis=1), -1.0, 1.0)))
