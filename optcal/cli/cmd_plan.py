@@ -12,6 +12,9 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
 
 
 @click.command()
+@click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
+              help="mag: the orientations a magnetometer session still needs (the field directions its samples have not "
+                   "reached, --next DATA; all 26 with --poses K).")
 @click.option("--poses", "n_poses", type=int, default=None, metavar="K", help="Plan K orientations.")
 @click.option("--next", "next_data", type=DATA_PATH, default=None, metavar="DATA",
               help="Recommend the one orientation that adds the most to the poses in DATA (pose table or raw recording).")
@@ -49,7 +52,7 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
               help="Write the plan as a self-contained HTML page: the poses as a sphere map and a table to follow, "
                    "the criterion, the expected standard errors.")
 @data_options
-def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
+def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
          given_data: str | None, target_stderr: float | None, grid: int, seed: int, solver: str | None,
          solver_option: tuple[str, ...], as_json: bool, plot: str | None, report_path: str | None,
@@ -67,6 +70,16 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
 
     if (n_poses is None) == (next_data is None):
         raise InputError("give either --poses K (plan K poses) or --next DATA (the next pose after DATA)")
+    if sensor == "mag":
+        used = [flag for flag, value in (("--criterion", criterion.upper() != "D"), ("--prior", prior), ("--sigma", sigma),
+                                         ("--turntable", turntable), ("--within", within), ("--candidates", candidates_file),
+                                         ("--given", given_data), ("--target-stderr", target_stderr), ("--plot", plot),
+                                         ("--report", report_path), ("--solver", solver)) if value]
+        if used:
+            raise InputError(f"{', '.join(used)} plan the accelerometer's poses; --sensor mag plans the field directions "
+                             "a magnetometer session still needs: drop them")
+        _plan_mag(n_poses, next_data, as_json, data_opts)
+        return
     if next_data is not None and given_data is not None:
         raise InputError("--next DATA already gives the poses taken; drop --given")
     if turntable and candidates_file:
@@ -134,3 +147,38 @@ def plan(n_poses: int | None, next_data: str | None, criterion: str, prior: str 
         click.echo("excluded from DATA: " + "; ".join(f"{k}: {v}" for k, v in poses.exclusions.items()))
     if plot:
         click.echo(f"figure: {plot}")
+
+
+def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_opts: dict[str, Any]) -> None:
+    """``plan --sensor mag``: the missing field directions of DATA's calibrated samples, or the first K of the 26."""
+    from optcal.errors import InputError
+    from optcal.families.mag.calibration import calibrate_mag
+    from optcal.families.mag.coverage_plan import plan_coverage, plan_lines
+    from optcal.families.mag.fit import COVERAGE_NAMES, MagSettings, coverage
+    from optcal.families.mag.samples import read_mag
+
+    cov = None
+    if next_data is not None:
+        samples = read_mag(next_data, columns=data_opts.get("columns"), topic=data_opts.get("topic"))
+        if not as_json:
+            click.echo(f"data: {next_data}: {samples.n} magnetometer samples")
+            for line in samples.decision_lines():
+                click.echo(line)
+        # the hard iron only: a session that misses part of the sphere (what is planned for) does not determine the
+        # soft iron, and the directions from the field's centre are what coverage asks
+        cal = calibrate_mag(samples, MagSettings(form="offsets", allow_degenerate=True)).calibration
+        unit = cal.correct(samples.m)
+        cov = coverage(unit)
+        planned = plan_coverage(unit)
+    else:
+        assert n_poses is not None
+        if not 1 <= n_poses <= len(COVERAGE_NAMES):
+            raise InputError(f"--sensor mag --poses K: K from 1 to {len(COVERAGE_NAMES)} (the coverage directions)")
+        planned = plan_coverage(None)[:n_poses]
+    if as_json:
+        echo_json({"sensor": "magnetometer", "covered": list(cov.covered) if cov else [],
+                   "missing": list(cov.missing) if cov else list(COVERAGE_NAMES),
+                   "plan": [p.to_dict() for p in planned]})
+        return
+    for line in plan_lines(planned, cov):
+        click.echo(line)
