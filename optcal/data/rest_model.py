@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import median
+from optcal.data.quantiles import column_medians, median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -620,7 +620,7 @@ def _biweight_fit(x: NDArray[np.float64], y: NDArray[np.float64], iterations: in
     w = np.ones_like(y)
     for _ in range(iterations):
         r = y - x @ coef
-        scale = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+        scale = 1.4826 * column_medians(np.abs(r - column_medians(r)))
         scale = np.maximum(scale, np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
         u = r / (BIWEIGHT_C * scale)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
@@ -642,8 +642,8 @@ def _robust_ss(r: NDArray[np.float64]) -> float:
     """A robust sum of squares of ``r`` (k, m) about its median: ``k`` times the squared MAD-σ, summed over the columns."""
     if r.shape[0] == 0:
         return 0.0
-    d = r - np.median(r, axis=0)
-    return float(r.shape[0] * np.sum((1.4826 * np.median(np.abs(d), axis=0)) ** 2))
+    d = r - column_medians(r)
+    return float(r.shape[0] * np.sum((1.4826 * column_medians(np.abs(d))) ** 2))
 
 
 def _segment_of(t: NDArray[np.float64], cut_times: NDArray[np.float64]) -> NDArray[np.intp]:
@@ -654,16 +654,16 @@ def _segment_of(t: NDArray[np.float64], cut_times: NDArray[np.float64]) -> NDArr
 def _levels(r: NDArray[np.float64], cuts: list[int]) -> NDArray[np.float64]:
     """The median of ``r`` (k, 3) over each segment between the ``cuts`` (indices) (segments, 3)."""
     edges = [0, *cuts, r.shape[0]]
-    return np.array([np.median(r[a:z], axis=0) for a, z in zip(edges[:-1], edges[1:])])
+    return np.array([column_medians(r[a:z]) for a, z in zip(edges[:-1], edges[1:])])
 
 
 def _split_statistic(r: NDArray[np.float64], noise2: NDArray[np.float64], a: int, k: int, z: int) -> float:
     """χ² of the difference of the medians of ``r[a:k]`` and ``r[k:z]`` over their robust variances (of a median)."""
     left, right = r[a:k], r[k:z]
-    d = np.median(left, axis=0) - np.median(right, axis=0)
+    d = column_medians(left) - column_medians(right)
     v = np.zeros(3)
     for side in (left, right):
-        spread = (1.4826 * np.median(np.abs(side - np.median(side, axis=0)), axis=0)) ** 2
+        spread = (1.4826 * column_medians(np.abs(side - column_medians(side)))) ** 2
         v += (np.pi / 2.0) * np.maximum(spread, noise2) / side.shape[0]  # variance of a median
     return float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
 
@@ -713,8 +713,8 @@ def _persistent(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[
             before, after = r[edges[i]:edges[i + 1]], r[edges[i + 2]:edges[i + 3]]
             if t[edges[i + 2]] - t[edges[i + 1]] >= BIAS_SPAN_S:
                 continue
-            d = np.median(before, axis=0) - np.median(after, axis=0)
-            v = sum((np.pi / 2.0) * np.maximum((1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)) ** 2, noise2)
+            d = column_medians(before) - column_medians(after)
+            v = sum((np.pi / 2.0) * np.maximum((1.4826 * column_medians(np.abs(x - column_medians(x)))) ** 2, noise2)
                     / x.shape[0] for x in (before, after))
             if float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny))) <= chi2_limit(0.01, 3):
                 del out[i:i + 2]
@@ -743,9 +743,9 @@ def fit_bias_model(t: NDArray[np.float64], direction: NDArray[np.float64], rates
         return BiasModel(zero, np.zeros((3, 3)), np.zeros(0), np.zeros((1, 3)), zero)
     order = np.argsort(t)
     t, direction, rates, noise2 = t[order], direction[order], rates[order], noise2[order]
-    floor = np.median(noise2, axis=0)
+    floor = column_medians(noise2)
 
-    cuts = _steps(t, rates - np.median(rates, axis=0), floor)
+    cuts = _steps(t, rates - column_medians(rates), floor)
     ones = np.ones((k, 1))
     g = np.zeros((3, 3))
     b0 = np.zeros(3)
@@ -776,5 +776,5 @@ def fit_bias_model(t: NDArray[np.float64], direction: NDArray[np.float64], rates
     levels = _levels(rates - direction @ g.T - b0, cuts)
     model = BiasModel(np.asarray(b0, float), g, cut_times, levels, zero)
     resid = rates - model.at(t, direction)
-    scatter = 1.4826 * np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
+    scatter = 1.4826 * column_medians(np.abs(resid - column_medians(resid)))
     return BiasModel(model.b0, g, cut_times, levels, scatter)

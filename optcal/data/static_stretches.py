@@ -164,9 +164,9 @@ def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scal
     return np.asarray(np.cos(phi) + (1.0 - np.cos(phi)) * along2)
 
 
-#: Golden-section steps refining the scale between the grid's second neighbours (a bracket of 1.023⁴ narrowed by 0.618
-#: per step: 0.5 % after 6, far finer than a unit's decision or a test's tolerance needs).
-GOLDEN_STEPS: int = 6
+#: Golden-section steps refining the scale on the composed turns, from a bracket of ±4 grid steps (1.023⁸, 20 %)
+#: narrowed by 0.618 per step: 2 % wide after 5, far finer than a unit's decision or a relevance test needs.
+GOLDEN_STEPS: int = 5
 
 
 def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
@@ -273,7 +273,8 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
         refined.append((float(approximate(np.exp(np.array([x])))[0]), x))
     best_cost = min(r[0] for r in refined)
     x = min(r[1] for r in refined if r[0] <= 2.0 * best_cost + 1e-9 * increments.shape[0])
-    best = float(np.exp(_golden_log(cost, x - 2.0 * GRID_STEP_LOG, x + 2.0 * GRID_STEP_LOG, GOLDEN_STEPS)))
+    # the composed turns' best lies within ±10 % of the fixed axis' (a hand's axis changes within a move)
+    best = float(np.exp(_golden_log(cost, x - 4.0 * GRID_STEP_LOG, x + 4.0 * GRID_STEP_LOG, GOLDEN_STEPS)))
     fitted = _turned(increments, start, np.array([best]))[0]
     misfit = np.degrees(np.arccos(np.clip(np.sum(fitted * end, axis=1), -1.0, 1.0)))
     angles = np.degrees(np.arccos(np.clip(np.sum(start * end, axis=1), -1.0, 1.0)))
