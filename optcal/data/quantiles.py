@@ -114,3 +114,13 @@ def _lerp(a: float, b: float, t: float) -> float:
     """numpy's linear interpolation between two order statistics (``numpy.lib._function_base_impl._lerp``)."""
     diff = b - a
     return b - diff * (1 - t) if t >= 0.5 else a + diff * t
+
+
+#: The median absolute deviation's factor to the standard deviation of a normal population (1/Φ⁻¹(3/4)).
+MAD_TO_SIGMA: float = 1.4826
+
+
+def column_mad_sigmas(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per column, the robust standard deviation ``1.4826 · median |x − median x|`` (:func:`column_medians` twice)."""
+    a = np.asarray(x, dtype=float)
+    return np.asarray(MAD_TO_SIGMA * column_medians(np.abs(a - column_medians(a))))

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import column_medians, median
+from optcal.data.quantiles import column_mad_sigmas, column_medians, median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -620,8 +620,7 @@ def _biweight_fit(x: NDArray[np.float64], y: NDArray[np.float64], iterations: in
     w = np.ones_like(y)
     for _ in range(iterations):
         r = y - x @ coef
-        scale = 1.4826 * column_medians(np.abs(r - column_medians(r)))
-        scale = np.maximum(scale, np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
+        scale = np.maximum(column_mad_sigmas(r), np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
         u = r / (BIWEIGHT_C * scale)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
         new = np.empty_like(coef)
@@ -642,8 +641,7 @@ def _robust_ss(r: NDArray[np.float64]) -> float:
     """A robust sum of squares of ``r`` (k, m) about its median: ``k`` times the squared MAD-σ, summed over the columns."""
     if r.shape[0] == 0:
         return 0.0
-    d = r - column_medians(r)
-    return float(r.shape[0] * np.sum((1.4826 * column_medians(np.abs(d))) ** 2))
+    return float(r.shape[0] * np.sum(column_mad_sigmas(r) ** 2))
 
 
 def _segment_of(t: NDArray[np.float64], cut_times: NDArray[np.float64]) -> NDArray[np.intp]:
@@ -657,14 +655,11 @@ def _levels(r: NDArray[np.float64], cuts: list[int]) -> NDArray[np.float64]:
     return np.array([column_medians(r[a:z]) for a, z in zip(edges[:-1], edges[1:])])
 
 
-def _split_statistic(r: NDArray[np.float64], noise2: NDArray[np.float64], a: int, k: int, z: int) -> float:
-    """χ² of the difference of the medians of ``r[a:k]`` and ``r[k:z]`` over their robust variances (of a median)."""
-    left, right = r[a:k], r[k:z]
+def _median_difference(left: NDArray[np.float64], right: NDArray[np.float64], noise2: NDArray[np.float64]) -> float:
+    """χ² of the difference of the column medians of ``left`` and ``right`` over their variances (a median's:
+    ``π/2`` times the larger of the robust variance and ``noise2``, over the count)."""
     d = column_medians(left) - column_medians(right)
-    v = np.zeros(3)
-    for side in (left, right):
-        spread = (1.4826 * column_medians(np.abs(side - column_medians(side)))) ** 2
-        v += (np.pi / 2.0) * np.maximum(spread, noise2) / side.shape[0]  # variance of a median
+    v = sum((np.pi / 2.0) * np.maximum(column_mad_sigmas(side) ** 2, noise2) / side.shape[0] for side in (left, right))
     return float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
 
 
@@ -688,10 +683,10 @@ def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.fl
         if not ks.size:
             continue
         stride = max(1, ks.size // STEP_SEARCH_POINTS)
-        coarse = {int(k): _split_statistic(r, noise2, a, int(k), z) for k in ks[::stride]}
+        coarse = {int(k): _median_difference(r[a:int(k)], r[int(k):z], noise2) for k in ks[::stride]}
         centre = max(coarse, key=lambda k: coarse[k])
         near = ks[(ks > centre - stride) & (ks < centre + stride)]
-        stats = {**coarse, **{int(k): _split_statistic(r, noise2, a, int(k), z) for k in near if int(k) not in coarse}}
+        stats = {**coarse, **{int(k): _median_difference(r[a:int(k)], r[int(k):z], noise2) for k in near if int(k) not in coarse}}
         best = max(stats, key=lambda k: stats[k])
         points = max(z - a - 2 * MIN_RESTS_PER_STEP + 1, 1)
         if stats[best] > chi2_limit(0.01 / points, 3):
@@ -713,10 +708,7 @@ def _persistent(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[
             before, after = r[edges[i]:edges[i + 1]], r[edges[i + 2]:edges[i + 3]]
             if t[edges[i + 2]] - t[edges[i + 1]] >= BIAS_SPAN_S:
                 continue
-            d = column_medians(before) - column_medians(after)
-            v = sum((np.pi / 2.0) * np.maximum((1.4826 * column_medians(np.abs(x - column_medians(x)))) ** 2, noise2)
-                    / x.shape[0] for x in (before, after))
-            if float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny))) <= chi2_limit(0.01, 3):
+            if _median_difference(before, after, noise2) <= chi2_limit(0.01, 3):
                 del out[i:i + 2]
                 changed = True
                 break
@@ -775,6 +767,5 @@ def fit_bias_model(t: NDArray[np.float64], direction: NDArray[np.float64], rates
     cut_times = np.array([0.5 * (t[c - 1] + t[c]) for c in cuts])
     levels = _levels(rates - direction @ g.T - b0, cuts)
     model = BiasModel(np.asarray(b0, float), g, cut_times, levels, zero)
-    resid = rates - model.at(t, direction)
-    scatter = 1.4826 * column_medians(np.abs(resid - column_medians(resid)))
+    scatter = column_mad_sigmas(rates - model.at(t, direction))
     return BiasModel(model.b0, g, cut_times, levels, scatter)

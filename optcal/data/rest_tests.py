@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_medians, median, quantiles
+from optcal.data.quantiles import column_mad_sigmas, column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
@@ -25,6 +25,11 @@ from optcal.data.quantisation import quantum
 
 if TYPE_CHECKING:
     from optcal.data.static import StaticSettings
+
+
+def unit_rows(f: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each row of ``f`` (k, 3) (or ``f`` itself, (3,)) over its norm: a specific force's direction."""
+    return np.asarray(f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), np.finfo(float).tiny))
 
 
 #: Standard errors (rms over the axes) within which the accelerometer's rate of change over a stretch agrees with
@@ -156,11 +161,9 @@ class RestModel:
         for (_, end), (start, _) in zip(runs[:-1], runs[1:]):
             if not bool(b.joined[end:start + 1].all()):
                 continue  # a time gap: nothing is known of the move
-            d0 = b.mean[max(end - 2, 0):end].mean(axis=0) - self.acc_zero
-            d1 = b.mean[start:start + 2].mean(axis=0) - self.acc_zero
             spans.append((int(b.start[end - 1]), int(b.stop[start])))
-            before.append(d0 / max(float(np.linalg.norm(d0)), np.finfo(float).tiny))
-            after.append(d1 / max(float(np.linalg.norm(d1)), np.finfo(float).tiny))
+            before.append(unit_rows(b.mean[max(end - 2, 0):end].mean(axis=0) - self.acc_zero))
+            after.append(unit_rows(b.mean[start:start + 2].mean(axis=0) - self.acc_zero))
         if not spans:
             return None
         return scale_from_moves(self.t, self.gyro, self.bias, spans, np.asarray(before), np.asarray(after))
@@ -176,8 +179,7 @@ class RestModel:
 
     def directions(self, rows: NDArray[np.intp] | slice = slice(None)) -> NDArray[np.float64]:
         """The specific force's unit direction of blocks ``rows`` by the nominal conversion (k, 3)."""
-        f = self.b.mean[rows] - self.acc_zero
-        return np.asarray(f / np.maximum(np.linalg.norm(f, axis=1, keepdims=True), np.finfo(float).tiny))
+        return unit_rows(self.b.mean[rows] - self.acc_zero)
 
     def _bias_rests(self) -> list[tuple[int, int]]:
         """The stretches the gyro's bias is measured on: runs of blocks the accelerometer calls still (a real gyro's
@@ -223,16 +225,16 @@ class RestModel:
             means.append((b.gmean[rows] * w).sum(axis=0) / n)
             noise2.append(self.gkappa2 * column_medians(b.gvar[rows]) / n)
             mids.append(0.5 * (b.t_mid[rows[0]] + b.t_mid[rows[-1]]))
-            f = (b.mean[rows] * w).sum(axis=0) / n - self.acc_zero
-            dirs.append(f / max(float(np.linalg.norm(f)), np.finfo(float).tiny))
+            dirs.append(unit_rows((b.mean[rows] * w).sum(axis=0) / n - self.acc_zero))
         if len(means) < rm.MIN_RESTS_G_SENSITIVITY:
             return self._measure_wander_plain()
         at = np.asarray(mids)
         rest_means = np.asarray(means)
         direction = np.asarray(dirs)
         scale = self._scale()
-        limit = rm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale if scale is not None else None
-        self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2), limit)
+        assert scale is not None  # a gyro without a scale took the ideal gyro's bias above
+        self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2),
+                                                    rm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale)
         modelled = model.at(at, direction)
         # what the model leaves (a thermal drift) followed over the session, each span's median
         # (on spans a whole span apart: a package warms over minutes)
@@ -240,14 +242,11 @@ class RestModel:
                                 b.t_mid, self._max_drift())
         self.track = model.at(b.t_mid, self.directions()) + drift
         self.bias = np.median(rest_means, axis=0)
-        if len(means) >= 3:
-            # about the model and its drift at each rest: the bias wanders about them (a random walk) by as much as
-            # the rests' means scatter
-            dev = rest_means - modelled - np.column_stack([np.interp(at, b.t_mid, drift[:, j]) for j in range(3)])
-            robust2 = (1.4826 * np.median(np.abs(dev - np.median(dev, axis=0)), axis=0)) ** 2
-            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
-            if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
-                self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
+        # about the model and its drift at each rest: the bias wanders about them (a random walk) by as much as the
+        # rests' means scatter; a scatter beyond any MEMS gyro's bias change is of false rests
+        dev = rest_means - modelled - np.column_stack([np.interp(at, b.t_mid, drift[:, j]) for j in range(3)])
+        robust2 = column_mad_sigmas(dev) ** 2
+        self.wander2 = np.minimum(np.maximum(robust2 - np.median(noise2, axis=0), 0.0), (MAX_BIAS_WANDER_RAD_S / scale) ** 2)
 
     def _turns_by_both(self, rows: NDArray[np.intp]) -> bool:
         """Whether the blocks ``rows`` (a stretch the accelerometer calls still) turn by both sensors' evidence.
@@ -296,11 +295,15 @@ class RestModel:
             noise2.append(self.gkappa2 * column_medians(b.gvar[k0:k1]) / n)
             mids.append(0.5 * (b.t_mid[k0] + b.t_mid[k1 - 1]))
         if means:
+            # the bias re-estimated from the rests themselves (the half-sample mode of all still blocks is a start:
+            # its own error, integrated over a long rest, would look like a turn), their median over each span
             at = np.asarray(mids)
             rest_means = np.asarray(means)
             self.track = rm.bias_track(at, rest_means, b.t_mid, self._max_drift(), estimate=lambda x: float(np.median(x)))
             self.bias = np.median(rest_means, axis=0)
         if len(means) >= 3:
+            # about the session's median, not the track: the track is a span's median, and the bias wanders about
+            # it within a span (a random walk) by as much as the rests' means scatter over the session
             dev = rest_means - self.bias
             robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
             self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
