@@ -10,6 +10,8 @@ import pytest
 from optcal.core.model import LumpedModel
 from optcal.families.simulate.poses import simulate_poses, tilted_sweeps
 
+from tests.helpers.cli_run import run
+
 
 @pytest.fixture
 def pose_csv(tmp_path: Path, lu_model: LumpedModel) -> Path:
@@ -18,4 +20,13 @@ def pose_csv(tmp_path: Path, lu_model: LumpedModel) -> Path:
     path = tmp_path / "poses.csv"
     lines = ["ax,ay,az"] + [",".join(f"{v:.10g}" for v in row) for row in poses.acc]
     path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture
+def cal_json(tmp_path: Path, pose_csv: Path, capsys: pytest.CaptureFixture[str]) -> Path:
+    """A lumped calibration saved by ``optcal calibrate`` from :func:`pose_csv`."""
+    path = tmp_path / "cal.json"
+    code, _, err = run(["calibrate", pose_csv, "-o", path], capsys)
+    assert code == 0, err
     return path

@@ -43,14 +43,6 @@ def test_min_dwell_longer_than_the_recording_is_refused_with_its_length(raw_with
     assert "--min-dwell" in line and "longer than the recording" in line
 
 
-@pytest.fixture
-def cal_json(tmp_path, pose_csv, capsys):
-    path = tmp_path / "cal.json"
-    code, _, err = run(["calibrate", pose_csv, "-o", path], capsys)
-    assert code == 0, err
-    return path
-
-
 def test_export_counts_per_g_inf_refused(cal_json, tmp_path, capsys):
     code, _, err = run(["export", cal_json, "--format", "px4", "--counts-per-g", "inf", "--max-loss", "1000",
                         "-o", tmp_path / "p.params"], capsys)

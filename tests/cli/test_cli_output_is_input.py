@@ -44,14 +44,6 @@ print(json.dumps(results))
 """
 
 
-@pytest.fixture
-def cal_json(tmp_path, pose_csv, capsys):
-    path = tmp_path / "cal.json"
-    code, _, err = run(["calibrate", pose_csv, "-o", path], capsys)
-    assert code == 0, err
-    return path
-
-
 def _target(how: str, original: Path, tmp_path: Path) -> Path:
     """``original`` spelled ``how``."""
     if how == "symbolic link":

@@ -17,14 +17,6 @@ import optcal.core.atomic as atomic
 from tests.helpers.cli_run import run
 
 
-@pytest.fixture
-def cal_json(tmp_path, pose_csv, capsys):
-    path = tmp_path / "cal.json"
-    code, _, err = run(["calibrate", pose_csv, "-o", path], capsys)
-    assert code == 0, err
-    return path
-
-
 #: name -> the command's arguments given DATA (pose table), CAL and the output folder OUT.
 WRITERS = {
     "calibrate -o": lambda d, c, o: ["calibrate", d, "-o", o / "c.json"],
