@@ -167,9 +167,8 @@ def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_op
         # the hard iron only: a session that misses part of the sphere (what is planned for) does not determine the
         # soft iron, and the directions from the field's centre are what coverage asks
         cal = calibrate_mag(samples, MagSettings(form="offsets", allow_degenerate=True)).calibration
-        unit = cal.correct(samples.m)
-        cov = coverage(unit)
-        planned = plan_coverage(unit)
+        cov = coverage(cal.correct(samples.m))
+        planned = plan_coverage(cov)
     else:
         assert n_poses is not None
         if not 1 <= n_poses <= len(COVERAGE_NAMES):

@@ -29,14 +29,14 @@ def test_a_hemisphere_plans_the_other_one_the_largest_gap_first() -> None:
     u = rng.standard_normal((20_000, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     upper = u[u[:, 2] > 0.1]
-    planned = plan_coverage(upper)
+    planned = plan_coverage(coverage(upper))
     assert planned[0].name == "-z" and planned[0].gap_deg > 90.0
     assert all(p.vector[2] < 0 for p in planned)
     gaps = [p.gap_deg for p in planned]
     assert all(g > COVERAGE_CAP_DEG for g in gaps)
     # the samples and the planned directions together leave no direction uncovered
     assert not coverage(np.vstack([upper, np.array([p.vector for p in planned])])).missing
-    assert plan_coverage(u) == []
+    assert plan_coverage(coverage(u)) == []
 
 
 def test_plan_sensor_mag_on_a_recording_missing_its_lower_half(tmp_path, capsys) -> None:

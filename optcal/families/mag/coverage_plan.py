@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.families.mag.fit import COVERAGE_CAP_DEG, COVERAGE_DIRECTIONS, COVERAGE_NAMES, COVERAGE_SAMPLES, Coverage
+from optcal.families.mag.fit import COVERAGE_CAP_DEG, COVERAGE_DIRECTIONS, COVERAGE_NAMES, Coverage
 
 
 @dataclass(frozen=True)
@@ -42,18 +42,16 @@ class PlannedDirection:
         return {"direction": self.name, "vector": self.vector.tolist(), "gap_deg": self.gap_deg}
 
 
-def plan_coverage(unit: NDArray[np.float64] | None) -> list[PlannedDirection]:
-    """The missing directions of calibrated samples ``unit`` (n, 3; any norm), the largest gap first.
+def plan_coverage(cov: Coverage | None) -> list[PlannedDirection]:
+    """The directions :func:`~optcal.families.mag.fit.coverage` found missing, the largest gap first.
 
     ``None`` (no recording): all 26 directions, faces, then edges, then corners, each with a gap of 180°.
     """
     order = np.argsort([np.count_nonzero(v) for v in np.round(COVERAGE_DIRECTIONS * np.sqrt(3.0), 6)], kind="stable")
-    if unit is None or len(unit) == 0:
+    if cov is None:
         return [PlannedDirection(COVERAGE_NAMES[i], COVERAGE_DIRECTIONS[i], 180.0) for i in order]
-    stride = max(1, len(unit) // COVERAGE_SAMPLES)
-    u = unit[::stride] / np.linalg.norm(unit[::stride], axis=1, keepdims=True)
     # the cosine of each direction's nearest sample, then of its nearest sample or planned direction
-    nearest = np.max(u @ COVERAGE_DIRECTIONS.T, axis=0)
+    nearest = np.array(cov.nearest_cos, dtype=float)
     cap = np.cos(np.radians(COVERAGE_CAP_DEG))
     out: list[PlannedDirection] = []
     while True:

@@ -146,12 +146,15 @@ class Coverage:
         Eigenvalues of the covariance of the unit directions, ascending (0 along the axis of a planar turn).
     thinnest_axis : ndarray, shape (3,)
         The eigenvector of the smallest eigenvalue.
+    nearest_cos : ndarray, shape (26,)
+        Per coverage direction, the cosine of the angle to its nearest sample.
     """
 
     covered: tuple[str, ...]
     missing: tuple[str, ...]
     spread: NDArray[np.float64]
     thinnest_axis: NDArray[np.float64]
+    nearest_cos: NDArray[np.float64]
 
     @property
     def share(self) -> float:
@@ -168,7 +171,7 @@ def coverage(unit: NDArray[np.float64]) -> Coverage:
     hit = best >= cos_cap
     values, vectors = np.linalg.eigh(np.cov(u.T))
     return Coverage(tuple(n for n, h in zip(COVERAGE_NAMES, hit) if h), tuple(n for n, h in zip(COVERAGE_NAMES, hit) if not h),
-                    values, vectors[:, 0])
+                    values, vectors[:, 0], best)
 
 
 def symmetric_T(T: NDArray) -> NDArray[np.float64]:
