@@ -332,17 +332,26 @@ def normal_limit(false_alarm: float) -> float:
     return quantiles.norm_isf(false_alarm)
 
 
+def column_half_sample_modes(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bickel & Frühwirth's half-sample mode of each column of ``x`` (n, m) of finite values: the densest half,
+    halved until two or three values remain; the columns side by side (they halve in step)."""
+    y = np.sort(np.asarray(x, dtype=float), axis=0)
+    cols = np.arange(y.shape[1])
+    while y.shape[0] > 3:
+        h = (y.shape[0] + 1) // 2
+        widths = y[h - 1:] - y[: y.shape[0] - h + 1]
+        start = np.argmin(widths, axis=0)
+        y = y[start[None, :] + np.arange(h)[:, None], cols]
+    if y.shape[0] == 3:
+        lower, upper = y[1] - y[0], y[2] - y[1]
+        return np.where(lower < upper, 0.5 * (y[0] + y[1]), np.where(lower > upper, 0.5 * (y[1] + y[2]), y[1]))
+    return np.asarray(y.mean(axis=0)) if y.shape[0] else np.full(y.shape[1], np.nan)
+
+
 def half_sample_mode(x: NDArray[np.float64]) -> float:
-    """Bickel & Frühwirth's half-sample mode of ``x``: the densest half, halved until two or three values remain."""
-    y = np.sort(np.asarray(x, dtype=float)[np.isfinite(x)])
-    while y.size > 3:
-        h = (y.size + 1) // 2
-        widths = y[h - 1:] - y[: y.size - h + 1]
-        i = int(np.argmin(widths))
-        y = y[i:i + h]
-    if y.size == 3:
-        return float(y[:2].mean() if y[1] - y[0] < y[2] - y[1] else (y[1:].mean() if y[1] - y[0] > y[2] - y[1] else y[1]))
-    return float(y.mean()) if y.size else float("nan")
+    """Bickel & Frühwirth's half-sample mode of ``x``'s finite values (:func:`column_half_sample_modes`)."""
+    y = np.asarray(x, dtype=float).ravel()
+    return float(column_half_sample_modes(y[np.isfinite(y), None])[0])
 
 
 @dataclass(frozen=True)
@@ -365,18 +374,19 @@ class SpanEstimates:
 
 
 def span_estimates(t: NDArray[np.float64], rates: NDArray[np.float64],
-                   estimate: Callable[[NDArray[np.float64]], float] | None = None,
+                   estimate: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
                    step: float = BIAS_SPAN_S / 4.0) -> SpanEstimates:
-    """Per axis, ``estimate`` (the half-sample mode by default) of the ``rates`` (k, 3) at ``t`` (k,) over the whole
-    recording and within :data:`BIAS_SPAN_S` centred on points ``step`` apart (a quarter span by default)."""
-    estimate = estimate or half_sample_mode
-    whole = np.array([estimate(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
+    """Per axis, ``estimate`` (of the columns of a (k, 3) array; the half-sample mode by default) of the ``rates``
+    (k, 3) at ``t`` (k,) over the whole recording and within :data:`BIAS_SPAN_S` centred on points ``step`` apart (a
+    quarter span by default)."""
+    estimate = estimate or column_half_sample_modes
+    whole = np.asarray(estimate(rates), dtype=float) if t.size else np.zeros(3)
     if t.size < 3 or float(t[-1] - t[0]) <= BIAS_SPAN_S:
         return SpanEstimates(whole, None, None)
     grid = np.arange(float(t[0]), float(t[-1]) + step, step)
     lo = np.searchsorted(t, grid - BIAS_SPAN_S / 2.0)
     hi = np.searchsorted(t, grid + BIAS_SPAN_S / 2.0)
-    local = np.array([[estimate(rates[a:z, j]) for j in range(3)] if z - a >= 3 else whole for a, z in zip(lo, hi)])
+    local = np.array([estimate(rates[a:z]) if z - a >= 3 else whole for a, z in zip(lo, hi)])
     return SpanEstimates(whole, grid, local)
 
 
@@ -402,11 +412,11 @@ def follow_spans(spans: SpanEstimates, times: NDArray[np.float64], max_drift: fl
 
 
 def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArray[np.float64],
-               max_drift: float | None, estimate: Callable[[NDArray[np.float64]], float] | None = None
+               max_drift: float | None, estimate: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None
                ) -> NDArray[np.float64]:
     """The gyro's bias at each of ``times`` (m,), from the ``rates`` (k, 3) of still blocks or rests at ``t`` (k,).
 
-    Per axis, ``estimate`` (the half-sample mode by default) of the rates within :data:`BIAS_SPAN_S` centred on
+    Per axis, ``estimate`` (of the columns; the half-sample mode by default) of the rates within :data:`BIAS_SPAN_S` centred on
     points a quarter span apart, followed from the point nearest the whole recording's estimate with its change
     limited to ``max_drift`` (gyro units per second; :data:`MAX_BIAS_DRIFT_RAD_S2` in the gyro's units), and
     interpolated linearly between the points: a warming gyro's bias drifts through a session, a turn that
@@ -415,7 +425,7 @@ def bias_track(t: NDArray[np.float64], rates: NDArray[np.float64], times: NDArra
     (:func:`span_estimates`, then :func:`follow_spans`.)
     """
     if max_drift is None:
-        whole = np.array([(estimate or half_sample_mode)(rates[:, j]) for j in range(3)]) if t.size else np.zeros(3)
+        whole = np.asarray((estimate or column_half_sample_modes)(rates), dtype=float) if t.size else np.zeros(3)
         return np.broadcast_to(whole, (times.size, 3)).copy()
     return follow_spans(span_estimates(t, rates, estimate), times, max_drift)
 
@@ -614,22 +624,35 @@ class BiasModel:
         return np.asarray(self.b0 + direction @ self.g_sensitivity.T + level)
 
 
+def _weighted_solve(x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
+                    fallback: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Weighted least squares of each column of ``y`` (n, m) on ``x`` (n, p) with that column's weights ``w`` (n, m),
+    all columns by one batched solve of the normal equations (p, m); a column with fewer than ``p`` weighted rows, or
+    whose equations are singular, keeps its ``fallback``."""
+    xw = np.einsum("np,nj->jpn", x, w)
+    a = xw @ x
+    b = np.einsum("jpn,nj->jp", xw, y)
+    out = np.array(fallback, dtype=float, copy=True)
+    ok = np.count_nonzero(w, axis=0) >= x.shape[1]
+    try:
+        out[:, ok] = np.linalg.solve(a[ok], b[ok][..., None])[..., 0].T
+    except np.linalg.LinAlgError:
+        for j in np.flatnonzero(ok):
+            sw = np.sqrt(w[:, j])
+            out[:, j] = np.linalg.lstsq(x * sw[:, None], y[:, j] * sw, rcond=None)[0]
+    return out
+
+
 def _biweight_fit(x: NDArray[np.float64], y: NDArray[np.float64], iterations: int = 20) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Tukey-biweight regression of each column of ``y`` (n, 3) on ``x`` (n, p): coefficients (p, 3), weights (n, 3)."""
-    coef = np.linalg.lstsq(x, y, rcond=None)[0]
+    coef = np.asarray(np.linalg.lstsq(x, y, rcond=None)[0], dtype=float)
     w = np.ones_like(y)
     for _ in range(iterations):
         r = y - x @ coef
         scale = np.maximum(column_mad_sigmas(r), np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
         u = r / (BIWEIGHT_C * scale)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
-        new = np.empty_like(coef)
-        for j in range(y.shape[1]):
-            sw = np.sqrt(w[:, j])
-            if np.count_nonzero(sw) < x.shape[1]:
-                new[:, j] = coef[:, j]
-                continue
-            new[:, j] = np.linalg.lstsq(x * sw[:, None], y[:, j] * sw, rcond=None)[0]
+        new = _weighted_solve(x, y, w, coef)
         if np.allclose(new, coef, rtol=1e-9, atol=0.0):
             coef = new
             break

@@ -157,16 +157,16 @@ class RestModel:
         if self.gyro is None or self.bias is None:
             return None
         runs = self.runs()
-        spans, before, after = [], [], []
-        for (_, end), (start, _) in zip(runs[:-1], runs[1:]):
-            if not bool(b.joined[end:start + 1].all()):
-                continue  # a time gap: nothing is known of the move
-            spans.append((int(b.start[end - 1]), int(b.stop[start])))
-            before.append(unit_rows(b.mean[max(end - 2, 0):end].mean(axis=0) - self.acc_zero))
-            after.append(unit_rows(b.mean[start:start + 2].mean(axis=0) - self.acc_zero))
-        if not spans:
+        pairs = [(end, start) for (_, end), (start, _) in zip(runs[:-1], runs[1:])
+                 if bool(b.joined[end:start + 1].all())]  # else a time gap: nothing is known of the move
+        if not pairs:
             return None
-        return scale_from_moves(self.t, self.gyro, self.bias, spans, np.asarray(before), np.asarray(after))
+        ends, starts = np.array(pairs, dtype=np.intp).T
+        spans = [(int(b.start[e - 1]), int(b.stop[s])) for e, s in pairs]
+        # gravity's direction over the last two blocks before each move and the first two after it
+        before = unit_rows(0.5 * (b.mean[np.maximum(ends - 2, 0)] + b.mean[ends - 1]) - self.acc_zero)
+        after = unit_rows(0.5 * (b.mean[starts] + b.mean[np.minimum(starts + 1, b.count - 1)]) - self.acc_zero)
+        return scale_from_moves(self.t, self.gyro, self.bias, spans, before, after)
 
     def _scale(self) -> float | None:
         """Radians per second per gyro unit: measured (:func:`gyro_rad_per_unit`), or stated; None while unknown."""
@@ -214,23 +214,27 @@ class RestModel:
             else:
                 groups.append([(k0, k1)])
             previous = k1 - 1
-        means, noise2, mids, dirs = [], [], [], []
-        for group in groups:
-            rows = np.concatenate([np.arange(k0, k1) for k0, k1 in group])
-            # too short to be checked against the accelerometer (a piece of a slow turn), or turning by both sensors
-            if rows.size < rm.TREND_MIN_BATCHES or self._turns_by_both(rows):
-                continue
-            w = b.n[rows, None]
-            n = float(w.sum())
-            means.append((b.gmean[rows] * w).sum(axis=0) / n)
-            noise2.append(self.gkappa2 * column_medians(b.gvar[rows]) / n)
-            mids.append(0.5 * (b.t_mid[rows[0]] + b.t_mid[rows[-1]]))
-            dirs.append(unit_rows((b.mean[rows] * w).sum(axis=0) / n - self.acc_zero))
-        if len(means) < rm.MIN_RESTS_G_SENSITIVITY:
+        # each group's weighted means, by sums over its rows (the groups' rows in order, concatenated)
+        pieces = [np.concatenate([np.arange(k0, k1) for k0, k1 in group]) for group in groups]
+        sizes = np.array([p.size for p in pieces], dtype=np.intp)
+        pieces = [p for p in pieces if p.size >= rm.TREND_MIN_BATCHES]  # shorter: a piece of a slow turn, unchecked
+        if len(pieces) < rm.MIN_RESTS_G_SENSITIVITY:
             return self._measure_wander_plain()
-        at = np.asarray(mids)
-        rest_means = np.asarray(means)
-        direction = np.asarray(dirs)
+        sizes = sizes[sizes >= rm.TREND_MIN_BATCHES]
+        rows_all = np.concatenate(pieces)
+        offsets = np.r_[0, np.cumsum(sizes)[:-1]]
+        w = b.n[rows_all, None]
+        n_all = np.add.reduceat(w, offsets, axis=0)
+        group_rates = np.add.reduceat(b.gmean[rows_all] * w, offsets, axis=0) / n_all
+        group_acc = np.add.reduceat(b.mean[rows_all] * w, offsets, axis=0) / n_all
+        first, last = rows_all[offsets], rows_all[offsets + sizes - 1]
+        keep = ~self._turns_by_both(pieces, group_rates, group_acc, first, last)
+        if keep.sum() < rm.MIN_RESTS_G_SENSITIVITY:
+            return self._measure_wander_plain()
+        noise2 = [self.gkappa2 * column_medians(b.gvar[p]) / float(n) for p, n, k in zip(pieces, n_all[:, 0], keep) if k]
+        at = 0.5 * (b.t_mid[first] + b.t_mid[last])[keep]
+        rest_means = group_rates[keep]
+        direction = unit_rows(group_acc[keep] - self.acc_zero)
         scale = self._scale()
         assert scale is not None  # a gyro without a scale took the ideal gyro's bias above
         self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2),
@@ -238,7 +242,7 @@ class RestModel:
         modelled = model.at(at, direction)
         # what the model leaves (a thermal drift) followed over the session, each span's median
         # (on spans a whole span apart: a package warms over minutes)
-        drift = rm.follow_spans(rm.span_estimates(at, rest_means - modelled, lambda x: float(np.median(x)), rm.BIAS_SPAN_S),
+        drift = rm.follow_spans(rm.span_estimates(at, rest_means - modelled, column_medians, rm.BIAS_SPAN_S),
                                 b.t_mid, self._max_drift())
         self.track = model.at(b.t_mid, self.directions()) + drift
         self.bias = np.median(rest_means, axis=0)
@@ -248,8 +252,10 @@ class RestModel:
         robust2 = column_mad_sigmas(dev) ** 2
         self.wander2 = np.minimum(np.maximum(robust2 - np.median(noise2, axis=0), 0.0), (MAX_BIAS_WANDER_RAD_S / scale) ** 2)
 
-    def _turns_by_both(self, rows: NDArray[np.intp]) -> bool:
-        """Whether the blocks ``rows`` (a stretch the accelerometer calls still) turn by both sensors' evidence.
+    def _turns_by_both(self, pieces: list[NDArray[np.intp]], rates: NDArray[np.float64], acc: NDArray[np.float64],
+                       first: NDArray[np.intp], last: NDArray[np.intp]) -> NDArray[np.bool_]:
+        """Whether each stretch the accelerometer calls still (blocks ``pieces[i]``, their weighted mean ``rates`` and
+        specific force ``acc``, first and last blocks) turns by both sensors' evidence.
 
         A turn not about gravity moves the accelerometer: at ``ω`` (the gyro's rate less the bias) its specific
         force ``a`` changes at ``ȧ = −ω × a``.  The accelerometer's own rate of change over the stretch (the slope of
@@ -257,30 +263,31 @@ class RestModel:
         colour) is set against it: when it is off zero by more than :data:`TURN_AGREEMENT_SE` standard errors and
         within as many of the gyro's prediction, both sensors see the same turn, and the stretch says nothing of
         the bias.  A stretch whose accelerometer does not move while its gyro says it should is a rest whose bias
-        differs (g-sensitivity, a step after a knock).  Without the gyro's unit, or fewer than three blocks: no.
+        differs (g-sensitivity, a step after a knock).  Without the gyro's unit: no; nor where the gyro's rate turns the sensor through less than a pose's tolerance over the stretch (its rest
+        tells the bias), which needs no slope.
         """
         b = self.b
         scale = self._scale()
-        if scale is None or rows.size < 3 or b.gmean is None or self.bias is None:
-            return False
-        w = b.n[rows, None]
-        omega = ((b.gmean[rows] * w).sum(axis=0) / w.sum() - self.bias) * scale
-        t = b.t_mid[rows] - b.t_mid[rows].mean()
-        duration = float(t[-1] - t[0]) + float(b.n[rows[-1]]) / self.rate
-        if not bool(rm.turn_is_relevant(np.array([np.linalg.norm(omega)]), duration, 1.0)[0]):
-            return False  # the gyro says it turns through less than a pose's tolerance: its rest tells the bias
-        sxx = float(np.sum(t * t))
-        if sxx <= 0:
-            return False
-        a = (b.mean[rows] * w).sum(axis=0) / w.sum() - self.acc_zero
-        slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
-        se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np.median(b.n[rows])) + self.floor) / sxx)
-        predicted = -np.cross(omega, a)
+        out = np.zeros(len(pieces), dtype=bool)
+        if scale is None or b.gmean is None or self.bias is None:
+            return out
+        omega = (rates - self.bias) * scale
+        duration = b.t_mid[last] - b.t_mid[first] + b.n[last] / self.rate
         tiny = np.finfo(float).tiny
-        moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)
-        d = slope - predicted
-        agrees = float(np.sum(d * d / np.maximum(se * se, tiny))) <= TURN_AGREEMENT_SE**2 * 3.0
-        return bool(moves and agrees)
+        relevant = rm.turn_is_relevant(np.linalg.norm(omega, axis=1), duration, 1.0)
+        for i in np.flatnonzero(relevant):
+            rows = pieces[i]
+            t = b.t_mid[rows] - b.t_mid[rows].mean()
+            sxx = float(np.sum(t * t))
+            if sxx <= 0:
+                continue
+            slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
+            se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np.median(b.n[rows])) + self.floor) / sxx)
+            predicted = -np.cross(omega[i], acc[i] - self.acc_zero)
+            moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)
+            d = slope - predicted
+            out[i] = moves and float(np.sum(d * d / np.maximum(se * se, tiny))) <= TURN_AGREEMENT_SE**2 * 3.0
+        return out
 
     def _measure_wander_plain(self) -> None:
         """The bias and its wander where too few rests say how a real gyro's bias differs between them
@@ -299,7 +306,7 @@ class RestModel:
             # its own error, integrated over a long rest, would look like a turn), their median over each span
             at = np.asarray(mids)
             rest_means = np.asarray(means)
-            self.track = rm.bias_track(at, rest_means, b.t_mid, self._max_drift(), estimate=lambda x: float(np.median(x)))
+            self.track = rm.bias_track(at, rest_means, b.t_mid, self._max_drift(), estimate=column_medians)
             self.bias = np.median(rest_means, axis=0)
         if len(means) >= 3:
             # about the session's median, not the track: the track is a span's median, and the bias wanders about
