@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import column_mad_sigmas, column_medians, median
+from optcal.data.quantiles import MAD_TO_SIGMA, column_mad_sigmas, column_medians, median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -686,6 +686,32 @@ def _median_difference(left: NDArray[np.float64], right: NDArray[np.float64], no
     return float(np.sum(d * d / np.maximum(v, np.finfo(float).tiny)))
 
 
+def _padded_medians(x: NDArray[np.float64], lengths: NDArray[np.intp]) -> NDArray[np.float64]:
+    """The column medians of each of ``K`` samples stacked in ``x`` (K, L, m), sample ``i`` in its first
+    ``lengths[i]`` rows and ``+inf`` below them (as :func:`~optcal.data.quantiles.column_medians` of each)."""
+    s = np.sort(x, axis=1)
+    k = np.arange(x.shape[0])
+    return np.asarray(0.5 * (s[k, (lengths - 1) // 2] + s[k, lengths // 2]))
+
+
+def _split_statistics(r: NDArray[np.float64], a: int, z: int, ks: NDArray[np.intp],
+                      noise2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_median_difference` of ``r[a:k]`` and ``r[k:z]`` for each split ``k`` of ``ks``, all splits at once
+    (each side stacked with ``+inf`` padding, its medians and MADs by one sort)."""
+    span = np.arange(z - a)
+    sides = []
+    for lengths, first in ((ks - a, np.full(ks.size, a)), (z - ks, ks)):
+        idx = first[:, None] + span[None, :]
+        inside = span[None, :] < lengths[:, None]
+        x = np.where(inside[..., None], r[np.minimum(idx, z - 1)], np.inf)
+        med = _padded_medians(x, lengths)
+        mad = MAD_TO_SIGMA * _padded_medians(np.where(inside[..., None], np.abs(x - med[:, None, :]), np.inf), lengths)
+        sides.append((med, (np.pi / 2.0) * np.maximum(mad * mad, noise2) / lengths[:, None]))
+    (m0, v0), (m1, v1) = sides
+    d = m0 - m1
+    return np.asarray(np.sum(d * d / np.maximum(v0 + v1, np.finfo(float).tiny), axis=1))
+
+
 def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.float64]) -> list[int]:
     """Indices where the rests' residual rates ``r`` (k, 3; time order) step, by binary segmentation.
 
@@ -706,10 +732,14 @@ def _steps(t: NDArray[np.float64], r: NDArray[np.float64], noise2: NDArray[np.fl
         if not ks.size:
             continue
         stride = max(1, ks.size // STEP_SEARCH_POINTS)
-        coarse = {int(k): _median_difference(r[a:int(k)], r[int(k):z], noise2) for k in ks[::stride]}
-        centre = max(coarse, key=lambda k: coarse[k])
-        near = ks[(ks > centre - stride) & (ks < centre + stride)]
-        stats = {**coarse, **{int(k): _median_difference(r[a:int(k)], r[int(k):z], noise2) for k in near if int(k) not in coarse}}
+        coarse = ks[::stride]
+        values = _split_statistics(r, a, z, coarse, noise2)
+        centre = int(coarse[int(np.argmax(values))])
+        near = ks[(ks > centre - stride) & (ks < centre + stride) & ~np.isin(ks, coarse)]
+        if near.size:
+            coarse = np.concatenate([coarse, near])
+            values = np.concatenate([values, _split_statistics(r, a, z, near, noise2)])
+        stats = dict(zip(coarse.tolist(), values.tolist()))
         best = max(stats, key=lambda k: stats[k])
         points = max(z - a - 2 * MIN_RESTS_PER_STEP + 1, 1)
         if stats[best] > chi2_limit(0.01 / points, 3):

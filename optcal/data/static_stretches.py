@@ -164,11 +164,11 @@ def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scal
     return np.asarray(np.cos(phi) + (1.0 - np.cos(phi)) * along2)
 
 
-#: Points per evaluation of the refinement: a bracket sampled at this many scales in one call (the composed turns
-#: cost the same for one scale as for many), twice, the second over the first's best point and its neighbours, then
+#: Points per evaluation of the refinement: a bracket sampled at this many scales in one call (one composition of
+#: the moves for all of them), twice, the second over the first's best point and its neighbours, then
 #: a parabola through the best three: from ±4 grid steps (±10 %) to far below the 0.1 % a unit's decision or a
 #: relevance test could see.
-REFINE_POINTS: int = 17
+REFINE_POINTS: int = 9
 
 
 def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
