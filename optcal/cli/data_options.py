@@ -38,7 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
-    "min_independent", "gyro_units",
+    "min_independent", "gyro_units", "keep_touches",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -88,6 +88,9 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--min-independent", type=_NON_NEGATIVE, default=None, metavar="N",
                  help="Rest detection: fewest independent samples (samples over the noise colour) a rest holds, of the "
                       "accelerometer and the gyro alike [2 and 4] (a warning says what a lower value assumes)."),
+    click.option("--keep-touches", is_flag=True, default=None,
+                 help="Rest detection: keep a pose's end piece past a twitch next to a move although it is shifted from "
+                      "the rest (left out by default as a hand's touch or settling, and counted)."),
     click.option("--trim", type=_NON_NEGATIVE, default=None, metavar="S",
                  help="Static detection: cut this much from both ends of every interval, seconds [0]."),
 )

@@ -115,9 +115,16 @@ def canonical_T(A: ArrayLike) -> NDArray[np.float64]:
 
 
 def canonicalise(T: ArrayLike) -> NDArray[np.float64]:
-    """Map any invertible ``T`` (or a stack (..., 3, 3)) to the canonical lower-triangular ``T`` with the same ``A``."""
+    """Map any invertible ``T`` (or a stack (..., 3, 3)) to the canonical lower-triangular ``T`` with the same ``A``;
+    a ``T`` already canonical (lower-triangular, positive diagonal) is returned as it is, not rounded through
+    ``TᵀT`` and its Cholesky factor (a bound on an entry then holds to the last bit)."""
     T = np.asarray(T, dtype=float)
-    return canonical_T(np.swapaxes(T, -1, -2) @ T)
+    upper = np.triu(np.ones((3, 3), dtype=bool), 1)
+    diagonal = np.diagonal(T, axis1=-2, axis2=-1)
+    done = ~np.any(T[..., upper] != 0.0, axis=-1) & np.all(diagonal > 0.0, axis=-1)
+    if np.all(done):
+        return T.copy()
+    return np.where(done[..., None, None], T, canonical_T(np.swapaxes(T, -1, -2) @ T))
 
 
 def theta_from(T: ArrayLike, o: ArrayLike) -> NDArray[np.float64]:

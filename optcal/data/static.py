@@ -41,7 +41,7 @@ from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, reduce_interval
 from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.rest_tests import RestModel
-from optcal.data.static_stretches import group_positions, join_twitches, wobble
+from optcal.data.static_stretches import group_positions, join_twitches, touches, wobble
 from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
 from optcal.errors import InputError
 
@@ -63,6 +63,8 @@ ODD = "samples in still stretches far noisier than the recording's rests (a move
 ODD_STRETCHES = "still stretches rejected as far noisier than the recording's rests"
 LOUD = "samples in still stretches noisier per sample than a resting accelerometer"
 LOUD_STRETCHES = "still stretches rejected as noisier per sample than a resting accelerometer"
+TOUCH = "samples of a pose's end piece shifted after a twitch next to a move (a touch; --keep-touches keeps them)"
+TOUCH_STRETCHES = "pose end pieces left out as a touch next to a move (--keep-touches keeps them)"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
 MIN_BLOCK_SAMPLES: int = 4
 #: Fewest blocks in a rest: one pair of block means is the least that shows that the mean does not move.
@@ -99,6 +101,9 @@ class StaticSettings:
         Fewest independent samples (samples over the noise colour) a rest holds, of the accelerometer and of
         the gyro alike (``--min-independent``); ``None``: :data:`~optcal.data.rest_model.MIN_INDEPENDENT_ACC`
         and :data:`~optcal.data.rest_model.MIN_INDEPENDENT_GYRO`.
+    keep_touches : bool
+        Keep a pose's end pieces that :func:`~optcal.data.static_stretches.touches` would leave out
+        (``--keep-touches``).
     """
 
     window_s: float = 0.25
@@ -112,6 +117,7 @@ class StaticSettings:
     max_gap_s: float | None = None
     sigma_blocks: int = 10
     min_independent: float | None = None
+    keep_touches: bool = False
 
     def __post_init__(self) -> None:
         for name in ("window_s", "threshold", "gyro_threshold", "drift_threshold"):
@@ -342,7 +348,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     kept: list[tuple[int, int, int, int]] = []  # sample range and block range
     counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, FEW, FEW_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, ODD, ODD_STRETCHES,
-                                 TRIMMED)}
+                                 TOUCH, TOUCH_STRETCHES, TRIMMED)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
     min_acc, min_gyro = s.independent_minimums()
@@ -399,6 +405,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     for a, z, _, _ in odd:
         reject(a, z, ODD, ODD_STRETCHES)
     groups = join_twitches(kept, t, model, s.min_dwell_s, gyro, gyro_scale, max_gap)
+    touched: list[tuple[int, int]] = []
+    if not s.keep_touches:
+        groups, touched = touches(groups, kept, model)
+        for a, z in touched:
+            reject(a, z, TOUCH, TOUCH_STRETCHES)
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
@@ -408,7 +419,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
-    for key in (SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES):
+    for key in (SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES,
+                TOUCH_STRETCHES):
         evidence[key] = counts[key]
     evidence["still_stretches"] = len(runs)
     noise.update(model.noise())
@@ -422,7 +434,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     norm = _distance(acc, nominal.offset)
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
-                        len(kept) - len(groups), evidence, model.gyro_unit_reason)
+                        len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason)
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -35,12 +35,13 @@ def test_the_xsens_bias_drift_on_z_is_named_from_rests_without_their_settling_en
     assert diag.to_dict()["final"]["gain"] >= 1.1
 
 
-@pytest.mark.xfail(reason="rest model (branch rest): the rests' ends hold the moves' settling samples, "
-                          "reduced chi-square 4.19 -> 6.19", strict=False)
 def test_the_xsens_bias_drift_on_z_is_named_as_in_the_last_release(shared_data: Path) -> None:
-    """As the last release: bias_drift(z), held-out gain 1.18 (fails until the rest model drops the settling ends)."""
+    """As the last release: bias_drift(z), held-out gain 1.18 (1.15 now).  Lost while a hand's touch before a move
+    (a twitch, then the sensor held 0.4 mg off for 0.5 s) was joined into its rest; the rest model now leaves such a
+    piece out (``touches``), and with ``--keep-touches`` the drift is hidden again."""
     from optcal.data import load
 
+    assert diagnose(load(xsens(shared_data), keep_touches=True), simulations=0).findings == []
     diag = diagnose(load(xsens(shared_data)), simulations=0)
     assert [(f.effect, f.axes) for f in diag.findings] == [("bias_drift", ["z"])]
     assert diag.to_dict()["final"]["gain"] >= 1.1

@@ -46,9 +46,9 @@ def test_xsens_is_read_as_raw_counts(xsens):
     assert p.meta["rate_hz"] == pytest.approx(100.0, rel=1e-3)
     assert p.gyro is not None
     # nothing saturated, non-finite or duplicated: only motion and a few short still stretches excluded
-    from optcal.data.static import EDGES, MOVING, SHORT, SHORT_STRETCHES
+    from optcal.data.static import EDGES, MOVING, SHORT, SHORT_STRETCHES, TOUCH, TOUCH_STRETCHES
 
-    assert set(p.exclusions) <= {MOVING, EDGES, SHORT, SHORT_STRETCHES}
+    assert set(p.exclusions) <= {MOVING, EDGES, SHORT, SHORT_STRETCHES, TOUCH, TOUCH_STRETCHES}
 
 
 def test_xsens_static_intervals_as_imu_tk(xsens):

@@ -385,3 +385,47 @@ def test_a_gyro_whose_bias_drifts_two_degrees_per_second_keeps_the_rests() -> No
                              **{f"g{a}_rad_s": gyro[:, j] for j, a in enumerate("xyz")}})
     seg = detect_static(recording_from_source(source_from_frame(drifting, "xsens", "csv")))
     assert len(seg.intervals) >= 36
+
+
+@pytest.mark.parametrize("end", ["last", "first"])
+def test_a_touch_next_to_a_move_is_left_out_of_the_pose(end: str) -> None:
+    """A hand's touch planted in a real rest of the Xsens log, next to its move: a twitch (a 0.2 s ring of 30
+    per-sample σ) and then the sensor held tilted by 1.5 mg (one per-sample σ) for the last (or, settling, the first) 1.2 s of an
+    8-s rest.  The tilt is within the samples' spread, so the piece joins the pose; it would move the pose's mean by
+    several of its standard errors, and is left out and counted (--keep-touches keeps it)."""
+    from optcal.data.static import TOUCH, TOUCH_STRETCHES
+
+    frame = pd.read_csv(need(XSENS))
+    rec = recording_from_source(source_from_frame(frame, "xsens", "csv"))
+    before = detect_static(rec)
+    # a rest of 8-12 s in the middle of the session, with a move on either side
+    rest = [iv for iv in before.intervals[1:-1] if 8.0 <= iv.duration_s <= 12.0][0]
+    a, b = rest.start, rest.stop
+    t = frame["t_s"].to_numpy()
+    acc = frame[XSENS_ACC].to_numpy(dtype=float, copy=True)
+    per_sample = float(np.linalg.norm(acc[a:b].std(axis=0)))
+    held = int(round(1.2 / np.median(np.diff(t))))
+    ring = int(round(0.2 / np.median(np.diff(t))))
+    piece = slice(b - held, b) if end == "last" else slice(a, a + held)
+    twitch = slice(b - held - ring, b - held) if end == "last" else slice(a + held, a + held + ring)
+    tau = np.arange(ring) * float(np.median(np.diff(t)))
+    acc[twitch] += np.outer(30.0 * per_sample * np.exp(-tau / 0.05) * np.sin(2 * np.pi * 12.0 * tau), [0.6, 0.0, 0.8])
+    acc[piece] = _tilted(acc[piece] - XSENS_ZERO, np.full(held, 1.5e-3)) + XSENS_ZERO  # 1.5 mrad: 1.5 mg
+    planted = frame.copy()
+    planted[XSENS_ACC] = acc
+    rec2 = recording_from_source(source_from_frame(planted, "xsens", "csv"))
+    after = detect_static(rec2)
+    kept = detect_static(rec2, StaticSettings(keep_touches=True))
+
+    assert len(after.intervals) == len(before.intervals)
+    over = _poses_over(after, a, b)
+    assert len(over) == 1
+    pose = over[0]
+    assert pose.stop <= piece.start + ring if end == "last" else pose.start >= piece.stop - ring
+    assert after.exclusions[TOUCH_STRETCHES] >= 1 and after.exclusions[TOUCH] >= 0.8 * held
+    shift_left_out = float(np.linalg.norm(pose.mean - rest.mean))
+    with_touch = _poses_over(kept, a, b)
+    assert len(with_touch) == 1 and TOUCH not in kept.exclusions
+    shift_kept = float(np.linalg.norm(with_touch[0].mean - rest.mean))
+    # joined, the touch moves the pose's mean by more than twice its standard error; left out, by less
+    assert shift_kept > 2.0 * rest.sigma > shift_left_out, (shift_kept, rest.sigma, shift_left_out)
