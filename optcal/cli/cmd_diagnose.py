@@ -70,6 +70,10 @@ def progress_printer(quiet: bool) -> Any:
                    ".calib is set next to optcal's own fit of DATA (what each misses).")
 @click.option("--pose-correlation", type=click.Choice(["auto", "off", "on"]), default="auto", show_default=True,
               help="Pose noise correlated in time: used on evidence (auto), never (off: poses independent), or always (on).")
+@click.option("--imu", is_flag=True,
+              help="Diagnose the gyroscope too (a raw recording with gyro columns): its gravity prediction across the "
+                   "moves against its noise band, g_sensitivity, gyro_scale_nonlinearity, gyro_temperature_bias, "
+                   "gyro_bias_drift and time_offset tested, the extended gyro model fitted, its held-out gain.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
@@ -78,7 +82,7 @@ def progress_printer(quiet: bool) -> Any:
 @report_options
 @solver_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, as_json: bool,
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, imu: bool, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
@@ -95,6 +99,13 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     are reported.  A --baseline from imucal or imu_tk (recognised by content) is shown next to
     optcal's baseline fit of DATA: each one's error on DATA's poses (optcal's also held out), and
     what the peer's bias, scales and axis angles miss.
+
+    With --imu (one raw recording with gyro columns) the gyroscope is diagnosed too: the IMU
+    calibration's gravity prediction across each move against its noise band, the gyro's
+    candidate effects by the same forward selection (on held-out moves), the extended gyro model
+    refitted in CasADi; the findings of both sensors are listed (each says its "sensor"), and -o
+    saves the IMU calibration with the g-sensitivity found (what an IMU calibration cannot hold is
+    said).
     """
     from optcal.cli.data_options import data_line, data_summary, load_data_detailed
     from optcal.applications.diagnosis import Diagnoser
@@ -108,6 +119,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     if fit_settings and baseline_path:
         raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
                          "not with --baseline, which gives it")
+    if imu and (len(data) != 1 or baseline_path):
+        raise InputError("--imu diagnoses one raw recording with gyro columns: give one DATA, without --baseline")
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
@@ -132,8 +145,9 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         diag.peer = compare_with_peer(baseline, convert_to_units(diag.poses, baseline.units), None,
                                       own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
                                       f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
+    gyro = _diagnose_gyro(loaded[0], method, alpha, folds, fit_settings) if imu else None
     paths = save_figures(diag, figures_into) if figures_into else []
-    calibration = diag.calibration() if output else None
+    calibration = diag.calibration() if output and gyro is None else (gyro[1] if gyro is not None and output else None)
     if calibration is not None and output:
         calibration.save(output_file(output))
     if report_path:
@@ -146,10 +160,60 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         out["data"] = summaries[0] if len(summaries) == 1 else summaries  # one per session
         out["figures"] = paths
         out["saved"] = None if calibration is None else {"path": output, "cal_type": calibration.cal_type}
+        if gyro is not None:
+            gyro_out = gyro[0].to_dict()
+            out["accelerometer_gain"] = out.get("gain")
+            out["findings"] = [*out.get("findings", []), *gyro_out["findings"]]
+            out["gain"] = gyro_out["gain"]
+            out["gyroscope"] = {**gyro_out, "losses": gyro[2]}
         echo_json(out)
         return
     click.echo(diagnosis_report(diag))
+    if gyro is not None:
+        click.echo("\n".join(gyro[0].report_lines()))
+        for loss in gyro[2]:
+            click.echo(f"  saved without: {loss}")
     for path in paths:
         click.echo(f"figure: {path}")
     if calibration is not None:
         click.echo(f"saved: {output} ({calibration.describe()})")
+
+
+def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_settings: dict[str, Any]) -> Any:
+    """The gyroscope's diagnosis of one recording: (diagnosis, the IMU calibration with its g-sensitivity, what the
+    calibration cannot hold).  The gyro fit is kept whatever its fit check says (``accept_gyro_fit``): a fit the
+    check refuses is what the diagnosis explains."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from optcal.applications.diagnosis.gyro_diagnosis import GyroDiagnosisSettings, diagnose_gyro
+    from optcal.core.gyro_model import BIAS_NAMES, G_NAMES, T_NAMES, GyroModel
+    from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
+    from optcal.families.gyro.moves import moves_from_segmentation
+
+    solver = fit_settings.get("solver")
+    imu = calibrate_imu_loaded(reading, method=method, settings=GyroSettings(accept_gyro_fit=True, solver=solver))
+    moves = moves_from_segmentation(reading.segmentation)
+    result = diagnose_gyro(moves, imu.accelerometer, imu.gyro,
+                           GyroDiagnosisSettings(alpha=alpha, folds=min(folds, 5), solver=solver))
+    final = result.final
+    rows = np.zeros((3, 3))
+    losses = []
+    for term, value in zip(final.terms, final.values):
+        if term.effect == "g_sensitivity" and term.axis is not None:
+            rows[term.axis] = value  # rad/s per g in the calibrated frame: ω = T (g − b) − K f
+        else:
+            losses.append(f"{term.label} (an IMU calibration holds a g-sensitivity only)")
+    if result.time_offset.get("significant"):
+        losses.append(f"time_offset {result.time_offset['dt_s'] * 1e3:.2f} ms (shift the gyro's stamps: an IMU "
+                      "calibration holds no time offset)")
+    g_raw = np.asarray(np.linalg.solve(final.T, rows), dtype=float) if np.any(rows) else None  # raw units per g: T⁻¹ K
+    model = GyroModel(final.T, final.b, g_raw)
+    params = np.concatenate([final.T.ravel(), final.b] + ([g_raw.ravel()] if g_raw is not None else []))
+    names = list(T_NAMES) + list(BIAS_NAMES) + (list(G_NAMES) if g_raw is not None else [])
+    covariance = np.full((len(names), len(names)), np.nan)
+    calibration = replace(imu, gyro=model, params=params, param_names=names, covariance=covariance,
+                          notes=[*imu.notes, "gyro extended by optcal diagnose --imu: "
+                                 + ("; ".join(f.describe() for f in result.findings) or "nothing named")])
+    return result, calibration, losses

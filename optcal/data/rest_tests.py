@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
+from optcal.data import bias_model as bm
 from optcal.data import rest_model as rm
 from optcal.data.quantiles import column_mad_sigmas, column_medians, median, quantiles
 from optcal.data.recording import Recording
@@ -94,7 +95,7 @@ class RestModel:
         nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
         self.one_g = float(nominal.sensitivity)
         self.acc_zero = np.asarray(nominal.offset, dtype=float)
-        self.bias_model: rm.BiasModel | None = None
+        self.bias_model: bm.BiasModel | None = None
         self.gkappa2 = np.ones(3)
         self.gvar_ref: NDArray[np.float64] | None = None
         self.wander2 = np.zeros(3)
@@ -218,7 +219,7 @@ class RestModel:
         pieces = [np.concatenate([np.arange(k0, k1) for k0, k1 in group]) for group in groups]
         sizes = np.array([p.size for p in pieces], dtype=np.intp)
         pieces = [p for p in pieces if p.size >= rm.TREND_MIN_BATCHES]  # shorter: a piece of a slow turn, unchecked
-        if len(pieces) < rm.MIN_RESTS_G_SENSITIVITY:
+        if len(pieces) < bm.MIN_RESTS_G_SENSITIVITY:
             return self._measure_wander_plain()
         sizes = sizes[sizes >= rm.TREND_MIN_BATCHES]
         rows_all = np.concatenate(pieces)
@@ -229,7 +230,7 @@ class RestModel:
         group_acc = np.add.reduceat(b.mean[rows_all] * w, offsets, axis=0) / n_all
         first, last = rows_all[offsets], rows_all[offsets + sizes - 1]
         keep = ~self._turns_by_both(pieces, group_rates, group_acc, first, last)
-        if keep.sum() < rm.MIN_RESTS_G_SENSITIVITY:
+        if keep.sum() < bm.MIN_RESTS_G_SENSITIVITY:
             return self._measure_wander_plain()
         noise2 = [self.gkappa2 * column_medians(b.gvar[p]) / float(n) for p, n, k in zip(pieces, n_all[:, 0], keep) if k]
         at = 0.5 * (b.t_mid[first] + b.t_mid[last])[keep]
@@ -237,8 +238,8 @@ class RestModel:
         direction = unit_rows(group_acc[keep] - self.acc_zero)
         scale = self._scale()
         assert scale is not None  # a gyro without a scale took the ideal gyro's bias above
-        self.bias_model = model = rm.fit_bias_model(at, direction, rest_means, np.asarray(noise2),
-                                                    rm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale)
+        self.bias_model = model = bm.fit_bias_model(at, direction, rest_means, np.asarray(noise2),
+                                                    bm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale)
         modelled = model.at(at, direction)
         # what the model leaves (a thermal drift) followed over the session, each span's median
         # (on spans a whole span apart: a package warms over minutes)

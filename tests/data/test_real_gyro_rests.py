@@ -2,7 +2,7 @@
 
 Effects planted in IMU-TK's Xsens log (../shared/data/imutk-xsens; skipped without it): g-sensitivity, a bias step
 after a knock, a slow turn inside a rest; the gyro rewritten in rad/s, deg/s and counts, with and without units in
-its column names.  The bias model (:func:`optcal.data.rest_model.fit_bias_model`) and the scale measured on the
+its column names.  The bias model (:func:`optcal.data.bias_model.fit_bias_model`) and the scale measured on the
 moves (:func:`optcal.data.static_stretches.scale_from_moves`) on their own.
 """
 
@@ -14,7 +14,7 @@ import pytest
 
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import recording_from_source
-from optcal.data.rest_model import fit_bias_model
+from optcal.data.bias_model import fit_bias_model
 from optcal.data.static import StaticSettings, detect_static
 from optcal.data.static_stretches import scale_from_moves
 

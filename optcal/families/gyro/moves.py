@@ -133,6 +133,12 @@ class MoveSet:
         Sum of the integration-error bounds of the holes bridged in each move, raw · s (0 without hole).
     bridged_holes, bridged_samples : int
         Holes bridged inside the moves kept, and the sample periods they lost.
+    t_mid : ndarray, shape (N,)
+        Time at the middle of every step, seconds (empty when not given).
+    rest_t : ndarray, shape (p,)
+        Mean time of each static interval, seconds (empty when not given).
+    temp_mid, rest_temp : ndarray or None
+        Temperature at the middle of every step and each interval's mean (None without a temperature column).
     """
 
     acc_means: NDArray[np.float64]
@@ -152,6 +158,10 @@ class MoveSet:
     bridge_bound: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     bridged_holes: int = 0
     bridged_samples: int = 0
+    t_mid: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    rest_t: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    temp_mid: NDArray[np.float64] | None = None
+    rest_temp: NDArray[np.float64] | None = None
 
     @property
     def n_moves(self) -> int:
@@ -237,6 +247,7 @@ def moves_from_arrays(
     intervals: list[tuple[int, int]],
     usable: ArrayLike | None = None,
     acc_sigma: ArrayLike | None = None,
+    temp: ArrayLike | None = None,
 ) -> MoveSet:
     """Build a :class:`MoveSet` from samples and static intervals.
 
@@ -254,6 +265,8 @@ def moves_from_arrays(
     acc_sigma : array_like, shape (p,), optional
         Standard deviation of each interval's accelerometer mean (default: white noise,
         ``std/√n``).
+    temp : array_like, shape (n,), optional
+        Temperature of each sample (kept at the steps and the intervals, for the diagnosis).
 
     Raises
     ------
@@ -274,6 +287,9 @@ def moves_from_arrays(
     acc_means = np.array([acc[s][ok[s]].mean(axis=0) for s in sl])
     gyro_means = np.array([gyro[s][ok[s]].mean(axis=0) for s in sl])
     n_static = np.array([float(np.sum(ok[s])) for s in sl])
+    rest_t = np.array([float(t[s][ok[s]].mean()) for s in sl])
+    temperature = None if temp is None else np.asarray(temp, dtype=float).reshape(-1)
+    rest_temp = None if temperature is None else np.array([float(np.nanmean(temperature[s][ok[s]])) for s in sl])
     gstd = np.array([gyro[s][ok[s]].std(axis=0, ddof=1) if np.sum(ok[s]) > 1 else np.zeros(3) for s in sl])
     if acc_sigma is None:
         sig = np.array([np.sqrt(np.mean(acc[s][ok[s]].var(axis=0, ddof=1))) / np.sqrt(max(n, 1)) if n > 1 else 0.0
@@ -282,7 +298,7 @@ def moves_from_arrays(
         sig = np.asarray(acc_sigma, float).reshape(len(ivs))
     noise = rest_noise(t, gyro, ok, ivs)
     usable_idx = np.flatnonzero(ok)
-    pairs, mids, dts, first, last, frm, to, bounds = [], [], [], [], [], [], [], []
+    pairs, mids, dts, first, last, frm, to, bounds, t_mids, temp_mids = [], [], [], [], [], [], [], [], [], []
     dropped: dict[str, int] = {}
     n_steps = holes = lost = 0
     for i in range(len(ivs) - 1):
@@ -307,6 +323,9 @@ def moves_from_arrays(
         g = gyro[idx]
         pairs.append(np.stack([g[:-1], g[1:]], axis=1))
         mids.append(0.5 * (acc[idx[:-1]] + acc[idx[1:]]))
+        t_mids.append(0.5 * (t[idx[:-1]] + t[idx[1:]]))
+        if temperature is not None:
+            temp_mids.append(0.5 * (temperature[idx[:-1]] + temperature[idx[1:]]))
         dts.append(step)
         f = np.zeros(step.size, bool)
         f[0] = True
@@ -340,6 +359,10 @@ def moves_from_arrays(
         bridge_bound=np.array(bounds),
         bridged_holes=holes,
         bridged_samples=lost,
+        t_mid=np.concatenate(t_mids),
+        rest_t=rest_t,
+        temp_mid=np.concatenate(temp_mids) if temperature is not None else None,
+        rest_temp=rest_temp,
     )
 
 
@@ -353,5 +376,5 @@ def moves_from_segmentation(seg: "Segmentation") -> MoveSet:
         )
     ivs = [(iv.start, iv.stop) for iv in seg.intervals]
     sigma = np.array([iv.sigma for iv in seg.intervals])
-    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.usable, sigma)
+    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.usable, sigma, rec.temp)
     return moves

@@ -1,0 +1,414 @@
+"""The gyroscope's diagnosis: the fitted IMU model's gravity prediction across the moves against its noise band,
+the cause named by forward selection, the extended model fitted in CasADi, the gain on held-out moves.
+
+1. **The band.**  Each move's gravity-prediction angle under the paper's model (Tedaldi 2014, eq. 13-14) against
+   the noise model of :func:`optcal.families.gyro.consistency.residual_budget`, linearised: the angle's two
+   components across gravity are normal with the budget's variance ``E/2`` each, so the angle exceeds
+   ``√(E ln(m/α))`` with probability ``α/m`` (Rayleigh), and a move beyond that bound leaves the band at the
+   family-wise level ``α`` over the ``m`` moves.  (The linearised band, not Monte-Carlo runs: the residuals are
+   linear in the noise to first order, and the budget already sums each source's variance.)
+2. **The candidates** (:mod:`~optcal.applications.diagnosis.gyro_problem`), per gyro axis: ``g_sensitivity`` (the
+   axis' rate error linear in the specific force, a row of ``G``), ``gyro_scale_nonlinearity`` (``ω + s ω²``),
+   ``gyro_temperature_bias`` (with a temperature column), ``gyro_bias_drift``; and ``time_offset`` (the gyro's
+   stream against the accelerometer's).  Forward selection as the accelerometer's: at each step every remaining
+   term is fitted from the current model, the one with the largest likelihood ratio is named when it passes all
+   three of the likelihood-ratio test (the moves' and the rests' noise scales profiled: a scatter beyond the noise
+   model is absorbed by its scale, not read as an effect), at the step's Bonferroni share of ``α``; the Bayesian
+   information criterion; and the held-out moves (k-fold over the moves, the rests in every fold): its
+   gravity prediction on moves it was not fitted to must improve.  The chosen model is refitted by IPOPT in CasADi.
+3. **The time offset** shows inside the moves, not at their ends (a move's whole turn is the same whichever way
+   its samples are shifted): along each move the gravity direction the gyro predicts, ``û(t)``, against the
+   accelerometer's, ``â(t)``; a gyro whose samples are late by ``δ`` predicts ``û(t) = u(t − δ)``, so
+   ``â − û ≈ δ u̇`` with ``u̇ = −ω × û``, and each move gives its own least-squares ``δ_i``.  The moves' estimates
+   are combined by their weights (``Σ|u̇|²``) and tested by Student's t on their scatter (the moves' linear
+   accelerations, which the accelerometer's direction carries, are noise of unknown size: measured by that
+   scatter, not assumed); held out by move like the others.
+4. **The gain**: the held-out gravity prediction's rms angle of the paper's model over the final model's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.applications.diagnosis.gyro_problem import (
+    GYRO_EFFECTS,
+    STANDARD_GRAVITY,
+    GyroData,
+    GyroParams,
+    Noise,
+    Term,
+    casadi_fit,
+    evaluate,
+    gauss_newton,
+    gyro_data,
+    screen,
+    measured_noise,
+    move_angles,
+)
+from optcal.core import quantiles
+from optcal.core.model import AXES
+from optcal.core.rotations import exponential_map
+from optcal.errors import InputError
+from optcal.families.gyro.moves import MoveSet
+from optcal.families.gyro.propagation import unit_rows
+
+#: Fewest moves the held-out folds and the time offset's t test need (two per fold and a scatter of several).
+MIN_DIAGNOSIS_MOVES: int = 8
+
+
+@dataclass(frozen=True)
+class GyroDiagnosisSettings:
+    """Settings of :func:`diagnose_gyro`.
+
+    Attributes
+    ----------
+    alpha : float
+        Family-wise false-finding level of each selection step (and of the band over the moves).
+    folds : int
+        Folds of the held-out moves.
+    effects : tuple of str, optional
+        The candidates (:data:`GYRO_EFFECTS`); all that the data support by default.
+    solver : str, optional
+        The CasADi NLP solver of the final fit (IPOPT by default).
+    max_terms : int
+        Most terms the selection adds.
+    """
+
+    alpha: float = 0.02
+    folds: int = 5
+    effects: tuple[str, ...] | None = None
+    solver: str | None = None
+    max_terms: int = 6
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.alpha < 1.0:
+            raise InputError(f"alpha must be in (0, 1), got {self.alpha}")
+        if self.folds < 2:
+            raise InputError(f"folds must be at least 2, got {self.folds}")
+        unknown = sorted(set(self.effects or ()) - set(GYRO_EFFECTS))
+        if unknown:
+            raise InputError(f"unknown gyroscope effect(s) {', '.join(unknown)}; valid: {', '.join(GYRO_EFFECTS)}")
+
+
+@dataclass(frozen=True)
+class GyroFinding:
+    """An effect named in the gyroscope, with its evidence.
+
+    Attributes
+    ----------
+    effect : str
+        One of :data:`GYRO_EFFECTS`.
+    axes : list of str
+    estimate : dict
+        Axis → value in SI (rad/s per m/s² for the g-sensitivity's diagonal term, (rad/s)⁻¹ for the scale
+        nonlinearity, rad/s per °C, rad/s per s), or ``{"dt_s": ...}`` for the time offset.
+    evidence : dict
+        The likelihood ratio (or t), p, ΔBIC and the held-out ratio of the step that named it.
+    extra : dict
+        The g-sensitivity's whole rows (rad/s per m/s²).
+    """
+
+    effect: str
+    axes: list[str]
+    estimate: dict[str, Any]
+    evidence: dict[str, float]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"sensor": "gyroscope", "effect": self.effect, "axes": list(self.axes), "estimate": dict(self.estimate),
+                "evidence": dict(self.evidence), **self.extra}
+
+    def describe(self) -> str:
+        if self.effect == "time_offset":
+            dt = float(self.estimate["dt_s"])
+            return (f"time_offset: the gyro's samples are {abs(dt) * 1e3:.2f} ms {'late' if dt > 0 else 'early'} "
+                    f"against the accelerometer's (t = {self.evidence['t']:.1f}, held-out {self.evidence['heldout_ratio']:.2f}×)")
+        unit = {"g_sensitivity": "rad/s per m/s²", "gyro_scale_nonlinearity": "(rad/s)⁻¹",
+                "gyro_temperature_bias": "rad/s per °C", "gyro_bias_drift": "rad/s per s"}[self.effect]
+        values = ", ".join(f"{a} {float(v):.3g}" for a, v in self.estimate.items())
+        return (f"{self.effect}({','.join(self.axes)}): {values} {unit} (likelihood ratio {self.evidence['lr']:.1f}, "
+                f"p {self.evidence['p']:.2g}, ΔBIC {self.evidence['delta_bic']:.1f}, held-out {self.evidence['heldout_ratio']:.2f}×)")
+
+
+@dataclass
+class GyroDiagnosis:
+    """What the gyroscope's diagnosis found (:func:`diagnose_gyro`)."""
+
+    findings: list[GyroFinding]
+    steps: list[dict[str, Any]]
+    angles_deg: NDArray[np.float64]
+    band_deg: NDArray[np.float64]
+    final_angles_deg: NDArray[np.float64]
+    heldout_baseline_deg: float
+    heldout_final_deg: float
+    time_offset: dict[str, Any]
+    tested: list[str]
+    skipped: dict[str, str]
+    final: GyroParams
+    notes: list[str]
+    solver: dict[str, Any]
+
+    @property
+    def gain(self) -> float:
+        """Held-out rms gravity-prediction angle of the paper's model over the final model's."""
+        return self.heldout_baseline_deg / self.heldout_final_deg if self.heldout_final_deg > 0 else 1.0
+
+    @property
+    def outside(self) -> NDArray[np.bool_]:
+        return np.asarray(self.angles_deg > self.band_deg)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "findings": [f.to_dict() for f in self.findings],
+            "gain": self.gain,
+            "heldout_rms_deg": {"baseline": self.heldout_baseline_deg, "final": self.heldout_final_deg},
+            "moves": [{"angle_deg": float(a), "band_deg": float(b), "outside": bool(a > b), "final_angle_deg": float(f)}
+                      for a, b, f in zip(self.angles_deg, self.band_deg, self.final_angles_deg)],
+            "moves_outside_band": int(np.sum(self.outside)),
+            "rms_deg": {"baseline": float(np.sqrt(np.mean(self.angles_deg**2))),
+                        "final": float(np.sqrt(np.mean(self.final_angles_deg**2)))},
+            "steps": self.steps,
+            "time_offset": self.time_offset,
+            "tested": self.tested,
+            "skipped": self.skipped,
+            "final_model": {"T": self.final.T.tolist(), "bias": self.final.b.tolist(),
+                            "terms": {t.label: v.tolist() for t, v in zip(self.final.terms, self.final.values)}},
+            "solver": self.solver,
+            "notes": self.notes,
+        }
+
+    def report_lines(self) -> list[str]:
+        out = ["GYROSCOPE",
+               f"  gravity prediction across {self.angles_deg.size} moves: {np.sqrt(np.mean(self.angles_deg**2)):.3f}° rms "
+               f"under the paper's model; {int(np.sum(self.outside))} move(s) outside the noise band "
+               f"(family-wise over the moves)"]
+        for i in np.flatnonzero(self.outside)[:10]:
+            out.append(f"    move {i + 1}: {self.angles_deg[i]:.3f}° (band {self.band_deg[i]:.3f}°)")
+        if self.findings:
+            out.append("  named:")
+            out += [f"    {f.describe()}" for f in self.findings]
+        else:
+            out.append("  none named (an effect below the tests' power is not ruled out)")
+        out.append(f"  held-out gravity prediction: {self.heldout_baseline_deg:.3f}° → {self.heldout_final_deg:.3f}° rms "
+                   f"(gain {self.gain:.2f})")
+        for name, why in self.skipped.items():
+            out.append(f"  not tested: {name}: {why}")
+        out += [f"  note: {n}" for n in self.notes]
+        return out
+
+
+def _chi2_sf(x: float, dof: int) -> float:
+    """P(χ²_dof > x)."""
+    return float(quantiles.gamma_upper(0.5 * dof, 0.5 * max(x, 0.0))) if x > 0 else 1.0
+
+
+def _lr(before: tuple[float, float], after: tuple[float, float], counts: tuple[int, int]) -> float:
+    """The likelihood ratio with each residual kind's noise scale profiled (Gaussian):
+    ``Σ_g n_g ln(RSS₀_g / RSS₁_g)``."""
+    out = 0.0
+    for r0, r1, n in zip(before, after, counts):
+        if r0 > 0 and r1 > 0:
+            out += n * math.log(r0 / r1)
+    return out
+
+
+def _folds(m: int, k: int) -> list[NDArray[np.bool_]]:
+    """Held-out moves of each fold (interleaved: every ``k``-th move, so each fold spans the session)."""
+    return [np.arange(m) % k == j for j in range(k)]
+
+
+def heldout_rms(data: GyroData, noise: Noise, p: GyroParams, folds: list[NDArray[np.bool_]]) -> float:
+    """The rms gravity-prediction angle (degrees) of the moves of each fold under ``p`` refitted without them."""
+    squares = []
+    for test in folds:
+        refit = p if not test.any() else gauss_newton(data, noise, p, iterations=1, train=~test)
+        squares.append(move_angles(data, refit, test) ** 2)
+    return float(np.sqrt(np.mean(np.concatenate(squares))))
+
+
+def _candidates(data: GyroData, effects: tuple[str, ...]) -> tuple[list[Term], dict[str, str]]:
+    skipped: dict[str, str] = {}
+    terms: list[Term] = []
+    for effect in effects:
+        if effect == "time_offset":
+            continue
+        if effect == "gyro_temperature_bias" and data.temp_mid is None:
+            skipped[effect] = "no temperature column"
+            continue
+        if effect == "gyro_bias_drift" and float(np.ptp(data.rest_t)) <= 0:
+            skipped[effect] = "no time stamps across the rests"
+            continue
+        terms += [Term(effect, axis) for axis in range(3)]
+    return terms, skipped
+
+
+def band(angles_deg: NDArray[np.float64], noise: Noise, alpha: float) -> NDArray[np.float64]:
+    """Each move's bound of the gravity-prediction angle at the family-wise level ``alpha`` (Rayleigh, module
+    docstring), degrees."""
+    m = angles_deg.size
+    return np.degrees(np.sqrt(noise.move_rad2 * math.log(m / alpha)))
+
+
+def _estimate(term_values: list[tuple[Term, NDArray[np.float64]]], effect: str) -> tuple[dict[str, float], dict[str, Any]]:
+    est: dict[str, float] = {}
+    rows: dict[str, list[float]] = {}
+    for term, value in term_values:
+        assert term.axis is not None
+        axis = AXES[term.axis]
+        if effect == "g_sensitivity":
+            row = np.asarray(value) / STANDARD_GRAVITY
+            est[axis] = float(row[term.axis])
+            rows[axis] = row.tolist()
+        else:
+            est[axis] = float(value[0])
+    return est, ({"row_rad_s_per_m_s2": rows} if rows else {})
+
+
+def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[NDArray[np.bool_]]) -> dict[str, Any]:
+    """The time offset between the gyro's and the accelerometer's samples (module docstring, 3)."""
+    from optcal.applications.diagnosis.gyro_problem import _rates
+
+    omega, _ = _rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
+    E = exponential_map(omega * data.dt[:, None])
+    starts = data.starts
+    ends = np.r_[starts[1:], omega.shape[0]]
+    per_move: list[float] = []
+    weights: list[float] = []
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+    for i, (a, z) in enumerate(zip(starts, ends)):
+        R = np.eye(3)
+        after = np.empty((z - a, 3))
+        for k in range(a, z):  # û after each step: (P_k)ᵀ u₀
+            R = R @ E[k]
+            after[k - a] = R.T @ data.u0[i]
+        # at each step's middle, where its specific force is: half a step earlier than after it (the midpoint's
+        # direction; compared after the step, a half step would read as a time offset)
+        u = unit_rows(0.5 * (np.vstack([data.u0[i][None, :], after[:-1]]) + after))
+        udot = -np.cross(omega[a:z], u)
+        e = unit_rows(data.f_mid[a:z]) - u
+        e = e - e.mean(axis=0)  # a constant misfit (the end-to-end residual's share) is not a shift in time
+        udot_c = udot - udot.mean(axis=0)
+        wi = float(np.sum(udot_c * udot_c))
+        per_move.append(float(np.sum(e * udot_c)) / wi if wi > 0 else 0.0)
+        weights.append(wi)
+        pieces.append((e, udot_c))
+    d = np.asarray(per_move)
+    w = np.asarray(weights)
+    m = d.size
+    if m < MIN_DIAGNOSIS_MOVES or w.sum() <= 0:
+        return {"tested": False, "reason": f"{m} moves (fewer than {MIN_DIAGNOSIS_MOVES})"}
+    delta = float(np.sum(w * d) / np.sum(w))
+    se = float(np.sqrt(np.sum(w**2 * (d - delta) ** 2) / np.sum(w) ** 2 * m / (m - 1)))
+    t = delta / se if se > 0 else 0.0
+    critical = quantiles.t_isf(0.5 * alpha / len(GYRO_EFFECTS), m - 1)
+    # held out: δ from the other folds' moves, the inside-move residual of each held-out move with and without it
+    before: list[float] = []
+    after_shift: list[float] = []
+    for test in folds:
+        train = ~test
+        dtrain = float(np.sum(w[train] * d[train]) / np.sum(w[train])) if w[train].sum() > 0 else 0.0
+        for j in np.flatnonzero(test).tolist():
+            e, udot_c = pieces[j]
+            before.append(float(np.sum(e * e)))
+            after_shift.append(float(np.sum((e - dtrain * udot_c) ** 2)))
+    ratio = float(np.sqrt(np.sum(before) / np.sum(after_shift))) if np.sum(after_shift) > 0 else 1.0
+    return {"tested": True, "dt_s": delta, "se_s": se, "t": t, "critical_t": critical, "moves": m,
+            "heldout_ratio": ratio, "significant": bool(abs(t) > critical and ratio > 1.0),
+            "per_move_dt_s": d.tolist()}
+
+
+def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroDiagnosisSettings | None = None
+                  ) -> GyroDiagnosis:
+    """Diagnose the gyroscope of an IMU calibration on the moves it was fitted to (module docstring).
+
+    Parameters
+    ----------
+    moves : MoveSet
+        The recording's moves (:func:`optcal.families.gyro.moves.moves_from_segmentation`).
+    accelerometer : CalibrationResult
+        The accelerometer's calibration (its gravity directions are data).
+    gyro : GyroModel
+        The paper's gyro model fitted to the moves (the start).
+    settings : GyroDiagnosisSettings, optional
+
+    Raises
+    ------
+    InputError
+        Fewer than :data:`MIN_DIAGNOSIS_MOVES` moves.
+    """
+    s = settings or GyroDiagnosisSettings()
+    if moves.n_moves < MIN_DIAGNOSIS_MOVES:
+        raise InputError(f"{moves.n_moves} moves; the gyroscope's diagnosis needs at least {MIN_DIAGNOSIS_MOVES} "
+                         "(held-out folds and the time offset's scatter): record more moves between rests")
+    data = gyro_data(moves, accelerometer)
+    effects = s.effects or GYRO_EFFECTS
+    base = GyroParams(np.asarray(gyro.T, float), np.asarray(gyro.bias, float), (), ())
+    noise = measured_noise(data, base)
+    base = gauss_newton(data, noise, base, iterations=4)  # the paper's model, its bias with the rests' noise
+    folds = _folds(data.n_moves, min(s.folds, data.n_moves // 2))
+    counts = (2 * data.n_moves, 3 * data.rest_raw.shape[0])  # two directions across gravity per move
+    n_obs = sum(counts)
+    candidates, skipped = _candidates(data, effects)
+    current = base
+    current_rss = evaluate(data, noise, current, jac=False).rss()
+    current_heldout = heldout_rms(data, noise, current, folds)
+    baseline_heldout = current_heldout
+    steps: list[dict[str, Any]] = []
+    evidence: dict[Term, dict[str, float]] = {}
+    while len(current.terms) < s.max_terms:
+        remaining = [t for t in candidates if t not in current.terms]
+        if not remaining:
+            break
+        # every remaining term screened by its one-step score, the best fitted (Gauss-Newton) for its likelihood ratio
+        scored = screen(data, noise, current, remaining)
+        term = max(scored, key=lambda x: _lr(current_rss, x[1], counts))[0]
+        trial = gauss_newton(data, noise, current.extend(term))
+        rss = evaluate(data, noise, trial, jac=False).rss()
+        lr = _lr(current_rss, rss, counts)
+        p = _chi2_sf(lr, term.size)
+        level = s.alpha / len(remaining)
+        delta_bic = -lr + term.size * math.log(n_obs)
+        heldout = heldout_rms(data, noise, trial, folds) if p < level and delta_bic < 0 else float("nan")
+        accepted = p < level and delta_bic < 0 and heldout < current_heldout
+        steps.append({"term": term.label, "lr": lr, "p": p, "level": level, "delta_bic": delta_bic,
+                      "heldout_rms_deg": heldout, "heldout_before_deg": current_heldout, "accepted": accepted})
+        if not accepted:
+            break
+        evidence[term] = {"lr": lr, "p": p, "delta_bic": delta_bic, "heldout_ratio": current_heldout / heldout}
+        current, current_rss, current_heldout = trial, rss, heldout
+    solver: dict[str, Any] = {}
+    notes: list[str] = []
+    final = current
+    if current.terms:
+        fitted, stats = casadi_fit(data, noise, current, s.solver)
+        solver = {"name": s.solver or "ipopt", "success": bool(stats.get("success", False)),
+                  "return_status": str(stats.get("return_status", ""))}
+        if evaluate(data, noise, fitted, jac=False).rss() <= tuple(1.000001 * r for r in current_rss) or stats.get("success"):
+            final = fitted
+        else:
+            notes.append("the CasADi refit did not improve on the selection's Gauss-Newton fit; that fit is kept")
+        current_heldout = heldout_rms(data, noise, final, folds)
+    findings: list[GyroFinding] = []
+    for effect in GYRO_EFFECTS:
+        chosen = [(t, v) for t, v in zip(final.terms, final.values) if t.effect == effect]
+        if not chosen:
+            continue
+        est, extra = _estimate(chosen, effect)
+        ev = evidence[chosen[0][0]]
+        findings.append(GyroFinding(effect, [AXES[t.axis] for t, _ in chosen if t.axis is not None], est, ev, extra))
+    offset: dict[str, Any] = {"tested": False, "reason": "not asked"}
+    if "time_offset" in effects:
+        offset = time_offset_test(data, final, s.alpha, folds)
+        if offset.get("significant"):
+            findings.append(GyroFinding("time_offset", [], {"dt_s": offset["dt_s"]},
+                                        {"t": offset["t"], "critical_t": offset["critical_t"],
+                                         "heldout_ratio": offset["heldout_ratio"]}))
+    angles = move_angles(data, base)
+    return GyroDiagnosis(findings, steps, angles, band(angles, noise, s.alpha), move_angles(data, final),
+                         baseline_heldout, current_heldout, offset, [t.label for t in candidates] + (
+                             ["time_offset"] if "time_offset" in effects else []), skipped, final, notes, solver)
