@@ -59,6 +59,10 @@ from optcal.families.gyro.propagation import unit_rows
 
 #: Fewest moves the held-out folds and the time offset's t test need (two per fold and a scatter of several).
 MIN_DIAGNOSIS_MOVES: int = 8
+#: One-sided level at which a term's improvement of the held-out moves' squared angles must be told from none
+#: (Student's t of the paired differences): a term that fits the fitted moves' noise moves the held-out ones both
+#: ways, and a real effect's improvement holds move after move.
+HELDOUT_LEVEL: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -222,13 +226,44 @@ def _folds(m: int, k: int) -> list[NDArray[np.bool_]]:
     return [np.arange(m) % k == j for j in range(k)]
 
 
-def heldout_rms(data: GyroData, noise: Noise, p: GyroParams, folds: list[NDArray[np.bool_]]) -> float:
-    """The rms gravity-prediction angle (degrees) of the moves of each fold under ``p`` refitted without them."""
-    squares = []
-    for test in folds:
-        refit = p if not test.any() else gauss_newton(data, noise, p, iterations=1, train=~test)
-        squares.append(move_angles(data, refit, test) ** 2)
-    return float(np.sqrt(np.mean(np.concatenate(squares))))
+@dataclass(frozen=True)
+class HeldOut:
+    """Each move's squared gravity-prediction angle (degrees²) and each move's and rest's squared residual over its
+    noise, every one under the model refitted without its fold."""
+
+    angles2: NDArray[np.float64]
+    moves: NDArray[np.float64]
+    rests: NDArray[np.float64]
+
+    @property
+    def rms_deg(self) -> float:
+        return float(np.sqrt(np.mean(self.angles2)))
+
+
+def heldout(data: GyroData, noise: Noise, p: GyroParams, folds: list[NDArray[np.bool_]],
+            rest_folds: list[NDArray[np.bool_]]) -> HeldOut:
+    """:class:`HeldOut` of ``p`` (k-fold: the moves and rests of each fold predicted by the model fitted to the
+    others, one Gauss–Newton step from ``p``)."""
+    angles2 = np.zeros(data.n_moves)
+    moves = np.zeros(data.n_moves)
+    rests = np.zeros(data.rest_raw.shape[0])
+    for test, test_rests in zip(folds, rest_folds):
+        refit = gauss_newton(data, noise, p, iterations=1, train=~test, train_rests=~test_rests)
+        e = evaluate(data, noise, refit, jac=False)
+        angles2[test] = move_angles(data, refit, test) ** 2
+        moves[test] = np.sum(e.moves[test] ** 2, axis=1)
+        rests[test_rests] = np.sum(e.rests[test_rests] ** 2, axis=1)
+    return HeldOut(angles2, moves, rests)
+
+
+def heldout_gain_t(before: HeldOut, after: HeldOut) -> float:
+    """Student's t of the held-out moves' and rests' paired improvement (each kind over its mean before, so that
+    moves and rests weigh alike): a term that only fits the fitted units' noise improves some held-out ones and
+    worsens others, its t near zero; a real effect's improvement holds unit after unit."""
+    d = np.concatenate([(before.moves - after.moves) / max(float(np.mean(before.moves)), 1e-300),
+                        (before.rests - after.rests) / max(float(np.mean(before.rests)), 1e-300)])
+    sd = float(np.std(d, ddof=1)) if d.size > 1 else 0.0
+    return float(np.mean(d) / (sd / np.sqrt(d.size))) if sd > 0 else (np.inf if np.mean(d) > 0 else 0.0)
 
 
 def _candidates(data: GyroData, effects: tuple[str, ...]) -> tuple[list[Term], dict[str, str]]:
@@ -322,6 +357,35 @@ def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[ND
             "per_move_dt_s": d.tolist()}
 
 
+def _without(p: GyroParams, index: int) -> GyroParams:
+    return GyroParams(p.T, p.b, p.terms[:index] + p.terms[index + 1:], p.values[:index] + p.values[index + 1:])
+
+
+def _backward(data: GyroData, noise: Noise, p: GyroParams, rss: tuple[float, float], counts: tuple[int, int],
+              alpha: float, steps: list[dict[str, Any]], notes: list[str]) -> tuple[GyroParams, tuple[float, float]]:
+    """The named terms tested again in the final model, each against the model without it, at the Bonferroni share
+    of ``alpha`` over the named terms: a term that entered as a proxy of one named after it (a drift standing in
+    for a temperature that rose with time) is dropped."""
+    changed = True
+    while changed and p.terms:
+        changed = False
+        level = alpha / len(p.terms)
+        tests = []
+        for i, term in enumerate(p.terms):
+            reduced = gauss_newton(data, noise, _without(p, i))
+            reduced_rss = evaluate(data, noise, reduced, jac=False).rss()
+            lr = _lr(reduced_rss, rss, counts)
+            tests.append((_chi2_sf(lr, term.size), i, term, reduced, reduced_rss, lr))
+        worst = max(tests, key=lambda x: x[0])
+        if worst[0] >= level:
+            pv, i, term, reduced, reduced_rss, lr = worst
+            steps.append({"term": term.label, "removed": True, "lr": lr, "p": pv, "level": level})
+            notes.append(f"{term.label} dropped: with the terms named after it, it no longer explains the data "
+                         f"(likelihood ratio {lr:.1f}, p {pv:.2g} ≥ {level:.2g})")
+            p, rss, changed = reduced, reduced_rss, True
+    return p, rss
+
+
 def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroDiagnosisSettings | None = None
                   ) -> GyroDiagnosis:
     """Diagnose the gyroscope of an IMU calibration on the moves it was fitted to (module docstring).
@@ -356,33 +420,49 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
     candidates, skipped = _candidates(data, effects)
     current = base
     current_rss = evaluate(data, noise, current, jac=False).rss()
-    current_heldout = heldout_rms(data, noise, current, folds)
-    baseline_heldout = current_heldout
+    rest_folds = _folds(data.rest_raw.shape[0], len(folds))
+    current_out = heldout(data, noise, current, folds, rest_folds)
+    current_heldout = baseline_heldout = current_out.rms_deg
+    heldout_critical = quantiles.t_isf(HELDOUT_LEVEL, data.n_moves + data.rest_raw.shape[0] - 1)
     steps: list[dict[str, Any]] = []
     evidence: dict[Term, dict[str, float]] = {}
     while len(current.terms) < s.max_terms:
         remaining = [t for t in candidates if t not in current.terms]
         if not remaining:
             break
-        # every remaining term screened by its one-step score, the best fitted (Gauss-Newton) for its likelihood ratio
-        scored = screen(data, noise, current, remaining)
-        term = max(scored, key=lambda x: _lr(current_rss, x[1], counts))[0]
-        trial = gauss_newton(data, noise, current.extend(term))
-        rss = evaluate(data, noise, trial, jac=False).rss()
-        lr = _lr(current_rss, rss, counts)
-        p = _chi2_sf(lr, term.size)
+        # every remaining term screened by its one-step score; in that order each is fitted (Gauss-Newton) for its
+        # likelihood ratio, and the first that passes all three tests is named (one that passes the ratio and the
+        # BIC but not the held-out moves, a rest-only effect behind a larger one the moves show, makes way)
+        scored = sorted(screen(data, noise, current, remaining), key=lambda x: -_lr(current_rss, x[1], counts))
         level = s.alpha / len(remaining)
-        delta_bic = -lr + term.size * math.log(n_obs)
-        heldout = heldout_rms(data, noise, trial, folds) if p < level and delta_bic < 0 else float("nan")
-        accepted = p < level and delta_bic < 0 and heldout < current_heldout
-        steps.append({"term": term.label, "lr": lr, "p": p, "level": level, "delta_bic": delta_bic,
-                      "heldout_rms_deg": heldout, "heldout_before_deg": current_heldout, "accepted": accepted})
-        if not accepted:
+        named = None
+        for term, _ in scored:
+            trial = gauss_newton(data, noise, current.extend(term))
+            rss = evaluate(data, noise, trial, jac=False).rss()
+            lr = _lr(current_rss, rss, counts)
+            p = _chi2_sf(lr, term.size)
+            delta_bic = -lr + term.size * math.log(n_obs)
+            passes = p < level and delta_bic < 0
+            out = heldout(data, noise, trial, folds, rest_folds) if passes else None
+            held = out.rms_deg if out is not None else float("nan")
+            t_heldout = heldout_gain_t(current_out, out) if out is not None else float("nan")
+            accepted = passes and t_heldout > heldout_critical
+            steps.append({"term": term.label, "lr": lr, "p": p, "level": level, "delta_bic": delta_bic,
+                          "heldout_rms_deg": held, "heldout_before_deg": current_heldout, "heldout_t": t_heldout,
+                          "heldout_critical_t": heldout_critical, "accepted": accepted})
+            if accepted and out is not None:
+                named = (term, trial, rss, out, lr, p, delta_bic)
+                break
+            if not passes:
+                break  # the screen's order: the later terms explain less
+        if named is None:
             break
-        evidence[term] = {"lr": lr, "p": p, "delta_bic": delta_bic, "heldout_ratio": current_heldout / heldout}
-        current, current_rss, current_heldout = trial, rss, heldout
-    solver: dict[str, Any] = {}
+        term, trial, rss, out, lr, p, delta_bic = named
+        evidence[term] = {"lr": lr, "p": p, "delta_bic": delta_bic, "heldout_ratio": current_heldout / out.rms_deg}
+        current, current_rss, current_heldout, current_out = trial, rss, out.rms_deg, out
     notes: list[str] = []
+    current, current_rss = _backward(data, noise, current, current_rss, counts, s.alpha, steps, notes)
+    solver: dict[str, Any] = {}
     final = current
     if current.terms:
         fitted, stats = casadi_fit(data, noise, current, s.solver)
@@ -392,7 +472,7 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
             final = fitted
         else:
             notes.append("the CasADi refit did not improve on the selection's Gauss-Newton fit; that fit is kept")
-        current_heldout = heldout_rms(data, noise, final, folds)
+        current_heldout = heldout(data, noise, final, folds, rest_folds).rms_deg
     findings: list[GyroFinding] = []
     for effect in GYRO_EFFECTS:
         chosen = [(t, v) for t, v in zip(final.terms, final.values) if t.effect == effect]

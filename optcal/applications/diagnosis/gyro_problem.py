@@ -279,12 +279,16 @@ def evaluate(data: GyroData, noise: Noise, p: GyroParams, jac: bool = True) -> E
 
 
 def gauss_newton(data: GyroData, noise: Noise, p: GyroParams, iterations: int = SCREEN_ITERATIONS,
-                 train: NDArray[np.bool_] | None = None) -> GyroParams:
+                 train: NDArray[np.bool_] | None = None, train_rests: NDArray[np.bool_] | None = None) -> GyroParams:
     """``p`` refined by Gauss–Newton steps (Levenberg's damping where a step does not lower the cost) on the moves
-    ``train`` (all by default) and every rest; the Jacobian at each accepted point only."""
+    ``train`` and the rests ``train_rests`` (all by default); the Jacobian at each accepted point only."""
     z = p.vector()
     current = evaluate(data, noise, p)
-    rows = None if train is None else np.concatenate([np.repeat(train, 3), np.ones(current.rests.size, dtype=bool)])
+    rows = None
+    if train is not None or train_rests is not None:
+        moves_ok = np.ones(current.moves.shape[0], dtype=bool) if train is None else train
+        rests_ok = np.ones(current.rests.shape[0], dtype=bool) if train_rests is None else train_rests
+        rows = np.concatenate([np.repeat(moves_ok, 3), np.repeat(rests_ok, 3)])
     damping = 0.0
     for iteration in range(iterations):
         assert current.J is not None
