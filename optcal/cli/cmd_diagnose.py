@@ -146,14 +146,15 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
                                       own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
                                       f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
     gyro = _diagnose_gyro(loaded[0], method, alpha, folds, fit_settings) if imu else None
-    paths = save_figures(diag, figures_into) if figures_into else []
+    paths = save_figures(diag, figures_into, gyro[0] if gyro is not None else None) if figures_into else []
     calibration = diag.calibration() if output and gyro is None else (gyro[1] if gyro is not None and output else None)
     if calibration is not None and output:
         calibration.save(output_file(output))
     if report_path:
         from optcal.report.document import diagnosis_document
 
-        write_report(diagnosis_document(diag, poses, source, command_line(), tolerance), report_path)
+        write_report(diagnosis_document(diag, poses, source, command_line(), tolerance,
+                                        gyro[0] if gyro is not None else None), report_path)
     if as_json:
         out = diag.to_dict()
         summaries = [data_summary(path, session) for path, session in zip(data, sessions)]
@@ -171,7 +172,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     click.echo(diagnosis_report(diag))
     if gyro is not None:
         click.echo("\n".join(gyro[0].report_lines()))
-        for loss in gyro[2]:
+        for loss in gyro[2] if output else []:
             click.echo(f"  saved without: {loss}")
     for path in paths:
         click.echo(f"figure: {path}")

@@ -13,6 +13,7 @@ from optcal.core.model import AXES
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from optcal.applications.diagnosis.gyro_diagnosis import GyroDiagnosis
     from optcal.applications.diagnosis.result import Diagnosis
 
 
@@ -98,12 +99,37 @@ def simulation_figure(diag: "Diagnosis") -> "Figure | None":
     return fig
 
 
-def save_figures(diag: "Diagnosis", directory: str | Path) -> list[str]:
-    """Write ``residuals.png`` and ``simulation_check.png`` into ``directory``; returns the paths written."""
+def gyro_figure(gyro: "GyroDiagnosis") -> "Figure":
+    """Each move's gravity-prediction angle under the paper's model and the final model against its noise band
+    (:mod:`optcal.applications.diagnosis.gyro_diagnosis`)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 3.2), layout="constrained")
+    a = fig.add_subplot()
+    k = np.arange(1, gyro.angles_deg.size + 1)
+    a.fill_between(k, 0.0, gyro.band_deg, step="mid", color="0.88", label="noise band (family-wise over the moves)")
+    a.plot(k, gyro.angles_deg, "o", color="tab:red", ms=4, label="paper's model")
+    a.plot(k, gyro.final_angles_deg, "s", color="tab:blue", ms=3, label="final model")
+    outside = gyro.outside
+    a.plot(k[outside], gyro.angles_deg[outside], "o", mfc="none", mec="k", ms=8, label="outside the band")
+    a.set_xlabel("move")
+    a.set_ylabel("gravity prediction (°)")
+    named = "; ".join(f.effect + (f"({','.join(f.axes)})" if f.axes else "") for f in gyro.findings) or "none named"
+    a.set_title(f"Gyroscope: the moves' gravity prediction against its noise band ({named})", fontsize=9)
+    fig.legend(fontsize=7, loc="outside lower center", ncol=4, frameon=False)
+    return fig
+
+
+def save_figures(diag: "Diagnosis", directory: str | Path, gyro: "GyroDiagnosis | None" = None) -> list[str]:
+    """Write ``residuals.png``, ``simulation_check.png`` (and with ``gyro``, ``gyro_moves.png``) into ``directory``;
+    returns the paths written."""
     out_dir = Path(directory)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in (("residuals.png", residual_figure(diag)), ("simulation_check.png", simulation_figure(diag))):
+    figures = [("residuals.png", residual_figure(diag)), ("simulation_check.png", simulation_figure(diag))]
+    if gyro is not None:
+        figures.append(("gyro_moves.png", gyro_figure(gyro)))
+    for name, fig in figures:
         if fig is not None:
             path = out_dir / name
             from optcal.core.atomic import atomic_path

@@ -270,7 +270,7 @@ def calibration_document(
 
 
 def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str,
-                       tolerance_mg: float = DEFAULT_TOLERANCE_MG) -> ReportDocument:
+                       tolerance_mg: float = DEFAULT_TOLERANCE_MG, gyro: Any = None) -> ReportDocument:
     """Report of ``optcal diagnose``: the verdict on the paper's model, the findings and their size, the figures."""
     from optcal.families.accel.calibration import calibrate
 
@@ -298,6 +298,18 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
         figures,
     )
     peer = [peer_section(diag.peer)] if getattr(diag, "peer", None) is not None else []
+    if gyro is not None:  # optcal diagnose --imu: the gyroscope's moves against their band, its findings
+        from optcal.report.diagnosis_figures import gyro_figure
+
+        rows = [[f.effect, ",".join(f.axes) or "-", ", ".join(f"{k} {float(v):.3g}" for k, v in f.estimate.items())]
+                for f in gyro.findings]
+        peer.append(Section(
+            "Gyroscope",
+            [gyro.report_lines()[1], f"Held-out gravity prediction {gyro.heldout_baseline_deg:.3f}° with the paper's "
+             f"model, {gyro.heldout_final_deg:.3f}° with the final model (gain {gyro.gain:.3g}×)."],
+            [Table(["effect", "axes", "estimate (SI)"], rows, "Gyroscope findings")] if rows else [],
+            [embed(gyro_figure(gyro), "Each move's gravity prediction against its noise band, before and after")],
+            "\n".join(gyro.report_lines())))
     sections = [diagnosis, *peer, result_parameters_section(result, poses), *_evidence_sections(ev, poses),
                 data_section(data_path, poses),
                 Section("Text report", preformatted=diagnosis_report(diag))]
