@@ -70,6 +70,11 @@ def progress_printer(quiet: bool) -> Any:
                    ".calib is set next to optcal's own fit of DATA (what each misses).")
 @click.option("--pose-correlation", type=click.Choice(["auto", "off", "on"]), default="auto", show_default=True,
               help="Pose noise correlated in time: used on evidence (auto), never (off: poses independent), or always (on).")
+@click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
+              help="The sensor to diagnose: the accelerometer (static poses; --imu adds the gyroscope) or the "
+                   "magnetometer (raw samples mx, my, mz: a local disturbance, a temperature or current column).")
+@click.option("--mag-units", type=click.Choice(["uT", "nT", "gauss", "mgauss", "counts"]), default=None,
+              help="--sensor mag: units of the magnetometer (default from the file or the data).")
 @click.option("--imu", is_flag=True,
               help="Diagnose the gyroscope too (a raw recording with gyro columns): its gravity prediction across the "
                    "moves against its noise band, g_sensitivity, gyro_scale_nonlinearity, gyro_temperature_bias, "
@@ -82,7 +87,8 @@ def progress_printer(quiet: bool) -> Any:
 @report_options
 @solver_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, imu: bool, as_json: bool,
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, sensor: str,
+             mag_units: str | None, imu: bool, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
@@ -115,6 +121,12 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     from optcal.cli.outputs import echo_json, output_file, plot_folder
     from optcal.errors import InputError
 
+    if sensor == "mag":
+        if imu or baseline_path or len(data) != 1:
+            raise InputError("--sensor mag diagnoses one magnetometer recording: one DATA, without --imu or --baseline")
+        return _diagnose_mag(data[0], alpha, as_json, output, data_opts, mag_units)
+    if mag_units is not None:
+        raise InputError("--mag-units applies with --sensor mag")
     fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
     if fit_settings and baseline_path:
         raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
@@ -218,3 +230,44 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
                           notes=[*imu.notes, "gyro extended by optcal diagnose --imu: "
                                  + ("; ".join(f.describe() for f in result.findings) or "nothing named")])
     return result, calibration, losses
+
+
+def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, data_opts: dict[str, Any],
+                  mag_units: str | None) -> None:
+    """``optcal diagnose DATA --sensor mag`` (:mod:`optcal.applications.magnetic.diagnosis`): the plain calibration,
+    then its diagnosis; ``-o`` saves the extended calibration (the disturbed stretches left out)."""
+    import numpy as np
+
+    from optcal.applications.magnetic.diagnosis import diagnose_mag
+    from optcal.cli.outputs import echo_json, output_file
+    from optcal.families.mag.calibration import MagCalibration, calibrate_mag
+    from optcal.families.mag.samples import read_mag
+
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units)
+    say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
+    say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
+    for line in samples.decision_lines():
+        say(line)
+    plain = calibrate_mag(samples)
+    diag = diagnose_mag(samples, plain, alpha=alpha)
+    ext = diag.extended
+    T = np.asarray(ext["T"], dtype=float)
+    info = {**plain.calibration.info, "diagnosis": {"findings": [f.to_dict() for f in diag.findings], "gain": diag.gain,
+                                                    "excluded_samples": diag.excluded, "terms": ext["terms"]},
+            "rms_norm_residual": ext["rms_norm_residual"]}
+    calibration = MagCalibration(T, np.asarray(ext["o"], dtype=float), samples.units.units, ext["field_strength"],
+                                 None, plain.calibration.R_mag_to_acc, info)
+    if output:
+        calibration.save(output_file(output))
+    if as_json:
+        out = diag.to_dict()
+        out.update(field_strength=ext["field_strength"], o=ext["o"], T=ext["T"],
+                   rms_norm_residual=ext["rms_norm_residual"], data={"path": data, "decisions": samples.decision_lines()},
+                   saved=None if not output else {"path": output, "cal_type": calibration.cal_type})
+        echo_json(out)
+        return
+    click.echo("\n".join(diag.report_lines()))
+    if output:
+        lost = [f.effect for f in diag.findings if f.effect != "local_disturbance"]
+        click.echo(f"saved: {output} (magnetometer calibration, the disturbed stretches left out"
+                   + (f"; without {', '.join(lost)}: a calibration file holds no column terms" if lost else "") + ")")
