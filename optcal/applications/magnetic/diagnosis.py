@@ -345,8 +345,10 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     T, o = fit.T, fit.o
     r = _norm_residual(m, T, o)
     u = ((m - o) @ T.T) / (r + 1.0)[:, None]
-    white, sigma_b, colour = _noise(r - orientation_misfit(r, u))
-    b = _blocks(r)
+    misfit_free = r - orientation_misfit(r, u)
+    white, sigma_b, colour = _noise(misfit_free)
+    b = _blocks(misfit_free)
+    b = b - np.median(b)  # the band is about the blocks' median: the misfit's own offset is not a departure
     B = b.size
     band = sigma_b * quantiles.norm_isf(0.5 * alpha / B)
     notes: list[str] = []
