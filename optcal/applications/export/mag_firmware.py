@@ -33,7 +33,51 @@ from optcal.families.caltypes.base import Calibration
 from optcal.families.mag.units import UT_PER_UNIT
 
 #: The formats that hold a magnetometer calibration.
-MAG_FORMATS: tuple[str, ...] = ("ardupilot", "px4", "px4-shell")
+MAG_FORMATS: tuple[str, ...] = ("ardupilot", "px4", "px4-shell", "c")
+
+
+def c_header(cal: Calibration, options: ExportOptions) -> str:
+    """A C99 header applying the magnetometer's calibration (``optcal apply``'s ``T (m − o)``, unit norm for the
+    undisturbed field), its numbers baked in, the field strength and a test vector (the raw sample that reads the
+    field along +x)."""
+    from optcal.applications.export.c_header import c_array, c_number
+
+    T: np.ndarray = np.array(getattr(cal, "T"), dtype=np.float64)
+    o: np.ndarray = np.array(getattr(cal, "o"), dtype=np.float64)
+    raw = o + np.linalg.solve(T, [1.0, 0.0, 0.0])
+    out = T @ (raw - o)
+    guard = "OPTCAL_MAG_CALIBRATION_H"
+    lines = [
+        f"/* magnetometer calibration exported by optcal from {options.source} */",
+        f"/* m_cal = T (m - o): |m_cal| = 1 for the undisturbed field; m in {cal.units}; the field strength "
+        f"{cal.field_strength:.9g} {cal.units} (multiply m_cal by it for the field in {cal.units}) */",  # type: ignore[attr-defined]
+        f"#ifndef {guard}", f"#define {guard}", "",
+        f"#define OPTCAL_MAG_FIELD_STRENGTH {c_number(cal.field_strength)}  /* {cal.units} */",  # type: ignore[attr-defined]
+        f"static const double OPTCAL_MAG_T[3][3] = {c_array(T)};  /* per {cal.units} */",
+        f"static const double OPTCAL_MAG_O[3] = {c_array(o)};  /* {cal.units} (hard iron) */",
+        "",
+        "static inline void optcal_apply_mag(const double raw[3], double out[3])",
+        "{",
+        "    double d[3];",
+        "    for (int i = 0; i < 3; ++i) d[i] = raw[i] - OPTCAL_MAG_O[i];",
+        "    for (int i = 0; i < 3; ++i)",
+        "        out[i] = OPTCAL_MAG_T[i][0] * d[0] + OPTCAL_MAG_T[i][1] * d[1] + OPTCAL_MAG_T[i][2] * d[2];",
+        "}",
+        "",
+        f"/* the field in {cal.units}, as optcal apply writes it: field_strength T (m - o) */",
+        "static inline void optcal_apply_mag_field(const double raw[3], double out[3])",
+        "{",
+        "    optcal_apply_mag(raw, out);",
+        "    for (int i = 0; i < 3; ++i) out[i] *= OPTCAL_MAG_FIELD_STRENGTH;",
+        "}",
+        "",
+        f"/* test vector: optcal_apply_mag({c_array(raw)}) = {c_array(out)} */",
+        f"#define OPTCAL_MAG_TEST_RAW {c_array(raw)}",
+        f"#define OPTCAL_MAG_TEST_OUT {c_array(out)}",
+        "",
+        f"#endif /* {guard} */",
+    ]
+    return "\n".join(lines) + "\n"
 #: ArduPilot's largest accepted offset (COMPASS_OFFS_MAX's default, milligauss): beyond it the
 #: firmware's pre-arm check fails ("Compass offsets too high").
 ARDUPILOT_OFFS_MAX_MG: float = 1800.0
@@ -80,6 +124,9 @@ def export(cal: Calibration, fmt: str, options: ExportOptions) -> ExportResult:
                          f"--format {', '.join(MAG_FORMATS)}")
     comments = [f"magnetometer calibration exported by optcal from {options.source}"]
     notes = _rotation_note(cal)
+    if fmt == "c":
+        return ExportResult(format=fmt, text=c_header(cal, options), mapped=["T", "o", "field_strength"], dropped=[],
+                            notes=notes)
     if fmt == "ardupilot":
         M, ko, _ = _scaled(cal, 0.1)  # milligauss
         ofs, dia, odi, dev = ardupilot_names(options.instance)

@@ -221,7 +221,8 @@ def magnetometer_case(r: dict[str, Any]) -> Case:
 
 #: A magnetometer: the compass parameters of the two firmwares hold its symmetric T and o exactly; no other format
 #: has a place for a magnetometer, and refuses it.
-MAGNETOMETER = {**{fmt: "refused" for fmt in EXPORTERS}, "ardupilot": "exact", "px4": "exact", "px4-shell": "exact"}
+MAGNETOMETER = {**{fmt: "refused" for fmt in EXPORTERS}, "ardupilot": "exact", "px4": "exact", "px4-shell": "exact",
+                "c": "exact"}
 
 #: One entry per calibration: the key is ``cal_type`` or ``cal_type/variant``.  A new calibration type is one entry.
 CALIBRATIONS: dict[str, Entry] = {
@@ -671,6 +672,22 @@ def judge_magnetometer(case: Case, fmt: str, result: ExportResult, tmp: Path) ->
     QGroundControl's file read as :func:`px4_params` reads it).
     """
     cal, m = case.cal, case.acc
+    if fmt == "c":  # optcal's own header, compiled and run on the samples: optcal_apply_mag_field
+        if shutil.which("cc") is None:
+            pytest.skip("no C compiler (cc) on this machine")
+        (tmp / "mag.h").write_text(result.text)
+        (tmp / "main.c").write_text('#include <stdio.h>\n#include "mag.h"\nint main(void) {\n double m[3], out[3];\n'
+                                    ' while (scanf("%lf %lf %lf", &m[0], &m[1], &m[2]) == 3) {\n'
+                                    '  optcal_apply_mag_field(m, out);\n  printf("%.17g %.17g %.17g\\n", out[0], out[1], out[2]);\n'
+                                    ' }\n return 0;\n}\n')
+        subprocess.run(["cc", "-std=c99", "-Wall", "-Werror", "-pedantic", "-o", str(tmp / "mag"), str(tmp / "main.c")],
+                       check=True, cwd=tmp)
+        stdin = "\n".join(" ".join(repr(float(v)) for v in row) for row in m)
+        theirs = np.loadtxt(subprocess.run([str(tmp / "mag")], input=stdin, capture_output=True, text=True,
+                                           check=True).stdout.splitlines())
+        difference = float(np.max(np.linalg.norm(theirs - cal.field(m), axis=1)) / cal.field_strength)  # type: ignore[attr-defined]
+        assert difference <= 1e-12, difference
+        return "exact"
     if fmt == "ardupilot":
         p = mavlink_params(result, tmp)
         ofs = np.array([p[f"COMPASS_OFS_{a}"] for a in "XYZ"])
