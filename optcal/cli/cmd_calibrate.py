@@ -68,11 +68,11 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     from optcal.cli.cmd_mag import calibrate_mag_command, mag_options_used
 
     if sensor == "mag":
-        if imu or scale_range or report_path or sections or turn_angle is not None:
-            raise InputError("--imu, --scale-range, --report, --sections and --turn-angle apply to the accelerometer, "
+        if imu or scale_range or sections or turn_angle is not None:
+            raise InputError("--imu, --scale-range, --sections and --turn-angle apply to the accelerometer, "
                              "not to --sensor mag")
         calibrate_mag_command(data, method, as_json, output, allow_degenerate, loss, mag_form, mag_units,
-                              accept_mag_fit, solver_opts, data_opts, location, session_date)
+                              accept_mag_fit, solver_opts, data_opts, location, session_date, report_path)
         return
     if mag_options_used(mag_form, mag_units, accept_mag_fit) or location is not None or session_date is not None:
         raise InputError("--mag-form, --mag-units, --accept-mag-fit, --location and --date apply with --sensor mag")

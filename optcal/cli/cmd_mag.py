@@ -21,7 +21,7 @@ def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool)
 def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
                           loss: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
                           solver_opts: dict[str, Any], data_opts: dict[str, Any], location: str | None = None,
-                          session_date: str | None = None) -> None:
+                          session_date: str | None = None, report_path: str | None = None) -> None:
     """Read, fit and report (module docstring).
 
     Parameters
@@ -43,6 +43,8 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     location, session_date : str, optional
         ``--location LAT,LON[,ALT]`` and ``--date YYYY-MM-DD``: the field and dip against the World Magnetic Model
         (:mod:`optcal.families.mag.wmm`).
+    report_path : str, optional
+        ``--report``: the HTML report (:mod:`optcal.report.mag_document`: the sphere's coverage before and after).
     """
     from optcal.cli.outputs import echo_json, output_file
     from optcal.cli.solver_options import estimator_settings
@@ -75,6 +77,11 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         say(line)
     result = calibrate_mag(samples, MagSettings(method=method, form=mag_form, allow_degenerate=allow_degenerate,
                                                 accept_fit=accept_mag_fit, estimator=settings))
+    if report_path:
+        from optcal.cli.report_option import command_line, write_report
+        from optcal.report.mag_document import mag_document
+
+        write_report(mag_document(result, data, command_line()), report_path)
     cal = result.calibration
     comparison = None
     if reference is not None:

@@ -132,3 +132,13 @@ def test_c_header_applies_the_calibration_as_optcal_apply(ckexplorer, capsys):
     out = np.loadtxt(subprocess.run([str(tmp / "apply")], input=stdin, capture_output=True, text=True,
                                     check=True).stdout.splitlines())
     np.testing.assert_allclose(out, cal.field(m), rtol=0, atol=1e-12 * cal.field_strength)
+
+
+def test_html_report_shows_the_sphere_before_and_after(shared_data, tmp_path, capsys):
+    path = shared_data / "ckexplorer-holds" / "acc_mag_log.csv"
+    code, _, err = run_args(capsys, "calibrate", str(path), "--sensor", "mag", "--report", str(tmp_path / "r.html"))
+    assert code == 0, err
+    html = (tmp_path / "r.html").read_text()
+    assert "Magnetometer calibration" in html and html.count("<svg") >= 1
+    assert "before: m − mean" in html or "before: m \u2212 mean" in html
+    assert "verdict: good" in err  # 1.25 % rms of the field, every direction reached
