@@ -38,6 +38,8 @@ def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity:
     from optcal.applications.quality.validation import check_calibration, convert_to_units
 
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
+    if cal.cal_type == "magnetometer":
+        return _check_mag(cal, calibration, data, as_json, data_opts)
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     # an imu (or a peer's gyro) calibration also needs DATA's segmentation (its moves): the file is read once, with it
     with_gyro = cal.cal_type == "imu" or bool(getattr(cal, "has_gyro", False))
@@ -145,3 +147,28 @@ def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any
                                           "before": result.before, "exclusions": result.exclusions,
                                           "angles_deg_before": np.round(result.angles_before_deg, 6).tolist(),
                                           "angles_deg_after": np.round(result.angles_after_deg, 6).tolist()}}
+
+
+def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: dict[str, Any]) -> None:
+    """A magnetometer calibration on DATA's magnetometer samples: the norm residual ``|T(m − o)| − 1`` (rms, and the
+    field's strength the data read through it against the calibration's)."""
+    import numpy as np
+
+    from optcal.cli.outputs import echo_json
+    from optcal.families.mag.samples import read_mag
+
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=cal.units)
+    norm = np.linalg.norm(cal.correct(samples.m), axis=1)
+    rms = float(np.sqrt(np.mean((norm - 1.0) ** 2)))
+    out = {"sensor": "magnetometer", "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units},
+           "data": {"path": data, "n_samples": samples.n, "decisions": samples.decision_lines()},
+           "rms_norm_residual": rms, "median_norm": float(np.median(norm)),
+           "field_strength": cal.field_strength, "field_strength_in_data": float(np.median(norm)) * cal.field_strength}
+    if as_json:
+        echo_json(out)
+        return
+    for line in samples.decision_lines():
+        click.echo(line)
+    click.echo(f"{calibration} on {data}: {samples.n} magnetometer samples; rms of |T(m − o)| − 1 {rms:.4%} of the field; "
+               f"the field read {out['field_strength_in_data']:.6g} {cal.units} (the calibration's "
+               f"{cal.field_strength:.6g}: {out['median_norm'] - 1.0:+.2%})")

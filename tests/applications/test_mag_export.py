@@ -142,3 +142,14 @@ def test_html_report_shows_the_sphere_before_and_after(shared_data, tmp_path, ca
     assert "Magnetometer calibration" in html and html.count("<svg") >= 1
     assert "before: m − mean" in html or "before: m \u2212 mean" in html
     assert "verdict: good" in err  # 1.25 % rms of the field, every direction reached
+
+
+def test_check_reads_the_magnetometer_samples(ckexplorer, capsys):
+    import json
+
+    samples, cal, tmp = ckexplorer
+    code, out, err = run_args(capsys, "check", str(tmp / "mag.json"), str(samples.path), "--json")
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["sensor"] == "magnetometer" and result["data"]["n_samples"] == samples.n
+    assert result["rms_norm_residual"] == pytest.approx(cal.info["rms_norm_residual"], rel=1e-9)
