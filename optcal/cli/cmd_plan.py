@@ -11,11 +11,18 @@ from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import check_report_path, command_line, write_report
 
 
+
+#: Most poses a plan takes: the rounding is linear in K, and 10,000 held poses (at 1 s each, about three hours
+#: of dwell alone) is past any calibration session; a larger K would only run long (issue 40: never unbounded).
+MAX_PLAN_POSES = 10_000
+#: Largest pose noise: the expected standard errors are σ² M⁻¹, and σ² of a larger σ is not a finite double.
+MAX_SIGMA = 1e150
+
 @click.command()
 @click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
               help="mag: the orientations a magnetometer session still needs (the field directions its samples have not "
                    "reached, --next DATA; all 26 with --poses K).")
-@click.option("--poses", "n_poses", type=int, default=None, metavar="K", help="Plan K orientations.")
+@click.option("--poses", "n_poses", type=click.IntRange(max=MAX_PLAN_POSES), default=None, metavar="K", help="Plan K orientations.")
 @click.option("--next", "next_data", type=DATA_PATH, default=None, metavar="DATA",
               help="Recommend the one orientation that adds the most to the poses in DATA (pose table or raw recording).")
 @click.option("--criterion", type=click.Choice(["D", "A", "E"], case_sensitive=False), default="D", show_default=True,
@@ -24,7 +31,7 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
 @click.option("--prior", default=None, metavar="CAL.json|nominal",
               help="Plan for this saved calibration; 'nominal' for T = I, o = 0. Default: nominal, or with "
                    "--given/--next the convex fit of that DATA when it determines one.")
-@click.option("--sigma", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--sigma", type=click.FloatRange(min=0, min_open=True, max=MAX_SIGMA), default=None,
               help="Pose noise per axis, in the prior's units, for the expected standard errors [1 mg].")
 @click.option("--turntable", is_flag=True, help="Only orientations of a three-axis turntable (Sun 2011) with gimbal steps of --turntable-step.")
 @click.option("--turntable-step", type=float, default=45.0, show_default=True, metavar="DEG", help="Gimbal step of --turntable.")
@@ -38,7 +45,7 @@ from optcal.cli.report_option import check_report_path, command_line, write_repo
               help="With --next: say 'stop' once every standard error is below this (T relative to 1, o in g).")
 @click.option("--grid", type=click.IntRange(100, 100_000), default=2000, show_default=True,
               help="Candidate directions on the sphere (or in the cap) for the relaxation.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random rounding start.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the random rounding start.")
 @click.option("--solver", default=None, metavar="NAME",
               help="NLP solver of the refinement on the sphere (a CasADi nlpsol plugin; ipopt by default); one that "
                    "does not run here is refused, naming those that do.")

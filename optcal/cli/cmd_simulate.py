@@ -18,7 +18,7 @@ from optcal.families.simulate.poses import SCHEDULES
 @click.option("--sigma", type=click.FloatRange(0), default=0.01, show_default=True, help="White noise, g (per pose, or per sample with --samples).")
 @click.option("--samples", type=click.IntRange(1), default=None, help="Noise per sample, averaged over this many samples per pose.")
 @click.option("--sensor", type=click.Choice(["lu2017"]), default="lu2017", show_default=True, help="Simulated sensor (Lu 2017, section 3.1).")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output CSV.")
 def simulate(schedule: str, orientations: str | None, n: int, sigma: float, samples: int | None,
              sensor: str, seed: int, output: str) -> None:

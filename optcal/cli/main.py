@@ -48,11 +48,13 @@ COMMANDS: dict[str, str] = {
 
 
 def _before_command(context: click.Context) -> None:
-    """What every command does on its parsed arguments before any work: refuse an output that is
-    an input, and decide once whether long work draws progress bars (:func:`optcal.core.progress.decide`)."""
+    """What every command does on its parsed arguments before any work: refuse a number that is not
+    finite and an output that is an input, and decide once whether long work draws progress bars (:func:`optcal.core.progress.decide`)."""
+    from optcal.cli.numbers import refuse_non_finite_numbers
     from optcal.cli.outputs import refuse_outputs_over_inputs
     from optcal.core import progress
 
+    refuse_non_finite_numbers(context)
     refuse_outputs_over_inputs(context)
     root = context.find_root().obj
     quiet = bool(context.params.get("quiet")) or bool(isinstance(root, dict) and root.get("quiet"))

@@ -146,14 +146,14 @@ def octave_taus(n_samples: int, rate_hz: float, max_tau_s: float | None = None) 
     if max_tau_s is not None:
         if not max_tau_s > 0:
             raise InputError(f"the largest τ must be positive, got {max_tau_s}")
-        m_ask = int(round(max_tau_s * rate_hz))
-        if m_ask > m_max:
+        clusters = max_tau_s * rate_hz  # may overflow to inf (--max-tau 1e308): then longer than any log
+        if not np.isfinite(clusters) or int(round(clusters)) > m_max:
             raise InputError(
                 f"the log is {duration:.4g} s long: τ = {max_tau_s:g} s needs at least {MIN_CLUSTERS} clusters, "
                 f"i.e. {MIN_CLUSTERS * max_tau_s:.4g} s of static data; record a longer log or ask for "
                 f"τ ≤ {m_max / rate_hz:.4g} s"
             )
-        m_max = max(m_ask, 1)
+        m_max = max(int(round(clusters)), 1)
     exponents = np.arange(int(np.floor(np.log2(m_max))) + 1)
     return (2.0**exponents) / rate_hz  # type: ignore[return-value]  # numpy stubs type float ** int array as floating[Any]
 
