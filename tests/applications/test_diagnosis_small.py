@@ -72,10 +72,14 @@ def test_a_small_session_is_tested_and_states_what_it_cannot_detect(shared_data:
     assert all(np.isfinite(lim.limit) and lim.limit > 0 for lim in diag.detection_limits)
     text = diagnosis_report(diag)
     assert "detection limits" in text and "no physical effect" not in text
+    # 14 poses cannot test outliers (MIN_DOF with the suspects aside): the step's whole level goes to its terms
+    first = diag.steps[0].candidates
+    assert all(c.effect != "outliers" for c in first)
+    assert all(c.threshold == pytest.approx(DiagnosisSettings().alpha / len(first)) for c in first)
 
 
 @pytest.mark.parametrize(("effect", "axis", "size"), [("bias_drift", 2, 10.0), ("temperature_bias", 2, 20.0),
-                                                      ("scale_nonlinearity", 2, 20.0),
+                                                      ("scale_nonlinearity", 2, 10.0),
                                                       ("scale_nonlinearity", 1, 20.0)])
 def test_an_effect_planted_in_14_real_rests_is_named(shared_data: Path, tmp_path: Path, effect: str, axis: int,
                                                      size: float) -> None:

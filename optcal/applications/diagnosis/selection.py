@@ -5,7 +5,8 @@ A term is added when
 * its likelihood-ratio test is significant: the F form (noise scale estimated from the
   residuals, so a wrong σ claim cannot manufacture findings), ``q`` = number of new
   coefficients, at level ``α/(2m)`` for ``m`` candidates in the step (Bonferroni: the
-  family-wise false-finding rate of the first step is at most ``α/2``);
+  family-wise false-finding rate of the first step is at most ``α/2``), or ``α/m`` in a step that cannot
+  test outliers (a small session: :meth:`ForwardSelection.outliers_testable`);
 * it lowers the BIC (``n log(RSS/n) + p log n``);
 * it lowers the held-out rms (k-fold).
 
@@ -210,6 +211,18 @@ class ForwardSelection:
         (:data:`MIN_DOF`, or one when the noise of the pose means was measured)."""
         return self.fitter.n - fit.n_params - 1 >= self.fitter.min_dof
 
+    def outliers_testable(self, fit: Fit) -> bool:
+        """Whether a step from ``fit`` tests outlier poses, and so spends :attr:`alpha_outliers` of its level.
+
+        The outlier test estimates the noise with its suspects set aside: it keeps :data:`MIN_DOF` (a small
+        session's real pose scatter, 2-2.5 times the rests' measured noise on IMU-TK's Xsens log, would otherwise
+        make every pose off by that scatter an outlier).  A step that cannot test outliers gives the whole
+        family-wise level :attr:`alpha` to its terms: the step's false-finding rate stays at most ``alpha``
+        (Bonferroni over the terms alone), and a 14-pose session's terms are tested at twice the level they had
+        when half of it was kept for a test that was never run.
+        """
+        return self.with_outliers and self.fitter.n - fit.n_params - 1 >= MIN_DOF
+
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
         """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
 
@@ -256,6 +269,8 @@ class ForwardSelection:
             bic0 = fitter.bic(current)
             term_cands = self.term_candidates(current)
             m = max(len(term_cands), 1)
+            outliers_tested = self.outliers_testable(current)
+            alpha_terms = self.alpha_terms if outliers_tested else self.alpha
             tried: list[Candidate] = []
             for effect, axis, order in self.loop(term_cands, f"selection step {len(steps) + 1}", len(term_cands)):
                 if not fitter.identifiable(current, effect, axis, order):
@@ -267,11 +282,8 @@ class ForwardSelection:
                 p = fitter.f_test(current, cand)
                 delta = fitter.bic(cand) - bic0
                 tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
-                                       self.alpha_terms / m, bool(p < self.alpha_terms / m and delta < 0), fit=cand))
-            # the outlier test estimates the noise with its suspects set aside: it keeps MIN_DOF (a small session's
-            # real pose scatter, 2-2.5 times the rests' measured noise on IMU-TK's Xsens log, would otherwise make
-            # every pose off by that scatter an outlier)
-            if self.with_outliers and self.fitter.n - current.n_params - 1 >= MIN_DOF:
+                                       alpha_terms / m, bool(p < alpha_terms / m and delta < 0), fit=cand))
+            if outliers_tested:
                 found = detect_outliers(fitter, current, self.alpha_outliers)
                 if found is not None:
                     delta = fitter.bic(found.fit) - bic0
@@ -299,7 +311,8 @@ class ForwardSelection:
                 break
             current = accepted.fit
         current = self.recheck_outliers(current)
-        level = self.alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else self.alpha_terms
+        alpha_terms = self.alpha_terms if self.outliers_testable(current) else self.alpha
+        level = alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
 
     def recheck_outliers(self, final: Fit) -> Fit:
