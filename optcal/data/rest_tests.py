@@ -87,7 +87,8 @@ class RestModel:
             self.kappa2 = rm.noise_colour(self.ratios[calm], dof0, 0.5)
         else:
             self.kappa2 = rm.noise_colour(self.ratios[self.valid], dof0, rm.QUIET_PAIRS_QUANTILE)
-        self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
+        with np.errstate(over="ignore"):  # a huge --static-threshold: an infinite limit
+            self.step_limit = rm.step_limit(s.false_alarm, self.dof) * s.threshold
         self.bias: NDArray[np.float64] | None = None  # the gyro's bias over the session (median of its track)
         self.track = np.zeros((b.count, 3))  # the gyro's bias at each block (rm.bias_track)
         self.gyro_scale: float | None = None  # rad/s per gyro unit, once the bias is known
@@ -99,7 +100,8 @@ class RestModel:
         self.gkappa2 = np.ones(3)
         self.gvar_ref: NDArray[np.float64] | None = None
         self.wander2 = np.zeros(3)
-        self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
+        with np.errstate(over="ignore"):  # a huge --gyro-threshold: the limit is infinite, every rate is noise
+            self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
         self.still = np.ones(b.count, dtype=bool)
         self._pooled: dict[tuple[bool, int, int], NDArray[np.float64]] = {}
         self._spans: rm.SpanEstimates | None = None
@@ -531,8 +533,9 @@ class RestModel:
         pose = np.sqrt(24.0 * WOBBLE_SHRINK) * self.one_g
         k = self.s.drift_threshold
         limit = np.array([rm.trend_limit(self.s.false_alarm, int(d)) if d > 0 else np.inf for d in dof])
-        trending = (dof > 0) & (tstat > limit * k) & (change > np.minimum(noise, pose) * k)
-        return np.asarray(trending | (spread > np.maximum(noise, pose) * k))
+        with np.errstate(over="ignore"):  # a huge --drift-threshold: infinite limits
+            trending = (dof > 0) & (tstat > limit * k) & (change > np.minimum(noise, pose) * k)
+            return np.asarray(trending | (spread > np.maximum(noise, pose) * k))
 
     def _turns(self, r: rm.Ranges) -> NDArray[np.bool_]:
         """Whether each stretch's mean rate is off the bias -- significantly, or by more than a MEMS gyro's bias
@@ -566,7 +569,8 @@ class RestModel:
         limit = np.where(long, rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 1),
                          rm.normal_limit(self.s.false_alarm / 6.0))
         z = np.abs(off) / np.sqrt(np.maximum(se2, np.finfo(float).tiny))
-        significant = np.max(z, axis=1) > limit * self.s.gyro_threshold
+        with np.errstate(over="ignore"):  # a huge --gyro-threshold: an infinite limit
+            significant = np.max(z, axis=1) > limit * self.s.gyro_threshold
         if self.gyro_scale is None:
             return np.asarray(significant)
         # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the

@@ -429,3 +429,16 @@ def test_a_touch_next_to_a_move_is_left_out_of_the_pose(end: str) -> None:
     shift_kept = float(np.linalg.norm(with_touch[0].mean - rest.mean))
     # joined, the touch moves the pose's mean by more than twice its standard error; left out, by less
     assert shift_kept > 2.0 * rest.sigma > shift_left_out, (shift_kept, rest.sigma, shift_left_out)
+
+
+@pytest.mark.parametrize("name", ["threshold", "gyro_threshold", "drift_threshold"])
+def test_a_huge_multiplier_accepts_without_overflow(name: str) -> None:
+    """A multiplier of 1e308 makes every limit infinite (every stretch passes its test): no numpy overflow warning."""
+    import warnings
+
+    frame = pd.read_csv(need(XSENS))
+    rec = recording_from_source(source_from_frame(frame, "xsens", "csv"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        seg = detect_static(rec, StaticSettings(**{name: 1e308}))
+    assert len(seg.intervals) >= 1
