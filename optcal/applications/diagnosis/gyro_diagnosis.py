@@ -468,7 +468,8 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
         fitted, stats = casadi_fit(data, noise, current, s.solver)
         solver = {"name": s.solver or "ipopt", "success": bool(stats.get("success", False)),
                   "return_status": str(stats.get("return_status", ""))}
-        if evaluate(data, noise, fitted, jac=False).rss() <= tuple(1.000001 * r for r in current_rss) or stats.get("success"):
+        # kept when IPOPT says it converged, or its cost (moves' and rests' together) is not above the selection's fit
+        if stats.get("success") or sum(evaluate(data, noise, fitted, jac=False).rss()) <= 1.000001 * sum(current_rss):
             final = fitted
         else:
             notes.append("the CasADi refit did not improve on the selection's Gauss-Newton fit; that fit is kept")
