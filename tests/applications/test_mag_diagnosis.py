@@ -97,3 +97,10 @@ def test_diagnose_sensor_mag_json_and_saved_calibration(tmp_path, capsys):
     saved = json.loads(out.read_text())
     assert saved["cal_type"] == "magnetometer"
     assert main(["diagnose", str(CK), "--sensor", "mag", "--imu"]) == 2
+
+
+def test_a_column_without_numbers_is_said_not_tested(frame, tmp_path):
+    fr = frame.copy()
+    fr["temp"] = np.nan
+    diag = _diagnose(fr, tmp_path / "nan_temp.csv")
+    assert not [f for f in diag.findings if f.effect == "temperature_offset"]

@@ -367,8 +367,9 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     terms: list[tuple[str, NDArray[np.float64], NDArray[np.float64], float]] = []  # effect, x, k, x̄
     current_o = o
     for effect, x in columns:
-        if not np.ptp(x[np.isfinite(x)]) > 0:
-            notes.append(f"{effect}: its column does not change")
+        finite = x[np.isfinite(x)]
+        if finite.size < MIN_SAMPLES or not np.ptp(finite) > 0:
+            notes.append(f"{effect}: its column does not change (or holds fewer than {MIN_SAMPLES} numbers)")
             continue
         lr, ratio, _, o1, k1, xm = _column_test(samples, x, keep, T, current_o, n_eff, halves)
         critical = quantiles.chi2_isf(alpha / len(columns), 3)
