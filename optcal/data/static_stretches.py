@@ -436,16 +436,11 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     the sensor never left the pose between them (:func:`stays_in_pose`: a filter's smoothing or a knock cut one
     rest in two).  Never across a time gap.
     """
-    b = model.b
     groups: list[list[tuple[int, int]]] = []
     last: tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64]] | None = None  # the group's first piece
     previous_end = 0  # the block after the previous piece
     for a, z, j0, j1 in kept:
-        w = b.n[j0:j1, None]
-        mean = (b.mean[j0:j1] * w).sum(axis=0) / w.sum()
-        white = model.kappa2 * (column_medians(b.var[j0:j1]) / w.sum() + model.floor)
-        scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
-        se2 = np.maximum(white, scatter)
+        mean, se2, _ = _piece_mean(model, j0, j1)
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
         if groups and last is not None:
             d = mean - last[0]
