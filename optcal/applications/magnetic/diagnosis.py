@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from optcal.core import quantiles
 from optcal.core.model import AXES
+from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
 from optcal.families.mag.fit import MagSettings, fit_form
 from optcal.families.mag.samples import MagSamples
@@ -135,10 +136,6 @@ class MagDiagnosis:
                    f"{self.extended['field_strength']:.6g} {self.units}; {self.excluded} samples left out")
         out += [f"  note: {n}" for n in self.notes]
         return out
-
-
-def _norm_residual(m: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.asarray(np.linalg.norm((m - o) @ T.T, axis=1) - 1.0)
 
 
 def _blocks(r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -290,7 +287,7 @@ def _column_test(samples: MagSamples, x: NDArray[np.float64], keep: NDArray[np.b
     size, the held-out ratio (each half's fits predicting the other), and the fit (T, o, k, x̄)."""
     m = samples.m
     ok = keep & np.isfinite(x)
-    r0 = _norm_residual(m[ok], T, o)
+    r0 = norm_residuals(T, o, m[ok])
     T1, o1, k1 = _column_fit(m[ok], x[ok], T, o)
     xm = float(x[ok].mean())
     r1 = np.linalg.norm((m[ok] - o1 - np.outer(x[ok] - xm, k1)) @ T1.T, axis=1) - 1.0
@@ -303,7 +300,7 @@ def _column_test(samples: MagSamples, x: NDArray[np.float64], keep: NDArray[np.b
         Tt, ot, kt = _column_fit(m[tr], x[tr], T, o)
         T0, o0, _ = _column_fit(m[tr], np.zeros(int(tr.sum())), T, o)  # the plain model on the same half
         err1.append(np.linalg.norm((m[te] - ot - np.outer(x[te] - x[tr].mean(), kt)) @ Tt.T, axis=1) - 1.0)
-        err0.append(_norm_residual(m[te], T0, o0))
+        err0.append(norm_residuals(T0, o0, m[te]))
     ratio = float(np.sqrt(np.mean(np.concatenate(err0) ** 2) / np.mean(np.concatenate(err1) ** 2))) if err0 else 1.0
     return lr, ratio, T1, o1, k1, xm
 
@@ -317,7 +314,7 @@ def _heldout(samples: MagSamples, keep: NDArray[np.bool_], form: str, s: MagSett
     errors = []
     for train in (halves, ~halves):
         fit = _fit(sub, train & keep, form, s)
-        errors.append(_norm_residual(m[~train & test_keep], fit.T, fit.o))
+        errors.append(norm_residuals(fit.T, fit.o, m[~train & test_keep]))
     return float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
 
 
@@ -343,7 +340,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     form = fit.form
     m = samples.m
     T, o = fit.T, fit.o
-    r = _norm_residual(m, T, o)
+    r = norm_residuals(T, o, m)
     u = ((m - o) @ T.T) / (r + 1.0)[:, None]
     misfit_free = r - orientation_misfit(r, u)
     white, sigma_b, colour = _noise(misfit_free)
@@ -396,7 +393,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     # ------------------------------------------------------------------ local disturbances
     searched = np.ones(B, dtype=bool)
     for _ in range(MAX_DISTURBANCES):
-        rr = _norm_residual(m_used, current_T, current_o)
+        rr = norm_residuals(current_T, current_o, m_used)
         uu = ((m_used - current_o) @ current_T.T) / (rr + 1.0)[:, None]
         rb = _blocks(rr - orientation_misfit(rr, uu))
         live = np.flatnonzero(searched)
@@ -439,7 +436,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     heldout_ext = _heldout(samples, keep, form, s, halves, keep, shifted if terms else None)
     extended = {"T": current_T.tolist(), "o": list(map(float, current_o)),
                 "field_strength": float(np.linalg.det(current_T) ** (-1.0 / 3.0)),
-                "rms_norm_residual": float(np.sqrt(np.mean(_norm_residual(m_used[keep], current_T, current_o) ** 2))),
+                "rms_norm_residual": float(np.sqrt(np.mean(norm_residuals(current_T, current_o, m_used[keep]) ** 2))),
                 "terms": {e: {"k": k.tolist(), "reference": xm} for e, _, k, xm in terms}}
     plain = {"T": T.tolist(), "o": list(map(float, o)), "field_strength": float(np.linalg.det(T) ** (-1.0 / 3.0)),
              "rms_norm_residual": float(np.sqrt(np.mean(r**2)))}
