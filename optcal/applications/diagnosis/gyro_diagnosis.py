@@ -43,6 +43,7 @@ from optcal.applications.diagnosis.gyro_problem import (
     Noise,
     Term,
     casadi_fit,
+    corrected_rates,
     evaluate,
     gauss_newton,
     gyro_data,
@@ -306,9 +307,7 @@ def _estimate(term_values: list[tuple[Term, NDArray[np.float64]]], effect: str) 
 
 def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[NDArray[np.bool_]]) -> dict[str, Any]:
     """The time offset between the gyro's and the accelerometer's samples (module docstring, 3)."""
-    from optcal.applications.diagnosis.gyro_problem import _rates
-
-    omega, _ = _rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
+    omega, _ = corrected_rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
     E = exponential_map(omega * data.dt[:, None])
     starts = data.starts
     ends = np.r_[starts[1:], omega.shape[0]]

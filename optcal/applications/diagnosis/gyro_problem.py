@@ -147,8 +147,8 @@ class GyroParams:
         return None
 
 
-def _rates(data: GyroData, p: GyroParams, raw: NDArray[np.float64], f: NDArray[np.float64], t: NDArray[np.float64],
-           temp: NDArray[np.float64] | None, jac: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+def corrected_rates(data: GyroData, p: GyroParams, raw: NDArray[np.float64], f: NDArray[np.float64], t: NDArray[np.float64],
+                    temp: NDArray[np.float64] | None, jac: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """Corrected rates (n, 3) of raw rates ``raw`` at specific force ``f``, time ``t`` and temperature ``temp``, and
     their derivative (n, 3, nz) by the parameter vector ``p.vector()`` (``jac``)."""
     n = raw.shape[0]
@@ -264,10 +264,10 @@ class Evaluation:
 
 def evaluate(data: GyroData, noise: Noise, p: GyroParams, jac: bool = True) -> Evaluation:
     """The residuals (over their noise) of ``p`` and their Jacobian by ``p.vector()``."""
-    omega, D = _rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, jac)
+    omega, D = corrected_rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, jac)
     v, Jv = predict(data, omega, D)
     move_sd = np.sqrt(noise.move_rad2 / 2.0)[:, None]  # per direction across gravity
-    rest_omega, Dr = _rates(data, p, data.rest_raw, data.rest_f, data.rest_t, data.rest_temp, jac)
+    rest_omega, Dr = corrected_rates(data, p, data.rest_raw, data.rest_f, data.rest_t, data.rest_temp, jac)
     rest_sd = np.sqrt(noise.rest_var)
     moves_r = (v - data.u1) / move_sd
     rests_r = rest_omega / rest_sd
@@ -371,7 +371,7 @@ def casadi_fit(data: GyroData, noise: Noise, p: GyroParams, solver: str | None =
 
 def move_angles(data: GyroData, p: GyroParams, moves: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
     """Each move's gravity-prediction angle under ``p``, degrees."""
-    omega, _ = _rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
+    omega, _ = corrected_rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
     v, _ = predict(data, omega)
     angles = angles_deg(v, data.u1)
     return angles if moves is None else angles[moves]
