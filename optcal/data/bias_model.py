@@ -92,20 +92,38 @@ def _weighted_solve(x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[n
     return out
 
 
+#: A biweight iteration that moves no coefficient by more than this share of its standard error has converged: the
+#: next ones would change the bias model by less than any test of it can see.
+BIWEIGHT_TOLERANCE_SE: float = 1e-4
+
+
 def _biweight_fit(x: NDArray[np.float64], y: NDArray[np.float64], iterations: int = 20) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Tukey-biweight regression of each column of ``y`` (n, 3) on ``x`` (n, p): coefficients (p, 3), weights (n, 3)."""
+    """Tukey-biweight regression of each column of ``y`` (n, 3) on ``x`` (n, p): coefficients (p, 3), weights (n, 3).
+
+    Iteratively reweighted least squares from the ordinary fit, until no coefficient moves by more than
+    :data:`BIWEIGHT_TOLERANCE_SE` of its standard error (the residuals' robust scale through ``(XᵀX)⁻¹``)."""
     coef = np.asarray(np.linalg.lstsq(x, y, rcond=None)[0], dtype=float)
     w = np.ones_like(y)
+    smallest = np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0)  # a scale at the data's own rounding
+    intercept = x.shape[1] == 1 and bool(np.all(x == 1.0))
+    try:
+        leverage = np.sqrt(np.diag(np.linalg.inv(x.T @ x)))[:, None]  # a coefficient's SE per unit residual scale
+    except np.linalg.LinAlgError:
+        leverage = np.zeros((x.shape[1], 1))  # singular: converged only when nothing moves
     for _ in range(iterations):
         r = y - x @ coef
-        scale = np.maximum(column_mad_sigmas(r), np.finfo(float).eps * np.maximum(np.abs(y).max(axis=0), 1.0))
+        scale = np.maximum(column_mad_sigmas(r), smallest)
         u = r / (BIWEIGHT_C * scale)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
-        new = _weighted_solve(x, y, w, coef)
-        if np.allclose(new, coef, rtol=1e-9, atol=0.0):
-            coef = new
-            break
+        if intercept:  # a weighted mean per column
+            total = w.sum(axis=0)
+            new = np.where(total > 0.0, (w * y).sum(axis=0) / np.where(total > 0.0, total, 1.0), coef[0])[None, :]
+        else:
+            new = _weighted_solve(x, y, w, coef)
+        moved = np.abs(new - coef)
         coef = new
+        if bool(np.all(moved <= BIWEIGHT_TOLERANCE_SE * leverage * scale)):
+            break
     return np.asarray(coef, dtype=float), np.asarray(w, dtype=float)
 
 

@@ -60,6 +60,31 @@ def column_medians(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.asarray((part[:mid].max(axis=0) + part[mid]) / 2)
 
 
+def grouped_column_medians(x: NDArray[np.float64], sizes: NDArray[np.intp]) -> NDArray[np.float64]:
+    """:func:`column_medians` of each group of consecutive rows of ``x`` (n, m) of finite values, the groups'
+    ``sizes`` (g,) (each at least one, summing to n), all groups by one sort per column (g, m): the same values."""
+    a = np.asarray(x, dtype=float)
+    sizes = np.asarray(sizes, dtype=np.intp)
+    offsets = np.r_[0, np.cumsum(sizes)[:-1]].astype(np.intp)
+    group = np.repeat(np.arange(sizes.size), sizes)
+    lower = offsets + (sizes - 1) // 2  # the lower and upper middle positions (equal for an odd size)
+    upper = offsets + sizes // 2
+    longest = int(sizes.max()) if sizes.size else 0
+    if sizes.size * longest <= 4 * max(a.shape[0], 1):  # groups of similar sizes: stacked, +inf below each, one sort
+        at = np.arange(longest)
+        inside = at[None, :] < sizes[:, None]
+        stacked = np.where(inside[..., None], a[np.minimum(offsets[:, None] + at[None, :], a.shape[0] - 1)], np.inf)
+        ordered = np.sort(stacked, axis=1)
+        rows = np.arange(sizes.size)
+        low, high = ordered[rows, (sizes - 1) // 2], ordered[rows, sizes // 2]
+        return np.asarray(np.where((lower == upper)[:, None], high, (low + high) / 2))
+    out = np.empty((sizes.size, a.shape[1]))
+    for j in range(a.shape[1]):
+        s = a[np.lexsort((a[:, j], group)), j]  # sorted within each group, the groups in order
+        out[:, j] = np.where(lower == upper, s[upper], (s[lower] + s[upper]) / 2)
+    return out
+
+
 def quantiles(
     x: ArrayLike, probabilities: Sequence[float], scratch: NDArray[np.float64] | None = None
 ) -> list[float]:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import bias_model as bm
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_mad_sigmas, column_medians, median, quantiles
+from optcal.data.quantiles import column_mad_sigmas, column_medians, grouped_column_medians, median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
@@ -234,13 +234,13 @@ class RestModel:
         keep = ~self._turns_by_both(pieces, group_rates, group_acc, first, last)
         if keep.sum() < bm.MIN_RESTS_G_SENSITIVITY:
             return self._measure_wander_plain()
-        noise2 = [self.gkappa2 * column_medians(b.gvar[p]) / float(n) for p, n, k in zip(pieces, n_all[:, 0], keep) if k]
+        noise2 = self.gkappa2 * grouped_column_medians(b.gvar[rows_all], sizes)[keep] / n_all[keep]
         at = 0.5 * (b.t_mid[first] + b.t_mid[last])[keep]
         rest_means = group_rates[keep]
         direction = unit_rows(group_acc[keep] - self.acc_zero)
         scale = self._scale()
         assert scale is not None  # a gyro without a scale took the ideal gyro's bias above
-        self.bias_model = model = bm.fit_bias_model(at, direction, rest_means, np.asarray(noise2),
+        self.bias_model = model = bm.fit_bias_model(at, direction, rest_means, noise2,
                                                     bm.MAX_G_SENSITIVITY_RAD_S_PER_G / scale)
         modelled = model.at(at, direction)
         # what the model leaves (a thermal drift) followed over the session, each span's median

@@ -41,7 +41,7 @@ from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, reduce_interval
 from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.rest_tests import RestModel
-from optcal.data.static_stretches import group_positions, join_twitches, touches, wobble
+from optcal.data.static_stretches import group_positions, join_twitches, touches, wobbles
 from optcal.data.units import MAX_REST_NOISE_G, nominal_conversion
 from optcal.errors import InputError
 
@@ -378,6 +378,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             continue
         candidates.append((a, z, j0, j1))
     verdicts = model.judge(candidates) if candidates else None
+    wobble_limit = np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold
+    wobbling = np.zeros(len(candidates), dtype=bool)
+    if gyro is not None and gyro_scale is not None and candidates:
+        wobbling = wobbles(gyro, t, gyro_scale, wobble_window, [(c[0], c[1]) for c in candidates],
+                           wobble_limit) > wobble_limit
     for i, (a, z, j0, j1) in enumerate(candidates):
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])
@@ -386,9 +391,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
             evidence["loud_noise_min_g"] = min(evidence.get("loud_noise_min_g", np.inf), per_sample / one_g)
         elif verdicts.creeps[i]:
             reject(a, z, SWEEPING, SWEEPING_STRETCHES)
-        elif gyro is not None and gyro_scale is not None and wobble(
-                gyro[a:z], t[a:z], gyro_scale, wobble_window, np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold
-        ) > np.sqrt(2.0 * WOBBLE_SHRINK) * s.gyro_threshold:
+        elif wobbling[i]:
             reject(a, z, WOBBLE, WOBBLE_STRETCHES)
         elif verdicts.turns[i]:
             reject(a, z, TURNING, TURNING_STRETCHES)

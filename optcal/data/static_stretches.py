@@ -153,15 +153,23 @@ MAX_MOVE_S: float = 10.0
 MOVE_STEP_S: float = 0.04
 
 
-def _predicted_cosines(theta: NDArray[np.float64], u0: NDArray[np.float64], scales: NDArray[np.float64]
-                       ) -> NDArray[np.float64]:
-    """``cos`` of the angle between gravity before and after each move turned by ``scales × theta`` about the fixed
-    axis ``theta``/|theta| (Rodrigues: ``cos α = cos φ + (1 − cos φ)(n·u₀)²``) (scales, moves)."""
+def _turn_about_axis(theta: NDArray[np.float64], u0: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each move's whole turn ``theta`` (moves, 3) as its angle per unit scale and the squared cosine between its
+    axis and gravity before it, ``u0`` (moves, 3) (the parts of :func:`_predicted_cosines` that do not depend on the
+    scale)."""
     norm = np.linalg.norm(theta, axis=1)
     n = theta / np.maximum(norm, np.finfo(float).tiny)[:, None]
-    along2 = np.sum(n * u0, axis=1) ** 2
+    return norm, np.sum(n * u0, axis=1) ** 2
+
+
+def _predicted_cosines(norm: NDArray[np.float64], along2: NDArray[np.float64], scales: NDArray[np.float64]
+                       ) -> NDArray[np.float64]:
+    """``cos`` of the angle between gravity before and after each move turned by ``scales × theta`` about the fixed
+    axis ``theta``/|theta| (Rodrigues: ``cos α = cos φ + (1 − cos φ)(n·u₀)²``; ``norm`` and ``along2`` from
+    :func:`_turn_about_axis`) (scales, moves)."""
     phi = np.outer(scales, norm)
-    return np.asarray(np.cos(phi) + (1.0 - np.cos(phi)) * along2)
+    cos = np.cos(phi)
+    return np.asarray(cos + (1.0 - cos) * along2)
 
 
 #: Points per evaluation of the refinement: a bracket sampled at this many scales in one call (one composition of
@@ -207,9 +215,10 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     w, x, y, z = np.cos(half), rx * k, ry * k, rz * k
     while w.shape[-1] > 1:
         if w.shape[-1] % 2:  # an identity appended: the last step pairs with it
-            pad = [(0, 0), (0, 0), (0, 1)]
-            w = np.pad(w, pad, constant_values=1.0)
-            x, y, z = (np.pad(a, pad) for a in (x, y, z))
+            one = np.ones(w.shape[:-1] + (1,))
+            zero = np.zeros_like(one)
+            w = np.concatenate([w, one], axis=-1)
+            x, y, z = (np.concatenate([a, zero], axis=-1) for a in (x, y, z))
         aw, ax, ay, az = w[..., 0::2], x[..., 0::2], y[..., 0::2], z[..., 0::2]
         bw, bx, by, bz = w[..., 1::2], x[..., 1::2], y[..., 1::2], z[..., 1::2]
         w, x, y, z = (aw * bw - ax * bx - ay * by - az * bz, aw * bx + bw * ax + ay * bz - az * by,
@@ -222,22 +231,30 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     return np.asarray(u - 2.0 * w * c + 2.0 * np.cross(v, c))
 
 
-def _refine_log(cost: Callable[[NDArray[np.float64]], NDArray[np.float64]], lo: float, hi: float) -> float:
-    """The log of the scale minimising ``cost`` (of an array of scales) within ``[lo, hi]`` (logs of scales):
-    :data:`REFINE_POINTS` points evaluated at once, again between the best one's neighbours, and the vertex of the
-    parabola through the best point and its neighbours (kept within them)."""
+def _refine_logs(cost: Callable[[NDArray[np.float64]], NDArray[np.float64]], lo: NDArray[np.float64],
+                 hi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """For each bracket ``[lo[i], hi[i]]`` (logs of scales), the log of the scale minimising ``cost`` (of an array
+    of scales, each scale's cost its own) within it: :data:`REFINE_POINTS` points evaluated at once (all brackets in
+    one call), again between the best one's neighbours, and the vertex of the parabola through the best point and
+    its neighbours (kept within them)."""
+    lo, hi = np.atleast_1d(np.asarray(lo, dtype=float)), np.atleast_1d(np.asarray(hi, dtype=float))
+    rows = np.arange(lo.size)
     for _ in range(2):
-        x = np.linspace(lo, hi, REFINE_POINTS)
-        c = cost(np.exp(x))
-        i = int(np.argmin(c))
-        lo, hi = x[max(i - 1, 0)], x[min(i + 1, x.size - 1)]
-    if 0 < i < x.size - 1:
-        c0, c1, c2 = c[i - 1], c[i], c[i + 1]
-        curvature = c0 - 2.0 * c1 + c2
-        if curvature > 0.0:
-            step = x[1] - x[0]
-            return float(np.clip(x[i] + 0.5 * step * (c0 - c2) / curvature, lo, hi))
-    return float(x[i])
+        x = np.linspace(lo, hi, REFINE_POINTS, axis=-1)  # (brackets, points)
+        c = np.asarray(cost(np.exp(x).ravel())).reshape(x.shape)
+        i = np.argmin(c, axis=1)
+        lo, hi = x[rows, np.maximum(i - 1, 0)], x[rows, np.minimum(i + 1, REFINE_POINTS - 1)]
+    best = x[rows, i]
+    inner = (i > 0) & (i < REFINE_POINTS - 1)
+    c0 = c[rows, np.maximum(i - 1, 0)]
+    c1 = c[rows, i]
+    c2 = c[rows, np.minimum(i + 1, REFINE_POINTS - 1)]
+    curvature = c0 - 2.0 * c1 + c2
+    vertex = inner & (curvature > 0.0)
+    step = x[:, 1] - x[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):  # the brackets without a vertex keep their best point
+        moved = np.clip(best + 0.5 * step * (c0 - c2) / curvature, lo, hi)
+    return np.where(vertex, moved, best)
 
 
 def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: NDArray[np.float64],
@@ -270,8 +287,10 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
     # grid point's neighbours: a hand's axis changes within a move, which only the composition follows
     theta = increments.sum(axis=1)
     measured = np.sum(start * end, axis=1)
+    norm, along2 = _turn_about_axis(theta, start)
+
     def approximate(scales: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(np.sum((_predicted_cosines(theta, start, scales) - measured) ** 2, axis=1))
+        return np.asarray(np.sum((_predicted_cosines(norm, along2, scales) - measured) ** 2, axis=1))
 
     grid = approximate(SCALE_GRID)
     # a turn fits as well with whole revolutions added (a table's turns by multiples of 45° alias at larger scales):
@@ -280,14 +299,12 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
     interior = np.r_[True, grid[1:] <= grid[:-1]] & np.r_[grid[:-1] <= grid[1:], True]
     candidates = np.flatnonzero(interior)
     candidates = candidates[np.argsort(grid[candidates])[:ALIAS_CANDIDATES]]
-    refined = []
-    for c in candidates.tolist():
-        x = _refine_log(approximate, np.log(SCALE_GRID[max(c - 1, 0)]), np.log(SCALE_GRID[min(c + 1, SCALE_GRID.size - 1)]))
-        refined.append((float(approximate(np.exp(np.array([x])))[0]), x))
-    best_cost = min(r[0] for r in refined)
-    x = min(r[1] for r in refined if r[0] <= 2.0 * best_cost + 1e-9 * increments.shape[0])
+    logs = _refine_logs(approximate, np.log(SCALE_GRID[np.maximum(candidates - 1, 0)]),
+                        np.log(SCALE_GRID[np.minimum(candidates + 1, SCALE_GRID.size - 1)]))
+    costs = approximate(np.exp(logs))
+    x = float(logs[costs <= 2.0 * float(costs.min()) + 1e-9 * increments.shape[0]].min())
     # the composed turns' best lies within ±10 % of the fixed axis' (a hand's axis changes within a move)
-    best = float(np.exp(_refine_log(cost, x - 4.0 * GRID_STEP_LOG, x + 4.0 * GRID_STEP_LOG)))
+    best = float(np.exp(_refine_logs(cost, np.array([x - 4.0 * GRID_STEP_LOG]), np.array([x + 4.0 * GRID_STEP_LOG]))[0]))
     fitted = _turned(increments, start, np.array([best]))[0]
     misfit = np.degrees(np.arccos(np.clip(np.sum(fitted * end, axis=1), -1.0, 1.0)))
     angles = np.degrees(np.arccos(np.clip(np.sum(start * end, axis=1), -1.0, 1.0)))
@@ -303,12 +320,26 @@ def scale_from_moves(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
 RESOLVED_WOBBLE_SHARE: float = 0.5
 
 
+#: Samples × axes of gathered windows held at once by :func:`wobbles` (a bound on its scratch memory: about 8 MB per
+#: array of them, a handful of arrays).
+WOBBLE_CHUNK_VALUES: int = 1 << 20
+
+
 def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int,
            tolerance: float | None = None) -> float:
-    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window`` samples.
+    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window``
+    samples: :func:`wobbles` of the one stretch ``gyro`` (m, 3) at ``t`` (m,)."""
+    return float(wobbles(gyro, t, rad_per_unit, window, [(0, gyro.shape[0])], tolerance)[0])
 
-    In each window (:data:`WOBBLE_DWELLS` dwells) the rates less their mean (the bias, and a
-    steady turn, which :meth:`optcal.data.rest_tests.RestModel.turns` tests) are integrated by the trapezoid rule over the true time
+
+def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: float, window: int,
+            spans: list[tuple[int, int]], tolerance: float | None = None) -> NDArray[np.float64]:
+    """RMS angle (rad, norm over the axes) by which the orientation moves about its mean within windows of ``window``
+    samples, for each stretch ``spans[i]`` (samples ``[a, z)`` of ``gyro`` (n, 3) at ``t`` (n,); all at once).
+
+    In each window (:data:`WOBBLE_DWELLS` dwells; a stretch's samples past its last whole window are one more
+    window, when three or more) the rates less their mean (the bias, and a steady turn, which
+    :meth:`optcal.data.rest_tests.RestModel.turns` tests) are integrated by the trapezoid rule over the true time
     steps, less what the gyro's own white noise gives (its angle random walk, from the rates' sample-to-sample
     differences): a hand's tremor or a vibration is left.  0 when that random walk reaches
     :data:`RESOLVED_WOBBLE_SHARE` of the tolerance: the gyro cannot resolve it.
@@ -317,38 +348,88 @@ def wobble(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: floa
     of ``T`` the angle moves from its mean by at most ``∫|ω − ω̄| ≤ T·rms(ω − ω̄)``, and the windows' mean squares
     are at most the stretch's, so the wobble is at most ``T`` times the stretch's rate spread.
     """
-    m = gyro.shape[0]
-    if m < 3:
-        return 0.0
-    if tolerance is not None:
-        window_s = float(t[min(window, m) - 1] - t[0])
-        bound = window_s * float(np.sqrt(np.sum(np.var(gyro, axis=0)))) * rad_per_unit
-        if bound <= tolerance:
-            return bound
-    total, noise, count = 0.0, 0.0, 0
-    full = (m // window) * window if m >= window else 0
-    pieces = [(0, full, window)] if full else []
-    if m - full >= 3:
-        pieces.append((full, m, m - full))
-    for a, z, size in pieces:  # the whole windows at once, then the rest
-        k = (z - a) // size
-        w = (gyro[a:z] * rad_per_unit).reshape(k, size, 3)
-        tt = t[a:z].reshape(k, size)
+    a = np.array([span[0] for span in spans], dtype=np.intp)
+    z = np.array([span[1] for span in spans], dtype=np.intp)
+    m = z - a
+    out = np.zeros(a.size)
+    todo = m >= 3
+    if tolerance is not None and todo.any():
+        # each stretch's rate spread by sums over it (one pass over the samples for all stretches)
+        # about the stretches' first rates' median (a gyro's bias: a large one would cancel the spread's digits)
+        s1, s2 = _span_sums(gyro - np.median(gyro[a[todo]], axis=0), a, z)
+        mm = np.maximum(m, 1)[:, None]
+        spread = np.sqrt(np.maximum(s2 / mm - (s1 / mm) ** 2, 0.0).sum(axis=1))
+        window_s = t[a + np.minimum(window, m) - 1] - t[a]
+        bound = window_s * spread * rad_per_unit
+        within = todo & (bound <= tolerance)
+        out[within] = bound[within]
+        todo &= ~within
+    rows = np.flatnonzero(todo)
+    if not rows.size:
+        return out
+    # the windows: each stretch's whole windows, then its remainder (three samples or more)
+    whole = m[rows] // window
+    rest = m[rows] - whole * window
+    owner = np.concatenate([np.repeat(rows, whole), rows[rest >= 3]])
+    first = np.concatenate([np.repeat(a[rows], whole) + _ranks(whole) * window, (a[rows] + whole * window)[rest >= 3]])
+    length = np.concatenate([np.full(int(whole.sum()), window), rest[rest >= 3]]).astype(np.intp)
+    total = np.zeros(a.size)
+    noise = np.zeros(a.size)
+    count = np.bincount(owner, weights=length, minlength=a.size)
+    size = int(length.max())
+    chunk = max(1, WOBBLE_CHUNK_VALUES // (3 * size))
+    j = np.arange(size)
+    for c0 in range(0, owner.size, chunk):
+        f, n = first[c0:c0 + chunk], length[c0:c0 + chunk]
+        idx = np.minimum(f[:, None] + j[None, :], gyro.shape[0] - 1)
+        inside = j[None, :] < n[:, None]
+        pair = inside[:, 1:] & inside[:, :-1]
+        w = np.where(inside[..., None], gyro[idx], 0.0)  # (windows, size, 3), gyro units
+        tt = t[idx]
+        dt = np.where(pair, np.diff(tt, axis=1), 0.0)
         # the gyro's own white noise, from its sample-to-sample differences (var(Δω) = 2σ² for white noise; a
         # tremor of a few hertz hardly changes from one sample to the next): integrated, a random walk whose
         # mean square about its mean over a window of T, the mean rate removed (a Brownian bridge), is σ² dt T / 12
-        white = np.sum(np.var(np.diff(w, axis=1), axis=1), axis=1) / 2.0
-        w = w - w.mean(axis=1, keepdims=True)
-        dt = np.diff(tt, axis=1)[..., None]
-        angle = np.concatenate([np.zeros((k, 1, 3)), np.cumsum(0.5 * (w[:, 1:] + w[:, :-1]) * dt, axis=1)], axis=1)
-        angle -= angle.mean(axis=1, keepdims=True)
-        total += float(np.sum(angle * angle))
-        span = tt[:, -1] - tt[:, 0]
-        noise += float(np.sum(size * white * dt[..., 0].mean(axis=1) * span / 12.0))
-        count += k * size
-    if noise > RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * max(count, 1):
-        return 0.0  # the gyro's own random walk is not below the tolerance: it cannot tell a wobble (the accelerometer's tests do)
-    return float(np.sqrt(max(total - noise, 0.0) / max(count, 1)))
+        d = np.where(pair[..., None], np.diff(w, axis=1), 0.0)
+        k = (n - 1.0)[:, None]
+        white = np.sum(np.sum(d * d, axis=1) / k - (np.sum(d, axis=1) / k) ** 2, axis=1) / 2.0
+        mean = w.sum(axis=1) / n[:, None]
+        angle = np.cumsum((0.5 * (w[:, 1:] + w[:, :-1]) - mean[:, None, :]) * dt[..., None], axis=1)
+        angle = np.where(pair[..., None], angle, 0.0)  # the angle after each step; 0 at the window's first sample
+        # the angle's squares about its mean over the window's samples: Σ A² − (Σ A)² / n
+        spread2 = np.sum(np.sum(angle * angle, axis=1) - np.sum(angle, axis=1) ** 2 / n[:, None], axis=1)
+        span = tt[np.arange(n.size), n - 1] - tt[:, 0]
+        owners = owner[c0:c0 + chunk]
+        total += np.bincount(owners, weights=spread2, minlength=a.size)
+        noise += np.bincount(owners, weights=n * white * (span / (n - 1.0)) * span / 12.0, minlength=a.size)
+    r2 = rad_per_unit * rad_per_unit  # the rates' unit to rad/s: the angles scale by it
+    total, noise = total[rows] * r2, noise[rows] * r2
+    n_all = np.maximum(count[rows], 1.0)
+    # the gyro's own random walk not below the tolerance: it cannot tell a wobble (the accelerometer's tests do)
+    resolved = noise <= RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * n_all
+    out[rows] = np.where(resolved, np.sqrt(np.maximum(total - noise, 0.0) / n_all), 0.0)
+    return out
+
+
+def _span_sums(x: NDArray[np.float64], a: NDArray[np.intp], z: NDArray[np.intp]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The sums of ``x`` (n, 3) and of its squares over each span ``[a[i], z[i])`` (spans in order, not overlapping,
+    none empty), by one pass over the samples."""
+    edges = np.column_stack([a, z]).ravel()
+    if edges.size and edges[-1] == x.shape[0]:
+        edges = edges[:-1]  # the last span runs to the end: reduceat's last sum does
+    if not (edges.size and bool(np.all(np.diff(edges) >= 0))):
+        s1 = np.array([x[i:j].sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
+        s2 = np.array([np.square(x[i:j]).sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
+        return s1, s2
+    return np.add.reduceat(x, edges, axis=0)[0::2], np.add.reduceat(np.square(x), edges, axis=0)[0::2]
+
+
+def _ranks(counts: NDArray[np.intp]) -> NDArray[np.intp]:
+    """0, 1, …, ``counts[i]`` − 1 for each ``i``, concatenated."""
+    total = int(counts.sum())
+    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    return np.asarray(np.arange(total) - starts, dtype=np.intp)
 
 
 def no_net_turn(gyro: NDArray[np.float64], t: NDArray[np.float64], before: tuple[int, int], after: tuple[int, int],

@@ -1,0 +1,96 @@
+"""The rest model's batched statistics equal the same statistic computed one stretch, window or group at a time.
+
+The rest model computes several statistics for all stretches at once (the half-sample modes of the gyro's spans, the
+rests' median block variances, the orientation wobble of every candidate rest): faster, and meant to decide exactly as
+one call per stretch.  Each is checked here against a plain reference written out in the test, on random data with
+ties, a large bias and uneven lengths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optcal.data.quantiles import column_medians, grouped_column_medians
+from optcal.data.rest_model import WOBBLE_SHRINK, column_half_sample_modes, windowed_half_sample_modes
+from optcal.data.static_stretches import RESOLVED_WOBBLE_SHARE, wobble, wobbles
+
+
+def reference_wobble(gyro, t, rad_per_unit, window, tolerance=None):
+    """The wobble of one stretch as :func:`optcal.data.static_stretches.wobble` documents it, window by window."""
+    m = gyro.shape[0]
+    if m < 3:
+        return 0.0
+    if tolerance is not None:
+        bound = (t[min(window, m) - 1] - t[0]) * np.sqrt(np.sum(np.var(gyro, axis=0))) * rad_per_unit
+        if bound <= tolerance:
+            return bound
+    full = (m // window) * window
+    windows = [(i, i + window) for i in range(0, full, window)]
+    if m - full >= 3:
+        windows.append((full, m))
+    total = noise = count = 0.0
+    for a, z in windows:
+        w = gyro[a:z] * rad_per_unit
+        tt = t[a:z]
+        white = np.sum(np.var(np.diff(w, axis=0), axis=0)) / 2.0
+        w = w - w.mean(axis=0)
+        angle = np.vstack([np.zeros(3), np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(tt)[:, None], axis=0)])
+        angle -= angle.mean(axis=0)
+        total += np.sum(angle * angle)
+        span = tt[-1] - tt[0]
+        noise += (z - a) * white * np.mean(np.diff(tt)) * span / 12.0
+        count += z - a
+    if noise > RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * count:
+        return 0.0
+    return float(np.sqrt(max(total - noise, 0.0) / count))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_wobbles_of_many_stretches_equal_the_reference_one_by_one(seed):
+    rng = np.random.default_rng(seed)
+    n = 4000
+    t = np.cumsum(rng.uniform(0.004, 0.012, n))  # uneven host stamps
+    gyro = rng.normal(size=(n, 3)) * 0.5 + np.array([3000.0, -2000.0, 150.0])  # counts with a large bias
+    gyro[1000:1800] += 40.0 * np.sin(2 * np.pi * 4.0 * t[1000:1800])[:, None]  # a tremor in one stretch
+    if seed % 2:
+        gyro = np.round(gyro)  # quantised
+    cuts = np.sort(rng.choice(np.arange(1, n), size=11, replace=False))
+    edges = np.r_[0, cuts, n]
+    spans = [(int(edges[i]), int(edges[i + 1])) for i in range(0, edges.size - 1, 2)]
+    spans.append((n - 2, n))  # too short to wobble
+    for tolerance in (None, 0.02, 1e-6):
+        got = wobbles(gyro, t, 1e-4, 300, sorted(set(spans)), tolerance)
+        for (a, z), value in zip(sorted(set(spans)), got):
+            expected = reference_wobble(gyro[a:z], t[a:z], 1e-4, 300, tolerance)
+            assert value == pytest.approx(expected, rel=1e-8, abs=1e-15)
+            assert (value == 0.0) == (expected == 0.0)
+    assert wobble(gyro[1000:1800], t[1000:1800], 1e-4, 300) > 0.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_windowed_half_sample_modes_equal_one_call_per_window(seed):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(700, 3))
+    if seed % 2:
+        x = np.round(x * 4) / 4  # ties
+    lo = rng.integers(0, 700, size=40)
+    hi = np.minimum(lo + rng.integers(1, 300, size=40), 700)
+    got = windowed_half_sample_modes(x, lo, hi)
+    for i in range(lo.size):
+        assert np.array_equal(got[i], column_half_sample_modes(x[lo[i]:hi[i]]))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_grouped_medians_equal_one_call_per_group(seed):
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(1, 40, size=60)
+    if seed >= 2:
+        sizes[3] = 2000  # one long group: the sort per column, not the stacked one
+    x = rng.gamma(2.0, size=(int(sizes.sum()), 3))
+    if seed % 2:
+        x = np.round(x, 1)
+    got = grouped_column_medians(x, sizes)
+    edges = np.r_[0, np.cumsum(sizes)]
+    for i in range(sizes.size):
+        assert np.array_equal(got[i], column_medians(x[edges[i]:edges[i + 1]]))
