@@ -211,8 +211,9 @@ class RestModel:
         # gravity, a twitch) are one rest: a bias steps in a move, and the rests a step needs are distinct
         groups: list[list[tuple[int, int]]] = []
         previous = -1
+        loud = np.r_[0, np.cumsum(~self.quiet)]  # non-quiet pairs before each pair: a range's count by a difference
         for k0, k1 in self._bias_rests():
-            if groups and bool(np.all(self.quiet[previous:k0])):
+            if groups and loud[max(k0, previous)] == loud[previous]:
                 groups[-1].append((k0, k1))
             else:
                 groups.append([(k0, k1)])
