@@ -85,6 +85,15 @@ def grouped_column_medians(x: NDArray[np.float64], sizes: NDArray[np.intp]) -> N
     return out
 
 
+def column_quantile(x: NDArray[np.float64], probability: float) -> NDArray[np.float64]:
+    """``np.quantile(x, probability, axis=0)`` of a 2-D array (the same values), by :func:`quantiles` per column
+    (partitions, not a sort) where the values are finite."""
+    a = np.asarray(x, dtype=float)
+    if a.shape[0] == 0 or not bool(np.isfinite(a).all()):
+        return np.asarray(np.quantile(a, probability, axis=0))
+    return np.array([quantiles(a[:, j], [probability])[0] for j in range(a.shape[1])])
+
+
 def quantiles(
     x: ArrayLike, probabilities: Sequence[float], scratch: NDArray[np.float64] | None = None
 ) -> list[float]:

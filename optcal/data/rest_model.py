@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import median
+from optcal.data.quantiles import column_quantile, median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -246,7 +246,7 @@ def rounding_floor(var: NDArray[np.float64], quantum: float) -> NDArray[np.float
     if quantum <= 0 or var.shape[0] == 0:
         return np.zeros(var.shape[1])
     q2 = quantum * quantum / 12.0
-    own = np.quantile(var, QUIET_PAIRS_QUANTILE, axis=0) - q2
+    own = column_quantile(var, QUIET_PAIRS_QUANTILE) - q2
     return np.where(own < 0.25 * quantum * quantum, q2, 0.0)
 
 
@@ -285,7 +285,7 @@ def variance_step_limit(steps: NDArray[np.float64], false_alarm: float, samples:
 def calm_pairs(var: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Pairs of consecutive blocks both among the quietest :data:`QUIET_PAIRS_QUANTILE` of the blocks (total variance)."""
     total = var.sum(axis=1)
-    calm = total <= np.quantile(total, QUIET_PAIRS_QUANTILE)
+    calm = total <= column_quantile(total[:, None], QUIET_PAIRS_QUANTILE)[0]
     return np.asarray(valid & calm[1:] & calm[:-1])
 
 
@@ -294,7 +294,7 @@ def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> ND
     if ratios.shape[0] == 0:
         return np.ones(ratios.shape[1])
     expected = quantiles.f_ppf(quantile, 1.0, max(dof, 1.0))
-    return np.asarray(np.maximum(np.quantile(ratios, quantile, axis=0) / expected, 1.0))
+    return np.asarray(np.maximum(column_quantile(ratios, quantile) / expected, 1.0))
 
 
 def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> NDArray[np.float64]:

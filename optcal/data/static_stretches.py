@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_medians
+from optcal.data.quantiles import column_medians, grouped_column_medians
 from optcal.data.recording import Recording
 from optcal.data.rest_model import SAME_POSE_SAMPLE_SIGMAS, UNIT_RATE_QUANTILE, WOBBLE_SHRINK
 
@@ -520,8 +520,10 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
     groups: list[list[tuple[int, int]]] = []
     last: tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64]] | None = None  # the group's first piece
     previous_end = 0  # the block after the previous piece
-    for a, z, j0, j1 in kept:
-        mean, se2, _ = _piece_mean(model, j0, j1)
+    means, se2s, _ = _piece_means(model, [p[2] for p in kept], [p[3] for p in kept]) if kept else (None, None, None)
+    for i, (a, z, j0, j1) in enumerate(kept):
+        assert means is not None and se2s is not None
+        mean, se2 = means[i], se2s[i]
         sd = model.spread(j0, j1)  # the samples' spread about the piece's mean, its wander included
         if groups and last is not None:
             d = mean - last[0]
@@ -542,14 +544,29 @@ def join_twitches(kept: list[tuple[int, int, int, int]], t: NDArray[np.float64],
 
 def _piece_mean(model: RestModel, j0: int, j1: int) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """The mean of the blocks ``[j0, j1)``, its variance (the scatter of its block means, at least ``κ² v / n``),
-    and its samples."""
+    and its samples (:func:`_piece_means` of one piece)."""
+    mean, se2, n = _piece_means(model, [j0], [j1])
+    return mean[0], se2[0], float(n[0])
+
+
+def _piece_means(model: RestModel, j0: list[int], j1: list[int]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """For the pieces of blocks ``[j0[i], j1[i])`` (none empty) at once: their means (k, 3), each mean's variance (the
+    scatter of its block means over their number, at least ``κ² v / n`` of the median block variance ``v``), and
+    their samples (k,)."""
     b = model.b
-    w = b.n[j0:j1, None]
-    n = float(w.sum())
-    mean = (b.mean[j0:j1] * w).sum(axis=0) / n
-    white = model.kappa2 * (column_medians(b.var[j0:j1]) / n + model.floor)
-    scatter = b.mean[j0:j1].var(axis=0, ddof=1) / (j1 - j0) if j1 - j0 >= 2 else white
-    return mean, np.maximum(white, scatter), n
+    r = rm.Ranges.of(list(j0), list(j1))
+    w = b.n[r.rows, None]
+    n = r.sums(w)
+    mean = r.sums(b.mean[r.rows] * w) / n
+    count = r.length.astype(float)[:, None]
+    white = model.kappa2 * (grouped_column_medians(b.var[r.rows], r.length) / n + model.floor)
+    plain = r.sums(b.mean[r.rows]) / count
+    d = b.mean[r.rows] - plain[r.owner]
+    with np.errstate(divide="ignore", invalid="ignore"):  # one block: its white noise instead
+        scatter = r.sums(d * d) / (count - 1.0) / count
+    scatter = np.where(count >= 2, scatter, white)
+    return mean, np.maximum(white, scatter), n[:, 0]
 
 
 #: Fewest batches of the end piece's length in the rest of its pose for the piece's shift to be told from the
