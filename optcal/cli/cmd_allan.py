@@ -10,6 +10,7 @@ import numpy as np
 
 from optcal.cli.data_options import DATA_PATH, read_options, reading_kwargs
 from optcal.cli.outputs import echo_json, plot_file, plot_option
+from optcal.cli.quiet import quiet_option
 
 #: File name of the figure when ``--plot`` names a folder.
 FIGURE_NAME = "allan.png"
@@ -103,6 +104,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     from dataclasses import replace
 
     from optcal.cli.data_options import decisions_on_error
+    from optcal.core.progress import stage
     from optcal.data import load_recording
     from optcal.data.static import detect_static
     from optcal.errors import InputError
@@ -144,7 +146,8 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
             )
         if total:
             exclusions[DROPPED] = total
-    seg = detect_static(rec)
+    with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
+        seg = detect_static(rec)
     still = seg.n_used / max(1, samples.shape[0])
     if still < MIN_STILL_FRACTION:
         raise InputError(
@@ -181,6 +184,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
 @read_options
 @click.option("--max-tau", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
               help="Largest averaging time τ (default: the largest octave τ leaving 9 clusters).")
+@quiet_option
 def allan(
     data: str,
     as_json: bool,

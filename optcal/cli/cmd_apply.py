@@ -6,6 +6,7 @@ import click
 
 from optcal.cli.data_options import DATA_PATH
 from optcal.cli.peer_options import load_calibration, peer_options
+from optcal.cli.quiet import quiet_option
 
 
 @click.command()
@@ -25,6 +26,7 @@ from optcal.cli.peer_options import load_calibration, peer_options
 @click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
               help="Read DATA as a pose table or a raw recording; auto decides and says why.")
 @peer_options
+@quiet_option
 def apply(calibration: str, data: str, output: str, units_out: str, data_units: str | None, columns: str | None,
           topic: str | None, rate: float | None, data_format: str, peer_gravity: float | None,
           gyro_calib: str | None) -> None:

@@ -11,6 +11,7 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
 from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
+from optcal.cli.quiet import quiet_option
 
 
 @click.command()
@@ -50,6 +51,7 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
 @report_options
 @solver_options
 @data_options
+@quiet_option
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool,
               joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, sections: str | None, turn_angle: float | None,

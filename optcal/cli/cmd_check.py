@@ -11,6 +11,7 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
 from optcal.cli.outputs import echo_json
 from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
+from optcal.cli.quiet import quiet_option
 
 
 @click.command()
@@ -23,6 +24,7 @@ from optcal.cli.report_option import command_line, report_options, write_report
 @peer_options
 @report_options
 @data_options
+@quiet_option
 def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity: float | None, gyro_calib: str | None,
           report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.

@@ -77,7 +77,7 @@ def demo(data: str | None, hidden: str, effects: str | None, folds: int, simulat
         say(data_line(path if data else "the simulated recording", poses), indent=3)
         say()
         settings = settings_from(effects, folds, simulations, alpha, seed, method)
-        diag = Diagnoser(settings, progress_printer(quiet)).run(poses)
+        diag = Diagnoser(settings, progress_printer()).run(poses)
 
     noise = float(np.median(poses.sigma)) if poses.sigma is not None else None
     line = (f"2. Calibrate with the paper's model (Lu 2017: a scale-and-skew matrix T, a bias o and white noise), "

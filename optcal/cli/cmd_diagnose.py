@@ -54,13 +54,12 @@ def settings_from(effects: str | None, folds: int, simulations: int, alpha: floa
                              pose_correlation=pose_correlation, calibration=dict(calibration or {}))
 
 
-def progress_printer(quiet: bool) -> Any:
-    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet`` (``optcal -q`` too)."""
+def progress_printer() -> Any:
+    """Progress bars on stderr in a terminal, stage messages otherwise; nothing with ``--quiet`` (``optcal -q`` too)
+    or ``--json`` into a pipe: the command line's one decision (:func:`optcal.core.progress.decide`)."""
     from optcal.applications.diagnosis.progress import Progress
 
-    context = click.get_current_context(silent=True)
-    root = context.find_root().obj if context is not None else None
-    return Progress.for_terminal(quiet or bool(isinstance(root, dict) and root.get("quiet")))
+    return Progress.from_command_line()
 
 
 @click.command()
@@ -138,7 +137,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
-    reporter = progress_printer(quiet)
+    reporter = progress_printer()
     loaded = [load_data_detailed(path, **data_opts) for path in reporter.loop(data, "reading the sessions", len(data))]
     sessions = [item.poses for item in loaded]
     still_parts = [item.segmentation for item in loaded]  # the raw samples: the measured noise route

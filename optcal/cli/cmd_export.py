@@ -9,6 +9,7 @@ import click
 from optcal.applications.export import EXPORTERS
 from optcal.applications.export.base import DEFAULT_GYRO_RATE_DEG_S
 from optcal.cli.data_options import DATA_PATH
+from optcal.cli.quiet import quiet_option
 
 
 @click.command()
@@ -65,6 +66,7 @@ from optcal.cli.data_options import DATA_PATH
 @click.option("--inflate", default="1,1", show_default=True, metavar="WHITE,WALK",
               help="vins/orbslam3/okvis/kalibr-imu/openvins/basalt: multiply the white-noise densities by WHITE and the "
                    "random walks by WALK (written into the file's comments).")
+@quiet_option
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
            max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
            rate: float | None, rostopic: str, device_id: int | None, gyro_device_id: int | None, instance: int,

@@ -11,6 +11,7 @@ from optcal.cli.data_options import data_options
 from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
+from optcal.cli.quiet import quiet_option
 
 
 @click.command()
@@ -41,10 +42,12 @@ from optcal.cli.solver_options import estimator_settings, pop_solver_options, so
               help="Write a figure per parameter and a one-page summary figure (PNG) into DIR.")
 @click.option("--chunk", type=click.IntRange(1), default=None, metavar="N",
               help="Units per Dask task [about eight tasks per worker, at most 64 units].")
-@click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on standard error.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bars on standard error when it is a terminal (--no-progress: as --quiet).")
 @report_options
 @solver_options
 @data_options
+@quiet_option
 def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | None, scheduler: str | None,
           tls_ca_file: str | None, tls_cert: str | None, tls_key: str | None, dask_config: str | None,
           dashboard: bool, prior: str, flag_threshold: float | None, plot: str | None, chunk: int | None, progress: bool,
@@ -62,6 +65,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
     from optcal.applications.fleet.engine import ClusterSettings, FleetClient, run_fleet
     from optcal.applications.fleet.inputs import expand_inputs
     from optcal.applications.fleet.population import DEFAULT_FLAG_THRESHOLD
+    from optcal.core.progress import enabled as progress_enabled
 
     from optcal.errors import InputError
 
@@ -78,7 +82,7 @@ def fleet(inputs: tuple[str, ...], output: str, as_json: bool, workers: int | No
         click.echo(f"engine: {fc.engine} ({where}, {board}); {len(units)} units", err=True)
         result = run_fleet(units, fc.client, engine=fc.engine, load_options=build_read_options(data_opts),
                            fit_settings=fit_settings,
-                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress, output=output)
+                           flag_threshold=threshold, prior=prior, chunk=chunk, progress=progress and progress_enabled(), output=output)
     if plot:
         _write_figures(result, Path(plot))
     if report_path:

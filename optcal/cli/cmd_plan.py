@@ -9,6 +9,7 @@ import click
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data
 from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import check_report_path, command_line, write_report
+from optcal.cli.quiet import quiet_option
 
 
 
@@ -59,6 +60,7 @@ MAX_SIGMA = 1e150
               help="Write the plan as a self-contained HTML page: the poses as a sphere map and a table to follow, "
                    "the criterion, the expected standard errors.")
 @data_options
+@quiet_option
 def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
          given_data: str | None, target_stderr: float | None, grid: int, seed: int, solver: str | None,

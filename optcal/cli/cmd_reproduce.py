@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from optcal.cli.lazy_group import LazyGroup
+from optcal.cli.quiet import decide_progress, quiet_option
 
 #: reproduction name -> "module:attribute" of its click command.  One line each.
 REPRODUCTIONS: dict[str, str] = {
@@ -15,6 +16,8 @@ REPRODUCTIONS: dict[str, str] = {
 }
 
 
-@click.group(cls=LazyGroup, lazy_commands=REPRODUCTIONS)
+# decided again on each reproduction's arguments: its own --json counts (the group's decision came before it was parsed)
+@click.group(cls=LazyGroup, lazy_commands=REPRODUCTIONS, before_command=decide_progress)
+@quiet_option
 def reproduce() -> None:
     """Reproduce a source paper (lu2017, yin2014, sun2011) or the solver comparison."""

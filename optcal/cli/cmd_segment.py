@@ -9,6 +9,7 @@ import click
 from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_summary, load_data_detailed
 from optcal.cli.report_option import check_report_path, command_line, write_report
 from optcal.cli.outputs import echo_json, plot_file, plot_option
+from optcal.cli.quiet import quiet_option
 from optcal.report.segmentation_figure import segmentation_figure
 from optcal.core.stats import rms
 
@@ -23,6 +24,7 @@ FIGURE_NAME = "segments.png"
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, metavar="FILE.html",
               callback=check_report_path, help="Write a self-contained HTML report: whether the static poses can make a calibration, the trace, the table.")
 @data_options
+@quiet_option
 def segment(data: str, plot_path: str | None, as_json: bool, report_path: str | None, **data_opts: Any) -> None:
     """Find the static intervals of a raw recording and the pose each one gives.
 

@@ -49,16 +49,14 @@ COMMANDS: dict[str, str] = {
 
 def _before_command(context: click.Context) -> None:
     """What every command does on its parsed arguments before any work: refuse a number that is not
-    finite and an output that is an input, and decide once whether long work draws progress bars (:func:`optcal.core.progress.decide`)."""
+    finite and an output that is an input, and decide once whether long work shows progress (:func:`decide_progress`)."""
     from optcal.cli.numbers import refuse_non_finite_numbers
     from optcal.cli.outputs import refuse_outputs_over_inputs
-    from optcal.core import progress
+    from optcal.cli.quiet import decide_progress
 
     refuse_non_finite_numbers(context)
     refuse_outputs_over_inputs(context)
-    root = context.find_root().obj
-    quiet = bool(context.params.get("quiet")) or bool(isinstance(root, dict) and root.get("quiet"))
-    progress.set_enabled(progress.decide(quiet, bool(context.params.get("as_json"))))
+    decide_progress(context)
 
 
 @click.group(cls=LazyGroup, lazy_commands=COMMANDS, before_command=_before_command, context_settings={"help_option_names": ["-h", "--help"]})

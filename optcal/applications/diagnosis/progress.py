@@ -1,4 +1,9 @@
-"""Progress of a diagnosis: stage messages and progress bars (tqdm, on stderr), silent by default."""
+"""Progress of a diagnosis: stage messages and progress bars, silent by default.
+
+The bars are :mod:`optcal.core.progress`'s (tqdm on standard error); whether a command draws
+them, or says its stages in words, is the command line's one decision
+(:func:`optcal.core.progress.decide`, read here by :meth:`Progress.from_command_line`).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,8 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TypeVar
+
+from optcal.core import progress as core_progress
 
 Item = TypeVar("Item")
 
@@ -19,6 +26,10 @@ def plain_loop(iterable: Iterable[Item], description: str, total: int) -> Iterab
     return iterable
 
 
+def _say_on_stderr(text: str) -> None:
+    print(f"... {text}", file=sys.stderr)
+
+
 @dataclass(frozen=True)
 class Progress:
     """How a diagnosis reports its progress.
@@ -29,47 +40,32 @@ class Progress:
         Receives a short message at each stage.
     bars : bool
         Draw a tqdm bar on stderr for every loop and stage that takes more than a second.
-    delay : float
-        Seconds before a bar appears (a quicker loop draws nothing).
+    delay : float, optional
+        Seconds before a bar appears (a quicker loop draws nothing); :data:`optcal.core.progress.DELAY_S` by default.
     """
 
     message: Callable[[str], None] | None = None
     bars: bool = False
-    delay: float = 1.0
+    delay: float | None = None
 
     @classmethod
-    def for_terminal(cls, quiet: bool) -> "Progress":
-        """Messages and bars on stderr, unless ``quiet`` or stderr is not a terminal (bars only then)."""
-        if quiet:
-            return cls()
-        interactive = sys.stderr.isatty()
-        return cls(message=None if interactive else (lambda text: print(f"... {text}", file=sys.stderr)),
-                   bars=interactive)
+    def from_command_line(cls) -> "Progress":
+        """The command line's decision (:mod:`optcal.core.progress`): bars in a terminal, stage
+        messages on a standard error that is not one, nothing with ``--quiet`` or ``--json`` into a pipe."""
+        return cls(message=_say_on_stderr if core_progress.stages() else None, bars=core_progress.enabled())
 
     def say(self, text: str) -> None:
+        """Pass ``text`` to :attr:`message`, if any."""
         if self.message is not None:
             self.message(text)
 
     def loop(self, iterable: Iterable[Item], description: str, total: int) -> Iterator[Item]:
-        """``iterable``, with a bar when :attr:`bars` (shown only after a second)."""
-        if not self.bars:
-            yield from iterable
-            return
-        from tqdm import tqdm
-
-        yield from tqdm(iterable, desc=description, total=total, file=sys.stderr, leave=False, delay=self.delay,
-                        mininterval=0.5, dynamic_ncols=True)
+        """``iterable``, with a bar when :attr:`bars` (shown only after :attr:`delay`)."""
+        return core_progress.progress(iterable, total=total, desc=description, enabled=self.bars, delay=self.delay)
 
     @contextmanager
     def stage(self, description: str) -> Iterator[None]:
         """A stage that is one call (e.g. the baseline fit): its message, and a bar with the elapsed time when slow."""
         self.say(description)
-        if not self.bars:
+        with core_progress.stage(description, enabled=self.bars, delay=self.delay):
             yield
-            return
-        from tqdm import tqdm
-
-        with tqdm(total=1, desc=description, file=sys.stderr, leave=False, delay=self.delay,
-                  bar_format="{desc}: {elapsed}", dynamic_ncols=True) as bar:
-            yield
-            bar.update(1)

@@ -206,26 +206,26 @@ def _gather(futures: list[Any], sizes: list[int], desc: str, progress: bool,
     ``release`` lets the cluster forget each result once it is here (the futures are then spent).
     """
     from distributed import as_completed
-    from tqdm import tqdm
+
+    from optcal.core.progress import progress as bar
 
     index = {f.key: i for i, f in enumerate(futures)}
     out: list[list[Any]] = [[] for _ in futures]
     done = [False] * len(futures)
     next_out = 0
-    with tqdm(total=sum(sizes), desc=desc, disable=not progress, leave=False, unit="unit") as bar:
-        for future in as_completed(futures):
-            i = index[future.key]
-            try:
-                out[i] = future.result()
-            except Exception as exc:  # noqa: BLE001 - one lost task never stops the run
-                out[i] = on_error(i, exc)
-            if release:
-                future.release()
-            done[i] = True
-            bar.update(sizes[i])
-            while consume is not None and next_out < len(futures) and done[next_out]:
-                consume(out[next_out])
-                next_out += 1
+    for future in bar(as_completed(futures), total=sum(sizes), desc=desc, enabled=progress, unit="unit",
+                      size=lambda f: sizes[index[f.key]]):
+        i = index[future.key]
+        try:
+            out[i] = future.result()
+        except Exception as exc:  # noqa: BLE001 - one lost task never stops the run
+            out[i] = on_error(i, exc)
+        if release:
+            future.release()
+        done[i] = True
+        while consume is not None and next_out < len(futures) and done[next_out]:
+            consume(out[next_out])
+            next_out += 1
     return out
 
 
@@ -265,7 +265,8 @@ def run_fleet(
     chunk : int, optional
         Units per Dask task (:func:`auto_chunk` when omitted).
     progress : bool
-        Progress bars on standard error.
+        Progress bars on standard error (:func:`optcal.core.progress.progress`; the command line passes its
+        decision, :func:`optcal.core.progress.enabled`).
     output : str or Path, optional
         The Parquet results table, written while the last stage runs (:class:`ResultsWriter`:
         in input order, row group by row group) rather than from the whole table at the end.

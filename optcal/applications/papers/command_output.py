@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import sys
-
 import click
 
 
 def show_progress() -> bool:
-    """Draw tqdm progress bars only on a terminal: in a log file they become one long line."""
-    return sys.stderr.isatty()
+    """Draw tqdm progress bars: the command line's one decision (:func:`optcal.core.progress.decide`: standard
+    error a terminal, not ``--quiet``, not ``--json`` into a pipe; in a log file a bar becomes one long line)."""
+    from optcal.core.progress import enabled
+
+    return enabled()
 
 
 def acceptance_lines(checks: dict[str, bool]) -> list[str]:
