@@ -10,6 +10,7 @@ import numpy as np
 
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
 from optcal.applications.diagnosis.result import Diagnosis
+from optcal.applications.diagnosis.selection import BIC_TIE
 from optcal.applications.diagnosis.sessions import SessionOffsets
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import format_value
@@ -188,6 +189,9 @@ def diagnosis_report(diag: Diagnosis) -> str:
             f"      evidence: ΔBIC {f.evidence.delta_bic:+.1f}, p = {f.evidence.p_value:.2g}; held-out rms "
             f"{f.heldout_rms_g_before * MG:.3g} → {f.heldout_rms_g_after * MG:.3g} mg"
         )
+        if f.alternatives:  # findings.alternatives: within BIC_TIE of the named term in the step that named it
+            lines.append(f"      not told apart by these data from (ΔBIC within {BIC_TIE:g} of the named term's, as tried): "
+                         + ", ".join(f"{a['term']} ({a['delta_bic']:+.1f})" for a in f.alternatives))
     lines += noise_model_lines(diag)
     if diag.detection_limits:
         level = diag.detection_limits[0].level

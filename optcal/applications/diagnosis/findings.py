@@ -17,7 +17,7 @@ import numpy as np
 from optcal.applications.diagnosis.effects import CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
-from optcal.applications.diagnosis.selection import Step
+from optcal.applications.diagnosis.selection import BIC_TIE, Step
 from optcal.core.model import AXES
 from optcal.core.stats import rms
 
@@ -62,6 +62,9 @@ class Finding:
         For outliers in several sessions diagnosed together: the session (file) of each row.
     pose_index : list of int or None
         For outliers: their positions among the diagnosed poses (unique across sessions).
+    alternatives : list of dict
+        Terms the data cannot tell apart from this one (:func:`alternatives`): each ``{"effect", "axes", "order",
+        "term", "delta_bic", "p_value"}`` as tried in the step that named this effect; empty when none.
     sensor : str
         The sensor the effect belongs to (``accelerometer``: the pose diagnosis; JSON ``"sensor"``, so that one
         list of findings can hold a gyroscope's too).
@@ -93,6 +96,7 @@ class Finding:
     row_sessions: list[str] | None = None
     pose_index: list[int] | None = None
     sensor: str = "accelerometer"
+    alternatives: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -121,6 +125,34 @@ def change_over_data(fitter: Fitter, fit: Fit, effect: str, axis: int) -> float:
     order = fit.terms[(effect, axis)]
     term = sum(fit.x[9 + BETA_INDEX[(effect, axis, p)]] * values**p for p in range(1, order + 1))
     return float(np.ptp(term))
+
+
+def alternatives(steps: list[Step], final: Fit, effect: str, axis: str) -> list[dict[str, Any]]:
+    """The terms the data cannot tell apart from ``effect`` on ``axis``, in the step that named it.
+
+    A term tried in that step whose BIC is within :data:`~optcal.applications.diagnosis.selection.BIC_TIE` of the
+    named one's (equal numbers of coefficients: a likelihood ratio under e³ ≈ 20, short of Kass & Raftery's
+    "strong" evidence either way) explains the change about as well: a temperature rising through the session
+    makes a temperature bias, a temperature scale and a drift on one axis nearly collinear, and a 14-rest session's
+    poses can leave x and y biases close.  Each is listed (best order per effect and axis), unless it is in the final
+    model itself, made the BIC worse, or was set aside by the held-out test or stepped down to an order listed.
+    """
+    for step in steps:
+        chosen = step.accepted
+        if chosen is None or chosen.effect != effect or chosen.axis != axis:
+            continue
+        best: dict[tuple[str, str | None], Any] = {}
+        for c in step.candidates:
+            key = (c.effect, c.axis)
+            if (c is chosen or key == (effect, axis) or c.effect == "outliers" or c.rejected_because is not None
+                    or c.axis is None or (c.effect, AXES.index(c.axis)) in final.terms
+                    or not c.delta_bic < min(0.0, chosen.delta_bic + BIC_TIE)):
+                continue
+            if key not in best or c.delta_bic < best[key].delta_bic:
+                best[key] = c
+        return [{"effect": c.effect, "axes": [c.axis], "order": c.order, "term": c.term, "delta_bic": c.delta_bic,
+                 "p_value": c.p_value} for c in sorted(best.values(), key=lambda c: c.delta_bic)]
+    return []
 
 
 def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names: Sequence[str] = ()) -> list[Finding]:
@@ -152,6 +184,7 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
                 float(final.x[9 + BETA_INDEX[(effect, a, p)]] / h**p) for p in range(1, final.terms[(effect, a)] + 1)
             ]
             finding.change_over_data[AXES[a]] = change_over_data(fitter, final, effect, a)
+            finding.alternatives += alternatives(steps, final, effect, AXES[a])
         out.append(finding)
     session_axes = sorted(a for (e, a) in final.terms if e == SESSION_BIAS)
     if session_axes:

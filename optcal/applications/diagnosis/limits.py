@@ -146,7 +146,7 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
 
     Candidates the data have no room to test (fewer than the fitter's :attr:`~Fitter.min_dof` degrees of
     freedom left) get none.  A small session's scale estimated from its few residual degrees of freedom
-    (:meth:`~Fitter.noise_scale2`) takes Student's quantile instead of the normal one.
+    (:meth:`~Fitter.test_scale2`) takes Student's quantile instead of the normal one.
     """
     out = []
     for effect, axis in loop(candidates, "detection limits", len(candidates)):
@@ -157,8 +157,10 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
         bigger = fitter.fit(terms, fit.outliers, fit.x)
         free = np.flatnonzero(active_mask(terms))
         k = 9 + int(np.flatnonzero(free == BETA_INDEX[(effect, axis, 1)])[0])
-        se = float(np.sqrt(max(fitter.covariance(bigger)[k, k], 0.0))) / fitter.reg.half_span(effect)
-        dof = fitter.noise_scale2(bigger)[1]
+        # the scale and degrees of freedom of the selection's own test of the candidate (Fitter.test_scale2)
+        scale2, dof = fitter.test_scale2(fit, bigger)
+        variance = fitter.covariance(bigger)[k, k] * scale2 / fitter.noise_scale2(bigger)[0]
+        se = float(np.sqrt(max(variance, 0.0))) / fitter.reg.half_span(effect)
         z = float(sps.norm.isf(level / 2)) if dof >= MIN_DOF else float(sps.t.isf(level / 2, dof))
         over = 2 * fitter.reg.t_half * z * se if effect == "bias_drift" else None
         out.append(DetectionLimit(describe_term(effect, axis, 1), effect, AXES[axis], z * se, UNITS[effect], level, over))

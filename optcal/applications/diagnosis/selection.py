@@ -6,7 +6,10 @@ A term is added when
   residuals, so a wrong σ claim cannot manufacture findings), ``q`` = number of new
   coefficients, at level ``α/(2m)`` for ``m`` candidates in the step (Bonferroni: the
   family-wise false-finding rate of the first step is at most ``α/2``), or ``α/m`` in a step that cannot
-  test outliers (a small session: :meth:`ForwardSelection.outliers_testable`);
+  test outliers (a small session: :meth:`ForwardSelection.outliers_testable`); in a small session (tests with
+  fewer than :data:`MIN_DOF` residual degrees of freedom) the level that keeps the same family-wise rate under
+  the candidates' joint null distribution instead (Westfall–Young minP,
+  :mod:`~optcal.applications.diagnosis.familywise`);
 * it lowers the BIC (``n log(RSS/n) + p log n``);
 * it lowers the held-out rms (k-fold).
 
@@ -40,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
+from optcal.applications.diagnosis.familywise import minp_level, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.progress import Loop, plain_loop
@@ -268,9 +272,8 @@ class ForwardSelection:
         for _ in range(4 * len(self.candidates) + 3):
             bic0 = fitter.bic(current)
             term_cands = self.term_candidates(current)
-            m = max(len(term_cands), 1)
             outliers_tested = self.outliers_testable(current)
-            alpha_terms = self.alpha_terms if outliers_tested else self.alpha
+            level = self.step_level(current, term_cands, self.alpha_terms if outliers_tested else self.alpha)
             tried: list[Candidate] = []
             for effect, axis, order in self.loop(term_cands, f"selection step {len(steps) + 1}", len(term_cands)):
                 if not fitter.identifiable(current, effect, axis, order):
@@ -282,7 +285,7 @@ class ForwardSelection:
                 p = fitter.f_test(current, cand)
                 delta = fitter.bic(cand) - bic0
                 tried.append(Candidate(describe_term(effect, axis, order), effect, AXES[axis], order, delta, p,
-                                       alpha_terms / m, bool(p < alpha_terms / m and delta < 0), fit=cand))
+                                       level, bool(p < level and delta < 0), fit=cand))
             if outliers_tested:
                 found = detect_outliers(fitter, current, self.alpha_outliers)
                 if found is not None:
@@ -292,6 +295,7 @@ class ForwardSelection:
                         self.alpha_outliers, bool(delta < 0),
                         rows=[int(fitter.poses.rows[k]) for k in sorted(found.poses)], fit=found.fit,
                     ))
+            self.step_down_first(tried, current)
             accepted = None
             for c in preference_order([c for c in tried if c.significant]):
                 assert c.fit is not None
@@ -303,8 +307,7 @@ class ForwardSelection:
                     break
                 c.significant = False
                 c.rejected_because = "held-out rms did not fall"
-            if accepted is not None:
-                self.step_down(accepted, current)
+            if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
                 rivalries += self.rivals(accepted, tried)
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
@@ -312,8 +315,19 @@ class ForwardSelection:
             current = accepted.fit
         current = self.recheck_outliers(current)
         alpha_terms = self.alpha_terms if self.outliers_testable(current) else self.alpha
-        level = alpha_terms / max(len(self.term_candidates(current)), 1) if self.room(current) else alpha_terms
+        level = self.step_level(current, self.term_candidates(current), alpha_terms) if self.room(current) else alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def step_level(self, current: Fit, term_cands: list[tuple[str, int, int]], alpha_terms: float) -> float:
+        """The level each term candidate of a step from ``current`` is tested at, the step's terms sharing the
+        family-wise level ``alpha_terms``: Bonferroni's ``alpha_terms / m``, or in a small session the minP level
+        of the candidates' joint null distribution (:mod:`~optcal.applications.diagnosis.familywise`), which keeps
+        the same family-wise level with more power where the candidates are dependent."""
+        bonferroni = alpha_terms / max(len(term_cands), 1)
+        if not term_cands or not uses_minp(self.fitter, current):
+            return bonferroni
+        level = minp_level(self.fitter, current, term_cands, alpha_terms)
+        return bonferroni if level is None else level
 
     def recheck_outliers(self, final: Fit) -> Fit:
         """``final`` with its outlier poses tested again under its own terms, each returned whose departure they explain.
@@ -342,6 +356,31 @@ class ForwardSelection:
         self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
                   f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
         return self.fitter.fit(final.terms, frozenset(aside), final.x)
+
+    def step_down_first(self, tried: list[Candidate], current: Fit) -> None:
+        """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
+
+        A drift of order 2 or 3 wins the BIC on its fit of noise, then steps down to order 1 after it is chosen,
+        where another candidate explained more (14 Xsens rests with a temperature bias planted on x: the y drift of
+        order 2, ΔBIC −62, stepped down to the first-order y drift, ΔBIC −50, was named in place of the planted
+        temperature_bias(x), ΔBIC −56).  A term that steps down to an order the step also tried leaves the choice
+        to that candidate (its own ΔBIC, p and held-out test); otherwise it competes at the order it stepped to.
+        """
+        for c in tried:
+            if not c.significant or c.effect not in DIRECT_ORDERS or not c.order or c.order == 1 or c.fit is None:
+                continue
+            entered = c.order
+            self.step_down(c, current)
+            if c.order == entered:
+                continue
+            same = [o for o in tried if o is not c and o.effect == c.effect and o.axis == c.axis and o.order == c.order]
+            c.significant = False
+            c.rejected_because = (f"order {entered} stepped down to order {c.order}, its higher coefficients adding "
+                                  "nothing significant: tried as that order")
+            if not same:  # the lower order was not a candidate of its own (not identifiable, no room): it competes
+                c.significant, c.rejected_because = True, None
+                c.delta_bic = self.fitter.bic(c.fit) - self.fitter.bic(current)
+                c.p_value = self.fitter.f_test(current, c.fit)
 
     def step_down(self, accepted: Candidate, current: Fit) -> None:
         """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).

@@ -1,0 +1,124 @@
+"""A selection step's per-candidate level from the joint null distribution of its tests (Westfall & Young 1993, minP).
+
+A step tests ``m`` candidate terms at once, and names the best that passes.  Bonferroni (each at ``α/m``) keeps the
+step's family-wise false-finding rate at most ``α`` whatever the candidates' dependence, and is conservative
+when they are dependent.  In a small session they are strongly so:
+
+* every candidate's F test divides by a residual sum that all of them share but for their own columns (a session
+  of 14 poses leaves 4 residual degrees of freedom after a term: a low residual sum makes *every* candidate look
+  significant together);
+* their columns correlate (a temperature bias and a temperature scale on one axis, a drift's orders 1-3 nested,
+  a temperature rising monotonically through the session and time).
+
+The minP procedure tests each candidate at the level ``c`` at which the *smallest* of the step's p values falls
+below ``c`` with probability ``α`` when no candidate is true: the step's family-wise level is then ``α`` (to the
+Monte Carlo's precision, :data:`DRAWS`), with more power than ``α/m``.  The null distribution is the linearised
+model at the current fit: the weighted pose residuals are ``σ z`` with ``z`` standard normal, the current model's
+columns projected out, and each candidate's statistic formed as
+:meth:`~optcal.applications.diagnosis.fitting.Fitter.f_test` forms it, on the route
+:meth:`~optcal.applications.diagnosis.fitting.Fitter.test_scale2` takes for the step (the residuals' scale, an F
+test with each candidate's own degrees of freedom: the p values do not depend on σ; or the noise measured in the
+rests, a χ² test, where the null model's residuals do not exceed it: σ² that measured noise).
+
+Used only where the tests keep fewer than :data:`~optcal.applications.diagnosis.fitting.MIN_DOF` residual degrees
+of freedom (a small session): there the shared residual sum makes Bonferroni most conservative (14 Xsens rests:
+the level is 0.0019 against Bonferroni's 0.0011 over 18 candidates, 0.0037 on the χ² route), and the simulation
+is of a few dozen poses.  Larger sessions keep Bonferroni (their residual sums are nearly constant, their
+candidates nearly independent, and the 2,000-pose diagnosis keeps its speed); so do poses whose noise is
+correlated in time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats as sps
+
+from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.problem import BETA_INDEX
+
+#: Draws of the null simulation.  The level is the ``α`` quantile of the smallest p: at α = 0.02, 80 draws lie
+#: below it, so the family-wise level it gives is within α ± 0.0022 (binomial, one standard error): an eighth of
+#: the level itself.
+DRAWS: int = 4000
+#: Singular values of a candidate's columns, after the current model's are projected out, below this share of
+#: the largest carry no information (``√IDENTIFIABLE_TOL``: the same share of information as
+#: :meth:`~optcal.applications.diagnosis.fitting.Fitter.identifiable`, which such a candidate fails).
+RANK_TOL: float = 1e-3
+
+
+def candidate_columns(fit: Fit, effect: str, axis: int, order: int) -> list[int]:
+    """Columns of the full parameter vector a candidate adds to ``fit``: orders 1..``order`` of a new term, or
+    the orders above ``fit``'s of a term ``fit`` already has."""
+    first = fit.terms[(effect, axis)] + 1 if (effect, axis) in fit.terms else 1
+    return [9 + BETA_INDEX[(effect, axis, p)] for p in range(first, order + 1)]
+
+
+def orthonormal(A: NDArray[np.float64], tol: float = 1e-10) -> NDArray[np.float64]:
+    """An orthonormal basis of the column space of ``A`` (singular values below ``tol`` of the largest dropped)."""
+    if A.shape[1] == 0:
+        return A
+    U, s, _ = np.linalg.svd(A, full_matrices=False)
+    return U[:, s > tol * max(float(s.max(initial=0.0)), 1e-300)]
+
+
+def uses_minp(fitter: Fitter, fit: Fit) -> bool:
+    """Whether a step from ``fit`` takes its level from :func:`minp_level`: its tests keep fewer than
+    :data:`MIN_DOF` residual degrees of freedom, and the poses are independent."""
+    return fitter.correlation is None and fitter.n - fit.n_params - 1 < MIN_DOF
+
+
+def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]], alpha: float,
+               seed: int = 0) -> float | None:
+    """The per-candidate level at which a step from ``fit`` over ``candidates`` has family-wise level ``alpha``.
+
+    Parameters
+    ----------
+    fitter : Fitter
+    fit : Fit
+        The current model (the null hypothesis: no candidate is true).
+    candidates : list of (str, int, int)
+        ``(effect, axis, order)`` of the step's term candidates; those with no information left after ``fit``
+        take no part (they are not tested).
+    alpha : float
+        The step's family-wise level.
+    seed : int
+        Seed of the null simulation (the level is reproducible).
+
+    Returns
+    -------
+    float or None
+        The ``alpha`` quantile of the smallest p value of the step's route (module docstring); ``None`` when no
+        candidate can be tested.
+    """
+    kept = fit.kept(fitter.n)
+    G, J = fitter.jacobians(fit, fitter.weights(fit))
+    G, J = G[kept], J[kept]
+    model = orthonormal(G)
+    bases: list[NDArray[np.float64]] = []
+    added: list[int] = []
+    for effect, axis, order in candidates:
+        columns = candidate_columns(fit, effect, axis, order)
+        projected = J[:, columns] - model @ (model.T @ J[:, columns])
+        basis = orthonormal(projected / max(float(np.linalg.norm(J[:, columns])), 1e-300), RANK_TOL)
+        if basis.shape[1]:
+            bases.append(basis)
+            added.append(len(columns))
+    if not bases:
+        return None
+    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
+    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
+    gain = np.stack([np.sum((b.T @ z) ** 2, axis=0) for b in bases])  # each candidate's fall in it, (K, DRAWS)
+    q = np.asarray(added, float)[:, None]
+    dof = (fitter.n - fit.n_params) - q
+    # the step's route (Fitter.test_scale2, chosen on the null model): a test is χ² against the measured noise only
+    # where one was measured, the candidate keeps under MIN_DOF and the null model's residuals are within that noise
+    dof0 = fitter.n - fit.n_params
+    measured = fitter.measured_scale2
+    chi2_route = measured is not None and dof0 > 0 and fit.rss / dof0 <= measured
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p_f = sps.f.sf(gain / q / ((rss0[None, :] - gain) / np.maximum(dof, 1)), q, np.maximum(dof, 1))
+    p = np.where(dof >= MIN_DOF, p_f, sps.chi2.sf(gain, q)) if chi2_route else p_f
+    p = np.where(dof > 0, p, 1.0)
+    smallest = np.sort(np.min(p, axis=0))
+    return float(smallest[int(np.floor(alpha * DRAWS))])  # P(min p < level) ≤ α
