@@ -32,10 +32,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.model import AXES
-from optcal.core.rotations import exponential_map, exponential_map_with_right_jacobian, skew
 from optcal.families.gyro.consistency import residual_budget, rest_offsets
 from optcal.families.gyro.moves import MoveSet
-from optcal.families.gyro.propagation import angles_deg, unit_rows
+from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 
 #: Standard gravity, m/s² per g: the g-sensitivity's estimate is reported per m/s² (the issue's JSON contract).
 STANDARD_GRAVITY: float = 9.80665
@@ -191,35 +190,15 @@ def corrected_rates(data: GyroData, p: GyroParams, raw: NDArray[np.float64], f: 
 def predict(data: GyroData, omega: NDArray[np.float64], jacobian: NDArray[np.float64] | None = None
             ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """Each move's predicted gravity direction ``Φᵀ u₀`` (m, 3) from the corrected step rates ``omega`` (N, 3), and
-    its derivative (m, 3, nz) given the rates' derivative ``jacobian`` (N, 3, nz)."""
-    starts = data.starts
-    m = starts.size
-    lengths = np.diff(np.r_[starts, omega.shape[0]])
-    L = int(lengths.max())
-    position = np.arange(omega.shape[0]) - np.repeat(starts, lengths)
-    move = np.repeat(np.arange(m), lengths)
-    if jacobian is None:  # Φ alone: the steps composed pairwise in order (associative), ⌈log₂ L⌉ products
-        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()
-        E[position, move] = exponential_map(omega * data.dt[:, None])
-        while E.shape[0] > 1:
-            if E.shape[0] % 2:
-                E = np.concatenate([E, np.broadcast_to(np.eye(3), (1, m, 3, 3))])
-            E = np.matmul(E[0::2], E[1::2])
-        return np.einsum("mji,mj->mi", E[0], data.u0), None
-    E_steps, Jr_steps = exponential_map_with_right_jacobian(omega * data.dt[:, None])
-    E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()
-    E[position, move] = E_steps
-    prefix = np.empty((L + 1, m, 3, 3))
-    prefix[0] = np.eye(3)
-    for s in range(L):
-        np.matmul(prefix[s], E[s], out=prefix[s + 1])
-    P = prefix[L]
-    v = np.einsum("mji,mj->mi", P, data.u0)
-    # ∂v/∂θ_k = Φᵀ [u₀]× P_{k−1} J_r(−θ_k), θ_k = ω_k dt_k
-    A = np.einsum("kji,kjl->kil", P[move], skew(data.u0)[move])  # Φᵀ[u₀]× per step
-    A = np.matmul(np.matmul(A, prefix[position, move]), Jr_steps)
+    its derivative (m, 3, nz) given the rates' derivative ``jacobian`` (N, 3, nz)
+    (:class:`~optcal.families.gyro.propagation.GravityPredictor`)."""
+    predictor = GravityPredictor.of_starts(data.starts, omega.shape[0])
+    theta = omega * data.dt[:, None]
+    if jacobian is None:
+        return predictor.directions(theta, data.u0), None
+    v, A = predictor.step_sensitivities(theta, data.u0)
     G = np.matmul(A, jacobian * data.dt[:, None, None])  # (N, 3, nz)
-    return v, np.add.reduceat(G, starts, axis=0)
+    return v, np.add.reduceat(G, data.starts, axis=0)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.core.rotations import exponential_map_with_right_jacobian, skew
+from optcal.core.rotations import exponential_map, exponential_map_with_right_jacobian, skew
 
 
 class GravityPredictor:
@@ -57,6 +57,27 @@ class GravityPredictor:
         self.position = np.arange(n) - np.repeat(self.starts, lengths)
         self.move = np.repeat(np.arange(m), lengths)
 
+    @classmethod
+    def of_starts(cls, starts: NDArray[np.intp], n_steps: int) -> GravityPredictor:
+        """The layout of moves whose steps begin at ``starts`` (m,) among ``n_steps`` contiguous steps."""
+        first = np.zeros(n_steps, dtype=bool)
+        first[starts] = True
+        return cls(first, np.r_[np.asarray(starts)[1:], n_steps] - 1)
+
+    def _prefixes(self, theta: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Each move's orientation after each of its steps, ``P_k = E_1 ⋯ E_k`` (L + 1, m, 3, 3; ``P_0 = I``, the
+        identity after a move's end), for the steps' rotation vectors ``theta`` (N, 3), and each step's right
+        Jacobian ``J_r(−θ_k)`` (N, 3, 3).  Tedaldi 2014, eq. 13-14: the orientation composed step by step."""
+        L, m = self.length, self.n_moves
+        E_steps, Jr_steps = exponential_map_with_right_jacobian(theta)
+        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
+        E[self.position, self.move] = E_steps
+        prefix = np.empty((L + 1, m, 3, 3))
+        prefix[0] = np.eye(3)
+        for s in range(L):
+            np.matmul(prefix[s], E[s], out=prefix[s + 1])
+        return prefix, Jr_steps
+
     def evaluate(self, T: NDArray, w: NDArray, dt: NDArray, u0: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """Predicted directions (m, 3), their Jacobian w.r.t. row-major ``T`` (m, 3, 9) and ``Φ`` (m, 3, 3).
 
@@ -65,13 +86,7 @@ class GravityPredictor:
         L, m = self.length, self.n_moves
         at = (self.position, self.move)  # each step's slot when the moves are laid side by side, (L, m)
         q = np.asarray(w, float) * np.asarray(dt, float)[:, None]
-        E_steps, Jr_steps = exponential_map_with_right_jacobian(q @ np.asarray(T, float).T)
-        E = np.broadcast_to(np.eye(3), (L, m, 3, 3)).copy()  # the identity after a move's end
-        E[at] = E_steps
-        prefix = np.empty((L + 1, m, 3, 3))  # P_k = E_1 ⋯ E_k, P_0 = I
-        prefix[0] = np.eye(3)
-        for s in range(L):
-            np.matmul(prefix[s], E[s], out=prefix[s + 1])
+        prefix, Jr_steps = self._prefixes(q @ np.asarray(T, float).T)
         P = prefix[L]
         u0 = np.asarray(u0, float)
         v = np.einsum("mji,mj->mi", P, u0)  # Φᵀ u₀
@@ -84,9 +99,31 @@ class GravityPredictor:
         S = np.einsum("mji,mjk,mkl->mil", P, skew(u0), C.reshape(m, 3, 9))
         return v, S, P
 
+    def step_sensitivities(self, theta: NDArray, u0: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Predicted directions ``v = Φᵀ u₀`` (m, 3) for the steps' rotation vectors ``theta`` (N, 3), and each
+        step's ``∂v/∂θ_k = Φᵀ [u₀]× P_{k−1} J_r(−θ_k)`` (N, 3, 3): chained with any parameter's ``∂θ_k/∂x`` and
+        summed over a move's steps, that parameter's Jacobian (:meth:`evaluate` chains it with ``T``'s)."""
+        prefix, Jr_steps = self._prefixes(np.asarray(theta, float))
+        P = prefix[self.length]
+        u0 = np.asarray(u0, float)
+        v = np.einsum("mji,mj->mi", P, u0)
+        A = np.einsum("kji,kjl->kil", P[self.move], skew(u0)[self.move])  # Φᵀ[u₀]× per step
+        return v, np.matmul(np.matmul(A, prefix[self.position, self.move]), Jr_steps)
+
+    def directions(self, theta: NDArray, u0: NDArray) -> NDArray[np.float64]:
+        """Predicted directions ``Φᵀ u₀`` (m, 3) for the steps' rotation vectors ``theta`` (N, 3), without a
+        Jacobian: the steps composed pairwise in order (associative), ⌈log₂ L⌉ array products."""
+        E = np.broadcast_to(np.eye(3), (self.length, self.n_moves, 3, 3)).copy()
+        E[self.position, self.move] = exponential_map(np.asarray(theta, float))
+        while E.shape[0] > 1:
+            if E.shape[0] % 2:
+                E = np.concatenate([E, np.broadcast_to(np.eye(3), (1, self.n_moves, 3, 3))])
+            E = np.matmul(E[0::2], E[1::2])
+        return np.asarray(np.einsum("mji,mj->mi", E[0], np.asarray(u0, float)))
+
     def __call__(self, omega: NDArray, dt: NDArray, u0: NDArray) -> NDArray[np.float64]:
-        """Predicted directions (m, 3) for corrected rates ``omega`` (N, 3) rad/s."""
-        return self.evaluate(np.eye(3), omega, dt, u0)[0]
+        """Predicted directions (m, 3) for corrected rates ``omega`` (N, 3) rad/s (:meth:`directions`)."""
+        return self.directions(np.asarray(omega, float) * np.asarray(dt, float)[:, None], u0)
 
 
 def unit_rows(x: NDArray) -> NDArray[np.float64]:
