@@ -207,6 +207,11 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     matrix products, and the steps composed pairwise (associative, order kept): ⌈log₂ n⌉ array products in place of one
     per step.
     """
+    # zero steps (exact identities) appended to a multiple of 8: the first three halvings need no identity appended,
+    # and the real steps keep their positions, so the pairs, and the result, are the same
+    steps = increments.shape[1]
+    if steps > 8 and steps % 8:
+        increments = np.concatenate([increments, np.zeros((increments.shape[0], 8 - steps % 8, 3))], axis=1)
     # each step's increment as a quaternion (scales, moves, steps)
     rx, ry, rz = (scales[:, None, None] * increments[None, :, :, c] for c in range(3))
     angle = np.sqrt(rx * rx + ry * ry + rz * rz)
