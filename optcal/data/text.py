@@ -322,9 +322,14 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
         block = _arrow_block(p, layout)
         if block is not None:
             return ParsedNumbers(block.columns(), {}, "pyarrow")
-    block = ColumnBlock(len(layout.names), estimated_rows(p, layout))
+    rows = estimated_rows(p, layout)
+    block = ColumnBlock(len(layout.names), rows)
     non_numeric: dict[int, tuple[int, int, str]] = {}
-    for cols, bad in _pandas_chunks(p, layout, chunk_rows):
+    from optcal.core.progress import progress
+
+    # a bar (rows read) when the command line asked for one and the read outlasts a second: large files
+    for cols, bad in progress(_pandas_chunks(p, layout, chunk_rows), total=rows, desc=f"reading {p.name}", unit="rows",
+                              scale=True, size=lambda item: item[0][0].size if item[0] else 0):
         for j, (count, row, value) in bad.items():
             old = non_numeric.get(j)
             non_numeric[j] = (count + (old[0] if old else 0), old[1] if old else row + block.n, old[2] if old else value)
