@@ -7,6 +7,7 @@ from typing import Any
 
 import click
 import numpy as np
+from numpy.typing import NDArray
 
 from optcal.cli.data_options import DATA_PATH, read_options, reading_kwargs
 from optcal.cli.outputs import echo_json, plot_file, plot_option
@@ -86,6 +87,39 @@ def parse_window(window: str | None) -> tuple[float, float] | None:
     return start, end
 
 
+def missing_samples(t: NDArray[np.float64]) -> tuple[int, int, int, float, float] | None:
+    """Samples missing between the stamps ``t``: their number, the longest run, where the longest step
+    starts, that step and the median step (the sampling step); ``None`` for fewer than two stamps.
+
+    A step of ``k`` sampling steps (rounded) misses ``k − 1`` samples.  Computed in one array of the
+    steps, in place, freed on return (a 12-hour log's steps are 35 MB; four temporaries of that
+    size held beside the samples were a sixth of a copy of its numbers).
+
+    Parameters
+    ----------
+    t : ndarray
+        Time stamps, s.
+
+    Returns
+    -------
+    tuple or None
+    """
+    steps = np.diff(t)
+    if not steps.size:
+        return None
+    step = float(np.median(steps))
+    at = int(np.argmax(steps))
+    gap = float(steps[at])
+    if not step > 0:
+        return 0, 0, at, gap, step
+    np.divide(steps, step, out=steps)
+    np.rint(steps, out=steps)
+    steps -= 1.0
+    longest = int(steps.max())
+    np.maximum(steps, 0.0, out=steps)
+    return int(steps.sum()), longest, at, gap, step
+
+
 def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] | None = None,
                    **read_options: Any) -> StillLog:
     """Read a still log for the Allan deviation.
@@ -132,15 +166,12 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
         raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
     if sensor == "gyro" and gyro is not None:
         samples = gyro
-    steps = np.diff(t)
-    if steps.size:
-        step = float(np.median(steps))
-        missing = np.round(steps / step).astype(int) - 1 if step > 0 else np.zeros(steps.size, int)
-        total = int(np.clip(missing, 0, None).sum())
-        if total and (missing.max() > MAX_MISSING_RUN or total > MAX_MISSING_FRACTION * t.size):
-            at = int(np.argmax(steps))
+    gaps = missing_samples(t)
+    if gaps is not None:
+        total, longest, at, gap, step = gaps
+        if total and (longest > MAX_MISSING_RUN or total > MAX_MISSING_FRACTION * t.size):
             raise InputError(
-                f"{data}: the log has a gap of {steps[at]:.4g} s at t = {t[at]:.6g} s ({total} samples missing in all; "
+                f"{data}: the log has a gap of {gap:.4g} s at t = {t[at]:.6g} s ({total} samples missing in all; "
                 f"sampling step {step:.4g} s); the Allan deviation needs an uninterrupted, uniformly sampled still log: "
                 "cut the log at the gap"
             )

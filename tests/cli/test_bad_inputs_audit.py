@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import json
+import warnings
 from pathlib import Path
 
 import click
@@ -94,7 +95,24 @@ EXTREMES = [
     ["simulate", "--poses", "99999999999999999999"],
     ["plan", "--poses", "99999999999999999999"],
     ["export", "{c}", "--format", "px4", "--counts-per-g", "1e308", "--max-loss", "1000"],
+    # the rest tests' multipliers: K x a critical value overflowed in numpy (RuntimeWarning lines, exit 0)
+    ["segment", "{g}", "--gyro-threshold", "1e308"],
+    ["segment", "{g}", "--drift-threshold", "1e308"],
+    ["segment", "{g}", "--static-threshold", "1e308"],
 ]
+
+
+@pytest.fixture
+def gyro_csv(tmp_path: Path) -> Path:
+    """A raw recording with gyro columns: 12 rests joined by turns (t, ax, ay, az in g, gx, gy, gz in deg/s)."""
+    from optcal.core.model import lu2017_reference_model
+    from optcal.families.simulate.poses import uniform_directions
+    from optcal.families.simulate.recording import synthesize_recording
+
+    sim = synthesize_recording(lu2017_reference_model(), uniform_directions(12, 2), gyro=True, rng=3)
+    path = tmp_path / "imu.csv"
+    sim.frame.to_csv(path, index=False, float_format="%.7g")
+    return path
 
 
 @pytest.fixture
@@ -108,13 +126,17 @@ def still_csv(tmp_path: Path) -> Path:
 
 
 @pytest.mark.parametrize("argv", EXTREMES, ids=[" ".join(a) for a in EXTREMES])
-def test_an_extreme_finite_value_is_one_line_or_a_result(argv, tmp_path, pose_csv, cal_json, still_csv, capsys):
-    paths = {"d": pose_csv, "c": cal_json, "s": still_csv, "r": still_csv}
+def test_an_extreme_finite_value_is_one_line_or_a_result(argv, request, tmp_path, capsys):
+    fixtures = {"d": "pose_csv", "c": "cal_json", "s": "still_csv", "r": "still_csv", "g": "gyro_csv"}
+    paths = {key: request.getfixturevalue(name) for key, name in fixtures.items() if "{" + key + "}" in argv}
     argv = [a.format(**paths) for a in argv]
     if argv[0] == "simulate":
         argv += ["-o", tmp_path / "s.csv"]
-    code, _, err = run(argv, capsys)
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("always")
+        code, _, err = run(argv, capsys)
     assert "Traceback" not in err
+    assert not [w for w in shown if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in shown]
     if code != 0:
         one_error(code, err)
 

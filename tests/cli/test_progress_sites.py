@@ -102,6 +102,18 @@ def test_a_streamed_read_draws_its_rows_in_segment_and_not_with_quiet(still_log,
     assert quiet == shown
 
 
+def test_a_file_pandas_reads_draws_its_rows_too(still_log, capsys, terminal):
+    """Decimal commas (and text cells, runs of blanks) are read by pandas in chunks: the same bar."""
+    comma = still_log.with_name("comma.csv")
+    comma.write_text(still_log.read_text().replace(",", ";").replace(".", ","))
+    terminal()
+    code, shown, err = _run(["segment", comma, "--units", "g"], capsys)
+    assert code == 0 and "reading comma.csv" in err and "rows" in err, err
+    assert "decimal commas" in shown
+    code, quiet, err = _run(["segment", comma, "--units", "g", "--quiet"], capsys)
+    assert code == 0 and err == "" and quiet == shown, err
+
+
 def test_diagnose_follows_the_one_decision(pose_table, capsys, terminal):
     terminal()
     code, shown, err = _run(["diagnose", pose_table, "--simulations", "20", "--json"], capsys)
