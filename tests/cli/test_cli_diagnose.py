@@ -65,6 +65,9 @@ def test_constant_temperature_and_too_few_poses(tmp_path: Path, capsys: pytest.C
     assert main(["diagnose", str(path)]) == 2
     err = capsys.readouterr().err
     assert "11 poses are too few for a diagnosis" in err
+    # one line: what is missing and what to do (issue 39: never "nothing found" below 12 poses)
+    assert "record 1 more rest in new orientations" in err and "optcal calibrate" in err
+    assert len([line for line in err.splitlines() if "too few" in line]) == 1
 
 
 def test_demo_needs_no_files_and_reveals_the_truth_at_the_end(capsys: pytest.CaptureFixture) -> None:

@@ -147,9 +147,12 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
 def check_size(n: int) -> None:
     """Refuse a pose table below the baseline's own minimum (candidates are tested one at a time)."""
     if n < 9 + 3:
+        more = 12 - n
         raise InputError(
-            f"{n} poses are too few for a diagnosis: at least 12 are needed (9 calibration parameters "
-            "and 3 residual degrees of freedom)"
+            f"{n} poses are too few for a diagnosis: at least 12 are needed (9 calibration parameters and 3 residual "
+            "degrees of freedom: a candidate effect, and the residuals that check the noise measured in the rests); "
+            f"record {more} more rest{'s' if more > 1 else ''} in new orientations, or fit the "
+            "paper's model alone with `optcal calibrate` (from 9 poses)"
         )
 
 
