@@ -96,6 +96,9 @@ def test_diagnose_sensor_mag_json_and_saved_calibration(tmp_path, capsys):
     assert abs(float(np.median(np.linalg.norm((m - o) @ T.T, axis=1))) - 1.0) < 0.01
     saved = json.loads(out.read_text())
     assert saved["cal_type"] == "magnetometer"
+    # the frames' rotation and the dip refitted without the disturbed stretches, as the JSON's extended model
+    assert np.allclose(saved["R_mag_to_acc"], result["extended"]["R_mag_to_acc"])
+    assert saved["dip_deg"] == pytest.approx(result["extended"]["dip_deg"])
     assert main(["diagnose", str(CK), "--sensor", "mag", "--imu"]) == 2
 
 
