@@ -106,16 +106,16 @@ def test_a_bag_without_magnetic_field_is_one_line(tmp_path):
 @pytest.mark.parametrize("prefix", ["field.", ""])
 def test_a_rostopic_csv_export_is_read_as_a_magnetometer(tmp_path, prefix):
     # `rostopic echo -p /imu/mag` writes field.header.seq, field.header.stamp, field.header.frame_id,
-    # field.magnetic_field.x, ... (ROS 1's rostopic, _str_plot_fields); ros2 bag exports drop the "field." prefix.
-    # (rostopic's first column is "%time": optcal's text reader takes that header line for a comment today, so it
-    # is named "time" here; the report says so)
+    # field.magnetic_field.x, ... after "%time" (ROS 1's rostopic, _str_plot_fields: the header starts with "%", a
+    # comment mark to the text reader, taken as the header because it names the magnetometer's columns); ros2 bag
+    # exports drop the "field." prefix
     from optcal.families.mag.samples import read_mag
 
     t, m, _ = _session(300)
-    frame = pd.DataFrame({"time": (t * 1e9).astype(np.int64), f"{prefix}header.stamp": (t * 1e9).astype(np.int64),
+    frame = pd.DataFrame({"%time": (t * 1e9).astype(np.int64), f"{prefix}header.stamp": (t * 1e9).astype(np.int64),
                           f"{prefix}header.frame_id": "imu",
                           **{f"{prefix}magnetic_field.{a}": m[:, j] for j, a in enumerate("xyz")}})
     frame.to_csv(tmp_path / "mag.csv", index=False, float_format="%.9g")
     s = read_mag(tmp_path / "mag.csv")
-    assert s.columns["mx"] == f"{prefix}magnetic_field.x" and s.units.units == "T"
+    assert s.columns["mx"] == f"{prefix}magnetic_field.x" and s.units.units == "T" and s.columns["t"] == "time"
     assert np.allclose(s.m, m, rtol=1e-6)

@@ -133,6 +133,12 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
     from optcal.data.text import read_numbers
 
     layout, parsed = read_numbers(Path(path))
+    if not layout.has_header and layout.comment_names is not None:
+        # the header written as a comment (rostopic echo -p's "%time,field.header.seq,...", "# mx my mz"): taken
+        # when it names the magnetometer's columns (or --columns names one of its words)
+        words = list(layout.comment_names)
+        if any(v in words for v in mapping.values()) or set(_match(words, MAG_ALIASES)[0]) == set(MAG):
+            layout = layout.with_comment_header()
     names = list(layout.names)
     col = dict(zip(names, parsed.columns))
     mag_cols, word = _mag_triple(names, mapping)
