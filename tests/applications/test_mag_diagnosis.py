@@ -1,8 +1,9 @@
 """The magnetometer's diagnosis (``optcal diagnose --sensor mag``, issue 38) on a real hand-turned session with
-planted effects: a local disturbance (a field of 4 % of the Earth's added for 15 % of the session), a motor's
-current and a temperature through added columns.  The unplanted session's own departures (two stretches of about
-2.5 s whose norm residual leaves the rest's, the held-out residual 1.226 % → 1.202 % without them) are part of the
-expectation, not asserted away.
+planted effects: a local disturbance (a field of 4 % of the Earth's added for 15 % of the session, or the field
+bent by 3° of dip at constant strength), a motor's current and a temperature through added columns.  The unplanted
+session's own departures (two stretches of about 2.5 s whose norm residual leaves the rest's; leaving them out moves
+the offsets by under one standard error by batch means, so they are not named) are part of the expectation, not
+asserted away.
 """
 
 from __future__ import annotations
@@ -145,21 +146,29 @@ def test_a_planted_bend_of_the_dip_is_found_where_it_was(frame, tmp_path, degree
     assert np.allclose(np.linalg.norm(fr[MAG].to_numpy(), axis=1)[:a], before[:a])
 
 
+def _departed(diag) -> list[str]:
+    """The stretches found by the search: named, or said in a note not to be relevant."""
+    named = [f"{f.stretch['start_sample']}-{f.stretch['stop_sample']}" for f in diag.findings if f.stretch is not None]
+    return sorted(named + [n.split(":")[0].removeprefix("samples ") for n in diag.notes if n.startswith("samples ")])
+
+
 def test_the_recording_as_it_is_has_no_bend_of_the_dip(frame, tmp_path):
-    # the same two strength stretches as before the dip channel (5575-5825, 4225-4500); the dip's slow drift over
-    # the session (about 1° from the first half to the second) is a majority, said in a note, not a disturbance
+    # the search finds the same two strength stretches as before the dip channel (4225-4500, 5575-5825); leaving
+    # them out moves the offsets by under one standard error by batch means (0.5 and 0.7), so neither is named
+    # (with the AR(1) inflation's smaller standard errors they were, at 3.3 and 3.8); the dip's slow drift over the
+    # session (about 1° from the first half to the second) is a majority, said in a note, not a disturbance
     diag = _diagnose(frame.copy(), tmp_path / "as_is.csv")
     assert diag.dip is not None
-    assert not [f for f in diag.findings if f.stretch is not None and f.stretch.get("channel") == "dip"]
-    starts = sorted(f.stretch["start_sample"] for f in diag.findings if f.stretch is not None)
-    assert starts == [4225, 5575], [f.to_dict() for f in diag.findings]
+    assert not diag.findings, [f.to_dict() for f in diag.findings]
+    assert _departed(diag) == ["4225-4500", "5575-5825"], diag.notes
+    assert any("the dip departs over" in n and "majority" in n for n in diag.notes)
     assert diag.to_dict()["dip_channel"]["blocks_used"] >= 10
 
 
 def test_without_an_accelerometer_only_the_strength_is_searched(frame, tmp_path):
     diag = _diagnose(frame.drop(columns=["ax", "ay", "az"]), tmp_path / "mag_only.csv")
     assert diag.dip is None and diag.to_dict()["dip_channel"] is None
-    assert sorted(f.stretch["start_sample"] for f in diag.findings if f.stretch is not None) == [4225, 5575]
+    assert _departed(diag) == ["4225-4500", "5575-5825"], diag.notes
 
 
 def test_a_column_without_numbers_is_said_not_tested(frame, tmp_path):

@@ -55,7 +55,7 @@ from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
 from optcal.data.rest_tests import unit_rows
 from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, still_mask
-from optcal.families.mag.fit import MagSettings, fit_form
+from optcal.families.mag.fit import MagSettings, batch_means_stderr, fit_form
 from optcal.families.mag.samples import MagSamples
 
 #: Samples per block of the band and the change-point search: long enough for a block mean to average the white
@@ -254,26 +254,14 @@ def _dip_noise(d: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, f
     return white, max(block, white / math.sqrt(BLOCK)), int(b.size)
 
 
-#: Fewest batches of the dip's batch-means standard error: the scatter of k batch means is itself uncertain by about
-#: 1/√(2(k − 1)), 24 % at 10.
-MIN_BATCHES: int = 10
-
-
 def batch_means_se(v: NDArray[np.float64]) -> float:
-    """The standard error of the mean of the correlated sequence ``v`` by batch means: the scatter of the means of
-    consecutive batches over the root of their number, for batch lengths :data:`BLOCK` · 2^j with at least
-    :data:`MIN_BATCHES` batches, the largest (the standard error grows with the batches' length until they are
-    longer than the sequence's correlation: a slow drift of the dip over a session, say; the largest is the
-    conservative choice)."""
+    """The standard error of the mean of the correlated sequence ``v`` (its finite values, in order) by batch means
+    (:func:`optcal.families.mag.fit.batch_means_stderr` of the mean: a slow drift of the dip over a session widens
+    it, however many samples measure it)."""
     v = v[np.isfinite(v)]
-    se = float(np.std(v, ddof=1) / math.sqrt(v.size)) if v.size > 1 else float("inf")
-    length = BLOCK
-    while v.size // length >= MIN_BATCHES:
-        k = v.size // length
-        means = v[: k * length].reshape(k, length).mean(axis=1)
-        se = max(se, float(np.std(means, ddof=1) / math.sqrt(k)))
-        length *= 2
-    return se
+    if v.size < 2:
+        return float("inf")
+    return float(batch_means_stderr(np.ones((v.size, 1)), v - v.mean())[0])
 
 
 def _heldout_dip(a: NDArray[np.float64], still: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],

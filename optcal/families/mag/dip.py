@@ -7,8 +7,8 @@ Vasconcelos 2011, eq. 24).  The ellipsoid fit determines the magnetometer's ``T`
 a rotation, and the two sensors are mounted with a small misalignment: the rotation ``R`` of
 the magnetometer's calibrated frame into the accelerometer's is estimated jointly with δ
 from ``â_k · R m̂_k + sin δ = 0`` by Gauss–Newton (Papafotis 2019, eq. 20; Kok & Schön 2016,
-eq. 17 with the dip constraint), with standard errors from the Gauss–Newton Hessian
-inflated for correlated samples (:func:`optcal.families.mag.fit.correlation_inflation`).
+eq. 17 with the dip constraint), with standard errors by batch means of correlated samples
+(:func:`optcal.families.mag.fit.batch_means_stderr`).
 """
 
 from __future__ import annotations
@@ -133,7 +133,7 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
     max_iter : int
         Most Gauss–Newton steps.
     """
-    from optcal.families.mag.fit import correlation_inflation
+    from optcal.families.mag.fit import batch_means_stderr
 
     still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
     if np.count_nonzero(still) < MIN_STILL:
@@ -146,12 +146,11 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
     R, s, r = fit_dip(a, m, max_iter)
     v = m @ R.T
     J = np.column_stack([np.cross(v, a), np.ones(len(a))])
-    dof = max(len(a) - 4, 1)
-    cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof * correlation_inflation(r) ** 2
+    se = batch_means_stderr(J, r)  # correlated samples: batch means (the rotation's three angles, then sin δ)
     aligned = per_sample_dip(a, v)
     dip = float(np.degrees(np.arcsin(s)))
-    dip_se = float(np.degrees(np.sqrt(max(cov[3, 3], 0.0)) / max(np.sqrt(1 - s * s), 1e-12)))
+    dip_se = float(np.degrees(se[3] / max(np.sqrt(1 - s * s), 1e-12)))
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
-    rot_se = float(np.degrees(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))))
+    rot_se = float(np.degrees(np.sqrt(float(np.sum(se[:3] ** 2)))))
     return DipResult(dip, dip_se, float(np.std(aligned)), float(np.std(unaligned)), R, angle, rot_se,
                      int(np.count_nonzero(still)), int(len(acc)))
