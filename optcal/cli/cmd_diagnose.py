@@ -255,9 +255,10 @@ def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, da
     T = np.asarray(ext["T"], dtype=float)
     info = {**plain.calibration.info, "diagnosis": {"findings": [f.to_dict() for f in diag.findings], "gain": diag.gain,
                                                     "excluded_samples": diag.excluded, "terms": ext["terms"]},
-            "rms_norm_residual": ext["rms_norm_residual"]}
+            "rms_norm_residual": ext["rms_norm_residual"], **({"dip_deg": ext["dip_deg"]} if "dip_deg" in ext else {})}
+    R = np.asarray(ext["R_mag_to_acc"], dtype=float) if "R_mag_to_acc" in ext else plain.calibration.R_mag_to_acc
     calibration = MagCalibration(T, np.asarray(ext["o"], dtype=float), samples.units.units, ext["field_strength"],
-                                 None, plain.calibration.R_mag_to_acc, info)
+                                 None, R, info)
     if output:
         calibration.save(output_file(output))
     if as_json:

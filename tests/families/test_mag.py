@@ -141,3 +141,21 @@ def test_gradient_descent_baseline_agrees(shared_data):
     gd = fit_form(samples, "full", MagSettings(method="gd"))
     assert gd.rms == pytest.approx(ml.rms, rel=1e-4)
     assert np.allclose(gd.o, ml.o, atol=1e-5)
+
+
+def test_batch_means_standard_errors_measure_the_correlation():
+    # the mean of an AR(1) sequence (ρ 0.95) has a variance (1 + ρ)/(1 − ρ) = 39 times the white one's; independent
+    # samples keep the white one (batch means never go below it, and find nothing more)
+    from optcal.families.mag.fit import batch_means_stderr
+
+    rng = np.random.default_rng(5)
+    n, rho = 200_000, 0.95
+    e = rng.normal(size=n)
+    x = np.empty(n)
+    x[0] = e[0]
+    for k in range(1, n):
+        x[k] = rho * x[k - 1] + np.sqrt(1 - rho**2) * e[k]
+    ones = np.ones((n, 1))
+    white = np.std(x) / np.sqrt(n)
+    assert batch_means_stderr(ones, x - x.mean())[0] / white == pytest.approx(np.sqrt((1 + rho) / (1 - rho)), rel=0.25)
+    assert batch_means_stderr(ones, e - e.mean())[0] / (np.std(e) / np.sqrt(n)) == pytest.approx(1.0, rel=0.25)

@@ -16,6 +16,22 @@ The model (:mod:`optcal.families.mag.fit`): ``|T (m − o)| = 1`` for every samp
    :data:`RELEVANT_SE` of their standard errors.  Its field is estimated as an offset ``δ`` added inside the stretch
    (least squares on the stretch's samples with the undisturbed ``T``, ``o``); the extended model leaves the stretch
    out (counted).  Up to :data:`MAX_DISTURBANCES` stretches, each on what the previous left.
+
+   **The dip channel.**  Steel or a magnet can bend the field without changing its strength.  Where the recording
+   has an accelerometer, the angle between the calibrated field and gravity is the same at every orientation of an
+   undisturbed sensor (``â · R m̂ = −sin δ``: Kok & Schön 2016, sec. 3; Vasconcelos 2011, eq. 24).  Its residual,
+   ``δ_k − δ`` (degrees), is measured on the samples where the accelerometer shows the sensor near rest
+   (:func:`optcal.families.mag.dip.still_mask`: a linear acceleration tilts the measured vertical), its noise as the
+   norm's (white from the first differences of consecutive still samples, a block mean's from the robust scatter of
+   the blocks with at least :data:`DIP_BLOCK_SHARE` of their samples still) once its misfit with the gravity direction
+   is taken out (the raw accelerometer's own errors tilt the measured vertical by an amount that depends on where it
+   points: :func:`dip_block_means`).  Each channel is searched by the same change-point statistic at its Bonferroni
+   share of α (half each): a stretch is found whether its strength, its dip or both depart.  A majority stretch in
+   one channel (the dip's slow drift over a session, say) ends that channel's search, not the other's.  It is relevant when leaving it out moves the offsets **or the dip** by more than
+   :data:`RELEVANT_SE` standard errors
+   and improves that channel's held-out residual (the dip's: ``R`` and ``δ`` fitted on one half's still samples,
+   its rms on the other's).  The dip's standard error is by batch means (:func:`batch_means_se`): a dip that drifts
+   slowly over the session is not a disturbance however many samples measure it.
 3. **Temperature and current** (a column of the recording: ``temp``; ``current``, else ``throttle``): the offsets
    linear in it, ``o + k (x − x̄)`` (ArduPilot's ``COMPASS_MOT`` idea for the current), fitted by Gauss–Newton with
    ``T`` held; named when the likelihood ratio, scaled to the residuals' effective sample size (the batch-means
@@ -37,7 +53,9 @@ from optcal.core import quantiles
 from optcal.core.model import AXES
 from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
-from optcal.families.mag.fit import MagSettings, fit_form
+from optcal.data.rest_tests import unit_rows
+from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, still_mask
+from optcal.families.mag.fit import MagSettings, batch_means_stderr, fit_form
 from optcal.families.mag.samples import MagSamples
 
 #: Samples per block of the band and the change-point search: long enough for a block mean to average the white
@@ -53,6 +71,13 @@ RELEVANT_SE: float = 1.0
 MAX_DISTURBANCES: int = 3
 #: Fewest blocks in a stretch (shorter: a twitch of a hand, not a field).
 MIN_STRETCH_BLOCKS: int = 2
+#: A block's dip mean is used when at least this share of its samples are still: its white noise is then at most
+#: √2 times a full block's, so one scatter describes every block used (fewer still samples: a block of motion, whose
+#: measured vertical is tilted by the hand's acceleration, is left out of the dip channel, and counted).
+DIP_BLOCK_SHARE: float = 0.5
+#: Fewest usable blocks for the dip channel: their robust scatter is the block mean's noise (with fewer, the MAD's
+#: own relative error, about 0.8/√k, is over 25 %), and a stretch needs blocks on both sides.
+MIN_DIP_BLOCKS: int = 10
 #: Fewest samples the diagnosis needs (the calibration's minimum is lower; the blocks' scatter needs many blocks).
 MIN_SAMPLES: int = 20 * BLOCK
 
@@ -80,7 +105,14 @@ class MagFinding:
             s = self.stretch
             when = (f"{s['start_s']:.2f}-{s['stop_s']:.2f} s" if s.get("start_s") is not None
                     else f"samples {s['start_sample']}-{s['stop_sample']}")
-            return (f"local_disturbance {when}: a field of {values} {units} added ({s['stop_sample'] - s['start_sample']} "
+            left = s["stop_sample"] - s["start_sample"]
+            if s.get("channel") == "dip":
+                return (f"local_disturbance {when}: the field bent by {s['dip_shift_deg']:+.2f}° of dip, its strength "
+                        f"unchanged ({left} samples left out; χ² dip {self.evidence['statistic_dip']:.1f}, strength "
+                        f"{self.evidence['statistic_strength']:.1f}; the dip moved {self.evidence['moved_dip_se']:.1f} SE)")
+            shift = s.get("dip_shift_deg")
+            dip = (f", dip {shift:+.2f}°" if shift is not None and math.isfinite(shift) else "")
+            return (f"local_disturbance {when}: a field of {values} {units} added{dip} ({left} "
                     f"samples left out; χ² {self.evidence['statistic']:.1f}, offsets moved {self.evidence['moved_se']:.1f} SE)")
         per = {"temperature_offset": f"{units} per °C", "current_interference": f"{units} per unit of the column"}
         return f"{self.effect}: {values} {per.get(self.effect, units)} (likelihood ratio {self.evidence['lr']:.1f}, held-out {self.evidence['heldout_ratio']:.3f}×)"
@@ -103,6 +135,9 @@ class MagDiagnosis:
     extended: dict[str, Any]
     excluded: int
     notes: list[str] = field(default_factory=list)
+    dip: DipChannel | None = None
+    heldout_dip_plain: float | None = None
+    heldout_dip_extended: float | None = None
 
     @property
     def gain(self) -> float:
@@ -117,6 +152,9 @@ class MagDiagnosis:
                      "colour": self.colour, "blocks": int(self.block_means.size),
                      "blocks_outside": [[int(k) * BLOCK, (int(k) + 1) * BLOCK] for k in outside]},
             "plain": self.plain, "extended": self.extended, "excluded_samples": self.excluded, "notes": self.notes,
+            "dip_channel": None if self.dip is None else {
+                **self.dip.to_dict(), "heldout_rms_deg": {"plain": self.heldout_dip_plain,
+                                                          "extended": self.heldout_dip_extended}},
         }
 
     def report_lines(self) -> list[str]:
@@ -125,6 +163,14 @@ class MagDiagnosis:
                f"  norm residual: {self.n_samples} samples, white σ {self.sigma_sample:.3g}, blocks of {BLOCK} "
                f"(noise colour {self.colour:.2g}); {outside} of {self.block_means.size} blocks outside the band "
                f"±{self.band:.3g} (family-wise over the blocks)"]
+        if self.dip is not None:
+            d = self.dip
+            out.append(f"  dip residual: {d.n_still} still samples, white σ {d.sigma_sample:.3g}°, a block's mean "
+                       f"σ {d.sigma_block:.3g}° over {d.blocks_used} of {d.blocks} blocks at least "
+                       f"{100 * DIP_BLOCK_SHARE:g} % still; held-out rms {self.heldout_dip_plain:.3g}° → "
+                       f"{self.heldout_dip_extended:.3g}°")
+        else:
+            out.append("  dip residual: not searched (no accelerometer, or too few still blocks)")
         if self.findings:
             out.append("  named:")
             out += [f"    {f.describe(self.units)}" for f in self.findings]
@@ -138,6 +184,101 @@ class MagDiagnosis:
         return out
 
 
+@dataclass(frozen=True)
+class DipChannel:
+    """The dip residual's noise (module docstring, 2: the dip channel).
+
+    Attributes
+    ----------
+    n_still : int
+        Samples where the accelerometer shows the sensor near rest.
+    sigma_sample : float
+        White noise of a still sample's dip, degrees (first differences of consecutive still samples, robust).
+    sigma_block : float
+        Noise of a block's mean dip, degrees (the usable blocks' robust scatter).
+    blocks_used, blocks : int
+        Blocks with at least :data:`DIP_BLOCK_SHARE` of their samples still, of all blocks.
+    dip_deg, dip_se_deg : float
+        The plain calibration's dip and its standard error by batch means of the still samples' dips
+        (:func:`batch_means_se`).
+    """
+
+    n_still: int
+    sigma_sample: float
+    sigma_block: float
+    blocks_used: int
+    blocks: int
+    dip_deg: float
+    dip_se_deg: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"still_samples": self.n_still, "sigma_sample_deg": self.sigma_sample,
+                "sigma_block_deg": self.sigma_block, "blocks_used": self.blocks_used, "blocks": self.blocks,
+                "dip_deg": self.dip_deg, "dip_se_deg": self.dip_se_deg}
+
+
+def _dip_fit(a: NDArray[np.float64], rows: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],
+             o: NDArray[np.float64], R0: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], float]:
+    """``R`` and ``sin δ`` on the still samples ``rows`` (at most :data:`MAX_DIP_SAMPLES`, evenly spaced) of the
+    field calibrated by ``T``, ``o`` (:func:`optcal.families.mag.dip.fit_dip`)."""
+    index = np.flatnonzero(rows)
+    index = index[:: max(1, index.size // MAX_DIP_SAMPLES)]
+    R, sin_dip, _ = fit_dip(a[index], unit_rows((m[index] - o) @ T.T), R0=R0)
+    return R, sin_dip
+
+
+def _dip_residuals(a: NDArray[np.float64], still: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],
+                   o: NDArray[np.float64], R: NDArray[np.float64], sin_dip: float) -> NDArray[np.float64]:
+    """``δ_k − δ`` in degrees at the still samples, NaN elsewhere (module docstring, 2)."""
+    d = per_sample_dip(a, unit_rows((m - o) @ T.T) @ R.T) - math.degrees(math.asin(sin_dip))
+    return np.where(still, d, np.nan)
+
+
+def _masked_blocks(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Blocks' means of the finite values of ``d``; NaN where fewer than :data:`DIP_BLOCK_SHARE` of a block's are."""
+    k = d.size // BLOCK
+    ok = np.isfinite(d[: k * BLOCK]).reshape(k, BLOCK)
+    count = ok.sum(axis=1)
+    sums = np.where(ok, d[: k * BLOCK].reshape(k, BLOCK), 0.0).sum(axis=1)
+    return np.where(count >= DIP_BLOCK_SHARE * BLOCK, sums / np.maximum(count, 1), np.nan)
+
+
+def _dip_noise(d: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float, int]:
+    """The still samples' white σ (first differences of the dip residuals ``d``, robust), a usable block mean's σ (the
+    robust scatter of the block means ``b``, :func:`dip_block_means`) and the usable blocks (as :func:`_noise`)."""
+    values = d[np.isfinite(d)]
+    diff = np.diff(values)
+    white = float(1.4826 * np.median(np.abs(diff - np.median(diff))) / math.sqrt(2.0)) if diff.size else 0.0
+    b = b[np.isfinite(b)]
+    block = float(1.4826 * np.median(np.abs(b - np.median(b)))) if b.size else white
+    return white, max(block, white / math.sqrt(BLOCK)), int(b.size)
+
+
+def batch_means_se(v: NDArray[np.float64]) -> float:
+    """The standard error of the mean of the correlated sequence ``v`` (its finite values, in order) by batch means
+    (:func:`optcal.families.mag.fit.batch_means_stderr` of the mean: a slow drift of the dip over a session widens
+    it, however many samples measure it)."""
+    v = v[np.isfinite(v)]
+    if v.size < 2:
+        return float("inf")
+    return float(batch_means_stderr(np.ones((v.size, 1)), v - v.mean())[0])
+
+
+def _heldout_dip(a: NDArray[np.float64], still: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],
+                 o: NDArray[np.float64], keep: NDArray[np.bool_], halves: NDArray[np.bool_],
+                 test_keep: NDArray[np.bool_]) -> float:
+    """The rms dip residual (degrees) of each half's still samples in ``test_keep`` under ``R``, ``δ`` fitted on the
+    other half's still samples in ``keep`` (the field calibrated by ``T``, ``o``)."""
+    errors = []
+    for train in (halves, ~halves):
+        rows, test = still & keep & train, still & test_keep & ~train
+        if np.count_nonzero(rows) < MIN_STILL or not test.any():
+            continue
+        R, sin_dip = _dip_fit(a, rows, m, T, o)
+        errors.append(_dip_residuals(a, test, m, T, o, R, sin_dip)[test])
+    return float(np.sqrt(np.mean(np.concatenate(errors) ** 2))) if errors else float("nan")
+
+
 def _blocks(r: NDArray[np.float64]) -> NDArray[np.float64]:
     k = r.size // BLOCK
     return np.asarray(r[: k * BLOCK].reshape(k, BLOCK).mean(axis=1))
@@ -149,12 +290,31 @@ def _blocks(r: NDArray[np.float64]) -> NDArray[np.float64]:
 ORIENTATION_DEGREE: int = 4
 
 
-def _direction_basis(u: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Monomials ``x^a y^b z^c`` (``a + b + c ≤`` :data:`ORIENTATION_DEGREE`) of unit vectors ``u`` (n, 3)."""
+#: Degree of the polynomial in the gravity direction that carries the dip's misfit with orientation: a raw
+#: accelerometer's linear errors (``â ↦ K â + b``: scale, misalignment, bias) tilt the measured vertical by terms of
+#: degree up to 2 in ``â``; a higher degree would absorb a disturbance's bend over the few blocks that are still.
+DIP_ORIENTATION_DEGREE: int = 2
+
+
+def _direction_basis(u: NDArray[np.float64], degree: int = ORIENTATION_DEGREE) -> NDArray[np.float64]:
+    """Monomials ``x^a y^b z^c`` (``a + b + c ≤ degree``) of unit vectors ``u`` (n, 3)."""
     cols = [u[:, 0] ** a * u[:, 1] ** b * u[:, 2] ** c
-            for a in range(ORIENTATION_DEGREE + 1) for b in range(ORIENTATION_DEGREE + 1 - a)
-            for c in range(ORIENTATION_DEGREE + 1 - a - b)]
+            for a in range(degree + 1) for b in range(degree + 1 - a) for c in range(degree + 1 - a - b)]
     return np.column_stack(cols)
+
+
+def _biweight_fit(X: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Coefficients of ``y ≈ X c`` by Tukey's biweight (4.685 robust σ, six reweightings)."""
+    w = np.ones(y.size)
+    coef: NDArray[np.float64] = np.zeros(X.shape[1])
+    for _ in range(6):
+        sw = np.sqrt(w)
+        coef = np.asarray(np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)[0], dtype=np.float64)
+        e = y - X @ coef
+        scale = max(1.4826 * float(np.median(np.abs(e))), 1e-300)
+        z = e / (4.685 * scale)
+        w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
+    return np.asarray(coef)
 
 
 def orientation_misfit(r: NDArray[np.float64], u: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -164,17 +324,26 @@ def orientation_misfit(r: NDArray[np.float64], u: NDArray[np.float64]) -> NDArra
     X = _direction_basis(u)
     k = r.size // BLOCK
     Xb = X[: k * BLOCK].reshape(k, BLOCK, -1).mean(axis=1)
-    rb = _blocks(r)
-    w = np.ones(k)
-    coef = np.zeros(X.shape[1])
-    for _ in range(6):
-        sw = np.sqrt(w)
-        coef = np.linalg.lstsq(Xb * sw[:, None], rb * sw, rcond=None)[0]
-        e = rb - Xb @ coef
-        scale = max(1.4826 * float(np.median(np.abs(e))), 1e-300)
-        z = e / (4.685 * scale)
-        w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
-    return np.asarray(X @ coef)
+    return np.asarray(X @ _biweight_fit(Xb, _blocks(r)))
+
+
+def dip_block_means(d: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The blocks' mean dip residuals (:func:`_masked_blocks` of ``d``, NaN where not usable) less their misfit with
+    the gravity direction ``a`` (unit rows): the raw accelerometer's own scale, bias and misalignment tilt the
+    measured vertical by an amount that depends on its direction, a polynomial in ``a`` (as
+    :func:`orientation_misfit`, biweight on the usable blocks); a disturbance over a minority is not absorbed."""
+    b = _masked_blocks(d)
+    ok = np.isfinite(b)
+    still = np.isfinite(d)
+    X = np.where(still[:, None], _direction_basis(np.where(still[:, None], a, 0.0), DIP_ORIENTATION_DEGREE), 0.0)
+    if np.count_nonzero(ok) <= 2 * X.shape[1]:
+        return b  # under two usable blocks per term of the polynomial: the misfit is not determined
+    k = b.size
+    counts = np.maximum(still[: k * BLOCK].reshape(k, BLOCK).sum(axis=1), 1)
+    Xb = X[: k * BLOCK].reshape(k, BLOCK, -1).sum(axis=1) / counts[:, None]
+    out = np.full(k, np.nan)
+    out[ok] = b[ok] - Xb[ok] @ _biweight_fit(Xb[ok], b[ok])
+    return out
 
 
 def _noise(r: NDArray[np.float64]) -> tuple[float, float, float]:
@@ -195,28 +364,47 @@ def _fit(samples: MagSamples, keep: NDArray[np.bool_], form: str, settings: MagS
 
 
 def _stretch(b: NDArray[np.float64], sigma_b: float) -> tuple[int, int, float]:
-    """The blocks ``[a, z)`` whose mean differs most from the rest's (epidemic change point), and its χ²₁ statistic."""
+    """The blocks ``[a, z)`` whose mean differs most from the rest's (epidemic change point) and its χ²₁ statistic
+    ``n_in n_out / N · (b̄_in − b̄_out)² / σ²_block``; blocks whose mean ``b`` is NaN (the dip channel's blocks with
+    too few still samples) count on neither side."""
     B = b.size
-    c = np.r_[0.0, np.cumsum(b)]
+    usable = np.isfinite(b)
+    cv = np.r_[0, np.cumsum(usable)]
+    c = np.r_[0.0, np.cumsum(np.where(usable, b, 0.0))]
+    V = int(cv[-1])
     best = (0, 0, 0.0)
     total = c[-1]
     for a in range(B):
         z = np.arange(a + MIN_STRETCH_BLOCKS, B + 1)
-        if not z.size:
+        if not z.size or not V:
             break
-        n_in = z - a
-        n_out = B - n_in
-        ok = n_out >= MIN_STRETCH_BLOCKS
+        ok = (B - (z - a)) >= MIN_STRETCH_BLOCKS  # the stretch leaves blocks outside it
+        n_in = cv[z] - cv[a]
+        n_out = V - n_in
+        ok &= (n_in >= MIN_STRETCH_BLOCKS) & (n_out >= MIN_STRETCH_BLOCKS)
         if not ok.any():
             continue
         s_in = c[z] - c[a]
-        mean_in = s_in / n_in
+        mean_in = s_in / np.maximum(n_in, 1)
         mean_out = (total - s_in) / np.maximum(n_out, 1)
-        stat = np.where(ok, n_in * n_out / B * (mean_in - mean_out) ** 2 / sigma_b**2, 0.0)
+        stat = np.where(ok, n_in * n_out / V * (mean_in - mean_out) ** 2 / sigma_b**2, 0.0)
         k = int(np.argmax(stat))
         if stat[k] > best[2]:
             best = (a, int(z[k]), float(stat[k]))
     return best
+
+
+def _stretch_statistic(b: NDArray[np.float64], sigma_b: float, a: int, z: int) -> tuple[float, float]:
+    """:func:`_stretch`'s statistic of the blocks ``[a, z)`` and the difference of the means in and out (NaN: the
+    stretch or the rest has no usable block)."""
+    usable = np.isfinite(b)
+    inside = np.zeros(b.size, dtype=bool)
+    inside[a:z] = True
+    n_in, n_out = int(np.count_nonzero(usable & inside)), int(np.count_nonzero(usable & ~inside))
+    if not n_in or not n_out:
+        return 0.0, float("nan")
+    diff = float(np.mean(b[usable & inside]) - np.mean(b[usable & ~inside]))
+    return n_in * n_out / (n_in + n_out) * diff**2 / sigma_b**2, diff
 
 
 def _offset_in(m: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -390,24 +578,68 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     current_T, current_o = current.T, current.o
     se_o = np.array([fit.stderr.get(f"o_{a}", np.nan) for a in AXES])
     t_axis = samples.t if samples.t is not None and samples.t.size == samples.n else None
+    # ------------------------------------------------------------------ the dip channel (with an accelerometer)
+    dip_channel: DipChannel | None = None
+    a_unit = still = None
+    R_cur, sin_cur = np.eye(3), 0.0
+    if samples.acc is not None and samples.acc.shape == m.shape:
+        acc = samples.acc
+        finite = np.all(np.isfinite(acc), axis=1) & (np.linalg.norm(np.nan_to_num(acc), axis=1) > 0)
+        still = still_mask(acc) & finite
+        a_unit = np.where(finite[:, None], unit_rows(np.where(finite[:, None], acc, 1.0)), np.nan)
+        if np.count_nonzero(still) >= MIN_STILL:
+            R_cur, sin_cur = _dip_fit(a_unit, still & keep, m_used, current_T, current_o)
+            d0 = _dip_residuals(a_unit, still, m_used, current_T, current_o, R_cur, sin_cur)
+            d_white, d_block, d_used = _dip_noise(d0, dip_block_means(d0, a_unit))
+            if d_used >= MIN_DIP_BLOCKS:
+                dip_channel = DipChannel(int(np.count_nonzero(still)), d_white, d_block, d_used, B,
+                                         math.degrees(math.asin(sin_cur)), batch_means_se(d0))
+            else:
+                notes.append(f"dip channel: {d_used} blocks with at least {100 * DIP_BLOCK_SHARE:g} % of their samples "
+                             f"still (fewer than {MIN_DIP_BLOCKS}): only the field strength searched")
+        else:
+            notes.append(f"dip channel: {int(np.count_nonzero(still))} still samples (fewer than {MIN_STILL}): only the "
+                         "field strength searched")
     # ------------------------------------------------------------------ local disturbances
     searched = np.ones(B, dtype=bool)
-    for _ in range(MAX_DISTURBANCES):
+    channels = {"strength"} | ({"dip"} if dip_channel is not None else set())
+    tried = 0
+    while tried < MAX_DISTURBANCES and channels:
         rr = norm_residuals(current_T, current_o, m_used)
         uu = ((m_used - current_o) @ current_T.T) / (rr + 1.0)[:, None]
         rb = _blocks(rr - orientation_misfit(rr, uu))
         live = np.flatnonzero(searched)
         if live.size < 2 * MIN_STRETCH_BLOCKS + 1:
             break
-        a, z, stat = _stretch(rb[live] - np.median(rb[live]), sigma_b)
+        rb = rb[live] - np.median(rb[live])
+        bd = None
+        if dip_channel is not None and a_unit is not None and still is not None:
+            bd = dip_block_means(_dip_residuals(a_unit, still, m_used, current_T, current_o, R_cur, sin_cur), a_unit)[live]
+            bd = bd - np.nanmedian(bd) if np.isfinite(bd).any() else bd
+        # each channel searched at its Bonferroni share of α (over the channels and the stretches); the larger
+        # statistic of those that pass is the stretch examined
         pairs = live.size * (live.size + 1) / 2.0
-        critical = quantiles.chi2_isf(alpha / pairs, 1)
-        if stat <= critical:
+        critical = quantiles.chi2_isf(alpha / (len(channels) * pairs), 1)
+        found = {"strength": _stretch(rb, sigma_b)}
+        if "dip" in channels and bd is not None and dip_channel is not None:
+            found["dip"] = _stretch(bd, dip_channel.sigma_block)
+        passing = {c: v for c, v in found.items() if c in channels and v[2] > critical}
+        if not passing:
             break
+        channel = max(passing, key=lambda c: passing[c][2])
+        a, z, stat = passing[channel]
+        stat_n = _stretch_statistic(rb, sigma_b, a, z)[0]
+        stat_d, dip_shift = (_stretch_statistic(bd, dip_channel.sigma_block, a, z) if bd is not None
+                             and dip_channel is not None else (0.0, float("nan")))
         if z - a > live.size // 2:  # a majority is the undisturbed field, not a local disturbance
-            notes.append(f"the norm residual departs over {z - a} of {live.size} blocks: a majority, not a local "
-                         "disturbance (the calibration itself, or a field that changed for good)")
-            break
+            what = "norm residual" if channel == "strength" else "dip"
+            notes.append(f"the {what} departs over {z - a} of {live.size} blocks: a majority, not a local disturbance "
+                         + ("(the calibration itself, or a field that changed for good)" if channel == "strength" else
+                            "(the dip's slow change over the session: an accelerometer's bias drifting with "
+                            "temperature tilts the measured vertical)") + f"; the {channel} channel searched no further")
+            channels.discard(channel)
+            continue
+        tried += 1
         lo, hi = int(live[a]) * BLOCK, int(live[z - 1] + 1) * BLOCK
         searched[int(live[a]):int(live[z - 1]) + 1] = False
         trial_keep = keep.copy()
@@ -416,29 +648,63 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
         moved = float(np.max(np.abs(refit.o - current_o) / np.where(se_o > 0, se_o, np.inf)))
         before_h = _heldout(base, keep, form, s, halves, trial_keep)
         after_h = _heldout(base, trial_keep, form, s, halves, trial_keep)
-        if not (moved > RELEVANT_SE and after_h < before_h):
-            notes.append(f"samples {lo}-{hi}: the norm residual departs (χ² {stat:.1f} > {critical:.1f}) but leaving "
+        strength_relevant = moved > RELEVANT_SE and after_h < before_h
+        dip_info: dict[str, float] = {}
+        dip_relevant = False
+        R_new, sin_new = R_cur, sin_cur
+        if bd is not None and dip_channel is not None and a_unit is not None and still is not None:
+            R_new, sin_new = _dip_fit(a_unit, still & trial_keep, m_used, refit.T, refit.o, R_cur)
+            # the standard error of the dip fitted without the stretch (batch means of what is left: the stretch's
+            # own departure would otherwise widen the scatter it is measured against)
+            se_dip = batch_means_se(_dip_residuals(a_unit, still & trial_keep, m_used, refit.T, refit.o, R_new, sin_new))
+            moved_dip = abs(math.degrees(math.asin(sin_new)) - math.degrees(math.asin(sin_cur))) / se_dip
+            before_d = _heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, trial_keep)
+            after_d = _heldout_dip(a_unit, still, m_used, refit.T, refit.o, trial_keep, halves, trial_keep)
+            dip_relevant = moved_dip > RELEVANT_SE and after_d < before_d
+            # the bend: the stretch's mean dip residual under the dip fitted without it (the search's block means
+            # are under the fit with it, which the bend pulls)
+            inside = _dip_residuals(a_unit, still, m_used, refit.T, refit.o, R_new, sin_new)[lo:hi]
+            if np.isfinite(inside).any():
+                dip_shift = float(np.nanmean(inside))
+            dip_info = {"statistic_dip": stat_d, "statistic_strength": stat_n, "moved_dip_se": moved_dip,
+                        "heldout_dip_ratio": before_d / after_d if after_d > 0 else 1.0, "dip_shift_deg": dip_shift}
+        if not (strength_relevant or dip_relevant):
+            dip_text = (f", the dip by {dip_info['moved_dip_se']:.2f} SE and its held-out residual "
+                        f"×{1.0 / dip_info['heldout_dip_ratio']:.3f}" if dip_info else "")
+            notes.append(f"samples {lo}-{hi}: the field departs (χ² {stat:.1f} > {critical:.1f}) but leaving "
                          f"them out moves the offsets by {moved:.2f} standard errors and the held-out residual "
-                         f"{before_h:.4g} → {after_h:.4g}: not named")
+                         f"{before_h:.4g} → {after_h:.4g}{dip_text}: not named")
             continue
         delta, delta_se = _offset_in(m_used[lo:hi], current_T, current_o)
         axes = [AXES[j] for j in range(3) if abs(delta[j]) > 2.0 * delta_se[j]]
-        stretch = {"start_sample": lo, "stop_sample": hi,
-                   "start_s": float(t_axis[lo]) if t_axis is not None else None,
-                   "stop_s": float(t_axis[hi - 1]) if t_axis is not None else None}
+        stretch: dict[str, Any] = {"start_sample": lo, "stop_sample": hi,
+                                   "start_s": float(t_axis[lo]) if t_axis is not None else None,
+                                   "stop_s": float(t_axis[hi - 1]) if t_axis is not None else None}
+        if dip_info:
+            # which channels depart (each at its share of α): a field that bends without changing its strength is
+            # "dip", one that changes its strength alone "strength"
+            both = stat_d > critical and stat_n > critical
+            stretch.update(channel="both" if both else channel, dip_shift_deg=dip_info["dip_shift_deg"])
         findings.append(MagFinding("local_disturbance", axes or list(AXES), {a: float(v) for a, v in zip(AXES, delta)},
                                    {"statistic": stat, "critical": critical, "moved_se": moved,
-                                    "heldout_ratio": before_h / after_h}, stretch))
+                                    "heldout_ratio": before_h / after_h, **dip_info}, stretch))
         keep = trial_keep
         current_T, current_o = refit.T, refit.o
+        R_cur, sin_cur = R_new, sin_new
     # ------------------------------------------------------------------ the gain on held-out samples
     heldout_plain = _heldout(samples, np.ones(samples.n, dtype=bool), form, s, halves, keep)
     heldout_ext = _heldout(samples, keep, form, s, halves, keep, shifted if terms else None)
+    dip_plain = dip_ext = None
+    if dip_channel is not None and a_unit is not None and still is not None:
+        dip_plain = _heldout_dip(a_unit, still, m, T, o, np.ones(samples.n, dtype=bool), halves, keep)
+        dip_ext = _heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, keep)
     extended = {"T": current_T.tolist(), "o": list(map(float, current_o)),
                 "field_strength": float(np.linalg.det(current_T) ** (-1.0 / 3.0)),
                 "rms_norm_residual": float(np.sqrt(np.mean(norm_residuals(current_T, current_o, m_used[keep]) ** 2))),
                 "terms": {e: {"k": k.tolist(), "reference": xm} for e, _, k, xm in terms}}
+    if dip_channel is not None:
+        extended.update(dip_deg=math.degrees(math.asin(sin_cur)), R_mag_to_acc=R_cur.tolist())
     plain = {"T": T.tolist(), "o": list(map(float, o)), "field_strength": float(np.linalg.det(T) ** (-1.0 / 3.0)),
              "rms_norm_residual": float(np.sqrt(np.mean(r**2)))}
     return MagDiagnosis(findings, samples.units.units, samples.n, b, band, white, colour, heldout_plain, heldout_ext,
-                        plain, extended, int(samples.n - keep.sum()), notes)
+                        plain, extended, int(samples.n - keep.sum()), notes, dip_channel, dip_plain, dip_ext)

@@ -7,8 +7,8 @@ Vasconcelos 2011, eq. 24).  The ellipsoid fit determines the magnetometer's ``T`
 a rotation, and the two sensors are mounted with a small misalignment: the rotation ``R`` of
 the magnetometer's calibrated frame into the accelerometer's is estimated jointly with δ
 from ``â_k · R m̂_k + sin δ = 0`` by Gauss–Newton (Papafotis 2019, eq. 20; Kok & Schön 2016,
-eq. 17 with the dip constraint), with standard errors from the Gauss–Newton Hessian
-inflated for correlated samples (:func:`optcal.families.mag.fit.correlation_inflation`).
+eq. 17 with the dip constraint), with standard errors by batch means of correlated samples
+(:func:`optcal.families.mag.fit.batch_means_stderr`).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.rotations import exponential_map
+from optcal.data.rest_tests import unit_rows
 
 #: A sample is still when ``|a|`` is within this share of the session's median ``|a|`` (its
 #: gravity): a linear acceleration of 2 % of g tilts the measured vertical by at most 1.1°, the
@@ -86,28 +87,28 @@ def per_sample_dip(acc_unit: NDArray, field_unit: NDArray) -> NDArray[np.float64
     return np.degrees(np.arcsin(np.clip(-np.sum(acc_unit * field_unit, axis=1), -1.0, 1.0)))
 
 
-def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50) -> DipResult | None:
-    """The dip and the frames' rotation (module docstring); ``None`` with fewer than :data:`MIN_STILL` still samples.
+def fit_dip(a: NDArray[np.float64], m: NDArray[np.float64], max_iter: int = 50,
+            R0: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
+    """``R`` and ``sin δ`` of ``â_k · R m̂_k + sin δ = 0`` by Gauss–Newton (module docstring), with the residuals.
 
     Parameters
     ----------
-    acc : ndarray, shape (n, 3)
-        Accelerometer samples (any units: only the direction is used).
-    calibrated : ndarray, shape (n, 3)
-        The calibrated magnetometer samples ``T(m − o)``.
-    """
-    from optcal.families.mag.fit import correlation_inflation
+    a, m : ndarray, shape (n, 3)
+        Unit vectors: the still accelerometer's direction and the calibrated field's.
+    max_iter : int
+    R0 : ndarray, shape (3, 3), optional
+        The rotation to start from (the identity by default).
 
-    still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
-    if np.count_nonzero(still) < MIN_STILL:
-        return None
-    index = np.flatnonzero(still)
-    index = index[:: max(1, len(index) // MAX_DIP_SAMPLES)]
-    a = acc[index] / np.linalg.norm(acc[index], axis=1, keepdims=True)
-    m = calibrated[index] / np.linalg.norm(calibrated[index], axis=1, keepdims=True)
-    unaligned = per_sample_dip(a, m)
-    R = np.eye(3)
-    s = float(np.sin(np.radians(np.mean(unaligned))))
+    Returns
+    -------
+    R : ndarray, shape (3, 3)
+    s : float
+        ``sin δ``.
+    residuals : ndarray, shape (n,)
+        ``â_k · R m̂_k + sin δ``.
+    """
+    R = np.eye(3) if R0 is None else np.array(R0, dtype=float)
+    s = float(np.sin(np.radians(np.mean(per_sample_dip(a, m @ R.T)))))
     for _ in range(max_iter):  # Gauss-Newton on r_k = â_k·R m̂_k + sin δ, R perturbed on the left: exp([φ]×) R
         v = m @ R.T
         r = np.sum(a * v, axis=1) + s
@@ -117,15 +118,39 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
         s = float(np.clip(s + step[3], -1.0, 1.0))
         if np.linalg.norm(step) < 1e-10:  # radians: far below any standard error of the angles
             break
+    return R, s, np.sum(a * (m @ R.T), axis=1) + s
+
+
+def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50) -> DipResult | None:
+    """The dip and the frames' rotation (module docstring); ``None`` with fewer than :data:`MIN_STILL` still samples.
+
+    Parameters
+    ----------
+    acc : ndarray, shape (n, 3)
+        Accelerometer samples (any units: only the direction is used).
+    calibrated : ndarray, shape (n, 3)
+        The calibrated magnetometer samples ``T(m − o)``.
+    max_iter : int
+        Most Gauss–Newton steps.
+    """
+    from optcal.families.mag.fit import batch_means_stderr
+
+    still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
+    if np.count_nonzero(still) < MIN_STILL:
+        return None
+    index = np.flatnonzero(still)
+    index = index[:: max(1, len(index) // MAX_DIP_SAMPLES)]
+    a = unit_rows(acc[index])
+    m = unit_rows(calibrated[index])
+    unaligned = per_sample_dip(a, m)
+    R, s, r = fit_dip(a, m, max_iter)
     v = m @ R.T
-    r = np.sum(a * v, axis=1) + s
     J = np.column_stack([np.cross(v, a), np.ones(len(a))])
-    dof = max(len(a) - 4, 1)
-    cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof * correlation_inflation(r) ** 2
+    se = batch_means_stderr(J, r)  # correlated samples: batch means (the rotation's three angles, then sin δ)
     aligned = per_sample_dip(a, v)
     dip = float(np.degrees(np.arcsin(s)))
-    dip_se = float(np.degrees(np.sqrt(max(cov[3, 3], 0.0)) / max(np.sqrt(1 - s * s), 1e-12)))
+    dip_se = float(np.degrees(se[3] / max(np.sqrt(1 - s * s), 1e-12)))
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
-    rot_se = float(np.degrees(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))))
+    rot_se = float(np.degrees(np.sqrt(float(np.sum(se[:3] ** 2)))))
     return DipResult(dip, dip_se, float(np.std(aligned)), float(np.std(unaligned)), R, angle, rot_se,
                      int(np.count_nonzero(still)), int(len(acc)))

@@ -37,8 +37,8 @@ from optcal.families.mag.samples import MagSamples
 
 #: The reduced forms, richest last, with their parameter counts.
 FORMS: dict[str, int] = {"offsets": 4, "diagonal": 6, "full": 9}
-#: A form is kept when the standard error of each of its parameters (inflated for correlated
-#: samples, :func:`effective_share`) is below this share of the field: an error of 1 % of the
+#: A form is kept when the standard error of each of its parameters (by batch means of correlated
+#: samples, :func:`batch_means_stderr`) is below this share of the field: an error of 1 % of the
 #: field in a calibrated component is about 0.6° of heading at the equator (1/cos(dip) more
 #: elsewhere), the accuracy a consumer compass is quoted at.
 RELEVANT_SHARE: float = 0.01
@@ -187,12 +187,65 @@ def correlation_inflation(residuals: NDArray) -> float:
     Samples of a turned sensor are not independent (filters, slow turns, a model error that
     changes smoothly with orientation): the variance of a mean of AR(1) samples is that of
     independent ones times ``(1 + ρ)/(1 − ρ)``, so the standard errors are inflated by its root.
+    Kept for the fits the user constrains (``--fix``/``--bound``); the forms' own standard errors
+    are by batch means (:func:`batch_means_stderr`).
     """
     r = residuals - residuals.mean()
     den = float(r @ r)
     rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
     rho = min(max(rho, 0.0), 0.999)  # 0.999: at most a 45-fold inflation (an effective sample every 2000)
     return float(np.sqrt((1 + rho) / (1 - rho)))
+
+
+#: The shortest batch of :func:`batch_means_stderr`, samples (a magnetometer's filter and a hand's
+#: slow turn correlate at least this many samples of a 10-100 Hz sensor).
+BATCH_START: int = 25
+#: Fewest batches of :func:`batch_means_stderr`: a variance from k batch scores is itself
+#: uncertain by about √(2/(k − 1)), a standard error by half that, 24 % at 10.
+MIN_BATCHES: int = 10
+
+
+def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Standard errors of least-squares parameters with Jacobian ``J`` (n, p) and residuals ``r`` (n,)
+    in sample order, by batch means: the sandwich ``(JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹`` with the
+    score ``g_b = J_bᵀ r_b`` of each batch of consecutive samples (correlation within a batch
+    counted, none assumed between batches), for batch lengths :data:`BATCH_START` · 2^j with at
+    least :data:`MIN_BATCHES` batches, each parameter's largest (a standard error grows with the
+    batches' length until they are longer than the residuals' correlation: a filter, a slow turn
+    through a misfit, a drift; the largest is the conservative choice), and never below the white
+    one ``√(diag (JᵀJ)⁻¹ · rᵀr/(n − p))``.
+    """
+    n, k = J.shape
+    H = np.linalg.pinv(J.T @ J)
+    se2 = np.diag(H) * float(r @ r) / max(n - k, 1)
+    b = n // BATCH_START
+    g = np.einsum("bli,bl->bi", J[: b * BATCH_START].reshape(b, BATCH_START, k), r[: b * BATCH_START].reshape(b, BATCH_START))
+    while g.shape[0] >= MIN_BATCHES:
+        se2 = np.maximum(se2, np.einsum("ij,jk,ki->i", H, g.T @ g, H))
+        half = g.shape[0] // 2
+        g = g[0 : 2 * half : 2] + g[1 : 2 * half : 2]  # the scores of batches twice as long (n // 2L of them)
+    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)))
+
+
+#: The six entries of a symmetric ``T`` (upper triangle) and their names.
+SYMMETRIC_ENTRIES: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+SYMMETRIC_NAMES: tuple[str, ...] = ("T_xx", "T_xy", "T_xz", "T_yy", "T_yz", "T_zz")
+
+
+def norm_residual_jacobian(m: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.float64]
+                           ) -> NDArray[np.float64]:
+    """Jacobian of ``|T(m − o)| − 1`` with respect to the symmetric ``T``'s six entries
+    (:data:`SYMMETRIC_ENTRIES`) and ``o`` (Lu 2017, eq. 13 differentiated)."""
+    d = m - o
+    v = np.einsum("kj,ij->ki", d, T)  # T d per row (numpy's matmul of (n, 3) by (3, 3) is several times slower)
+    e = v / np.sqrt(np.einsum("ki,ki->k", v, v))[:, None]
+    J = np.empty((m.shape[0], 9))
+    for c, (i, j) in enumerate(SYMMETRIC_ENTRIES):  # ∂|T d|/∂T_ij = e_i d_j + e_j d_i (i ≠ j), e_i d_i
+        np.multiply(e[:, i], d[:, j], out=J[:, c])
+        if i != j:
+            J[:, c] += e[:, j] * d[:, i]
+    J[:, 6:] = -np.einsum("kj,ji->ki", e, T)
+    return J
 
 
 def _sphere_fit(m: NDArray) -> tuple[NDArray, float, NDArray]:
@@ -225,10 +278,13 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
 
     m = samples.m
     if form == "offsets":
-        o, r, cov = _sphere_fit(m)
+        o, r, _ = _sphere_fit(m)
         T = np.eye(3) / r
         resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
-        se = np.sqrt(np.clip(np.diag(cov), 0, None)) * correlation_inflation(resid)
+        d = m - o
+        n = np.linalg.norm(d, axis=1)
+        # ‖m − o‖/r − 1 differentiated by o and r; its standard errors by batch means (correlated samples)
+        se = batch_means_stderr(np.column_stack([-d / (n * r)[:, None], -n / r**2]), resid)
         stderr = {"o_x": se[0], "o_y": se[1], "o_z": se[2], "r": se[3]}
         return FormFit(form, T, o, resid, {k: float(v) for k, v in stderr.items()}, float(np.max(se) / r),
                        "sphere", "numpy least squares + Gauss-Newton")
@@ -245,9 +301,21 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
     T = symmetric_T(result.T)
     o = np.asarray(result.o, dtype=float)
     resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
+    r = float(np.linalg.det(T) ** (-1.0 / 3.0))
+    if not settings.estimator.get("fix") and not settings.estimator.get("bounds"):
+        # the stored symmetric T's entries and o, their standard errors by batch means; the diagonal form's
+        # off-diagonal entries are fixed at 0 (not parameters)
+        J = norm_residual_jacobian(m, T, o)
+        keep = [0, 1, 2, 3, 4, 5, 6, 7, 8] if form == "full" else [0, 3, 5, 6, 7, 8]
+        names = [(list(SYMMETRIC_NAMES) + [f"o_{a}" for a in "xyz"])[j] for j in keep]
+        se = batch_means_stderr(J[:, keep], resid)
+        stderr = dict(zip(names, map(float, se)))
+        shares = [v / r if k.startswith("o_") else v * r for k, v in stderr.items()]  # T: 1/field per unit
+        if not np.all(np.isfinite(shares)):
+            shares.append(np.inf)
+        return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name)
     infl = correlation_inflation(resid)
     stderr = {k: float(v) * infl for k, v in result.stderr.items() if np.isfinite(v)}
-    r = float(np.linalg.det(T) ** (-1.0 / 3.0))
     shares = []
     for name, se in stderr.items():
         if name.startswith("o_"):

@@ -1,4 +1,4 @@
-"""Reading a magnetometer's samples from any file optcal reads: text, MAT/netCDF/HDF5, ULog.
+"""Reading a magnetometer's samples from any file optcal reads: text, MAT/netCDF/HDF5, ULog, ROS bags.
 
 A magnetometer needs no rests (the field is constant in the world frame), so its samples are
 read as they are: :func:`read_mag` returns a :class:`MagSamples` with the magnetometer's
@@ -13,6 +13,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -132,6 +133,12 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
     from optcal.data.text import read_numbers
 
     layout, parsed = read_numbers(Path(path))
+    if not layout.has_header and layout.comment_names is not None:
+        # the header written as a comment (rostopic echo -p's "%time,field.header.seq,...", "# mx my mz"): taken
+        # when it names the magnetometer's columns (or --columns names one of its words)
+        words = list(layout.comment_names)
+        if any(v in words for v in mapping.values()) or set(_match(words, MAG_ALIASES)[0]) == set(MAG):
+            layout = layout.with_comment_header()
     names = list(layout.names)
     col = dict(zip(names, parsed.columns))
     mag_cols, word = _mag_triple(names, mapping)
@@ -146,6 +153,11 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
         others["acc"] = np.column_stack([col[found[k]] for k in ("ax", "ay", "az")])
     m = np.column_stack([col[mag_cols[k]] for k in MAG])
     columns = {**mag_cols, **{k: v for k, v in found.items()}}
+    if word is None and all(normalise_name(mag_cols[k]).endswith("magnetic_field_" + k[1]) for k in MAG):
+        # a ROS export's columns (rostopic echo -p's field.magnetic_field.x, a ros2 bag export's magnetic_field.x):
+        # sensor_msgs/MagneticField is in tesla (REP 145)
+        return _build(path, m, "T", "sensor_msgs/MagneticField's field names (tesla, REP 145)", mag_units, columns,
+                      others, [])
     return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, [])
 
 
@@ -221,6 +233,87 @@ def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSample
                   [f"ULog topic {name}:{instance}"])
 
 
+#: The ROS message of a magnetometer (``magnetic_field`` in tesla, REP 145) and the IMU's.
+ROS_MAG_TYPE: str = "sensor_msgs/msg/MagneticField"
+ROS_IMU_TYPE: str = "sensor_msgs/msg/Imu"
+#: An IMU sample is joined to a magnetometer sample when their stamps are at most this share of the IMU's median
+#: period apart (the nearest of two samples is then that sample, not one across a gap in the IMU's stream: farther,
+#: the accelerometer's direction may belong to another orientation of a turning sensor).
+ROS_JOIN_SHARE: float = 0.5
+
+
+def _stamps(reader: Any, conns: list, fields: Any) -> NDArray[np.float64]:
+    """Rows ``(stamp, *fields(message))`` of ``conns``' messages (the header stamp; the bag's time when it is zero)."""
+    rows = []
+    for conn, logtime, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        rows.append((stamp if stamp > 0 else logtime * 1e-9, *fields(msg)))
+    return np.array(rows, dtype=float).reshape(len(rows), -1)
+
+
+def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
+    """``sensor_msgs/MagneticField`` messages of one topic (tesla) and, where the bag has one ``sensor_msgs/Imu``
+    topic, its accelerometer at the nearest stamps (:data:`ROS_JOIN_SHARE`; the samples without one counted)."""
+    from optcal.data.readers import _import_rosbags
+
+    AnyReader, Stores, get_typestore = _import_rosbags()
+    p = Path(path)
+    if kind == "ros2 bag" and p.is_file():
+        p = p.parent
+    try:
+        reader = AnyReader([p], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as exc:  # rosbags raises its own error classes per format
+        raise InputError(f"{path}: not a readable ROS bag, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    try:
+        mags = [c for c in reader.connections if c.msgtype == ROS_MAG_TYPE]
+        topics = sorted({c.topic for c in mags})
+        if not topics:
+            found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "none"
+            raise InputError(f"{path}: no sensor_msgs/MagneticField topic in the bag (topics: {found})")
+        if topic is None and len(topics) > 1:
+            raise InputError(f"{path}: several sensor_msgs/MagneticField topics ({', '.join(topics)}); choose one with --topic")
+        if topic is not None and topic not in topics:
+            raise InputError(f"{path}: no sensor_msgs/MagneticField topic {topic!r} (MagneticField topics: {', '.join(topics)})")
+        topic = topic or topics[0]
+        imus = [c for c in reader.connections if c.msgtype == ROS_IMU_TYPE]
+        try:
+            mag = _stamps(reader, [c for c in mags if c.topic == topic],
+                          lambda msg: (msg.magnetic_field.x, msg.magnetic_field.y, msg.magnetic_field.z))
+            imu_topics = sorted({c.topic for c in imus})
+            imu = (_stamps(reader, imus, lambda msg: (msg.linear_acceleration.x, msg.linear_acceleration.y,
+                                                      msg.linear_acceleration.z))
+                   if len(imu_topics) == 1 else None)
+        except Exception as exc:
+            raise InputError(f"{path}: the bag is truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    finally:
+        reader.close()
+    if not mag.size:
+        raise InputError(f"{path}: topic {topic!r} has no messages")
+    mag = mag[np.argsort(mag[:, 0], kind="stable")]
+    others: dict[str, NDArray] = {"t": mag[:, 0]}
+    notes = [f"ROS topic {topic} (sensor_msgs/MagneticField, tesla)"]
+    columns = {k: f"{topic}.magnetic_field.{a}" for k, a in zip(MAG, "xyz")}
+    if imu is not None and len(imu) >= 2:
+        imu = imu[np.argsort(imu[:, 0], kind="stable")]
+        j = np.clip(np.searchsorted(imu[:, 0], mag[:, 0]), 1, len(imu) - 1)
+        j = np.where(np.abs(imu[j - 1, 0] - mag[:, 0]) <= np.abs(imu[j, 0] - mag[:, 0]), j - 1, j)
+        gap = np.abs(imu[j, 0] - mag[:, 0])
+        near = gap <= ROS_JOIN_SHARE * float(np.median(np.diff(imu[:, 0])))
+        acc = np.where(near[:, None], imu[j, 1:4], np.nan)
+        others["acc"] = acc
+        imu_topic = imu_topics[0]
+        columns.update({k: f"{imu_topic}.linear_acceleration.{a}" for k, a in zip(("ax", "ay", "az"), "xyz")})
+        notes.append(f"accelerometer from {imu_topic} at the nearest stamps: {int(np.count_nonzero(~near))} of "
+                     f"{len(mag)} magnetometer samples without an IMU sample within {ROS_JOIN_SHARE:g} of its period "
+                     f"(largest gap {float(gap.max()):.3g} s), no accelerometer there")
+    elif len(imu_topics) > 1:
+        notes.append(f"several sensor_msgs/Imu topics ({', '.join(imu_topics)}): no accelerometer joined")
+    return _build(path, mag[:, 1:4], "T", "sensor_msgs/MagneticField (tesla, REP 145)", mag_units, columns, others,
+                  notes)
+
+
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
              mag_units: str | None = None) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
@@ -228,11 +321,11 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
     Parameters
     ----------
     path : str or Path
-        A delimited text file, MAT-file, netCDF-4/HDF5 file or PX4 ULog.
+        A delimited text file, MAT-file, netCDF-4/HDF5 file, PX4 ULog or ROS 1/2 bag (``sensor_msgs/MagneticField``).
     columns : str or dict, optional
         ``--columns mx=NAME,my=NAME,mz=NAME`` (names or 1-based positions; ``ax=...`` for the accelerometer).
     topic : str, optional
-        The magnetometer's variable of a container, or the ULog topic (``sensor_mag:1``).
+        The magnetometer's variable of a container, the ULog topic (``sensor_mag:1``) or the bag's MagneticField topic.
     mag_units : str, optional
         The units (``--mag-units``), instead of the file's word or the decision from the magnitude.
 
@@ -254,5 +347,7 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
         return _read_text(p, parse_columns_option(columns) if isinstance(columns, str) or columns else {}, mag_units)
     if kind == "ulog":
         return _read_ulog(p, topic, mag_units)
+    if kind in ("ros1 bag", "ros2 bag"):
+        return _read_rosbag(p, kind, topic, mag_units)
     raise InputError(f"{p}: the magnetometer is read from text, MAT/netCDF/HDF5 and ULog files, not a {kind} yet; "
                      f"export its mx, my, mz columns to CSV")
