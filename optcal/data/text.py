@@ -486,6 +486,7 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
         for j in range(width):
             block.fill_column(j, [arrow_numbers(chunk) for chunk in table.column(0).chunks])
             table = table.remove_column(0)  # the copied column's buffers are freed
+            options["memory_pool"].release_unused()  # and handed back at once, before the next column's pages
         block.n = block.block.shape[0]
         del table
         return block
