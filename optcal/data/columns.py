@@ -308,8 +308,10 @@ def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, st
 # ----------------------------------------------------------------------------- files without a header
 #: Loggers' layouts of a file without a header, by the number of fields besides a time column:
 #: an accelerometer, or an accelerometer and a gyroscope (imu_tk's ``t ax ay az``, mikoff's
-#: ``ax ay az gx gy gz``).  Which of two triples is the accelerometer is then decided from the data.
-HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6)
+#: ``ax ay az gx gy gz``), or those and a magnetometer (a 9-axis logger's ``t ax ay az gx gy gz mx my
+#: mz``, as imu_tk's ROS node writes ``imu_data.txt``: the last triple is not read, and the reason says
+#: so).  Which of the first two triples is the accelerometer is then decided from the data.
+HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6, 9)
 
 
 def _increasing(col: NDArray[np.float64]) -> bool:
@@ -328,8 +330,9 @@ def headerless_mapping(
 ) -> tuple[dict[str, str], str, ColumnRoles | None]:
     """Canonical columns of a file without a header, by the common layout of its width.
 
-    A time column is the first (or else the last) field when it increases and 3 or 6 fields
-    remain; the first three of the others are the accelerometer, the next three the gyroscope,
+    A time column is the first (or else the last) field when it increases and 3, 6 or 9 fields
+    remain; the first three of the others are the accelerometer, the next three the gyroscope
+    (a ninth-axis triple after them, a magnetometer's, is left unread and named in the reason),
     and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).
 
     Returns
@@ -363,9 +366,11 @@ def headerless_mapping(
     mapping = {c: str(j + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
     roles = None
-    if len(rest) == 6:
+    if len(rest) >= 6:
         roles = ColumnRoles((_field_names(rest[0:3]), _field_names(rest[3:6])), 0, what)
     where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
+    if len(rest) == 9:
+        where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
     return mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
