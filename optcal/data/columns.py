@@ -320,6 +320,16 @@ def _increasing(col: NDArray[np.float64]) -> bool:
     return v.size >= 2 and bool(np.all(np.diff(v) >= 0)) and bool(v[-1] > v[0])
 
 
+def _first_decrease(col: NDArray[np.float64]) -> str:
+    """`` (column 1 goes back at data row 6: 59022 after 59231)``, or ``""`` when its finite values never decrease."""
+    rows = np.flatnonzero(np.isfinite(col))
+    back = np.flatnonzero(np.diff(col[rows]) < 0)
+    if back.size == 0:
+        return ""
+    i, j = rows[back[0]], rows[back[0] + 1]
+    return f" (column 1 goes back at data row {j + 1}: {col[j]:.10g} after {col[i]:.10g}, {back.size} such step(s))"
+
+
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
     """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
     return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
@@ -357,9 +367,13 @@ def headerless_mapping(
     rest = [j for j in range(width) if j != time_at]
     example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
     if len(rest) not in HEADERLESS_TRIPLES:
+        why = "fit no common layout"
+        if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases
+            why = (f"would be a time column and {width - 1} axes, but neither the first column nor the last "
+                   f"increases{_first_decrease(columns[0])}")
         raise InputError(
-            f"{path}: the file has no header row ({described}), and {width} unnamed columns fit no "
-            f"common layout; name them by 1-based position, e.g. {example}"
+            f"{path}: the file has no header row ({described}), and {width} unnamed columns {why}; "
+            f"name them by 1-based position, e.g. {example}"
         )
     canon: dict[str, int] = {} if time_at is None else {"t": time_at}
     canon.update({c: j for j, c in zip(rest, ACC + GYRO)})

@@ -116,3 +116,15 @@ def test_a_nine_axis_log_without_a_header_is_read_and_its_magnetometer_said(turn
     assert "columns 8, 9, 10 not read" in loaded.decisions.layout
     code, out, _ = run(["segment", path], capsys)
     assert code == 0 and "columns 8, 9, 10 not read (--columns maps them)" in out
+
+
+# ------------------------------------------------------------------ a time column that goes back
+def test_a_headerless_log_whose_time_goes_back_says_so(tmp_path):
+    """An Arduino serial log (AhmedFouad23's ``+veX.csv``) repeats lines and restarts its ``millis()``: the refusal
+    said "4 unnamed columns fit no common layout"; it now says where the would-be time column goes back."""
+    rows = [f"{59000 + 52 * (i % 5)},1.01,-0.02,-0.05" for i in range(40)]
+    f = tmp_path / "+veX.csv"
+    f.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"would be a time column and 3 axes.*goes back at data row 6: 59000 after "
+                                         r"59208, 7 such step\(s\).*--columns t=1,ax=2,ay=3,az=4"):
+        load(f)
