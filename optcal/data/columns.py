@@ -191,6 +191,13 @@ def strip_unit(norm: str) -> tuple[str, str | None]:
     return norm, None
 
 
+#: Unit words that make a bare axis name (``x``, ``y``, ``z``: phyphox's ``X (m/s^2)``) an accelerometer's: an
+#: acceleration's units (counts say nothing of the quantity, so not them).
+AXIS_ACC_UNIT_WORDS: frozenset[str] = frozenset(
+    normalise_name(w) for w, u in UNIT_ALIASES["accelerometer"].items() if u != "counts") | {"m_s_2"}
+#: Unit words that make a bare axis name a gyroscope's (``X (rad/s)``): an angular rate's units.
+AXIS_GYRO_UNIT_WORDS: frozenset[str] = frozenset(w for w, u in GYRO_UNIT_WORDS.items() if u != "counts")
+
 class ResolvedColumns(NamedTuple):
     """What :func:`resolve_columns` found.
 
@@ -280,6 +287,13 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 column_map[found] = col
                 units[found] = unit
                 taken.add(col)
+    for triple, words in ((ACC, AXIS_ACC_UNIT_WORDS), (GYRO, AXIS_GYRO_UNIT_WORDS)):
+        if not any(c in column_map for c in triple):
+            by_unit = _axes_by_unit(names, set(column_map.values()), words)
+            if by_unit is not None:
+                for canon, (col, word) in zip(triple, by_unit):
+                    column_map[canon] = col
+                    units[canon] = word
     roles = None
     if not any(c in column_map for c in ACC):
         conditional = _conditional_triple(names, set(column_map.values()))
@@ -289,6 +303,20 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 units[canon] = strip_unit(normalise_name(col))[1]
             roles = ColumnRoles((conditional,), 0, " ".join(conditional), conditional=True)
     return ResolvedColumns(column_map, units, roles)
+
+
+def _axes_by_unit(names: list[str], taken: set[str], words: frozenset[str]) -> list[tuple[str, str]] | None:
+    """Columns named by a bare axis and a unit that says what they measure (phyphox's ``X (m/s^2)``): the x, y
+    and z columns, free, with one unit word among ``words`` (:data:`AXIS_ACC_UNIT_WORDS`,
+    :data:`AXIS_GYRO_UNIT_WORDS`), each with that word; else ``None``."""
+    found: list[tuple[str, str]] = []
+    for axis in "xyz":
+        hit = next(((c, w) for c in names if c not in taken
+                    for b, w in [strip_unit(normalise_name(c))] if b == axis and w in words), None)
+        if hit is None:
+            return None
+        found.append(hit)
+    return found if len({w for _, w in found}) == 1 else None
 
 
 def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, str] | None:

@@ -479,7 +479,9 @@ def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _Time
     """
     name = f"column {src.column_map.get('t', 't')!r}"
     if src.time_unit is not None:  # the reader converted it to seconds
-        why = f"{name} {src.time_reason.split(' (')[0].removeprefix(name + ' ')}"
+        # the reader's reason less its trailing "(its name says so)": the name itself may hold " (" (``Time (s)``)
+        said = src.time_reason.rsplit(" (", 1)[0] if src.time_reason.endswith(")") else src.time_reason
+        why = f"{name} {said.removeprefix(name + ' ')}"
         return _TimeReading(1.0, src.time_unit, True, why, te.mean_step)
     if time_unit is not None:
         factor = TIME_UNITS[time_unit]

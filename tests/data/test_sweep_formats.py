@@ -128,3 +128,29 @@ def test_a_headerless_log_whose_time_goes_back_says_so(tmp_path):
     with pytest.raises(InputError, match=r"would be a time column and 3 axes.*goes back at data row 6: 59000 after "
                                          r"59208, 7 such step\(s\).*--columns t=1,ax=2,ay=3,az=4"):
         load(f)
+
+
+# ------------------------------------------------------------------ phyphox's export: a bare axis and its unit
+def test_phyphox_columns_are_read_by_their_units(turned, tmp_path):
+    """phyphox writes ``"Time (s)","X (m/s^2)","Y (m/s^2)","Z (m/s^2)"`` (Slmaking/Reorientation-of-smartphone):
+    refused before ("no accelerometer column(s)"); a bare axis whose unit is an acceleration's is the
+    accelerometer, one whose unit is a rate's the gyroscope; and the time's reason keeps the name whole."""
+    f = turned.frame
+    path = tmp_path / "Accelerometer.csv"
+    rows = "\n".join(f"{t:.9E},{x * 9.80665:.9E},{y * 9.80665:.9E},{z * 9.80665:.9E},{p:.9E},{q:.9E},{r:.9E}"
+                     for t, x, y, z, p, q, r in f[["t", "ax", "ay", "az", "gx", "gy", "gz"]].to_numpy())
+    path.write_text('"Time (s)","X (m/s^2)","Y (m/s^2)","Z (m/s^2)","X (deg/s)","Y (deg/s)","Z (deg/s)"\n' + rows + "\n")
+    loaded = load_with_segmentation(path)
+    d = loaded.decisions
+    assert d.columns.value == ("t←Time (s), ax←X (m/s^2), ay←Y (m/s^2), az←Z (m/s^2), "
+                               "gx←X (deg/s), gy←Y (deg/s), gz←Z (deg/s)")
+    assert d.units.value == "m/s^2" and loaded.poses.n == len(turned.dwells)
+    assert "column 'Time (s)' in s" in d.time_base.reason
+
+
+def test_a_bare_axis_in_counts_is_not_taken(tmp_path):
+    """``X (counts)`` says nothing of the quantity: not read as an accelerometer (refused naming --columns)."""
+    path = tmp_path / "counts.csv"
+    path.write_text('"t (s)","X (counts)","Y (counts)","Z (counts)"\n' + "".join(f"{i / 100},1,2,16000\n" for i in range(50)))
+    with pytest.raises(InputError, match="no accelerometer column"):
+        load(path)
