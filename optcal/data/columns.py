@@ -191,6 +191,13 @@ def strip_unit(norm: str) -> tuple[str, str | None]:
     return norm, None
 
 
+#: Unit words that make a bare axis name (``x``, ``y``, ``z``: phyphox's ``X (m/s^2)``) an accelerometer's: an
+#: acceleration's units (counts say nothing of the quantity, so not them).
+AXIS_ACC_UNIT_WORDS: frozenset[str] = frozenset(
+    normalise_name(w) for w, u in UNIT_ALIASES["accelerometer"].items() if u != "counts") | {"m_s_2"}
+#: Unit words that make a bare axis name a gyroscope's (``X (rad/s)``): an angular rate's units.
+AXIS_GYRO_UNIT_WORDS: frozenset[str] = frozenset(w for w, u in GYRO_UNIT_WORDS.items() if u != "counts")
+
 class ResolvedColumns(NamedTuple):
     """What :func:`resolve_columns` found.
 
@@ -280,6 +287,13 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 column_map[found] = col
                 units[found] = unit
                 taken.add(col)
+    for triple, words in ((ACC, AXIS_ACC_UNIT_WORDS), (GYRO, AXIS_GYRO_UNIT_WORDS)):
+        if not any(c in column_map for c in triple):
+            by_unit = _axes_by_unit(names, set(column_map.values()), words)
+            if by_unit is not None:
+                for canon, (col, word) in zip(triple, by_unit):
+                    column_map[canon] = col
+                    units[canon] = word
     roles = None
     if not any(c in column_map for c in ACC):
         conditional = _conditional_triple(names, set(column_map.values()))
@@ -289,6 +303,20 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 units[canon] = strip_unit(normalise_name(col))[1]
             roles = ColumnRoles((conditional,), 0, " ".join(conditional), conditional=True)
     return ResolvedColumns(column_map, units, roles)
+
+
+def _axes_by_unit(names: list[str], taken: set[str], words: frozenset[str]) -> list[tuple[str, str]] | None:
+    """Columns named by a bare axis and a unit that says what they measure (phyphox's ``X (m/s^2)``): the x, y
+    and z columns, free, with one unit word among ``words`` (:data:`AXIS_ACC_UNIT_WORDS`,
+    :data:`AXIS_GYRO_UNIT_WORDS`), each with that word; else ``None``."""
+    found: list[tuple[str, str]] = []
+    for axis in "xyz":
+        hit = next(((c, w) for c in names if c not in taken
+                    for b, w in [strip_unit(normalise_name(c))] if b == axis and w in words), None)
+        if hit is None:
+            return None
+        found.append(hit)
+    return found if len({w for _, w in found}) == 1 else None
 
 
 def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, str] | None:
@@ -308,14 +336,26 @@ def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, st
 # ----------------------------------------------------------------------------- files without a header
 #: Loggers' layouts of a file without a header, by the number of fields besides a time column:
 #: an accelerometer, or an accelerometer and a gyroscope (imu_tk's ``t ax ay az``, mikoff's
-#: ``ax ay az gx gy gz``).  Which of two triples is the accelerometer is then decided from the data.
-HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6)
+#: ``ax ay az gx gy gz``), or those and a magnetometer (a 9-axis logger's ``t ax ay az gx gy gz mx my
+#: mz``, as imu_tk's ROS node writes ``imu_data.txt``: the last triple is not read, and the reason says
+#: so).  Which of the first two triples is the accelerometer is then decided from the data.
+HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6, 9)
 
 
 def _increasing(col: NDArray[np.float64]) -> bool:
     """A time column: its finite values never decrease, and the last exceeds the first."""
     v = col[np.isfinite(col)]
     return v.size >= 2 and bool(np.all(np.diff(v) >= 0)) and bool(v[-1] > v[0])
+
+
+def _first_decrease(col: NDArray[np.float64]) -> str:
+    """`` (column 1 goes back at data row 6: 59022 after 59231)``, or ``""`` when its finite values never decrease."""
+    rows = np.flatnonzero(np.isfinite(col))
+    back = np.flatnonzero(np.diff(col[rows]) < 0)
+    if back.size == 0:
+        return ""
+    i, j = rows[back[0]], rows[back[0] + 1]
+    return f" (column 1 goes back at data row {j + 1}: {col[j]:.10g} after {col[i]:.10g}, {back.size} such step(s))"
 
 
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
@@ -328,8 +368,9 @@ def headerless_mapping(
 ) -> tuple[dict[str, str], str, ColumnRoles | None]:
     """Canonical columns of a file without a header, by the common layout of its width.
 
-    A time column is the first (or else the last) field when it increases and 3 or 6 fields
-    remain; the first three of the others are the accelerometer, the next three the gyroscope,
+    A time column is the first (or else the last) field when it increases and 3, 6 or 9 fields
+    remain; the first three of the others are the accelerometer, the next three the gyroscope
+    (a ninth-axis triple after them, a magnetometer's, is left unread and named in the reason),
     and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).
 
     Returns
@@ -354,18 +395,24 @@ def headerless_mapping(
     rest = [j for j in range(width) if j != time_at]
     example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
     if len(rest) not in HEADERLESS_TRIPLES:
+        why = "fit no common layout"
+        if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases
+            why = (f"would be a time column and {width - 1} axes, but neither the first column nor the last "
+                   f"increases{_first_decrease(columns[0])}")
         raise InputError(
-            f"{path}: the file has no header row ({described}), and {width} unnamed columns fit no "
-            f"common layout; name them by 1-based position, e.g. {example}"
+            f"{path}: the file has no header row ({described}), and {width} unnamed columns {why}; "
+            f"name them by 1-based position, e.g. {example}"
         )
     canon: dict[str, int] = {} if time_at is None else {"t": time_at}
     canon.update({c: j for j, c in zip(rest, ACC + GYRO)})
     mapping = {c: str(j + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
     roles = None
-    if len(rest) == 6:
+    if len(rest) >= 6:
         roles = ColumnRoles((_field_names(rest[0:3]), _field_names(rest[3:6])), 0, what)
     where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
+    if len(rest) == 9:
+        where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
     return mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"

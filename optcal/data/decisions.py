@@ -47,12 +47,13 @@ from optcal.data.evidence import (
     ROLE_BLOCK_SAMPLES,
     ZERO_ROWS,
     Evidence,
+    RoleEvidence,
     TimeEvidence,
     gather_evidence,
     time_evidence,
 )
 from optcal.data.readers import Source
-from optcal.data.units import MAX_REST_NOISE_G, NominalConversion, units_and_nominal
+from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion, units_and_nominal
 from optcal.errors import InputError
 
 __all__ = [
@@ -407,12 +408,46 @@ def _decide_columns(src: Source, ev: Evidence) -> tuple[Decision, Evidence]:
             "reads them the other way"
         )
         return Decision(src.describe_columns(), reason, "--columns"), rest.readings[k]
+    k_norm = _accelerometer_by_norm(rest) if not picks and rest.triples and len(roles.triples) == 2 else None
+    if k_norm is not None:
+        k, norms = k_norm, [r.median_norm for r in rest.readings]
+        if k != roles.acc:
+            src.assign_accelerometer(k)
+        reason = (
+            f"no header; the sensor was not turned (neither triple's rests move on a sphere), so by the norms: "
+            f"{roles.positions(k)} read as the accelerometer (median |a| {norms[k]:.4g}: gravity's 1 g in g or m/s^2), "
+            f"{roles.positions(1 - k)} as the gyroscope (median norm {norms[1 - k]:.3g}, below {G_NORM_RANGE[0]:g}: "
+            f"less than 1 g in any unit, as a gyroscope's bias reads at rest){_time_words(src, time)}; "
+            f"--columns {roles.columns_option(1 - k, time)} reads them the other way"
+        )
+        return Decision(src.describe_columns(), reason, "--columns"), rest.readings[k]
     why = ("both triples read as an accelerometer turned between rests" if len(picks) == 2 else
            "neither triple's rest readings move on a sphere: the sensor was not turned through orientations"
            if rest.triples else said[0])
     reason = (f"{src.columns_reason}; the data do not tell which triple is the accelerometer ({why}), so the common "
               f"layout; --columns {roles.columns_option(1 - roles.acc, time)} reads them the other way")
     return Decision(src.describe_columns(), reason, "--columns"), ev
+
+
+def _accelerometer_by_norm(rest: RoleEvidence) -> int | None:
+    """The triple that reads gravity's 1 g while the other reads less than 1 g in any unit, or ``None``.
+
+    For a sensor that was not turned (the rests' sphere cannot tell the triples apart). A resting
+    accelerometer reads 1 g: a median norm in the g or m/s^2 range (:data:`~optcal.data.units.G_NORM_RANGE`,
+    :data:`~optcal.data.units.MS2_NORM_RANGE`; counts, also above them, are not told apart from a
+    gyroscope's counts). A triple whose median norm is below :data:`~optcal.data.units.G_NORM_RANGE`'s
+    lower end (0.5) is less than 1 g in every unit an accelerometer is written in, so it cannot be the
+    accelerometer at rest; a gyroscope at rest reads its bias there (in rad/s up to 0.35 even for an
+    MPU-6050's ±20 °/s zero-rate tolerance). Only when one triple reads 1 g and the other below 0.5 is
+    the answer taken; otherwise the common layout stands, as before.
+    """
+    norms = [r.median_norm for r in rest.readings]
+    if len(norms) != 2 or not all(np.isfinite(norms)):
+        return None
+    gravity = [G_NORM_RANGE[0] <= n <= G_NORM_RANGE[1] or MS2_NORM_RANGE[0] <= n <= MS2_NORM_RANGE[1] for n in norms]
+    below = [n < G_NORM_RANGE[0] for n in norms]
+    picks = [k for k in range(2) if gravity[k] and below[1 - k]]
+    return picks[0] if len(picks) == 1 else None
 
 
 def _time_words(src: Source, time: str | None) -> str:
@@ -444,7 +479,9 @@ def _time_reading(src: Source, te: TimeEvidence, time_unit: str | None) -> _Time
     """
     name = f"column {src.column_map.get('t', 't')!r}"
     if src.time_unit is not None:  # the reader converted it to seconds
-        why = f"{name} {src.time_reason.split(' (')[0].removeprefix(name + ' ')}"
+        # the reader's reason less its trailing "(its name says so)": the name itself may hold " (" (``Time (s)``)
+        said = src.time_reason.rsplit(" (", 1)[0] if src.time_reason.endswith(")") else src.time_reason
+        why = f"{name} {said.removeprefix(name + ' ')}"
         return _TimeReading(1.0, src.time_unit, True, why, te.mean_step)
     if time_unit is not None:
         factor = TIME_UNITS[time_unit]

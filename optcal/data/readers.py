@@ -282,8 +282,9 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     from optcal.data.text import read_numbers
 
     p = Path(path)
-    layout, parsed = read_numbers(p)
     mapping = dict(mapping or {})
+    # --columns by position (t=1,ax=2,...) reads the fields where a row of names does not match them
+    layout, parsed = read_numbers(p, by_position=any(v.isdigit() for v in mapping.values()))
     if not layout.has_header and layout.comment_names is not None and _names_columns(layout.comment_names, mapping):
         layout = layout.with_comment_header()
     names = layout.names
@@ -291,15 +292,20 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     if layout.header_in_comment and layout.header_line is not None:
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
+    mapping_given = bool(mapping)
     if not layout.has_header:
         if mapping:
             reason = "no header; columns by position from --columns"
+            if layout.ignored_header is not None:
+                reason = (f"line {layout.ignored_header + 1}'s names do not match the fields (read as a note); "
+                          "columns by position from --columns")
         else:
             mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe())
     src = source_from_columns(
         names, parsed.columns, str(p), "csv", mapping, layout.metadata,
         {names[j]: v for j, v in parsed.non_numeric.items()},
     )
+    unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
         src.columns_reason = reason
@@ -309,6 +315,9 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     elif src.roles is None:
         src.columns_reason = reason
     src.layout = layout.describe()
+    if unread and not mapping_given:
+        # a 9-axis logger's magnetometer (columns.HEADERLESS_TRIPLES): said, not silently dropped
+        src.layout += f"; columns {', '.join(unread)} not read (--columns maps them)"
     src.size_bytes = p.stat().st_size
     return src
 

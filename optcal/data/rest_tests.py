@@ -152,6 +152,10 @@ class RestModel:
             # on (WOBBLE_DWELLS dwells, as the stretches' own test): a real gyro's bias, not a move (not in the first
             # pass, whose rests measure the bias: a smooth move's slow ends are not rests of the bias)
             rate = np.linalg.norm(b.gmean - self.track, axis=1) * scale
+            # within a real gyro's reach of its bias (g-sensitivity's largest term at 1 g), only the turn across the
+            # specific force moves a pose: about it, a(t) stays as it is (a yaw creep, or G f along f)
+            across = np.linalg.norm(np.cross(b.gmean - self.track, unit_rows(b.mean - self.acc_zero)), axis=1) * scale
+            rate = np.where(rate <= bm.MAX_G_SENSITIVITY_RAD_S_PER_G, across, rate)
             self.still |= ~rm.turn_is_relevant(rate, WOBBLE_DWELLS * self.s.min_dwell_s, self.s.gyro_threshold)
 
     def _scale_from_moves(self) -> ScaleEvidence | None:
@@ -583,6 +587,11 @@ class RestModel:
         # over a wobble window at most: a bias that wanders by a little, integrated over minutes, is no turn
         duration = np.minimum(b.t_mid[r.stop - 1] - b.t_mid[r.start] + b.n[r.start] / self.rate,
                               WOBBLE_DWELLS * self.s.min_dwell_s)
+        # within a real gyro's reach of its bias (g-sensitivity's largest term at 1 g), only the turn across the
+        # specific force moves the pose: about it, a(t) stays as it is (a yaw creep, or G f along f)
+        acc = r.sums(b.mean[r.rows] * w) / n[:, None]
+        across = np.linalg.norm(np.cross(off, unit_rows(acc - self.acc_zero)), axis=1) * self.gyro_scale
+        rate = np.where(rate <= bm.MAX_G_SENSITIVITY_RAD_S_PER_G, across, rate)
         return np.asarray((significant | beyond_bias) & rm.turn_is_relevant(rate, duration, self.s.gyro_threshold))
 
     def noise(self) -> dict[str, float]:

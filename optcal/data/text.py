@@ -66,6 +66,9 @@ class TextLayout:
         columns' names if the reader takes them so (:meth:`with_comment_header`).
     comment_line : int or None
         0-based line of that comment.
+    ignored_header : int or None
+        0-based line of a row of names whose count differs from the data rows', read as a note
+        because the caller names the columns by position (:func:`sniff_layout`'s ``by_position``).
     """
 
     delimiter: str
@@ -76,6 +79,7 @@ class TextLayout:
     metadata: dict[str, str] = field(default_factory=dict)
     comment_names: list[str] | None = None
     comment_line: int | None = None
+    ignored_header: int | None = None
 
     @property
     def has_header(self) -> bool:
@@ -103,6 +107,8 @@ class TextLayout:
             head = f"header in the comment on line {self.header_line + 1}"
         else:
             head = f"header on line {self.header_line + 1}" if self.header_line is not None else "no header"
+        if self.ignored_header is not None:
+            head += f" (line {self.ignored_header + 1}'s names do not match the fields: read as a note)"
         return f"{what}, {head}, {len(self.names)} columns"
 
 
@@ -143,18 +149,26 @@ def read_head(path: Path) -> list[str]:
     return [ln.rstrip("\r\n") for ln in text.splitlines()]
 
 
-def sniff_layout(path: str | Path) -> TextLayout:
+def sniff_layout(path: str | Path, by_position: bool = False) -> TextLayout:
     """Find the delimiter, decimal mark, header row and metadata of a delimited text file.
 
     The data rows are the longest run of lines at the end of the sniffed head whose fields
     are all numbers (empty cells allowed) with one field count; the line just above them is
     the header when all its fields are names and it has as many fields.
 
+    Parameters
+    ----------
+    path : str or Path
+    by_position : bool
+        The caller names the columns by position (``--columns t=1,ax=2,...``): a line of names
+        whose count differs from the data rows' is then kept as a metadata line
+        (:attr:`TextLayout.ignored_header`) and the file read without a header, instead of refused.
+
     Raises
     ------
     InputError
-        Empty file, binary file, a header whose field count differs from the data rows', or
-        no delimiter giving at least one column.
+        Empty file, binary file, a header whose field count differs from the data rows' (unless
+        ``by_position``), or no delimiter giving at least one column.
     """
     p = Path(path)
     lines = read_head(p)
@@ -164,7 +178,7 @@ def sniff_layout(path: str | Path) -> TextLayout:
     best: tuple[int, int, TextLayout] | None = None
     mismatch: str | None = None
     for rank, delim in enumerate(DELIMITERS):
-        layout, why = _layout_for(p, lines, content, delim)
+        layout, why = _layout_for(p, lines, content, delim, by_position)
         if layout is None:
             if why and mismatch is None:
                 mismatch = why
@@ -186,7 +200,7 @@ def sniff_layout(path: str | Path) -> TextLayout:
 
 
 def _layout_for(
-    p: Path, lines: list[str], content: list[tuple[int, str]], delim: str
+    p: Path, lines: list[str], content: list[tuple[int, str]], delim: str, by_position: bool = False
 ) -> tuple[TextLayout | None, str | None]:
     fields = [_split(s, delim) for _, s in content]
     decimal_comma = delim != "," and any(_COMMA_NUMBER.match(f) for row in fields for f in row)
@@ -209,6 +223,7 @@ def _layout_for(
         return None, None
     first_data = content[k][0]
     header_line = None
+    ignored_header = None
     names = [str(j + 1) for j in range(width)]
     if k > 0:
         above = fields[k - 1]
@@ -216,17 +231,25 @@ def _layout_for(
             if len(above) == width:
                 header_line = content[k - 1][0]
                 names = [f.strip().strip('"').strip("'") for f in above]
+            elif len(above) >= 3 and by_position:
+                # a header that lost a delimiter (``time (s)x (g),y (g),z (g)`` over 4 fields): the
+                # caller names the columns by position, so the line is only read as a note
+                ignored_header = content[k - 1][0]
             elif len(above) >= 3:
+                example = ",".join(f"{c}={j + 1}" for j, c in enumerate(("t", "ax", "ay", "az")[:width]))
                 return None, (
                     f"line {content[k - 1][0] + 1} looks like the header ({len(above)} columns: {', '.join(above)}) "
-                    f"but line {first_data + 1} has {width} fields; every data row needs one value per column"
+                    f"but line {first_data + 1} has {width} fields; every data row needs one value per column, "
+                    f"or name the fields by 1-based position with --columns (e.g. --columns {example}: the line "
+                    "is then read as a note)"
                 )
     meta_end = header_line if header_line is not None else first_data
     comment_names, comment_line = None, None
     if header_line is None:
         comment_names, comment_line = _comment_names(lines, first_data, delim, decimal_comma, width)
     return TextLayout(
-        delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end]), comment_names, comment_line
+        delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end]), comment_names, comment_line,
+        ignored_header,
     ), None
 
 
@@ -261,15 +284,17 @@ def _metadata(lines: list[str]) -> dict[str, str]:
     return out
 
 
-def read_numbers(path: str | Path) -> tuple[TextLayout, ParsedNumbers]:
+def read_numbers(path: str | Path, by_position: bool = False) -> tuple[TextLayout, ParsedNumbers]:
     """The layout of a delimited text file and its numbers (:func:`sniff_layout`, then :func:`parse_numbers`).
+
+    ``by_position``: the caller names the columns by position (see :func:`sniff_layout`).
 
     Raises
     ------
     InputError
         No layout found, or no data rows.
     """
-    layout = sniff_layout(path)
+    layout = sniff_layout(path, by_position)
     parsed = parse_numbers(path, layout)
     if parsed.n_rows == 0:
         raise InputError(f"{path}: no data rows after the header")
