@@ -178,7 +178,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
         if total:
             exclusions[DROPPED] = total
     with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
-        seg = detect_static(rec)
+        seg = detect_static(rec, pose_statistics=False)  # the still fraction only: no pose statistics
     still = seg.n_used / max(1, samples.shape[0])
     if still < MIN_STILL_FRACTION:
         raise InputError(

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
 from optcal.data.recording import Recording
-from optcal.data.static_poses import StaticInterval, reduce_interval
+from optcal.data.static_poses import StaticInterval, counted_interval, reduce_interval
 from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.rest_tests import RestModel
 from optcal.data.static_stretches import group_positions, join_twitches, touches, wobbles
@@ -173,6 +173,9 @@ class Segmentation:
     gyro_unit : str
         How the gyro's unit (its radians per second per unit) was decided: stated, or measured on the moves
         (:func:`optcal.data.static_stretches.decide_gyro_scale`); empty without a gyro.
+    pose_statistics : bool
+        False when the intervals were only counted (:func:`detect_static` with ``pose_statistics=False``: no
+        means, spreads or standard errors; :meth:`pose_table` refuses them)
     """
 
     recording: Recording
@@ -186,6 +189,7 @@ class Segmentation:
     joined: int = 0
     evidence: dict[str, float] = field(default_factory=dict)
     gyro_unit: str = ""
+    pose_statistics: bool = True
 
     def override_warnings(self) -> list[str]:
         """What each flag that loosened a test of the rest model assumes (printed as warnings)."""
@@ -233,6 +237,8 @@ class Segmentation:
         rec = self.recording
         if not self.intervals:
             raise InputError(no_static_message(self))
+        if not self.pose_statistics:
+            raise ValueError("this segmentation counted its rests only (detect_static(..., pose_statistics=False))")
         ivs = self.intervals
         acc = np.array([iv.mean for iv in ivs])
         gyro = np.array([iv.gyro_mean for iv in ivs]) if rec.gyro is not None else None
@@ -300,13 +306,16 @@ def no_static_message(seg: Segmentation) -> str:
 
 
 # ----------------------------------------------------------------------------- detection
-def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Segmentation:
+def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_statistics: bool = True) -> Segmentation:
     """Find the rests of a recording by the model of :mod:`optcal.data.rest_model`.
 
     Parameters
     ----------
     rec : Recording
     settings : StaticSettings, optional
+    pose_statistics : bool
+        False: the rests found and counted (the same rests), without each pose's mean, spread and standard error
+        (a still log's still fraction: the Allan command's check, a quarter of the time on a 12-hour log).
 
     Returns
     -------
@@ -416,8 +425,11 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     for group in groups:
         for a, z in group:
             in_pose[a:z] = True
-    intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro_rows, s.sigma_blocks)
-                 for i, group in enumerate(groups)]
+    if pose_statistics:
+        intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro_rows, s.sigma_blocks)
+                     for i, group in enumerate(groups)]
+    else:
+        intervals = [counted_interval(i + 1, rec, use, group_positions(group)) for i, group in enumerate(groups)]
     in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in pieces)
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
@@ -437,7 +449,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None) -> Seg
     norm = _distance(acc, nominal.offset)
     trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
-                        len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason)
+                        len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason, pose_statistics)
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

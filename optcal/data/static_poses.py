@@ -127,6 +127,22 @@ def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
     return mean, var
 
 
+def counted_interval(number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64]
+                     ) -> StaticInterval:
+    """The interval of samples ``pos`` (as :func:`reduce_interval`) counted only: its place and samples, its mean,
+    spread and standard error not computed (NaN)."""
+    if use is None:
+        first, last = (pos.start, pos.stop - 1) if isinstance(pos, slice) else (int(pos[0]), int(pos[-1]))
+        n = (pos.stop - pos.start) if isinstance(pos, slice) else int(np.size(pos))
+    else:
+        idx = use[pos]
+        first, last, n = int(idx[0]), int(idx[-1]), int(np.size(idx))
+    nan = np.full(3, np.nan)
+    return StaticInterval(number=number, start=first, stop=last + 1, first_row=int(rec.row[first]),
+                          last_row=int(rec.row[last]), t_start=float(rec.t[first]), t_end=float(rec.t[last]),
+                          n_samples=int(n), mean=nan, std=nan.copy(), sigma=float("nan"), gyro_mean=None, temp_mean=None)
+
+
 def reduce_interval(
     number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64],
     gyro: NDArray[np.float64] | None, sigma_blocks: int,

@@ -94,3 +94,18 @@ def test_grouped_medians_equal_one_call_per_group(seed):
     edges = np.r_[0, np.cumsum(sizes)]
     for i in range(sizes.size):
         assert np.array_equal(got[i], column_medians(x[edges[i]:edges[i + 1]]))
+
+
+def test_rests_counted_without_pose_statistics_are_the_same_rests(shared_data):
+    """The Allan command's still fraction: ``detect_static(..., pose_statistics=False)`` finds the same rests (places
+    and samples) as the full segmentation, and its segmentation refuses to make a pose table."""
+    from optcal.data import load_recording
+    from optcal.data.static import detect_static
+
+    rec = load_recording(str(shared_data / "imutk-xsens" / "xsens_imutk.csv"))
+    full, counted = detect_static(rec), detect_static(rec, pose_statistics=False)
+    assert [(iv.start, iv.stop, iv.n_samples) for iv in counted.intervals] == \
+        [(iv.start, iv.stop, iv.n_samples) for iv in full.intervals]
+    assert counted.n_used == full.n_used and len(full.intervals) == 38
+    with pytest.raises(ValueError, match="counted its rests only"):
+        counted.pose_table()
