@@ -43,6 +43,7 @@ from optcal.data.columns import (
     normalise_name,
     parse_columns_option,
     resolve_columns,
+    strip_unit,
 )
 from optcal.data.containers import container_type, read_container
 from optcal.data.quantiles import median
@@ -455,7 +456,7 @@ def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
         raise InputError(f"{src.path}: merging a gyro file needs a time column in both files")
     if src.has(*GYRO):
         raise InputError(f"{src.path}: already has gyro columns; give gyro_file only for accelerometer-only files")
-    g = read_text(gyro_file)
+    g = read_text(gyro_file, _gyro_only_mapping(gyro_file))
     tg = g.column("t")
     ok = np.isfinite(tg)
     if ok.sum() < 2 or np.any(np.diff(tg[ok]) < 0):
@@ -469,6 +470,27 @@ def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
         src.data[name] = v
     src.column_map.update({name: f"{Path(gyro_file).name}:{g.column_map[c]}" for name, c in zip(GYRO, cols)})
     src.notes.append(f"gyro from {gyro_file}, interpolated onto the accelerometer times")
+    if src.gyro_units is None and g.column_map.get("ax") is not None:  # a gyro read in the accelerometer's place
+        word = strip_unit(normalise_name(g.column_map["ax"]))[1]
+        src.gyro_units = GYRO_UNIT_WORDS.get(word) if word is not None else None
+
+
+def _gyro_only_mapping(gyro_file: str | Path) -> dict[str, str] | None:
+    """A gyro file whose names say gyroscope and nothing accelerometer (phyphox's ``Gyroscope.csv``: ``X (rad/s)``):
+    its gyro columns mapped into the accelerometer's place, where :func:`merge_gyro_file` reads a headerless
+    ``t x y z`` file's; ``None`` for any other file (read as it is)."""
+    from optcal.data.text import sniff_layout
+
+    layout = sniff_layout(gyro_file)
+    if not layout.has_header:
+        return None
+    found = resolve_columns(layout.names, {}).column_map
+    if any(c in found for c in ACC) or not all(c in found for c in GYRO):
+        return None
+    mapping = {a: found[c] for a, c in zip(ACC, GYRO)}
+    if "t" in found:
+        mapping["t"] = found["t"]
+    return mapping
 
 
 # ----------------------------------------------------------------------------- ROS bags

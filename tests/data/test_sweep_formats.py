@@ -154,3 +154,20 @@ def test_a_bare_axis_in_counts_is_not_taken(tmp_path):
     path.write_text('"t (s)","X (counts)","Y (counts)","Z (counts)"\n' + "".join(f"{i / 100},1,2,16000\n" for i in range(50)))
     with pytest.raises(InputError, match="no accelerometer column"):
         load(path)
+
+
+def test_phyphox_gyroscope_file_merges_with_its_unit(turned, tmp_path, capsys):
+    """phyphox exports the gyroscope apart (``Gyroscope.csv``: ``"Time (s)","X (rad/s)",...``); ``--gyro-file`` asked
+    it for an accelerometer ("no accelerometer column(s)"). Its gyro columns now merge, the unit stated by the names."""
+    f = turned.frame
+    acc = tmp_path / "Accelerometer.csv"
+    gyro = tmp_path / "Gyroscope.csv"
+    acc.write_text('"Time (s)","X (m/s^2)","Y (m/s^2)","Z (m/s^2)"\n' + "\n".join(
+        f"{t:.9E},{x * 9.80665:.9E},{y * 9.80665:.9E},{z * 9.80665:.9E}" for t, x, y, z in f[["t", "ax", "ay", "az"]].to_numpy()) + "\n")
+    gyro.write_text('"Time (s)","X (rad/s)","Y (rad/s)","Z (rad/s)"\n' + "\n".join(
+        f"{t:.9E},{np.radians(p):.9E},{np.radians(q):.9E},{np.radians(r):.9E}" for t, p, q, r in f[["t", "gx", "gy", "gz"]].to_numpy()) + "\n")
+    loaded = load_with_segmentation(acc, gyro_file=gyro)
+    assert "gx←Gyroscope.csv:X (rad/s)" in loaded.decisions.columns.value
+    assert loaded.poses.n == len(turned.dwells)
+    code, out, _ = run(["segment", acc, "--gyro-file", gyro], capsys)
+    assert code == 0 and "gyro: rad/s as stated" in out
