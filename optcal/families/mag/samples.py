@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, normalise_name, parse_columns_option
+from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, _increasing, normalise_name, parse_columns_option
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
 
@@ -115,6 +115,42 @@ def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, st
     return cols, (unit_words.pop() if len(unit_words) == 1 else None)
 
 
+def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float64]],
+                    mapping: dict[str, str]) -> tuple[dict[str, str], str]:
+    """The magnetometer's columns of a file with no header, by the common layout of its width.
+
+    Three columns are ``mx my mz`` (Magneto's and most loggers' ``x y z`` sample files); four are a time column
+    and the three when the first (or else the last) increases. Any other width is left to ``--columns``.
+
+    Returns
+    -------
+    mapping : dict
+        ``mapping`` with the magnetometer's (and the time's) 1-based positions added.
+    reason : str
+        The decision, with the flag that changes it.
+
+    Raises
+    ------
+    InputError
+        A width with no common layout, with the ``--columns`` that names the columns.
+    """
+    width = len(names)
+    time_at: int | None = None
+    if width == 4:
+        time_at = 0 if _increasing(columns[0]) else (3 if _increasing(columns[3]) else None)
+    rest = [j for j in range(width) if j != time_at]
+    if len(rest) != 3:
+        raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
+                         f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
+    canon = {k: str(j + 1) for k, j in zip(MAG, rest)}
+    if time_at is not None:
+        canon["t"] = str(time_at + 1)
+    what = " ".join(k for k, _ in sorted(canon.items(), key=lambda kv: int(kv[1])))
+    where = "" if time_at is None else f"; column {time_at + 1} increases"
+    return {**mapping, **canon}, (f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
+                                  f"{where}); name them by position to change it, e.g. --columns mx=1,my=2,mz=3")
+
+
 def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str | None, columns: dict[str, str],
            others: dict[str, NDArray], notes: list[str]) -> MagSamples:
     finite = np.all(np.isfinite(m), axis=1)
@@ -141,6 +177,10 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
             layout = layout.with_comment_header()
     names = list(layout.names)
     col = dict(zip(names, parsed.columns))
+    notes: list[str] = []
+    if not layout.has_header and layout.comment_names is None and not any(k in MAG for k in mapping):
+        mapping, reason = _headerless_mag(path, names, parsed.columns, mapping)
+        notes.append(reason)
     mag_cols, word = _mag_triple(names, mapping)
     taken = set(mag_cols.values())
     rest = [n for n in names if n not in taken]
@@ -157,8 +197,8 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
         # a ROS export's columns (rostopic echo -p's field.magnetic_field.x, a ros2 bag export's magnetic_field.x):
         # sensor_msgs/MagneticField is in tesla (REP 145)
         return _build(path, m, "T", "sensor_msgs/MagneticField's field names (tesla, REP 145)", mag_units, columns,
-                      others, [])
-    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, [])
+                      others, notes)
+    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, notes)
 
 
 def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
