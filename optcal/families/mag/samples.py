@@ -41,6 +41,8 @@ class MagSamples:
         The units and why.
     acc : ndarray, shape (n, 3), optional
         Accelerometer samples at the same rows (any units: only their direction is used).
+    gyro : ndarray, shape (n, 3), optional
+        Gyroscope samples at the same rows (raw units: only its rate's size is used, for the dip's near rest).
     t, temp, current, throttle : ndarray, shape (n,), optional
     path : str
     columns : dict of str to str
@@ -53,6 +55,7 @@ class MagSamples:
     m: NDArray[np.float64]
     units: UnitDecision
     acc: NDArray[np.float64] | None = None
+    gyro: NDArray[np.float64] | None = None
     t: NDArray[np.float64] | None = None
     temp: NDArray[np.float64] | None = None
     current: NDArray[np.float64] | None = None
@@ -160,7 +163,8 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
     acc = pick(others.get("acc"))
     if acc is not None and not np.any(np.all(np.isfinite(acc), axis=1)):
         acc = None
-    return MagSamples(m=np.ascontiguousarray(m[finite]), units=units, acc=acc, t=pick(others.get("t")),
+    gyro = pick(others.get("gyro"))
+    return MagSamples(m=np.ascontiguousarray(m[finite]), units=units, acc=acc, gyro=gyro, t=pick(others.get("t")),
                       temp=pick(others.get("temp")), current=pick(others.get("current")),
                       throttle=pick(others.get("throttle")), path=path, columns=columns, exclusions=exclusions, notes=notes)
 
@@ -184,13 +188,16 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
     mag_cols, word = _mag_triple(names, mapping)
     taken = set(mag_cols.values())
     rest = [n for n in names if n not in taken]
-    extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "t": ALIASES["t"],
+    extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "gx": ALIASES["gx"],
+                     "gy": ALIASES["gy"], "gz": ALIASES["gz"], "t": ALIASES["t"],
                      "temp": ALIASES["temp"], "current": CURRENT_ALIASES, "throttle": THROTTLE_ALIASES}
     found, _ = _match(rest, extra_aliases)
     found.update({k: v for k, v in mapping.items() if k in extra_aliases and v in names})
     others: dict[str, NDArray] = {k: col[v] for k, v in found.items() if k in ("t", "temp", "current", "throttle")}
     if all(k in found for k in ("ax", "ay", "az")):
         others["acc"] = np.column_stack([col[found[k]] for k in ("ax", "ay", "az")])
+    if all(k in found for k in ("gx", "gy", "gz")):
+        others["gyro"] = np.column_stack([col[found[k]] for k in ("gx", "gy", "gz")])
     m = np.column_stack([col[mag_cols[k]] for k in MAG])
     columns = {**mag_cols, **{k: v for k, v in found.items()}}
     if word is None and all(normalise_name(mag_cols[k]).endswith("magnetic_field_" + k[1]) for k in MAG):
