@@ -302,17 +302,9 @@ def _stamps(reader: Any, conns: list, fields: Any) -> NDArray[np.float64]:
 def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
     """``sensor_msgs/MagneticField`` messages of one topic (tesla) and, where the bag has one ``sensor_msgs/Imu``
     topic, its accelerometer at the nearest stamps (:data:`ROS_JOIN_SHARE`; the samples without one counted)."""
-    from optcal.data.readers import _import_rosbags
+    from optcal.data.readers import open_rosbag
 
-    AnyReader, Stores, get_typestore = _import_rosbags()
-    p = Path(path)
-    if kind == "ros2 bag" and p.is_file():
-        p = p.parent
-    try:
-        reader = AnyReader([p], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
-        reader.open()
-    except Exception as exc:  # rosbags raises its own error classes per format
-        raise InputError(f"{path}: not a readable ROS bag, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    reader = open_rosbag(path, kind)
     try:
         mags = [c for c in reader.connections if c.msgtype == ROS_MAG_TYPE]
         topics = sorted({c.topic for c in mags})
