@@ -216,6 +216,12 @@ def test_a_turn_with_a_near_g_is_not_a_bend_of_the_dip(frame, tmp_path, turning)
         assert not bends, [f.to_dict() for f in diag.findings]
         assert 0.2 < d["rate_bound_rad_s"] < 0.5 and d["turning_samples"] > 0.5 * (b - a) * d["still_samples"] / n
         assert "rate" in d["near_rest"] and "turning samples left out" in d["near_rest"]
+        # the calibration's own dip (optcal calibrate --sensor mag) uses the same near rest
+        from optcal.families.mag.calibration import calibrate_mag
+        from optcal.families.mag.samples import read_mag
+
+        dip = calibrate_mag(read_mag(str(tmp_path / "turning.csv"))).dip
+        assert dip is not None and dip.n_still == d["still_samples"] and "turning samples" in dip.lines()[0]
     else:
         assert bends, [f.to_dict() for f in diag.findings]
         assert d["turning_samples"] == 0

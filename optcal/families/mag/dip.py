@@ -154,6 +154,8 @@ class DipResult:
         Its angle and the standard error of that angle.
     n_still, n_samples : int
         Samples used (still) and offered.
+    near_rest : str
+        How near rest was decided (:func:`rest_gate`).
     """
 
     dip_deg: float
@@ -165,12 +167,13 @@ class DipResult:
     rotation_se_deg: float
     n_still: int
     n_samples: int
+    near_rest: str = ""
 
     def lines(self) -> list[str]:
         """The report's lines."""
         return [
             f"dip (inclination): {self.dip_deg:.2f} ± {self.dip_se_deg:.2f} deg over {self.n_still} still samples of "
-            f"{self.n_samples} (|a| within {100 * STILL_SHARE:g} % of its median)",
+            f"{self.n_samples} ({self.near_rest or f'|a| within {100 * STILL_SHARE:g} % of its median'})",
             f"dip spread: {self.dip_std_deg:.3f} deg with the frames aligned, {self.dip_std_unaligned_deg:.3f} deg without",
             f"magnetometer-to-accelerometer rotation: {self.rotation_deg:.2f} ± {self.rotation_se_deg:.2f} deg",
         ]
@@ -223,7 +226,9 @@ def fit_dip(a: NDArray[np.float64], m: NDArray[np.float64], max_iter: int = 50,
     return R, s, np.sum(a * (m @ R.T), axis=1) + s
 
 
-def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50) -> DipResult | None:
+def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50,
+                 gyro: NDArray[np.float64] | None = None, t: NDArray[np.float64] | None = None,
+                 gyro_units: str | None = None) -> DipResult | None:
     """The dip and the frames' rotation (module docstring); ``None`` with fewer than :data:`MIN_STILL` still samples.
 
     Parameters
@@ -234,10 +239,13 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
         The calibrated magnetometer samples ``T(m − o)``.
     max_iter : int
         Most Gauss–Newton steps.
+    gyro, t, gyro_units
+        The gyroscope's samples, the time and the user's gyro units, for near rest (:func:`rest_gate`).
     """
     from optcal.families.mag.fit import batch_means_stderr
 
-    still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
+    gate = rest_gate(acc, gyro, t, gyro_units)
+    still = gate.still & np.all(np.isfinite(calibrated), axis=1)
     if np.count_nonzero(still) < MIN_STILL:
         return None
     index = np.flatnonzero(still)
@@ -255,4 +263,4 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
     rot_se = float(np.degrees(np.sqrt(float(np.sum(se[:3] ** 2)))))
     return DipResult(dip, dip_se, float(np.std(aligned)), float(np.std(unaligned)), R, angle, rot_se,
-                     int(np.count_nonzero(still)), int(len(acc)))
+                     int(np.count_nonzero(still)), int(len(acc)), gate.reason)
