@@ -250,7 +250,7 @@ def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, da
     for line in samples.decision_lines():
         say(line)
     plain = calibrate_mag(samples)
-    diag = diagnose_mag(samples, plain, alpha=alpha)
+    diag = diagnose_mag(samples, plain, alpha=alpha, gyro_units=data_opts.get("gyro_units"))
     ext = diag.extended
     T = np.asarray(ext["T"], dtype=float)
     info = {**plain.calibration.info, "diagnosis": {"findings": [f.to_dict() for f in diag.findings], "gain": diag.gain,

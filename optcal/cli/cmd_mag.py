@@ -76,7 +76,8 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     for line in samples.decision_lines():
         say(line)
     result = calibrate_mag(samples, MagSettings(method=method, form=mag_form, allow_degenerate=allow_degenerate,
-                                                accept_fit=accept_mag_fit, estimator=settings))
+                                                accept_fit=accept_mag_fit, estimator=settings,
+                                                gyro_units=data_opts.get("gyro_units")))
     if report_path:
         from optcal.cli.report_option import command_line, write_report
         from optcal.report.mag_document import mag_document

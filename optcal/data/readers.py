@@ -52,7 +52,7 @@ from optcal.core.units import UNIT_ALIASES, normalise_units
 __all__ = [  # the column names, for the modules and tests that read them here
     "ACC", "ALIASES", "CANONICAL", "GYRO", "GYRO_UNIT_WORDS", "NO_COLUMN", "RATE_KEYS", "TIME_UNITS",
     "ColumnRoles", "Source", "detect_file_type", "merge_gyro_file", "parse_columns_option",
-    "read_parquet", "read_rosbag", "read_source", "read_text", "read_ulog", "resolve_columns",
+    "open_rosbag", "read_parquet", "read_rosbag", "read_source", "read_text", "read_ulog", "resolve_columns",
     "source_from_columns", "source_from_frame", "ulog_is_cut",
 ]
 
@@ -503,12 +503,25 @@ def _import_rosbags() -> Any:
     return AnyReader, Stores, get_typestore
 
 
-def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
-    """Read ``sensor_msgs/Imu`` messages of one topic from a ROS 1 or ROS 2 bag.
+def open_rosbag(path: str | Path, kind: str) -> Any:
+    """A ROS 1 or ROS 2 bag opened with rosbags' ``AnyReader`` (the caller closes it).
 
-    Time is the message header stamp (the bag's receive time when the stamp is zero);
-    acceleration in m/s² and angular rate in rad/s (ROS REP 103/145).  A single
-    ``sensor_msgs/Temperature`` topic, when present, is interpolated onto the IMU times.
+    Parameters
+    ----------
+    path : str or Path
+        The bag (a ROS 2 bag's ``.db3``/``.mcap`` file stands for its directory).
+    kind : str
+        :func:`detect_file_type`'s kind (``"ros1 bag"`` or ``"ros2 bag"``).
+
+    Returns
+    -------
+    rosbags.highlevel.AnyReader
+        Opened; its messages deserialised with ROS 2 Humble's types where the bag carries none.
+
+    Raises
+    ------
+    InputError
+        rosbags is not installed (with the extra that installs it), or the bag cannot be opened.
     """
     AnyReader, Stores, get_typestore = _import_rosbags()
     p = Path(path)
@@ -519,6 +532,17 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
         reader.open()
     except Exception as exc:  # rosbags raises its own error classes per format
         raise InputError(f"{path}: not a readable ROS bag, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    return reader
+
+
+def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
+    """Read ``sensor_msgs/Imu`` messages of one topic from a ROS 1 or ROS 2 bag.
+
+    Time is the message header stamp (the bag's receive time when the stamp is zero);
+    acceleration in m/s² and angular rate in rad/s (ROS REP 103/145).  A single
+    ``sensor_msgs/Temperature`` topic, when present, is interpolated onto the IMU times.
+    """
+    reader = open_rosbag(path, kind)
     try:
         imu = [c for c in reader.connections if c.msgtype == ROS_IMU_TYPE]
         topics = sorted({c.topic for c in imu})

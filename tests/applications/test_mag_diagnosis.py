@@ -176,3 +176,52 @@ def test_a_column_without_numbers_is_said_not_tested(frame, tmp_path):
     fr["temp"] = np.nan
     diag = _diagnose(fr, tmp_path / "nan_temp.csv")
     assert not [f for f in diag.findings if f.effect == "temperature_offset"]
+
+
+def _tilt_gravity(fr: pd.DataFrame, lo: int, hi: int, degrees: float) -> None:
+    """A turn's centripetal acceleration across gravity over rows ``lo:hi``: the accelerometer's vector turned by
+    ``degrees`` about the horizontal axis ``a × m`` (7 % of g across gravity for 4°), so ``|a|`` is unchanged and
+    the dip read from it is bent while the field is not."""
+    from optcal.core.rotations import exponential_map
+
+    acc = fr[["ax", "ay", "az"]].to_numpy()
+    m = fr[MAG].to_numpy()
+    axis = np.cross(acc[lo:hi], m[lo:hi])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    fr.loc[lo:hi - 1, ["ax", "ay", "az"]] = np.stack([exponential_map(np.radians(degrees) * e) @ x
+                                                      for e, x in zip(axis, acc[lo:hi])])
+
+
+@pytest.mark.parametrize("turning", [True, False])
+def test_a_turn_with_a_near_g_is_not_a_bend_of_the_dip(frame, tmp_path, turning):
+    # ckexplorer with a gyroscope planted (rad/s: white 0.005 rad/s at rest) and, over 15 % of the session, gravity's
+    # direction tilted 4° at unchanged |a| (a turn's centripetal acceleration across gravity). Turning at 2 rad/s
+    # there (rate bound about 0.3 rad/s: 0.5° of gravity's direction for a 0.3-m lever arm and a 0.02-s lag), those
+    # samples are not near rest and no bend of the dip is named; the same tilt with the gyroscope at rest is named
+    # (as the planted 3° bend is), so the gate and not the plant's size keeps it out
+    fr = frame.copy()
+    n = len(fr)
+    a, b = int(0.66 * n), int(0.81 * n)
+    _tilt_gravity(fr, a, b, 4.0)
+    w = np.random.default_rng(11).normal(scale=0.005, size=(n, 3))
+    if turning:
+        w[a:b] += np.array([0.3, -0.5, 1.9])  # 2.0 rad/s
+    fr[["gx", "gy", "gz"]] = w
+    diag = _diagnose(fr, tmp_path / "turning.csv")
+    assert diag.dip is not None
+    bends = [f for f in diag.findings if "disturb" in f.effect and f.stretch["channel"] in ("dip", "both")
+             and f.stretch["start_sample"] < b and f.stretch["stop_sample"] > a]
+    d = diag.to_dict()["dip_channel"]
+    if turning:
+        assert not bends, [f.to_dict() for f in diag.findings]
+        assert 0.2 < d["rate_bound_rad_s"] < 0.5 and d["turning_samples"] > 0.5 * (b - a) * d["still_samples"] / n
+        assert "rate" in d["near_rest"] and "turning samples left out" in d["near_rest"]
+        # the calibration's own dip (optcal calibrate --sensor mag) uses the same near rest
+        from optcal.families.mag.calibration import calibrate_mag
+        from optcal.families.mag.samples import read_mag
+
+        dip = calibrate_mag(read_mag(str(tmp_path / "turning.csv"))).dip
+        assert dip is not None and dip.n_still == d["still_samples"] and "turning samples" in dip.lines()[0]
+    else:
+        assert bends, [f.to_dict() for f in diag.findings]
+        assert d["turning_samples"] == 0

@@ -135,6 +135,29 @@ def test_no_mag_columns_names_the_flag(tmp_path):
         read_mag(path)
 
 
+@pytest.mark.parametrize("width", [3, 4, 5])
+def test_a_headerless_file_is_read_by_the_layout_of_its_width(tmp_path, width):
+    """Magneto's sample file (``x<TAB>y<TAB>z`` in gauss, no header; akgvn/MagnetometerCalibration's mag.txt is one):
+    three columns are mx my mz, four a time column first and the three; other widths are refused naming --columns."""
+    S = np.diag([0.55, 0.57, 0.61])
+    o = np.array([-0.02, 0.013, -0.026])
+    m = _sphere(2000, 9) @ S + o
+    t = np.arange(len(m)) * 0.01
+    cols = {3: [m], 4: [t[:, None], m], 5: [t[:, None], m, np.ones((len(m), 1))]}[width]
+    path = tmp_path / "mag.txt"
+    np.savetxt(path, np.hstack(cols), delimiter="\t", fmt="%.7f")
+    if width == 5:
+        with pytest.raises(InputError, match="--columns mx=1,my=2,mz=3"):
+            read_mag(str(path))
+        return
+    samples = read_mag(str(path))
+    assert np.allclose(samples.m, m, atol=1e-6)
+    assert any(n.startswith(f"no header; {width} columns") and "--columns" in n for n in samples.notes)
+    assert (samples.t is not None) == (width == 4)
+    cal = calibrate_mag(samples).calibration
+    assert np.allclose(cal.o, o, atol=1e-4)
+
+
 def test_gradient_descent_baseline_agrees(shared_data):
     samples = read_mag(shared_data / "ckexplorer-holds" / "acc_mag_log.csv")
     ml = fit_form(samples, "full", MagSettings())

@@ -21,7 +21,8 @@ The model (:mod:`optcal.families.mag.fit`): ``|T (m − o)| = 1`` for every samp
    has an accelerometer, the angle between the calibrated field and gravity is the same at every orientation of an
    undisturbed sensor (``â · R m̂ = −sin δ``: Kok & Schön 2016, sec. 3; Vasconcelos 2011, eq. 24).  Its residual,
    ``δ_k − δ`` (degrees), is measured on the samples where the accelerometer shows the sensor near rest
-   (:func:`optcal.families.mag.dip.still_mask`: a linear acceleration tilts the measured vertical), its noise as the
+   (:func:`optcal.families.mag.dip.rest_gate`: a linear acceleration tilts the measured vertical; with a gyroscope,
+   also a turn's centripetal acceleration across gravity, which ``|a|`` does not see, and a lag), its noise as the
    norm's (white from the first differences of consecutive still samples, a block mean's from the robust scatter of
    the blocks with at least :data:`DIP_BLOCK_SHARE` of their samples still) once its misfit with the gravity direction
    is taken out (the raw accelerometer's own errors tilt the measured vertical by an amount that depends on where it
@@ -54,7 +55,7 @@ from optcal.core.model import AXES
 from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
 from optcal.data.rest_tests import unit_rows
-from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, still_mask
+from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, rest_gate
 from optcal.families.mag.fit import MagSettings, batch_means_stderr, fit_form
 from optcal.families.mag.samples import MagSamples
 
@@ -169,6 +170,7 @@ class MagDiagnosis:
                        f"σ {d.sigma_block:.3g}° over {d.blocks_used} of {d.blocks} blocks at least "
                        f"{100 * DIP_BLOCK_SHARE:g} % still; held-out rms {self.heldout_dip_plain:.3g}° → "
                        f"{self.heldout_dip_extended:.3g}°")
+            out.append(f"  near rest: {d.near_rest}")
         else:
             out.append("  dip residual: not searched (no accelerometer, or too few still blocks)")
         if self.findings:
@@ -201,6 +203,13 @@ class DipChannel:
     dip_deg, dip_se_deg : float
         The plain calibration's dip and its standard error by batch means of the still samples' dips
         (:func:`batch_means_se`).
+    rate_bound : float or None
+        The gyroscope's rate bound of near rest, rad/s (:func:`optcal.families.mag.dip.rest_gate`); ``None`` without
+        a gyroscope in rad/s or deg/s.
+    n_turning : int
+        Samples with ``|a|`` near g left out because the sensor turned faster.
+    near_rest : str
+        How near rest was decided (printed).
     """
 
     n_still: int
@@ -210,11 +219,15 @@ class DipChannel:
     blocks: int
     dip_deg: float
     dip_se_deg: float
+    rate_bound: float | None = None
+    n_turning: int = 0
+    near_rest: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {"still_samples": self.n_still, "sigma_sample_deg": self.sigma_sample,
                 "sigma_block_deg": self.sigma_block, "blocks_used": self.blocks_used, "blocks": self.blocks,
-                "dip_deg": self.dip_deg, "dip_se_deg": self.dip_se_deg}
+                "dip_deg": self.dip_deg, "dip_se_deg": self.dip_se_deg, "rate_bound_rad_s": self.rate_bound,
+                "turning_samples": self.n_turning, "near_rest": self.near_rest}
 
 
 def _dip_fit(a: NDArray[np.float64], rows: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],
@@ -507,7 +520,7 @@ def _heldout(samples: MagSamples, keep: NDArray[np.bool_], form: str, s: MagSett
 
 
 def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | None = None,
-                 alpha: float = 0.02) -> MagDiagnosis:
+                 alpha: float = 0.02, gyro_units: str | None = None) -> MagDiagnosis:
     """Diagnose a magnetometer's calibration on its samples (module docstring).
 
     Parameters
@@ -519,6 +532,8 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
         How the extended model is refitted (the plain fit's form is kept).
     alpha : float
         Family-wise false-finding level of each test.
+    gyro_units : str, optional
+        The gyroscope's units (``--gyro-units``), instead of the decision from its samples (the dip's near rest).
     """
     if samples.n < MIN_SAMPLES:
         raise InputError(f"{samples.n} magnetometer samples; the diagnosis needs at least {MIN_SAMPLES} "
@@ -585,7 +600,8 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     if samples.acc is not None and samples.acc.shape == m.shape:
         acc = samples.acc
         finite = np.all(np.isfinite(acc), axis=1) & (np.linalg.norm(np.nan_to_num(acc), axis=1) > 0)
-        still = still_mask(acc) & finite
+        gate = rest_gate(acc, samples.gyro, t_axis, gyro_units)
+        still = gate.still & finite
         a_unit = np.where(finite[:, None], unit_rows(np.where(finite[:, None], acc, 1.0)), np.nan)
         if np.count_nonzero(still) >= MIN_STILL:
             R_cur, sin_cur = _dip_fit(a_unit, still & keep, m_used, current_T, current_o)
@@ -593,13 +609,15 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
             d_white, d_block, d_used = _dip_noise(d0, dip_block_means(d0, a_unit))
             if d_used >= MIN_DIP_BLOCKS:
                 dip_channel = DipChannel(int(np.count_nonzero(still)), d_white, d_block, d_used, B,
-                                         math.degrees(math.asin(sin_cur)), batch_means_se(d0))
+                                         math.degrees(math.asin(sin_cur)), batch_means_se(d0), gate.rate_bound,
+                                         gate.n_turning, gate.reason)
             else:
                 notes.append(f"dip channel: {d_used} blocks with at least {100 * DIP_BLOCK_SHARE:g} % of their samples "
-                             f"still (fewer than {MIN_DIP_BLOCKS}): only the field strength searched")
+                             f"still (fewer than {MIN_DIP_BLOCKS}): only the field strength searched; near rest: "
+                             f"{gate.reason}")
         else:
             notes.append(f"dip channel: {int(np.count_nonzero(still))} still samples (fewer than {MIN_STILL}): only the "
-                         "field strength searched")
+                         f"field strength searched; near rest: {gate.reason}")
     # ------------------------------------------------------------------ local disturbances
     searched = np.ones(B, dtype=bool)
     channels = {"strength"} | ({"dip"} if dip_channel is not None else set())

@@ -150,7 +150,8 @@ def calibrate_mag(samples: MagSamples, settings: MagSettings | None = None) -> M
     fit = choose_form(samples, settings)
     f = fit.fit
     calibrated = (samples.m - f.o) @ f.T.T
-    dip = estimate_dip(samples.acc, calibrated) if samples.acc is not None else None
+    dip = (estimate_dip(samples.acc, calibrated, gyro=samples.gyro, t=samples.t, gyro_units=settings.gyro_units)
+           if samples.acc is not None else None)
     info: dict[str, Any] = {
         "n_samples": samples.n, "rms_norm_residual": f.rms, "form": f.form, "form_reason": fit.form_reason,
         "method": f.method, "solver": f.solver, "stderr": f.stderr, "coverage_missing": list(fit.coverage.missing),

@@ -34,6 +34,108 @@ MIN_STILL: int = 20
 MAX_DIP_SAMPLES: int = 100_000
 
 
+#: "Near rest" with a gyroscope: a turn bends gravity's estimate in two ways the ``|a|`` test cannot see (an
+#: acceleration across gravity changes ``|a|`` only in second order: 7 % of g across it tilts the vertical 4° and
+#: changes ``|a|`` by 0.25 %). The centripetal acceleration ``ω² r`` of a sensor ``r`` from the turn's axis tilts it
+#: by ``ω² r / g`` rad, and a lag ``τ`` between the accelerometer's and the magnetometer's samples (a filter's group
+#: delay, the two sensors' sampling instants) by ``ω τ`` rad. A sample is near rest when the two together stay
+#: within this angle: half of a consumer magnetometer's per-sample dip noise (about 1°: ckexplorer's white σ 1.15°),
+#: so the turn adds at most 12 % to the dip's noise in quadrature.
+GRAVITY_ANGLE_DEG: float = 0.5
+#: The lever arm ``r`` the bound allows for: a sensor held in the hand or on a tag turned at arm's length, 0.3 m
+#: from the turn's axis (a sensor on the axis only loosens the bound's centripetal part).
+TURN_LEVER_M: float = 0.3
+#: The lag ``τ`` when the file has no time column: the period of the slowest common magnetometer output rate
+#: (50 Hz, QMC5883L); with a time column, the median sample period.
+DEFAULT_LAG_S: float = 0.02
+#: Standard gravity, m/s² (the centripetal tilt's denominator).
+G0: float = 9.80665
+
+
+def turning_rate_bound(lag_s: float | None) -> float:
+    """The rate (rad/s) below which a turn bends gravity's direction by at most :data:`GRAVITY_ANGLE_DEG`.
+
+    The positive root of ``ω τ + ω² r / g = ε`` (:data:`TURN_LEVER_M`, ``τ`` the lag: ``lag_s`` or
+    :data:`DEFAULT_LAG_S`).
+
+    Parameters
+    ----------
+    lag_s : float or None
+        The accelerometer's lag behind the magnetometer, seconds (the sample period).
+
+    Returns
+    -------
+    float
+    """
+    tau = DEFAULT_LAG_S if lag_s is None or not np.isfinite(lag_s) or lag_s <= 0 else float(lag_s)
+    k, eps = TURN_LEVER_M / G0, np.radians(GRAVITY_ANGLE_DEG)
+    return float((-tau + np.sqrt(tau * tau + 4.0 * k * eps)) / (2.0 * k))
+
+
+@dataclass(frozen=True)
+class RestGate:
+    """Which samples are near rest for the dip: ``|a|`` near g and, with a gyroscope, the rate below a bound.
+
+    Attributes
+    ----------
+    still : ndarray of bool, shape (n,)
+        Near rest.
+    rate_bound : float or None
+        The rate bound, rad/s (:func:`turning_rate_bound`); ``None`` without a usable gyroscope.
+    n_turning : int
+        Samples with ``|a|`` near g left out for the rate.
+    reason : str
+        How the gate was decided (printed).
+    """
+
+    still: NDArray[np.bool_]
+    rate_bound: float | None
+    n_turning: int
+    reason: str
+
+
+def rest_gate(acc: NDArray[np.float64], gyro: NDArray[np.float64] | None = None,
+              t: NDArray[np.float64] | None = None, gyro_units: str | None = None) -> RestGate:
+    """The dip's near-rest samples (:func:`still_mask`, then the gyroscope's rate below :func:`turning_rate_bound`).
+
+    Parameters
+    ----------
+    acc : ndarray, shape (n, 3)
+    gyro : ndarray, shape (n, 3), optional
+        Raw gyroscope samples; their units decided by :func:`optcal.data.units.decide_gyro_units` (counts: no
+        rate gate, said in the reason).
+    t : ndarray, shape (n,), optional
+        Time, seconds (the lag: the median period).
+    gyro_units : str, optional
+        The user's gyro units (``--gyro-units``).
+
+    Returns
+    -------
+    RestGate
+    """
+    from optcal.data.units import decide_gyro_units
+
+    still = still_mask(acc)
+    base = f"|a| within {100 * STILL_SHARE:g} % of its median"
+    if gyro is None or gyro.shape != acc.shape or not np.all(np.isfinite(gyro[still])) or not still.any():
+        return RestGate(still, None, 0, base + " (no gyroscope)")
+    bias = np.median(gyro[still], axis=0)
+    units = decide_gyro_units(gyro[np.all(np.isfinite(gyro), axis=1)], bias, gyro_units)
+    if units.rad_per_unit is None:
+        return RestGate(still, None, 0, base + f" (the gyroscope in {units.units}: its rate not used; "
+                        "give --gyro-units)")
+    lag = float(np.median(np.diff(t))) if t is not None and t.size == len(acc) and t.size > 1 else None
+    bound = turning_rate_bound(lag)
+    rate = np.linalg.norm(np.nan_to_num(gyro - bias, nan=np.inf), axis=1) * units.rad_per_unit
+    slow = rate <= bound
+    n_turning = int(np.count_nonzero(still & ~slow))
+    lag_text = f"the sample period {lag:.3g} s" if lag is not None else f"{DEFAULT_LAG_S:g} s assumed (no time column)"
+    return RestGate(still & slow, bound, n_turning,
+                    f"{base} and the gyroscope's rate ≤ {bound:.3g} rad/s (gravity's direction within "
+                    f"{GRAVITY_ANGLE_DEG:g}° for a lever arm of {TURN_LEVER_M:g} m and a lag of {lag_text}; gyro in "
+                    f"{units.units}, {units.reason}): {n_turning} turning samples left out")
+
+
 @dataclass(frozen=True)
 class DipResult:
     """The dip over the still samples, before and after the two frames are aligned.
@@ -52,6 +154,8 @@ class DipResult:
         Its angle and the standard error of that angle.
     n_still, n_samples : int
         Samples used (still) and offered.
+    near_rest : str
+        How near rest was decided (:func:`rest_gate`).
     """
 
     dip_deg: float
@@ -63,12 +167,13 @@ class DipResult:
     rotation_se_deg: float
     n_still: int
     n_samples: int
+    near_rest: str = ""
 
     def lines(self) -> list[str]:
         """The report's lines."""
         return [
             f"dip (inclination): {self.dip_deg:.2f} ± {self.dip_se_deg:.2f} deg over {self.n_still} still samples of "
-            f"{self.n_samples} (|a| within {100 * STILL_SHARE:g} % of its median)",
+            f"{self.n_samples} ({self.near_rest or f'|a| within {100 * STILL_SHARE:g} % of its median'})",
             f"dip spread: {self.dip_std_deg:.3f} deg with the frames aligned, {self.dip_std_unaligned_deg:.3f} deg without",
             f"magnetometer-to-accelerometer rotation: {self.rotation_deg:.2f} ± {self.rotation_se_deg:.2f} deg",
         ]
@@ -121,7 +226,9 @@ def fit_dip(a: NDArray[np.float64], m: NDArray[np.float64], max_iter: int = 50,
     return R, s, np.sum(a * (m @ R.T), axis=1) + s
 
 
-def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50) -> DipResult | None:
+def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_iter: int = 50,
+                 gyro: NDArray[np.float64] | None = None, t: NDArray[np.float64] | None = None,
+                 gyro_units: str | None = None) -> DipResult | None:
     """The dip and the frames' rotation (module docstring); ``None`` with fewer than :data:`MIN_STILL` still samples.
 
     Parameters
@@ -132,10 +239,13 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
         The calibrated magnetometer samples ``T(m − o)``.
     max_iter : int
         Most Gauss–Newton steps.
+    gyro, t, gyro_units
+        The gyroscope's samples, the time and the user's gyro units, for near rest (:func:`rest_gate`).
     """
     from optcal.families.mag.fit import batch_means_stderr
 
-    still = still_mask(acc) & np.all(np.isfinite(calibrated), axis=1)
+    gate = rest_gate(acc, gyro, t, gyro_units)
+    still = gate.still & np.all(np.isfinite(calibrated), axis=1)
     if np.count_nonzero(still) < MIN_STILL:
         return None
     index = np.flatnonzero(still)
@@ -153,4 +263,4 @@ def estimate_dip(acc: NDArray[np.float64], calibrated: NDArray[np.float64], max_
     angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0))))
     rot_se = float(np.degrees(np.sqrt(float(np.sum(se[:3] ** 2)))))
     return DipResult(dip, dip_se, float(np.std(aligned)), float(np.std(unaligned)), R, angle, rot_se,
-                     int(np.count_nonzero(still)), int(len(acc)))
+                     int(np.count_nonzero(still)), int(len(acc)), gate.reason)

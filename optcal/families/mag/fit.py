@@ -101,6 +101,8 @@ class MagSettings:
         Keep a fit whose residual says the samples are not a field.
     estimator : dict
         Further estimator settings (``solver``, ``solver_options``, ``conic_solver``, ``loss``, ``fix``, ``bounds``).
+    gyro_units : str, optional
+        The gyroscope's units (``--gyro-units``) for the dip's near rest, instead of the decision from its samples.
     """
 
     method: str = "default"
@@ -108,6 +110,7 @@ class MagSettings:
     allow_degenerate: bool = False
     accept_fit: bool = False
     estimator: dict[str, Any] = field(default_factory=dict)
+    gyro_units: str | None = None
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, normalise_name, parse_columns_option
+from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, _increasing, normalise_name, parse_columns_option
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
 
@@ -41,6 +41,8 @@ class MagSamples:
         The units and why.
     acc : ndarray, shape (n, 3), optional
         Accelerometer samples at the same rows (any units: only their direction is used).
+    gyro : ndarray, shape (n, 3), optional
+        Gyroscope samples at the same rows (raw units: only its rate's size is used, for the dip's near rest).
     t, temp, current, throttle : ndarray, shape (n,), optional
     path : str
     columns : dict of str to str
@@ -53,6 +55,7 @@ class MagSamples:
     m: NDArray[np.float64]
     units: UnitDecision
     acc: NDArray[np.float64] | None = None
+    gyro: NDArray[np.float64] | None = None
     t: NDArray[np.float64] | None = None
     temp: NDArray[np.float64] | None = None
     current: NDArray[np.float64] | None = None
@@ -115,6 +118,42 @@ def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, st
     return cols, (unit_words.pop() if len(unit_words) == 1 else None)
 
 
+def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float64]],
+                    mapping: dict[str, str]) -> tuple[dict[str, str], str]:
+    """The magnetometer's columns of a file with no header, by the common layout of its width.
+
+    Three columns are ``mx my mz`` (Magneto's and most loggers' ``x y z`` sample files); four are a time column
+    and the three when the first (or else the last) increases. Any other width is left to ``--columns``.
+
+    Returns
+    -------
+    mapping : dict
+        ``mapping`` with the magnetometer's (and the time's) 1-based positions added.
+    reason : str
+        The decision, with the flag that changes it.
+
+    Raises
+    ------
+    InputError
+        A width with no common layout, with the ``--columns`` that names the columns.
+    """
+    width = len(names)
+    time_at: int | None = None
+    if width == 4:
+        time_at = 0 if _increasing(columns[0]) else (3 if _increasing(columns[3]) else None)
+    rest = [j for j in range(width) if j != time_at]
+    if len(rest) != 3:
+        raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
+                         f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
+    canon = {k: str(j + 1) for k, j in zip(MAG, rest)}
+    if time_at is not None:
+        canon["t"] = str(time_at + 1)
+    what = " ".join(k for k, _ in sorted(canon.items(), key=lambda kv: int(kv[1])))
+    where = "" if time_at is None else f"; column {time_at + 1} increases"
+    return {**mapping, **canon}, (f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
+                                  f"{where}); name them by position to change it, e.g. --columns mx=1,my=2,mz=3")
+
+
 def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str | None, columns: dict[str, str],
            others: dict[str, NDArray], notes: list[str]) -> MagSamples:
     finite = np.all(np.isfinite(m), axis=1)
@@ -124,7 +163,8 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
     acc = pick(others.get("acc"))
     if acc is not None and not np.any(np.all(np.isfinite(acc), axis=1)):
         acc = None
-    return MagSamples(m=np.ascontiguousarray(m[finite]), units=units, acc=acc, t=pick(others.get("t")),
+    gyro = pick(others.get("gyro"))
+    return MagSamples(m=np.ascontiguousarray(m[finite]), units=units, acc=acc, gyro=gyro, t=pick(others.get("t")),
                       temp=pick(others.get("temp")), current=pick(others.get("current")),
                       throttle=pick(others.get("throttle")), path=path, columns=columns, exclusions=exclusions, notes=notes)
 
@@ -141,24 +181,31 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
             layout = layout.with_comment_header()
     names = list(layout.names)
     col = dict(zip(names, parsed.columns))
+    notes: list[str] = []
+    if not layout.has_header and layout.comment_names is None and not any(k in MAG for k in mapping):
+        mapping, reason = _headerless_mag(path, names, parsed.columns, mapping)
+        notes.append(reason)
     mag_cols, word = _mag_triple(names, mapping)
     taken = set(mag_cols.values())
     rest = [n for n in names if n not in taken]
-    extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "t": ALIASES["t"],
+    extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "gx": ALIASES["gx"],
+                     "gy": ALIASES["gy"], "gz": ALIASES["gz"], "t": ALIASES["t"],
                      "temp": ALIASES["temp"], "current": CURRENT_ALIASES, "throttle": THROTTLE_ALIASES}
     found, _ = _match(rest, extra_aliases)
     found.update({k: v for k, v in mapping.items() if k in extra_aliases and v in names})
     others: dict[str, NDArray] = {k: col[v] for k, v in found.items() if k in ("t", "temp", "current", "throttle")}
     if all(k in found for k in ("ax", "ay", "az")):
         others["acc"] = np.column_stack([col[found[k]] for k in ("ax", "ay", "az")])
+    if all(k in found for k in ("gx", "gy", "gz")):
+        others["gyro"] = np.column_stack([col[found[k]] for k in ("gx", "gy", "gz")])
     m = np.column_stack([col[mag_cols[k]] for k in MAG])
     columns = {**mag_cols, **{k: v for k, v in found.items()}}
     if word is None and all(normalise_name(mag_cols[k]).endswith("magnetic_field_" + k[1]) for k in MAG):
         # a ROS export's columns (rostopic echo -p's field.magnetic_field.x, a ros2 bag export's magnetic_field.x):
         # sensor_msgs/MagneticField is in tesla (REP 145)
         return _build(path, m, "T", "sensor_msgs/MagneticField's field names (tesla, REP 145)", mag_units, columns,
-                      others, [])
-    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, [])
+                      others, notes)
+    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, notes)
 
 
 def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
@@ -255,17 +302,9 @@ def _stamps(reader: Any, conns: list, fields: Any) -> NDArray[np.float64]:
 def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
     """``sensor_msgs/MagneticField`` messages of one topic (tesla) and, where the bag has one ``sensor_msgs/Imu``
     topic, its accelerometer at the nearest stamps (:data:`ROS_JOIN_SHARE`; the samples without one counted)."""
-    from optcal.data.readers import _import_rosbags
+    from optcal.data.readers import open_rosbag
 
-    AnyReader, Stores, get_typestore = _import_rosbags()
-    p = Path(path)
-    if kind == "ros2 bag" and p.is_file():
-        p = p.parent
-    try:
-        reader = AnyReader([p], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
-        reader.open()
-    except Exception as exc:  # rosbags raises its own error classes per format
-        raise InputError(f"{path}: not a readable ROS bag, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
+    reader = open_rosbag(path, kind)
     try:
         mags = [c for c in reader.connections if c.msgtype == ROS_MAG_TYPE]
         topics = sorted({c.topic for c in mags})
