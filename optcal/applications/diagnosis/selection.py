@@ -175,6 +175,9 @@ class TemperatureTimeDecision:
     #: Polynomial orders of the chosen term and of its rival (a rise and fall in time enters at order 2-3)
     chosen_order: int = 1
     other_order: int = 1
+    #: The level the rivals were tested at in the step that chose (its term candidates' level: minP in a small
+    #: session, Bonferroni otherwise); "adds nothing significant" is judged at it too
+    level: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -505,18 +508,23 @@ class ForwardSelection:
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one (each rival
-        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3)."""
+        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3).
+
+        Significant at the level the step tested its terms at (each candidate's ``threshold``: the minP level in a
+        small session, Bonferroni's ``α/m`` otherwise), not at the step's whole family-wise level; the rival given
+        the chosen term is judged at the same level (:meth:`explain`)."""
         if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order is None:
             return []
         rivals = ("bias_drift",) if accepted.effect != "bias_drift" else ("temperature_bias", "temperature_scale")
         best: dict[str, Candidate] = {}
         for c in tried:
-            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < self.alpha_terms
+            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < c.threshold
                     and (c.effect not in best or c.delta_bic < best[c.effect].delta_bic)):
                 best[c.effect] = c
         return [
             TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic,
-                                    chosen_order=int(accepted.order), other_order=int(c.order or 1))
+                                    chosen_order=int(accepted.order), other_order=int(c.order or 1),
+                                    level=c.threshold)
             for c in best.values()
         ]
 
@@ -537,7 +545,7 @@ class ForwardSelection:
                 r.p_other_given_chosen = fitter.f_test(final, fitter.fit(terms, final.outliers, final.x))
                 given = (
                     f"with {chosen} in the model, {other} adds nothing significant (p = {r.p_other_given_chosen:.2g})"
-                    if r.p_other_given_chosen >= self.alpha_terms else
+                    if r.p_other_given_chosen >= (self.alpha_terms if r.level is None else r.level) else
                     f"even with {chosen} in the model, {other} still explains more (p = {r.p_other_given_chosen:.2g})"
                 )
             r.temperature_time_correlation = corr
