@@ -176,12 +176,18 @@ def diagnosis_report(diag: Diagnosis) -> str:
             lines.append(f"      {named} {', '.join(where)} given zero weight")
         if f.sessions is not None:
             lines += session_lines(f.sessions)
+        if f.step is not None:
+            when = (f" (t = {f.step['previous_t_s']:.1f} s → {f.step['t_s']:.1f} s)" if "t_s" in f.step else "")
+            lines.append(f"      the bias stepped between the rests in rows {f.step['previous_row']} and {f.step['row']}"
+                         f"{when}, after {f.step['poses_before']} poses, and stayed")
         for ax in f.axes if f.sessions is None else ():
             order = f.order[ax]
             change = f.change_over_data[ax]
             size = f"{change * 1e6:.3g} ppm" if f.effect == "temperature_scale" else f"{change * MG:.3g} mg"
+            value = (f"{f.estimate[ax] * MG:+.3g} ± {f.stderr[ax] * MG:.2g} mg (after minus before)"
+                     if f.effect == "bias_step" else format_value(f.effect, f.estimate[ax], f.stderr[ax]))
             lines.append(
-                f"      axis {ax}: {format_value(f.effect, f.estimate[ax], f.stderr[ax])}"
+                f"      axis {ax}: {value}"
                 + (f" (polynomial order {order} supported by the data; slope at the reference shown)" if order > 1 else "")
                 + f"; changes by {size} over the data"
             )

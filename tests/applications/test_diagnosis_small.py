@@ -23,6 +23,7 @@ from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.applications.diagnosis.result import Diagnosis
 from optcal.core.poses import PoseTable
+from optcal.report.diagnosis_text import diagnosis_report
 
 from tests.applications.test_diagnosis_real import planted_xsens
 
@@ -223,3 +224,26 @@ def finding_step_bic(diag: Diagnosis, finding: Finding) -> float:
     """ΔBIC of the term that named ``finding`` in its step."""
     return next(s.accepted.delta_bic for s in diag.steps if s.accepted is not None
                 and s.accepted.effect == finding.effect and s.accepted.axis == finding.axes[0])
+
+
+#: The misses diag4 measured at 10 SE on the 14-rest cut (p 0.002-0.008 against the minP level 0.0017-0.0019): the
+#: SE is taken from the full log's scatter, about 1.6 times smaller than the cut's own, so 10 of those SEs are about
+#: 6 of the cut's.  Measured: each miss's printed detection limit is 1.24-1.55 times the planted coefficient
+#: (scale_nonlinearity(y) 83 against 58 mg/g², bias_drift(x) 9.6 against 7.8 µg/s, bias_drift(y) 7.9 against 6.0 µg/s,
+#: scale_nonlinearity(x) 177 against 114 mg/g²): the session says it cannot see them, rather than "nothing".
+@pytest.mark.parametrize(("effect", "axis"), [("scale_nonlinearity", 1), ("bias_drift", 0), ("bias_drift", 1),
+                                              ("scale_nonlinearity", 0)])
+def test_a_planted_term_the_cut_misses_is_below_its_printed_detection_limit(shared_data: Path, tmp_path: Path,
+                                                                            effect: str, axis: int) -> None:
+    path = shared_data / "imutk-xsens" / "xsens_imutk.csv"
+    if not path.exists():
+        pytest.skip("imutk-xsens recording absent")
+    full = planted_xsens(tmp_path, path, None, 0, 0.0, "unplanted")
+    value = 10 * standard_error(full, cut(full), effect, axis)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(cut(planted_xsens(tmp_path, path, effect, axis, value,
+                                                                             "planted")))
+    named = any(f.effect == effect and "xyz"[axis] in f.axes for f in diag.findings)
+    (limit,) = [lim for lim in diag.detection_limits if lim.term == f"{effect}({'xyz'[axis]})"]
+    # either named, or the session states a limit above the planted size (found less than half the time)
+    assert named or limit.limit > abs(value)
+    assert "detection limits" in diagnosis_report(diag)

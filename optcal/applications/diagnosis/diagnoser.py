@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.applications.diagnosis.effects import FITTED, SESSION_BIAS, VOCABULARY, parse_effects
+from optcal.applications.diagnosis.effects import BIAS_STEP, FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.applications.diagnosis.findings import build_findings
 from optcal.applications.diagnosis.fitting import MIN_DOF, MIN_DOF_MEASURED, Fit, Fitter, measured_scale2
 from optcal.applications.diagnosis.noise_model import check_noise_model, pose_correlation
@@ -121,6 +121,11 @@ class DiagnosisSettings:
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
 
 
+#: Why a bias step is not searched when several sessions are diagnosed together.
+STEP_SESSIONS: str = ("several sessions are diagnosed together (their biases differ by session_bias; a step inside "
+                      "one session is searched when that session is diagnosed alone)")
+
+
 def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> tuple[tuple[str, ...], dict[str, str]]:
     """The effects to test and the ones skipped with the reason."""
     asked = parse_effects(asked_text)
@@ -128,7 +133,9 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
     if asked is None:
         chosen = []
         for e in VOCABULARY:
-            if reg.supports(e):
+            if e == BIAS_STEP and reg.n_sessions > 1:
+                skipped[e] = STEP_SESSIONS
+            elif reg.supports(e):
                 chosen.append(e)
             elif e != SESSION_BIAS:  # one recording: sessions are not a question
                 skipped[e] = reg.reason_unsupported(e)
@@ -136,6 +143,9 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
     if not asked:
         return (), {e: "not asked for (effects 'none')" for e in VOCABULARY if e != SESSION_BIAS or reg.n_sessions > 1}
     bad = [f"{e}: {reg.reason_unsupported(e)}" for e in asked if not reg.supports(e)]
+    if BIAS_STEP in asked and reg.n_sessions > 1:
+        raise InputError(f"cannot test {BIAS_STEP}: {STEP_SESSIONS}; diagnose each session alone for a step "
+                         f"inside it, or leave {BIAS_STEP} out of the candidate effects")
     if bad:
         fix = ("give several sessions of the sensor (a list of pose tables)" if SESSION_BIAS in " ".join(bad)
                else "give data with a varying temp column (°C) and a time column")
@@ -272,7 +282,9 @@ class Diagnoser:
         self.progress("k-fold held-out error of the baseline")
         base_heldout = fitter.heldout(base)
         self.progress(f"simulating the fitted model {s.simulations} times")
-        sim = simulation_check(fitter, base, candidates, s.simulations, s.band, s.seed, loop)
+        # a bias step has no column before its position is chosen: it is not among the simulated statistics
+        open_terms = [(e, a) for e, a in candidates if e != BIAS_STEP]
+        sim = simulation_check(fitter, base, open_terms, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
         selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop)
         selection = selector.run(base)
@@ -280,11 +292,12 @@ class Diagnoser:
         self.progress("measuring the findings (held-out error without each effect)")
         findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
         self.progress("detection limits of the candidates not found")
-        limits = detection_limits(fitter, final, candidates, selection.last_level, loop) if candidates else []
+        limits = detection_limits(fitter, final, open_terms, selection.last_level, loop) if open_terms else []
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
             other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
+            other.set_step(fitter.step_at)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")
@@ -294,7 +307,7 @@ class Diagnoser:
         sim_after = None
         if findings:
             self.progress("simulating the extended model")
-            sim_after = simulation_check(fitter, final, candidates, s.simulations, s.band, s.seed, loop)
+            sim_after = simulation_check(fitter, final, open_terms, s.simulations, s.band, s.seed, loop)
         model = fitter.model(final)
         d = fitter.fitted_directions(final)
         diagnosis = Diagnosis(
@@ -303,7 +316,7 @@ class Diagnoser:
             final_heldout=fitter.heldout(final), simulation=sim, simulation_after=sim_after, steps=selection.steps,
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
             given_rms_g=rms(given.residuals), detection_limits=limits, outlier_limit=pose_limit, noise_model=noise,
-            sessions=stack, baseline_model=fitter.model(base).base,
+            sessions=stack, baseline_model=fitter.model(base).base, step=fitter.data.step,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
         noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)

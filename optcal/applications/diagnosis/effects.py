@@ -16,29 +16,37 @@ from optcal.core.extended_model import NEEDS as MODEL_NEEDS
 from optcal.core.extended_model import UNITS as MODEL_UNITS
 from optcal.core.model import AXES
 
-__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
+__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "BIAS_STEP", "STEP_MIN_SIDE", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
            "parse_effects", "describe_term", "plain_term"]
 
 #: "The bias changed between sessions" (turn-on bias repeatability): one offset per session after
 #: the first and per axis, relative to the first session (several sessions of one sensor only).
 SESSION_BIAS: str = "session_bias"
+#: "The bias stepped once and stayed" (a knock, a shock or a connector re-seated between two rests): one offset
+#: per axis of the poses after an unknown pose, relative to those before it; a session bias with two segments
+#: whose split is searched (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.step_candidates`).
+BIAS_STEP: str = "bias_step"
+#: Fewest poses on each side of a bias step: a step leaving one or two poses on one side is those poses' own
+#: departure, the outlier test's question (a knocked rest that did not persist), and with two it is confounded with
+#: their two mean shifts; three keep one degree of freedom beyond a pair of outliers.
+STEP_MIN_SIDE: int = 3
 #: Most sessions one diagnosis fits together (each adds three offsets to the fit's layout).
 MAX_SESSIONS: int = 10
 #: The coefficient terms the diagnosis fits: the extended model's, then the per-session offsets.
-FITTED: tuple[str, ...] = (*PARAMETRIC, SESSION_BIAS)
+FITTED: tuple[str, ...] = (*PARAMETRIC, SESSION_BIAS, BIAS_STEP)
 #: Number of coefficients per axis of each fitted term (its polynomial orders; for the session
 #: offsets, one per session after the first).
-MAX_ORDER: dict[str, int] = {**MODEL_MAX_ORDER, SESSION_BIAS: MAX_SESSIONS - 1}
+MAX_ORDER: dict[str, int] = {**MODEL_MAX_ORDER, SESSION_BIAS: MAX_SESSIONS - 1, BIAS_STEP: 1}
 #: The effects one recording can show, in the order they are reported.
 EFFECTS: tuple[str, ...] = (*PARAMETRIC, "outliers")
 #: The whole vocabulary of model extensions: one recording's effects and, for several sessions,
 #: the bias changing between them.
 VOCABULARY: tuple[str, ...] = (*FITTED, "outliers")
 #: Column each effect needs (``None``: none; ``session``: several sessions).
-NEEDS: dict[str, str | None] = {**MODEL_NEEDS, SESSION_BIAS: "session", "outliers": None}
+NEEDS: dict[str, str | None] = {**MODEL_NEEDS, SESSION_BIAS: "session", BIAS_STEP: None, "outliers": None}
 #: Units of the first-order coefficient (JSON ``estimate``; ``rows`` for outliers; the session
 #: offsets' estimate is their spread, the turn-on repeatability).
-UNITS: dict[str, str] = {**MODEL_UNITS, SESSION_BIAS: "g", "outliers": "rows"}
+UNITS: dict[str, str] = {**MODEL_UNITS, SESSION_BIAS: "g", BIAS_STEP: "g", "outliers": "rows"}
 #: The regressor each effect adds to output axis i (for reports).
 REGRESSOR_TEXT: dict[str, str] = {
     "temperature_bias": "ΔT",
@@ -46,6 +54,7 @@ REGRESSOR_TEXT: dict[str, str] = {
     "bias_drift": "Δt",
     "scale_nonlinearity": "f_{axis}²",
     SESSION_BIAS: "session",
+    BIAS_STEP: "step",
 }
 #: The physical cause each effect names, in plain words.
 CAUSES: dict[str, str] = {
@@ -55,6 +64,8 @@ CAUSES: dict[str, str] = {
     "scale_nonlinearity": "the output is not proportional to the force (a second-order response of the sensing element)",
     SESSION_BIAS: "the bias changed between sessions (turn-on bias repeatability: the zero offset settles at "
                   "a different value each time the sensor is powered)",
+    BIAS_STEP: "the bias stepped once and stayed (a knock or shock between two rests, a re-seated connector or "
+               "mount: the zero offset moved and did not come back)",
     "outliers": "some poses were not static or are corrupt (the sensor moved, was bumped, or the interval was mis-detected)",
 }
 #: The regressor of each effect in plain words (figures and the simulation check).
@@ -64,6 +75,7 @@ REGRESSOR_WORDS: dict[str, str] = {
     "bias_drift": "time",
     "scale_nonlinearity": "force²",
     SESSION_BIAS: "the session",
+    BIAS_STEP: "before or after the step",
 }
 
 
@@ -74,6 +86,7 @@ PLAIN_NAMES: dict[str, str] = {
     "bias_drift": "bias drifting in time",
     "scale_nonlinearity": "nonlinear response",
     SESSION_BIAS: "bias differing between sessions",
+    BIAS_STEP: "bias step",
     "outliers": "outlier poses",
 }
 
@@ -104,6 +117,6 @@ def parse_effects(text: str | Iterable[str] | None) -> tuple[str, ...] | None:
 
 def describe_term(effect: str, axis: int, order: int) -> str:
     """Readable name of a term, e.g. ``temperature_bias(z, order 2)`` (``session_bias(z)``: every session's offset)."""
-    if effect == SESSION_BIAS:
+    if effect in (SESSION_BIAS, BIAS_STEP):
         return f"{effect}({AXES[axis]})"
     return f"{effect}({AXES[axis]}" + (f", order {order})" if order > 1 else ")")

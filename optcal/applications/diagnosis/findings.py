@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.effects import CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
+from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.selection import BIC_TIE, Step
@@ -72,6 +72,11 @@ class Finding:
         Peak-to-peak change of the term over the fitted poses per axis: g for a bias term,
         relative for a scale term, g at 1 g for the nonlinearity (what the polynomial does,
         whatever its order); the range of the sessions' biases for ``session_bias``.
+    step : dict or None
+        For ``bias_step``: where the step is, ``{"poses_before"`` (poses before it in time order),
+        ``"pose_index"`` (the first pose after it, among the diagnosed poses), ``"row"`` (that pose's row),
+        ``"previous_row"`` (the last pose's before it), ``"t_s"`` and ``"previous_t_s"`` (their times, when the
+        poses have a time column)``}``; :attr:`estimate` is the step of each axis's bias (g, after minus before).
     sessions : SessionOffsets or None
         For ``session_bias``: every session's offset with its standard error; :attr:`estimate`
         is then their spread (the turn-on repeatability, g) and :attr:`stderr` the sampling
@@ -97,10 +102,11 @@ class Finding:
     pose_index: list[int] | None = None
     sensor: str = "accelerometer"
     alternatives: list[dict[str, Any]] = field(default_factory=list)
+    step: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
-        for key in ("rows", "row_sessions", "pose_index"):
+        for key in ("rows", "row_sessions", "pose_index", "step"):
             if out[key] is None:
                 del out[key]
         if self.sessions is None:
@@ -119,12 +125,24 @@ def reference_of(fitter: Fitter, effect: str) -> dict[str, float]:
 
 def change_over_data(fitter: Fitter, fit: Fit, effect: str, axis: int) -> float:
     """Peak-to-peak of a term's polynomial over the kept poses (normalised regressor, so no unit juggling)."""
-    if effect == "scale_nonlinearity":
+    if effect in ("scale_nonlinearity", BIAS_STEP):
         return abs(float(fit.x[9 + BETA_INDEX[(effect, axis, 1)]]))
     values = (fitter.reg.tau if effect.startswith("temperature") else fitter.reg.s)[fit.kept(fitter.n)]
     order = fit.terms[(effect, axis)]
     term = sum(fit.x[9 + BETA_INDEX[(effect, axis, p)]] * values**p for p in range(1, order + 1))
     return float(np.ptp(term))
+
+
+def step_location(fitter: Fitter) -> dict[str, Any]:
+    """Where the bias step of the fitter's model is (:attr:`Finding.step`)."""
+    k = fitter.step_at
+    assert k is not None
+    after, before = int(fitter.time_order[k]), int(fitter.time_order[k - 1])
+    out: dict[str, Any] = {"poses_before": int(k), "pose_index": after, "row": int(fitter.poses.rows[after]),
+                           "previous_row": int(fitter.poses.rows[before])}
+    if fitter.reg.has_time and fitter.poses.t is not None:
+        out["t_s"], out["previous_t_s"] = float(fitter.poses.t[after]), float(fitter.poses.t[before])
+    return out
 
 
 def alternatives(steps: list[Step], final: Fit, effect: str, axis: str) -> list[dict[str, Any]]:
@@ -164,7 +182,7 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
     bic_final = fitter.bic(final)
     mask = final.kept(fitter.n)
     after = rms(fitter.heldout(final), mask)
-    for effect in PARAMETRIC:
+    for effect in (*PARAMETRIC, BIAS_STEP):
         axes = sorted(a for (e, a) in final.terms if e == effect)
         if not axes:
             continue
@@ -185,6 +203,9 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
             ]
             finding.change_over_data[AXES[a]] = change_over_data(fitter, final, effect, a)
             finding.alternatives += alternatives(steps, final, effect, AXES[a])
+        if effect == BIAS_STEP:
+            finding.step = step_location(fitter)
+            finding.evidence.delta_bic += float(np.log(fitter.n))  # its position is a fitted unknown (selection)
         out.append(finding)
     session_axes = sorted(a for (e, a) in final.terms if e == SESSION_BIAS)
     if session_axes:

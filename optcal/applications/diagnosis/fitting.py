@@ -13,7 +13,7 @@ a fit is estimated from its residuals, so a wrong σ claim cannot manufacture fi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,7 +22,7 @@ from scipy import stats as sps
 from optcal.applications.diagnosis.correlation import CorrelationOperator
 from optcal.applications.diagnosis.effects import FITTED, describe_term, plain_term
 from optcal.applications.diagnosis.problem import (BETA_INDEX, N_X, ExtendedProblem, PoseData, ProblemData, active_mask,
-                                      session_shift, to_model)
+                                      session_shift, step_shift, to_model)
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.families.accel.base import Normaliser
@@ -199,7 +199,25 @@ class Fitter:
         self.loop = loop
         self.correlation = correlation
         self.measured_scale2 = measured_scale2
-        self._heldout_cache: dict[tuple[Terms, frozenset[int]], NDArray[np.float64]] = {}
+        #: Poses before the bias step in time order (``None``: no step in the model; :meth:`set_step`).
+        self.step_at: int | None = None
+        self._heldout_cache: dict[tuple[Terms, frozenset[int], int | None], NDArray[np.float64]] = {}
+
+    # ------------------------------------------------------------------ bias step
+    def step_indicator(self, k: int) -> NDArray[np.float64]:
+        """1 for the poses after the first ``k`` in time order (:attr:`time_order`), 0 for those ``k``."""
+        step = np.zeros(self.n)
+        step[self.time_order[k:]] = 1.0
+        return step
+
+    def step_data(self, k: int) -> PoseData:
+        """The fit's data with a bias step after the first ``k`` poses in time order."""
+        return replace(self.data, step=self.step_indicator(k))
+
+    def set_step(self, k: int | None) -> None:
+        """Fit every later model with the bias step after the first ``k`` poses in time order (``None``: none)."""
+        self.step_at = k
+        self.data = replace(self.data, step=None if k is None else self.step_indicator(k))
 
     # ------------------------------------------------------------------ fitting
     def params(self, w: NDArray, data: PoseData | None = None, scale: float | None = None,
@@ -333,7 +351,7 @@ class Fitter:
 
     def heldout(self, fit: Fit) -> NDArray[np.float64]:
         """Held-out residual of every pose (k-fold; the model fitted without the pose's fold)."""
-        key = (terms_key(fit.terms), fit.outliers)
+        key = (terms_key(fit.terms), fit.outliers, self.step_at)
         if key in self._heldout_cache:
             return self._heldout_cache[key]
         out = np.empty(self.n)
@@ -409,8 +427,11 @@ class Fitter:
         return to_model(fit.x, self.norm.centre, scale, self.reg)
 
     def session_shift(self, fit: Fit) -> NDArray[np.float64]:
-        """Raw bias of each pose's session relative to the first session's under ``fit`` (zeros for one session)."""
-        return session_shift(fit.x, self.model(fit).base.C, self.reg.session, self.reg.n_sessions)
+        """Raw bias of each pose's session relative to the first session's under ``fit`` (zeros for one session),
+        and of the poses after a bias step relative to those before it."""
+        C = self.model(fit).base.C
+        shift = session_shift(fit.x, C, self.reg.session, self.reg.n_sessions)
+        return shift + step_shift(fit.x, C, self.data.step) if self.data.step is not None else shift
 
     def fitted_directions(self, fit: Fit) -> NDArray[np.float64]:
         """Unit specific-force directions of the poses under ``fit``'s model (its inversion at each pose)."""

@@ -251,7 +251,7 @@ def bootstrap_coverage(given: Fitter, extended: Fitter, fit: Fit, simulations: i
     count = 0
     for _ in loop(range(simulations), "noise-model coverage", simulations):
         acc = clean + pose_noise(extended, rng) * sigma[:, None]
-        data = PoseData.of(extended.norm.forward(acc), extended.reg)
+        data = PoseData.of(extended.norm.forward(acc), extended.reg, extended.data.step)
         sim = extended.fit(fit.terms, fit.outliers, fit.x, data)
         error = np.abs(sim.x[:9] - truth)
         for name, fitter in (("given", given), ("extended", extended)):

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.applications.diagnosis.effects import FITTED, MAX_ORDER, SESSION_BIAS
+from optcal.applications.diagnosis.effects import BIAS_STEP, FITTED, MAX_ORDER, SESSION_BIAS
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.core.extended_model import PARAMETRIC, ExtendedModel, inverse_lower, invert_axis
 from optcal.core.model import LumpedModel
@@ -77,8 +77,14 @@ def session_indicators(session: NDArray[np.intp] | None, n: int) -> list[NDArray
     return [(session == k).astype(float) for k in range(1, MAX_ORDER[SESSION_BIAS] + 1)]
 
 
+def step_indicator(step: NDArray[np.float64] | None, n: int) -> list[NDArray[np.float64]]:
+    """The regressor of the bias step: 1 for the poses after the step, 0 before (zeros without a step)."""
+    return [np.zeros(n) if step is None else step]
+
+
 def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
-                       used: NDArray[np.intp] | None = None, session: NDArray[np.intp] | None = None) -> NDArray:
+                       used: NDArray[np.intp] | None = None, session: NDArray[np.intp] | None = None,
+                       step: NDArray[np.float64] | None = None) -> NDArray:
     """``r = ‖T y(a)‖ − 1`` of every pose, for one or several parameter vectors (normalised units).
 
     Parameters
@@ -95,6 +101,8 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     session : ndarray of int, shape (n,), optional
         Session of each pose (0, 1, ...; default all 0): the session offsets are biases of the
         sessions after the first.
+    step : ndarray, shape (n,), optional
+        1 for the poses after a bias step, 0 before (default: no step).
 
     Returns
     -------
@@ -108,7 +116,7 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     C = inverse_lower(L)
     used_set = set(range(N_BETA)) if used is None else {int(b) for b in used}
     powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)],
-              "session": session_indicators(session, u.shape[0])}
+              "session": session_indicators(session, u.shape[0]), "step": step_indicator(step, u.shape[0])}
     zero = np.zeros((1, 1))
 
     def poly(effect: str, axis: int, values: list[NDArray]) -> Any:
@@ -123,7 +131,7 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     for i in range(3):
         S = np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1)))
         bias = (poly("temperature_bias", i, powers["temp"]) + poly("bias_drift", i, powers["t"])
-                + poly(SESSION_BIAS, i, powers["session"]))
+                + poly(SESSION_BIAS, i, powers["session"]) + poly(BIAS_STEP, i, powers["step"]))
         scale = poly("temperature_scale", i, powers["temp"])
         b2 = BETA_INDEX[("scale_nonlinearity", i, 1)]
         k2 = X[:, 9 + b2 : 10 + b2] if b2 in used_set else zero
@@ -157,8 +165,8 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
     Lm = np.array([[x[0], 0.0, 0.0], [x[1], x[2], 0.0], [x[3], x[4], x[5]]])
     S, dS = sensitivity_jacobian(x)
     powers = {"temp": [d.tau**p for p in range(1, 4)], "t": [d.s**p for p in range(1, 4)],
-              "session": session_indicators(d.session, n)}
-    biases = (("temperature_bias", "temp"), ("bias_drift", "t"), (SESSION_BIAS, "session"))
+              "session": session_indicators(d.session, n), "step": step_indicator(d.step, n)}
+    biases = (("temperature_bias", "temp"), ("bias_drift", "t"), (SESSION_BIAS, "session"), (BIAS_STEP, "step"))
 
     beta = x[9:].tolist()
     wanted = set(range(N_X)) if free is None else {int(k) for k in free}
@@ -199,8 +207,8 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
         JT[:6] += dS[m][:, None] * dr_dS[None, :]
         JT[6 + m] = -dy_dw / (1 + scale)
         for effect, column in biases:
-            if column == "session" and d.session is None:
-                continue  # one session: the offsets' regressors are zero
+            if (column == "session" and d.session is None) or (column == "step" and d.step is None):
+                continue  # one session, no step: the offsets' regressors are zero
             for p in range(1, MAX_ORDER[effect] + 1):
                 if 9 + BETA_INDEX[(effect, m, p)] in wanted:
                     JT[9 + BETA_INDEX[(effect, m, p)]] = -dy_dw * S[m] / (1 + scale) * powers[column][p - 1]
@@ -223,17 +231,20 @@ class PoseData:
         Normalised temperature and time.
     session : ndarray of int, shape (n,), optional
         Session of each pose (``None``: one session).
+    step : ndarray, shape (n,), optional
+        1 for the poses after a bias step, 0 before (``None``: no step).
     """
 
     u: NDArray[np.float64]
     tau: NDArray[np.float64]
     s: NDArray[np.float64]
     session: NDArray[np.intp] | None = None
+    step: NDArray[np.float64] | None = None
 
     @classmethod
-    def of(cls, u: NDArray[np.float64], reg: Regressors) -> "PoseData":
-        """Normalised measurements ``u`` with the temperature, time and session of ``reg``."""
-        return cls(u, reg.tau, reg.s, reg.session if reg.n_sessions > 1 else None)
+    def of(cls, u: NDArray[np.float64], reg: Regressors, step: NDArray[np.float64] | None = None) -> "PoseData":
+        """Normalised measurements ``u`` with the temperature, time and session of ``reg`` (and a bias step's indicator)."""
+        return cls(u, reg.tau, reg.s, reg.session if reg.n_sessions > 1 else None, step)
 
     @property
     def n(self) -> int:
@@ -292,7 +303,7 @@ class ExtendedProblem:
 
         def residuals(z: NDArray) -> NDArray:
             x[free] = z
-            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used, d.session)
+            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used, d.session, d.step)
 
         def jacobian(z: NDArray) -> NDArray:
             x[free] = z
@@ -310,7 +321,8 @@ class ExtendedProblem:
     def residual_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
         """Unweighted residuals of every pose at ``x``."""
         d = data.poses
-        return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:]), d.session))
+        return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:]), d.session,
+                                             d.step))
 
     def jacobian_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
         """Unweighted Jacobian of every pose's residual w.r.t. every entry of ``x``, shape (n, N_X)."""
@@ -369,3 +381,15 @@ def session_shift(x: NDArray, C: NDArray, session: NDArray[np.intp], n_sessions:
     if n_sessions < 2:
         return np.zeros((len(session), 3))
     return (session_offsets_g(x, n_sessions) * np.linalg.norm(C, axis=1)[:, None])[:, session].T
+
+
+def step_shift(x: NDArray, C: NDArray, step: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """Raw bias of each pose relative to the bias before the step, shape (n, 3) (zeros without a step).
+
+    The step is a bias term per g, as the session offsets (:func:`session_shift`): axis i's raw offset is
+    ``S_i δ_i`` after the step.
+    """
+    if step is None:
+        return np.zeros((0, 3))
+    delta = np.array([x[9 + BETA_INDEX[(BIAS_STEP, i, 1)]] for i in range(3)])
+    return step[:, None] * (delta * np.linalg.norm(C, axis=1))[None, :]

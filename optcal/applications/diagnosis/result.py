@@ -73,6 +73,8 @@ class Diagnosis:
     peer : PeerComparison or None
         A peer's calibration given as the baseline (imucal, imu_tk) next to optcal's baseline fit
         (:class:`optcal.applications.quality.peer.PeerComparison`, set by the caller).
+    step : ndarray, shape (n,), or None
+        1 for the poses after the bias step of a ``bias_step`` finding, 0 before (``None``: no step).
     """
 
     poses: PoseTable
@@ -100,6 +102,7 @@ class Diagnosis:
     sessions: SessionStack | None = None
     baseline_model: LumpedModel | None = None
     peer: Any = None
+    step: NDArray[np.float64] | None = None
 
     @property
     def n(self) -> int:
@@ -138,7 +141,8 @@ class Diagnosis:
         carry no term, so they are not needed to apply it.  Two named causes cannot be applied
         to a later recording and are carried as the bias's uncertainty instead (an ``extended``
         calibration then): the turn-on repeatability between sessions (``o`` is the sessions'
-        mean) and a bias that wanders as a random walk (``K``).
+        mean) and a bias that wanders as a random walk (``K``).  After a bias step, ``o`` is the bias after it
+        (the sensor's bias now).
         """
         from optcal.families.caltypes.base import FitPoses
         from optcal.families.caltypes.extended import BiasRandomWalk, BiasRepeatability, ExtendedCalibration
@@ -152,9 +156,16 @@ class Diagnosis:
         walk_named = walk is not None and walk.named
         sessions = self.session_offsets()
         if sessions is None:
-            if not self.final.terms and not walk_named:
-                return LumpedCalibration.from_model(self.model.base, self.poses.units, fitted_on)
-            cal = ExtendedCalibration.from_model(self.model, units=self.poses.units, fitted_on=fitted_on)
+            model = self.model
+            if self.step is not None:  # the bias after the step is the sensor's now: o is that bias
+                from optcal.applications.diagnosis.problem import step_shift
+
+                shift = step_shift(self.final.x, model.base.C, np.ones(1))[0]
+                model = replace(model, base=LumpedModel(model.base.C, model.base.o + shift))
+                fitted_on = replace(fitted_on, acc=fitted_on.acc - (self.session_shift() - shift)[kept])
+            if not any(e != "bias_step" for e, _ in self.final.terms) and not walk_named:
+                return LumpedCalibration.from_model(model.base, self.poses.units, fitted_on)
+            cal = ExtendedCalibration.from_model(model, units=self.poses.units, fitted_on=fitted_on)
         else:
             # per-session offsets do not apply to a future session: the mean bias, the spread as its uncertainty
             base = self.model.base
@@ -174,10 +185,12 @@ class Diagnosis:
         return None if found is None else found.sessions
 
     def session_shift(self) -> NDArray[np.float64]:
-        """Raw bias of each pose's session relative to the first session's, shape (n, 3) (zeros for one session)."""
-        from optcal.applications.diagnosis.problem import session_shift
+        """Raw bias of each pose's session relative to the first session's, shape (n, 3) (zeros for one session),
+        and of the poses after a bias step relative to those before it."""
+        from optcal.applications.diagnosis.problem import session_shift, step_shift
 
-        return session_shift(self.final.x, self.model.base.C, self.regressors.session, self.regressors.n_sessions)
+        shift = session_shift(self.final.x, self.model.base.C, self.regressors.session, self.regressors.n_sessions)
+        return shift + step_shift(self.final.x, self.model.base.C, self.step) if self.step is not None else shift
 
     def to_dict(self) -> dict[str, Any]:
         """The one JSON object of ``optcal diagnose --json``."""

@@ -42,7 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.effects import MAX_ORDER, SESSION_BIAS, describe_term
+from optcal.applications.diagnosis.bias_step import adjusted_p, scan_step
+from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import minp_level, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
@@ -60,7 +61,10 @@ DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
 
 def coefficient_count(c: "Candidate") -> int:
     """Coefficients a term candidate adds (its polynomial order; a session bias, one per session after the
-    first; outliers, one per pose)."""
+    first; outliers, one per pose; a bias step searched over its positions, its size and its place: a change
+    point is a fitted unknown)."""
+    if c.step_at is not None:
+        return 2
     if c.order is not None:
         return int(c.order)
     return len(c.rows) if c.rows is not None else 1
@@ -110,6 +114,9 @@ class Candidate:
     heldout_rms_g_before, heldout_rms_g_after : float or None
         Held-out rms without and with the candidate (computed for the candidates that passed).
     rejected_because : str or None
+    step_at : int or None
+        For a bias step searched over its positions: the poses before the step in time order (its p value is
+        then Bonferroni's over the positions searched, :mod:`~optcal.applications.diagnosis.bias_step`).
     """
 
     term: str
@@ -125,6 +132,7 @@ class Candidate:
     heldout_rms_g_after: float | None = None
     rejected_because: str | None = None
     stepped_down_from: int | None = None
+    step_at: int | None = None
     fit: Fit | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -133,7 +141,8 @@ class Candidate:
             "delta_bic": self.delta_bic, "p_value": self.p_value, "threshold": self.threshold,
             "significant": self.significant,
         }
-        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from"):
+        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from",
+                    "step_at"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out
@@ -166,6 +175,9 @@ class TemperatureTimeDecision:
     #: Polynomial orders of the chosen term and of its rival (a rise and fall in time enters at order 2-3)
     chosen_order: int = 1
     other_order: int = 1
+    #: The level the rivals were tested at in the step that chose (its term candidates' level: minP in a small
+    #: session, Bonferroni otherwise); "adds nothing significant" is judged at it too
+    level: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -205,8 +217,14 @@ class ForwardSelection:
         self.candidates = candidates
         self.with_outliers = with_outliers
         self.alpha = alpha
-        self.alpha_terms = alpha / 2 if with_outliers else alpha
-        self.alpha_outliers = alpha / 2
+        #: A bias step is searched (a candidate axis of ``bias_step``): it is a departure of the poses after a point
+        #: as an outlier is one pose's, and shares the departures' half of the level with the outliers
+        self.with_step = any(e == BIAS_STEP for e, _ in candidates)
+        self.alpha_terms = alpha / 2 if with_outliers or self.with_step else alpha
+        both = with_outliers and self.with_step
+        self.alpha_outliers = alpha / 4 if both else alpha / 2
+        #: Family-wise level of the step search (over its axes and positions): half the departures' level
+        self.alpha_step = alpha / 4 if both else alpha / 2
         self.note = note
         self.loop = loop
 
@@ -227,6 +245,11 @@ class ForwardSelection:
         """
         return self.with_outliers and self.fitter.n - fit.n_params - 1 >= MIN_DOF
 
+    def departures_testable(self, fit: Fit) -> bool:
+        """Whether a step from ``fit`` tests departures of poses from the model (outliers, or a bias step): the terms
+        then keep :attr:`alpha_terms`, otherwise the whole :attr:`alpha` (:meth:`outliers_testable`)."""
+        return self.outliers_testable(fit) or bool(self.step_axes(fit))
+
     def term_candidates(self, fit: Fit) -> list[tuple[str, int, int]]:
         """New terms (order 1, or any order for :data:`DIRECT_ORDERS`) and the next order of every term in ``fit``.
 
@@ -246,6 +269,8 @@ class ForwardSelection:
         out = []
         sessions = self.fitter.reg.n_sessions
         for e, a in self.candidates:
+            if e == BIAS_STEP and self.fitter.step_at is None:
+                continue  # its position is searched (step_candidates); once placed, its other axes are plain terms
             if (e, a) not in fit.terms:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
                 orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
@@ -273,8 +298,12 @@ class ForwardSelection:
             bic0 = fitter.bic(current)
             term_cands = self.term_candidates(current)
             outliers_tested = self.outliers_testable(current)
-            level = self.step_level(current, term_cands, self.alpha_terms if outliers_tested else self.alpha)
-            tried: list[Candidate] = []
+            steps_axes = self.step_axes(current)
+            level = self.step_level(current, term_cands,
+                                    self.alpha_terms if self.departures_testable(current) else self.alpha)
+            # the step's axes share its level (Bonferroni); its positions are paid for in its p value (adjusted_p)
+            tried: list[Candidate] = self.step_candidates(current, steps_axes,
+                                                          self.alpha_step / max(len(steps_axes), 1), bic0)
             for effect, axis, order in self.loop(term_cands, f"selection step {len(steps) + 1}", len(term_cands)):
                 if not fitter.identifiable(current, effect, axis, order):
                     self.note(f"{describe_term(effect, axis, order)} is not identifiable from these poses; not tested")
@@ -296,15 +325,20 @@ class ForwardSelection:
                         rows=[int(fitter.poses.rows[k]) for k in sorted(found.poses)], fit=found.fit,
                     ))
             self.step_down_first(tried, current)
+            self.prefer_step_to_outliers(tried, current)
             accepted = None
             for c in preference_order([c for c in tried if c.significant]):
                 assert c.fit is not None
                 mask = c.fit.kept(fitter.n)
                 c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
+                if c.step_at is not None:
+                    fitter.set_step(c.step_at)  # the held-out fits of the step need its split
                 c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
                 if c.heldout_rms_g_after < c.heldout_rms_g_before:
                     accepted = c
                     break
+                if c.step_at is not None:
+                    fitter.set_step(None)
                 c.significant = False
                 c.rejected_because = "held-out rms did not fall"
             if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
@@ -314,9 +348,44 @@ class ForwardSelection:
                 break
             current = accepted.fit
         current = self.recheck_outliers(current)
-        alpha_terms = self.alpha_terms if self.outliers_testable(current) else self.alpha
+        alpha_terms = self.alpha_terms if self.departures_testable(current) else self.alpha
         level = self.step_level(current, self.term_candidates(current), alpha_terms) if self.room(current) else alpha_terms
         return SelectionResult(current, steps, self.explain(current, rivalries), level)
+
+    def step_axes(self, current: Fit) -> list[int]:
+        """The axes whose bias step is searched over its positions in a step from ``current``: every candidate axis
+        while no step is in the model (one knock, placed once; its other axes are then plain terms), when the
+        step's coefficient leaves :data:`MIN_DOF` residual degrees of freedom, as the outlier test keeps
+        (:meth:`outliers_testable`: the step is tested on the residuals' noise scale, and a small session's pose
+        scatter would otherwise be named a step; its position is paid for in its p value, not in the test's degrees
+        of freedom)."""
+        if self.fitter.step_at is not None or self.fitter.n - current.n_params - 1 < MIN_DOF:
+            return []
+        return [a for e, a in self.candidates if e == BIAS_STEP]
+
+    def step_candidates(self, current: Fit, axes: list[int], level: float, bic0: float) -> list[Candidate]:
+        """The bias step of each axis at its best position (:func:`~optcal.applications.diagnosis.bias_step.scan_step`),
+        fitted exactly there.
+
+        Its p value is the exact likelihood-ratio test's (:meth:`Fitter.f_test`) adjusted for the positions searched
+        (:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`: minP in a small session, Bonferroni in a large
+        one), compared with ``level`` (the step's family-wise level shared among its
+        candidates).  Its ΔBIC counts the position as one more parameter (a change point is a fitted unknown).
+        """
+        fitter = self.fitter
+        out: list[Candidate] = []
+        for axis in axes:
+            scan = scan_step(fitter, current, axis)
+            if scan is None:
+                continue
+            terms = dict(current.terms)
+            terms[(BIAS_STEP, axis)] = 1
+            cand = fitter.fit(terms, current.outliers, current.x, fitter.step_data(scan.at))
+            p, _ = adjusted_p(fitter, current, scan, fitter.f_test(current, cand))
+            delta = fitter.bic(cand) - bic0 + float(np.log(fitter.n))
+            out.append(Candidate(describe_term(BIAS_STEP, axis, 1), BIAS_STEP, AXES[axis], 1, delta, p, level,
+                                 bool(p < level and delta < 0), step_at=scan.at, fit=cand))
+        return out
 
     def step_level(self, current: Fit, term_cands: list[tuple[str, int, int]], alpha_terms: float) -> float:
         """The level each term candidate of a step from ``current`` is tested at, the step's terms sharing the
@@ -356,6 +425,38 @@ class ForwardSelection:
         self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
                   f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
         return self.fitter.fit(final.terms, frozenset(aside), final.x)
+
+    def prefer_step_to_outliers(self, tried: list[Candidate], current: Fit) -> None:
+        """Set the step's outlier candidate aside when a significant bias step explains every one of its poses.
+
+        A bias that stepped and stayed moves every later pose by its part along that pose's direction (the norm
+        residual sees ``δ_i ā_i``), so the poses after the step whose direction is near the stepped axis leave the
+        fit most, and the robust fit names them as several outliers; on BIC the mean shifts of those few poses
+        can beat the one step (20 Xsens rests, 1.5 mg step on y after rest 10: four outliers ΔBIC −70, the step
+        −58).  One physical event explains what four unrelated corrupt rests would: when, under the step's fit, no
+        new outlier pose is still an outlier (its deleted residual at the outliers' family-wise level, the test
+        that set it aside, :meth:`recheck_outliers`), the outlier candidate is not tried in this step.  A single
+        knocked rest that did not persist stays an outlier: the step does not explain it.
+        """
+        outliers = [c for c in tried if c.effect == "outliers" and c.significant and c.fit is not None]
+        steps = [c for c in tried if c.step_at is not None and c.significant and c.fit is not None]
+        if not outliers or not steps:
+            return
+        found = outliers[0]
+        assert found.fit is not None
+        new = frozenset(found.fit.outliers - current.outliers)
+        for c in sorted(steps, key=lambda c: c.delta_bic):
+            assert c.fit is not None and c.step_at is not None
+            self.fitter.set_step(c.step_at)
+            try:
+                p_values = deleted_residual_p(self.fitter, c.fit, new, c.fit.x)
+            finally:
+                self.fitter.set_step(None)
+            if min(p_values.values()) >= self.alpha_outliers:
+                found.significant = False
+                found.rejected_because = (f"its poses are explained by {c.term} after {c.step_at} poses in time "
+                                          f"(none is an outlier under it: p ≥ {min(p_values.values()):.2g})")
+                return
 
     def step_down_first(self, tried: list[Candidate], current: Fit) -> None:
         """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
@@ -407,18 +508,23 @@ class ForwardSelection:
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one (each rival
-        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3)."""
+        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3).
+
+        Significant at the level the step tested its terms at (each candidate's ``threshold``: the minP level in a
+        small session, Bonferroni's ``α/m`` otherwise), not at the step's whole family-wise level; the rival given
+        the chosen term is judged at the same level (:meth:`explain`)."""
         if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order is None:
             return []
         rivals = ("bias_drift",) if accepted.effect != "bias_drift" else ("temperature_bias", "temperature_scale")
         best: dict[str, Candidate] = {}
         for c in tried:
-            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < self.alpha_terms
+            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < c.threshold
                     and (c.effect not in best or c.delta_bic < best[c.effect].delta_bic)):
                 best[c.effect] = c
         return [
             TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic,
-                                    chosen_order=int(accepted.order), other_order=int(c.order or 1))
+                                    chosen_order=int(accepted.order), other_order=int(c.order or 1),
+                                    level=c.threshold)
             for c in best.values()
         ]
 
@@ -439,7 +545,7 @@ class ForwardSelection:
                 r.p_other_given_chosen = fitter.f_test(final, fitter.fit(terms, final.outliers, final.x))
                 given = (
                     f"with {chosen} in the model, {other} adds nothing significant (p = {r.p_other_given_chosen:.2g})"
-                    if r.p_other_given_chosen >= self.alpha_terms else
+                    if r.p_other_given_chosen >= (self.alpha_terms if r.level is None else r.level) else
                     f"even with {chosen} in the model, {other} still explains more (p = {r.p_other_given_chosen:.2g})"
                 )
             r.temperature_time_correlation = corr

@@ -269,7 +269,7 @@ def simulation_check(
         noise += "; correlated between neighbouring poses as estimated (the pose-noise correlation in use)"
     for _ in loop(range(simulations), "simulation check", simulations):
         acc = clean + pose_noise(fitter, rng) * sigma[:, None]
-        data = PoseData.of(fitter.norm.forward(acc), fitter.reg)
+        data = PoseData.of(fitter.norm.forward(acc), fitter.reg, fitter.data.step)
         sim_fit = fitter.fit(fit.terms, fit.outliers, fit.x, data)
         G_s, J_s = fitter.jacobians(sim_fit, w, data)
         st = residual_statistics(fitter, sim_fit, sim_fit.residuals, J_s, G_s, candidates)

@@ -1,0 +1,101 @@
+"""A bias step that persists (issue 39, item 2: "a knock that is hidden"), planted in real recordings.
+
+A knock between two rests moves the accelerometer's zero offset and it stays moved: every rest after it carries the
+same extra bias on the knocked axis.  Planted on the pose means of every rest from one on (what adding the offset to
+every later sample does to them), in IMU-TK's real Xsens log cut to 20 rests and in mikoff's MPU-9150 unit 0 (22
+rests): the log's own noise, pose scatter and slow biases stay in.  The diagnosis names ``bias_step`` on the knocked
+axis, its size within 40 %, its place within one rest; the unplanted recordings name no step, and a knocked rest
+that did not persist stays an outlier (tests/applications/test_diagnosis_knock.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.applications.diagnosis.bias_step import scan_step
+from optcal.applications.diagnosis.fitting import Fitter
+from optcal.applications.diagnosis.regressors import Regressors
+from optcal.core.poses import PoseTable
+from optcal.families.accel.calibration import calibrate
+
+from tests.applications.test_diagnosis_knock import g_per_raw, xsens_cut
+from tests.applications.test_diagnosis_small import planted_mikoff
+
+#: The rest the step comes before (the 11th of 20 Xsens rests; the 12th of mikoff's 22).
+XSENS_AT = 10
+MIKOFF_AT = 11
+
+
+def stepped(poses: PoseTable, at: int, axis: int, size_g: float) -> PoseTable:
+    """``poses`` with the bias of ``axis`` raised by ``size_g`` from pose ``at`` on (poses in time order)."""
+    acc = poses.acc.copy()
+    acc[at:, axis] += size_g / g_per_raw(poses)
+    return replace(poses, acc=acc)
+
+
+def steps_named(poses: PoseTable) -> list:
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(poses)
+    return [f for f in diag.findings if f.effect == "bias_step"], diag
+
+
+def check_step(finding, axis: str, size_g: float, at: int) -> None:
+    assert finding.axes == [axis]
+    assert finding.estimate[axis] == pytest.approx(size_g, rel=0.4)
+    assert finding.stderr[axis] > 0
+    assert abs(finding.step["poses_before"] - at) <= 1
+    assert finding.to_dict()["step"]["t_s"] > finding.to_dict()["step"]["previous_t_s"]
+
+
+# Xsens, 20 rests: 1.5 mg on y is 1.49 mg after 11 rests, on z 1.71 mg after 9 (the log's own slow z bias).  On x the
+# step is missed at 1.5-2 mg (p 0.047 and 0.0078 against 0.0017: these rests' directions give x little weight after
+# rest 10).
+@pytest.mark.parametrize("axis", [1, 2])
+def test_a_persisting_step_in_20_xsens_rests_is_named_as_a_bias_step(shared_data: Path, tmp_path: Path,
+                                                                    axis: int) -> None:
+    poses = xsens_cut(shared_data, tmp_path)
+    size = 1.5e-3
+    found, diag = steps_named(stepped(poses, XSENS_AT, axis, size))
+    assert [f.effect for f in diag.findings] == ["bias_step"]  # not outliers, not a cubic drift
+    check_step(found[0], "xyz"[axis], size, XSENS_AT)
+
+
+# mikoff's unit 0 scatters more from pose to pose (its rests' σ 0.28 mg, the poses more): 2 mg is the best candidate
+# at the right place but p 0.003-0.02 against 0.0017; 3 mg on x is named +4 %, after rest 11 exactly.
+def test_a_persisting_step_in_a_mikoff_unit_is_named_as_a_bias_step(shared_data: Path, tmp_path: Path) -> None:
+    path = shared_data / "mikoff-mpu9150" / "imu0.log"
+    if not path.exists():
+        pytest.skip("mikoff-mpu9150 recording absent")
+    poses = planted_mikoff(tmp_path, path, None, 0, 0.0, "unplanted")
+    size = 3e-3
+    found, diag = steps_named(stepped(poses, MIKOFF_AT, 0, size))
+    assert [f.effect for f in diag.findings] == ["bias_step"]
+    check_step(found[0], "x", size, MIKOFF_AT)
+
+
+def test_unplanted_recordings_name_no_step(shared_data: Path, tmp_path: Path) -> None:
+    path = shared_data / "mikoff-mpu9150" / "imu0.log"
+    if not path.exists():
+        pytest.skip("mikoff-mpu9150 recording absent")
+    for poses in (xsens_cut(shared_data, tmp_path), planted_mikoff(tmp_path, path, None, 0, 0.0, "unplanted")):
+        found, diag = steps_named(poses)
+        assert diag.findings == []
+        # the step was searched (a candidate of the first step), and its p adjusted over the positions is not small
+        tried = [c for c in diag.steps[0].candidates if c.effect == "bias_step"]
+        assert tried and all(c.p_value > c.threshold for c in tried)
+
+
+def test_the_linearised_scan_places_the_step_where_the_exact_fits_do(shared_data: Path, tmp_path: Path) -> None:
+    poses = stepped(xsens_cut(shared_data, tmp_path), XSENS_AT, 2, 1.5e-3)
+    cal = calibrate(poses, "mle")
+    fitter = Fitter(poses, Regressors.of(poses), cal.T, cal.o, 5)
+    base = fitter.fit({})
+    scan = scan_step(fitter, base, 2)
+    assert scan is not None and scan.positions == len(scan.splits) == poses.n - 2 * 3 + 1  # three poses each side
+    rss = {k: fitter.fit({("bias_step", 2): 1}, frozenset(), base.x, fitter.step_data(k)).rss for k in scan.splits}
+    assert scan.at == min(rss, key=lambda k: rss[k])
+    assert abs(scan.at - XSENS_AT) <= 1
