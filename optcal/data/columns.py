@@ -342,7 +342,7 @@ def _conditional_triple(names: list[str], taken: set[str]) -> tuple[str, str, st
 HEADERLESS_TRIPLES: tuple[int, ...] = (3, 6, 9)
 
 
-def _increasing(col: NDArray[np.float64]) -> bool:
+def increasing_column(col: NDArray[np.float64]) -> bool:
     """A time column: its finite values never decrease, and the last exceeds the first."""
     v = col[np.isfinite(col)]
     return v.size >= 2 and bool(np.all(np.diff(v) >= 0)) and bool(v[-1] > v[0])
@@ -388,9 +388,9 @@ def headerless_mapping(
     width = len(columns)
     time_at: int | None = None
     if width - 1 in HEADERLESS_TRIPLES:
-        if _increasing(columns[0]):
+        if increasing_column(columns[0]):
             time_at = 0
-        elif _increasing(columns[-1]):
+        elif increasing_column(columns[-1]):
             time_at = width - 1
     rest = [j for j in range(width) if j != time_at]
     example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, _increasing, normalise_name, parse_columns_option
+from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
 
@@ -140,7 +140,7 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     width = len(names)
     time_at: int | None = None
     if width == 4:
-        time_at = 0 if _increasing(columns[0]) else (3 if _increasing(columns[3]) else None)
+        time_at = 0 if increasing_column(columns[0]) else (3 if increasing_column(columns[3]) else None)
     rest = [j for j in range(width) if j != time_at]
     if len(rest) != 3:
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
