@@ -162,12 +162,13 @@ def null_sessions(poses: PoseTable, count: int, variance_ratio: float, seed: int
     return [replace(poses, acc=clean + noise * rng.standard_normal(clean.shape)) for _ in range(count)]
 
 
-#: Null sessions per scatter ratio.  At α = 0.02 a correct level names something in 1.2 of 60 on average.
-NULL_SESSIONS = 60
-#: Sessions naming something allowed of :data:`NULL_SESSIONS`: at the level, P(X ≥ 6) = 0.3 % (binomial), so a
-#: correct method fails this test by chance once in 300 runs; a level of 10 % (the rule before the χ² route was chosen
-#: on the null model: 8-20 % at a scatter of 2-8 times the measured variance, linearised) fails it 7 times in 10.
-NULL_ALLOWED = 5
+#: Null sessions per scatter ratio.  At α = 0.02 a correct level names something in 0.6 of 30 on average.
+NULL_SESSIONS = 30
+#: Sessions naming something allowed of :data:`NULL_SESSIONS`: at the level, P(X ≥ 4) = 0.3 % (binomial), so a
+#: correct method fails this test by chance once in 300 runs; a level of 10 % fails it 35 times in 100 (the
+#: linearised null simulation in docs/diagnosis.md is the sharper evidence of the level: this test guards it end to
+#: end, through the BIC and held-out checks that follow the likelihood ratio).
+NULL_ALLOWED = 3
 
 
 @pytest.mark.slow

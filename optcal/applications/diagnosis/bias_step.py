@@ -145,9 +145,14 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     chi2_route = measured is not None and dof < MIN_DOF and dof0 > 0 and fit.rss / dof0 <= measured
     if dof <= 0:
         return bonferroni, "Bonferroni"
+    # every position's test has one degree of freedom and the same residual ones, so its p value falls as its
+    # statistic rises: a draw's smallest p is at most p_single exactly when its largest statistic reaches the
+    # statistic whose p is p_single (one quantile, not a tail probability per position and draw)
     if chi2_route:
-        smallest = sps.chi2.sf(np.max(gain, axis=0), 1)
+        largest = np.max(gain, axis=0)
+        critical = float(sps.chi2.isf(p_single, 1))
     else:
         with np.errstate(divide="ignore", invalid="ignore"):
-            smallest = np.min(sps.f.sf(gain / ((rss0[None, :] - gain) / dof), 1, dof), axis=0)
-    return float((1 + np.sum(smallest <= p_single)) / (1 + DRAWS)), "minP"
+            largest = np.max(gain / ((rss0[None, :] - gain) / dof), axis=0)
+        critical = float(sps.f.isf(p_single, 1, dof))
+    return float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), "minP"

@@ -109,16 +109,24 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
     z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
     rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
     gain = np.stack([np.sum((b.T @ z) ** 2, axis=0) for b in bases])  # each candidate's fall in it, (K, DRAWS)
-    q = np.asarray(added, float)[:, None]
-    dof = (fitter.n - fit.n_params) - q
     # the step's route (Fitter.test_scale2, chosen on the null model): a test is χ² against the measured noise only
     # where one was measured, the candidate keeps under MIN_DOF and the null model's residuals are within that noise
     dof0 = fitter.n - fit.n_params
     measured = fitter.measured_scale2
     chi2_route = measured is not None and dof0 > 0 and fit.rss / dof0 <= measured
-    with np.errstate(divide="ignore", invalid="ignore"):
-        p_f = sps.f.sf(gain / q / ((rss0[None, :] - gain) / np.maximum(dof, 1)), q, np.maximum(dof, 1))
-    p = np.where(dof >= MIN_DOF, p_f, sps.chi2.sf(gain, q)) if chi2_route else p_f
-    p = np.where(dof > 0, p, 1.0)
-    smallest = np.sort(np.min(p, axis=0))
+    # candidates adding the same number of coefficients share their test's distribution, whose p value falls as the
+    # gain rises: each such group's smallest p is that of its largest gain (one tail probability per group and draw)
+    sizes = np.asarray(added)
+    p = np.ones(DRAWS)
+    for q in np.unique(sizes):
+        dof = dof0 - int(q)
+        if dof <= 0:  # no room left to test such a candidate: p = 1
+            continue
+        largest = gain[sizes == q].max(axis=0)
+        if chi2_route and dof < MIN_DOF:
+            p = np.minimum(p, sps.chi2.sf(largest, q))
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                p = np.minimum(p, sps.f.sf(largest / q / ((rss0 - largest) / dof), q, dof))
+    smallest = np.sort(p)
     return float(smallest[int(np.floor(alpha * DRAWS))])  # P(min p < level) ≤ α
