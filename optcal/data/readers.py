@@ -503,6 +503,24 @@ def _import_rosbags() -> Any:
     return AnyReader, Stores, get_typestore
 
 
+def bag_topic(reader: Any, path: str | Path, msgtype: str, topic: str | None) -> list[Any]:
+    """The connections of the one topic of ``msgtype`` (e.g. ``sensor_msgs/msg/Imu``) in an open bag: ``topic`` when
+    given, else the bag's only such topic; an :class:`InputError` naming the topics found and ``--topic`` otherwise."""
+    name = msgtype.split("/")[-1]
+    of_type = [c for c in reader.connections if c.msgtype == msgtype]
+    topics = sorted({c.topic for c in of_type})
+    if not topics:
+        found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "none"
+        raise InputError(f"{path}: no sensor_msgs/{name} topic in the bag (topics: {found})")
+    if topic is None:
+        if len(topics) > 1:
+            raise InputError(f"{path}: several sensor_msgs/{name} topics ({', '.join(topics)}); choose one with --topic")
+        topic = topics[0]
+    elif topic not in topics:
+        raise InputError(f"{path}: no sensor_msgs/{name} topic {topic!r} ({name} topics: {', '.join(topics)})")
+    return [c for c in of_type if c.topic == topic]
+
+
 def open_rosbag(path: str | Path, kind: str) -> Any:
     """A ROS 1 or ROS 2 bag opened with rosbags' ``AnyReader`` (the caller closes it).
 
@@ -544,18 +562,8 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
     """
     reader = open_rosbag(path, kind)
     try:
-        imu = [c for c in reader.connections if c.msgtype == ROS_IMU_TYPE]
-        topics = sorted({c.topic for c in imu})
-        if not topics:
-            found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "none"
-            raise InputError(f"{path}: no sensor_msgs/Imu topic in the bag (topics: {found})")
-        if topic is None:
-            if len(topics) > 1:
-                raise InputError(f"{path}: several sensor_msgs/Imu topics ({', '.join(topics)}); choose one with --topic")
-            topic = topics[0]
-        elif topic not in topics:
-            raise InputError(f"{path}: no sensor_msgs/Imu topic {topic!r} (Imu topics: {', '.join(topics)})")
-        conns = [c for c in imu if c.topic == topic]
+        conns = bag_topic(reader, path, ROS_IMU_TYPE, topic)
+        topic = conns[0].topic
         rows = []
         try:
             for conn, logtime, raw in reader.messages(connections=conns):

@@ -302,23 +302,15 @@ def _stamps(reader: Any, conns: list, fields: Any) -> NDArray[np.float64]:
 def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
     """``sensor_msgs/MagneticField`` messages of one topic (tesla) and, where the bag has one ``sensor_msgs/Imu``
     topic, its accelerometer at the nearest stamps (:data:`ROS_JOIN_SHARE`; the samples without one counted)."""
-    from optcal.data.readers import open_rosbag
+    from optcal.data.readers import bag_topic, open_rosbag
 
     reader = open_rosbag(path, kind)
     try:
-        mags = [c for c in reader.connections if c.msgtype == ROS_MAG_TYPE]
-        topics = sorted({c.topic for c in mags})
-        if not topics:
-            found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "none"
-            raise InputError(f"{path}: no sensor_msgs/MagneticField topic in the bag (topics: {found})")
-        if topic is None and len(topics) > 1:
-            raise InputError(f"{path}: several sensor_msgs/MagneticField topics ({', '.join(topics)}); choose one with --topic")
-        if topic is not None and topic not in topics:
-            raise InputError(f"{path}: no sensor_msgs/MagneticField topic {topic!r} (MagneticField topics: {', '.join(topics)})")
-        topic = topic or topics[0]
+        mag_conns = bag_topic(reader, path, ROS_MAG_TYPE, topic)
+        topic = mag_conns[0].topic
         imus = [c for c in reader.connections if c.msgtype == ROS_IMU_TYPE]
         try:
-            mag = _stamps(reader, [c for c in mags if c.topic == topic],
+            mag = _stamps(reader, mag_conns,
                           lambda msg: (msg.magnetic_field.x, msg.magnetic_field.y, msg.magnetic_field.z))
             imu_topics = sorted({c.topic for c in imus})
             imu = (_stamps(reader, imus, lambda msg: (msg.linear_acceleration.x, msg.linear_acceleration.y,
