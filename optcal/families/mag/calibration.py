@@ -83,7 +83,7 @@ class MagCalibration(Calibration):
     def from_parameters(cls, d: dict[str, Any], units: str, fitted_on: FitPoses | None) -> "MagCalibration":
         keep = ("n_samples", "rms_norm_residual", "form", "form_reason", "dip_deg", "dip_std_deg", "coverage_missing",
                 "method", "stderr", "decisions", "notes", "dip_se_deg", "dip_std_unaligned_deg", "rotation_deg", "rotation_se_deg",
-                "wmm")
+                "wmm", "form_heldout")
         R = read_matrix(d, "R_mag_to_acc", (3, 3)) if d.get("R_mag_to_acc") is not None else None
         return cls(read_matrix(d, "T", (3, 3)), read_matrix(d, "o", (3,)), units, float(d["field_strength"]), None, R,
                    {k: d[k] for k in keep if k in d})
@@ -157,6 +157,8 @@ def calibrate_mag(samples: MagSamples, settings: MagSettings | None = None) -> M
         "method": f.method, "solver": f.solver, "stderr": f.stderr, "coverage_missing": list(fit.coverage.missing),
         "decisions": samples.decision_lines(), "notes": fit.notes, "exclusions": samples.exclusions,
     }
+    if fit.heldout is not None:
+        info["form_heldout"] = fit.heldout.summary()
     R = None
     if dip is not None:
         info.update(dip_deg=dip.dip_deg, dip_se_deg=dip.dip_se_deg, dip_std_deg=dip.dip_std_deg,
