@@ -248,3 +248,35 @@ def test_the_form_decision_is_printed_with_its_evidence(tmp_path, capsys):
     d = json.loads(out)
     assert d["form"] == "full" and set(d["form_heldout"]["rms"]) == {"offsets", "diagonal", "full"}
     assert d["form_heldout"]["gain_over_offsets"]["full"]["gain"] > d["form_heldout"]["gain_over_offsets"]["full"]["se"]
+
+
+@pytest.mark.parametrize("gyro_first, with_time", [(True, False), (False, True)])
+def test_a_headerless_9_axis_log_reads_the_magnetometer_last(tmp_path, gyro_first, with_time):
+    """A 9-axis logger's file without a header (ybabs/MagCalib's magnetometer.csv: gyro, accelerometer, magnetometer
+    in counts; the common order has the accelerometer first): the magnetometer is the last triple, the
+    accelerometer the triple whose norm stays near its median, with or without a time column first."""
+    rng = np.random.default_rng(7)
+    n = 1500
+    up = _sphere(n, 8)
+    acc = up * 16384 + rng.normal(scale=300, size=(n, 3))  # counts, 16384 per g, a hand's jitter
+    rate = np.abs(np.sin(np.linspace(0, 20, n)))[:, None] * rng.normal(size=(n, 3)) * 2000  # turns and pauses
+    m = _sphere(n, 9) @ np.diag([410.0, 380.0, 450.0]) + [120.0, -60.0, 300.0] + rng.normal(scale=2, size=(n, 3))
+    triples = [rate, acc] if gyro_first else [acc, rate]
+    cols = ([np.arange(n) * 0.01] if with_time else []) + [c for t in triples + [m] for c in t.T]
+    path = tmp_path / "log.csv"
+    np.savetxt(path, np.column_stack(cols), delimiter=",", fmt="%.6g")
+    samples = read_mag(str(path))
+    shift = 1 if with_time else 0
+    assert samples.columns["mx"] == str(7 + shift) and samples.columns["mz"] == str(9 + shift)
+    assert samples.acc is not None and np.allclose(samples.acc, acc, atol=1)
+    assert samples.columns["ax"] == str((4 if gyro_first else 1) + shift)
+    assert samples.gyro is not None and np.allclose(samples.gyro, rate, atol=1e-3 * 2000)
+    assert any("9-axis" in note and "--columns" in note for note in samples.notes)
+    result = calibrate_mag(samples)
+    assert result.fit.fit.rms < 0.01
+    # both first triples with a steady norm (two accelerometers?): neither is taken, said with --columns
+    cols2 = [c for t in (acc, acc[::-1], m) for c in t.T]
+    np.savetxt(path, np.column_stack(cols2), delimiter=",", fmt="%.6g")
+    samples = read_mag(str(path))
+    assert samples.acc is None and samples.columns["mx"] == "7"
+    assert any("not read" in note and "--columns ax=" in note for note in samples.notes)

@@ -118,17 +118,36 @@ def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, st
     return cols, (unit_words.pop() if len(unit_words) == 1 else None)
 
 
+#: A file without a header is read as a 9-axis logger's (an accelerometer, a gyroscope and the magnetometer
+#: last, the common order) when the triple read as the accelerometer has a norm whose median absolute
+#: deviation is below this share of its median: a sensor turned by hand feels gravity plus a little
+#: (2 rad/s at a 0.1 m lever arm adds 0.04 g), so most of its samples keep |a| within a tenth of g; a
+#: gyroscope's rate during a calibration turn goes from nothing at the pauses to the turns' rate.
+ACC_NORM_SPREAD: float = 0.1
+
+
+def _relative_spread(v: NDArray[np.float64]) -> float:
+    n = np.linalg.norm(v[np.all(np.isfinite(v), axis=1)], axis=1)
+    med = float(np.median(n)) if n.size else 0.0
+    return float(np.median(np.abs(n - med)) / med) if med > 0 else np.inf
+
+
 def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float64]],
                     mapping: dict[str, str]) -> tuple[dict[str, str], str]:
     """The magnetometer's columns of a file with no header, by the common layout of its width.
 
     Three columns are ``mx my mz`` (Magneto's and most loggers' ``x y z`` sample files); four are a time column
-    and the three when the first (or else the last) increases. Any other width is left to ``--columns``.
+    and the three when the first (or else the last) increases. Nine (ten with such a time column) are a 9-axis
+    logger's: the magnetometer the last triple (the common order, as :mod:`optcal.data.columns` reads it), the
+    accelerometer the one of the first two whose norm stays near its median (:data:`ACC_NORM_SPREAD`), the
+    other the gyroscope; when neither or both do, they are not read and the reason names ``--columns``. Any
+    other width is left to ``--columns``.
 
     Returns
     -------
     mapping : dict
-        ``mapping`` with the magnetometer's (and the time's) 1-based positions added.
+        ``mapping`` with the magnetometer's (and the time's, the accelerometer's, the gyroscope's) 1-based
+        positions added.
     reason : str
         The decision, with the flag that changes it.
 
@@ -139,17 +158,31 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     """
     width = len(names)
     time_at: int | None = None
-    if width == 4:
-        time_at = 0 if increasing_column(columns[0]) else (3 if increasing_column(columns[3]) else None)
+    if width in (4, 10):
+        time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
     rest = [j for j in range(width) if j != time_at]
-    if len(rest) != 3:
+    if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
                          f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
-    canon = {k: str(j + 1) for k, j in zip(MAG, rest)}
+    canon = {k: str(j + 1) for k, j in zip(MAG, rest[-3:])}
     if time_at is not None:
         canon["t"] = str(time_at + 1)
-    what = " ".join(k for k, _ in sorted(canon.items(), key=lambda kv: int(kv[1])))
     where = "" if time_at is None else f"; column {time_at + 1} increases"
+    if len(rest) == 9:
+        triples = (rest[0:3], rest[3:6])
+        spread = [_relative_spread(np.column_stack([columns[j] for j in t])) for t in triples]
+        span = [f"{t[0] + 1}-{t[2] + 1}" for t in triples]
+        near = [k for k in (0, 1) if spread[k] < ACC_NORM_SPREAD]
+        said = (f"the norm of columns {span[0]} spreads by {100 * spread[0]:.2g} % of its median, of columns {span[1]} "
+                f"by {100 * spread[1]:.2g} %; an accelerometer turned by hand stays within {100 * ACC_NORM_SPREAD:g} %")
+        if len(near) == 1:
+            acc, gyro = triples[near[0]], triples[1 - near[0]]
+            canon.update({k: str(j + 1) for k, j in zip(("ax", "ay", "az", "gx", "gy", "gz"), acc + gyro)})
+            where += f"; a 9-axis logger's: the magnetometer last, the accelerometer columns {span[near[0]]} ({said})"
+        else:
+            where += (f"; a 9-axis logger's: the magnetometer last; columns {span[0]} and {span[1]} not read, neither "
+                      f"alone an accelerometer ({said}): name them with --columns ax=..,gx=..")
+    what = " ".join(k for k, _ in sorted(canon.items(), key=lambda kv: int(kv[1])))
     return {**mapping, **canon}, (f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
                                   f"{where}); name them by position to change it, e.g. --columns mx=1,my=2,mz=3")
 
