@@ -280,3 +280,15 @@ def test_a_headerless_9_axis_log_reads_the_magnetometer_last(tmp_path, gyro_firs
     samples = read_mag(str(path))
     assert samples.acc is None and samples.columns["mx"] == "7"
     assert any("not read" in note and "--columns ax=" in note for note in samples.notes)
+
+
+def test_the_near_rest_override_names_the_flag():
+    """The dip's near rest with the gyroscope's units given: the reason names --gyro-units, the flag the user types."""
+    from optcal.families.mag.dip import rest_gate
+
+    rng = np.random.default_rng(0)
+    acc = np.tile([0.0, 0.0, 9.81], (500, 1)) + rng.normal(scale=0.01, size=(500, 3))
+    gyro = rng.normal(scale=0.01, size=(500, 3))
+    reason = rest_gate(acc, gyro, None, "deg/s").reason
+    assert "given with --gyro-units" in reason and "gyro_units" not in reason
+    assert "deg/s" in reason
