@@ -131,3 +131,18 @@ def test_the_allan_command_imports_neither_allantools_nor_scipy() -> None:
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'allantools', 'scipy'}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_head_of_one_quantised_value_keeps_the_previous_noise_id() -> None:
+    """A quantised sensor whose first 2100 samples read its mean exactly: the phase does not vary there, so the lag-1
+    autocorrelation is undefined (allantools' own identification fails on it: int(nan)); optcal skips that τ's
+    identification (the exponent of the τ before, white frequency noise before any) instead of failing."""
+    with pytest.raises(ValueError, match="does not vary"):
+        lag1_noise_id(np.zeros(100), 1)
+    rest = np.random.default_rng(4).permutation(np.repeat([0.25, -0.25], 19_000))  # mean exactly 0
+    y = np.concatenate([np.zeros(2_100), rest])
+    phase = phase_from_rate(y, RATE)
+    assert not np.any(phase[:2_101])  # the head of the phase is exactly zero
+    curve = allan_deviation(y, RATE)
+    assert curve.alpha[0] == 0
+    assert np.all(np.isfinite(curve.ci_low)) and np.all(np.isfinite(curve.ci_high))

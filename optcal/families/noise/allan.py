@@ -237,7 +237,8 @@ def overlapping_adev(phase: NDArray[np.float64], rate_hz: float, ms: ArrayLike) 
 
 
 def _noise_alpha(phase: NDArray[np.float64], m: int) -> int | None:
-    """The lag-1 autocorrelation noise identification (Riley & Greenhall 2004), or None when too few points.
+    """The lag-1 autocorrelation noise identification (Riley & Greenhall 2004), or None when too few points or
+    when they do not vary.
 
     Uses the first :data:`_NOISE_ID_MAX_POINTS` clusters of length ``m`` (enough to identify
     the noise type of a stationary record).
@@ -245,7 +246,10 @@ def _noise_alpha(phase: NDArray[np.float64], m: int) -> int | None:
     if (phase.size - 1) // m < NOISE_ID_MIN_POINTS:
         return None
     head = phase[: _NOISE_ID_MAX_POINTS * m + 1]
-    return int(np.clip(lag1_noise_id(head, m, max_differences=2).alpha, *_ALPHA_RANGE))
+    try:
+        return int(np.clip(lag1_noise_id(head, m, max_differences=2).alpha, *_ALPHA_RANGE))
+    except ValueError:  # a head that does not vary (one quantised value): the τ before's exponent is kept
+        return None
 
 
 def allan_deviation(

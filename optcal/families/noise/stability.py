@@ -82,7 +82,8 @@ class NoiseId:
 def lag1_autocorrelation(z: NDArray[np.float64]) -> float:
     """The lag-1 autocorrelation ``r1 = Σ (z_t − z̄)(z_{t+1} − z̄) / Σ (z_t − z̄)²`` (Riley & Greenhall 2004, eq. 2)."""
     centred = z - np.mean(z)
-    return float(np.dot(centred[:-1], centred[1:]) / np.dot(centred, centred))
+    spread = float(np.dot(centred, centred))
+    return float(np.dot(centred[:-1], centred[1:]) / spread) if spread > 0.0 else math.nan
 
 
 def lag1_noise_id(phase: NDArray[np.float64], m: int, max_differences: int = 2) -> NoiseId:
@@ -105,7 +106,8 @@ def lag1_noise_id(phase: NDArray[np.float64], m: int, max_differences: int = 2) 
     Raises
     ------
     ValueError
-        If fewer than :data:`NOISE_ID_MIN_POINTS` points remain at this ``m``.
+        If fewer than :data:`NOISE_ID_MIN_POINTS` points remain at this ``m``, or they (or their differences)
+        do not vary: no autocorrelation to read (a quantised sensor whose head of the log reads one value).
     """
     z = np.asarray(phase, dtype=float)[:: max(int(m), 1)]
     if z.size < NOISE_ID_MIN_POINTS:
@@ -116,6 +118,8 @@ def lag1_noise_id(phase: NDArray[np.float64], m: int, max_differences: int = 2) 
     d = 0
     while True:
         r1 = lag1_autocorrelation(z)
+        if not math.isfinite(r1):
+            raise ValueError(f"the phase at m={m} does not vary after {d} difference(s): no noise to identify")
         delta = r1 / (1.0 + r1)  # Riley & Greenhall 2004, eq. 5
         if delta < STATIONARY_DELTA or d >= max_differences:
             p = -2.0 * (delta + d)  # the phase's power law, S_x ∝ f^p
