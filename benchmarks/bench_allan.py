@@ -1,7 +1,8 @@
 """Runtime and memory of the Allan analysis (run on demand: ``pytest benchmarks/bench_allan.py -q -s``).
 
 * Allan deviation of a 12 h, 100 Hz static log (4.32 million samples, three axes): overlapping
-  estimator on octave τ, allantools confidence intervals and the noise-parameter fit — ≤ 10 s.
+  estimator on octave τ, its confidence intervals (optcal.families.noise.stability) and the
+  noise-parameter fit — ≤ 10 s.
 * ``optcal allan FILE --json`` end to end on a still log written as CSV (time, three accelerometer
   and three gyro columns), each in a fresh interpreter, against pandas' ``read_csv`` of the same
   file in a fresh interpreter in the same run (issue 40).  Targets: wall time ≤ 2× pandas', and
@@ -10,12 +11,12 @@
   (what CI can afford), ``OPTCAL_BENCH_ALLAN_HOURS`` any length.  The figures are printed; the
   targets are asserted only with ``OPTCAL_BENCH_STRICT=1`` (timings on a shared 2-core machine
   move by a factor of two with the load).  The command runs as the console script runs it (only
-  ``optcal.cli.main`` imported first, so the analysis' imports overlap the read as they do for a
-  user); the memory above its imports is its peak less the peak of an interpreter that only
+  ``optcal.cli.main`` imported first: the command's own imports are timed); the memory above its imports is its peak less the peak of an interpreter that only
   imports what the command imports (a third child, same run).  Each child's CPU time (every
   thread) is printed too: under a load above the two cores, wall time measures the queue and CPU
   time the work.  ``OPTCAL_BENCH_ALLAN_BASELINE=DIR`` (a source tree, e.g. ``git archive main``
-  unpacked) runs the same children with that tree's code in the same run: before and after.
+  unpacked) runs the same children with that tree's code in the same run: before and after (each child
+  runs in its source tree, whose optcal ``python -c`` imports first).
 """
 
 from __future__ import annotations
@@ -113,8 +114,10 @@ def _still_log_csv(path: Path, hours: float) -> tuple[int, int]:
 
 def _child(mode: str, path: Path, source: Path = Path(__file__).resolve().parents[1]) -> dict[str, float]:
     env = {**os.environ, "PYTHONPATH": str(source)}
+    # run in the source tree: ``python -c`` puts the working directory ahead of PYTHONPATH, so a baseline run
+    # from this repository's root imported this tree's optcal, not the baseline's
     done = subprocess.run([sys.executable, "-c", _CHILD, mode, str(path)], capture_output=True, text=True, env=env,
-                          check=True)
+                          check=True, cwd=source)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

@@ -192,16 +192,6 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro, rec.gyro_units)
 
 
-def _import_quietly(name: str) -> None:
-    """Import ``name`` (a module needed later), leaving any failure to the import that needs it."""
-    import importlib
-
-    try:
-        importlib.import_module(name)
-    except Exception:  # noqa: BLE001  (raised again, with its traceback, where the module is used)
-        pass
-
-
 @click.command()
 @click.argument("data", type=DATA_PATH)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (SI units) instead of the table.")
@@ -243,19 +233,12 @@ def allan(
 
     DATA is a raw recording of a still sensor (CSV with ax, ay, az, a time column or a rate;
     Parquet, ROS bag or ULog).  Overlapping Allan deviation on octave-spaced τ with
-    confidence intervals (allantools); the noise parameters are read from the fitted
+    confidence intervals (Greenhall's degrees of freedom); the noise parameters are read from the fitted
     −1/2, 0 and +1/2 slope lines as in Yin 2014.  Where no +1/2 slope shows, the rate random
     walk's one-sided 95 % confidence bound from the longest τ is reported instead.
     """
-    import importlib
-    import threading
-
-    # the analysis' imports (allantools, and with it scipy's stats, signal and interpolate: about a second) run in a
-    # second thread while this one reads the log (whose parse releases the interpreter): the user waits for the
-    # longer of the two, not their sum; a failed import is raised again by the import below
-    loader = threading.Thread(target=_import_quietly, args=("optcal.families.noise.analysis",), daemon=True)
-    loader.start()
     from optcal.errors import InputError
+    from optcal.families.noise.analysis import analyse_static_log, plot_allan
     from optcal.families.noise.scales import scale_for
     from optcal.families.noise.sensors import ACCELEROMETER, GYROSCOPE
     from optcal.data.units import decide_gyro_units
@@ -271,9 +254,6 @@ def allan(
         scales = calibration_scales(calibration_files.load(calibration_path))
     span = parse_window(window)
     log = read_still_log(data, sensor=sensor, window=span, **reading_kwargs(reading))
-    loader.join()
-    analysis_module = importlib.import_module("optcal.families.noise.analysis")
-    analyse_static_log, plot_allan = analysis_module.analyse_static_log, analysis_module.plot_allan
     analyses = {}
     reasons: dict[str, str] = {}
     if sensor in ("acc", "both"):

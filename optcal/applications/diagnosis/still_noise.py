@@ -13,7 +13,7 @@ Two routes, the first that reaches the poses' time scale:
   median dwell (nine clusters, :func:`optcal.families.noise.allan.octave_taus`);
 * otherwise **every still interval pooled** (a raw recording's poses are rarely longer than a
   few seconds): the overlapping Allan variance of each interval at octave τ up to half its
-  length (allantools' ``oadev``, the library the project's Allan code uses), pooled over the
+  length (:func:`optcal.families.noise.allan.overlapping_adev`, the numbers of allantools' ``oadev``), pooled over the
   intervals and axes with their numbers of differences as weights.  Each interval's own mean
   drops out of the differences, so the pose means do not enter.
 
@@ -87,7 +87,7 @@ def mean_noise_at(taus: NDArray[np.float64], adev: NDArray[np.float64], tau: NDA
 def pooled_interval_adev(acc: NDArray[np.float64], spans: Sequence[tuple[int, int]],
                          rate_hz: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Overlapping Allan deviation at octave τ pooled over the still intervals ``spans`` and the axes (module docstring)."""
-    import allantools
+    from optcal.families.noise.allan import overlapping_adev, phase_from_rate
 
     longest = max(stop - start for start, stop in spans)
     ms = 2 ** np.arange(int(np.floor(np.log2(max((longest - 1) // 2, 1)))) + 1)
@@ -101,10 +101,10 @@ def pooled_interval_adev(acc: NDArray[np.float64], spans: Sequence[tuple[int, in
             x = acc[start:stop, axis]
             if np.ptp(x) == 0:
                 continue
-            taus, adev, _, n = allantools.oadev(x, rate=rate_hz, data_type="freq", taus=usable / rate_hz)
-            index = np.searchsorted(ms, np.rint(np.asarray(taus) * rate_hz).astype(int))
-            total[index] += np.asarray(n) * np.asarray(adev) ** 2
-            count[index] += np.asarray(n)
+            adev, n = overlapping_adev(phase_from_rate(x, rate_hz), rate_hz, usable)
+            index = np.searchsorted(ms, usable)
+            total[index] += n * adev**2
+            count[index] += n
     keep = count > 0
     return ms[keep] / rate_hz, np.sqrt(total[keep] / count[keep])
 

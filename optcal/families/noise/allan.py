@@ -18,8 +18,9 @@ scaling factor, take the square root".  τ grows until only 9 clusters remain (K
 :data:`MIN_CLUSTERS`).  optcal uses the *overlapping* estimator of the same quantity
 (NIST SP 1065, eq. 11), computed from the cumulative sum of the samples (:func:`overlapping_adev`,
 O(N) per τ, the numbers allantools' ``oadev`` gives) on octave-spaced τ = 2^j τ_0, with
-confidence intervals from allantools' lag-1 autocorrelation noise identification and
-Greenhall's equivalent degrees of freedom.
+confidence intervals from the lag-1 autocorrelation noise identification (Riley & Greenhall 2004)
+and Greenhall's equivalent degrees of freedom (Greenhall & Riley 2003), both in
+:mod:`optcal.families.noise.stability`.
 
 Table 1 (eq. 6) relates the Allan deviation to the noise terms (IEEE Std 952, Annex C)::
 
@@ -60,14 +61,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import allantools
+from itertools import combinations
+from statistics import NormalDist
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import nnls
-from scipy.stats import chi2, norm
 
+from optcal.core.quantiles import chi2_ppf
 from optcal.errors import InputError
 from optcal.families.noise.sensors import ACCELEROMETER, NoiseSensor
+from optcal.families.noise.stability import NOISE_ID_MIN_POINTS, ONE_SIGMA, chi2_interval, greenhall_edf, lag1_noise_id
 
 #: Yin 2014, section 2.2: grow τ only while at least 9 clusters remain.
 MIN_CLUSTERS: int = 9
@@ -77,17 +80,13 @@ FLICKER_FACTOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
 NOISE_DENSITY_TAU_S: float = 1.0
 #: τ at which the rate random walk is read on the +1/2 line (IEEE Std 952).
 RRW_TAU_S: float = 3.0
-#: One-sigma confidence level, as allantools defines it.
-ONE_SIGMA: float = float(allantools.ci.ONE_SIGMA_CI)
-#: Minimum cluster count for lag-1 autocorrelation noise identification (allantools' limit).
 #: Phase points per piece of :func:`overlapping_adev`'s sums: its temporary (64 KiB) stays in the
 #: processor's cache, so each τ reads the phase once from memory instead of writing and reading a
 #: temporary of the log's length three times (2× faster on a 12-hour log; the sum is the same to
 #: rounding, about 1e-15 of σ).
 ADEV_PIECE: int = 2**13
-_NOISE_ID_MIN_POINTS: int = 30
-#: Clusters used for noise identification at each τ.  allantools' lag-1 ACF is a Python loop;
-#: 2048 points give r1 to about ±0.02, ample to tell α apart, and keep a 12 h log fast.
+#: Clusters used for noise identification at each τ: 2048 points give r1 to about ±0.02 (its standard error
+#: ~1/√n), ample to tell the integer α apart (steps of 1 in α are steps of 0.5 in δ).
 _NOISE_ID_MAX_POINTS: int = 2048
 #: A fitted term counts as present when its coefficient exceeds this many standard errors.
 _PRESENCE_SIGMAS: float = 2.0
@@ -112,7 +111,7 @@ class AllanCurve:
     ci_low, ci_high : ndarray
         Confidence interval of σ(τ) at level :attr:`confidence`.
     n_terms : ndarray
-        Number of second differences in each estimate (allantools' ``ns``).
+        Number of second differences in each estimate (allantools' ``ns``: N − 2m).
     edf : ndarray
         Greenhall's equivalent degrees of freedom.
     alpha : ndarray of int
@@ -238,16 +237,19 @@ def overlapping_adev(phase: NDArray[np.float64], rate_hz: float, ms: ArrayLike) 
 
 
 def _noise_alpha(phase: NDArray[np.float64], m: int) -> int | None:
-    """allantools' lag-1 autocorrelation noise identification, or None when too few points.
+    """The lag-1 autocorrelation noise identification (Riley & Greenhall 2004), or None when too few points or
+    when they do not vary.
 
     Uses the first :data:`_NOISE_ID_MAX_POINTS` clusters of length ``m`` (enough to identify
     the noise type of a stationary record).
     """
-    if (phase.size - 1) // m < _NOISE_ID_MIN_POINTS:
+    if (phase.size - 1) // m < NOISE_ID_MIN_POINTS:
         return None
     head = phase[: _NOISE_ID_MAX_POINTS * m + 1]
-    alpha_int = allantools.ci.autocorr_noise_id(head, m, data_type="phase", dmin=0, dmax=2)[0]
-    return int(np.clip(alpha_int, *_ALPHA_RANGE))
+    try:
+        return int(np.clip(lag1_noise_id(head, m, max_differences=2).alpha, *_ALPHA_RANGE))
+    except ValueError:  # a head that does not vary (one quantised value): the τ before's exponent is kept
+        return None
 
 
 def allan_deviation(
@@ -295,13 +297,8 @@ def allan_deviation(
         last = found if found is not None else last
         # beyond the noise-ID limit, keep the exponent identified at the largest τ that allowed it
         alpha[i] = 0 if last is None else last
-    edf = np.array(
-        [
-            allantools.ci.edf_greenhall(alpha=int(a), d=2, m=int(m), N=phase.size, overlapping=True, modified=False)
-            for a, m in zip(alpha, ms)
-        ]
-    )
-    bounds = np.array([allantools.ci.confidence_interval(dev, e, confidence) for dev, e in zip(adev, edf)])
+    edf = np.array([greenhall_edf(int(a), 2, int(m), phase.size, overlapping=True) for a, m in zip(alpha, ms)])
+    bounds = np.array([chi2_interval(float(dev), float(e), confidence) for dev, e in zip(adev, edf)])
     return AllanCurve(
         taus=np.asarray(taus, dtype=float),
         adev=np.asarray(adev, dtype=float),
@@ -439,7 +436,7 @@ def rate_random_walk_confidence_bound(curve: AllanCurve, confidence: float = RRW
     if not 0.0 < confidence < 1.0:
         raise InputError(f"the confidence of the rate random walk bound must lie in (0, 1), got {confidence}")
     tau, adev, edf = float(curve.taus[-1]), float(curve.adev[-1]), float(max(curve.edf[-1], 1.0))
-    upper = adev * math.sqrt(edf / float(chi2.ppf(1.0 - confidence, edf)))
+    upper = adev * math.sqrt(edf / chi2_ppf(1.0 - confidence, edf))
     return RandomWalkBound(upper * math.sqrt(3.0 / tau), float(confidence), tau, edf, upper)
 
 
@@ -447,6 +444,31 @@ def _design(taus: NDArray[np.float64], terms: list[int]) -> NDArray[np.float64]:
     """Columns of σ²(τ) = c_0/τ + c_1 + c_2 τ/3 for the chosen terms (0 = white, 1 = flicker, 2 = RRW)."""
     columns = (1.0 / taus, np.ones_like(taus), taus / 3.0)
     return np.column_stack([columns[t] for t in terms])
+
+
+def nnls(design: NDArray[np.float64], target: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Non-negative least squares ``min ‖X c − b‖`` over ``c ≥ 0`` for a few columns, exactly.
+
+    The solution is the unconstrained least squares on its support (the Karush-Kuhn-Tucker conditions, Lawson &
+    Hanson 1974, ch. 23), so among the supports whose least-squares coefficients are all non-negative the one of
+    least residual is it: ``2^k − 1`` small solves for ``k`` columns (7 for the three noise terms), where
+    Lawson and Hanson's active-set iteration would reach the same support step by step.
+    """
+    columns = design.shape[1]
+    best, best_residual = np.zeros(columns), float(np.dot(target, target))
+    for size in range(1, columns + 1):
+        for support in combinations(range(columns), size):
+            sub = design[:, support]
+            coef, *_ = np.linalg.lstsq(sub, target, rcond=None)
+            if np.any(coef < 0.0):
+                continue
+            residual = target - sub @ coef
+            value = float(np.dot(residual, residual))
+            if value < best_residual:
+                best = np.zeros(columns)
+                best[list(support)] = coef
+                best_residual = value
+    return best
 
 
 def _weighted_nnls(
@@ -457,7 +479,7 @@ def _weighted_nnls(
     model = avar.copy()
     for _ in range(8):  # weights 1/sd(σ̂²) with sd = σ²·√(2/edf), evaluated on the current model
         w = 1.0 / (np.maximum(model, 1e-300) * np.sqrt(2.0 / edf))
-        coef, _ = nnls(X * w[:, None], avar * w)
+        coef = nnls(X * w[:, None], avar * w)
         new = X @ coef
         if np.allclose(new, model, rtol=1e-6, atol=0):
             break
@@ -499,7 +521,7 @@ def fit_noise_parameters(curve: AllanCurve, sensor: NoiseSensor = ACCELEROMETER)
         terms.remove(min(ratios, key=ratios.__getitem__))
     fitted = dict(zip(terms, coef))
     stderr = dict(zip(terms, se))
-    k_sigma = float(norm.ppf(0.5 + curve.confidence / 2.0))
+    k_sigma = NormalDist().inv_cdf(0.5 + curve.confidence / 2.0)
     min_reading = float(np.min(curve.adev) / FLICKER_FACTOR)
 
     if 0 in fitted and fitted[0] > 0:
