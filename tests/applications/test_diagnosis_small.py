@@ -1,8 +1,7 @@
 """Small sessions (issue 39): 14 rests of IMU-TK's real Xsens log, tested against the noise measured in the rests.
 
-A likelihood-ratio test of a small session takes its noise scale from the rests' samples where the residuals
-leave too few degrees of freedom to estimate it (``Fitter.noise_scale2``), so a session of 12-19 poses is
-tested instead of being told that a test needs 20 poses.  The effects are planted in the real recording
+A small session of 12-19 poses is tested (an F test, its scale never below the noise of the pose means measured
+from their samples: ``Fitter.test_scale2``) instead of being told that a test needs 20 poses.  The effects are planted in the real recording
 (``test_diagnosis_real.planted_xsens``: the log's own noise, its own rise-and-fall z bias and its pose-to-pose
 scatter stay in), sized in standard errors of the coefficient under the pose noise the full log shows
 (its reduced χ² about the paper's model: the real pose means scatter 2.5 times more than their samples say).
@@ -144,6 +143,51 @@ def test_an_effect_planted_at_10_standard_errors_in_14_hand_held_rests_is_named(
     letter = "xyz"[axis]
     assert [(f.effect, f.axes) for f in diag.findings] == [(effect, [letter])]
     assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.3)
+
+
+def issue_standard_error(small: PoseTable, effect: str, axis: int) -> float:
+    """The issue's yardstick: the standard error of the effect's first-order coefficient in a plain weighted
+    least-squares fit of the paper's model and the effect to ``small`` alone, each pose mean's noise its σ measured
+    from its own samples (batch means, their colour included), taken as known (no residual scale), in the units the
+    effect is planted in.  Written from the Fisher information, not from the code under test's noise scale."""
+    from optcal.families.accel.calibration import calibrate
+
+    cal = calibrate(small, "mle")
+    fitter = Fitter(small, Regressors.of(small), cal.T, cal.o, 10)
+    terms = {(effect, axis): 1}
+    k = 9 + int(np.flatnonzero(np.flatnonzero(active_mask(terms)) == BETA_INDEX[(effect, axis, 1)])[0])
+    return float(np.sqrt(covariance_absolute(fitter, fitter.fit(terms))[k, k])) / fitter.reg.half_span(effect)
+
+
+def mikoff(shared_data: Path, log: str) -> Path:
+    path = shared_data / "mikoff-mpu9150" / log
+    if not path.exists():
+        pytest.skip("mikoff-mpu9150 recording absent")
+    return path
+
+
+# measured (docs/diagnosis.md, "Small sessions"): at 10 of the issue's standard errors all 12 terms of mikoff imu0 and
+# imu1's 14-rest cuts (bias_drift, scale_nonlinearity on x, y, z) named alone, within 19 %; imu1's unplanted cut
+# names nothing (its full log: nothing)
+@pytest.mark.parametrize(("effect", "axis", "size"), [("bias_drift", 1, 10.0), ("scale_nonlinearity", 1, 10.0),
+                                                      (None, 0, 0.0)])
+def test_an_effect_at_10_of_the_issues_standard_errors_in_14_rests_of_a_second_unit_is_named(
+        shared_data: Path, tmp_path: Path, effect: str | None, axis: int, size: float) -> None:
+    """mikoff's MPU-9150 log 1 cut to 14 rests, the effect planted at ``size`` standard errors of the plain weighted
+    fit with the noise of each pose mean measured from its samples (:func:`issue_standard_error`): named alone on
+    its axis within 40 %.  Unplanted: nothing named (an F test on 4 residual degrees of freedom alone named a z
+    drift here at p 0.00035, the full 22-rest log's p 0.05: its scale is never let below the rests' noise)."""
+    path = mikoff(shared_data, "imu1.log")
+    small = cut(planted_mikoff(tmp_path, path, None, 0, 0.0, "unplanted"))
+    if effect is None:
+        assert Diagnoser(DiagnosisSettings(simulations=0)).run(small).findings == []
+        return
+    value = size * issue_standard_error(small, effect, axis)
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(cut(planted_mikoff(tmp_path, path, effect, axis, value,
+                                                                              "planted")))
+    letter = "xyz"[axis]
+    assert [(f.effect, f.axes) for f in diag.findings] == [(effect, [letter])]
+    assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.4)
 
 
 def null_sessions(poses: PoseTable, count: int, variance_ratio: float, seed: int) -> list[PoseTable]:

@@ -13,7 +13,7 @@ is then fitted exactly and tested (:class:`~optcal.applications.diagnosis.select
 The search over positions is paid for by the distribution of the *best* position's p value when there is no step
 (:func:`adjusted_p`): in a session of at most :data:`MINP_POSES` kept poses, Westfall & Young's single-step minP
 adjusted p value, the share of :data:`DRAWS` null draws of the linearised model (as
-:mod:`~optcal.applications.diagnosis.familywise` draws them, on the route the step's tests take) whose smallest p
+:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take) whose smallest p
 over the positions is at most the observed one; in a larger session Bonferroni over the positions (the exact test's
 p times their number), which bounds the false-step rate whatever the dependence and costs little power where a
 session has hundreds of poses.  Neighbouring splits' statistics are strongly dependent (they share all but one
@@ -32,7 +32,7 @@ from scipy import stats as sps
 
 from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
 from optcal.applications.diagnosis.familywise import orthonormal
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.fitting import Fit, Fitter
 
 __all__ = ["StepScan", "scan_step", "adjusted_p", "MINP_POSES", "DRAWS"]
 
@@ -122,8 +122,7 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     Returns the adjusted p value and how it was adjusted (``"minP"`` or ``"Bonferroni"``; module docstring).
     The minP null is the linearised model at ``fit`` (the poses' weighted residuals ``σ z``, ``fit``'s columns
     projected out); each position's statistic is formed as :meth:`Fitter.f_test` forms it on the route
-    :meth:`Fitter.test_scale2` takes from ``fit`` (the F test on the residuals' scale, or χ² against the noise
-    measured in the rests).  The adjusted p is ``(1 + #{draws: min_k p_k ≤ p_single}) / (1 + DRAWS)``.
+    :meth:`Fitter.test_scale2` takes (the F test on the residuals' scale).  The adjusted p is ``(1 + #{draws: min_k p_k ≤ p_single}) / (1 + DRAWS)``.
     """
     kept = fit.kept(fitter.n)
     bonferroni = min(1.0, p_single * scan.positions)
@@ -141,18 +140,12 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     gain = (unit.T @ z) ** 2  # each position's fall in it, (positions, DRAWS)
     dof0 = fitter.n - fit.n_params
     dof = dof0 - 1
-    measured = fitter.measured_scale2
-    chi2_route = measured is not None and dof < MIN_DOF and dof0 > 0 and fit.rss / dof0 <= measured
     if dof <= 0:
         return bonferroni, "Bonferroni"
     # every position's test has one degree of freedom and the same residual ones, so its p value falls as its
     # statistic rises: a draw's smallest p is at most p_single exactly when its largest statistic reaches the
     # statistic whose p is p_single (one quantile, not a tail probability per position and draw)
-    if chi2_route:
-        largest = np.max(gain, axis=0)
-        critical = float(sps.chi2.isf(p_single, 1))
-    else:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            largest = np.max(gain / ((rss0[None, :] - gain) / dof), axis=0)
-        critical = float(sps.f.isf(p_single, 1, dof))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        largest = np.max(gain / ((rss0[None, :] - gain) / dof), axis=0)
+    critical = float(sps.f.isf(p_single, 1, dof))
     return float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), "minP"
