@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
-from optcal.applications.diagnosis.familywise import orthonormal
+from optcal.applications.diagnosis.familywise import null_draws
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 
 __all__ = ["StepScan", "scan_step", "adjusted_p", "MINP_POSES", "DRAWS"]
@@ -128,15 +128,13 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     bonferroni = min(1.0, p_single * scan.positions)
     if int(kept.sum()) > MINP_POSES or fitter.correlation is not None:
         return bonferroni, "Bonferroni"
-    G, J = fitter.jacobians(fit, fitter.weights(fit))
-    h = J[:, 6 + scan.axis]
+    null = null_draws(fitter, fit, DRAWS, seed)
+    h = null.J[:, 6 + scan.axis]
     columns = np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0) for k in scan.splits],
                        axis=1)[kept]
-    model = orthonormal(G[kept])
-    projected = columns - model @ (model.T @ columns)
+    projected = columns - null.model @ (null.model.T @ columns)
     unit = projected / np.maximum(np.linalg.norm(projected, axis=0), 1e-300)
-    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
-    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
+    z, rss0 = null.z, null.rss0
     gain = (unit.T @ z) ** 2  # each position's fall in it, (positions, DRAWS)
     dof0 = fitter.n - fit.n_params
     dof = dof0 - 1

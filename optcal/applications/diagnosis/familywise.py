@@ -29,6 +29,8 @@ correlated in time.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
@@ -61,6 +63,44 @@ def orthonormal(A: NDArray[np.float64], tol: float = 1e-10) -> NDArray[np.float6
     return U[:, s > tol * max(float(s.max(initial=0.0)), 1e-300)]
 
 
+@dataclass(frozen=True)
+class NullDraws:
+    """Draws of the linearised null model at a fit (:func:`null_draws`).
+
+    Attributes
+    ----------
+    kept : ndarray of bool
+        The poses the fit keeps (its outliers out).
+    J : ndarray
+        The full weighted Jacobian at the fit, every pose (each candidate's columns are taken from it).
+    model : ndarray
+        An orthonormal basis of the fit's free columns on the kept poses.
+    z : ndarray
+        Standard normal weighted residuals of the kept poses, (kept poses, draws): σ z with σ = 1.
+    rss0 : ndarray
+        The null model's residual sum of each draw (``z`` with ``model`` projected out), σ² = 1.
+    """
+
+    kept: NDArray[np.bool_]
+    J: NDArray[np.float64]
+    model: NDArray[np.float64]
+    z: NDArray[np.float64]
+    rss0: NDArray[np.float64]
+
+
+def null_draws(fitter: Fitter, fit: Fit, draws: int, seed: int = 0) -> NullDraws:
+    """``draws`` draws of the linearised null model at ``fit``: the weighted residuals of the kept poses ``σ z``
+    with ``z`` standard normal (Lu 2017, eq. 14's weights make them so), the fit's own columns projected out
+    (the selection's minP level, :func:`minp_level`, and the bias step's adjusted p,
+    :func:`~optcal.applications.diagnosis.bias_step.adjusted_p`)."""
+    kept = fit.kept(fitter.n)
+    G, J = fitter.jacobians(fit, fitter.weights(fit))
+    model = orthonormal(G[kept])
+    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), draws))
+    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
+    return NullDraws(kept, J, model, z, rss0)
+
+
 def uses_minp(fitter: Fitter, fit: Fit) -> bool:
     """Whether a step from ``fit`` takes its level from :func:`minp_level`: its tests keep fewer than
     :data:`MIN_DOF` residual degrees of freedom, and the poses are independent."""
@@ -90,10 +130,8 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
         The ``alpha`` quantile of the smallest p value of the step's route (module docstring); ``None`` when no
         candidate can be tested.
     """
-    kept = fit.kept(fitter.n)
-    G, J = fitter.jacobians(fit, fitter.weights(fit))
-    G, J = G[kept], J[kept]
-    model = orthonormal(G)
+    null = null_draws(fitter, fit, DRAWS, seed)
+    J, model, z, rss0 = null.J[null.kept], null.model, null.z, null.rss0
     bases: list[NDArray[np.float64]] = []
     added: list[int] = []
     for effect, axis, order in candidates:
@@ -105,8 +143,6 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
             added.append(len(columns))
     if not bases:
         return None
-    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
-    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
     gain = np.stack([np.sum((b.T @ z) ** 2, axis=0) for b in bases])  # each candidate's fall in it, (K, DRAWS)
     dof0 = fitter.n - fit.n_params
     # candidates adding the same number of coefficients share their test's distribution, whose p value falls as the
