@@ -271,7 +271,7 @@ class Diagnoser:
         T, o, source = self.start(poses, baseline)
         loop = self.reporter.loop
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
-        # the noise of the pose means measured in the rests: a small session is tested against it (Fitter.noise_scale2)
+        # the noise of the pose means measured in the rests: a small session is tested from 1 residual degree of freedom
         fitter.measured_scale2 = measured_scale2(poses, fitter.w_mean, None if measured is None else measured.sigma)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)

@@ -40,8 +40,8 @@ IDENTIFIABLE_TOL: float = 1e-6
 #: freedom: ±45 % in variance) takes most of a test's power.
 MIN_DOF: int = 10
 #: Residual degrees of freedom a test keeps when the noise of every pose mean was measured from its samples (a
-#: small session, :meth:`Fitter.noise_scale2`): the test then needs none to estimate the noise scale; one is kept
-#: so that the measured noise can itself be checked against the residuals.
+#: small session): the F test's scale is then never let below that noise (:meth:`Fitter.noise_scale2`), so a scale
+#: known from one degree of freedom cannot make a test more confident than the rests' own samples allow.
 MIN_DOF_MEASURED: int = 1
 #: Sorted ``((effect, axis), order)`` pairs: a hashable set of terms.
 Terms = tuple[tuple[tuple[str, int], int], ...]
@@ -162,8 +162,9 @@ class Fitter:
         is then refined to generalised least squares and its ``rss`` is the generalised sum.
     measured_scale2 : float, optional
         The variance of a residual of unit relative weight that the noise of the pose means measured from their
-        samples implies (:func:`measured_scale2`); ``None`` when the poses carry no measured σ.  It is the noise
-        scale of the tests of a small session (:meth:`noise_scale2`).
+        samples implies (:func:`measured_scale2`, the still parts' noise included); ``None`` when the poses carry
+        no measured σ.  With it a small session is tested from :data:`MIN_DOF_MEASURED` residual degrees of
+        freedom (:attr:`min_dof`); the tests' scale floor is the rests' own (:attr:`rest_scale2`).
     """
 
     #: Gauss–Newton steps from the weighted least-squares solution to the generalised one.
@@ -296,24 +297,16 @@ class Fitter:
         return MIN_DOF if self.measured_scale2 is None else MIN_DOF_MEASURED
 
     def noise_scale2(self, fit: Fit) -> tuple[float, float]:
-        """The noise scale of a unit relative weight under ``fit`` and the degrees of freedom it is known with.
-
-        With :data:`MIN_DOF` residual degrees of freedom or more, or without a measured noise, the scale is
-        estimated from the residuals, ``rss / (n − p)`` (as every session was tested before).  Below that, a small
-        session's scale is the larger of the one measured inside its rests (:attr:`measured_scale2`, known:
-        infinite degrees of freedom, so a likelihood-ratio test needs no residual degrees of freedom: a χ² test)
-        and the residuals' own (with its few degrees of freedom: an F test of lower power).  Real pose means
-        scatter more than their samples say (IMU-TK's Xsens log: 2.1-2.5 times the measured noise, by its
-        reduced χ²), and a test against the measured noise alone would name that scatter as effects and
-        outliers; the residuals' scale is never let below the measured one, so a lucky small residual sum
-        cannot make a test more confident than the rests' noise allows.
-        """
+        """The noise scale of a unit relative weight under ``fit`` and the degrees of freedom it is known with: the
+        residuals' ``rss / (n − p)``, in a small session (fewer than :data:`MIN_DOF` residual degrees of freedom)
+        never below :attr:`rest_scale2` (:meth:`test_scale2`'s reasons).  The scale of the tests
+        (:meth:`test_scale2`), of the standard errors (:meth:`covariance`) and of the detection limits, so a
+        finding's standard error is the one its test used."""
         dof = self.n - fit.n_params
-        if self.measured_scale2 is None or dof >= MIN_DOF:
-            return fit.rss / max(dof, 1), float(dof)
-        if dof > 0 and fit.rss / dof > self.measured_scale2:
-            return fit.rss / dof, float(dof)
-        return self.measured_scale2, float("inf")
+        scale2 = fit.rss / max(dof, 1)
+        if dof < MIN_DOF and self.rest_scale2 is not None:
+            scale2 = max(scale2, self.rest_scale2)
+        return scale2, float(dof)
 
     def test_scale2(self, small: Fit, big: Fit) -> tuple[float, float]:
         """The noise scale of the likelihood-ratio test of ``small`` inside ``big``, and its degrees of freedom.
@@ -338,11 +331,7 @@ class Fitter:
         test's place where the still parts overstate the noise (mikoff imu0, 14 rests, an x drift at 7 standard
         errors: p 0.081 on that route, 0.0021 now, against a level of 0.0020).  ``small`` is kept for the callers.
         """
-        dof = self.n - big.n_params
-        scale2 = big.rss / max(dof, 1)
-        if dof < MIN_DOF and self.rest_scale2 is not None:
-            scale2 = max(scale2, self.rest_scale2)
-        return scale2, float(dof)
+        return self.noise_scale2(big)
 
     def f_test(self, small: Fit, big: Fit) -> float:
         """p value of the F form of the likelihood-ratio test of ``small`` inside ``big``.

@@ -158,8 +158,8 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
         free = np.flatnonzero(active_mask(terms))
         k = 9 + int(np.flatnonzero(free == BETA_INDEX[(effect, axis, 1)])[0])
         # the scale and degrees of freedom of the selection's own test of the candidate (Fitter.test_scale2)
-        scale2, dof = fitter.test_scale2(fit, bigger)
-        variance = fitter.covariance(bigger)[k, k] * scale2 / fitter.noise_scale2(bigger)[0]
+        dof = fitter.test_scale2(fit, bigger)[1]
+        variance = fitter.covariance(bigger)[k, k]  # on the same scale (Fitter.noise_scale2)
         se = float(np.sqrt(max(variance, 0.0))) / fitter.reg.half_span(effect)
         z = float(sps.norm.isf(level / 2)) if dof >= MIN_DOF else float(sps.t.isf(level / 2, dof))
         over = 2 * fitter.reg.t_half * z * se if effect == "bias_drift" else None
