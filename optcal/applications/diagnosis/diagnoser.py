@@ -31,7 +31,7 @@ from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_ran
 from optcal.applications.diagnosis.progress import Progress
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.applications.diagnosis.result import Diagnosis
-from optcal.applications.diagnosis.limits import detection_limits, outlier_limit
+from optcal.applications.diagnosis.limits import step_limits, detection_limits, outlier_limit
 from optcal.applications.diagnosis.selection import ForwardSelection
 from optcal.applications.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.applications.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
@@ -293,6 +293,11 @@ class Diagnoser:
         findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
         self.progress("detection limits of the candidates not found")
         limits = detection_limits(fitter, final, open_terms, selection.last_level, loop) if open_terms else []
+        # a bias step not named: its own limit per axis searched, at the level its test had (alpha_step shared by the
+        # axes, the positions paid for as adjusted_p pays for them)
+        step_axes = selector.step_axes(final)
+        if step_axes:
+            limits += step_limits(fitter, final, step_axes, selector.alpha_step / len(step_axes))
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
