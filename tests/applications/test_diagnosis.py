@@ -193,7 +193,8 @@ def test_small_sessions_test_one_candidate_at_a_time_and_state_detection_limits(
     diag = diagnose(clean_table(25, temp=temp), simulations=0)
     assert diag.findings == []
     assert {(lim.effect, lim.axis) for lim in diag.detection_limits} == {
-        (e, a) for e in ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity") for a in "xyz"}
+        (e, a) for e in ("temperature_bias", "temperature_scale", "bias_drift", "scale_nonlinearity", "bias_step")
+        for a in "xyz"}  # a bias step not named has its own limit (limits.step_limit)
     lim = next(x for x in diag.detection_limits if x.effect == "temperature_bias" and x.axis == "z")
     assert 0 < lim.limit < 1e-3 and "detection limits" in diagnosis_report(diag)
     # and the smallest outlier pose it could name: the t quantile of a Bonferroni test over 25 poses

@@ -13,7 +13,7 @@ is then fitted exactly and tested (:class:`~optcal.applications.diagnosis.select
 The search over positions is paid for by the distribution of the *best* position's p value when there is no step
 (:func:`adjusted_p`): in a session of at most :data:`MINP_POSES` kept poses, Westfall & Young's single-step minP
 adjusted p value, the share of :data:`DRAWS` null draws of the linearised model (as
-:mod:`~optcal.applications.diagnosis.familywise` draws them, on the route the step's tests take) whose smallest p
+:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take) whose smallest p
 over the positions is at most the observed one; in a larger session Bonferroni over the positions (the exact test's
 p times their number), which bounds the false-step rate whatever the dependence and costs little power where a
 session has hundreds of poses.  Neighbouring splits' statistics are strongly dependent (they share all but one
@@ -31,8 +31,8 @@ from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
-from optcal.applications.diagnosis.familywise import orthonormal
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.familywise import NullDraws, null_draws
+from optcal.applications.diagnosis.fitting import Fit, Fitter
 
 __all__ = ["StepScan", "scan_step", "adjusted_p", "MINP_POSES", "DRAWS"]
 
@@ -62,6 +62,10 @@ class StepScan:
         Distinct splits searched (the Bonferroni factor of the step's p value).
     splits : tuple of int
         The splits searched (poses before each in time order).
+    information : tuple of float
+        The step coefficient's information at each split of :attr:`splits` (its column's weighted sum of squares
+        after the fit's columns are projected out, per unit of the bias column): its standard error at a split is
+        proportional to ``1/√information`` (:func:`~optcal.applications.diagnosis.limits.step_limit`).
     """
 
     axis: int
@@ -69,6 +73,7 @@ class StepScan:
     statistic: float
     positions: int
     splits: tuple[int, ...] = ()
+    information: tuple[float, ...] = ()
 
 
 def scan_step(fitter: Fitter, fit: Fit, axis: int) -> StepScan | None:
@@ -113,7 +118,35 @@ def scan_step(fitter: Fitter, fit: Fit, axis: int) -> StepScan | None:
     stat = np.where(ok, num**2 / np.where(ok, den, 1.0), -np.inf)
     best = int(np.argmax(stat))
     s2 = fit.rss / max(total - fit.n_params + len(fit.outliers), 1)
-    return StepScan(axis, int(ks[best]), float(stat[best]) / max(s2, 1e-300), int(ok.sum()), tuple(int(k) for k in ks[ok]))
+    return StepScan(axis, int(ks[best]), float(stat[best]) / max(s2, 1e-300), int(ok.sum()),
+                    tuple(int(k) for k in ks[ok]), tuple(float(d) for d in den[ok]))
+
+
+def null_largest(fitter: Fitter, fit: Fit, scan: StepScan, seed: int = 0,
+                 null: NullDraws | None = None) -> NDArray[np.float64] | None:
+    """The largest F statistic over ``scan``'s positions in each of :data:`DRAWS` draws of the linearised null model
+    at ``fit`` (:func:`~optcal.applications.diagnosis.familywise.null_draws`: no step; ``null``: those draws, made
+    once for several axes), each position's statistic formed as :meth:`Fitter.f_test` forms it; ``None`` when no
+    residual degree of freedom is left for it."""
+    dof = fitter.n - fit.n_params - 1
+    if dof <= 0:
+        return None
+    kept = fit.kept(fitter.n)
+    null = null_draws(fitter, fit, DRAWS, seed) if null is None else null
+    h = null.J[:, 6 + scan.axis]
+    columns = np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0) for k in scan.splits],
+                       axis=1)[kept]
+    projected = columns - null.model @ (null.model.T @ columns)
+    unit = projected / np.maximum(np.linalg.norm(projected, axis=0), 1e-300)
+    gain = (unit.T @ null.z) ** 2  # each position's fall in it, (positions, DRAWS)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(np.max(gain / ((null.rss0[None, :] - gain) / dof), axis=0))
+
+
+def uses_minp_positions(fitter: Fitter, fit: Fit) -> bool:
+    """Whether a step's p value from ``fit`` is adjusted by the minP simulation (at most :data:`MINP_POSES` kept
+    poses, independent), not by Bonferroni over the positions."""
+    return int(fit.kept(fitter.n).sum()) <= MINP_POSES and fitter.correlation is None
 
 
 def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: int = 0) -> tuple[float, str]:
@@ -122,37 +155,16 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     Returns the adjusted p value and how it was adjusted (``"minP"`` or ``"Bonferroni"``; module docstring).
     The minP null is the linearised model at ``fit`` (the poses' weighted residuals ``σ z``, ``fit``'s columns
     projected out); each position's statistic is formed as :meth:`Fitter.f_test` forms it on the route
-    :meth:`Fitter.test_scale2` takes from ``fit`` (the F test on the residuals' scale, or χ² against the noise
-    measured in the rests).  The adjusted p is ``(1 + #{draws: min_k p_k ≤ p_single}) / (1 + DRAWS)``.
+    :meth:`Fitter.test_scale2` takes (the F test on the residuals' scale).  The adjusted p is ``(1 + #{draws: min_k p_k ≤ p_single}) / (1 + DRAWS)``.
     """
-    kept = fit.kept(fitter.n)
     bonferroni = min(1.0, p_single * scan.positions)
-    if int(kept.sum()) > MINP_POSES or fitter.correlation is not None:
+    if not uses_minp_positions(fitter, fit):
         return bonferroni, "Bonferroni"
-    G, J = fitter.jacobians(fit, fitter.weights(fit))
-    h = J[:, 6 + scan.axis]
-    columns = np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0) for k in scan.splits],
-                       axis=1)[kept]
-    model = orthonormal(G[kept])
-    projected = columns - model @ (model.T @ columns)
-    unit = projected / np.maximum(np.linalg.norm(projected, axis=0), 1e-300)
-    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
-    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
-    gain = (unit.T @ z) ** 2  # each position's fall in it, (positions, DRAWS)
-    dof0 = fitter.n - fit.n_params
-    dof = dof0 - 1
-    measured = fitter.measured_scale2
-    chi2_route = measured is not None and dof < MIN_DOF and dof0 > 0 and fit.rss / dof0 <= measured
-    if dof <= 0:
+    largest = null_largest(fitter, fit, scan, seed)
+    if largest is None:
         return bonferroni, "Bonferroni"
     # every position's test has one degree of freedom and the same residual ones, so its p value falls as its
     # statistic rises: a draw's smallest p is at most p_single exactly when its largest statistic reaches the
     # statistic whose p is p_single (one quantile, not a tail probability per position and draw)
-    if chi2_route:
-        largest = np.max(gain, axis=0)
-        critical = float(sps.chi2.isf(p_single, 1))
-    else:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            largest = np.max(gain / ((rss0[None, :] - gain) / dof), axis=0)
-        critical = float(sps.f.isf(p_single, 1, dof))
+    critical = float(sps.f.isf(p_single, 1, fitter.n - fit.n_params - 1))
     return float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), "minP"

@@ -31,7 +31,7 @@ from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_ran
 from optcal.applications.diagnosis.progress import Progress
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.applications.diagnosis.result import Diagnosis
-from optcal.applications.diagnosis.limits import detection_limits, outlier_limit
+from optcal.applications.diagnosis.limits import step_limits, detection_limits, outlier_limit
 from optcal.applications.diagnosis.selection import ForwardSelection
 from optcal.applications.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.applications.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
@@ -271,7 +271,7 @@ class Diagnoser:
         T, o, source = self.start(poses, baseline)
         loop = self.reporter.loop
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
-        # the noise of the pose means measured in the rests: a small session is tested against it (Fitter.noise_scale2)
+        # the noise of the pose means measured in the rests: a small session is tested from 1 residual degree of freedom
         fitter.measured_scale2 = measured_scale2(poses, fitter.w_mean, None if measured is None else measured.sigma)
         given = fitter.evaluate(fitter.x_start)
         base = fitter.fit({}, frozenset(), fitter.x_start)
@@ -293,6 +293,11 @@ class Diagnoser:
         findings = build_findings(fitter, final, selection.steps, () if stack is None else stack.names)
         self.progress("detection limits of the candidates not found")
         limits = detection_limits(fitter, final, open_terms, selection.last_level, loop) if open_terms else []
+        # a bias step not named: its own limit per axis searched, at the level its test had (alpha_step shared by the
+        # axes, the positions paid for as adjusted_p pays for them)
+        step_axes = selector.step_axes(final)
+        if step_axes:
+            limits += step_limits(fitter, final, step_axes, selector.alpha_step / len(step_axes))
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:

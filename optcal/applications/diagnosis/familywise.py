@@ -16,19 +16,20 @@ Monte Carlo's precision, :data:`DRAWS`), with more power than ``α/m``.  The nul
 model at the current fit: the weighted pose residuals are ``σ z`` with ``z`` standard normal, the current model's
 columns projected out, and each candidate's statistic formed as
 :meth:`~optcal.applications.diagnosis.fitting.Fitter.f_test` forms it, on the route
-:meth:`~optcal.applications.diagnosis.fitting.Fitter.test_scale2` takes for the step (the residuals' scale, an F
-test with each candidate's own degrees of freedom: the p values do not depend on σ; or the noise measured in the
-rests, a χ² test, where the null model's residuals do not exceed it: σ² that measured noise).
+:meth:`~optcal.applications.diagnosis.fitting.Fitter.test_scale2` takes (the residuals' scale, an F test with each
+candidate's own degrees of freedom: the p values do not depend on σ).
 
 Used only where the tests keep fewer than :data:`~optcal.applications.diagnosis.fitting.MIN_DOF` residual degrees
 of freedom (a small session): there the shared residual sum makes Bonferroni most conservative (14 Xsens rests:
-the level is 0.0019 against Bonferroni's 0.0011 over 18 candidates, 0.0037 on the χ² route), and the simulation
+the level is 0.0019 against Bonferroni's 0.0011 over 18 candidates), and the simulation
 is of a few dozen poses.  Larger sessions keep Bonferroni (their residual sums are nearly constant, their
 candidates nearly independent, and the 2,000-pose diagnosis keeps its speed); so do poses whose noise is
 correlated in time.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,6 +63,44 @@ def orthonormal(A: NDArray[np.float64], tol: float = 1e-10) -> NDArray[np.float6
     return U[:, s > tol * max(float(s.max(initial=0.0)), 1e-300)]
 
 
+@dataclass(frozen=True)
+class NullDraws:
+    """Draws of the linearised null model at a fit (:func:`null_draws`).
+
+    Attributes
+    ----------
+    kept : ndarray of bool
+        The poses the fit keeps (its outliers out).
+    J : ndarray
+        The full weighted Jacobian at the fit, every pose (each candidate's columns are taken from it).
+    model : ndarray
+        An orthonormal basis of the fit's free columns on the kept poses.
+    z : ndarray
+        Standard normal weighted residuals of the kept poses, (kept poses, draws): σ z with σ = 1.
+    rss0 : ndarray
+        The null model's residual sum of each draw (``z`` with ``model`` projected out), σ² = 1.
+    """
+
+    kept: NDArray[np.bool_]
+    J: NDArray[np.float64]
+    model: NDArray[np.float64]
+    z: NDArray[np.float64]
+    rss0: NDArray[np.float64]
+
+
+def null_draws(fitter: Fitter, fit: Fit, draws: int, seed: int = 0) -> NullDraws:
+    """``draws`` draws of the linearised null model at ``fit``: the weighted residuals of the kept poses ``σ z``
+    with ``z`` standard normal (Lu 2017, eq. 14's weights make them so), the fit's own columns projected out
+    (the selection's minP level, :func:`minp_level`, and the bias step's adjusted p,
+    :func:`~optcal.applications.diagnosis.bias_step.adjusted_p`)."""
+    kept = fit.kept(fitter.n)
+    G, J = fitter.jacobians(fit, fitter.weights(fit))
+    model = orthonormal(G[kept])
+    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), draws))
+    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
+    return NullDraws(kept, J, model, z, rss0)
+
+
 def uses_minp(fitter: Fitter, fit: Fit) -> bool:
     """Whether a step from ``fit`` takes its level from :func:`minp_level`: its tests keep fewer than
     :data:`MIN_DOF` residual degrees of freedom, and the poses are independent."""
@@ -91,10 +130,8 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
         The ``alpha`` quantile of the smallest p value of the step's route (module docstring); ``None`` when no
         candidate can be tested.
     """
-    kept = fit.kept(fitter.n)
-    G, J = fitter.jacobians(fit, fitter.weights(fit))
-    G, J = G[kept], J[kept]
-    model = orthonormal(G)
+    null = null_draws(fitter, fit, DRAWS, seed)
+    J, model, z, rss0 = null.J[null.kept], null.model, null.z, null.rss0
     bases: list[NDArray[np.float64]] = []
     added: list[int] = []
     for effect, axis, order in candidates:
@@ -106,14 +143,8 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
             added.append(len(columns))
     if not bases:
         return None
-    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), DRAWS))
-    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
     gain = np.stack([np.sum((b.T @ z) ** 2, axis=0) for b in bases])  # each candidate's fall in it, (K, DRAWS)
-    # the step's route (Fitter.test_scale2, chosen on the null model): a test is χ² against the measured noise only
-    # where one was measured, the candidate keeps under MIN_DOF and the null model's residuals are within that noise
     dof0 = fitter.n - fit.n_params
-    measured = fitter.measured_scale2
-    chi2_route = measured is not None and dof0 > 0 and fit.rss / dof0 <= measured
     # candidates adding the same number of coefficients share their test's distribution, whose p value falls as the
     # gain rises: each such group's smallest p is that of its largest gain (one tail probability per group and draw)
     sizes = np.asarray(added)
@@ -123,10 +154,7 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
         if dof <= 0:  # no room left to test such a candidate: p = 1
             continue
         largest = gain[sizes == q].max(axis=0)
-        if chi2_route and dof < MIN_DOF:
-            p = np.minimum(p, sps.chi2.sf(largest, q))
-        else:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                p = np.minimum(p, sps.f.sf(largest / q / ((rss0 - largest) / dof), q, dof))
+        with np.errstate(divide="ignore", invalid="ignore"):  # the F test of Fitter.f_test (Fitter.test_scale2)
+            p = np.minimum(p, sps.f.sf(largest / q / ((rss0 - largest) / dof), q, dof))
     smallest = np.sort(p)
     return float(smallest[int(np.floor(alpha * DRAWS))])  # P(min p < level) ≤ α

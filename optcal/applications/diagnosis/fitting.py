@@ -40,8 +40,8 @@ IDENTIFIABLE_TOL: float = 1e-6
 #: freedom: ±45 % in variance) takes most of a test's power.
 MIN_DOF: int = 10
 #: Residual degrees of freedom a test keeps when the noise of every pose mean was measured from its samples (a
-#: small session, :meth:`Fitter.noise_scale2`): the test then needs none to estimate the noise scale; one is kept
-#: so that the measured noise can itself be checked against the residuals.
+#: small session): the F test's scale is then never let below that noise (:meth:`Fitter.noise_scale2`), so a scale
+#: known from one degree of freedom cannot make a test more confident than the rests' own samples allow.
 MIN_DOF_MEASURED: int = 1
 #: Sorted ``((effect, axis), order)`` pairs: a hashable set of terms.
 Terms = tuple[tuple[tuple[str, int], int], ...]
@@ -162,8 +162,9 @@ class Fitter:
         is then refined to generalised least squares and its ``rss`` is the generalised sum.
     measured_scale2 : float, optional
         The variance of a residual of unit relative weight that the noise of the pose means measured from their
-        samples implies (:func:`measured_scale2`); ``None`` when the poses carry no measured σ.  It is the noise
-        scale of the tests of a small session (:meth:`noise_scale2`).
+        samples implies (:func:`measured_scale2`, the still parts' noise included); ``None`` when the poses carry
+        no measured σ.  With it a small session is tested from :data:`MIN_DOF_MEASURED` residual degrees of
+        freedom (:attr:`min_dof`); the tests' scale floor is the rests' own (:attr:`rest_scale2`).
     """
 
     #: Gauss–Newton steps from the weighted least-squares solution to the generalised one.
@@ -199,6 +200,10 @@ class Fitter:
         self.loop = loop
         self.correlation = correlation
         self.measured_scale2 = measured_scale2
+        #: The variance of a residual of unit relative weight that each pose mean's σ (measured from its own
+        #: samples, :func:`measured_scale2` without the still parts) implies: the floor of a small session's test
+        #: scale (:meth:`test_scale2`); ``None`` when the poses carry no σ.
+        self.rest_scale2: float | None = None if poses.sigma is None else 1.0 / self.w_mean
         #: Poses before the bias step in time order (``None``: no step in the model; :meth:`set_step`).
         self.step_at: int | None = None
         self._heldout_cache: dict[tuple[Terms, frozenset[int], int | None], NDArray[np.float64]] = {}
@@ -292,61 +297,52 @@ class Fitter:
         return MIN_DOF if self.measured_scale2 is None else MIN_DOF_MEASURED
 
     def noise_scale2(self, fit: Fit) -> tuple[float, float]:
-        """The noise scale of a unit relative weight under ``fit`` and the degrees of freedom it is known with.
-
-        With :data:`MIN_DOF` residual degrees of freedom or more, or without a measured noise, the scale is
-        estimated from the residuals, ``rss / (n − p)`` (as every session was tested before).  Below that, a small
-        session's scale is the larger of the one measured inside its rests (:attr:`measured_scale2`, known:
-        infinite degrees of freedom, so a likelihood-ratio test needs no residual degrees of freedom: a χ² test)
-        and the residuals' own (with its few degrees of freedom: an F test of lower power).  Real pose means
-        scatter more than their samples say (IMU-TK's Xsens log: 2.1-2.5 times the measured noise, by its
-        reduced χ²), and a test against the measured noise alone would name that scatter as effects and
-        outliers; the residuals' scale is never let below the measured one, so a lucky small residual sum
-        cannot make a test more confident than the rests' noise allows.
-        """
+        """The noise scale of a unit relative weight under ``fit`` and the degrees of freedom it is known with: the
+        residuals' ``rss / (n − p)``, in a small session (fewer than :data:`MIN_DOF` residual degrees of freedom)
+        never below :attr:`rest_scale2` (:meth:`test_scale2`'s reasons).  The scale of the tests
+        (:meth:`test_scale2`), of the standard errors (:meth:`covariance`) and of the detection limits, so a
+        finding's standard error is the one its test used."""
         dof = self.n - fit.n_params
-        if self.measured_scale2 is None or dof >= MIN_DOF:
-            return fit.rss / max(dof, 1), float(dof)
-        if dof > 0 and fit.rss / dof > self.measured_scale2:
-            return fit.rss / dof, float(dof)
-        return self.measured_scale2, float("inf")
+        scale2 = fit.rss / max(dof, 1)
+        if dof < MIN_DOF and self.rest_scale2 is not None:
+            scale2 = max(scale2, self.rest_scale2)
+        return scale2, float(dof)
 
     def test_scale2(self, small: Fit, big: Fit) -> tuple[float, float]:
         """The noise scale of the likelihood-ratio test of ``small`` inside ``big``, and its degrees of freedom.
 
-        ``big``'s residual scale ``rss / (n − p)`` (an F test), except in a small session (fewer than
-        :data:`MIN_DOF` residual degrees of freedom in ``big``) whose null model ``small`` leaves residuals no
-        larger than the noise measured in its rests (:attr:`measured_scale2`): there the measured scale, known
-        (a χ² test).  The route is chosen on ``small``, the null model every candidate of a selection step shares,
-        not on each candidate's own fit: chosen on ``big`` (as :meth:`noise_scale2` does), the candidate that
-        explains the most by chance is the one whose residuals fall below the measured noise and is tested against
-        it, and a session whose poses scatter 2-8 times the measured variance (real pose means do: 19 times on a
-        14-rest cut of IMU-TK's Xsens log) names a false effect in 8-20 % of null sessions at a 2 % family-wise
-        level (linearised null simulation on that cut's design, docs/diagnosis.md).  Chosen on ``small``, a χ² route
-        is only taken where the null model's whole residual sum is below the measured noise, which bounds every
-        candidate's gain: the same simulation gives at most the level at every scatter ratio from 0.5 to 100.
+        ``big``'s residual scale ``rss / (n − p)`` with its degrees of freedom (an F test); in a small session
+        (fewer than :data:`MIN_DOF` residual degrees of freedom) never below :attr:`rest_scale2`, the noise of the
+        pose means measured from their own samples (batch means within each rest, their colour included).
+
+        The F test is exact under white pose noise of any scale, so it keeps its level whatever the pose means'
+        scatter against the noise measured in the rests (IMU-TK's Xsens log: 18.7 times the rests' batch means on
+        a 14-rest cut, 8.4 times what its still parts' Allan variance gives; mikoff's hand-held MPU-9150: 0.38 and
+        0.04 times).  The floor only enlarges the denominator (the p value against F(q, n − p) can only rise, so
+        the level holds): 4-5 residual degrees of freedom leave the scale uncertain by a factor of 2-6 (χ²(4)'s 1-99 %
+        range), and a sum that falls below what the rests' own samples say by chance would otherwise name effects
+        smaller than the pose means' noise (mikoff imu1, 14 rests, no effect: a z drift at p 0.00035, the full
+        log's p 0.05).  A χ² test against the measured noise (the route before) is only valid where that noise
+        explains the scatter, which 4-5 residual degrees of freedom cannot check (a χ² route chosen on each
+        candidate's fit named a false effect in 8-20 % of null sessions at a 2 % family-wise level,
+        docs/diagnosis.md); chosen on the null model ``small`` (only where its residual sum ``S`` is within the
+        measured noise ``s²``), its statistic is at most ``S / s² ≤ n − p₀``, whose χ²(1) tail is above the step's
+        level up to 19 poses (0.025 at 14 poses against about 0.002): it could name nothing, and it took the F
+        test's place where the still parts overstate the noise (mikoff imu0, 14 rests, an x drift at 7 standard
+        errors: p 0.081 on that route, 0.0021 now, against a level of 0.0020).  ``small`` is kept for the callers.
         """
-        dof = self.n - big.n_params
-        small_dof = self.n - small.n_params
-        if (self.measured_scale2 is None or dof >= MIN_DOF
-                or (small_dof > 0 and small.rss / small_dof > self.measured_scale2)):
-            return big.rss / max(dof, 1), float(dof)
-        return self.measured_scale2, float("inf")
+        return self.noise_scale2(big)
 
     def f_test(self, small: Fit, big: Fit) -> float:
         """p value of the F form of the likelihood-ratio test of ``small`` inside ``big``.
 
-        The noise scale is :meth:`test_scale2`'s: estimated from ``big``'s residuals (an F test), or, for a
-        small session whose null model ``small`` fits within the noise measured in its rests, that noise (the
-        likelihood-ratio statistic against χ²(q)).
+        The noise scale is :meth:`test_scale2`'s: estimated from ``big``'s residuals (an F test).
         """
         q = big.n_params - small.n_params
         scale2, dof = self.test_scale2(small, big)
         if q <= 0 or dof <= 0:
             return 1.0
         F = max(small.rss - big.rss, 0.0) / q / scale2
-        if np.isinf(dof):
-            return float(sps.chi2.sf(F * q, q))
         return float(sps.f.sf(F, q, dof))
 
     def heldout(self, fit: Fit) -> NDArray[np.float64]:

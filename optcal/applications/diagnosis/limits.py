@@ -26,7 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
 
-from optcal.applications.diagnosis.effects import SESSION_BIAS, UNITS, describe_term
+from optcal.applications.diagnosis.bias_step import null_largest, scan_step, uses_minp_positions
+from optcal.applications.diagnosis.effects import BIAS_STEP, SESSION_BIAS, UNITS, describe_term
+from optcal.applications.diagnosis.familywise import NullDraws, null_draws
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.progress import Loop, plain_loop
@@ -49,6 +51,11 @@ class DetectionLimit:
         Per-candidate test level.
     over_recording_g : float or None
         For ``bias_drift``: the limit as a bias change over the whole recording (g).
+    low, high : float or None
+        For ``bias_step``: the smallest and largest limit over the positions searched (:attr:`limit` is their
+        median; g).
+    adjusted : str or None
+        For ``bias_step``: how its p value pays for the positions (``"minP"`` or ``"Bonferroni"``).
     """
 
     term: str
@@ -58,8 +65,15 @@ class DetectionLimit:
     units: str
     level: float
     over_recording_g: float | None = None
+    low: float | None = None
+    high: float | None = None
+    adjusted: str | None = None
 
     def text(self) -> str:
+        if self.effect == BIAS_STEP:
+            return (f"{self.term}: {self.limit * 1e3:.3g} mg after minus before (median over where it could be; "
+                    f"{(self.low or 0.0) * 1e3:.2g}-{(self.high or 0.0) * 1e3:.2g} mg; its own level {self.level:.2g}, "
+                    f"{self.adjusted} over the positions)")
         words = f"{self.term}: {format_value(self.effect, self.limit).lstrip('+')}"
         if self.over_recording_g is not None:
             words += f" (= {self.over_recording_g * 1e3:.2g} mg over the recording)"
@@ -158,10 +172,64 @@ def detection_limits(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int]]
         free = np.flatnonzero(active_mask(terms))
         k = 9 + int(np.flatnonzero(free == BETA_INDEX[(effect, axis, 1)])[0])
         # the scale and degrees of freedom of the selection's own test of the candidate (Fitter.test_scale2)
-        scale2, dof = fitter.test_scale2(fit, bigger)
-        variance = fitter.covariance(bigger)[k, k] * scale2 / fitter.noise_scale2(bigger)[0]
+        dof = fitter.test_scale2(fit, bigger)[1]
+        variance = fitter.covariance(bigger)[k, k]  # on the same scale (Fitter.noise_scale2)
         se = float(np.sqrt(max(variance, 0.0))) / fitter.reg.half_span(effect)
         z = float(sps.norm.isf(level / 2)) if dof >= MIN_DOF else float(sps.t.isf(level / 2, dof))
         over = 2 * fitter.reg.t_half * z * se if effect == "bias_drift" else None
         out.append(DetectionLimit(describe_term(effect, axis, 1), effect, AXES[axis], z * se, UNITS[effect], level, over))
     return out
+
+
+#: Null draws behind a bias step's detection limit (minP).  At the step's level (about 0.0017) 17 of 10,000 draws
+#: lie above the critical statistic: its tail probability is known to ±25 % (binomial), which moves the critical F
+#: of a 15-position search by about ±4 % and the limit by half that, well inside the factor between a limit's
+#: positions (0.46-0.58 mg on the Xsens cut's y, 1.4-48 mg on x).  The p values keep bias_step.DRAWS (40,000).
+STEP_LIMIT_DRAWS: int = 10_000
+
+
+def step_limits(fitter: Fitter, fit: Fit, axes: list[int], level: float) -> list[DetectionLimit]:
+    """:func:`step_limit` of each of ``axes``, their minP null draws made once (the same for every axis)."""
+    null = null_draws(fitter, fit, STEP_LIMIT_DRAWS) if axes and uses_minp_positions(fitter, fit) else None
+    out = [step_limit(fitter, fit, axis, level, null) for axis in axes]
+    return [lim for lim in out if lim is not None]
+
+
+def step_limit(fitter: Fitter, fit: Fit, axis: int, level: float, null: NullDraws | None = None) -> DetectionLimit | None:
+    """The detection limit of a bias step of ``axis`` added to ``fit`` (no step in it): the step size its
+    position-adjusted test at ``level`` would name about half the time, at each position searched.
+
+    The step's standard error at one position (the split of median information) is that of the exact fit there
+    (:meth:`Fitter.covariance`, the tests' scale); at the other positions it scales as ``1/√information``
+    (:attr:`~optcal.applications.diagnosis.bias_step.StepScan.information`, the linearised scan's).  The critical
+    statistic is the position-adjusted test's (:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`): the
+    ``1 − level`` quantile of the null draws' largest F over the positions (minP), or F(1, n − p)'s at
+    ``level / positions`` (Bonferroni); ``null``: the minP draws, made once for several axes.  ``None`` when no
+    position can be searched.
+    """
+    scan = scan_step(fitter, fit, axis)
+    dof = fitter.n - fit.n_params - 1
+    if scan is None or not scan.splits or dof <= 0:
+        return None
+    info = np.asarray(scan.information)
+    k0 = int(np.argsort(info)[info.size // 2])
+    terms = dict(fit.terms)
+    terms[(BIAS_STEP, axis)] = 1
+    previous = fitter.step_at
+    fitter.set_step(scan.splits[k0])
+    try:
+        bigger = fitter.fit(terms, fit.outliers, fit.x)
+        free = np.flatnonzero(active_mask(terms))
+        k = 9 + int(np.flatnonzero(free == BETA_INDEX[(BIAS_STEP, axis, 1)])[0])
+        se0 = float(np.sqrt(max(fitter.covariance(bigger)[k, k], 0.0))) / fitter.reg.half_span(BIAS_STEP)
+    finally:
+        fitter.set_step(previous)
+    se = se0 * np.sqrt(info[k0] / np.maximum(info, 1e-300))
+    largest = null_largest(fitter, fit, scan, null=null) if uses_minp_positions(fitter, fit) else None
+    if largest is not None:
+        critical, adjusted = float(np.quantile(largest, 1.0 - level)), "minP"
+    else:
+        critical, adjusted = float(sps.f.isf(level / scan.positions, 1, dof)), "Bonferroni"
+    limits = np.sqrt(critical) * se
+    return DetectionLimit(describe_term(BIAS_STEP, axis, 1), BIAS_STEP, AXES[axis], float(np.median(limits)),
+                          UNITS[BIAS_STEP], level, None, float(limits.min()), float(limits.max()), adjusted)
