@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import column_quantile, median
+from optcal.data.quantiles import column_quantile, median, np_median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -278,7 +278,7 @@ def variance_step_limit(steps: NDArray[np.float64], false_alarm: float, samples:
     if steps.size == 0:
         return float("inf")
     white = float(np.sqrt(4.0 / max(samples - 1.0, 1.0)))
-    spread = max(float(np.median(steps)) / 0.6744897501960817, white)
+    spread = max(float(np_median(steps)) / 0.6744897501960817, white)
     return normal_limit(false_alarm / 2.0) * spread
 
 

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_medians, grouped_column_medians
+from optcal.data.quantiles import column_medians, grouped_column_medians, np_column_medians, np_median, np_quantile
 from optcal.data.recording import Recording
 from optcal.data.rest_model import SAME_POSE_SAMPLE_SIGMAS, UNIT_RATE_QUANTILE, WOBBLE_SHRINK
 
@@ -95,10 +95,10 @@ def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: ND
     if ok.sum() >= 2:
         turn = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))[ok] / dt[ok]
         # the accelerometer's turn rate that its noise alone gives: two block means' noise over the block step
-        noise = np.sqrt(2.0 * np.median(blocks.var.sum(axis=1) / blocks.n)) / np.median(np.linalg.norm(blocks.mean, axis=1))
-        acc_fast = float(np.quantile(turn, UNIT_RATE_QUANTILE))
-        if acc_fast > 3.0 * noise / float(np.median(dt)):
-            gyro_fast = float(np.quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE))
+        noise = np.sqrt(2.0 * np_median(blocks.var.sum(axis=1) / blocks.n)) / np_median(np.linalg.norm(blocks.mean, axis=1))
+        acc_fast = np_quantile(turn, UNIT_RATE_QUANTILE)
+        if acc_fast > 3.0 * noise / float(np_median(dt)):
+            gyro_fast = np_quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE)
             ratio = gyro_fast / acc_fast
             return RAD_PER_UNIT["deg/s"] if ratio > np.sqrt(1.0 / RAD_PER_UNIT["deg/s"]) else RAD_PER_UNIT["rad/s"]
     return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
@@ -188,7 +188,7 @@ def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
         w = gyro[a:z] - bias
         dt = np.diff(t[a:z])
         inc = 0.5 * (w[1:] + w[:-1]) * dt[:, None]
-        step = max(1, int(round(MOVE_STEP_S / max(float(np.median(dt)) if dt.size else 1.0, 1e-12))))
+        step = max(1, int(round(MOVE_STEP_S / max(float(np_median(dt)) if dt.size else 1.0, 1e-12))))
         edges = np.arange(0, inc.shape[0], step)
         pieces.append(np.add.reduceat(inc, edges, axis=0) if inc.shape[0] else np.zeros((1, 3)))
     length = max(p.shape[0] for p in pieces)
@@ -361,7 +361,7 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     if tolerance is not None and todo.any():
         # each stretch's rate spread by sums over it (one pass over the samples for all stretches)
         # about the stretches' first rates' median (a gyro's bias: a large one would cancel the spread's digits)
-        s1, s2 = _span_sums(gyro - np.median(gyro[a[todo]], axis=0), a, z)
+        s1, s2 = _span_sums(gyro - np_column_medians(gyro[a[todo]]), a, z)
         mm = np.maximum(m, 1)[:, None]
         spread = np.sqrt(np.maximum(s2 / mm - (s1 / mm) ** 2, 0.0).sum(axis=1))
         window_s = t[a + np.minimum(window, m) - 1] - t[a]
