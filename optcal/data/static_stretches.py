@@ -384,26 +384,41 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     size = int(length.max())
     chunk = max(1, WOBBLE_CHUNK_VALUES // (3 * size))
     j = np.arange(size)
+    padded = np.zeros((gyro.shape[0] + 1, 3))  # the rates, then a zero row: a window's samples past its end
+    padded[:-1] = gyro
     for c0 in range(0, owner.size, chunk):
         f, n = first[c0:c0 + chunk], length[c0:c0 + chunk]
-        idx = np.minimum(f[:, None] + j[None, :], gyro.shape[0] - 1)
-        inside = j[None, :] < n[:, None]
-        pair = inside[:, 1:] & inside[:, :-1]
-        w = np.where(inside[..., None], gyro[idx], 0.0)  # (windows, size, 3), gyro units
-        tt = t[idx]
-        dt = np.where(pair, np.diff(tt, axis=1), 0.0)
+        # the samples along the first axis (sample, window, axis): a sum over a window's samples adds whole rows of
+        # windows × axes in the samples' order, the same sums as a window at a time, without a call per sample
+        idx = np.minimum(f[None, :] + j[:, None], gyro.shape[0] - 1)
+        inside = j[:, None] < n[None, :]
+        pair = inside[1:] & inside[:-1]
+        # two scratch arrays of (size, windows, 3), every step in place (the expressions in the comments)
+        w = np.take(padded, np.where(inside, idx, gyro.shape[0]), axis=0)  # w = where(inside, gyro[idx], 0)
+        tt = np.take(t, idx)
+        dt = np.where(pair, np.diff(tt, axis=0), 0.0)
         # the gyro's own white noise, from its sample-to-sample differences (var(Δω) = 2σ² for white noise; a
         # tremor of a few hertz hardly changes from one sample to the next): integrated, a random walk whose
         # mean square about its mean over a window of T, the mean rate removed (a Brownian bridge), is σ² dt T / 12
-        d = np.where(pair[..., None], np.diff(w, axis=1), 0.0)
+        d = np.diff(w, axis=0)  # d = where(pair, diff(w), 0): past a window's end w is 0, so only its last step
+        short = np.flatnonzero(n < size)
+        d[n[short] - 1, short] = 0.0
         k = (n - 1.0)[:, None]
-        white = np.sum(np.sum(d * d, axis=1) / k - (np.sum(d, axis=1) / k) ** 2, axis=1) / 2.0
-        mean = w.sum(axis=1) / n[:, None]
-        angle = np.cumsum((0.5 * (w[:, 1:] + w[:, :-1]) - mean[:, None, :]) * dt[..., None], axis=1)
-        angle = np.where(pair[..., None], angle, 0.0)  # the angle after each step; 0 at the window's first sample
+        d_sum = d.sum(axis=0)
+        d2_sum = np.multiply(d, d, out=d).sum(axis=0)
+        white = np.sum(d2_sum / k - (d_sum / k) ** 2, axis=1) / 2.0
+        mean = w.sum(axis=0) / n[:, None]
+        # angle = cumsum((0.5 (w[1:] + w[:-1]) − mean) dt), 0 past the window's end (and at its first sample)
+        angle = np.add(w[1:], w[:-1], out=d)
+        angle *= 0.5
+        angle -= mean
+        angle *= dt[..., None]
+        np.cumsum(angle, axis=0, out=angle)
+        np.copyto(angle, 0.0, where=~pair[..., None])
         # the angle's squares about its mean over the window's samples: Σ A² − (Σ A)² / n
-        spread2 = np.sum(np.sum(angle * angle, axis=1) - np.sum(angle, axis=1) ** 2 / n[:, None], axis=1)
-        span = tt[np.arange(n.size), n - 1] - tt[:, 0]
+        angle_sum = angle.sum(axis=0)
+        spread2 = np.sum(np.multiply(angle, angle, out=angle).sum(axis=0) - angle_sum ** 2 / n[:, None], axis=1)
+        span = tt[n - 1, np.arange(n.size)] - tt[0]
         owners = owner[c0:c0 + chunk]
         total += np.bincount(owners, weights=spread2, minlength=a.size)
         noise += np.bincount(owners, weights=n * white * (span / (n - 1.0)) * span / 12.0, minlength=a.size)
