@@ -113,21 +113,25 @@ class RestModel:
         if gyro is None:
             self.gyro_unit_reason = ""
         elif self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT:
-            self._pass(first=True)  # again, with the scale measured: the bias track's drift limit
+            self._pass(first=True, again=True)  # again, with the scale measured: the bias track's drift limit
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
             self.kappa2 = rm.noise_colour(self.ratios[inside], dof0, 0.5)
         self._pass(first=False)
 
-    def _pass(self, first: bool) -> None:
+    def _pass(self, first: bool, again: bool = False) -> None:
+        """One pass of the tests over the blocks; ``again``: the first pass repeated once the gyro's scale is
+        measured, which changes only the bias track (its drift limit) and what follows from it: the accelerometer's
+        tests and the gyro's noise colour, which do not depend on the scale, are kept from the first."""
         b = self.b
-        self.step = rm.step_statistic(self.ratios, self.kappa2)
-        if first:
-            self.var_steps = rm.log_variance_steps(b.var)
-            self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm,
-                                                   float(np_median(b.n))) * self.s.threshold
-        self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
+        if not again:
+            self.step = rm.step_statistic(self.ratios, self.kappa2)
+            if first:
+                self.var_steps = rm.log_variance_steps(b.var)
+                self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm,
+                                                       float(np_median(b.n))) * self.s.threshold
+            self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
         if b.gmean is None or b.gvar is None:
             return
         acc_still = self._acc_still()
@@ -137,10 +141,11 @@ class RestModel:
                 self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base], step=rm.BIAS_SPAN_S / 2.0)
             self.track = rm.follow_spans(self._spans, b.t_mid, self._max_drift())
             self.bias = np_column_medians(self.track)
-            self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
-            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
-            pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
-            self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
+            if not again:
+                self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
+                gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
+                pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
+                self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
         assert self.bias is not None and self.gvar_ref is not None
