@@ -212,28 +212,60 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     steps = increments.shape[1]
     if steps > 8 and steps % 8:
         increments = np.concatenate([increments, np.zeros((increments.shape[0], 8 - steps % 8, 3))], axis=1)
-    # each step's increment as a quaternion (scales, moves, steps)
+    # each step's increment as a quaternion (scales, moves, steps), in place: the operations and their order of
+    # angle = √(rx² + ry² + rz²), k = sin(angle/2)/angle (½ below 1e-12), w = cos(angle/2), (x, y, z) = k r
     rx, ry, rz = (scales[:, None, None] * increments[None, :, :, c] for c in range(3))
-    angle = np.sqrt(rx * rx + ry * ry + rz * rz)
-    half = 0.5 * angle
-    k = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-300), 0.5)
-    w, x, y, z = np.cos(half), rx * k, ry * k, rz * k
+    angle = rx * rx
+    tmp = ry * ry
+    angle += tmp
+    np.multiply(rz, rz, out=tmp)
+    angle += tmp
+    np.sqrt(angle, out=angle)
+    half = np.multiply(angle, 0.5, out=tmp)
+    k = np.sin(half)
+    k /= np.maximum(angle, 1e-300)
+    np.copyto(k, 0.5, where=~(angle > 1e-12))
+    w = np.cos(half, out=angle)
+    x, y, z = np.multiply(rx, k, out=rx), np.multiply(ry, k, out=ry), np.multiply(rz, k, out=rz)
     while w.shape[-1] > 1:
         if w.shape[-1] % 2:  # an identity appended: the last step pairs with it
             one = np.ones(w.shape[:-1] + (1,))
             zero = np.zeros_like(one)
             w = np.concatenate([w, one], axis=-1)
             x, y, z = (np.concatenate([a, zero], axis=-1) for a in (x, y, z))
-        aw, ax, ay, az = w[..., 0::2], x[..., 0::2], y[..., 0::2], z[..., 0::2]
-        bw, bx, by, bz = w[..., 1::2], x[..., 1::2], y[..., 1::2], z[..., 1::2]
-        w, x, y, z = (aw * bw - ax * bx - ay * by - az * bz, aw * bx + bw * ax + ay * bz - az * by,
-                      aw * by + bw * ay + az * bx - ax * bz, aw * bz + bw * az + ax * by - ay * bx)
+        w, x, y, z = _pair_products(w, x, y, z)
     w, x, y, z = w[..., 0], x[..., 0], y[..., 0], z[..., 0]
     w, v = w[..., None], np.stack([x, y, z], axis=-1)
     u = np.broadcast_to(u0, v.shape)
     # R(q)ᵀ u = u − 2w (v × u) + 2 v × (v × u)
     c = np.cross(v, u)
     return np.asarray(u - 2.0 * w * c + 2.0 * np.cross(v, c))
+
+
+def _pair_products(w: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The quaternion products ``a ⊗ b`` of each even step ``a`` with the odd step ``b`` after it (last axis), each
+    component accumulated in place in the order of ``aw bw − ax bx − ay by − az bz``, ``aw bx + bw ax + ay bz − az by``,
+    ``aw by + bw ay + az bx − ax bz``, ``aw bz + bw az + ax by − ay bx``."""
+    a = (w[..., 0::2], x[..., 0::2], y[..., 0::2], z[..., 0::2])
+    b = (w[..., 1::2], x[..., 1::2], y[..., 1::2], z[..., 1::2])
+    t = np.empty_like(a[0])
+    out = []
+    # (first product, then (sign, left factor, right factor) of the terms added in order), per component
+    for (i0, j0), terms in (((0, 0), ((-1, 1, 1), (-1, 2, 2), (-1, 3, 3))),
+                            ((0, 1), ((+1, 1, 0), (+1, 2, 3), (-1, 3, 2))),
+                            ((0, 2), ((+1, 2, 0), (+1, 3, 1), (-1, 1, 3))),
+                            ((0, 3), ((+1, 3, 0), (+1, 1, 2), (-1, 2, 1)))):
+        acc = a[i0] * b[j0]
+        for sign, i, j in terms:
+            # bw ax is written b-first in the formula; multiplication commutes exactly
+            np.multiply(a[i], b[j], out=t)
+            if sign > 0:
+                acc += t
+            else:
+                acc -= t
+        out.append(acc)
+    return out[0], out[1], out[2], out[3]
 
 
 def _refine_logs(cost: Callable[[NDArray[np.float64]], NDArray[np.float64]], lo: NDArray[np.float64],
