@@ -293,8 +293,15 @@ def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> ND
     """``κ²`` per axis: the ``quantile`` of the pairs' ratios over the same quantile of ``F(1, dof)`` (at least 1)."""
     if ratios.shape[0] == 0:
         return np.ones(ratios.shape[1])
-    expected = quantiles.f_ppf(quantile, 1.0, max(dof, 1.0))
+    expected = _f_ppf(quantile, 1.0, max(float(dof), 1.0))
     return np.asarray(np.maximum(column_quantile(ratios, quantile) / expected, 1.0))
+
+
+@lru_cache(maxsize=256)
+def _f_ppf(probability: float, d1: float, d2: float) -> float:
+    """:func:`optcal.core.quantiles.f_ppf`, each (probability, d1, d2) computed once per process (a bisection of
+    200 steps, about a millisecond; the rest model asks for the same few noise-colour quantiles several times)."""
+    return quantiles.f_ppf(probability, d1, d2)
 
 
 def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> NDArray[np.float64]:
