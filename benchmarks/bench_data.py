@@ -31,6 +31,12 @@ What is measured, each against a baseline measured in the same run:
   in a new process; peak resident memory in copies of the numeric data (a copy: the float64
   array of the samples' six columns), whole and above a baseline process that imports the same
   modules and reads nothing.  Target ≤ 3 copies.
+* ``test_against_baseline_tree`` — opt-in: ``OPTCAL_BENCH_BASELINE=DIR`` names another source
+  tree (e.g. ``git worktree add --detach DIR 294bc84``, the release before the rest model); the
+  Xsens process above and a new process that reads and segments the 10⁶-sample CSV are run with
+  this tree's code and DIR's, alternately, ``$OPTCAL_BENCH_BASELINE_ROUNDS`` rounds (default 7),
+  and the median CPU time (each child's user + system, all its threads) and wall time of each,
+  with the ratios this tree / DIR, are printed.  Issue 36's target: neither CPU ratio above 1.
 
 Timings on the shared 2-core machine move by a factor of two or more with the load; the
 targets are therefore asserted only with ``OPTCAL_BENCH_STRICT=1`` and every figure is
@@ -82,12 +88,13 @@ class ProcessTiming:
     stdout: str
 
 
-def _run_once(argv: list[str] | str, env: dict[str, str]) -> tuple[float, float, str]:
+def _run_once(argv: list[str] | str, env: dict[str, str], cwd: Path | None = None) -> tuple[float, float, str]:
     import resource
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run(argv, capture_output=True, text=True, env=env, shell=isinstance(argv, str), check=False)
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, shell=isinstance(argv, str), check=False,
+                          cwd=cwd)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     assert done.returncode == 0, f"{argv}: exit {done.returncode}\n{done.stderr[-2000:]}"
@@ -336,3 +343,84 @@ def test_large_csv_streamed(tmp_path, megabytes):
     assert int(samples) == n
     if STRICT:
         assert copies <= MAX_COPIES
+
+
+#: A new process that reads and segments a file with ``optcal.data.load``: the CPU time (every thread) of the imports,
+#: of the whole ``load`` (its wall time too), and of its stages in a second pass (the first paid the lazy imports).
+READ_SEGMENT_SCRIPT = """
+import json, sys, time
+c0 = time.process_time()
+import optcal
+from optcal.data import load
+from optcal.data.decisions import decide, gather_evidence
+from optcal.data.readers import read_source
+from optcal.data.recording import recording_from_source
+from optcal.data.static import detect_static
+c1, w1 = time.process_time(), time.perf_counter()
+poses = load(sys.argv[1])
+c2, w2 = time.process_time(), time.perf_counter()
+src = read_source(sys.argv[1])
+c3 = time.process_time()
+evidence = gather_evidence(src)
+rec = recording_from_source(src, decide(src, evidence), evidence=evidence)
+del src, evidence
+c4 = time.process_time()
+detect_static(rec)
+c5 = time.process_time()
+print(json.dumps({"optcal": optcal.__file__, "poses": poses.n, "import_cpu_s": c1 - c0, "load_cpu_s": c2 - c1,
+                  "load_s": w2 - w1, "read_cpu_s": c3 - c2, "evidence_cpu_s": c4 - c3, "static_cpu_s": c5 - c4}))
+"""
+
+
+def _tree_env(tree: Path) -> dict[str, str]:
+    """The environment of a child that runs ``tree``'s code: ``tree`` alone on ``PYTHONPATH``, one BLAS thread."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(tree)
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    return env
+
+
+@pytest.mark.skipif(not os.environ.get("OPTCAL_BENCH_BASELINE"), reason="set OPTCAL_BENCH_BASELINE=DIR (a source tree)")
+@pytest.mark.skipif(not XSENS.exists(), reason="../shared/data is not present")
+def test_against_baseline_tree(million_sample_csv):
+    """This tree against ``$OPTCAL_BENCH_BASELINE``'s in the same run: the Xsens process and the 10⁶-sample read+segment.
+
+    Each round runs the four children (two commands, two trees), the trees' order swapped every round so that a
+    change of the machine's load falls on both alike; each tree's children first run once untimed (bytecode written,
+    the page cache warm).  Each child runs in its tree's folder (``python -c`` and ``-m`` put the working folder
+    first on ``sys.path``).  CPU time is the figure (on a shared machine wall time measures the queue); wall is printed.
+    """
+    path, syn = million_sample_csv
+    trees = {"this": REPO, "base": Path(os.environ["OPTCAL_BENCH_BASELINE"]).resolve()}
+    rounds = int(os.environ.get("OPTCAL_BENCH_BASELINE_ROUNDS", "7"))
+    py = sys.executable
+    commands: dict[str, list[str]] = {"xsens": [py, "-m", "optcal.cli.main", "calibrate", str(XSENS), "--json"],
+                                      "million": [py, "-c", READ_SEGMENT_SCRIPT, str(path)]}
+    runs: dict[tuple[str, str], list[tuple[float, float, str]]] = {(c, t): [] for c in commands for t in trees}
+    for tree in trees.values():
+        writes_bytecode = {k: v for k, v in _tree_env(tree).items() if k != "PYTHONDONTWRITEBYTECODE"}
+        for argv in commands.values():
+            _run_once(argv, writes_bytecode, tree)
+    for k in range(rounds):
+        order = list(trees) if k % 2 == 0 else list(trees)[::-1]
+        for command, argv in commands.items():
+            for tree_name in order:
+                runs[(command, tree_name)].append(_run_once(argv, _tree_env(trees[tree_name]), trees[tree_name]))
+    figures: dict[str, float] = {}
+    for command in commands:
+        for tree_name in trees:
+            figures[f"{command}_{tree_name}_cpu_s"] = statistics.median(c for _, c, _ in runs[(command, tree_name)])
+            figures[f"{command}_{tree_name}_s"] = statistics.median(w for w, _, _ in runs[(command, tree_name)])
+        figures[f"{command}_cpu_ratio"] = figures[f"{command}_this_cpu_s"] / figures[f"{command}_base_cpu_s"]
+        figures[f"{command}_wall_ratio"] = figures[f"{command}_this_s"] / figures[f"{command}_base_s"]
+    for tree_name, tree in trees.items():  # inside the read+segment child: imports, load, and load's stages
+        inside = [json.loads(out) for _, _, out in runs[("million", tree_name)]]
+        assert Path(inside[0]["optcal"]).resolve().is_relative_to(tree), inside[0]["optcal"]
+        assert inside[0]["poses"] == len(syn.dwells)
+        for key in ("import_cpu_s", "load_cpu_s", "read_cpu_s", "evidence_cpu_s", "static_cpu_s"):
+            figures[f"million_{tree_name}_{key}"] = statistics.median(v[key] for v in inside)
+    xsens = {t: json.loads(runs[("xsens", t)][-1][2]) for t in trees}
+    assert xsens["this"]["n_poses"] == xsens["base"]["n_poses"]
+    report(f"against {trees['base']}, median of {rounds}", **figures, machine=machine_load())
+    if STRICT:
+        assert figures["xsens_cpu_ratio"] <= 1.0 and figures["million_cpu_ratio"] <= 1.0

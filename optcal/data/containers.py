@@ -38,19 +38,19 @@ from numpy.typing import NDArray
 from optcal.core.units import SECONDS_PER_TIME_UNIT
 from optcal.errors import InputError
 
-MAT5_HEADER = b"MATLAB 5.0 MAT-file"
-MAT73_HEADER = b"MATLAB 7.3 MAT-file"
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-#: An HDF5 file may begin with a user block of 512 bytes or any larger power of two (MATLAB 7.3
-#: writes its header text there); the signature is looked for at 0, 512, 1024, 2048, ...
-HDF5_SMALLEST_USER_BLOCK = 512
-#: File name endings that promise an HDF5 file (netCDF-4, HDF5): without its signature the file is corrupt.
-HDF5_SUFFIXES: tuple[str, ...] = (".nc", ".nc4", ".h5", ".hdf5", ".he5", ".hdf")
+from optcal.data.container_kind import (  # recognising a container by its first bytes (every CSV read asks)
+    HDF5 as HDF5,
+    HDF5_SIGNATURE as HDF5_SIGNATURE,
+    HDF5_SMALLEST_USER_BLOCK as HDF5_SMALLEST_USER_BLOCK,
+    HDF5_SUFFIXES as HDF5_SUFFIXES,
+    MAT5 as MAT5,
+    MAT5_HEADER as MAT5_HEADER,
+    MAT73 as MAT73,
+    MAT73_HEADER as MAT73_HEADER,
+    container_type as container_type,
+)
 
-MAT5 = "MATLAB 5 MAT-file"
-MAT73 = "MATLAB 7.3 MAT-file"
 NETCDF4 = "netCDF-4"
-HDF5 = "HDF5"
 #: The file types of this module (what :func:`container_type` returns, before a netCDF-4 is told from HDF5).
 CONTAINER_TYPES: tuple[str, ...] = (MAT5, MAT73, HDF5)
 
@@ -166,34 +166,6 @@ class Contents:
     scalars: dict[str, float]
     global_attrs: dict[str, str | float]
     other: list[str]
-
-
-# ----------------------------------------------------------------------------- recognising
-def container_type(path: str | Path) -> str | None:
-    """:data:`MAT5`, :data:`MAT73` or :data:`HDF5` from the first bytes of ``path``, else ``None``.
-
-    Raises
-    ------
-    InputError
-        A file named as HDF5 (``.nc``, ``.h5``, ...) without the HDF5 signature.
-    """
-    p = Path(path)
-    if not p.is_file():
-        return None
-    size = p.stat().st_size
-    with p.open("rb") as fh:
-        head = fh.read(len(MAT5_HEADER))
-        if head == MAT5_HEADER:
-            return MAT5
-        offset = 0
-        while offset + len(HDF5_SIGNATURE) <= size:
-            fh.seek(offset)
-            if fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
-                return MAT73 if head == MAT73_HEADER else HDF5
-            offset = HDF5_SMALLEST_USER_BLOCK if offset == 0 else 2 * offset
-    if p.suffix.lower() in HDF5_SUFFIXES:
-        raise InputError(f"{p}: the file is truncated or corrupt (no HDF5 signature, which a {p.suffix} file has)")
-    return None
 
 
 # ----------------------------------------------------------------------------- reading

@@ -53,6 +53,7 @@ from optcal.data.evidence import (
     time_evidence,
 )
 from optcal.data.readers import Source
+from optcal.data.sample_clock import ClockLimits, held_recording, sample_clock
 from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion, units_and_nominal
 from optcal.errors import InputError
 
@@ -120,6 +121,9 @@ def max_recording_step_g(rate_hz: float) -> float:
     """
     angle = min(np.pi, np.deg2rad(MAX_TURN_RATE_DEG_S) / rate_hz) if rate_hz > 0 else np.pi
     return float(2.0 * np.sin(angle / 2.0) + np.sqrt(6.0) * MAX_REST_NOISE_G)
+
+
+_CLOCK = ClockLimits(TIME_UNITS, PLAUSIBLE_RATE_HZ, POSE_STEP_RATIO, MIN_POSE_SPACING_S, max_recording_step_g)
 
 
 @dataclass(frozen=True)
@@ -563,6 +567,9 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float, time_u
                 flag,
             )
         if reading.spacing_s >= MIN_POSE_SPACING_S and ratio > POSE_STEP_RATIO:
+            if (clock := sample_clock(src, ev, te, reading, ratio, one_g, _CLOCK)) is not None:
+                raise InputError(f"{src.path}: cannot tell a pose table from a raw recording: read in seconds "
+                                 f"({reading.why}) its rows would be poses {reading.spacing_s:.3g} s apart ({step}), {clock}")
             return Decision(
                 POSE_TABLE,
                 f"{step}, as distinct poses do, {reading.spacing_s:.3g} s apart on average ({reading.why})"
@@ -581,6 +588,9 @@ def _decide_kind(src: Source, ev: Evidence, requested: str, one_g: float, time_u
     if ratio < RAW_STEP_RATIO:
         return Decision(RAW_RECORDING, f"{step}, as samples of a time series do", flag)
     if ratio > POSE_STEP_RATIO and n <= MANY_ROWS:
+        stated = _time_reading(src, te, time_unit) if te is not None and te.duration > 0 and not te.backwards else None
+        if (held := held_recording(src, ev, te, stated, ratio, one_g, _CLOCK)) is not None:
+            return Decision(RAW_RECORDING, f"{step}, but {held}", flag)
         return Decision(POSE_TABLE, f"{step}, as different poses do ({n} rows)", flag)
     if n > MANY_ROWS:
         return Decision(RAW_RECORDING, f"{n} rows with no per-pose columns (a pose table has tens to hundreds), {step}", flag)

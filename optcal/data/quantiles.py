@@ -85,6 +85,36 @@ def grouped_column_medians(x: NDArray[np.float64], sizes: NDArray[np.intp]) -> N
     return out
 
 
+def np_median(x: ArrayLike) -> float:
+    """``float(np.median(x))``, the same value, NaN and infinities included, without importing ``numpy.ma``.
+
+    Finite values go to :func:`median`, any non-finite value to numpy's own (whose NaN check imports ``numpy.ma``,
+    ≈ 15 ms of a process's start, the first time it runs).
+    """
+    a = np.asarray(x, dtype=float)
+    if a.size and bool(np.isfinite(a).all()):
+        return median(a)
+    return float(np.median(a))
+
+
+def np_column_medians(x: ArrayLike) -> NDArray[np.float64]:
+    """``np.median(x, axis=0)`` of a 2-D array, the same values, NaN and infinities included, without importing
+    ``numpy.ma`` where the values are finite (:func:`column_medians`; numpy's own otherwise)."""
+    a = np.asarray(x, dtype=float)
+    if a.size and bool(np.isfinite(a).all()):
+        return column_medians(a)
+    return np.asarray(np.median(a, axis=0))
+
+
+def np_quantile(x: ArrayLike, probability: float) -> float:
+    """``float(np.quantile(x, probability))`` of all of ``x``, the same value, NaN and infinities included, without
+    importing ``numpy.ma`` where the values are finite (:func:`quantiles`; numpy's own otherwise)."""
+    a = np.asarray(x, dtype=float)
+    if a.size and bool(np.isfinite(a).all()):
+        return quantiles(a, [probability])[0]
+    return float(np.quantile(a, probability))
+
+
 def column_quantile(x: NDArray[np.float64], probability: float) -> NDArray[np.float64]:
     """``np.quantile(x, probability, axis=0)`` of a 2-D array (the same values), by :func:`quantiles` per column
     (partitions, not a sort) where the values are finite."""

@@ -58,5 +58,9 @@ def quantum(x: NDArray[np.float64]) -> float | None:
         return None
     if q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6:
         return None  # a step of exactly 10⁻ᵏ is the printing of k decimals, not a converter's step
-    ratio = np.concatenate(sample) / q
-    return q if float(np.mean(np.abs(ratio - np.round(ratio)) < 1e-3)) >= 0.99 else None
+    ratio = np.concatenate(sample)
+    ratio /= q
+    off = np.round(ratio)  # |ratio − round(ratio)|, in place: the distance of each step from a whole multiple
+    np.subtract(ratio, off, out=off)
+    np.abs(off, out=off)
+    return q if np.count_nonzero(off < 1e-3) / off.size >= 0.99 else None

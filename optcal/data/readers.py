@@ -45,7 +45,7 @@ from optcal.data.columns import (
     resolve_columns,
     strip_unit,
 )
-from optcal.data.containers import container_type, read_container
+from optcal.data.container_kind import container_type
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
@@ -256,6 +256,8 @@ def read_source(
     """
     kind = detect_file_type(path)
     if kind == "csv" and (container := container_type(path)) is not None:  # MATLAB, netCDF-4, HDF5
+        from optcal.data.containers import read_container
+
         return Source(**read_container(path, container, topic=topic, columns=columns, gyro_file=gyro_file))
     if kind in ("csv", "parquet"):
         if topic is not None:

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
-from optcal.data.quantiles import column_quantile, median
+from optcal.data.quantiles import column_quantile, median, np_median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
 #: one pose: the shift lies inside the samples' own ±3σ spread (a flicker noise wanders so between two
@@ -278,7 +278,7 @@ def variance_step_limit(steps: NDArray[np.float64], false_alarm: float, samples:
     if steps.size == 0:
         return float("inf")
     white = float(np.sqrt(4.0 / max(samples - 1.0, 1.0)))
-    spread = max(float(np.median(steps)) / 0.6744897501960817, white)
+    spread = max(float(np_median(steps)) / 0.6744897501960817, white)
     return normal_limit(false_alarm / 2.0) * spread
 
 
@@ -293,8 +293,15 @@ def noise_colour(ratios: NDArray[np.float64], dof: float, quantile: float) -> ND
     """``κ²`` per axis: the ``quantile`` of the pairs' ratios over the same quantile of ``F(1, dof)`` (at least 1)."""
     if ratios.shape[0] == 0:
         return np.ones(ratios.shape[1])
-    expected = quantiles.f_ppf(quantile, 1.0, max(dof, 1.0))
+    expected = _f_ppf(quantile, 1.0, max(float(dof), 1.0))
     return np.asarray(np.maximum(column_quantile(ratios, quantile) / expected, 1.0))
+
+
+@lru_cache(maxsize=256)
+def _f_ppf(probability: float, d1: float, d2: float) -> float:
+    """:func:`optcal.core.quantiles.f_ppf`, each (probability, d1, d2) computed once per process (a bisection of
+    200 steps, about a millisecond; the rest model asks for the same few noise-colour quantiles several times)."""
+    return quantiles.f_ppf(probability, d1, d2)
 
 
 def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import bias_model as bm
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_mad_sigmas, column_medians, grouped_column_medians, median, quantiles
+from optcal.data.quantiles import column_mad_sigmas, column_medians, grouped_column_medians, median, np_column_medians, np_median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
@@ -79,7 +79,7 @@ class RestModel:
         self.floor = rm.rounding_floor(b.var, qa)
         self.gfloor = rm.rounding_floor(b.gvar, qg) if b.gvar is not None else np.zeros(3)
         self.ratios = rm.pair_ratios(b.mean, b.var_ref, b.n, self.floor)
-        self.dof0 = dof0 = float(np.median(self.dof)) if self.dof.size else 1.0
+        self.dof0 = dof0 = float(np_median(self.dof)) if self.dof.size else 1.0
         # Noise colour, first from the pairs of the quietest quarter of the blocks (a motion adds to a block's
         # spread, so the quietest blocks are at rest, or the slowest moments of a recording that never rests)
         calm = rm.calm_pairs(b.var, self.valid)
@@ -113,21 +113,25 @@ class RestModel:
         if gyro is None:
             self.gyro_unit_reason = ""
         elif self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT:
-            self._pass(first=True)  # again, with the scale measured: the bias track's drift limit
+            self._pass(first=True, again=True)  # again, with the scale measured: the bias track's drift limit
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
             self.kappa2 = rm.noise_colour(self.ratios[inside], dof0, 0.5)
         self._pass(first=False)
 
-    def _pass(self, first: bool) -> None:
+    def _pass(self, first: bool, again: bool = False) -> None:
+        """One pass of the tests over the blocks; ``again``: the first pass repeated once the gyro's scale is
+        measured, which changes only the bias track (its drift limit) and what follows from it: the accelerometer's
+        tests and the gyro's noise colour, which do not depend on the scale, are kept from the first."""
         b = self.b
-        self.step = rm.step_statistic(self.ratios, self.kappa2)
-        if first:
-            self.var_steps = rm.log_variance_steps(b.var)
-            self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm,
-                                                   float(np.median(b.n))) * self.s.threshold
-        self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
+        if not again:
+            self.step = rm.step_statistic(self.ratios, self.kappa2)
+            if first:
+                self.var_steps = rm.log_variance_steps(b.var)
+                self.var_limit = rm.variance_step_limit(self.var_steps[self.valid], self.s.false_alarm,
+                                                       float(np_median(b.n))) * self.s.threshold
+            self.quiet = self.valid & (self.step <= self.step_limit) & (self.var_steps <= self.var_limit)
         if b.gmean is None or b.gvar is None:
             return
         acc_still = self._acc_still()
@@ -136,11 +140,12 @@ class RestModel:
             if self._spans is None:  # the spans' estimates are the same whatever the drift limit: measured once
                 self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base], step=rm.BIAS_SPAN_S / 2.0)
             self.track = rm.follow_spans(self._spans, b.t_mid, self._max_drift())
-            self.bias = np.median(self.track, axis=0)
-            self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
-            gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
-            pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
-            self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
+            self.bias = np_column_medians(self.track)
+            if not again:
+                self.gvar_ref = rm.local_noise(b.gvar, self.half_width)
+                gratios = rm.pair_ratios(b.gmean, self.gvar_ref, b.n, self.gfloor)
+                pairs = self.quiet if self.quiet.sum() >= 8 else self.valid
+                self.gkappa2 = rm.noise_colour(gratios[pairs], self.dof0, rm.QUIET_PAIRS_QUANTILE)
         else:
             self._measure_wander()
         assert self.bias is not None and self.gvar_ref is not None
@@ -253,12 +258,12 @@ class RestModel:
         drift = rm.follow_spans(rm.span_estimates(at, rest_means - modelled, column_medians, rm.BIAS_SPAN_S),
                                 b.t_mid, self._max_drift())
         self.track = model.at(b.t_mid, self.directions()) + drift
-        self.bias = np.median(rest_means, axis=0)
+        self.bias = np_column_medians(rest_means)
         # about the model and its drift at each rest: the bias wanders about them (a random walk) by as much as the
         # rests' means scatter; a scatter beyond any MEMS gyro's bias change is of false rests
         dev = rest_means - modelled - np.column_stack([np.interp(at, b.t_mid, drift[:, j]) for j in range(3)])
         robust2 = column_mad_sigmas(dev) ** 2
-        self.wander2 = np.minimum(np.maximum(robust2 - np.median(noise2, axis=0), 0.0), (MAX_BIAS_WANDER_RAD_S / scale) ** 2)
+        self.wander2 = np.minimum(np.maximum(robust2 - np_column_medians(noise2), 0.0), (MAX_BIAS_WANDER_RAD_S / scale) ** 2)
 
     def _turns_by_both(self, pieces: list[NDArray[np.intp]], rates: NDArray[np.float64], acc: NDArray[np.float64],
                        first: NDArray[np.intp], last: NDArray[np.intp]) -> NDArray[np.bool_]:
@@ -290,7 +295,7 @@ class RestModel:
             if sxx <= 0:
                 continue
             slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
-            se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np.median(b.n[rows])) + self.floor) / sxx)
+            se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np_median(b.n[rows])) + self.floor) / sxx)
             predicted = -np.cross(omega[i], acc[i] - self.acc_zero)
             moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)
             d = slope - predicted
@@ -315,13 +320,13 @@ class RestModel:
             at = np.asarray(mids)
             rest_means = np.asarray(means)
             self.track = rm.bias_track(at, rest_means, b.t_mid, self._max_drift(), estimate=column_medians)
-            self.bias = np.median(rest_means, axis=0)
+            self.bias = np_column_medians(rest_means)
         if len(means) >= 3:
             # about the session's median, not the track: the track is a span's median, and the bias wanders about
             # it within a span (a random walk) by as much as the rests' means scatter over the session
             dev = rest_means - self.bias
-            robust2 = (1.4826 * np.median(np.abs(dev), axis=0)) ** 2
-            self.wander2 = np.maximum(robust2 - np.median(noise2, axis=0), 0.0)
+            robust2 = (1.4826 * np_column_medians(np.abs(dev))) ** 2
+            self.wander2 = np.maximum(robust2 - np_column_medians(noise2), 0.0)
             if self.gyro_scale is not None:  # a scatter beyond any MEMS gyro's bias change is of false rests
                 self.wander2 = np.minimum(self.wander2, (MAX_BIAS_WANDER_RAD_S / self.gyro_scale) ** 2)
 
@@ -609,10 +614,10 @@ class RestModel:
         return out
 
     def limits(self) -> dict[str, float]:
-        out = {"step": float(np.median(self.step_limit)) if self.step_limit.size else float("nan"),
+        out = {"step": float(np_median(self.step_limit)) if self.step_limit.size else float("nan"),
                "trend": rm.trend_limit(self.s.false_alarm, rm.TREND_BATCHES - 2) * self.s.drift_threshold}
         if self.bias is not None:
-            out["gyro"] = float(np.median(self.gyro_limit))
+            out["gyro"] = float(np_median(self.gyro_limit))
         return out
 
     def trace(self, m: int) -> dict[str, NDArray[np.float64]]:

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from optcal.core.poses import PoseTable
 from optcal.data.recording import Recording
 from optcal.data.static_poses import StaticInterval, counted_interval, reduce_interval
+from optcal.data.quantiles import np_median
 from optcal.data.rest_model import MIN_INDEPENDENT_ACC, MIN_INDEPENDENT_GYRO, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.rest_tests import RestModel
 from optcal.data.static_stretches import group_positions, join_twitches, touches, wobbles
@@ -441,7 +442,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     noise.update(model.noise())
     if rest_noise:
         noise["rest_noise_min"] = float(min(rest_noise))
-        noise["rest_noise_median"] = float(np.median(rest_noise))
+        noise["rest_noise_median"] = float(np_median(rest_noise))
     limits.update(model.limits())
     trace.update(model.trace(m))
     trace["static"] = in_pose

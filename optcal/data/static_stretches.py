@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import rest_model as rm
-from optcal.data.quantiles import column_medians, grouped_column_medians
+from optcal.data.quantiles import column_medians, grouped_column_medians, np_column_medians, np_median, np_quantile
 from optcal.data.recording import Recording
 from optcal.data.rest_model import SAME_POSE_SAMPLE_SIGMAS, UNIT_RATE_QUANTILE, WOBBLE_SHRINK
 
@@ -95,10 +95,10 @@ def gyro_rad_per_unit(rec: Recording, gyro: NDArray[np.float64] | None, bias: ND
     if ok.sum() >= 2:
         turn = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))[ok] / dt[ok]
         # the accelerometer's turn rate that its noise alone gives: two block means' noise over the block step
-        noise = np.sqrt(2.0 * np.median(blocks.var.sum(axis=1) / blocks.n)) / np.median(np.linalg.norm(blocks.mean, axis=1))
-        acc_fast = float(np.quantile(turn, UNIT_RATE_QUANTILE))
-        if acc_fast > 3.0 * noise / float(np.median(dt)):
-            gyro_fast = float(np.quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE))
+        noise = np.sqrt(2.0 * np_median(blocks.var.sum(axis=1) / blocks.n)) / np_median(np.linalg.norm(blocks.mean, axis=1))
+        acc_fast = np_quantile(turn, UNIT_RATE_QUANTILE)
+        if acc_fast > 3.0 * noise / float(np_median(dt)):
+            gyro_fast = np_quantile(np.linalg.norm(blocks.gmean - bias, axis=1), UNIT_RATE_QUANTILE)
             ratio = gyro_fast / acc_fast
             return RAD_PER_UNIT["deg/s"] if ratio > np.sqrt(1.0 / RAD_PER_UNIT["deg/s"]) else RAD_PER_UNIT["rad/s"]
     return RAD_PER_UNIT["rad/s"] if rec.units == "m/s^2" else RAD_PER_UNIT["deg/s"]
@@ -188,7 +188,7 @@ def _move_increments(t: NDArray[np.float64], gyro: NDArray[np.float64], bias: ND
         w = gyro[a:z] - bias
         dt = np.diff(t[a:z])
         inc = 0.5 * (w[1:] + w[:-1]) * dt[:, None]
-        step = max(1, int(round(MOVE_STEP_S / max(float(np.median(dt)) if dt.size else 1.0, 1e-12))))
+        step = max(1, int(round(MOVE_STEP_S / max(float(np_median(dt)) if dt.size else 1.0, 1e-12))))
         edges = np.arange(0, inc.shape[0], step)
         pieces.append(np.add.reduceat(inc, edges, axis=0) if inc.shape[0] else np.zeros((1, 3)))
     length = max(p.shape[0] for p in pieces)
@@ -212,28 +212,60 @@ def _turned(increments: NDArray[np.float64], u0: NDArray[np.float64], scales: ND
     steps = increments.shape[1]
     if steps > 8 and steps % 8:
         increments = np.concatenate([increments, np.zeros((increments.shape[0], 8 - steps % 8, 3))], axis=1)
-    # each step's increment as a quaternion (scales, moves, steps)
+    # each step's increment as a quaternion (scales, moves, steps), in place: the operations and their order of
+    # angle = √(rx² + ry² + rz²), k = sin(angle/2)/angle (½ below 1e-12), w = cos(angle/2), (x, y, z) = k r
     rx, ry, rz = (scales[:, None, None] * increments[None, :, :, c] for c in range(3))
-    angle = np.sqrt(rx * rx + ry * ry + rz * rz)
-    half = 0.5 * angle
-    k = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-300), 0.5)
-    w, x, y, z = np.cos(half), rx * k, ry * k, rz * k
+    angle = rx * rx
+    tmp = ry * ry
+    angle += tmp
+    np.multiply(rz, rz, out=tmp)
+    angle += tmp
+    np.sqrt(angle, out=angle)
+    half = np.multiply(angle, 0.5, out=tmp)
+    k = np.sin(half)
+    k /= np.maximum(angle, 1e-300)
+    np.copyto(k, 0.5, where=~(angle > 1e-12))
+    w = np.cos(half, out=angle)
+    x, y, z = np.multiply(rx, k, out=rx), np.multiply(ry, k, out=ry), np.multiply(rz, k, out=rz)
     while w.shape[-1] > 1:
         if w.shape[-1] % 2:  # an identity appended: the last step pairs with it
             one = np.ones(w.shape[:-1] + (1,))
             zero = np.zeros_like(one)
             w = np.concatenate([w, one], axis=-1)
             x, y, z = (np.concatenate([a, zero], axis=-1) for a in (x, y, z))
-        aw, ax, ay, az = w[..., 0::2], x[..., 0::2], y[..., 0::2], z[..., 0::2]
-        bw, bx, by, bz = w[..., 1::2], x[..., 1::2], y[..., 1::2], z[..., 1::2]
-        w, x, y, z = (aw * bw - ax * bx - ay * by - az * bz, aw * bx + bw * ax + ay * bz - az * by,
-                      aw * by + bw * ay + az * bx - ax * bz, aw * bz + bw * az + ax * by - ay * bx)
+        w, x, y, z = _pair_products(w, x, y, z)
     w, x, y, z = w[..., 0], x[..., 0], y[..., 0], z[..., 0]
     w, v = w[..., None], np.stack([x, y, z], axis=-1)
     u = np.broadcast_to(u0, v.shape)
     # R(q)ᵀ u = u − 2w (v × u) + 2 v × (v × u)
     c = np.cross(v, u)
     return np.asarray(u - 2.0 * w * c + 2.0 * np.cross(v, c))
+
+
+def _pair_products(w: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The quaternion products ``a ⊗ b`` of each even step ``a`` with the odd step ``b`` after it (last axis), each
+    component accumulated in place in the order of ``aw bw − ax bx − ay by − az bz``, ``aw bx + bw ax + ay bz − az by``,
+    ``aw by + bw ay + az bx − ax bz``, ``aw bz + bw az + ax by − ay bx``."""
+    a = (w[..., 0::2], x[..., 0::2], y[..., 0::2], z[..., 0::2])
+    b = (w[..., 1::2], x[..., 1::2], y[..., 1::2], z[..., 1::2])
+    t = np.empty_like(a[0])
+    out = []
+    # (first product, then (sign, left factor, right factor) of the terms added in order), per component
+    for (i0, j0), terms in (((0, 0), ((-1, 1, 1), (-1, 2, 2), (-1, 3, 3))),
+                            ((0, 1), ((+1, 1, 0), (+1, 2, 3), (-1, 3, 2))),
+                            ((0, 2), ((+1, 2, 0), (+1, 3, 1), (-1, 1, 3))),
+                            ((0, 3), ((+1, 3, 0), (+1, 1, 2), (-1, 2, 1)))):
+        acc = a[i0] * b[j0]
+        for sign, i, j in terms:
+            # bw ax is written b-first in the formula; multiplication commutes exactly
+            np.multiply(a[i], b[j], out=t)
+            if sign > 0:
+                acc += t
+            else:
+                acc -= t
+        out.append(acc)
+    return out[0], out[1], out[2], out[3]
 
 
 def _refine_logs(cost: Callable[[NDArray[np.float64]], NDArray[np.float64]], lo: NDArray[np.float64],
@@ -361,7 +393,7 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     if tolerance is not None and todo.any():
         # each stretch's rate spread by sums over it (one pass over the samples for all stretches)
         # about the stretches' first rates' median (a gyro's bias: a large one would cancel the spread's digits)
-        s1, s2 = _span_sums(gyro - np.median(gyro[a[todo]], axis=0), a, z)
+        s1, s2 = _span_sums(gyro - np_column_medians(gyro[a[todo]]), a, z)
         mm = np.maximum(m, 1)[:, None]
         spread = np.sqrt(np.maximum(s2 / mm - (s1 / mm) ** 2, 0.0).sum(axis=1))
         window_s = t[a + np.minimum(window, m) - 1] - t[a]
@@ -384,26 +416,41 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     size = int(length.max())
     chunk = max(1, WOBBLE_CHUNK_VALUES // (3 * size))
     j = np.arange(size)
+    padded = np.zeros((gyro.shape[0] + 1, 3))  # the rates, then a zero row: a window's samples past its end
+    padded[:-1] = gyro
     for c0 in range(0, owner.size, chunk):
         f, n = first[c0:c0 + chunk], length[c0:c0 + chunk]
-        idx = np.minimum(f[:, None] + j[None, :], gyro.shape[0] - 1)
-        inside = j[None, :] < n[:, None]
-        pair = inside[:, 1:] & inside[:, :-1]
-        w = np.where(inside[..., None], gyro[idx], 0.0)  # (windows, size, 3), gyro units
-        tt = t[idx]
-        dt = np.where(pair, np.diff(tt, axis=1), 0.0)
+        # the samples along the first axis (sample, window, axis): a sum over a window's samples adds whole rows of
+        # windows × axes in the samples' order, the same sums as a window at a time, without a call per sample
+        idx = np.minimum(f[None, :] + j[:, None], gyro.shape[0] - 1)
+        inside = j[:, None] < n[None, :]
+        pair = inside[1:] & inside[:-1]
+        # two scratch arrays of (size, windows, 3), every step in place (the expressions in the comments)
+        w = np.take(padded, np.where(inside, idx, gyro.shape[0]), axis=0)  # w = where(inside, gyro[idx], 0)
+        tt = np.take(t, idx)
+        dt = np.where(pair, np.diff(tt, axis=0), 0.0)
         # the gyro's own white noise, from its sample-to-sample differences (var(Δω) = 2σ² for white noise; a
         # tremor of a few hertz hardly changes from one sample to the next): integrated, a random walk whose
         # mean square about its mean over a window of T, the mean rate removed (a Brownian bridge), is σ² dt T / 12
-        d = np.where(pair[..., None], np.diff(w, axis=1), 0.0)
+        d = np.diff(w, axis=0)  # d = where(pair, diff(w), 0): past a window's end w is 0, so only its last step
+        short = np.flatnonzero(n < size)
+        d[n[short] - 1, short] = 0.0
         k = (n - 1.0)[:, None]
-        white = np.sum(np.sum(d * d, axis=1) / k - (np.sum(d, axis=1) / k) ** 2, axis=1) / 2.0
-        mean = w.sum(axis=1) / n[:, None]
-        angle = np.cumsum((0.5 * (w[:, 1:] + w[:, :-1]) - mean[:, None, :]) * dt[..., None], axis=1)
-        angle = np.where(pair[..., None], angle, 0.0)  # the angle after each step; 0 at the window's first sample
+        d_sum = d.sum(axis=0)
+        d2_sum = np.multiply(d, d, out=d).sum(axis=0)
+        white = np.sum(d2_sum / k - (d_sum / k) ** 2, axis=1) / 2.0
+        mean = w.sum(axis=0) / n[:, None]
+        # angle = cumsum((0.5 (w[1:] + w[:-1]) − mean) dt), 0 past the window's end (and at its first sample)
+        angle = np.add(w[1:], w[:-1], out=d)
+        angle *= 0.5
+        angle -= mean
+        angle *= dt[..., None]
+        np.cumsum(angle, axis=0, out=angle)
+        np.copyto(angle, 0.0, where=~pair[..., None])
         # the angle's squares about its mean over the window's samples: Σ A² − (Σ A)² / n
-        spread2 = np.sum(np.sum(angle * angle, axis=1) - np.sum(angle, axis=1) ** 2 / n[:, None], axis=1)
-        span = tt[np.arange(n.size), n - 1] - tt[:, 0]
+        angle_sum = angle.sum(axis=0)
+        spread2 = np.sum(np.multiply(angle, angle, out=angle).sum(axis=0) - angle_sum ** 2 / n[:, None], axis=1)
+        span = tt[n - 1, np.arange(n.size)] - tt[0]
         owners = owner[c0:c0 + chunk]
         total += np.bincount(owners, weights=spread2, minlength=a.size)
         noise += np.bincount(owners, weights=n * white * (span / (n - 1.0)) * span / 12.0, minlength=a.size)

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.core.model import STANDARD_GRAVITY
 from optcal.core.units import RAD_PER_UNIT, normalise_units, to_g_factor
-from optcal.data.quantiles import column_medians, median
+from optcal.data.quantiles import column_medians, median, np_quantile
 from optcal.errors import InputError
 
 #: Norm ranges (median ‖a‖ over the data) in which the units are unambiguous.
@@ -456,7 +456,7 @@ def decide_gyro_units(
         raise InputError("no finite gyro samples; cannot tell the gyro units")
     if np.all(g == np.round(g)):
         return GyroUnitsDecision("counts", "integer-valued samples (raw counts)")
-    peak = float(np.percentile(np.linalg.norm(g - bias, axis=1), 99))
+    peak = np_quantile(np.linalg.norm(g - bias, axis=1), 0.99)
     if peak >= DEG_S_MIN_PEAK:
         return GyroUnitsDecision("deg/s", f"peak rate {peak:.3g} ≥ {DEG_S_MIN_PEAK:g} (°/s)")
     return GyroUnitsDecision("rad/s", f"peak rate {peak:.3g} < {DEG_S_MIN_PEAK:g} (rad/s)")

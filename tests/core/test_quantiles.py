@@ -43,3 +43,20 @@ def test_incomplete_functions_at_their_ends_and_bad_tails() -> None:
     for bad in (0.0, 1.0, -0.1, np.nan):
         with pytest.raises(ValueError, match="tail probability"):
             quantiles.f_isf(bad, 3.0, 10.0)
+
+
+def test_normal_quantile_is_statistics_normal_dist_bit_for_bit_without_importing_statistics(monkeypatch) -> None:
+    """norm_isf takes CPython's C form of NormalDist.inv_cdf (no import of statistics at a command's start): the same
+    values to the last bit, and NormalDist itself where the C form is absent."""
+    import subprocess
+    import sys
+    from statistics import NormalDist
+
+    rng = np.random.default_rng(3)
+    for p in [*rng.uniform(size=2000), *(10.0 ** -np.arange(1, 300, 7)), 0.5, 1 - 1e-16, 1e-300]:
+        assert quantiles.norm_isf(float(p)) == -NormalDist().inv_cdf(float(p))
+    monkeypatch.setattr(quantiles, "_normal_dist_inv_cdf", None)
+    assert quantiles.norm_isf(0.01) == -NormalDist().inv_cdf(0.01)
+    probe = "import sys; from optcal.core import quantiles; quantiles.chi2_isf(0.01, 3); print('statistics' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"

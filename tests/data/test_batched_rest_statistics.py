@@ -109,3 +109,64 @@ def test_rests_counted_without_pose_statistics_are_the_same_rests(shared_data):
     assert counted.n_used == full.n_used and len(full.intervals) == 38
     with pytest.raises(ValueError, match="counted its rests only"):
         counted.pose_table()
+
+
+def expression_wobbles(gyro, t, rad_per_unit, window, spans):
+    """:func:`wobbles` without its tolerance, written as plain whole-array expressions (windows, samples, axes):
+    the form it had before its scratch arrays were laid out samples first and reused in place."""
+    from optcal.data.static_stretches import _ranks
+
+    a = np.array([s[0] for s in spans], dtype=np.intp)
+    z = np.array([s[1] for s in spans], dtype=np.intp)
+    m = z - a
+    rows = np.flatnonzero(m >= 3)
+    whole = m[rows] // window
+    rest = m[rows] - whole * window
+    owner = np.concatenate([np.repeat(rows, whole), rows[rest >= 3]])
+    first = np.concatenate([np.repeat(a[rows], whole) + _ranks(whole) * window, (a[rows] + whole * window)[rest >= 3]])
+    n = np.concatenate([np.full(int(whole.sum()), window), rest[rest >= 3]]).astype(np.intp)
+    j = np.arange(int(n.max()))
+    idx = np.minimum(first[:, None] + j[None, :], gyro.shape[0] - 1)
+    inside = j[None, :] < n[:, None]
+    pair = inside[:, 1:] & inside[:, :-1]
+    w = np.where(inside[..., None], gyro[idx], 0.0)
+    tt = t[idx]
+    dt = np.where(pair, np.diff(tt, axis=1), 0.0)
+    d = np.where(pair[..., None], np.diff(w, axis=1), 0.0)
+    k = (n - 1.0)[:, None]
+    white = np.sum(np.sum(d * d, axis=1) / k - (np.sum(d, axis=1) / k) ** 2, axis=1) / 2.0
+    mean = w.sum(axis=1) / n[:, None]
+    angle = np.cumsum((0.5 * (w[:, 1:] + w[:, :-1]) - mean[:, None, :]) * dt[..., None], axis=1)
+    angle = np.where(pair[..., None], angle, 0.0)
+    spread2 = np.sum(np.sum(angle * angle, axis=1) - np.sum(angle, axis=1) ** 2 / n[:, None], axis=1)
+    span = tt[np.arange(n.size), n - 1] - tt[:, 0]
+    total = np.bincount(owner, weights=spread2, minlength=a.size)[rows] * rad_per_unit**2
+    noise = np.bincount(owner, weights=n * white * (span / (n - 1.0)) * span / 12.0, minlength=a.size)[rows] * rad_per_unit**2
+    n_all = np.maximum(np.bincount(owner, weights=n, minlength=a.size)[rows], 1.0)
+    out = np.zeros(a.size)
+    resolved = noise <= RESOLVED_WOBBLE_SHARE**2 * 2.0 * WOBBLE_SHRINK * n_all
+    out[rows] = np.where(resolved, np.sqrt(np.maximum(total - noise, 0.0) / n_all), 0.0)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_wobbles_bit_for_bit_as_the_plain_expressions(seed, monkeypatch):
+    """The windows' sums add the samples in the same order as the plain expressions (so the same numbers to the last
+    bit, which decide the same rests): one window or many, windows cut short, C or Fortran order, several chunks."""
+    import optcal.data.static_stretches as ss
+
+    rng = np.random.default_rng(100 + seed)
+    if seed % 2:
+        monkeypatch.setattr(ss, "WOBBLE_CHUNK_VALUES", 5000)  # several chunks of windows
+    for trial in range(40):
+        n = int(rng.integers(30, 3000))
+        gyro = rng.normal(size=(n, 3)) * 10 ** rng.uniform(-3, 3) + rng.normal(size=3) * 10 ** rng.uniform(-2, 4)
+        if trial % 2:
+            gyro = np.asfortranarray(np.round(gyro))
+        t = np.cumsum(rng.uniform(0.005, 0.015, size=n))
+        cuts = np.sort(rng.choice(n, size=2 * int(rng.integers(1, 6)), replace=False))
+        spans = [(int(x), int(y)) for x, y in zip(cuts[0::2], cuts[1::2])]
+        window = int(rng.integers(3, 400))
+        if all(z - a < 3 for a, z in spans):
+            continue
+        assert np.array_equal(wobbles(gyro, t, 1e-3, window, spans), expression_wobbles(gyro, t, 1e-3, window, spans))
