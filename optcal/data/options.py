@@ -316,12 +316,13 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
     """
     options = ReadOptions.build(options, **overrides)
     src, decisions = read_decided(path, options)
+    stated = options.units is not None or src.units_hint is not None  # the unit given, not decided from magnitudes
     try:
         if decisions.kind.value == POSE_TABLE:
             from optcal.data.tables import pose_table_from_source
 
             poses = pose_table_from_source(src, decisions)  # conversion
-            check_sensitivity(poses.acc, poses.units)  # the units and columns decisions, checked on the poses
+            check_sensitivity(poses.acc, poses.units, stated=stated)  # the units and columns decisions, checked on the poses
             return Reading(str(path), options, decisions, poses)
         rec = recording_from_source(src, decisions)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
@@ -330,7 +331,7 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
         decisions.warnings.extend(seg.override_warnings())  # an override says what it assumes, on the error path too
         table = seg.pose_table()
         # the units and columns decisions, checked on the poses and their noise
-        check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals])
+        check_sensitivity(table.acc, table.units, noise=[rms(iv.std) for iv in seg.intervals], stated=stated)
     except InputError as exc:
         raise with_decisions(exc, decisions) from exc
     table.meta.update(recording_meta(rec, decisions))

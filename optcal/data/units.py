@@ -219,7 +219,7 @@ def implied_sensitivity(means: ArrayLike) -> float:
     return sphere_through(means)[1]
 
 
-def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = None) -> None:
+def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = None, *, stated: bool = False) -> None:
     """Refuse pose means that are not an accelerometer's (gyroscope columns mapped as ``ax, ay, az``).
 
     Two pieces of evidence, each with the fix in the message:
@@ -231,8 +231,10 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
     * from two poses on, their spread: an accelerometer turned between its poses moves their
       means by a good part of 1 g, while a gyroscope at rest reads its constant offset in every
       orientation; means within :data:`MIN_SPREAD_TO_NORM` of their median |a| are refused,
-      unless they are in g or m/s² and their |a| is 1 g (an accelerometer that was not turned).
-      This holds however small the gyroscope's noise is next to its offset;
+      unless they are in g or m/s² and their |a| is 1 g (an accelerometer that was not turned), or
+      ``stated`` (an acceleration unit given with ``--units`` or written in the file: the columns are
+      then declared an accelerometer's, and poses of one orientation cannot tell its offset, even
+      0.2 g, from a wrong unit). This holds however small the gyroscope's noise is next to its offset;
     * with any number of poses, when ``noise`` (each pose's per-sample standard deviation,
       pooled over the axes, raw units) is given: a resting accelerometer's noise is at most
       :data:`MAX_REST_NOISE_G` of 1 g by the nominal conversion; a gyroscope's noise next to
@@ -260,12 +262,20 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
         spread = float(np.linalg.norm(np.ptp(a[np.all(np.isfinite(a), axis=1)], axis=0)))
         factor = to_g_factor(units)
         one_g_at_rest = factor is not None and abs(norm * factor - 1.0) <= ONE_G_TOLERANCE
-        if np.isfinite(norm) and norm > 0 and spread < MIN_SPREAD_TO_NORM * norm and not one_g_at_rest:
+        # an acceleration unit stated by the user or the file declares the columns an accelerometer's: the spread
+        # rule's question (a gyroscope's constant reading?) is then answered, and one orientation's offset is the
+        # calibration's to measure (it refuses a single orientation itself)
+        declared = stated and factor is not None
+        if np.isfinite(norm) and norm > 0 and spread < MIN_SPREAD_TO_NORM * norm and not (one_g_at_rest or declared):
+            declare = ("" if factor is None else
+                       f" (from one orientation an accelerometer's offset of {abs(norm * factor - 1.0):.2g} g and a "
+                       "wrong unit look the same: --units g or --units m/s^2 states they are an accelerometer's and "
+                       "proceeds)")
             raise InputError(
                 f"the {a.shape[0]} pose means do not look like an accelerometer's: they stay within {spread:.4g} "
                 f"{units} of each other, {spread / norm:.2g} of their median |a| {norm:.4g} {units} (a sensor turned "
                 f"between its poses moves them by more than {MIN_SPREAD_TO_NORM:g} of it): one constant offset, as a "
-                f"gyroscope at rest reads in every orientation; {fix}"
+                f"gyroscope at rest reads in every orientation{declare}; {fix}"
             )
     if noise is not None and a.shape[0] >= 1:
         one_g = nominal_conversion(units, a).sensitivity

@@ -124,3 +124,28 @@ def test_gyro_with_an_offset_planted_on_a_real_recording_is_refused(tmp_path):
     with pytest.raises(InputError, match="pose means do not look like an accelerometer's: they stay within"):
         gyro_as_accelerometer(frame, path, columns=mapped)
     assert load_with_segmentation(path).poses.n == 7  # the accelerometer's columns: its rests
+
+
+def _one_orientation_log(path, header: str) -> None:
+    """Two rests of one orientation (a bump between them) of an accelerometer whose z offset is 0.22 g: |a| = 0.78 g."""
+    rng = np.random.default_rng(3)
+    n = 3000
+    a = np.tile([0.1, 0.06, 0.78], (2 * n + 200, 1)) + rng.normal(0.0, 0.004, (2 * n + 200, 3))
+    a[n:n + 200] += 0.3 * np.sin(np.linspace(0.0, 4 * np.pi, 200))[:, None]  # handled for 2 s, then
+    a[n + 200:, 0] += 0.005  # set down 0.4° from where it was: two rests of (nearly) one orientation
+    t = np.arange(len(a)) / 100.0
+    np.savetxt(path, np.column_stack([t, a]), delimiter=",", header=header, comments="", fmt="%.6f")
+
+
+def test_one_orientation_far_from_1_g_is_read_when_its_unit_is_stated(tmp_path, capsys):
+    """One orientation cannot tell an accelerometer's 0.22 g offset from a wrong unit or a gyroscope's constant
+    reading: with the unit decided from the magnitudes the refusal says so and names ``--units``; with the unit
+    stated (the flag, or the unit word in the header) the columns are an accelerometer's and the log is read."""
+    plain = tmp_path / "still.csv"
+    _one_orientation_log(plain, "t,ax,ay,az")
+    with pytest.raises(InputError, match=r"offset of 0\.21 g and a wrong unit look the same: --units g"):
+        load(plain)
+    assert load(plain, units="g").n == 2
+    worded = tmp_path / "still_g.csv"
+    _one_orientation_log(worded, "t,ax_g,ay_g,az_g")
+    assert load(worded).n == 2
