@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Any
 
 import click
@@ -54,6 +55,15 @@ class StillLog:
     decisions: Any
     gyro: np.ndarray | None = None
     gyro_units: str | None = None
+    #: The stillness check still running beside the analysis (``read_still_log(..., concurrent=True)``): it
+    #: raises the refusal when the log is not still; :meth:`confirm_still` waits for it.
+    pending: Callable[[], None] | None = None
+
+    def confirm_still(self) -> None:
+        """Wait for the stillness check started by ``read_still_log(..., concurrent=True)``; raise its refusal."""
+        if self.pending is not None:
+            check, self.pending = self.pending, None
+            check()
 
 
 def static_log(
@@ -121,7 +131,7 @@ def missing_samples(t: NDArray[np.float64]) -> tuple[int, int, int, float, float
 
 
 def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] | None = None,
-                   **read_options: Any) -> StillLog:
+                   concurrent: bool = False, **read_options: Any) -> StillLog:
     """Read a still log for the Allan deviation.
 
     Unusable samples (non-finite, duplicated, saturated) are dropped and counted; a few
@@ -133,7 +143,10 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     gyro samples (``units`` then says the gyro units as the file states them, or ``None``);
     ``sensor="both"`` the accelerometer's with the gyro's beside them (``gyro``).  ``window``
     keeps only the samples with ``start ≤ t ≤ end`` (the still part of a longer recording; the
-    rows outside it are counted).
+    rows outside it are counted).  ``concurrent=True`` returns as soon as the log is read and runs the
+    stillness check in a thread beside the caller's analysis (its numpy work releases the interpreter,
+    so two cores share the two): the caller must call :meth:`StillLog.confirm_still` before it uses a
+    result, and the same refusal is raised there.
     """
     from dataclasses import replace
 
@@ -177,19 +190,36 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
             )
         if total:
             exclusions[DROPPED] = total
-    with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
+    def still_check() -> None:
         seg = detect_static(rec, pose_statistics=False)  # the still fraction only: no pose statistics
-    still = seg.n_used / max(1, samples.shape[0])
-    if still < MIN_STILL_FRACTION:
-        raise InputError(
-            f"{data}: the log is not still: static detection finds only {100 * still:.0f} % of its samples at rest "
-            f"({len(seg.intervals)} static interval(s)); the Allan deviation needs a log of a sensor that does not move"
-            + ("" if window is not None else " (--window START:END analyses the still part of a longer recording)")
-        )
+        still = seg.n_used / max(1, samples.shape[0])
+        if still < MIN_STILL_FRACTION:
+            raise InputError(
+                f"{data}: the log is not still: static detection finds only {100 * still:.0f} % of its samples at "
+                f"rest ({len(seg.intervals)} static interval(s)); the Allan deviation needs a log of a sensor that "
+                "does not move"
+                + ("" if window is not None else " (--window START:END analyses the still part of a longer recording)")
+            )
+
+    pending: Callable[[], None] | None = None
+    if concurrent:
+        from concurrent.futures import ThreadPoolExecutor
+
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-still")
+        future = pool.submit(still_check)
+        pool.shutdown(wait=False)
+
+        def pending() -> None:
+            with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
+                future.result()
+    else:
+        with stage("finding the samples at rest"):
+            still_check()
     if sensor == "gyro":
         return StillLog(samples, rec.rate_hz, rec.gyro_units or "", "stated by the file" if rec.gyro_units else "",
-                        exclusions, rec.decisions, gyro, rec.gyro_units)
-    return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro, rec.gyro_units)
+                        exclusions, rec.decisions, gyro, rec.gyro_units, pending)
+    return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro, rec.gyro_units,
+                    pending)
 
 
 @click.command()
@@ -253,28 +283,35 @@ def allan(
 
         scales = calibration_scales(calibration_files.load(calibration_path))
     span = parse_window(window)
-    log = read_still_log(data, sensor=sensor, window=span, **reading_kwargs(reading))
+    # the stillness check runs beside the analysis (two cores: about a second less on a 12-hour log) and is
+    # waited for before anything is printed or drawn: a log that is not still is refused as before
+    log = read_still_log(data, sensor=sensor, window=span, concurrent=True, **reading_kwargs(reading))
     analyses = {}
     reasons: dict[str, str] = {}
-    if sensor in ("acc", "both"):
-        acc = log.samples
-        if calibration_path is not None:
-            counts_per_g = scale_for(scales, "acc", ACCELEROMETER.canonical_units(log.units), calibration_path)
-            if counts_per_g is not None:
-                scale_lines.append(scales["acc"].describe(calibration_path))
-        ACCELEROMETER.si_per_unit(log.units, counts_per_g)  # fail early on counts without a scale
-        analyses["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
-        reasons["acc"] = log.units_reason
-    if sensor in ("gyro", "both"):
-        gyro = log.samples if sensor == "gyro" else log.gyro
-        assert gyro is not None  # read_still_log refuses a log without gyro columns
-        decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None)
-        if calibration_path is not None:
-            counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
-            if counts_per_rad_s is not None:
-                scale_lines.append(scales["gyro"].describe(calibration_path))
-        analyses["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
-        reasons["gyro"] = decision.reason
+    try:
+        if sensor in ("acc", "both"):
+            acc = log.samples
+            if calibration_path is not None:
+                counts_per_g = scale_for(scales, "acc", ACCELEROMETER.canonical_units(log.units), calibration_path)
+                if counts_per_g is not None:
+                    scale_lines.append(scales["acc"].describe(calibration_path))
+            ACCELEROMETER.si_per_unit(log.units, counts_per_g)  # fail early on counts without a scale
+            analyses["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
+            reasons["acc"] = log.units_reason
+        if sensor in ("gyro", "both"):
+            gyro = log.samples if sensor == "gyro" else log.gyro
+            assert gyro is not None  # read_still_log refuses a log without gyro columns
+            decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None)
+            if calibration_path is not None:
+                counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
+                if counts_per_rad_s is not None:
+                    scale_lines.append(scales["gyro"].describe(calibration_path))
+            analyses["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
+            reasons["gyro"] = decision.reason
+    except Exception:  # the log's refusal comes first, as when the check ran before the analysis
+        log.confirm_still()
+        raise
+    log.confirm_still()
     figures = []
     if plot_path is not None:
         for name, analysis in analyses.items():

@@ -228,3 +228,13 @@ def test_decisions_are_printed_and_in_the_json(rec_g, tmp_path, capsys):
     # an override is taken and said so
     with pytest.raises(InputError, match="cannot be read as a pose table|pose table"):
         load(tmp_path / "r.csv", kind="poses", rate=100.0)
+
+
+def test_8_allan_refuses_a_moving_log_before_what_its_analysis_refuses(rec_g, tmp_path, capsys):
+    """The stillness check runs beside the analysis: a moving log whose analysis also fails (counts without their
+    scale) is refused for its motion, as when the check ran first, and nothing is printed before the refusal."""
+    frame = rec_g.frame.copy()
+    frame[["ax", "ay", "az"]] = np.round(frame[["ax", "ay", "az"]] * 16384.0)
+    frame.to_csv(tmp_path / "moving_counts.csv", index=False)
+    code, out, err = run(["allan", tmp_path / "moving_counts.csv", "--units", "counts"], capsys)
+    assert code == 2 and "the log is not still" in err and out == ""
