@@ -29,6 +29,7 @@ from the constant angle between field and gravity (:mod:`optcal.families.mag.dip
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -330,7 +331,7 @@ class HeldOut:
         form's mean-square gain over the simplest with its standard error."""
         forms = list(self.mse)
         return {"cells": [COVERAGE_NAMES[c] for c in self.cells], "n_samples": self.n_samples,
-                "rms": {f: self.rms(f) for f in forms},
+                "rms": {f: self.rms(f) for f in forms}, "fit": "maximum likelihood, squared loss",
                 "gain_over_" + forms[0]: {f: dict(zip(("gain", "se"), self.gain(forms[0], f))) for f in forms[1:]}}
 
     def gain(self, simpler: str, richer: str) -> tuple[float, float]:
@@ -543,7 +544,9 @@ def _refine(poses: PoseTable, form: str, method: str, est: dict[str, Any]) -> tu
     start = make_estimator("mle", allow_degenerate=True, **est).initial(poses)  # the ML's own convex start
     why: str | None
     try:
-        result = calibrate(poses, method=method, allow_degenerate=True, **est)
+        with warnings.catch_warnings(record=True) as caught:  # a solver's warning stands only where its result is kept
+            warnings.simplefilter("always")
+            result = calibrate(poses, method=method, allow_degenerate=True, **est)
         # the objective is compared with the start's only where both are fits of the same model: a fixed or bounded
         # entry (the diagonal form's off-diagonals, the user's --fix/--bound) makes the refinement's a smaller one
         same_model = form == "full" and not est.get("fix") and not est.get("bounds")
@@ -552,6 +555,8 @@ def _refine(poses: PoseTable, form: str, method: str, est: dict[str, Any]) -> tu
     except SolverError as exc:
         why = f"it failed ({exc})"
     if why is None:
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         return result, None
     if form != "full":
         raise SolverError(f"the maximum-likelihood refinement is not kept: {why}")
@@ -655,6 +660,7 @@ def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:
         if chosen is not None and heldout is not None:
             reason = evidence + "; parameters determined to " + ", ".join(
                 f"{f} {100 * t.worst_share:.2g} %" for f, t in tried.items()) + " of the field"
+            reason += _heldout_model_line(settings)
             passed = [f for f in tried if tried[f] is not chosen]
             if passed:
                 reason += (f" ({', '.join(passed)} not kept: {100 * USABLE_SHARE:g} % or worse is no calibration "
@@ -677,6 +683,21 @@ def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:
     cov = coverage((samples.m - chosen.o) @ chosen.T.T)
     notes = failed + ([chosen.note] if chosen.note else []) + coverage_notes(cov)
     return MagFit(chosen, reason + " (override with --mag-form offsets|diagonal|full)", tried, cov, notes, heldout)
+
+
+def _heldout_model_line(settings: MagSettings) -> str:
+    """What the held-out comparison fits with, where the user asked for another loss or method (:func:`heldout_forms`
+    fits every form by plain maximum likelihood, the squared loss; the user's settings fit the chosen form only)."""
+    given = []
+    loss = str(settings.estimator.get("loss") or "squared")
+    if loss != "squared":
+        given.append(f"--loss {loss}")
+    if settings.method not in ML_METHODS:
+        given.append(f"--method {settings.method}")
+    if not given:
+        return ""
+    return (f"; the forms compared under plain maximum likelihood (squared loss), not {' and '.join(given)}, "
+            "which fit the chosen form only")
 
 
 def _by_determination(tried: dict[str, FormFit]) -> tuple[FormFit, str]:
