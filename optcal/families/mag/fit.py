@@ -29,7 +29,6 @@ from the constant angle between field and gravity (:mod:`optcal.families.mag.dip
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,6 +37,7 @@ from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
 from optcal.errors import IdentifiabilityError, InputError, SolverError
+from optcal.families.mag.refine import ML_METHODS, SensorUnitsFit, refine_ml, solver_name
 from optcal.families.mag.samples import MagSamples
 
 #: The reduced forms, richest last, with their parameter counts.
@@ -121,7 +121,8 @@ class MagSettings:
 @dataclass(frozen=True)
 class FormFit:
     """One form's fit: ``T`` (symmetric), ``o``, the residuals and the standard errors (``note``: what was
-    decided on the way, printed, e.g. a maximum-likelihood refinement not kept, :func:`refinement_departure`)."""
+    decided on the way, printed, e.g. a maximum-likelihood refinement not kept, 
+    :func:`optcal.families.mag.refine.refinement_departure`)."""
 
     form: str
     T: NDArray[np.float64]
@@ -226,6 +227,11 @@ def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArra
     one ``√(diag (JᵀJ)⁻¹ · rᵀr/(n − p))``.
     """
     n, k = J.shape
+    # columns scaled to unit norm first: in counts T's entries are ~1e-4 and o's ~1e3, so JᵀJ's condition number
+    # (~1e15) put o's directions below pinv's cut-off and their standard errors at ~1e-14 (ybabs's counts)
+    col = np.sqrt(np.einsum("ij,ij->j", J, J))
+    col = np.where(col > 0, col, 1.0)
+    J = J / col
     H = np.linalg.pinv(J.T @ J)
     se2 = np.diag(H) * float(r @ r) / max(n - k, 1)
     b = n // BATCH_START
@@ -234,7 +240,7 @@ def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArra
         se2 = np.maximum(se2, np.einsum("ij,jk,ki->i", H, g.T @ g, H))
         half = g.shape[0] // 2
         g = g[0 : 2 * half : 2] + g[1 : 2 * half : 2]  # the scores of batches twice as long (n // 2L of them)
-    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)))
+    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)) / col)
 
 
 #: The six entries of a symmetric ``T`` (upper triangle) and their names.
@@ -434,48 +440,6 @@ def heldout_forms(m: NDArray[np.float64], forms: tuple[str, ...]) -> HeldOut:
     return HeldOut(cells.astype(np.int64), counts.astype(np.int64), mse, len(mm))
 
 
-#: The physical set the maximum-likelihood refinement must end in, relative to its convex start.  The residual
-#: ``‖T(m − o)‖ − 1`` is a share of the fitted field, so on samples that cover part of the sphere (a cap) the
-#: likelihood keeps falling as the ellipsoid grows along the poorly covered axis: generated half spheres with 3 %
-#: noise end at 8 times the field, 5 % at 38 times (ybabs/MagCalib's 12 of 26 cells: 28 times, or IPOPT fails).
-#: The field the samples trace is the Earth's: ArduPilot (CompassCalibrator.h, COMPASS_MAX_SCALE_FACTOR) accepts
-#: a fitted radius within a factor 1.5 of the field it expects, so a refinement that moves the field strength by
-#: more than that factor from its start has left the field, not refined it.
-FIELD_FACTOR: float = 1.5
-#: A soft iron and a sensor's scale mismatch stretch an axis by at most this factor against the field
-#: (ArduPilot's CompassCalibrator.cpp fit_acceptable: each COMPASS_DIA within 0.2-5): a singular value of
-#: ``T`` times the field strength outside [1/5, 5] is a degenerate ellipsoid, not a soft iron.
-AXIS_STRETCH: float = 5.0
-#: The methods that refine the convex start by maximum likelihood (Lu 2017, eq. 14, from eq. 18-30's fit).
-ML_METHODS: tuple[str, ...] = ("default", "mle")
-
-
-def refinement_departure(T: NDArray[np.float64], o: NDArray[np.float64], start_T: NDArray[np.float64],
-                         start_o: NDArray[np.float64], m: NDArray[np.float64], loss: str) -> str | None:
-    """Why a maximum-likelihood refinement ``(T, o)`` of the convex start ``(start_T, start_o)`` is not kept, or None.
-
-    Not kept when it leaves the physical set (the field strength moved by more than :data:`FIELD_FACTOR`
-    from the start's, or an axis stretched by more than :data:`AXIS_STRETCH` against the field), or when,
-    under the squared loss (``loss="squared"``; any other value skips this test), its objective
-    Σ (‖T(m − o)‖ − 1)² (Lu 2017, eq. 14) is larger than the start's (a solver stopped early at a worse point).
-    """
-    F = float(np.linalg.det(T) ** (-1.0 / 3.0)) if np.linalg.det(T) > 0 else np.inf
-    F0 = float(np.linalg.det(start_T) ** (-1.0 / 3.0))
-    if not F0 / FIELD_FACTOR <= F <= FIELD_FACTOR * F0:
-        return (f"its field strength {F:.4g} is {F / F0:.3g} times the convex start's {F0:.4g} (beyond a factor "
-                f"{FIELD_FACTOR:g}: the ellipsoid grew along a poorly covered axis)")
-    sv = np.linalg.svd(T, compute_uv=False) * F
-    if sv.max() > AXIS_STRETCH or sv.min() < 1.0 / AXIS_STRETCH:
-        return (f"it stretches an axis by {max(sv.max(), 1.0 / sv.min()):.3g} against the field (a soft iron: at most "
-                f"{AXIS_STRETCH:g})")
-    if loss == "squared":
-        mse = float(np.mean((np.linalg.norm((m - o) @ T.T, axis=1) - 1.0) ** 2))
-        mse0 = float(np.mean((np.linalg.norm((m - start_o) @ start_T.T, axis=1) - 1.0) ** 2))
-        if mse > mse0:
-            return f"its rms {np.sqrt(mse):.6g} is above the convex start's {np.sqrt(mse0):.6g}"
-    return None
-
-
 def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
     """Fit one form (module docstring) to the samples."""
     from optcal.families.accel.calibration import calibrate
@@ -503,14 +467,15 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
     poses = PoseTable(acc=m, units="counts", source="raw recording")
     note = None
     if method in ML_METHODS:
-        result, note = _refine(poses, form, method, est)
+        result, note = refine_ml(poses, form, method, est)
     else:
         result = calibrate(poses, method=method, allow_degenerate=True, **est)
+    refined = isinstance(result, SensorUnitsFit)
     T = symmetric_T(result.T)
     o = np.asarray(result.o, dtype=float)
     resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
     r = float(np.linalg.det(T) ** (-1.0 / 3.0))
-    if not settings.estimator.get("fix") and not settings.estimator.get("bounds"):
+    if refined or (not settings.estimator.get("fix") and not settings.estimator.get("bounds")):
         # the stored symmetric T's entries and o, their standard errors by batch means; the diagonal form's
         # off-diagonal entries are fixed at 0 (not parameters)
         J = norm_residual_jacobian(m, T, o)
@@ -521,7 +486,8 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
         shares = [v / r if k.startswith("o_") else v * r for k, v in stderr.items()]  # T: 1/field per unit
         if not np.all(np.isfinite(shares)):
             shares.append(np.inf)
-        return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name, note)
+        return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, solver_name(result), note)
+    assert not isinstance(result, SensorUnitsFit)
     infl = correlation_inflation(resid)
     stderr = {k: float(v) * infl for k, v in result.stderr.items() if np.isfinite(v)}
     shares = []
@@ -532,36 +498,7 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
             shares.append(se * r)  # T is 1/field per unit: r·δT is the share of the field
     if len(stderr) < len(result.stderr) or not shares:
         shares.append(np.inf)
-    return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name, note)
-
-
-def _refine(poses: PoseTable, form: str, method: str, est: dict[str, Any]) -> tuple[Any, str | None]:
-    """The maximum-likelihood refinement of the convex start, or the start where the refinement fails or is not
-    kept (:func:`refinement_departure`), with the note that says so; the diagonal form (no start of its own) raises
-    :class:`SolverError` instead, so that the other forms are tried."""
-    from optcal.families.accel.calibration import calibrate, make_estimator
-
-    start = make_estimator("mle", allow_degenerate=True, **est).initial(poses)  # the ML's own convex start
-    why: str | None
-    try:
-        with warnings.catch_warnings(record=True) as caught:  # a solver's warning stands only where its result is kept
-            warnings.simplefilter("always")
-            result = calibrate(poses, method=method, allow_degenerate=True, **est)
-        # the objective is compared with the start's only where both are fits of the same model: a fixed or bounded
-        # entry (the diagonal form's off-diagonals, the user's --fix/--bound) makes the refinement's a smaller one
-        same_model = form == "full" and not est.get("fix") and not est.get("bounds")
-        why = refinement_departure(result.T, np.asarray(result.o, float), start.T, np.asarray(start.o, float),
-                                   poses.acc, str(est.get("loss") or "squared") if same_model else "")
-    except SolverError as exc:
-        why = f"it failed ({exc})"
-    if why is None:
-        for w in caught:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        return result, None
-    if form != "full":
-        raise SolverError(f"the maximum-likelihood refinement is not kept: {why}")
-    return start, (f"the maximum-likelihood refinement of the full form is not kept: {why}; the convex start is kept "
-                   f"(--method convex gives it directly; --bound T_..=LOW:HIGH, o_..=LOW:HIGH confines the refinement)")
+    return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, solver_name(result), note)
 
 
 @dataclass(frozen=True)
