@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
 from optcal.errors import IdentifiabilityError, InputError, SolverError
+from optcal.families.mag.refine import ML_METHODS, SensorUnitsFit, refine_ml, solver_name
 from optcal.families.mag.samples import MagSamples
 
 #: The reduced forms, richest last, with their parameter counts.
@@ -119,7 +120,9 @@ class MagSettings:
 
 @dataclass(frozen=True)
 class FormFit:
-    """One form's fit: ``T`` (symmetric), ``o``, the residuals and the standard errors."""
+    """One form's fit: ``T`` (symmetric), ``o``, the residuals and the standard errors (``note``: what was
+    decided on the way, printed, e.g. a maximum-likelihood refinement not kept, 
+    :func:`optcal.families.mag.refine.refinement_departure`)."""
 
     form: str
     T: NDArray[np.float64]
@@ -129,6 +132,7 @@ class FormFit:
     worst_share: float
     method: str
     solver: str
+    note: str | None = None
 
     @property
     def field_strength(self) -> float:
@@ -223,6 +227,11 @@ def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArra
     one ``√(diag (JᵀJ)⁻¹ · rᵀr/(n − p))``.
     """
     n, k = J.shape
+    # columns scaled to unit norm first: in counts T's entries are ~1e-4 and o's ~1e3, so JᵀJ's condition number
+    # (~1e15) put o's directions below pinv's cut-off and their standard errors at ~1e-14 (ybabs's counts)
+    col = np.sqrt(np.einsum("ij,ij->j", J, J))
+    col = np.where(col > 0, col, 1.0)
+    J = J / col
     H = np.linalg.pinv(J.T @ J)
     se2 = np.diag(H) * float(r @ r) / max(n - k, 1)
     b = n // BATCH_START
@@ -231,7 +240,7 @@ def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArra
         se2 = np.maximum(se2, np.einsum("ij,jk,ki->i", H, g.T @ g, H))
         half = g.shape[0] // 2
         g = g[0 : 2 * half : 2] + g[1 : 2 * half : 2]  # the scores of batches twice as long (n // 2L of them)
-    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)))
+    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)) / col)
 
 
 #: The six entries of a symmetric ``T`` (upper triangle) and their names.
@@ -328,7 +337,7 @@ class HeldOut:
         form's mean-square gain over the simplest with its standard error."""
         forms = list(self.mse)
         return {"cells": [COVERAGE_NAMES[c] for c in self.cells], "n_samples": self.n_samples,
-                "rms": {f: self.rms(f) for f in forms},
+                "rms": {f: self.rms(f) for f in forms}, "fit": "maximum likelihood, squared loss",
                 "gain_over_" + forms[0]: {f: dict(zip(("gain", "se"), self.gain(forms[0], f))) for f in forms[1:]}}
 
     def gain(self, simpler: str, richer: str) -> tuple[float, float]:
@@ -456,12 +465,17 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
             raise InputError(f"--mag-form diagonal fixes T's off-diagonal entries, which the mle method does; "
                              f"not {method} (use --method mle or --mag-form full)")
     poses = PoseTable(acc=m, units="counts", source="raw recording")
-    result = calibrate(poses, method=method, allow_degenerate=True, **est)
+    note = None
+    if method in ML_METHODS:
+        result, note = refine_ml(poses, form, method, est)
+    else:
+        result = calibrate(poses, method=method, allow_degenerate=True, **est)
+    refined = isinstance(result, SensorUnitsFit)
     T = symmetric_T(result.T)
     o = np.asarray(result.o, dtype=float)
     resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
     r = float(np.linalg.det(T) ** (-1.0 / 3.0))
-    if not settings.estimator.get("fix") and not settings.estimator.get("bounds"):
+    if refined or (not settings.estimator.get("fix") and not settings.estimator.get("bounds")):
         # the stored symmetric T's entries and o, their standard errors by batch means; the diagonal form's
         # off-diagonal entries are fixed at 0 (not parameters)
         J = norm_residual_jacobian(m, T, o)
@@ -472,7 +486,8 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
         shares = [v / r if k.startswith("o_") else v * r for k, v in stderr.items()]  # T: 1/field per unit
         if not np.all(np.isfinite(shares)):
             shares.append(np.inf)
-        return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name)
+        return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, solver_name(result), note)
+    assert not isinstance(result, SensorUnitsFit)
     infl = correlation_inflation(resid)
     stderr = {k: float(v) * infl for k, v in result.stderr.items() if np.isfinite(v)}
     shares = []
@@ -483,7 +498,7 @@ def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
             shares.append(se * r)  # T is 1/field per unit: r·δT is the share of the field
     if len(stderr) < len(result.stderr) or not shares:
         shares.append(np.inf)
-    return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, result.solver.name)
+    return FormFit(form, T, o, resid, stderr, float(max(shares)), result.method, solver_name(result), note)
 
 
 @dataclass(frozen=True)
@@ -582,6 +597,7 @@ def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:
         if chosen is not None and heldout is not None:
             reason = evidence + "; parameters determined to " + ", ".join(
                 f"{f} {100 * t.worst_share:.2g} %" for f, t in tried.items()) + " of the field"
+            reason += _heldout_model_line(settings)
             passed = [f for f in tried if tried[f] is not chosen]
             if passed:
                 reason += (f" ({', '.join(passed)} not kept: {100 * USABLE_SHARE:g} % or worse is no calibration "
@@ -602,8 +618,23 @@ def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:
     assert chosen is not None
     _check_is_field(chosen, settings, samples.m)
     cov = coverage((samples.m - chosen.o) @ chosen.T.T)
-    notes = failed + coverage_notes(cov)
+    notes = failed + ([chosen.note] if chosen.note else []) + coverage_notes(cov)
     return MagFit(chosen, reason + " (override with --mag-form offsets|diagonal|full)", tried, cov, notes, heldout)
+
+
+def _heldout_model_line(settings: MagSettings) -> str:
+    """What the held-out comparison fits with, where the user asked for another loss or method (:func:`heldout_forms`
+    fits every form by plain maximum likelihood, the squared loss; the user's settings fit the chosen form only)."""
+    given = []
+    loss = str(settings.estimator.get("loss") or "squared")
+    if loss != "squared":
+        given.append(f"--loss {loss}")
+    if settings.method not in ML_METHODS:
+        given.append(f"--method {settings.method}")
+    if not given:
+        return ""
+    return (f"; the forms compared under plain maximum likelihood (squared loss), not {' and '.join(given)}, "
+            "which fit the chosen form only")
 
 
 def _by_determination(tried: dict[str, FormFit]) -> tuple[FormFit, str]:
