@@ -415,12 +415,15 @@ ARROW_BLOCK_BYTES: int = 2**20
 #: of its numbers), at the same speed.
 ARROW_STREAM_BLOCK_BYTES: int = 2**18
 #: Text files up to this size are parsed by pyarrow's multithreaded ``read_csv`` (≈ 1.7× faster on two
-#: cores: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV); larger ones by its streaming
-#: reader, one block at a time.  The threaded reader holds the whole parsed table (≈ 1.25 copies of
-#: the numbers: arrow's buffers are padded) while its columns are copied into the block, so reading
-#: peaks at ≈ 2.2 copies instead of one: bounded by this size that is a fixed ≈ 140 MB more at most,
-#: below what the static detection holds anyway, instead of a cost growing with the file.
-THREADED_READ_BYTES: int = 128 * 2**20
+#: cores: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for the 300 MB
+#: 12-hour still log); larger ones by its streaming reader, one block at a time, whose bar counts the rows.
+#: The threaded reader holds the whole parsed table (≈ 1.25 copies of the numbers: arrow's buffers are
+#: padded) while its columns are copied into the block, so reading peaks at ≈ 2.2 copies instead of one;
+#: that is below what the static detection holds after it (the 12-hour log's ``optcal allan``: 2.57 copies
+#: at its peak either way), so the reader does not set the peak.  Above this size a parse takes over
+#: about 5 s of two cores, where a bar with the rows read and the time left is worth the streaming
+#: reader's slower parse (the threaded one shows its elapsed time only).
+THREADED_READ_BYTES: int = 2**30
 
 
 def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any] | None:
@@ -499,8 +502,11 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     except NotImplementedError:  # pyarrow built without mimalloc: its default pool
         options["memory_pool"] = pa.default_memory_pool()
     try:
+        from optcal.core.progress import stage
+
         try:
-            table = pacsv.read_csv(p, **options)
+            with stage(f"reading {p.name}"):  # one call: its elapsed time on a terminal when it takes long
+                table = pacsv.read_csv(p, **options)
         except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
             return None
         if table.num_rows == 0:
