@@ -457,7 +457,7 @@ def decide_gyro_units(
         Units stated by the file (column names, file format).
     """
     if requested is not None:
-        return GyroUnitsDecision(normalise_units(requested, "gyro"), "given with gyro_units")
+        return GyroUnitsDecision(normalise_units(requested, "gyro"), "given with --gyro-units")
     if hint is not None:
         return GyroUnitsDecision(normalise_units(hint, "gyro"), "stated by the file")
     g = np.asarray(gyro, float)

@@ -159,7 +159,7 @@ def test_gyro_units_decision() -> None:
     assert decide_gyro_units(np.round(moving * 1000 + 32768), np.full(3, 32768.0)).units == "counts"
     assert decide_gyro_units(moving * 2, np.zeros(3)).units == "rad/s"
     assert decide_gyro_units(np.degrees(moving * 2), np.zeros(3)).units == "deg/s"
-    assert decide_gyro_units(moving, np.zeros(3), requested="dps").reason == "given with gyro_units"
+    assert decide_gyro_units(moving, np.zeros(3), requested="dps").reason == "given with --gyro-units"
     with pytest.raises(InputError, match="unknown gyro units"):
         decide_gyro_units(moving, np.zeros(3), requested="furlongs")
 
