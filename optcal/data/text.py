@@ -7,7 +7,7 @@ or ``% t ax ay az``, is offered as the header: :attr:`TextLayout.comment_names`)
 metadata lines above it (``Fs,100``, ``# comments``).  The numbers are
 then parsed in one place, :func:`parse_numbers`: numpy's C reader for small files (it
 needs no pandas import, which costs more than reading a file of 10⁵ rows), pyarrow for
-large files of plain numbers (multithreaded up to 128 MB, streamed above), pandas' C
+large files of plain numbers (multithreaded up to 1 GiB, streamed above), pandas' C
 parser in chunks for the others, for decimal commas and for files with non-numeric
 cells (which are counted, not fatal).  :func:`iter_number_chunks` streams a file of any
 size chunk by chunk.
@@ -542,7 +542,7 @@ def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
         block = ColumnBlock(width, rows)
         from optcal.core.progress import progress
 
-        with reader:  # a bar (rows read) when the command line asked for one: only files streamed, > 128 MB
+        with reader:  # a bar (rows read) when the command line asked for one: only files streamed, > 1 GiB
             for batch in progress(reader, total=rows, desc=f"reading {p.name}", unit="rows", scale=True,
                                   size=lambda b: b.num_rows):
                 if blank_delimited and any(batch.column(j).null_count for j in range(width)):
