@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import click
@@ -57,13 +57,16 @@ class StillLog:
     gyro_units: str | None = None
     #: The stillness check still running beside the analysis (``read_still_log(..., concurrent=True)``): it
     #: raises the refusal when the log is not still; :meth:`confirm_still` waits for it.
-    pending: Callable[[], None] | None = None
+    still: Future[None] | None = None
 
     def confirm_still(self) -> None:
-        """Wait for the stillness check started by ``read_still_log(..., concurrent=True)``; raise its refusal."""
-        if self.pending is not None:
-            check, self.pending = self.pending, None
-            check()
+        """Wait for the stillness check :func:`read_still_log` started; raise its refusal."""
+        from optcal.core.progress import stage
+
+        if self.still is not None:
+            still, self.still = self.still, None
+            with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
+                still.result()
 
 
 def static_log(
@@ -151,7 +154,6 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     from dataclasses import replace
 
     from optcal.cli.data_options import decisions_on_error
-    from optcal.core.progress import stage
     from optcal.data import load_recording
     from optcal.data.static import detect_static
     from optcal.errors import InputError
@@ -201,25 +203,18 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
                 + ("" if window is not None else " (--window START:END analyses the still part of a longer recording)")
             )
 
-    pending: Callable[[], None] | None = None
-    if concurrent:
-        from concurrent.futures import ThreadPoolExecutor
-
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-still")
-        future = pool.submit(still_check)
-        pool.shutdown(wait=False)
-
-        def pending() -> None:
-            with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
-                future.result()
-    else:
-        with stage("finding the samples at rest"):
-            still_check()
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-still")
+    still = pool.submit(still_check)
+    pool.shutdown(wait=False)
     if sensor == "gyro":
-        return StillLog(samples, rec.rate_hz, rec.gyro_units or "", "stated by the file" if rec.gyro_units else "",
-                        exclusions, rec.decisions, gyro, rec.gyro_units, pending)
-    return StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro, rec.gyro_units,
-                    pending)
+        log = StillLog(samples, rec.rate_hz, rec.gyro_units or "", "stated by the file" if rec.gyro_units else "",
+                       exclusions, rec.decisions, gyro, rec.gyro_units, still=still)
+    else:
+        log = StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro,
+                       rec.gyro_units, still=still)
+    if not concurrent:
+        log.confirm_still()
+    return log
 
 
 @click.command()
