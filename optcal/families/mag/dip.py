@@ -124,7 +124,6 @@ def rest_gate(acc: NDArray[np.float64], gyro: NDArray[np.float64] | None = None,
     if units.rad_per_unit is None:
         return RestGate(still, None, 0, base + f" (the gyroscope in {units.units}: its rate not used; "
                         "give --gyro-units)")
-    why = "given with --gyro-units" if gyro_units is not None else units.reason  # the flag's name, not the setting's
     lag = float(np.median(np.diff(t))) if t is not None and t.size == len(acc) and t.size > 1 else None
     bound = turning_rate_bound(lag)
     rate = np.linalg.norm(np.nan_to_num(gyro - bias, nan=np.inf), axis=1) * units.rad_per_unit
@@ -134,7 +133,7 @@ def rest_gate(acc: NDArray[np.float64], gyro: NDArray[np.float64] | None = None,
     return RestGate(still & slow, bound, n_turning,
                     f"{base} and the gyroscope's rate ≤ {bound:.3g} rad/s (gravity's direction within "
                     f"{GRAVITY_ANGLE_DEG:g}° for a lever arm of {TURN_LEVER_M:g} m and a lag of {lag_text}; gyro in "
-                    f"{units.units}, {why}): {n_turning} turning samples left out")
+                    f"{units.units}, {units.reason}): {n_turning} turning samples left out")
 
 
 @dataclass(frozen=True)
