@@ -149,18 +149,20 @@ def uses_minp_positions(fitter: Fitter, fit: Fit) -> bool:
     return int(fit.kept(fitter.n).sum()) <= MINP_POSES and fitter.correlation is None
 
 
-def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: int = 0) -> tuple[float, str]:
+def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: int = 0,
+               null: NullDraws | None = None) -> tuple[float, str]:
     """The p value of the best position's step test ``p_single`` adjusted for the search over the positions.
 
     Returns the adjusted p value and how it was adjusted (``"minP"`` or ``"Bonferroni"``; module docstring).
     The minP null is the linearised model at ``fit`` (the poses' weighted residuals ``σ z``, ``fit``'s columns
     projected out); each position's statistic is formed as :meth:`Fitter.f_test` forms it on the route
     :meth:`Fitter.test_scale2` takes (the F test on the residuals' scale).  The adjusted p is ``(1 + #{draws: min_k p_k ≤ p_single}) / (1 + DRAWS)``.
+    ``null``: the null draws at ``fit`` made once for several axes (:func:`null_largest`).
     """
     bonferroni = min(1.0, p_single * scan.positions)
     if not uses_minp_positions(fitter, fit):
         return bonferroni, "Bonferroni"
-    largest = null_largest(fitter, fit, scan, seed)
+    largest = null_largest(fitter, fit, scan, seed, null)
     if largest is None:
         return bonferroni, "Bonferroni"
     # every position's test has one degree of freedom and the same residual ones, so its p value falls as its

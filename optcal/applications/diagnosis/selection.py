@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.bias_step import adjusted_p, scan_step
+from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, SESSION_BIAS, describe_term
-from optcal.applications.diagnosis.familywise import minp_level, uses_minp
+from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.progress import Loop, plain_loop
@@ -374,6 +374,7 @@ class ForwardSelection:
         """
         fitter = self.fitter
         out: list[Candidate] = []
+        null: NullDraws | None = None  # the null model at ``current``, drawn once for every axis (the same draws)
         for axis in axes:
             scan = scan_step(fitter, current, axis)
             if scan is None:
@@ -381,7 +382,9 @@ class ForwardSelection:
             terms = dict(current.terms)
             terms[(BIAS_STEP, axis)] = 1
             cand = fitter.fit(terms, current.outliers, current.x, fitter.step_data(scan.at))
-            p, _ = adjusted_p(fitter, current, scan, fitter.f_test(current, cand))
+            if null is None and uses_minp_positions(fitter, current):
+                null = null_draws(fitter, current, STEP_DRAWS)
+            p, _ = adjusted_p(fitter, current, scan, fitter.f_test(current, cand), null=null)
             delta = fitter.bic(cand) - bic0 + float(np.log(fitter.n))
             out.append(Candidate(describe_term(BIAS_STEP, axis, 1), BIAS_STEP, AXES[axis], 1, delta, p, level,
                                  bool(p < level and delta < 0), step_at=scan.at, fit=cand))
