@@ -385,6 +385,13 @@ def headerless_mapping(
     InputError
         A width no common layout has, with the ``--columns`` that names them.
     """
+    # a delimiter written after every line's last value (an Arduino loop's ``Serial.print(",")`` after each field)
+    # leaves a last field that is empty in every row: it holds no number, so it is no column of the layout (said so)
+    empty_tail = 0
+    while len(columns) - empty_tail > 3 and not np.isfinite(columns[len(columns) - empty_tail - 1]).any():
+        empty_tail += 1
+    full_width = len(columns)
+    columns = columns[:full_width - empty_tail]
     width = len(columns)
     time_at: int | None = None
     if width - 1 in HEADERLESS_TRIPLES:
@@ -413,6 +420,9 @@ def headerless_mapping(
     where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
     if len(rest) == 9:
         where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
+    if empty_tail:
+        where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
+                  "not read")
     return mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
