@@ -17,6 +17,7 @@ decisions (:mod:`optcal.data.decisions`) read them so, or refuse, naming ``--col
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -427,3 +428,55 @@ def headerless_mapping(
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
     ), roles
+
+
+# ----------------------------------------------------------------------------- Sensor Logger's export
+#: Sensor Logger's CSV columns (tszheichoi/awesome-sensor-logger, UNITS.md): ``time`` in ns since 1970,
+#: ``seconds_elapsed`` since the recording's start, and bare axes ``z, y, x`` whose quantity only the file's name says.
+SENSOR_LOGGER_NAMES: frozenset[str] = frozenset(("time", "seconds_elapsed", "x", "y", "z"))
+#: Its files of an accelerometer WITH gravity: TotalAcceleration (m/s²) and AccelerometerUncalibrated (g on iOS,
+#: m/s² on Android: the norm tells them apart as for any file).
+SENSOR_LOGGER_ACCELEROMETERS: tuple[str, ...] = ("totalacceleration", "accelerometeruncalibrated")
+#: Its gyroscope files, in rad/s (UNITS.md).
+SENSOR_LOGGER_GYROSCOPES: tuple[str, ...] = ("gyroscope", "gyroscopeuncalibrated")
+
+
+def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> tuple[dict[str, str], str] | None:
+    """The columns of a Sensor Logger export, by its file's name; ``None`` for any other file.
+
+    A resting accelerometer reads gravity, which is what a calibration fits; Sensor Logger's
+    ``Accelerometer.csv`` is the acceleration *without* gravity (the user's motion only, UNITS.md), so it is
+    refused, naming the files that hold gravity and the ``--columns`` that reads it anyway.  Its
+    ``TotalAcceleration.csv`` and ``AccelerometerUncalibrated.csv`` map ``x, y, z`` to the accelerometer
+    (``sensor="acc"``); its ``Gyroscope.csv`` (rad/s), read as a gyro file (``sensor="gyro"``), to the
+    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes.  The time
+    is ``seconds_elapsed`` (seconds).
+
+    Returns
+    -------
+    (mapping, reason) or None
+
+    Raises
+    ------
+    InputError
+        ``Accelerometer.csv`` read as the accelerometer: the acceleration without gravity.
+    """
+    if len(names) != len(SENSOR_LOGGER_NAMES) or {n.strip().lower() for n in names} != SENSOR_LOGGER_NAMES:
+        return None
+    stem = Path(path).stem
+    key = re.sub(r"[^a-z]", "", stem.lower())
+    by_name = {n.strip().lower(): n for n in names}
+    mapping = {"t": by_name["seconds_elapsed"], "ax": by_name["x"], "ay": by_name["y"], "az": by_name["z"]}
+    layout = "Sensor Logger's export (time, seconds_elapsed and bare axes)"
+    if sensor == "gyro":
+        if key.startswith(SENSOR_LOGGER_GYROSCOPES):
+            return mapping, f"{layout}: {stem} is the gyroscope, in rad/s"
+        return None
+    if key == "accelerometer":
+        raise InputError(
+            f"{path}: {layout}: {stem} holds the acceleration without gravity (the user's motion only; its UNITS.md), "
+            "which no rest can calibrate: read TotalAcceleration.csv or AccelerometerUncalibrated.csv of the same "
+            "recording, or --columns t=seconds_elapsed,ax=x,ay=y,az=z to read it anyway")
+    if key.startswith(SENSOR_LOGGER_ACCELEROMETERS):
+        return mapping, f"{layout}: {stem} is the accelerometer with gravity"
+    return None

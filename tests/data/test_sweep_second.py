@@ -126,3 +126,46 @@ def test_a_field_empty_in_some_rows_only_is_still_a_column(tmp_path):
     path.write_text("\n".join(rows) + "\n")
     columns = load(path).decisions.columns
     assert columns.value.startswith("t←#10") and "the common layout of 10 columns" in columns.reason
+
+
+# ------------------------------------------------------------------ Sensor Logger's export: bare axes named by the file
+def sensor_logger_file(path, t, xyz) -> None:
+    """Sensor Logger's CSV (awesome-sensor-logger's UNITS.md): ``time`` in ns since 1970, ``seconds_elapsed``, and
+    the axes in the order ``z, y, x`` without a unit."""
+    rows = [f"{int(1678040536877350100 + s * 1e9)},{s:.6f},{z:.6f},{y:.6f},{x:.6f}" for s, (x, y, z) in zip(t, xyz)]
+    path.write_text("time,seconds_elapsed,z,y,x\n" + "\n".join(rows) + "\n")
+
+
+def test_sensor_logger_total_acceleration_and_its_gyroscope_are_read(turned, tmp_path):
+    """``TotalAcceleration.csv`` (m/s^2, with gravity) with ``--gyro-file Gyroscope.csv`` (rad/s): before, refused
+    ("no accelerometer column(s) ... time, seconds_elapsed, z, y, x"); now the file's name says the quantity."""
+    f = turned.frame
+    acc, gyro = tmp_path / "TotalAcceleration.csv", tmp_path / "Gyroscope.csv"
+    sensor_logger_file(acc, f["t"], f[["ax", "ay", "az"]].to_numpy() * G)
+    sensor_logger_file(gyro, f["t"], np.radians(f[["gx", "gy", "gz"]].to_numpy()))
+    loaded = load_with_segmentation(acc, gyro_file=gyro)
+    assert loaded.poses.n == len(turned.dwells)
+    columns = loaded.decisions.columns
+    assert columns.value.startswith("t←seconds_elapsed, ax←x, ay←y, az←z, gx←Gyroscope.csv:x")
+    assert "Sensor Logger's export" in columns.reason and "TotalAcceleration is the accelerometer with gravity" in (
+        columns.reason)
+    assert loaded.decisions.units.value == "m/s^2"
+    assert loaded.recording is not None and loaded.recording.gyro_units == "rad/s"
+
+
+def test_sensor_logger_acceleration_without_gravity_is_refused_naming_the_files_with_it(turned, tmp_path, capsys):
+    """Its ``Accelerometer.csv`` is the user's motion without gravity: one line naming the files that hold gravity
+    and the --columns that reads it anyway (which then reads it)."""
+    f = turned.frame
+    path = tmp_path / "Accelerometer.csv"
+    sensor_logger_file(path, f["t"], f[["ax", "ay", "az"]].to_numpy() * G)
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "acceleration without gravity" in err and "TotalAcceleration.csv" in err
+    assert "--columns t=seconds_elapsed,ax=x,ay=y,az=z" in err
+    assert load(path, columns="t=seconds_elapsed,ax=x,ay=y,az=z").decisions.columns.value.startswith("t←seconds_elapsed")
+    # its gyroscope alone is no accelerometer
+    gyro = tmp_path / "Gyroscope.csv"
+    sensor_logger_file(gyro, f["t"], np.radians(f[["gx", "gy", "gz"]].to_numpy()))
+    with pytest.raises(InputError, match="no accelerometer column"):
+        load(gyro)
