@@ -77,8 +77,11 @@ SUFFIX_TIME_ALIASES: tuple[str, ...] = ("header_stamp",)
 #: Names of an accelerometer triple only when the data say acceleration (``tx, ty, tz``: some
 #: loggers' acceleration, others' translation): see :class:`ColumnRoles`.
 CONDITIONAL_ACC_ALIASES: tuple[str, ...] = ("t{}", "t_{}")
-#: Names of a sample-index column (time then comes from --rate or the file header).
-INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n")
+#: Names of a sample-index column (time then comes from --rate or the file header).  ``count`` and ``samples``
+#: are also a pose table's per-pose sample counts: which one is decided from the values (an index steps by 1 a
+#: row; a pose's count of averaged samples does not), as PicoQuake's ``count,a_x,...`` recording needs.
+INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n",
+                                  "count")
 
 #: Time unit words and their factor to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -97,7 +100,11 @@ _UNIT_WORDS = sorted(
     reverse=True,
 )
 #: Keys of a metadata line before the header that give the sampling rate in Hz.
-RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq")
+RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq",
+                             "data_rate", "output_data_rate", "odr")
+#: A rate stated inside a metadata value as ``NAME = NUMBER Hz`` among other settings (PicoQuake's
+#: ``# Config: data_rate = 2000.0 Hz, filter = 488 Hz, ...``): the NAME must be a :data:`RATE_KEYS` key and the unit Hz.
+RATE_SETTING = re.compile(r"(?:^|[,;]\s*)([A-Za-z_][\w ]*?)\s*[=:]\s*([0-9]+(?:\.[0-9]*)?(?:[eE][-+]?[0-9]+)?)\s*Hz\b")
 
 #: The ``--columns`` value that makes optcal use no column as that name (``index=none``).
 NO_COLUMN: str = "none"

@@ -37,6 +37,7 @@ from optcal.data.columns import (
     GYRO_UNIT_WORDS,
     NO_COLUMN,
     RATE_KEYS,
+    RATE_SETTING,
     TIME_UNITS,
     ColumnRoles,
     headerless_mapping,
@@ -446,6 +447,11 @@ def source_from_columns(
             if rate > 0:
                 src.rate_hint = rate
                 src.rate_reason = f"'{key},{value}' in the file header"
+        elif src.rate_hint is None:
+            setting = next((m for m in RATE_SETTING.finditer(value) if normalise_name(m.group(1)) in RATE_KEYS), None)
+            if setting is not None and float(setting.group(2)) > 0:
+                src.rate_hint = float(setting.group(2))
+                src.rate_reason = f"'{setting.group(1)} = {setting.group(2)} Hz' in the file header's {key!r} line"
     return src
 
 

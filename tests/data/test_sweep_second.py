@@ -169,3 +169,37 @@ def test_sensor_logger_acceleration_without_gravity_is_refused_naming_the_files_
     sensor_logger_file(gyro, f["t"], np.radians(f[["gx", "gy", "gz"]].to_numpy()))
     with pytest.raises(InputError, match="no accelerometer column"):
         load(gyro)
+
+
+# ------------------------------------------------------------------ PicoQuake's CSV: a sample counter and its rate in a comment
+def test_a_count_column_that_steps_by_one_and_a_rate_among_settings_make_a_recording(turned, tmp_path):
+    """PicoQuake writes ``# Config: data_rate = 2000.0 Hz, filter = 488 Hz, ...`` above ``count,a_x,a_y,a_z,...``
+    (count 0, 1, 2, ...). Before: ``count`` was a pose table's per-pose sample count, so 4350 samples were read as
+    4350 poses; now a count that steps by one a row is a sample index, and the rate among the settings gives its
+    time."""
+    f = turned.frame
+    path = tmp_path / "picoquake.csv"
+    rows = "\n".join(f"{i},{x:.6f},{y:.6f},{z:.6f}" for i, (x, y, z) in enumerate(f[["ax", "ay", "az"]].to_numpy()))
+    path.write_text("# PLab PicoQuake Data\n# Num. samples: 4350, Duration: 43.5 s\n"
+                    "# Config: data_rate = 100.0 Hz, filter = 42 Hz, acc_range = 4 g, gyro_range = 250.0 dps\n"
+                    "count,a_x,a_y,a_z\n" + rows + "\n")
+    loaded = load_with_segmentation(path)
+    assert loaded.decisions.kind.value == "raw recording"
+    assert "'data_rate = 100.0 Hz' in the file header's 'Config' line" in loaded.decisions.kind.reason
+    assert loaded.decisions.columns.value.startswith("index←count")
+    assert loaded.poses.n == len(turned.dwells)
+
+
+def test_a_count_column_of_averaged_samples_keeps_the_pose_table(tmp_path):
+    """A pose table's ``count`` (samples averaged per pose: 200, 180, 250, ...) does not step by one: it stays
+    the per-pose count, and the file a pose table."""
+    rng = np.random.default_rng(8)
+    d = rng.standard_normal((12, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    counts = rng.integers(150, 260, 12)
+    path = tmp_path / "poses.csv"
+    path.write_text("ax,ay,az,count\n" + "\n".join(f"{x:.6f},{y:.6f},{z:.6f},{c}" for (x, y, z), c in zip(d, counts))
+                    + "\n")
+    loaded = load(path)
+    assert loaded.decisions.kind.value == "pose table"
+    assert "n_samples←count" in loaded.decisions.columns.value
