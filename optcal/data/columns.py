@@ -302,6 +302,15 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 for canon, (col, word) in zip(triple, by_unit):
                     column_map[canon] = col
                     units[canon] = word
+    if all(c in column_map for c in ACC) and not any(c in column_map for c in GYRO):
+        # ``g_x`` is also an acceleration in g; beside an accelerometer named ``a_x, a_y, a_z`` (PicoQuake's
+        # ``count,a_x,a_y,a_z,g_x,g_y,g_z``) the acceleration has its columns, so ``g_x, g_y, g_z`` are the gyro's
+        stems = {strip_unit(normalise_name(column_map[c]))[0] for c in ACC}
+        free = {strip_unit(normalise_name(c))[0]: c for c in names if c not in set(column_map.values())}
+        if stems == {"a_x", "a_y", "a_z"} and all(f"g_{a}" in free for a in "xyz"):
+            for canon, axis in zip(GYRO, "xyz"):
+                column_map[canon] = free[f"g_{axis}"]
+                units[canon] = strip_unit(normalise_name(free[f"g_{axis}"]))[1]
     roles = None
     if not any(c in column_map for c in ACC):
         conditional = _conditional_triple(names, set(column_map.values()))

@@ -173,21 +173,32 @@ def test_sensor_logger_acceleration_without_gravity_is_refused_naming_the_files_
 
 # ------------------------------------------------------------------ PicoQuake's CSV: a sample counter and its rate in a comment
 def test_a_count_column_that_steps_by_one_and_a_rate_among_settings_make_a_recording(turned, tmp_path):
-    """PicoQuake writes ``# Config: data_rate = 2000.0 Hz, filter = 488 Hz, ...`` above ``count,a_x,a_y,a_z,...``
+    """PicoQuake writes ``# Config: data_rate = 2000.0 Hz, filter = 488 Hz, ...`` above ``count,a_x,a_y,a_z,g_x,...``
     (count 0, 1, 2, ...). Before: ``count`` was a pose table's per-pose sample count, so 4350 samples were read as
-    4350 poses; now a count that steps by one a row is a sample index, and the rate among the settings gives its
-    time."""
+    4350 poses, and ``g_x`` was not read; now a count that steps by one a row is a sample index, the rate among the
+    settings gives its time, and the gyro is read."""
     f = turned.frame
     path = tmp_path / "picoquake.csv"
-    rows = "\n".join(f"{i},{x:.6f},{y:.6f},{z:.6f}" for i, (x, y, z) in enumerate(f[["ax", "ay", "az"]].to_numpy()))
+    values = f[["ax", "ay", "az", "gx", "gy", "gz"]].to_numpy()
+    rows = "\n".join(f"{i}," + ",".join(f"{v:.6f}" for v in row) for i, row in enumerate(values))
     path.write_text("# PLab PicoQuake Data\n# Num. samples: 4350, Duration: 43.5 s\n"
                     "# Config: data_rate = 100.0 Hz, filter = 42 Hz, acc_range = 4 g, gyro_range = 250.0 dps\n"
-                    "count,a_x,a_y,a_z\n" + rows + "\n")
+                    "count,a_x,a_y,a_z,g_x,g_y,g_z\n" + rows + "\n")
     loaded = load_with_segmentation(path)
     assert loaded.decisions.kind.value == "raw recording"
     assert "'data_rate = 100.0 Hz' in the file header's 'Config' line" in loaded.decisions.kind.reason
-    assert loaded.decisions.columns.value.startswith("index←count")
+    # beside an accelerometer named a_x, a_y, a_z, the g_ columns are the gyro's (g_x alone could be g-force)
+    assert loaded.decisions.columns.value == "index←count, ax←a_x, ay←a_y, az←a_z, gx←g_x, gy←g_y, gz←g_z"
     assert loaded.poses.n == len(turned.dwells)
+    assert loaded.recording is not None and loaded.recording.gyro is not None
+
+
+def test_g_columns_without_an_a_named_accelerometer_are_not_the_gyro():
+    """``g_x`` beside ``acc_x`` (or alone) stays unread: only an accelerometer named ``a_`` makes ``g_`` the gyro."""
+    from optcal.data.columns import resolve_columns
+
+    assert "gx" not in resolve_columns(["t", "acc_x", "acc_y", "acc_z", "g_x", "g_y", "g_z"], {}).column_map
+    assert "gx" in resolve_columns(["t", "a_x", "a_y", "a_z", "g_x", "g_y", "g_z"], {}).column_map
 
 
 def test_a_count_column_of_averaged_samples_keeps_the_pose_table(tmp_path):
