@@ -17,6 +17,7 @@ decisions (:mod:`optcal.data.decisions`) read them so, or refuse, naming ``--col
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -76,8 +77,11 @@ SUFFIX_TIME_ALIASES: tuple[str, ...] = ("header_stamp",)
 #: Names of an accelerometer triple only when the data say acceleration (``tx, ty, tz``: some
 #: loggers' acceleration, others' translation): see :class:`ColumnRoles`.
 CONDITIONAL_ACC_ALIASES: tuple[str, ...] = ("t{}", "t_{}")
-#: Names of a sample-index column (time then comes from --rate or the file header).
-INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n")
+#: Names of a sample-index column (time then comes from --rate or the file header).  ``count`` and ``samples``
+#: are also a pose table's per-pose sample counts: which one is decided from the values (an index steps by 1 a
+#: row; a pose's count of averaged samples does not), as PicoQuake's ``count,a_x,...`` recording needs.
+INDEX_ALIASES: tuple[str, ...] = ("index", "idx", "sample", "samples", "sample_index", "n_samples", "counter", "n",
+                                  "count")
 
 #: Time unit words and their factor to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -96,7 +100,11 @@ _UNIT_WORDS = sorted(
     reverse=True,
 )
 #: Keys of a metadata line before the header that give the sampling rate in Hz.
-RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq")
+RATE_KEYS: tuple[str, ...] = ("fs", "rate", "sample_rate", "sampling_rate", "sampling_rate_hz", "rate_hz", "frequency", "freq",
+                             "data_rate", "output_data_rate", "odr")
+#: A rate stated inside a metadata value as ``NAME = NUMBER Hz`` among other settings (PicoQuake's
+#: ``# Config: data_rate = 2000.0 Hz, filter = 488 Hz, ...``): the NAME must be a :data:`RATE_KEYS` key and the unit Hz.
+RATE_SETTING = re.compile(r"(?:^|[,;]\s*)([A-Za-z_][\w ]*?)\s*[=:]\s*([0-9]+(?:\.[0-9]*)?(?:[eE][-+]?[0-9]+)?)\s*Hz\b")
 
 #: The ``--columns`` value that makes optcal use no column as that name (``index=none``).
 NO_COLUMN: str = "none"
@@ -294,6 +302,15 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
                 for canon, (col, word) in zip(triple, by_unit):
                     column_map[canon] = col
                     units[canon] = word
+    if all(c in column_map for c in ACC) and not any(c in column_map for c in GYRO):
+        # ``g_x`` is also an acceleration in g; beside an accelerometer named ``a_x, a_y, a_z`` (PicoQuake's
+        # ``count,a_x,a_y,a_z,g_x,g_y,g_z``) the acceleration has its columns, so ``g_x, g_y, g_z`` are the gyro's
+        stems = {strip_unit(normalise_name(column_map[c]))[0] for c in ACC}
+        free = {strip_unit(normalise_name(c))[0]: c for c in names if c not in set(column_map.values())}
+        if stems == {"a_x", "a_y", "a_z"} and all(f"g_{a}" in free for a in "xyz"):
+            for canon, axis in zip(GYRO, "xyz"):
+                column_map[canon] = free[f"g_{axis}"]
+                units[canon] = strip_unit(normalise_name(free[f"g_{axis}"]))[1]
     roles = None
     if not any(c in column_map for c in ACC):
         conditional = _conditional_triple(names, set(column_map.values()))
@@ -385,6 +402,13 @@ def headerless_mapping(
     InputError
         A width no common layout has, with the ``--columns`` that names them.
     """
+    # a delimiter written after every line's last value (an Arduino loop's ``Serial.print(",")`` after each field)
+    # leaves a last field that is empty in every row: it holds no number, so it is no column of the layout (said so)
+    empty_tail = 0
+    while len(columns) - empty_tail > 3 and not np.isfinite(columns[len(columns) - empty_tail - 1]).any():
+        empty_tail += 1
+    full_width = len(columns)
+    columns = columns[:full_width - empty_tail]
     width = len(columns)
     time_at: int | None = None
     if width - 1 in HEADERLESS_TRIPLES:
@@ -413,7 +437,62 @@ def headerless_mapping(
     where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
     if len(rest) == 9:
         where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
+    if empty_tail:
+        where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
+                  "not read")
     return mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
     ), roles
+
+
+# ----------------------------------------------------------------------------- Sensor Logger's export
+#: Sensor Logger's CSV columns (tszheichoi/awesome-sensor-logger, UNITS.md): ``time`` in ns since 1970,
+#: ``seconds_elapsed`` since the recording's start, and bare axes ``z, y, x`` whose quantity only the file's name says.
+SENSOR_LOGGER_NAMES: frozenset[str] = frozenset(("time", "seconds_elapsed", "x", "y", "z"))
+#: Its files of an accelerometer WITH gravity: TotalAcceleration (m/s²) and AccelerometerUncalibrated (g on iOS,
+#: m/s² on Android: the norm tells them apart as for any file).
+SENSOR_LOGGER_ACCELEROMETERS: tuple[str, ...] = ("totalacceleration", "accelerometeruncalibrated")
+#: Its gyroscope files, in rad/s (UNITS.md).
+SENSOR_LOGGER_GYROSCOPES: tuple[str, ...] = ("gyroscope", "gyroscopeuncalibrated")
+
+
+def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> tuple[dict[str, str], str] | None:
+    """The columns of a Sensor Logger export, by its file's name; ``None`` for any other file.
+
+    A resting accelerometer reads gravity, which is what a calibration fits; Sensor Logger's
+    ``Accelerometer.csv`` is the acceleration *without* gravity (the user's motion only, UNITS.md), so it is
+    refused, naming the files that hold gravity and the ``--columns`` that reads it anyway.  Its
+    ``TotalAcceleration.csv`` and ``AccelerometerUncalibrated.csv`` map ``x, y, z`` to the accelerometer
+    (``sensor="acc"``); its ``Gyroscope.csv`` (rad/s), read as a gyro file (``sensor="gyro"``), to the
+    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes.  The time
+    is ``seconds_elapsed`` (seconds).
+
+    Returns
+    -------
+    (mapping, reason) or None
+
+    Raises
+    ------
+    InputError
+        ``Accelerometer.csv`` read as the accelerometer: the acceleration without gravity.
+    """
+    if len(names) != len(SENSOR_LOGGER_NAMES) or {n.strip().lower() for n in names} != SENSOR_LOGGER_NAMES:
+        return None
+    stem = Path(path).stem
+    key = re.sub(r"[^a-z]", "", stem.lower())
+    by_name = {n.strip().lower(): n for n in names}
+    mapping = {"t": by_name["seconds_elapsed"], "ax": by_name["x"], "ay": by_name["y"], "az": by_name["z"]}
+    layout = "Sensor Logger's export (time, seconds_elapsed and bare axes)"
+    if sensor == "gyro":
+        if key.startswith(SENSOR_LOGGER_GYROSCOPES):
+            return mapping, f"{layout}: {stem} is the gyroscope, in rad/s"
+        return None
+    if key == "accelerometer":
+        raise InputError(
+            f"{path}: {layout}: {stem} holds the acceleration without gravity (the user's motion only; its UNITS.md), "
+            "which no rest can calibrate: read TotalAcceleration.csv or AccelerometerUncalibrated.csv of the same "
+            "recording, or --columns t=seconds_elapsed,ax=x,ay=y,az=z to read it anyway")
+    if key.startswith(SENSOR_LOGGER_ACCELEROMETERS):
+        return mapping, f"{layout}: {stem} is the accelerometer with gravity"
+    return None

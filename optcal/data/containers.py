@@ -14,7 +14,8 @@ of :mod:`optcal.data.decisions` to weigh against the data, as any other reader d
   netCDF-4 by ``h5py`` (``pip install 'optcal[hdf5]'``), imported only when such a file is read.
 * **Variables** are matched by their name (``acc*``, ``linear_acceleration``, ``gyr*``,
   ``angular_velocity``, ``w*``, ``time``, ``t``, ``timestamp``, ``temp*``, ``mag*``,
-  ``magnetic*``: :data:`NAME_ROLES`) or, when the name says nothing, by their attributes
+  ``magnetic*``: :data:`NAME_ROLES`; or a later word of it, ``static_gyr``: :data:`WORD_ROLES`) or, when the
+  name says nothing, by their attributes
   (``units``, ``standard_name``, ``long_name``, ``description``).  A magnetometer is not an
   accelerometer: it is skipped and said so.
 * **A matrix** with 3, 4, 6 or 7 axes (:data:`MATRIX_LAYOUTS`: ``ax ay az``, ``t ax ay az``,
@@ -67,6 +68,15 @@ NAME_ROLES: tuple[tuple[str, re.Pattern[str]], ...] = (
     (ACCELEROMETER, re.compile(r"^(acc|linear_?acc|specific_?force)")),
     (TIME, re.compile(r"^(t|time|times|timestamps?|time_?stamps?|stamps?|epoch)(_?(s|sec|ms|us|ns))?$")),
     (TEMPERATURE, re.compile(r"^(temp|tmp)")),
+)
+#: Roles by a later word of the name (``static_acc``, ``static_gyr``, ``static_mag``, ``raw_accel``: a trial's name
+#: before the sensor's): whole words only, so ``magnitude`` or ``watts`` name nothing; taken when no prefix of
+#: :data:`NAME_ROLES` matches and the words name exactly one role.
+WORD_ROLES: tuple[tuple[str, re.Pattern[str]], ...] = (
+    (MAGNETOMETER, re.compile(r"^(mag|mags|magn|magnetometer|magnetic|compass)$")),
+    (GYROSCOPE, re.compile(r"^(gyr|gyro|gyros|gyroscope|angvel|omega)$")),
+    (ACCELEROMETER, re.compile(r"^(acc|accs|accel|accelerometer|acceleration|accelerations)$")),
+    (TEMPERATURE, re.compile(r"^(temp|temperature)$")),
 )
 #: Roles by words of a variable's descriptive attributes, tried in this order.
 TEXT_ROLES: tuple[tuple[str, tuple[str, ...]], ...] = (
@@ -286,6 +296,9 @@ def role_of(var: Variable) -> str | None:
     for role, pattern in NAME_ROLES:
         if pattern.match(var.short):
             return role
+    named = {role for word in re.split(r"[_\-\s]+", var.short)[1:] for role, pattern in WORD_ROLES if pattern.match(word)}
+    if len(named) == 1:
+        return named.pop()
     unit = _spelling(var.text("units"))
     if unit in MAGNETIC_UNIT_SPELLINGS:
         return MAGNETOMETER

@@ -37,12 +37,14 @@ from optcal.data.columns import (
     GYRO_UNIT_WORDS,
     NO_COLUMN,
     RATE_KEYS,
+    RATE_SETTING,
     TIME_UNITS,
     ColumnRoles,
     headerless_mapping,
     normalise_name,
     parse_columns_option,
     resolve_columns,
+    sensor_logger_mapping,
     strip_unit,
 )
 from optcal.data.container_kind import container_type
@@ -295,6 +297,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     if layout.header_in_comment and layout.header_line is not None:
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
+    if layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p))) is not None:
+        mapping, reason = logger  # Sensor Logger's bare x, y, z: the file's name says the quantity
     mapping_given = bool(mapping)
     if not layout.has_header:
         if mapping:
@@ -443,6 +447,11 @@ def source_from_columns(
             if rate > 0:
                 src.rate_hint = rate
                 src.rate_reason = f"'{key},{value}' in the file header"
+        elif src.rate_hint is None:
+            setting = next((m for m in RATE_SETTING.finditer(value) if normalise_name(m.group(1)) in RATE_KEYS), None)
+            if setting is not None and float(setting.group(2)) > 0:
+                src.rate_hint = float(setting.group(2))
+                src.rate_reason = f"'{setting.group(1)} = {setting.group(2)} Hz' in the file header's {key!r} line"
     return src
 
 
@@ -458,7 +467,8 @@ def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
         raise InputError(f"{src.path}: merging a gyro file needs a time column in both files")
     if src.has(*GYRO):
         raise InputError(f"{src.path}: already has gyro columns; give gyro_file only for accelerometer-only files")
-    g = read_text(gyro_file, _gyro_only_mapping(gyro_file))
+    mapping, unit = _gyro_only_mapping(gyro_file)
+    g = read_text(gyro_file, mapping)
     tg = g.column("t")
     ok = np.isfinite(tg)
     if ok.sum() < 2 or np.any(np.diff(tg[ok]) < 0):
@@ -474,25 +484,29 @@ def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
     src.notes.append(f"gyro from {gyro_file}, interpolated onto the accelerometer times")
     if src.gyro_units is None and g.column_map.get("ax") is not None:  # a gyro read in the accelerometer's place
         word = strip_unit(normalise_name(g.column_map["ax"]))[1]
-        src.gyro_units = GYRO_UNIT_WORDS.get(word) if word is not None else None
+        src.gyro_units = GYRO_UNIT_WORDS.get(word) if word is not None else unit
 
 
-def _gyro_only_mapping(gyro_file: str | Path) -> dict[str, str] | None:
-    """A gyro file whose names say gyroscope and nothing accelerometer (phyphox's ``Gyroscope.csv``: ``X (rad/s)``):
-    its gyro columns mapped into the accelerometer's place, where :func:`merge_gyro_file` reads a headerless
-    ``t x y z`` file's; ``None`` for any other file (read as it is)."""
+def _gyro_only_mapping(gyro_file: str | Path) -> tuple[dict[str, str] | None, str | None]:
+    """A gyro file whose names say gyroscope and nothing accelerometer (phyphox's ``Gyroscope.csv``: ``X (rad/s)``;
+    Sensor Logger's ``Gyroscope.csv``, bare ``x, y, z`` in rad/s by its documentation): its gyro columns mapped into
+    the accelerometer's place, where :func:`merge_gyro_file` reads a headerless ``t x y z`` file's, and the unit a
+    name-less layout documents; ``(None, None)`` for any other file (read as it is)."""
     from optcal.data.text import sniff_layout
 
     layout = sniff_layout(gyro_file)
     if not layout.has_header:
-        return None
+        return None, None
+    logger = sensor_logger_mapping(layout.names, str(gyro_file), sensor="gyro")
+    if logger is not None:
+        return logger[0], "rad/s"
     found = resolve_columns(layout.names, {}).column_map
     if any(c in found for c in ACC) or not all(c in found for c in GYRO):
-        return None
+        return None, None
     mapping = {a: found[c] for a, c in zip(ACC, GYRO)}
     if "t" in found:
         mapping["t"] = found["t"]
-    return mapping
+    return mapping, None
 
 
 # ----------------------------------------------------------------------------- ROS bags
