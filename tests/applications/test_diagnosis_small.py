@@ -499,9 +499,9 @@ def test_the_issues_p_values_are_those_of_a_per_axis_fit_with_known_directions(s
 # measured (docs/diagnosis.md, "The issue's yardstick, residual-scaled"): at 10 of ``yardstick``'s SEs in the Xsens
 # 14-rest cut 5 of 12 named alone within 29 %, the other 7 named on the planted axis as a term the cut cannot tell
 # from the planted one (temperature against time, bias against scale: p within a factor 1.5), the planted term
-# listed among its alternatives; the unplanted cut names nothing
-@pytest.mark.parametrize(("effect", "axis"), [("bias_drift", 2), ("scale_nonlinearity", 1), ("temperature_bias", 2),
-                                              ("temperature_bias", 0)])
+# listed among its alternatives; the unplanted cut names nothing.  A term the cut tells apart and one it does not are
+# listed (the file is kept under a minute of CPU; the z terms are planted above at the full log's scatter)
+@pytest.mark.parametrize(("effect", "axis"), [("scale_nonlinearity", 1), ("temperature_bias", 0)])
 def test_an_effect_at_10_residual_scaled_standard_errors_in_14_xsens_rests_is_found(
         shared_data: Path, tmp_path: Path, effect: str, axis: int) -> None:
     """The Xsens cut's pose means scatter 18.7 times their samples' noise: sized by the plain fit's residual-scaled
