@@ -150,6 +150,7 @@ def test_two_knocks_in_the_real_xsens_log_are_each_named_at_their_place(shared_d
     assert steps[1]["estimate"]["z"] == pytest.approx(1.5e-3, rel=0.4)
     assert all(f.effect != "outliers" for f in diag.findings)
     assert diagnosis_report(diag).count("the bias stepped between the rests") == 2
+    assert "stepped once" not in diagnosis_report(diag)
 
 
 def test_one_knock_in_the_real_xsens_log_is_not_named_twice(shared_data: Path, tmp_path: Path) -> None:

@@ -16,7 +16,7 @@ from optcal.core.extended_model import NEEDS as MODEL_NEEDS
 from optcal.core.extended_model import UNITS as MODEL_UNITS
 from optcal.core.model import AXES
 
-__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "BIAS_STEP", "STEP_MIN_SIDE", "MAX_STEPS", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
+__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "BIAS_STEP", "STEP_MIN_SIDE", "MAX_STEPS", "MAX_SESSIONS", "CAUSE_STEPS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
            "parse_effects", "describe_term", "plain_term"]
 
 #: "The bias changed between sessions" (turn-on bias repeatability): one offset per session after
@@ -72,6 +72,9 @@ CAUSES: dict[str, str] = {
                "mount: the zero offset moved and did not come back)",
     "outliers": "some poses were not static or are corrupt (the sensor moved, was bumped, or the interval was mis-detected)",
 }
+#: The cause of a ``bias_step`` finding with a second step placed (:data:`MAX_STEPS`).
+CAUSE_STEPS: str = ("the bias stepped at each of these places and stayed (knocks or shocks between rests, a re-seated "
+                    "connector or mount: the zero offset moved each time and did not come back)")
 #: The regressor of each effect in plain words (figures and the simulation check).
 REGRESSOR_WORDS: dict[str, str] = {
     "temperature_bias": "temperature",

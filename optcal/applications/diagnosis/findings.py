@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
+from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSE_STEPS, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.selection import BIC_TIE, Step
@@ -207,6 +207,7 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
         if effect == BIAS_STEP:
             finding.step = step_location(fitter, fitter.steps_at[0])
             if len(fitter.steps_at) > 1:  # each step where it is and its offset on each axis (g, after minus before)
+                finding.cause = CAUSE_STEPS
                 finding.step["steps"] = [
                     {**step_location(fitter, k), "estimate": {AXES[a]: float(final.x[9 + BETA_INDEX[(effect, a, i)]])
                                                              for a in axes if final.terms[(effect, a)] >= i}}
