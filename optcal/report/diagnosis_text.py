@@ -176,10 +176,12 @@ def diagnosis_report(diag: Diagnosis) -> str:
             lines.append(f"      {named} {', '.join(where)} given zero weight")
         if f.sessions is not None:
             lines += session_lines(f.sessions)
-        if f.step is not None:
-            when = (f" (t = {f.step['previous_t_s']:.1f} s → {f.step['t_s']:.1f} s)" if "t_s" in f.step else "")
-            lines.append(f"      the bias stepped between the rests in rows {f.step['previous_row']} and {f.step['row']}"
-                         f"{when}, after {f.step['poses_before']} poses, and stayed")
+        for step in [] if f.step is None else f.step.get("steps", [f.step]):
+            when = (f" (t = {step['previous_t_s']:.1f} s → {step['t_s']:.1f} s)" if "t_s" in step else "")
+            size = ("" if "estimate" not in step else
+                    " by " + ", ".join(f"{v * MG:+.3g} mg on {a}" for a, v in step["estimate"].items()))
+            lines.append(f"      the bias stepped between the rests in rows {step['previous_row']} and {step['row']}"
+                         f"{when}, after {step['poses_before']} poses{size}, and stayed")
         for ax in f.axes if f.sessions is None else ():
             order = f.order[ax]
             change = f.change_over_data[ax]

@@ -9,6 +9,7 @@ scatter stay in), sized in standard errors of the coefficient under the pose noi
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -313,3 +314,212 @@ def test_a_planted_term_the_cut_misses_is_below_its_printed_detection_limit(shar
     # either named, or the session states a limit above the planted size (found less than half the time)
     assert named or limit.limit > abs(value)
     assert "detection limits" in diagnosis_report(diag)
+
+
+# --- The issue's yardstick written from first principles (not from the code under test) -----------------------------
+#
+# The issue quotes, for effects of 9-11 standard errors in 14-15 real rests, "a plain least-squares fit with the
+# per-rest noise measured inside the rests finds all seven, p from 7e-6 to 1e-7, estimates within 4 %".  A test with
+# the noise known gives p near 1e-23 at 10 SE; 7e-6..1e-7 at t 9-11 is the t distribution on 9-10 residual degrees of
+# freedom, the default of a plain weighted least-squares fit (statsmodels' WLS: weights 1/σ², standard errors and p
+# scaled by the residual variance SSR/(n − p)).  Two such fits are written here:
+#
+# * ``plain_joint_fit``: the paper's model and the effect fitted to the pose means' norms (the directions unknown,
+#   as any calibration from rests: n − 10 degrees of freedom);
+# * ``plain_axis_fit``: each axis regressed alone on the directions taken as known (from the unplanted cut), the
+#   effect's regressor and an offset (n − 5 degrees of freedom).
+
+
+@dataclass(frozen=True)
+class PlainFit:
+    """One plain weighted least-squares estimate of an effect's first-order coefficient.
+
+    Attributes
+    ----------
+    estimate : float
+        The coefficient, in :class:`~optcal.core.extended_model.ExtendedModel`'s units.
+    se_known : float
+        Its standard error with each pose mean's σ taken as known (the inverse Fisher information).
+    se : float
+        Its standard error scaled by the residual variance ``SSR/(n − p)`` (a plain WLS's default).
+    dof : int
+        Residual degrees of freedom ``n − p``.
+    p_value : float
+        Two-sided, ``estimate/se`` against Student's t on ``dof``.
+    """
+
+    estimate: float
+    se_known: float
+    se: float
+    dof: int
+    p_value: float
+
+
+def _regressor(poses: PoseTable, effect: str, t_ref: float) -> np.ndarray:
+    """The effect's driving variable at each pose: temperature (°C about 30, as planted) or time (s about ``t_ref``)."""
+    if effect.startswith("temperature"):
+        assert poses.temp is not None
+        return np.asarray(poses.temp, float) - 30.0
+    assert poses.t is not None
+    return np.asarray(poses.t, float) - t_ref
+
+
+def _without_effect(lin: np.ndarray, S: np.ndarray, effect: str, k: int, beta: float, r: np.ndarray) -> np.ndarray:
+    """``y − o`` with the effect on axis ``k`` removed: ExtendedModel.distort's per-axis form inverted,
+    ``x = (1 + β r) S (f + k₂ f²) + S β r`` (bias terms in g, scale terms relative, S the axis's counts per g)."""
+    out = lin.copy()
+    x = lin[:, k]
+    if effect in ("temperature_bias", "bias_drift"):
+        out[:, k] = x - S[k] * beta * r
+    elif effect == "temperature_scale":
+        out[:, k] = x / (1 + beta * r)
+    else:  # scale_nonlinearity: x/S = f + β f², the root near x/S
+        out[:, k] = 2 * x / (1 + np.sqrt(np.maximum(1 + 4 * beta * x / S[k], 0.0)))
+    return out
+
+
+def _upper(v: np.ndarray) -> np.ndarray:
+    T = np.zeros((3, 3))
+    T[np.triu_indices(3)] = v
+    return T
+
+
+def _norm_fit(poses: PoseTable, effect: str | None, k: int, t_ref: float):  # type: ignore[no-untyped-def]
+    """Weighted least squares of ``(‖T (y − o − effect)‖ − 1 g)/σ_r`` over an upper-triangular T, o (and the
+    effect's β): the paper's model (Lu 2017, eq. 6, its cost eq. 14 with the norm's σ), σ_r = σ‖Tᵀu‖ the pose
+    mean's σ carried to its norm.  Returns scipy's result."""
+    from scipy import optimize
+
+    y = np.asarray(poses.acc, float)
+    assert poses.sigma is not None
+    sigma = np.asarray(poses.sigma, float)
+    r = _regressor(poses, effect, t_ref) if effect is not None else np.zeros(len(y))
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        T = _upper(x[:6])
+        S = np.linalg.norm(np.linalg.inv(T), axis=1)
+        a = _without_effect(y - x[6:9], S, effect or "bias_drift", k, x[9] if effect else 0.0, r) @ T.T
+        norm = np.linalg.norm(a, axis=1)
+        return (norm - 1.0) / (sigma * np.linalg.norm((a / norm[:, None]) @ T, axis=1))
+
+    # start: each axis's offset at mid-range, its scale 2 g over its range (the rests span ±1 g on every axis)
+    o0, s0 = (y.max(0) + y.min(0)) / 2, 2 / (y.max(0) - y.min(0))
+    start = np.r_[s0[0], 0, 0, s0[1], 0, s0[2], o0]
+    tight = dict(method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=20000)
+    base = optimize.least_squares(lambda x: residual(np.r_[x, 0.0]), start, **tight)
+    if effect is None:
+        return base
+    return optimize.least_squares(residual, np.r_[base.x, 0.0], x_scale="jac", **tight)
+
+
+def plain_joint_fit(poses: PoseTable, effect: str, axis: int, t_ref: float = 0.0) -> PlainFit:
+    """The paper's model and ``effect`` on ``axis`` fitted to the pose means (directions unknown), weights 1/σ² of
+    each pose mean measured from its samples; the standard error known-noise and residual-scaled, t on n − 10."""
+    from scipy import stats as sps
+
+    fit = _norm_fit(poses, effect, axis, t_ref)
+    dof = poses.n - fit.x.size
+    known = float(np.sqrt(np.linalg.inv(fit.jac.T @ fit.jac)[-1, -1]))
+    se = known * float(np.sqrt(fit.fun @ fit.fun / dof))
+    return PlainFit(float(fit.x[-1]), known, se, dof, float(2 * sps.t.sf(abs(fit.x[-1] / se), dof)))
+
+
+def plain_axis_fit(poses: PoseTable, effect: str, axis: int, directions_of: PoseTable, t_ref: float = 0.0) -> PlainFit:
+    """Axis ``axis`` alone: ``y_k = c₀ + c·u + γ ρ`` by weighted least squares (1/σ²), u the gravity directions of
+    ``directions_of``'s paper's-model fit taken as known, ρ the effect's regressor in that axis's counts; t on
+    n − 5."""
+    from scipy import stats as sps
+
+    fit = _norm_fit(directions_of, None, 0, t_ref)
+    T, o = _upper(fit.x[:6]), fit.x[6:9]
+    a = (np.asarray(directions_of.acc, float) - o) @ T.T
+    u = a / np.linalg.norm(a, axis=1, keepdims=True)
+    S = np.linalg.norm(np.linalg.inv(T), axis=1)
+    y = np.asarray(poses.acc, float)
+    lin = y[:, axis] - o[axis]
+    rho = (lin**2 / S[axis] if effect == "scale_nonlinearity" else
+           lin * _regressor(poses, effect, t_ref) if effect == "temperature_scale" else
+           S[axis] * _regressor(poses, effect, t_ref))
+    assert poses.sigma is not None
+    X = np.column_stack([np.ones(poses.n), u, rho]) / poses.sigma[:, None]
+    b = y[:, axis] / poses.sigma
+    coef, *_ = np.linalg.lstsq(X, b, rcond=None)
+    e = b - X @ coef
+    dof = poses.n - X.shape[1]
+    known = float(np.sqrt(np.linalg.inv(X.T @ X)[-1, -1]))
+    se = known * float(np.sqrt(e @ e / dof))
+    return PlainFit(float(coef[-1]), known, se, dof, float(2 * sps.t.sf(abs(coef[-1] / se), dof)))
+
+
+def yardstick(small: PoseTable, effect: str, axis: int, t_ref: float = 0.0) -> float:
+    """The size of one standard error the tests plant at: the plain joint fit's, residual-scaled, never below its
+    known-noise value (``issue_standard_error``'s).  Where the pose means scatter more than their samples say (the
+    Xsens cut: 18.7 times) the residual scale is the one a plain fit reports; where they scatter less, a residual
+    variance on n − 10 = 4 degrees of freedom is a χ²₄/4 draw (below 0.3 one time in eight) and is not let under
+    the noise the rests measure (mikoff imu1's unplanted cut, the z drift fitted: 0.028)."""
+    fit = plain_joint_fit(small, effect, axis, t_ref)
+    return max(fit.se, fit.se_known)
+
+
+def test_the_plain_joint_fit_written_here_gives_the_known_noise_standard_error_of_the_code(shared_data: Path,
+                                                                                          tmp_path: Path) -> None:
+    """Two routes to one number: the plain joint fit above (scipy, the norms' residuals) and the diagnosis's
+    Fisher information (``issue_standard_error``) agree on the known-noise standard error (measured: to 4 digits on
+    all twelve terms of mikoff imu0's cut); its residual scale is SSR/(n − 10) on the cut's 14 rests."""
+    small = cut(planted_mikoff(tmp_path, mikoff(shared_data, "imu0.log"), None, 0, 0.0, "unplanted",
+                               temperature=True))
+    for effect, axis in (("bias_drift", 1), ("scale_nonlinearity", 0), ("temperature_scale", 2)):
+        fit = plain_joint_fit(small, effect, axis)
+        assert fit.se_known == pytest.approx(issue_standard_error(small, effect, axis), rel=0.01)
+        assert fit.dof == small.n - 10
+        assert abs(fit.estimate) < 4 * fit.se_known  # unplanted
+
+
+def test_the_issues_p_values_are_those_of_a_per_axis_fit_with_known_directions(shared_data: Path,
+                                                                               tmp_path: Path) -> None:
+    """The issue's "p from 7e-6 to 1e-7" for effects of 9-11 SE: a per-axis fit with the directions known (t on
+    n − 5 = 9) gives them (measured, mikoff imu0, all twelve terms at 10 of its SE: p 9.5e-7 to 9.7e-6, estimates
+    −11 % to +17 %); the joint fit (directions unknown, t on n − 10 = 4) cannot (p 1.6e-4 to 7.6e-4)."""
+    path = mikoff(shared_data, "imu0.log")
+    small = cut(planted_mikoff(tmp_path, path, None, 0, 0.0, "unplanted"))
+    axis_se = plain_axis_fit(small, "bias_drift", 0, small).se
+    axis_fit = plain_axis_fit(cut(planted_mikoff(tmp_path, path, "bias_drift", 0, 10 * axis_se, "axis")),
+                              "bias_drift", 0, small)
+    assert axis_fit.dof == 9 and 1e-7 < axis_fit.p_value < 2e-5
+    assert axis_fit.estimate == pytest.approx(10 * axis_se, rel=0.2)
+    joint_se = plain_joint_fit(small, "bias_drift", 0).se
+    joint = plain_joint_fit(cut(planted_mikoff(tmp_path, path, "bias_drift", 0, 10 * joint_se, "joint")),
+                            "bias_drift", 0)
+    assert joint.dof == 4 and joint.p_value > 1e-4
+    # the known directions carry the cut's own tangential noise into the fit: its SE is a fifth of the joint's here,
+    # an effect at 10 of them is about 2 of what any calibration that must find the directions can resolve
+    assert axis_se < joint_se / 3
+
+
+# measured (docs/diagnosis.md, "The issue's yardstick, residual-scaled"): at 10 of ``yardstick``'s SEs in the Xsens
+# 14-rest cut 5 of 12 named alone within 29 %, the other 7 named on the planted axis as a term the cut cannot tell
+# from the planted one (temperature against time, bias against scale: p within a factor 1.5), the planted term
+# listed among its alternatives; the unplanted cut names nothing.  A term the cut tells apart and one it does not are
+# listed (the file is kept under a minute of CPU; the z terms are planted above at the full log's scatter)
+@pytest.mark.parametrize(("effect", "axis"), [("scale_nonlinearity", 1), ("temperature_bias", 0)])
+def test_an_effect_at_10_residual_scaled_standard_errors_in_14_xsens_rests_is_found(
+        shared_data: Path, tmp_path: Path, effect: str, axis: int) -> None:
+    """The Xsens cut's pose means scatter 18.7 times their samples' noise: sized by the plain fit's residual-scaled
+    SE, an effect is named on its axis (alone and within 40 % where the cut tells the terms apart; else the planted
+    term among the named finding's alternatives), and nothing on another axis."""
+    from optcal.data import load_with_segmentation
+
+    path = xsens(shared_data)
+    small = cut(planted_xsens(tmp_path, path, None, 0, 0.0, "unplanted"))
+    value = 10 * yardstick(small, effect, axis)
+    planted_xsens(tmp_path, path, effect, axis, value, "planted")
+    item = load_with_segmentation(tmp_path / "planted.csv")  # with its still parts, as optcal diagnose reads it
+    diag = Diagnoser(DiagnosisSettings(simulations=0)).run(cut(item.poses), still_parts=item.segmentation)
+    letter = "xyz"[axis]
+    assert len(diag.findings) == 1 and diag.findings[0].axes == [letter]
+    found = diag.findings[0]
+    if (effect, axis) == ("temperature_bias", 0):  # x: temperature, time and scale within a factor 1.5 in p
+        assert effect in {found.effect} | {a["effect"] for a in found.alternatives if a["axes"] == [letter]}
+    else:
+        assert found.effect == effect
+        assert found.estimate[letter] == pytest.approx(value, rel=0.4)

@@ -80,7 +80,7 @@ def scan_step(fitter: Fitter, fit: Fit, axis: int) -> StepScan | None:
     """The split of the poses in time where a step of axis ``axis``'s bias explains the most of ``fit``'s residuals.
 
     ``None`` when fewer than two sides of :data:`~optcal.applications.diagnosis.effects.STEP_MIN_SIDE` kept poses
-    exist.  Only the splits between kept poses count (a split next to an outlier pose is the same split as the one
+    exist.  The splits of the steps already placed (:attr:`Fitter.steps_at`) are not searched.  Only the splits between kept poses count (a split next to an outlier pose is the same split as the one
     beside it).
     """
     order = fitter.time_order
@@ -100,6 +100,7 @@ def scan_step(fitter: Fitter, fit: Fit, axis: int) -> StepScan | None:
     total = int(kept.sum())
     valid = (before >= STEP_MIN_SIDE) & (total - before >= STEP_MIN_SIDE) & kept  # the first pose after is kept
     valid[0] = False
+    valid[list(fitter.steps_at)] = False  # a step placed is not placed again (the next one is a knock of its own)
     if not np.any(valid):
         return None
     info = G.T @ G

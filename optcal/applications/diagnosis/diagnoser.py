@@ -302,7 +302,7 @@ class Diagnoser:
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
             other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
-            other.set_step(fitter.step_at)
+            other.set_steps(fitter.steps_at)
             return other, other.fit(final.terms, final.outliers, final.x)
 
         self.progress("checking the noise model")

@@ -16,7 +16,7 @@ from optcal.core.extended_model import NEEDS as MODEL_NEEDS
 from optcal.core.extended_model import UNITS as MODEL_UNITS
 from optcal.core.model import AXES
 
-__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "BIAS_STEP", "STEP_MIN_SIDE", "MAX_SESSIONS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
+__all__ = ["EFFECTS", "VOCABULARY", "PARAMETRIC", "FITTED", "SESSION_BIAS", "BIAS_STEP", "STEP_MIN_SIDE", "MAX_STEPS", "MAX_SESSIONS", "CAUSE_STEPS", "MAX_ORDER", "NEEDS", "UNITS", "REGRESSOR_TEXT", "REGRESSOR_WORDS", "PLAIN_NAMES", "CAUSES",
            "parse_effects", "describe_term", "plain_term"]
 
 #: "The bias changed between sessions" (turn-on bias repeatability): one offset per session after
@@ -30,13 +30,17 @@ BIAS_STEP: str = "bias_step"
 #: departure, the outlier test's question (a knocked rest that did not persist), and with two it is confounded with
 #: their two mean shifts; three keep one degree of freedom beyond a pair of outliers.
 STEP_MIN_SIDE: int = 3
+#: Most bias steps one recording is searched for (a knock, then another): "order" k of ``bias_step`` is the offset of
+#: the poses after the k-th step placed (its regressor that step's indicator), as ``session_bias``'s orders are its
+#: sessions.  Each step is placed by its own search at the family-wise level (its position paid for in its p value).
+MAX_STEPS: int = 2
 #: Most sessions one diagnosis fits together (each adds three offsets to the fit's layout).
 MAX_SESSIONS: int = 10
 #: The coefficient terms the diagnosis fits: the extended model's, then the per-session offsets.
 FITTED: tuple[str, ...] = (*PARAMETRIC, SESSION_BIAS, BIAS_STEP)
 #: Number of coefficients per axis of each fitted term (its polynomial orders; for the session
 #: offsets, one per session after the first).
-MAX_ORDER: dict[str, int] = {**MODEL_MAX_ORDER, SESSION_BIAS: MAX_SESSIONS - 1, BIAS_STEP: 1}
+MAX_ORDER: dict[str, int] = {**MODEL_MAX_ORDER, SESSION_BIAS: MAX_SESSIONS - 1, BIAS_STEP: MAX_STEPS}
 #: The effects one recording can show, in the order they are reported.
 EFFECTS: tuple[str, ...] = (*PARAMETRIC, "outliers")
 #: The whole vocabulary of model extensions: one recording's effects and, for several sessions,
@@ -68,6 +72,9 @@ CAUSES: dict[str, str] = {
                "mount: the zero offset moved and did not come back)",
     "outliers": "some poses were not static or are corrupt (the sensor moved, was bumped, or the interval was mis-detected)",
 }
+#: The cause of a ``bias_step`` finding with a second step placed (:data:`MAX_STEPS`).
+CAUSE_STEPS: str = ("the bias stepped at each of these places and stayed (knocks or shocks between rests, a re-seated "
+                    "connector or mount: the zero offset moved each time and did not come back)")
 #: The regressor of each effect in plain words (figures and the simulation check).
 REGRESSOR_WORDS: dict[str, str] = {
     "temperature_bias": "temperature",
@@ -117,6 +124,8 @@ def parse_effects(text: str | Iterable[str] | None) -> tuple[str, ...] | None:
 
 def describe_term(effect: str, axis: int, order: int) -> str:
     """Readable name of a term, e.g. ``temperature_bias(z, order 2)`` (``session_bias(z)``: every session's offset)."""
+    if effect == BIAS_STEP and order > 1:
+        return f"{effect}({AXES[axis]}, {order} steps)"
     if effect in (SESSION_BIAS, BIAS_STEP):
         return f"{effect}({AXES[axis]})"
     return f"{effect}({AXES[axis]}" + (f", order {order})" if order > 1 else ")")

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
+from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSE_STEPS, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
 from optcal.applications.diagnosis.selection import BIC_TIE, Step
@@ -77,6 +77,9 @@ class Finding:
         ``"pose_index"`` (the first pose after it, among the diagnosed poses), ``"row"`` (that pose's row),
         ``"previous_row"`` (the last pose's before it), ``"t_s"`` and ``"previous_t_s"`` (their times, when the
         poses have a time column)``}``; :attr:`estimate` is the step of each axis's bias (g, after minus before).
+        With a second step (a knock, then another; :data:`~optcal.applications.diagnosis.effects.MAX_STEPS`) those
+        keys are the first step's, and ``"steps"`` lists each step's keys with its ``"estimate"`` (axis → g, after
+        minus before that step, for the axes it moved in the model); :attr:`coefficients` holds them per axis.
     sessions : SessionOffsets or None
         For ``session_bias``: every session's offset with its standard error; :attr:`estimate`
         is then their spread (the turn-on repeatability, g) and :attr:`stderr` the sampling
@@ -133,10 +136,8 @@ def change_over_data(fitter: Fitter, fit: Fit, effect: str, axis: int) -> float:
     return float(np.ptp(term))
 
 
-def step_location(fitter: Fitter) -> dict[str, Any]:
-    """Where the bias step of the fitter's model is (:attr:`Finding.step`)."""
-    k = fitter.step_at
-    assert k is not None
+def step_location(fitter: Fitter, k: int) -> dict[str, Any]:
+    """Where a bias step of the fitter's model is, after the first ``k`` poses in time order (:attr:`Finding.step`)."""
     after, before = int(fitter.time_order[k]), int(fitter.time_order[k - 1])
     out: dict[str, Any] = {"poses_before": int(k), "pose_index": after, "row": int(fitter.poses.rows[after]),
                            "previous_row": int(fitter.poses.rows[before])}
@@ -204,8 +205,15 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
             finding.change_over_data[AXES[a]] = change_over_data(fitter, final, effect, a)
             finding.alternatives += alternatives(steps, final, effect, AXES[a])
         if effect == BIAS_STEP:
-            finding.step = step_location(fitter)
-            finding.evidence.delta_bic += float(np.log(fitter.n))  # its position is a fitted unknown (selection)
+            finding.step = step_location(fitter, fitter.steps_at[0])
+            if len(fitter.steps_at) > 1:  # each step where it is and its offset on each axis (g, after minus before)
+                finding.cause = CAUSE_STEPS
+                finding.step["steps"] = [
+                    {**step_location(fitter, k), "estimate": {AXES[a]: float(final.x[9 + BETA_INDEX[(effect, a, i)]])
+                                                             for a in axes if final.terms[(effect, a)] >= i}}
+                    for i, k in enumerate(fitter.steps_at, start=1)]
+            # each position is a fitted unknown (selection)
+            finding.evidence.delta_bic += len(fitter.steps_at) * float(np.log(fitter.n))
         out.append(finding)
     session_axes = sorted(a for (e, a) in final.terms if e == SESSION_BIAS)
     if session_axes:

@@ -204,9 +204,10 @@ class Fitter:
         #: samples, :func:`measured_scale2` without the still parts) implies: the floor of a small session's test
         #: scale (:meth:`test_scale2`); ``None`` when the poses carry no σ.
         self.rest_scale2: float | None = None if poses.sigma is None else 1.0 / self.w_mean
-        #: Poses before the bias step in time order (``None``: no step in the model; :meth:`set_step`).
-        self.step_at: int | None = None
-        self._heldout_cache: dict[tuple[Terms, frozenset[int], int | None], NDArray[np.float64]] = {}
+        #: Poses before each bias step in time order, in the order the steps were placed (empty: no step in the
+        #: model; :meth:`set_steps`).
+        self.steps_at: tuple[int, ...] = ()
+        self._heldout_cache: dict[tuple[Terms, frozenset[int], tuple[int, ...]], NDArray[np.float64]] = {}
 
     # ------------------------------------------------------------------ bias step
     def step_indicator(self, k: int) -> NDArray[np.float64]:
@@ -215,14 +216,27 @@ class Fitter:
         step[self.time_order[k:]] = 1.0
         return step
 
+    @property
+    def step_at(self) -> int | None:
+        """Poses before the first bias step in time order (``None``: no step in the model)."""
+        return self.steps_at[0] if self.steps_at else None
+
+    def steps_column(self, splits: tuple[int, ...]) -> NDArray[np.float64] | None:
+        """The steps' indicators, one column per step after the first ``k`` poses of ``splits`` (``None``: none)."""
+        return np.column_stack([self.step_indicator(k) for k in splits]) if splits else None
+
     def step_data(self, k: int) -> PoseData:
-        """The fit's data with a bias step after the first ``k`` poses in time order."""
-        return replace(self.data, step=self.step_indicator(k))
+        """The fit's data with a bias step after the first ``k`` poses in time order, after the steps placed."""
+        return replace(self.data, step=self.steps_column((*self.steps_at, k)))
+
+    def set_steps(self, splits: tuple[int, ...]) -> None:
+        """Fit every later model with bias steps after the first ``k`` poses in time order of each of ``splits``."""
+        self.steps_at = tuple(int(k) for k in splits)
+        self.data = replace(self.data, step=self.steps_column(self.steps_at))
 
     def set_step(self, k: int | None) -> None:
-        """Fit every later model with the bias step after the first ``k`` poses in time order (``None``: none)."""
-        self.step_at = k
-        self.data = replace(self.data, step=None if k is None else self.step_indicator(k))
+        """Fit every later model with one bias step after the first ``k`` poses in time order (``None``: none)."""
+        self.set_steps(() if k is None else (k,))
 
     # ------------------------------------------------------------------ fitting
     def params(self, w: NDArray, data: PoseData | None = None, scale: float | None = None,
@@ -347,7 +361,7 @@ class Fitter:
 
     def heldout(self, fit: Fit) -> NDArray[np.float64]:
         """Held-out residual of every pose (k-fold; the model fitted without the pose's fold)."""
-        key = (terms_key(fit.terms), fit.outliers, self.step_at)
+        key = (terms_key(fit.terms), fit.outliers, self.steps_at)
         if key in self._heldout_cache:
             return self._heldout_cache[key]
         out = np.empty(self.n)

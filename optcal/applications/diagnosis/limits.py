@@ -196,7 +196,7 @@ def step_limits(fitter: Fitter, fit: Fit, axes: list[int], level: float) -> list
 
 
 def step_limit(fitter: Fitter, fit: Fit, axis: int, level: float, null: NullDraws | None = None) -> DetectionLimit | None:
-    """The detection limit of a bias step of ``axis`` added to ``fit`` (no step in it): the step size its
+    """The detection limit of a bias step of ``axis`` added to ``fit`` (after the steps placed): the step size its
     position-adjusted test at ``level`` would name about half the time, at each position searched.
 
     The step's standard error at one position (the split of median information) is that of the exact fit there
@@ -214,16 +214,17 @@ def step_limit(fitter: Fitter, fit: Fit, axis: int, level: float, null: NullDraw
     info = np.asarray(scan.information)
     k0 = int(np.argsort(info)[info.size // 2])
     terms = dict(fit.terms)
-    terms[(BIAS_STEP, axis)] = 1
-    previous = fitter.step_at
-    fitter.set_step(scan.splits[k0])
+    previous = fitter.steps_at
+    order = len(previous) + 1  # the next step placed (its "order", effects.MAX_STEPS)
+    terms[(BIAS_STEP, axis)] = order
+    fitter.set_steps((*previous, scan.splits[k0]))
     try:
         bigger = fitter.fit(terms, fit.outliers, fit.x)
         free = np.flatnonzero(active_mask(terms))
-        k = 9 + int(np.flatnonzero(free == BETA_INDEX[(BIAS_STEP, axis, 1)])[0])
+        k = 9 + int(np.flatnonzero(free == BETA_INDEX[(BIAS_STEP, axis, order)])[0])
         se0 = float(np.sqrt(max(fitter.covariance(bigger)[k, k], 0.0))) / fitter.reg.half_span(BIAS_STEP)
     finally:
-        fitter.set_step(previous)
+        fitter.set_steps(previous)
     se = se0 * np.sqrt(info[k0] / np.maximum(info, 1e-300))
     largest = null_largest(fitter, fit, scan, null=null) if uses_minp_positions(fitter, fit) else None
     if largest is not None:
@@ -231,5 +232,5 @@ def step_limit(fitter: Fitter, fit: Fit, axis: int, level: float, null: NullDraw
     else:
         critical, adjusted = float(sps.f.isf(level / scan.positions, 1, dof)), "Bonferroni"
     limits = np.sqrt(critical) * se
-    return DetectionLimit(describe_term(BIAS_STEP, axis, 1), BIAS_STEP, AXES[axis], float(np.median(limits)),
+    return DetectionLimit(describe_term(BIAS_STEP, axis, order), BIAS_STEP, AXES[axis], float(np.median(limits)),
                           UNITS[BIAS_STEP], level, None, float(limits.min()), float(limits.max()), adjusted)

@@ -78,8 +78,10 @@ def session_indicators(session: NDArray[np.intp] | None, n: int) -> list[NDArray
 
 
 def step_indicator(step: NDArray[np.float64] | None, n: int) -> list[NDArray[np.float64]]:
-    """The regressor of the bias step: 1 for the poses after the step, 0 before (zeros without a step)."""
-    return [np.zeros(n) if step is None else step]
+    """The regressors of the bias steps, one per order of ``bias_step``: step k's is 1 for the poses after it, 0
+    before (``step`` of shape (n,) for one step or (n, m) for m; zeros for the steps not placed)."""
+    columns = [] if step is None else ([step] if step.ndim == 1 else list(step.T))
+    return columns + [np.zeros(n)] * (MAX_ORDER[BIAS_STEP] - len(columns))
 
 
 def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
@@ -101,8 +103,8 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     session : ndarray of int, shape (n,), optional
         Session of each pose (0, 1, ...; default all 0): the session offsets are biases of the
         sessions after the first.
-    step : ndarray, shape (n,), optional
-        1 for the poses after a bias step, 0 before (default: no step).
+    step : ndarray, shape (n,) or (n, m), optional
+        1 for the poses after each bias step, 0 before (default: no step).
 
     Returns
     -------
@@ -231,8 +233,8 @@ class PoseData:
         Normalised temperature and time.
     session : ndarray of int, shape (n,), optional
         Session of each pose (``None``: one session).
-    step : ndarray, shape (n,), optional
-        1 for the poses after a bias step, 0 before (``None``: no step).
+    step : ndarray, shape (n,) or (n, m), optional
+        1 for the poses after each bias step, 0 before (``None``: no step).
     """
 
     u: NDArray[np.float64]
@@ -384,12 +386,16 @@ def session_shift(x: NDArray, C: NDArray, session: NDArray[np.intp], n_sessions:
 
 
 def step_shift(x: NDArray, C: NDArray, step: NDArray[np.float64] | None) -> NDArray[np.float64]:
-    """Raw bias of each pose relative to the bias before the step, shape (n, 3) (zeros without a step).
+    """Raw bias of each pose relative to the bias before the first step, shape (n, 3) (zeros without a step).
 
-    The step is a bias term per g, as the session offsets (:func:`session_shift`): axis i's raw offset is
-    ``S_i δ_i`` after the step.
+    Each step is a bias term per g, as the session offsets (:func:`session_shift`): axis i's raw offset is
+    ``S_i δ_ik`` after step k, the steps' offsets adding up.
     """
     if step is None:
         return np.zeros((0, 3))
-    delta = np.array([x[9 + BETA_INDEX[(BIAS_STEP, i, 1)]] for i in range(3)])
-    return step[:, None] * (delta * np.linalg.norm(C, axis=1))[None, :]
+    S = np.linalg.norm(C, axis=1)
+    shift = np.zeros((step.shape[0], 3))
+    for k, column in enumerate(step_indicator(step, step.shape[0]), start=1):
+        delta = np.array([x[9 + BETA_INDEX[(BIAS_STEP, i, k)]] for i in range(3)])
+        shift += column[:, None] * (delta * S)[None, :]
+    return shift

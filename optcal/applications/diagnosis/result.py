@@ -73,8 +73,8 @@ class Diagnosis:
     peer : PeerComparison or None
         A peer's calibration given as the baseline (imucal, imu_tk) next to optcal's baseline fit
         (:class:`optcal.applications.quality.peer.PeerComparison`, set by the caller).
-    step : ndarray, shape (n,), or None
-        1 for the poses after the bias step of a ``bias_step`` finding, 0 before (``None``: no step).
+    step : ndarray, shape (n,) or (n, m), or None
+        1 for the poses after each bias step of a ``bias_step`` finding, 0 before (``None``: no step).
     """
 
     poses: PoseTable
@@ -157,10 +157,11 @@ class Diagnosis:
         sessions = self.session_offsets()
         if sessions is None:
             model = self.model
-            if self.step is not None:  # the bias after the step is the sensor's now: o is that bias
+            if self.step is not None:  # the bias after the last step is the sensor's now: o is that bias
                 from optcal.applications.diagnosis.problem import step_shift
 
-                shift = step_shift(self.final.x, model.base.C, np.ones(1))[0]
+                columns = 1 if self.step.ndim == 1 else self.step.shape[1]
+                shift = step_shift(self.final.x, model.base.C, np.ones((1, columns)))[0]  # the bias after every step
                 model = replace(model, base=LumpedModel(model.base.C, model.base.o + shift))
                 fitted_on = replace(fitted_on, acc=fitted_on.acc - (self.session_shift() - shift)[kept])
             if not any(e != "bias_step" for e, _ in self.final.terms) and not walk_named:

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
-from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, SESSION_BIAS, describe_term
+from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
@@ -269,7 +269,7 @@ class ForwardSelection:
         out = []
         sessions = self.fitter.reg.n_sessions
         for e, a in self.candidates:
-            if e == BIAS_STEP and self.fitter.step_at is None:
+            if e == BIAS_STEP and not self.fitter.steps_at:
                 continue  # its position is searched (step_candidates); once placed, its other axes are plain terms
             if (e, a) not in fit.terms:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
@@ -277,6 +277,9 @@ class ForwardSelection:
                 out += [(e, a, order) for order in orders
                         if self.supports_order(e, order) and self.fitter.n - fit.n_params - order >= least]
         for (e, a), order in fit.terms.items():
+            # a bias step's next "order" is the next step placed: a plain term only once that step is placed
+            if e == BIAS_STEP and order >= len(self.fitter.steps_at):
+                continue
             if e != SESSION_BIAS and order < MAX_ORDER[e] and self.supports_order(e, order + 1):
                 out.append((e, a, order + 1))
         return out
@@ -331,14 +334,15 @@ class ForwardSelection:
                 assert c.fit is not None
                 mask = c.fit.kept(fitter.n)
                 c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
+                placed = fitter.steps_at
                 if c.step_at is not None:
-                    fitter.set_step(c.step_at)  # the held-out fits of the step need its split
+                    fitter.set_steps((*placed, c.step_at))  # the held-out fits of the step need its split
                 c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
                 if c.heldout_rms_g_after < c.heldout_rms_g_before:
                     accepted = c
                     break
                 if c.step_at is not None:
-                    fitter.set_step(None)
+                    fitter.set_steps(placed)
                 c.significant = False
                 c.rejected_because = "held-out rms did not fall"
             if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
@@ -354,39 +358,43 @@ class ForwardSelection:
 
     def step_axes(self, current: Fit) -> list[int]:
         """The axes whose bias step is searched over its positions in a step from ``current``: every candidate axis
-        while no step is in the model (one knock, placed once; its other axes are then plain terms), when the
-        step's coefficient leaves :data:`MIN_DOF` residual degrees of freedom, as the outlier test keeps
-        (:meth:`outliers_testable`: the step is tested on the residuals' noise scale, and a small session's pose
-        scatter would otherwise be named a step; its position is paid for in its p value, not in the test's degrees
-        of freedom)."""
-        if self.fitter.step_at is not None or self.fitter.n - current.n_params - 1 < MIN_DOF:
+        while fewer than :data:`~optcal.applications.diagnosis.effects.MAX_STEPS` steps are in the model (each knock
+        placed once; its other axes are then plain terms), when the step's coefficient leaves :data:`MIN_DOF`
+        residual degrees of freedom, as the outlier test keeps (:meth:`outliers_testable`: the step is tested on the
+        residuals' noise scale, and a small session's pose scatter would otherwise be named a step; its position is
+        paid for in its p value, not in the test's degrees of freedom)."""
+        if len(self.fitter.steps_at) >= MAX_STEPS or self.fitter.n - current.n_params - 1 < MIN_DOF:
             return []
         return [a for e, a in self.candidates if e == BIAS_STEP]
 
     def step_candidates(self, current: Fit, axes: list[int], level: float, bic0: float) -> list[Candidate]:
         """The bias step of each axis at its best position (:func:`~optcal.applications.diagnosis.bias_step.scan_step`),
-        fitted exactly there.
+        fitted exactly there; after a step is placed, the next one at a position of its own (the placed steps'
+        columns are among the fitted ones the scan projects out, their positions not searched again).
 
         Its p value is the exact likelihood-ratio test's (:meth:`Fitter.f_test`) adjusted for the positions searched
         (:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`: minP in a small session, Bonferroni in a large
         one), compared with ``level`` (the step's family-wise level shared among its
         candidates).  Its ΔBIC counts the position as one more parameter (a change point is a fitted unknown).
+        The next step of an axis the earlier steps did not move adds their offsets on it too (its "order" counts
+        the steps placed, :data:`~optcal.applications.diagnosis.effects.MAX_STEPS`).
         """
         fitter = self.fitter
         out: list[Candidate] = []
         null: NullDraws | None = None  # the null model at ``current``, drawn once for every axis (the same draws)
+        order = len(fitter.steps_at) + 1
         for axis in axes:
             scan = scan_step(fitter, current, axis)
             if scan is None:
                 continue
             terms = dict(current.terms)
-            terms[(BIAS_STEP, axis)] = 1
+            terms[(BIAS_STEP, axis)] = order
             cand = fitter.fit(terms, current.outliers, current.x, fitter.step_data(scan.at))
             if null is None and uses_minp_positions(fitter, current):
                 null = null_draws(fitter, current, STEP_DRAWS)
             p, _ = adjusted_p(fitter, current, scan, fitter.f_test(current, cand), null=null)
             delta = fitter.bic(cand) - bic0 + float(np.log(fitter.n))
-            out.append(Candidate(describe_term(BIAS_STEP, axis, 1), BIAS_STEP, AXES[axis], 1, delta, p, level,
+            out.append(Candidate(describe_term(BIAS_STEP, axis, order), BIAS_STEP, AXES[axis], order, delta, p, level,
                                  bool(p < level and delta < 0), step_at=scan.at, fit=cand))
         return out
 
@@ -450,11 +458,12 @@ class ForwardSelection:
         new = frozenset(found.fit.outliers - current.outliers)
         for c in sorted(steps, key=lambda c: c.delta_bic):
             assert c.fit is not None and c.step_at is not None
-            self.fitter.set_step(c.step_at)
+            placed = self.fitter.steps_at
+            self.fitter.set_steps((*placed, c.step_at))
             try:
                 p_values = deleted_residual_p(self.fitter, c.fit, new, c.fit.x)
             finally:
-                self.fitter.set_step(None)
+                self.fitter.set_steps(placed)
             if min(p_values.values()) >= self.alpha_outliers:
                 found.significant = False
                 found.rejected_because = (f"its poses are explained by {c.term} after {c.step_at} poses in time "
