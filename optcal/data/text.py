@@ -530,7 +530,7 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
 
 def release_unused(pool: Any) -> None:
     """Hand the memory ``pool`` holds freed back to the system: the system allocator's by glibc's ``malloc_trim``
-    (every thread's arena; pyarrow's ``release_unused`` of the system pool kept it: 104 against 48 MiB after reading
+    (every thread's arena; pyarrow's ``release_unused`` of the system pool kept it: 104 against 48-62 MiB after reading
     the 2-hour still log), any other pool by its own ``release_unused``."""
     if pool.backend_name == "system":
         trim = _malloc_trim()
