@@ -180,22 +180,24 @@ def block_edges(m: int, block: int, breaks: NDArray[np.int64]) -> tuple[NDArray[
 
 
 def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray[np.float64],
-                   quant_var: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                   quant_var: float, dev: NDArray[np.float64] | None = None
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     mean = np.empty((starts.size, 3))
     var = np.empty((starts.size, 3))
-    dev = np.empty(x.shape[0])  # two buffers for the three columns: no temporary of the data's length per column
-    square = np.empty(x.shape[0])
+    # one buffer of a column's length for the three columns (``dev``, the caller's to share between sensors): the
+    # deviations, then their squares in place; no temporary of the data's length per column
+    dev = np.empty(x.shape[0]) if dev is None else dev
     for j in range(3):
         col = x[:, j]
         centre = median(col[:: max(1, col.size // 1000)])
         np.subtract(col, centre, out=dev)
         s1 = np.add.reduceat(dev, starts)
-        s2 = np.add.reduceat(np.multiply(dev, dev, out=square), starts)
-        mu = s1 / n
-        mean[:, j] = mu + centre
         # the rounding of these sums: a noise-free rest shows this much spread, no less (else its blocks' log
         # variances, at the mercy of rounding, would differ by orders of magnitude)
         largest = max(float(dev.max()), -float(dev.min())) if dev.size else 0.0
+        s2 = np.add.reduceat(np.multiply(dev, dev, out=dev), starts)
+        mu = s1 / n
+        mean[:, j] = mu + centre
         rounding = (ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * largest) ** 2
         var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var + rounding
     return mean, var
@@ -208,10 +210,12 @@ def make_blocks(t: NDArray[np.float64], acc: NDArray[np.float64], gyro: NDArray[
     starts, joined = block_edges(m, block, breaks)
     stops = np.append(starts[1:], m)
     n = (stops - starts).astype(float)
-    mean, var = _block_moments(acc, starts, n, acc_quantum**2 / 12.0)
+    dev = np.empty(m)
+    mean, var = _block_moments(acc, starts, n, acc_quantum**2 / 12.0, dev)
     gmean = gvar = None
     if gyro is not None:
-        gmean, gvar = _block_moments(gyro, starts, n, gyro_quantum**2 / 12.0)
+        gmean, gvar = _block_moments(gyro, starts, n, gyro_quantum**2 / 12.0, dev)
+    del dev
     t_mid = 0.5 * (t[starts] + t[stops - 1])
     return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid, var)
 

@@ -176,7 +176,7 @@ class Segmentation:
         (:func:`optcal.data.static_stretches.decide_gyro_scale`); empty without a gyro.
     pose_statistics : bool
         False when the intervals were only counted (:func:`detect_static` with ``pose_statistics=False``: no
-        means, spreads or standard errors; :meth:`pose_table` refuses them)
+        means, spreads or standard errors, no per-sample curves in ``trace``; :meth:`pose_table` refuses them)
     """
 
     recording: Recording
@@ -316,7 +316,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     settings : StaticSettings, optional
     pose_statistics : bool
         False: the rests found and counted (the same rests), without each pose's mean, spread and standard error
-        (a still log's still fraction: the Allan command's check, a quarter of the time on a 12-hour log).
+        and without the trace's per-sample curves (``norm_g``, ``step``, ``gyro``) (a still log's still fraction:
+        the Allan command's check, a quarter of the time on a 12-hour log).
 
     Returns
     -------
@@ -444,11 +445,12 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
         noise["rest_noise_min"] = float(min(rest_noise))
         noise["rest_noise_median"] = float(np_median(rest_noise))
     limits.update(model.limits())
-    trace.update(model.trace(m))
     trace["static"] = in_pose
     trace["rejected"] = rejected
-    norm = _distance(acc, nominal.offset)
-    trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
+    if pose_statistics:  # the per-sample curves of the plots (three arrays of the samples' length)
+        trace.update(model.trace(m))
+        norm = _distance(acc, nominal.offset)
+        trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
                         len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason, pose_statistics)
 

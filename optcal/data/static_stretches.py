@@ -393,7 +393,7 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     if tolerance is not None and todo.any():
         # each stretch's rate spread by sums over it (one pass over the samples for all stretches)
         # about the stretches' first rates' median (a gyro's bias: a large one would cancel the spread's digits)
-        s1, s2 = _span_sums(gyro - np_column_medians(gyro[a[todo]]), a, z)
+        s1, s2 = _span_sums(gyro, a, z, np_column_medians(gyro[a[todo]]))
         mm = np.maximum(m, 1)[:, None]
         spread = np.sqrt(np.maximum(s2 / mm - (s1 / mm) ** 2, 0.0).sum(axis=1))
         window_s = t[a + np.minimum(window, m) - 1] - t[a]
@@ -463,18 +463,28 @@ def wobbles(gyro: NDArray[np.float64], t: NDArray[np.float64], rad_per_unit: flo
     return out
 
 
-def _span_sums(x: NDArray[np.float64], a: NDArray[np.intp], z: NDArray[np.intp]
+def _span_sums(x: NDArray[np.float64], a: NDArray[np.intp], z: NDArray[np.intp], centre: NDArray[np.float64]
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The sums of ``x`` (n, 3) and of its squares over each span ``[a[i], z[i])`` (spans in order, not overlapping,
-    none empty), by one pass over the samples."""
+    """The sums of ``x − centre`` (n, 3) and of its squares over each span ``[a[i], z[i])`` (spans in order, not
+    overlapping, none empty), by one pass over the samples, column by column through one buffer of a column's length
+    (the same sums as of the (n, 3) differences: on a 12-hour log two temporaries of 100 MB and their page faults
+    were 0.2 s)."""
     edges = np.column_stack([a, z]).ravel()
     if edges.size and edges[-1] == x.shape[0]:
         edges = edges[:-1]  # the last span runs to the end: reduceat's last sum does
     if not (edges.size and bool(np.all(np.diff(edges) >= 0))):
-        s1 = np.array([x[i:j].sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
-        s2 = np.array([np.square(x[i:j]).sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
+        d = x - centre
+        s1 = np.array([d[i:j].sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
+        s2 = np.array([np.square(d[i:j]).sum(axis=0) for i, j in zip(a, z)]).reshape(-1, x.shape[1])
         return s1, s2
-    return np.add.reduceat(x, edges, axis=0)[0::2], np.add.reduceat(np.square(x), edges, axis=0)[0::2]
+    s1 = np.empty((edges.size, x.shape[1]))
+    s2 = np.empty((edges.size, x.shape[1]))
+    buffer = np.empty(x.shape[0])
+    for j in range(x.shape[1]):
+        np.subtract(x[:, j], centre[j], out=buffer)
+        s1[:, j] = np.add.reduceat(buffer, edges)
+        s2[:, j] = np.add.reduceat(np.multiply(buffer, buffer, out=buffer), edges)
+    return s1[0::2], s2[0::2]
 
 
 def _ranks(counts: NDArray[np.intp]) -> NDArray[np.intp]:

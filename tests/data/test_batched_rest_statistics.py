@@ -81,12 +81,14 @@ def test_windowed_half_sample_modes_equal_one_call_per_window(seed):
         assert np.array_equal(got[i], column_half_sample_modes(x[lo[i]:hi[i]]))
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(6))
 def test_grouped_medians_equal_one_call_per_group(seed):
     rng = np.random.default_rng(seed)
     sizes = rng.integers(1, 40, size=60)
-    if seed >= 2:
+    if seed in (2, 3):
         sizes[3] = 2000  # one long group: the sort per column, not the stacked one
+    if seed >= 4:
+        sizes = rng.integers(1, 3000, size=9)  # few long groups (a long log's rests): a partition per group
     x = rng.gamma(2.0, size=(int(sizes.sum()), 3))
     if seed % 2:
         x = np.round(x, 1)
@@ -94,6 +96,7 @@ def test_grouped_medians_equal_one_call_per_group(seed):
     edges = np.r_[0, np.cumsum(sizes)]
     for i in range(sizes.size):
         assert np.array_equal(got[i], column_medians(x[edges[i]:edges[i + 1]]))
+        assert np.array_equal(got[i], np.median(x[edges[i]:edges[i + 1]], axis=0))
 
 
 def test_rests_counted_without_pose_statistics_are_the_same_rests(shared_data):

@@ -121,3 +121,22 @@ def test_a_csv_read_does_not_import_the_container_readers(tmp_path):
     probe = "import sys; from optcal.data import load; p = load(sys.argv[1]); print(p.n, 'optcal.data.containers' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", probe, str(path)], capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["12", "False"]
+def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tmp_path, monkeypatch, counts_recording):
+    """The threaded reader sets pyarrow's default pool to the system allocator for its call only (its own buffers
+    too), also when pyarrow refuses the file, and hands the freed memory back after each column copied out."""
+    import pyarrow as pa
+
+    before = pa.default_memory_pool().backend_name
+    trims: list[int] = []
+    monkeypatch.setattr(text, "_malloc_trim", lambda: trims.append)
+    path = tmp_path / "rec.csv"
+    counts_recording.frame.to_csv(path, index=False, float_format="%.6f")
+    layout = text.sniff_layout(path)
+    block = text.arrow_threaded_block(path, layout)
+    assert block is not None and block.n == len(counts_recording.frame)
+    assert pa.default_memory_pool().backend_name == before
+    assert len(trims) == len(layout.names) + 1  # after each column copied out, and once more at the end
+    bad = tmp_path / "bad.csv"
+    bad.write_text(path.read_text() + "1,2,three\n")
+    assert text.arrow_threaded_block(bad, text.sniff_layout(bad)) is None  # pandas then reads and counts the cell
+    assert pa.default_memory_pool().backend_name == before
