@@ -132,6 +132,8 @@ def _noise_model_departure(m: NDArray[np.float64], T: NDArray[np.float64], o: ND
             f"growing the ellipsoid along a poorly covered axis)")
 
 
+#: The solver's name of a fit that is the convex start kept because no maximum likelihood stayed in the physical set.
+START_SOLVER: str = "the maximum-likelihood refinement's start"
 #: The methods that refine the convex start by maximum likelihood (Lu 2017, eq. 14, from eq. 18-30's fit).
 ML_METHODS: tuple[str, ...] = ("default", "mle")
 
@@ -230,6 +232,6 @@ def refine_ml(poses: PoseTable, form: str, method: str, est: dict[str, Any]) -> 
                     f"{head}; refined instead with the noise in the sensor's units (the residual times the field "
                     f"strength), which stays in the physical set (--method convex keeps the convex start)")
         head += f"; nor with the noise in the sensor's units ({why2})"
-    return SensorUnitsFit(T0, o0, start_method, "the maximum-likelihood refinement's start"), (
+    return SensorUnitsFit(T0, o0, start_method, START_SOLVER), (
         f"{head}; the convex start is kept (--method convex gives it directly; --bound T_..=LOW:HIGH, "
         f"o_..=LOW:HIGH confines the refinement)")
