@@ -129,6 +129,21 @@ def test_refusals_one_line_exit_2(tmp_path, capsys, case, message):
     assert "magnetometer units" in out  # the decisions are printed on the error path too
 
 
+def test_a_planar_turn_is_refused_as_a_planar_turn(tmp_path, capsys):
+    """A field turned about one axis only (a soft iron, 1 % noise): the sphere through the circle is of any size
+    (fitted 3259 µT for 48), which the not-a-field check read as 'not a magnetic field'; it is named a planar turn,
+    with the orientations that fix it and the flag that keeps the fit."""
+    rng = np.random.default_rng(0)
+    u = _sphere(60000, 0)
+    u = u[np.abs(u[:, 2]) < 0.05][:1500]
+    m = u @ (48.0 * SOFT).T + [10.0, -20.0, 5.0] + rng.normal(scale=0.48, size=u.shape)
+    path = _write(tmp_path / "planar.csv", ["mx", "my", "mz"], [m[:, 0], m[:, 1], m[:, 2]])
+    code, out, err = run_args(capsys, "calibrate", path, "--sensor", "mag")
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert code == 2 and len(errors) == 1 and "Traceback" not in err
+    assert "one plane" in errors[0] and "not a magnetic field" not in errors[0] and "--accept-mag-fit" in errors[0]
+
+
 def test_no_mag_columns_names_the_flag(tmp_path):
     path = _write(tmp_path / "acc.csv", ["ax", "ay", "az"], [np.ones(10)] * 3)
     with pytest.raises(InputError, match="--columns mx="):

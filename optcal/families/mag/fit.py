@@ -711,7 +711,19 @@ def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None
 def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64]) -> None:
     if settings.accept_fit:
         return
-    spread = float(np.sqrt(np.max(np.linalg.eigvalsh(np.cov(m.T)))))
+    eig = np.linalg.eigvalsh(np.cov(m.T))
+    spread = float(np.sqrt(np.max(eig)))
+    if spread < NOT_A_FIELD_SPAN * fit.field_strength and eig[0] < PLANAR_SPREAD * np.sum(eig):
+        # a field turned about one axis traces a circle: the raw samples' covariance has no third axis (below the
+        # coverage's planar share), and a sphere through a circle may be of any size, so the fit is no evidence
+        # that the samples are not a field
+        axis = np.linalg.eigh(np.cov(m.T))[1][:, 0]
+        raise IdentifiabilityError(
+            f"the magnetometer samples turn in one plane (their spread across it, along [{', '.join(f'{c:+.2f}' for c in axis)}], "
+            f"is {100 * np.sqrt(eig[0] / np.sum(eig)):.2g} % of their spread): the sphere through them is not determined (fitted "
+            f"field {fit.field_strength:.4g}, {fit.field_strength / spread:.3g} times their spread); add orientations that tilt "
+            f"that axis towards and away from the field (e.g. roll the sensor 90° and turn it again: optcal plan --sensor mag); "
+            f"--accept-mag-fit keeps it")
     if spread < NOT_A_FIELD_SPAN * fit.field_strength:
         raise InputError(f"the samples are not a magnetic field: they spread by {spread:.3g}, {100 * spread / fit.field_strength:.2g} % "
                          f"of the fitted field strength {fit.field_strength:.4g} (a field turned through a calibration spans "
