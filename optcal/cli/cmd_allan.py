@@ -26,6 +26,7 @@ MAX_MISSING_FRACTION: float = 1e-3
 MAX_MISSING_RUN: int = 5
 #: Share of a still log's samples that static detection must find at rest.
 MIN_STILL_FRACTION: float = 0.9
+UNSETTLED = "samples not at rest at the log's start or end (a start-up transient, a touch), cut: --keep-moves keeps them"
 DROPPED = "samples missing from the log (gaps of a few samples, treated as uniformly sampled)"
 
 
@@ -57,16 +58,49 @@ class StillLog:
     gyro_units: str | None = None
     #: The stillness check still running beside the analysis (``read_still_log(..., concurrent=True)``): it
     #: raises the refusal when the log is not still; :meth:`confirm_still` waits for it.
-    still: Future[None] | None = None
+    still: Future[Any] | None = None
+    #: The rest model's segmentation of the log (:func:`optcal.data.static.detect_static`, rests counted only),
+    #: once :meth:`confirm_still` has waited for it.
+    segmentation: Any = None
+    #: The rows of the recording the samples are (``None``: all of them).
+    usable: NDArray[np.bool_] | None = None
+    #: The samples kept by :meth:`trim_unsettled` (``None``: all).
+    cut: tuple[int, int] | None = None
 
-    def confirm_still(self) -> None:
-        """Wait for the stillness check :func:`read_still_log` started; raise its refusal."""
+    def confirm_still(self) -> Any:
+        """Wait for the stillness check :func:`read_still_log` started; raise its refusal; return the segmentation."""
         from optcal.core.progress import stage
 
         if self.still is not None:
             still, self.still = self.still, None
             with stage("finding the samples at rest"):  # a few seconds on a 12-hour log: a bar says so
-                still.result()
+                self.segmentation = still.result()
+        return self.segmentation
+
+    def trim_unsettled(self) -> int:
+        """Cut the samples not at rest at the log's start and end (a start-up transient, a hand leaving or
+        reaching for the sensor): the series stays uninterrupted, so they need not enter it.  They are counted
+        in :attr:`exclusions`; returns how many (0: nothing cut).  A log with no sample at rest is left alone."""
+        rest = self.at_rest()
+        kept = np.flatnonzero(rest)
+        if kept.size == 0 or (kept[0] == 0 and kept[-1] == rest.size - 1):
+            return 0
+        first, last = int(kept[0]), int(kept[-1]) + 1
+        cut = rest.size - (last - first)
+        same = self.gyro is self.samples
+        self.samples = self.samples[first:last]
+        if self.gyro is not None:
+            self.gyro = self.samples if same else self.gyro[first:last]
+        self.cut = (first, last)
+        self.exclusions[UNSETTLED] = cut
+        return cut
+
+    def at_rest(self) -> NDArray[np.bool_]:
+        """Which of :attr:`samples` the rest model finds at rest (after :meth:`confirm_still`)."""
+        seg = self.confirm_still()
+        static = np.asarray(seg.trace["static"], dtype=bool)
+        static = static if self.usable is None else static[self.usable]
+        return static if self.cut is None else static[self.cut[0]:self.cut[1]]
 
 
 def static_log(
@@ -192,7 +226,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
             )
         if total:
             exclusions[DROPPED] = total
-    def still_check() -> None:
+    def still_check() -> Any:
         seg = detect_static(rec, pose_statistics=False)  # the still fraction only: no pose statistics
         still = seg.n_used / max(1, samples.shape[0])
         if still < MIN_STILL_FRACTION:
@@ -202,6 +236,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
                 "does not move"
                 + ("" if window is not None else " (--window START:END analyses the still part of a longer recording)")
             )
+        return seg
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-still")
     still = pool.submit(still_check)
@@ -212,9 +247,114 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     else:
         log = StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro,
                        rec.gyro_units, still=still)
+    log.usable = None if every else rec.usable
     if not concurrent:
         log.confirm_still()
     return log
+
+
+#: A MEMS gyro's white rate noise density, °/s/√Hz: from about 0.003 (ICM-42688-P 0.0028, BMI270 0.007, MPU-6050
+#: 0.005) to about 0.05 (L3GD20 0.03, consumer parts' worst); the same sensors in rad/s read 5e-5 to 9e-4.  The
+#: number measured on a still log's samples says the unit where the two ranges do not meet: above their geometric
+#: gap's middle (9e-4 · 0.003)^½ ≈ 1.6e-3 it is °/s.  (A tactical or fibre-optic gyro, 100 times quieter, is not
+#: a MEMS part: its unit must be stated, --gyro-units.)
+DEG_S_MIN_NOISE_DENSITY: float = float(np.sqrt(9e-4 * 0.003))
+
+
+def still_gyro_units(gyro: NDArray[np.float64], rate_hz: float) -> Any:
+    """The unit of a still log's gyro samples that no name states, from their white noise density.
+
+    A still log has no moves, so the rate that moves reach (:func:`optcal.data.units.decide_gyro_units`' rule)
+    says nothing; its noise does: the median over the axes of the first differences' spread over √2 (a bias and
+    its slow drift cancel in a difference), over √f_s, against :data:`DEG_S_MIN_NOISE_DENSITY`.
+    """
+    from optcal.data.units import GyroUnitsDecision
+
+    sigma = float(np.median(np.std(np.diff(gyro, axis=0), axis=0))) / np.sqrt(2.0)
+    density = sigma / np.sqrt(rate_hz)
+    unit = "deg/s" if density > DEG_S_MIN_NOISE_DENSITY else "rad/s"
+    return GyroUnitsDecision(unit, f"{unit} from the still log's noise density {density:.2g} per √Hz (a MEMS gyro's "
+                                   f"is 0.003-0.05 in °/s, 5e-5-9e-4 in rad/s; {DEG_S_MIN_NOISE_DENSITY:.2g} between): "
+                                   "--gyro-units to override")
+
+
+def _longest_rest(seg: Any) -> str:
+    """``--window START:END`` of the longest run of samples the rest model finds at rest."""
+    from optcal.data.static_stretches import true_runs
+
+    a, b = true_runs(np.asarray(seg.trace["static"], dtype=bool))
+    if not a.size:
+        return "--window START:END analyses a still part"
+    k = int(np.argmax(b - a))
+    t = seg.recording.t
+    return f"--window {t[a[k]]:.6g}:{t[b[k] - 1]:.6g} analyses its longest still stretch"
+
+
+def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_moves: bool) -> list[str]:
+    """Refuse a still log whose moves are relevant to its Allan deviation; the lines that say what was found.
+
+    Two things a still log's rests can hide: a turn between two rests (gravity's direction in the sensor differs by
+    more than :data:`~optcal.data.static_stretches.MIN_MOVE_TURN_RAD`, the rest model's least move: the log holds two
+    orientations, and its Allan deviation the step between them), and the samples between or inside the rests that
+    are not at rest (a knock, a turn and back), which enter the series and are bounded by
+    :func:`optcal.families.noise.disturbance.disturbance_change` against each curve's own uncertainty.  ``keep_moves``
+    (``--keep-moves``) analyses the log anyway, said so.
+    """
+    from optcal.data.static_stretches import MIN_MOVE_TURN_RAD
+    from optcal.errors import InputError
+    from optcal.families.noise.disturbance import PLACEBOS, RELEVANT_SHARE, disturbance_change
+
+    seg = log.confirm_still()
+    lines: list[str] = []
+    override = " (--keep-moves analyses it anyway)"
+    rec, static = seg.recording, np.asarray(seg.trace["static"], dtype=bool)
+    if len(seg.intervals) > 1:
+        means = np.array([rec.acc[iv.start:iv.stop][static[iv.start:iv.stop]].mean(axis=0) for iv in seg.intervals])
+        u = means / np.linalg.norm(means, axis=1, keepdims=True)
+        ref = max(range(len(seg.intervals)), key=lambda k: seg.intervals[k].n_samples)
+        angles = np.degrees(np.arccos(np.clip(u @ u[ref], -1.0, 1.0)))
+        k = int(np.argmax(angles))
+        turned = (f"gravity's direction differs by {angles[k]:.3g}° between the rests at t = "
+                  f"{seg.intervals[ref].t_start:.6g}-{seg.intervals[ref].t_end:.6g} s and "
+                  f"{seg.intervals[k].t_start:.6g}-{seg.intervals[k].t_end:.6g} s")
+        if angles[k] > np.degrees(MIN_MOVE_TURN_RAD):
+            if not keep_moves:
+                raise InputError(f"{data}: the log holds more than one orientation: {turned} (a turn: more than "
+                                 f"{np.degrees(MIN_MOVE_TURN_RAD):g}°), so its Allan deviation would measure the step "
+                                 f"between them; {_longest_rest(seg)}{override}")
+            lines.append(f"kept with --keep-moves: {turned}")
+        elif angles[k] > 0:
+            lines.append(f"rests: {len(seg.intervals)}; {turned} (a tilt or a bias step, below a "
+                         f"{np.degrees(MIN_MOVE_TURN_RAD):g}° turn): in the series")
+    at_rest = log.at_rest()
+    moving = int(np.count_nonzero(~at_rest))
+    if not moving:
+        return lines
+    worst: tuple[bool, float, str] = (False, -1.0, "")
+    for name, analysis in analyses.items():
+        x = log.gyro if name == "gyro" and log.gyro is not None else log.samples
+        axes = list(analysis.curves)
+        b = disturbance_change(x, at_rest, log.rate_hz, [analysis.curves[a] for a in axes])
+        if (b.relevant, b.ratio) > worst[:2]:
+            what = "gyro" if name == "gyro" else "acc"
+            worst = (b.relevant, b.ratio, f"{what} {axes[b.axis]} at τ = {b.tau:.3g} s by {b.change:.3g} "
+                     f"{analysis.units}, {b.ratio:.2g} of its uncertainty (σ {b.adev:.3g}, half-interval "
+                     f"{b.half_width:.3g})")
+    relevant, ratio = worst[0], worst[1]
+    found = (f"{moving} sample(s) not at rest ({100 * moving / at_rest.size:.2g} % of the log) move the Allan "
+             f"deviation of {worst[2]}")
+    if relevant:
+        if not keep_moves:
+            raise InputError(f"{data}: the log moves: {found}, above {RELEVANT_SHARE:g} of it and above what "
+                             f"replacing as many samples at rest does at {PLACEBOS} random places; "
+                             f"{_longest_rest(seg)}{override}")
+        lines.append(f"kept with --keep-moves: {found}")
+    elif ratio > RELEVANT_SHARE:
+        lines.append(f"not at rest: {found}, no more than replacing as many samples at rest by others does "
+                     f"({PLACEBOS} random places): the noise's own, kept")
+    else:
+        lines.append(f"not at rest: {found}: within {RELEVANT_SHARE:g} of it, kept")
+    return lines
 
 
 @click.command()
@@ -237,6 +377,9 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
 @click.option("--window", default=None, metavar="START:END",
               help="Analyse only the samples with START <= t <= END (s): the still part of a longer recording "
                    "(e.g. :50 for the first 50 s).")
+@click.option("--keep-moves", is_flag=True, default=False,
+              help="Analyse a log whose moves are relevant to its Allan deviation (a turn between rests, samples not "
+                   "at rest that move σ(τ) by more than its one-sigma uncertainty) instead of refusing it.")
 @read_options
 @click.option("--max-tau", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
               help="Largest averaging time τ (default: the largest octave τ leaving 9 clusters).")
@@ -252,6 +395,7 @@ def allan(
     calibration_path: str | None,
     window: str | None,
     max_tau: float | None,
+    keep_moves: bool,
     **reading: Any,
 ) -> None:
     """Allan deviation of a static log: velocity random walk, bias instability, rate random walk.
@@ -281,32 +425,43 @@ def allan(
     # the stillness check runs beside the analysis (two cores: about a second less on a 12-hour log) and is
     # waited for before anything is printed or drawn: a log that is not still is refused as before
     log = read_still_log(data, sensor=sensor, window=span, concurrent=True, **reading_kwargs(reading))
-    analyses = {}
     reasons: dict[str, str] = {}
-    try:
+
+    def analyse() -> dict[str, Any]:
+        nonlocal counts_per_g, counts_per_rad_s
+        out: dict[str, Any] = {}
         if sensor in ("acc", "both"):
             acc = log.samples
             if calibration_path is not None:
                 counts_per_g = scale_for(scales, "acc", ACCELEROMETER.canonical_units(log.units), calibration_path)
-                if counts_per_g is not None:
+                if counts_per_g is not None and not any(line.startswith("acc") for line in scale_lines):
                     scale_lines.append(scales["acc"].describe(calibration_path))
             ACCELEROMETER.si_per_unit(log.units, counts_per_g)  # fail early on counts without a scale
-            analyses["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
+            out["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
             reasons["acc"] = log.units_reason
         if sensor in ("gyro", "both"):
             gyro = log.samples if sensor == "gyro" else log.gyro
             assert gyro is not None  # read_still_log refuses a log without gyro columns
             decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None)
+            if gyro_units is None and not log.gyro_units and decision.units != "counts":
+                decision = still_gyro_units(gyro, log.rate_hz)  # the peak-rate rule measures moves: a still log has none
             if calibration_path is not None:
                 counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
-                if counts_per_rad_s is not None:
+                if counts_per_rad_s is not None and not any(line.startswith("gyro") for line in scale_lines):
                     scale_lines.append(scales["gyro"].describe(calibration_path))
-            analyses["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
+            out["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
             reasons["gyro"] = decision.reason
+        return out
+
+    try:
+        analyses = analyse()
     except Exception:  # the log's refusal comes first, as when the check ran before the analysis
         log.confirm_still()
         raise
     log.confirm_still()
+    if not keep_moves and log.trim_unsettled():  # a start-up transient or a last touch: the series without it
+        analyses = analyse()
+    disturbances = check_disturbances(log, analyses, data, keep_moves)
     figures = []
     if plot_path is not None:
         for name, analysis in analyses.items():
@@ -323,6 +478,7 @@ def allan(
             out["log"].update({"path": data, "units_reason": reasons[name], "exclusions": log.exclusions,
                                **({"window_s": list(span or ())} if window else {}),
                                **({"scales": scale_lines} if scale_lines else {}),
+                               **({"disturbances": disturbances} if disturbances else {}),
                                **({"decisions": log.decisions.to_dict()} if log.decisions is not None else {})})
             summaries[name] = out
         if sensor == "both":
@@ -343,6 +499,8 @@ def allan(
         click.echo(line)
     if log.exclusions:
         click.echo("excluded: " + "; ".join(f"{k}: {v}" for k, v in log.exclusions.items()))
+    for line in disturbances:
+        click.echo(line)
     for name, analysis in analyses.items():
         if len(analyses) > 1:
             click.echo("accelerometer:" if name == "acc" else "gyroscope:")

@@ -1,0 +1,130 @@
+"""A still log's moves against its Allan deviation (``optcal allan``): a turn between rests and samples not at rest
+that move σ(τ) beyond its uncertainty are refused with the --window that analyses the still part and the flag
+that keeps them; a start-up transient is cut and counted; a stretch the rest model flags that is the noise's own is
+kept; a still log's gyro unit from its noise density.  Generated logs: a 5-minute still IMU at 100 Hz (MPU-6050
+noise: 2 mg, 0.05 °/s per sample), gravity along z."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optcal.cli.main import main
+from optcal.families.noise.disturbance import PLACEBOS, RELEVANT_SHARE, patched
+
+RATE = 100.0
+
+
+def still_log(path: Path, kind: str, gyro_deg: bool = True, seed: int = 1) -> Path:
+    """A still log with ``kind``: "still", "turn" (90° about y at 150 s, kept), "turnback" (90° and back over 2 s),
+    "transient" (the first 0.3 s ringing at 0.2 g, as a sensor's first samples after power-up)."""
+    rng = np.random.default_rng(seed)
+    n = int(300 * RATE)
+    t = np.arange(n) / RATE
+    ang = np.zeros(n)
+    w = np.zeros(n)
+    if kind in ("turn", "turnback"):
+        i0 = int(150 * RATE)
+        if kind == "turn":
+            ang[i0:i0 + 200] = np.linspace(0, np.pi / 2, 200)
+            ang[i0 + 200:] = np.pi / 2
+        else:
+            ang[i0:i0 + 200] = np.pi / 2 * np.sin(np.linspace(0, np.pi, 200))
+        w = np.gradient(ang) * RATE
+    acc = np.column_stack([np.sin(ang), np.zeros(n), np.cos(ang)]) + rng.normal(0, 0.002, (n, 3)) + [0.01, -0.02, 0.015]
+    if kind == "transient":
+        acc[:30] += 0.2 * rng.normal(size=(30, 3))
+    gyro = np.column_stack([np.zeros(n), w, np.zeros(n)]) + rng.normal(0, np.radians(0.05), (n, 3)) + 0.005
+    if gyro_deg:
+        gyro = np.degrees(gyro)
+    p = path / f"{kind}_{'deg' if gyro_deg else 'rad'}.csv"
+    np.savetxt(p, np.column_stack([t, acc, gyro]), delimiter=",", header="t,ax,ay,az,gx,gy,gz", comments="", fmt="%.7f")
+    return p
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("moves")
+    return {k: still_log(d, k) for k in ("still", "turn", "turnback", "transient")}
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    code = main(["allan", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_a_turn_between_two_rests_is_refused_naming_the_window_and_the_flag(logs, capsys) -> None:
+    code, _, err = run(capsys, str(logs["turn"]), "--units", "g")
+    assert code == 2
+    assert "more than one orientation" in err and "--window 0:149.99" in err and "--keep-moves" in err
+    assert len(err.strip().splitlines()[-1]) > 0 and "Traceback" not in err
+    code, out, _ = run(capsys, str(logs["turn"]), "--units", "g", "--keep-moves")
+    assert code == 0 and "kept with --keep-moves" in out
+
+
+def test_a_turn_and_back_inside_one_rest_is_refused_and_its_still_part_read(logs, capsys) -> None:
+    code, _, err = run(capsys, str(logs["turnback"]), "--units", "g")
+    assert code == 2 and "the log moves" in err and "--window 0:149.99" in err
+    code, out, _ = run(capsys, str(logs["turnback"]), "--units", "g", "--window", "0:149.99")
+    assert code == 0 and "not at rest" not in out
+
+
+def test_a_still_log_says_nothing_and_a_start_up_transient_is_cut_and_counted(logs, capsys) -> None:
+    code, out, _ = run(capsys, str(logs["still"]), "--units", "g", "--json")
+    assert code == 0
+    assert "disturbances" not in json.loads(out)["log"]
+    code, out, _ = run(capsys, str(logs["transient"]), "--units", "g", "--json")
+    assert code == 0
+    result = json.loads(out)
+    cut = [v for k, v in result["log"]["exclusions"].items() if "start-up transient" in k]
+    assert cut and 30 <= cut[0] <= 100  # the ringing samples and the rest model's block around them
+    assert result["n_samples"] == int(300 * RATE) - cut[0] if "n_samples" in result else True
+
+
+def test_samples_flagged_that_are_the_noises_own_are_kept_by_the_placebo_null() -> None:
+    """Patching samples at rest (a rest model's false alarm, no disturbance) moves σ(τ) at long τ beyond the share
+    of its interval by itself; the placebo null (19 draws: a one-sided 5 % level) keeps it in about 19 of 20 logs,
+    while a step of 20 noise σ over 1 s is refused in every one."""
+    from optcal.families.noise.allan import allan_deviation
+    from optcal.families.noise.disturbance import disturbance_change
+
+    beyond_share = refused = 0
+    for seed in range(10):
+        x = np.random.default_rng(seed).normal(0, 1.0, 6000)
+        flagged = np.ones(6000, dtype=bool)
+        flagged[3000:3100] = False
+        quiet = disturbance_change(x[:, None], flagged, RATE, [allan_deviation(x, RATE)])
+        beyond_share += quiet.ratio > RELEVANT_SHARE
+        refused += quiet.relevant
+        bumped = x.copy()
+        bumped[3000:3100] += 20.0
+        loud = disturbance_change(bumped[:, None], flagged, RATE, [allan_deviation(bumped, RATE)])
+        assert loud.relevant and loud.placebo_ratios.size == PLACEBOS and loud.ratio > loud.placebo_ratios.max()
+    assert refused <= 2  # binomial(10, 0.05): 3 or more has probability 1.2 %
+    assert beyond_share >= 1  # the share alone would have refused noise (measured: 1 of these 10)
+
+
+def test_patched_replaces_only_the_stretches_with_rest_at_the_local_level() -> None:
+    x = np.arange(100, dtype=float) * 0.0 + 5.0
+    x[40:50] = 50.0
+    at_rest = np.ones(100, dtype=bool)
+    at_rest[40:50] = False
+    c = patched(x, at_rest, RATE)
+    assert np.allclose(c[40:50], 5.0) and np.array_equal(c[:40], x[:40]) and np.array_equal(c[50:], x[50:])
+
+
+@pytest.mark.parametrize(("deg", "unit"), [(True, "deg/s"), (False, "rad/s")])
+def test_a_still_logs_gyro_unit_from_its_noise_density(tmp_path, capsys, deg: bool, unit: str) -> None:
+    """An MPU-6050's 0.05 °/s per sample at 100 Hz is 0.005 °/s/√Hz: read as °/s when written in °/s, as rad/s
+    when written in rad/s (the moves' peak-rate rule read both as rad/s: a still log has no moves)."""
+    p = still_log(tmp_path, "still", gyro_deg=deg)
+    code, out, _ = run(capsys, str(p), "--units", "g", "--sensor", "gyro", "--json")
+    assert code == 0
+    result = json.loads(out)
+    assert result["log"]["units_reason"].startswith(f"{unit} from the still log's noise density")
+    # the noise density in SI is the same whichever unit the file is written in: 0.05 °/s / √100 Hz
+    assert result["kalibr"]["gyroscope_noise_density"] == pytest.approx(np.radians(0.05) / np.sqrt(RATE), rel=0.1)
