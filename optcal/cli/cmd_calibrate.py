@@ -105,6 +105,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
     settings: dict = {"allow_degenerate": allow_degenerate}
     if method in ("default", "mle"):
         settings["loss"] = loss
+        settings["keep_physical"] = True  # the refinement only inside the accelerometer's physical set (families/accel/physical.py)
         if scale_range:
             settings["scale_range"] = tuple(scale_range)
     elif loss != "squared" or scale_range:

@@ -44,7 +44,8 @@ from optcal.core.model import unpack_theta, theta_from
 from optcal.core.norm_residual import NormResidualKernel, NormResidualPoint, casadi_norm_residual, norm_residuals
 from optcal.core.poses import PoseTable
 from optcal.solvers.cache import ProblemCache, problem_cache
-from optcal.solvers.convergence import Remedy, plugin_iterations, solver_record
+from optcal.core.fit_result import SolverInfo
+from optcal.solvers.convergence import SOLVER_FAILURES, Remedy, plugin_iterations, solver_record
 from optcal.solvers.nlp import SCALED_COST_IPOPT_OPTIONS, CallbackNLP, NumpyObjective, cost_scale, nlp_solver
 from optcal.solvers.registry import SolverChoice, choose_conic_solver, choose_nlp_solver, takes_callbacks
 from optcal.families.accel.result import CalibrationResult
@@ -480,6 +481,12 @@ class MaximumLikelihood:
     conic_solver : str, optional
         The cvxpy solver of the convex start when its semidefinite constraint is active
         (:class:`~optcal.families.accel.ellipsoid.ConvexEllipsoidFit`'s ``solver``).
+    keep_physical : bool
+        Keep the refinement only inside the accelerometer's physical set around its start
+        (:func:`optcal.families.accel.physical.physical_departure`); outside it the start is returned, with a note
+        and ``extra["physical_set"]`` saying why.  Off when the user fixes or bounds a parameter or gives
+        ``scale_range`` (the user's constraints are the set then).  Off by default: the magnetometer's refinement
+        (:mod:`optcal.families.mag.refine`) judges the unguarded fit by its own set.
     """
 
     name = "mle"
@@ -500,6 +507,7 @@ class MaximumLikelihood:
         solver_options: dict[str, Any] | None = None,
         fix: dict[str, float] | None = None,
         conic_solver: str | None = None,
+        keep_physical: bool = False,
     ) -> None:
         if loss not in LOSSES:
             raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
@@ -517,6 +525,7 @@ class MaximumLikelihood:
         self.ipopt_options = dict(ipopt_options or {})
         self.constraints = ParameterConstraints.of(fix, bounds)
         self.conic_solver = None if conic_solver is None else choose_conic_solver(conic_solver)
+        self.keep_physical = bool(keep_physical)
         self.choice = choose_nlp_solver(solver, {**self.ipopt_options, **dict(solver_options or {})},
                                         constraints=bool(self.constraints.physical),
                                         problem="the maximum-likelihood fit with constrained physical parameters")
@@ -655,8 +664,12 @@ class MaximumLikelihood:
         solver = solver_record(stats, total_time, self.choice.label,
                                f"CasADi nlpsol {self.choice.plugin} ({form}), {self.loss} loss, {passes} pass(es)",
                                iterations=total_iter)
+        method = self.name
+        if self.keep_physical and not constraints and self.scale_range is None:
+            theta, method, solver = self._kept_physical(theta, norm.theta_to_raw(setup.theta_n), init_method, solver,
+                                                        notes, extra)
         return finish(
-            method=self.name,
+            method=method,
             poses=poses,
             theta=theta,
             solver=solver,
@@ -667,4 +680,28 @@ class MaximumLikelihood:
             remedy=IPOPT_REMEDY if self.choice.name == "ipopt" else SOLVER_REMEDY,
             constraints=constraints if constraints else None,
         )
+
+    def _kept_physical(self, theta: NDArray, start: NDArray, init_method: str, solver: SolverInfo, notes: list[str],
+                       extra: dict[str, Any]) -> tuple[NDArray, str, SolverInfo]:
+        """θ, method and solver record to report: the refinement's where it stays in the physical set
+        (:func:`optcal.families.accel.physical.physical_departure`), else the start's, with the note and
+        ``extra["physical_set"]`` (appended to ``notes``, set in ``extra``) that say why.  A failed or non-finite
+        solve is left to :func:`optcal.families.accel.base.finish` (it raises as before)."""
+        from optcal.families.accel.physical import physical_departure
+
+        if solver.status in SOLVER_FAILURES or not np.all(np.isfinite(theta)):
+            return theta, self.name, solver
+        departure = physical_departure(theta, start)
+        if departure is None:
+            return theta, self.name, solver
+        extra["physical_set"] = {**departure.to_dict(), "kept": init_method, "refinement_status": solver.status}
+        notes.append(
+            f"MAXIMUM LIKELIHOOD NOT KEPT: the refinement left the physical set ({departure.reason}; IPOPT ended "
+            f"{solver.status!r}): the likelihood fell by growing the ellipsoid along a direction the poses do not "
+            f"cover, so the {init_method} start is kept (--method {init_method} gives it directly; --bound "
+            f"NAME=LOW:HIGH or --scale-range LOW HIGH sets the set yourself and keeps the refinement inside it)")
+        kept = SolverInfo(f"the {init_method} start (the refinement left the physical set)", "start kept", True, 0,
+                          solver.solve_time_s, f"refinement: {solver.name} {solver.status}, {solver.iterations} "
+                          f"iterations; {solver.message}")
+        return start, init_method, kept
 

@@ -201,6 +201,8 @@ class CalibrationResult(FitResult):
                 "notes": self.notes,
             }
         )
+        if "physical_set" in self.extra:  # the maximum likelihood left the physical set: the start is kept
+            out["physical_set"] = jsonable(self.extra["physical_set"])
         out["units"].update(calibration["units"])
         merged = {**calibration, **out}  # cal_type and format_version first
         merged.update({k: v for k, v in calibration.items() if k != "units"})
