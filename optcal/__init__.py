@@ -125,6 +125,8 @@ def calibrate(
         allow_degenerate=allow_degenerate, loss=loss, scale_range=scale_range, weighting=weighting, solver=solver,
         solver_options=solver_options, conic_solver=conic_solver, fix=fix, bounds=bounds).items() if v is not None}
     given.update(settings)
+    if method in ("default", "mle"):  # as `optcal calibrate`: the refinement kept only inside the physical set
+        given.setdefault("keep_physical", True)
     estimator = estimator_class(method)  # an unknown method is an InputError naming the methods
     valid = [name for name in inspect.signature(estimator).parameters if name != "self"]
     unknown = sorted(set(given) - set(valid))

@@ -122,3 +122,17 @@ def test_planted_in_a_real_pose_table(shared_data):
         else:
             assert kept.method == "mle"
             np.testing.assert_array_equal(kept.params, loose.params)
+
+
+def test_the_python_front_door_keeps_the_start_as_the_command_does():
+    """``optcal.calibrate`` (default method) guards the refinement as ``optcal calibrate`` does: the same start kept."""
+    import optcal
+
+    acc = cap_poses(45, 24, 0.005, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        api = optcal.calibrate(PoseTable(acc=acc, units="g"), allow_degenerate=True)
+        plain = optcal.calibrate(PoseTable(acc=acc, units="g"), allow_degenerate=True, keep_physical=False)
+    convex = calibrate(PoseTable(acc=acc, units="g"), method="convex", allow_degenerate=True)
+    assert "physical_set" in api.extra and "physical_set" not in plain.extra
+    np.testing.assert_allclose(api.params[:9], convex.params[:9], rtol=1e-6, atol=1e-9)
