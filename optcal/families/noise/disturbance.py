@@ -79,9 +79,12 @@ def _stretches(at_rest: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np
     return edges[0::2], edges[1::2]
 
 
-def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
-            spans: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None) -> NDArray[np.float64]:
-    """``x`` (n,) with each stretch not at rest replaced as the module docstring says.
+def patch_values(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
+                 spans: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
+                 moved: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
+                 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """The samples of ``x`` (n,) that the replacement of the module docstring changes and what it adds to each:
+    ``(positions, d)`` sorted, ``x[positions] + d`` the replaced values.
 
     Parameters
     ----------
@@ -90,40 +93,88 @@ def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
     rate_hz : float
     spans : (starts, ends), optional
         The stretches replaced (default: those not at rest; a placebo's are at rest).
+    moved : (starts, ends), optional
+        The stretches not at rest, when the caller has them.
     """
     n = x.size
-    c = np.array(x, dtype=float)
+    none = (np.empty(0, dtype=np.intp), np.empty(0))
     if not at_rest.any():
-        return c
-    a, b = _stretches(at_rest) if spans is None else spans
+        return none
+    a, b = (moved if moved is not None else _stretches(at_rest)) if spans is None else spans
     if not a.size:
-        return c
-    at_rest = at_rest.copy()
-    for i, j in zip(a.tolist(), b.tolist()):
-        at_rest[i:j] = False  # a placebo's span is not its own reference
+        return none
+    if spans is not None:
+        at_rest = at_rest.copy()
+        for i, j in zip(a.tolist(), b.tolist()):
+            at_rest[i:j] = False  # a placebo's span is not its own reference
     w = np.maximum(b - a, int(np.ceil(REFERENCE_S * rate_hz)))
-    cs = np.concatenate([[0.0], np.cumsum(np.where(at_rest, x, 0.0))])
-    cn = np.concatenate([[0], np.cumsum(at_rest)])
     lo, hi = np.maximum(a - w, 0), np.minimum(b + w, n)
-    count = cn[hi] - cn[lo]  # the stretch itself adds nothing: none of its samples is at rest
-    level = np.where(count == 0, float(np.mean(x[at_rest])), (cs[hi] - cs[lo]) / np.maximum(count, 1))
-    for i, j, r in zip(a.tolist(), b.tolist(), level.tolist()):
+    level = np.empty(a.size)
+    for k, (i, j) in enumerate(zip(lo.tolist(), hi.tolist())):  # the stretch itself adds nothing: not at rest
+        near = at_rest[i:j]
+        level[k] = float(np.mean(x[i:j][near])) if near.any() else float("nan")
+    level[np.isnan(level)] = float(np.mean(x[at_rest]))
+    order = np.argsort(a)
+    positions, added = [], []
+    for i, j, r in zip(a[order].tolist(), b[order].tolist(), level[order].tolist()):
         k = j - i
+        new = np.full(k, r)  # no rest of that length beside it: its level (without noise; said by a larger change)
         for s0 in (i - k, j):  # the rest just before, else just after, of the stretch's length
             if s0 >= 0 and s0 + k <= n and bool(at_rest[s0:s0 + k].all()):
                 src = x[s0:s0 + k]
-                c[i:j] = src - np.mean(src) + r
+                new = src - np.mean(src) + r
                 break
-        else:  # no rest of that length beside it: its level (without noise; said by a larger change)
-            c[i:j] = r
+        positions.append(np.arange(i, j))
+        added.append(new - x[i:j])
+    return np.concatenate(positions), np.concatenate(added)
+
+
+def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
+            spans: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None) -> NDArray[np.float64]:
+    """``x`` (n,) with each stretch replaced as the module docstring says (:func:`patch_values`; a copy)."""
+    c = np.array(x, dtype=float)
+    positions, added = patch_values(c, at_rest, rate_hz, spans)
+    c[positions] += added
     return c
 
 
-def _ratios(series: NDArray[np.float64], rate_hz: float, ms: NDArray[np.intp], adev: NDArray[np.float64],
-            half: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``|σ(τ) − adev| / half`` of one axis's ``series`` at the cluster lengths ``ms``."""
-    value, _ = overlapping_adev(phase_from_rate(series, rate_hz), rate_hz, ms)
-    return np.asarray(np.abs(value - adev) / half)
+def _ratios(phase_x: NDArray[np.float64], prefix: NDArray[np.float64],
+            change: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float, ms: NDArray[np.intp],
+            adev: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``|σ_patched(τ) − adev| / half`` at the cluster lengths ``ms``, the series patched by ``change`` (positions,
+    added values: :func:`patch_values`), without a copy of the log.
+
+    The patch adds to the phase a step function ``R`` (phase index ``t`` sums the samples before ``t``; the mean each
+    phase removes adds a straight line, which a second difference cancels), so each second difference
+    ``D(u) = x_{u+2m} − 2 x_{u+m} + x_u`` (Riley, NIST SP 1065, eq. 11) gains ``ΔD(u) = R(u+2m) − 2R(u+m) + R(u)``,
+    constant between the changed samples' places shifted by 0, m and 2m and zero away from them.  On each such piece
+    ``Σ (D + ΔD)² − Σ D² = 2 ΔD Σ D + ΔD² · length``, and ``Σ D`` over a piece is three differences of ``prefix``
+    (the running sum of the phase): the cost is the changed samples', not the log's."""
+    positions, added = change
+    steps = positions + 1  # R steps up at phase index p + 1
+    running = np.concatenate([[0.0], np.cumsum(added) / rate_hz])
+
+    def r(t: NDArray[np.intp]) -> NDArray[np.float64]:
+        return running[np.searchsorted(steps, t, side="right")]
+
+    def span_sum(p: NDArray[np.intp], q: NDArray[np.intp], m: int) -> NDArray[np.float64]:
+        """Σ D(u) for u in [p, q)."""
+        return ((prefix[q + 2 * m] - prefix[p + 2 * m]) - 2.0 * (prefix[q + m] - prefix[p + m])
+                + (prefix[q] - prefix[p]))
+
+    n_phase = phase_x.size
+    out = np.empty(ms.size)
+    for k, m in enumerate(ms.tolist()):
+        n = n_phase - 2 * m
+        total = (adev[k] * m / rate_hz) ** 2 * 2.0 * n  # the log's sum (overlapping_adev's σ inverted)
+        cuts = np.unique(np.clip(np.concatenate([steps - 2 * m, steps - m, steps, [0, n]]), 0, n))
+        p, q = cuts[:-1], cuts[1:]
+        delta = r(p + 2 * m) - 2.0 * r(p + m) + r(p)
+        live = delta != 0.0
+        p, q, delta = p[live], q[live], delta[live]
+        total += float(np.sum(2.0 * delta * span_sum(p, q, m) + delta * delta * (q - p)))
+        out[k] = abs(np.sqrt(max(total, 0.0) / (2.0 * n)) / m * rate_hz - adev[k]) / half[k]
+    return out
 
 
 def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
@@ -143,24 +194,34 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
     x = np.asarray(x, dtype=float).reshape(at_rest.size, -1)
     ms = [np.rint(c.taus * rate_hz).astype(np.intp) for c in curves]
     half = [np.maximum((c.ci_high - c.ci_low) / 2.0, np.finfo(float).tiny) for c in curves]
-    ratios = [_ratios(patched(x[:, j], at_rest, rate_hz), rate_hz, ms[j], c.adev, half[j]) for j, c in enumerate(curves)]
-    j = int(np.argmax([r.max() for r in ratios]))
-    i = int(np.argmax(ratios[j]))
+    moved = _stretches(at_rest)
+
+    def ratios(j: int, spans_list: list[tuple[NDArray[np.intp], NDArray[np.intp]]]) -> list[NDArray[np.float64]]:
+        """The ratios on axis j of each set of spans patched (one phase of the axis at a time)."""
+        column = np.ascontiguousarray(x[:, j])
+        phase = phase_from_rate(column, rate_hz)
+        prefix = np.concatenate([[0.0], np.cumsum(phase)])
+        return [_ratios(phase, prefix, patch_values(column, at_rest, rate_hz, None if spans is moved else spans, moved),
+                        rate_hz, ms[j], curves[j].adev, half[j]) for spans in spans_list]
+
+    real = [ratios(j, [moved])[0] for j in range(len(curves))]
+    j = int(np.argmax([r.max() for r in real]))
+    i = int(np.argmax(real[j]))
     c = curves[j]
     placebos = np.empty(0)
-    if ratios[j][i] > RELEVANT_SHARE:
-        placebos = np.array([max(float(_ratios(patched(x[:, k], at_rest, rate_hz, spans), rate_hz, ms[k], cv.adev,
-                                                  half[k]).max()) for k, cv in enumerate(curves))
-                             for spans in placebo_spans(at_rest)])
-    return DisturbanceChange(j, float(c.taus[i]), float(ratios[j][i] * half[j][i]), float(c.adev[i]), float(half[j][i]),
+    draws = placebo_spans(at_rest, moved) if real[j][i] > RELEVANT_SHARE else []
+    if draws:  # only where the share alone would refuse: the null decides
+        placebos = np.max([[float(r.max()) for r in ratios(k, draws)] for k in range(len(curves))], axis=0)
+    return DisturbanceChange(j, float(c.taus[i]), float(real[j][i] * half[j][i]), float(c.adev[i]), float(half[j][i]),
                              placebos)
 
 
-def placebo_spans(at_rest: NDArray[np.bool_]) -> list[tuple[NDArray[np.intp], NDArray[np.intp]]]:
+def placebo_spans(at_rest: NDArray[np.bool_], moved: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+                  ) -> list[tuple[NDArray[np.intp], NDArray[np.intp]]]:
     """:data:`PLACEBOS` sets of spans at rest, each stretch not at rest moved to a random place whose span and the
     span before it are at rest (seed 0: the same answer on every run); none where the rest has no room (then the
     change is judged by :data:`RELEVANT_SHARE` alone)."""
-    a, b = _stretches(at_rest)
+    a, b = _stretches(at_rest) if moved is None else moved
     k = b - a
     rest = np.concatenate([[0], np.cumsum(at_rest)])
     rng = np.random.default_rng(0)
