@@ -1,13 +1,44 @@
-"""Fixtures shared by every test (plain helpers live in tests/helpers)."""
+"""Fixtures shared by every test (plain helpers live in tests/helpers), and the opt-in CPU-time record of the run."""
 
 from __future__ import annotations
 
+import json
+import os
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from helpers.common import SHARED
 from optcal.core.model import LumpedModel, lu2017_reference_model
+
+#: ``OPTCAL_TEST_CPU_DIR=DIR pytest ...`` appends one JSON line per test to ``DIR/<worker>.jsonl``: its node id, the
+#: CPU seconds of its setup, call and teardown (this process's threads and the children it waited for: a CLI
+#: subprocess, a notebook kernel), its wall seconds and the time it ended.  CI's budget is CPU: ``pytest -n auto`` on
+#: 2 cores takes about the suite's CPU seconds over 2, while a test's wall time on a shared machine measures the
+#: queue (the same run measured 1135 CPU s against 4846 wall s under a load of 5-9).  Sum it per file with
+#: ``python tests/helpers/cpu_record.py DIR``.
+CPU_RECORD_DIR = os.environ.get("OPTCAL_TEST_CPU_DIR")
+
+
+def _cpu_seconds() -> float:
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    if not CPU_RECORD_DIR:
+        yield
+        return
+    cpu, wall = _cpu_seconds(), time.perf_counter()
+    yield
+    row = [item.nodeid, _cpu_seconds() - cpu, time.perf_counter() - wall, time.time()]
+    os.makedirs(CPU_RECORD_DIR, exist_ok=True)
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    with open(os.path.join(CPU_RECORD_DIR, f"{worker}.jsonl"), "a", encoding="utf-8") as fh:
+        fh.write(json.dumps(row) + "\n")
 
 
 @pytest.fixture
