@@ -187,10 +187,23 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
                                   f"{where}); name them by position to change it, e.g. --columns mx=1,my=2,mz=3")
 
 
+#: The exclusion of rows whose magnetometer reads exactly 0, 0, 0.
+ZERO_ROWS = "all-zero magnetometer rows (a logger's placeholder: a field never reads 0, 0, 0)"
+
+
 def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str | None, columns: dict[str, str],
            others: dict[str, NDArray], notes: list[str]) -> MagSamples:
     finite = np.all(np.isfinite(m), axis=1)
     exclusions = {"rows with a non-finite magnetometer value": int(np.count_nonzero(~finite))}
+    # a magnetometer in the Earth's field (25-65 µT) never reads exactly 0, 0, 0 (its noise alone moves the last
+    # digit): such a row is a logger's placeholder before the sensor answered, as the accelerometer's readers count it
+    zero = finite & np.all(m == 0.0, axis=1)
+    if zero.any():
+        if zero.sum() == finite.sum():
+            raise InputError(f"{path}: every magnetometer row reads 0, 0, 0 (a logger's placeholder, not a field): "
+                             "no magnetometer data; check the columns (--columns mx=...,my=...,mz=...)")
+        exclusions[ZERO_ROWS] = int(zero.sum())
+        finite &= ~zero
     units = decide_mag_units(m[finite], stated, where, mag_units)
     pick = (lambda a: None if a is None else np.asarray(a, dtype=float)[finite])
     acc = pick(others.get("acc"))
