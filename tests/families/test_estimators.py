@@ -231,15 +231,18 @@ def test_counts_covariance_is_well_scaled(lu_model):
 
 
 def test_collapsed_ml_fit_is_a_fit_error_with_the_right_advice():
-    """On a 30° cap the norm-residual cost can fall into a degenerate minimum (T singular):
-    that is reported as a collapsed fit, not as "not an ellipsoid, use convex"."""
+    """On a 30° cap the norm-residual cost can fall into a degenerate minimum (T singular): the plain maximum
+    likelihood (``keep_physical=False``) reports it as a collapsed fit, not as "not an ellipsoid, use convex"; by
+    default the refinement is kept only inside the physical set, so the convex start is handed back, said so."""
     from optcal.core.model import lu2017_reference_model
 
     model = lu2017_reference_model()
     poses = simulate_poses(model, cap_directions(120, 30.0, np.random.default_rng(31)), 0.02,
                            rng=np.random.default_rng(131))
     with pytest.raises(FitError, match=r"collapsed to a singular T.*scale_range=\(low, high\)"):
-        calibrate(poses, method="mle", allow_degenerate=True)
+        calibrate(poses, method="mle", allow_degenerate=True, keep_physical=False)
+    kept = calibrate(poses, method="mle", allow_degenerate=True)
+    assert "physical_set" in kept.extra and any("MAXIMUM LIKELIHOOD NOT KEPT" in n for n in kept.notes)
     bounded = calibrate(poses, method="mle", allow_degenerate=True, scale_range=(0.7, 1.4))
     assert np.all(np.abs(np.diag(bounded.T)) > 0.5)
 
