@@ -41,6 +41,16 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         fh.write(json.dumps(row) + "\n")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "static_check: the type checker or the docs build, started before the tests")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The static checks (tests/test_static_checks.py, a minute each in one process) first: ``pytest -n auto``
+    hands them out at the start, and the other worker runs the tests meanwhile, rather than a core idling at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("static_check") is None)
+
+
 @pytest.fixture
 def lu_model() -> LumpedModel:
     return lu2017_reference_model()

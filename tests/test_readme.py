@@ -44,7 +44,10 @@ def test_readme_test_command_is_exactly_what_ci_runs() -> None:
 def test_readme_install_command_runs_the_demo_and_ci_builds_the_docs() -> None:
     first = bash_blocks(readme())[0]
     assert first.startswith("python3 -m venv .venv") and first.endswith(".venv/bin/optcal demo")
-    assert "mkdocs build --strict" in ci_command()
+    # CI builds the docs with warnings as errors and type-checks among the tests it runs (tests/test_static_checks.py)
+    assert "pytest" in ci_command()
+    checks = (ROOT / "tests" / "test_static_checks.py").read_text(encoding="utf-8")
+    assert '"mkdocs", "build", "--strict"' in checks and '"-m", "mypy"' in checks
 
 
 def test_readme_links_point_to_existing_files() -> None:
