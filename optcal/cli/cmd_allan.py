@@ -430,11 +430,12 @@ def allan(
     def analyse() -> dict[str, Any]:
         nonlocal counts_per_g, counts_per_rad_s
         out: dict[str, Any] = {}
+        scale_lines.clear()  # a second analysis (after a start-up transient is cut) says its scales once
         if sensor in ("acc", "both"):
             acc = log.samples
             if calibration_path is not None:
                 counts_per_g = scale_for(scales, "acc", ACCELEROMETER.canonical_units(log.units), calibration_path)
-                if counts_per_g is not None and not any(line.startswith("acc") for line in scale_lines):
+                if counts_per_g is not None:
                     scale_lines.append(scales["acc"].describe(calibration_path))
             ACCELEROMETER.si_per_unit(log.units, counts_per_g)  # fail early on counts without a scale
             out["acc"] = analyse_static_log(acc, log.rate_hz, log.units, counts_per_g, max_tau)
@@ -447,7 +448,7 @@ def allan(
                 decision = still_gyro_units(gyro, log.rate_hz)  # the peak-rate rule measures moves: a still log has none
             if calibration_path is not None:
                 counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
-                if counts_per_rad_s is not None and not any(line.startswith("gyro") for line in scale_lines):
+                if counts_per_rad_s is not None:
                     scale_lines.append(scales["gyro"].describe(calibration_path))
             out["gyro"] = analyse_static_log(gyro, log.rate_hz, decision.units, counts_per_rad_s, max_tau, GYROSCOPE)
             reasons["gyro"] = decision.reason
