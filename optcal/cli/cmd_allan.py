@@ -253,31 +253,6 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     return log
 
 
-#: A MEMS gyro's white rate noise density, °/s/√Hz: from about 0.003 (ICM-42688-P 0.0028, BMI270 0.007, MPU-6050
-#: 0.005) to about 0.05 (L3GD20 0.03, consumer parts' worst); the same sensors in rad/s read 5e-5 to 9e-4.  The
-#: number measured on a still log's samples says the unit where the two ranges do not meet: above their geometric
-#: gap's middle (9e-4 · 0.003)^½ ≈ 1.6e-3 it is °/s.  (A tactical or fibre-optic gyro, 100 times quieter, is not
-#: a MEMS part: its unit must be stated, --gyro-units.)
-DEG_S_MIN_NOISE_DENSITY: float = float(np.sqrt(9e-4 * 0.003))
-
-
-def still_gyro_units(gyro: NDArray[np.float64], rate_hz: float) -> Any:
-    """The unit of a still log's gyro samples that no name states, from their white noise density.
-
-    A still log has no moves, so the rate that moves reach (:func:`optcal.data.units.decide_gyro_units`' rule)
-    says nothing; its noise does: the median over the axes of the first differences' spread over √2 (a bias and
-    its slow drift cancel in a difference), over √f_s, against :data:`DEG_S_MIN_NOISE_DENSITY`.
-    """
-    from optcal.data.units import GyroUnitsDecision
-
-    sigma = float(np.median(np.std(np.diff(gyro, axis=0), axis=0))) / np.sqrt(2.0)
-    density = sigma / np.sqrt(rate_hz)
-    unit = "deg/s" if density > DEG_S_MIN_NOISE_DENSITY else "rad/s"
-    return GyroUnitsDecision(unit, f"{unit} from the still log's noise density {density:.2g} per √Hz (a MEMS gyro's "
-                                   f"is 0.003-0.05 in °/s, 5e-5-9e-4 in rad/s; {DEG_S_MIN_NOISE_DENSITY:.2g} between): "
-                                   "--gyro-units to override")
-
-
 def _longest_rest(seg: Any) -> str:
     """``--window START:END`` of the longest run of samples the rest model finds at rest."""
     from optcal.data.static_stretches import true_runs
@@ -443,9 +418,8 @@ def allan(
         if sensor in ("gyro", "both"):
             gyro = log.samples if sensor == "gyro" else log.gyro
             assert gyro is not None  # read_still_log refuses a log without gyro columns
-            decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None)
-            if gyro_units is None and not log.gyro_units and decision.units != "counts":
-                decision = still_gyro_units(gyro, log.rate_hz)  # the peak-rate rule measures moves: a still log has none
+            # a still log has no moves for the peak-rate rule: its noise density says the unit
+            decision = decide_gyro_units(gyro, gyro.mean(axis=0), gyro_units, log.gyro_units or None, log.rate_hz)
             if calibration_path is not None:
                 counts_per_rad_s = scale_for(scales, "gyro", decision.units, calibration_path)
                 if counts_per_rad_s is not None:

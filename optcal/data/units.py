@@ -425,6 +425,12 @@ def _counts_description(what: str, sensitivity: float) -> str:
 
 #: Peak rate (99th percentile of the bias-free rate norm) above which float gyro data are °/s.
 DEG_S_MIN_PEAK: float = 40.0
+#: A MEMS gyro's white rate noise density, °/s/√Hz: from about 0.003 (ICM-42688-P 0.0028, BMI270 0.007, MPU-6050
+#: 0.005) to about 0.05 (L3GD20 0.03, consumer parts' worst); the same sensors in rad/s read 5e-5 to 9e-4.  The
+#: number measured on a still log's samples says the unit where the two ranges do not meet: above their geometric
+#: gap's middle (9e-4 · 0.003)^½ ≈ 1.6e-3 it is °/s.  (A tactical or fibre-optic gyro, 100 times quieter, is not
+#: a MEMS part: its unit must be stated, --gyro-units.)
+DEG_S_MIN_NOISE_DENSITY: float = float(np.sqrt(9e-4 * 0.003))
 
 
 @dataclass(frozen=True)
@@ -441,7 +447,7 @@ class GyroUnitsDecision:
 
 
 def decide_gyro_units(
-    gyro: NDArray, bias: NDArray, requested: str | None = None, hint: str | None = None
+    gyro: NDArray, bias: NDArray, requested: str | None = None, hint: str | None = None, rate_hz: float | None = None
 ) -> GyroUnitsDecision:
     """Decide the units of raw gyro samples (module docstring).
 
@@ -455,6 +461,10 @@ def decide_gyro_units(
         The caller's ``gyro_units``; always wins.
     hint : str, optional
         Units stated by the file (column names, file format).
+    rate_hz : float, optional
+        Given for a still log, which has no moves for the peak-rate rule to measure: float samples are then judged
+        by their white noise density (the first differences' spread over √2, in which a bias and its slow drift
+        cancel, over √f_s; the median over the axes) against :data:`DEG_S_MIN_NOISE_DENSITY`.
     """
     if requested is not None:
         return GyroUnitsDecision(normalise_units(requested, "gyro"), "given with --gyro-units")
@@ -466,6 +476,12 @@ def decide_gyro_units(
         raise InputError("no finite gyro samples; cannot tell the gyro units")
     if np.all(g == np.round(g)):
         return GyroUnitsDecision("counts", "integer-valued samples (raw counts)")
+    if rate_hz is not None:
+        density = float(np.median(np.std(np.diff(g, axis=0), axis=0))) / np.sqrt(2.0) / np.sqrt(rate_hz)
+        unit = "deg/s" if density > DEG_S_MIN_NOISE_DENSITY else "rad/s"
+        return GyroUnitsDecision(unit, f"{unit} from the still log's noise density {density:.2g} per √Hz (a MEMS "
+                                       f"gyro's is 0.003-0.05 in °/s, 5e-5-9e-4 in rad/s; {DEG_S_MIN_NOISE_DENSITY:.2g} "
+                                       "between): --gyro-units to override")
     peak = np_quantile(np.linalg.norm(g - bias, axis=1), 0.99)
     if peak >= DEG_S_MIN_PEAK:
         return GyroUnitsDecision("deg/s", f"peak rate {peak:.3g} ≥ {DEG_S_MIN_PEAK:g} (°/s)")
