@@ -128,3 +128,24 @@ def test_a_still_logs_gyro_unit_from_its_noise_density(tmp_path, capsys, deg: bo
     assert result["log"]["units_reason"].startswith(f"{unit} from the still log's noise density")
     # the noise density in SI is the same whichever unit the file is written in: 0.05 °/s / √100 Hz
     assert result["kalibr"]["gyroscope_noise_density"] == pytest.approx(np.radians(0.05) / np.sqrt(RATE), rel=0.1)
+
+
+def test_the_patched_curve_from_the_phases_running_sum_equals_its_full_recomputation() -> None:
+    """disturbance_change sums again only the second differences a patch reaches; its change equals the Allan
+    deviation of the patched series computed in full (``patched`` then ``overlapping_adev``), stretches at the start,
+    inside and at the end."""
+    from optcal.families.noise.allan import allan_deviation, overlapping_adev, phase_from_rate
+    from optcal.families.noise.disturbance import disturbance_change
+
+    x = np.random.default_rng(3).normal(0, 1.0, 6000)
+    x[3000:3100] += 3.0
+    at_rest = np.ones(6000, dtype=bool)
+    at_rest[3000:3100] = at_rest[10:40] = at_rest[5950:] = False
+    curve = allan_deviation(x, RATE)
+    found = disturbance_change(x[:, None], at_rest, RATE, [curve])
+    full, _ = overlapping_adev(phase_from_rate(patched(x, at_rest, RATE), RATE), RATE,
+                               np.rint(curve.taus * RATE).astype(int))
+    k = int(np.flatnonzero(curve.taus == found.tau)[0])
+    assert found.change == pytest.approx(abs(full[k] - curve.adev[k]), rel=1e-9, abs=1e-12)
+    assert found.ratio == pytest.approx(np.max(np.abs(full - curve.adev) / ((curve.ci_high - curve.ci_low) / 2)),
+                                        rel=1e-9)

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.families.noise.allan import AllanCurve, overlapping_adev, phase_from_rate
+from optcal.data.static_stretches import true_runs
+from optcal.families.noise.allan import AllanCurve, phase_from_rate
 
 #: Share of σ(τ)'s own one-sigma interval (half its width) that the stretches not at rest may move it by: a change
 #: inside the curve's one-sigma interval is one the log itself could not tell from its noise (nor could a repeat of
@@ -73,16 +74,8 @@ class DisturbanceChange:
         return self.ratio > RELEVANT_SHARE and bool(np.all(self.ratio > self.placebo_ratios))
 
 
-def _stretches(at_rest: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Starts and (exclusive) ends of the runs not at rest."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~at_rest).astype(np.int8), [0]])))
-    return edges[0::2], edges[1::2]
-
-
 def patch_values(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
-                 spans: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-                 moved: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-                 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+                 spans: tuple[NDArray[np.intp], NDArray[np.intp]]) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """The samples of ``x`` (n,) that the replacement of the module docstring changes and what it adds to each:
     ``(positions, d)`` sorted, ``x[positions] + d`` the replaced values.
 
@@ -91,29 +84,26 @@ def patch_values(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: fl
     x : ndarray, shape (n,)
     at_rest : ndarray of bool, shape (n,)
     rate_hz : float
-    spans : (starts, ends), optional
-        The stretches replaced (default: those not at rest; a placebo's are at rest).
-    moved : (starts, ends), optional
-        The stretches not at rest, when the caller has them.
+    spans : (starts, ends)
+        The stretches replaced: those not at rest, or a placebo's (at rest, then not their own reference).
     """
     n = x.size
     none = (np.empty(0, dtype=np.intp), np.empty(0))
-    if not at_rest.any():
+    a, b = spans
+    if not a.size or not at_rest.any():
         return none
-    a, b = (moved if moved is not None else _stretches(at_rest)) if spans is None else spans
-    if not a.size:
-        return none
-    if spans is not None:
-        at_rest = at_rest.copy()
-        for i, j in zip(a.tolist(), b.tolist()):
-            at_rest[i:j] = False  # a placebo's span is not its own reference
+    reference = at_rest.copy()
+    for i, j in zip(a.tolist(), b.tolist()):
+        reference[i:j] = False  # a span is never its own reference (the stretches not at rest are not at rest)
+    at_rest = reference
     w = np.maximum(b - a, int(np.ceil(REFERENCE_S * rate_hz)))
     lo, hi = np.maximum(a - w, 0), np.minimum(b + w, n)
     level = np.empty(a.size)
     for k, (i, j) in enumerate(zip(lo.tolist(), hi.tolist())):  # the stretch itself adds nothing: not at rest
         near = at_rest[i:j]
         level[k] = float(np.mean(x[i:j][near])) if near.any() else float("nan")
-    level[np.isnan(level)] = float(np.mean(x[at_rest]))
+    if np.isnan(level).any():  # no rest within reach: the log's rest as a whole
+        level[np.isnan(level)] = float(np.mean(x[at_rest]))
     order = np.argsort(a)
     positions, added = [], []
     for i, j, r in zip(a[order].tolist(), b[order].tolist(), level[order].tolist()):
@@ -133,7 +123,7 @@ def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
             spans: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None) -> NDArray[np.float64]:
     """``x`` (n,) with each stretch replaced as the module docstring says (:func:`patch_values`; a copy)."""
     c = np.array(x, dtype=float)
-    positions, added = patch_values(c, at_rest, rate_hz, spans)
+    positions, added = patch_values(c, at_rest, rate_hz, true_runs(~at_rest) if spans is None else spans)
     c[positions] += added
     return c
 
@@ -194,15 +184,15 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
     x = np.asarray(x, dtype=float).reshape(at_rest.size, -1)
     ms = [np.rint(c.taus * rate_hz).astype(np.intp) for c in curves]
     half = [np.maximum((c.ci_high - c.ci_low) / 2.0, np.finfo(float).tiny) for c in curves]
-    moved = _stretches(at_rest)
+    moved = true_runs(~at_rest)
 
     def ratios(j: int, spans_list: list[tuple[NDArray[np.intp], NDArray[np.intp]]]) -> list[NDArray[np.float64]]:
         """The ratios on axis j of each set of spans patched (one phase of the axis at a time)."""
         column = np.ascontiguousarray(x[:, j])
         phase = phase_from_rate(column, rate_hz)
         prefix = np.concatenate([[0.0], np.cumsum(phase)])
-        return [_ratios(phase, prefix, patch_values(column, at_rest, rate_hz, None if spans is moved else spans, moved),
-                        rate_hz, ms[j], curves[j].adev, half[j]) for spans in spans_list]
+        return [_ratios(phase, prefix, patch_values(column, at_rest, rate_hz, spans), rate_hz, ms[j], curves[j].adev,
+                        half[j]) for spans in spans_list]
 
     real = [ratios(j, [moved])[0] for j in range(len(curves))]
     j = int(np.argmax([r.max() for r in real]))
@@ -216,12 +206,12 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
                              placebos)
 
 
-def placebo_spans(at_rest: NDArray[np.bool_], moved: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+def placebo_spans(at_rest: NDArray[np.bool_], moved: tuple[NDArray[np.intp], NDArray[np.intp]]
                   ) -> list[tuple[NDArray[np.intp], NDArray[np.intp]]]:
     """:data:`PLACEBOS` sets of spans at rest, each stretch not at rest moved to a random place whose span and the
     span before it are at rest (seed 0: the same answer on every run); none where the rest has no room (then the
-    change is judged by :data:`RELEVANT_SHARE` alone)."""
-    a, b = _stretches(at_rest) if moved is None else moved
+    change is judged by :data:`RELEVANT_SHARE` alone).  ``moved``: the stretches not at rest (``true_runs(~at_rest)``)."""
+    a, b = moved
     k = b - a
     rest = np.concatenate([[0], np.cumsum(at_rest)])
     rng = np.random.default_rng(0)
