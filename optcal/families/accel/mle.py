@@ -696,8 +696,8 @@ class MaximumLikelihood:
             return theta, self.name, solver
         extra["physical_set"] = {**departure.to_dict(), "kept": init_method, "refinement_status": solver.status}
         notes.append(
-            f"MAXIMUM LIKELIHOOD NOT KEPT: the refinement left the physical set ({departure.reason}; IPOPT ended "
-            f"{solver.status!r}): the likelihood fell by growing the ellipsoid along a direction the poses do not "
+            f"MAXIMUM LIKELIHOOD NOT KEPT: the refinement left the physical set ({departure.reason}; {solver.name} "
+            f"ended {solver.status!r}): the likelihood fell by growing the ellipsoid along a direction the poses do not "
             f"cover, so the {init_method} start is kept (--method {init_method} gives it directly; --bound "
             f"NAME=LOW:HIGH or --scale-range LOW HIGH sets the set yourself and keeps the refinement inside it)")
         kept = SolverInfo(f"the {init_method} start (the refinement left the physical set)", "start kept", True, 0,
