@@ -690,8 +690,8 @@ def _choose_heldout(heldout: HeldOut, fit: Callable[[str], FormFit | None]) -> t
         if FORMS[form] <= FORMS[best]:
             break
         worse, se = heldout.gain(form, best)
-        if worse <= se and usable(form) is not None:
-            return usable(form), (evidence + f"{form}: the richest usable form within its standard error of the best held out "
+        if worse <= se and (kept := usable(form)) is not None:
+            return kept, (evidence + f"{form}: the richest usable form within its standard error of the best held out "
                                   f"({best}; {100 * heldout.rms(form):.3g} % against {100 * heldout.rms(best):.3g} %, "
                                   f"a mean-square excess {worse:.2g} ± {se:.2g})")
     return usable(best), evidence + (f"{best}: the smallest held-out error of the usable forms; no richer usable form "
@@ -711,13 +711,13 @@ def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None
 def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64]) -> None:
     if settings.accept_fit:
         return
-    eig = np.linalg.eigvalsh(np.cov(m.T))
+    eig, axes = np.linalg.eigh(np.cov(m.T))
     spread = float(np.sqrt(np.max(eig)))
     if spread < NOT_A_FIELD_SPAN * fit.field_strength and eig[0] < PLANAR_SPREAD * np.sum(eig):
         # a field turned about one axis traces a circle: the raw samples' covariance has no third axis (below the
         # coverage's planar share), and a sphere through a circle may be of any size, so the fit is no evidence
         # that the samples are not a field
-        axis = np.linalg.eigh(np.cov(m.T))[1][:, 0]
+        axis = axes[:, 0]
         raise IdentifiabilityError(
             f"the magnetometer samples turn in one plane (their spread across it, along [{', '.join(f'{c:+.2f}' for c in axis)}], "
             f"is {100 * np.sqrt(eig[0] / np.sum(eig)):.2g} % of their spread): the sphere through them is not determined (fitted "
