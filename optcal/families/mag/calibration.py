@@ -10,6 +10,7 @@ accelerometer, ``dip_deg``, ``dip_std_deg`` (and the frames' rotation ``R_mag_to
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -136,6 +137,14 @@ class MagCalibrationResult:
     def summary(self) -> dict[str, Any]:
         """The JSON contract (module docstring) with the calibration file's entries."""
         return self.calibration.to_dict()
+
+    def save(self, path: str | Path) -> None:
+        """Write the calibration's JSON (the file ``optcal calibrate --sensor mag -o`` writes)."""
+        self.calibration.save(path)
+
+    def correct(self, m: ArrayLike) -> NDArray[np.float64]:
+        """Calibrated samples ``T (m − o)``: the unit field (:meth:`MagCalibration.correct`)."""
+        return self.calibration.correct(m)
 
 
 def calibrate_mag(samples: MagSamples, settings: MagSettings | None = None) -> MagCalibrationResult:
