@@ -119,10 +119,8 @@ def calibrate(
     IdentifiabilityError
         Poses that do not determine every parameter (unless ``allow_degenerate``).
     """
-    from pathlib import Path
-
     from optcal.core.poses import PoseTable
-    from optcal.data.options import Reading, read
+    from optcal.data.options import Reading
     from optcal.families.accel.calibration import calibrate as _calibrate
 
     given = {k: v for k, v in dict(
@@ -138,14 +136,24 @@ def calibrate(
     if method in ("default", "mle"):  # as `optcal calibrate`: the refinement kept only inside the physical set
         given.setdefault("keep_physical", True)
     _check_estimator_keywords(method, given)
-    if isinstance(data, (str, Path)):
-        data = read(data, options)
-    elif options is not None:
-        raise InputError("options= reads a file: give it with a path, or give optcal.load(path, options)")
+    data = _read_if_path(data, options)
     poses = data.poses if isinstance(data, Reading) else data
     if not isinstance(poses, PoseTable):
         raise InputError(f"calibrate() takes a Reading (optcal.load), a PoseTable or a path, not {type(data).__name__}")
     return _calibrate(poses, method=method, **given)
+
+
+def _read_if_path(data: Any, options: Any) -> Any:
+    """DATA read with ``options`` when it is a path (:func:`load`); else DATA itself, which ``options`` cannot read."""
+    from pathlib import Path
+
+    from optcal.data.options import read
+
+    if isinstance(data, (str, Path)):
+        return read(data, options)
+    if options is not None:
+        raise InputError("options= reads a file: give it with a path, or give optcal.load(path, options)")
+    return data
 
 
 def _check_estimator_keywords(method: str, given: dict[str, Any]) -> None:
@@ -212,15 +220,11 @@ def calibrate_imu(
     InputError
         A pose table (no moves), no gyro columns, or moves that do not support the gyro's fit.
     """
-    from pathlib import Path
 
-    from optcal.data.options import Reading, read
+    from optcal.data.options import Reading
     from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
 
-    if isinstance(data, (str, Path)):
-        data = read(data, options)
-    elif options is not None:
-        raise InputError("options= reads a file: give it with a path, or give optcal.load(path, options)")
+    data = _read_if_path(data, options)
     if not isinstance(data, Reading) or data.segmentation is None:
         raise InputError("calibrate_imu() takes a raw recording with gyro columns (optcal.load(path) of one, or "
                          "its path): a pose table has no moves to calibrate a gyroscope on")
@@ -271,29 +275,17 @@ def calibrate_ferraris(
     InputError
         A pose table, no gyro columns, or sections that cannot be found.
     """
-    from pathlib import Path
 
-    from optcal.data.options import Reading, read
-    from optcal.data.sections import label_column_of
-    from optcal.families.ferraris import ferraris_fit, find_regions, regions_from_labels, regions_from_section_list
+    from optcal.data.options import Reading
+    from optcal.families.ferraris import ferraris_fit, regions_for
 
-    if isinstance(data, (str, Path)):
-        data = read(data, options)
-    elif options is not None:
-        raise InputError("options= reads a file: give it with a path, or give optcal.load(path, options)")
+    data = _read_if_path(data, options)
     if not isinstance(data, Reading) or data.segmentation is None:
         raise InputError("the Ferraris method needs the raw recording (its turns calibrate the gyroscope), not a "
                          "pose table: give optcal.load(path) of one, with kind='raw' if it was read as a table")
     seg = data.segmentation
-    rec = seg.recording
-    label = label_column_of(list(rec.meta.get("ignored_columns", []))) if rec.file_type == "csv" else None
-    if sections:
-        regions = regions_from_section_list(rec, sections, seg)
-    elif label is not None:
-        regions = regions_from_labels(rec, label, seg)
-    else:
-        regions = find_regions(seg)
-    return ferraris_fit(seg, regions, turn_angle_deg=turn_angle, gyro_units=gyro_units).calibration(rec)
+    fit = ferraris_fit(seg, regions_for(seg, sections), turn_angle_deg=turn_angle, gyro_units=gyro_units)
+    return fit.calibration(seg.recording)
 
 
 def calibrate_mag(

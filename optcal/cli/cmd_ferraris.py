@@ -36,8 +36,7 @@ def calibrate_ferraris(data: str, sections: str | None, turn_angle: float | None
     data_opts : dict
         The DATA reading options.
     """
-    from optcal.data.sections import label_column_of
-    from optcal.families.ferraris import ferraris_fit, find_regions, regions_from_labels, regions_from_section_list
+    from optcal.families.ferraris import ferraris_fit, regions_for
     from optcal.report.ferraris_text import ferraris_report, ferraris_summary
 
     loaded = load_data_detailed(data, **data_opts)
@@ -46,14 +45,7 @@ def calibrate_ferraris(data: str, sections: str | None, turn_angle: float | None
         raise InputError(f"DATA was read as a pose table ({loaded.kind.reason}); the Ferraris method needs the raw "
                          "recording (its turns calibrate the gyroscope); pass --format raw if it is one")
     rec = seg.recording
-    label = label_column_of(list(rec.meta.get("ignored_columns", []))) if rec.file_type == "csv" else None
-    if sections:
-        regions = regions_from_section_list(rec, sections, seg)
-    elif label is not None:
-        regions = regions_from_labels(rec, label, seg)
-    else:
-        regions = find_regions(seg)
-    fit = ferraris_fit(seg, regions, turn_angle_deg=turn_angle, gyro_units=gyro_units)
+    fit = ferraris_fit(seg, regions_for(seg, sections), turn_angle_deg=turn_angle, gyro_units=gyro_units)
     if output:
         fit.calibration(rec).save(output_file(output))
     if as_json:

@@ -6,7 +6,8 @@ and gives their statistics.
 """
 
 from optcal.families.ferraris.method import FerrarisFit, ferraris_fit
-from optcal.families.ferraris.regions import FerrarisRegions, find_regions, regions_from_labels, regions_from_section_list
+from optcal.families.ferraris.regions import (FerrarisRegions, find_regions, regions_for, regions_from_labels,
+                                              regions_from_section_list)
 
-__all__ = ["FerrarisFit", "FerrarisRegions", "ferraris_fit", "find_regions", "regions_from_labels",
-           "regions_from_section_list"]
+__all__ = ["FerrarisFit", "FerrarisRegions", "ferraris_fit", "find_regions", "regions_for",
+           "regions_from_labels", "regions_from_section_list"]

@@ -242,3 +242,20 @@ def _find_turn(seg: Segmentation, faces: list[str], bias: NDArray[np.float64], a
            f"removed, integrates to {angle[axis]:+.4g} ({rec.gyro_units or 'gyro units'})·s about {'xyz'[axis]} "
            f"({100 * share:.1f} % of the integrated rotation), the largest such turn")
     return Section(name, _usable(rec, idx, name, "move"), how)
+
+
+def regions_for(seg: Segmentation, sections: str | None = None) -> FerrarisRegions:
+    """The nine stretches of a segmented recording, from the first source that has them.
+
+    imucal's section list (``sections``, a JSON or CSV file), else a label column of the file
+    (``part``, imucal's annotated session), else found in the recording (:func:`find_regions`).
+    """
+    from optcal.data.sections import label_column_of
+
+    rec = seg.recording
+    label = label_column_of(list(rec.meta.get("ignored_columns", []))) if rec.file_type == "csv" else None
+    if sections:
+        return regions_from_section_list(rec, sections, seg)
+    if label is not None:
+        return regions_from_labels(rec, label, seg)
+    return find_regions(seg)
