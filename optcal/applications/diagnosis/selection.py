@@ -24,7 +24,9 @@ linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` 
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
-more passes.  The outlier poses set aside are then tested again under the final model with all its effects
+more passes.  After each accepted term every term accepted before it is tested again for removal given all the
+others (:meth:`ForwardSelection.backward_check`: the test it entered by, at the level it entered at, with the
+held-out check): a drift taken before two bias steps that explain the same rise is dropped.  The outlier poses set aside are then tested again under the final model with all its effects
 (:meth:`ForwardSelection.recheck_outliers`): a pose set aside before a drift entered, whose departure the drift
 explains, is returned to the fit.
 
@@ -154,10 +156,56 @@ class Step:
 
     candidates: list[Candidate]
     accepted: Candidate | None
+    #: Terms accepted in earlier steps and dropped after this step's term entered (:meth:`ForwardSelection.backward_check`)
+    dropped: list["Dropped"] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"accepted": self.accepted.term if self.accepted else None,
-                "candidates": [c.to_dict() for c in self.candidates]}
+        out: dict[str, Any] = {"accepted": self.accepted.term if self.accepted else None,
+                               "candidates": [c.to_dict() for c in self.candidates]}
+        if self.dropped:
+            out["dropped"] = [d.to_dict() for d in self.dropped]
+        return out
+
+
+@dataclass(frozen=True)
+class Dropped:
+    """A term accepted in an earlier step and dropped once a later term made it unneeded
+    (:meth:`ForwardSelection.backward_check`).
+
+    Attributes
+    ----------
+    term : str
+        The term as it was in the model, e.g. ``bias_drift(y)``.
+    effect : str
+    axis : str
+    order : int
+    p_value : float
+        Its likelihood-ratio (F) test given every other term of the model (the test it entered by).
+    level : float
+        The level it entered at (its step's level, multiplicity adjustment included).
+    delta_bic : float
+        BIC of the model with it minus the model without it.
+    heldout_rms_g_with, heldout_rms_g_without : float
+        Held-out rms with and without it (the removal is kept only when the latter is not larger).
+    after : str
+        The term whose entry it was tested after.
+    reason : str
+    """
+
+    term: str
+    effect: str
+    axis: str
+    order: int
+    p_value: float
+    level: float
+    delta_bic: float
+    heldout_rms_g_with: float
+    heldout_rms_g_without: float
+    after: str
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
 
 
 @dataclass
@@ -191,6 +239,7 @@ class SelectionResult:
     steps: list[Step]
     decisions: list[TemperatureTimeDecision]
     last_level: float
+    dropped: list[Dropped] = field(default_factory=list)
 
 
 class ForwardSelection:
@@ -209,10 +258,12 @@ class ForwardSelection:
         Receives notes for the report (terms not identifiable from the poses).
     loop : callable, optional
         Wraps the loop over a step's candidates (a progress bar).
+    drop_unneeded : bool
+        Test the earlier terms for removal after each accepted term (:meth:`backward_check`).
     """
 
     def __init__(self, fitter: Fitter, candidates: list[tuple[str, int]], with_outliers: bool, alpha: float,
-                 note: Callable[[str], None], loop: Loop = plain_loop) -> None:
+                 note: Callable[[str], None], loop: Loop = plain_loop, drop_unneeded: bool = True) -> None:
         self.fitter = fitter
         self.candidates = candidates
         self.with_outliers = with_outliers
@@ -227,6 +278,9 @@ class ForwardSelection:
         self.alpha_step = alpha / 4 if both else alpha / 2
         self.note = note
         self.loop = loop
+        self.drop_unneeded = drop_unneeded
+        #: Terms dropped by :meth:`backward_check`: not offered again
+        self.dropped_keys: set[tuple[str, int]] = set()
 
     def room(self, fit: Fit) -> bool:
         """Whether one more parameter leaves the fitter's :attr:`~Fitter.min_dof` residual degrees of freedom
@@ -271,7 +325,7 @@ class ForwardSelection:
         for e, a in self.candidates:
             if e == BIAS_STEP and not self.fitter.steps_at:
                 continue  # its position is searched (step_candidates); once placed, its other axes are plain terms
-            if (e, a) not in fit.terms:
+            if (e, a) not in fit.terms and (e, a) not in self.dropped_keys:
                 top = MAX_ORDER[e] if e in DIRECT_ORDERS else 1
                 orders = [sessions - 1] if e == SESSION_BIAS else range(1, top + 1)  # every session's offset at once
                 out += [(e, a, order) for order in orders
@@ -297,6 +351,7 @@ class ForwardSelection:
         current = baseline
         steps: list[Step] = []
         rivalries: list[TemperatureTimeDecision] = []
+        levels: dict[tuple[str, int], float] = {}  # each term in the model: the level it entered at
         for _ in range(4 * len(self.candidates) + 3):
             bic0 = fitter.bic(current)
             term_cands = self.term_candidates(current)
@@ -351,10 +406,67 @@ class ForwardSelection:
             if accepted is None or accepted.fit is None:
                 break
             current = accepted.fit
+            key = None if accepted.axis is None else (accepted.effect, AXES.index(accepted.axis))
+            if key is not None and accepted.effect not in (BIAS_STEP, SESSION_BIAS):
+                levels.setdefault(key, accepted.threshold)  # a raised order keeps the level its term entered at
+            current, steps[-1].dropped = self.backward_check(current, levels, key, accepted.term)
+            for d in steps[-1].dropped:
+                levels.pop((d.effect, AXES.index(d.axis)), None)
         current = self.recheck_outliers(current)
         alpha_terms = self.alpha_terms if self.departures_testable(current) else self.alpha
         level = self.step_level(current, self.term_candidates(current), alpha_terms) if self.room(current) else alpha_terms
-        return SelectionResult(current, steps, self.explain(current, rivalries), level)
+        dropped = [d for s in steps for d in s.dropped]
+        gone = {(d.effect, d.axis) for d in dropped}
+        rivalries = [r for r in rivalries if (r.chosen, r.axis) not in gone or
+                     (r.chosen, AXES.index(r.axis)) in current.terms]
+        return SelectionResult(current, steps, self.explain(current, rivalries), level, dropped)
+
+    def backward_check(self, current: Fit, levels: dict[tuple[str, int], float], entered: tuple[str, int] | None,
+                       after: str) -> tuple[Fit, list[Dropped]]:
+        """``current`` with the terms accepted before ``entered`` that it made unneeded dropped, one at a time.
+
+        Forward selection tests a term against the model of its step: a drift accepted first can be explained
+        entirely by terms that enter later (two y bias steps of a rising staircase: the first step's drift stays in
+        the model beside the steps that explain the same rise).  After each accepted term, every earlier term (each
+        polynomial term; a bias step's position is not re-searched, a session bias is the sessions' design) is
+        tested for removal given all the others by the test it entered by: the likelihood-ratio (F) test of all its
+        coefficients at ``levels[key]``, the level it entered at (its step's level with its multiplicity adjustment:
+        a term that would not enter now given the others is not kept), and ΔBIC.  The least significant one that
+        fails either is dropped when the held-out rms without it is not larger than with it (the held-out check the
+        selection uses, read for the removal: the simpler model must predict the left-out poses at least as well);
+        then the others are tested again under the smaller model.  A dropped term is not offered again
+        (:meth:`term_candidates`): the selection cannot cycle.
+        """
+        fitter = self.fitter
+        out: list[Dropped] = []
+        while self.drop_unneeded:
+            bic = fitter.bic(current)
+            failing: list[tuple[float, tuple[str, int], Fit, float]] = []
+            for key, order in current.terms.items():
+                if key == entered or key not in levels:
+                    continue
+                without = fitter.fit({k: v for k, v in current.terms.items() if k != key}, current.outliers, current.x)
+                p = fitter.f_test(without, current)
+                delta = bic - fitter.bic(without)
+                if p >= levels[key] or delta >= 0:
+                    failing.append((p, key, without, delta))
+            if not failing:
+                return current, out
+            p, key, without, delta = max(failing, key=lambda f: (f[0], f[1]))
+            mask = current.kept(fitter.n)
+            with_rms, without_rms = rms(fitter.heldout(current), mask), rms(fitter.heldout(without), mask)
+            if without_rms > with_rms:
+                return current, out
+            term = describe_term(key[0], key[1], current.terms[key])
+            why = (f"given {after} and the model's other terms it is not significant (p = {p:.2g} ≥ {levels[key]:.2g}, "
+                   f"the level it entered at)" if p >= levels[key] else
+                   f"given {after} and the model's other terms it no longer lowers the BIC (ΔBIC {delta:+.1f})")
+            out.append(Dropped(term, key[0], AXES[key[1]], int(current.terms[key]), float(p), levels[key],
+                               float(delta), with_rms, without_rms, after,
+                               f"{why}; held-out rms {with_rms * 1e3:.3g} → {without_rms * 1e3:.3g} mg without it"))
+            self.dropped_keys.add(key)
+            current = without
+        return current, out
 
     def step_axes(self, current: Fit) -> list[int]:
         """The axes whose bias step is searched over its positions in a step from ``current``: every candidate axis
