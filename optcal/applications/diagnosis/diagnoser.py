@@ -301,10 +301,10 @@ class Diagnoser:
         self.progress("detection limits of the candidates not found")
         limits = detection_limits(fitter, final, open_terms, selection.last_level, loop) if open_terms else []
         # a bias step not named: its own limit per axis searched, at the level its test had (alpha_step shared by the
-        # axes, the positions paid for as adjusted_p pays for them)
+        # axes and the pair searched together, the positions paid for as adjusted_p pays for them)
         step_axes = selector.step_axes(final)
         if step_axes:
-            limits += step_limits(fitter, final, step_axes, selector.alpha_step / len(step_axes))
+            limits += step_limits(fitter, final, step_axes, selector.single_step_level(final, step_axes))
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
