@@ -66,7 +66,8 @@ def test_a_persisting_step_in_20_xsens_rests_is_named_as_a_bias_step(shared_data
 
 
 # mikoff's unit 0 scatters more from pose to pose (its rests' σ 0.28 mg, the poses more): 2 mg is the best candidate
-# at the right place but p 0.003-0.02 against 0.0017; 3 mg on x is named +4 %, after rest 11 exactly.
+# at the right place but p 0.003-0.02 against 0.0017 (0.00125 since two steps are also searched together); 3 mg
+# on x is named +4 %, after rest 11 exactly.
 def test_a_persisting_step_in_a_mikoff_unit_is_named_as_a_bias_step(shared_data: Path, tmp_path: Path) -> None:
     path = shared_data / "mikoff-mpu9150" / "imu0.log"
     if not path.exists():
