@@ -153,6 +153,8 @@ def diagnosis_report(diag: Diagnosis) -> str:
         tried = "; ".join(f"{c.term} ΔBIC {c.delta_bic:+.1f}, p {c.p_value:.2g}" for c in best)
         verdict = f"added {step.accepted.term}" if step.accepted else "nothing passes: stop"
         lines.append(f"   step {k}: {verdict}  [best candidates: {tried or 'none'}]")
+        for d in step.dropped:  # a term accepted earlier that this step's term made unneeded (backward check)
+            lines.append(f"      dropped {d.term}: {d.reason}")
     for decision in diag.decisions:
         lines.append("   " + decision.text)
     lines += ["", "4. Findings"]

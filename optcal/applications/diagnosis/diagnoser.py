@@ -86,6 +86,10 @@ class DiagnosisSettings:
     calibration : dict
         Further settings of the baseline's estimator (``solver``, ``solver_options``, ``fix``,
         ``bounds``, ``conic_solver``: :func:`optcal.calibrate`'s keywords).
+    drop_unneeded : bool
+        After each accepted term, drop an earlier one the later terms made unneeded
+        (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`); ``False`` (``optcal
+        diagnose --keep-terms``): plain forward selection, every accepted term kept.
     """
 
     effects: str | tuple[str, ...] | None = None
@@ -97,6 +101,7 @@ class DiagnosisSettings:
     method: str = "mle"
     pose_correlation: str = "auto"
     calibration: dict[str, Any] = field(default_factory=dict, hash=False)
+    drop_unneeded: bool = True
 
     def __post_init__(self) -> None:
         if self.pose_correlation not in POSE_CORRELATION_CHOICES:
@@ -118,7 +123,9 @@ class DiagnosisSettings:
                 "seed": self.seed, "min_dof": MIN_DOF, "min_dof_measured": MIN_DOF_MEASURED, "method": self.method, "pose_correlation": self.pose_correlation,
                 "calibration": dict(self.calibration),
                 "effects": None if self.effects is None else (
-                    self.effects if isinstance(self.effects, str) else ",".join(self.effects))}
+                    self.effects if isinstance(self.effects, str) else ",".join(self.effects)),
+                # said only when the backward check is off (--keep-terms): the default's record is unchanged
+                **({} if self.drop_unneeded else {"drop_unneeded": False})}
 
 
 #: Why a bias step is not searched when several sessions are diagnosed together.
@@ -286,7 +293,7 @@ class Diagnoser:
         open_terms = [(e, a) for e, a in candidates if e != BIAS_STEP]
         sim = simulation_check(fitter, base, open_terms, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
-        selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop)
+        selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop, s.drop_unneeded)
         selection = selector.run(base)
         final = selection.final
         self.progress("measuring the findings (held-out error without each effect)")
@@ -294,10 +301,10 @@ class Diagnoser:
         self.progress("detection limits of the candidates not found")
         limits = detection_limits(fitter, final, open_terms, selection.last_level, loop) if open_terms else []
         # a bias step not named: its own limit per axis searched, at the level its test had (alpha_step shared by the
-        # axes, the positions paid for as adjusted_p pays for them)
+        # axes and the pair searched together, the positions paid for as adjusted_p pays for them)
         step_axes = selector.step_axes(final)
         if step_axes:
-            limits += step_limits(fitter, final, step_axes, selector.alpha_step / len(step_axes))
+            limits += step_limits(fitter, final, step_axes, selector.single_step_level(final, step_axes))
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
         def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
@@ -322,6 +329,7 @@ class Diagnoser:
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
             given_rms_g=rms(given.residuals), detection_limits=limits, outlier_limit=pose_limit, noise_model=noise,
             sessions=stack, baseline_model=fitter.model(base).base, step=fitter.data.step,
+            dropped=selection.dropped,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
         noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)

@@ -16,7 +16,7 @@ from optcal.applications.diagnosis.fitting import BASELINE_MODEL, Fit
 from optcal.applications.diagnosis.limits import DetectionLimit, OutlierLimit
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
 from optcal.applications.diagnosis.regressors import Regressors
-from optcal.applications.diagnosis.selection import Step, TemperatureTimeDecision
+from optcal.applications.diagnosis.selection import Dropped, Step, TemperatureTimeDecision
 from optcal.applications.diagnosis.sessions import SessionStack
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import ExtendedModel
@@ -75,6 +75,9 @@ class Diagnosis:
         (:class:`optcal.applications.quality.peer.PeerComparison`, set by the caller).
     step : ndarray, shape (n,) or (n, m), or None
         1 for the poses after each bias step of a ``bias_step`` finding, 0 before (``None``: no step).
+    dropped : list of Dropped
+        Terms accepted by the forward selection and dropped once later terms made them unneeded
+        (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`).
     """
 
     poses: PoseTable
@@ -103,6 +106,7 @@ class Diagnosis:
     baseline_model: LumpedModel | None = None
     peer: Any = None
     step: NDArray[np.float64] | None = None
+    dropped: list[Dropped] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -235,4 +239,6 @@ class Diagnosis:
             "settings": self.settings.to_dict(),
             "notes": list(self.notes),
             **({"peer_comparison": self.peer.to_dict()} if self.peer is not None else {}),
+            # terms accepted, then made unneeded by later ones (present only when the backward check dropped one)
+            **({"dropped": [d.to_dict() for d in self.dropped]} if self.dropped else {}),
         }

@@ -1,0 +1,217 @@
+"""Two bias steps searched together: two knocks that hide each other from the one-step scan.
+
+Two knocks in one small session (mikoff's MPU-9150 unit 0, 22 rests: 4 mg on x after rest 7 and 3 mg on y after
+rest 15) are each the best split of their axis, yet neither one-step test is significant: each counts the other
+knock's departure as noise (p 0.013-0.33 against 0.0017).  Fitted together they explain both departures and the
+residual scale falls to the poses' own noise.
+
+The pair is placed as the selection places two steps (:data:`~optcal.applications.diagnosis.effects.MAX_STEPS`:
+"order" k of ``bias_step`` is the k-th step's offset): a step of axis ``a₁`` after position ``P`` and a step of axis
+``a₂`` after ``Q``.  On one axis that is two coefficients; on two axes the second axis also carries an offset at the
+first position (three coefficients, the model the sequential search would fit; the spare coefficient costs a little
+power and no level).  Every pair of positions with at least
+:data:`~optcal.applications.diagnosis.effects.STEP_MIN_SIDE` kept poses before, between and after, every ordered
+pair of axes, is scored by the linearised likelihood ratio (the steps' columns with the current fit's projected out,
+the gain ``eᵀP e`` of Lu 2017, eq. 14's weighted norm residuals ``e``; each set's F p value with its own number of
+coefficients); the best is fitted exactly and tested by :meth:`~optcal.applications.diagnosis.fitting.Fitter.f_test`.
+
+The search over the pairs is paid for as the one-step scan pays for its positions
+(:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`): Westfall & Young's single-step minP over the pairs,
+the share of :data:`~optcal.applications.diagnosis.bias_step.DRAWS` draws of the linearised null model (no step;
+:func:`~optcal.applications.diagnosis.familywise.null_draws`) whose smallest p over every pair is at most the
+observed one.  It is run only where that simulation is (:func:`~optcal.applications.diagnosis.bias_step.uses_minp_positions`:
+at most :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` kept poses, independent): a larger session
+leaves each knock enough residual degrees of freedom to be found against the other as noise, and Bonferroni over a
+thousand pairs would leave it no power.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats as sps
+
+from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
+from optcal.applications.diagnosis.familywise import NullDraws, orthonormal
+from optcal.applications.diagnosis.fitting import Fit, Fitter
+
+__all__ = ["PairScan", "scan_pair", "with_null"]
+
+#: Sets of columns whose null gains are formed at once (memory: sets × 3 × draws floats, 60 MB at 40,000 draws).
+CHUNK: int = 64
+
+
+@dataclass(frozen=True)
+class PairScan:
+    """The best pair of bias steps and its position-adjusted p value.
+
+    Attributes
+    ----------
+    first_axis, second_axis : int
+        The axis of the step placed first (at :attr:`first_at`) and of the one placed second (at :attr:`second_at`;
+        on another axis it carries an offset at :attr:`first_at` too).
+    first_at, second_at : int
+        Poses before each step in time order (:attr:`~optcal.applications.diagnosis.fitting.Fitter.time_order`).
+    p_linear : float
+        The linearised test's p value at the best pair (F with the pair's coefficients).
+    pairs : int
+        Sets of steps searched (positions and axes).
+    null_min_p : ndarray
+        The smallest p over every set searched in each null draw (the minP adjustment, :meth:`adjusted`).
+    """
+
+    first_axis: int
+    first_at: int
+    second_axis: int
+    second_at: int
+    p_linear: float
+    pairs: int
+    null_min_p: NDArray[np.float64]
+
+    @property
+    def coefficients(self) -> int:
+        """Step offsets the pair adds (two on one axis; three on two)."""
+        return 2 if self.first_axis == self.second_axis else 3
+
+    def terms(self) -> dict[tuple[str, int], int]:
+        """The pair's ``bias_step`` terms (each axis's "order": the steps whose offsets it carries)."""
+        if self.first_axis == self.second_axis:
+            return {("bias_step", self.first_axis): 2}
+        return {("bias_step", self.first_axis): 1, ("bias_step", self.second_axis): 2}
+
+    def adjusted(self, p_exact: float) -> float:
+        """``p_exact`` (the exact fit's F test) adjusted for the pairs searched: ``(1 + #{draws: min p ≤ p_exact}) /
+        (1 + draws)``."""
+        return float((1 + np.sum(self.null_min_p <= p_exact)) / (1 + self.null_min_p.size))
+
+
+def valid_splits(fitter: Fitter, fit: Fit) -> NDArray[np.int_]:
+    """Splits (poses before, time order) with :data:`STEP_MIN_SIDE` kept poses on each side, the first after kept."""
+    kept = fit.kept(fitter.n)[fitter.time_order]
+    before = np.concatenate([[0], np.cumsum(kept)])[: fitter.n]
+    total = int(kept.sum())
+    valid = (before >= STEP_MIN_SIDE) & (total - before >= STEP_MIN_SIDE) & kept
+    valid[0] = False
+    return np.flatnonzero(valid)
+
+
+def column_sets(splits: NDArray[np.int_], kept_before: NDArray[np.int_], axes: list[int]
+                ) -> tuple[list[tuple[int, int, int, int]], dict[tuple[int, int], int]]:
+    """Every pair ``(a₁, P, a₂, Q)`` searched and the column index of each ``(axis, split)`` (module docstring)."""
+    index = {(a, int(k)): i for i, (a, k) in enumerate((a, k) for a in axes for k in splits)}
+    sets = []
+    for P in splits:
+        for Q in splits:
+            if abs(int(kept_before[Q]) - int(kept_before[P])) < STEP_MIN_SIDE:
+                continue  # fewer than STEP_MIN_SIDE kept poses between the two knocks
+            for a1 in axes:
+                for a2 in axes:
+                    if a1 == a2 and Q < P:
+                        continue  # one axis: the same two columns in either order
+                    sets.append((a1, int(P), a2, int(Q)))
+    return sets, index
+
+
+def _sets(fitter: Fitter, fit: Fit, axes: list[int], kept: NDArray[np.bool_]) -> tuple[
+        list[tuple[int, int, int, int]], dict[tuple[int, int], int], NDArray[np.float64], NDArray[np.float64]]:
+    """The pairs searched, each ``(axis, split)``'s column index, the columns (kept poses, weighted, per unit bias)."""
+    splits = valid_splits(fitter, fit)
+    kept_before = np.concatenate([[0], np.cumsum(kept[fitter.time_order])])[: fitter.n]
+    sets, index = column_sets(splits, kept_before, axes)
+    position = np.empty(fitter.n, dtype=int)
+    position[fitter.time_order] = np.arange(fitter.n)
+    _, J = fitter.jacobians(fit, fitter.weights(fit))
+    columns = (np.stack([np.where(position >= k, J[:, 6 + a], 0.0) for (a, k) in index], axis=1)[kept]
+               if index else np.zeros((int(kept.sum()), 0)))
+    return sets, index, columns, J
+
+
+def _inverses(gram: NDArray[np.float64], idx: NDArray[np.int_]) -> NDArray[np.float64]:
+    """Each set's inverse Gram matrix; zeros for a set whose columns the fit already carries (not testable)."""
+    sub = gram[idx[:, :, None], idx[:, None, :]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.linalg.cond(sub)
+    ok = np.isfinite(cond) & (cond < 1e8)  # information left in every direction of the set (as the scan's den > 0)
+    inverse = np.zeros_like(sub)
+    if np.any(ok):
+        inverse[ok] = np.linalg.inv(sub[ok])
+    return inverse
+
+
+def f_p(gain: NDArray[np.float64], rss: NDArray[np.float64] | float, q: int, dof0: int) -> NDArray[np.float64]:
+    """The F test's p value of a set of ``q`` step offsets whose gain is ``gain`` (as :meth:`Fitter.f_test`)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(sps.f.sf(gain / q / ((rss - gain) / (dof0 - q)), q, dof0 - q))
+
+
+def scan_pair(fitter: Fitter, fit: Fit, axes: list[int]) -> PairScan | None:
+    """The best pair of bias steps on ``axes`` from ``fit`` (no step placed), by the linearised test (module docstring).
+
+    ``None`` when no pair can be placed or no residual degree of freedom is left for three coefficients.  Its
+    :attr:`PairScan.null_min_p` is empty until :func:`with_null` fills it (only a pair whose exact p is below the
+    level needs the simulation: the adjusted p is never below the unadjusted one).
+    """
+    dof0 = fitter.n - fit.n_params
+    if dof0 - 3 <= 0 or not axes:
+        return None
+    kept = fit.kept(fitter.n)
+    sets, index, columns, J = _sets(fitter, fit, axes, kept)
+    if not sets:
+        return None
+    G, _ = fitter.jacobians(fit, fitter.weights(fit))
+    model = orthonormal(G[kept])
+    U = columns - model @ (model.T @ columns)  # the current fit's columns projected out
+    gram = U.T @ U
+    e = (np.sqrt(fitter.weights(fit)) * fit.residuals)[kept]
+    observed = U.T @ e
+    rss = float(e @ e)
+    best: tuple[float, tuple[int, int, int, int]] | None = None
+    for q, chosen, idx in _groups(sets, index):
+        inverse = _inverses(gram, idx)
+        gains = np.einsum("bij,bi,bj->b", inverse, observed[idx], observed[idx])
+        p = f_p(gains, rss, q, dof0)
+        k = int(np.argmin(p))
+        if best is None or p[k] < best[0]:
+            best = (float(p[k]), chosen[k])
+    assert best is not None
+    a1, P, a2, Q = best[1]
+    return PairScan(a1, P, a2, Q, best[0], len(sets), np.zeros(0))
+
+
+def _groups(sets: list[tuple[int, int, int, int]], index: dict[tuple[int, int], int]
+            ) -> list[tuple[int, list[tuple[int, int, int, int]], NDArray[np.int_]]]:
+    """The sets by their number of coefficients: ``(q, sets, column indices)``."""
+    out = []
+    for q in (2, 3):
+        chosen = [s for s in sets if (s[0] == s[2]) == (q == 2)]
+        if chosen:
+            out.append((q, chosen, np.array([[index[(a1, P)], index[(a2, Q)]] if q == 2 else
+                                              [index[(a1, P)], index[(a2, P)], index[(a2, Q)]]
+                                              for a1, P, a2, Q in chosen])))
+    return out
+
+
+def with_null(fitter: Fitter, fit: Fit, scan: PairScan, axes: list[int], null: NullDraws) -> PairScan:
+    """``scan`` with the smallest p over every pair searched in each of ``null``'s draws (the minP adjustment).
+
+    ``null``: draws of the linearised null model at ``fit`` (:func:`~optcal.applications.diagnosis.familywise.null_draws`),
+    each set's statistic formed as the observed one is (its columns with ``fit``'s projected out, its F p value).
+    """
+    dof0 = fitter.n - fit.n_params
+    sets, index, columns, _ = _sets(fitter, fit, axes, null.kept)
+    U = columns - null.model @ (null.model.T @ columns)
+    gram = U.T @ U
+    A = U.T @ null.z  # (columns, draws)
+    min_p = np.ones(null.z.shape[1])
+    for q, chosen, idx in _groups(sets, index):
+        inverse = _inverses(gram, idx)
+        largest = np.zeros(null.z.shape[1])  # each draw's largest gain among the sets of q coefficients
+        for start in range(0, len(chosen), CHUNK):
+            block = A[idx[start:start + CHUNK]]  # (sets, q, draws)
+            largest = np.maximum(largest, np.einsum("bij,bid,bjd->bd", inverse[start:start + CHUNK], block, block)
+                                 .max(axis=0))
+        # sets of the same q share their test's distribution, whose p falls as the gain rises (familywise.minp_level)
+        min_p = np.minimum(min_p, f_p(largest, null.rss0, q, dof0))
+    return PairScan(scan.first_axis, scan.first_at, scan.second_axis, scan.second_at, scan.p_linear, scan.pairs, min_p)
