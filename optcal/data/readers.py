@@ -35,6 +35,7 @@ from optcal.data.columns import (
     CANONICAL,
     GYRO,
     GYRO_UNIT_WORDS,
+    JOINED_STAMP,
     NO_COLUMN,
     RATE_KEYS,
     RATE_SETTING,
@@ -313,6 +314,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         {names[j]: v for j, v in parsed.non_numeric.items()},
     )
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
+    if unread and JOINED_STAMP in reason:
+        unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
         src.columns_reason = reason

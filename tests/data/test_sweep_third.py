@@ -70,3 +70,75 @@ def test_a_header_ending_in_a_delimiter_over_rows_with_an_extra_value_is_refused
     code, out, err = run(["segment", path, "--columns", "ax=2,ay=3,az=4,gx=5,gy=6,gz=7", "--rate", "100"], capsys)
     assert code == 0, err
     assert "line 1's names do not match the fields (read as a note)" in out
+
+
+# ------------------------------------------------------------------ a stamp split in whole seconds and nanoseconds
+EPOCH = 1696324304  # 2023-10-03 in s since 1970, as SiyangMeng/matlabSensor_ros_localization's data/acc2.csv
+
+
+def split_stamp_rows(t, values, pause_at=None, pause_s=0.0) -> str:
+    """Rows ``secs,nsecs,x,y,z`` (ROS's header.stamp written as two integers, ns padded with blanks as that file's)
+    for times ``t`` (s from the start), a pause of ``pause_s`` inserted before sample ``pause_at``."""
+    t = np.asarray(t, dtype=float).copy()
+    if pause_at is not None:
+        t[pause_at:] += pause_s
+    ns = np.round(t * 1e9).astype(np.int64) + EPOCH * 1_000_000_000  # integers: exact, as a logger writes them
+    secs, frac = ns // 1_000_000_000, ns % 1_000_000_000
+    return "".join(f"{s},{f:9d}," + ",".join(f"{v:.6f}" for v in row) + "\n" for s, f, row in zip(secs, frac, values))
+
+
+def transition(turned, k: int) -> int:
+    """A sample between dwell k and dwell k + 1 (a move: a pause there cuts no rest)."""
+    return (turned.dwells[k][1] + turned.dwells[k + 1][0]) // 2
+
+
+def test_a_stamp_split_in_seconds_and_nanoseconds_is_one_time_column(turned, tmp_path):
+    """``secs, nsecs, ax, ay, az`` without a header (m/s^2): before, refused ("5 unnamed columns fit no common
+    layout"; its example ``--columns t=1,...`` reads the whole seconds only, 100 samples per stamp); now columns 1-2
+    are one stamp, read as seconds since 1970, and the file is a 100 Hz recording of its 10 rests."""
+    f = turned.frame
+    path = tmp_path / "acc2.csv"
+    path.write_text(split_stamp_rows(f["t"], f[["ax", "ay", "az"]].to_numpy() * 9.80665))
+    loaded = load_with_segmentation(path)
+    assert loaded.poses.n == len(turned.dwells)
+    assert abs(loaded.recording.rate_hz - 100.0) < 0.5
+    assert loaded.decisions.columns.value == "t←#1, ax←#3, ay←#4, az←#5"
+    assert "whole seconds and ns of the second" in loaded.decisions.columns.reason
+    assert "not read" not in loaded.decisions.layout  # the second field is the time's fraction, read
+
+
+@pytest.mark.parametrize(("secs", "frac"), [
+    ([0, 0, 1, 1, 2], [900, 10, 20, 950, 5]),  # the fraction goes back within a second: not a stamp's
+    ([0, 1, 2, 3, 4], [10, 20, 30, 40, 50]),  # the seconds never repeat: column 1 is a time column on its own
+    ([0, 0, 1, 1, 2], [0.5, 0.7, 0.1, 0.3, 0.2]),  # no integer count
+])
+def test_two_fields_that_are_not_one_stamp_are_not_joined(secs, frac):
+    from optcal.data.columns import split_stamp
+
+    cols = [np.asarray(secs, float), np.asarray(frac, float)] + [np.zeros(5)] * 3
+    assert split_stamp(cols) is None
+
+
+# ------------------------------------------------------------------ a pause of the recording is not a host's burst
+@pytest.mark.parametrize("bursts", [False, True])
+def test_a_pause_of_the_recording_is_kept_as_a_gap_not_spread_as_bursts(turned, tmp_path, bursts):
+    """Three sessions joined in one file (acc2.csv: 30181 samples at 9 ms with pauses of 296 s and 414 s): the
+    mean step (32.5 ms) was 3.6 times the median, read as host bursts, and the samples were spread evenly over the
+    whole span, at 30.7 Hz instead of 111 Hz. Now a step longer than a host holds samples (4 s) is a pause: regular
+    stamps are kept (100 Hz), and bursty ones are spread within each section, at the rate between the pauses."""
+    f = turned.frame
+    t = f["t"].to_numpy().copy()
+    if bursts:  # a host stamps 10 samples at once, then waits 10 sample periods
+        i = np.arange(t.size)
+        t = t[0] + (i // 10) * 0.1 + (i % 10) * 1e-4
+    t[transition(turned, 4):] += 300.0
+    path = tmp_path / "joined.csv"
+    path.write_text("t,ax,ay,az\n" + "".join(f"{EPOCH + s:.6f}," + ",".join(f"{v:.6f}" for v in row) + "\n"
+                                            for s, row in zip(t, f[["ax", "ay", "az"]].to_numpy() * 9.80665)))
+    loaded = load_with_segmentation(path)
+    assert loaded.poses.n == len(turned.dwells)
+    assert abs(loaded.recording.rate_hz - 100.0) < 1.0
+    assert "1 pause(s) of the recording" in loaded.decisions.time_base.reason
+    assert loaded.decisions.time_base.value == ("uniform" if bursts else "stamps")
+    pose_t = loaded.poses.t
+    assert np.all(np.diff(pose_t) > 0) and np.max(np.diff(pose_t)) > 250.0  # the pause stays between two rests
