@@ -735,12 +735,14 @@ def _recording_time(
     """Time base and rate of a recording; rescales or re-times ``src``'s ``t`` column in place."""
     if rate is not None or not src.has("t"):
         rate_used = rate if rate is not None else src.rate_hint
+        # a time column set aside as text (readers.source_from_columns) is said where the rate is needed
+        text_time = src.time_reason if src.time_reason and not src.has("t") else ""
         if rate_used is None:
             raise InputError(
-                f"{src.path}: no time column and no sampling rate; pass --rate HZ "
-                "(or add a time column t_s, or map one with --columns t=NAME or t=POSITION)"
+                f"{src.path}: no time column{f' ({text_time})' if text_time else ''} and no sampling rate; pass "
+                "--rate HZ (or add a time column t_s, or map one with --columns t=NAME or t=POSITION)"
             )
-        why = "--rate" if rate is not None else src.rate_reason
+        why = ("--rate" if rate is not None else src.rate_reason) + (f"; {text_time}" if text_time else "")
         what = f"column {src.column_map['index']!r}" if src.has("index") else "row number"
         if src.has("t"):
             why += ", instead of the time column"

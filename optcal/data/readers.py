@@ -325,6 +325,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     elif src.roles is None:
         src.columns_reason = reason
     src.layout = layout.describe()
+    if "t" not in src.column_map and src.time_reason:  # a time column of text, set aside (source_from_columns)
+        src.layout += f"; {src.time_reason}"
     if unread and not mapping_given:
         # a 9-axis logger's magnetometer (columns.HEADERLESS_TRIPLES): said, not silently dropped
         src.layout += f"; columns {', '.join(unread)} not read (--columns maps them)"
@@ -430,6 +432,15 @@ def source_from_columns(
         gyro_word = next(iter(words)) if len(words) == 1 else None
         if gyro_word is not None and gyro_word in GYRO_UNIT_WORDS:
             src.gyro_units = GYRO_UNIT_WORDS[gyro_word]
+    if "t" in data and "t" in non_numeric and not np.isfinite(data["t"]).any():
+        # a time column holding no number in any row (a date written as text, 'Wed Dec 22 21:09:46 2021') is no
+        # time base: set aside and said (the rate is then needed: --rate), instead of every row dropped as non-finite
+        count, row, value = non_numeric.pop("t")
+        name = column_map.pop("t")
+        data.pop("t")
+        src.ignored_columns.append(name)
+        src.time_reason = (f"column {name!r} holds no number in any row (text such as {value!r} on data row "
+                           f"{row}): not read as the time")
     if "t" in data:
         word = unit_words.get("t")
         name = column_map["t"]

@@ -142,3 +142,26 @@ def test_a_pause_of_the_recording_is_kept_as_a_gap_not_spread_as_bursts(turned, 
     assert loaded.decisions.time_base.value == ("uniform" if bursts else "stamps")
     pose_t = loaded.poses.t
     assert np.all(np.diff(pose_t) > 0) and np.max(np.diff(pose_t)) > 250.0  # the pause stays between two rests
+
+
+# ------------------------------------------------------------------ a time column of text
+def test_a_time_column_of_dates_as_text_is_set_aside_and_said(turned, tmp_path, capsys):
+    """Yost Labs' 3-Space logger (Nicholas-Hall4799/threespace_imu): ``Time`` written as ``Wed Dec 22 21:09:46
+    2021``. Before: every row dropped as non-finite, "no usable sample (of N rows: non-finite samples: N)", even with
+    --rate; now the column is set aside and said, the refusal names --rate, and with it the file is read."""
+    f = turned.frame
+    start = 1640207386  # 2021-12-22 21:09:46 UTC
+    from datetime import datetime, timezone
+    stamps = [datetime.fromtimestamp(start + int(s), timezone.utc).strftime("%a %b %d %H:%M:%S %Y") for s in f["t"]]
+    path = tmp_path / "imu_data.csv"
+    path.write_text("Time,ax,ay,az,gx,gy,gz\n" + "".join(
+        f"{d}," + ",".join(f"{v:.6f}" for v in row) + "\n"
+        for d, row in zip(stamps, f[["ax", "ay", "az", "gx", "gy", "gz"]].to_numpy())))
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "Traceback" not in err
+    assert "no usable sample" not in err
+    assert "column 'Time' holds no number in any row (text such as 'Wed Dec 22 21:09:46 2021'" in err
+    assert "--rate" in err
+    loaded = load_with_segmentation(path, rate=100.0)
+    assert loaded.poses.n == len(turned.dwells)
+    assert "column 'Time' holds no number" in loaded.decisions.layout
