@@ -165,3 +165,23 @@ def test_a_time_column_of_dates_as_text_is_set_aside_and_said(turned, tmp_path, 
     loaded = load_with_segmentation(path, rate=100.0)
     assert loaded.poses.n == len(turned.dwells)
     assert "column 'Time' holds no number" in loaded.decisions.layout
+
+
+# ------------------------------------------------------------------ a magnetometer in tesla
+def test_a_magnetometer_written_in_tesla_is_read_in_tesla(tmp_path, capsys):
+    """Emkijen/ESA-Poster-IPP's ``mag.csv``: ``t,Bx,By,Bz`` in T (|m| 1e-4). Before: "not the Earth's field in µT,
+    nT, gauss or mgauss, so the samples are read as counts"; now T, whose range lies 10^6 below µT's (and counts,
+    integers, never have so small a median); counts and the other units keep their readings."""
+    from optcal.families.mag.units import units_from_magnitude
+
+    assert units_from_magnitude(5e-5) == "T" and units_from_magnitude(50.0) == "uT"
+    assert units_from_magnitude(500.0) == "mgauss" and units_from_magnitude(3000.0) is None
+    rng = np.random.default_rng(3)
+    d = uniform_directions(400, rng=4)
+    m = 48e-6 * d @ np.diag([1.02, 0.97, 1.0]) + np.array([3e-6, -2e-6, 1e-6]) + 1e-7 * rng.normal(size=d.shape)
+    path = tmp_path / "mag.csv"
+    path.write_text("t,Bx,By,Bz\n" + "".join(f"{0.01 * i:.2f},{x:.12f},{y:.12f},{z:.12f}\n" for i, (x, y, z) in
+                                             enumerate(m)))
+    code, out, err = run(["calibrate", path, "--sensor", "mag"], capsys)
+    assert code == 0, err
+    assert "magnetometer units: T (from the data" in out
