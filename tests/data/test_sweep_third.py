@@ -185,3 +185,15 @@ def test_a_magnetometer_written_in_tesla_is_read_in_tesla(tmp_path, capsys):
     code, out, err = run(["calibrate", path, "--sensor", "mag"], capsys)
     assert code == 0, err
     assert "magnetometer units: T (from the data" in out
+
+
+def test_a_magnetometer_with_a_split_stamp_is_read(tmp_path, capsys):
+    """SiyangMeng's ``mag.csv`` (``secs, nsecs, mx, my, mz`` in µT, no header): before, refused ("5 unnamed
+    columns fit no common layout of a magnetometer"); now columns 1-2 are the time and 3-5 the field."""
+    d = uniform_directions(400, rng=4)
+    m = 48.0 * d + np.array([3.0, -2.0, 1.0])
+    path = tmp_path / "mag.csv"
+    path.write_text(split_stamp_rows(np.arange(400) * 0.01, m))
+    code, out, err = run(["calibrate", path, "--sensor", "mag"], capsys)
+    assert code == 0, err
+    assert "mx=3, my=4, mz=5, t=1" in out and "columns 1-2 one time stamp" in out
