@@ -53,6 +53,7 @@ from optcal.data.evidence import (
     time_evidence,
 )
 from optcal.data.readers import Source
+from optcal.data import sample_clock as clock
 from optcal.data.sample_clock import ClockLimits, held_recording, sample_clock
 from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion, units_and_nominal
 from optcal.errors import InputError
@@ -89,10 +90,6 @@ MANY_ROWS: int = 2000
 #: Plausible sampling rates of a recording, Hz: slower than 1 Hz no rest holds the samples of a
 #: static detection window; faster than 100 kHz is no MEMS inertial sensor's output rate.
 PLAUSIBLE_RATE_HZ: tuple[float, float] = (1.0, 100_000.0)
-#: The longest a host holds a sensor's samples before it receives (and stamps) them, seconds: Bluetooth LE's
-#: longest connection interval (4 s; USB and serial links deliver within tens of ms).  A longer step between
-#: stamps is a pause of the recording (a logger stopped, sessions joined), not the wait between bursts.
-MAX_HOST_HOLD_S: float = 4.0
 #: A ``rate`` that differs from a regular time column's rate by more than this fraction is warned
 #: about (and a rate stated in the header settles the time column's unit when one unit gives it within it).
 RATE_MISMATCH_FRACTION: float = 0.05
@@ -735,8 +732,7 @@ def _recording_time(
     """Time base and rate of a recording; rescales or re-times ``src``'s ``t`` column in place."""
     if rate is not None or not src.has("t"):
         rate_used = rate if rate is not None else src.rate_hint
-        # a time column set aside as text (readers.source_from_columns) is said where the rate is needed
-        text_time = src.time_reason if src.time_reason and not src.has("t") else ""
+        text_time = src.time_reason if src.time_reason and not src.has("t") else ""  # a time column of text, set aside
         if rate_used is None:
             raise InputError(
                 f"{src.path}: no time column{f' ({text_time})' if text_time else ''} and no sampling rate; pass "
@@ -778,28 +774,12 @@ def _recording_time(
     median_step = te.median_step * factor
     name = reading.why
     rows = np.flatnonzero(ev.usable)
-    pauses = np.zeros(0, dtype=np.int64)
-    pause_note = ""
-    if te.bursty and mean_step > 0:
-        # a step longer than a host ever holds samples is a pause of the recording (sessions joined, a logger
-        # stopped), not a burst's wait: the bursts are judged, and the samples spread, between the pauses
-        pauses = np.flatnonzero(np.diff(t[rows]) > MAX_HOST_HOLD_S)
-        if pauses.size:
-            held = float(np.sum(t[rows[pauses + 1]] - t[rows[pauses]]))
-            mean_step = (te.duration * factor - held) / max(1, rows.size - 1 - pauses.size)
-            pause_note = (f"; {pauses.size} pause(s) of the recording ({held:.4g} s in all: steps over "
-                          f"{MAX_HOST_HOLD_S:g} s, longer than a host holds samples) kept as gaps")
-    irregular = (te.bursty and median_step * BURST_RATIO < mean_step) or te.coarse
+    gaps, held, mean_step = clock.pauses(t, rows, mean_step) if te.bursty and mean_step > 0 else (rows[:0], 0.0, mean_step)
+    irregular = (te.bursty and median_step * BURST_RATIO < mean_step) or te.coarse  # bursts judged between pauses
     if timing == "uniform" or (timing == "auto" and irregular and mean_step > 0):
         if not mean_step > 0:
             raise InputError(f"{src.path}: the time column does not advance; pass --rate HZ")
-        t_new = np.full(t.size, np.nan)
-        # each section between pauses spread evenly from its first stamp (one section without a pause)
-        starts = np.r_[0, pauses + 1]
-        k = np.arange(rows.size)
-        section = np.searchsorted(starts, k, side="right") - 1
-        t_new[rows] = t[rows[starts]][section] + (k - starts[section]) * mean_step
-        src.data["t"] = t_new
+        src.data["t"] = clock.spread_evenly(t, rows, gaps, mean_step)
         if timing == "uniform":
             why = "given with --timing uniform"
         elif te.bursty:
@@ -812,14 +792,9 @@ def _recording_time(
                 f"the stamps are coarse ({100 * te.repeated_fraction:.0f} % of the samples repeat the previous "
                 f"stamp; resolution {1e3 * te.min_positive_step * factor:.3g} ms); pass --timing stamps to keep them"
             )
-        reason = f"{name}; samples spread evenly over the stamped span{pause_note}: {why}"
-        if pauses.size:
-            return Decision("uniform", reason, "--timing"), Decision(
-                1.0 / mean_step, f"(N−1−pauses)/(duration−pauses) = {rows.size - 1 - pauses.size}/"
-                f"{(rows.size - 1 - pauses.size) * mean_step:.6g} s", "--rate")
+        reason = f"{name}; samples spread evenly over the stamped span{clock.pause_note(gaps, held)}: {why}"
         return Decision("uniform", reason, "--timing"), Decision(
-            1.0 / mean_step, f"(N−1)/duration = {te.n - 1}/{te.duration * factor:.6g} s", "--rate"
-        )
+            1.0 / mean_step, clock.spread_rate_reason(te.n, te.duration * factor, gaps, mean_step), "--rate")
     rate_hz = 1.0 / median_step if median_step > 0 else float("nan")
-    return Decision("stamps", name + pause_note, "--timing"), Decision(rate_hz, "1/median time step", "--rate")
+    return Decision("stamps", name + clock.pause_note(gaps, held), "--timing"), Decision(rate_hz, "1/median time step", "--rate")
 
