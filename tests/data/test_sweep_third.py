@@ -197,3 +197,22 @@ def test_a_magnetometer_with_a_split_stamp_is_read(tmp_path, capsys):
     code, out, err = run(["calibrate", path, "--sensor", "mag"], capsys)
     assert code == 0, err
     assert "mx=3, my=4, mz=5, t=1" in out and "columns 1-2 one time stamp" in out
+
+
+# ------------------------------------------------------------------ MATLAB objects in a MAT-file
+def test_a_mat_file_of_matlab_objects_is_refused_saying_so(tmp_path, monkeypatch, capsys):
+    """MATLAB Mobile's ``sensorlog_*.mat`` holds timetables: scipy reads each as an opaque placeholder named "None"
+    (warning "Duplicate variable name") and optcal said "no accelerometer matrix … among the file's numeric
+    variables: none". Now the refusal says the file holds MATLAB objects and how to export them. (scipy cannot
+    write such objects, so its reader is given one, as it returns it for that file.)"""
+    import scipy.io
+    from scipy.io.matlab import MatlabOpaque
+
+    opaque = np.zeros(1, dtype=[("s0", "O"), ("s1", "O"), ("s2", "O"), ("arr", "O")]).view(MatlabOpaque)
+    monkeypatch.setattr(scipy.io, "loadmat", lambda *a, **k: {"__header__": b"MATLAB 5.0", "None": opaque})
+    path = tmp_path / "sensorlog_20231003_091144.mat"
+    scipy.io.savemat(path, {"x": np.zeros(3)})
+    for argv in (["segment", path], ["calibrate", path, "--sensor", "mag"]):
+        code, out, err = run(argv, capsys)
+        assert code == 2 and "Traceback" not in err
+        assert "holds MATLAB objects" in err and "writetimetable" in err
