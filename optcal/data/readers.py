@@ -36,6 +36,8 @@ from optcal.data.columns import (
     GYRO,
     GYRO_UNIT_WORDS,
     JOINED_STAMP,
+    MAG,
+    MAG_ALIASES,
     NO_COLUMN,
     RATE_KEYS,
     RATE_SETTING,
@@ -396,10 +398,14 @@ def source_from_columns(
     column_map, unit_words, roles = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
     if missing:
+        # a magnetometer's file given to an accelerometer's command: its reader is one flag away
+        stems = {strip_unit(normalise_name(n))[0] for n in names}
+        mag = "; its columns name a magnetometer: optcal calibrate FILE --sensor mag" if all(
+            stems & set(MAG_ALIASES[c]) for c in MAG) else ""
         raise InputError(
             f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: "
             f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
-            "with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4)"
+            f"with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4){mag}"
         )
     by_name = dict(zip(names, columns))
     bad_by_name = non_numeric_by_name or {}

@@ -216,3 +216,15 @@ def test_a_mat_file_of_matlab_objects_is_refused_saying_so(tmp_path, monkeypatch
         code, out, err = run(argv, capsys)
         assert code == 2 and "Traceback" not in err
         assert "holds MATLAB objects" in err and "writetimetable" in err
+
+
+def test_a_magnetometers_file_given_to_the_accelerometers_command_names_sensor_mag(tmp_path, capsys):
+    """``t_ms,mx,my,mz,B`` (emmaghita/esp32-magnetometer) to ``optcal segment``: the refusal named only --columns;
+    now it says the columns are a magnetometer's and names ``--sensor mag``. An unknown file's refusal does not."""
+    path = tmp_path / "mag_data.csv"
+    path.write_text("t_ms,mx,my,mz,B\n" + "".join(f"{1712 + 100 * i},-350,-208,-1000,1079.7\n" for i in range(50)))
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "--sensor mag" in err
+    path.write_text("t,u,v,w\n" + "".join(f"{0.01 * i},1,2,3\n" for i in range(50)))
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "--sensor mag" not in err and "--columns" in err
