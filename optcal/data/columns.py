@@ -375,6 +375,45 @@ def _first_decrease(col: NDArray[np.float64]) -> str:
     return f" (column 1 goes back at data row {j + 1}: {col[j]:.10g} after {col[i]:.10g}, {back.size} such step(s))"
 
 
+#: A stamp split in two fields, whole seconds and the fraction of the second as an integer count of its unit:
+#: ROS's ``header.stamp`` (``secs, nsecs``), C's ``struct timespec``/``timeval`` (ns, µs), a logger's ``s, ms``.
+#: The fraction's unit is the one whose range [0, 10^k) its values fill: a count of ns reaches past 10^6 within
+#: any second sampled more than a few times, µs past 10^3, ms stays below 10^3.
+SUBSECOND_UNITS: tuple[tuple[float, str], ...] = ((1e9, "ns"), (1e6, "us"), (1e3, "ms"))
+#: The reason's words for such a stamp (its second field is then read, as the time's fraction).
+JOINED_STAMP: str = "columns 1-2 one time stamp"
+
+
+def split_stamp(columns: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64], str] | None:
+    """The time of a stamp written in its first two fields as whole seconds and a sub-second count, or ``None``.
+
+    The two fields are one stamp when both are integers, the second lies in [0, 10^k) of its unit
+    (:data:`SUBSECOND_UNITS`), the seconds never decrease and step where the fraction wraps (it goes back only
+    when the seconds advance), and the seconds alone repeat (so they are no time column on their own).
+
+    Returns
+    -------
+    (time in the seconds' unit, the fraction's unit), or ``None``.
+    """
+    if len(columns) < 3:
+        return None
+    secs, frac = columns[0], columns[1]
+    ok = np.isfinite(secs) & np.isfinite(frac)
+    s, f = secs[ok], frac[ok]
+    if s.size < 3 or np.any(s != np.round(s)) or np.any(f != np.round(f)) or f.min() < 0:
+        return None
+    ds, df = np.diff(s), np.diff(f)
+    if np.any(ds < 0) or not np.any(ds == 0) or np.any((df < 0) & (ds == 0)):
+        return None
+    top = float(f.max())
+    unit = next(((scale, name) for scale, name in SUBSECOND_UNITS if scale / 1000 <= top < scale), None)
+    if unit is None:
+        return None
+    t = np.full(secs.shape, np.nan)
+    t[ok] = s + f / unit[0]
+    return (t, unit[1]) if increasing_column(t) else None
+
+
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
     """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
     return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
@@ -386,7 +425,8 @@ def headerless_mapping(
     """Canonical columns of a file without a header, by the common layout of its width.
 
     A time column is the first (or else the last) field when it increases and 3, 6 or 9 fields
-    remain; the first three of the others are the accelerometer, the next three the gyroscope
+    remain, or the first two fields when they are one stamp split in whole seconds and a sub-second count
+    (:func:`split_stamp`; ``columns[0]`` is then replaced, in the list given, by their sum in seconds); the first three of the others are the accelerometer, the next three the gyroscope
     (a ninth-axis triple after them, a magnetometer's, is left unread and named in the reason),
     and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).
 
@@ -408,15 +448,21 @@ def headerless_mapping(
     while len(columns) - empty_tail > 3 and not np.isfinite(columns[len(columns) - empty_tail - 1]).any():
         empty_tail += 1
     full_width = len(columns)
+    given = columns
     columns = columns[:full_width - empty_tail]
     width = len(columns)
     time_at: int | None = None
-    if width - 1 in HEADERLESS_TRIPLES:
+    joined = split_stamp(columns) if width - 2 in HEADERLESS_TRIPLES else None
+    if joined is not None:
+        # whole seconds and their fraction (ROS's secs, nsecs): one time column, the first field's place
+        columns[0] = given[0] = joined[0]
+        time_at = 0
+    elif width - 1 in HEADERLESS_TRIPLES:
         if increasing_column(columns[0]):
             time_at = 0
         elif increasing_column(columns[-1]):
             time_at = width - 1
-    rest = [j for j in range(width) if j != time_at]
+    rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
     example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
     if len(rest) not in HEADERLESS_TRIPLES:
         why = "fit no common layout"
@@ -435,6 +481,9 @@ def headerless_mapping(
     if len(rest) >= 6:
         roles = ColumnRoles((_field_names(rest[0:3]), _field_names(rest[3:6])), 0, what)
     where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
+    if joined is not None:
+        where = (f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs): "
+                 f"column 1 holds their sum in seconds")
     if len(rest) == 9:
         where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
     if empty_tail:

@@ -29,6 +29,7 @@ of :mod:`optcal.data.decisions` to weigh against the data, as any other reader d
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -184,11 +185,22 @@ def read_mat5(path: str | Path) -> Contents:
     from scipy.io import loadmat
 
     try:
-        content = loadmat(str(path), simplify_cells=True)
+        with warnings.catch_warnings():  # MATLAB objects make scipy warn of variables named "None": said below
+            warnings.filterwarnings("ignore", message="Duplicate variable name")
+            content = loadmat(str(path), simplify_cells=True)
     except Exception as exc:  # scipy raises several error classes for damaged files
         raise InputError(f"{path}: not a readable MAT-file, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
     contents = Contents(MAT5, [], {}, {}, [])
     _collect_mat5(contents, {k: v for k, v in content.items() if not k.startswith("__")}, "")
+    objects = [k for k, v in content.items() if type(v).__name__ == "MatlabOpaque"]
+    if objects and not contents.variables:
+        # MATLAB's classdef objects (timetable, table, string, datetime: MATLAB Mobile's sensorlog) are opaque to
+        # scipy, which reads them as nameless placeholders: no number of them can be read
+        raise InputError(
+            f"{path}: holds MATLAB objects (a timetable, table, string or datetime, opaque outside MATLAB) and no "
+            "numeric matrix; export them as plain numbers in MATLAB, e.g. "
+            "writetimetable(Acceleration, 'acc.csv') or acc = Acceleration{:,:}; save('acc.mat', 'acc')"
+        )
     return contents
 
 

@@ -53,6 +53,7 @@ from optcal.data.evidence import (
     time_evidence,
 )
 from optcal.data.readers import Source
+from optcal.data import sample_clock as clock
 from optcal.data.sample_clock import ClockLimits, held_recording, sample_clock
 from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion, units_and_nominal
 from optcal.errors import InputError
@@ -731,12 +732,13 @@ def _recording_time(
     """Time base and rate of a recording; rescales or re-times ``src``'s ``t`` column in place."""
     if rate is not None or not src.has("t"):
         rate_used = rate if rate is not None else src.rate_hint
+        text_time = src.time_reason if src.time_reason and not src.has("t") else ""  # a time column of text, set aside
         if rate_used is None:
             raise InputError(
-                f"{src.path}: no time column and no sampling rate; pass --rate HZ "
-                "(or add a time column t_s, or map one with --columns t=NAME or t=POSITION)"
+                f"{src.path}: no time column{f' ({text_time})' if text_time else ''} and no sampling rate; pass "
+                "--rate HZ (or add a time column t_s, or map one with --columns t=NAME or t=POSITION)"
             )
-        why = "--rate" if rate is not None else src.rate_reason
+        why = ("--rate" if rate is not None else src.rate_reason) + (f"; {text_time}" if text_time else "")
         what = f"column {src.column_map['index']!r}" if src.has("index") else "row number"
         if src.has("t"):
             why += ", instead of the time column"
@@ -771,14 +773,13 @@ def _recording_time(
     mean_step = te.mean_step * factor
     median_step = te.median_step * factor
     name = reading.why
-    irregular = te.bursty or te.coarse
+    rows = np.flatnonzero(ev.usable)
+    gaps, held, mean_step = clock.pauses(t, rows, mean_step) if te.bursty and mean_step > 0 else (rows[:0], 0.0, mean_step)
+    irregular = (te.bursty and median_step * BURST_RATIO < mean_step) or te.coarse  # bursts judged between pauses
     if timing == "uniform" or (timing == "auto" and irregular and mean_step > 0):
         if not mean_step > 0:
             raise InputError(f"{src.path}: the time column does not advance; pass --rate HZ")
-        rows = np.flatnonzero(ev.usable)
-        t_new = np.full(t.size, np.nan)
-        t_new[rows] = t[rows[0]] + np.arange(rows.size) * mean_step
-        src.data["t"] = t_new
+        src.data["t"] = clock.spread_evenly(t, rows, gaps, mean_step)
         if timing == "uniform":
             why = "given with --timing uniform"
         elif te.bursty:
@@ -791,10 +792,9 @@ def _recording_time(
                 f"the stamps are coarse ({100 * te.repeated_fraction:.0f} % of the samples repeat the previous "
                 f"stamp; resolution {1e3 * te.min_positive_step * factor:.3g} ms); pass --timing stamps to keep them"
             )
-        reason = f"{name}; samples spread evenly over the stamped span: {why}"
+        reason = f"{name}; samples spread evenly over the stamped span{clock.pause_note(gaps, held)}: {why}"
         return Decision("uniform", reason, "--timing"), Decision(
-            1.0 / mean_step, f"(N−1)/duration = {te.n - 1}/{te.duration * factor:.6g} s", "--rate"
-        )
+            1.0 / mean_step, clock.spread_rate_reason(te.n, te.duration * factor, gaps, mean_step), "--rate")
     rate_hz = 1.0 / median_step if median_step > 0 else float("nan")
-    return Decision("stamps", name, "--timing"), Decision(rate_hz, "1/median time step", "--rate")
+    return Decision("stamps", name + clock.pause_note(gaps, held), "--timing"), Decision(rate_hz, "1/median time step", "--rate")
 

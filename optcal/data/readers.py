@@ -35,6 +35,9 @@ from optcal.data.columns import (
     CANONICAL,
     GYRO,
     GYRO_UNIT_WORDS,
+    JOINED_STAMP,
+    MAG,
+    MAG_ALIASES,
     NO_COLUMN,
     RATE_KEYS,
     RATE_SETTING,
@@ -313,6 +316,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         {names[j]: v for j, v in parsed.non_numeric.items()},
     )
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
+    if unread and JOINED_STAMP in reason:
+        unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
         src.columns_reason = reason
@@ -322,6 +327,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     elif src.roles is None:
         src.columns_reason = reason
     src.layout = layout.describe()
+    if "t" not in src.column_map and src.time_reason:  # a time column of text, set aside (source_from_columns)
+        src.layout += f"; {src.time_reason}"
     if unread and not mapping_given:
         # a 9-axis logger's magnetometer (columns.HEADERLESS_TRIPLES): said, not silently dropped
         src.layout += f"; columns {', '.join(unread)} not read (--columns maps them)"
@@ -391,10 +398,14 @@ def source_from_columns(
     column_map, unit_words, roles = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
     if missing:
+        # a magnetometer's file given to an accelerometer's command: its reader is one flag away
+        stems = {strip_unit(normalise_name(n))[0] for n in names}
+        mag = "; its columns name a magnetometer: optcal calibrate FILE --sensor mag" if all(
+            stems & set(MAG_ALIASES[c]) for c in MAG) else ""
         raise InputError(
             f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: "
             f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
-            "with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4)"
+            f"with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4){mag}"
         )
     by_name = dict(zip(names, columns))
     bad_by_name = non_numeric_by_name or {}
@@ -427,6 +438,15 @@ def source_from_columns(
         gyro_word = next(iter(words)) if len(words) == 1 else None
         if gyro_word is not None and gyro_word in GYRO_UNIT_WORDS:
             src.gyro_units = GYRO_UNIT_WORDS[gyro_word]
+    if "t" in data and "t" in non_numeric and not np.isfinite(data["t"]).any():
+        # a time column holding no number in any row (a date written as text, 'Wed Dec 22 21:09:46 2021') is no
+        # time base: set aside and said (the rate is then needed: --rate), instead of every row dropped as non-finite
+        count, row, value = non_numeric.pop("t")
+        name = column_map.pop("t")
+        data.pop("t")
+        src.ignored_columns.append(name)
+        src.time_reason = (f"column {name!r} holds no number in any row (text such as {value!r} on data row "
+                           f"{row}): not read as the time")
     if "t" in data:
         word = unit_words.get("t")
         name = column_map["t"]

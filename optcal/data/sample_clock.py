@@ -8,6 +8,10 @@ turn apart (more than :data:`~optcal.data.decisions.POSE_STEP_RATIO` of 1 g, the
 poses); a recording samples each rest again and again, its consecutive samples within a pose step of each other
 (the sensor's noise, a slow sway).  Rows that stay so for the static detection's shortest dwell
 (:data:`~optcal.data.decisions.MIN_POSE_SPACING_S`) at a rate the time column gives are a rest sampled.
+
+And the pauses of a recording (:func:`pauses`): a step between stamps longer than a host ever holds samples is
+a pause (a logger stopped, sessions joined), not the wait between a host's bursts; bursty stamps are spread
+evenly within the sections between pauses (:func:`spread_evenly`).
 """
 
 from __future__ import annotations
@@ -120,3 +124,44 @@ def held_recording(src: Source, ev: Evidence, te: TimeEvidence | None, reading: 
         return None
     return (f"{_held_text(held, rate, lim)} {rate:.4g} Hz, {reading.why}): a rest sampled, where a pose table has one row "
             "per pose")
+
+
+#: The longest a host holds a sensor's samples before it receives (and stamps) them, seconds: Bluetooth LE's
+#: longest connection interval (4 s; USB and serial links deliver within tens of ms).  A longer step between
+#: stamps is a pause of the recording (a logger stopped, sessions joined), not the wait between bursts.
+MAX_HOST_HOLD_S: float = 4.0
+
+
+def pauses(t: np.ndarray, rows: np.ndarray, mean_step: float) -> tuple[np.ndarray, float, float]:
+    """The steps of ``t[rows]`` (seconds) longer than :data:`MAX_HOST_HOLD_S`: their indices into the steps, the
+    time they hold in all, and the mean step between them (``mean_step``, over the whole span, without a pause)."""
+    steps = np.diff(t[rows])
+    at = np.flatnonzero(steps > MAX_HOST_HOLD_S)
+    held = float(steps[at].sum())
+    return at, held, (float(steps.sum()) - held) / max(1, steps.size - at.size) if at.size else mean_step
+
+
+def spread_rate_reason(n: int, duration: float, at: np.ndarray, step: float) -> str:
+    """The rate's reason for samples spread evenly: ``(N−1)/duration = ...``, the pauses left out."""
+    if not at.size:
+        return f"(N−1)/duration = {n - 1}/{duration:.6g} s"
+    return f"(N−1−pauses)/(duration−pauses) = {n - 1 - at.size}/{(n - 1 - at.size) * step:.6g} s"
+
+
+def pause_note(at: np.ndarray, held: float) -> str:
+    """``; 2 pause(s) of the recording (710.5 s in all: ...) kept as gaps``, or ``""`` without a pause."""
+    if not at.size:
+        return ""
+    return (f"; {at.size} pause(s) of the recording ({held:.4g} s in all: steps over {MAX_HOST_HOLD_S:g} s, longer "
+            "than a host holds samples) kept as gaps")
+
+
+def spread_evenly(t: np.ndarray, rows: np.ndarray, at: np.ndarray, step: float) -> np.ndarray:
+    """Times for ``rows`` spread ``step`` apart from each section's first stamp (sections between the pauses
+    ``at``; one section without a pause); NaN elsewhere."""
+    out = np.full(t.size, np.nan)
+    starts = np.r_[0, at + 1]
+    k = np.arange(rows.size)
+    section = np.searchsorted(starts, k, side="right") - 1
+    out[rows] = t[rows[starts]][section] + (k - starts[section]) * step
+    return out

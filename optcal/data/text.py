@@ -227,11 +227,17 @@ def _layout_for(
     ignored_header = None
     names = [str(j + 1) for j in range(width)]
     if k > 0:
-        above = fields[k - 1]
+        above = _without_empty_tail(fields[k - 1])
+        # a delimiter written after the header's last name (``t,ax,ay,az,``, as after every data row's last
+        # value) names no column: the names are those before it, and the data rows' fields beyond them must be
+        # empty in every sniffed row (a column of no numbers), else the header does not match the rows
+        empty_beyond = len(above) < width and all(
+            not f for row in fields[k:end] for f in row[len(above):] if len(row) == width)
         if len(above) >= 2 and all(f and not _is_number(f, decimal_comma) for f in above):
-            if len(above) == width:
+            if len(above) == width or empty_beyond:
                 header_line = content[k - 1][0]
                 names = [f.strip().strip('"').strip("'") for f in above]
+                names += [str(j + 1) for j in range(len(names), width)]
             elif len(above) >= 3 and by_position:
                 # a header that lost a delimiter (``time (s)x (g),y (g),z (g)`` over 4 fields): the
                 # caller names the columns by position, so the line is only read as a note
@@ -252,6 +258,14 @@ def _layout_for(
         delim, decimal_comma, header_line, first_data, names, _metadata(lines[:meta_end]), comment_names, comment_line,
         ignored_header,
     ), None
+
+
+def _without_empty_tail(row: list[str]) -> list[str]:
+    """``row`` without its empty last fields (a delimiter after the last value or name); at least one field kept."""
+    n = len(row)
+    while n > 1 and not row[n - 1]:
+        n -= 1
+    return row[:n]
 
 
 def _comment_names(

@@ -18,7 +18,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import ALIASES, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option
+from optcal.data.columns import (
+    ALIASES, JOINED_STAMP, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option, split_stamp,
+)
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
 
@@ -158,9 +160,14 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     """
     width = len(names)
     time_at: int | None = None
-    if width in (4, 10):
+    # a stamp split in whole seconds and their fraction (ROS's secs, nsecs) in the first two fields: one time column
+    joined = split_stamp(columns) if width in (5, 11) else None
+    if joined is not None:
+        columns[0] = joined[0]
+        time_at = 0
+    elif width in (4, 10):
         time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
-    rest = [j for j in range(width) if j != time_at]
+    rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
     if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
                          f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
@@ -168,6 +175,8 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     if time_at is not None:
         canon["t"] = str(time_at + 1)
     where = "" if time_at is None else f"; column {time_at + 1} increases"
+    if joined is not None:
+        where = f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs)"
     if len(rest) == 9:
         triples = (rest[0:3], rest[3:6])
         spread = [_relative_spread(np.column_stack([columns[j] for j in t])) for t in triples]

@@ -80,10 +80,13 @@ class UnitDecision:
 
 
 def units_from_magnitude(median: float) -> str | None:
-    """The unit whose Earth's field range (widened by :data:`UNIT_TOLERANCE`) holds ``median``, else ``None``."""
+    """The unit whose Earth's field range (widened by :data:`UNIT_TOLERANCE`) holds ``median``, else ``None``.
+
+    Tesla is one of them (Android's and MATLAB Mobile's SI export writes 5e-5): its range, 1.3e-5 to 1.2e-4, lies
+    10^6 below µT's, and no raw counts (integers) have a median field so small.
+    """
     low, high = EARTH_FIELD_UT
-    fits = [u for u, k in UT_PER_UNIT.items() if u != "T"
-            and low / UNIT_TOLERANCE <= median * k <= high * UNIT_TOLERANCE]
+    fits = [u for u, k in UT_PER_UNIT.items() if low / UNIT_TOLERANCE <= median * k <= high * UNIT_TOLERANCE]
     return fits[0] if len(fits) == 1 else None
 
 
@@ -117,5 +120,5 @@ def decide_mag_units(m: NDArray[np.float64], stated: str | None, where: str, ove
         low, high = EARTH_FIELD_UT
         return UnitDecision(guess, f"from the data: median |m| {median:.4g} is the Earth's {low:g}-{high:g} µT "
                                    f"(within a factor {UNIT_TOLERANCE:g}) only in {guess}", median)
-    return UnitDecision("counts", f"from the data: median |m| {median:.4g} is not the Earth's field in µT, nT, gauss "
-                                  f"or mgauss, so the samples are read as counts (the field strength is then in counts)", median)
+    return UnitDecision("counts", f"from the data: median |m| {median:.4g} is not the Earth's field in µT, nT, T, "
+                                  f"gauss or mgauss, so the samples are read as counts (the field strength is then in counts)", median)
