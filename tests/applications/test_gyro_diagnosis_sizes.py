@@ -172,3 +172,29 @@ def test_an_effect_at_four_to_five_sds_is_named_on_its_axis(base, effect, axis, 
     found = _estimate(after, effect, axis) - _estimate(base.diag, effect, axis)
     assert found == pytest.approx(expected, rel=0.4), (found, expected)
     assert after.gain >= 1.0
+
+
+def test_what_only_the_rests_carry_is_not_named(base):
+    """A bias that wanders between the rests (bias instability sampled at each rest), its values following the pose
+    on x (1e-3 rad/s per g of the specific force on x) and the moves carrying none of it: the rests' means alone say
+    g-sensitivity, the moves' gravity prediction does not improve held out, and nothing new is named (before the
+    held-out moves were required to improve by themselves, a g-sensitivity of x was named with a gain below 1, as on
+    a stranger's imu_tk log)."""
+    from optcal.applications.diagnosis.gyro_diagnosis import diagnose_gyro
+    from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro
+    from optcal.families.gyro.moves import moves_from_arrays
+
+    if base.name != "mikoff":
+        pytest.skip("one recording is enough for the rule (imu0: 4 s)")
+    rec, T = base.rec, base.imu.gyro.T
+    g = np.array(rec.gyro, dtype=float, copy=True)
+    f = base.imu.accelerometer.correct(rec.acc)
+    for start, stop in base.intervals:
+        g[start:stop, 0] += 1e-3 * float(np.mean(f[start:stop, 0])) / T[0, 0]
+    moves = moves_from_arrays(np.asarray(rec.t, dtype=float), rec.acc, g, base.intervals, rec.usable, base.sigma,
+                              rec.temp)
+    settings = GyroSettings(accept_gyro_fit=True)
+    after = diagnose_gyro(moves, base.imu.accelerometer, calibrate_gyro(moves, base.imu.accelerometer, base.units,
+                                                                         settings).gyro)
+    assert _named(after) == _named(base.diag), after.steps
+    assert after.gain >= 1.0
