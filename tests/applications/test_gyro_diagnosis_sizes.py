@@ -198,3 +198,23 @@ def test_what_only_the_rests_carry_is_not_named(base):
                                                                          settings).gyro)
     assert _named(after) == _named(base.diag), after.steps
     assert after.gain >= 1.0
+
+
+def test_moves_beyond_the_band_unexplained_are_said_so():
+    """Moves beyond the band with nothing named: the report says the candidates tested explain none of them and
+    gives the best candidate's evidence, not "none named" alone (a stranger's log, ChanghyeonKim93's imu_good2:
+    χ² 218 for 17 dof in calibrate --imu, which points to the diagnosis)."""
+    from optcal.applications.diagnosis.gyro_diagnosis import GyroDiagnosis
+    from optcal.applications.diagnosis.gyro_problem import GyroParams
+
+    step = {"term": "gyro_scale_nonlinearity(y)", "lr": 14.9, "p": 1.1e-4, "level": 2.2e-3, "delta_bic": -10.7,
+            "heldout_moves_t": -0.34, "heldout_critical_t": 1.71, "accepted": False}
+    diag = GyroDiagnosis([], [step], np.array([1.7, 0.2]), np.array([1.4, 0.5]), np.array([1.7, 0.2]), 1.2, 1.2,
+                         {"tested": True}, ["g_sensitivity(x)", "gyro_bias_drift(x)", "time_offset"], {},
+                         GyroParams(np.eye(3), np.zeros(3), (), ()), [], {})
+    text = "\n".join(diag.report_lines())
+    assert "explained by none of the candidates tested (g_sensitivity, gyro_bias_drift, time_offset)" in text
+    assert "best candidate: gyro_scale_nonlinearity(y)" in text and "held-out moves' t -0.34" in text
+    inside = GyroDiagnosis([], [step], np.array([0.2]), np.array([1.4]), np.array([0.2]), 1.2, 1.2, {"tested": True},
+                           ["time_offset"], {}, GyroParams(np.eye(3), np.zeros(3), (), ()), [], {})
+    assert "none named (an effect below the tests' power" in "\n".join(inside.report_lines())

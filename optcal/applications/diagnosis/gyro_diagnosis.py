@@ -198,6 +198,21 @@ class GyroDiagnosis:
         if self.findings:
             out.append("  named:")
             out += [f"    {f.describe()}" for f in self.findings]
+        elif np.any(self.outside):
+            # the band's excess left unexplained: said, not "nothing" (the effect is outside the five candidates, or
+            # the noise model understates the moves' noise)
+            effects = list(dict.fromkeys(label.split("(")[0] for label in self.tested))
+            out.append(f"  none named: the {int(np.sum(self.outside))} move(s) beyond the band are explained by none of "
+                       f"the candidates tested ({', '.join(effects)}); the cause is outside them (motion during the "
+                       "rests, a time base that is not the samples', a filter) or the noise model understates the "
+                       "moves' noise")
+            tried = [s for s in self.steps if not s.get("removed")][:1]
+            for step in tried:
+                moves_t = step.get("heldout_moves_t")
+                out.append(f"    best candidate: {step['term']} (likelihood ratio {step['lr']:.1f}, p {step['p']:.2g} against "
+                           f"{step['level']:.2g}, ΔBIC {step['delta_bic']:.1f}"
+                           + (f", held-out moves' t {moves_t:.2f} against {step['heldout_critical_t']:.2f}"
+                              if isinstance(moves_t, float) and math.isfinite(moves_t) else "") + ")")
         else:
             out.append("  none named (an effect below the tests' power is not ruled out)")
         out.append(f"  held-out gravity prediction: {self.heldout_baseline_deg:.3f}° → {self.heldout_final_deg:.3f}° rms "
