@@ -59,6 +59,9 @@ from optcal.errors import InputError
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import unit_rows
 
+#: The Earth's rotation rate, rad/s (sidereal day): its component along gravity reads as a diagonal
+#: g-sensitivity of at most this over standard gravity.
+EARTH_RATE: float = 7.2921159e-5
 #: Fewest moves the held-out folds and the time offset's t test need (two per fold and a scatter of several).
 MIN_DIAGNOSIS_MOVES: int = 8
 #: One-sided level at which a term's improvement of the held-out moves' squared angles must be told from none
@@ -198,6 +201,11 @@ class GyroDiagnosis:
         if self.findings:
             out.append("  named:")
             out += [f"    {f.describe()}" for f in self.findings]
+            if any(f.effect == "g_sensitivity" for f in self.findings):
+                # the Earth's rate's vertical component (Ω sin φ along gravity) turns with the pose as a specific
+                # force along the axis would: a diagonal g-sensitivity of Ω sin φ / g at latitude φ
+                out.append(f"    (its diagonal terms include the Earth's rate along gravity, up to "
+                           f"{EARTH_RATE / STANDARD_GRAVITY:.2g} rad/s per m/s² at the poles, which no recording tells from the sensor's)")
         elif np.any(self.outside):
             # the band's excess left unexplained: said, not "nothing" (the effect is outside the five candidates, or
             # the noise model understates the moves' noise)
