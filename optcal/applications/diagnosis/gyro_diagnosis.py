@@ -2,11 +2,11 @@
 the cause named by forward selection, the extended model fitted in CasADi, the gain on held-out moves.
 
 1. **The band.**  Each move's gravity-prediction angle under the paper's model (Tedaldi 2014, eq. 13-14) against
-   the noise model of :func:`optcal.families.gyro.consistency.residual_budget`, linearised: the angle's two
-   components across gravity are normal with the budget's variance ``E/2`` each, so the angle exceeds
-   ``√(E ln(m/α))`` with probability ``α/m`` (Rayleigh), and a move beyond that bound leaves the band at the
-   family-wise level ``α`` over the ``m`` moves.  (The linearised band, not Monte-Carlo runs: the residuals are
-   linear in the noise to first order, and the budget already sums each source's variance.)
+   that model simulated along the recorded moves with the measured noise (:func:`simulated_move_rad2`; with no
+   simulations, the linearised noise model of :func:`optcal.families.gyro.consistency.residual_budget`): the
+   angle's two components across gravity are normal with variance ``E/2`` each, ``E`` the simulated mean square,
+   so the angle exceeds ``√(E ln(m/α))`` with probability ``α/m`` (Rayleigh), and a move beyond that bound leaves
+   the band at the family-wise level ``α`` over the ``m`` moves.
 2. **The candidates** (:mod:`~optcal.applications.diagnosis.gyro_problem`), per gyro axis: ``g_sensitivity`` (the
    axis' rate error linear in the specific force, a row of ``G``), ``gyro_scale_nonlinearity`` (``ω + s ω²``),
    ``gyro_temperature_bias`` (with a temperature column), ``gyro_bias_drift``; and ``time_offset`` (the gyro's
