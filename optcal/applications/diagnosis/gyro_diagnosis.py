@@ -20,7 +20,9 @@ the cause named by forward selection, the extended model fitted in CasADi, the g
 3. **The time offset** shows inside the moves, not at their ends (a move's whole turn is the same whichever way
    its samples are shifted): along each move the gravity direction the gyro predicts, ``û(t)``, against the
    accelerometer's, ``â(t)``; a gyro whose samples are late by ``δ`` predicts ``û(t) = u(t − δ)``, so
-   ``â − û ≈ δ u̇`` with ``u̇ = −ω × û``, and each move gives its own least-squares ``δ_i``.  The moves' estimates
+   ``â − û ≈ δ u̇`` with ``u̇ = −ω × û``, and each move gives its own least-squares ``δ_i``, with a constant and
+   the linear acceleration of a turn about a centre off the sensor (a lever arm ``r`` per move:
+   ``α × r + ω × (ω × r)`` across gravity over g) fitted beside it.  The moves' estimates
    are combined by their weights (``Σ|u̇|²``) and tested by Student's t on their scatter (the moves' linear
    accelerations, which the accelerometer's direction carries, are noise of unknown size: measured by that
    scatter, not assumed); held out by move like the others.
@@ -56,7 +58,7 @@ from optcal.applications.diagnosis.gyro_problem import (
 )
 from optcal.core import quantiles
 from optcal.core.model import AXES
-from optcal.core.rotations import exponential_map
+from optcal.core.rotations import exponential_map, skew
 from optcal.errors import InputError
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
@@ -412,13 +414,24 @@ def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[ND
         # direction; compared after the step, a half step would read as a time offset)
         u = unit_rows(0.5 * (np.vstack([data.u0[i][None, :], after[:-1]]) + after))
         udot = -np.cross(omega[a:z], u)
-        e = unit_rows(data.f_mid[a:z]) - u
-        e = e - e.mean(axis=0)  # a constant misfit (the end-to-end residual's share) is not a shift in time
-        udot_c = udot - udot.mean(axis=0)
-        wi = float(np.sum(udot_c * udot_c))
-        per_move.append(float(np.sum(e * udot_c)) / wi if wi > 0 else 0.0)
+        e = (unit_rows(data.f_mid[a:z]) - u).ravel()
+        # what is not a shift in time, fitted on the move and projected out of both: a constant misfit (the
+        # end-to-end residual's share), and the accelerometer's linear acceleration of a turn about a centre off
+        # the sensor (the hand's wrist or elbow, r from it to the sensor, per move): a = α × r + ω × (ω × r),
+        # its share across gravity P_u a / g (a rigid body's point acceleration; the moves' largest linear
+        # acceleration, which scattered the moves' δ)
+        alpha_dot = (np.gradient(omega[a:z], np.cumsum(data.dt[a:z]), axis=0) if z - a > 2
+                     else np.zeros((z - a, 3)))
+        across = np.eye(3)[None] - u[:, :, None] * u[:, None, :]
+        lever = across @ (skew(alpha_dot) + skew(omega[a:z]) @ skew(omega[a:z])) / STANDARD_GRAVITY
+        nuisance = np.column_stack([np.tile(np.eye(3), (z - a, 1)), lever.reshape(-1, 3)])
+        e = e - nuisance @ np.linalg.lstsq(nuisance, e, rcond=None)[0]
+        q = udot.ravel()
+        q = q - nuisance @ np.linalg.lstsq(nuisance, q, rcond=None)[0]
+        wi = float(q @ q)
+        per_move.append(float(e @ q) / wi if wi > 0 else 0.0)
         weights.append(wi)
-        pieces.append((e, udot_c))
+        pieces.append((e, q))
     d = np.asarray(per_move)
     w = np.asarray(weights)
     m = d.size
