@@ -220,12 +220,14 @@ class GyroDiagnosis:
             out.append(f"    move {i + 1}: {self.angles_deg[i]:.3f}° (band {self.band_deg[i]:.3f}°)")
         if self.findings:
             out.append("  named:")
-            out += [f"    {f.describe()}" for f in self.findings]
-            if any(f.effect == "g_sensitivity" for f in self.findings):
-                # the Earth's rate's vertical component (Ω sin φ along gravity) turns with the pose as a specific
-                # force along the axis would: a diagonal g-sensitivity of Ω sin φ / g at latitude φ
-                out.append(f"    (its diagonal terms include the Earth's rate along gravity, up to "
-                           f"{EARTH_RATE / STANDARD_GRAVITY:.2g} rad/s per m/s² at the poles, which no recording tells from the sensor's)")
+            for f in self.findings:
+                out.append(f"    {f.describe()}")
+                if f.effect == "g_sensitivity":
+                    # the Earth's rate's vertical component (Ω sin φ along gravity) turns with the pose as a specific
+                    # force along the axis would: a diagonal g-sensitivity of Ω sin φ / g at latitude φ
+                    out.append(f"      (its diagonal terms include the Earth's rate along gravity, up to "
+                               f"{EARTH_RATE / STANDARD_GRAVITY:.2g} rad/s per m/s² at the poles, which no recording "
+                               "tells from the sensor's)")
         elif np.any(self.outside):
             # the band's excess left unexplained: said, not "nothing" (the effect is outside the five candidates, or
             # the noise model understates the moves' noise)
