@@ -29,7 +29,8 @@ def diagnosis_options(func: Any) -> Any:
         # at most 1e5: the Monte-Carlo p-value's resolution 1/(N+1) is then 2000x finer than the default alpha; more
         # only runs longer (a command never runs unbounded on a flag's value)
         click.option("--simulations", type=click.IntRange(0, 100_000), default=200, show_default=True,
-                     help="Simulations of the fitted model in the simulation check (parametric bootstrap)."),
+                     help="Simulations of the fitted model in the simulation check (parametric bootstrap); with "
+                          "--imu also of the gyro's model along the recorded moves (its band)."),
         click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=0.02, show_default=True,
                      help="Family-wise false-finding level of each selection step."),
         click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the simulations."),
@@ -165,7 +166,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         diag.peer = compare_with_peer(baseline, convert_to_units(diag.poses, baseline.units), None,
                                       own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
                                       f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
-    gyro = _diagnose_gyro(loaded[0], method, alpha, folds, fit_settings) if imu else None
+    gyro = _diagnose_gyro(loaded[0], method, alpha, folds, fit_settings, simulations, seed) if imu else None
     paths = save_figures(diag, figures_into, gyro[0] if gyro is not None else None) if figures_into else []
     calibration = diag.calibration() if output and gyro is None else (gyro[1] if gyro is not None and output else None)
     if calibration is not None and output:
@@ -200,7 +201,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         click.echo(f"saved: {output} ({calibration.describe()})")
 
 
-def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_settings: dict[str, Any]) -> Any:
+def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_settings: dict[str, Any],
+                   simulations: int = 200, seed: int = 0) -> Any:
     """The gyroscope's diagnosis of one recording: (diagnosis, the IMU calibration with its g-sensitivity, what the
     calibration cannot hold).  The gyro fit is kept whatever its fit check says (``accept_gyro_fit``): a fit the
     check refuses is what the diagnosis explains."""
@@ -217,7 +219,8 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
     imu = calibrate_imu_loaded(reading, method=method, settings=GyroSettings(accept_gyro_fit=True, solver=solver))
     moves = moves_from_segmentation(reading.segmentation)
     result = diagnose_gyro(moves, imu.accelerometer, imu.gyro,
-                           GyroDiagnosisSettings(alpha=alpha, folds=min(folds, 5), solver=solver))
+                           GyroDiagnosisSettings(alpha=alpha, folds=min(folds, 5), solver=solver,
+                                                 simulations=simulations, seed=seed))
     final = result.final
     rows = np.zeros((3, 3))
     losses = []

@@ -107,7 +107,9 @@ def gyro_figure(gyro: "GyroDiagnosis") -> "Figure":
     fig = Figure(figsize=(7.5, 3.2), layout="constrained")
     a = fig.add_subplot()
     k = np.arange(1, gyro.angles_deg.size + 1)
-    a.fill_between(k, 0.0, gyro.band_deg, step="mid", color="0.88", label="noise band (family-wise over the moves)")
+    a.fill_between(k, 0.0, gyro.band_deg, step="mid", color="0.88",
+                   label=(f"band of {gyro.band_runs} simulations" if gyro.band_runs else "noise band")
+                   + " (family-wise over the moves)")
     a.plot(k, gyro.angles_deg, "o", color="tab:red", ms=4, label="paper's model")
     a.plot(k, gyro.final_angles_deg, "s", color="tab:blue", ms=3, label="final model")
     outside = gyro.outside

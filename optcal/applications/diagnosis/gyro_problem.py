@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.model import AXES
-from optcal.families.gyro.consistency import residual_budget, rest_offsets
+from optcal.families.gyro.consistency import ResidualBudget, residual_budget, rest_offsets
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 
@@ -210,14 +210,20 @@ class Noise:
     rest_var: NDArray[np.float64]
 
 
-def measured_noise(data: GyroData, p: GyroParams) -> Noise:
-    """:class:`Noise` of the data under the paper's model ``p`` (its ``T_g`` and bias): the moves' budget
-    (:func:`~optcal.families.gyro.consistency.residual_budget`) and the rests' angle random walk over their
-    duration, rounded at the quantum."""
+def move_budget(data: GyroData, p: GyroParams) -> ResidualBudget:
+    """The moves' noise budget under the paper's model ``p`` by source
+    (:func:`~optcal.families.gyro.consistency.residual_budget`)."""
     moves = data.moves
     offsets = rest_offsets(moves, p.b, None, data.rest_f)
     rates = (moves.gyro_pairs - p.b) @ p.T.T
-    budget = residual_budget(moves, p.T, offsets, data.pose_sigma, rates, data.u0)
+    return residual_budget(moves, p.T, offsets, data.pose_sigma, rates, data.u0)
+
+
+def measured_noise(data: GyroData, p: GyroParams) -> Noise:
+    """:class:`Noise` of the data under the paper's model ``p`` (its ``T_g`` and bias): the moves' budget
+    (:func:`move_budget`) and the rests' angle random walk over their duration, rounded at the quantum."""
+    moves = data.moves
+    budget = move_budget(data, p)
     assert moves.noise is not None
     arw2 = np.diag(p.T @ np.diag(moves.noise.arw2) @ p.T.T)  # (rad/s)² s per axis
     return Noise(budget.total, arw2[None, :] / np.maximum(data.rest_duration, 1e-9)[:, None])
