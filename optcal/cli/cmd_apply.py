@@ -25,10 +25,13 @@ from optcal.cli.quiet import quiet_option
               help="Sampling rate of a recording without a time column (time = row / rate).")
 @click.option("--format", "data_format", type=click.Choice(["auto", "poses", "raw"]), default="auto", show_default=True,
               help="Read DATA as a pose table or a raw recording; auto decides and says why.")
+@click.option("--gyro-file", type=click.Path(dir_okay=False), default=None, metavar="PATH",
+              help="The gyroscope's samples in a second text file (t gx gy gz: imu_tk's layout), interpolated onto "
+                   "DATA's times; an imu calibration writes them calibrated after DATA's columns.")
 @peer_options
 @quiet_option
 def apply(calibration: str, data: str, output: str, units_out: str, data_units: str | None, columns: str | None,
-          topic: str | None, rate: float | None, data_format: str, peer_gravity: float | None,
+          topic: str | None, rate: float | None, data_format: str, gyro_file: str | None, peer_gravity: float | None,
           gyro_calib: str | None) -> None:
     """Correct every row of DATA with the calibration CAL (any cal_type) and write it to OUT.
 
@@ -46,7 +49,7 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     from optcal.cli.data_options import build_read_options, decisions_on_error
 
     options = build_read_options({"columns": columns, "units": data_units, "topic": topic, "rate": rate,
-                                  "data_format": data_format})
+                                  "data_format": data_format, "gyro_file": gyro_file})
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
     if cal.cal_type == "magnetometer":  # its samples are mx, my, mz, read by the magnetometer's reader
         from optcal.cli.cmd_mag import apply_mag

@@ -48,6 +48,25 @@ def test_calibrate_imu_check_apply(recording, tmp_path, capsys) -> None:
     assert np.allclose(rate, cal.correct_gyro(rec.gyro, rec.acc))
 
 
+def test_apply_reads_the_gyro_from_its_own_file(recording, tmp_path, capsys) -> None:
+    """imu_tk's layout (acc and gyro in two files, ``t x y z``): ``apply --gyro-file`` writes the calibrated gyro."""
+    path, rec = recording
+    acc_file, gyro_file = tmp_path / "acc.txt", tmp_path / "gyro.txt"
+    np.savetxt(acc_file, np.column_stack([rec.t, rec.acc]), fmt="%.9g")
+    np.savetxt(gyro_file, np.column_stack([rec.t, rec.gyro]), fmt="%.9g")
+    cal_path = tmp_path / "imu.json"
+    assert main(["calibrate", str(acc_file), "--gyro-file", str(gyro_file), "--imu", "-o", str(cal_path)]) == 0
+    cal = optcal.families.calibration_files.load(cal_path)
+    out_csv = tmp_path / "applied.csv"
+    assert main(["apply", str(cal_path), str(acc_file), "--gyro-file", str(gyro_file), "-o", str(out_csv)]) == 0
+    applied = pd.read_csv(out_csv)
+    assert len(applied) == rec.t.size and list(applied.columns)[-4:] == ["gx_rad_s", "gy_rad_s", "gz_rad_s",
+                                                                          "optcal_status"]
+    rate = applied[["gx_rad_s", "gy_rad_s", "gz_rad_s"]].to_numpy()
+    assert np.allclose(rate, cal.correct_gyro(rec.gyro, rec.acc), atol=1e-7)  # the files' 9 digits
+    capsys.readouterr()
+
+
 def test_imu_options_need_imu(recording, capsys) -> None:
     path, _ = recording
     assert main(["calibrate", path, "--joint"]) == 2

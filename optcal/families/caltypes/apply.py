@@ -229,8 +229,11 @@ def apply_to_file(
         gyro = np.full(raw.shape, np.nan)
         gyro[finite] = cal.correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
         gnames = [frame_column(c) for c in GYRO]
-        gpos = min(list(frame.columns).index(n) for n in gnames)
-        frame = frame.drop(columns=gnames)
+        if all(n in frame.columns for n in gnames):  # replaced in place
+            gpos = min(list(frame.columns).index(n) for n in gnames)
+            frame = frame.drop(columns=gnames)
+        else:  # from a gyro file (gyro_file), interpolated onto DATA's times: added after DATA's columns
+            gpos = len(frame.columns)
         for k, axis in enumerate("xyz"):
             frame.insert(gpos + k, f"g{axis}_rad_s", gyro[:, k])
     frame[STATUS_COLUMN] = status
