@@ -63,7 +63,7 @@ def load(path: Path, **options):
 RECORDINGS = [
     ("Xsens MTi (IMU-TK), 51,175 samples at 100 Hz", "xsens", lambda: load(DATA / "imutk-xsens" / "xsens_imutk.csv")),
     *[(f"MPU-9150 unit {k} (mikoff, hand-held, 100 Hz)", f"mikoff_imu{k}",
-       (lambda k=k: load(DATA / "mikoff-mpu9150" / f"imu{k}.log", rate=100.0))) for k in range(5)],
+       (lambda k=k: load(DATA / "mikoff-mpu9150" / f"imu{k}.log", rate=100.0))) for k in range(size(5, 1))],  # quick: unit 0
     ("MPU-6050 calibration log (tomisuarez2/ImuCalibration)", "mpu6050_calibration",
      lambda: load(DATA / "mpu6050-imucalibration" / "example_data_calibration.csv")),
     ("MPU-6050 449 s static log", "mpu6050_tinit", lambda: load(DATA / "mpu6050-imucalibration" / "example_data_tinit_calc.csv")),

@@ -7,6 +7,7 @@ the test: `diagnose` sees only the recording.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -14,26 +15,45 @@ import pandas as pd
 import pytest
 
 from optcal.applications.diagnosis import diagnose
+from optcal.core.model import LumpedModel
 
 XSENS_COLUMNS = {"t_s": "t", "acc_x_counts": "ax", "acc_y_counts": "ay", "acc_z_counts": "az"}
 
 
-def planted_xsens(tmp_path: Path, path: Path, effect: str | None, axis: int, value: float, name: str):
-    """The Xsens log with ``effect`` planted on ``axis`` through its own lumped calibration, and a synthetic
-    warm-up/cool-down temperature channel (the log has none), read back as ``optcal diagnose`` reads it."""
-    from optcal.families.accel.calibration import calibrate
+@functools.lru_cache(maxsize=None)
+def _xsens_and_its_calibration(path: Path) -> tuple[pd.DataFrame, LumpedModel]:
+    """The Xsens log with its synthetic temperature channel, and its own lumped calibration (``mle``): the same for
+    every planting, so read and fitted once per test process (speed only: 14 call sites)."""
     from optcal.data import load
-    from optcal.core.extended_model import ExtendedModel
-    from optcal.families.simulate.effects import distort_recording, warmup_cooldown
+    from optcal.families.accel.calibration import calibrate
+    from optcal.families.simulate.effects import warmup_cooldown
 
     raw = pd.read_csv(path).rename(columns=XSENS_COLUMNS)[["t", "ax", "ay", "az"]]
     raw["temp"] = warmup_cooldown(raw["t"].to_numpy(), 22.0, 38.0, 27.0)
-    base = calibrate(load(path), "mle").model
+    return raw, calibrate(load(path), "mle").model
+
+
+@functools.lru_cache(maxsize=None)
+def _distorted_csv(path: Path, effect: str | None, axis: int, value: float) -> str:
+    """The planted log's CSV text (writing it is most of a planting's cost; the unplanted one is asked for 7 times)."""
+    from optcal.core.extended_model import ExtendedModel
+    from optcal.families.simulate.effects import distort_recording
+
+    raw, base = _xsens_and_its_calibration(path)
     model = (ExtendedModel(base, temp_ref=30.0, t_ref=256.0) if effect is None else
              ExtendedModel.with_effect(base, effect, axis, value, temp_ref=30.0, t_ref=256.0))
+    return str(distort_recording(raw.copy(), model).rename(columns={v: k for k, v in XSENS_COLUMNS.items()}).to_csv(
+        index=False, float_format="%.8g"))
+
+
+def planted_xsens(tmp_path: Path, path: Path, effect: str | None, axis: int, value: float, name: str):
+    """The Xsens log with ``effect`` planted on ``axis`` through its own lumped calibration, and a synthetic
+    warm-up/cool-down temperature channel (the log has none), read back as ``optcal diagnose`` reads it (a new
+    table each call, from a file written into ``tmp_path``)."""
+    from optcal.data import load
+
     out = tmp_path / f"{name}.csv"
-    distort_recording(raw, model).rename(columns={v: k for k, v in XSENS_COLUMNS.items()}).to_csv(
-        out, index=False, float_format="%.8g")
+    out.write_text(_distorted_csv(path, effect, axis, value), encoding="utf-8")
     return load(out)
 
 
