@@ -187,7 +187,7 @@ def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
     return out
 
 
-#: Samples per piece of :func:`phase_prefix_at`'s running sums: its two temporaries (256 KiB each) stay in the
+#: Samples per piece of :func:`phase_prefix_at`'s running sums: its one temporary (256 KiB) stays in the
 #: processor's cache, instead of the phase and its running sum of the log's length (35 MB each for an axis of the
 #: 12-hour log) written and read again for a few thousand of their values.
 PREFIX_PIECE: int = 2**15
