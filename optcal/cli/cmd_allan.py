@@ -151,10 +151,12 @@ def missing_samples(t: NDArray[np.float64]) -> tuple[int, int, int, float, float
     -------
     tuple or None
     """
+    from optcal.data.quantiles import median
+
     steps = np.diff(t)
     if not steps.size:
         return None
-    step = float(np.median(steps))
+    step = median(steps)  # np.median's figure, without its import of numpy.ma (30 ms)
     at = int(np.argmax(steps))
     gap = float(steps[at])
     if not step > 0:
