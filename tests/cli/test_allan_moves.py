@@ -149,3 +149,20 @@ def test_the_patched_curve_from_the_phases_running_sum_equals_its_full_recomputa
     assert found.change == pytest.approx(abs(full[k] - curve.adev[k]), rel=1e-9, abs=1e-12)
     assert found.ratio == pytest.approx(np.max(np.abs(full - curve.adev) / ((curve.ci_high - curve.ci_low) / 2)),
                                         rel=1e-9)
+
+
+@pytest.mark.parametrize("piece", [7, 1000, None])
+def test_the_phases_running_sum_at_a_few_points_equals_the_whole_column_sums_to_the_bit(monkeypatch, piece) -> None:
+    """phase_prefix_at sums the log piece by piece, each sum carried into the next piece: the same numbers, to the
+    bit, as the phase and its running sum over the whole column, at points inside, on and beside piece boundaries."""
+    import optcal.families.noise.disturbance as disturbance
+    from optcal.families.noise.allan import phase_from_rate
+
+    if piece is not None:
+        monkeypatch.setattr(disturbance, "PREFIX_PIECE", piece)
+    rng = np.random.default_rng(4)
+    x = rng.normal(0.0, 2e-3, 5001) + 1.0
+    whole = np.concatenate([[0.0], np.cumsum(phase_from_rate(x, RATE))])
+    points = np.unique(np.concatenate([[0, 1, 2, 999, 1000, 1001, 1002, 5000, 5001, 5002],
+                                       rng.integers(0, x.size + 2, 300)]))
+    assert np.array_equal(disturbance.phase_prefix_at(x, RATE, points), whole[points])

@@ -140,3 +140,16 @@ def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tm
     bad.write_text(path.read_text() + "1,2,three\n")
     assert text.arrow_threaded_block(bad, text.sniff_layout(bad)) is None  # pandas then reads and counts the cell
     assert pa.default_memory_pool().backend_name == before
+
+
+def test_the_readers_block_is_an_anonymous_mapping_of_base_pages_and_grows_keeping_its_rows():
+    """ColumnBlock's array is an anonymous mapping (base pages, not numpy's huge-page allocation): Fortran order,
+    writable, and a block grown by append keeps the rows already filled."""
+    import mmap
+
+    block = text.ColumnBlock(3, 4)
+    assert isinstance(block.block.base, mmap.mmap) and block.block.flags["F_CONTIGUOUS"] and block.block.flags.writeable
+    block.append([np.arange(3.0) + 10 * j for j in range(3)])
+    block.append([np.arange(3.0, 6.0) + 10 * j for j in range(3)])  # 6 rows > 4: grown
+    assert isinstance(block.block.base, mmap.mmap) and block.block.flags["F_CONTIGUOUS"]
+    assert [c.tolist() for c in block.columns()] == [list(np.arange(6.0) + 10 * j) for j in range(3)]

@@ -16,13 +16,14 @@ or it is the noise's own and the stretch is kept.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.static_stretches import true_runs
-from optcal.families.noise.allan import AllanCurve, phase_from_rate
+from optcal.families.noise.allan import AllanCurve
 
 #: Share of σ(τ)'s own one-sigma interval (half its width) that the stretches not at rest may move it by: a change
 #: inside the curve's one-sigma interval is one the log itself could not tell from its noise (nor could a repeat of
@@ -128,18 +129,10 @@ def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
     return c
 
 
-def _ratios(phase_x: NDArray[np.float64], prefix: NDArray[np.float64],
-            change: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float, ms: NDArray[np.intp],
-            adev: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``|σ_patched(τ) − adev| / half`` at the cluster lengths ``ms``, the series patched by ``change`` (positions,
-    added values: :func:`patch_values`), without a copy of the log.
-
-    The patch adds to the phase a step function ``R`` (phase index ``t`` sums the samples before ``t``; the mean each
-    phase removes adds a straight line, which a second difference cancels), so each second difference
-    ``D(u) = x_{u+2m} − 2 x_{u+m} + x_u`` (Riley, NIST SP 1065, eq. 11) gains ``ΔD(u) = R(u+2m) − 2R(u+m) + R(u)``,
-    constant between the changed samples' places shifted by 0, m and 2m and zero away from them.  On each such piece
-    ``Σ (D + ΔD)² − Σ D² = 2 ΔD Σ D + ΔD² · length``, and ``Σ D`` over a piece is three differences of ``prefix``
-    (the running sum of the phase): the cost is the changed samples', not the log's."""
+def _pieces(change: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float, ms: NDArray[np.intp],
+            n_phase: int) -> list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]]:
+    """For each cluster length of ``ms``, the pieces ``[p, q)`` of second differences that the patch ``change``
+    (positions, added values: :func:`patch_values`) shifts and the shift ``ΔD`` of each (see :func:`_ratios`)."""
     positions, added = change
     steps = positions + 1  # R steps up at phase index p + 1
     running = np.concatenate([[0.0], np.cumsum(added) / rate_hz])
@@ -147,23 +140,99 @@ def _ratios(phase_x: NDArray[np.float64], prefix: NDArray[np.float64],
     def r(t: NDArray[np.intp]) -> NDArray[np.float64]:
         return running[np.searchsorted(steps, t, side="right")]
 
-    def span_sum(p: NDArray[np.intp], q: NDArray[np.intp], m: int) -> NDArray[np.float64]:
-        """Σ D(u) for u in [p, q)."""
-        return ((prefix[q + 2 * m] - prefix[p + 2 * m]) - 2.0 * (prefix[q + m] - prefix[p + m])
-                + (prefix[q] - prefix[p]))
-
-    n_phase = phase_x.size
-    out = np.empty(ms.size)
-    for k, m in enumerate(ms.tolist()):
+    out = []
+    for m in ms.tolist():
         n = n_phase - 2 * m
-        total = (adev[k] * m / rate_hz) ** 2 * 2.0 * n  # the log's sum (overlapping_adev's σ inverted)
         cuts = np.unique(np.clip(np.concatenate([steps - 2 * m, steps - m, steps, [0, n]]), 0, n))
         p, q = cuts[:-1], cuts[1:]
         delta = r(p + 2 * m) - 2.0 * r(p + m) + r(p)
         live = delta != 0.0
-        p, q, delta = p[live], q[live], delta[live]
-        total += float(np.sum(2.0 * delta * span_sum(p, q, m) + delta * delta * (q - p)))
+        out.append((p[live], q[live], delta[live]))
+    return out
+
+
+def _points(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]],
+            ms: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The phase's running-sum indices the span sums of ``pieces`` read (:func:`_ratios`), sorted, each once."""
+    ends = [np.concatenate([p, q]) for p, q, _ in pieces]
+    return np.unique(np.concatenate([np.empty(0, dtype=np.intp)]
+                                    + [e + shift * m for e, m in zip(ends, ms.tolist()) for shift in (0, 1, 2)]))
+
+
+def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]],
+            prefix: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float, n_phase: int, ms: NDArray[np.intp],
+            adev: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``|σ_patched(τ) − adev| / half`` at the cluster lengths ``ms``, the series patched as ``pieces`` say
+    (:func:`_pieces`), without a copy of the log.
+
+    The patch adds to the phase a step function ``R`` (phase index ``t`` sums the samples before ``t``; the mean each
+    phase removes adds a straight line, which a second difference cancels), so each second difference
+    ``D(u) = x_{u+2m} − 2 x_{u+m} + x_u`` (Riley, NIST SP 1065, eq. 11) gains ``ΔD(u) = R(u+2m) − 2R(u+m) + R(u)``,
+    constant between the changed samples' places shifted by 0, m and 2m and zero away from them.  On each such piece
+    ``Σ (D + ΔD)² − Σ D² = 2 ΔD Σ D + ΔD² · length``, and ``Σ D`` over a piece is three differences of the running
+    sum of the phase, ``prefix`` (its indices and values there: :func:`phase_prefix_at`): the cost is the changed
+    samples', not the log's."""
+    points, values = prefix
+
+    def at(t: NDArray[np.intp]) -> NDArray[np.float64]:
+        return values[np.searchsorted(points, t)]
+
+    out = np.empty(ms.size)
+    for k, (m, (p, q, delta)) in enumerate(zip(ms.tolist(), pieces)):
+        n = n_phase - 2 * m
+        total = (adev[k] * m / rate_hz) ** 2 * 2.0 * n  # the log's sum (overlapping_adev's σ inverted)
+        span = (at(q + 2 * m) - at(p + 2 * m)) - 2.0 * (at(q + m) - at(p + m)) + (at(q) - at(p))  # Σ D on [p, q)
+        total += float(np.sum(2.0 * delta * span + delta * delta * (q - p)))
         out[k] = abs(np.sqrt(max(total, 0.0) / (2.0 * n)) / m * rate_hz - adev[k]) / half[k]
+    return out
+
+
+#: Samples per piece of :func:`phase_prefix_at`'s running sums: its one temporary (256 KiB) stays in the
+#: processor's cache, instead of the phase and its running sum of the log's length (35 MB each for an axis of the
+#: 12-hour log) written and read again for a few thousand of their values.
+PREFIX_PIECE: int = 2**15
+
+
+def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray[np.intp]) -> NDArray[np.float64]:
+    """``S[points]`` for ``S = [0, cumsum(phase)]``, ``phase = phase_from_rate(column, rate_hz)`` (NIST SP 1065's
+    phase, :func:`~optcal.families.noise.allan.phase_from_rate`), without an array of the log's length.
+
+    Piece by piece (:data:`PREFIX_PIECE` samples), each running sum carried from the piece before as its first term:
+    the same additions in the same order as the two whole-column sums, so the same numbers to the bit.
+
+    Parameters
+    ----------
+    column : ndarray, shape (n,)
+        The rate samples of one axis.
+    rate_hz : float
+    points : ndarray of int
+        Sorted indices into ``S`` (``0 … n + 1``).
+
+    Returns
+    -------
+    ndarray
+        ``S`` at ``points``.
+    """
+    n = column.size
+    out = np.zeros(points.size)  # S[0] = S[1] = 0 (phase[0] = 0)
+    mean = np.mean(column)
+    scale = 1.0 / float(rate_hz)  # phase_from_rate's scaling of the summed samples
+    body_carry = prefix_carry = 0.0
+    rows = np.searchsorted(points, np.arange(0, n + PREFIX_PIECE, PREFIX_PIECE) + 2)
+    w = np.empty(min(PREFIX_PIECE, max(n, 1)))
+    for k, a in enumerate(range(0, n, PREFIX_PIECE)):
+        b = min(n, a + PREFIX_PIECE)
+        v = w[: b - a]
+        np.subtract(column[a:b], mean, out=v)  # phase[a + 1 … b] = (Σ_{i ≤ ·} (y_i − ȳ)) / f_s
+        v[0] += body_carry
+        np.cumsum(v, out=v)
+        body_carry = float(v[-1])
+        v *= scale
+        v[0] += prefix_carry  # S[a + 2 … b + 1] = S[a + 1] + Σ phase
+        np.cumsum(v, out=v)
+        prefix_carry = float(v[-1])
+        i, j = rows[k], rows[k + 1]
+        out[i:j] = v[points[i:j] - a - 2]
     return out
 
 
@@ -185,23 +254,28 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
     ms = [np.rint(c.taus * rate_hz).astype(np.intp) for c in curves]
     half = [np.maximum((c.ci_high - c.ci_low) / 2.0, np.finfo(float).tiny) for c in curves]
     moved = true_runs(~at_rest)
+    n_phase = at_rest.size + 1
 
     def ratios(j: int, spans_list: list[tuple[NDArray[np.intp], NDArray[np.intp]]]) -> list[NDArray[np.float64]]:
-        """The ratios on axis j of each set of spans patched (one phase of the axis at a time)."""
+        """The ratios on axis j of each set of spans patched (one pass over the axis for all of them)."""
         column = np.ascontiguousarray(x[:, j])
-        phase = phase_from_rate(column, rate_hz)
-        prefix = np.concatenate([[0.0], np.cumsum(phase)])
-        return [_ratios(phase, prefix, patch_values(column, at_rest, rate_hz, spans), rate_hz, ms[j], curves[j].adev,
-                        half[j]) for spans in spans_list]
+        pieces = [_pieces(patch_values(column, at_rest, rate_hz, spans), rate_hz, ms[j], n_phase)
+                  for spans in spans_list]
+        points = np.unique(np.concatenate([_points(p, ms[j]) for p in pieces]))
+        prefix = (points, phase_prefix_at(column, rate_hz, points))
+        return [_ratios(p, prefix, rate_hz, n_phase, ms[j], curves[j].adev, half[j]) for p in pieces]
 
-    real = [ratios(j, [moved])[0] for j in range(len(curves))]
-    j = int(np.argmax([r.max() for r in real]))
-    i = int(np.argmax(real[j]))
+    # one thread per axis: each pass is a running sum (numpy, the interpreter released), so the axes share the cores
+    with ThreadPoolExecutor(max_workers=len(curves), thread_name_prefix="optcal-moves") as pool:
+        real = [r[0] for r in pool.map(lambda k: ratios(k, [moved]), range(len(curves)))]
+        j = int(np.argmax([r.max() for r in real]))
+        i = int(np.argmax(real[j]))
+        placebos = np.empty(0)
+        draws = placebo_spans(at_rest, moved) if real[j][i] > RELEVANT_SHARE else []
+        if draws:  # only where the share alone would refuse: the null decides
+            placebos = np.max([[float(r.max()) for r in rs] for rs in pool.map(lambda k: ratios(k, draws),
+                                                                               range(len(curves)))], axis=0)
     c = curves[j]
-    placebos = np.empty(0)
-    draws = placebo_spans(at_rest, moved) if real[j][i] > RELEVANT_SHARE else []
-    if draws:  # only where the share alone would refuse: the null decides
-        placebos = np.max([[float(r.max()) for r in ratios(k, draws)] for k in range(len(curves))], axis=0)
     return DisturbanceChange(j, float(c.taus[i]), float(real[j][i] * half[j][i]), float(c.adev[i]), float(half[j][i]),
                              placebos)
 

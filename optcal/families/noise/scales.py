@@ -15,12 +15,15 @@ the mean.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.families.caltypes.base import Calibration
+
+if TYPE_CHECKING:  # an annotation only: the calibration types' import (18 ms) is not the allan command's to pay
+    from optcal.families.caltypes.base import Calibration
 
 
 @dataclass(frozen=True)
