@@ -453,10 +453,12 @@ def run(quick: bool = False, runs: int | None = None, seed: int = 0, progress: b
     speed = [speed_to_same_cost(table1_design(), plan.speed_runs, seed, progress)]
     hemisphere = Design("hemisphere (90° cap), 120 poses, 1 mg", lu2017_reference_model(),
                         cap_directions(120, 90.0, np.random.default_rng([seed, 4, 90])), 0.001)
-    speed += [speed_to_same_cost(d, max(plan.speed_runs // 4, 5), seed, progress)
+    # the larger designs: a quarter of the runs, at least 5 -- never more than --runs asked for
+    speed += [speed_to_same_cost(d, max(plan.speed_runs // 4, min(5, plan.speed_runs)), seed, progress)
               for d in (uniform_design(1000, 0.005, seed), uniform_design(10000, 0.005, seed), hemisphere)]
     # large n: the data term dominates IPOPT's fixed cost (a few runs, each solver timed once)
-    speed += [speed_to_same_cost(uniform_design(n, 0.005, seed), 3, seed, progress, repeats=1) for n in plan.speed_large_n]
+    speed += [speed_to_same_cost(uniform_design(n, 0.005, seed), min(3, plan.speed_runs), seed, progress, repeats=1)
+              for n in plan.speed_large_n]
     largest = max((s for s in speed if s["design"].startswith("uniform")), key=lambda s: s["n_poses"])
     thr = throughput(table1_design(), plan.throughput_fits, seed, progress)
     big = large(plan.large_n, seed)
