@@ -50,6 +50,8 @@ def test_two_knocks_that_hide_each_other_are_named_together(shared_data: Path, t
     assert [s["poses_before"] for s in steps] == [pytest.approx(7, abs=1), pytest.approx(15, abs=1)]
     assert steps[0]["estimate"]["x"] == pytest.approx(x_mg * 1e-3, rel=0.4)
     assert steps[1]["estimate"]["y"] == pytest.approx(y_mg * 1e-3, rel=0.4)
+    # each axis's own knock in the finding's estimate, as a check reading one number per axis takes it
+    assert found.estimate == {"x": pytest.approx(x_mg * 1e-3, rel=0.4), "y": pytest.approx(y_mg * 1e-3, rel=0.4)}
     accepted = diag.steps[0].accepted
     assert accepted is not None and accepted.second_at is not None and "2 steps together" in accepted.term
     assert accepted.p_value < accepted.threshold <= 0.005 / 4  # its share of the step's level: 3 axes and the pair

@@ -79,7 +79,9 @@ class Finding:
         poses have a time column)``}``; :attr:`estimate` is the step of each axis's bias (g, after minus before).
         With a second step (a knock, then another; :data:`~optcal.applications.diagnosis.effects.MAX_STEPS`) those
         keys are the first step's, and ``"steps"`` lists each step's keys with its ``"estimate"`` (axis → g, after
-        minus before that step, for the axes it moved in the model); :attr:`coefficients` holds them per axis.
+        minus before that step, for the axes it moved in the model); :attr:`coefficients` holds them per axis, and
+        :attr:`estimate` (with :attr:`stderr`) each axis's larger step: a knock on x and a later one on y read
+        ``{"x": the x knock, "y": the y knock}``.
     sessions : SessionOffsets or None
         For ``session_bias``: every session's offset with its standard error; :attr:`estimate`
         is then their spread (the turn-on repeatability, g) and :attr:`stderr` the sampling
@@ -196,6 +198,11 @@ def build_findings(fitter: Fitter, final: Fit, steps: list[Step], session_names:
         )
         for a in axes:
             b = BETA_INDEX[(effect, a, 1)]
+            if effect == BIAS_STEP and final.terms[(effect, a)] > 1:
+                # two steps: the axis's own knock, the larger of its offsets (a second axis carries an offset at
+                # the first step's place as well, about zero where only the second knock moved it)
+                b = max((BETA_INDEX[(effect, a, i)] for i in range(1, final.terms[(effect, a)] + 1)),
+                        key=lambda k: abs(float(final.x[9 + k])))
             finding.estimate[AXES[a]] = float(final.x[9 + b] / h)
             finding.stderr[AXES[a]] = float(np.sqrt(max(cov[position[b], position[b]], 0.0)) / h)
             finding.order[AXES[a]] = final.terms[(effect, a)]
