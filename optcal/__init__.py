@@ -220,7 +220,6 @@ def calibrate_imu(
     InputError
         A pose table (no moves), no gyro columns, or moves that do not support the gyro's fit.
     """
-
     from optcal.data.options import Reading
     from optcal.families.gyro.estimator import GyroSettings, calibrate_imu_loaded
 
@@ -275,7 +274,6 @@ def calibrate_ferraris(
     InputError
         A pose table, no gyro columns, or sections that cannot be found.
     """
-
     from optcal.data.options import Reading
     from optcal.families.ferraris import ferraris_fit, regions_for
 
@@ -346,12 +344,10 @@ def calibrate_mag(
         Unreadable samples, a form the samples do not determine, or a keyword the method does not take.
     """
     from optcal.families.mag.calibration import calibrate_mag as _calibrate_mag
-    from optcal.families.mag.fit import MagSettings
+    from optcal.families.mag.fit import MagSettings, refuse_orientation_method
     from optcal.families.mag.samples import read_mag
 
-    if method in ("sixpos", "nominal", "ferraris"):
-        raise InputError(f"method {method!r} needs known orientations or rests; a magnetometer self-calibrates: "
-                         f"use default, convex, mle, exact, gd or svd")
+    refuse_orientation_method(method, "method")
     given = {k: v for k, v in dict(solver=solver, solver_options=solver_options, conic_solver=conic_solver,
                                    loss=loss).items() if v is not None}
     _check_estimator_keywords(method, given)

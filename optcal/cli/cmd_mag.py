@@ -50,12 +50,10 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     from optcal.cli.solver_options import estimator_settings
     from optcal.errors import InputError
     from optcal.families.mag.calibration import calibrate_mag
-    from optcal.families.mag.fit import MagSettings
+    from optcal.families.mag.fit import MagSettings, refuse_orientation_method
     from optcal.families.mag.samples import read_mag
 
-    if method in ("sixpos", "nominal", "ferraris"):
-        raise InputError(f"--method {method} needs known orientations or rests; a magnetometer self-calibrates: "
-                         f"use --method default, convex, mle, exact, gd or svd")
+    refuse_orientation_method(method)
     settings = estimator_settings(method, **solver_opts) if method != "default" or any(solver_opts.values()) else {}
     if loss != "squared":
         if method not in ("default", "mle"):

@@ -91,6 +91,19 @@ def _directions() -> tuple[NDArray[np.float64], list[str]]:
 COVERAGE_DIRECTIONS, COVERAGE_NAMES = _directions()
 
 
+#: The accelerometer's methods that need known orientations or rests (:mod:`optcal.families.accel.nominal`,
+#: Ferraris' faces): a magnetometer turned freely has neither, and self-calibrates.
+ORIENTATION_METHODS: tuple[str, ...] = ("sixpos", "nominal", "ferraris")
+
+
+def refuse_orientation_method(method: str, option: str = "--method") -> None:
+    """Refuse a method of :data:`ORIENTATION_METHODS` (an :class:`InputError` naming the self-calibrating ones,
+    spelled as ``option``: the command's flag, or Python's keyword)."""
+    if method in ORIENTATION_METHODS:
+        raise InputError(f"{option} {method} needs known orientations or rests; a magnetometer self-calibrates: "
+                         f"use {option} default, convex, mle, exact, gd or svd")
+
+
 @dataclass(frozen=True)
 class MagSettings:
     """How to fit: the estimator, the form and the solver settings.
