@@ -53,6 +53,8 @@ N_PARAMS: int = len(PARAM_NAMES)
 
 #: Standard gravity, m/s² (used for unit conversions only).
 STANDARD_GRAVITY: float = 9.80665
+#: The Earth's rotation rate, rad/s (IERS: the sidereal day): what a resting gyroscope reads beside its bias.
+EARTH_RATE: float = 7.292115e-5
 
 
 def non_orthogonality_matrix(rho: float, phi: float, lam: float) -> NDArray[np.float64]:

@@ -40,7 +40,6 @@ from numpy.typing import NDArray
 
 from optcal.applications.diagnosis.gyro_problem import (
     GYRO_EFFECTS,
-    STANDARD_GRAVITY,
     GyroData,
     GyroParams,
     Noise,
@@ -57,15 +56,12 @@ from optcal.applications.diagnosis.gyro_problem import (
     predict,
 )
 from optcal.core import quantiles
-from optcal.core.model import AXES
+from optcal.core.model import AXES, EARTH_RATE, STANDARD_GRAVITY
 from optcal.core.rotations import exponential_map, skew
 from optcal.errors import InputError
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 
-#: The Earth's rotation rate, rad/s (sidereal day): its component along gravity reads as a diagonal
-#: g-sensitivity of at most this over standard gravity.
-EARTH_RATE: float = 7.2921159e-5
 #: Fewest moves the held-out folds and the time offset's t test need (two per fold and a scatter of several).
 MIN_DIAGNOSIS_MOVES: int = 8
 #: One-sided level at which a term's improvement of the held-out moves' squared angles must be told from none

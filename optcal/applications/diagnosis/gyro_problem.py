@@ -31,13 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.core.model import AXES
+from optcal.core.model import AXES, STANDARD_GRAVITY
 from optcal.families.gyro.consistency import ResidualBudget, residual_budget, rest_offsets
 from optcal.families.gyro.moves import MoveSet
 from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_rows
 
-#: Standard gravity, m/s² per g: the g-sensitivity's estimate is reported per m/s² (the issue's JSON contract).
-STANDARD_GRAVITY: float = 9.80665
 #: The gyroscope's candidate effects, in the order they are tried.
 GYRO_EFFECTS: tuple[str, ...] = ("g_sensitivity", "gyro_scale_nonlinearity", "gyro_temperature_bias",
                                  "gyro_bias_drift", "time_offset")

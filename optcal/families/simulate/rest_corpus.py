@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from optcal.core.model import STANDARD_GRAVITY
+from optcal.core.model import EARTH_RATE as EARTH_RATE_RAD_S, STANDARD_GRAVITY
 from optcal.core.rotations import rotate_about_axis
 from optcal.data.readers import source_from_frame
 from optcal.data.recording import Recording, recording_from_source
@@ -101,8 +101,6 @@ MAX_BIAS_STEPS: int = 3
 #: time constant drawn in :data:`WARMUP_TAU_S` (a package's thermal time constant, minutes).
 THERMAL_DRIFT_DPS: tuple[float, float] = (0.01, 0.2)
 WARMUP_TAU_S: tuple[float, float] = (60.0, 600.0)
-#: The Earth's rate, rad/s (IERS: 7.292115e-5).
-EARTH_RATE_RAD_S: float = 7.292115e-5
 
 
 @dataclass(frozen=True)

@@ -58,10 +58,10 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from optcal.core.model import EARTH_RATE
 from optcal.errors import InputError
 
-#: Earth rotation rate (rad/s) and equatorial radius (m).
-EARTH_RATE: float = 7.292115e-5
+#: The Earth's equatorial radius, m (its rate: :data:`optcal.core.model.EARTH_RATE`).
 EARTH_RADIUS: float = 6378137.0
 STATE_NAMES: tuple[str, ...] = (
     "dV_e", "dV_n", "phi_e", "phi_n", "phi_u", "nabla_x", "nabla_y", "eps_x", "eps_y", "eps_z",

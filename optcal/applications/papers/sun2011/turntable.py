@@ -63,13 +63,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from optcal.core.model import EARTH_RATE
 from optcal.core.rotations import axis_rotation, exponential_map, logarithm_map, turntable_attitude
 from optcal.errors import InputError
 
 #: Gravity used by Sun 2011 (100 µg = 0.978e-3 m/s², Table 2), m/s².
 SUN2011_GRAVITY: float = 9.78
-#: Earth rotation rate, rad/s.
-EARTH_RATE: float = 7.292115e-5
 ARCSEC: float = np.pi / (180.0 * 3600.0)
 ARCMIN: float = np.pi / (180.0 * 60.0)
 DEG_PER_HOUR: float = np.pi / 180.0 / 3600.0
