@@ -74,6 +74,15 @@ class NormResidualPoint:
         dT = (self.direction[..., :, None, :] * self.u[..., None, :, :]).reshape(self.u.shape[:-2] + (9, -1))
         return np.concatenate([dT, self.bias_jacobian()], axis=-2)
 
+    def jacobian_full_dot(self, c: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``jacobian_full() @ c`` for weights ``c`` (n,) of the residuals, without forming the (12, n) Jacobian:
+        ``Σ_k c_k ā_k,i u_k,j = (ā c) uᵀ`` (eq. 15) and ``Σ_k c_k (−Tᵀ ā_k) = −Tᵀ (ā c)`` (eq. 16), shape (12,)
+        (speed: the gradient-descent baseline takes it 10⁴-10⁵ times on up to 10⁵ poses)."""
+        weighted = self.direction * c[..., None, :]
+        dT = (weighted @ np.swapaxes(self.u, -1, -2)).reshape(self.u.shape[:-2] + (9,))
+        do = -(np.swapaxes(self.T, -1, -2) @ weighted.sum(axis=-1)[..., None])[..., 0]
+        return np.concatenate([dT, do], axis=-1)
+
     def normal_gain(self) -> NDArray[np.float64]:
         """``‖Tᵀ ā_k‖``: how isotropic raw noise propagates to ``r_k``, shape (n,)."""
         g = self.bias_jacobian()
