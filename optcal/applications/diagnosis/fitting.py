@@ -216,11 +216,6 @@ class Fitter:
         step[self.time_order[k:]] = 1.0
         return step
 
-    @property
-    def step_at(self) -> int | None:
-        """Poses before the first bias step in time order (``None``: no step in the model)."""
-        return self.steps_at[0] if self.steps_at else None
-
     def steps_column(self, splits: tuple[int, ...]) -> NDArray[np.float64] | None:
         """The steps' indicators, one column per step after the first ``k`` poses of ``splits`` (``None``: none)."""
         return np.column_stack([self.step_indicator(k) for k in splits]) if splits else None
@@ -233,10 +228,6 @@ class Fitter:
         """Fit every later model with bias steps after the first ``k`` poses in time order of each of ``splits``."""
         self.steps_at = tuple(int(k) for k in splits)
         self.data = replace(self.data, step=self.steps_column(self.steps_at))
-
-    def set_step(self, k: int | None) -> None:
-        """Fit every later model with one bias step after the first ``k`` poses in time order (``None``: none)."""
-        self.set_steps(() if k is None else (k,))
 
     # ------------------------------------------------------------------ fitting
     def params(self, w: NDArray, data: PoseData | None = None, scale: float | None = None,
