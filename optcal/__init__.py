@@ -233,9 +233,8 @@ def calibrate_imu(
     if solver_options:
         nlp["solver_options"] = dict(solver_options)
     _check_estimator_keywords(method, nlp)
-    settings = GyroSettings(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
-                            allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit,
-                            solver=solver, ipopt_options=dict(solver_options or {}))
+    settings = GyroSettings.from_flags(joint=joint, g_sensitivity=g_sensitivity, allow_degenerate=allow_degenerate,
+                                       accept_gyro_fit=accept_gyro_fit, solver=solver, solver_options=solver_options)
     return calibrate_imu_loaded(data, gyro_units=gyro_units, method=method, settings=settings,
                                 acc_settings={"allow_degenerate": allow_degenerate, **nlp})
 

@@ -182,9 +182,9 @@ def calibrate_imu(
 
     loaded = load_data_detailed(data, **data_opts)
     fit_settings = dict(fit_settings or {})
-    settings = GyroSettings(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
-                            allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit,
-                            solver=fit_settings.get("solver"), ipopt_options=dict(fit_settings.get("solver_options") or {}))
+    settings = GyroSettings.from_flags(joint=joint, g_sensitivity=g_sensitivity, allow_degenerate=allow_degenerate,
+                                       accept_gyro_fit=accept_gyro_fit, solver=fit_settings.get("solver"),
+                                       solver_options=fit_settings.get("solver_options"))
     cal = calibrate_imu_loaded(loaded, gyro_units=gyro_units, method=method, settings=settings,
                                acc_settings={"allow_degenerate": allow_degenerate, **fit_settings})
     if cal.fit_warning:

@@ -107,6 +107,30 @@ class GyroSettings:
     ipopt_options: dict[str, Any] = field(default_factory=dict)
     solver: str | None = None
 
+    @classmethod
+    def from_flags(
+        cls, *, joint: bool = False, g_sensitivity: bool = False, allow_degenerate: bool = False,
+        accept_gyro_fit: bool = False, solver: str | None = None, solver_options: dict[str, Any] | None = None,
+    ) -> GyroSettings:
+        """The settings ``optcal calibrate --imu``'s flags and :func:`optcal.calibrate_imu`'s keywords name.
+
+        Parameters
+        ----------
+        joint : bool
+            Re-estimate the accelerometer jointly with the gyro (``accelerometer="joint"``).
+        g_sensitivity, allow_degenerate, accept_gyro_fit : bool
+            As the attributes of the same names.
+        solver, solver_options : optional
+            The NLP solver by CasADi's name and its options (``ipopt_options``).
+
+        Returns
+        -------
+        GyroSettings
+        """
+        return cls(accelerometer="joint" if joint else "fixed", g_sensitivity=g_sensitivity,
+                   allow_degenerate=allow_degenerate, accept_gyro_fit=accept_gyro_fit,
+                   solver=solver, ipopt_options=dict(solver_options or {}))
+
     def choice(self) -> SolverChoice:
         """The solver and its options, resolved (an unavailable one is an :class:`InputError`)."""
         return choose_nlp_solver(self.solver, self.ipopt_options)
