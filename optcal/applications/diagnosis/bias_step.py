@@ -13,7 +13,8 @@ is then fitted exactly and tested (:class:`~optcal.applications.diagnosis.select
 The search over positions is paid for by the distribution of the *best* position's p value when there is no step
 (:func:`adjusted_p`): in a session of at most :data:`MINP_POSES` kept poses, Westfall & Young's single-step minP
 adjusted p value, the share of :data:`DRAWS` null draws of the linearised model (as
-:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take) whose smallest p
+:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take; under pose noise
+correlated in time, of the whitened generalised model) whose smallest p
 over the positions is at most the observed one; in a larger session Bonferroni over the positions (the exact test's
 p times their number), which bounds the false-step rate whatever the dependence and costs little power where a
 session has hundreds of poses.  Neighbouring splits' statistics are strongly dependent (they share all but one
@@ -132,11 +133,10 @@ def null_largest(fitter: Fitter, fit: Fit, scan: StepScan, seed: int = 0,
     dof = fitter.n - fit.n_params - 1
     if dof <= 0:
         return None
-    kept = fit.kept(fitter.n)
     null = null_draws(fitter, fit, DRAWS, seed) if null is None else null
     h = null.J[:, 6 + scan.axis]
-    columns = np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0) for k in scan.splits],
-                       axis=1)[kept]
+    columns = null.columns(np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0)
+                                     for k in scan.splits], axis=1))
     projected = columns - null.model @ (null.model.T @ columns)
     unit = projected / np.maximum(np.linalg.norm(projected, axis=0), 1e-300)
     gain = (unit.T @ null.z) ** 2  # each position's fall in it, (positions, DRAWS)
@@ -146,8 +146,9 @@ def null_largest(fitter: Fitter, fit: Fit, scan: StepScan, seed: int = 0,
 
 def uses_minp_positions(fitter: Fitter, fit: Fit) -> bool:
     """Whether a step's p value from ``fit`` is adjusted by the minP simulation (at most :data:`MINP_POSES` kept
-    poses, independent), not by Bonferroni over the positions."""
-    return int(fit.kept(fitter.n).sum()) <= MINP_POSES and fitter.correlation is None
+    poses), not by Bonferroni over the positions.  Poses whose noise is correlated in time take it too, drawn
+    under the correlation the diagnosis measured (:func:`~optcal.applications.diagnosis.familywise.whitening`)."""
+    return int(fit.kept(fitter.n).sum()) <= MINP_POSES
 
 
 def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: int = 0,
