@@ -13,7 +13,8 @@ is then fitted exactly and tested (:class:`~optcal.applications.diagnosis.select
 The search over positions is paid for by the distribution of the *best* position's p value when there is no step
 (:func:`adjusted_p`): in a session of at most :data:`MINP_POSES` kept poses, Westfall & Young's single-step minP
 adjusted p value, the share of :data:`DRAWS` null draws of the linearised model (as
-:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take) whose smallest p
+:mod:`~optcal.applications.diagnosis.familywise` draws them, for the F test the step's tests take; under pose noise
+correlated in time, of the whitened generalised model) whose smallest p
 over the positions is at most the observed one; in a larger session Bonferroni over the positions (the exact test's
 p times their number), which bounds the false-step rate whatever the dependence and costs little power where a
 session has hundreds of poses.  Neighbouring splits' statistics are strongly dependent (they share all but one
@@ -30,11 +31,11 @@ from numpy.typing import NDArray
 
 from scipy import stats as sps
 
-from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
+from optcal.applications.diagnosis.effects import BIAS_STEP, STEP_MIN_SIDE
 from optcal.applications.diagnosis.familywise import NullDraws, null_draws
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 
-__all__ = ["StepScan", "scan_step", "adjusted_p", "MINP_POSES", "DRAWS"]
+__all__ = ["StepScan", "scan_step", "adjusted_p", "knock_unneeded", "MINP_POSES", "DRAWS"]
 
 #: Largest session (kept poses) whose step p value is adjusted by the minP simulation; above it, Bonferroni over the
 #: positions.  The simulation costs poses × positions × :data:`DRAWS` (60 poses: 1.4e8, a fraction of a second);
@@ -132,11 +133,10 @@ def null_largest(fitter: Fitter, fit: Fit, scan: StepScan, seed: int = 0,
     dof = fitter.n - fit.n_params - 1
     if dof <= 0:
         return None
-    kept = fit.kept(fitter.n)
     null = null_draws(fitter, fit, DRAWS, seed) if null is None else null
     h = null.J[:, 6 + scan.axis]
-    columns = np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0) for k in scan.splits],
-                       axis=1)[kept]
+    columns = null.columns(np.stack([np.where(np.isin(np.arange(fitter.n), fitter.time_order[k:]), h, 0.0)
+                                     for k in scan.splits], axis=1))
     projected = columns - null.model @ (null.model.T @ columns)
     unit = projected / np.maximum(np.linalg.norm(projected, axis=0), 1e-300)
     gain = (unit.T @ null.z) ** 2  # each position's fall in it, (positions, DRAWS)
@@ -146,8 +146,9 @@ def null_largest(fitter: Fitter, fit: Fit, scan: StepScan, seed: int = 0,
 
 def uses_minp_positions(fitter: Fitter, fit: Fit) -> bool:
     """Whether a step's p value from ``fit`` is adjusted by the minP simulation (at most :data:`MINP_POSES` kept
-    poses, independent), not by Bonferroni over the positions."""
-    return int(fit.kept(fitter.n).sum()) <= MINP_POSES and fitter.correlation is None
+    poses), not by Bonferroni over the positions.  Poses whose noise is correlated in time take it too, drawn
+    under the correlation the diagnosis measured (:func:`~optcal.applications.diagnosis.familywise.whitening`)."""
+    return int(fit.kept(fitter.n).sum()) <= MINP_POSES
 
 
 def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: int = 0,
@@ -171,3 +172,35 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     # statistic whose p is p_single (one quantile, not a tail probability per position and draw)
     critical = float(sps.f.isf(p_single, 1, fitter.n - fit.n_params - 1))
     return float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), "minP"
+
+
+def knock_unneeded(fitter: Fitter, current: Fit, levels: dict[tuple[str, int], float],
+                   entered: tuple[str, int] | None) -> tuple[float, tuple[str, int], Fit, float] | None:
+    """The one bias step in ``current`` when the terms accepted after it make it unneeded (the backward check,
+    :meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`): ``(p, key, the fit
+    without it, ΔBIC)``, else ``None``.
+
+    A knock taken first can be a stand-in for an effect found later (a drift or a temperature bias rising through
+    the session: a step at its middle is its best two-level summary).  It is re-tested by the test it entered by,
+    given every other term: the exact F test of its offset at its place, adjusted for the positions searched as
+    :func:`adjusted_p` adjusts it (the null at the model without it; minP or Bonferroni), at the level it entered at (its share of the step's level, ``levels``), with ΔBIC counting its
+    position as a parameter.  Only a single knock on one axis is re-tested (one step placed, one offset): two
+    steps, or a knock moving several axes, are kept (their joint removal would need the pair's own test).
+    """
+    keys = [k for k in current.terms if k[0] == BIAS_STEP]
+    if len(fitter.steps_at) != 1 or len(keys) != 1 or current.terms[keys[0]] != 1:
+        return None
+    key = keys[0]
+    if key == entered or key not in levels:
+        return None
+    placed = fitter.steps_at
+    without = fitter.fit({k: v for k, v in current.terms.items() if k != key}, current.outliers, current.x)
+    p_exact = fitter.f_test(without, current)
+    fitter.set_steps(())
+    try:  # the step's scan from the model without it: the positions its entry test paid for
+        scan = scan_step(fitter, without, key[1])
+        p = 1.0 if scan is None else adjusted_p(fitter, without, scan, p_exact)[0]
+    finally:
+        fitter.set_steps(placed)
+    delta = fitter.bic(current) + float(np.log(fitter.n)) - fitter.bic(without)  # its position a parameter too
+    return (p, key, without, delta) if p >= levels[key] or delta >= 0 else None

@@ -24,7 +24,8 @@ of freedom (a small session): there the shared residual sum makes Bonferroni mos
 the level is 0.0019 against Bonferroni's 0.0011 over 18 candidates), and the simulation
 is of a few dozen poses.  Larger sessions keep Bonferroni (their residual sums are nearly constant, their
 candidates nearly independent, and the 2,000-pose diagnosis keeps its speed); so do poses whose noise is
-correlated in time.
+correlated in time (:func:`uses_minp`).  The bias step's position search draws from the same null model, under a
+correlation in time whitened (:func:`whitening`).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats as sps
 
-from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter, mean_shift_columns
 from optcal.applications.diagnosis.problem import BETA_INDEX
 
 #: Draws of the null simulation.  The level is the ``α`` quantile of the smallest p: at α = 0.02, 80 draws lie
@@ -70,15 +71,19 @@ class NullDraws:
     Attributes
     ----------
     kept : ndarray of bool
-        The poses the fit keeps (its outliers out).
+        The poses the draws stand for: the fit's kept poses (its outliers out); every pose under correlated noise
+        (each outlier a mean-shift column of :attr:`model`, as the generalised fit carries it).
     J : ndarray
-        The full weighted Jacobian at the fit, every pose (each candidate's columns are taken from it).
+        The full weighted Jacobian at the fit, every pose, not whitened (each candidate's columns are taken from it
+        and passed through :meth:`columns`).
     model : ndarray
-        An orthonormal basis of the fit's free columns on the kept poses.
+        An orthonormal basis of the fit's free columns on :attr:`kept` (whitened under correlated noise).
     z : ndarray
-        Standard normal weighted residuals of the kept poses, (kept poses, draws): σ z with σ = 1.
+        Standard normal weighted residuals, (:attr:`kept` poses, draws): σ z with σ = 1 (whitened: ``W e``).
     rss0 : ndarray
         The null model's residual sum of each draw (``z`` with ``model`` projected out), σ² = 1.
+    whiten : ndarray or None
+        ``W`` with ``WᵀW = R⁻¹`` (:func:`whitening`) under correlated pose noise, ``None`` for independent poses.
     """
 
     kept: NDArray[np.bool_]
@@ -86,19 +91,56 @@ class NullDraws:
     model: NDArray[np.float64]
     z: NDArray[np.float64]
     rss0: NDArray[np.float64]
+    whiten: NDArray[np.float64] | None = None
+
+    def columns(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Columns ``X`` of every pose (rows of :attr:`J`'s form) as the draws see them: whitened, then the rows of
+        :attr:`kept`."""
+        return (X if self.whiten is None else self.whiten @ X)[self.kept]
+
+    def residuals(self, fitter: Fitter, fit: Fit) -> NDArray[np.float64]:
+        """``fit``'s weighted residuals as :attr:`z` stands for them (the observed counterpart of a draw)."""
+        if self.whiten is None:
+            return (np.sqrt(fitter.weights(fit)) * fit.residuals)[self.kept]
+        return self.whiten @ (np.sqrt(fitter.w) * fit.residuals)
+
+
+def whitening(fitter: Fitter) -> NDArray[np.float64] | None:
+    """``W`` with ``WᵀW = R⁻¹`` (upper triangular, the transposed Cholesky factor of ``R⁻¹``), ``R`` the correlation
+    of the poses' weighted residuals the diagnosis measured (:mod:`~optcal.applications.diagnosis.correlation`);
+    ``None`` for independent poses (no correlation used, or ``ρ₀ = 0``: ``R = I``).
+
+    The null model under correlated noise: the weighted residuals are ``σ R^½ z``, ``z`` standard normal, ``R`` as
+    estimated (REML) taken as known, as the generalised least-squares fit and its F tests take it.  ``W e`` is then
+    ``σ z``: the generalised fit of ``e`` is the ordinary one of ``W e`` on ``W G``, and every statistic of the
+    independent case holds for the whitened residuals and columns.  Dense (``n × n``): used where the minP
+    simulation is (:data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` poses).
+    """
+    op = fitter.correlation
+    if op is None or op.covariance is None:
+        return None
+    inverse = op.solve(np.eye(fitter.n))
+    return np.asarray(np.linalg.cholesky((inverse + inverse.T) / 2).T)
 
 
 def null_draws(fitter: Fitter, fit: Fit, draws: int, seed: int = 0) -> NullDraws:
     """``draws`` draws of the linearised null model at ``fit``: the weighted residuals of the kept poses ``σ z``
     with ``z`` standard normal (Lu 2017, eq. 14's weights make them so), the fit's own columns projected out
     (the selection's minP level, :func:`minp_level`, and the bias step's adjusted p,
-    :func:`~optcal.applications.diagnosis.bias_step.adjusted_p`)."""
-    kept = fit.kept(fitter.n)
-    G, J = fitter.jacobians(fit, fitter.weights(fit))
-    model = orthonormal(G[kept])
+    :func:`~optcal.applications.diagnosis.bias_step.adjusted_p`).  Under correlated pose noise the same in the
+    whitened space (:func:`whitening`): every pose, the fit's outliers as its mean-shift columns."""
+    W = whitening(fitter)
+    if W is None:
+        kept = fit.kept(fitter.n)
+        G, J = fitter.jacobians(fit, fitter.weights(fit))
+        model = orthonormal(G[kept])
+    else:
+        kept = np.ones(fitter.n, dtype=bool)
+        G, J = fitter.jacobians(fit, fitter.w)
+        model = orthonormal(W @ np.column_stack([G, mean_shift_columns(fitter.n, fit.outliers)]))
     z = np.random.default_rng(seed).standard_normal((int(kept.sum()), draws))
     rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
-    return NullDraws(kept, J, model, z, rss0)
+    return NullDraws(kept, J, model, z, rss0, W)
 
 
 def uses_minp(fitter: Fitter, fit: Fit) -> bool:
@@ -131,13 +173,14 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
         candidate can be tested.
     """
     null = null_draws(fitter, fit, DRAWS, seed)
-    J, model, z, rss0 = null.J[null.kept], null.model, null.z, null.rss0
+    model, z, rss0 = null.model, null.z, null.rss0
     bases: list[NDArray[np.float64]] = []
     added: list[int] = []
     for effect, axis, order in candidates:
         columns = candidate_columns(fit, effect, axis, order)
-        projected = J[:, columns] - model @ (model.T @ J[:, columns])
-        basis = orthonormal(projected / max(float(np.linalg.norm(J[:, columns])), 1e-300), RANK_TOL)
+        J = null.columns(null.J[:, columns])
+        projected = J - model @ (model.T @ J)
+        basis = orthonormal(projected / max(float(np.linalg.norm(J)), 1e-300), RANK_TOL)
         if basis.shape[1]:
             bases.append(basis)
             added.append(len(columns))

@@ -44,12 +44,13 @@ from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
+from optcal.applications.diagnosis.bias_step import (DRAWS as STEP_DRAWS, adjusted_p, knock_unneeded, scan_step,
+                                                     uses_minp_positions)
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
-from optcal.applications.diagnosis.step_pair import PairScan, scan_pair, with_null
+from optcal.applications.diagnosis.step_pair import each_knock_needed, scan_pair, with_null
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
 from optcal.core.stats import rms
@@ -423,6 +424,8 @@ class ForwardSelection:
             key = None if accepted.axis is None else (accepted.effect, AXES.index(accepted.axis))
             if key is not None and accepted.effect not in (BIAS_STEP, SESSION_BIAS):
                 levels.setdefault(key, accepted.threshold)  # a raised order keeps the level its term entered at
+            if key is not None and accepted.effect == BIAS_STEP and accepted.second_at is None:
+                levels.setdefault(key, accepted.threshold)  # a knock's level: its share of the step's, positions paid
             current, steps[-1].dropped = self.backward_check(current, levels, key, accepted.term)
             for d in steps[-1].dropped:
                 levels.pop((d.effect, AXES.index(d.axis)), None)
@@ -457,19 +460,27 @@ class ForwardSelection:
             bic = fitter.bic(current)
             failing: list[tuple[float, tuple[str, int], Fit, float]] = []
             for key, order in current.terms.items():
-                if key == entered or key not in levels:
+                if key == entered or key not in levels or key[0] == BIAS_STEP:
                     continue
                 without = fitter.fit({k: v for k, v in current.terms.items() if k != key}, current.outliers, current.x)
                 p = fitter.f_test(without, current)
                 delta = bic - fitter.bic(without)
                 if p >= levels[key] or delta >= 0:
                     failing.append((p, key, without, delta))
+            knock = knock_unneeded(fitter, current, levels, entered)
+            if knock is not None:
+                failing.append(knock)
             if not failing:
                 return current, out
             p, key, without, delta = max(failing, key=lambda f: (f[0], f[1]))
             mask = current.kept(fitter.n)
-            with_rms, without_rms = rms(fitter.heldout(current), mask), rms(fitter.heldout(without), mask)
+            placed = fitter.steps_at
+            with_rms = rms(fitter.heldout(current), mask)
+            if key[0] == BIAS_STEP:
+                fitter.set_steps(())  # the model without its knock has no step (bias_step.knock_unneeded: one placed)
+            without_rms = rms(fitter.heldout(without), mask)
             if without_rms > with_rms:
+                fitter.set_steps(placed)
                 return current, out
             term = describe_term(key[0], key[1], current.terms[key])
             why = (f"given {after} and the model's other terms it is not significant (p = {p:.2g} ≥ {levels[key]:.2g}, "
@@ -491,7 +502,8 @@ class ForwardSelection:
         paid for in its p value, not in the test's degrees of freedom)."""
         if len(self.fitter.steps_at) >= MAX_STEPS or self.fitter.n - current.n_params - 1 < MIN_DOF:
             return []
-        return [a for e, a in self.candidates if e == BIAS_STEP]
+        # a knock dropped as unneeded (knock_unneeded) is not searched again: the selection cannot cycle
+        return [a for e, a in self.candidates if e == BIAS_STEP and (e, a) not in self.dropped_keys]
 
     def pair_searched(self, current: Fit, axes: list[int]) -> bool:
         """Whether a step from ``current`` searches two bias steps together (:mod:`~optcal.applications.diagnosis.step_pair`)
@@ -514,7 +526,7 @@ class ForwardSelection:
         """Two bias steps searched together (:func:`~optcal.applications.diagnosis.step_pair.scan_pair`), fitted
         exactly at the best pair, its F test adjusted for the pairs searched (minP), compared with ``level`` (its
         share of the step's level, :meth:`single_step_level`), and each knock needed given the other
-        (:meth:`each_knock_needed`); its ΔBIC counts both places as parameters.  The simulation runs only when the
+        (:func:`~optcal.applications.diagnosis.step_pair.each_knock_needed`); its ΔBIC counts both places as parameters.  The simulation runs only when the
         exact p is below ``level`` (the adjusted p is never smaller) and both knocks are needed: its p value is the
         exact one otherwise (``rejected_because`` says why)."""
         fitter = self.fitter
@@ -538,7 +550,7 @@ class ForwardSelection:
         if p_exact >= level or delta >= 0:  # the adjusted p is never below the exact one: not significant either way
             return [out]
         # both conditions must hold; the cheaper one first (two one-step scans), the pairs' null only if it passes
-        needed = self.each_knock_needed(current, scan)
+        needed = each_knock_needed(fitter, current, scan)
         if needed >= level:
             out.rejected_because = (f"each knock is not needed given the other: the weaker one's test given the "
                                     f"other step, its position searched again, p = {needed:.2g} (a wander of the bias "
@@ -547,40 +559,6 @@ class ForwardSelection:
         out.p_value = with_null(fitter, current, scan, axes, null_draws(fitter, current, STEP_DRAWS)).adjusted(p_exact)
         out.significant = out.p_value < level
         return [out]
-
-    def each_knock_needed(self, current: Fit, scan: PairScan) -> float:
-        """The larger of the two knocks' p values, each tested given the other as the one-step search tests a second
-        step (binary segmentation's second stage): the other knock placed, this knock's axis scanned again over its
-        positions (:func:`~optcal.applications.diagnosis.bias_step.scan_step`) and its exact F test adjusted for them
-        (:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`).
-
-        Two knocks that hide each other are each strongly needed given the other (mikoff imu0, 22 rests, 4 mg on x
-        after rest 7 and 3 mg on y after 15: p 0.00087 and 2.5e-5).  Two steps that only trace a bias rising and
-        returning are not: on the unplanted Xsens log (38 rests) the best pair, z up after rest 11 and down after 29
-        with y after 11 (exact p 2e-7, minP-adjusted over the pairs 0.00022), has its y knock at p 0.16 given the z
-        one.  Requiring both only shrinks
-        the joint test's rejections, so the step's family-wise level holds.
-        """
-        fitter = self.fitter
-        placed = fitter.steps_at
-        first = ({(BIAS_STEP, scan.first_axis): 1} if scan.first_axis == scan.second_axis else
-                 {(BIAS_STEP, scan.first_axis): 1, (BIAS_STEP, scan.second_axis): 1})
-        worst = 0.0
-        try:
-            for terms, at, axis in ((first, scan.first_at, scan.second_axis),
-                                    ({(BIAS_STEP, scan.second_axis): 1}, scan.second_at, scan.first_axis)):
-                fitter.set_steps((at,))
-                given = fitter.fit({**current.terms, **terms}, current.outliers, current.x)
-                other = scan_step(fitter, given, axis)
-                if other is None:
-                    return 1.0
-                both = {**given.terms, (BIAS_STEP, axis): 2}
-                fit = fitter.fit(both, given.outliers, given.x, fitter.step_data(other.at))
-                p, _ = adjusted_p(fitter, given, other, fitter.f_test(given, fit))
-                worst = max(worst, p)
-        finally:
-            fitter.set_steps(placed)
-        return worst
 
     def step_candidates(self, current: Fit, axes: list[int], level: float, bic0: float) -> list[Candidate]:
         """The bias step of each axis at its best position (:func:`~optcal.applications.diagnosis.bias_step.scan_step`),
