@@ -65,6 +65,18 @@ ROS_IMU_TYPE = "sensor_msgs/msg/Imu"
 ROS_TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
 
 
+class GyroOnlyColumns(InputError):
+    """A file whose columns name a gyroscope and no accelerometer; ``source`` holds what was read (time and gyro).
+
+    Refused by every reader of an accelerometer's recording; :func:`optcal.data.gyro_log.read_gyro_recording`
+    takes the source and reads the gyro alone (``optcal allan FILE --sensor gyro``).
+    """
+
+    def __init__(self, message: str, source: "Source") -> None:
+        super().__init__(message)
+        self.source = source
+
+
 @dataclass
 class Source:
     """Data read from a file, under canonical column names (the *read* step).
@@ -397,7 +409,8 @@ def source_from_columns(
     """Map named float columns to canonical columns (units and time unit as the names state them)."""
     column_map, unit_words, roles = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
-    if missing:
+    gyro_only = bool(missing) and all(c in column_map for c in GYRO)
+    if missing and not gyro_only:
         # a magnetometer's file given to an accelerometer's command: its reader is one flag away
         stems = {strip_unit(normalise_name(n))[0] for n in names}
         mag = "; its columns name a magnetometer: optcal calibrate FILE --sensor mag" if all(
@@ -472,6 +485,11 @@ def source_from_columns(
             if setting is not None and float(setting.group(2)) > 0:
                 src.rate_hint = float(setting.group(2))
                 src.rate_reason = f"'{setting.group(1)} = {setting.group(2)} Hz' in the file header's {key!r} line"
+    if gyro_only:  # a gyroscope's log (an Allan recording of the gyro alone): its reader is one flag away
+        raise GyroOnlyColumns(
+            f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: {', '.join(names)}); its "
+            f"columns name a gyroscope only: optcal allan FILE --sensor gyro analyses its noise (or map the "
+            "accelerometer's with --columns ax=NAME,ay=NAME,az=NAME)", src)
     return src
 
 
