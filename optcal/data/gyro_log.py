@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from optcal.data.columns import ACC, GYRO
-from optcal.data.decisions import Decision, decide
+from optcal.data.decisions import DataInputError, Decision, decide
 from optcal.data.evidence import gather_evidence
 from optcal.data.options import ReadOptions
 from optcal.data.readers import Source
@@ -54,7 +54,8 @@ def gyro_recording(src: Source, options: ReadOptions | None = None, *,
     -------
     Recording
         ``gyro`` holds the samples; ``acc`` the stand-in (:data:`STAND_IN`), which no result may read;
-        ``units`` is :data:`NO_ACCELEROMETER` and its decision says the log was read as a gyroscope's.
+        ``units`` is the stand-in's g; the units decision is :data:`NO_ACCELEROMETER`, saying the log was read as a
+        gyroscope's.
 
     Raises
     ------
@@ -72,11 +73,17 @@ def gyro_recording(src: Source, options: ReadOptions | None = None, *,
     rng = np.random.default_rng(STAND_IN_SEED)
     for name in ACC:
         src.data[name] = STAND_IN + STAND_IN_NOISE * rng.standard_normal(src.n_rows)
-    decisions = decide(src, gather_evidence(src), kind="raw", units="g", rate=options.rate,
-                       time_unit=options.time_unit, timing=options.timing, required_by=required_by)
     reason = ("no accelerometer columns: a gyroscope's log, read alone (its gyro analysed, as --sensor gyro; its "
               "stillness judged by the gyro, the rest model's accelerometer tests seeing a sensor held still)")
-    decisions.units = Decision(NO_ACCELEROMETER, reason, "--columns ax=NAME,ay=NAME,az=NAME")
-    rec = recording_from_source(src, decisions)
-    rec.units, rec.units_reason = NO_ACCELEROMETER, reason
+    flag = "--columns ax=NAME,ay=NAME,az=NAME"
+    try:
+        decisions = decide(src, gather_evidence(src), kind="raw", units="g", rate=options.rate,
+                           time_unit=options.time_unit, timing=options.timing, required_by=required_by)
+    except DataInputError as exc:  # the decisions printed with the refusal say no accelerometer, not the stand-in's g
+        exc.decisions = [f"units: {NO_ACCELEROMETER} ({reason}; {flag})" if line.startswith("units:") else line
+                         for line in exc.decisions]
+        raise
+    rec = recording_from_source(src, decisions)  # converted in the stand-in's g (a window re-converts it too)
+    decisions.units = Decision(NO_ACCELEROMETER, reason, flag)  # said: no accelerometer (rec.decisions is this)
+    rec.units_reason = reason
     return rec

@@ -323,10 +323,14 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
                           "columns by position from --columns")
         else:
             mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe())
-    src = source_from_columns(
-        names, parsed.columns, str(p), "csv", mapping, layout.metadata,
-        {names[j]: v for j, v in parsed.non_numeric.items()},
-    )
+    gyro_only: GyroOnlyColumns | None = None
+    try:
+        src = source_from_columns(
+            names, parsed.columns, str(p), "csv", mapping, layout.metadata,
+            {names[j]: v for j, v in parsed.non_numeric.items()},
+        )
+    except GyroOnlyColumns as exc:  # described as any source (positions, layout), then refused
+        src, gyro_only = exc.source, exc
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
     if unread and JOINED_STAMP in reason:
         unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
@@ -345,6 +349,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         # a 9-axis logger's magnetometer (columns.HEADERLESS_TRIPLES): said, not silently dropped
         src.layout += f"; columns {', '.join(unread)} not read (--columns maps them)"
     src.size_bytes = p.stat().st_size
+    if gyro_only is not None:
+        raise gyro_only
     return src
 
 

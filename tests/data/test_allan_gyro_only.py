@@ -101,3 +101,23 @@ def test_a_gyro_only_log_refuses_the_accelerometers_units(still, capsys):
     ``--gyro-units``."""
     code, out, err = run(["allan", still / "gyro.csv", "--units", "g"], capsys)
     assert code == 2 and "--gyro-units" in err and err.count("\n") == 1
+
+
+def test_a_headerless_gyro_log_by_position_with_a_window(tmp_path, capsys):
+    """Variense VMU931's export (``gyroscope,411480,-0.286,0.042,0.142``: the quantity's name, a stamp in ms, x, y, z;
+    no header): read by position, the columns said as positions (not as names ``2``, ``3``), a refusal's decisions
+    saying no accelerometer (not the stand-in's g), and ``--window`` (which re-converts the stand-in) analysed."""
+    n = int(60 * FS)
+    stamps = 411480 + np.arange(n) * 10  # ms
+    g = _gyro(n)
+    path = tmp_path / "gyroscope_20180927.csv"
+    path.write_text("".join(f"gyroscope,{s},{x:.9g},{y:.9g},{z:.9g}\n" for s, (x, y, z) in zip(stamps, g)))
+    columns = ["--columns", "t=2,gx=3,gy=4,gz=5", "--gyro-units", "rad/s"]
+    code, out, err = run(["allan", path, *columns], capsys)  # the stamps in ms read as seconds: refused
+    assert code == 2 and "--time-unit ms" in err
+    assert "columns: t←#2, gx←#3, gy←#4, gz←#5" in out and f"units: {NO_ACCELEROMETER} (no accelerometer" in out
+    code, out, err = run(["allan", path, *columns, "--time-unit", "ms", "--window", "420:", "--json"], capsys)
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == int(np.count_nonzero(stamps >= 420000))
+    assert summary["x"]["angle_random_walk"] == pytest.approx(SIGMA / np.sqrt(FS), rel=0.1)
