@@ -504,6 +504,8 @@ SENSOR_LOGGER_NAMES: frozenset[str] = frozenset(("time", "seconds_elapsed", "x",
 SENSOR_LOGGER_ACCELEROMETERS: tuple[str, ...] = ("totalacceleration", "accelerometeruncalibrated")
 #: Its gyroscope files, in rad/s (UNITS.md).
 SENSOR_LOGGER_GYROSCOPES: tuple[str, ...] = ("gyroscope", "gyroscopeuncalibrated")
+#: Its magnetometer files, in µT (UNITS.md), read by ``optcal calibrate FILE --sensor mag``.
+SENSOR_LOGGER_MAGNETOMETERS: tuple[str, ...] = ("magnetometer", "magnetometeruncalibrated")
 
 
 def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> tuple[dict[str, str], str] | None:
@@ -514,7 +516,8 @@ def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> t
     refused, naming the files that hold gravity and the ``--columns`` that reads it anyway.  Its
     ``TotalAcceleration.csv`` and ``AccelerometerUncalibrated.csv`` map ``x, y, z`` to the accelerometer
     (``sensor="acc"``); its ``Gyroscope.csv`` (rad/s), read as a gyro file (``sensor="gyro"``), to the
-    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes.  The time
+    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes; its
+    ``Magnetometer.csv`` (µT), read by the magnetometer's reader (``sensor="mag"``), to ``mx, my, mz``.  The time
     is ``seconds_elapsed`` (seconds).
 
     Returns
@@ -533,6 +536,11 @@ def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> t
     by_name = {n.strip().lower(): n for n in names}
     mapping = {"t": by_name["seconds_elapsed"], "ax": by_name["x"], "ay": by_name["y"], "az": by_name["z"]}
     layout = "Sensor Logger's export (time, seconds_elapsed and bare axes)"
+    if sensor == "mag":
+        if key.startswith(SENSOR_LOGGER_MAGNETOMETERS):
+            return ({"t": mapping["t"], "mx": mapping["ax"], "my": mapping["ay"], "mz": mapping["az"]},
+                    f"{layout}: {stem} is the magnetometer, in µT")
+        return None
     if sensor == "gyro":
         if key.startswith(SENSOR_LOGGER_GYROSCOPES):
             return mapping, f"{layout}: {stem} is the gyroscope, in rad/s"

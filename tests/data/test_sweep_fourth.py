@@ -5,15 +5,20 @@ that optcal misread, each reproduced on a GENERATED file (no recording is commit
   move measures the scale): a rest whose gyro mean sat a few counts off the others' was "a slow turn", whatever its
   accelerometer said (its 20-s rest lost).  Now the offset is read at the most a count can be worth (a 16-bit
   converter over ±4000 °/s) and the turn across the specific force bounded by the accelerometer too.
+* Sensor Logger's ``Magnetometer.csv`` (``time,seconds_elapsed,z,y,x``, µT by its UNITS.md; BennyJHui/imu_data):
+  ``--sensor mag`` refused it as "no magnetometer columns"; now read by its file's name, in µT, said.
 
-Each test fails on the code before this sweep.
+Each test fails on the code before this sweep (the controls excepted: they hold on both).
 """
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
+from helpers.cli_run import run
 from optcal.data import segment
 from optcal.data.static import TURNING_STRETCHES
 
@@ -88,3 +93,26 @@ def test_a_gyro_in_physical_units_of_unknown_unit_is_not_bounded(tmp_path, seed)
     seg = segment(out, rate=FS)
     assert seg.evidence.get(TURNING_STRETCHES, 0) > 0
     assert not any(iv.n_samples >= 1900 for iv in seg.intervals)
+
+
+# ------------------------------------------------------------------ Sensor Logger's Magnetometer.csv
+def test_sensor_loggers_magnetometer_file_is_read_by_its_name_in_microtesla(tmp_path, capsys):
+    """Sensor Logger writes ``Magnetometer.csv`` as ``time,seconds_elapsed,z,y,x`` in µT (its UNITS.md), the
+    quantity in the file's name only (BennyJHui/imu_data's phone): ``--sensor mag`` refused it as "no magnetometer
+    columns"; now read by its name, in µT, said, and calibrated (hard iron found)."""
+    rng = np.random.default_rng(7)
+    n = 600
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    hard = np.array([12.0, -20.0, 5.0])
+    m = 48.0 * d + hard + 0.3 * rng.normal(size=(n, 3))
+    t = np.arange(n) * 0.02
+    path = tmp_path / "Magnetometer.csv"
+    path.write_text("time,seconds_elapsed,z,y,x\n" + "".join(
+        f"{int(1.76e18 + s * 1e9)},{s:.6f},{z:.6f},{y:.6f},{x:.6f}\n" for s, (x, y, z) in zip(t, m)))
+    code, out, err = run(["calibrate", path, "--sensor", "mag", "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert "Sensor Logger" in json.dumps(result)
+    assert result["units"]["input"] == "uT"
+    np.testing.assert_allclose(result["o"], hard, atol=0.5)  # the hard iron, µT
