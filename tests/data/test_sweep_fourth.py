@@ -116,3 +116,23 @@ def test_sensor_loggers_magnetometer_file_is_read_by_its_name_in_microtesla(tmp_
     assert "Sensor Logger" in json.dumps(result)
     assert result["units"]["input"] == "uT"
     np.testing.assert_allclose(result["o"], hard, atol=0.5)  # the hard iron, µT
+
+
+# ------------------------------------------------------------------ a hard iron several times the field
+def test_a_magnetometers_unit_is_decided_from_the_field_not_the_hard_iron(tmp_path, capsys):
+    """Variense VMU931's Magnetometer.csv (µT, a hard iron of 181 µT beside a 37-µT field: Alanzwang/vmu931): the
+    median |m| (178) is the Earth's field only in mgauss, and was read so (a field of 3.8 µT); the radius of the
+    sphere through the samples (37) is the field, in µT.  The control: a small hard iron reads µT as before."""
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(800, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    for hard, name in (([16.0, -168.0, -64.0], "vmu.csv"), ([5.0, -8.0, 3.0], "small.csv")):
+        m = 37.0 * d + np.asarray(hard) + 0.2 * rng.normal(size=d.shape)
+        path = tmp_path / name
+        path.write_text("Attribute,Time stamp,mx,my,mz\n" + "".join(
+            f"Magnetometer,{204000 + 11 * k},{x:.6f},{y:.6f},{z:.6f}\n" for k, (x, y, z) in enumerate(m)))
+        code, out, err = run(["calibrate", path, "--sensor", "mag", "--json"], capsys)
+        assert code == 0, err
+        result = json.loads(out)
+        assert result["units"]["input"] == "uT", name
+        assert result["field_strength"] == pytest.approx(37.0, rel=0.02)
