@@ -312,8 +312,13 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     if layout.header_in_comment and layout.header_line is not None:
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
+    logger_gyro = False
     if layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p))) is not None:
         mapping, reason = logger  # Sensor Logger's bare x, y, z: the file's name says the quantity
+    elif layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p), "gyro")) is not None:
+        # its Gyroscope.csv read alone (optcal allan FILE): the gyro's axes, in rad/s (a gyro-only log)
+        mapping = {dict(zip(ACC, GYRO)).get(k, k): v for k, v in logger[0].items()}
+        reason, logger_gyro = logger[1], True
     mapping_given = bool(mapping)
     if not layout.has_header:
         if mapping:
@@ -331,6 +336,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         )
     except GyroOnlyColumns as exc:  # described as any source (positions, layout), then refused
         src, gyro_only = exc.source, exc
+        if logger_gyro and src.gyro_units is None:
+            src.gyro_units = "rad/s"  # Sensor Logger's UNITS.md
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
     if unread and JOINED_STAMP in reason:
         unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1

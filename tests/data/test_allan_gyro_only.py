@@ -121,3 +121,22 @@ def test_a_headerless_gyro_log_by_position_with_a_window(tmp_path, capsys):
     summary = json.loads(out)
     assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == int(np.count_nonzero(stamps >= 420000))
     assert summary["x"]["angle_random_walk"] == pytest.approx(SIGMA / np.sqrt(FS), rel=0.1)
+
+
+def test_sensor_loggers_gyroscope_file_alone(tmp_path, capsys):
+    """Sensor Logger's ``Gyroscope.csv`` (``time,seconds_elapsed,z,y,x``, rad/s by its UNITS.md; BennyJHui/imu_data,
+    sewonm/Robot-Logger-Test) given to ``optcal allan`` alone: its bare axes read as the gyro's by the file's name
+    (before: "no accelerometer column(s)" naming only --columns), the unit stated, the noise analysed."""
+    n = int(60 * FS)
+    t = np.arange(n) / FS
+    g = _gyro(n)
+    path = tmp_path / "Gyroscope.csv"
+    path.write_text("time,seconds_elapsed,z,y,x\n" + "".join(
+        f"{int(1.76e18 + s * 1e9)},{s:.6f},{z:.9g},{y:.9g},{x:.9g}\n" for s, (x, y, z) in zip(t, g)))
+    code, out, err = run(["allan", path, "--json"], capsys)
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["sensor"] == "gyro" and summary["units"]["input"] == "rad/s"
+    assert "stated by the file" in summary["log"]["units_reason"]
+    for axis in "xyz":
+        assert summary[axis]["angle_random_walk"] == pytest.approx(SIGMA / np.sqrt(FS), rel=0.1)
