@@ -327,7 +327,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
                 reason = (f"line {layout.ignored_header + 1}'s names do not match the fields (read as a note); "
                           "columns by position from --columns")
         else:
-            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe())
+            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
+                                                        {j: v[2] for j, v in parsed.non_numeric.items()})
     gyro_only: GyroOnlyColumns | None = None
     try:
         src = source_from_columns(
