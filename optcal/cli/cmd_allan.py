@@ -66,6 +66,8 @@ class StillLog:
     usable: NDArray[np.bool_] | None = None
     #: The samples kept by :meth:`trim_unsettled` (``None``: all).
     cut: tuple[int, int] | None = None
+    #: The sensor analysed: ``"acc"``, ``"gyro"`` (asked for, or a file with gyro columns only) or ``"both"``.
+    sensor: str = "acc"
 
     def confirm_still(self) -> Any:
         """Wait for the stillness check :func:`read_still_log` started; raise its refusal; return the segmentation."""
@@ -169,7 +171,7 @@ def missing_samples(t: NDArray[np.float64]) -> tuple[int, int, int, float, float
     return int(steps.sum()), longest, at, gap, step
 
 
-def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] | None = None,
+def read_still_log(data: str, sensor: str | None = "acc", window: tuple[float, float] | None = None,
                    concurrent: bool = False, **read_options: Any) -> StillLog:
     """Read a still log for the Allan deviation.
 
@@ -180,7 +182,8 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     detection does not find at rest (at least :data:`MIN_STILL_FRACTION` of it) is refused:
     the Allan deviation of a moving sensor measures the motion.  ``sensor="gyro"`` takes the
     gyro samples (``units`` then says the gyro units as the file states them, or ``None``);
-    ``sensor="both"`` the accelerometer's with the gyro's beside them (``gyro``).  ``window``
+    ``sensor="both"`` the accelerometer's with the gyro's beside them (``gyro``); ``sensor=None`` the
+    accelerometer's, or the gyro's of a file with gyro columns only (:mod:`optcal.data.gyro_log`).  ``window``
     keeps only the samples with ``start ≤ t ≤ end`` (the still part of a longer recording; the
     rows outside it are counted).  ``concurrent=True`` returns as soon as the log is read and runs the
     stillness check in a thread beside the caller's analysis (its numpy work releases the interpreter,
@@ -194,8 +197,20 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
     from optcal.data.static import detect_static
     from optcal.errors import InputError
 
+    from optcal.data.gyro_log import gyro_recording
+    from optcal.data.options import ReadOptions
+    from optcal.data.readers import GyroOnlyColumns
+
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
-        rec = load_recording(data, required_by="the allan command", **read_options)
+        try:
+            rec = load_recording(data, required_by="the allan command", **read_options)
+        except GyroOnlyColumns as exc:  # a gyroscope's log: its noise, unless the accelerometer's was asked for
+            if sensor not in (None, "gyro"):
+                raise
+            sensor = "gyro"
+            options = ReadOptions.build(read_options.pop("options", None), **read_options)
+            rec = gyro_recording(exc.source, options, required_by="the allan command")
+    sensor = sensor or "acc"
     exclusions = dict(rec.exclusions)
     if window is not None:
         keep = (rec.t >= window[0]) & (rec.t <= window[1])
@@ -253,6 +268,7 @@ def read_still_log(data: str, sensor: str = "acc", window: tuple[float, float] |
         log = StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro,
                        rec.gyro_units, still=still)
     log.usable = None if every else rec.usable
+    log.sensor = sensor
     if not concurrent:
         log.confirm_still()
     return log
@@ -343,9 +359,9 @@ def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_
 @plot_option(f"the log-log Allan deviation with the fitted lines ({FIGURE_NAME}; {GYRO_FIGURE_NAME} for the gyroscope)")
 @click.option("--counts-per-g", type=click.FloatRange(min=0, min_open=True), default=None, metavar="N",
               help="Scale of raw counts, needed for counts (16384 for an MPU-6050 at ±2 g).")
-@click.option("--sensor", type=click.Choice(["acc", "gyro", "both"]), default="acc", show_default=True,
-              help="Channels analysed: the accelerometer, the gyro (angle random walk, bias instability, rate random "
-                   "walk), or both (one JSON with 'accelerometer' and 'gyroscope': what optcal export --allan takes "
+@click.option("--sensor", type=click.Choice(["acc", "gyro", "both"]), default=None,
+              help="Channels analysed: the accelerometer (the default; the gyro for a file with gyro columns only), "
+                   "the gyro (angle random walk, bias instability, rate random walk), or both (one JSON with 'accelerometer' and 'gyroscope': what optcal export --allan takes "
                    "for Kalibr, VINS, ORB-SLAM3, OKVIS).")
 @click.option("--gyro-units", type=click.Choice(["counts", "rad/s", "deg/s"]), default=None,
               help="--sensor gyro/both: units of the gyro columns (default: from the column names or file, else from the data).")
@@ -369,7 +385,7 @@ def allan(
     as_json: bool,
     plot_path: str | None,
     counts_per_g: float | None,
-    sensor: str,
+    sensor: str | None,
     gyro_units: str | None,
     counts_per_rad_s: float | None,
     calibration_path: str | None,
@@ -405,6 +421,7 @@ def allan(
     # the stillness check runs beside the analysis (two cores: about a second less on a 12-hour log) and is
     # waited for before anything is printed or drawn: a log that is not still is refused as before
     log = read_still_log(data, sensor=sensor, window=span, concurrent=True, **reading_kwargs(reading))
+    sensor = log.sensor  # the gyro's for a file with gyro columns only
     reasons: dict[str, str] = {}
 
     def analyse() -> dict[str, Any]:

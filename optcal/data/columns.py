@@ -420,7 +420,7 @@ def _field_names(fields: list[int]) -> tuple[str, str, str]:
 
 
 def headerless_mapping(
-    path: str, columns: list[NDArray[np.float64]], described: str
+    path: str, columns: list[NDArray[np.float64]], described: str, words: dict[int, str] | None = None
 ) -> tuple[dict[str, str], str, ColumnRoles | None]:
     """Canonical columns of a file without a header, by the common layout of its width.
 
@@ -428,7 +428,10 @@ def headerless_mapping(
     remain, or the first two fields when they are one stamp split in whole seconds and a sub-second count
     (:func:`split_stamp`; ``columns[0]`` is then replaced, in the list given, by their sum in seconds); the first three of the others are the accelerometer, the next three the gyroscope
     (a ninth-axis triple after them, a magnetometer's, is left unread and named in the reason),
-    and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).
+    and with two triples which one is the accelerometer is left to the evidence (:class:`ColumnRoles`).  Leading
+    fields holding no number in any row are set aside; where the first one's text (``words``: a field's first
+    non-numeric value) names a gyroscope (``gyroscope,411480,-0.29,0.04,0.14``: Variense VMU931's export), its one
+    triple is the gyro's, and where it names a magnetometer the file is refused naming ``--sensor mag``.
 
     Returns
     -------
@@ -447,12 +450,18 @@ def headerless_mapping(
     empty_tail = 0
     while len(columns) - empty_tail > 3 and not np.isfinite(columns[len(columns) - empty_tail - 1]).any():
         empty_tail += 1
+    # a first field holding no number in any row (the quantity's word in every row: Variense VMU931's export,
+    # "acceleration,411480,0.017,0.006,0.976") is no column of the layout either: set aside, said so; the positions
+    # named stay the file's
+    lead = 0
+    while len(columns) - empty_tail - lead > 3 and not np.isfinite(columns[lead]).any():
+        lead += 1
     full_width = len(columns)
     given = columns
-    columns = columns[:full_width - empty_tail]
+    columns = columns[lead:full_width - empty_tail]
     width = len(columns)
     time_at: int | None = None
-    joined = split_stamp(columns) if width - 2 in HEADERLESS_TRIPLES else None
+    joined = split_stamp(columns) if width - 2 in HEADERLESS_TRIPLES and not lead else None
     if joined is not None:
         # whole seconds and their fraction (ROS's secs, nsecs): one time column, the first field's place
         columns[0] = given[0] = joined[0]
@@ -463,7 +472,8 @@ def headerless_mapping(
         elif increasing_column(columns[-1]):
             time_at = width - 1
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
-    example = "--columns t=1,ax=2,ay=3,az=4" if width >= 4 else "--columns ax=1,ay=2,az=3"
+    example = (f"--columns t={lead + 1},ax={lead + 2},ay={lead + 3},az={lead + 4}" if width >= 4
+               else f"--columns ax={lead + 1},ay={lead + 2},az={lead + 3}")
     if len(rest) not in HEADERLESS_TRIPLES:
         why = "fit no common layout"
         if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases
@@ -474,18 +484,28 @@ def headerless_mapping(
             f"name them by 1-based position, e.g. {example}"
         )
     canon: dict[str, int] = {} if time_at is None else {"t": time_at}
-    canon.update({c: j for j, c in zip(rest, ACC + GYRO)})
-    mapping = {c: str(j + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
+    word = re.sub(r"[^a-z]", "", (words or {}).get(0, "").lower()) if lead else ""
+    if word.startswith("mag"):
+        raise InputError(f"{path}: column 1 reads {(words or {})[0]!r}: a magnetometer's log; optcal calibrate FILE "
+                         "--sensor mag reads it")
+    triples = GYRO if word.startswith("gyr") and len(rest) == 3 else ACC + GYRO
+    canon.update({c: j for j, c in zip(rest, triples)})
+    mapping = {c: str(j + 1 + lead) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
     roles = None
     if len(rest) >= 6:
-        roles = ColumnRoles((_field_names(rest[0:3]), _field_names(rest[3:6])), 0, what)
-    where = {None: "", 0: "; the first column increases", width - 1: "; the last column increases"}[time_at]
+        roles = ColumnRoles((_field_names([j + lead for j in rest[0:3]]), _field_names([j + lead for j in rest[3:6]])),
+                            0, what)
+    where = {None: "", 0: f"; column {lead + 1} increases" if lead else "; the first column increases",
+             width - 1: "; the last column increases"}[time_at]
+    if lead:
+        said = f" ({(words or {})[0]!r}: {'the gyroscope' if triples == GYRO else 'a word'})" if words and 0 in words else ""
+        where += f"; {'column 1 holds' if lead == 1 else f'columns 1-{lead} hold'} no number in any row{said}: not read"
     if joined is not None:
         where = (f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs): "
                  f"column 1 holds their sum in seconds")
     if len(rest) == 9:
-        where += f"; columns {rest[6] + 1}-{rest[8] + 1} not read: a 9-axis logger's magnetometer"
+        where += f"; columns {rest[6] + 1 + lead}-{rest[8] + 1 + lead} not read: a 9-axis logger's magnetometer"
     if empty_tail:
         where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
                   "not read")
@@ -504,6 +524,8 @@ SENSOR_LOGGER_NAMES: frozenset[str] = frozenset(("time", "seconds_elapsed", "x",
 SENSOR_LOGGER_ACCELEROMETERS: tuple[str, ...] = ("totalacceleration", "accelerometeruncalibrated")
 #: Its gyroscope files, in rad/s (UNITS.md).
 SENSOR_LOGGER_GYROSCOPES: tuple[str, ...] = ("gyroscope", "gyroscopeuncalibrated")
+#: Its magnetometer files, in µT (UNITS.md), read by ``optcal calibrate FILE --sensor mag``.
+SENSOR_LOGGER_MAGNETOMETERS: tuple[str, ...] = ("magnetometer", "magnetometeruncalibrated")
 
 
 def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> tuple[dict[str, str], str] | None:
@@ -514,7 +536,8 @@ def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> t
     refused, naming the files that hold gravity and the ``--columns`` that reads it anyway.  Its
     ``TotalAcceleration.csv`` and ``AccelerometerUncalibrated.csv`` map ``x, y, z`` to the accelerometer
     (``sensor="acc"``); its ``Gyroscope.csv`` (rad/s), read as a gyro file (``sensor="gyro"``), to the
-    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes.  The time
+    accelerometer's place, where :func:`optcal.data.readers.merge_gyro_file` reads a gyro file's axes; its
+    ``Magnetometer.csv`` (µT), read by the magnetometer's reader (``sensor="mag"``), to ``mx, my, mz``.  The time
     is ``seconds_elapsed`` (seconds).
 
     Returns
@@ -533,6 +556,11 @@ def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> t
     by_name = {n.strip().lower(): n for n in names}
     mapping = {"t": by_name["seconds_elapsed"], "ax": by_name["x"], "ay": by_name["y"], "az": by_name["z"]}
     layout = "Sensor Logger's export (time, seconds_elapsed and bare axes)"
+    if sensor == "mag":
+        if key.startswith(SENSOR_LOGGER_MAGNETOMETERS):
+            return ({"t": mapping["t"], "mx": mapping["ax"], "my": mapping["ay"], "mz": mapping["az"]},
+                    f"{layout}: {stem} is the magnetometer, in µT")
+        return None
     if sensor == "gyro":
         if key.startswith(SENSOR_LOGGER_GYROSCOPES):
             return mapping, f"{layout}: {stem} is the gyroscope, in rad/s"

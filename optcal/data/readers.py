@@ -65,6 +65,18 @@ ROS_IMU_TYPE = "sensor_msgs/msg/Imu"
 ROS_TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
 
 
+class GyroOnlyColumns(InputError):
+    """A file whose columns name a gyroscope and no accelerometer; ``source`` holds what was read (time and gyro).
+
+    Refused by every reader of an accelerometer's recording; :func:`optcal.data.gyro_log.read_gyro_recording`
+    takes the source and reads the gyro alone (``optcal allan FILE --sensor gyro``).
+    """
+
+    def __init__(self, message: str, source: "Source") -> None:
+        super().__init__(message)
+        self.source = source
+
+
 @dataclass
 class Source:
     """Data read from a file, under canonical column names (the *read* step).
@@ -300,8 +312,13 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
     if layout.header_in_comment and layout.header_line is not None:
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
+    logger_gyro = False
     if layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p))) is not None:
         mapping, reason = logger  # Sensor Logger's bare x, y, z: the file's name says the quantity
+    elif layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p), "gyro")) is not None:
+        # its Gyroscope.csv read alone (optcal allan FILE): the gyro's axes, in rad/s (a gyro-only log)
+        mapping = {dict(zip(ACC, GYRO)).get(k, k): v for k, v in logger[0].items()}
+        reason, logger_gyro = logger[1], True
     mapping_given = bool(mapping)
     if not layout.has_header:
         if mapping:
@@ -310,11 +327,18 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
                 reason = (f"line {layout.ignored_header + 1}'s names do not match the fields (read as a note); "
                           "columns by position from --columns")
         else:
-            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe())
-    src = source_from_columns(
-        names, parsed.columns, str(p), "csv", mapping, layout.metadata,
-        {names[j]: v for j, v in parsed.non_numeric.items()},
-    )
+            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
+                                                        {j: v[2] for j, v in parsed.non_numeric.items()})
+    gyro_only: GyroOnlyColumns | None = None
+    try:
+        src = source_from_columns(
+            names, parsed.columns, str(p), "csv", mapping, layout.metadata,
+            {names[j]: v for j, v in parsed.non_numeric.items()},
+        )
+    except GyroOnlyColumns as exc:  # described as any source (positions, layout), then refused
+        src, gyro_only = exc.source, exc
+        if logger_gyro and src.gyro_units is None:
+            src.gyro_units = "rad/s"  # Sensor Logger's UNITS.md
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
     if unread and JOINED_STAMP in reason:
         unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
@@ -333,6 +357,8 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         # a 9-axis logger's magnetometer (columns.HEADERLESS_TRIPLES): said, not silently dropped
         src.layout += f"; columns {', '.join(unread)} not read (--columns maps them)"
     src.size_bytes = p.stat().st_size
+    if gyro_only is not None:
+        raise gyro_only
     return src
 
 
@@ -397,7 +423,8 @@ def source_from_columns(
     """Map named float columns to canonical columns (units and time unit as the names state them)."""
     column_map, unit_words, roles = resolve_columns(names, mapping or {})
     missing = [c for c in ACC if c not in column_map]
-    if missing:
+    gyro_only = bool(missing) and all(c in column_map for c in GYRO)
+    if missing and not gyro_only:
         # a magnetometer's file given to an accelerometer's command: its reader is one flag away
         stems = {strip_unit(normalise_name(n))[0] for n in names}
         mag = "; its columns name a magnetometer: optcal calibrate FILE --sensor mag" if all(
@@ -472,6 +499,11 @@ def source_from_columns(
             if setting is not None and float(setting.group(2)) > 0:
                 src.rate_hint = float(setting.group(2))
                 src.rate_reason = f"'{setting.group(1)} = {setting.group(2)} Hz' in the file header's {key!r} line"
+    if gyro_only:  # a gyroscope's log (an Allan recording of the gyro alone): its reader is one flag away
+        raise GyroOnlyColumns(
+            f"{path}: no accelerometer column(s) for {', '.join(missing)} (the file has: {', '.join(names)}); its "
+            f"columns name a gyroscope only: optcal allan FILE --sensor gyro analyses its noise (or map the "
+            "accelerometer's with --columns ax=NAME,ay=NAME,az=NAME)", src)
     return src
 
 

@@ -37,6 +37,14 @@ def unit_rows(f: NDArray[np.float64]) -> NDArray[np.float64]:
 #: the turn its gyro predicts (:meth:`RestModel._turns_by_both`): a turn's prediction is off by the gyro's bias
 #: error too, so agreement is looser than the test of the accelerometer's own motion.
 TURN_AGREEMENT_SE: float = 3.0
+#: The most radians per second one count of a gyro can be worth: a 16-bit converter over the largest full scale a
+#: MEMS gyro has, ±4000 °/s (the common parts stop at ±2000 °/s).  Bounds the turn a significant offset off the bias
+#: can be where the unit is unknown and the samples are counts (:meth:`RestModel._relevant_at_most`).
+MAX_RAD_S_PER_COUNT: float = float(np.radians(4000.0) / 32768.0)
+#: Rest noise (per-sample standard deviation of the median block, on the quietest axis) in converter steps at and
+#: above which whole-number gyro samples are counts: a gyro printed in whole °/s or rad/s rests within a unit of its
+#: bias (a MEMS gyro's noise is 0.05 °/s/√Hz at most: under 1 °/s rms below 800 Hz), its blocks spread under a step.
+COUNTS_MIN_REST_STEPS: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -102,6 +110,7 @@ class RestModel:
         self.wander2 = np.zeros(3)
         with np.errstate(over="ignore"):  # a huge --gyro-threshold: the limit is infinite, every rate is noise
             self.gyro_limit = rm.step_limit(s.false_alarm, b.n - 1.0) * s.gyro_threshold
+        self.gyro_quantum = qg
         self.still = np.ones(b.count, dtype=bool)
         self._pooled: dict[tuple[bool, int, int], NDArray[np.float64]] = {}
         self._spans: rm.SpanEstimates | None = None
@@ -582,7 +591,10 @@ class RestModel:
         with np.errstate(over="ignore"):  # a huge --gyro-threshold: an infinite limit
             significant = np.max(z, axis=1) > limit * self.s.gyro_threshold
         if self.gyro_scale is None:
-            return np.asarray(significant)
+            bound = self._count_scale_bound() if significant.any() else None
+            if bound is None:
+                return np.asarray(significant)
+            return np.asarray(significant & self._relevant_at_most(r, off, bound, significant))
         # off the bias by more than any MEMS gyro's bias moves within a session: a rotation, whatever the
         # statistics of a stretch that shakes say of its noise
         rate = np.linalg.norm(off, axis=1) * self.gyro_scale
@@ -598,6 +610,49 @@ class RestModel:
         across = np.linalg.norm(np.cross(off, unit_rows(acc - self.acc_zero)), axis=1) * self.gyro_scale
         rate = np.where(rate <= bm.MAX_G_SENSITIVITY_RAD_S_PER_G, across, rate)
         return np.asarray((significant | beyond_bias) & rm.turn_is_relevant(rate, duration, self.s.gyro_threshold))
+
+    def _count_scale_bound(self) -> float | None:
+        """:data:`MAX_RAD_S_PER_COUNT` where the gyro's samples are counts (whole numbers, a one-unit converter step,
+        resting over :data:`COUNTS_MIN_REST_STEPS` steps or more), else None (the unit may be any: no bound)."""
+        gvar = self.b.gvar
+        if gvar is None or self.gyro_quantum != 1.0:
+            return None
+        rest_steps = float(np.min(np.sqrt(column_medians(gvar))))
+        return MAX_RAD_S_PER_COUNT if rest_steps >= COUNTS_MIN_REST_STEPS else None
+
+    def _relevant_at_most(self, r: rm.Ranges, off: NDArray[np.float64], bound: float,
+                          which: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Whether each stretch's mean rate off the bias, ``off`` (gyro units), may turn the sensor beyond a pose's
+        tolerance, at most ``bound`` rad/s per unit (the unit unknown), the accelerometer bounding the turn across
+        the specific force (only the stretches ``which``; the others False).
+
+        A turn across the specific force moves the accelerometer, ``ȧ = −ω × a``: its rate is at most the
+        accelerometer's own rate of change over the stretch (the slope of its block means on time, least squares,
+        plus the offset test's limit times its standard error from the blocks' noise times the noise colour) over
+        ``|a|``, however fast the gyro's unknown unit would make it.  About the specific force only the gyro says:
+        at most ``bound`` times the offset.  Judged over a wobble window at most, as where the unit is known.
+        """
+        b = self.b
+        out = np.zeros(r.count, dtype=bool)
+        z = rm.normal_limit(self.s.false_alarm / 6.0)
+        for i in np.flatnonzero(which):
+            rows = np.arange(r.start[i], r.stop[i])
+            w = b.n[rows, None]
+            acc = (b.mean[rows] * w).sum(axis=0) / w.sum() - self.acc_zero
+            f = unit_rows(acc)
+            along = abs(float(off[i] @ f)) * bound
+            across = float(np.linalg.norm(np.cross(off[i], f))) * bound
+            t = b.t_mid[rows] - b.t_mid[rows].mean()
+            sxx = float(np.sum(t * t))
+            if sxx > 0:  # the accelerometer's turn: its slope and standard error (as _turns_by_both measures them)
+                slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
+                se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np_median(b.n[rows])) + self.floor) / sxx)
+                seen = (float(np.linalg.norm(slope)) + z * float(np.linalg.norm(se))) / float(np.linalg.norm(acc))
+                across = min(across, seen)
+            duration = min(float(b.t_mid[rows[-1]] - b.t_mid[rows[0]]) + b.n[rows[0]] / self.rate,
+                           WOBBLE_DWELLS * self.s.min_dwell_s)
+            out[i] = bool(rm.turn_is_relevant(np.hypot(along, across), duration, self.s.gyro_threshold))
+        return out
 
     def noise(self) -> dict[str, float]:
         """The noise measured: colours, the gyro bias' wander and its drift over the session (the range of its track),

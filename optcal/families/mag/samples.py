@@ -19,7 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.columns import (
-    ALIASES, JOINED_STAMP, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option, split_stamp,
+    ALIASES, JOINED_STAMP, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option,
+    sensor_logger_mapping, split_stamp,
 )
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
@@ -240,7 +241,13 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
     if not layout.has_header and layout.comment_names is None and not any(k in MAG for k in mapping):
         mapping, reason = _headerless_mag(path, names, parsed.columns, mapping)
         notes.append(reason)
+    logger = sensor_logger_mapping(names, path, sensor="mag") if layout.has_header and not mapping else None
+    if logger is not None:  # Sensor Logger's Magnetometer.csv: bare x, y, z in µT, by its file's name (UNITS.md)
+        mapping = logger[0]
+        notes.append(logger[1])
     mag_cols, word = _mag_triple(names, mapping)
+    if logger is not None:
+        word = "ut"
     taken = set(mag_cols.values())
     rest = [n for n in names if n not in taken]
     extra_aliases = {"ax": ALIASES["ax"], "ay": ALIASES["ay"], "az": ALIASES["az"], "gx": ALIASES["gx"],
@@ -260,7 +267,8 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
         # sensor_msgs/MagneticField is in tesla (REP 145)
         return _build(path, m, "T", "sensor_msgs/MagneticField's field names (tesla, REP 145)", mag_units, columns,
                       others, notes)
-    return _build(path, m, word, f"the unit word {word!r} in the column names", mag_units, columns, others, notes)
+    where = "Sensor Logger's documentation (UNITS.md: µT)" if logger is not None else f"the unit word {word!r} in the column names"
+    return _build(path, m, word, where, mag_units, columns, others, notes)
 
 
 def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:

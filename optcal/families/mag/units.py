@@ -90,6 +90,36 @@ def units_from_magnitude(median: float) -> str | None:
     return fits[0] if len(fits) == 1 else None
 
 
+#: Smallest ratio of the samples' least to greatest spread (eigenvalues of their covariance) at which the sphere
+#: through them determines the field's magnitude: samples turned about one axis lie near a circle, whose sphere's
+#: radius is not determined along its normal.  0.1: every axis spans at least a third of the widest.
+SPHERE_MIN_SPREAD: float = 0.1
+#: Largest rms of the samples' distances from that sphere, relative to its radius, at which the sphere is the
+#: field's (a soft iron of 30 % or a noise of that size: beyond it the radius is no field strength).
+SPHERE_MAX_RESIDUAL: float = 0.3
+
+
+def sphere_radius(m: NDArray[np.float64]) -> float | None:
+    """The radius of the sphere through the samples (least squares, ``|m|² = 2 m·c + d``, ``r² = d + |c|²``): the
+    field's magnitude with the hard iron ``c`` removed; ``None`` where the samples do not determine it (their
+    spread, :data:`SPHERE_MIN_SPREAD`) or do not lie on it (:data:`SPHERE_MAX_RESIDUAL`)."""
+    m = m[np.all(np.isfinite(m), axis=1)]
+    if m.shape[0] < 10:
+        return None
+    spread = np.linalg.eigvalsh(np.cov(m.T))
+    if not spread[-1] > 0 or spread[0] / spread[-1] < SPHERE_MIN_SPREAD:
+        return None
+    a = np.column_stack([2.0 * m, np.ones(m.shape[0])])
+    solution = np.linalg.lstsq(a, np.einsum("ij,ij->i", m, m), rcond=None)[0]
+    centre = solution[:3]
+    r2 = float(solution[3] + centre @ centre)
+    if not r2 > 0:
+        return None
+    radius = float(np.sqrt(r2))
+    residual = float(np.sqrt(np.mean((np.linalg.norm(m - centre, axis=1) - radius) ** 2)))
+    return radius if residual <= SPHERE_MAX_RESIDUAL * radius else None
+
+
 def decide_mag_units(m: NDArray[np.float64], stated: str | None, where: str, override: str | None = None) -> UnitDecision:
     """Decide the magnetometer's units (module docstring): ``override``, else ``stated`` (by ``where``), else the magnitude.
 
@@ -115,6 +145,16 @@ def decide_mag_units(m: NDArray[np.float64], stated: str | None, where: str, ove
         if units != "counts" and guess is not None and guess != units:
             reason += f"; note: the median |m| {median:.4g} is Earth's field in {guess}, not in {units}"
         return UnitDecision(units, reason, median)
+    # the field's magnitude is the sphere's radius where the samples determine it: their median |m| holds the hard
+    # iron too (a board's magnet, several times the field), which can put it in another unit's range
+    radius = sphere_radius(m)
+    by_sphere = units_from_magnitude(radius) if radius is not None else None
+    if by_sphere is not None and by_sphere != units_from_magnitude(median):
+        low, high = EARTH_FIELD_UT
+        return UnitDecision(by_sphere, f"from the data: the field's magnitude {radius:.4g} (the radius of the sphere "
+                                       f"through the samples; their median |m| {median:.4g} holds the hard iron) is "
+                                       f"the Earth's {low:g}-{high:g} µT (within a factor {UNIT_TOLERANCE:g}) only in "
+                                       f"{by_sphere}", median)
     guess = units_from_magnitude(median)
     if guess is not None:
         low, high = EARTH_FIELD_UT
