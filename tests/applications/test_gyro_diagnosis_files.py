@@ -79,3 +79,25 @@ def test_a_warming_bias_written_into_imu0s_file_is_named(mikoff_raw, tmp_path, c
     assert found[("gyro_temperature_bias", "x")] == pytest.approx(c, rel=0.4)
     assert 0.010 < found[("time_offset", "-")] < 0.020
     assert result["gyroscope"]["gain"] > 1.2
+    # the time offset says what it measures: the streams' offset as the file holds them, its own included
+    offset = next(f for f in result["findings"] if f["effect"] == "time_offset")
+    assert "as the file holds them" in offset["measures"] and 0 < offset["stderr"]["dt_s"] < 0.005
+    assert result["gyroscope"]["time_offset"]["measures"] == offset["measures"]
+
+
+def test_an_offset_not_named_is_printed_with_what_it_measures():
+    """A shift written into a file adds to the one the file had: 3.5 ms late on the Xsens log (its gyro 2.3 ms
+    early) leaves about +1.4 ms between the streams, below the family-wise t; the report prints the measured offset
+    (a user who shifted a stream reads the total), not nothing."""
+    from optcal.applications.diagnosis.gyro_diagnosis import GyroDiagnosis
+    from optcal.applications.diagnosis.gyro_problem import GyroParams
+
+    offset = {"tested": True, "dt_s": 1.42e-3, "se_s": 0.53e-3, "t": 2.7, "critical_t": 3.08, "heldout_ratio": 1.0,
+              "significant": False}
+    diag = GyroDiagnosis([], [], np.array([0.2] * 9), np.array([1.0] * 9), np.array([0.2] * 9), 0.3, 0.3, offset,
+                         ["time_offset"], {}, GyroParams(np.eye(3), np.zeros(3), (), ()), [], {})
+    text = "\n".join(diag.report_lines())
+    assert "time offset between the streams: +1.42 ± 0.53 ms (gyro late when positive; t 2.7 against 3.1" in text
+    assert "not named" in text
+    offset["significant"] = True
+    assert "time offset between the streams" not in "\n".join(diag.report_lines())

@@ -64,6 +64,12 @@ from optcal.families.gyro.propagation import GravityPredictor, angles_deg, unit_
 
 #: Fewest moves the held-out folds and the time offset's t test need (two per fold and a scatter of several).
 MIN_DIAGNOSIS_MOVES: int = 8
+#: What the time offset's estimate is: the shift between the two streams as the file holds them, whatever put it
+#: there (a driver's or a logger's own offset, a filter's group delay, a shift written into the file); a shift added
+#: to a file adds to the one it had (the Xsens log's gyro is 2.3 ms early: 3.5 ms made late reads +1.4 ms).
+TIME_OFFSET_MEASURES: str = ("the gyro's samples against the accelerometer's as the file holds them (positive: the "
+                             "gyro's late), the recording's own offset included: a shift added to the file adds to it")
+
 #: One-sided level at which a term's improvement of the held-out moves' angles must be told from none
 #: (Student's t of the paired differences): a term that fits the fitted moves' noise moves the held-out ones both
 #: ways, and a real effect's improvement holds move after move.
@@ -128,7 +134,8 @@ class GyroFinding:
     evidence : dict
         The likelihood ratio (or t), p, ΔBIC and the held-out ratio of the step that named it.
     extra : dict
-        The g-sensitivity's whole rows (rad/s per m/s²).
+        The g-sensitivity's whole rows (rad/s per m/s²); the time offset's standard error and what it measures
+        (:data:`TIME_OFFSET_MEASURES`).
     """
 
     effect: str
@@ -144,8 +151,11 @@ class GyroFinding:
     def describe(self) -> str:
         if self.effect == "time_offset":
             dt = float(self.estimate["dt_s"])
-            return (f"time_offset: the gyro's samples are {abs(dt) * 1e3:.2f} ms {'late' if dt > 0 else 'early'} "
-                    f"against the accelerometer's (t = {self.evidence['t']:.1f}, held-out {self.evidence['heldout_ratio']:.2f}×)")
+            se = self.extra.get("stderr", {}).get("dt_s")
+            return (f"time_offset: the gyro's samples are {abs(dt) * 1e3:.2f}"
+                    + (f" ± {float(se) * 1e3:.2f}" if se is not None else "")
+                    + f" ms {'late' if dt > 0 else 'early'} against the accelerometer's as the file holds them, its own "
+                    f"offset included (t = {self.evidence['t']:.1f}, held-out {self.evidence['heldout_ratio']:.2f}×)")
         unit = {"g_sensitivity": "rad/s per m/s²", "gyro_scale_nonlinearity": "(rad/s)⁻¹",
                 "gyro_temperature_bias": "rad/s per °C", "gyro_bias_drift": "rad/s per s"}[self.effect]
         values = ", ".join(f"{a} {float(v):.3g}" for a, v in self.estimate.items())
@@ -242,6 +252,12 @@ class GyroDiagnosis:
                               if isinstance(moves_t, float) and math.isfinite(moves_t) else "") + ")")
         else:
             out.append("  none named (an effect below the tests' power is not ruled out)")
+        if "dt_s" in self.time_offset and not self.time_offset.get("significant"):
+            # measured whether named or not: a user who shifted a stream reads the total here (TIME_OFFSET_MEASURES)
+            o = self.time_offset
+            out.append(f"  time offset between the streams: {o['dt_s'] * 1e3:+.2f} ± {o['se_s'] * 1e3:.2f} ms (gyro "
+                       f"late when positive; t {o['t']:.1f} against {o['critical_t']:.1f}, held-out "
+                       f"{o['heldout_ratio']:.3f}×): not named")
         out.append(f"  held-out gravity prediction: {self.heldout_baseline_deg:.3f}° → {self.heldout_final_deg:.3f}° rms "
                    f"(gain {self.gain:.2f})")
         for name, why in self.skipped.items():
@@ -453,7 +469,7 @@ def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[ND
     ratio = float(np.sqrt(np.sum(before) / np.sum(after_shift))) if np.sum(after_shift) > 0 else 1.0
     return {"tested": True, "dt_s": delta, "se_s": se, "t": t, "critical_t": critical, "moves": m,
             "heldout_ratio": ratio, "significant": bool(abs(t) > critical and ratio > 1.0),
-            "per_move_dt_s": d.tolist()}
+            "measures": TIME_OFFSET_MEASURES, "per_move_dt_s": d.tolist()}
 
 
 def _without(p: GyroParams, index: int) -> GyroParams:
@@ -601,7 +617,8 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
         if offset.get("significant"):
             findings.append(GyroFinding("time_offset", [], {"dt_s": offset["dt_s"]},
                                         {"t": offset["t"], "critical_t": offset["critical_t"],
-                                         "heldout_ratio": offset["heldout_ratio"]}))
+                                         "heldout_ratio": offset["heldout_ratio"]},
+                                        {"stderr": {"dt_s": offset["se_s"]}, "measures": TIME_OFFSET_MEASURES}))
     angles = move_angles(data, base)
     linearised = band(angles, noise, s.alpha)
     moves_band = linearised
