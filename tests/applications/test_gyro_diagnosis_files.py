@@ -7,7 +7,7 @@ moves the rests' means (a temperature bias, a g-sensitivity) also meets the rest
 Sizes follow the issue's rule, measured as in ``test_gyro_diagnosis_sizes.py`` (the paper's model's χ² over the
 moves rises by 4-5 of its SDs; a time offset: the shift over its inside-move standard error); the accelerometer's
 candidates are left out (``--effects none``) and the band is not simulated (``--simulations 0``): what these cases
-test is the gyro's part of the pipeline (about 5 s CPU on mikoff's imu0).
+test is the gyro's part of the pipeline (about 5 s CPU on mikoff's imu0, 12 s on the Xsens log).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import pytest
 from helpers.common import SHARED
 
 MIKOFF = SHARED / "data" / "mikoff-mpu9150" / "imu0.log"
+XSENS = SHARED / "data" / "imutk-xsens" / "xsens_imutk.csv"
 MIKOFF_COLUMNS = ["ax", "ay", "az", "gx", "gy", "gz"]
 
 
@@ -101,3 +102,26 @@ def test_an_offset_not_named_is_printed_with_what_it_measures():
     assert "not named" in text
     offset["significant"] = True
     assert "time offset between the streams" not in "\n".join(diag.report_lines())
+
+
+def test_a_shift_written_into_the_xsens_file_is_named_with_its_own(tmp_path, capsys):
+    """imu_tk's Xsens log (gyro in counts, 100 Hz stamps) with its gyro samples written 2.5 ms earlier (each column
+    interpolated at t + 2.5 ms and rounded to counts): 4.5 standard errors of the inside-move estimate.  The same 38
+    rests; the log's own g-sensitivity (all three axes) still named; the offset between the streams named as the
+    log's own (its gyro about 2 ms early) plus the shift."""
+    if not XSENS.exists():
+        pytest.skip("../shared/data/imutk-xsens is not present")
+    raw = pd.read_csv(XSENS)
+    t = raw["t_s"].to_numpy(float)
+    shift = -2.5e-3  # the gyro's samples early: each stamp holds the rate 2.5 ms later
+    for c in ("gyro_x_counts", "gyro_y_counts", "gyro_z_counts"):
+        raw[c] = np.round(np.interp(t - shift, t, raw[c].to_numpy(float))).astype(int)
+    path = tmp_path / "xsens_early.csv"
+    raw.to_csv(path, index=False, float_format="%.6f")
+    result = run_diagnose(path, capsys=capsys)
+    assert result["n_poses"] == 38 and len(result["gyroscope"]["moves"]) == 37
+    found = gyro_findings(result)
+    assert {a for e, a in found if e == "g_sensitivity"} == {"x", "y", "z"}
+    assert {e for e, _ in found} == {"g_sensitivity", "time_offset"}
+    # its own offset is −2.0 to −2.3 ms (test_gyro_diagnosis_sizes: within −3 and −1.4 ms); with the shift, 40 % of it
+    assert -3e-3 + 1.4 * shift < found[("time_offset", "-")] < -1.4e-3 + 0.6 * shift

@@ -70,6 +70,13 @@ MIN_DIAGNOSIS_MOVES: int = 8
 TIME_OFFSET_MEASURES: str = ("the gyro's samples against the accelerometer's as the file holds them (positive: the "
                              "gyro's late), the recording's own offset included: a shift added to the file adds to it")
 
+#: The angular acceleration of the lever arm's term ``α × r`` is the derivative of the rates averaged over this
+#: span (s; its running mean passes a hand's turn, whose power is below a few Hz, and its first zero is at 10 Hz):
+#: the rates' white noise differentiated sample by sample grows with the sampling rate, and a noisy regressor fits
+#: less than the lever arm's acceleration, leaving the rest in δ (a 0.3 m lever arm written into imu0's file moved
+#: its offset 15.2 -> 12.1 ms with the raw derivative; imu0 and the Xsens log keep theirs named).
+LEVER_SMOOTHING_S: float = 0.1
+
 #: One-sided level at which a term's improvement of the held-out moves' angles must be told from none
 #: (Student's t of the paired differences): a term that fits the fitted moves' noise moves the held-out ones both
 #: ways, and a real effect's improvement holds move after move.
@@ -410,6 +417,16 @@ def simulated_move_rad2(data: GyroData, p: GyroParams, runs: int, seed: int) -> 
     return total / max(runs, 1)
 
 
+def _smoothed(omega: NDArray[np.float64], dt: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The rates' running mean over :data:`LEVER_SMOOTHING_S` (centred; shorter at the move's ends)."""
+    k = int(round(LEVER_SMOOTHING_S / float(np.median(dt))))
+    if k < 2:
+        return omega
+    kernel = np.ones(k) / k
+    ones = np.convolve(np.ones(omega.shape[0]), kernel, mode="same")
+    return np.column_stack([np.convolve(omega[:, j], kernel, mode="same") / ones for j in range(3)])
+
+
 def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[NDArray[np.bool_]]) -> dict[str, Any]:
     """The time offset between the gyro's and the accelerometer's samples (module docstring, 3)."""
     omega, _ = corrected_rates(data, p, data.raw, data.f_mid, data.t_mid, data.temp_mid, False)
@@ -435,8 +452,8 @@ def time_offset_test(data: GyroData, p: GyroParams, alpha: float, folds: list[ND
         # the sensor (the hand's wrist or elbow, r from it to the sensor, per move): a = α × r + ω × (ω × r),
         # its share across gravity P_u a / g (a rigid body's point acceleration; the moves' largest linear
         # acceleration, which scattered the moves' δ)
-        alpha_dot = (np.gradient(omega[a:z], np.cumsum(data.dt[a:z]), axis=0) if z - a > 2
-                     else np.zeros((z - a, 3)))
+        alpha_dot = (np.gradient(_smoothed(omega[a:z], data.dt[a:z]), np.cumsum(data.dt[a:z]), axis=0)
+                     if z - a > 2 else np.zeros((z - a, 3)))
         across = np.eye(3)[None] - u[:, :, None] * u[:, None, :]
         lever = across @ (skew(alpha_dot) + skew(omega[a:z]) @ skew(omega[a:z])) / STANDARD_GRAVITY
         nuisance = np.column_stack([np.tile(np.eye(3), (z - a, 1)), lever.reshape(-1, 3)])
