@@ -120,7 +120,8 @@ def test_the_recordings_own_effects(base):
         assert len(base.diag.findings[0].axes) == 3
         assert base.diag.heldout_final_deg < 0.5 * base.diag.heldout_baseline_deg and base.diag.gain > 2.0
         # and its gyro about 2 ms early (the issue's figure), named once each move's lever arm is fitted beside the
-        # offset (−2.29 ± 0.56 ms, t 4.1; without the lever arm −1.88 ± 0.75 ms, t 2.5 below the critical 3.1)
+        # offset (−2.01 ± 0.51 ms, t 4.0, its angular acceleration from the rates' 0.1 s running mean; −2.29 ± 0.56 ms
+        # from the raw rates; without the lever arm −1.88 ± 0.75 ms, t 2.5 below the critical 3.1)
         assert -3e-3 < base.diag.time_offset["dt_s"] < -1.4e-3 and base.diag.time_offset["significant"] is True
     else:
         # imu0's gyro stream about 15 ms behind its accelerometer's (t 8.7), nothing else
