@@ -105,6 +105,40 @@ def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch,
 
 
 
+@pytest.mark.parametrize("sep", [",", " "])
+def test_ranged_reader_gives_the_threaded_readers_numbers_whatever_the_ranges(tmp_path, monkeypatch, counts_recording,
+                                                                              sep):
+    """The file cut at line starts into ranges parsed at once (text.arrow_ranged_block, the reader of files up to
+    THREADED_READ_BYTES): the same numbers to the bit as the threaded reader, in the file's order, for one range
+    and for many; a bad cell in a later range leaves the file to pandas (None), and no thread is left running."""
+    import threading
+
+    path = tmp_path / "rec.txt"
+    counts_recording.frame.to_csv(path, sep=sep, index=False, float_format="%.6f")
+    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 32 * 1024)  # several batches per range
+    layout = text.sniff_layout(path)
+    threaded = text.arrow_threaded_block(path, layout)
+    assert threaded is not None
+    size = path.stat().st_size
+    for parts in (1, 2, 7):
+        ranges = text.text_ranges(path, layout, parts)
+        assert len(ranges) == parts and ranges[0][0] == 0 and ranges[-1][1] == size
+        assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
+        raw = path.read_bytes()
+        assert all(raw[a - 1:a] == b"\n" for a, _ in ranges[1:])  # each later range starts a line
+        ranged = text.arrow_ranged_block(path, layout, parts)
+        assert ranged is not None and ranged.n == threaded.n
+        for a, b in zip(ranged.columns(), threaded.columns()):
+            assert a.tobytes() == b.tobytes()
+    bad = tmp_path / "bad.txt"
+    bad.write_text(path.read_text() + sep.join(["1"] * (len(layout.names) - 1) + ["three"]) + "\n")
+    before = threading.active_count()
+    assert text.arrow_ranged_block(bad, text.sniff_layout(bad), 3) is None  # pandas then reads and counts the cell
+    assert threading.active_count() == before
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
+    parsed = text.parse_numbers(path, layout)
+    assert parsed.engine == "pyarrow" and all(a.tobytes() == b.tobytes() for a, b in zip(parsed.columns, threaded.columns()))
+
 
 def test_a_csv_read_does_not_import_the_container_readers(tmp_path):
     """Every read asks whether the file is a MATLAB or HDF5 container (optcal.data.container_kind); the container
