@@ -345,7 +345,7 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
     Small files with plain numbers are read by numpy.  Larger files are read into one
     column-major float block (:class:`ColumnBlock`; the columns returned are its contiguous
     columns, so the file's numbers are held once): by pyarrow when it is installed and the file
-    is plain numbers with a one-character delimiter (its multithreaded reader up to
+    is plain numbers with a one-character delimiter (byte ranges parsed at once, :func:`arrow_ranged_block`, up to
     :data:`THREADED_READ_BYTES`, its streaming reader above), otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
     pandas (in chunks of ``chunk_rows``), which turns such cells into NaN and counts them per
     column.
@@ -436,23 +436,21 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
     return int(p.stat().st_size / per_row * 1.1) + 1024
 
 
-#: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; in the
-#: threaded reader they are the units of work shared among the threads).
+#: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; the batches
+#: of :func:`arrow_ranged_block`'s ranges, the units of work of the threaded reader).
 ARROW_BLOCK_BYTES: int = 2**20
 #: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`): it keeps
 #: blocks of text and their parsed batches in flight beside the numbers already copied out, 78 MB at
 #: 1 MiB blocks and 22 MB at 256 KiB on the 12-hour, 300 MB still log (a third and a tenth of a copy
 #: of its numbers), at the same speed.
 ARROW_STREAM_BLOCK_BYTES: int = 2**18
-#: Text files up to this size are parsed by pyarrow's multithreaded ``read_csv`` (≈ 1.7× faster on two
-#: cores: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for the 300 MB
-#: 12-hour still log); larger ones by its streaming reader, one block at a time, whose bar counts the rows.
-#: The threaded reader holds the whole parsed table (≈ 1.25 copies of the numbers: arrow's buffers are
-#: padded) while its columns are copied into the block, so reading peaks at ≈ 2.2 copies instead of one;
-#: that is below what the static detection holds after it (the 12-hour log's ``optcal allan``: 2.57 copies
-#: at its peak either way), so the reader does not set the peak.  Above this size a parse takes over
-#: about 5 s of two cores, where a bar with the rows read and the time left is worth the streaming
-#: reader's slower parse (the threaded one shows its elapsed time only).
+#: Text files up to this size are parsed on every core at once (≈ 1.7× faster on two cores than one
+#: streaming reader: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for
+#: the 300 MB 12-hour still log), by byte ranges (:func:`arrow_ranged_block`; pyarrow's multithreaded
+#: ``read_csv``, :func:`arrow_threaded_block`, gives the same numbers but holds the whole parsed table, ≈ 1.25
+#: copies, and copies it out after the parse); larger ones by one streaming reader, one block at a time, whose
+#: bar counts the rows.  Above this size a parse takes over about 5 s of two cores, where a bar with the rows
+#: read and the time left is worth the streaming reader's slower parse (the ranges show their elapsed time only).
 THREADED_READ_BYTES: int = 2**30
 
 
@@ -486,7 +484,7 @@ def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any]
 def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     """The file's numbers read by pyarrow into a :class:`ColumnBlock`, or ``None`` to leave it to pandas.
 
-    Files up to :data:`THREADED_READ_BYTES` are read by the multithreaded reader, larger ones
+    Files up to :data:`THREADED_READ_BYTES` are read by byte ranges at once (:func:`arrow_ranged_block`), larger ones
     streamed (:func:`arrow_streamed_block`); both parse the same text into the same numbers.
     ``None`` when pyarrow is not installed, numbers have decimal commas, or any cell is not a
     plain number (a comment, text, a ragged row; with whitespace, an empty field from a run
