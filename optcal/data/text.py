@@ -424,6 +424,27 @@ class ColumnBlock:
             self.block[start:start + chunk.size, j] = chunk
             start += chunk.size
 
+    def release_rows(self, start: int, stop: int) -> None:
+        """Hand the whole pages of rows ``start`` to ``stop`` of every column back to the system (they read as 0).
+
+        The block is a shared anonymous mapping (:func:`base_pages`), whose pages only ``MADV_REMOVE`` frees
+        (``MADV_DONTNEED`` unmaps them and keeps their memory); where the system has no such call, nothing.
+        """
+        import mmap
+
+        buffer = self.block.base
+        remove = getattr(mmap, "MADV_REMOVE", None)
+        if not isinstance(buffer, mmap.mmap) or stop <= start or remove is None:
+            return
+        page = mmap.PAGESIZE
+        for j in range(self.block.shape[1]):
+            a = (j * self.block.shape[0] + start) * 8
+            b = (j * self.block.shape[0] + stop) * 8
+            a = -(-a // page) * page
+            b = b // page * page
+            if b > a:
+                buffer.madvise(remove, a, b - a)
+
     def columns(self) -> list[NDArray[np.float64]]:
         """The filled rows of every column (contiguous views into the block)."""
         return [self.block[: self.n, j] for j in range(self.block.shape[1])]
@@ -436,10 +457,11 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
     return int(p.stat().st_size / per_row * 1.1) + 1024
 
 
-#: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; the batches
-#: of :func:`arrow_ranged_block`'s ranges, the units of work of the threaded reader).
+#: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; in the
+#: threaded reader they are the units of work shared among the threads).
 ARROW_BLOCK_BYTES: int = 2**20
-#: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`): it keeps
+#: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`, and each range of
+#: :func:`arrow_ranged_block`): it keeps
 #: blocks of text and their parsed batches in flight beside the numbers already copied out, 78 MB at
 #: 1 MiB blocks and 22 MB at 256 KiB on the 12-hour, 300 MB still log (a third and a tenth of a copy
 #: of its numbers), at the same speed.
@@ -556,8 +578,9 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
 
 
 #: The reading thread's share of the parse it leaves to the other threads' share (:func:`arrow_ranged_block`): it
-#: also copies every range's batches into the block, 0.24 CPU s against the parse's 2.4 on the 12-hour still log,
-#: so its range is cut by that tenth of the parse per other thread, and the threads end together.
+#: also moves the later ranges' rows into place once all are read, about a tenth of their parse's CPU on the
+#: 12-hour still log (a copy of half the numbers against 1.2 CPU s of parse), so its range is cut by that tenth
+#: of a range per other thread, and the threads end together.
 RANGE_COPY_SHARE: float = 0.1
 
 
@@ -591,17 +614,21 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
     """The file's numbers by pyarrow's streaming reader on byte ranges of the file at once, or ``None`` (see
     :func:`_arrow_block`).
 
-    The file is cut at line starts into one range per core (:func:`text_ranges`); each range is streamed by its
-    own thread (pyarrow parses outside the interpreter's lock), and the calling thread parses the first and copies
-    every range's batches into one :class:`ColumnBlock` in the file's order as they come (``parts``: how many
-    ranges at most; pyarrow's CPU count by default).  The same numbers as
-    :func:`arrow_threaded_block`, without its whole parsed table held (up to 1.25 copies of the numbers) and copied
-    out once it is complete (0.24 CPU s and 0.2-0.4 s of wall on the 12-hour still log's serial path).
+    The file is cut at line starts into one range per core (:func:`text_ranges`; ``parts``: how many ranges at
+    most, pyarrow's CPU count by default).  Each range is streamed by its own thread (pyarrow parses outside the
+    interpreter's lock, the calling thread takes the first range), which copies its batches into its own region
+    of one :class:`ColumnBlock` as they come: a region starts at the range's estimated first row (its bytes over
+    the head's bytes per row, the block's own estimate, 10 % above the rows of a file like its head).  Once all
+    are read, each range's rows are moved down to follow the previous range's (a move within the block, each
+    column's pages left behind handed back), so the numbers are held once, in the file's order.  A range with
+    more rows than its region (lines much shorter than the head's) keeps the rest aside; the ranges are then
+    joined in a new block.  The same numbers as :func:`arrow_threaded_block`, without its whole parsed table held
+    (up to 1.25 copies of the numbers) and copied out once complete (0.24 CPU s and 0.2-0.4 s of wall on the
+    12-hour still log's serial path).
     """
     options = _arrow_options(p, layout, threads=False)
     if options is None:
         return None
-    import queue
     import threading
 
     import pyarrow as pa
@@ -609,36 +636,49 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
 
     width = len(layout.names)
     ranges = text_ranges(p, layout, max(1, parts if parts is not None else pa.cpu_count()))
+    size = p.stat().st_size
+    total = estimated_rows(p, layout)
+    # each range's region: rows from its estimated first row to the next range's
+    starts = [total * a // max(1, size) for a, _ in ranges] + [total]
+    block = ColumnBlock(width, total)
+    filled = [0] * len(ranges)  # rows written in each region
+    aside: list[list[list[NDArray[np.float64]]]] = [[] for _ in ranges]  # batches beyond a region
+    failed: list[BaseException | None] = [None] * len(ranges)
+    stop = threading.Event()
     pool = options["memory_pool"]
     default = pa.default_memory_pool()
-    stop = threading.Event()
-    #: each later range's batches (their columns as arrays), then None, or the error that ended it
-    queues: list[queue.Queue[Any]] = [queue.Queue() for _ in ranges[1:]]
 
-    def batches(k: int) -> Iterator[list[NDArray[np.float64]]]:
+    # the streaming reader's blocks: at 1 MiB the 2-hour still log's reading peaked 0.35 copies of its numbers
+    # higher (two ranges: 81 against 72 MB above the imports, 38.5 MB of numbers), at the same speed
+    options["read_options"].block_size = ARROW_STREAM_BLOCK_BYTES
+
+    def read(k: int) -> None:
         a, b = ranges[k]
         opts = dict(options)
         if k:  # a later range starts on a data line
             opts["read_options"] = pacsv.ReadOptions(column_names=options["read_options"].column_names, skip_rows=0,
-                                                      block_size=ARROW_BLOCK_BYTES, encoding="utf8", use_threads=False)
-        with pa.OSFile(str(p)) as fh, pacsv.open_csv(fh.get_stream(a, b - a), **opts) as reader:
-            for batch in reader:
-                if stop.is_set():
-                    return
-                if layout.delimiter == " " and any(batch.column(j).null_count for j in range(width)):
-                    raise pa.ArrowInvalid("a run of blanks")  # fields are not single-blank separated
-                yield [arrow_numbers(batch.column(j)) for j in range(width)]
-
-    def later(k: int) -> None:
+                                                      block_size=ARROW_STREAM_BLOCK_BYTES, encoding="utf8",
+                                                      use_threads=False)
         try:
-            for cols in batches(k):
-                queues[k - 1].put(cols)
-            queues[k - 1].put(None)
-        except BaseException as exc:  # handed to the reading thread, which decides
-            queues[k - 1].put(exc)
+            with pa.OSFile(str(p)) as fh, pacsv.open_csv(fh.get_stream(a, b - a), **opts) as reader:
+                for batch in reader:
+                    if stop.is_set():
+                        return
+                    if layout.delimiter == " " and any(batch.column(j).null_count for j in range(width)):
+                        raise pa.ArrowInvalid("a run of blanks")  # fields are not single-blank separated
+                    cols = [arrow_numbers(batch.column(j)) for j in range(width)]
+                    n, row = len(batch), starts[k] + filled[k]
+                    if aside[k] or row + n > starts[k + 1]:
+                        aside[k].append([c.copy() for c in cols])
+                        continue
+                    for j, col in enumerate(cols):
+                        block.block[row:row + n, j] = col
+                    filled[k] += n
+        except BaseException as exc:  # the calling thread decides
+            failed[k] = exc
+            stop.set()
 
-    block = ColumnBlock(width, estimated_rows(p, layout))
-    threads = [threading.Thread(target=later, args=(k,), name=f"optcal-read{k}", daemon=True)
+    threads = [threading.Thread(target=read, args=(k,), name=f"optcal-read{k}", daemon=True)
                for k in range(1, len(ranges))]
     pa.set_memory_pool(pool)  # the readers' own buffers too (see arrow_threaded_block)
     try:
@@ -647,24 +687,33 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
         with stage(f"reading {p.name}"):  # its elapsed time on a terminal when it takes long
             for th in threads:
                 th.start()
-            try:
-                for cols in batches(0):
-                    block.append(cols)
-                for q in queues:
-                    while (item := q.get()) is not None:
-                        if isinstance(item, BaseException):
-                            raise item
-                        block.append(item)
-            except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
-                return None
-            finally:
-                stop.set()
-                for th in threads:
-                    th.join()
+            read(0)
+            for th in threads:
+                th.join()
     finally:
         pa.set_memory_pool(default)
         release_unused(pool)
-    return block if block.n else None
+    for exc in failed:
+        if isinstance(exc, (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError)):
+            return None
+        if exc is not None:
+            raise exc
+    if any(aside):  # a region overflowed: the ranges joined in a new block
+        joined = ColumnBlock(width, sum(filled) + sum(len(b[0]) for side in aside for b in side))
+        for k in range(len(ranges)):
+            joined.append([block.block[starts[k]:starts[k] + filled[k], j] for j in range(width)])
+            for cols in aside[k]:
+                joined.append(cols)
+        return joined if joined.n else None
+    n = filled[0]
+    for k in range(1, len(ranges)):  # each range's rows moved down after the previous range's
+        if filled[k] and starts[k] > n:
+            for j in range(width):
+                block.block[n:n + filled[k], j] = block.block[starts[k]:starts[k] + filled[k], j]
+            block.release_rows(n + filled[k], starts[k] + filled[k])
+        n += filled[k]
+    block.n = n
+    return block if n else None
 
 
 def release_unused(pool: Any) -> None:
