@@ -577,18 +577,11 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
         release_unused(pool)
 
 
-#: The reading thread's share of the parse it leaves to the other threads' share (:func:`arrow_ranged_block`): it
-#: also moves the later ranges' rows into place once all are read, about a tenth of their parse's CPU on the
-#: 12-hour still log (a copy of half the numbers against 1.2 CPU s of parse), so its range is cut by that tenth
-#: of a range per other thread, and the threads end together.
-RANGE_COPY_SHARE: float = 0.1
-
-
 def text_ranges(p: Path, layout: TextLayout, parts: int) -> list[tuple[int, int]]:
     """Byte ranges ``(start, end)`` of ``p`` for ``parts`` readers: each but the first starts a line of data.
 
-    The first range holds the lines before the data (the header) and is shorter by :data:`RANGE_COPY_SHARE` of
-    a part per other part; the others share the rest evenly, each boundary moved forward to the next newline.
+    The ranges share the file's bytes evenly (the first holds the lines before the data, the header), each
+    boundary moved forward to the next newline.
     A file with no newline past a boundary (lone carriage returns) keeps fewer ranges, down to one.
     """
     size = p.stat().st_size
@@ -596,10 +589,9 @@ def text_ranges(p: Path, layout: TextLayout, parts: int) -> list[tuple[int, int]
         for _ in range(layout.first_data_line):
             fh.readline()
         data_start = fh.tell()
-        first = max(0.0, (1.0 - RANGE_COPY_SHARE * (parts - 1)) / parts) if parts > 1 else 1.0
         edges, start = [], 0
         for k in range(1, parts):
-            fh.seek(max(data_start, start, int(size * (first + (k - 1) * (1.0 - first) / (parts - 1)))))
+            fh.seek(max(data_start, start, size * k // parts))
             fh.readline()  # to the end of the line the nominal boundary falls in
             edge = fh.tell()
             if edge >= size:
