@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import optcal.data.static as static
+import optcal.data.column_block as column_block
 import optcal.data.text as text
 from optcal.data.quantiles import column_medians, median, np_column_medians, np_median, np_quantile, quantiles
 from optcal.data.readers import source_from_frame
@@ -173,7 +174,7 @@ def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tm
 
     before = pa.default_memory_pool().backend_name
     trims: list[int] = []
-    monkeypatch.setattr(text, "_malloc_trim", lambda: trims.append)
+    monkeypatch.setattr(column_block, "_malloc_trim", lambda: trims.append)
     path = tmp_path / "rec.csv"
     counts_recording.frame.to_csv(path, index=False, float_format="%.6f")
     layout = text.sniff_layout(path)
