@@ -12,7 +12,7 @@ at rest (:class:`RoleEvidence`), and the statistics above for each reading of th
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,6 +29,11 @@ ABSURD_G: float = 64.0
 #: flags) stay in the processor's cache and are reused, instead of a new array of the file's length per
 #: operation (two to six times faster on a 12-hour log, the same numbers).
 EVIDENCE_PIECE: int = 2**16
+#: Rows from which the evidence's element-wise passes run on two threads, each over half the rows (numpy's
+#: element-wise operations release the interpreter, so two cores share them; the same numbers, element by
+#: element): on the 12-hour still log the passes are 0.3 CPU s on the reading's serial path, where a thread's
+#: start (about 0.1 ms) is nothing; below 8 pieces (a few seconds of a log) it is not worth one.
+PARALLEL_ROWS: int = 8 * 2**16
 #: Stamps are bursty when 1/median(Δt) exceeds (N−1)/duration by this factor.
 BURST_RATIO: float = 2.0
 #: Stamps are coarse when more than this fraction of the steps repeat the previous stamp.
@@ -272,17 +277,48 @@ def gather_evidence(src: Source) -> Evidence:
     return replace(ev, roles=RoleEvidence(quiet, blocks, rests, readings))
 
 
-def _pieces(n: int) -> Iterator[tuple[int, int]]:
-    """Consecutive ``(start, end)`` row ranges of :data:`EVIDENCE_PIECE` rows covering ``n`` rows."""
-    for start in range(0, n, EVIDENCE_PIECE):
+def _pieces(n: int, first: int = 0) -> Iterator[tuple[int, int]]:
+    """Consecutive ``(start, end)`` row ranges of :data:`EVIDENCE_PIECE` rows covering rows ``first`` to ``n``."""
+    for start in range(first, n, EVIDENCE_PIECE):
         yield start, min(n, start + EVIDENCE_PIECE)
+
+
+def _over_rows(n: int, work: Callable[[int, int], None]) -> None:
+    """``work(lo, hi)`` over rows 0 to ``n``: in two halves on two threads from :data:`PARALLEL_ROWS` rows.
+
+    ``work`` writes only its rows of its outputs, with temporaries of its own: element-wise passes, whose
+    numbers do not depend on how the rows are shared.
+    """
+    if n < PARALLEL_ROWS:
+        work(0, n)
+        return
+    import threading
+
+    mid = n // 2
+    failed: list[BaseException] = []
+
+    def later() -> None:
+        try:
+            work(mid, n)
+        except BaseException as exc:  # raised by the caller's thread below
+            failed.append(exc)
+
+    helper = threading.Thread(target=later, name="optcal-evidence", daemon=True)
+    helper.start()
+    try:
+        work(0, mid)
+    finally:
+        helper.join()
+    if failed:
+        raise failed[0]
 
 
 def _reading_evidence(src: Source) -> Evidence:
     """The statistics of ``src`` as its columns are mapped (see :func:`gather_evidence`).
 
     The masks, the norm and the steps are computed :data:`EVIDENCE_PIECE` rows at a time into
-    small reused temporaries (element by element: the same numbers as whole-column operations).
+    small reused temporaries (element by element: the same numbers as whole-column operations), on
+    two threads from :data:`PARALLEL_ROWS` rows (:func:`_over_rows`).
     """
     n = src.n_rows
     acc = [src.column(c) for c in ACC]  # column by column: no copy of the file's data
@@ -290,39 +326,55 @@ def _reading_evidence(src: Source) -> Evidence:
     zero = np.empty(n, dtype=bool)
     present = [src.column(name) for name in (*ACC, "t", *GYRO, "temp") if src.has(name)]
     zero_cols = [src.column(name) for name in (*ACC, *(GYRO if src.has(*GYRO) else ()))]
-    flags = np.empty(min(n, EVIDENCE_PIECE), dtype=bool)
-    values = np.empty(min(n, EVIDENCE_PIECE), dtype=np.result_type(*acc))  # the samples' type, as whole-column operations
-    for a0, z0 in _pieces(n):
-        f, z, w = finite[a0:z0], zero[a0:z0], flags[: z0 - a0]
-        for col in present:
-            np.isfinite(col[a0:z0], out=w)
-            f &= w
-        z[:] = f
-        for col in zero_cols:
-            np.equal(col[a0:z0], 0.0, out=w)
-            z &= w
+    dtype = np.result_type(*acc)  # the samples' type for the temporaries, as whole-column operations
+
+    def masks(lo: int, hi: int) -> None:
+        flags = np.empty(min(hi - lo, EVIDENCE_PIECE), dtype=bool)
+        for a0, z0 in _pieces(hi, lo):
+            f, z, w = finite[a0:z0], zero[a0:z0], flags[: z0 - a0]
+            for col in present:
+                np.isfinite(col[a0:z0], out=w)
+                f &= w
+            z[:] = f
+            for col in zero_cols:
+                np.equal(col[a0:z0], 0.0, out=w)
+                z &= w
+
+    _over_rows(n, masks)
     ok = finite & ~zero
     every_ok = bool(ok.all())
     with np.errstate(over="ignore", invalid="ignore"):
         # the median norm ignores a few absurd cells; then an axis beyond ABSURD_G of it is absurd
-        norm = np.multiply(acc[0], acc[0])
-        for a0, z0 in _pieces(n):
-            part, w = norm[a0:z0], values[: z0 - a0]
-            for a in acc[1:]:
-                np.multiply(a[a0:z0], a[a0:z0], out=w)
-                part += w
-        np.sqrt(norm, out=norm)
+        norm = np.empty(n, dtype=np.result_type(acc[0], acc[0]))
+
+        def norms(lo: int, hi: int) -> None:
+            values = np.empty(min(hi - lo, EVIDENCE_PIECE), dtype=dtype)
+            for a0, z0 in _pieces(hi, lo):
+                part, w = norm[a0:z0], values[: z0 - a0]
+                np.multiply(acc[0][a0:z0], acc[0][a0:z0], out=part)
+                for a in acc[1:]:
+                    np.multiply(a[a0:z0], a[a0:z0], out=w)
+                    part += w
+                np.sqrt(part, out=part)
+
+        _over_rows(n, norms)
         med = median(norm if every_ok else norm[ok]) if ok.any() else float("nan")
         absurd = np.zeros(n, dtype=bool)
         if np.isfinite(med) and med > 0:
             limit = ABSURD_G * med
-            for a0, z0 in _pieces(n):
-                w, hit = values[: z0 - a0], flags[: z0 - a0]
-                for a in acc:
-                    np.abs(a[a0:z0], out=w)
-                    np.greater(w, limit, out=hit)
-                    hit &= ok[a0:z0]
-                    absurd[a0:z0] |= hit
+
+            def absurds(lo: int, hi: int) -> None:
+                values = np.empty(min(hi - lo, EVIDENCE_PIECE), dtype=dtype)
+                flags = np.empty(min(hi - lo, EVIDENCE_PIECE), dtype=bool)
+                for a0, z0 in _pieces(hi, lo):
+                    w, hit = values[: z0 - a0], flags[: z0 - a0]
+                    for a in acc:
+                        np.abs(a[a0:z0], out=w)
+                        np.greater(w, limit, out=hit)
+                        hit &= ok[a0:z0]
+                        absurd[a0:z0] |= hit
+
+            _over_rows(n, absurds)
     n_absurd = int(np.count_nonzero(absurd))
     usable = ok & ~absurd if n_absurd else ok
     every = every_ok and not n_absurd
@@ -336,11 +388,16 @@ def _reading_evidence(src: Source) -> Evidence:
             step = np.zeros(max(0, int(np.count_nonzero(usable)) - 1))
             for a in acc:  # one axis at a time: a log with unusable rows holds one compressed copy at once
                 x = a if every else a[usable]
-                for a0, z0 in _pieces(step.size):
-                    w = values[: z0 - a0]
-                    np.subtract(x[a0 + 1:z0 + 1], x[a0:z0], out=w)  # np.diff's x[i+1] - x[i]
-                    np.multiply(w, w, out=w)
-                    step[a0:z0] += w
+
+                def steps(lo: int, hi: int, x: NDArray[np.float64] = x) -> None:
+                    values = np.empty(min(hi - lo, EVIDENCE_PIECE), dtype=dtype)
+                    for a0, z0 in _pieces(hi, lo):
+                        w = values[: z0 - a0]
+                        np.subtract(x[a0 + 1:z0 + 1], x[a0:z0], out=w)  # np.diff's x[i+1] - x[i]
+                        np.multiply(w, w, out=w)
+                        step[a0:z0] += w
+
+                _over_rows(step.size, steps)
                 del x
             np.sqrt(step, out=step)
         median_step = median(step, overwrite_input=True) if step.size else 0.0

@@ -183,9 +183,10 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None) -
     retimed = decisions.time_base.value == "uniform" or (decisions.time_base.value == "rate" and not src.has("index"))
     same = np.empty(0, dtype=np.intp)
     if not retimed:
-        idx = np.flatnonzero(usable)
-        same = np.flatnonzero(np.diff(t[idx]) == 0)
+        # every row usable (the common case): the steps of the column itself, no gathered copy of it
+        same = np.flatnonzero(np.diff(t if usable.all() else t[np.flatnonzero(usable)]) == 0)
     if same.size:
+        idx = np.flatnonzero(usable)
         later = idx[same + 1]
         earlier = idx[same]
         identical = np.all(acc[later] == acc[earlier], axis=1)

@@ -19,7 +19,6 @@ import re
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +26,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.column_block import (  # re-exported: the reader's block and pyarrow's numbers
+    ColumnBlock,
+    arrow_numbers,
+    base_pages,
+    release_unused,
+)
 
 #: Lines read to find the layout.
 SNIFF_LINES: int = 64
@@ -345,7 +350,7 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
     Small files with plain numbers are read by numpy.  Larger files are read into one
     column-major float block (:class:`ColumnBlock`; the columns returned are its contiguous
     columns, so the file's numbers are held once): by pyarrow when it is installed and the file
-    is plain numbers with a one-character delimiter (its multithreaded reader up to
+    is plain numbers with a one-character delimiter (byte ranges parsed at once, :func:`arrow_ranged_block`, up to
     :data:`THREADED_READ_BYTES`, its streaming reader above), otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
     pandas (in chunks of ``chunk_rows``), which turns such cells into NaN and counts them per
     column.
@@ -379,56 +384,6 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
     return ParsedNumbers(block.columns(), non_numeric, "pandas")
 
 
-def base_pages(shape: tuple[int, int]) -> NDArray[np.float64]:
-    """An uninitialised float array of ``shape`` in Fortran order, in an anonymous mapping of the system's base pages.
-
-    numpy's allocator asks the kernel for transparent huge pages for any array above 4 MiB; the reader's block is
-    written once, front to back, as the file is read, and there the huge pages' first touch cost more than the base
-    pages' faults: on the 12-hour still log (242 MB of numbers) `optcal allan` spent 1.03-1.15 s of system time with
-    them and 0.70-0.79 s without (three runs each, alternating, on the two-core machine), on the reading's serial
-    path.  Pages never written take no memory, as with ``np.empty``; the mapping is released with the array.
-    """
-    import mmap
-
-    size = max(1, shape[0] * shape[1]) * np.dtype(np.float64).itemsize
-    return np.ndarray(shape, dtype=np.float64, buffer=mmap.mmap(-1, size), order="F")
-
-
-class ColumnBlock:
-    """Float columns filled chunk by chunk into one column-major (Fortran-order) array.
-
-    The array is allocated for an estimate of the row count (pages never written take no
-    memory) and grown by half when a chunk does not fit; :meth:`columns` returns contiguous
-    views of its filled rows, so the numbers are held once, not once per chunk and once joined.
-    """
-
-    def __init__(self, width: int, rows: int) -> None:
-        self.block = base_pages((max(1, rows), width))
-        self.n = 0
-
-    def append(self, cols: list[NDArray[np.float64]]) -> None:
-        """Copy one chunk's columns below the rows already filled."""
-        k = int(cols[0].size) if cols else 0
-        if self.n + k > self.block.shape[0]:
-            grown = base_pages((max(self.n + k, self.block.shape[0] * 3 // 2), self.block.shape[1]))
-            grown[: self.n] = self.block[: self.n]
-            self.block = grown
-        for j, col in enumerate(cols):
-            self.block[self.n:self.n + k, j] = col
-        self.n += k
-
-    def fill_column(self, j: int, chunks: list[NDArray[np.float64]]) -> None:
-        """Copy one whole column, given as consecutive chunks, into column ``j`` (the block holds every row)."""
-        start = 0
-        for chunk in chunks:
-            self.block[start:start + chunk.size, j] = chunk
-            start += chunk.size
-
-    def columns(self) -> list[NDArray[np.float64]]:
-        """The filled rows of every column (contiguous views into the block)."""
-        return [self.block[: self.n, j] for j in range(self.block.shape[1])]
-
-
 def estimated_rows(p: Path, layout: TextLayout) -> int:
     """Rows of a file from its size and the mean length of the data lines in its head (plus 10 %)."""
     lines = [ln for ln in read_head(p)[layout.first_data_line:] if ln.strip()]
@@ -439,20 +394,19 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
 #: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; in the
 #: threaded reader they are the units of work shared among the threads).
 ARROW_BLOCK_BYTES: int = 2**20
-#: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`): it keeps
+#: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`, and each range of
+#: :func:`arrow_ranged_block`): it keeps
 #: blocks of text and their parsed batches in flight beside the numbers already copied out, 78 MB at
 #: 1 MiB blocks and 22 MB at 256 KiB on the 12-hour, 300 MB still log (a third and a tenth of a copy
 #: of its numbers), at the same speed.
 ARROW_STREAM_BLOCK_BYTES: int = 2**18
-#: Text files up to this size are parsed by pyarrow's multithreaded ``read_csv`` (≈ 1.7× faster on two
-#: cores: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for the 300 MB
-#: 12-hour still log); larger ones by its streaming reader, one block at a time, whose bar counts the rows.
-#: The threaded reader holds the whole parsed table (≈ 1.25 copies of the numbers: arrow's buffers are
-#: padded) while its columns are copied into the block, so reading peaks at ≈ 2.2 copies instead of one;
-#: that is below what the static detection holds after it (the 12-hour log's ``optcal allan``: 2.57 copies
-#: at its peak either way), so the reader does not set the peak.  Above this size a parse takes over
-#: about 5 s of two cores, where a bar with the rows read and the time left is worth the streaming
-#: reader's slower parse (the threaded one shows its elapsed time only).
+#: Text files up to this size are parsed on every core at once (≈ 1.7× faster on two cores than one
+#: streaming reader: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for
+#: the 300 MB 12-hour still log), by byte ranges (:func:`arrow_ranged_block`; pyarrow's multithreaded
+#: ``read_csv``, :func:`arrow_threaded_block`, gives the same numbers but holds the whole parsed table, ≈ 1.25
+#: copies, and copies it out after the parse); larger ones by one streaming reader, one block at a time, whose
+#: bar counts the rows.  Above this size a parse takes over about 5 s of two cores, where a bar with the rows
+#: read and the time left is worth the streaming reader's slower parse (the ranges show their elapsed time only).
 THREADED_READ_BYTES: int = 2**30
 
 
@@ -486,33 +440,15 @@ def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any]
 def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     """The file's numbers read by pyarrow into a :class:`ColumnBlock`, or ``None`` to leave it to pandas.
 
-    Files up to :data:`THREADED_READ_BYTES` are read by the multithreaded reader, larger ones
+    Files up to :data:`THREADED_READ_BYTES` are read by byte ranges at once (:func:`arrow_ranged_block`), larger ones
     streamed (:func:`arrow_streamed_block`); both parse the same text into the same numbers.
     ``None`` when pyarrow is not installed, numbers have decimal commas, or any cell is not a
     plain number (a comment, text, a ragged row; with whitespace, an empty field from a run
     of blanks): pandas then reads the file and counts such cells.
     """
     if p.stat().st_size <= THREADED_READ_BYTES:
-        return arrow_threaded_block(p, layout)
+        return arrow_ranged_block(p, layout)
     return arrow_streamed_block(p, layout)
-
-
-#: pyarrow's primitive number types by name, read straight from their buffer (:func:`arrow_numbers`).
-_ARROW_DTYPES: dict[str, str] = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4", "int16": "<i2",
-                                 "int8": "i1", "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
-
-
-def arrow_numbers(chunk: Any) -> NDArray[Any]:
-    """A pyarrow array of numbers as a NumPy array: a primitive type without nulls read from its data buffer (no
-    copy; pyarrow's own ``to_numpy`` imports pandas, half a second a process need not spend), else by ``to_numpy``."""
-    dtype = _ARROW_DTYPES.get(str(chunk.type))
-    if dtype is None or chunk.null_count or np.dtype(dtype).byteorder not in ("<", "|", "="):
-        return np.asarray(chunk.to_numpy(zero_copy_only=False))
-    data = chunk.buffers()[1]
-    if data is None:
-        return np.asarray(chunk.to_numpy(zero_copy_only=False))
-    size = np.dtype(dtype).itemsize
-    return np.frombuffer(data, dtype=dtype, count=len(chunk), offset=chunk.offset * size)
 
 
 def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
@@ -557,27 +493,135 @@ def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
         release_unused(pool)
 
 
-def release_unused(pool: Any) -> None:
-    """Hand the memory ``pool`` holds freed back to the system: the system allocator's by glibc's ``malloc_trim``
-    (every thread's arena; pyarrow's ``release_unused`` of the system pool kept it: 104 against 48-62 MiB after reading
-    the 2-hour still log), any other pool by its own ``release_unused``."""
-    if pool.backend_name == "system":
-        trim = _malloc_trim()
-        if trim is not None:
-            trim(0)
-    else:
-        pool.release_unused()
+def text_ranges(p: Path, layout: TextLayout, parts: int) -> list[tuple[int, int]]:
+    """Byte ranges ``(start, end)`` of ``p`` for ``parts`` readers: each but the first starts a line of data.
+
+    The ranges share the file's bytes evenly (the first holds the lines before the data, the header), each
+    boundary moved forward to the next newline.
+    A file with no newline past a boundary (lone carriage returns) keeps fewer ranges, down to one.
+    """
+    size = p.stat().st_size
+    with p.open("rb") as fh:
+        for _ in range(layout.first_data_line):
+            fh.readline()
+        data_start = fh.tell()
+        edges, start = [], 0
+        for k in range(1, parts):
+            fh.seek(max(data_start, start, size * k // parts))
+            fh.readline()  # to the end of the line the nominal boundary falls in
+            edge = fh.tell()
+            if edge >= size:
+                break
+            if edge > start:
+                edges.append((start, edge))
+                start = edge
+    return [*edges, (start, size)]
 
 
-@cache
-def _malloc_trim() -> Any:
-    """glibc's ``malloc_trim``, or ``None`` (another C library)."""
-    import ctypes
+def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) -> ColumnBlock | None:
+    """The file's numbers by pyarrow's streaming reader on byte ranges of the file at once, or ``None`` (see
+    :func:`_arrow_block`).
 
-    try:
-        return ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
+    The file is cut at line starts into one range per core (:func:`text_ranges`; ``parts``: how many ranges at
+    most, pyarrow's CPU count by default).  Each range is streamed by its own thread (pyarrow parses outside the
+    interpreter's lock, the calling thread takes the first range), which copies its batches into its own region
+    of one :class:`ColumnBlock` as they come: a region starts at the range's estimated first row (its bytes over
+    the head's bytes per row, the block's own estimate, 10 % above the rows of a file like its head).  Once all
+    are read, each range's rows are moved down to follow the previous range's (a move within the block, each
+    column's pages left behind handed back), so the numbers are held once, in the file's order.  A range with
+    more rows than its region (lines much shorter than the head's) keeps the rest aside; the ranges are then
+    joined in a new block.  The same numbers as :func:`arrow_threaded_block`, without its whole parsed table held
+    (up to 1.25 copies of the numbers) and copied out once complete (0.24 CPU s and 0.2-0.4 s of wall on the
+    12-hour still log's serial path).
+    """
+    options = _arrow_options(p, layout, threads=False)
+    if options is None:
         return None
+    import threading
+
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    width = len(layout.names)
+    ranges = text_ranges(p, layout, max(1, parts if parts is not None else pa.cpu_count()))
+    size = p.stat().st_size
+    total = estimated_rows(p, layout)
+    # each range's region: rows from its estimated first row to the next range's
+    starts = [total * a // max(1, size) for a, _ in ranges] + [total]
+    block = ColumnBlock(width, total)
+    filled = [0] * len(ranges)  # rows written in each region
+    aside: list[list[list[NDArray[np.float64]]]] = [[] for _ in ranges]  # batches beyond a region
+    failed: list[BaseException | None] = [None] * len(ranges)
+    stop = threading.Event()
+    pool = options["memory_pool"]
+    default = pa.default_memory_pool()
+
+    # the streaming reader's blocks: at 1 MiB the 2-hour still log's reading peaked 0.35 copies of its numbers
+    # higher (two ranges: 81 against 72 MB above the imports, 38.5 MB of numbers), at the same speed
+    options["read_options"].block_size = ARROW_STREAM_BLOCK_BYTES
+
+    def read(k: int) -> None:
+        a, b = ranges[k]
+        opts = dict(options)
+        if k:  # a later range starts on a data line
+            opts["read_options"] = pacsv.ReadOptions(column_names=options["read_options"].column_names, skip_rows=0,
+                                                      block_size=ARROW_STREAM_BLOCK_BYTES, encoding="utf8",
+                                                      use_threads=False)
+        try:
+            with pa.OSFile(str(p)) as fh, pacsv.open_csv(fh.get_stream(a, b - a), **opts) as reader:
+                for batch in reader:
+                    if stop.is_set():
+                        return
+                    if layout.delimiter == " " and any(batch.column(j).null_count for j in range(width)):
+                        raise pa.ArrowInvalid("a run of blanks")  # fields are not single-blank separated
+                    cols = [arrow_numbers(batch.column(j)) for j in range(width)]
+                    n, row = len(batch), starts[k] + filled[k]
+                    if aside[k] or row + n > starts[k + 1]:
+                        aside[k].append([c.copy() for c in cols])
+                        continue
+                    for j, col in enumerate(cols):
+                        block.block[row:row + n, j] = col
+                    filled[k] += n
+        except BaseException as exc:  # the calling thread decides
+            failed[k] = exc
+            stop.set()
+
+    threads = [threading.Thread(target=read, args=(k,), name=f"optcal-read{k}", daemon=True)
+               for k in range(1, len(ranges))]
+    pa.set_memory_pool(pool)  # the readers' own buffers too (see arrow_threaded_block)
+    try:
+        from optcal.core.progress import stage
+
+        with stage(f"reading {p.name}"):  # its elapsed time on a terminal when it takes long
+            for th in threads:
+                th.start()
+            read(0)
+            for th in threads:
+                th.join()
+    finally:
+        pa.set_memory_pool(default)
+        release_unused(pool)
+    for exc in failed:
+        if isinstance(exc, (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError)):
+            return None
+        if exc is not None:
+            raise exc
+    if any(aside):  # a region overflowed: the ranges joined in a new block
+        joined = ColumnBlock(width, sum(filled) + sum(len(b[0]) for side in aside for b in side))
+        for k in range(len(ranges)):
+            joined.append([block.block[starts[k]:starts[k] + filled[k], j] for j in range(width)])
+            for cols in aside[k]:
+                joined.append(cols)
+        return joined if joined.n else None
+    n = filled[0]
+    for k in range(1, len(ranges)):  # each range's rows moved down after the previous range's
+        if filled[k] and starts[k] > n:
+            for j in range(width):
+                block.block[n:n + filled[k], j] = block.block[starts[k]:starts[k] + filled[k], j]
+            block.release_rows(n + filled[k], starts[k] + filled[k])
+        n += filled[k]
+    block.n = n
+    return block if n else None
 
 
 def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:

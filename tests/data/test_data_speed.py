@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import optcal.data.static as static
+import optcal.data.column_block as column_block
 import optcal.data.text as text
 from optcal.data.quantiles import column_medians, median, np_column_medians, np_median, np_quantile, quantiles
 from optcal.data.readers import source_from_frame
@@ -105,6 +106,51 @@ def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch,
 
 
 
+@pytest.mark.parametrize("sep", [",", " "])
+def test_ranged_reader_gives_the_threaded_readers_numbers_whatever_the_ranges(tmp_path, monkeypatch, counts_recording,
+                                                                              sep):
+    """The file cut at line starts into ranges parsed at once (text.arrow_ranged_block, the reader of files up to
+    THREADED_READ_BYTES): the same numbers to the bit as the threaded reader, in the file's order, for one range
+    and for many; a bad cell in a later range leaves the file to pandas (None), and no thread is left running."""
+    import threading
+
+    path = tmp_path / "rec.txt"
+    counts_recording.frame.to_csv(path, sep=sep, index=False, float_format="%.6f")
+    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 32 * 1024)  # several batches per range, threaded or ranged
+    monkeypatch.setattr(text, "ARROW_STREAM_BLOCK_BYTES", 32 * 1024)
+    layout = text.sniff_layout(path)
+    threaded = text.arrow_threaded_block(path, layout)
+    assert threaded is not None
+    size = path.stat().st_size
+    for parts in (1, 2, 7):
+        ranges = text.text_ranges(path, layout, parts)
+        assert len(ranges) == parts and ranges[0][0] == 0 and ranges[-1][1] == size
+        assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
+        raw = path.read_bytes()
+        assert all(raw[a - 1:a] == b"\n" for a, _ in ranges[1:])  # each later range starts a line
+        ranged = text.arrow_ranged_block(path, layout, parts)
+        assert ranged is not None and ranged.n == threaded.n
+        for a, b in zip(ranged.columns(), threaded.columns()):
+            assert a.tobytes() == b.tobytes()
+    # lines shorter after the head than in it: a range holds more rows than its region, kept aside and joined
+    mixed = tmp_path / "mixed.txt"
+    head, *rows = path.read_text().splitlines()
+    short = [sep.join(f"{float(v):.1f}" for v in row.split(sep)) for row in rows[200:]]
+    mixed.write_text("\n".join([head, *rows[:200], *short]) + "\n")
+    whole = text.arrow_threaded_block(mixed, text.sniff_layout(mixed))
+    for parts in (2, 5):
+        ranged = text.arrow_ranged_block(mixed, text.sniff_layout(mixed), parts)
+        assert ranged is not None and whole is not None and ranged.n == whole.n == len(rows)
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ranged.columns(), whole.columns()))
+    bad = tmp_path / "bad.txt"
+    bad.write_text(path.read_text() + sep.join(["1"] * (len(layout.names) - 1) + ["three"]) + "\n")
+    before = threading.active_count()
+    assert text.arrow_ranged_block(bad, text.sniff_layout(bad), 3) is None  # pandas then reads and counts the cell
+    assert threading.active_count() == before
+    monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
+    parsed = text.parse_numbers(path, layout)
+    assert parsed.engine == "pyarrow" and all(a.tobytes() == b.tobytes() for a, b in zip(parsed.columns, threaded.columns()))
+
 
 def test_a_csv_read_does_not_import_the_container_readers(tmp_path):
     """Every read asks whether the file is a MATLAB or HDF5 container (optcal.data.container_kind); the container
@@ -128,7 +174,7 @@ def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tm
 
     before = pa.default_memory_pool().backend_name
     trims: list[int] = []
-    monkeypatch.setattr(text, "_malloc_trim", lambda: trims.append)
+    monkeypatch.setattr(column_block, "_malloc_trim", lambda: trims.append)
     path = tmp_path / "rec.csv"
     counts_recording.frame.to_csv(path, index=False, float_format="%.6f")
     layout = text.sniff_layout(path)
@@ -153,3 +199,23 @@ def test_the_readers_block_is_an_anonymous_mapping_of_base_pages_and_grows_keepi
     block.append([np.arange(3.0, 6.0) + 10 * j for j in range(3)])  # 6 rows > 4: grown
     assert isinstance(block.block.base, mmap.mmap) and block.block.flags["F_CONTIGUOUS"]
     assert [c.tolist() for c in block.columns()] == [list(np.arange(6.0) + 10 * j) for j in range(3)]
+
+
+def test_a_blocks_released_rows_are_whole_pages_inside_the_range_and_read_as_zero():
+    """ColumnBlock.release_rows (the ranged reader's rows left behind by a move): only whole pages inside the rows
+    given, in every column, are handed back; every other row keeps its number."""
+    import mmap
+
+    rows = 4 * mmap.PAGESIZE // 8 + 3  # columns not starting on a page boundary
+    block = text.ColumnBlock(3, rows)
+    block.append([np.arange(rows, dtype=float) + 1 + 10 * rows * j for j in range(3)])
+    kept = block.block.copy()
+    block.release_rows(100, 100 + 2 * mmap.PAGESIZE // 8)
+    released = block.block == 0
+    assert released.any(axis=0).all()  # in every column
+    for j in range(3):
+        gone = np.flatnonzero(released[:, j])
+        assert gone[0] >= 100 and gone[-1] < 100 + 2 * mmap.PAGESIZE // 8
+        assert gone.size * 8 % mmap.PAGESIZE == 0 and gone.size == gone[-1] - gone[0] + 1
+        keep = ~released[:, j]
+        assert np.array_equal(block.block[keep, j], kept[keep, j])

@@ -31,8 +31,9 @@ def _log(n: int, rng: np.random.Generator, counts: bool = False) -> np.ndarray:
     return np.column_stack([t, acc, gyro])
 
 
-def _evidence(path: Path, piece: int, monkeypatch: pytest.MonkeyPatch) -> evidence.Evidence:
+def _evidence(path: Path, piece: int, monkeypatch: pytest.MonkeyPatch, parallel: int = 10**9) -> evidence.Evidence:
     monkeypatch.setattr(evidence, "EVIDENCE_PIECE", piece)
+    monkeypatch.setattr(evidence, "PARALLEL_ROWS", parallel)
     return evidence.gather_evidence(read_source(str(path)))
 
 
@@ -59,6 +60,22 @@ def test_pieces_give_the_whole_columns_evidence(tmp_path: Path, monkeypatch: pyt
     assert (whole.non_finite, whole.zero_rows, whole.absurd) == (2, 3, 2)
     for piece in (1, 7, 64, 999):  # pieces across every boundary, a last piece of one row
         _same(_evidence(path, piece, monkeypatch), whole)
+        _same(_evidence(path, piece, monkeypatch, parallel=2), whole)  # two threads, each over half the rows
+
+
+def test_the_two_thread_passes_cover_every_row_once_and_raise_the_helpers_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """evidence._over_rows: each row given to one of the two threads once; the helper thread's error raised."""
+    monkeypatch.setattr(evidence, "PARALLEL_ROWS", 2)
+    seen = np.zeros(11, dtype=int)
+
+    def work(lo: int, hi: int) -> None:
+        seen[lo:hi] += 1
+        if lo:
+            raise ValueError("helper")
+
+    with pytest.raises(ValueError, match="helper"):
+        evidence._over_rows(11, work)
+    assert seen.tolist() == [1] * 11
 
 
 def test_the_medians_are_numpys_on_the_usable_rows(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
