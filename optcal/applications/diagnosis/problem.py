@@ -163,14 +163,31 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     return r[0] if single else r
 
 
+#: The last :func:`sensitivity_jacobian` asked for: ``L``'s six entries (bytes) and its read-only result (speed only:
+#: a third of the diagnosis's Jacobians are taken again at the ``L`` of the one before, a fit's covariance after it).
+_LAST_SENSITIVITY: dict[bytes, tuple[NDArray, NDArray]] = {}
+
+
 def sensitivity_jacobian(theta_L: NDArray) -> tuple[NDArray, NDArray]:
-    """``S_i = ‖row i of L⁻¹‖`` and ``∂S_i/∂x_k`` for the six entries of ``L`` (complex step on a 3×3)."""
+    """``S_i = ‖row i of L⁻¹‖`` and ``∂S_i/∂x_k`` for the six entries of ``L`` (complex step on a 3×3).
+
+    The result is read-only and the last one is kept: the same six entries give it back without recomputing.
+    """
+    key = np.asarray(theta_L[:6], dtype=float).tobytes()
+    last = _LAST_SENSITIVITY.get(key)
+    if last is not None:
+        return last
     X = np.tile(np.asarray(theta_L[:6], dtype=complex), (7, 1))
     X[np.arange(1, 7), np.arange(6)] += 1j * COMPLEX_STEP
     col = [X[:, k] for k in range(6)]
     C = inverse_lower([[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]])
     S = np.stack([np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1))) for i in range(3)])  # (3, 7)
-    return np.real(S[:, 0]), np.imag(S[:, 1:]) / COMPLEX_STEP
+    value, gradient = np.real(S[:, 0]).copy(), np.imag(S[:, 1:]) / COMPLEX_STEP
+    value.setflags(write=False)
+    gradient.setflags(write=False)
+    _LAST_SENSITIVITY.clear()  # one entry: threads that share the module see a result or recompute it
+    _LAST_SENSITIVITY[key] = (value, gradient)
+    return value, gradient
 
 
 #: The bias terms' coefficients in β (the bias of a pose is their sum, a number in g): their index, axis, and
