@@ -80,6 +80,23 @@ def test_filter_reduces_the_sum_of_squared_errors_on_every_axis() -> None:
     assert np.all(np.abs(np.diff(out.attitude_variance[-100:], axis=0)) < 1e-3 * out.attitude_variance[-1])
 
 
+
+def test_logs_filtered_side_by_side_equal_each_filtered_alone() -> None:
+    # run_many (speed only: the reproduction's six poses in one pass) is run() on each log, in the logs' order,
+    # logs of one length stacked, a log of another length alone; a NaN in a stacked log is refused as run() refuses it
+    rng = np.random.default_rng(7)
+    logs = [still_log(r, p, n, rng)[0] for r, p, n in ((0.3, -0.2, 800), (2.0, 0.4, 800), (-1.0, 0.1, 300),
+                                                         (0.0, 1.2, 800))]
+    ekf = make_filter()
+    for log, out in zip(logs, ekf.run_many(logs), strict=True):
+        alone = ekf.run(log)
+        for field in ("compensated", "attitude", "bias", "attitude_variance"):
+            np.testing.assert_allclose(getattr(out, field), getattr(alone, field), rtol=1e-12, atol=1e-15)
+    bad = [logs[0], logs[1].copy()]
+    bad[1][5, 2] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        ekf.run_many(bad)
+
 def test_filter_built_from_an_allan_analysis() -> None:
     rng = np.random.default_rng(45)
     noise = np.column_stack([simulate_noise(200_000, RATE, N, B, K, rng) for _ in range(3)])

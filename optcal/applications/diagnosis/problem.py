@@ -84,9 +84,29 @@ def step_indicator(step: NDArray[np.float64] | None, n: int) -> list[NDArray[np.
     return columns + [np.zeros(n)] * (MAX_ORDER[BIAS_STEP] - len(columns))
 
 
+def regressor_rows(tau: NDArray, s: NDArray, session: NDArray[np.intp] | None = None,
+                   step: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """Each coefficient's regressor, shape (N_BETA, n): row ``b`` of β's coefficient ``b`` multiplies it.
+
+    The powers of the normalised temperature ``τ`` (temperature bias and scale) and time ``s`` (bias drift), the
+    sessions' indicators (:func:`session_indicators`) and the steps' (:func:`step_indicator`); the nonlinearity's row
+    is zero (its term is not linear in a regressor).
+    """
+    n = tau.shape[0]
+    values = {"temperature_bias": [tau**p for p in range(1, 4)], "temperature_scale": [tau**p for p in range(1, 4)],
+              "bias_drift": [s**p for p in range(1, 4)], SESSION_BIAS: session_indicators(session, n),
+              BIAS_STEP: step_indicator(step, n)}
+    rows = np.zeros((N_BETA, n))
+    for (effect, _, p), b in BETA_INDEX.items():
+        if effect in values:
+            rows[b] = values[effect][p - 1]
+    return rows
+
+
 def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
                        used: NDArray[np.intp] | None = None, session: NDArray[np.intp] | None = None,
-                       step: NDArray[np.float64] | None = None) -> NDArray:
+                       step: NDArray[np.float64] | None = None,
+                       rows: NDArray[np.float64] | None = None) -> NDArray:
     """``r = ‖T y(a)‖ − 1`` of every pose, for one or several parameter vectors (normalised units).
 
     Parameters
@@ -105,6 +125,8 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
         sessions after the first.
     step : ndarray, shape (n,) or (n, m), optional
         1 for the poses after each bias step, 0 before (default: no step).
+    rows : ndarray, shape (N_BETA, n), optional
+        :func:`regressor_rows` of ``tau, s, session, step`` when the caller keeps them (a solve's many evaluations).
 
     Returns
     -------
@@ -117,24 +139,22 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     L: list[list[NDArray | int]] = [[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]]  # T, lower-triangular
     C = inverse_lower(L)
     used_set = set(range(N_BETA)) if used is None else {int(b) for b in used}
-    powers = {"temp": [tau**p for p in range(1, 4)], "t": [s**p for p in range(1, 4)],
-              "session": session_indicators(session, u.shape[0]), "step": step_indicator(step, u.shape[0])}
+    R = regressor_rows(tau, s, session, step) if rows is None else rows
     zero = np.zeros((1, 1))
 
-    def poly(effect: str, axis: int, values: list[NDArray]) -> Any:
+    def poly(effect: str, axis: int) -> Any:
         total: Any = zero
         for p in range(1, MAX_ORDER[effect] + 1):
             b = BETA_INDEX[(effect, axis, p)]
             if b in used_set:
-                total = total + X[:, 9 + b : 10 + b] * values[p - 1][None, :]
+                total = total + X[:, 9 + b : 10 + b] * R[b][None, :]
         return total
 
     y = []
     for i in range(3):
         S = np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1)))
-        bias = (poly("temperature_bias", i, powers["temp"]) + poly("bias_drift", i, powers["t"])
-                + poly(SESSION_BIAS, i, powers["session"]) + poly(BIAS_STEP, i, powers["step"]))
-        scale = poly("temperature_scale", i, powers["temp"])
+        bias = (poly("temperature_bias", i) + poly("bias_drift", i) + poly(SESSION_BIAS, i) + poly(BIAS_STEP, i))
+        scale = poly("temperature_scale", i)
         b2 = BETA_INDEX[("scale_nonlinearity", i, 1)]
         k2 = X[:, 9 + b2 : 10 + b2] if b2 in used_set else zero
         y.append(invert_axis(u[None, :, i] - col[6 + i], S, bias, scale, k2, np.sqrt, _real_floor))
@@ -143,14 +163,49 @@ def extended_residuals(x: NDArray, u: NDArray, tau: NDArray, s: NDArray,
     return r[0] if single else r
 
 
+#: The last :func:`sensitivity_jacobian` asked for: ``L``'s six entries (bytes) and its read-only result (speed only:
+#: a third of the diagnosis's Jacobians are taken again at the ``L`` of the one before, a fit's covariance after it).
+_LAST_SENSITIVITY: dict[bytes, tuple[NDArray, NDArray]] = {}
+
+
 def sensitivity_jacobian(theta_L: NDArray) -> tuple[NDArray, NDArray]:
-    """``S_i = ‖row i of L⁻¹‖`` and ``∂S_i/∂x_k`` for the six entries of ``L`` (complex step on a 3×3)."""
+    """``S_i = ‖row i of L⁻¹‖`` and ``∂S_i/∂x_k`` for the six entries of ``L`` (complex step on a 3×3).
+
+    The result is read-only and the last one is kept: the same six entries give it back without recomputing.
+    """
+    key = np.asarray(theta_L[:6], dtype=float).tobytes()
+    last = _LAST_SENSITIVITY.get(key)
+    if last is not None:
+        return last
     X = np.tile(np.asarray(theta_L[:6], dtype=complex), (7, 1))
     X[np.arange(1, 7), np.arange(6)] += 1j * COMPLEX_STEP
     col = [X[:, k] for k in range(6)]
     C = inverse_lower([[col[0], 0, 0], [col[1], col[2], 0], [col[3], col[4], col[5]]])
     S = np.stack([np.sqrt(sum(C[i][j] ** 2 for j in range(i + 1))) for i in range(3)])  # (3, 7)
-    return np.real(S[:, 0]), np.imag(S[:, 1:]) / COMPLEX_STEP
+    value, gradient = np.real(S[:, 0]).copy(), np.imag(S[:, 1:]) / COMPLEX_STEP
+    value.setflags(write=False)
+    gradient.setflags(write=False)
+    _LAST_SENSITIVITY.clear()  # one entry: threads that share the module see a result or recompute it
+    _LAST_SENSITIVITY[key] = (value, gradient)
+    return value, gradient
+
+
+#: The bias terms' coefficients in β (the bias of a pose is their sum, a number in g): their index, axis, and
+#: whether their regressor is a session's or a step's indicator (zero rows of the Jacobian without sessions or steps).
+_BIASES: tuple[tuple[str, str], ...] = (("temperature_bias", "temp"), ("bias_drift", "t"), (SESSION_BIAS, "session"),
+                                        (BIAS_STEP, "step"))
+_BIAS_B = np.array(sorted(BETA_INDEX[(e, i, p)] for e, _ in _BIASES for i in range(3)
+                          for p in range(1, MAX_ORDER[e] + 1)), dtype=np.intp)
+_BETA_AXIS = np.array([key[1] for key in sorted(BETA_INDEX, key=BETA_INDEX.__getitem__)], dtype=np.intp)
+_BETA_EFFECT = [key[0] for key in sorted(BETA_INDEX, key=BETA_INDEX.__getitem__)]
+#: the bias terms' indices whose regressor is not zero (by whether the data have sessions and steps)
+_BIAS_ROWS: dict[tuple[bool, bool], NDArray[np.intp]] = {
+    (sessions, steps): _BIAS_B[[(sessions or _BETA_EFFECT[b] != SESSION_BIAS) and (steps or _BETA_EFFECT[b] != BIAS_STEP)
+                                for b in _BIAS_B.tolist()]]
+    for sessions in (False, True) for steps in (False, True)}
+_SCALE_B = np.array([BETA_INDEX[("temperature_scale", i, p)] for i in range(3)
+                     for p in range(1, MAX_ORDER["temperature_scale"] + 1)], dtype=np.intp)
+_NONLINEAR_B = np.array([BETA_INDEX[("scale_nonlinearity", i, 1)] for i in range(3)], dtype=np.intp)
 
 
 def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
@@ -162,62 +217,55 @@ def residuals_and_jacobian(x: NDArray[np.float64], d: "PoseData",
     ``dy = (dw + k2 y²/S² dS − y²/S dk2)/(1 + 2 k2 y/S)`` and
     ``dw = (dz − bias dS − S dbias − w dscale)/(1 + scale)``; ``∂r/∂L_ij = ā_i y_j`` plus the
     path through ``S`` (``L⁻¹``'s row norms).  Checked against the complex step in the tests.
+    The three axes are one (3, n) array and the coefficients' regressors one (N_BETA, n) array built
+    once per data set (:meth:`PoseData.regressor_rows`): a solve of a few dozen poses costs Python
+    calls, not arithmetic.
     """
     n = d.n
     Lm = np.array([[x[0], 0.0, 0.0], [x[1], x[2], 0.0], [x[3], x[4], x[5]]])
     S, dS = sensitivity_jacobian(x)
-    powers = {"temp": [d.tau**p for p in range(1, 4)], "t": [d.s**p for p in range(1, 4)],
-              "session": session_indicators(d.session, n), "step": step_indicator(d.step, n)}
-    biases = (("temperature_bias", "temp"), ("bias_drift", "t"), (SESSION_BIAS, "session"), (BIAS_STEP, "step"))
-
-    beta = x[9:].tolist()
-    wanted = set(range(N_X)) if free is None else {int(k) for k in free}
-
-    def coefficient(effect: str, axis: int, p: int) -> float:
-        return beta[BETA_INDEX[(effect, axis, p)]]
-
-    JT = np.zeros((N_X, n))  # one contiguous row per parameter
-    y = np.empty((3, n))
-    parts = []
-    for i in range(3):
-        bias = np.zeros(n)
-        for effect, column in biases:
-            for p in range(1, MAX_ORDER[effect] + 1):
-                if coefficient(effect, i, p):
-                    bias += coefficient(effect, i, p) * powers[column][p - 1]
-        scale = np.zeros(n)
-        for p in range(1, MAX_ORDER["temperature_scale"] + 1):
-            if coefficient("temperature_scale", i, p):
-                scale += coefficient("temperature_scale", i, p) * powers["temp"][p - 1]
-        k2 = coefficient("scale_nonlinearity", i, 1)
-        z = d.u[:, i] - x[6 + i]
-        y[i] = invert_axis(z, S[i], bias, scale, k2, np.sqrt, np.maximum)
-        w = (z - S[i] * bias) / (1 + scale)
-        parts.append((bias, scale, k2, w))
+    R = d.regressor_rows()
+    beta = x[9:]
+    # each axis's bias (g) and temperature scale: the sum of its nonzero coefficients times their regressors,
+    # added in β's order (the order the terms were always added in)
+    bias = np.zeros((3, n))
+    scale = np.zeros((3, n))
+    for b in np.flatnonzero(beta).tolist():
+        effect = _BETA_EFFECT[b]
+        if effect == "temperature_scale":
+            scale[_BETA_AXIS[b]] += beta[b] * R[b]
+        elif effect != "scale_nonlinearity":
+            bias[_BETA_AXIS[b]] += beta[b] * R[b]
+    k2 = beta[_NONLINEAR_B][:, None]
+    z = d.u.T - x[6:9, None]
+    Sc = S[:, None]
+    y = invert_axis(z, Sc, bias, scale, k2, np.sqrt, np.maximum)
+    w = (z - Sc * bias) / (1 + scale)
     v = Lm @ y
     norm = np.sqrt(np.sum(v * v, axis=0))
     r = norm - 1.0  # Lu 2017, eq. 13
     abar = v / norm
     g = Lm.T @ abar  # ∂r/∂y
-    for k, (i, j) in enumerate(((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))):
-        JT[k] = abar[i] * y[j]
+    JT = np.zeros((N_X, n))  # one contiguous row per parameter
+    JT[:6] = abar[[0, 1, 1, 2, 2, 2]] * y[[0, 0, 1, 0, 1, 2]]  # ∂r/∂L_ij = ā_i y_j, (i, j) in θ's order
+    den = 1 + 2 * k2 * y / Sc
+    dy_dw = g / den  # ∂r/∂w
+    dr_dS = dy_dw * (-bias / (1 + scale)) + g * k2 * y ** 2 / Sc ** 2 / den
     for m in range(3):
-        bias, scale, k2, w = parts[m]
-        den = 1 + 2 * k2 * y[m] / S[m]
-        dy_dw = g[m] / den  # ∂r/∂w_m
-        dr_dS = dy_dw * (-bias / (1 + scale)) + g[m] * k2 * y[m] ** 2 / S[m] ** 2 / den
-        JT[:6] += dS[m][:, None] * dr_dS[None, :]
-        JT[6 + m] = -dy_dw / (1 + scale)
-        for effect, column in biases:
-            if (column == "session" and d.session is None) or (column == "step" and d.step is None):
-                continue  # one session, no step: the offsets' regressors are zero
-            for p in range(1, MAX_ORDER[effect] + 1):
-                if 9 + BETA_INDEX[(effect, m, p)] in wanted:
-                    JT[9 + BETA_INDEX[(effect, m, p)]] = -dy_dw * S[m] / (1 + scale) * powers[column][p - 1]
-        for p in range(1, MAX_ORDER["temperature_scale"] + 1):
-            if 9 + BETA_INDEX[("temperature_scale", m, p)] in wanted:
-                JT[9 + BETA_INDEX[("temperature_scale", m, p)]] = -dy_dw * w / (1 + scale) * powers["temp"][p - 1]
-        JT[9 + BETA_INDEX[("scale_nonlinearity", m, 1)]] = -g[m] * y[m] ** 2 / S[m] / den
+        JT[:6] += dS[m][:, None] * dr_dS[m][None, :]
+    JT[6:9] = -dy_dw / (1 + scale)
+    rows = _BIAS_B
+    if d.session is None or d.step is None:  # one session, no step: the offsets' regressors are zero
+        rows = _BIAS_ROWS[(d.session is not None, d.step is not None)]
+    wanted = None
+    if free is not None:
+        wanted = np.zeros(N_X, dtype=bool)
+        wanted[free] = True
+        rows = rows[wanted[9 + rows]]
+    JT[9 + rows] = (-dy_dw * Sc / (1 + scale))[_BETA_AXIS[rows]] * R[rows]
+    rows = _SCALE_B if wanted is None else _SCALE_B[wanted[9 + _SCALE_B]]
+    JT[9 + rows] = (-dy_dw * w / (1 + scale))[_BETA_AXIS[rows]] * R[rows]
+    JT[9 + _NONLINEAR_B] = -g * y ** 2 / Sc / den
     return r, (JT if free is None else JT[free]).T
 
 
@@ -251,6 +299,13 @@ class PoseData:
     @property
     def n(self) -> int:
         return int(self.u.shape[0])
+
+    def regressor_rows(self) -> NDArray[np.float64]:
+        """:func:`regressor_rows` of these poses, shape (N_BETA, n) (built on first use, then kept)."""
+        rows: NDArray[np.float64] | None = self.__dict__.get("_regressor_rows")
+        if rows is None:
+            rows = self.__dict__["_regressor_rows"] = regressor_rows(self.tau, self.s, self.session, self.step)
+        return rows
 
     def parameters(self, w: NDArray, delta: float = 1.0) -> "ProblemData":
         """The data of one solve of :class:`ExtendedProblem`: these poses with weights ``w``."""
@@ -302,10 +357,11 @@ class ExtendedProblem:
         sqrt_w = data.sqrt_w
         d = data.poses
         used = free[9:] - 9
+        rows = d.regressor_rows()
 
         def residuals(z: NDArray) -> NDArray:
             x[free] = z
-            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used, d.session, d.step)
+            return sqrt_w * extended_residuals(x, d.u, d.tau, d.s, used, d.session, d.step, rows)
 
         def jacobian(z: NDArray) -> NDArray:
             x[free] = z
@@ -324,7 +380,7 @@ class ExtendedProblem:
         """Unweighted residuals of every pose at ``x``."""
         d = data.poses
         return np.asarray(extended_residuals(np.asarray(x, float), d.u, d.tau, d.s, np.flatnonzero(x[9:]), d.session,
-                                             d.step))
+                                             d.step, d.regressor_rows()))
 
     def jacobian_values(self, x: NDArray, data: ProblemData) -> NDArray[np.float64]:
         """Unweighted Jacobian of every pose's residual w.r.t. every entry of ``x``, shape (n, N_X)."""

@@ -260,17 +260,98 @@ class YinEKF:
         compensated = self.gravity * gravity_direction(attitude[:, 0], attitude[:, 1])
         return EKFOutput(compensated=compensated, attitude=attitude, bias=bias, attitude_variance=att_var)
 
+    def run_many(self, logs: Sequence[ArrayLike]) -> list[EKFOutput]:
+        """:meth:`run` on several logs of a still sensor, the logs of one length filtered side by side.
+
+        Speed only: each log's filter is the same recursion (eqs. 9-13) as :meth:`run`'s, its steps taken for all the
+        logs of its length at once (stacked 3×3 and 5×5 products), so the outputs equal :meth:`run`'s to rounding
+        (the products' summation order; 1e-15 on the reproduction's six 10,000-sample poses).
+        """
+        arrays = [np.asarray(log, dtype=float) for log in logs]
+        out: list[EKFOutput | None] = [None] * len(arrays)
+        lengths: dict[tuple[int, ...], list[int]] = {}
+        for i, z in enumerate(arrays):
+            lengths.setdefault(z.shape, []).append(i)
+        for shape, members in lengths.items():
+            if len(members) == 1 or len(shape) != 2 or shape[1] != 3 or shape[0] == 0:
+                for i in members:
+                    out[i] = self.run(arrays[i])  # one log, or a shape run() refuses with its message
+                continue
+            for i, result in zip(members, self._run_stacked(np.stack([arrays[i] for i in members]))):
+                out[i] = result
+        return [o for o in out if o is not None]
+
+    def _run_stacked(self, z: NDArray[np.float64]) -> list[EKFOutput]:
+        """:meth:`run` on ``z`` of shape (m, n, 3): m logs of n samples, each step taken for the m logs at once."""
+        if not np.all(np.isfinite(z)):
+            raise InputError("raw samples contain NaN or infinite values")
+        m, n, _ = z.shape
+        A, Q = self.transition()
+        R = self.measurement_noise()
+        a_diag = np.diag(A)
+        outer_a = a_diag[:, None] * a_diag[None, :]
+        r_diag = np.diag(R)
+        eye = np.eye(5)
+        H = np.zeros((m, 3, 5))
+        H[:, :, 2:] = np.eye(3)
+        zero = np.zeros(m)
+        x = np.zeros((m, 5))
+        for j in range(m):
+            x[j, :2] = roll_pitch(self.W @ z[j, 0] + self.V)
+        P0 = np.diag([self.initial_attitude_std**2] * 2 + list(np.maximum(self.B**2, 1e-30)))
+        P = np.repeat(P0[None], m, axis=0)
+        states = np.empty((n, m, 5))
+        att_var = np.empty((n, m, 2))
+        for k in range(n):
+            # prediction, eqs. 9-10 (A is diagonal)
+            x = a_diag * x
+            P = outer_a * P + Q
+            # h(x) and H = ∂h/∂x, eq. 8 (as _measure, for the m logs)
+            sp, cp, st, ct = np.sin(x[:, 0]), np.cos(x[:, 0]), np.sin(x[:, 1]), np.cos(x[:, 1])
+            F = np.stack([-st, zero, -ct, ct * sp, ct * cp, -st * sp, ct * cp, -ct * sp, -st * cp], axis=1)
+            GF = self._GW_inv @ F.reshape(m, 3, 3)
+            H[:, :, :2] = GF[:, :, 1:]
+            h = GF[:, :, 0] - self._offset + x[:, 2:]
+            # update, eqs. 11-13
+            PHt = P @ np.swapaxes(H, 1, 2)
+            S = H @ PHt + R
+            gain = PHt @ _inverse_3x3_stacked(S)
+            x = x + (gain @ (z[:, k] - h)[:, :, None])[:, :, 0]
+            IKH = eye - gain @ H
+            P = IKH @ P @ np.swapaxes(IKH, 1, 2) + (gain * r_diag) @ np.swapaxes(gain, 1, 2)
+            states[k] = x
+            att_var[k] = np.diagonal(P, axis1=1, axis2=2)[:, :2]
+        outputs = []
+        for j in range(m):
+            attitude = states[:, j, :2].copy()
+            compensated = self.gravity * gravity_direction(attitude[:, 0], attitude[:, 1])
+            outputs.append(EKFOutput(compensated=compensated, attitude=attitude, bias=states[:, j, 2:].copy(),
+                                     attitude_variance=att_var[:, j].copy()))
+        return outputs
+
+
+def _cofactors(S: list[list[float]]) -> tuple[list[list[float]], float]:
+    """The transposed cofactors (the adjugate) and the determinant of a 3×3 matrix given as nested lists."""
+    (a, b, c), (d, e, f), (g, h, i) = S
+    c00, c01, c02 = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * c00 + b * c01 + c * c02
+    return [[c00, c * h - b * i, b * f - c * e],
+            [c01, a * i - c * g, c * d - a * f],
+            [c02, b * g - a * h, a * e - b * d]], det
+
 
 def _inverse_3x3(S: NDArray[np.float64]) -> NDArray[np.float64]:
     """The inverse of a 3×3 matrix by its cofactors (the innovation covariance of eq. 11, positive definite since R
     is: its determinant is positive).  Speed only: about a third of ``np.linalg.solve``'s cost on a 3×3, the same
     gain to rounding (1e-16)."""
-    (a, b, c), (d, e, f), (g, h, i) = S.tolist()
-    c00, c01, c02 = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * c00 + b * c01 + c * c02
-    return np.array([[c00, c * h - b * i, b * f - c * e],
-                     [c01, a * i - c * g, c * d - a * f],
-                     [c02, b * g - a * h, a * e - b * d]]) / det
+    adjugate, det = _cofactors(S.tolist())
+    return np.array(adjugate) / det
+
+
+def _inverse_3x3_stacked(S: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_inverse_3x3` of each of a stack of 3×3 matrices, shape (m, 3, 3) (the same cofactors, the same numbers)."""
+    pairs = [_cofactors(M) for M in S.tolist()]
+    return np.array([p[0] for p in pairs]) / np.array([p[1] for p in pairs])[:, None, None]
 
 
 def sum_squared_errors(estimate: ArrayLike, truth: ArrayLike) -> NDArray[np.float64]:
