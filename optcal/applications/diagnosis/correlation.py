@@ -77,6 +77,10 @@ class CorrelationOperator:
     #: ``φ_i = exp(−Δt_i/τ)`` between consecutive poses in :attr:`order` (0 across sessions): the
     #: sampled Ornstein–Uhlenbeck process the simulations draw from (:meth:`sample`)
     phi: NDArray[np.float64] | None = None
+    #: The ``(ρ₀, τ)`` it was built from (said beside a test that re-estimates them,
+    #: :func:`optcal.applications.diagnosis.step_pair.pair_correlation`)
+    rho0: float = 0.0
+    tau_s: float = 0.0
 
     @classmethod
     def build(cls, rho0: float, tau_s: float, t: NDArray, session: NDArray, directions: NDArray) -> "CorrelationOperator":
@@ -84,7 +88,7 @@ class CorrelationOperator:
         n = t.size
         order = np.lexsort((t, session))
         if rho0 <= 0:
-            return cls(order, 1.0, None, None)
+            return cls(order, 1.0, None, None, 0.0, tau_s)
         a = 1.0 - rho0
         gap = np.diff(t[order])
         same = np.diff(session[order]) == 0
@@ -95,7 +99,7 @@ class CorrelationOperator:
         state = np.empty(n, dtype=np.intp)
         state[order] = np.arange(n)
         cov = ChainCovariance(np.full(n, a), np.sqrt(rho0) * np.asarray(directions, dtype=float), state, chain)
-        return cls(order, a, cov, phi)
+        return cls(order, a, cov, phi, rho0, tau_s)
 
     @property
     def logdet(self) -> float:

@@ -50,7 +50,7 @@ from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEP
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
-from optcal.applications.diagnosis.step_pair import each_knock_needed, scan_pair, with_null
+from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation, scan_pair, with_null
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
 from optcal.core.stats import rms
@@ -126,6 +126,9 @@ class Candidate:
     second_at : int or None
         For two bias steps searched together (:mod:`~optcal.applications.diagnosis.step_pair`): the poses before the
         second step (:attr:`step_at` is the first's).
+    correlation : str or None
+        For two bias steps tested under correlated pose noise: the correlation re-estimated with them, in words
+        (:func:`~optcal.applications.diagnosis.step_pair.pair_correlation`).
     """
 
     term: str
@@ -143,6 +146,7 @@ class Candidate:
     stepped_down_from: int | None = None
     step_at: int | None = None
     second_at: int | None = None
+    correlation: str | None = None
     fit: Fit | None = field(default=None, repr=False, compare=False)
 
     def new_steps(self) -> tuple[int, ...]:
@@ -156,7 +160,7 @@ class Candidate:
             "significant": self.significant,
         }
         for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from",
-                    "step_at", "second_at"):
+                    "step_at", "second_at", "correlation"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out
@@ -549,14 +553,21 @@ class ForwardSelection:
                         step_at=scan.first_at, second_at=scan.second_at, fit=cand)
         if p_exact >= level or delta >= 0:  # the adjusted p is never below the exact one: not significant either way
             return [out]
-        # both conditions must hold; the cheaper one first (two one-step scans), the pairs' null only if it passes
-        needed = each_knock_needed(fitter, current, scan)
-        if needed >= level:
-            out.rejected_because = (f"each knock is not needed given the other: the weaker one's test given the "
-                                    f"other step, its position searched again, p = {needed:.2g} (a wander of the bias "
-                                    "that rises and returns, not two knocks); the pairs' minP adjustment not run")
-            return [out]
-        out.p_value = with_null(fitter, current, scan, axes, null_draws(fitter, current, STEP_DRAWS)).adjusted(p_exact)
+        # under correlated poses the pair's tests take R re-estimated with the pair in it (step_pair.pair_correlation)
+        with pair_correlation(fitter, current, scan, self.alpha, p_exact) as under:
+            out.correlation, out.p_value = under.note, under.p_exact
+            if under.p_exact >= level:
+                out.rejected_because = "not significant under the correlation re-estimated with the pair"
+                return [out]
+            # both conditions must hold; the cheaper one first (two one-step scans), the pairs' null only if it passes
+            needed = each_knock_needed(fitter, under.current, scan)
+            if needed >= level:
+                out.rejected_because = (f"each knock is not needed given the other: the weaker one's test given the "
+                                        f"other step, its position searched again, p = {needed:.2g} (a wander of the "
+                                        "bias that rises and returns, not two knocks); the pairs' minP adjustment not run")
+                return [out]
+            null = null_draws(fitter, under.current, STEP_DRAWS)
+            out.p_value = with_null(fitter, under.current, scan, axes, null).adjusted(under.p_exact)
         out.significant = out.p_value < level
         return [out]
 

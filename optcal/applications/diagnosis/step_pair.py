@@ -27,10 +27,27 @@ the null model is the generalised fit's: the weighted residuals ``σ R^½ z`` wi
 the draws are formed on the whitened residuals and columns (:func:`~optcal.applications.diagnosis.familywise.whitening`),
 where the generalised F test is the ordinary one (mikoff's raw log read as ``optcal diagnose`` reads it, its still
 parts' noise making the poses correlated: two knocks of 8 and 5 mg named, none before).
+
+**The correlation the pair is tested under** (:func:`pair_correlation`).  ``R`` is estimated from the baseline fit,
+before any step is in the model, so two knocks not yet modelled look like noise that neighbouring poses share
+(mikoff imu0's raw log with x 6 + y 4 mg knocks: ρ₀ at its bound 0.95, τ 14 s; unplanted ρ₀ 0.2, τ 0.7 s), and
+the pair is then tested against a noise that already holds it.  Once the best pair's exact F test passes under
+that ``R`` (the cheap gate, unchanged), ``R`` is estimated again by the same REML, within the same bounds
+(:func:`~optcal.applications.diagnosis.noise_model.pose_correlation`), with the pair's step columns among its
+fixed effects, as the smooth candidates already are there; the pair's exact F test, each knock given the other
+(:func:`each_knock_needed`) and the minP over the pairs (:func:`with_null`) are then all formed under it.  **Null
+model of that test:** no step; the weighted residuals ``σ R₂^½ z``, ``z`` standard normal, ``R₂`` the re-estimated
+correlation taken as known (as the generalised fit takes the baseline's); the minP draws are those of that model,
+every pair searched in each.  ``R₂`` depends on the pair chosen from the data, so the level is measured, not
+assumed: correlated null sessions (ρ₀ 0.9 / τ 1 gap, ρ₀ 0.95 / τ 2 gaps) and the unplanted recordings
+(docs/diagnosis.md, "Two knocks searched together").  The pair is named only if both the gate under the baseline
+``R`` and the tests under ``R₂`` pass: the extra condition only removes rejections.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,8 +58,9 @@ from optcal.applications.diagnosis.bias_step import adjusted_p, scan_step
 from optcal.applications.diagnosis.effects import BIAS_STEP, STEP_MIN_SIDE
 from optcal.applications.diagnosis.familywise import NullDraws, null_draws
 from optcal.applications.diagnosis.fitting import Fit, Fitter
+from optcal.applications.diagnosis.noise_model import pose_correlation
 
-__all__ = ["PairScan", "scan_pair", "with_null", "each_knock_needed"]
+__all__ = ["PairScan", "PairRetest", "scan_pair", "with_null", "each_knock_needed", "pair_correlation"]
 
 #: Sets of columns whose null gains are formed at once (memory: sets × 3 × draws floats, 60 MB at 40,000 draws).
 CHUNK: int = 64
@@ -253,3 +271,57 @@ def each_knock_needed(fitter: Fitter, current: Fit, scan: PairScan) -> float:
     finally:
         fitter.set_steps(placed)
     return worst
+
+
+@dataclass(frozen=True)
+class PairRetest:
+    """The pair tested under the correlation re-estimated with it (:func:`pair_correlation`).
+
+    Attributes
+    ----------
+    current : Fit
+        The model without the pair, fitted under the re-estimated correlation (the null of the pair's tests).
+    p_exact : float
+        The pair's exact F test under it.
+    note : str or None
+        The correlation used, in words (``None`` for independent poses: nothing re-estimated).
+    """
+
+    current: Fit
+    p_exact: float
+    note: str | None
+
+
+@contextmanager
+def pair_correlation(fitter: Fitter, current: Fit, scan: PairScan, alpha: float,
+                     p_exact: float) -> Iterator[PairRetest]:
+    """The fitter's pose-noise correlation re-estimated with ``scan``'s pair among the REML fixed effects, for the
+    pair's tests inside the ``with`` block (module docstring); the baseline's restored on leaving it.
+
+    With independent poses (no correlation used) nothing changes: ``current`` and ``p_exact`` are yielded as given.
+    The same REML and bounds as the baseline's (:func:`~optcal.applications.diagnosis.noise_model.pose_correlation`,
+    its smooth trends among the fixed effects where the poses leave room); used whatever its own test says, as the
+    baseline's was (``ρ₀ = 0``: the poses independent under the pair).
+    """
+    operator = fitter.correlation
+    if operator is None:
+        yield PairRetest(current, p_exact, None)
+        return
+    placed = fitter.steps_at
+    terms = {**current.terms, **scan.terms()}
+    try:
+        fitter.set_steps((scan.first_at, scan.second_at))
+        cand = fitter.fit(terms, current.outliers, current.x)
+        again = pose_correlation(fitter, cand, alpha, use="on")
+        fitter.correlation = again.operator
+        cand = fitter.fit(terms, current.outliers, cand.x)
+        fitter.set_steps(placed)
+        null = fitter.fit(dict(current.terms), current.outliers, current.x)
+        p = fitter.f_test(null, cand)
+        note = (f"pose-noise correlation re-estimated with the pair among its fixed effects: rho0 {again.rho0:.2g}, "
+                f"tau {again.tau_s:.3g} s (baseline rho0 {operator.rho0:.2g}, tau {operator.tau_s:.3g} s); the pair's "
+                f"exact p under it {p:.2g} (under the baseline's {p_exact:.2g})")
+        yield PairRetest(null, p, note)
+    finally:
+        fitter.correlation = operator
+        fitter.set_steps(placed)
