@@ -52,6 +52,7 @@ from optcal.data.evidence import (
     gather_evidence,
     time_evidence,
 )
+from optcal.data.backwards import refuse_backwards, sections_explain_backwards
 from optcal.data.readers import Source
 from optcal.data import sample_clock as clock
 from optcal.data.sample_clock import ClockLimits, held_recording, sample_clock
@@ -671,45 +672,6 @@ def _rate_contradiction(src: Source, ev: Evidence, rate: float | None, time_unit
     ]
 
 
-def _refuse_backwards(src: Source, ev: Evidence, t: NDArray[np.float64], what: str) -> None:
-    """Refuse a time (or sample index) column that runs backwards among the usable rows."""
-    rows = np.flatnonzero(ev.usable & np.isfinite(t))
-    back = np.flatnonzero(np.diff(t[rows]) < 0)
-    if back.size:
-        i, j = rows[back[0]], rows[back[0] + 1]
-        raise InputError(
-            f"{src.path}: {what} runs backwards at data row {j + 1} ({t[j]:.6g} after "
-            f"{t[i]:.6g} on row {i + 1}; {back.size} such step(s)); the file may be several "
-            "logs joined together: split or sort it"
-        )
-
-
-def _sections_explain_backwards(src: Source, ev: Evidence, counter: NDArray[np.float64]) -> str | None:
-    """Why a sample counter that runs backwards is no reason to refuse the file, or ``None``.
-
-    A file of labelled sections (imucal's annotated session: a ``part`` column names the section
-    of each row, and the rows are grouped by section) keeps each section's sample numbers: the
-    counter steps back where one section ends and the next begins.  When every step back falls on
-    a change of the label, the counter is a sample number, not time; the time is the row number
-    over the rate, and the sections are read by their label.
-    """
-    from optcal.data.sections import label_column_of, read_label_column
-
-    rows = np.flatnonzero(ev.usable & np.isfinite(counter))
-    back = np.flatnonzero(np.diff(counter[rows]) < 0)
-    name = label_column_of(src.ignored_columns)
-    if not back.size or name is None or src.file_type != "csv":
-        return None
-    labels = read_label_column(src.path, name)
-    if labels.size != counter.size:
-        return None
-    before, after = rows[back], rows[back + 1]
-    if not np.all(labels[before] != labels[after]):
-        return None
-    return (f"a sample counter; it steps back {back.size} time(s), each where the section in column {name!r} "
-            "changes: sections stored by label, not time")
-
-
 def _pose_table_time(src: Source, time_unit: str | None) -> tuple[Decision, Decision]:
     no_rate = Decision(None, "a pose table has no sampling rate", "--rate")
     if not src.has("t"):
@@ -744,9 +706,9 @@ def _recording_time(
             why += ", instead of the time column"
         if src.has("index"):
             counter = f"column {src.column_map['index']!r}"
-            sections = _sections_explain_backwards(src, ev, src.column("index"))
+            sections = sections_explain_backwards(src, ev, src.column("index"))
             if sections is None:
-                _refuse_backwards(src, ev, src.column("index"), counter)
+                refuse_backwards(src, ev, src.column("index"), counter)
             else:  # the time is the row number: the counter is set aside (the recording would read it as time)
                 what = f"row number (not {counter}: {sections})"
                 src.data.pop("index")
@@ -756,7 +718,7 @@ def _recording_time(
     if te is None:
         raise InputError(f"{src.path}: fewer than two usable samples with a time")
     if te.backwards:  # the evidence counted the steps back among the usable rows
-        _refuse_backwards(src, ev, t, "time")
+        refuse_backwards(src, ev, t, "time")
     if time_unit is not None and src.time_unit is not None and src.time_unit != time_unit:
         raise InputError(f"{src.path}: time_unit {time_unit} contradicts the column name ({src.time_reason})")
     reading = _time_reading(src, te, time_unit)
