@@ -56,7 +56,8 @@ from optcal.data.backwards import refuse_backwards, sections_explain_backwards
 from optcal.data.readers import Source
 from optcal.data import sample_clock as clock
 from optcal.data.sample_clock import ClockLimits, held_recording, sample_clock
-from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion, units_and_nominal
+from optcal.data.rest_units import units_and_nominal_at_rest
+from optcal.data.units import G_NORM_RANGE, MAX_REST_NOISE_G, MS2_NORM_RANGE, NominalConversion
 from optcal.errors import InputError
 
 __all__ = [
@@ -335,8 +336,7 @@ def decide(
         units_error: InputError | None = None
         nominal: NominalConversion | None = None
         try:
-            found, nominal = units_and_nominal(units, src.units_hint, src.units_reason, norm=ev.median_norm,
-                                               extremes=ev.extremes, medians=ev.medians, midscale_norm=ev.midscale_norm)
+            found, nominal = units_and_nominal_at_rest(src, ev, units)  # the quiet stretches where the median is not 1 g
             one_g = nominal.sensitivity
         except InputError as exc:  # refused once the kind is known (a pose table's bad cell is named first)
             units_error, one_g = exc, ev.median_norm

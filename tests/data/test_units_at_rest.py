@@ -1,0 +1,65 @@
+"""The accelerometer's units heard where the physics holds (docs/rest-model.md, the fourth sweep's Emkijen row).
+
+Emkijen's spinning flight (m/s², ``t,ax,ay,az,wx,wy,wz``) moves most of the time: its whole-file median |a| is
+54.5, so it was read as raw counts and ``--units m/s^2`` refused as contradicting the data.  Its quiet stretches
+read |a| = 9.8 and none of its samples is a whole number (raw counts all are).  Reproduced on a GENERATED flight:
+six 4-s rests in six orientations, 10-s spins between them (60 m/s² of centripetal acceleration with a 2-Hz
+wobble).  The control: the same flight in raw counts (whole numbers, 16384 per g) stays counts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from helpers.cli_run import run
+
+FS = 100.0
+G = 9.80665
+LSB_G = 16384.0
+
+
+def _flight(seed: int = 0) -> np.ndarray:
+    """Specific force (n, 3) in m/s²: rests in six orientations, spins between them."""
+    rng = np.random.default_rng(seed)
+    ups = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], dtype=float)
+    parts = []
+    for k, up in enumerate(ups):
+        parts.append(np.tile(G * up, (int(4 * FS), 1)))
+        if k < len(ups) - 1:
+            t = np.arange(int(10 * FS)) / FS
+            spin = np.column_stack([60.0 + 10.0 * np.sin(2 * np.pi * 2.0 * t),
+                                    G * np.cos(2 * np.pi * 0.5 * t), G * np.sin(2 * np.pi * 0.5 * t)])
+            parts.append(spin)
+    a = np.vstack(parts)
+    return a + 0.02 * rng.normal(size=a.shape)  # 2 mg of noise at rest
+
+
+def _write(path, a: np.ndarray, fmt: str) -> None:
+    t = np.arange(len(a)) / FS
+    path.write_text("t,ax,ay,az\n" + "".join(f"{s:.4f}," + ",".join(fmt.format(v) for v in row) + "\n"
+                                             for s, row in zip(t, a)))
+
+
+def test_a_moving_recording_in_m_s2_is_read_in_m_s2_from_its_quiet_stretches(tmp_path, capsys):
+    a = _flight()
+    assert np.median(np.linalg.norm(a, axis=1)) > 50.0  # the whole file's median says counts
+    path = tmp_path / "flight.csv"
+    _write(path, a, "{:.8f}")
+    code, out, err = run(["segment", path], capsys)
+    assert code == 0, err
+    units = next(line for line in out.splitlines() if line.strip().startswith("units:"))
+    assert "units: m/s^2" in units and "quiet stretches" in units, units
+    code, out, err = run(["segment", path, "--units", "m/s^2"], capsys)  # was refused: "pass --units counts"
+    assert code == 0, err
+    assert "given with --units" in out and "agrees" in out
+
+
+def test_the_same_flight_in_raw_counts_stays_counts(tmp_path, capsys):
+    path = tmp_path / "counts.csv"
+    _write(path, np.round(_flight() / G * LSB_G), "{:.0f}")
+    code, out, err = run(["segment", path], capsys)
+    assert code == 0, err
+    units = next(line for line in out.splitlines() if line.strip().startswith("units:"))
+    assert "units: counts" in units and "quiet stretches" not in units, units
+    code, out, err = run(["segment", path, "--units", "m/s^2"], capsys)  # its quiet |a| is 16384: refused
+    assert code == 2 and "pass --units counts" in err and err.count("\n") == 1
