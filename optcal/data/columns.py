@@ -474,6 +474,8 @@ def headerless_mapping(
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
     example = (f"--columns t={lead + 1},ax={lead + 2},ay={lead + 3},az={lead + 4}" if width >= 4
                else f"--columns ax={lead + 1},ay={lead + 2},az={lead + 3}")
+    if joined is not None:  # the file's positions: the stamp's two fields, then the triples (t=1 reads both, readers)
+        example = f"--columns t=1,ax={rest[0] + 1},ay={rest[1] + 1},az={rest[2] + 1}"
     if len(rest) not in HEADERLESS_TRIPLES:
         why = "fit no common layout"
         if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases

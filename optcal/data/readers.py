@@ -48,6 +48,7 @@ from optcal.data.columns import (
     parse_columns_option,
     resolve_columns,
     sensor_logger_mapping,
+    split_stamp,
     strip_unit,
 )
 from optcal.data.container_kind import container_type
@@ -326,6 +327,12 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
             if layout.ignored_header is not None:
                 reason = (f"line {layout.ignored_header + 1}'s names do not match the fields (read as a note); "
                           "columns by position from --columns")
+            # t=1 on a stamp split in whole seconds and a sub-second count (columns.split_stamp: the seconds alone
+            # repeat, no time) reads the stamp, as without --columns; --rate HZ times the rows instead
+            if mapping.get("t") == "1" and "2" not in mapping.values() and (joined := split_stamp(parsed.columns)):
+                parsed.columns[0] = joined[0]
+                reason += (f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs): "
+                           "column 1 holds their sum in seconds")
         else:
             mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
                                                         {j: v[2] for j, v in parsed.non_numeric.items()})

@@ -63,3 +63,25 @@ def test_the_same_flight_in_raw_counts_stays_counts(tmp_path, capsys):
     assert "units: counts" in units and "quiet stretches" not in units, units
     code, out, err = run(["segment", path, "--units", "m/s^2"], capsys)  # its quiet |a| is 16384: refused
     assert code == 2 and "pass --units counts" in err and err.count("\n") == 1
+
+
+# ------------------------------------------------------------------ the --columns example on a split stamp
+def test_a_split_stamps_columns_example_names_the_files_positions_and_reads_the_stamp(tmp_path, capsys):
+    """A headerless ``secs,nsecs,ax,ay,az`` file (ROS's header.stamp, the third sweep's acc2.csv): its columns
+    reason's example said ``--columns t=1,ax=2,ay=3,az=4``, column 2 being the stamp's ns; and ``t=1`` read the
+    whole seconds alone (100 rows a stamp).  Now the example names the file's positions (ax=3) and t=1 reads the
+    stamp as the layout does: the same rate either way."""
+    a = _flight()[: int(20 * FS)]
+    t = np.arange(len(a)) / FS
+    ns = np.round(t * 1e9).astype(np.int64) + 1696324304 * 1_000_000_000
+    path = tmp_path / "acc2.csv"
+    path.write_text("".join(f"{s},{f:9d}," + ",".join(f"{v:.6f}" for v in row) + "\n"
+                            for s, f, row in zip(ns // 1_000_000_000, ns % 1_000_000_000, a)))
+    code, out, err = run(["segment", path], capsys)
+    assert code == 0, err
+    assert "e.g. --columns t=1,ax=3,ay=4,az=5" in out
+    time_line = next(line for line in out.splitlines() if line.strip().startswith("time:"))
+    code, out, err = run(["segment", path, "--columns", "t=1,ax=3,ay=4,az=5"], capsys)
+    assert code == 0, err
+    assert next(line for line in out.splitlines() if line.strip().startswith("time:")) == time_line
+    assert "whole seconds and ns of the second" in out
