@@ -575,3 +575,46 @@ def sensor_logger_mapping(names: list[str], path: str, sensor: str = "acc") -> t
     if key.startswith(SENSOR_LOGGER_ACCELEROMETERS):
         return mapping, f"{layout}: {stem} is the accelerometer with gravity"
     return None
+
+
+# ----------------------------------------------------------------------------- a column of words naming the sensor
+#: Bare axes: their quantity is said only by a column of words in every row (Variense VMU931's headered export,
+#: ``Attribute,Time stamp,x,y,z`` with ``Acceleration``, ``Gyroscope`` or ``Magnetometer`` in every row).
+BARE_AXES: tuple[str, str, str] = ("x", "y", "z")
+
+
+def attribute_mapping(
+    names: list[str], words: dict[str, tuple[int, int, str]], n_rows: int, path: str
+) -> tuple[dict[str, str], str] | None:
+    """The columns of a file whose bare ``x, y, z`` are named by a column of words in every row; ``None`` otherwise.
+
+    The word names the triple (``acceleration``: the accelerometer; ``gyroscope``: the gyro's, a gyro-only log), a
+    column named with ``time`` the time (its unit left to the time decision).  ``words`` are the file's columns with
+    non-numeric cells: (count, first row, first value), as :class:`optcal.data.text.ParsedNumbers` counts them.
+
+    Raises
+    ------
+    InputError
+        The word names a magnetometer (read by ``optcal calibrate FILE --sensor mag --columns mx=x,my=y,mz=z``).
+    """
+    by_norm = {normalise_name(n): n for n in names}
+    if not all(a in by_norm for a in BARE_AXES):
+        return None
+    axes = {by_norm[a] for a in BARE_AXES}
+    column = next((n for n, (count, _, _) in words.items() if count == n_rows and n not in axes), None)
+    if column is None:
+        return None
+    word = re.sub(r"[^a-z]", "", words[column][2].lower())
+    if word.startswith("mag"):
+        mags = ",".join(f"m{a}={by_norm[a]}" for a in BARE_AXES)
+        raise InputError(f"{path}: column {column!r} reads {words[column][2]!r}: a magnetometer's log; optcal calibrate FILE "
+                         f"--sensor mag --columns {mags} reads it")
+    triple = ACC if word.startswith("acc") else GYRO if word.startswith("gyr") else None
+    if triple is None:
+        return None
+    mapping = {c: by_norm[a] for c, a in zip(triple, BARE_AXES)}
+    time = next((n for n in names if "time" in normalise_name(n)), None)
+    if time is not None:
+        mapping["t"] = time
+    return mapping, (f"bare axes x, y, z named by column {column!r} in every row ({words[column][2]!r}: the "
+                     f"{'accelerometer' if triple == ACC else 'gyroscope'}; Variense VMU931's export)")

@@ -43,6 +43,7 @@ from optcal.data.columns import (
     RATE_SETTING,
     TIME_UNITS,
     ColumnRoles,
+    attribute_mapping,
     headerless_mapping,
     normalise_name,
     parse_columns_option,
@@ -320,6 +321,9 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         # its Gyroscope.csv read alone (optcal allan FILE): the gyro's axes, in rad/s (a gyro-only log)
         mapping = {dict(zip(ACC, GYRO)).get(k, k): v for k, v in logger[0].items()}
         reason, logger_gyro = logger[1], True
+    elif layout.has_header and not mapping and parsed.columns and (attribute := attribute_mapping(
+            names, {names[j]: v for j, v in parsed.non_numeric.items()}, len(parsed.columns[0]), str(p))) is not None:
+        mapping, reason = attribute  # VMU931's bare x, y, z: a column of words says the quantity
     mapping_given = bool(mapping)
     if not layout.has_header:
         if mapping:

@@ -9,6 +9,8 @@ wobble).  The control: the same flight in raw counts (whole numbers, 16384 per g
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from helpers.cli_run import run
@@ -85,3 +87,38 @@ def test_a_split_stamps_columns_example_names_the_files_positions_and_reads_the_
     assert code == 0, err
     assert next(line for line in out.splitlines() if line.strip().startswith("time:")) == time_line
     assert "whole seconds and ns of the second" in out
+
+
+# ------------------------------------------------------------------ a column of words naming the sensor, headered
+def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
+    """Variense VMU931's headered exports (``Attribute,Time stamp,x,y,z``, ``Acceleration`` / ``Gyroscope`` /
+    ``Magnetometer`` in every row; Alanzwang/vmu931): before, "no accelerometer column(s)", ``--columns`` asked for;
+    now the word names the triple (the gyroscope's: the gyro's log; the magnetometer's: refused naming
+    ``--sensor mag``), the time column by its name."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    stamps = 63156 + 5 * np.arange(n)
+    acc = np.array([0.017, 0.006, 0.976]) + 0.003 * rng.normal(size=(n, 3))
+    gyro = np.array([-0.2, 0.04, 0.1]) + 0.05 * rng.normal(size=(n, 3))
+    for word, values in (("Acceleration", acc), ("Gyroscope", gyro), ("Magnetometer", 40.0 + rng.normal(size=(n, 3)))):
+        (tmp_path / f"{word}.csv").write_text("Attribute,Time stamp,x,y,z\n" + "".join(
+            f"{word},{s},{x:.9g},{y:.9g},{z:.9g}\n" for s, (x, y, z) in zip(stamps, values)))
+    code, out, err = run(["segment", tmp_path / "Acceleration.csv", "--time-unit", "ms"], capsys)
+    assert code == 0, err
+    assert "columns: ax←x, ay←y, az←z, t←Time stamp" in out and "column 'Attribute'" in out
+    code, out, err = run(["allan", tmp_path / "Gyroscope.csv", "--time-unit", "ms", "--json"], capsys)
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == n
+    code, out, err = run(["segment", tmp_path / "Magnetometer.csv"], capsys)
+    assert code == 2 and "--sensor mag --columns mx=x,my=y,mz=z" in err and err.count("\n") == 1
+
+
+def test_a_column_of_words_that_names_no_sensor_still_asks_for_columns(tmp_path, capsys):
+    """The control: a word column naming no sensor (a session label) leaves bare x, y, z unread, ``--columns``
+    asked for, as before."""
+    rows = "".join(f"session_a,{5 * k},0.01,0.02,0.98\n" for k in range(400))
+    path = tmp_path / "labelled.csv"
+    path.write_text("label,time,x,y,z\n" + rows)
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "--columns" in err and err.count("\n") == 1
