@@ -10,7 +10,9 @@ model look like noise shared by neighbouring poses); the pair is named at 7 and 
 
 x 6 + y 4 mg: the baseline's correlation holds the two knocks (ρ₀ 0.95, τ 14 s) and the pairs' minP under it missed
 them (p 0.00127 against 0.00125); the pair is now tested under the correlation re-estimated with its steps among the
-REML fixed effects (:func:`optcal.applications.diagnosis.step_pair.pair_correlation`): named at 7 and 15.
+REML fixed effects (:func:`optcal.applications.diagnosis.step_pair.pair_correlation`): named at 7 and 15.  Once the
+pair is accepted, the rest of the selection, the limits and the report take that correlation too
+(:func:`optcal.applications.diagnosis.noise_model.correlation_with_steps`: ρ₀ 0.80, τ 0.70 s; it stayed 0.95, 14 s).
 """
 
 from __future__ import annotations
@@ -55,7 +57,11 @@ def test_two_knocks_in_the_raw_log_are_named_under_correlated_pose_noise(shared_
     reading = load_with_segmentation(path, rate=100.0)
     diag = Diagnoser(DiagnosisSettings(simulations=0)).run(reading.poses, None, reading.segmentation)
     correlation = diag.to_dict()["noise_model"]["correlation"]
-    assert correlation["used"] and correlation["rho0"] > 0.1  # the whitened null is the one exercised
+    baseline = correlation["baseline"]  # the report's is the one estimated again with the accepted steps
+    assert baseline["used"] and baseline["rho0"] > 0.1  # the whitened null is the one exercised
+    assert "bias_step(x)" in correlation["estimated_with"] and "bias_step(y" in correlation["estimated_with"]
+    assert correlation["rho0"] < baseline["rho0"] - 0.1 and correlation["tau_s"] < baseline["tau_s"] / 4  # knocks out
+    assert "estimated again with" in correlation["text"] and "baseline's, without them" in correlation["text"]
     assert [f.effect for f in diag.findings] == ["bias_step"]
     steps = diag.findings[0].to_dict()["step"]["steps"]
     assert [s["poses_before"] for s in steps] == [pytest.approx(7, abs=1), pytest.approx(15, abs=1)]
