@@ -58,8 +58,9 @@ def measured_noise_lines(check: NoiseModelCheck) -> list[str]:
 
 
 def correlation_lines(check: NoiseModelCheck) -> list[str]:
-    """The pose noise correlated in time, when the tests use it (a named noise explanation, never an effect)."""
-    if check.correlation is None or not check.correlation.used:
+    """The pose noise correlated in time, when the tests use it or estimated it again (a named noise explanation, never
+    an effect)."""
+    if check.correlation is None or not (check.correlation.used or check.correlation.baseline is not None):
         return []
     return [f"      {check.correlation.text()}"]
 

@@ -10,17 +10,21 @@ model look like noise shared by neighbouring poses); the pair is named at 7 and 
 
 x 6 + y 4 mg: the baseline's correlation holds the two knocks (ρ₀ 0.95, τ 14 s) and the pairs' minP under it missed
 them (p 0.00127 against 0.00125); the pair is now tested under the correlation re-estimated with its steps among the
-REML fixed effects (:func:`optcal.applications.diagnosis.step_pair.pair_correlation`): named at 7 and 15.
+REML fixed effects (:func:`optcal.applications.diagnosis.step_pair.pair_correlation`): named at 7 and 15.  Once the
+pair is accepted, the rest of the selection, the limits and the report take that correlation too
+(:func:`optcal.applications.diagnosis.noise_model.correlation_with_steps`: ρ₀ 0.80, τ 0.70 s; it stayed 0.95, 14 s).
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
+from optcal.applications.diagnosis.correlation import PoseCorrelation
 from optcal.data import load_with_segmentation
 from optcal.families.accel.calibration import calibrate
 
@@ -55,7 +59,11 @@ def test_two_knocks_in_the_raw_log_are_named_under_correlated_pose_noise(shared_
     reading = load_with_segmentation(path, rate=100.0)
     diag = Diagnoser(DiagnosisSettings(simulations=0)).run(reading.poses, None, reading.segmentation)
     correlation = diag.to_dict()["noise_model"]["correlation"]
-    assert correlation["used"] and correlation["rho0"] > 0.1  # the whitened null is the one exercised
+    baseline = correlation["baseline"]  # the report's is the one estimated again with the accepted steps
+    assert baseline["used"] and baseline["rho0"] > 0.1  # the whitened null is the one exercised
+    assert "bias_step(x)" in correlation["estimated_with"] and "bias_step(y" in correlation["estimated_with"]
+    assert correlation["rho0"] < baseline["rho0"] - 0.1 and correlation["tau_s"] < baseline["tau_s"] / 4  # knocks out
+    assert "estimated again with" in correlation["text"] and "baseline's, without them" in correlation["text"]
     assert [f.effect for f in diag.findings] == ["bias_step"]
     steps = diag.findings[0].to_dict()["step"]["steps"]
     assert [s["poses_before"] for s in steps] == [pytest.approx(7, abs=1), pytest.approx(15, abs=1)]
@@ -65,3 +73,20 @@ def test_two_knocks_in_the_raw_log_are_named_under_correlated_pose_noise(shared_
     assert accepted is not None and accepted.second_at is not None
     assert accepted.p_value < accepted.threshold <= 0.005 / 4  # the pair's share of the step's level
     assert accepted.correlation is not None and "re-estimated with the pair" in accepted.correlation  # said
+
+
+def test_a_correlation_estimated_as_none_is_said_as_none() -> None:
+    """mikoff imu2's raw log: the still parts ask for the correlation, its REML estimate is ρ₀ 2.8e-17 (the bound 0 to
+    rounding); the report said "correlated in time ... used" and now says none, the poses tested as independent.
+    Also when it is none once the accepted steps are among its fixed effects (not used, but said)."""
+    still = "the noise of the pose means measured on the still parts, 3.09× σ/√n"
+    none = PoseCorrelation(True, 2.8e-17, 0.738, 7.0, 0.0, 1.0, True, still)
+    assert none.none() and "none, ρ₀ 0.00" in none.text() and "tested as independent" in none.text()
+    assert "is correlated in time" not in none.text() and still in none.text()
+    some = replace(none, rho0=0.2, neighbour_rho=0.2 * np.exp(-7.0 / 0.738))
+    assert not some.none() and "is correlated in time" in some.text()
+    again = PoseCorrelation(True, 0.0, 0.7, 7.0, 0.0, 1.0, False, still, estimated_with="T, o + bias_step(x)",
+                            baseline=replace(some, rho0=0.95, tau_s=14.0))
+    text = again.text()
+    assert "none, ρ₀ 0.00" in text and "bias_step(x) among its fixed effects" in text and "ρ₀ 0.95" in text
+    assert again.to_dict()["baseline"]["rho0"] == 0.95 and again.to_dict()["estimated_with"] == "T, o + bias_step(x)"

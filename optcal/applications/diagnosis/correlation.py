@@ -61,6 +61,10 @@ MAX_RHO: float = 0.95
 TAU_RANGE: tuple[float, float] = (0.1, 2.0)
 #: Fewest poses with a neighbour in time the correlation is estimated from.
 MIN_POSES: int = 20
+#: ``ρ₀`` at or below which an estimate is none, zero to the optimiser's rounding (its lower bound is 0): ``R``
+#: departs from ``I`` by at most ``ρ₀`` in any entry, so a test's variance changes by less than ``ρ₀ n`` relatively,
+#: below 1e-5 at 10⁴ poses; the report then says the poses were tested as independent, which they were to rounding.
+RHO_NONE: float = 1e-9
 
 
 @dataclass
@@ -169,6 +173,12 @@ class PoseCorrelation:
         level, or other evidence shows noise at the pose time scale (:attr:`reason` says which).
     reason : str or None
         Why it was not tested, or why it is used.
+    estimated_with : str or None
+        What the REML counted among its fixed effects when the correlation was estimated again after bias steps
+        were accepted (:func:`optcal.applications.diagnosis.noise_model.correlation_with_steps`); ``None``: estimated
+        from the baseline fit (the nine calibration parameters, and the smooth trends where the poses leave room).
+    baseline : PoseCorrelation or None
+        The baseline's estimate it replaced (set with :attr:`estimated_with`).
     """
 
     tested: bool
@@ -180,24 +190,38 @@ class PoseCorrelation:
     used: bool = False
     reason: str | None = None
     operator: CorrelationOperator | None = field(default=None, repr=False, compare=False)
+    estimated_with: str | None = None
+    baseline: "PoseCorrelation | None" = field(default=None, repr=False, compare=False)
+
+    def none(self) -> bool:
+        """Whether the estimate is no correlation, ``ρ₀`` zero to rounding (:data:`RHO_NONE`)."""
+        return self.rho0 <= RHO_NONE
 
     def text(self) -> str:
         """The named noise explanation in plain words (never a physical effect)."""
         if not self.tested:
             return f"pose noise correlation not tested: {self.reason}"
+        again = "" if self.baseline is None else (
+            f"; estimated again with {self.estimated_with} among its fixed effects (the baseline's, without them: "
+            f"ρ₀ {self.baseline.rho0:.2f}, correlation time {self.baseline.tau_s:.3g} s)")
+        if (self.used or self.baseline is not None) and self.none():
+            return (f"the pose noise correlation was estimated (because of {self.reason}{again}): none, ρ₀ "
+                    f"{self.rho0:.2f}; the poses were tested as independent")
         if not self.used:
             return (f"the pose noise is not detectably correlated in time (p = {self.p_value:.2g}); "
                     "the tests treat the poses as independent")
         return (f"the pose noise is correlated in time: neighbouring poses ({self.median_gap_s:.3g} s apart) share "
                 f"ρ = {self.neighbour_rho:.2f} of their noise along a common direction (correlation time "
                 f"{self.tau_s:.3g} s; estimated from the residuals, its own test p = {self.p_value:.2g}; used because of "
-                f"{self.reason}); the tests, standard errors and detection limits account for it (generalised least "
+                f"{self.reason}{again}); the tests, standard errors and detection limits account for it (generalised least "
                 "squares). This is a property of the noise, not a physical effect")
 
     def to_dict(self) -> dict[str, Any]:
         return {"tested": self.tested, "rho0": self.rho0, "tau_s": self.tau_s, "median_gap_s": self.median_gap_s,
                 "neighbour_rho": self.neighbour_rho, "p_value": self.p_value, "used": self.used,
-                "reason": self.reason, "text": self.text()}
+                "reason": self.reason, "text": self.text(),
+                **({} if self.baseline is None else {"estimated_with": self.estimated_with,
+                                                     "baseline": self.baseline.to_dict()})}
 
 
 def estimate_correlation(e: NDArray, G: NDArray, t: NDArray | None, session: NDArray, directions: NDArray,

@@ -294,6 +294,7 @@ class Diagnoser:
         sim = simulation_check(fitter, base, open_terms, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
         selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop, s.drop_unneeded)
+        selector.correlation = correlation if correlation.used else None
         selection = selector.run(base)
         final = selection.final
         self.progress("measuring the findings (held-out error without each effect)")
@@ -315,7 +316,7 @@ class Diagnoser:
         self.progress("checking the noise model")
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
-        noise.correlation = correlation
+        noise.correlation = selection.correlation or correlation  # the one the selection ended under
         sim_after = None
         if findings:
             self.progress("simulating the extended model")

@@ -50,6 +50,8 @@ from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEP
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
+from optcal.applications.diagnosis.correlation import PoseCorrelation
+from optcal.applications.diagnosis.noise_model import correlation_with_steps
 from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation, scan_pair, with_null
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
@@ -256,6 +258,8 @@ class SelectionResult:
     decisions: list[TemperatureTimeDecision]
     last_level: float
     dropped: list[Dropped] = field(default_factory=list)
+    #: The pose-noise correlation the selection ended under (re-estimated after each accepted bias step)
+    correlation: PoseCorrelation | None = None
 
 
 class ForwardSelection:
@@ -297,6 +301,8 @@ class ForwardSelection:
         self.drop_unneeded = drop_unneeded
         #: Terms dropped by :meth:`backward_check`: not offered again
         self.dropped_keys: set[tuple[str, int]] = set()
+        #: The pose-noise correlation the fitter uses (set by the caller), re-estimated after each accepted bias step
+        self.correlation: PoseCorrelation | None = None
 
     def room(self, fit: Fit) -> bool:
         """Whether one more parameter leaves the fitter's :attr:`~Fitter.min_dof` residual degrees of freedom
@@ -425,6 +431,10 @@ class ForwardSelection:
             if accepted is None or accepted.fit is None:
                 break
             current = accepted.fit
+            if accepted.effect == BIAS_STEP and self.correlation is not None:  # R without knocks it held as noise
+                self.correlation = correlation_with_steps(fitter, current, self.alpha, self.correlation)
+                fitter.correlation = self.correlation.operator
+                current = fitter.fit(dict(current.terms), current.outliers, current.x)
             key = None if accepted.axis is None else (accepted.effect, AXES.index(accepted.axis))
             if key is not None and accepted.effect not in (BIAS_STEP, SESSION_BIAS):
                 levels.setdefault(key, accepted.threshold)  # a raised order keeps the level its term entered at
@@ -440,7 +450,7 @@ class ForwardSelection:
         gone = {(d.effect, d.axis) for d in dropped}
         rivalries = [r for r in rivalries if (r.chosen, r.axis) not in gone or
                      (r.chosen, AXES.index(r.axis)) in current.terms]
-        return SelectionResult(current, steps, self.explain(current, rivalries), level, dropped)
+        return SelectionResult(current, steps, self.explain(current, rivalries), level, dropped, self.correlation)
 
     def backward_check(self, current: Fit, levels: dict[tuple[str, int], float], entered: tuple[str, int] | None,
                        after: str) -> tuple[Fit, list[Dropped]]:
