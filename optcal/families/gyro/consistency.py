@@ -363,6 +363,33 @@ def signal_to_noise(moves: MoveSet, w: NDArray) -> tuple[float, float]:
     return S, level
 
 
+def unseen_moves_finding(moves: MoveSet, S: float, level: float) -> str | None:
+    """Test 2's finding: the gyro does not see the moves when ``S`` of :func:`signal_to_noise` is below its level.
+
+    Parameters
+    ----------
+    moves : MoveSet
+    S, level : float
+        :func:`signal_to_noise`'s statistic and level.
+
+    Returns
+    -------
+    str or None
+        The finding, or ``None`` when the moves' rotation stands out of the noise.
+    """
+    if S >= level:
+        return None
+    ratio = np.sqrt(S / (3 * moves.n_moves))
+    return (f"the gyro does not see the moves (their rotation is {ratio:.3g}× the random walk its noise makes over "
+            "them, noise alone gives about 1)")
+
+
+def refusal_line(findings: list[str] | tuple[str, ...]) -> str:
+    """The one-line refusal of a gyro calibration: what is wrong (``findings``), the likely causes and the override."""
+    causes = LIKELY_CAUSES[0].upper() + LIKELY_CAUSES[1:]
+    return f"the gyro calibration cannot be right: {'; '.join(findings)}. {causes}"
+
+
 def axis_findings(Tg: NDArray) -> list[str]:
     """Test 3: the gyro axes further than :data:`AXIS_MATCH_DEG` from the accelerometer's axes of their names."""
     axes = np.linalg.inv(np.asarray(Tg, float))
@@ -429,8 +456,7 @@ class GyroFitCheck:
 
     def refusal(self) -> str:
         """The one-line refusal: what is wrong, the likely causes and the override."""
-        causes = LIKELY_CAUSES[0].upper() + LIKELY_CAUSES[1:]
-        return f"the gyro calibration cannot be right: {'; '.join(self.findings)}. {causes}"
+        return refusal_line(self.findings)
 
     def warning(self) -> str | None:
         """The warning of a calibration kept despite findings, or of a flagged residual; ``None`` otherwise."""
@@ -493,10 +519,9 @@ def check_gyro_fit(
     """
     S, level = signal_to_noise(moves, w)
     findings: list[str] = []
-    if S < level:
-        ratio = np.sqrt(S / (3 * moves.n_moves))
-        findings.append(f"the gyro does not see the moves (their rotation is {ratio:.3g}× the random walk its noise "
-                        "makes over them, noise alone gives about 1)")
+    unseen = unseen_moves_finding(moves, S, level)
+    if unseen is not None:
+        findings.append(unseen)
     if residual.refused:
         findings.append(residual.describe())
     if determined:
