@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from helpers.cli_run import run
+from helpers.vmu931 import write_vmu931
 from optcal.data import segment
 from optcal.data.static import TURNING_STRETCHES
 
@@ -144,20 +145,14 @@ def test_a_headerless_leading_word_column_is_set_aside_and_names_the_quantity(tm
     ``magnetometer,…``): before, "5 unnamed columns fit no common layout", its example ``--columns t=1,…`` pointing
     at the word; now the word column is set aside and said, the other four read as ``t`` and the triple the word
     names (a gyroscope's: the gyro's log; a magnetometer's: refused naming ``--sensor mag``)."""
-    rng = np.random.default_rng(5)
+    files = write_vmu931(tmp_path, 411480, header=False)
     n = 3000
-    stamps = 411480 + 5 * np.arange(n)
-    acc = np.array([0.017, 0.006, 0.976]) + 0.003 * rng.normal(size=(n, 3))
-    gyro = np.array([-0.2, 0.04, 0.1]) + 0.05 * rng.normal(size=(n, 3))
-    for word, values in (("acceleration", acc), ("gyroscope", gyro), ("magnetometer", 40.0 + rng.normal(size=(n, 3)))):
-        (tmp_path / f"{word}.csv").write_text("".join(f"{word},{s},{x:.9g},{y:.9g},{z:.9g}\n"
-                                                      for s, (x, y, z) in zip(stamps, values)))
-    code, out, err = run(["segment", tmp_path / "acceleration.csv", "--time-unit", "ms"], capsys)
+    code, out, err = run(["segment", files["acceleration"], "--time-unit", "ms"], capsys)
     assert code == 0, err
     assert "columns: t←#2, ax←#3, ay←#4, az←#5" in out and "column 1 holds no number in any row" in out
-    code, out, err = run(["allan", tmp_path / "gyroscope.csv", "--time-unit", "ms", "--json"], capsys)
+    code, out, err = run(["allan", files["gyroscope"], "--time-unit", "ms", "--json"], capsys)
     assert code == 0, err
     summary = json.loads(out)
     assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == n
-    code, out, err = run(["segment", tmp_path / "magnetometer.csv"], capsys)
+    code, out, err = run(["segment", files["magnetometer"]], capsys)
     assert code == 2 and "--sensor mag" in err and err.count("\n") == 1

@@ -14,6 +14,7 @@ import json
 import numpy as np
 
 from helpers.cli_run import run
+from helpers.vmu931 import write_vmu931
 
 FS = 100.0
 G = 9.80665
@@ -95,22 +96,16 @@ def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
     ``Magnetometer`` in every row; Alanzwang/vmu931): before, "no accelerometer column(s)", ``--columns`` asked for;
     now the word names the triple (the gyroscope's: the gyro's log; the magnetometer's: refused naming
     ``--sensor mag``), the time column by its name."""
-    rng = np.random.default_rng(5)
+    files = write_vmu931(tmp_path, 63156, header=True)
     n = 3000
-    stamps = 63156 + 5 * np.arange(n)
-    acc = np.array([0.017, 0.006, 0.976]) + 0.003 * rng.normal(size=(n, 3))
-    gyro = np.array([-0.2, 0.04, 0.1]) + 0.05 * rng.normal(size=(n, 3))
-    for word, values in (("Acceleration", acc), ("Gyroscope", gyro), ("Magnetometer", 40.0 + rng.normal(size=(n, 3)))):
-        (tmp_path / f"{word}.csv").write_text("Attribute,Time stamp,x,y,z\n" + "".join(
-            f"{word},{s},{x:.9g},{y:.9g},{z:.9g}\n" for s, (x, y, z) in zip(stamps, values)))
-    code, out, err = run(["segment", tmp_path / "Acceleration.csv", "--time-unit", "ms"], capsys)
+    code, out, err = run(["segment", files["acceleration"], "--time-unit", "ms"], capsys)
     assert code == 0, err
     assert "columns: ax←x, ay←y, az←z, t←Time stamp" in out and "column 'Attribute'" in out
-    code, out, err = run(["allan", tmp_path / "Gyroscope.csv", "--time-unit", "ms", "--json"], capsys)
+    code, out, err = run(["allan", files["gyroscope"], "--time-unit", "ms", "--json"], capsys)
     assert code == 0, err
     summary = json.loads(out)
     assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == n
-    code, out, err = run(["segment", tmp_path / "Magnetometer.csv"], capsys)
+    code, out, err = run(["segment", files["magnetometer"]], capsys)
     assert code == 2 and "--sensor mag --columns mx=x,my=y,mz=z" in err and err.count("\n") == 1
 
 
