@@ -496,14 +496,9 @@ def _rest_readings(
     if nb < MIN_QUIET_BLOCKS:
         return 0, nb, ()
     stats = [_block_statistics(cols, nb) for cols in triples]
-    quiet = np.ones(nb, dtype=bool)
-    for means, std in stats:
-        finite = np.isfinite(std) & np.all(np.isfinite(means), axis=1)
-        quiet &= finite
-        if not finite.any():
-            return 0, nb, ()
-        floor = quantiles(std[finite], [NOISE_FLOOR_QUANTILE])[0]
-        quiet &= std <= QUIET_FACTOR * floor
+    quiet = quiet_blocks(stats, nb)
+    if quiet is None:
+        return 0, nb, ()
     n_quiet = int(np.count_nonzero(quiet))
     if n_quiet < MIN_QUIET_BLOCKS:
         return n_quiet, nb, ()
@@ -518,6 +513,21 @@ def _rest_readings(
             misfit = quantiles(np.abs(np.linalg.norm(m - centre, axis=1) - radius) / radius, [0.9])[0]
         rests.append(TripleRest(triple_names, noise, float(np.mean(away)), radius, misfit))
     return n_quiet, nb, tuple(rests)
+
+
+def quiet_blocks(stats: list[tuple[NDArray[np.float64], NDArray[np.float64]]], nb: int) -> NDArray[np.bool_] | None:
+    """The blocks quiet on every triple (``stats``: each triple's :func:`_block_statistics`): finite, with a
+    per-sample noise within :data:`QUIET_FACTOR` of its floor (the :data:`NOISE_FLOOR_QUANTILE` of the finite
+    blocks'); ``None`` when a triple has no finite block."""
+    quiet = np.ones(nb, dtype=bool)
+    for means, std in stats:
+        finite = np.isfinite(std) & np.all(np.isfinite(means), axis=1)
+        quiet &= finite
+        if not finite.any():
+            return None
+        floor = quantiles(std[finite], [NOISE_FLOOR_QUANTILE])[0]
+        quiet &= std <= QUIET_FACTOR * floor
+    return quiet
 
 
 def _block_statistics(cols: tuple[NDArray[np.float64], ...], nb: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -23,14 +23,13 @@ import numpy as np
 from optcal.data.columns import ACC
 from optcal.data.evidence import (
     MIN_QUIET_BLOCKS,
-    NOISE_FLOOR_QUANTILE,
-    QUIET_FACTOR,
     ROLE_BLOCK_SAMPLES,
     Evidence,
     _block_statistics,
     _resolution,
+    quiet_blocks,
 )
-from optcal.data.quantiles import median, quantiles
+from optcal.data.quantiles import median
 from optcal.data.readers import Source
 from optcal.data.units import (
     PLAUSIBLE_NORM,
@@ -98,11 +97,9 @@ def rest_norm(src: Source, ev: Evidence) -> RestNorm:
     if nb < MIN_QUIET_BLOCKS:
         return RestNorm(float("nan"), 0, nb, non_integer, samples)
     means, std = _block_statistics(cols, nb)
-    finite = np.isfinite(std) & np.all(np.isfinite(means), axis=1)
-    if not finite.any():
+    quiet = quiet_blocks([(means, std)], nb)  # the same quiet blocks as the roles' rest statistics
+    if quiet is None:
         return RestNorm(float("nan"), 0, nb, non_integer, samples)
-    # the same quiet blocks as the roles' rest statistics: within QUIET_FACTOR of the noise floor
-    quiet = finite & (std <= QUIET_FACTOR * quantiles(std[finite], [NOISE_FLOOR_QUANTILE])[0])
     n_quiet = int(np.count_nonzero(quiet))
     if n_quiet < MIN_QUIET_BLOCKS:
         return RestNorm(float("nan"), n_quiet, nb, non_integer, samples)
