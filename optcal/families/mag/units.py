@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.data.units import sphere_through
 from optcal.errors import InputError
 
 #: Accepted spellings of the magnetometer's units (lower case, spaces and underscores removed), mapped to the unit.
@@ -100,22 +101,19 @@ SPHERE_MAX_RESIDUAL: float = 0.3
 
 
 def sphere_radius(m: NDArray[np.float64]) -> float | None:
-    """The radius of the sphere through the samples (least squares, ``|m|² = 2 m·c + d``, ``r² = d + |c|²``): the
-    field's magnitude with the hard iron ``c`` removed; ``None`` where the samples do not determine it (their
-    spread, :data:`SPHERE_MIN_SPREAD`) or do not lie on it (:data:`SPHERE_MAX_RESIDUAL`)."""
+    """The radius of the sphere through the samples (:func:`optcal.data.units.sphere_through`, the least-squares
+    ``|m|² = 2 m·c + d``, ``r² = d + |c|²``): the field's magnitude with the hard iron ``c`` removed; ``None`` where
+    the samples do not determine it (their spread, :data:`SPHERE_MIN_SPREAD`) or do not lie on it
+    (:data:`SPHERE_MAX_RESIDUAL`)."""
     m = m[np.all(np.isfinite(m), axis=1)]
     if m.shape[0] < 10:
         return None
     spread = np.linalg.eigvalsh(np.cov(m.T))
     if not spread[-1] > 0 or spread[0] / spread[-1] < SPHERE_MIN_SPREAD:
         return None
-    a = np.column_stack([2.0 * m, np.ones(m.shape[0])])
-    solution = np.linalg.lstsq(a, np.einsum("ij,ij->i", m, m), rcond=None)[0]
-    centre = solution[:3]
-    r2 = float(solution[3] + centre @ centre)
-    if not r2 > 0:
+    centre, radius = sphere_through(m)
+    if not radius > 0:  # NaN: no sphere (no positive r²)
         return None
-    radius = float(np.sqrt(r2))
     residual = float(np.sqrt(np.mean((np.linalg.norm(m - centre, axis=1) - radius) ** 2)))
     return radius if residual <= SPHERE_MAX_RESIDUAL * radius else None
 
