@@ -274,6 +274,19 @@ class RestModel:
         robust2 = column_mad_sigmas(dev) ** 2
         self.wander2 = np.minimum(np.maximum(robust2 - np_column_medians(noise2), 0.0), (MAX_BIAS_WANDER_RAD_S / scale) ** 2)
 
+    def _acc_slope(self, rows: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The accelerometer's rate of change over the blocks ``rows``: the slope of their means on time (least
+        squares, per axis) and its standard error from the blocks' noise times the noise colour (and the rounding
+        floor); ``None`` when the blocks span no time."""
+        b = self.b
+        t = b.t_mid[rows] - b.t_mid[rows].mean()
+        sxx = float(np.sum(t * t))
+        if sxx <= 0:
+            return None
+        slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
+        se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np_median(b.n[rows])) + self.floor) / sxx)
+        return slope, se
+
     def _turns_by_both(self, pieces: list[NDArray[np.intp]], rates: NDArray[np.float64], acc: NDArray[np.float64],
                        first: NDArray[np.intp], last: NDArray[np.intp]) -> NDArray[np.bool_]:
         """Whether each stretch the accelerometer calls still (blocks ``pieces[i]``, their weighted mean ``rates`` and
@@ -298,13 +311,10 @@ class RestModel:
         tiny = np.finfo(float).tiny
         relevant = rm.turn_is_relevant(np.linalg.norm(omega, axis=1), duration, 1.0)
         for i in np.flatnonzero(relevant):
-            rows = pieces[i]
-            t = b.t_mid[rows] - b.t_mid[rows].mean()
-            sxx = float(np.sum(t * t))
-            if sxx <= 0:
+            moved = self._acc_slope(pieces[i])
+            if moved is None:
                 continue
-            slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
-            se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np_median(b.n[rows])) + self.floor) / sxx)
+            slope, se = moved
             predicted = -np.cross(omega[i], acc[i] - self.acc_zero)
             moves = float(np.sum(slope * slope / np.maximum(se * se, tiny))) > rm.chi2_limit(self.s.false_alarm, 3)
             d = slope - predicted
@@ -642,11 +652,9 @@ class RestModel:
             f = unit_rows(acc)
             along = abs(float(off[i] @ f)) * bound
             across = float(np.linalg.norm(np.cross(off[i], f))) * bound
-            t = b.t_mid[rows] - b.t_mid[rows].mean()
-            sxx = float(np.sum(t * t))
-            if sxx > 0:  # the accelerometer's turn: its slope and standard error (as _turns_by_both measures them)
-                slope = (t[:, None] * (b.mean[rows] - b.mean[rows].mean(axis=0))).sum(axis=0) / sxx
-                se = np.sqrt(self.kappa2 * (column_medians(b.var[rows]) / float(np_median(b.n[rows])) + self.floor) / sxx)
+            moved = self._acc_slope(rows)
+            if moved is not None:  # the accelerometer's turn: its slope and standard error
+                slope, se = moved
                 seen = (float(np.linalg.norm(slope)) + z * float(np.linalg.norm(se))) / float(np.linalg.norm(acc))
                 across = min(across, seen)
             duration = min(float(b.t_mid[rows[-1]] - b.t_mid[rows[0]]) + b.n[rows[0]] / self.rate,
