@@ -384,6 +384,11 @@ SUBSECOND_UNITS: tuple[tuple[float, str], ...] = ((1e9, "ns"), (1e6, "us"), (1e3
 JOINED_STAMP: str = "columns 1-2 one time stamp"
 
 
+def joined_stamp_note(sub_unit: str) -> str:
+    """The reason's words for a stamp split in whole seconds and a count of ``sub_unit`` (:func:`split_stamp`)."""
+    return f"; {JOINED_STAMP}, whole seconds and {sub_unit} of the second (ROS's secs, nsecs)"
+
+
 def split_stamp(columns: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64], str] | None:
     """The time of a stamp written in its first two fields as whole seconds and a sub-second count, or ``None``.
 
@@ -417,6 +422,14 @@ def split_stamp(columns: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64]
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
     """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
     return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
+
+
+def sensor_word(text: str) -> str | None:
+    """The sensor a word in a file's rows names (``acceleration``: ``"acc"``, ``gyroscope``: ``"gyro"``,
+    ``magnetometer``: ``"mag"``; by its first letters, case and punctuation aside), or ``None``."""
+    word = re.sub(r"[^a-z]", "", text.lower())
+    return next((sensor for prefix, sensor in (("acc", "acc"), ("gyr", "gyro"), ("mag", "mag"))
+                 if word.startswith(prefix)), None)
 
 
 def headerless_mapping(
@@ -486,11 +499,11 @@ def headerless_mapping(
             f"name them by 1-based position, e.g. {example}"
         )
     canon: dict[str, int] = {} if time_at is None else {"t": time_at}
-    word = re.sub(r"[^a-z]", "", (words or {}).get(0, "").lower()) if lead else ""
-    if word.startswith("mag"):
+    word = sensor_word((words or {}).get(0, "")) if lead else None
+    if word == "mag":
         raise InputError(f"{path}: column 1 reads {(words or {})[0]!r}: a magnetometer's log; optcal calibrate FILE "
                          "--sensor mag reads it")
-    triples = GYRO if word.startswith("gyr") and len(rest) == 3 else ACC + GYRO
+    triples = GYRO if word == "gyro" and len(rest) == 3 else ACC + GYRO
     canon.update({c: j for j, c in zip(rest, triples)})
     mapping = {c: str(j + 1 + lead) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
@@ -504,8 +517,7 @@ def headerless_mapping(
         said = f" ({(words or {})[0]!r}: {'the gyroscope' if triples == GYRO else 'a word'})" if words and 0 in words else ""
         where += f"; {'column 1 holds' if lead == 1 else f'columns 1-{lead} hold'} no number in any row{said}: not read"
     if joined is not None:
-        where = (f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs): "
-                 f"column 1 holds their sum in seconds")
+        where = joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
     if len(rest) == 9:
         where += f"; columns {rest[6] + 1 + lead}-{rest[8] + 1 + lead} not read: a 9-axis logger's magnetometer"
     if empty_tail:
@@ -604,12 +616,12 @@ def attribute_mapping(
     column = next((n for n, (count, _, _) in words.items() if count == n_rows and n not in axes), None)
     if column is None:
         return None
-    word = re.sub(r"[^a-z]", "", words[column][2].lower())
-    if word.startswith("mag"):
+    word = sensor_word(words[column][2])
+    if word == "mag":
         mags = ",".join(f"m{a}={by_norm[a]}" for a in BARE_AXES)
         raise InputError(f"{path}: column {column!r} reads {words[column][2]!r}: a magnetometer's log; optcal calibrate FILE "
                          f"--sensor mag --columns {mags} reads it")
-    triple = ACC if word.startswith("acc") else GYRO if word.startswith("gyr") else None
+    triple = ACC if word == "acc" else GYRO if word == "gyro" else None
     if triple is None:
         return None
     mapping = {c: by_norm[a] for c, a in zip(triple, BARE_AXES)}

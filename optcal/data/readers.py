@@ -45,6 +45,7 @@ from optcal.data.columns import (
     ColumnRoles,
     attribute_mapping,
     headerless_mapping,
+    joined_stamp_note,
     normalise_name,
     parse_columns_option,
     resolve_columns,
@@ -335,8 +336,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
             # repeat, no time) reads the stamp, as without --columns; --rate HZ times the rows instead
             if mapping.get("t") == "1" and "2" not in mapping.values() and (joined := split_stamp(parsed.columns)):
                 parsed.columns[0] = joined[0]
-                reason += (f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs): "
-                           "column 1 holds their sum in seconds")
+                reason += joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
         else:
             mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
                                                         {j: v[2] for j, v in parsed.non_numeric.items()})

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.columns import (
-    ALIASES, JOINED_STAMP, MAG, MAG_ALIASES, increasing_column, normalise_name, parse_columns_option,
+    ALIASES, MAG, MAG_ALIASES, increasing_column, joined_stamp_note, normalise_name, parse_columns_option,
     sensor_logger_mapping, split_stamp,
 )
 from optcal.errors import InputError
@@ -177,7 +177,7 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
         canon["t"] = str(time_at + 1)
     where = "" if time_at is None else f"; column {time_at + 1} increases"
     if joined is not None:
-        where = f"; {JOINED_STAMP}, whole seconds and {joined[1]} of the second (ROS's secs, nsecs)"
+        where = joined_stamp_note(joined[1])
     if len(rest) == 9:
         triples = (rest[0:3], rest[3:6])
         spread = [_relative_spread(np.column_stack([columns[j] for j in t])) for t in triples]
