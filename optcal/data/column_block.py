@@ -54,13 +54,6 @@ class ColumnBlock:
             self.block[self.n:self.n + k, j] = col
         self.n += k
 
-    def fill_column(self, j: int, chunks: list[NDArray[np.float64]]) -> None:
-        """Copy one whole column, given as consecutive chunks, into column ``j`` (the block holds every row)."""
-        start = 0
-        for chunk in chunks:
-            self.block[start:start + chunk.size, j] = chunk
-            start += chunk.size
-
     def release_rows(self, start: int, stop: int) -> None:
         """Hand the whole pages of rows ``start`` to ``stop`` of every column back to the system (they read as 0).
 

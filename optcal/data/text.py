@@ -391,26 +391,22 @@ def estimated_rows(p: Path, layout: TextLayout) -> int:
     return int(p.stat().st_size / per_row * 1.1) + 1024
 
 
-#: Bytes of text pyarrow parses per block (larger blocks hold more memory, parse no faster; in the
-#: threaded reader they are the units of work shared among the threads).
-ARROW_BLOCK_BYTES: int = 2**20
-#: Bytes of text per block of the streaming reader (files over :data:`THREADED_READ_BYTES`, and each range of
-#: :func:`arrow_ranged_block`): it keeps
-#: blocks of text and their parsed batches in flight beside the numbers already copied out, 78 MB at
-#: 1 MiB blocks and 22 MB at 256 KiB on the 12-hour, 300 MB still log (a third and a tenth of a copy
-#: of its numbers), at the same speed.
+#: Bytes of text per block of pyarrow's streaming reader (each range of :func:`arrow_ranged_block`, and files over
+#: :data:`THREADED_READ_BYTES`): it keeps blocks of text and their parsed batches in flight beside the numbers
+#: already copied out, 78 MB at 1 MiB blocks and 22 MB at 256 KiB on the 12-hour, 300 MB still log (a third and a
+#: tenth of a copy of its numbers), at the same speed.
 ARROW_STREAM_BLOCK_BYTES: int = 2**18
 #: Text files up to this size are parsed on every core at once (≈ 1.7× faster on two cores than one
 #: streaming reader: 0.37 s against 0.63 s of wall time for the 85 MB, 10⁶-row CSV; 1.3 s against 2.4 s for
 #: the 300 MB 12-hour still log), by byte ranges (:func:`arrow_ranged_block`; pyarrow's multithreaded
-#: ``read_csv``, :func:`arrow_threaded_block`, gives the same numbers but holds the whole parsed table, ≈ 1.25
-#: copies, and copies it out after the parse); larger ones by one streaming reader, one block at a time, whose
+#: ``read_csv`` gives the same numbers but holds the whole parsed table, ≈ 1.25 copies, and copies it out after
+#: the parse); larger ones by one streaming reader, one block at a time, whose
 #: bar counts the rows.  Above this size a parse takes over about 5 s of two cores, where a bar with the rows
 #: read and the time left is worth the streaming reader's slower parse (the ranges show their elapsed time only).
 THREADED_READ_BYTES: int = 2**30
 
 
-def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any] | None:
+def _arrow_options(p: Path, layout: TextLayout) -> dict[str, Any] | None:
     """pyarrow's CSV options for a file of plain numbers laid out as ``layout``, or ``None`` when pyarrow cannot read it.
 
     ``None`` when pyarrow is not installed or numbers have decimal commas (whitespace runs and
@@ -426,8 +422,8 @@ def _arrow_options(p: Path, layout: TextLayout, threads: bool) -> dict[str, Any]
     names = [f"c{j}" for j in range(len(layout.names))]
     return {
         "read_options": pacsv.ReadOptions(
-            column_names=names, skip_rows=layout.first_data_line, block_size=ARROW_BLOCK_BYTES,
-            encoding="utf8", use_threads=threads,
+            column_names=names, skip_rows=layout.first_data_line, block_size=ARROW_STREAM_BLOCK_BYTES,
+            encoding="utf8", use_threads=False,
         ),
         "parse_options": pacsv.ParseOptions(delimiter=layout.delimiter, quote_char=False),
         "convert_options": pacsv.ConvertOptions(column_types={n: pa.float64() for n in names}),
@@ -449,48 +445,6 @@ def _arrow_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     if p.stat().st_size <= THREADED_READ_BYTES:
         return arrow_ranged_block(p, layout)
     return arrow_streamed_block(p, layout)
-
-
-def arrow_threaded_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
-    """The file's numbers by pyarrow's multithreaded ``read_csv``, copied column by column into a block
-    (each column of the table released once copied), or ``None`` (see :func:`_arrow_block`)."""
-    options = _arrow_options(p, layout, threads=True)
-    if options is None:
-        return None
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    width = len(layout.names)
-    # the table and the reader's own buffers (its blocks of text) in the system allocator, whose freed pages
-    # release_unused hands back at once: pyarrow's default pool (mimalloc) kept what its worker threads freed
-    # until they ran again (18-27 MiB after reading the 49 MB, 2-hour still log: 0.5-0.7 of a copy of its numbers)
-    pool = options["memory_pool"]
-    default = pa.default_memory_pool()
-    pa.set_memory_pool(pool)
-    try:
-        from optcal.core.progress import stage
-
-        try:
-            with stage(f"reading {p.name}"):  # one call: its elapsed time on a terminal when it takes long
-                table = pacsv.read_csv(p, **options)
-        except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError):
-            return None
-        finally:
-            pa.set_memory_pool(default)
-        if table.num_rows == 0:
-            return None
-        if layout.delimiter == " " and any(table.column(j).null_count for j in range(width)):
-            return None  # a run of blanks: fields are not single-blank separated
-        block = ColumnBlock(width, table.num_rows)
-        for j in range(width):
-            block.fill_column(j, [arrow_numbers(chunk) for chunk in table.column(0).chunks])
-            table = table.remove_column(0)  # the copied column's buffers are freed
-            release_unused(pool)  # and handed back at once, before the next column's pages
-        block.n = block.block.shape[0]
-        del table
-        return block
-    finally:
-        release_unused(pool)
 
 
 def text_ranges(p: Path, layout: TextLayout, parts: int) -> list[tuple[int, int]]:
@@ -530,11 +484,11 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
     are read, each range's rows are moved down to follow the previous range's (a move within the block, each
     column's pages left behind handed back), so the numbers are held once, in the file's order.  A range with
     more rows than its region (lines much shorter than the head's) keeps the rest aside; the ranges are then
-    joined in a new block.  The same numbers as :func:`arrow_threaded_block`, without its whole parsed table held
-    (up to 1.25 copies of the numbers) and copied out once complete (0.24 CPU s and 0.2-0.4 s of wall on the
-    12-hour still log's serial path).
+    joined in a new block.  The same numbers as pyarrow's multithreaded ``read_csv``, without its whole parsed
+    table held (up to 1.25 copies of the numbers) and copied out once complete (0.24 CPU s and 0.2-0.4 s of wall
+    on the 12-hour still log's serial path).
     """
-    options = _arrow_options(p, layout, threads=False)
+    options = _arrow_options(p, layout)
     if options is None:
         return None
     import threading
@@ -555,10 +509,6 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
     stop = threading.Event()
     pool = options["memory_pool"]
     default = pa.default_memory_pool()
-
-    # the streaming reader's blocks: at 1 MiB the 2-hour still log's reading peaked 0.35 copies of its numbers
-    # higher (two ranges: 81 against 72 MB above the imports, 38.5 MB of numbers), at the same speed
-    options["read_options"].block_size = ARROW_STREAM_BLOCK_BYTES
 
     def read(k: int) -> None:
         a, b = ranges[k]
@@ -588,7 +538,10 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
 
     threads = [threading.Thread(target=read, args=(k,), name=f"optcal-read{k}", daemon=True)
                for k in range(1, len(ranges))]
-    pa.set_memory_pool(pool)  # the readers' own buffers too (see arrow_threaded_block)
+    # the readers' batches and their own buffers (blocks of text) in the system allocator, whose freed pages
+    # release_unused hands back at once: pyarrow's default pool (mimalloc) kept what its worker threads freed
+    # until they ran again (18-27 MiB after reading the 49 MB, 2-hour still log: 0.5-0.7 of a copy of its numbers)
+    pa.set_memory_pool(pool)
     try:
         from optcal.core.progress import stage
 
@@ -626,13 +579,12 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
 
 def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     """The file's numbers by pyarrow's streaming reader, one block of text at a time, or ``None`` (see :func:`_arrow_block`)."""
-    options = _arrow_options(p, layout, threads=False)
+    options = _arrow_options(p, layout)
     if options is None:
         return None
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    options["read_options"].block_size = ARROW_STREAM_BLOCK_BYTES
     width = len(layout.names)
     blank_delimited = layout.delimiter == " "
     try:

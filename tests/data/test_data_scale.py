@@ -139,7 +139,7 @@ def test_large_file_block_gives_the_poses_of_the_small_file_path(tmp_path, monke
     syn.frame.to_csv(blank, sep=" ", index=False, float_format="%.6f")
     small = {p: load_with_segmentation(p) for p in (comma, blank)}
     monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)  # every file is "large"
-    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 64 * 1024)  # several streamed batches
+    monkeypatch.setattr(text, "ARROW_STREAM_BLOCK_BYTES", 64 * 1024)  # several streamed batches
     for path, exact in ((comma, True), (blank, False)):
         src = read_source(path)
         rec = recording_from_source(src)

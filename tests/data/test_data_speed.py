@@ -89,17 +89,17 @@ def counts_recording():
 
 
 @pytest.mark.parametrize("sep", [",", " "])
-def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch, counts_recording, sep):
+def test_ranged_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch, counts_recording, sep):
     path = tmp_path / "rec.txt"
     counts_recording.frame.to_csv(path, sep=sep, index=False, float_format="%.6f")
-    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 32 * 1024)  # many blocks: several threads, several batches
+    monkeypatch.setattr(text, "ARROW_STREAM_BLOCK_BYTES", 32 * 1024)  # many blocks: several batches per reader
     layout = text.sniff_layout(path)
-    threaded = text.arrow_threaded_block(path, layout)
+    ranged = text.arrow_ranged_block(path, layout)
     streamed = text.arrow_streamed_block(path, layout)
-    assert threaded is not None and streamed is not None and threaded.n == streamed.n == len(counts_recording.frame)
-    for a, b in zip(threaded.columns(), streamed.columns()):
+    assert ranged is not None and streamed is not None and ranged.n == streamed.n == len(counts_recording.frame)
+    for a, b in zip(ranged.columns(), streamed.columns()):
         assert a.tobytes() == b.tobytes()
-    # the threaded reader is the one used for a file above the small-file size and below THREADED_READ_BYTES
+    # the ranged reader is the one used for a file above the small-file size and below THREADED_READ_BYTES
     monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
     parsed = text.parse_numbers(path, layout)
     assert parsed.engine == "pyarrow" and all(np.array_equal(a, b) for a, b in zip(parsed.columns, streamed.columns()))
@@ -107,20 +107,20 @@ def test_threaded_and_streaming_readers_agree_bit_for_bit(tmp_path, monkeypatch,
 
 
 @pytest.mark.parametrize("sep", [",", " "])
-def test_ranged_reader_gives_the_threaded_readers_numbers_whatever_the_ranges(tmp_path, monkeypatch, counts_recording,
-                                                                              sep):
+def test_ranged_reader_gives_the_streaming_readers_numbers_whatever_the_ranges(tmp_path, monkeypatch,
+                                                                               counts_recording, sep):
     """The file cut at line starts into ranges parsed at once (text.arrow_ranged_block, the reader of files up to
-    THREADED_READ_BYTES): the same numbers to the bit as the threaded reader, in the file's order, for one range
-    and for many; a bad cell in a later range leaves the file to pandas (None), and no thread is left running."""
+    THREADED_READ_BYTES): the same numbers to the bit as one streaming reader over the whole file, in the file's
+    order, for one range and for many; a bad cell in a later range leaves the file to pandas (None), and no thread
+    is left running."""
     import threading
 
     path = tmp_path / "rec.txt"
     counts_recording.frame.to_csv(path, sep=sep, index=False, float_format="%.6f")
-    monkeypatch.setattr(text, "ARROW_BLOCK_BYTES", 32 * 1024)  # several batches per range, threaded or ranged
-    monkeypatch.setattr(text, "ARROW_STREAM_BLOCK_BYTES", 32 * 1024)
+    monkeypatch.setattr(text, "ARROW_STREAM_BLOCK_BYTES", 32 * 1024)  # several batches per range
     layout = text.sniff_layout(path)
-    threaded = text.arrow_threaded_block(path, layout)
-    assert threaded is not None
+    whole_file = text.arrow_streamed_block(path, layout)
+    assert whole_file is not None
     size = path.stat().st_size
     for parts in (1, 2, 7):
         ranges = text.text_ranges(path, layout, parts)
@@ -129,15 +129,15 @@ def test_ranged_reader_gives_the_threaded_readers_numbers_whatever_the_ranges(tm
         raw = path.read_bytes()
         assert all(raw[a - 1:a] == b"\n" for a, _ in ranges[1:])  # each later range starts a line
         ranged = text.arrow_ranged_block(path, layout, parts)
-        assert ranged is not None and ranged.n == threaded.n
-        for a, b in zip(ranged.columns(), threaded.columns()):
+        assert ranged is not None and ranged.n == whole_file.n
+        for a, b in zip(ranged.columns(), whole_file.columns()):
             assert a.tobytes() == b.tobytes()
     # lines shorter after the head than in it: a range holds more rows than its region, kept aside and joined
     mixed = tmp_path / "mixed.txt"
     head, *rows = path.read_text().splitlines()
     short = [sep.join(f"{float(v):.1f}" for v in row.split(sep)) for row in rows[200:]]
     mixed.write_text("\n".join([head, *rows[:200], *short]) + "\n")
-    whole = text.arrow_threaded_block(mixed, text.sniff_layout(mixed))
+    whole = text.arrow_streamed_block(mixed, text.sniff_layout(mixed))
     for parts in (2, 5):
         ranged = text.arrow_ranged_block(mixed, text.sniff_layout(mixed), parts)
         assert ranged is not None and whole is not None and ranged.n == whole.n == len(rows)
@@ -149,7 +149,8 @@ def test_ranged_reader_gives_the_threaded_readers_numbers_whatever_the_ranges(tm
     assert threading.active_count() == before
     monkeypatch.setattr(text, "SMALL_FILE_BYTES", 1024)
     parsed = text.parse_numbers(path, layout)
-    assert parsed.engine == "pyarrow" and all(a.tobytes() == b.tobytes() for a, b in zip(parsed.columns, threaded.columns()))
+    assert parsed.engine == "pyarrow" and all(a.tobytes() == b.tobytes() for a, b in zip(parsed.columns,
+                                                                                          whole_file.columns()))
 
 
 def test_a_csv_read_does_not_import_the_container_readers(tmp_path):
@@ -167,9 +168,9 @@ def test_a_csv_read_does_not_import_the_container_readers(tmp_path):
     probe = "import sys; from optcal.data import load; p = load(sys.argv[1]); print(p.n, 'optcal.data.containers' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", probe, str(path)], capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["12", "False"]
-def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tmp_path, monkeypatch, counts_recording):
-    """The threaded reader sets pyarrow's default pool to the system allocator for its call only (its own buffers
-    too), also when pyarrow refuses the file, and hands the freed memory back after each column copied out."""
+def test_ranged_reader_restores_pyarrows_default_pool_and_hands_memory_back(tmp_path, monkeypatch, counts_recording):
+    """The ranged reader sets pyarrow's default pool to the system allocator for its call only (its readers' own
+    buffers too), also when pyarrow refuses the file, and hands the freed memory back once every range is read."""
     import pyarrow as pa
 
     before = pa.default_memory_pool().backend_name
@@ -178,14 +179,15 @@ def test_threaded_reader_restores_pyarrows_default_pool_and_hands_memory_back(tm
     path = tmp_path / "rec.csv"
     counts_recording.frame.to_csv(path, index=False, float_format="%.6f")
     layout = text.sniff_layout(path)
-    block = text.arrow_threaded_block(path, layout)
+    block = text.arrow_ranged_block(path, layout, 2)
     assert block is not None and block.n == len(counts_recording.frame)
     assert pa.default_memory_pool().backend_name == before
-    assert len(trims) == len(layout.names) + 1  # after each column copied out, and once more at the end
+    assert len(trims) == 1  # once, after the ranges are read
     bad = tmp_path / "bad.csv"
     bad.write_text(path.read_text() + "1,2,three\n")
-    assert text.arrow_threaded_block(bad, text.sniff_layout(bad)) is None  # pandas then reads and counts the cell
+    assert text.arrow_ranged_block(bad, text.sniff_layout(bad), 2) is None  # pandas then reads and counts the cell
     assert pa.default_memory_pool().backend_name == before
+    assert len(trims) == 2
 
 
 def test_the_readers_block_is_an_anonymous_mapping_of_base_pages_and_grows_keeping_its_rows():
