@@ -432,9 +432,32 @@ def sensor_word(text: str) -> str | None:
                  if word.startswith(prefix)), None)
 
 
+@dataclass(frozen=True)
+class HeaderlessColumns:
+    """How the fields of a file without a header are read (:func:`headerless_mapping`).
+
+    Attributes
+    ----------
+    mapping : dict
+        canonical → 1-based position.
+    reason : str
+        The columns' reason, as printed.
+    roles : ColumnRoles or None
+        The candidates of two triples, left to the evidence.
+    joined_stamp : str or None
+        The sub-second unit (``"ns"``, ``"us"``, ``"ms"``) where fields 1-2 are one time stamp split in whole
+        seconds and that count (:func:`split_stamp`; field 2 is then read, as the time's fraction), else ``None``.
+    """
+
+    mapping: dict[str, str]
+    reason: str
+    roles: ColumnRoles | None
+    joined_stamp: str | None = None
+
+
 def headerless_mapping(
     path: str, columns: list[NDArray[np.float64]], described: str, words: dict[int, str] | None = None
-) -> tuple[dict[str, str], str, ColumnRoles | None]:
+) -> HeaderlessColumns:
     """Canonical columns of a file without a header, by the common layout of its width.
 
     A time column is the first (or else the last) field when it increases and 3, 6 or 9 fields
@@ -448,10 +471,9 @@ def headerless_mapping(
 
     Returns
     -------
-    mapping : dict
-        canonical → 1-based position.
-    reason : str
-    roles : ColumnRoles or None
+    HeaderlessColumns
+        The mapping (canonical → 1-based position), the reason, the roles left to the evidence, and the split
+        stamp's sub-second unit where fields 1-2 are read as one time.
 
     Raises
     ------
@@ -523,10 +545,10 @@ def headerless_mapping(
     if empty_tail:
         where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
                   "not read")
-    return mapping, (
+    return HeaderlessColumns(mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
-    ), roles
+    ), roles, None if joined is None else joined[1])
 
 
 # ----------------------------------------------------------------------------- Sensor Logger's export
@@ -596,18 +618,21 @@ BARE_AXES: tuple[str, str, str] = ("x", "y", "z")
 
 
 def attribute_mapping(
-    names: list[str], words: dict[str, tuple[int, int, str]], n_rows: int, path: str
+    names: list[str], words: dict[str, tuple[int, int, str]], n_rows: int, path: str, sensor: str = "acc"
 ) -> tuple[dict[str, str], str] | None:
     """The columns of a file whose bare ``x, y, z`` are named by a column of words in every row; ``None`` otherwise.
 
-    The word names the triple (``acceleration``: the accelerometer; ``gyroscope``: the gyro's, a gyro-only log), a
-    column named with ``time`` the time (its unit left to the time decision).  ``words`` are the file's columns with
-    non-numeric cells: (count, first row, first value), as :class:`optcal.data.text.ParsedNumbers` counts them.
+    The word names the triple (``acceleration``: the accelerometer; ``gyroscope``: the gyro's, a gyro-only log;
+    ``magnetometer``: the magnetometer's, read by the magnetometer's reader, ``sensor="mag"``), a column named with
+    ``time`` the time (its unit left to the time decision).  ``words`` are the file's columns with non-numeric
+    cells: (count, first row, first value), as :class:`optcal.data.text.ParsedNumbers` counts them.
 
     Raises
     ------
     InputError
-        The word names a magnetometer (read by ``optcal calibrate FILE --sensor mag --columns mx=x,my=y,mz=z``).
+        The word names another sensor than the reader's (a magnetometer's log given to the accelerometer's
+        commands, read by ``optcal calibrate FILE --sensor mag``; an accelerometer's or a gyroscope's given to
+        the magnetometer's).
     """
     by_norm = {normalise_name(n): n for n in names}
     if not all(a in by_norm for a in BARE_AXES):
@@ -616,17 +641,21 @@ def attribute_mapping(
     column = next((n for n, (count, _, _) in words.items() if count == n_rows and n not in axes), None)
     if column is None:
         return None
-    word = sensor_word(words[column][2])
-    if word == "mag":
-        mags = ",".join(f"m{a}={by_norm[a]}" for a in BARE_AXES)
-        raise InputError(f"{path}: column {column!r} reads {words[column][2]!r}: a magnetometer's log; optcal calibrate FILE "
-                         f"--sensor mag --columns {mags} reads it")
-    triple = ACC if word == "acc" else GYRO if word == "gyro" else None
-    if triple is None:
-        return None
+    said = words[column][2]
+    word = sensor_word(said)
+    if word is None:
+        return None  # another word (a session label): the axes' quantity is left to --columns
+    if sensor == "mag" and word != "mag":
+        reader = "optcal calibrate FILE" if word == "acc" else "optcal allan FILE --sensor gyro"
+        raise InputError(f"{path}: column {column!r} reads {said!r}: not a magnetometer's log; {reader} reads it")
+    if sensor != "mag" and word == "mag":
+        raise InputError(f"{path}: column {column!r} reads {said!r}: a magnetometer's log; optcal calibrate FILE "
+                         "--sensor mag reads it")
+    triple = MAG if word == "mag" else ACC if word == "acc" else GYRO
     mapping = {c: by_norm[a] for c, a in zip(triple, BARE_AXES)}
     time = next((n for n in names if "time" in normalise_name(n)), None)
     if time is not None:
         mapping["t"] = time
-    return mapping, (f"bare axes x, y, z named by column {column!r} in every row ({words[column][2]!r}: the "
-                     f"{'accelerometer' if triple == ACC else 'gyroscope'}; Variense VMU931's export)")
+    what = {"mag": "magnetometer", "acc": "accelerometer", "gyro": "gyroscope"}[word]
+    return mapping, (f"bare axes x, y, z named by column {column!r} in every row ({said!r}: the {what}; Variense "
+                     "VMU931's export)")

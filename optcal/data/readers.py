@@ -35,7 +35,6 @@ from optcal.data.columns import (
     CANONICAL,
     GYRO,
     GYRO_UNIT_WORDS,
-    JOINED_STAMP,
     MAG,
     MAG_ALIASES,
     NO_COLUMN,
@@ -316,6 +315,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
     logger_gyro = False
+    joined_stamp = False  # fields 1-2 read as one time stamp (columns.split_stamp): field 2 is read, as its fraction
     if layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p))) is not None:
         mapping, reason = logger  # Sensor Logger's bare x, y, z: the file's name says the quantity
     elif layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p), "gyro")) is not None:
@@ -337,9 +337,12 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
             if mapping.get("t") == "1" and "2" not in mapping.values() and (joined := split_stamp(parsed.columns)):
                 parsed.columns[0] = joined[0]
                 reason += joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
+                joined_stamp = True
         else:
-            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
-                                                        {j: v[2] for j, v in parsed.non_numeric.items()})
+            headerless = headerless_mapping(str(p), parsed.columns, layout.describe(),
+                                            {j: v[2] for j, v in parsed.non_numeric.items()})
+            mapping, reason, roles = headerless.mapping, headerless.reason, headerless.roles
+            joined_stamp = headerless.joined_stamp is not None
     gyro_only: GyroOnlyColumns | None = None
     try:
         src = source_from_columns(
@@ -351,7 +354,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         if logger_gyro and src.gyro_units is None:
             src.gyro_units = "rad/s"  # Sensor Logger's UNITS.md
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
-    if unread and JOINED_STAMP in reason:
+    if unread and joined_stamp:
         unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}

@@ -95,7 +95,7 @@ def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
     """Variense VMU931's headered exports (``Attribute,Time stamp,x,y,z``, ``Acceleration`` / ``Gyroscope`` /
     ``Magnetometer`` in every row; Alanzwang/vmu931): before, "no accelerometer column(s)", ``--columns`` asked for;
     now the word names the triple (the gyroscope's: the gyro's log; the magnetometer's: refused naming
-    ``--sensor mag``), the time column by its name."""
+    ``--sensor mag``, which reads it: tests/families/test_mag_vmu931.py), the time column by its name."""
     files = write_vmu931(tmp_path, 63156, header=True)
     n = 3000
     code, out, err = run(["segment", files["acceleration"], "--time-unit", "ms"], capsys)
@@ -106,7 +106,7 @@ def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
     summary = json.loads(out)
     assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == n
     code, out, err = run(["segment", files["magnetometer"]], capsys)
-    assert code == 2 and "--sensor mag --columns mx=x,my=y,mz=z" in err and err.count("\n") == 1
+    assert code == 2 and "optcal calibrate FILE --sensor mag reads it" in err and err.count("\n") == 1
 
 
 def test_a_column_of_words_that_names_no_sensor_still_asks_for_columns(tmp_path, capsys):
