@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from helpers.cli_run import run
 from helpers.vmu931 import write_vmu931
@@ -66,6 +67,35 @@ def test_the_same_flight_in_raw_counts_stays_counts(tmp_path, capsys):
     assert "units: counts" in units and "quiet stretches" not in units, units
     code, out, err = run(["segment", path, "--units", "m/s^2"], capsys)  # its quiet |a| is 16384: refused
     assert code == 2 and "pass --units counts" in err and err.count("\n") == 1
+
+
+# ------------------------------------------------------------------ a steady spin is quiet, but not at rest
+def _steady_spin(gyro_per_rad_s: float, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """A 10-s rest (z up), a 2-s spin-up, then 60 s of a steady 12 rad/s spin about z with the sensor 0.3 m
+    off the axis (43 m/s² of centripetal acceleration, constant in the sensor's frame): (acc m/s², gyro)."""
+    rng = np.random.default_rng(seed)
+    w = np.concatenate([np.zeros(int(10 * FS)), np.linspace(0.0, 12.0, int(2 * FS)), np.full(int(60 * FS), 12.0)])
+    a = np.column_stack([-0.3 * w**2, np.zeros(w.size), np.full(w.size, G)]) + 0.02 * rng.normal(size=(w.size, 3))
+    g = np.column_stack([np.full(w.size, 0.01), np.full(w.size, -0.02), w]) + 0.01 * rng.normal(size=(w.size, 3))
+    return a, g * gyro_per_rad_s
+
+
+@pytest.mark.parametrize(("names", "per_rad_s"), [("wx,wy,wz", 1.0), ("gx_dps,gy_dps,gz_dps", float(np.degrees(1.0)))])
+def test_a_steady_spin_is_not_a_quiet_stretch_where_the_gyro_turns(tmp_path, capsys, names, per_rad_s):
+    """Emkijen's flight: half its quiet blocks spin at ~12 rad/s (their noise at the floor, |a| = 44 m/s²).  The
+    steady spin alone is quiet for the accelerometer: before, its quiet median |a| was the spin's 44 and the file
+    refused ("cannot tell the units"); now the blocks whose gyro is over 1 °/s off its rest reading (in °/s as
+    stated, or as the smaller of rad/s and °/s where unstated) are set aside and the rest's 9.8 m/s² is heard."""
+    a, g = _steady_spin(per_rad_s)
+    assert np.median(np.linalg.norm(a, axis=1)) > 40.0  # the whole file's median is the spin's
+    t = np.arange(len(a)) / FS
+    path = tmp_path / "spin.csv"
+    path.write_text(f"t,ax,ay,az,{names}\n" + "".join(
+        f"{s:.4f}," + ",".join(f"{v:.8f}" for v in (*ra, *rg)) + "\n" for s, ra, rg in zip(t, a, g)))
+    code, out, err = run(["segment", path], capsys)
+    units = next(line for line in (out + err).splitlines() if line.strip().startswith(("units:", "error:")))
+    assert "units: m/s^2" in units and "set aside as turning" in units, units
+    assert ("deg/s as stated" if per_rad_s != 1.0 else "bounded as °/s") in units
 
 
 # ------------------------------------------------------------------ the --columns example on a split stamp
