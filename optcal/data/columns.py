@@ -47,13 +47,13 @@ for _axis in "xyz":
         f.format(_axis)
         for f in ("a{}", "acc{}", "acc_{}", "accel_{}", "accel{}", "accelerometer_{}", "accelerometer{}", "a_{}",
                   "acceleration_{}", "acceleration{}", "linear_acceleration_{}", "linear_acc_{}", "lin_acc_{}",
-                  "accelerometer_m_s2_{}")
+                  "accelerometer_m_s2_{}", "a_rs_s_{}")  # EuRoC's and Kalibr's a_RS_S_x: sensor S, in S
     )
     ALIASES["g" + _axis] = tuple(
         f.format(_axis)
         for f in ("g{}", "gyr{}", "gyr_{}", "gyro_{}", "gyro{}", "gyroscope_{}", "gyroscope{}", "omega_{}", "omega{}",
                   "w{}", "w_{}", "angular_velocity_{}", "angular_velocity{}", "angular_rate_{}", "ang_vel_{}",
-                  "angvel_{}", "gyro_rad_{}")
+                  "angvel_{}", "gyro_rad_{}", "w_rs_s_{}")  # EuRoC's and Kalibr's w_RS_S_x
     )
 #: The magnetometer's canonical names (read by :mod:`optcal.families.mag.samples`, not by the
 #: accelerometer's decisions) and the names files use for them, after a unit word is removed
@@ -91,6 +91,8 @@ TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "n
 GYRO_UNIT_WORDS: dict[str, str] = {
     "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
     "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
+    # a unit written with a negative power (EuRoC's and Kalibr's ``[rad s^-1]``)
+    "rad_s_1": "rad/s", "deg_s_1": "deg/s",
     "counts": "counts", "lsb": "counts", "raw": "counts",
 }
 TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
@@ -205,6 +207,32 @@ AXIS_ACC_UNIT_WORDS: frozenset[str] = frozenset(
     normalise_name(w) for w, u in UNIT_ALIASES["accelerometer"].items() if u != "counts") | {"m_s_2"}
 #: Unit words that make a bare axis name a gyroscope's (``X (rad/s)``): an angular rate's units.
 AXIS_GYRO_UNIT_WORDS: frozenset[str] = frozenset(w for w, u in GYRO_UNIT_WORDS.items() if u != "counts")
+
+#: A gyro column's stem and a word naming a rotation, not an axis (NXP's IMU logger ``GyroR GyroP GyroY``,
+#: ``gyro_roll``, AndroSensor's ``GYROSCOPE Yaw``): the axis it turns about is the logger's convention (roll about x
+#: in aerospace's, about y in Android's), so no axis is read from the name.
+ROTATION_NAME = re.compile(r"^(?:gyroscope|gyro|gyr)_?(roll|pitch|yaw|r|p|y)$")
+
+
+def partial_gyro(column_map: dict[str, str], names: list[str], given: dict[str, str]) -> str | None:
+    """Why gyro columns found by name for some axes only are not read (``None`` when all three or none are).
+
+    A gyro is three axes; one or two names matched (``GyroY`` of ``GyroR GyroP GyroY``, where ``Y`` is the yaw)
+    are no gyro, and reading them as its axes would be a guess.  ``given`` (``--columns``) maps them at the user's
+    word.
+    """
+    have = [c for c in GYRO if c in column_map]
+    if not have or len(have) == len(GYRO) or any(c in given for c in GYRO):
+        return None
+    words = {n: m.group(1)[0] for n in names if (m := ROTATION_NAME.match(strip_unit(normalise_name(n))[0]))}
+    said = f"{', '.join(f'{c}←{column_map[c]}' for c in have)} found, no {', '.join(c for c in GYRO if c not in have)}"
+    if len(set(words.values())) == 3:  # roll, pitch and yaw: the axes are the logger's convention
+        r, p, y = (next(n for n, w in words.items() if w == k) for k in "rpy")
+        return (f"gyro not read: columns {', '.join(words)} name the rotation (roll, pitch, yaw), not the axes ({said}); "
+                f"which axis each turns about is the logger's convention (roll about x in aerospace's, about y in "
+                f"Android's): --columns gx={r},gy={p},gz={y} reads them so")
+    return f"gyro not read: a gyro has three axes ({said}); --columns gx=NAME,gy=NAME,gz=NAME maps them"
+
 
 class ResolvedColumns(NamedTuple):
     """What :func:`resolve_columns` found.

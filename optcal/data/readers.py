@@ -44,6 +44,7 @@ from optcal.data.columns import (
     ColumnRoles,
     attribute_mapping,
     headerless_mapping,
+    partial_gyro,
     joined_stamp_note,
     normalise_name,
     parse_columns_option,
@@ -364,7 +365,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         src.columns_reason = f"{reason} and positions from --columns"
     elif src.roles is None:
         src.columns_reason = reason
-    src.layout = layout.describe()
+    src.layout = layout.describe() + (f"; {src.layout}" if src.layout else "")  # a partial gyro's note
     if "t" not in src.column_map and src.time_reason:  # a time column of text, set aside (source_from_columns)
         src.layout += f"; {src.time_reason}"
     if unread and not mapping_given:
@@ -448,6 +449,8 @@ def source_from_columns(
             f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
             f"with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4){mag}"
         )
+    if (partial := partial_gyro(column_map, names, mapping or {})) is not None:
+        column_map = {c: v for c, v in column_map.items() if c not in GYRO}  # said in the layout (read_text)
     by_name = dict(zip(names, columns))
     bad_by_name = non_numeric_by_name or {}
     data = {canon: by_name[col] for canon, col in column_map.items()}
@@ -465,6 +468,7 @@ def source_from_columns(
     src = Source(
         path=path, file_type=file_type, data=data, extra=extra, column_map=column_map,
         ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric, roles=roles,
+        layout="" if partial is None else partial,
     )
     if roles is not None:
         src.columns_reason = (f"{', '.join(roles.triples[0])} as the accelerometer when the data say acceleration "

@@ -1,0 +1,73 @@
+"""The fifth strangers' sweep (docs/rest-model.md, "Strangers' recordings, fifth sweep"): layouts public loggers
+wrote that optcal misread, each reproduced on a GENERATED file (no recording is committed).
+
+* EuRoC's and Kalibr's IMU CSV (``#timestamp [ns],w_RS_S_x [rad s^-1],...,a_RS_S_x [m s^-2]``: the ASL datasets,
+  TUM-VI, most visual-inertial exports; kalebburnham/IMU-Research's copy of MH_01 with its stamps re-written by a
+  spreadsheet as ``1.40363657975856E+018``): refused before ("no accelerometer column(s)"); read now, the gyro in
+  rad/s and the accelerometer in m/s² by their bracketed units;
+* a gyro named by the rotation (NXP's IMU data logger, ``% SampleNumber MagX ... AccZ GyroR GyroP GyroY ...``):
+  ``GyroY`` (the yaw) was read as the gyro's y axis alone, ``GyroR`` and ``GyroP`` not, and the gyro then dropped
+  unsaid; now the gyro is said not read, naming the ``--columns`` that reads the roll, pitch and yaw as x, y, z.
+
+Each test fails on the code before this sweep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optcal.core.model import LumpedModel
+from optcal.data import load_with_segmentation
+from optcal.families.simulate.poses import uniform_directions
+from optcal.families.simulate.recording import synthesize_recording
+
+G = 9.80665
+
+
+@pytest.fixture(scope="module")
+def turned():
+    """8 poses in g at 100 Hz with a gyro in rad/s (the simulator's)."""
+    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
+    return synthesize_recording(model, uniform_directions(8, rng=3), dwell_s=3.0, transition_s=1.5, sigma=0.002, rng=4)
+
+
+def test_euroc_imu_csv_is_read_by_its_names_and_bracketed_units(turned, tmp_path):
+    f = turned.frame
+    stamps = 1403636579758555392 + np.round(f["t"].to_numpy() * 1e9)
+    header = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+              "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n")
+    path = tmp_path / "data.csv"
+    path.write_text(header + "".join(
+        f"{s:.14E}," + ",".join(f"{v:.10f}" for v in (*w, *(G * a))) + "\n"
+        for s, w, a in zip(stamps, f[["gx", "gy", "gz"]].to_numpy(), f[["ax", "ay", "az"]].to_numpy())))
+    loaded = load_with_segmentation(path)
+    assert loaded.poses.n == len(turned.dwells)
+    assert abs(loaded.recording.rate_hz - 100.0) < 0.5
+    assert loaded.decisions.columns.value.startswith("t←timestamp [ns], gx←w_RS_S_x [rad s^-1]")
+    assert loaded.decisions.units.value == "m/s^2" and "m_s_2" in loaded.decisions.units.reason
+    assert loaded.recording.gyro_units == "rad/s"
+
+
+def _nxp_rows(turned) -> str:
+    """NXP's IMU data logger (Mike Stanley's): comment lines, the names in a ``%`` comment, counts, no time."""
+    f = turned.frame
+    acc = np.round(f[["ax", "ay", "az"]].to_numpy() * 353.0)
+    gyro = np.round(f[["gx", "gy", "gz"]].to_numpy() * np.degrees(1.0) * 16.0) + np.array([-515, -534, -529])
+    mag = np.tile([371, -66, 585], (len(acc), 1))
+    head = ("% Mike Stanley's IMU Data Logger\n% Accelerometer Range = +/- 6g\n"
+            "% SampleNumber MagX MagY MagZ AccX AccY AccZ GyroR GyroP GyroY LButton RButton\n")
+    return head + "".join(f"{k + 1} " + " ".join(f"{v:.0f}" for v in (*m, *a, *g)) + " 0 0 \n"
+                          for k, (m, a, g) in enumerate(zip(mag, acc, gyro)))
+
+
+def test_a_gyro_named_by_roll_pitch_yaw_is_said_not_read(turned, tmp_path):
+    path = tmp_path / "SlowPickup.dat"
+    path.write_text(_nxp_rows(turned))
+    loaded = load_with_segmentation(path, rate=100.0)
+    assert "gy←" not in loaded.decisions.columns.value and loaded.recording.gyro is None  # GyroY was read as gy
+    assert "--columns gx=GyroR,gy=GyroP,gz=GyroY" in loaded.decisions.layout
+    assert loaded.poses.n == len(turned.dwells)
+    named = load_with_segmentation(path, rate=100.0, columns="gx=GyroR,gy=GyroP,gz=GyroY")
+    assert "gx←GyroR, gy←GyroP, gz←GyroY" in named.decisions.columns.value and named.recording.gyro is not None
+    assert "gyro not read" not in named.decisions.layout
