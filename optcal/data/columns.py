@@ -447,6 +447,13 @@ def split_stamp(columns: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64]
     return (t, unit[1]) if increasing_column(t) else None
 
 
+def _tag_column(col: NDArray[np.float64]) -> bool:
+    """Whether a field holds one whole number in every row that has it (a label such as a sensor's type number;
+    a line cut short at the file's end leaves it empty), in most rows."""
+    values = col[np.isfinite(col)]
+    return bool(2 * values.size > col.size > 1 and values[0] == np.round(values[0]) and np.all(values == values[0]))
+
+
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
     """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
     return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
@@ -535,8 +542,24 @@ def headerless_mapping(
         elif increasing_column(columns[-1]):
             time_at = width - 1
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
-    example = (f"--columns t={lead + 1},ax={lead + 2},ay={lead + 3},az={lead + 4}" if width >= 4
-               else f"--columns ax={lead + 1},ay={lead + 2},az={lead + 3}")
+    pos = list(range(lead, lead + width))  # each field's 0-based place in the file
+    tags: list[int] = []
+    if len(rest) not in HEADERLESS_TRIPLES and joined is None and (keep := [j for j in range(width)
+                                                                          if not _tag_column(columns[j])]):
+        # fields holding one whole number in every row are labels, not axes (the Android IMU stream's sensor type
+        # numbers: "683432.72, 3, ax, ay, az, 4, gx, gy, gz, 5, mx, my, mz"): an axis of a sensor, moved or not,
+        # never reads one value over a whole recording; set aside, said so, where the layout fails with them
+        tags = [pos[j] + 1 for j in range(width) if j not in keep]
+        columns, pos, width = [columns[j] for j in keep], [pos[j] for j in keep], len(keep)
+        time_at = None
+        if width - 1 in HEADERLESS_TRIPLES:
+            time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[-1]) else None)
+        rest = [j for j in range(width) if j != time_at]
+    at = [p + 1 for p in pos] + list(range(pos[-1] + 2 if pos else lead + 1, lead + 5))  # 1-based, for the example
+    example = (f"--columns t={at[0]},ax={at[1]},ay={at[2]},az={at[3]}" if width >= 4
+               else f"--columns ax={at[0]},ay={at[1]},az={at[2]}")
+    if time_at is None and tags and not increasing_column(columns[0]):
+        example = f"--columns ax={at[0]},ay={at[1]},az={at[2]}"
     if joined is not None:  # the file's positions: the stamp's two fields, then the triples (t=1 reads both, readers)
         example = f"--columns t=1,ax={rest[0] + 1},ay={rest[1] + 1},az={rest[2] + 1}"
     if len(rest) not in HEADERLESS_TRIPLES:
@@ -544,6 +567,8 @@ def headerless_mapping(
         if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases
             why = (f"would be a time column and {width - 1} axes, but neither the first column nor the last "
                    f"increases{_first_decrease(columns[0])}")
+        if tags:
+            why += f" (columns {', '.join(map(str, tags))} set aside: one whole number in every row, a label)"
         raise InputError(
             f"{path}: the file has no header row ({described}), and {width} unnamed columns {why}; "
             f"name them by 1-based position, e.g. {example}"
@@ -555,21 +580,23 @@ def headerless_mapping(
                          "--sensor mag reads it")
     triples = GYRO if word == "gyro" and len(rest) == 3 else ACC + GYRO
     canon.update({c: j for j, c in zip(rest, triples)})
-    mapping = {c: str(j + 1 + lead) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
+    mapping = {c: str(pos[j] + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
     roles = None
     if len(rest) >= 6:
-        roles = ColumnRoles((_field_names([j + lead for j in rest[0:3]]), _field_names([j + lead for j in rest[3:6]])),
+        roles = ColumnRoles((_field_names([pos[j] for j in rest[0:3]]), _field_names([pos[j] for j in rest[3:6]])),
                             0, what)
-    where = {None: "", 0: f"; column {lead + 1} increases" if lead else "; the first column increases",
+    where = {None: "", 0: f"; column {pos[0] + 1} increases" if lead else "; the first column increases",
              width - 1: "; the last column increases"}[time_at]
+    if tags:
+        where += f"; columns {', '.join(map(str, tags))} hold one whole number in every row (a label): not read"
     if lead:
         said = f" ({(words or {})[0]!r}: {'the gyroscope' if triples == GYRO else 'a word'})" if words and 0 in words else ""
         where += f"; {'column 1 holds' if lead == 1 else f'columns 1-{lead} hold'} no number in any row{said}: not read"
     if joined is not None:
         where = joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
     if len(rest) == 9:
-        where += f"; columns {rest[6] + 1 + lead}-{rest[8] + 1 + lead} not read: a 9-axis logger's magnetometer"
+        where += f"; columns {pos[rest[6]] + 1}-{pos[rest[8]] + 1} not read: a 9-axis logger's magnetometer"
     if empty_tail:
         where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
                   "not read")

@@ -5,6 +5,9 @@ wrote that optcal misread, each reproduced on a GENERATED file (no recording is 
   TUM-VI, most visual-inertial exports; kalebburnham/IMU-Research's copy of MH_01 with its stamps re-written by a
   spreadsheet as ``1.40363657975856E+018``): refused before ("no accelerometer column(s)"); read now, the gyro in
   rad/s and the accelerometer in m/s² by their bracketed units;
+* the Android IMU stream's rows (``683432.72989, 3, ax, ay, az, 4, gx, gy, gz, 5, mx, my, mz``, 98Glopes/imu-jupyter):
+  the sensors' type numbers, one whole number in every row, were taken for columns, so no common layout fitted and
+  the refusal's example (``ax=2``) named a label; now they are set aside where the layout fails with them;
 * a gyro named by the rotation (NXP's IMU data logger, ``% SampleNumber MagX ... AccZ GyroR GyroP GyroY ...``):
   ``GyroY`` (the yaw) was read as the gyro's y axis alone, ``GyroR`` and ``GyroP`` not, and the gyro then dropped
   unsaid; now the gyro is said not read, naming the ``--columns`` that reads the roll, pitch and yaw as x, y, z.
@@ -71,3 +74,31 @@ def test_a_gyro_named_by_roll_pitch_yaw_is_said_not_read(turned, tmp_path):
     named = load_with_segmentation(path, rate=100.0, columns="gx=GyroR,gy=GyroP,gz=GyroY")
     assert "gx←GyroR, gy←GyroP, gz←GyroY" in named.decisions.columns.value and named.recording.gyro is not None
     assert "gyro not read" not in named.decisions.layout
+
+
+def _stream_rows(turned, dt_column: bool) -> str:
+    """The Android IMU stream's rows (98Glopes/imu-jupyter): s since boot, then each sensor's type number before
+    its triple (3 accelerometer m/s², 4 gyroscope rad/s, 5 magnetometer µT), blank lines between rows, and in
+    ``static.csv`` a last field of the step since the row before."""
+    f = turned.frame
+    t = 683432.72989 + f["t"].to_numpy()
+    acc, gyro = G * f[["ax", "ay", "az"]].to_numpy(), f[["gx", "gy", "gz"]].to_numpy()
+    tail = (lambda k: f" ,  {0.01 if k else 0.0}") if dt_column else (lambda k: "")
+    return "".join(f"{s:.5f}, 3, " + ", ".join(f"{v:7.3f}" for v in a) + ", 4, " + ", ".join(f"{v:7.3f}" for v in w)
+                   + ", 5,  -6.700,-15.900, 14.100" + tail(k) + "\n  \n"
+                   for k, (s, a, w) in enumerate(zip(t, acc, gyro)))
+
+
+def test_label_columns_of_one_whole_number_are_set_aside(turned, tmp_path, capsys):
+    from helpers.cli_run import run
+
+    path = tmp_path / "log11.csv"
+    path.write_text(_stream_rows(turned, dt_column=False))
+    loaded = load_with_segmentation(path)  # before: "13 unnamed columns fit no common layout", e.g. ax=2
+    assert loaded.decisions.columns.value == "t←#1, ax←#3, ay←#4, az←#5, gx←#7, gy←#8, gz←#9"
+    assert "columns 2, 6, 10, 11, 12, 13 not read" in loaded.decisions.layout  # the labels and the magnetometer
+    assert loaded.poses.n == len(turned.dwells)
+    path = tmp_path / "static.csv"  # a 14th field (the step): still no common layout, the example names the axes
+    path.write_text(_stream_rows(turned, dt_column=True))
+    code, out, err = run(["segment", path], capsys)
+    assert code == 2 and "e.g. --columns t=1,ax=3,ay=4,az=5" in err and "columns 2, 6, 10 set aside" in err
