@@ -40,3 +40,19 @@ def test_vmu931_other_sensors_refused_by_the_magnetometer_reader(tmp_path, capsy
                          ("gyroscope", "optcal allan FILE --sensor gyro reads it")):
         code, out, err = run(["calibrate", files[word], "--sensor", "mag"], capsys)
         assert code == 2 and reader in err and err.count("\n") == 1
+
+
+def test_a_split_stamp_is_the_magnetometer_samples_time(tmp_path):
+    """The same headerless reader on ROS's ``secs,nsecs,mx,my,mz`` (SiyangMeng's mag.csv, the third sweep): the joined
+    stamp was written into the columns after they were named, so the samples' time kept the whole seconds (steps of
+    0 and 1 s at 100 Hz); now it is the stamp."""
+    from optcal.families.mag.samples import read_mag
+
+    n = 300
+    ns = np.round(np.arange(n) * 0.01 * 1e9).astype(np.int64) + 1696324304 * 10**9
+    u = np.random.default_rng(0).normal(size=(n, 3))
+    m = 40.0 * u / np.linalg.norm(u, axis=1, keepdims=True)
+    path = tmp_path / "mag.csv"
+    path.write_text("".join(f"{a // 10**9},{a % 10**9:9d},{x:.4f},{y:.4f},{z:.4f}\n" for a, (x, y, z) in zip(ns, m)))
+    samples = read_mag(path)
+    assert samples.t is not None and np.allclose(np.diff(samples.t), 0.01, atol=1e-6)
