@@ -47,13 +47,13 @@ for _axis in "xyz":
         f.format(_axis)
         for f in ("a{}", "acc{}", "acc_{}", "accel_{}", "accel{}", "accelerometer_{}", "accelerometer{}", "a_{}",
                   "acceleration_{}", "acceleration{}", "linear_acceleration_{}", "linear_acc_{}", "lin_acc_{}",
-                  "accelerometer_m_s2_{}")
+                  "accelerometer_m_s2_{}", "a_rs_s_{}")  # EuRoC's and Kalibr's a_RS_S_x: sensor S, in S
     )
     ALIASES["g" + _axis] = tuple(
         f.format(_axis)
         for f in ("g{}", "gyr{}", "gyr_{}", "gyro_{}", "gyro{}", "gyroscope_{}", "gyroscope{}", "omega_{}", "omega{}",
                   "w{}", "w_{}", "angular_velocity_{}", "angular_velocity{}", "angular_rate_{}", "ang_vel_{}",
-                  "angvel_{}", "gyro_rad_{}")
+                  "angvel_{}", "gyro_rad_{}", "w_rs_s_{}")  # EuRoC's and Kalibr's w_RS_S_x
     )
 #: The magnetometer's canonical names (read by :mod:`optcal.families.mag.samples`, not by the
 #: accelerometer's decisions) and the names files use for them, after a unit word is removed
@@ -91,6 +91,8 @@ TIME_UNITS: dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "n
 GYRO_UNIT_WORDS: dict[str, str] = {
     "dps": "deg/s", "deg_s": "deg/s", "degs": "deg/s", "deg": "deg/s",
     "rad_s": "rad/s", "rads": "rad/s", "radps": "rad/s", "rad": "rad/s",
+    # a unit written with a negative power (EuRoC's and Kalibr's ``[rad s^-1]``)
+    "rad_s_1": "rad/s", "deg_s_1": "deg/s",
     "counts": "counts", "lsb": "counts", "raw": "counts",
 }
 TEMP_UNITS: tuple[str, ...] = ("c", "degc", "deg_c", "celsius")
@@ -205,6 +207,32 @@ AXIS_ACC_UNIT_WORDS: frozenset[str] = frozenset(
     normalise_name(w) for w, u in UNIT_ALIASES["accelerometer"].items() if u != "counts") | {"m_s_2"}
 #: Unit words that make a bare axis name a gyroscope's (``X (rad/s)``): an angular rate's units.
 AXIS_GYRO_UNIT_WORDS: frozenset[str] = frozenset(w for w, u in GYRO_UNIT_WORDS.items() if u != "counts")
+
+#: A gyro column's stem and a word naming a rotation, not an axis (NXP's IMU logger ``GyroR GyroP GyroY``,
+#: ``gyro_roll``, AndroSensor's ``GYROSCOPE Yaw``): the axis it turns about is the logger's convention (roll about x
+#: in aerospace's, about y in Android's), so no axis is read from the name.
+ROTATION_NAME = re.compile(r"^(?:gyroscope|gyro|gyr)_?(roll|pitch|yaw|r|p|y)$")
+
+
+def partial_gyro(column_map: dict[str, str], names: list[str], given: dict[str, str]) -> str | None:
+    """Why gyro columns found by name for some axes only are not read (``None`` when all three or none are).
+
+    A gyro is three axes; one or two names matched (``GyroY`` of ``GyroR GyroP GyroY``, where ``Y`` is the yaw)
+    are no gyro, and reading them as its axes would be a guess.  ``given`` (``--columns``) maps them at the user's
+    word.
+    """
+    have = [c for c in GYRO if c in column_map]
+    if not have or len(have) == len(GYRO) or any(c in given for c in GYRO):
+        return None
+    words = {n: m.group(1)[0] for n in names if (m := ROTATION_NAME.match(strip_unit(normalise_name(n))[0]))}
+    said = f"{', '.join(f'{c}←{column_map[c]}' for c in have)} found, no {', '.join(c for c in GYRO if c not in have)}"
+    if len(set(words.values())) == 3:  # roll, pitch and yaw: the axes are the logger's convention
+        r, p, y = (next(n for n, w in words.items() if w == k) for k in "rpy")
+        return (f"gyro not read: columns {', '.join(words)} name the rotation (roll, pitch, yaw), not the axes ({said}); "
+                f"which axis each turns about is the logger's convention (roll about x in aerospace's, about y in "
+                f"Android's): --columns gx={r},gy={p},gz={y} reads them so")
+    return f"gyro not read: a gyro has three axes ({said}); --columns gx=NAME,gy=NAME,gz=NAME maps them"
+
 
 class ResolvedColumns(NamedTuple):
     """What :func:`resolve_columns` found.
@@ -419,6 +447,13 @@ def split_stamp(columns: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64]
     return (t, unit[1]) if increasing_column(t) else None
 
 
+def _tag_column(col: NDArray[np.float64]) -> bool:
+    """Whether a field holds one whole number in every row that has it (a label such as a sensor's type number;
+    a line cut short at the file's end leaves it empty), in most rows."""
+    values = col[np.isfinite(col)]
+    return bool(2 * values.size > col.size > 1 and values[0] == np.round(values[0]) and np.all(values == values[0]))
+
+
 def _field_names(fields: list[int]) -> tuple[str, str, str]:
     """``("#5", "#6", "#7")``: three 0-based fields as a headerless file's column names."""
     return f"#{fields[0] + 1}", f"#{fields[1] + 1}", f"#{fields[2] + 1}"
@@ -432,9 +467,32 @@ def sensor_word(text: str) -> str | None:
                  if word.startswith(prefix)), None)
 
 
+@dataclass(frozen=True)
+class HeaderlessColumns:
+    """How the fields of a file without a header are read (:func:`headerless_mapping`).
+
+    Attributes
+    ----------
+    mapping : dict
+        canonical → 1-based position.
+    reason : str
+        The columns' reason, as printed.
+    roles : ColumnRoles or None
+        The candidates of two triples, left to the evidence.
+    joined_stamp : str or None
+        The sub-second unit (``"ns"``, ``"us"``, ``"ms"``) where fields 1-2 are one time stamp split in whole
+        seconds and that count (:func:`split_stamp`; field 2 is then read, as the time's fraction), else ``None``.
+    """
+
+    mapping: dict[str, str]
+    reason: str
+    roles: ColumnRoles | None
+    joined_stamp: str | None = None
+
+
 def headerless_mapping(
     path: str, columns: list[NDArray[np.float64]], described: str, words: dict[int, str] | None = None
-) -> tuple[dict[str, str], str, ColumnRoles | None]:
+) -> HeaderlessColumns:
     """Canonical columns of a file without a header, by the common layout of its width.
 
     A time column is the first (or else the last) field when it increases and 3, 6 or 9 fields
@@ -448,10 +506,9 @@ def headerless_mapping(
 
     Returns
     -------
-    mapping : dict
-        canonical → 1-based position.
-    reason : str
-    roles : ColumnRoles or None
+    HeaderlessColumns
+        The mapping (canonical → 1-based position), the reason, the roles left to the evidence, and the split
+        stamp's sub-second unit where fields 1-2 are read as one time.
 
     Raises
     ------
@@ -485,8 +542,24 @@ def headerless_mapping(
         elif increasing_column(columns[-1]):
             time_at = width - 1
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
-    example = (f"--columns t={lead + 1},ax={lead + 2},ay={lead + 3},az={lead + 4}" if width >= 4
-               else f"--columns ax={lead + 1},ay={lead + 2},az={lead + 3}")
+    pos = list(range(lead, lead + width))  # each field's 0-based place in the file
+    tags: list[int] = []
+    if len(rest) not in HEADERLESS_TRIPLES and joined is None and (keep := [j for j in range(width)
+                                                                          if not _tag_column(columns[j])]):
+        # fields holding one whole number in every row are labels, not axes (the Android IMU stream's sensor type
+        # numbers: "683432.72, 3, ax, ay, az, 4, gx, gy, gz, 5, mx, my, mz"): an axis of a sensor, moved or not,
+        # never reads one value over a whole recording; set aside, said so, where the layout fails with them
+        tags = [pos[j] + 1 for j in range(width) if j not in keep]
+        columns, pos, width = [columns[j] for j in keep], [pos[j] for j in keep], len(keep)
+        time_at = None
+        if width - 1 in HEADERLESS_TRIPLES:
+            time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[-1]) else None)
+        rest = [j for j in range(width) if j != time_at]
+    at = [p + 1 for p in pos] + list(range(pos[-1] + 2 if pos else lead + 1, lead + 5))  # 1-based, for the example
+    example = (f"--columns t={at[0]},ax={at[1]},ay={at[2]},az={at[3]}" if width >= 4
+               else f"--columns ax={at[0]},ay={at[1]},az={at[2]}")
+    if time_at is None and tags and not increasing_column(columns[0]):
+        example = f"--columns ax={at[0]},ay={at[1]},az={at[2]}"
     if joined is not None:  # the file's positions: the stamp's two fields, then the triples (t=1 reads both, readers)
         example = f"--columns t=1,ax={rest[0] + 1},ay={rest[1] + 1},az={rest[2] + 1}"
     if len(rest) not in HEADERLESS_TRIPLES:
@@ -494,6 +567,8 @@ def headerless_mapping(
         if width - 1 in HEADERLESS_TRIPLES:  # the layout with a time column, but neither end column increases
             why = (f"would be a time column and {width - 1} axes, but neither the first column nor the last "
                    f"increases{_first_decrease(columns[0])}")
+        if tags:
+            why += f" (columns {', '.join(map(str, tags))} set aside: one whole number in every row, a label)"
         raise InputError(
             f"{path}: the file has no header row ({described}), and {width} unnamed columns {why}; "
             f"name them by 1-based position, e.g. {example}"
@@ -505,28 +580,30 @@ def headerless_mapping(
                          "--sensor mag reads it")
     triples = GYRO if word == "gyro" and len(rest) == 3 else ACC + GYRO
     canon.update({c: j for j, c in zip(rest, triples)})
-    mapping = {c: str(j + 1 + lead) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
+    mapping = {c: str(pos[j] + 1) for c, j in canon.items()}  # listed t, accelerometer, gyroscope
     what = " ".join(c for c, _ in sorted(canon.items(), key=lambda item: item[1]))
     roles = None
     if len(rest) >= 6:
-        roles = ColumnRoles((_field_names([j + lead for j in rest[0:3]]), _field_names([j + lead for j in rest[3:6]])),
+        roles = ColumnRoles((_field_names([pos[j] for j in rest[0:3]]), _field_names([pos[j] for j in rest[3:6]])),
                             0, what)
-    where = {None: "", 0: f"; column {lead + 1} increases" if lead else "; the first column increases",
+    where = {None: "", 0: f"; column {pos[0] + 1} increases" if lead else "; the first column increases",
              width - 1: "; the last column increases"}[time_at]
+    if tags:
+        where += f"; columns {', '.join(map(str, tags))} hold one whole number in every row (a label): not read"
     if lead:
         said = f" ({(words or {})[0]!r}: {'the gyroscope' if triples == GYRO else 'a word'})" if words and 0 in words else ""
         where += f"; {'column 1 holds' if lead == 1 else f'columns 1-{lead} hold'} no number in any row{said}: not read"
     if joined is not None:
         where = joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
     if len(rest) == 9:
-        where += f"; columns {rest[6] + 1 + lead}-{rest[8] + 1 + lead} not read: a 9-axis logger's magnetometer"
+        where += f"; columns {pos[rest[6]] + 1}-{pos[rest[8]] + 1} not read: a 9-axis logger's magnetometer"
     if empty_tail:
         where += (f"; the last {empty_tail} of {full_width} fields empty in every row (a delimiter at each line's end): "
                   "not read")
-    return mapping, (
+    return HeaderlessColumns(mapping, (
         f"no header; {width} columns read as '{what}' (the common layout of {width} columns{where}); "
         f"name them by position to change it, e.g. {example}"
-    ), roles
+    ), roles, None if joined is None else joined[1])
 
 
 # ----------------------------------------------------------------------------- Sensor Logger's export
@@ -596,18 +673,21 @@ BARE_AXES: tuple[str, str, str] = ("x", "y", "z")
 
 
 def attribute_mapping(
-    names: list[str], words: dict[str, tuple[int, int, str]], n_rows: int, path: str
+    names: list[str], words: dict[str, tuple[int, int, str]], n_rows: int, path: str, sensor: str = "acc"
 ) -> tuple[dict[str, str], str] | None:
     """The columns of a file whose bare ``x, y, z`` are named by a column of words in every row; ``None`` otherwise.
 
-    The word names the triple (``acceleration``: the accelerometer; ``gyroscope``: the gyro's, a gyro-only log), a
-    column named with ``time`` the time (its unit left to the time decision).  ``words`` are the file's columns with
-    non-numeric cells: (count, first row, first value), as :class:`optcal.data.text.ParsedNumbers` counts them.
+    The word names the triple (``acceleration``: the accelerometer; ``gyroscope``: the gyro's, a gyro-only log;
+    ``magnetometer``: the magnetometer's, read by the magnetometer's reader, ``sensor="mag"``), a column named with
+    ``time`` the time (its unit left to the time decision).  ``words`` are the file's columns with non-numeric
+    cells: (count, first row, first value), as :class:`optcal.data.text.ParsedNumbers` counts them.
 
     Raises
     ------
     InputError
-        The word names a magnetometer (read by ``optcal calibrate FILE --sensor mag --columns mx=x,my=y,mz=z``).
+        The word names another sensor than the reader's (a magnetometer's log given to the accelerometer's
+        commands, read by ``optcal calibrate FILE --sensor mag``; an accelerometer's or a gyroscope's given to
+        the magnetometer's).
     """
     by_norm = {normalise_name(n): n for n in names}
     if not all(a in by_norm for a in BARE_AXES):
@@ -616,17 +696,21 @@ def attribute_mapping(
     column = next((n for n, (count, _, _) in words.items() if count == n_rows and n not in axes), None)
     if column is None:
         return None
-    word = sensor_word(words[column][2])
-    if word == "mag":
-        mags = ",".join(f"m{a}={by_norm[a]}" for a in BARE_AXES)
-        raise InputError(f"{path}: column {column!r} reads {words[column][2]!r}: a magnetometer's log; optcal calibrate FILE "
-                         f"--sensor mag --columns {mags} reads it")
-    triple = ACC if word == "acc" else GYRO if word == "gyro" else None
-    if triple is None:
-        return None
+    said = words[column][2]
+    word = sensor_word(said)
+    if word is None:
+        return None  # another word (a session label): the axes' quantity is left to --columns
+    if sensor == "mag" and word != "mag":
+        reader = "optcal calibrate FILE" if word == "acc" else "optcal allan FILE --sensor gyro"
+        raise InputError(f"{path}: column {column!r} reads {said!r}: not a magnetometer's log; {reader} reads it")
+    if sensor != "mag" and word == "mag":
+        raise InputError(f"{path}: column {column!r} reads {said!r}: a magnetometer's log; optcal calibrate FILE "
+                         "--sensor mag reads it")
+    triple = MAG if word == "mag" else ACC if word == "acc" else GYRO
     mapping = {c: by_norm[a] for c, a in zip(triple, BARE_AXES)}
     time = next((n for n in names if "time" in normalise_name(n)), None)
     if time is not None:
         mapping["t"] = time
-    return mapping, (f"bare axes x, y, z named by column {column!r} in every row ({words[column][2]!r}: the "
-                     f"{'accelerometer' if triple == ACC else 'gyroscope'}; Variense VMU931's export)")
+    what = {"mag": "magnetometer", "acc": "accelerometer", "gyro": "gyroscope"}[word]
+    return mapping, (f"bare axes x, y, z named by column {column!r} in every row ({said!r}: the {what}; Variense "
+                     "VMU931's export)")

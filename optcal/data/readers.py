@@ -35,7 +35,6 @@ from optcal.data.columns import (
     CANONICAL,
     GYRO,
     GYRO_UNIT_WORDS,
-    JOINED_STAMP,
     MAG,
     MAG_ALIASES,
     NO_COLUMN,
@@ -45,6 +44,7 @@ from optcal.data.columns import (
     ColumnRoles,
     attribute_mapping,
     headerless_mapping,
+    partial_gyro,
     joined_stamp_note,
     normalise_name,
     parse_columns_option,
@@ -316,6 +316,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         reason = f"names in the comment on line {layout.header_line + 1}"
     roles = None
     logger_gyro = False
+    joined_stamp = False  # fields 1-2 read as one time stamp (columns.split_stamp): field 2 is read, as its fraction
     if layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p))) is not None:
         mapping, reason = logger  # Sensor Logger's bare x, y, z: the file's name says the quantity
     elif layout.has_header and not mapping and (logger := sensor_logger_mapping(names, str(p), "gyro")) is not None:
@@ -337,9 +338,12 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
             if mapping.get("t") == "1" and "2" not in mapping.values() and (joined := split_stamp(parsed.columns)):
                 parsed.columns[0] = joined[0]
                 reason += joined_stamp_note(joined[1]) + ": column 1 holds their sum in seconds"
+                joined_stamp = True
         else:
-            mapping, reason, roles = headerless_mapping(str(p), parsed.columns, layout.describe(),
-                                                        {j: v[2] for j, v in parsed.non_numeric.items()})
+            headerless = headerless_mapping(str(p), parsed.columns, layout.describe(),
+                                            {j: v[2] for j, v in parsed.non_numeric.items()})
+            mapping, reason, roles = headerless.mapping, headerless.reason, headerless.roles
+            joined_stamp = headerless.joined_stamp is not None
     gyro_only: GyroOnlyColumns | None = None
     try:
         src = source_from_columns(
@@ -351,7 +355,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         if logger_gyro and src.gyro_units is None:
             src.gyro_units = "rad/s"  # Sensor Logger's UNITS.md
     unread = [n for n in names if n not in src.column_map.values()] if not layout.has_header else []
-    if unread and JOINED_STAMP in reason:
+    if unread and joined_stamp:
         unread.remove("2")  # the time's fraction (columns.split_stamp), read into column 1
     if not layout.has_header:
         src.column_map = {k: f"#{v}" for k, v in src.column_map.items()}
@@ -361,7 +365,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         src.columns_reason = f"{reason} and positions from --columns"
     elif src.roles is None:
         src.columns_reason = reason
-    src.layout = layout.describe()
+    src.layout = layout.describe() + (f"; {src.layout}" if src.layout else "")  # a partial gyro's note
     if "t" not in src.column_map and src.time_reason:  # a time column of text, set aside (source_from_columns)
         src.layout += f"; {src.time_reason}"
     if unread and not mapping_given:
@@ -445,6 +449,8 @@ def source_from_columns(
             f"{', '.join(names) or 'no columns'}); name them ax, ay, az (or acc_x, ...) or map them "
             f"with columns (--columns ax=NAME,ay=NAME,az=NAME, or by 1-based position ax=2,ay=3,az=4){mag}"
         )
+    if (partial := partial_gyro(column_map, names, mapping or {})) is not None:
+        column_map = {c: v for c, v in column_map.items() if c not in GYRO}  # said in the layout (read_text)
     by_name = dict(zip(names, columns))
     bad_by_name = non_numeric_by_name or {}
     data = {canon: by_name[col] for canon, col in column_map.items()}
@@ -462,6 +468,7 @@ def source_from_columns(
     src = Source(
         path=path, file_type=file_type, data=data, extra=extra, column_map=column_map,
         ignored_columns=ignored, header=dict(header or {}), non_numeric=non_numeric, roles=roles,
+        layout="" if partial is None else partial,
     )
     if roles is not None:
         src.columns_reason = (f"{', '.join(roles.triples[0])} as the accelerometer when the data say acceleration "

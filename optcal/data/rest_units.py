@@ -10,6 +10,9 @@ refused as contradicting it.  Two pieces of evidence are then taken where the no
   force is gravity alone, |a| = 1 g in the sensor's units;
 * the share of the samples that are not whole numbers: a converter's raw counts always are.
 
+Where the file has a gyro, a quiet block must be at rest for the gyro too (:func:`gyro_at_rest`): a steady spin
+keeps the accelerometer's noise at its floor, but adds its centripetal acceleration to |a|.
+
 The evidence is gathered only where the whole file's median leaves the unit open or says counts, so a
 file the median already reads in g or m/s² is decided as before.
 """
@@ -19,17 +22,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
-from optcal.data.columns import ACC
+from optcal.data.columns import ACC, GYRO
 from optcal.data.evidence import (
     MIN_QUIET_BLOCKS,
+    NOISE_FLOOR_QUANTILE,
+    QUIET_FACTOR,
     ROLE_BLOCK_SAMPLES,
     Evidence,
     _block_statistics,
     _resolution,
     quiet_blocks,
 )
-from optcal.data.quantiles import median
+from optcal.data.quantiles import column_medians, median, quantiles
+from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S
 from optcal.data.readers import Source
 from optcal.data.units import (
     PLAUSIBLE_NORM,
@@ -50,6 +57,74 @@ from optcal.errors import InputError
 NON_INTEGER_FRACTION: float = 0.5
 
 
+#: The fewest radians per second one unit of a gyro whose unit is unknown can be worth, and so the most units
+#: a rate can take: samples with decimals are rad/s or °/s (°/s the smaller, π/180 rad/s); whole-number samples
+#: are counts, one worth at least a 16-bit converter's step over the smallest full scale a MEMS gyro has,
+#: ±125 °/s.  A rate bound divided by it is at least the bound in the gyro's true unit, so a rest is never
+#: taken for a turn for not knowing the unit.
+MIN_RAD_S_PER_UNIT: dict[str, float] = {"decimal": float(np.radians(1.0)), "counts": float(np.radians(125.0) / 32768)}
+#: Radians per second of each unit a file can state for its gyro.
+RAD_S_PER_STATED_UNIT: dict[str, float] = {"rad/s": 1.0, "deg/s": float(np.radians(1.0))}
+
+
+@dataclass(frozen=True)
+class GyroRest:
+    """Which blocks the gyro holds at rest: their mean rate within a MEMS gyro's bias wander of its rest reading.
+
+    Attributes
+    ----------
+    at_rest : ndarray of bool, shape (nb,)
+        Blocks whose mean rate is within :attr:`allowance` of :attr:`bias`.
+    bias : ndarray, shape (3,)
+        The rest reading, gyro units: the median of the block means among the slowest tenth of the quiet blocks
+        (:data:`~optcal.data.evidence.NOISE_FLOOR_QUANTILE`; a turn only adds to the rate).
+    allowance : float
+        :data:`~optcal.data.rest_model.MAX_BIAS_WANDER_RAD_S` in the gyro's units, plus
+        :data:`~optcal.data.evidence.QUIET_FACTOR` times a block mean's noise at the gyro's floor.
+    unit : str
+        How the units were taken: stated by the file, or bounded (:data:`MIN_RAD_S_PER_UNIT`).
+    """
+
+    at_rest: NDArray[np.bool_]
+    bias: NDArray[np.float64]
+    allowance: float
+    unit: str
+
+
+def gyro_at_rest(src: Source, ev: Evidence, quiet: NDArray[np.bool_], nb: int) -> GyroRest | None:
+    """The blocks among ``quiet`` (the accelerometer's) that the gyro holds at rest; ``None`` without a gyro.
+
+    A gyro at rest reads its bias, which moves between the rests of a session by at most
+    :data:`~optcal.data.rest_model.MAX_BIAS_WANDER_RAD_S` (1 °/s); a block whose mean rate is further from the
+    rest reading than that, plus its own noise, turns (a steady spin's noise stays at the floor, its rate does
+    not).  The bound is taken in the gyro's units as the file states them (rad/s, °/s), else as the largest it
+    can be in units (:data:`MIN_RAD_S_PER_UNIT`: as °/s for samples with decimals, as counts of a ±125 °/s 16-bit
+    gyro for whole numbers), so only a turn faster than 1 °/s in any unit the samples can be in is set aside.
+    """
+    if not src.has(*GYRO):
+        return None
+    cols = tuple(src.column(c) if bool(ev.usable.all()) else src.column(c)[ev.usable] for c in GYRO)
+    means, std = _block_statistics(cols, nb)
+    finite = quiet & np.isfinite(std) & np.all(np.isfinite(means), axis=1)
+    if np.count_nonzero(finite) < MIN_QUIET_BLOCKS:
+        return None
+    stated = RAD_S_PER_STATED_UNIT.get(src.gyro_units or "")
+    if stated is not None:
+        rad_per_unit, unit = stated, f"{src.gyro_units} as stated"
+    else:
+        kind = "counts" if _resolution(cols) > 0 else "decimal"
+        rad_per_unit = MIN_RAD_S_PER_UNIT[kind]
+        unit = ("unknown; bounded as counts of a ±125 °/s 16-bit gyro" if kind == "counts"
+                else "unknown; bounded as °/s, the smaller of rad/s and °/s")
+    rate = np.linalg.norm(means, axis=1)
+    slow = finite & (rate <= quantiles(rate[finite], [NOISE_FLOOR_QUANTILE])[0])
+    bias = column_medians(means[slow])
+    floor = quantiles(std[finite], [NOISE_FLOOR_QUANTILE])[0]
+    # a block mean's noise: the per-sample floor over √w samples on each of 3 axes
+    allowance = MAX_BIAS_WANDER_RAD_S / rad_per_unit + QUIET_FACTOR * floor * np.sqrt(3.0 / ROLE_BLOCK_SAMPLES)
+    return GyroRest(finite & (np.linalg.norm(means - bias, axis=1) <= allowance), bias, float(allowance), unit)
+
+
 @dataclass(frozen=True)
 class RestNorm:
     """The accelerometer's |a| where it is quiet, and how many of its samples are whole numbers.
@@ -60,9 +135,14 @@ class RestNorm:
         Median |a| of the quiet blocks' means, raw units (NaN with fewer than
         :data:`~optcal.data.evidence.MIN_QUIET_BLOCKS` quiet blocks).
     quiet_blocks, blocks : int
-        Blocks of :data:`~optcal.data.evidence.ROLE_BLOCK_SAMPLES` usable rows at the noise floor, of all.
+        Blocks of :data:`~optcal.data.evidence.ROLE_BLOCK_SAMPLES` usable rows at the noise floor (and at rest for
+        the gyro, where there is one), of all.
     non_integer, samples : int
         Usable axis samples with a fractional part, of all.
+    turning : int
+        Blocks quiet for the accelerometer that the gyro says turn (:func:`gyro_at_rest`), set aside.
+    gyro : GyroRest or None
+        The gyro's rest test, where the file has a gyro.
     """
 
     norm: float
@@ -70,6 +150,8 @@ class RestNorm:
     blocks: int
     non_integer: int
     samples: int
+    turning: int = 0
+    gyro: GyroRest | None = None
 
     @property
     def non_integer_fraction(self) -> float:
@@ -83,8 +165,13 @@ class RestNorm:
 
     def describe(self) -> str:
         """The evidence in words, for a decision's reason."""
+        spin = ""
+        if self.gyro is not None:
+            spin = (f"; {self.turning} more quiet for the accelerometer set aside as turning: their gyro mean over "
+                    f"{self.gyro.allowance:.3g} from its rest reading, a gyro's 1 °/s bias wander (units "
+                    f"{self.gyro.unit})")
         return (f"the quiet stretches' median |a| = {self.norm:.4g} ({self.quiet_blocks} of {self.blocks} blocks "
-                f"of {ROLE_BLOCK_SAMPLES} samples at the noise floor, at rest |a| = 1 g), "
+                f"of {ROLE_BLOCK_SAMPLES} samples at the noise floor{spin}; at rest |a| = 1 g), "
                 f"{100 * self.non_integer_fraction:.0f} % of the samples not whole numbers (raw counts all are)")
 
 
@@ -100,10 +187,15 @@ def rest_norm(src: Source, ev: Evidence) -> RestNorm:
     quiet = quiet_blocks([(means, std)], nb)  # the same quiet blocks as the roles' rest statistics
     if quiet is None:
         return RestNorm(float("nan"), 0, nb, non_integer, samples)
+    gyro = gyro_at_rest(src, ev, quiet, nb)
+    turning = 0
+    if gyro is not None:  # a steady spin is quiet for the accelerometer, its |a| not 1 g
+        turning = int(np.count_nonzero(quiet & ~gyro.at_rest))
+        quiet = quiet & gyro.at_rest
     n_quiet = int(np.count_nonzero(quiet))
     if n_quiet < MIN_QUIET_BLOCKS:
-        return RestNorm(float("nan"), n_quiet, nb, non_integer, samples)
-    return RestNorm(median(np.linalg.norm(means[quiet], axis=1)), n_quiet, nb, non_integer, samples)
+        return RestNorm(float("nan"), n_quiet, nb, non_integer, samples, turning, gyro)
+    return RestNorm(median(np.linalg.norm(means[quiet], axis=1)), n_quiet, nb, non_integer, samples, turning, gyro)
 
 
 def units_and_nominal_at_rest(

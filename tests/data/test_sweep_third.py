@@ -107,6 +107,21 @@ def test_a_stamp_split_in_seconds_and_nanoseconds_is_one_time_column(turned, tmp
     assert "not read" not in loaded.decisions.layout  # the second field is the time's fraction, read
 
 
+def test_a_split_stamp_is_a_typed_field_of_the_headerless_decision():
+    """The reader sets the stamp's fraction aside as read from the decision's field (``joined_stamp``, the
+    sub-second unit), not by searching for its words in the reason: ns for ROS's ``secs, nsecs``, ``None`` where
+    column 1 is a time column on its own."""
+    from optcal.data.columns import headerless_mapping
+
+    secs = np.repeat(np.arange(1696324304.0, 1696324307.0), 100)
+    nsecs = np.tile(np.arange(100) * 1e7 + 12345.0, 3)
+    axes = [np.full(secs.size, v) for v in (0.1, 0.2, 9.8)]
+    split = headerless_mapping("acc2.csv", [secs, nsecs, *axes], "5 columns")
+    assert split.joined_stamp == "ns" and split.mapping == {"t": "1", "ax": "3", "ay": "4", "az": "5"}
+    whole = headerless_mapping("acc.csv", [secs + nsecs * 1e-9, *axes], "4 columns")
+    assert whole.joined_stamp is None and whole.mapping == {"t": "1", "ax": "2", "ay": "3", "az": "4"}
+
+
 @pytest.mark.parametrize(("secs", "frac"), [
     ([0, 0, 1, 1, 2], [900, 10, 20, 950, 5]),  # the fraction goes back within a second: not a stamp's
     ([0, 1, 2, 3, 4], [10, 20, 30, 40, 50]),  # the seconds never repeat: column 1 is a time column on its own

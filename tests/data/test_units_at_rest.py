@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from helpers.cli_run import run
 from helpers.vmu931 import write_vmu931
@@ -68,6 +69,35 @@ def test_the_same_flight_in_raw_counts_stays_counts(tmp_path, capsys):
     assert code == 2 and "pass --units counts" in err and err.count("\n") == 1
 
 
+# ------------------------------------------------------------------ a steady spin is quiet, but not at rest
+def _steady_spin(gyro_per_rad_s: float, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """A 10-s rest (z up), a 2-s spin-up, then 60 s of a steady 12 rad/s spin about z with the sensor 0.3 m
+    off the axis (43 m/s² of centripetal acceleration, constant in the sensor's frame): (acc m/s², gyro)."""
+    rng = np.random.default_rng(seed)
+    w = np.concatenate([np.zeros(int(10 * FS)), np.linspace(0.0, 12.0, int(2 * FS)), np.full(int(60 * FS), 12.0)])
+    a = np.column_stack([-0.3 * w**2, np.zeros(w.size), np.full(w.size, G)]) + 0.02 * rng.normal(size=(w.size, 3))
+    g = np.column_stack([np.full(w.size, 0.01), np.full(w.size, -0.02), w]) + 0.01 * rng.normal(size=(w.size, 3))
+    return a, g * gyro_per_rad_s
+
+
+@pytest.mark.parametrize(("names", "per_rad_s"), [("wx,wy,wz", 1.0), ("gx_dps,gy_dps,gz_dps", float(np.degrees(1.0)))])
+def test_a_steady_spin_is_not_a_quiet_stretch_where_the_gyro_turns(tmp_path, capsys, names, per_rad_s):
+    """Emkijen's flight: half its quiet blocks spin at ~12 rad/s (their noise at the floor, |a| = 44 m/s²).  The
+    steady spin alone is quiet for the accelerometer: before, its quiet median |a| was the spin's 44 and the file
+    refused ("cannot tell the units"); now the blocks whose gyro is over 1 °/s off its rest reading (in °/s as
+    stated, or as the smaller of rad/s and °/s where unstated) are set aside and the rest's 9.8 m/s² is heard."""
+    a, g = _steady_spin(per_rad_s)
+    assert np.median(np.linalg.norm(a, axis=1)) > 40.0  # the whole file's median is the spin's
+    t = np.arange(len(a)) / FS
+    path = tmp_path / "spin.csv"
+    path.write_text(f"t,ax,ay,az,{names}\n" + "".join(
+        f"{s:.4f}," + ",".join(f"{v:.8f}" for v in (*ra, *rg)) + "\n" for s, ra, rg in zip(t, a, g)))
+    code, out, err = run(["segment", path], capsys)
+    units = next(line for line in (out + err).splitlines() if line.strip().startswith(("units:", "error:")))
+    assert "units: m/s^2" in units and "set aside as turning" in units, units
+    assert ("deg/s as stated" if per_rad_s != 1.0 else "bounded as °/s") in units
+
+
 # ------------------------------------------------------------------ the --columns example on a split stamp
 def test_a_split_stamps_columns_example_names_the_files_positions_and_reads_the_stamp(tmp_path, capsys):
     """A headerless ``secs,nsecs,ax,ay,az`` file (ROS's header.stamp, the third sweep's acc2.csv): its columns
@@ -95,7 +125,7 @@ def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
     """Variense VMU931's headered exports (``Attribute,Time stamp,x,y,z``, ``Acceleration`` / ``Gyroscope`` /
     ``Magnetometer`` in every row; Alanzwang/vmu931): before, "no accelerometer column(s)", ``--columns`` asked for;
     now the word names the triple (the gyroscope's: the gyro's log; the magnetometer's: refused naming
-    ``--sensor mag``), the time column by its name."""
+    ``--sensor mag``, which reads it: tests/families/test_mag_vmu931.py), the time column by its name."""
     files = write_vmu931(tmp_path, 63156, header=True)
     n = 3000
     code, out, err = run(["segment", files["acceleration"], "--time-unit", "ms"], capsys)
@@ -106,7 +136,7 @@ def test_a_headered_attribute_column_names_the_bare_axes(tmp_path, capsys):
     summary = json.loads(out)
     assert summary["sensor"] == "gyro" and summary["log"]["n_samples"] == n
     code, out, err = run(["segment", files["magnetometer"]], capsys)
-    assert code == 2 and "--sensor mag --columns mx=x,my=y,mz=z" in err and err.count("\n") == 1
+    assert code == 2 and "optcal calibrate FILE --sensor mag reads it" in err and err.count("\n") == 1
 
 
 def test_a_column_of_words_that_names_no_sensor_still_asks_for_columns(tmp_path, capsys):

@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.data.columns import (
-    ALIASES, MAG, MAG_ALIASES, increasing_column, joined_stamp_note, normalise_name, parse_columns_option,
-    sensor_logger_mapping, split_stamp,
+    ALIASES, MAG, MAG_ALIASES, attribute_mapping, increasing_column, joined_stamp_note, normalise_name,
+    parse_columns_option, sensor_logger_mapping, sensor_word, split_stamp,
 )
 from optcal.errors import InputError
 from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
@@ -136,7 +136,7 @@ def _relative_spread(v: NDArray[np.float64]) -> float:
 
 
 def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float64]],
-                    mapping: dict[str, str]) -> tuple[dict[str, str], str]:
+                    mapping: dict[str, str], words: dict[int, str] | None = None) -> tuple[dict[str, str], str]:
     """The magnetometer's columns of a file with no header, by the common layout of its width.
 
     Three columns are ``mx my mz`` (Magneto's and most loggers' ``x y z`` sample files); four are a time column
@@ -144,7 +144,10 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     logger's: the magnetometer the last triple (the common order, as :mod:`optcal.data.columns` reads it), the
     accelerometer the one of the first two whose norm stays near its median (:data:`ACC_NORM_SPREAD`), the
     other the gyroscope; when neither or both do, they are not read and the reason names ``--columns``. Any
-    other width is left to ``--columns``.
+    other width is left to ``--columns``. Leading fields holding no number in any row are set aside, as the
+    accelerometer's reader does (:func:`optcal.data.columns.headerless_mapping`): where the first one's text
+    (``words``: a field's first non-numeric value) names an accelerometer or a gyroscope (Variense VMU931's
+    ``acceleration,411480,0.017,0.006,0.976``), the file is refused naming the command that reads it.
 
     Returns
     -------
@@ -159,12 +162,23 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     InputError
         A width with no common layout, with the ``--columns`` that names the columns.
     """
+    # a first field holding no number in any row (the sensor's word in every row: VMU931's export,
+    # "magnetometer,411480,-12.3,25.1,-40.2") is no column of the layout: set aside, said so; positions stay the file's
+    lead = 0
+    while len(columns) - lead > 3 and not np.isfinite(columns[lead]).any():
+        lead += 1
+    text = (words or {}).get(0, "")
+    word = sensor_word(text) if lead else None
+    if word in ("acc", "gyro"):
+        reader = "optcal calibrate FILE" if word == "acc" else "optcal allan FILE --sensor gyro"
+        raise InputError(f"{path}: column 1 reads {text!r}: not a magnetometer's log; {reader} reads it")
+    given, names, columns = columns, names[lead:], columns[lead:]
     width = len(names)
     time_at: int | None = None
     # a stamp split in whole seconds and their fraction (ROS's secs, nsecs) in the first two fields: one time column
     joined = split_stamp(columns) if width in (5, 11) else None
     if joined is not None:
-        columns[0] = joined[0]
+        columns[0] = given[lead] = joined[0]
         time_at = 0
     elif width in (4, 10):
         time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
@@ -172,29 +186,34 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
                          f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
-    canon = {k: str(j + 1) for k, j in zip(MAG, rest[-3:])}
+    canon = {k: str(j + 1 + lead) for k, j in zip(MAG, rest[-3:])}
     if time_at is not None:
-        canon["t"] = str(time_at + 1)
-    where = "" if time_at is None else f"; column {time_at + 1} increases"
+        canon["t"] = str(time_at + 1 + lead)
+    where = "" if time_at is None else f"; column {time_at + 1 + lead} increases"
     if joined is not None:
         where = joined_stamp_note(joined[1])
+    if lead:
+        what_word = f" ({text!r}: the magnetometer)" if word == "mag" else ""
+        where += (f"; {'column 1 holds' if lead == 1 else f'columns 1-{lead} hold'} no number in any row{what_word}: "
+                  "not read")
     if len(rest) == 9:
         triples = (rest[0:3], rest[3:6])
         spread = [_relative_spread(np.column_stack([columns[j] for j in t])) for t in triples]
-        span = [f"{t[0] + 1}-{t[2] + 1}" for t in triples]
+        span = [f"{t[0] + 1 + lead}-{t[2] + 1 + lead}" for t in triples]
         near = [k for k in (0, 1) if spread[k] < ACC_NORM_SPREAD]
         said = (f"the norm of columns {span[0]} spreads by {100 * spread[0]:.2g} % of its median, of columns {span[1]} "
                 f"by {100 * spread[1]:.2g} %; an accelerometer turned by hand stays within {100 * ACC_NORM_SPREAD:g} %")
         if len(near) == 1:
             acc, gyro = triples[near[0]], triples[1 - near[0]]
-            canon.update({k: str(j + 1) for k, j in zip(("ax", "ay", "az", "gx", "gy", "gz"), acc + gyro)})
+            canon.update({k: str(j + 1 + lead) for k, j in zip(("ax", "ay", "az", "gx", "gy", "gz"), acc + gyro)})
             where += f"; a 9-axis logger's: the magnetometer last, the accelerometer columns {span[near[0]]} ({said})"
         else:
             where += (f"; a 9-axis logger's: the magnetometer last; columns {span[0]} and {span[1]} not read, neither "
                       f"alone an accelerometer ({said}): name them with --columns ax=..,gx=..")
     what = " ".join(k for k, _ in sorted(canon.items(), key=lambda kv: int(kv[1])))
     return {**mapping, **canon}, (f"no header; {width} columns read as '{what}' (the common layout of {width} columns"
-                                  f"{where}); name them by position to change it, e.g. --columns mx=1,my=2,mz=3")
+                                  f"{where}); name them by position to change it, e.g. --columns "
+                                  f"mx={canon['mx']},my={canon['my']},mz={canon['mz']}")
 
 
 #: The exclusion of rows whose magnetometer reads exactly 0, 0, 0.
@@ -239,12 +258,18 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
     col = dict(zip(names, parsed.columns))
     notes: list[str] = []
     if not layout.has_header and layout.comment_names is None and not any(k in MAG for k in mapping):
-        mapping, reason = _headerless_mag(path, names, parsed.columns, mapping)
+        mapping, reason = _headerless_mag(path, names, parsed.columns, mapping,
+                                          {j: v[2] for j, v in parsed.non_numeric.items()})
+        col = dict(zip(names, parsed.columns))  # a split stamp's two fields joined into the first (split_stamp)
         notes.append(reason)
     logger = sensor_logger_mapping(names, path, sensor="mag") if layout.has_header and not mapping else None
     if logger is not None:  # Sensor Logger's Magnetometer.csv: bare x, y, z in µT, by its file's name (UNITS.md)
         mapping = logger[0]
         notes.append(logger[1])
+    elif layout.has_header and not mapping and parsed.columns and (attribute := attribute_mapping(
+            names, {names[j]: v for j, v in parsed.non_numeric.items()}, len(parsed.columns[0]), path, "mag")):
+        mapping = attribute[0]  # VMU931's bare x, y, z: a column of words in every row says the quantity
+        notes.append(attribute[1])
     mag_cols, word = _mag_triple(names, mapping)
     if logger is not None:
         word = "ut"
