@@ -31,11 +31,11 @@ from numpy.typing import NDArray
 
 from scipy import stats as sps
 
-from optcal.applications.diagnosis.effects import BIAS_STEP, STEP_MIN_SIDE
+from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
 from optcal.applications.diagnosis.familywise import NullDraws, null_draws
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 
-__all__ = ["StepScan", "scan_step", "adjusted_p", "knock_unneeded", "MINP_POSES", "DRAWS"]
+__all__ = ["StepScan", "scan_step", "adjusted_p", "MINP_POSES", "DRAWS"]
 
 #: Largest session (kept poses) whose step p value is adjusted by the minP simulation; above it, Bonferroni over the
 #: positions.  The simulation costs poses × positions × :data:`DRAWS` (60 poses: 1.4e8, a fraction of a second);
@@ -172,35 +172,3 @@ def adjusted_p(fitter: Fitter, fit: Fit, scan: StepScan, p_single: float, seed: 
     # statistic whose p is p_single (one quantile, not a tail probability per position and draw)
     critical = float(sps.f.isf(p_single, 1, fitter.n - fit.n_params - 1))
     return float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), "minP"
-
-
-def knock_unneeded(fitter: Fitter, current: Fit, levels: dict[tuple[str, int], float],
-                   entered: tuple[str, int] | None) -> tuple[float, tuple[str, int], Fit, float] | None:
-    """The one bias step in ``current`` when the terms accepted after it make it unneeded (the backward check,
-    :meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`): ``(p, key, the fit
-    without it, ΔBIC)``, else ``None``.
-
-    A knock taken first can be a stand-in for an effect found later (a drift or a temperature bias rising through
-    the session: a step at its middle is its best two-level summary).  It is re-tested by the test it entered by,
-    given every other term: the exact F test of its offset at its place, adjusted for the positions searched as
-    :func:`adjusted_p` adjusts it (the null at the model without it; minP or Bonferroni), at the level it entered at (its share of the step's level, ``levels``), with ΔBIC counting its
-    position as a parameter.  Only a single knock on one axis is re-tested (one step placed, one offset): two
-    steps, or a knock moving several axes, are kept (their joint removal would need the pair's own test).
-    """
-    keys = [k for k in current.terms if k[0] == BIAS_STEP]
-    if len(fitter.steps_at) != 1 or len(keys) != 1 or current.terms[keys[0]] != 1:
-        return None
-    key = keys[0]
-    if key == entered or key not in levels:
-        return None
-    placed = fitter.steps_at
-    without = fitter.fit({k: v for k, v in current.terms.items() if k != key}, current.outliers, current.x)
-    p_exact = fitter.f_test(without, current)
-    fitter.set_steps(())
-    try:  # the step's scan from the model without it: the positions its entry test paid for
-        scan = scan_step(fitter, without, key[1])
-        p = 1.0 if scan is None else adjusted_p(fitter, without, scan, p_exact)[0]
-    finally:
-        fitter.set_steps(placed)
-    delta = fitter.bic(current) + float(np.log(fitter.n)) - fitter.bic(without)  # its position a parameter too
-    return (p, key, without, delta) if p >= levels[key] or delta >= 0 else None

@@ -180,7 +180,8 @@ def pose_correlation(fitter: Fitter, fit: Fit, alpha: float, measured: MeasuredP
 
 
 def correlation_with_steps(fitter: Fitter, fit: Fit, alpha: float, baseline: PoseCorrelation) -> PoseCorrelation:
-    """The pose-noise correlation estimated again under ``fit``, whose bias steps were just accepted: the same REML and
+    """The pose-noise correlation estimated again under ``fit``, whose bias steps were just accepted (or one of whose
+    knocks was just dropped, :meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`): the same REML and
     bounds as the baseline's (:func:`pose_correlation`, ``use="on"``), with ``fit``'s terms, its steps included, among
     its fixed effects.  Knocks not yet in the model read as noise shared by neighbouring poses and inflate the
     baseline's estimate (mikoff imu0 with x 6 + y 4 mg written in: ρ₀ 0.95, τ 14 s; with the steps 0.8, 0.70 s);

@@ -24,11 +24,13 @@ linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` 
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers
 enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
-more passes.  After each accepted term every term accepted before it is tested again for removal given all the
-others (:meth:`ForwardSelection.backward_check`: the test it entered by, at the level it entered at, with the
-held-out check): a drift taken before two bias steps that explain the same rise is dropped.  The outlier poses set aside are then tested again under the final model with all its effects
-(:meth:`ForwardSelection.recheck_outliers`): a pose set aside before a drift entered, whose departure the drift
-explains, is returned to the fit.
+more passes.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
+removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~optcal.applications.diagnosis.backward`:
+the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
+steps that explain the same rise is dropped, and so are knocks taken before the drift they stood for.  The outlier
+poses set aside are then tested again under the final model with all its effects
+(:meth:`ForwardSelection.recheck_outliers`, without the held-out check): a pose still aside whose departure the
+final model explains is returned to the fit.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
@@ -39,13 +41,13 @@ adds anything (and that the two cannot be told apart when the recording makes th
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.bias_step import (DRAWS as STEP_DRAWS, adjusted_p, knock_unneeded, scan_step,
-                                                     uses_minp_positions)
+from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_outliers
+from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
@@ -174,7 +176,8 @@ class Step:
 
     candidates: list[Candidate]
     accepted: Candidate | None
-    #: Terms accepted in earlier steps and dropped after this step's term entered (:meth:`ForwardSelection.backward_check`)
+    #: Terms, knocks and outlier poses accepted in earlier steps and removed after this step's term entered
+    #: (:meth:`ForwardSelection.backward_check`)
     dropped: list["Dropped"] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
@@ -183,47 +186,6 @@ class Step:
         if self.dropped:
             out["dropped"] = [d.to_dict() for d in self.dropped]
         return out
-
-
-@dataclass(frozen=True)
-class Dropped:
-    """A term accepted in an earlier step and dropped once a later term made it unneeded
-    (:meth:`ForwardSelection.backward_check`).
-
-    Attributes
-    ----------
-    term : str
-        The term as it was in the model, e.g. ``bias_drift(y)``.
-    effect : str
-    axis : str
-    order : int
-    p_value : float
-        Its likelihood-ratio (F) test given every other term of the model (the test it entered by).
-    level : float
-        The level it entered at (its step's level, multiplicity adjustment included).
-    delta_bic : float
-        BIC of the model with it minus the model without it.
-    heldout_rms_g_with, heldout_rms_g_without : float
-        Held-out rms with and without it (the removal is kept only when the latter is not larger).
-    after : str
-        The term whose entry it was tested after.
-    reason : str
-    """
-
-    term: str
-    effect: str
-    axis: str
-    order: int
-    p_value: float
-    level: float
-    delta_bic: float
-    heldout_rms_g_with: float
-    heldout_rms_g_without: float
-    after: str
-    reason: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
 
 
 @dataclass
@@ -301,6 +263,9 @@ class ForwardSelection:
         self.drop_unneeded = drop_unneeded
         #: Terms dropped by :meth:`backward_check`: not offered again
         self.dropped_keys: set[tuple[str, int]] = set()
+        #: Outlier poses returned to the fit (:meth:`backward_check`, :meth:`recheck_outliers`): an outlier candidate
+        #: setting one aside again is not accepted, so the selection cannot cycle
+        self.returned: set[int] = set()
         #: The pose-noise correlation the fitter uses (set by the caller), re-estimated after each accepted bias step
         self.correlation: PoseCorrelation | None = None
 
@@ -374,6 +339,7 @@ class ForwardSelection:
         steps: list[Step] = []
         rivalries: list[TemperatureTimeDecision] = []
         levels: dict[tuple[str, int], float] = {}  # each term in the model: the level it entered at
+        step_levels: dict[int, float] = {}  # each knock placed (poses before it): the level it entered at
         for _ in range(4 * len(self.candidates) + 3):
             bic0 = fitter.bic(current)
             term_cands = self.term_candidates(current)
@@ -407,6 +373,11 @@ class ForwardSelection:
                         self.alpha_outliers, bool(delta < 0),
                         rows=[int(fitter.poses.rows[k]) for k in sorted(found.poses)], fit=found.fit,
                     ))
+                    again = sorted(int(fitter.poses.rows[k]) for k in set(found.poses) & self.returned)
+                    if again:  # a pose returned by the backward check is not set aside again: no cycling
+                        tried[-1].significant = False
+                        tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
+                                                      " were returned to the fit by the backward check")
             self.step_down_first(tried, current)
             self.prefer_step_to_outliers(tried, current)
             accepted = None
@@ -430,19 +401,25 @@ class ForwardSelection:
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
                 break
-            current = accepted.fit
+            before, current = current, accepted.fit
             if accepted.effect == BIAS_STEP and self.correlation is not None:  # R without knocks it held as noise
                 self.correlation = correlation_with_steps(fitter, current, self.alpha, self.correlation)
                 fitter.correlation = self.correlation.operator
                 current = fitter.fit(dict(current.terms), current.outliers, current.x)
             key = None if accepted.axis is None else (accepted.effect, AXES.index(accepted.axis))
-            if key is not None and accepted.effect not in (BIAS_STEP, SESSION_BIAS):
-                levels.setdefault(key, accepted.threshold)  # a raised order keeps the level its term entered at
-            if key is not None and accepted.effect == BIAS_STEP and accepted.second_at is None:
-                levels.setdefault(key, accepted.threshold)  # a knock's level: its share of the step's, positions paid
-            current, steps[-1].dropped = self.backward_check(current, levels, key, accepted.term)
-            for d in steps[-1].dropped:
-                levels.pop((d.effect, AXES.index(d.axis)), None)
+            if key is not None and accepted.effect != SESSION_BIAS:
+                # a raised order keeps the level its term entered at; a knock's axis, its share of the step's level
+                # (positions paid), or the level of a plain term at a placed knock (an axis more it moved)
+                levels.setdefault(key, accepted.threshold)
+            for k in accepted.new_steps():  # each knock placed (two placed together: both): the level it entered at
+                step_levels[k] = accepted.threshold
+            if accepted.second_at is not None and accepted.fit is not None:  # the pair's first axis
+                for k2 in accepted.fit.terms:
+                    if k2[0] == BIAS_STEP:
+                        levels.setdefault(k2, accepted.threshold)
+            entered_outliers = accepted.fit.outliers - before.outliers if accepted.effect == "outliers" else frozenset()
+            current, steps[-1].dropped = self.backward_check(current, levels, key, accepted.term, step_levels,
+                                                             accepted.new_steps(), entered_outliers)
         current = self.recheck_outliers(current)
         alpha_terms = self.alpha_terms if self.departures_testable(current) else self.alpha
         level = self.step_level(current, self.term_candidates(current), alpha_terms) if self.room(current) else alpha_terms
@@ -453,59 +430,33 @@ class ForwardSelection:
         return SelectionResult(current, steps, self.explain(current, rivalries), level, dropped, self.correlation)
 
     def backward_check(self, current: Fit, levels: dict[tuple[str, int], float], entered: tuple[str, int] | None,
-                       after: str) -> tuple[Fit, list[Dropped]]:
-        """``current`` with the terms accepted before ``entered`` that it made unneeded dropped, one at a time.
+                       after: str, step_levels: dict[int, float] | None = None, entered_steps: tuple[int, ...] = (),
+                       entered_outliers: frozenset[int] | None = None) -> tuple[Fit, list[Dropped]]:
+        """``current`` with the terms, knocks and outlier poses accepted before ``entered`` that it made unneeded
+        removed, one at a time (:func:`~optcal.applications.diagnosis.backward.backward_check`: each by the test it
+        entered by, at the level it entered at, with ΔBIC and the held-out check).  ``step_levels``: each knock's
+        entry level by the poses before it; ``entered_steps`` and ``entered_outliers``: what the step just accepted
+        placed (``entered_outliers`` ``None``: outlier poses are not tested).  Nothing is removed with
+        ``drop_unneeded`` off.
 
-        Forward selection tests a term against the model of its step: a drift accepted first can be explained
-        entirely by terms that enter later (two y bias steps of a rising staircase: the first step's drift stays in
-        the model beside the steps that explain the same rise).  After each accepted term, every earlier term (each
-        polynomial term; a bias step's position is not re-searched, a session bias is the sessions' design) is
-        tested for removal given all the others by the test it entered by: the likelihood-ratio (F) test of all its
-        coefficients at ``levels[key]``, the level it entered at (its step's level with its multiplicity adjustment:
-        a term that would not enter now given the others is not kept), and ΔBIC.  The least significant one that
-        fails either is dropped when the held-out rms without it is not larger than with it (the held-out check the
-        selection uses, read for the removal: the simpler model must predict the left-out poses at least as well);
-        then the others are tested again under the smaller model.  A dropped term is not offered again
-        (:meth:`term_candidates`): the selection cannot cycle.
+        After a knock is dropped, the pose-noise correlation in use (:attr:`correlation`) is estimated again
+        under the model without it (:func:`~optcal.applications.diagnosis.noise_model.correlation_with_steps`,
+        as after a knock is accepted): its column no longer among the REML's fixed effects, the departure it
+        stood for is read by the terms that made it unneeded or as noise shared by neighbouring poses.
         """
-        fitter = self.fitter
-        out: list[Dropped] = []
-        while self.drop_unneeded:
-            bic = fitter.bic(current)
-            failing: list[tuple[float, tuple[str, int], Fit, float]] = []
-            for key, order in current.terms.items():
-                if key == entered or key not in levels or key[0] == BIAS_STEP:
-                    continue
-                without = fitter.fit({k: v for k, v in current.terms.items() if k != key}, current.outliers, current.x)
-                p = fitter.f_test(without, current)
-                delta = bic - fitter.bic(without)
-                if p >= levels[key] or delta >= 0:
-                    failing.append((p, key, without, delta))
-            knock = knock_unneeded(fitter, current, levels, entered)
-            if knock is not None:
-                failing.append(knock)
-            if not failing:
-                return current, out
-            p, key, without, delta = max(failing, key=lambda f: (f[0], f[1]))
-            mask = current.kept(fitter.n)
-            placed = fitter.steps_at
-            with_rms = rms(fitter.heldout(current), mask)
-            if key[0] == BIAS_STEP:
-                fitter.set_steps(())  # the model without its knock has no step (bias_step.knock_unneeded: one placed)
-            without_rms = rms(fitter.heldout(without), mask)
-            if without_rms > with_rms:
-                fitter.set_steps(placed)
-                return current, out
-            term = describe_term(key[0], key[1], current.terms[key])
-            why = (f"given {after} and the model's other terms it is not significant (p = {p:.2g} ≥ {levels[key]:.2g}, "
-                   f"the level it entered at)" if p >= levels[key] else
-                   f"given {after} and the model's other terms it no longer lowers the BIC (ΔBIC {delta:+.1f})")
-            out.append(Dropped(term, key[0], AXES[key[1]], int(current.terms[key]), float(p), levels[key],
-                               float(delta), with_rms, without_rms, after,
-                               f"{why}; held-out rms {with_rms * 1e3:.3g} → {without_rms * 1e3:.3g} mg without it"))
-            self.dropped_keys.add(key)
-            current = without
-        return current, out
+        if not self.drop_unneeded:
+            return current, []
+        test_outliers = entered_outliers is not None and bool(current.outliers)
+        final, dropped = backward_check(
+            self.fitter, current, levels, {} if step_levels is None else step_levels, entered, after,
+            self.dropped_keys, entered_steps, self.alpha_outliers if test_outliers else None,
+            frozenset() if entered_outliers is None else entered_outliers)
+        self.returned |= {k for k in current.outliers - final.outliers}
+        if self.correlation is not None and any(d.effect == BIAS_STEP for d in dropped):
+            self.correlation = correlation_with_steps(self.fitter, final, self.alpha, self.correlation)
+            self.fitter.correlation = self.correlation.operator
+            final = self.fitter.fit(dict(final.terms), final.outliers, final.x)
+        return final, dropped
 
     def step_axes(self, current: Fit) -> list[int]:
         """The axes whose bias step is searched over its positions in a step from ``current``: every candidate axis
@@ -516,7 +467,7 @@ class ForwardSelection:
         paid for in its p value, not in the test's degrees of freedom)."""
         if len(self.fitter.steps_at) >= MAX_STEPS or self.fitter.n - current.n_params - 1 < MIN_DOF:
             return []
-        # a knock dropped as unneeded (knock_unneeded) is not searched again: the selection cannot cycle
+        # a knock dropped as unneeded (backward.backward_check) is not searched again: the selection cannot cycle
         return [a for e, a in self.candidates if e == BIAS_STEP and (e, a) not in self.dropped_keys]
 
     def pair_searched(self, current: Fit, axes: list[int]) -> bool:
@@ -624,32 +575,16 @@ class ForwardSelection:
         return bonferroni if level is None else level
 
     def recheck_outliers(self, final: Fit) -> Fit:
-        """``final`` with its outlier poses tested again under its own terms, each returned whose departure they explain.
-
-        An outlier is accepted in the step it passes, against the model of that step; a later effect (a drift,
-        a temperature term) can explain its departure: a rest 2.6 σ from a fit without the drift is on the fit
-        with it.  Every pose set aside is tested by its deleted residual under ``final``'s terms with the others
-        aside (the test that set it aside, :func:`~optcal.applications.diagnosis.outliers.deleted_residual_p`,
-        Bonferroni over the poses at the outliers' family-wise level); the least significant is returned while it
-        is not significant, one at a time (a returned pose changes the others' noise scale).
-        """
-        aside = set(final.outliers)
-        returned: list[tuple[int, float]] = []
-        without = replace(final, outliers=frozenset())
-        while aside and self.fitter.n - (final.n_params - len(final.outliers) + len(aside)) > 0:
-            same = aside == set(final.outliers)  # the refit with every pose aside is final itself
-            p_values = deleted_residual_p(self.fitter, without, frozenset(aside), final.x, final if same else None)
-            weakest = max(p_values, key=lambda k: (p_values[k], k))
-            if p_values[weakest] < self.alpha_outliers:
-                break
-            aside.discard(weakest)
-            returned.append((weakest, p_values[weakest]))
-        if not returned:
-            return final
-        rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
-        self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
-                  f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
-        return self.fitter.fit(final.terms, frozenset(aside), final.x)
+        """``final`` with its outlier poses tested again under its own terms, each returned whose departure they
+        explain (:func:`~optcal.applications.diagnosis.backward.recheck_outliers`, at the outliers' family-wise
+        level :attr:`alpha_outliers`); the returned poses in a note."""
+        out, returned = recheck_outliers(self.fitter, final, self.alpha_outliers)
+        if returned:
+            rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
+            self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
+                      f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
+            self.returned |= {k for k, _ in returned}
+        return out
 
     def prefer_step_to_outliers(self, tried: list[Candidate], current: Fit) -> None:
         """Set the step's outlier candidate aside when a significant bias step explains every one of its poses.
