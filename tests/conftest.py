@@ -10,8 +10,15 @@ from pathlib import Path
 
 import pytest
 
-from helpers.common import SHARED
-from optcal.core.model import LumpedModel, lu2017_reference_model
+#: One BLAS thread per test process (numpy's, scipy's and CasADi's OpenBLAS read this when they load, and nothing has
+#: loaded numpy before this conftest).  ``pytest -n auto`` already runs one process per core, so OpenBLAS's own
+#: threads only contend with the other worker: tests/families/test_solvers.py and test_random_walk_bias.py with
+#: ``-n 2`` took 31.0-31.3 CPU s with OpenBLAS's default threads against 25.6-26.6 with one (load 8-10), and pass
+#: alike.  The workers, the notebooks' kernel and the CLI's subprocesses inherit it; a value already set wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from helpers.common import SHARED  # noqa: E402
+from optcal.core.model import LumpedModel, lu2017_reference_model  # noqa: E402
 
 #: ``OPTCAL_TEST_CPU_DIR=DIR pytest ...`` appends one JSON line per test to ``DIR/<worker>.jsonl``: its node id, the
 #: CPU seconds of its setup, call and teardown (this process's threads and the children it waited for: a CLI

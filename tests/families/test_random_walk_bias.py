@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -162,12 +164,21 @@ def test_refusals():
         RandomWalkBias(noise_scale=0.0)
 
 
-def test_diagnose_names_a_wandering_bias_as_noise_and_not_on_white_sessions():
-    """The diagnosis tests the walk in its noise section (never a finding) and names it only when it is there."""
+@pytest.fixture(scope="module")
+def walking_diagnosis() -> tuple[PoseTable, Any]:
+    """40 poses whose bias walks at 1e-3 raw/√s and their diagnosis (no simulations), read by two tests (speed
+    only: one diagnosis per test process instead of one per test)."""
     from optcal.applications.diagnosis import diagnose
 
     walking, _ = _session(1e-3, 7, n=40)
-    d = diagnose(walking, simulations=0)
+    return walking, diagnose(walking, simulations=0)
+
+
+def test_diagnose_names_a_wandering_bias_as_noise_and_not_on_white_sessions(walking_diagnosis):
+    """The diagnosis tests the walk in its noise section (never a finding) and names it only when it is there."""
+    from optcal.applications.diagnosis import diagnose
+
+    _, d = walking_diagnosis
     check = d.noise_model.random_walk
     assert check.tested and check.named and check.p_value < 1e-3
     assert check.heldout_rms_walk_g < check.heldout_rms_white_g
@@ -193,10 +204,12 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
     loaded = load_with_segmentation(shared_data / "imutk-xsens" / "xsens_imutk.csv")
     poses = loaded.poses
     settings = DiagnosisSettings(simulations=0)
-    plain = Diagnoser(settings).run(poses, still_parts=loaded.segmentation).noise_model.random_walk
+    plain_diagnosis = Diagnoser(settings).run(poses, still_parts=loaded.segmentation)
+    plain = plain_diagnosis.noise_model.random_walk
     assert plain.tested and plain.noise_scale_source == "measured on the still parts"
     K_g = 5e-5
-    T = Diagnoser(settings).run(poses).model.base.T_canonical
+    # the still parts set the noise's scale, not the fit: T equals the poses-only diagnosis's bit for bit on this log
+    T = plain_diagnosis.model.base.T_canonical
     counts_per_g = 1.0 / np.mean(np.abs(np.diag(T)))
     rng = np.random.default_rng(13)
     dt = np.diff(poses.t, prepend=poses.t[0])
@@ -220,14 +233,12 @@ def test_a_walk_planted_in_the_xsens_recording_is_named_and_measured(shared_data
     assert planted.to_dict()["noise_model"]["random_walk"]["allan"]["consistent"] is False
 
 
-def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path):
+def test_the_saved_calibration_carries_the_walk_and_round_trips(tmp_path, walking_diagnosis):
     """diagnose -o: a named walk is not applicable to a later recording; it is saved as the bias's uncertainty (format 2.2)."""
     from optcal.families.calibration_files import load as load_calibration
     from optcal.families.caltypes.extended import ExtendedCalibration
-    from optcal.applications.diagnosis import diagnose
 
-    walking, _ = _session(1e-3, 7, n=40)
-    d = diagnose(walking, simulations=0)
+    walking, d = walking_diagnosis
     cal = d.calibration()
     assert isinstance(cal, ExtendedCalibration) and cal.format_version == "2.2"
     assert cal.bias_random_walk.K_g_per_sqrt_s == pytest.approx(d.noise_model.random_walk.K_g)
