@@ -95,6 +95,7 @@ def segmentation_report(meta: dict[str, Any], seg: Any) -> str:
         + (f", gyro ×{s.gyro_threshold:g})" if rec.gyro is not None and s.use_gyro else "; no gyro evidence)")
         + f", minimum dwell {s.min_dwell_s:g} s, {_independent(s, rec.gyro is not None)}, trim {s.trim_s:g} s",
         *([f"gyro: {seg.gyro_unit}"] if seg.gyro_unit else []),
+        *([f"rest bounds: {seg.rest_bounds}"] if seg.rest_bounds else []),
         "noise measured: " + "; ".join(f"{k} {v:.4g}{_noise_unit(k, rec)}" for k, v in seg.noise_floor.items()),
         "critical values: " + "; ".join(f"{k} {v:.4g}" for k, v in seg.thresholds.items()),
         "",

@@ -38,7 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
-    "min_independent", "gyro_units", "keep_touches",
+    "min_independent", "gyro_units", "keep_touches", "keep_spins",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -91,6 +91,9 @@ _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     click.option("--keep-touches", is_flag=True, default=None,
                  help="Rest detection: keep a pose's end piece past a twitch next to a move although it is shifted from "
                       "the rest (left out by default as a hand's touch or settling, and counted)."),
+    click.option("--keep-spins", is_flag=True, default=None,
+                 help="Rest detection: take a still stretch as a rest whatever its |a| and gyro rate (by default |a| must "
+                      "be gravity's and the rate within a MEMS gyro's bias, 75 °/s: a steady spin is no rest)."),
     click.option("--trim", type=_NON_NEGATIVE, default=None, metavar="S",
                  help="Static detection: cut this much from both ends of every interval, seconds [0]."),
 )

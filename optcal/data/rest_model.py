@@ -71,6 +71,17 @@ NOISE_FLOOR_G: float = 1e-6
 #: 0.001-0.1 °/s and the thermal drift at most about 0.1 °/s per °C over the few °C of a session; rests whose mean
 #: rates scatter more are not all rests.
 MAX_BIAS_WANDER_RAD_S: float = float(np.radians(1.0))
+#: Largest turn-on bias of a MEMS gyro, rad/s on any axis (75 °/s): the widest zero-rate level of the consumer
+#: parts' datasheets (L3G4200D's ±75 °/s typical at its ±2000 °/s range; the MPU-6050's ±20 °/s, the BMI160's
+#: ±10 °/s).  A gyro at rest reads its bias, so a block whose mean rate is beyond it on an axis is no rest, whatever
+#: its accelerometer says (a steady spin keeps the accelerometer still in the sensor's frame).
+MAX_GYRO_BIAS_RAD_S: float = float(np.radians(75.0))
+#: The fewest radians per second one unit of a gyro whose unit is unknown can be worth, and so the most units
+#: a rate can take: samples with decimals are rad/s or °/s (°/s the smaller, π/180 rad/s); whole-number samples
+#: are counts, one worth at least a 16-bit converter's step over the smallest full scale a MEMS gyro has,
+#: ±125 °/s.  A rate bound divided by it is at least the bound in the gyro's true unit, so a rest is never
+#: taken for a turn for not knowing the unit.
+MIN_RAD_S_PER_UNIT: dict[str, float] = {"decimal": float(np.radians(1.0)), "counts": float(np.radians(125.0) / 32768)}
 #: Span, seconds, over which the gyro's bias is taken as constant (:func:`bias_track`): a MEMS gyro's bias follows
 #: its temperature through the package's thermal time constant, minutes, so over a minute it moves by a fraction
 #: of its drift in a session, while a minute of a calibration recording holds several rests, enough for their

@@ -20,6 +20,8 @@ from optcal.data import rest_model as rm
 from optcal.data.quantiles import column_mad_sigmas, column_medians, grouped_column_medians, median, np_column_medians, np_median, quantiles
 from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
+from optcal.data.rest_bounds import RestBounds, rest_bounds
+from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S
 from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
 from optcal.data.units import nominal_conversion
 from optcal.data.quantisation import quantum
@@ -57,6 +59,8 @@ class Verdicts:
         Per-sample standard deviation about the stretch's mean (norm over the axes).
     creeps, turns : ndarray of bool
         The accelerometer's mean moves; the gyro's mean rate is off the bias (a slow turn).
+    cannot_rest : ndarray of bool
+        Its mean is no rest's (:class:`~optcal.data.rest_bounds.RestBounds`: its |a| is not gravity's).
     independent, independent_gyro : ndarray
         Independent samples of the accelerometer and of the gyro (infinite where it is no evidence).
     """
@@ -66,6 +70,7 @@ class Verdicts:
     turns: NDArray[np.bool_]
     independent: NDArray[np.float64]
     independent_gyro: NDArray[np.float64]
+    cannot_rest: NDArray[np.bool_]
 
 
 class RestModel:
@@ -104,6 +109,11 @@ class RestModel:
         nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
         self.one_g = float(nominal.sensitivity)
         self.acc_zero = np.asarray(nominal.offset, dtype=float)
+        self.bounds: RestBounds = rest_bounds(rec, gyro, b.gmean, s.keep_spins)
+        self.can_rest = ~self._over_a_dwell(~self.bounds.admits(b.mean - self.acc_zero, b.gmean))  # a rest's readings
+        self.units = rec.units
+        self.rest_base = self.can_rest.copy()  # the still blocks a rest's bias is measured on (_pass)
+        self.rest_base_how = ""  # how the first pass's rest_base was narrowed (_refine_rest_base)
         self.bias_model: bm.BiasModel | None = None
         self.gkappa2 = np.ones(3)
         self.gvar_ref: NDArray[np.float64] | None = None
@@ -119,10 +129,13 @@ class RestModel:
         self.scale_evidence = self._scale_from_moves()
         self.gyro_scale, self.gyro_unit_reason = decide_gyro_scale(rec, self.scale_evidence,
                                                                    gyro_rad_per_unit(rec, gyro, self.bias, self.b))
+        refined = self._refine_rest_base(rec)
         if gyro is None:
             self.gyro_unit_reason = ""
-        elif self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT:
-            self._pass(first=True, again=True)  # again, with the scale measured: the bias track's drift limit
+        elif (self.gyro_scale is not None and rec.gyro_units not in RAD_PER_UNIT) or refined:
+            # again, with the scale measured: the bias track's drift limit (and the rests' bias, where the decided
+            # scale sets aside more of the still blocks as no rest's: RestBounds)
+            self._pass(first=True, again=True)
         # Second pass: the noise colour and the gyro bias' wander measured inside the rests the first pass found
         inside = self._pairs_inside(self.runs())
         if inside.sum() >= 8:
@@ -145,6 +158,8 @@ class RestModel:
             return
         acc_still = self._acc_still()
         base = acc_still if acc_still.sum() >= 3 else np.ones(b.count, dtype=bool)
+        if (base & self.rest_base).sum() >= 3:  # the bias of a rest, not of a steady spin (RestBounds)
+            base = base & self.rest_base
         if first:
             if self._spans is None:  # the spans' estimates are the same whatever the drift limit: measured once
                 self._spans = rm.span_estimates(b.t_mid[base], b.gmean[base], step=rm.BIAS_SPAN_S / 2.0)
@@ -171,6 +186,38 @@ class RestModel:
             across = np.linalg.norm(np.cross(b.gmean - self.track, unit_rows(b.mean - self.acc_zero)), axis=1) * scale
             rate = np.where(rate <= bm.MAX_G_SENSITIVITY_RAD_S_PER_G, across, rate)
             self.still |= ~rm.turn_is_relevant(rate, WOBBLE_DWELLS * self.s.min_dwell_s, self.s.gyro_threshold)
+
+    def _over_a_dwell(self, bad: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """The blocks of ``bad`` in runs of consecutive blocks lasting :data:`~optcal.data.rest_model.WOBBLE_DWELLS`
+        dwells or more (the time a rest is judged on): a steady spin, which holds the accelerometer still as long as a
+        rest and fills the spans the gyro's bias is the mode of; a shorter run (a hand's pan about gravity, which the
+        accelerometer does not see) is a move the mode of the still blocks passes over, as before."""
+        out = np.zeros_like(bad)
+        for a, z in zip(*true_runs(bad)):
+            if z - a >= max(WOBBLE_DWELLS * self.dwell_blocks, 2):
+                out[a:z] = True
+        return out
+
+    def _refine_rest_base(self, rec: Recording) -> bool:
+        """Once the gyro's scale is decided (measured on the moves, or the convention of the accelerometer's unit), the
+        still blocks a rest's bias is measured on, narrowed to the bias bound in that scale where the first pass's
+        was in the most units the gyro can be in (:class:`~optcal.data.rest_bounds.RestBounds`; 75 °/s is 75 units
+        when the unit is unknown, 1.3 in rad/s).  Whether that set aside more blocks (the spans are then measured
+        again); not where fewer than three blocks would be left (a scale that makes every rest a spin is the scale's
+        error, not the rests')."""
+        b = self.b
+        if (self.bounds.gyro_zero is None or b.gmean is None or self.gyro_scale is None
+                or rec.gyro_units in RAD_PER_UNIT):
+            return False
+        still = self._acc_still() & self.can_rest
+        limit = MAX_GYRO_BIAS_RAD_S / self.gyro_scale
+        base = still & ~self._over_a_dwell(still & (np.max(np.abs(b.gmean - self.bounds.gyro_zero), axis=1) > limit))
+        if base.sum() < 3 or not np.any(still & ~base):
+            return False
+        self.rest_base, self._spans = self.can_rest & (base | ~still), None
+        self.rest_base_how = (f"over {limit:.4g} from its zero on an axis ({np.degrees(MAX_GYRO_BIAS_RAD_S):g} °/s in "
+                              f"the gyro's scale as decided: {self.gyro_unit_reason.split(':')[0]})")
+        return True
 
     def _scale_from_moves(self) -> ScaleEvidence | None:
         """The gyro's scale measured across the moves between the first pass's rests (:func:`scale_from_moves`)."""
@@ -210,7 +257,7 @@ class RestModel:
         b = self.b
         assert self.bias is not None and b.gmean is not None
         limit = MAX_BIAS_WANDER_RAD_S / self.gyro_scale if self.gyro_scale is not None else np.inf
-        near = np.linalg.norm(b.gmean - self.bias, axis=1) <= limit
+        near = (np.linalg.norm(b.gmean - self.bias, axis=1) <= limit) & self.can_rest
         starts, stops = true_runs(self.quiet & near[1:] & near[:-1])
         return [(int(a), int(z) + 1) for a, z in zip(starts, stops)]
 
@@ -489,8 +536,27 @@ class RestModel:
         for (_, _, k0, k1), v in zip(pieces, pooled):
             self._pooled[(False, k0, k1)] = v
         per_sample = np.sqrt(pooled.sum(axis=1))
+        n = r.sums(self.b.n[r.rows, None])
+        acc = r.sums(self.b.mean[r.rows] * self.b.n[r.rows, None]) / n - self.acc_zero
+        # |a| only: a gyro beyond the bound everywhere is a unit's or a zero's error, which the bias absorbs
         return Verdicts(per_sample, self._creeps(r, per_sample), self._turns(r),
-                        self._independent(r, False, samples), self._independent(r, True, samples))
+                        self._independent(r, False, samples), self._independent(r, True, samples),
+                        ~self.bounds.admits(acc, None))
+
+    def set_aside(self) -> str:
+        """The still blocks the bounds of a rest set aside from the gyro's bias
+        (:class:`~optcal.data.rest_bounds.RestBounds`), in words (empty when none)."""
+        still = self._acc_still()
+        n = int(np.count_nonzero(still & ~self.can_rest))
+        far = int(np.count_nonzero(still & self.can_rest & ~self.rest_base))
+        if not n and not far:
+            return ""
+        out = f"of {int(np.count_nonzero(still))} blocks still for the accelerometer, set aside from the gyro's bias"
+        if n:
+            out += f": {n} no rest's over {WOBBLE_DWELLS:g} dwells by {self.bounds.describe(self.units)}"
+        if far:
+            out += f"; {far} whose gyro mean is {self.rest_base_how}"
+        return out + " (a steady spin); --keep-spins keeps them"
 
     def trim_outlying_samples(self, acc: NDArray[np.float64], a: int, z: int, j0: int, j1: int) -> tuple[int, int]:
         """Trim single samples off the ends of a rest while they lie outside its noise.

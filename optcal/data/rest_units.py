@@ -36,7 +36,7 @@ from optcal.data.evidence import (
     quiet_blocks,
 )
 from optcal.data.quantiles import column_medians, median, quantiles
-from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S
+from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S, MIN_RAD_S_PER_UNIT
 from optcal.data.readers import Source
 from optcal.data.units import (
     PLAUSIBLE_NORM,
@@ -57,12 +57,6 @@ from optcal.errors import InputError
 NON_INTEGER_FRACTION: float = 0.5
 
 
-#: The fewest radians per second one unit of a gyro whose unit is unknown can be worth, and so the most units
-#: a rate can take: samples with decimals are rad/s or °/s (°/s the smaller, π/180 rad/s); whole-number samples
-#: are counts, one worth at least a 16-bit converter's step over the smallest full scale a MEMS gyro has,
-#: ±125 °/s.  A rate bound divided by it is at least the bound in the gyro's true unit, so a rest is never
-#: taken for a turn for not knowing the unit.
-MIN_RAD_S_PER_UNIT: dict[str, float] = {"decimal": float(np.radians(1.0)), "counts": float(np.radians(125.0) / 32768)}
 #: Radians per second of each unit a file can state for its gyro.
 RAD_S_PER_STATED_UNIT: dict[str, float] = {"rad/s": 1.0, "deg/s": float(np.radians(1.0))}
 
@@ -82,7 +76,7 @@ class GyroRest:
         :data:`~optcal.data.rest_model.MAX_BIAS_WANDER_RAD_S` in the gyro's units, plus
         :data:`~optcal.data.evidence.QUIET_FACTOR` times a block mean's noise at the gyro's floor.
     unit : str
-        How the units were taken: stated by the file, or bounded (:data:`MIN_RAD_S_PER_UNIT`).
+        How the units were taken: stated by the file, or bounded (:data:`~optcal.data.rest_model.MIN_RAD_S_PER_UNIT`).
     """
 
     at_rest: NDArray[np.bool_]
@@ -98,7 +92,7 @@ def gyro_at_rest(src: Source, ev: Evidence, quiet: NDArray[np.bool_], nb: int) -
     :data:`~optcal.data.rest_model.MAX_BIAS_WANDER_RAD_S` (1 °/s); a block whose mean rate is further from the
     rest reading than that, plus its own noise, turns (a steady spin's noise stays at the floor, its rate does
     not).  The bound is taken in the gyro's units as the file states them (rad/s, °/s), else as the largest it
-    can be in units (:data:`MIN_RAD_S_PER_UNIT`: as °/s for samples with decimals, as counts of a ±125 °/s 16-bit
+    can be in units (:data:`~optcal.data.rest_model.MIN_RAD_S_PER_UNIT`: as °/s for samples with decimals, as counts of a ±125 °/s 16-bit
     gyro for whole numbers), so only a turn faster than 1 °/s in any unit the samples can be in is set aside.
     """
     if not src.has(*GYRO):

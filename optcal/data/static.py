@@ -64,6 +64,8 @@ ODD = "samples in still stretches far noisier than the recording's rests (a move
 ODD_STRETCHES = "still stretches rejected as far noisier than the recording's rests"
 LOUD = "samples in still stretches noisier per sample than a resting accelerometer"
 LOUD_STRETCHES = "still stretches rejected as noisier per sample than a resting accelerometer"
+SPINNING = "samples in still stretches no rest can give: their |a| is not gravity's (a steady spin; --keep-spins keeps them)"
+SPINNING_STRETCHES = "still stretches rejected as no rest's: their |a| is not gravity's (a steady spin)"
 TOUCH = "samples of a pose's end piece shifted after a twitch next to a move (a touch; --keep-touches keeps them)"
 TOUCH_STRETCHES = "pose end pieces left out as a touch next to a move (--keep-touches keeps them)"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
@@ -105,6 +107,10 @@ class StaticSettings:
     keep_touches : bool
         Keep a pose's end pieces that :func:`~optcal.data.static_stretches.touches` would leave out
         (``--keep-touches``).
+    keep_spins : bool
+        Take no bound on a rest's readings (``--keep-spins``): by default a still stretch whose |a| is not
+        gravity's is no rest, and a still block whose gyro rate is beyond any MEMS gyro's bias does not set its bias
+        (:class:`~optcal.data.rest_bounds.RestBounds`: a steady spin).
     """
 
     window_s: float = 0.25
@@ -119,6 +125,7 @@ class StaticSettings:
     sigma_blocks: int = 10
     min_independent: float | None = None
     keep_touches: bool = False
+    keep_spins: bool = False
 
     def __post_init__(self) -> None:
         for name in ("window_s", "threshold", "gyro_threshold", "drift_threshold"):
@@ -174,6 +181,8 @@ class Segmentation:
     gyro_unit : str
         How the gyro's unit (its radians per second per unit) was decided: stated, or measured on the moves
         (:func:`optcal.data.static_stretches.decide_gyro_scale`); empty without a gyro.
+    rest_bounds : str
+        The still blocks the bounds of a rest set aside from the gyro's bias, in words (empty when none).
     pose_statistics : bool
         False when the intervals were only counted (:func:`detect_static` with ``pose_statistics=False``: no
         means, spreads or standard errors, no per-sample curves in ``trace``; :meth:`pose_table` refuses them)
@@ -191,6 +200,7 @@ class Segmentation:
     evidence: dict[str, float] = field(default_factory=dict)
     gyro_unit: str = ""
     pose_statistics: bool = True
+    rest_bounds: str = ""
 
     def override_warnings(self) -> list[str]:
         """What each flag that loosened a test of the rest model assumes (printed as warnings)."""
@@ -204,6 +214,9 @@ class Segmentation:
             if value > 1:
                 out.append(f"{flag} {value:g}: {what} up to {value:g}× the test's critical value are taken for noise "
                            f"(a false-alarm probability far below {s.false_alarm:g}); a slow motion may pass as a rest")
+        if s.keep_spins:
+            out.append("--keep-spins: a still stretch is a rest whatever its |a| and its gyro rate; a steady spin, "
+                       "whose centripetal acceleration is not gravity, may pass as a rest")
         n = s.min_independent
         if n is not None and (n < MIN_INDEPENDENT_ACC or (n < MIN_INDEPENDENT_GYRO and s.use_gyro and self.recording.gyro is not None)):
             out.append(f"--min-independent {n:g}: a still stretch holding {n:g} independent samples is a rest (the "
@@ -226,6 +239,7 @@ class Segmentation:
             "gyro_bias": None if self.gyro_bias is None else self.gyro_bias.tolist(),
             "gyro_units": rec.gyro_units,
             "gyro_unit_decision": self.gyro_unit,
+            "rest_bounds": self.rest_bounds,
             "n_samples": rec.n,
             "n_samples_in_poses": self.n_used,
             "stretches_joined": self.joined,
@@ -270,6 +284,9 @@ def no_static_message(seg: Segmentation) -> str:
         reasons.append(f"{ev[SWEEPING_STRETCHES]} still stretch(es) whose mean creeps beyond the trend test "
                        f"(|t| > {seg.thresholds.get('trend', float('nan')):.3g}; a slow turn: --drift-threshold N accepts "
                        "N times more)")
+    if ev.get(SPINNING_STRETCHES):
+        reasons.append(f"{ev[SPINNING_STRETCHES]} still stretch(es) no rest can give: their |a| is not gravity's (a "
+                       "steady spin's centripetal acceleration: --keep-spins keeps them)")
     if ev.get(TURNING_STRETCHES):
         reasons.append(f"{ev[TURNING_STRETCHES]} still stretch(es) whose gyro mean is off the bias (a turn the "
                        "accelerometer does not see: --gyro-threshold N accepts N times more, --no-gyro-gate ignores the gyro"
@@ -357,7 +374,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     in_pose = np.zeros(m, dtype=bool)
     trim = int(round(s.trim_s * rate))
     kept: list[tuple[int, int, int, int]] = []  # sample range and block range
-    counts = {key: 0 for key in (EDGES, SHORT, SHORT_STRETCHES, FEW, FEW_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
+    counts = {key: 0 for key in (SPINNING, SPINNING_STRETCHES, EDGES, SHORT, SHORT_STRETCHES, FEW, FEW_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, ODD, ODD_STRETCHES,
                                  TOUCH, TOUCH_STRETCHES, TRIMMED)}
     rest_noise: list[float] = []
@@ -397,7 +414,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     for i, (a, z, j0, j1) in enumerate(candidates):
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])
-        if per_sample > MAX_REST_NOISE_G * one_g:
+        if verdicts.cannot_rest[i]:
+            reject(a, z, SPINNING, SPINNING_STRETCHES)
+        elif per_sample > MAX_REST_NOISE_G * one_g:
             reject(a, z, LOUD, LOUD_STRETCHES)
             evidence["loud_noise_min_g"] = min(evidence.get("loud_noise_min_g", np.inf), per_sample / one_g)
         elif verdicts.creeps[i]:
@@ -436,7 +455,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
-    for key in (SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES,
+    for key in (SPINNING_STRETCHES, SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES,
                 TOUCH_STRETCHES):
         evidence[key] = counts[key]
     evidence["still_stretches"] = len(runs)
@@ -452,7 +471,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
         norm = _distance(acc, nominal.offset)
         trace["norm_g"] = np.divide(norm, nominal.sensitivity, out=norm)
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
-                        len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason, pose_statistics)
+                        len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason, pose_statistics,
+                        model.set_aside())
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

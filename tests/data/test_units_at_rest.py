@@ -16,6 +16,7 @@ import pytest
 
 from helpers.cli_run import run
 from helpers.vmu931 import write_vmu931
+from optcal.data.static import SPINNING_STRETCHES
 
 FS = 100.0
 G = 9.80665
@@ -147,3 +148,30 @@ def test_a_column_of_words_that_names_no_sensor_still_asks_for_columns(tmp_path,
     path.write_text("label,time,x,y,z\n" + rows)
     code, out, err = run(["segment", path], capsys)
     assert code == 2 and "--columns" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("flags", [[], ["--no-gyro-gate"]])
+def test_a_steady_spin_is_not_a_rest_and_does_not_set_the_gyros_bias(tmp_path, capsys, flags):
+    """The same flight, its units now right: before, one pose was the 60-s spin (|a| 4.5 g) and the true rest was
+    set aside as "gyro off its bias" (the bias followed the majority of the still blocks, which spin at 12 rad/s).
+    A rest reads |a| = 1 g and a gyro within a MEMS gyro's bias (RestBounds): the rest is the one pose, the spin's
+    blocks are said as set aside from the bias; without the gyro as evidence the spin is rejected by its |a|;
+    --keep-spins gives the spin as a pose again."""
+    a, g = _steady_spin(1.0)
+    t = np.arange(len(a)) / FS
+    path = tmp_path / "spin.csv"
+    path.write_text("t,ax,ay,az,wx,wy,wz\n" + "".join(
+        f"{s:.4f}," + ",".join(f"{v:.8f}" for v in (*ra, *rg)) + "\n" for s, ra, rg in zip(t, a, g)))
+    code, out, err = run(["segment", path, "--json", *flags], capsys)
+    assert code == 0, err
+    seg = json.loads(out)["segmentation"]
+    assert len(seg["intervals"]) == 1, seg["intervals"]
+    pose = seg["intervals"][0]
+    assert pose["t_end"] < 10.0 and abs(np.linalg.norm(pose["mean"]) - G) < 0.05, pose
+    if flags:
+        assert seg["evidence"][SPINNING_STRETCHES] == 1
+    else:
+        assert "--keep-spins keeps them" in seg["rest_bounds"]
+    code, out, err = run(["segment", path, "--json", "--keep-spins", *flags], capsys)  # the override: as before
+    assert code == 0, err
+    assert any(iv["t_start"] > 10.0 for iv in json.loads(out)["segmentation"]["intervals"])  # the spin a pose again

@@ -721,36 +721,58 @@ def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None
     )
 
 
+def planar_tilt(m: NDArray[np.float64], misfit: float = np.inf) -> tuple[float, NDArray[np.float64]]:
+    """The share of the samples' spread that tilts out of their plane, and that plane's axis (the thinnest).
+
+    A field turned about one axis traces a circle; along the axis the samples hold the field's component and the hard
+    iron, which no turn about it tells apart (the sphere fit finds them only from the noise and the misfit).  The
+    raw samples' covariance's smallest eigenvalue, less the sensor's noise along that axis, over the whole spread, is
+    the tilt's share: a full sphere gives 1/3, a turn tilted by θ rms about the plane θ²/2.  The noise is the smaller
+    of two bounds: half the variance of consecutive samples' differences along the axis (by their MAD: a turn about
+    the axis moves the samples in the plane), and ``misfit``, a fit's rms distance from its surface (sensor units).
+    """
+    eig, axes = np.linalg.eigh(np.cov(m.T))
+    d = np.diff(m, axis=0) @ axes[:, 0]
+    noise2 = (1.4826 * float(np.median(np.abs(d - np.median(d))))) ** 2 / 2.0 if d.size else 0.0
+    return max(float(eig[0]) - min(noise2, misfit**2), 0.0) / max(float(np.sum(eig)), 1e-300), axes[:, 0]
+
+
 def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64]) -> None:
     if settings.accept_fit:
         return
-    eig, axes = np.linalg.eigh(np.cov(m.T))
-    spread = float(np.sqrt(np.max(eig)))
-    if spread < NOT_A_FIELD_SPAN * fit.field_strength and eig[0] < PLANAR_SPREAD * np.sum(eig):
-        # a field turned about one axis traces a circle: the raw samples' covariance has no third axis (below the
-        # coverage's planar share), and a sphere through a circle may be of any size, so the fit is no evidence
-        # that the samples are not a field
-        axis = axes[:, 0]
-        raise IdentifiabilityError(
-            f"the magnetometer samples turn in one plane (their spread across it, along [{', '.join(f'{c:+.2f}' for c in axis)}], "
-            f"is {100 * np.sqrt(eig[0] / np.sum(eig)):.2g} % of their spread): the sphere through them is not determined (fitted "
-            f"field {fit.field_strength:.4g}, {fit.field_strength / spread:.3g} times their spread); add orientations that tilt "
-            f"that axis towards and away from the field (e.g. roll the sensor 90° and turn it again: optcal plan --sensor mag); "
-            f"--accept-mag-fit keeps it")
-    if spread < NOT_A_FIELD_SPAN * fit.field_strength:
-        raise InputError(f"the samples are not a magnetic field: they spread by {spread:.3g}, {100 * spread / fit.field_strength:.2g} % "
-                         f"of the fitted field strength {fit.field_strength:.4g} (a field turned through a calibration spans "
-                         f"tens of % of its strength); check that --columns maps mx, my, mz to the magnetometer (not a "
-                         f"gyro or accelerometer); --accept-mag-fit keeps it")
+    not_field = ("check that --columns maps mx, my, mz to the magnetometer (not a gyro or accelerometer); "
+                 "--accept-mag-fit keeps it")
     if fit.rms > NOT_A_FIELD_RMS:
         raise InputError(f"the samples are not a magnetic field: they leave the fitted ellipsoid by {100 * fit.rms:.3g} % rms "
-                         f"(a field with hard and soft iron: a few %); check that --columns maps mx, my, mz to the "
-                         f"magnetometer (not a gyro or accelerometer); --accept-mag-fit keeps it")
+                         f"(a field with hard and soft iron: a few %); {not_field}")
+    eig = np.linalg.eigvalsh(np.cov(m.T))
+    spread = float(np.sqrt(np.max(eig)))
+    dwarfed = spread < NOT_A_FIELD_SPAN * fit.field_strength
+    cloud = InputError(f"the samples are not a magnetic field: they spread by {spread:.3g}, {100 * spread / fit.field_strength:.2g} % "
+                       f"of the fitted field strength {fit.field_strength:.4g} (a field turned through a calibration spans "
+                       f"tens of % of its strength); {not_field}")
+    if dwarfed and eig[0] >= PLANAR_SPREAD * np.sum(eig):  # a cloud, not a circle: a huge ellipsoid passes through it
+        raise cloud
+    tilt, axis = planar_tilt(m, fit.rms * fit.field_strength)
+    if tilt < PLANAR_SPREAD:
+        if settings.allow_degenerate:
+            return
+        # the turns do not span the sphere: the field strength and the hard iron along the axis are not determined,
+        # whatever the fit's standard errors say (a sphere through a circle may be of any size)
+        raise IdentifiabilityError(
+            f"the magnetometer samples turn in one plane (their tilt out of it, along [{', '.join(f'{c:+.2f}' for c in axis)}], "
+            f"less the noise, is {100 * tilt:.2g} % of their spread, a tilt of {np.degrees(np.sqrt(2 * tilt)):.2g}° rms): "
+            f"the field strength (fitted {fit.field_strength:.4g}, the circle's) and the hard iron along that axis are not "
+            f"determined; turn the sensor about a second axis (roll it 90° and turn it again: optcal plan --sensor mag); "
+            f"--allow-degenerate fits the hard iron in the plane anyway, --accept-mag-fit keeps the fit")
+    if dwarfed:
+        raise cloud
 
 
 #: A planar turn leaves the direction covariance this small along its axis (a full sphere gives
 #: 1/3 on every axis, a turn about one axis with the field at 30° from it 0 along the axis, 0.125
-#: and 0.125 across): below 0.01 (a wobble of ±6° about the plane) the axis is not seen.
+#: and 0.125 across): below 0.01 (a tilt of 8° rms about the plane) the axis is not seen; the raw
+#: samples' tilt share (:func:`planar_tilt`) is held to the same.
 PLANAR_SPREAD: float = 0.01
 
 
@@ -760,7 +782,7 @@ def coverage_notes(cov: Coverage) -> list[str]:
     if cov.spread[0] < PLANAR_SPREAD:
         axis = ", ".join(f"{c:+.2f}" for c in cov.thinnest_axis)
         notes.append(f"the samples turn in one plane (direction spread {cov.spread[0]:.2g} along [{axis}]): the "
-                     f"ellipsoid's extent along that axis is not determined; add orientations that tilt that axis "
+                     f"ellipsoid's extent along that axis, the field strength and the hard iron along it are not determined; add orientations that tilt that axis "
                      f"towards and away from the field (e.g. roll the sensor 90° and turn it again)")
     if cov.missing:
         notes.append(f"coverage {len(cov.covered)}/{len(COVERAGE_NAMES)} directions; missing: {', '.join(cov.missing)} "

@@ -1,0 +1,96 @@
+"""What a rest's readings can be, whatever the noise: the bounds a steady spin breaks (docs/rest-model.md, fifth sweep).
+
+:class:`RestBounds` says which blocks or stretches a rest can give; :class:`optcal.data.rest_tests.RestModel` keeps
+the others out of the gyro's bias and :func:`optcal.data.static.detect_static` rejects the stretches that break them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from optcal.core.units import RAD_PER_UNIT
+from optcal.data.quantiles import np_column_medians
+from optcal.data.recording import Recording
+from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S, MIN_RAD_S_PER_UNIT
+from optcal.data.units import PLAUSIBLE_NORM, UNSIGNED_16_MIDSCALE, around_midscale, in_unsigned_16_range
+
+
+@dataclass(frozen=True)
+class RestBounds:
+    """What a rest's readings can be, whatever the noise: the bounds a steady spin breaks.
+
+    At rest the specific force is gravity alone, so |a| is 1 g within the accelerometer's scale and offset errors
+    (the range :data:`~optcal.data.units.PLAUSIBLE_NORM` admits for data at rest in g or m/s²; in counts no 1 g is
+    stated, and |a| is not bounded), and the gyro reads its bias, at most
+    :data:`~optcal.data.rest_model.MAX_GYRO_BIAS_RAD_S` on any axis, taken in the gyro's units as stated, else as
+    the most units it can be (:data:`~optcal.data.rest_model.MIN_RAD_S_PER_UNIT`), about its zero (mid-scale for
+    unsigned 16-bit counts around it).  A steady spin keeps both sensors still in the sensor's frame; its
+    centripetal acceleration and its rate break these bounds, so it can neither pass as a rest nor set the
+    gyro's bias that the rests are judged against.  A still stretch is judged by its |a| (a gyro beyond its bound
+    everywhere is a unit's or a zero's error, which the bias absorbs); the gyro's bound keeps spinning blocks out of
+    the bias.
+
+    Attributes
+    ----------
+    norm_range : tuple of float or None
+        The |a| a rest can read, raw units (None: counts, not bounded).
+    gyro_zero : ndarray (3,) or None
+        The gyro's zero, its units (None: no gyro, or the gyro not evidence).
+    gyro_limit : float
+        The largest bias on an axis, the gyro's units (infinite without a gyro).
+    gyro_unit : str
+        How the gyro's units were taken for the bound.
+    """
+
+    norm_range: tuple[float, float] | None
+    gyro_zero: NDArray[np.float64] | None
+    gyro_limit: float
+    gyro_unit: str
+
+    def admits(self, acc: NDArray[np.float64], gyro: NDArray[np.float64] | None) -> NDArray[np.bool_]:
+        """Whether each row of ``acc`` (k, 3; less the nominal zero) and ``gyro`` (k, 3) a rest can read."""
+        ok = np.ones(acc.shape[0], dtype=bool)
+        if self.norm_range is not None:
+            norm = np.linalg.norm(acc, axis=1)
+            ok &= (norm >= self.norm_range[0]) & (norm <= self.norm_range[1])
+        if gyro is not None and self.gyro_zero is not None:
+            ok &= np.max(np.abs(gyro - self.gyro_zero), axis=1) <= self.gyro_limit
+        return ok
+
+    def describe(self, units: str) -> str:
+        """The bounds in words."""
+        parts = []
+        if self.norm_range is not None:
+            parts.append(f"|a| outside {self.norm_range[0]:g}-{self.norm_range[1]:g} {units} (at rest |a| = 1 g)")
+        if self.gyro_zero is not None:
+            parts.append(f"a gyro mean over {self.gyro_limit:.4g} from its zero on an axis (a MEMS gyro's largest "
+                         f"bias, {np.degrees(MAX_GYRO_BIAS_RAD_S):g} °/s, units {self.gyro_unit})")
+        return " or ".join(parts)
+
+
+def rest_bounds(rec: Recording, gyro: NDArray[np.float64] | None, gyro_means: NDArray[np.float64] | None,
+                keep: bool) -> RestBounds:
+    """:class:`RestBounds` of a recording (``keep``: ``--keep-spins``, no bounds)."""
+    if keep:
+        return RestBounds(None, None, np.inf, "")
+    norm_range = PLAUSIBLE_NORM[rec.units] if rec.units in ("g", "m/s^2") else None
+    if gyro is None or gyro_means is None or not gyro.size:
+        return RestBounds(norm_range, None, np.inf, "")
+    head = gyro[: 4096]
+    head = head[np.isfinite(head)]
+    zero = np.zeros(3)
+    if rec.gyro_units in RAD_PER_UNIT:
+        per_unit, unit = RAD_PER_UNIT[rec.gyro_units], f"{rec.gyro_units} as stated"
+    elif rec.gyro_units == "counts" or (head.size and bool(np.all(head == np.round(head)))):
+        per_unit, unit = MIN_RAD_S_PER_UNIT["counts"], "counts, bounded as a ±125 °/s 16-bit gyro's"
+        finite = gyro[np.all(np.isfinite(gyro), axis=1)]
+        if finite.size and in_unsigned_16_range(float(finite.min()), float(finite.max())) \
+                and around_midscale(np_column_medians(gyro_means)):
+            zero = np.full(3, UNSIGNED_16_MIDSCALE)
+            unit += ", zero at the unsigned mid-scale"
+    else:
+        per_unit, unit = MIN_RAD_S_PER_UNIT["decimal"], "unknown; bounded as °/s, the smaller of rad/s and °/s"
+    return RestBounds(norm_range, zero, MAX_GYRO_BIAS_RAD_S / per_unit, unit)
