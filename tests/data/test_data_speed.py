@@ -257,6 +257,12 @@ def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatc
     monkeypatch.setattr(quantiles_module, "BRACKET_SIGMAS", 0.0)  # a bracket of no width: it misses, or holds ties
     for name, x in cases.items():
         assert _same(quantiles_module.median(x[:-1]), float(np.median(x[:-1]))), name
+    import subprocess
+    import sys
+
+    probe = ("import sys, numpy as np; from optcal.data.quantiles import median; median(np.arange(70000.0)); "
+             "print('numpy.random' in sys.modules)")  # its subsample is no reason to import numpy.random (7 MB)
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"
 
 
 def test_rest_model_with_its_quanta_measured_in_a_second_thread_is_the_serial_ones(shared_data, monkeypatch):
