@@ -180,11 +180,10 @@ def block_edges(m: int, block: int, breaks: NDArray[np.int64]) -> tuple[NDArray[
 
 
 def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray[np.float64],
-                   quant_var: float | Callable[[], float], dev: NDArray[np.float64] | None = None
+                   quant_var: float, dev: NDArray[np.float64] | None = None
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     mean = np.empty((starts.size, 3))
     var = np.empty((starts.size, 3))
-    roundings = []
     # one buffer of a column's length for the three columns (``dev``, the caller's to share between sensors): the
     # deviations, then their squares in place; no temporary of the data's length per column
     dev = np.empty(x.shape[0]) if dev is None else dev
@@ -199,38 +198,23 @@ def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray
         s2 = np.add.reduceat(np.multiply(dev, dev, out=dev), starts)
         mu = s1 / n
         mean[:, j] = mu + centre
-        roundings.append((ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * largest) ** 2)
-        var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0)
-    # the converter's q²/12, then the rounding, added as one expression would (a quantum given as a function is
-    # asked for only now: the caller measures it meanwhile)
-    q = quant_var() if callable(quant_var) else quant_var
-    for j in range(3):
-        var[:, j] = var[:, j] + q + roundings[j]
+        rounding = (ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * largest) ** 2
+        var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var + rounding
     return mean, var
 
 
 def make_blocks(t: NDArray[np.float64], acc: NDArray[np.float64], gyro: NDArray[np.float64] | None, block: int,
-                breaks: NDArray[np.int64], acc_quantum: float | Callable[[], float],
-                gyro_quantum: float | Callable[[], float]) -> Blocks:
-    """Cut the samples into blocks (:func:`block_edges`) and reduce each to its mean and variance.
-
-    A quantum (:func:`optcal.data.quantisation.quantum`, 0 for none) may be given as a function, called once the
-    sensor's sums are taken (its ``q²/12`` is the last term of a block's variance): the caller may measure it in
-    another thread meanwhile.
-    """
+                breaks: NDArray[np.int64], acc_quantum: float, gyro_quantum: float) -> Blocks:
+    """Cut the samples into blocks (:func:`block_edges`) and reduce each to its mean and variance."""
     m = acc.shape[0]
     starts, joined = block_edges(m, block, breaks)
     stops = np.append(starts[1:], m)
     n = (stops - starts).astype(float)
     dev = np.empty(m)
-
-    def quant_var(q: float | Callable[[], float]) -> float | Callable[[], float]:
-        return (lambda: q() ** 2 / 12.0) if callable(q) else q**2 / 12.0
-
-    mean, var = _block_moments(acc, starts, n, quant_var(acc_quantum), dev)
+    mean, var = _block_moments(acc, starts, n, acc_quantum**2 / 12.0, dev)
     gmean = gvar = None
     if gyro is not None:
-        gmean, gvar = _block_moments(gyro, starts, n, quant_var(gyro_quantum), dev)
+        gmean, gvar = _block_moments(gyro, starts, n, gyro_quantum**2 / 12.0, dev)
     del dev
     t_mid = 0.5 * (t[starts] + t[stops - 1])
     return Blocks(starts, stops, n, mean, var, gmean, gvar, joined, t_mid, var)

@@ -8,7 +8,6 @@ found), and judges each still stretch (:meth:`RestModel.peel`, :meth:`~RestModel
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -23,7 +22,6 @@ from optcal.data.recording import Recording
 from optcal.data.rest_model import MAX_BIAS_DRIFT_RAD_S2, MAX_BIAS_WANDER_RAD_S, NOISE_FLOOR_G, SAME_POSE_SAMPLE_SIGMAS, WOBBLE_DWELLS, WOBBLE_SHRINK
 from optcal.data.static_stretches import ScaleEvidence, decide_gyro_scale, gyro_rad_per_unit, scale_from_moves, true_runs
 from optcal.data.units import nominal_conversion
-from optcal.data.evidence import PARALLEL_ROWS
 from optcal.data.quantisation import quantum
 
 if TYPE_CHECKING:
@@ -77,21 +75,10 @@ class RestModel:
                  gyro: NDArray[np.float64] | None, block: int, breaks: NDArray[np.int64], rate: float) -> None:
         self.s = s
         self.rate = rate
+        qa = quantum(acc) or 0.0
+        qg = (quantum(gyro) or 0.0) if gyro is not None else 0.0
         self.block = block
-        if acc.shape[0] >= PARALLEL_ROWS:
-            # the converter steps measured in a second thread while this one takes the blocks' sums (their q²/12 is
-            # the last term of a block's variance): two passes over the samples at once, the same numbers
-            with ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-quantum") as pool:
-                acc_q = pool.submit(quantum, acc)
-                gyro_q = pool.submit(quantum, gyro) if gyro is not None else None
-                self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, lambda: acc_q.result() or 0.0,
-                                            lambda: (gyro_q.result() or 0.0) if gyro_q is not None else 0.0)
-                qa = acc_q.result() or 0.0
-                qg = (gyro_q.result() or 0.0) if gyro_q is not None else 0.0
-        else:  # a short recording: a thread's start is not worth it
-            qa = quantum(acc) or 0.0
-            qg = (quantum(gyro) or 0.0) if gyro is not None else 0.0
-            self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
+        self.b = b = rm.make_blocks(t, acc, gyro, block, breaks, qa, qg)
         self.half_width = max(1, int(np.ceil(s.min_dwell_s * rate / (2.0 * block))))
         self.dwell_blocks = max(1, int(np.ceil(s.min_dwell_s * rate / block)))
         b.var_ref = rm.local_noise(b.var, self.half_width)

@@ -263,27 +263,3 @@ def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatc
     probe = ("import sys, numpy as np; from optcal.data.quantiles import median; median(np.arange(70000.0)); "
              "print('numpy.random' in sys.modules)")  # its subsample is no reason to import numpy.random (7 MB)
     assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"
-
-
-def test_rest_model_with_its_quanta_measured_in_a_second_thread_is_the_serial_ones(shared_data, monkeypatch):
-    """The converter steps measured in a second thread while the blocks' sums are taken (from PARALLEL_ROWS
-    samples; forced here on imu_tk's Xsens log in counts, whose accelerometer and gyro both have a step) give the
-    serial path's blocks bit for bit and its segmentation."""
-    import optcal.data.rest_tests as rest_tests
-    from optcal.data import load_recording
-    from optcal.data.quantisation import quantum
-
-    rec = load_recording(str(shared_data / "imutk-xsens" / "xsens_imutk.csv"))
-    assert quantum(rec.acc[rec.usable]) and quantum(rec.gyro[rec.usable])  # both steps enter the variances
-    runs = {}
-    for name, rows in (("serial", 10**12), ("threaded", 0)):
-        monkeypatch.setattr(rest_tests, "PARALLEL_ROWS", rows)
-        seg = static.detect_static(rec)
-        runs[name] = seg
-    serial, threaded = runs["serial"], runs["threaded"]
-    assert np.array_equal(serial.trace["static"], threaded.trace["static"])
-    assert [(i.start, i.stop) for i in serial.intervals] == [(i.start, i.stop) for i in threaded.intervals]
-    assert serial.noise_floor == threaded.noise_floor and serial.thresholds == threaded.thresholds
-    assert serial.exclusions == threaded.exclusions and len(serial.intervals) > 10
-    assert all(np.array_equal(a.mean, b.mean) and np.array_equal(a.gyro_mean, b.gyro_mean)
-               for a, b in zip(serial.intervals, threaded.intervals))
