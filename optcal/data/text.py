@@ -406,11 +406,12 @@ ARROW_STREAM_BLOCK_BYTES: int = 2**18
 THREADED_READ_BYTES: int = 2**30
 
 
-def _arrow_options(p: Path, layout: TextLayout) -> dict[str, Any] | None:
+def _arrow_options(p: Path, layout: TextLayout, skip_rows: int | None = None) -> dict[str, Any] | None:
     """pyarrow's CSV options for a file of plain numbers laid out as ``layout``, or ``None`` when pyarrow cannot read it.
 
     ``None`` when pyarrow is not installed or numbers have decimal commas (whitespace runs and
-    other cells pyarrow cannot read are found while reading).
+    other cells pyarrow cannot read are found while reading).  ``skip_rows``: the lines before the numbers (the
+    layout's header and the lines above it by default; 0 for a byte range that starts on a line of data).
     """
     if layout.decimal_comma:
         return None
@@ -422,7 +423,8 @@ def _arrow_options(p: Path, layout: TextLayout) -> dict[str, Any] | None:
     names = [f"c{j}" for j in range(len(layout.names))]
     return {
         "read_options": pacsv.ReadOptions(
-            column_names=names, skip_rows=layout.first_data_line, block_size=ARROW_STREAM_BLOCK_BYTES,
+            column_names=names, skip_rows=layout.first_data_line if skip_rows is None else skip_rows,
+            block_size=ARROW_STREAM_BLOCK_BYTES,
             encoding="utf8", use_threads=False,
         ),
         "parse_options": pacsv.ParseOptions(delimiter=layout.delimiter, quote_char=False),
@@ -489,7 +491,8 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
     on the 12-hour still log's serial path).
     """
     options = _arrow_options(p, layout)
-    if options is None:
+    later = _arrow_options(p, layout, skip_rows=0)  # a later range starts on a line of data
+    if options is None or later is None:
         return None
     import threading
 
@@ -512,11 +515,7 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
 
     def read(k: int) -> None:
         a, b = ranges[k]
-        opts = dict(options)
-        if k:  # a later range starts on a data line
-            opts["read_options"] = pacsv.ReadOptions(column_names=options["read_options"].column_names, skip_rows=0,
-                                                      block_size=ARROW_STREAM_BLOCK_BYTES, encoding="utf8",
-                                                      use_threads=False)
+        opts = later if k else options
         try:
             with pa.OSFile(str(p)) as fh, pacsv.open_csv(fh.get_stream(a, b - a), **opts) as reader:
                 for batch in reader:

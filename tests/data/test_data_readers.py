@@ -271,6 +271,20 @@ def test_saturation_rail_in_float_data(tmp_path):
     assert rec.exclusions[SATURATED] == syn.saturated.sum() > 0
 
 
+def test_whole_numbers_probe_decides_as_the_whole_column():
+    """The integer-rail check's whole-number test looks at a strided sample first: a column whose sample is all
+    whole numbers but one value between them is not is not whole (counts at a rail are told from a float log
+    only by the whole column), and one whose sample is not decides at once."""
+    from optcal.data.recording import WHOLE_NUMBER_PROBE, _whole_numbers
+
+    counts = np.round(np.random.default_rng(2).normal(0.0, 300.0, 50 * WHOLE_NUMBER_PROBE + 7))
+    assert _whole_numbers(counts)
+    between = counts.copy()
+    between[1] += 0.5  # not on the probe's stride
+    assert not _whole_numbers(between) and not np.all(between == np.round(between))
+    assert not _whole_numbers(counts + 0.25) and _whole_numbers(np.zeros(3))
+
+
 def test_no_static_interval_is_one_error(tmp_path, capsys):
     t = np.arange(0, 30, 0.01)
     a = np.column_stack([np.cos(0.8 * t), np.sin(0.8 * t) * np.cos(0.3 * t), np.sin(0.8 * t) * np.sin(0.3 * t)])

@@ -221,3 +221,45 @@ def test_a_blocks_released_rows_are_whole_pages_inside_the_range_and_read_as_zer
         assert gone.size * 8 % mmap.PAGESIZE == 0 and gone.size == gone[-1] - gone[0] + 1
         keep = ~released[:, j]
         assert np.array_equal(block.block[keep, j], kept[keep, j])
+
+
+def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatch):
+    """The large-array median (the middle values selected inside a bracket read from a subsample, the whole
+    partitioned where it misses) is np.median's value bit for bit: odd and even sizes, ties at the middle (counts),
+    heavy tails, all equal, two values, sorted either way, infinities in the tails, zeros of both signs at the
+    middle; the bracket is taken where it should be, and a bracket made to miss (no half-width) still gives it."""
+    import optcal.data.quantiles as quantiles_module
+    from optcal.data.quantiles import BRACKET_MIN_VALUES, _middle_in_bracket
+
+    rng = np.random.default_rng(40)
+    n = BRACKET_MIN_VALUES + 1001
+    cases = {
+        "normal": rng.normal(size=n), "counts": np.round(rng.normal(size=n) * 2.0) + 300.0,
+        "cauchy": rng.standard_cauchy(size=n), "pareto": rng.pareto(0.7, size=n) + 1e-3,
+        "equal": np.full(n, 0.1), "two values": np.where(rng.random(n) < 0.5, 2.0, 3.0),
+        "ascending": np.sort(rng.normal(size=n)), "descending": -np.sort(-rng.exponential(size=n)),
+        "infinite tails": np.r_[rng.normal(size=n - 100) + 5.0, np.full(50, np.inf), np.full(50, -np.inf)],
+        "signed zeros": np.where(rng.random(n) < 0.5, -0.0, 0.0) * (rng.random(n) < 0.9) + (rng.random(n) < 0.1),
+        "a tie across the middle": np.r_[np.full(n // 2 - 3, 1.0), np.full(7, 2.0), np.full(n - n // 2 - 4, 3.0)],
+    }
+    for name, x in cases.items():
+        for values in (x, x[:-1]):  # odd and even sizes
+            expected = float(np.median(values))
+            assert _same(quantiles_module.median(values), expected) and (
+                np.signbit(quantiles_module.median(values)) == np.signbit(expected)), name
+            lower, upper = (values.size - 1) // 2, values.size // 2
+            ordered = np.sort(values)
+            middle = _middle_in_bracket(values, lower, upper)
+            if name not in ("signed zeros",):  # every other case is selected inside its bracket
+                assert middle == (ordered[lower], ordered[upper]), name
+            else:
+                assert middle is None  # a zero's sign is the whole partition's to pick
+    monkeypatch.setattr(quantiles_module, "BRACKET_SIGMAS", 0.0)  # a bracket of no width: it misses, or holds ties
+    for name, x in cases.items():
+        assert _same(quantiles_module.median(x[:-1]), float(np.median(x[:-1]))), name
+    import subprocess
+    import sys
+
+    probe = ("import sys, numpy as np; from optcal.data.quantiles import median; median(np.arange(70000.0)); "
+             "print('numpy.random' in sys.modules)")  # its subsample is no reason to import numpy.random (7 MB)
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.core.stats import sorted_unique
 from optcal.data.static_stretches import true_runs
 from optcal.families.noise.allan import AllanCurve
 
@@ -143,7 +144,7 @@ def _pieces(change: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float
     out = []
     for m in ms.tolist():
         n = n_phase - 2 * m
-        cuts = np.unique(np.clip(np.concatenate([steps - 2 * m, steps - m, steps, [0, n]]), 0, n))
+        cuts = sorted_unique(np.clip(np.concatenate([steps - 2 * m, steps - m, steps, [0, n]]), 0, n))
         p, q = cuts[:-1], cuts[1:]
         delta = r(p + 2 * m) - 2.0 * r(p + m) + r(p)
         live = delta != 0.0
@@ -155,7 +156,7 @@ def _points(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
             ms: NDArray[np.intp]) -> NDArray[np.intp]:
     """The phase's running-sum indices the span sums of ``pieces`` read (:func:`_ratios`), sorted, each once."""
     ends = [np.concatenate([p, q]) for p, q, _ in pieces]
-    return np.unique(np.concatenate([np.empty(0, dtype=np.intp)]
+    return sorted_unique(np.concatenate([np.empty(0, dtype=np.intp)]
                                     + [e + shift * m for e, m in zip(ends, ms.tolist()) for shift in (0, 1, 2)]))
 
 
@@ -261,7 +262,7 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
         column = np.ascontiguousarray(x[:, j])
         pieces = [_pieces(patch_values(column, at_rest, rate_hz, spans), rate_hz, ms[j], n_phase)
                   for spans in spans_list]
-        points = np.unique(np.concatenate([_points(p, ms[j]) for p in pieces]))
+        points = sorted_unique(np.concatenate([_points(p, ms[j]) for p in pieces]))
         prefix = (points, phase_prefix_at(column, rate_hz, points))
         return [_ratios(p, prefix, rate_hz, n_phase, ms[j], curves[j].adev, half[j]) for p in pieces]
 

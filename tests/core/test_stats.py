@@ -1,0 +1,27 @@
+"""The shared summary statistics of :mod:`optcal.core.stats`."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+
+from optcal.core.stats import sorted_unique
+
+
+def test_sorted_unique_is_numpys_unique_without_numpy_ma():
+    """``np.unique``'s values for integer arrays (empty, one value, all equal, repeats, negatives, 2-D), and the
+    disturbance check of a still log that uses it imports no ``numpy.ma`` (numpy 2's ``unique`` does)."""
+    rng = np.random.default_rng(5)
+    cases = [np.empty(0, dtype=np.intp), np.array([7]), np.full(9, 3), rng.integers(-50, 50, 1000),
+             rng.integers(0, 4, (20, 5)), np.arange(10)[::-1]]
+    for x in cases:
+        got = sorted_unique(x)
+        assert got.dtype == np.unique(x).dtype and np.array_equal(got, np.unique(x))
+    probe = ("import sys, numpy as np; from optcal.families.noise.disturbance import disturbance_change; "
+             "from optcal.families.noise.allan import allan_deviation; x = np.random.default_rng(0).normal(size=(4000, 1)); "
+             "x[1000:1010] += 5.0; rest = np.ones(4000, bool); rest[1000:1010] = False; "
+             "c = allan_deviation(x[:, 0], 100.0); disturbance_change(x, rest, 100.0, [c]); print('numpy.ma' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
