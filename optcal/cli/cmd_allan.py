@@ -100,8 +100,9 @@ class StillLog:
     def at_rest(self) -> NDArray[np.bool_]:
         """Which of :attr:`samples` the rest model finds at rest (after :meth:`confirm_still`)."""
         seg = self.confirm_still()
+        # the rest model's trace has a value per usable sample (detect_static drops the unusable rows itself), the
+        # rows :attr:`samples` holds: indexing it by :attr:`usable` again failed on a log with unusable rows
         static = np.asarray(seg.trace["static"], dtype=bool)
-        static = static if self.usable is None else static[self.usable]
         return static if self.cut is None else static[self.cut[0]:self.cut[1]]
 
 

@@ -166,3 +166,20 @@ def test_the_phases_running_sum_at_a_few_points_equals_the_whole_column_sums_to_
     points = np.unique(np.concatenate([[0, 1, 2, 999, 1000, 1001, 1002, 5000, 5001, 5002],
                                        rng.integers(0, x.size + 2, 300)]))
     assert np.array_equal(disturbance.phase_prefix_at(x, RATE, points), whole[points])
+
+
+def test_a_still_log_with_unusable_rows_is_analysed_and_they_are_counted(tmp_path, capsys) -> None:
+    """A logger's unfilled buffer (all-zero rows, as sunsided's set-1 MPU-6050 log ends) is excluded while reading; the
+    rest model's trace then has a value per usable row, and the start-up cut read it indexed by the usable rows a second
+    time: an IndexError traceback (exit 1) on every such log.  Now analysed, the zero rows and the cut transient counted."""
+    src = np.loadtxt(still_log(tmp_path, "transient"), delimiter=",", skiprows=1)
+    t = np.arange(src.shape[0] + 300) / RATE
+    rows = np.column_stack([t, np.vstack([src[:, 1:], np.zeros((300, 6))])])
+    p = tmp_path / "zero_tail.csv"
+    np.savetxt(p, rows, delimiter=",", header="t,ax,ay,az,gx,gy,gz", comments="", fmt="%.7f")
+    code, out, err = run(capsys, str(p), "--units", "g", "--json")
+    assert code == 0, err
+    exclusions = json.loads(out)["log"]["exclusions"]
+    assert [v for k, v in exclusions.items() if "all-zero rows" in k] == [300]
+    cut = [v for k, v in exclusions.items() if "start-up transient" in k]
+    assert cut and 30 <= cut[0] <= 100
