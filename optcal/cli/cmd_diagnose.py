@@ -48,13 +48,13 @@ def diagnosis_options(func: Any) -> Any:
 
 def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
                   pose_correlation: str = "auto", calibration: dict[str, Any] | None = None,
-                  drop_unneeded: bool = True) -> Any:
+                  drop_unneeded: bool = True, term_pairs: bool = True) -> Any:
     """The :class:`~optcal.applications.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
     from optcal.applications.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
                              pose_correlation=pose_correlation, calibration=dict(calibration or {}),
-                             drop_unneeded=drop_unneeded)
+                             drop_unneeded=drop_unneeded, term_pairs=term_pairs)
 
 
 def progress_printer() -> Any:
@@ -77,6 +77,9 @@ def progress_printer() -> Any:
 @click.option("--keep-terms", is_flag=True,
               help="Keep every term the forward selection accepted: no term is dropped when later ones make it "
                    "unneeded (the backward check; each drop is reported under its step).")
+@click.option("--no-term-pairs", is_flag=True,
+              help="Test one term at a time only: no pair of terms (or one effect on every axis) searched together "
+                   "when no single term passes (two effects that mask each other are then missed).")
 @click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
               help="The sensor to diagnose: the accelerometer (static poses; --imu adds the gyroscope) or the "
                    "magnetometer (raw samples mx, my, mz: a local disturbance, a temperature or current column).")
@@ -95,7 +98,7 @@ def progress_printer() -> Any:
 @solver_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, keep_terms: bool,
-             sensor: str,
+             no_term_pairs: bool, sensor: str,
              mag_units: str | None, imu: bool, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
@@ -142,7 +145,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     if imu and (len(data) != 1 or baseline_path):
         raise InputError("--imu diagnoses one raw recording with gyro columns: give one DATA, without --baseline")
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings,
-                             not keep_terms)
+                             not keep_terms, not no_term_pairs)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
     reporter = progress_printer()

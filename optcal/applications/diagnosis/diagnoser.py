@@ -90,6 +90,10 @@ class DiagnosisSettings:
         After each accepted term, drop an earlier one the later terms made unneeded
         (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`); ``False`` (``optcal
         diagnose --keep-terms``): plain forward selection, every accepted term kept.
+    term_pairs : bool
+        When no one-term candidate of a step passes, search the best pair of first-order terms (or one effect on
+        every axis) together, with a share of the step's level (:mod:`~optcal.applications.diagnosis.term_pair`);
+        ``False`` (``optcal diagnose --no-term-pairs``): one term at a time, each at the whole terms' share.
     """
 
     effects: str | tuple[str, ...] | None = None
@@ -102,6 +106,7 @@ class DiagnosisSettings:
     pose_correlation: str = "auto"
     calibration: dict[str, Any] = field(default_factory=dict, hash=False)
     drop_unneeded: bool = True
+    term_pairs: bool = True
 
     def __post_init__(self) -> None:
         if self.pose_correlation not in POSE_CORRELATION_CHOICES:
@@ -125,7 +130,8 @@ class DiagnosisSettings:
                 "effects": None if self.effects is None else (
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects)),
                 # said only when the backward check is off (--keep-terms): the default's record is unchanged
-                **({} if self.drop_unneeded else {"drop_unneeded": False})}
+                **({} if self.drop_unneeded else {"drop_unneeded": False}),
+                **({} if self.term_pairs else {"term_pairs": False})}
 
 
 #: Why a bias step is not searched when several sessions are diagnosed together.
@@ -293,7 +299,8 @@ class Diagnoser:
         open_terms = [(e, a) for e, a in candidates if e != BIAS_STEP]
         sim = simulation_check(fitter, base, open_terms, s.simulations, s.band, s.seed, loop)
         self.progress("forward selection over the candidate effects")
-        selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop, s.drop_unneeded)
+        selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop, s.drop_unneeded,
+                                    s.term_pairs)
         selector.correlation = correlation if correlation.used else None
         selection = selector.run(base)
         final = selection.final

@@ -22,9 +22,10 @@ order its higher coefficients do not significantly improve on (F test at the lev
 at, the level a later step would need to raise the order again): a linear drift is named as
 linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
-bias that rises and falls keeps its order 2.  Outliers
-enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  Selection stops when nothing
-more passes.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
+bias that rises and falls keeps its order 2.  Outliers enter as mean-shift terms
+(:mod:`optcal.applications.diagnosis.outliers`).  When nothing passes, terms (and a term with a knock) are searched
+together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops when
+that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
 removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~optcal.applications.diagnosis.backward`:
 the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
 steps that explain the same rise is dropped, and so are knocks taken before the drift they stood for.  The outlier
@@ -55,6 +56,7 @@ from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_ou
 from optcal.applications.diagnosis.correlation import PoseCorrelation
 from optcal.applications.diagnosis.noise_model import correlation_with_steps
 from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation, scan_pair, with_null
+from optcal.applications.diagnosis.term_pair import pair_count, search_term_pair
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
 from optcal.core.stats import rms
@@ -71,6 +73,8 @@ def coefficient_count(c: "Candidate") -> int:
     """Coefficients a term candidate adds (its polynomial order; a session bias, one per session after the
     first; outliers, one per pose; a bias step searched over its positions, its size and its place: a change
     point is a fitted unknown)."""
+    if c.together is not None:  # two first-order terms searched together
+        return len(c.together)
     if c.second_at is not None and c.fit is not None:  # two steps searched together: their offsets and both places
         return sum(v for (e, _), v in c.fit.terms.items() if e == BIAS_STEP) + 2
     if c.step_at is not None:
@@ -133,6 +137,9 @@ class Candidate:
     correlation : str or None
         For two bias steps tested under correlated pose noise: the correlation re-estimated with them, in words
         (:func:`~optcal.applications.diagnosis.step_pair.pair_correlation`).
+    together : tuple of (str, int) or None
+        For two first-order terms searched together (:mod:`~optcal.applications.diagnosis.term_pair`): their
+        ``(effect, axis)`` keys (:attr:`effect` and :attr:`axis` are the first's).
     """
 
     term: str
@@ -151,6 +158,7 @@ class Candidate:
     step_at: int | None = None
     second_at: int | None = None
     correlation: str | None = None
+    together: tuple[tuple[str, int], ...] | None = None
     fit: Fit | None = field(default=None, repr=False, compare=False)
 
     def new_steps(self) -> tuple[int, ...]:
@@ -167,6 +175,8 @@ class Candidate:
                     "step_at", "second_at", "correlation"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
+        if self.together is not None:
+            out["together"] = [describe_term(e, a, 1) for e, a in self.together]
         return out
 
 
@@ -242,10 +252,14 @@ class ForwardSelection:
         Wraps the loop over a step's candidates (a progress bar).
     drop_unneeded : bool
         Test the earlier terms for removal after each accepted term (:meth:`backward_check`).
+    term_pairs : bool
+        Search the best pair of first-order terms together when no one-term candidate of a step passes
+        (:mod:`~optcal.applications.diagnosis.term_pair`).
     """
 
     def __init__(self, fitter: Fitter, candidates: list[tuple[str, int]], with_outliers: bool, alpha: float,
-                 note: Callable[[str], None], loop: Loop = plain_loop, drop_unneeded: bool = True) -> None:
+                 note: Callable[[str], None], loop: Loop = plain_loop, drop_unneeded: bool = True,
+                 term_pairs: bool = True) -> None:
         self.fitter = fitter
         self.candidates = candidates
         self.with_outliers = with_outliers
@@ -261,6 +275,8 @@ class ForwardSelection:
         self.note = note
         self.loop = loop
         self.drop_unneeded = drop_unneeded
+        #: Search the best pair of first-order terms when no one-term candidate passes (:meth:`term_pair_candidate`)
+        self.term_pairs = term_pairs
         #: Terms dropped by :meth:`backward_check`: not offered again
         self.dropped_keys: set[tuple[str, int]] = set()
         #: Outlier poses returned to the fit (:meth:`backward_check`, :meth:`recheck_outliers`): an outlier candidate
@@ -350,6 +366,7 @@ class ForwardSelection:
             # the step's axes (and the pair searched together) share its level (Bonferroni); its positions are paid
             # for in its p value (adjusted_p)
             single_level = self.single_step_level(current, steps_axes)
+            pair_level = single_level if self.sets_searched(current, steps_axes) else None
             tried: list[Candidate] = self.step_candidates(current, steps_axes, single_level, bic0)
             if self.pair_searched(current, steps_axes) and not any(c.significant for c in tried):
                 tried += self.pair_candidate(current, steps_axes, single_level, bic0)
@@ -380,22 +397,11 @@ class ForwardSelection:
                                                       " were returned to the fit by the backward check")
             self.step_down_first(tried, current)
             self.prefer_step_to_outliers(tried, current)
-            accepted = None
-            for c in preference_order([c for c in tried if c.significant]):
-                assert c.fit is not None
-                mask = c.fit.kept(fitter.n)
-                c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
-                placed = fitter.steps_at
-                if c.step_at is not None:
-                    fitter.set_steps((*placed, *c.new_steps()))  # the held-out fits of the step need its split
-                c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
-                if c.heldout_rms_g_after < c.heldout_rms_g_before:
-                    accepted = c
-                    break
-                if c.step_at is not None:
-                    fitter.set_steps(placed)
-                c.significant = False
-                c.rejected_because = "held-out rms did not fall"
+            accepted = self.accept(tried, current)
+            if accepted is None and pair_level is not None:  # nothing passed: terms (and a knock) searched together
+                together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
+                tried += together
+                accepted = self.accept(together, current)
             if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
                 rivalries += self.rivals(accepted, tried)
             steps.append(Step(tried, accepted))
@@ -411,6 +417,8 @@ class ForwardSelection:
                 # a raised order keeps the level its term entered at; a knock's axis, its share of the step's level
                 # (positions paid), or the level of a plain term at a placed knock (an axis more it moved)
                 levels.setdefault(key, accepted.threshold)
+            for k2 in accepted.together or ():  # two terms entered together: each at the pair's level
+                levels.setdefault(k2, accepted.threshold)
             for k in accepted.new_steps():  # each knock placed (two placed together: both): the level it entered at
                 step_levels[k] = accepted.threshold
             if accepted.second_at is not None and accepted.fit is not None:  # the pair's first axis
@@ -484,8 +492,10 @@ class ForwardSelection:
         steps searched together: one more share.  The pair is tried only when no single step is significant, but
         its share is set beforehand, so the step's false-finding rate stays at most :attr:`alpha_step` (3 axes:
         each one-step test at 0.00125 instead of 0.00167 at α = 0.02; the power this costs is in
-        docs/diagnosis.md, "Two knocks searched together")."""
-        return self.alpha_step / max(len(axes) + int(self.pair_searched(current, axes)), 1)
+        docs/diagnosis.md, "Two knocks searched together").  The terms searched together
+        (:meth:`sets_searched`) are one more share (0.001 each with both)."""
+        return self.alpha_step / max(len(axes) + int(self.pair_searched(current, axes))
+                                     + int(self.sets_searched(current, axes)), 1)
 
     def pair_candidate(self, current: Fit, axes: list[int], level: float, bic0: float) -> list[Candidate]:
         """Two bias steps searched together (:func:`~optcal.applications.diagnosis.step_pair.scan_pair`), fitted
@@ -573,6 +583,60 @@ class ForwardSelection:
             return bonferroni
         level = minp_level(self.fitter, current, term_cands, alpha_terms)
         return bonferroni if level is None else level
+
+    def accept(self, tried: list[Candidate], current: Fit) -> Candidate | None:
+        """The first significant candidate of ``tried`` in :func:`preference_order` whose held-out rms is below the
+        current model's (the fitter's steps left as its); the others tried are marked as rejected by it."""
+        fitter = self.fitter
+        for c in preference_order([c for c in tried if c.significant]):
+            assert c.fit is not None
+            mask = c.fit.kept(fitter.n)
+            c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
+            placed = fitter.steps_at
+            if c.step_at is not None:
+                fitter.set_steps((*placed, *c.new_steps()))  # the held-out fits of the step need its split
+            c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
+            if c.heldout_rms_g_after < c.heldout_rms_g_before:
+                return c
+            if c.step_at is not None:
+                fitter.set_steps(placed)
+            c.significant = False
+            c.rejected_because = "held-out rms did not fall"
+        return None
+
+    def sets_searched(self, current: Fit, axes: list[int]) -> bool:
+        """Whether a step from ``current`` searches terms together when no candidate passes
+        (:mod:`~optcal.applications.diagnosis.term_pair`): with :attr:`term_pairs` on, a knock searched in the step
+        (``axes``: the step's departures family, whose level the sets share) and a set to search."""
+        return (self.term_pairs and bool(axes) and self.room(current)
+                and pair_count(self.term_candidates(current), current, len(axes)) > 0)
+
+    def term_pair_candidate(self, current: Fit, term_cands: list[tuple[str, int, int]], level: float,
+                            bic0: float, tried: list[Candidate], knock_axes: list[int]) -> list[Candidate]:
+        """The best set of new first-order terms, or a term and a knock, searched together
+        (:func:`~optcal.applications.diagnosis.term_pair.search_term_pair`; the knock scanned given each term's fit
+        among ``tried``), its p value Bonferroni's over the sets searched, significant when below ``level`` (its
+        share of the step's departures level, :meth:`single_step_level`), each term needed given the others at that
+        level, and its ΔBIC negative (a knock's place counted as a parameter)."""
+        alone = {(c.effect, AXES.index(str(c.axis))): c.fit for c in tried
+                 if c.order == 1 and c.fit is not None and c.together is None and c.step_at is None
+                 and c.axis is not None and c.effect != "outliers"}
+        found = search_term_pair(self.fitter, current, term_cands, level, alone, knock_axes)
+        if found is None:
+            return []
+        name = " + ".join(describe_term(e, a, 1) for e, a in found.keys) + f", {len(found.keys)} terms together"
+        knock = found.step_at is not None  # a term and a knock: the candidate places it (held-out fits, step levels)
+        effect, axis = found.keys[-1] if knock else found.keys[0]
+        delta = self.fitter.bic(found.fit) - bic0 + (float(np.log(self.fitter.n)) if knock else 0.0)
+        out = Candidate(name + (f" (the knock after {found.step_at} poses)" if knock else ""), effect, AXES[axis],
+                        len(self.fitter.steps_at) + 1 if knock else 1, delta, found.p_value, level, False,
+                        step_at=found.step_at, together=found.keys, fit=found.fit)
+        if found.p_value < level and delta < 0:
+            out.significant = found.p_each < level
+            if not out.significant:
+                out.rejected_because = (f"not every term is needed given the others: the weakest one's F test given "
+                                        f"the others, p = {found.p_each:.2g}")
+        return [out]
 
     def recheck_outliers(self, final: Fit) -> Fit:
         """``final`` with its outlier poses tested again under its own terms, each returned whose departure they
