@@ -236,9 +236,11 @@ def check_random_walk(poses: PoseTable, T: NDArray, o: NDArray, session: NDArray
         for k in range(FOLDS):
             test, train = fold_of == k, fold_of != k
             tr, te = poses.subset(np.flatnonzero(train)), poses.subset(np.flatnonzero(test))
-            fold = estimator.fit(tr, theta0, session[train], interval=False)
+            # a fold's profile is the session's with a fifth of the poses out: its search starts at the
+            # session's lowest λ (RandomWalkBias.fit, near), and it needs no interval
+            fold = estimator.fit(tr, theta0, session[train], interval=False, near=fit.lam_lowest)
             walk.append(estimator.predict_heldout(tr, te, fold, session[train], session[test]))
-            white.append(norm_residuals(*unpack_theta(estimator.white_fit(tr, theta0)), te.acc))
+            white.append(norm_residuals(*unpack_theta(fold.theta_white), te.acc))
     except (np.linalg.LinAlgError, InputError, ValueError) as err:  # ValueError: a profile interval not bracketed
         return RandomWalkCheck(False, reason=f"the fit failed: {err}")
     g_per_raw = float(np.mean(np.abs(np.diag(T))))  # raw units → g (T maps raw to g)

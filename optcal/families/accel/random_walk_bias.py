@@ -22,8 +22,11 @@ where ``W⁻¹`` holds each pose's white-noise variance in g² (``(σ_k ‖h_k�
 ``σ``, else 1) and ``s²`` is a free noise scale (profiled out: ``ŝ² = rᵀ V⁻¹ r / n``), so the
 white noise is not assumed to be what ``σ/√n`` says.  For fixed ``λ`` the calibration is a
 generalised least-squares problem, solved by Gauss–Newton from the baseline fit; ``λ`` is found
-by maximising the profile likelihood ``−½ (n log ŝ² + log det V)`` over ``log λ``.  The walk is a
-Markov chain in time, so ``V⁻¹``, ``log det V`` and the smoothed walk take one banded factorisation
+by maximising the profile likelihood ``−½ (n log ŝ² + log det V)`` over ``log λ``: a grid over
+``log λ`` finds the lowest basin and a bounded minimisation refines it; a fit of most of the same
+poses (a held-out fold) walks the grid downhill from the whole fit's lowest point instead
+(``near``), the same grid point when the profile has one basin.  The walk is a Markov chain in
+time, so ``V⁻¹``, ``log det V`` and the smoothed walk take one banded factorisation
 (:mod:`optcal.core.chain_covariance`: the Kalman filter's likelihood and the Rauch–Tung–Striebel
 smoother, exact): linear in the number of poses, 10⁴ poses included.
 
@@ -53,6 +56,9 @@ from optcal.core.poses import PoseTable
 LOG_LAMBDA_RANGE: tuple[float, float] = (-8.0, 8.0)
 #: Gauss–Newton steps of the generalised least-squares fit at one ``λ``.
 GN_STEPS: int = 8
+#: Points of the ``log10 λ`` grid over :data:`LOG_LAMBDA_RANGE` (2/3 of a decade apart) that locates the
+#: profile's lowest basin before the bounded minimisation refines it within one spacing either side.
+GRID_POINTS: int = 25
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,12 @@ class RandomWalkBiasFit:
         on simulated sessions 59–87 % of the planted walk lies within 3 of them, not 99.7 %.
     residuals : ndarray, shape (n,)
         Norm residuals at ``theta`` minus the smoothed bias's share (g).
+    theta_white : ndarray, shape (9,)
+        θ at ``q = 0`` (:meth:`RandomWalkBias.white_fit` of the same poses, bit for bit).
+    lam_lowest : float
+        ``λ = q / s²`` (raw units² per s over the white scale) where the profile was lowest, also when
+        that is no better than ``q = 0`` (then ``q`` is 0): where a fit of a subset of these poses
+        starts its search (``near`` of :meth:`RandomWalkBias.fit`).
     """
 
     theta: NDArray[np.float64]
@@ -95,6 +107,8 @@ class RandomWalkBiasFit:
     bias_track: NDArray[np.float64]
     bias_track_sd: NDArray[np.float64]
     residuals: NDArray[np.float64]
+    theta_white: NDArray[np.float64]
+    lam_lowest: float
 
     @property
     def wander_rms(self) -> float:
@@ -198,15 +212,19 @@ class RandomWalkBias:
             V = self._covariance(point, lam, walk, sigma, known)
             J = point.jacobian().T  # (n, 9)
             r = point.residuals
-            VJ = V.solve(J)
-            step = np.linalg.solve(J.T @ VJ, -(VJ.T @ r))
-            theta = theta + step
-            if np.max(np.abs(step)) < 1e-12 * max(1.0, np.max(np.abs(theta))):
+            VX = V.solve(np.column_stack([J, r]))  # V⁻¹J and V⁻¹r from one solve
+            step = np.linalg.solve(J.T @ VX[:, :9], -(J.T @ VX[:, 9]))
+            if np.max(np.abs(step)) < 1e-12 * max(1.0, np.max(np.abs(theta + step))):
+                # converged: θ is the fixed point to 1e-12 of itself, and V, r at θ are the ones just built
+                # (the step would move it by < 1e-12 of itself: one factorisation and solve saved per λ)
+                quad = float(r @ VX[:, 9])
                 break
-        point = kernel.at_theta(theta)
-        V = self._covariance(point, lam, walk, sigma, known)
-        r = point.residuals
-        quad = float(r @ V.solve(r))
+            theta = theta + step
+        else:
+            point = kernel.at_theta(theta)
+            V = self._covariance(point, lam, walk, sigma, known)
+            r = point.residuals
+            quad = float(r @ V.solve(r))
         if self.noise_scale is not None:  # −2 log L with s² fixed (constant 2π terms dropped)
             s2 = self.noise_scale**2
             return theta, quad / s2 + n * np.log(s2) + V.logdet, V, r
@@ -233,7 +251,7 @@ class RandomWalkBias:
 
     # -- the fit --------------------------------------------------------------------------------
     def fit(self, poses: PoseTable, theta0: ArrayLike, session: ArrayLike | None = None,
-            interval: bool = True) -> RandomWalkBiasFit:
+            interval: bool = True, near: float | None = None) -> RandomWalkBiasFit:
         """Fit ``(T, o, q)`` by maximum likelihood with the walk integrated out.
 
         Parameters
@@ -248,6 +266,12 @@ class RandomWalkBias:
         interval : bool
             Compute ``K``'s profile-likelihood interval (``False``: ``(nan, nan)``; a held-out fold
             needs only the estimate).
+        near : float, optional
+            ``λ`` near which the profile's lowest point is expected (the :attr:`~RandomWalkBiasFit.lam_lowest` of
+            a fit of a superset of these poses, e.g. the whole session for a held-out fold): the grid is
+            walked downhill from the grid point nearest to it instead of evaluated everywhere.  It finds
+            the same grid point as the whole grid when the profile has one basin along the grid (so
+            the same estimate, to the bounded minimisation's tolerance); ``None`` evaluates the whole grid.
         """
         t, sess, sigma = self._setup(poses, session)
         known = poses.sigma is not None
@@ -265,6 +289,8 @@ class RandomWalkBias:
         cache: dict[float, tuple[NDArray, float]] = {}
 
         def profile(log_lam: float) -> float:
+            if log_lam in cache:  # a grid point asked again (the interval's ends, K at its bounds)
+                return cache[log_lam][1]
             # warm start from the nearest λ already solved (the profile is evaluated along log λ)
             start = cache[min(cache, key=lambda g: abs(g - log_lam))][0] if cache else theta_white
             th, m2ll, V, r = self._gls(kernel, start, unit * 10.0**log_lam, walk, sigma, known)
@@ -276,15 +302,30 @@ class RandomWalkBias:
         K_at: dict[float, float] = {}
 
         lo, hi = LOG_LAMBDA_RANGE
-        grid = np.linspace(lo, hi, 25)
-        values = np.array([profile(g) for g in grid])
-        best = int(np.argmin(values))
+        grid = np.linspace(lo, hi, GRID_POINTS)
+        values = np.full(grid.size, np.inf)  # +inf: not evaluated
+        if near is None or not near > 0:
+            values[:] = [profile(g) for g in grid]
+            best = int(np.argmin(values))
+        else:
+            best = int(np.clip(np.rint((np.log10(near / unit) - lo) / (grid[1] - grid[0])), 0, grid.size - 1))
+            values[best] = profile(grid[best])
+            while True:  # downhill along the grid to its nearest local minimum
+                for j in (best - 1, best + 1):
+                    if 0 <= j < grid.size and values[j] == np.inf:
+                        values[j] = profile(grid[j])
+                lower = best - 1 if best > 0 and values[best - 1] < values[best] else best
+                lower = best + 1 if best + 1 < grid.size and values[best + 1] < values[lower] else lower
+                if lower == best:
+                    break
+                best = lower
+        lam_lowest = unit * 10.0 ** float(grid[best])
         if values[best] < m2ll_white:
             a, b = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
             res = optimize.minimize_scalar(profile, bounds=(a, b), method="bounded", options={"xatol": 1e-4})
             log_lam = float(res.x) if res.fun <= values[best] else float(grid[best])
             theta, m2ll = cache[log_lam]
-            lam = unit * 10.0**log_lam
+            lam = lam_lowest = unit * 10.0**log_lam
         else:
             theta, m2ll, lam, log_lam = theta_white, m2ll_white, 0.0, None
         lr = max(m2ll_white - m2ll, 0.0)
@@ -310,7 +351,7 @@ class RandomWalkBias:
         return RandomWalkBiasFit(
             theta=theta, q=q, K=float(np.sqrt(q)), K_interval=bounds, noise_scale=float(np.sqrt(s2)),
             log_likelihood=-0.5 * m2ll, log_likelihood_white=-0.5 * m2ll_white, lr_statistic=lr, p_value=p,
-            bias_track=track, bias_track_sd=sd, residuals=residuals,
+            bias_track=track, bias_track_sd=sd, residuals=residuals, theta_white=theta_white, lam_lowest=lam_lowest,
         )
 
     def _scale2(self, V: ChainCovariance, r: NDArray) -> float:
