@@ -171,24 +171,53 @@ class PairGeometry:
             raw = _suffix(self.left[i][places] * self.h[j][None, :], axis=1)[:, Q]
         return np.asarray(raw - self.B[i][places] @ self.B[j][Q].T)
 
-    def diagonal(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """Each step column's ``uᵀu`` (axes, places), and whether it keeps :data:`INFO_TOL` of its ``cᵀc`` (the
-        column before the fit's are projected out: a step the fit already carries is not testable)."""
+    def cross(self, i: int, j: int) -> NDArray[np.float64]:
+        """``u(a_i, k)ᵀ u(a_j, k)`` at every place ``k`` of :attr:`splits` before the fit's columns are projected
+        out (``i = j``: ``cᵀc``)."""
         k = self.splits
         if self.metric is None:
-            raw = np.stack([_suffix(h ** 2)[k] for h in self.h])
-        else:
-            assert self.left is not None  # Σ_{t ≥ k} left[k, t] h[t]: the two-sided suffix sum's diagonal
-            raw = np.stack([np.sum(np.triu(self.left[i] * h[None, :]), axis=1)[k] for i, h in enumerate(self.h)])
-        diag = raw - np.sum(self.B[:, k] ** 2, axis=2)
-        return diag, diag > INFO_TOL * np.maximum(raw, 1e-300)
+            return _suffix(self.h[i] * self.h[j])[k]
+        assert self.left is not None  # Σ_{t ≥ k} left[k, t] h[t]: the two-sided suffix sum's diagonal
+        return np.asarray(np.sum(np.triu(self.left[i] * self.h[j][None, :]), axis=1)[k])
+
+    def diagonal(self) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+        """Each step column's ``uᵀu`` (axes, places); whether it keeps :data:`INFO_TOL` of its ``cᵀc`` (the column
+        before the fit's are projected out: a step the fit already carries is not testable); and ``u(a_i, k)ᵀ
+        u(a_j, k)`` (axes, axes, places)."""
+        k = self.splits
+        n_axes = len(self.axes)
+        cross = np.stack([np.stack([self.cross(i, j) - np.sum(self.B[i][k] * self.B[j][k], axis=1)
+                                    for j in range(n_axes)]) for i in range(n_axes)])
+        diag = np.stack([cross[i, i] for i in range(n_axes)])
+        raw = np.stack([self.cross(i, i) for i in range(n_axes)])
+        return diag, diag > INFO_TOL * np.maximum(raw, 1e-300), cross
 
 
-def _restricted(geo: PairGeometry, A: NDArray[np.float64], diag: NDArray[np.float64], ok: NDArray[np.bool_],
-                rss: NDArray[np.float64], best: bool = False
+def _three(a1: NDArray[np.float64], a2: NDArray[np.float64], a3: NDArray[np.float64], g11: NDArray[np.float64],
+           g12: NDArray[np.float64], g22: NDArray[np.float64], g13: NDArray[np.float64], g23: NDArray[np.float64],
+           g33: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The gain ``bᵀG⁻¹b`` of three columns (scores ``a``, Gram entries ``g``; broadcast), by the Schur complement
+    of the first two; ``-inf`` where ``usable`` is false or a column adds less than :data:`INFO_TOL` of its own
+    information."""
+    det = g11 * g22 - g12 ** 2
+    good = usable & (det > INFO_TOL * g11 * g22)
+    det = np.where(good, det, 1.0)
+    w1 = (g22 * g13 - g12 * g23) / det
+    w2 = (g11 * g23 - g12 * g13) / det
+    den = g33 - (w1 * g13 + w2 * g23)
+    good = good & (den > INFO_TOL * g33)
+    gain = (g22 * a1 ** 2 - 2 * g12 * a1 * a2 + g11 * a2 ** 2) / det + (a3 - w1 * a1 - w2 * a2) ** 2 / \
+        np.where(good, den, 1.0)
+    return np.where(good, gain, -np.inf)
+
+
+def _restricted(geo: PairGeometry, A: NDArray[np.float64], prepared: tuple[NDArray[np.float64], NDArray[np.bool_],
+                NDArray[np.float64]], rss: NDArray[np.float64], best: bool = False
                 ) -> tuple[NDArray[np.float64], tuple[int, int, int, int] | None]:
     """Each column of ``A``'s smallest p over the restricted procedure's sets (module docstring, steps 2-4) and,
-    with ``best`` (one column: the observed residuals), the set ``(a₁, P, a₂, Q)`` that gives it."""
+    with ``best`` (one column: the observed residuals), the set ``(a₁, P, a₂, Q)`` that gives it.  ``prepared``:
+    :meth:`PairGeometry.diagonal`."""
+    diag, ok, cross = prepared
     n_axes, places, draws = A.shape
     single = np.where(ok[:, :, None], A ** 2 / np.where(ok, diag, 1.0)[:, :, None], -np.inf)
     K = min(ANCHORS, places)
@@ -196,51 +225,49 @@ def _restricted(geo: PairGeometry, A: NDArray[np.float64], diag: NDArray[np.floa
     where: tuple[float, tuple[int, int, int, int]] | None = None
     far = np.abs(geo.kept_before[None, :] - geo.kept_before[:, None]) >= STEP_MIN_SIDE  # (P place, Q place)
     d = np.arange(draws)[None, :]
+    ix = np.arange(K)[:, None]
+
+    def keep(gain: NDArray[np.float64], q: int, set_of: Callable[[int, int], tuple[int, int, int, int]]) -> None:
+        nonlocal min_p, where
+        flat = gain.transpose(1, 0, 2).reshape(draws, -1)
+        k = np.argmax(flat, axis=1)
+        largest = flat[np.arange(draws), k]
+        finite = np.isfinite(largest)
+        p = np.where(finite, f_p(np.where(finite, largest, 0.0), rss, q, geo.dof0), 1.0)
+        min_p = np.minimum(min_p, p)
+        if best and finite[0] and (where is None or p[0] < where[0]):
+            where = (float(p[0]), set_of(*divmod(int(k[0]), places)))
+
     for i in range(n_axes):
         top = np.argpartition(-single[i], K - 1, axis=0)[:K] if K < places else np.repeat(
             np.arange(places)[:, None], draws, axis=1)  # (K, draws): place indices of axis i's best scores
-        usable = np.isfinite(single[i][top, d])
         P = geo.splits[top.ravel()]
-        a1 = A[i][top, d]  # (K, draws)
-        g11 = diag[i][top]
-        apart = far[top]  # (K, draws, places): STEP_MIN_SIDE kept poses between P and Q
+        a1 = A[i][top, d][:, :, None]  # (K, draws, 1)
+        g11 = diag[i][top][:, :, None]
+        usable = np.isfinite(single[i][top, d])[:, :, None] & far[top]  # STEP_MIN_SIDE kept poses between P and Q
+        own = geo.rows(i, P, i).reshape(K, draws, places)  # u(a_i, P)ᵀ u(a_i, Q)
         for j in range(n_axes):
-            gain: NDArray[np.float64]
+            aq = np.moveaxis(A[j], 0, -1)[None, :, :]  # (1, draws, places): a_j's score at every Q
+            if i == j:  # (a_i, P) and (a_i, Q): two offsets on one axis
+                den = diag[j][None, None, :] - own ** 2 / g11
+                good = usable & ok[j][None, None, :] & (den > INFO_TOL * diag[j][None, None, :])
+                gain = np.where(good, a1 ** 2 / g11 + (aq - own / g11 * a1) ** 2 / np.where(good, den, 1.0), -np.inf)
+                keep(gain, 2, lambda anchor, place: (geo.axes[i], int(P[anchor]), geo.axes[i], int(geo.splits[place])))
+                continue
             row = geo.rows(i, P, j).reshape(K, draws, places)  # u(a_i, P)ᵀ u(a_j, Q)
-            aq = np.moveaxis(A[j], 0, -1)[None, :, :]  # (1, draws, places)
-            mask_q = apart & ok[j][None, None, :]
-            if i == j:
-                q = 2
-                den = diag[j][None, None, :] - row ** 2 / g11[:, :, None]
-                good = mask_q & (den > INFO_TOL * diag[j][None, None, :]) & usable[:, :, None]
-                gain = a1[:, :, None] ** 2 / g11[:, :, None] + (aq - row / g11[:, :, None] * a1[:, :, None]) ** 2 / \
-                    np.where(good, den, 1.0)
-            else:
-                q = 3
-                g12 = row[np.arange(K)[:, None], d, top]  # u(a_i, P)ᵀ u(a_j, P), (K, draws)
-                g22 = diag[j][top]
-                a2 = A[j][top, d]
-                det = g11 * g22 - g12 ** 2
-                pair_ok = usable & ok[j][top] & (det > INFO_TOL * g11 * g22)
-                det = np.where(pair_ok, det, 1.0)
-                gain12 = (g22 * a1 ** 2 - 2 * g12 * a1 * a2 + g11 * a2 ** 2) / det
-                c1 = row
-                c2 = geo.rows(j, P, j).reshape(K, draws, places)  # u(a_j, P)ᵀ u(a_j, Q)
-                w1 = (g22[:, :, None] * c1 - g12[:, :, None] * c2) / det[:, :, None]
-                w2 = (g11[:, :, None] * c2 - g12[:, :, None] * c1) / det[:, :, None]
-                den = diag[j][None, None, :] - (w1 * c1 + w2 * c2)
-                good = mask_q & (den > INFO_TOL * diag[j][None, None, :]) & pair_ok[:, :, None]
-                gain = gain12[:, :, None] + (aq - w1 * a1[:, :, None] - w2 * a2[:, :, None]) ** 2 / \
-                    np.where(good, den, 1.0)
-            gain = np.where(good, gain, -np.inf)
-            flat = gain.transpose(1, 0, 2).reshape(draws, -1)
-            k = np.argmax(flat, axis=1)
-            largest = flat[np.arange(draws), k]
-            p = np.where(np.isfinite(largest), f_p(np.where(np.isfinite(largest), largest, 0.0), rss, q, geo.dof0), 1.0)
-            min_p = np.minimum(min_p, p)
-            if best and np.isfinite(largest[0]) and (where is None or p[0] < where[0]):
-                anchor, place = divmod(int(k[0]), places)
-                where = (float(p[0]), (geo.axes[i], int(P[anchor]), geo.axes[j], int(geo.splits[place])))
+            # the anchor first: (a_i, P), (a_j, P), (a_j, Q) for every Q
+            other = geo.rows(j, P, j).reshape(K, draws, places)  # u(a_j, P)ᵀ u(a_j, Q)
+            g12 = row[ix, d, top][:, :, None]
+            g22 = diag[j][top][:, :, None]
+            a2 = A[j][top, d][:, :, None]
+            gain = _three(a1, a2, aq, g11, g12, g22, row, other, diag[j][None, None, :],
+                          usable & ok[j][None, None, :] & ok[j][top][:, :, None])
+            keep(gain, 3, lambda anchor, place: (geo.axes[i], int(P[anchor]), geo.axes[j], int(geo.splits[place])))
+            # the anchor second: (a_j, R), (a_i, R), (a_i, P) for every R (the first knock on a_j, a_i's offset at R)
+            ar_j, ar_i = aq, np.moveaxis(A[i], 0, -1)[None, :, :]
+            gain = _three(ar_j, ar_i, a1, diag[j][None, None, :], cross[j, i][None, None, :], diag[i][None, None, :],
+                          row, own, g11, usable & ok[j][None, None, :] & ok[i][None, None, :])
+            keep(gain, 3, lambda anchor, place: (geo.axes[j], int(geo.splits[place]), geo.axes[i], int(P[anchor])))
     return min_p, (None if where is None else where[1])
 
 
@@ -271,13 +298,12 @@ def search_pair(fitter: Fitter, fit: Fit, axes: list[int], note: Callable[[str],
         return None
     e = system.residuals(fitter, fit)
     y = e[:, None]
-    diag, ok = geo.diagonal()
     resid = e - system.model @ (system.model.T @ e)
-    p, where = _restricted(geo, geo.scores(y), diag, ok, np.array([float(resid @ resid)]), best=True)
+    p, where = _restricted(geo, geo.scores(y), geo.diagonal(), np.array([float(resid @ resid)]), best=True)
     if where is None:
         return None
     a1, P, a2, Q = where
-    sets = len(axes) * min(ANCHORS, geo.splits.size) * len(axes) * geo.splits.size
+    sets = len(axes) * min(ANCHORS, geo.splits.size) * (2 * len(axes) - 1) * geo.splits.size
     return PairScan(a1, P, a2, Q, float(p[0]), sets, np.zeros(0))
 
 
@@ -291,7 +317,7 @@ def pair_adjusted_p(fitter: Fitter, fit: Fit, scan: PairScan, axes: list[int], p
     if uses_minp_positions(fitter, fit):
         return with_null(fitter, fit, scan, axes, null_draws(fitter, fit, DRAWS, seed)).adjusted(p_exact)
     geo = PairGeometry.at(fitter, fit, axes)
-    diag, ok = geo.diagonal()
+    prepared = geo.diagonal()
     total = min(DRAWS, max(int(math.ceil((EXCEEDANCES + 1) / max(level, 1e-12))), 1))
     rng = np.random.default_rng(seed)
     rows = geo.model.shape[0]
@@ -299,7 +325,7 @@ def pair_adjusted_p(fitter: Fitter, fit: Fit, scan: PairScan, axes: list[int], p
     while made < total:
         z = rng.standard_normal((rows, min(size, total - made)))
         rss = np.sum((z - geo.model @ (geo.model.T @ z)) ** 2, axis=0)
-        p, _ = _restricted(geo, geo.scores(z), diag, ok, rss)
+        p, _ = _restricted(geo, geo.scores(z), prepared, rss)
         exceed += int(np.sum(p <= p_exact))
         made += z.shape[1]
         if 1 + exceed > level * (1 + total):  # not significant whatever the remaining draws show (Besag & Clifford)
