@@ -97,7 +97,7 @@ def cut_rests(path: Path, blocks: int):
 
 
 # measured (docs/diagnosis.md, "Two knocks searched together"): 66 poses, x +6 mg after rest 7 and y +4 mg after 15
-# named at poses 21 and 42, +6.68 and +4.13 mg, pairs' minP p 0.00011 against 0.00125; before (every pair searched
+# named at poses 22 and 45, +5.29 and +4.67 mg, pairs' minP p 0.00011 against 0.00125; before (every pair searched
 # only up to 60 poses): scale_nonlinearity(y) named, no step
 def test_two_knocks_in_more_than_60_real_poses_are_named_together(shared_data: Path, tmp_path: Path,
                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
