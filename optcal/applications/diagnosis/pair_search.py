@@ -171,6 +171,16 @@ class PairGeometry:
             raw = _suffix(self.left[i][places] * self.h[j][None, :], axis=1)[:, Q]
         return np.asarray(raw - self.B[i][places] @ self.B[j][Q].T)
 
+    def family(self) -> int:
+        """Sets of the search over *every* pair of places and axes (:func:`~optcal.applications.diagnosis.step_pair.column_sets`):
+        ordered pairs of places :data:`~optcal.applications.diagnosis.effects.STEP_MIN_SIDE` kept poses apart, once
+        per pair of axes and once per unordered pair on one axis; counted, never listed."""
+        kb = np.sort(self.kept_before)
+        near = np.searchsorted(kb, kb + STEP_MIN_SIDE, side="left") - np.searchsorted(kb, kb - STEP_MIN_SIDE, side="right")
+        ordered = int(kb.size * kb.size - np.sum(near))  # (P, Q) with |kept before P − kept before Q| ≥ STEP_MIN_SIDE
+        n_axes = len(self.axes)
+        return ordered // 2 * n_axes + ordered * n_axes * (n_axes - 1)
+
     def cross(self, i: int, j: int) -> NDArray[np.float64]:
         """``u(a_i, k)ᵀ u(a_j, k)`` at every place ``k`` of :attr:`splits` before the fit's columns are projected
         out (``i = j``: ``cᵀc``)."""
@@ -313,10 +323,15 @@ def pair_adjusted_p(fitter: Fitter, fit: Fit, scan: PairScan, axes: list[int], p
     over every pair (:func:`~optcal.applications.diagnosis.step_pair.with_null`,
     :data:`~optcal.applications.diagnosis.bias_step.DRAWS` draws) in a session of at most
     :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` kept poses; over the restricted procedure's sets in
-    a larger one, its draws stopped once they settle the test at ``level`` (module docstring)."""
+    a larger one, its draws stopped once they settle the test at ``level`` (module docstring), none drawn when
+    Bonferroni over every pair already passes ``level`` (``P(min p ≤ x) ≤ sets · x`` for every pair's smallest p, and
+    the restricted procedure's is never below it: its exact minP p is at most Bonferroni's)."""
     if uses_minp_positions(fitter, fit):
         return with_null(fitter, fit, scan, axes, null_draws(fitter, fit, DRAWS, seed)).adjusted(p_exact)
     geo = PairGeometry.at(fitter, fit, axes)
+    bonferroni = min(1.0, p_exact * geo.family())
+    if bonferroni <= level:  # the restricted minP p is never above Bonferroni's over every pair: no draw needed
+        return bonferroni
     prepared = geo.diagonal()
     total = min(DRAWS, max(int(math.ceil((EXCEEDANCES + 1) / max(level, 1e-12))), 1))
     rng = np.random.default_rng(seed)
