@@ -55,7 +55,8 @@ from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.correlation import PoseCorrelation
 from optcal.applications.diagnosis.noise_model import correlation_with_steps
-from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation, scan_pair, with_null
+from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation
+from optcal.applications.diagnosis.pair_search import pair_adjusted_p, search_pair
 from optcal.applications.diagnosis.term_pair import pair_count, search_term_pair
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
@@ -480,11 +481,10 @@ class ForwardSelection:
 
     def pair_searched(self, current: Fit, axes: list[int]) -> bool:
         """Whether a step from ``current`` searches two bias steps together (:mod:`~optcal.applications.diagnosis.step_pair`)
-        when the one-step scan names nothing: no step placed yet, the pair's minP simulation applies
-        (:func:`~optcal.applications.diagnosis.bias_step.uses_minp_positions`), and its three coefficients leave
-        :data:`MIN_DOF` residual degrees of freedom (as one step's coefficient must, :meth:`step_axes`)."""
-        return (bool(axes) and not self.fitter.steps_at and uses_minp_positions(self.fitter, current)
-                and self.fitter.n - current.n_params - 3 >= MIN_DOF)
+        when the one-step scan names nothing: no step placed yet, and its three coefficients leave :data:`MIN_DOF`
+        residual degrees of freedom (as one step's coefficient must, :meth:`step_axes`); above
+        :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` poses by :mod:`~optcal.applications.diagnosis.pair_search`."""
+        return bool(axes) and not self.fitter.steps_at and self.fitter.n - current.n_params - 3 >= MIN_DOF
 
     def single_step_level(self, current: Fit, axes: list[int]) -> float:
         """The level of each axis's one-step test from ``current``: the step's family-wise level :attr:`alpha_step`
@@ -505,7 +505,7 @@ class ForwardSelection:
         exact p is below ``level`` (the adjusted p is never smaller) and both knocks are needed: its p value is the
         exact one otherwise (``rejected_because`` says why)."""
         fitter = self.fitter
-        scan = scan_pair(fitter, current, axes)
+        scan = search_pair(fitter, current, axes, self.note)
         if scan is None:
             return []
         terms = dict(current.terms)
@@ -537,8 +537,7 @@ class ForwardSelection:
                                         f"other step, its position searched again, p = {needed:.2g} (a wander of the "
                                         "bias that rises and returns, not two knocks); the pairs' minP adjustment not run")
                 return [out]
-            null = null_draws(fitter, under.current, STEP_DRAWS)
-            out.p_value = with_null(fitter, under.current, scan, axes, null).adjusted(under.p_exact)
+            out.p_value = pair_adjusted_p(fitter, under.current, scan, axes, under.p_exact, level)
         out.significant = out.p_value < level
         return [out]
 

@@ -19,10 +19,11 @@ The search over the pairs is paid for as the one-step scan pays for its position
 (:func:`~optcal.applications.diagnosis.bias_step.adjusted_p`): Westfall & Young's single-step minP over the pairs,
 the share of :data:`~optcal.applications.diagnosis.bias_step.DRAWS` draws of the linearised null model (no step;
 :func:`~optcal.applications.diagnosis.familywise.null_draws`) whose smallest p over every pair is at most the
-observed one.  It is run only where that simulation is (:func:`~optcal.applications.diagnosis.bias_step.uses_minp_positions`:
-at most :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` kept poses): a larger session leaves each knock
-enough residual degrees of freedom to be found against the other as noise, and Bonferroni over a thousand pairs
-would leave it no power.  Under pose noise correlated in time (:mod:`~optcal.applications.diagnosis.correlation`)
+observed one.  Every pair is searched so only where the one-step scan's minP simulation runs
+(:func:`~optcal.applications.diagnosis.bias_step.uses_minp_positions`: at most
+:data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` kept poses; its cost grows as ``n²``); a larger session
+takes the restricted search of :mod:`~optcal.applications.diagnosis.pair_search` (the first knock among each
+axis's best one-step places), its minP formed by that same procedure.  Under pose noise correlated in time (:mod:`~optcal.applications.diagnosis.correlation`)
 the null model is the generalised fit's: the weighted residuals ``σ R^½ z`` with ``R`` as measured, so the scan and
 the draws are formed on the whitened residuals and columns (:func:`~optcal.applications.diagnosis.familywise.whitening`),
 where the generalised F test is the ordinary one (mikoff's raw log read as ``optcal diagnose`` reads it, its still
