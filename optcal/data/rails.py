@@ -98,7 +98,9 @@ def rail_samples(
     def usable_column(axis: int) -> NDArray[np.float64]:
         return x[:, axis] if every else x[usable, axis]
 
-    integer = all(bool(np.all(c == np.round(c))) for c in map(usable_column, range(3)))
+    # whole numbers: the head first (a decimal column shows it there), then the whole column
+    integer = all(bool(np.all(c[:4096] == np.round(c[:4096]))) and bool(np.all(c == np.round(c)))
+                  for c in map(usable_column, range(3)))
     for axis in range(3):
         column = usable_column(axis)
         for extreme in (column.min(), column.max()):
@@ -108,6 +110,8 @@ def rail_samples(
                     levels.append(float(abs(extreme - about[axis])))
             elif abs(extreme - zero[axis]) >= min_distance and (
                     centre is None or abs(extreme - np.asarray(centre, float)[axis]) >= min_distance):
+                if min_run > 1 and _longest_run(usable & (x[:, axis] == extreme)) < min_run:
+                    continue  # not held on its own axis (one pass: a smooth peak is read once or twice)
                 on = np.zeros(x.shape[0], dtype=bool)
                 hits = longest = 0
                 level = abs(extreme - about[axis])
@@ -125,9 +129,13 @@ def rail_samples(
 
 
 def _longest_run(flags: NDArray[np.bool_]) -> int:
-    """The longest run of consecutive True values."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], flags.view(np.int8), [0]))))
-    return int(np.max(edges[1::2] - edges[::2])) if edges.size else 0
+    """The longest run of consecutive True values (from their positions: the flags of a rail are few)."""
+    at = np.flatnonzero(flags)
+    if at.size < 2:
+        return int(at.size)
+    breaks = np.flatnonzero(np.diff(at) != 1)
+    bounds = np.concatenate(([0], breaks + 1, [at.size]))
+    return int(np.max(np.diff(bounds)))
 
 
 def gyro_bias_bound(gyro_units: str | None, gyro: NDArray[np.float64],
