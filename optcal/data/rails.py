@@ -219,9 +219,9 @@ def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: 
               flagged: NDArray[np.bool_] | None = None, acc_units: str | None = None) -> GyroRail:
     """The gyro's saturation rails (:func:`rail_samples` with the gyro's bound).
 
-    A rail lies beyond any rate a rest reads (:func:`gyro_bias_bound`), from the gyro's zero and from its median
-    reading (a rate the gyro reads most of the time is no clipped turn's), and holds
-    :data:`GYRO_RAIL_MIN_RUN` consecutive samples.  Decimal samples whose unit nothing states are taken in the unit
+    A rail lies beyond any rate a rest reads (:func:`gyro_bias_bound`) from the gyro's zero (and, when the unit is
+    taken by the convention, from its median reading too: a °/s gyro's bias can lie beyond 1.3 °/s, and a level it
+    reads most of the time may be its rests'), and holds :data:`GYRO_RAIL_MIN_RUN` consecutive samples.  Decimal samples whose unit nothing states are taken in the unit
     the convention puts beside the accelerometer's (rad/s beside m/s², else °/s, the larger bound), as the
     segmentation's gyro scale does when no move measures it; ``--gyro-units`` states it.
 
@@ -253,9 +253,12 @@ def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: 
     if units != gyro_units:
         unit = "rad/s by the convention beside m/s^2 (--gyro-units to override)"
     levels: list[float] = []
-    sat = rail_samples(gyro, ok, zero, limit, flagged, about=zero, min_run=GYRO_RAIL_MIN_RUN)
-    if sat.any():  # a level the gyro reads most of the time is a rest's: a rail lies beyond it too
+    sat = rail_samples(gyro, ok, zero, limit, flagged, about=zero, min_run=GYRO_RAIL_MIN_RUN, levels=levels)
+    if sat.any() and units != gyro_units:  # under the convention (a °/s gyro's bias can pass 1.3 °/s): a level the
+        # gyro reads most of the time may be a rest's, and a rail lies beyond it too; in a unit stated or bounded, no
+        # rest reads beyond the bound, and a spin held at the rail is no rest
         centre = np_column_medians(spaced)
+        levels.clear()
         sat = rail_samples(gyro, ok, zero, limit, flagged, about=zero, min_run=GYRO_RAIL_MIN_RUN, centre=centre,
                            levels=levels)
     return GyroRail(sat, tuple(sorted(levels)), zero, float(limit), unit)

@@ -132,3 +132,29 @@ def test_the_mpu6050_examples_gyro_at_its_int16_rail_is_counted_and_the_rests_ke
     assert holding > 0
     assert moves_from_segmentation(reading.segmentation).exclusions[RAIL_MOVES] == holding
     assert kept.segmentation is not None and RAIL_MOVES not in moves_from_segmentation(kept.segmentation).exclusions
+
+
+def test_a_still_stretch_with_the_gyro_at_its_rail_is_no_rest(tmp_path: Path) -> None:
+    """A 10-s rest, a tilt, then 20 s of a spin about the vertical held at a ±2000 °/s gyro's rail (the accelerometer
+    still at 1 g): with the gyro not taken as evidence of motion (``--no-gyro-gate``) the spin passed as a second pose;
+    its rail now rejects it, and ``--keep-gyro-rail`` gives the two poses back."""
+    from optcal.data.static import RAIL_STRETCHES
+
+    rng = np.random.default_rng(1)
+    g, rate_hz, rail = 9.81, 100.0, np.radians(2000.0)
+    tilt = np.linspace(0.0, np.pi / 2, 200)  # z up -> x up, turning about y in 2 s
+    acc = np.concatenate([np.tile([0.0, 0.0, g], (1000, 1)),
+                          np.column_stack([g * np.sin(tilt), 0 * tilt, g * np.cos(tilt)]),
+                          np.tile([g, 0.0, 0.0], (2000, 1))]) + 0.02 * rng.standard_normal((3200, 3))
+    gyro = 0.005 * rng.standard_normal((3200, 3))
+    gyro[1000:1200, 1] += (np.pi / 2) / 2.0
+    gyro[1200:, 0] = rail  # spinning about x, the vertical: the gyro held at its full scale
+    path = tmp_path / "spin_at_rail.csv"
+    np.savetxt(path, np.column_stack([np.arange(3200) / rate_hz, acc, gyro]), delimiter=",", comments="",
+               header="t,ax,ay,az,gx,gy,gz", fmt="%.6f")
+    kept = read(path, use_gyro=False, gyro_units="rad/s", keep_gyro_rail=True)
+    assert kept.poses.n == 2
+    reading = read(path, use_gyro=False, gyro_units="rad/s")
+    assert reading.decisions.exclusions[GYRO_SATURATED] == 2000
+    assert reading.poses.n == 1 and reading.poses.exclusions[RAIL_STRETCHES] == 1
+    np.testing.assert_allclose(reading.poses.acc[0], kept.poses.acc[0])  # the true rest is kept
