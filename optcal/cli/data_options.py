@@ -38,7 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
-    "min_independent", "gyro_units", "keep_touches", "keep_spins",
+    "min_independent", "gyro_units", "keep_touches", "keep_spins", "keep_gyro_rail",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -64,6 +64,10 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                       "(auto does so for bursty or coarse stamps, and says so)."),
     click.option("--gyro-file", type=click.Path(dir_okay=False), default=None, metavar="PATH",
                  help="A second text file 't gx gy gz' merged on time (imu_tk writes acc and gyro in two files)."),
+    click.option("--keep-gyro-rail", is_flag=True, default=None,
+                 help="Keep the gyro's samples at a saturation rail (by default they are counted, enter no rest, and "
+                      "the moves holding them are left out of the gyro's fit and diagnosis: a clipped rate misses "
+                      "part of the turn)."),
 )
 _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     *_READ_OPTIONS,
@@ -107,7 +111,8 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 #: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
-READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file")
+READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file",
+                                      "keep_gyro_rail")
 
 
 def read_options(func: Callable[..., Any]) -> Callable[..., Any]:

@@ -77,6 +77,9 @@ class ReadOptions:
         A second text file ``t gx gy gz`` merged on time (``--gyro-file``).
     gyro_units : {"rad/s", "deg/s", "counts"} or None
         Units of the gyro columns (``--gyro-units``); ``None`` decides them from the data.
+    keep_gyro_rail : bool
+        Keep the gyro's samples at a saturation rail (``--keep-gyro-rail``; by default they enter no rest and the
+        moves holding them are left out of the gyro's fit: :mod:`optcal.data.rails`).
     static : StaticSettings
         The rest detector's settings (``--static-window``, ``--static-threshold``,
         ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``,
@@ -97,6 +100,7 @@ class ReadOptions:
     timing: str = "auto"
     gyro_file: str | Path | None = None
     gyro_units: str | None = None
+    keep_gyro_rail: bool = False
     static: StaticSettings = field(default_factory=StaticSettings)
 
     def __post_init__(self) -> None:
@@ -285,7 +289,7 @@ def read_recording(path: str | Path, options: ReadOptions | None = None, *, requ
     """
     options = ReadOptions.build(options, **overrides)
     src, decisions = read_decided(path, options, required_by=required_by, kind="raw")
-    return recording_from_source(src, decisions)  # conversion
+    return recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail)  # conversion
 
 
 def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> Reading:
@@ -324,7 +328,7 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
             poses = pose_table_from_source(src, decisions)  # conversion
             check_sensitivity(poses.acc, poses.units, stated=stated)  # the units and columns decisions, checked on the poses
             return Reading(str(path), options, decisions, poses)
-        rec = recording_from_source(src, decisions)  # conversion
+        rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
         check_static_settings(options.static, rec)
         seg = detect_static(rec, options.static)  # segmentation

@@ -54,6 +54,7 @@ from optcal.data.columns import (
     strip_unit,
 )
 from optcal.data.container_kind import container_type
+from optcal.data.rails import clip_flags
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
@@ -116,8 +117,8 @@ class Source:
         How a text file is laid out (delimiter, decimal mark, header), for reports.
     non_numeric : dict of str to tuple
         Canonical column → (number of non-numeric cells, first data row, first value).
-    saturated : ndarray of bool or None
-        Per-row saturation flags stated by the file (ULog clip counters).
+    saturated, gyro_saturated : ndarray of bool or None
+        Per-row saturation flags of the accelerometer and the gyro stated by the file (ULog clip counters).
     always_raw : bool
         The format holds time series only (bags, ULog).
     size_bytes : int
@@ -148,6 +149,7 @@ class Source:
     layout: str = ""
     non_numeric: dict[str, tuple[int, int, str]] = field(default_factory=dict)
     saturated: NDArray[np.bool_] | None = None
+    gyro_saturated: NDArray[np.bool_] | None = None
     always_raw: bool = False
     size_bytes: int = 0
     notes: list[str] = field(default_factory=list)
@@ -713,7 +715,7 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
 
     ``topic`` is ``sensor_accel`` (instance 0) or ``sensor_accel:N``.  The matching
     ``sensor_gyro`` instance, when logged, is interpolated onto the accelerometer times.
-    Samples whose ``clip_counter`` is non-zero are flagged as saturated.
+    Samples whose ``clip_counter`` is non-zero are flagged as saturated (the gyro's: from a ``sensor_gyro`` one).
     """
     ULog = _import_pyulog()
     name, instance = (topic or "sensor_accel"), 0
@@ -743,20 +745,19 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
     if "temperature" in d:
         frame["temp"] = d["temperature"].astype(float)
     notes = []
-    gyro_units = None
+    gyro_units = gyro_saturated = None
     try:
         g = log.get_dataset(gyro_name, instance).data
-        gk = "timestamp_sample" if "timestamp_sample" in g else "timestamp"
-        tg = g[gk].astype(float) * 1e-6
+        tg = g["timestamp_sample" if "timestamp_sample" in g else "timestamp"].astype(float) * 1e-6
         order = np.argsort(tg)
         for axis in "xyz":
             frame["g" + axis] = np.interp(t, tg[order], g[axis].astype(float)[order])
+        if (gclip := clip_flags(g)) is not None:  # a time between two gyro samples takes both: a clipped one spoils it
+            gyro_saturated = np.interp(t, tg[order], gclip[order] * 1.0) > 0
         gyro_units = "rad/s"
         notes.append(f"{gyro_name} instance {instance} interpolated onto the {name} times")
     except (KeyError, IndexError, ValueError):
         pass
-    clip = [d[k] for k in ("clip_counter[0]", "clip_counter[1]", "clip_counter[2]") if k in d]
-    saturated = np.any(np.column_stack(clip) > 0, axis=1) if clip else None
     exclusions = {}
     if log.file_corruption:
         notes.append("the ULog file is corrupt; the readable part was used")
@@ -773,7 +774,7 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
         gyro_units=gyro_units,
         time_unit="s",
         time_reason=f"{name}.{stamp_key} in µs",
-        saturated=saturated,
+        saturated=clip_flags(d), gyro_saturated=gyro_saturated,
         always_raw=True,
         notes=notes,
         header={"topic": f"{name}:{instance}"},
@@ -782,6 +783,7 @@ def read_ulog(path: str | Path, topic: str | None) -> Source:
 
 
 TRUNCATED_MESSAGE = "messages cut off at the end of a truncated file"
+
 
 
 def ulog_is_cut(path: str | Path) -> bool:

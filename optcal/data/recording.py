@@ -20,6 +20,7 @@ from optcal.data.columns import ACC, GYRO
 from optcal.data.decisions import DataDecisions, Decision, decide, with_decisions
 from optcal.data.evidence import NON_FINITE, Evidence, gather_evidence
 from optcal.data.quantiles import median
+from optcal.data.rails import GyroRail, gyro_rail, rail_samples
 from optcal.data.readers import Source
 from optcal.data.units import NominalConversion, nominal_conversion
 from optcal.errors import InputError
@@ -29,10 +30,7 @@ from optcal.errors import InputError
 DUPLICATED = "duplicated samples (same time and values as the previous one)"
 REPEATED_TIME = "samples with a repeated timestamp (the first one kept)"
 SATURATED = "saturated samples"
-#: An axis's extreme value reached by this many samples marks a saturation rail.
-SATURATION_MIN_COUNT: int = 2
-#: Full-scale limits of integer converters: a sample at one of these is saturated.
-INTEGER_RAILS: tuple[tuple[float, float], ...] = ((-32768.0, 32767.0), (0.0, 65535.0))
+GYRO_SATURATED = "samples with the gyro at its rail (in no rest, their moves out of the gyro fit; --keep-gyro-rail keeps them)"
 #: A rail lies at least this far (in g, by the nominal conversion) from the axis's zero.
 SATURATION_MIN_G: float = 1.5
 
@@ -72,6 +70,12 @@ class Recording:
         The nominal conversion of the usable samples (:func:`optcal.data.units.nominal_conversion`
         of ``acc[usable]``), made once while converting for the saturation check and the static
         detection; ``None`` to have it made from the samples when needed.
+    gyro_rail : GyroRail or None
+        The gyro samples at a saturation rail (None: none found, or no gyro); unless ``gyro_rail_kept``, they enter
+        no static interval and the moves holding them are left out of the gyro's fit (they stay ``usable``: the
+        accelerometer's reading is sound).
+    gyro_rail_kept : bool
+        ``--keep-gyro-rail``: the gyro's rails were found and kept.
     """
 
     t: NDArray[np.float64]
@@ -91,6 +95,8 @@ class Recording:
     meta: dict[str, Any] = field(default_factory=dict)
     decisions: DataDecisions | None = None
     nominal: NominalConversion | None = None
+    gyro_rail: GyroRail | None = None
+    gyro_rail_kept: bool = False
 
     @property
     def n(self) -> int:
@@ -118,6 +124,7 @@ def recording_from_source(
     time_unit: str | None = None,
     timing: str = "auto",
     required_by: str = "reading a recording",
+    keep_gyro_rail: bool = False,
 ) -> Recording:
     """Build a :class:`Recording` from a reader's :class:`Source` (the conversion step).
 
@@ -135,6 +142,9 @@ def recording_from_source(
     required_by : str
         What requires a raw recording (the reason of the kind decision when ``decisions`` is
         omitted), e.g. ``"the allan command"``.
+    keep_gyro_rail : bool
+        Let the gyro's samples at a saturation rail into the rests and the gyro fit (``--keep-gyro-rail``); by default they are
+        counted (:data:`GYRO_SATURATED`), kept out of the rests and their moves out of the gyro's fit.
 
     Raises
     ------
@@ -147,12 +157,12 @@ def recording_from_source(
             src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
         )
     try:
-        return _convert(src, decisions, evidence)
+        return _convert(src, decisions, evidence, keep_gyro_rail)
     except InputError as exc:
         raise with_decisions(exc, decisions) from exc
 
 
-def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None) -> Recording:
+def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, keep_gyro_rail: bool = False) -> Recording:
     """The decisions applied to ``src`` (see :func:`recording_from_source`)."""
     if decisions.evidence is not None:  # the evidence of the columns as decided
         ev = decisions.evidence
@@ -204,9 +214,16 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None) -
     else:
         nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
     sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
+    rail = None if gyro is None else gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
+    # a gyro at its rail: its samples stay usable (the accelerometer's reading is sound, and the rests' blocks stay
+    # where they were) but enter no rest (data/static.py) and their moves no gyro fit (families/gyro/moves.py)
+    if rail is not None and not keep_gyro_rail:
+        _count(exclusions, GYRO_SATURATED, int(np.count_nonzero(rail.samples & usable)))
+    if rail is not None and rail.samples.any():  # said, kept or not
+        decisions.warnings.append(rail.describe(src.gyro_units, keep_gyro_rail))
     if n_saturated:  # the conversion of the samples left
         nominal = nominal_conversion(units, acc[usable])
     if not usable.any():
@@ -244,27 +261,14 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None) -
         meta=meta,
         decisions=decisions,
         nominal=nominal,
+        gyro_rail=rail if rail is not None and rail.samples.any() else None,
+        gyro_rail_kept=keep_gyro_rail,
     )
 
 
 def _count(d: dict[str, int], key: str, value: int) -> None:
     if value:
         d[key] = d.get(key, 0) + int(value)
-
-
-#: Values of a column looked at first by :func:`_whole_numbers` (evenly strided): one that is not a whole number
-#: answers for the column without a temporary of its length (35 MB, 10-30 ms with its page faults, on an axis of
-#: a 12-hour log in g); the answer is the same as the whole column's either way.
-WHOLE_NUMBER_PROBE: int = 1000
-
-
-def _whole_numbers(c: NDArray[np.float64]) -> bool:
-    """Whether every value of ``c`` is a whole number (``c == round(c)``), an evenly strided sample of
-    :data:`WHOLE_NUMBER_PROBE` values looked at first."""
-    probe = c[:: max(1, c.size // WHOLE_NUMBER_PROBE)]
-    if not bool(np.all(probe == np.round(probe))):
-        return False
-    return bool(np.all(c == np.round(c)))
 
 
 def saturated_samples(
@@ -277,40 +281,18 @@ def saturated_samples(
     """Samples with an axis at a saturation rail.
 
     A rail is an extreme value (minimum or maximum of an axis over the usable samples)
-    whose magnitude at least :data:`SATURATION_MIN_COUNT` samples reach exactly on any
+    whose magnitude at least :data:`~optcal.data.rails.SATURATION_MIN_COUNT` samples reach exactly on any
     axis (a clipped signal keeps hitting the same full scale, the same on every axis and
     in both directions; an unclipped one does not) and which lies at least
     :data:`SATURATION_MIN_G` g from the axis's zero, beyond anything gravity alone produces
     (so that the extreme of a coarsely quantised static pose is never taken for a rail);
-    or a full-scale value of a 16-bit converter (:data:`INTEGER_RAILS`) reached by
+    or a full-scale value of a 16-bit converter (:data:`~optcal.data.rails.INTEGER_RAILS`) reached by
     integer-valued data.  ``flagged`` adds the file's own saturation flags (ULog clip
     counters).  ``nominal`` is the nominal conversion of ``acc[usable]`` when already made.
     """
-    sat = np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
-    if not usable.any():
-        return sat
-    every = bool(usable.all())  # then no copy of the samples: column by column below
+    if nominal is None and usable.any():
+        nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
     if nominal is None:
-        nominal = nominal_conversion(units, acc if every else acc[usable])
-
-    def usable_column(axis: int) -> NDArray[np.float64]:
-        return acc[:, axis] if every else acc[usable, axis]
-
-    integer = all(_whole_numbers(c) for c in map(usable_column, range(3)))
-    for axis in range(3):
-        column = usable_column(axis)
-        for extreme in (column.min(), column.max()):
-            at_int_rail = integer and any(extreme in rail for rail in INTEGER_RAILS)
-            beyond_gravity = abs(extreme - nominal.offset[axis]) >= SATURATION_MIN_G * nominal.sensitivity
-            if at_int_rail:
-                sat |= usable & (acc[:, axis] == extreme)
-            elif beyond_gravity:
-                on = np.zeros(acc.shape[0], dtype=bool)
-                hits = 0
-                for k in range(3):  # the same magnitude reached on any axis
-                    at = usable & (np.abs(acc[:, k]) == abs(extreme))
-                    hits += int(np.count_nonzero(at))
-                    on |= at
-                if hits >= SATURATION_MIN_COUNT:
-                    sat |= on
-    return sat
+        return np.zeros(acc.shape[0], dtype=bool) if flagged is None else np.asarray(flagged, bool).copy()
+    # magnitudes matched about zero: a converter's full scale is symmetric about its zero count, not about the offset
+    return rail_samples(acc, usable, nominal.offset, SATURATION_MIN_G * nominal.sensitivity, flagged)

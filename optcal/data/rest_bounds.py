@@ -11,11 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.core.units import RAD_PER_UNIT
 from optcal.data.quantiles import np_column_medians
+from optcal.data.rails import gyro_bias_bound
 from optcal.data.recording import Recording
-from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S, MIN_RAD_S_PER_UNIT
-from optcal.data.units import PLAUSIBLE_NORM, UNSIGNED_16_MIDSCALE, around_midscale, in_unsigned_16_range
+from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S
+from optcal.data.units import PLAUSIBLE_NORM
 
 
 @dataclass(frozen=True)
@@ -79,18 +79,5 @@ def rest_bounds(rec: Recording, gyro: NDArray[np.float64] | None, gyro_means: ND
     norm_range = PLAUSIBLE_NORM[rec.units] if rec.units in ("g", "m/s^2") else None
     if gyro is None or gyro_means is None or not gyro.size:
         return RestBounds(norm_range, None, np.inf, "")
-    head = gyro[: 4096]
-    head = head[np.isfinite(head)]
-    zero = np.zeros(3)
-    if rec.gyro_units in RAD_PER_UNIT:
-        per_unit, unit = RAD_PER_UNIT[rec.gyro_units], f"{rec.gyro_units} as stated"
-    elif rec.gyro_units == "counts" or (head.size and bool(np.all(head == np.round(head)))):
-        per_unit, unit = MIN_RAD_S_PER_UNIT["counts"], "counts, bounded as a ±125 °/s 16-bit gyro's"
-        finite = gyro[np.all(np.isfinite(gyro), axis=1)]
-        if finite.size and in_unsigned_16_range(float(finite.min()), float(finite.max())) \
-                and around_midscale(np_column_medians(gyro_means)):
-            zero = np.full(3, UNSIGNED_16_MIDSCALE)
-            unit += ", zero at the unsigned mid-scale"
-    else:
-        per_unit, unit = MIN_RAD_S_PER_UNIT["decimal"], "unknown; bounded as °/s, the smaller of rad/s and °/s"
-    return RestBounds(norm_range, zero, MAX_GYRO_BIAS_RAD_S / per_unit, unit)
+    zero, limit, unit = gyro_bias_bound(rec.gyro_units, gyro, np_column_medians(gyro_means))
+    return RestBounds(norm_range, zero, limit, unit)

@@ -68,6 +68,8 @@ SPINNING = "samples in still stretches no rest can give: their |a| is not gravit
 SPINNING_STRETCHES = "still stretches rejected as no rest's: their |a| is not gravity's (a steady spin)"
 TOUCH = "samples of a pose's end piece shifted after a twitch next to a move (a touch; --keep-touches keeps them)"
 TOUCH_STRETCHES = "pose end pieces left out as a touch next to a move (--keep-touches keeps them)"
+RAIL = "samples in still stretches holding the gyro at its rail (--keep-gyro-rail keeps them)"
+RAIL_STRETCHES = "still stretches rejected as holding the gyro at its rail (no rest's rate)"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
 MIN_BLOCK_SAMPLES: int = 4
 #: Fewest blocks in a rest: one pair of block means is the least that shows that the mean does not move.
@@ -376,7 +378,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     kept: list[tuple[int, int, int, int]] = []  # sample range and block range
     counts = {key: 0 for key in (SPINNING, SPINNING_STRETCHES, EDGES, SHORT, SHORT_STRETCHES, FEW, FEW_STRETCHES, SWEEPING, SWEEPING_STRETCHES, TURNING,
                                  TURNING_STRETCHES, WOBBLE, WOBBLE_STRETCHES, LOUD, LOUD_STRETCHES, ODD, ODD_STRETCHES,
-                                 TOUCH, TOUCH_STRETCHES, TRIMMED)}
+                                 TOUCH, TOUCH_STRETCHES, TRIMMED, RAIL, RAIL_STRETCHES)}
     rest_noise: list[float] = []
     gyro_scale = model.gyro_scale
     min_acc, min_gyro = s.independent_minimums()
@@ -411,10 +413,14 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     if gyro is not None and gyro_scale is not None and candidates:
         wobbling = wobbles(gyro, t, gyro_scale, wobble_window, [(c[0], c[1]) for c in candidates],
                            wobble_limit) > wobble_limit
+    rail = None if rec.gyro_rail is None or rec.gyro_rail_kept else rec.gyro_rail.samples
+    rail = rail if rail is None or use is None else rail[use]  # a rate at the gyro's full scale is no rest's
     for i, (a, z, j0, j1) in enumerate(candidates):
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])
-        if verdicts.cannot_rest[i]:
+        if rail is not None and rail[a:z].any():
+            reject(a, z, RAIL, RAIL_STRETCHES)
+        elif verdicts.cannot_rest[i]:
             reject(a, z, SPINNING, SPINNING_STRETCHES)
         elif per_sample > MAX_REST_NOISE_G * one_g:
             reject(a, z, LOUD, LOUD_STRETCHES)

@@ -112,16 +112,19 @@ def _ulog_message(kind: bytes, payload: bytes) -> bytes:
     return struct.pack("<HB", len(payload), kind[0]) + payload
 
 
-def write_ulog(frame: pd.DataFrame, path: Path, clipped: np.ndarray | None = None) -> None:
+def write_ulog(frame: pd.DataFrame, path: Path, clipped: np.ndarray | None = None,
+               gyro_clipped: np.ndarray | None = None) -> None:
     """Write ``sensor_accel`` (and ``sensor_gyro``) instance 0 to a ULog file (format version 1).
 
-    ``clipped`` (bool per row) sets ``clip_counter`` of the clipped samples.
+    ``clipped`` and ``gyro_clipped`` (bool per row) set ``clip_counter`` of the accelerometer's and the gyro's
+    clipped samples.
     """
     t_us = np.round(frame["t"].to_numpy(float) * 1e6).astype(np.uint64)
     acc = frame[["ax", "ay", "az"]].to_numpy(np.float32)
     temp = frame["temp"].to_numpy(np.float32) if "temp" in frame.columns else np.full(len(frame), np.nan, np.float32)
     has_gyro = {"gx", "gy", "gz"} <= set(frame.columns)
     clip = np.zeros(len(frame), dtype=np.uint8) if clipped is None else np.asarray(clipped, bool).astype(np.uint8)
+    gclip = np.zeros(len(frame), dtype=np.uint8) if gyro_clipped is None else np.asarray(gyro_clipped, bool).astype(np.uint8)
     out = bytearray()
     out += _ULOG_MAGIC + struct.pack("<B", 1) + struct.pack("<Q", int(t_us[0]) if t_us.size else 0)
     out += _ulog_message(b"B", bytes(8) + bytes(8) + struct.pack("<3Q", 0, 0, 0))
@@ -139,5 +142,6 @@ def write_ulog(frame: pd.DataFrame, path: Path, clipped: np.ndarray | None = Non
             b"D", record.pack(0, int(t_us[i]), int(t_us[i]), 1, *acc[i], temp[i], 0, c, c, c, 1)
         )
         if has_gyro:
-            out += _ulog_message(b"D", record.pack(1, int(t_us[i]), int(t_us[i]), 2, *gyro[i], temp[i], 0, 0, 0, 0, 1))
+            g = int(gclip[i])
+            out += _ulog_message(b"D", record.pack(1, int(t_us[i]), int(t_us[i]), 2, *gyro[i], temp[i], 0, g, g, g, 1))
     Path(path).write_bytes(bytes(out))

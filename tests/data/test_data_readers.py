@@ -14,7 +14,7 @@ import pytest
 from helpers.cli_run import run
 from optcal.data import decide_kind, load, load_pose_table, load_recording, load_with_segmentation
 from optcal.data.readers import read_source
-from optcal.data.recording import DUPLICATED, NON_FINITE, REPEATED_TIME, SATURATED
+from optcal.data.recording import DUPLICATED, GYRO_SATURATED, NON_FINITE, REPEATED_TIME, SATURATED
 from optcal.families.simulate.recording import synthesize_recording
 from optcal.data.units import decide_units, nominal_conversion
 from optcal.data.writers import write_recording
@@ -71,6 +71,13 @@ def test_ulog_instance_and_clip_counter(recording, tmp_path):
     write_ulog(recording.frame, tmp_path / "c.ulg", clipped=clipped)
     rec = load_recording(tmp_path / "c.ulg")
     assert rec.exclusions[SATURATED] == 3
+    assert GYRO_SATURATED not in rec.exclusions and rec.gyro_rail is None
+    gyro_clipped = np.zeros(len(recording.frame), dtype=bool)
+    gyro_clipped[[40, 41]] = True  # the gyro's own clip counters: its samples flagged, not the accelerometer's
+    write_ulog(recording.frame, tmp_path / "g.ulg", gyro_clipped=gyro_clipped)
+    rec = load_recording(tmp_path / "g.ulg")
+    assert SATURATED not in rec.exclusions and rec.exclusions[GYRO_SATURATED] == 2
+    assert rec.gyro_rail is not None and list(np.flatnonzero(rec.gyro_rail.samples)) == [40, 41]
     with pytest.raises(InputError, match="no ULog topic sensor_accel instance 1"):
         load(tmp_path / "c.ulg", topic="sensor_accel:1")
 
@@ -275,7 +282,7 @@ def test_whole_numbers_probe_decides_as_the_whole_column():
     """The integer-rail check's whole-number test looks at a strided sample first: a column whose sample is all
     whole numbers but one value between them is not is not whole (counts at a rail are told from a float log
     only by the whole column), and one whose sample is not decides at once."""
-    from optcal.data.recording import WHOLE_NUMBER_PROBE, _whole_numbers
+    from optcal.data.rails import WHOLE_NUMBER_PROBE, _whole_numbers
 
     counts = np.round(np.random.default_rng(2).normal(0.0, 300.0, 50 * WHOLE_NUMBER_PROBE + 7))
     assert _whole_numbers(counts)

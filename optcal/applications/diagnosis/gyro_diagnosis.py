@@ -190,6 +190,8 @@ class GyroDiagnosis:
     #: How the band was found: the runs simulated (0: linearised only) and the linearised band beside it.
     band_runs: int = 0
     linearised_band_deg: NDArray[np.float64] | None = None
+    #: The moves left out before the diagnosis, by reason (:attr:`optcal.families.gyro.moves.MoveSet.exclusions`).
+    moves_excluded: dict[str, int] = field(default_factory=dict)
 
     @property
     def gain(self) -> float:
@@ -208,6 +210,7 @@ class GyroDiagnosis:
             "moves": [{"angle_deg": float(a), "band_deg": float(b), "outside": bool(a > b), "final_angle_deg": float(f)}
                       for a, b, f in zip(self.angles_deg, self.band_deg, self.final_angles_deg)],
             "moves_outside_band": int(np.sum(self.outside)),
+            "moves_excluded": dict(self.moves_excluded),
             "band": {"runs": self.band_runs, "method": ("simulated: the fitted model integrated along each recorded move with the measured noise"
                                 if self.band_runs else "linearised noise budget"),
                      "linearised_deg": None if self.linearised_band_deg is None else self.linearised_band_deg.tolist()},
@@ -229,6 +232,7 @@ class GyroDiagnosis:
                f"under the paper's model; {int(np.sum(self.outside))} move(s) outside the "
                + (f"band of {self.band_runs} simulations of the fitted model along the recorded moves with the measured "
                   "noise" if self.band_runs else "noise band") + " (family-wise over the moves)"]
+        out.extend(f"  {k}: {v}" for k, v in self.moves_excluded.items())
         for i in np.flatnonzero(self.outside)[:10]:
             out.append(f"    move {i + 1}: {self.angles_deg[i]:.3f}° (band {self.band_deg[i]:.3f}°)")
         if self.findings:
@@ -648,4 +652,4 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
     return GyroDiagnosis(findings, steps, angles, moves_band, move_angles(data, final),
                          baseline_heldout, current_heldout, offset, [t.label for t in candidates] + (
                              ["time_offset"] if "time_offset" in effects else []), skipped, final, notes, solver,
-                         s.simulations, linearised)
+                         s.simulations, linearised, dict(moves.exclusions))

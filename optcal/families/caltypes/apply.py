@@ -160,7 +160,7 @@ def apply_to_file(
         exclusions = dict(decisions.exclusions) if not usable.all() else {}
         units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
-        rec = recording_from_source(src, decisions)
+        rec = recording_from_source(src, decisions, keep_gyro_rail=True)  # the accelerometer's samples are corrected
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
         time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)

@@ -65,6 +65,7 @@ HOLE_MOVES = ("moves dropped: a hole (lost or unusable samples) whose integratio
               "the angle random walk of the move")
 NO_SAMPLES_MOVES = "moves dropped: static intervals that touch or overlap, or without a usable sample"
 TIME_MOVES = "moves dropped: time not increasing across the move"
+RAIL_MOVES = "moves with the gyro at its rail (--keep-gyro-rail keeps them)"
 
 
 @dataclass(frozen=True)
@@ -248,6 +249,7 @@ def moves_from_arrays(
     usable: ArrayLike | None = None,
     acc_sigma: ArrayLike | None = None,
     temp: ArrayLike | None = None,
+    rail: ArrayLike | None = None,
 ) -> MoveSet:
     """Build a :class:`MoveSet` from samples and static intervals.
 
@@ -267,6 +269,10 @@ def moves_from_arrays(
         ``std/√n``).
     temp : array_like, shape (n,), optional
         Temperature of each sample (kept at the steps and the intervals, for the diagnosis).
+    rail : array_like of bool, shape (n,), optional
+        Samples with the gyro at a saturation rail (:func:`optcal.data.rails.gyro_rail`): a move holding one
+        integrates less than its turn by the rate beyond the rail, whatever the calibration, and is left out
+        (counted as :data:`RAIL_MOVES`).
 
     Raises
     ------
@@ -280,6 +286,7 @@ def moves_from_arrays(
         raise InputError(f"t, acc and gyro must have the same number of samples ({t.size}, {acc.shape[0]}, {gyro.shape[0]})")
     ok = np.ones(t.size, bool) if usable is None else np.asarray(usable, bool).copy()
     ok &= np.isfinite(t) & np.all(np.isfinite(acc), axis=1) & np.all(np.isfinite(gyro), axis=1)
+    at_rail = None if rail is None else np.asarray(rail, bool).reshape(t.size)
     ivs = sorted((int(a), int(b)) for a, b in intervals)
     if len(ivs) < 2:
         raise InputError(f"found {len(ivs)} static interval(s); a gyro calibration needs the moves between several")
@@ -306,6 +313,9 @@ def moves_from_arrays(
         after = usable_idx[np.searchsorted(usable_idx, ivs[i + 1][0]): np.searchsorted(usable_idx, ivs[i + 1][1])]
         if before.size == 0 or after.size == 0 or after[0] <= before[-1]:
             dropped[NO_SAMPLES_MOVES] = dropped.get(NO_SAMPLES_MOVES, 0) + 1
+            continue
+        if at_rail is not None and at_rail[before[-1]: after[0] + 1].any():
+            dropped[RAIL_MOVES] = dropped.get(RAIL_MOVES, 0) + 1
             continue
         lo, hi = np.searchsorted(usable_idx, [before[-1], after[0]])
         idx = usable_idx[lo: hi + 1]
@@ -376,5 +386,6 @@ def moves_from_segmentation(seg: "Segmentation") -> MoveSet:
         )
     ivs = [(iv.start, iv.stop) for iv in seg.intervals]
     sigma = np.array([iv.sigma for iv in seg.intervals])
-    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.usable, sigma, rec.temp)
+    rail = None if rec.gyro_rail is None or rec.gyro_rail_kept else rec.gyro_rail.samples
+    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.usable, sigma, rec.temp, rail)
     return moves
