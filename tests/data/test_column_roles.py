@@ -11,11 +11,9 @@ import pytest
 
 from helpers.cli_run import run
 from helpers.common import SHARED
-from optcal.core.model import LumpedModel
+from helpers.recordings import turned_recording
 from optcal.data import load, load_with_segmentation
 from optcal.errors import InputError
-from optcal.families.simulate.poses import uniform_directions
-from optcal.families.simulate.recording import synthesize_recording
 
 XSENS = SHARED / "data" / "imutk-xsens" / "xsens_imutk.csv"
 needs_xsens = pytest.mark.skipif(not XSENS.exists(), reason="needs ../shared/data/imutk-xsens")
@@ -24,8 +22,7 @@ needs_xsens = pytest.mark.skipif(not XSENS.exists(), reason="needs ../shared/dat
 @pytest.fixture(scope="module")
 def turned():
     """12 poses in g at 100 Hz with a gyro in °/s (bias 0.5, -0.3, 0.2 °/s)."""
-    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
-    return synthesize_recording(model, uniform_directions(12, rng=3), dwell_s=4.0, transition_s=1.5, sigma=0.002, rng=4)
+    return turned_recording(12, 3, 4, dwell_s=4.0)
 
 
 def xsens_counts() -> pd.DataFrame:

@@ -20,10 +20,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.core.model import LumpedModel
+from helpers.recordings import turned_recording
 from optcal.data import load_with_segmentation
-from optcal.families.simulate.poses import uniform_directions
-from optcal.families.simulate.recording import synthesize_recording
 
 G = 9.80665
 
@@ -31,8 +29,7 @@ G = 9.80665
 @pytest.fixture(scope="module")
 def turned():
     """8 poses in g at 100 Hz with a gyro in rad/s (the simulator's)."""
-    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
-    return synthesize_recording(model, uniform_directions(8, rng=3), dwell_s=3.0, transition_s=1.5, sigma=0.002, rng=4)
+    return turned_recording(8, 3, 4)
 
 
 def test_euroc_imu_csv_is_read_by_its_names_and_bracketed_units(turned, tmp_path):

@@ -18,18 +18,15 @@ import numpy as np
 import pytest
 
 from helpers.cli_run import run
-from optcal.core.model import LumpedModel
+from helpers.recordings import turned_recording
 from optcal.data import load, load_with_segmentation
 from optcal.errors import InputError
-from optcal.families.simulate.poses import uniform_directions
-from optcal.families.simulate.recording import synthesize_recording
 
 
 @pytest.fixture(scope="module")
 def turned():
     """10 poses in g at 100 Hz with a gyro in °/s (bias 0.5, -0.3, 0.2 °/s)."""
-    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
-    return synthesize_recording(model, uniform_directions(10, rng=5), dwell_s=3.0, transition_s=1.5, sigma=0.002, rng=6)
+    return turned_recording(10, 5, 6)
 
 
 # ------------------------------------------------------------------ a header that lost a delimiter

@@ -19,13 +19,11 @@ import pytest
 from scipy.io import savemat
 
 from helpers.cli_run import run
-from optcal.core.model import LumpedModel
+from helpers.recordings import turned_recording
 from optcal.data import load, load_with_segmentation
 from optcal.data.containers import ACCELEROMETER, GYROSCOPE, MAGNETOMETER, Variable, role_of
 from optcal.errors import InputError
 from optcal.families.mag.samples import read_mag
-from optcal.families.simulate.poses import uniform_directions
-from optcal.families.simulate.recording import synthesize_recording
 
 G = 9.80665
 
@@ -33,8 +31,7 @@ G = 9.80665
 @pytest.fixture(scope="module")
 def turned():
     """10 poses in g at 100 Hz with a gyro in °/s."""
-    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
-    return synthesize_recording(model, uniform_directions(10, rng=5), dwell_s=3.0, transition_s=1.5, sigma=0.002, rng=6)
+    return turned_recording(10, 5, 6)
 
 
 # ------------------------------------------------------------------ the sensor named after the trial

@@ -13,10 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.core.model import LumpedModel
+from helpers.recordings import turned_recording
 from optcal.data import load_with_segmentation
-from optcal.families.simulate.poses import uniform_directions
-from optcal.families.simulate.recording import synthesize_recording
 
 NAMES = {"ax": "acc_x_g", "ay": "acc_y_g", "az": "acc_z_g",
          "gx": "gyro_x_deg_s", "gy": "gyro_y_deg_s", "gz": "gyro_z_deg_s"}
@@ -26,8 +24,7 @@ CREEP_RESTS = (3, 7)
 @pytest.fixture(scope="module")
 def session():
     """12 rests of 5 s in g at 100 Hz, a gyro in °/s (bias 0.5, -0.3, 0.2 °/s)."""
-    model = LumpedModel.from_physical([1.01, 0.99, 1.0], 0.004, -0.003, 0.005, [0.01, -0.02, 0.015])
-    return synthesize_recording(model, uniform_directions(12, rng=3), dwell_s=5.0, transition_s=1.5, sigma=0.002, rng=4)
+    return turned_recording(12, 3, 4, dwell_s=5.0)
 
 
 def write(path, frame) -> None:
