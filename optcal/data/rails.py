@@ -220,7 +220,9 @@ class GyroRail:
         """The rails in words (a warning of the reading)."""
         n = int(np.count_nonzero(self.samples))
         levels = ", ".join(f"±{v:.6g}" for v in self.levels) or "flagged by the file"
-        what = ("kept (--keep-gyro-rail): the moves holding them integrate less than their turn" if kept else
+        # kept by --keep-gyro-rail, or by apply (which corrects every sample and never fits the gyro)
+        what = ("kept: their readings are clipped, below the true rate (a move holding them integrates less than its "
+                "turn)" if kept else
                 "they enter no rest and the moves holding them are left out of the gyro's fit and diagnosis "
                 "(--keep-gyro-rail keeps them)")
         return (f"the gyro is at its rail (saturated): {n} samples at {levels} {gyro_units or '(gyro units)'} from "
