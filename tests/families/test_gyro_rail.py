@@ -17,7 +17,7 @@ import pytest
 import optcal
 from helpers.cli_run import run_args
 from optcal.data.options import Reading, read
-from optcal.data.rails import GYRO_RAIL_MIN_RUN, gyro_bias_bound
+from optcal.data.rails import GYRO_RAIL_MIN_RUN, gyro_bias_bound, gyro_rail
 from optcal.data.recording import GYRO_SATURATED
 from optcal.families.gyro.estimator import calibrate_imu_loaded
 from optcal.families.gyro.moves import RAIL_MOVES, moves_from_segmentation
@@ -197,3 +197,21 @@ def test_every_sample_is_counted_once_with_the_gyro_at_its_rail(tmp_path: Path, 
     else:
         assert samples[MOVING] > 0  # the moves' other samples, still counted
 
+
+def test_a_smooth_peak_of_a_fast_log_is_no_rail_and_a_clipped_one_is() -> None:
+    """A 1 kHz log of a ±2000 °/s 16-bit gyro (a step of 1/16.4 °/s, noise a third of it): a 0.5-s turn peaking at
+    300 °/s holds its top for 4 equal samples (a peak of curvature c stays within one step q for √(8q/c) samples,
+    6.5 here), which the 3-sample rule took for a rail; the same turn clipped at 290 °/s holds it for 83."""
+    rng = np.random.default_rng(3)
+    q = 1.0 / 16.4
+    gyro = 0.3 * q * rng.standard_normal((6000, 3))
+    turn = np.sin(np.pi * np.arange(500) / 500)
+    gyro[2000:2500, 2] += 300.0 * turn
+    gyro[4000:4500, 0] -= 280.0 * turn
+    smooth = np.round(gyro / q) * q
+    assert np.count_nonzero(smooth[:, 2] == smooth[:, 2].max()) >= GYRO_RAIL_MIN_RUN  # what the run rule saw
+    assert not gyro_rail(smooth, np.ones(6000, bool), "deg/s").samples.any()
+    clipped = np.round(np.clip(gyro, -290.0, 290.0) / q) * q
+    rail = gyro_rail(clipped, np.ones(6000, bool), "deg/s")
+    assert np.array_equal(rail.samples, np.abs(clipped[:, 2]) == clipped[:, 2].max())
+    assert rail.levels == (pytest.approx(290.0, abs=q),)
