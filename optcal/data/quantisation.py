@@ -22,6 +22,17 @@ def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
         yield np.abs(d, out=d)
 
 
+def smallest_step(col: NDArray[np.float64]) -> float:
+    """The smallest non-zero ``|diff|`` of a column (its converter's or its printing's step; ``inf`` when it never
+    changes), chunk by chunk (:func:`_abs_step_chunks`)."""
+    q = np.inf
+    for d in _abs_step_chunks(col):
+        d = d[d > 0]  # NaN steps compare False: left out
+        if d.size:
+            q = min(q, float(d.min()))
+    return q
+
+
 #: Steps on which :func:`quantum` checks that the steps are multiples of the smallest.
 QUANTUM_CHECK_STEPS: int = 100_000
 

@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data.quantiles import np_column_medians
+from optcal.data.quantisation import smallest_step
 from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S, MIN_RAD_S_PER_UNIT
 from optcal.data.units import UNSIGNED_16_MIDSCALE, around_midscale, in_unsigned_16_range
 
@@ -32,7 +33,7 @@ INTEGER_RAILS: tuple[tuple[float, float], ...] = ((-32768.0, 32767.0), (0.0, 655
 #: stays within one step of its top for ``√(8/c)`` samples: about 2 for a hand's move read by a 16-bit converter at
 #: 100 Hz (the Xsens log's fastest peak, +31717 counts, is read twice), so a peak is read by at most 2 equal samples
 #: there, while a clipped rate holds the full scale as long as the turn exceeds it.  Logs at several hundred Hz or
-#: more can hold a smooth peak longer (see the notes of :func:`gyro_rail`).
+#: more can hold a smooth peak longer: a longer run is then judged by its flanks' curvature (:func:`_held_beyond_a_peak`).
 GYRO_RAIL_MIN_RUN: int = 3
 #: Samples, evenly spaced over the recording, whose column medians stand for the gyro's reading (mid-scale or not;
 #: the rest reading a rail lies beyond): a median of 1024 samples lies within about 4 % of the readings' spread of
@@ -125,6 +126,9 @@ def rail_samples(
                     centre is None or abs(extreme - np.asarray(centre, float)[axis]) >= min_distance):
                 if min_run > 1 and _longest_run(usable & (x[:, axis] == extreme)) < min_run:
                     continue  # not held on its own axis (one pass: a smooth peak is read once or twice)
+                if min_run > 1 and not _held_beyond_a_peak(x[:, axis], usable & (x[:, axis] == extreme),
+                                                           1.0 if extreme == column.max() else -1.0, min_run):
+                    continue  # each run as long as a smooth peak of its flanks' curvature holds (a fast log's)
                 on = np.zeros(x.shape[0], dtype=bool)
                 hits = longest = 0
                 level = abs(extreme - about[axis])
@@ -139,6 +143,46 @@ def rail_samples(
                     if levels is not None and float(level) not in levels:
                         levels.append(float(level))
     return sat
+
+
+def _held_beyond_a_peak(column: NDArray[np.float64], flags: NDArray[np.bool_], sign: float, min_run: int) -> bool:
+    """Whether a run of at least ``min_run`` samples at the level (``flags``) is longer than a smooth peak holds.
+
+    A smooth peak ``x = E - c τ²/2`` (``c``: its curvature, per sample²) stays within one step ``q`` of its top for
+    ``√(8q/c)`` samples, so its top is read by at most ``⌊√(8q/c)⌋ + 1`` equal samples; a rate clipped at a rail is
+    held as long as the turn exceeds it, ``2√(2h/c)`` samples for a peak ``h`` above the rail, longer than that as
+    soon as ``h`` passes one step.  ``c`` is taken on each flank of the run, from samples spaced by the run's length
+    (``(x[i-1] - 2x[i-1-L] + x[i-1-2L]) / L²``: a noise of σ adds ``√6 σ / L²``, an eighteenth of σ for a run of 3,
+    and the spacing follows the peak's width), the mean of the flanks found; a flank not concave (``c ≤ 0``: the
+    clipped turn's rate rose and fell steeply about it) or none at all leaves the run a rail.  ``q``: the column's
+    smallest step (:func:`~optcal.data.quantisation.smallest_step`), taken only when a run is that long.
+    ``sign``: +1 for a maximum, -1 for a minimum.
+    """
+    at = np.flatnonzero(flags)
+    if at.size < min_run:
+        return False
+    breaks = np.flatnonzero(np.diff(at) != 1)
+    starts = at[np.concatenate(([0], breaks + 1))]
+    ends = at[np.concatenate((breaks, [at.size - 1]))] + 1
+    q: float | None = None
+    n = column.size
+    for i, j in zip(starts.tolist(), ends.tolist()):
+        length = j - i
+        if length < min_run:
+            continue
+        flanks = []
+        if i - 1 - 2 * length >= 0:
+            flanks.append(column[i - 1] - 2.0 * column[i - 1 - length] + column[i - 1 - 2 * length])
+        if j + 2 * length < n:
+            flanks.append(column[j] - 2.0 * column[j + length] + column[j + 2 * length])
+        c = -sign * float(np.mean(flanks)) / length**2 if flanks else float("nan")
+        if not np.isfinite(c) or c <= 0.0:
+            return True
+        if q is None:
+            q = smallest_step(column)
+        if not np.isfinite(q) or length > np.floor(np.sqrt(8.0 * q / c)) + 1:
+            return True
+    return False
 
 
 def _longest_run(flags: NDArray[np.bool_]) -> int:
@@ -254,8 +298,8 @@ def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: 
     Notes
     -----
     A log sampled at several hundred Hz can hold a smooth peak for more than :data:`GYRO_RAIL_MIN_RUN` equal
-    samples when its converter's step is coarse beside the peak's curvature; such a peak, if it is also the
-    largest magnitude its axis reads, is taken for a rail (``--keep-gyro-rail`` keeps it).
+    samples when its converter's step is coarse beside the peak's curvature; a run no longer than a smooth peak of
+    its flanks' curvature holds within one step is no rail (:func:`_held_beyond_a_peak`).
     """
     ok = usable & np.all(np.isfinite(gyro), axis=1)
     rows = np.flatnonzero(ok)

@@ -367,7 +367,7 @@ def read_text(path: str | Path, mapping: dict[str, str] | None = None) -> Source
         src.columns_reason = f"{reason} and positions from --columns"
     elif src.roles is None:
         src.columns_reason = reason
-    src.layout = layout.describe() + (f"; {src.layout}" if src.layout else "")  # a partial gyro's note
+    src.layout = layout.describe() + parsed.comments_note + (f"; {src.layout}" if src.layout else "")  # a partial gyro's note
     if "t" not in src.column_map and src.time_reason:  # a time column of text, set aside (source_from_columns)
         src.layout += f"; {src.time_reason}"
     if unread and not mapping_given:

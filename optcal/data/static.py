@@ -68,7 +68,7 @@ SPINNING = "samples in still stretches no rest can give: their |a| is not gravit
 SPINNING_STRETCHES = "still stretches rejected as no rest's: their |a| is not gravity's (a steady spin)"
 TOUCH = "samples of a pose's end piece shifted after a twitch next to a move (a touch; --keep-touches keeps them)"
 TOUCH_STRETCHES = "pose end pieces left out as a touch next to a move (--keep-touches keeps them)"
-RAIL = "samples in still stretches holding the gyro at its rail (--keep-gyro-rail keeps them)"
+RAIL = "samples in still stretches holding the gyro at its rail (besides those at the rail, counted while reading; --keep-gyro-rail keeps them)"
 RAIL_STRETCHES = "still stretches rejected as holding the gyro at its rail (no rest's rate)"
 #: Fewest samples in a block: a variance needs two, the test's F distribution a few more.
 MIN_BLOCK_SAMPLES: int = 4
@@ -363,8 +363,22 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     limits: dict[str, float] = {}
     evidence: dict[str, float] = {}
     trace: dict[str, Any] = {"t": t, "window_samples": block}
+    rail = None if rec.gyro_rail is None or rec.gyro_rail_kept else rec.gyro_rail.samples
+    rail = rail if rail is None or use is None else rail[use]  # a rate at the gyro's full scale is no rest's
+    # the samples at the gyro's rail are counted while reading (recording.GYRO_SATURATED, the cause of their
+    # exclusion, which --keep-gyro-rail undoes); each count below is of the other samples, so that every sample
+    # is counted once in a sum of the exclusions
+    rail_before = None  # the samples at the rail before each sample (none allocated without a rail)
+    if rail is not None:
+        rail_before = np.zeros(m + 1, dtype=np.int64)
+        np.cumsum(rail, out=rail_before[1:])
+
+    def off_rail(a: int, z: int) -> int:
+        """The samples of ``[a, z)`` not at the gyro's rail."""
+        return (z - a) - (0 if rail_before is None else int(rail_before[z] - rail_before[a]))
+
     if m < 2 * MIN_BLOCK_SAMPLES:
-        _add(exclusions, MOVING, m)
+        _add(exclusions, MOVING, off_rail(0, m))
         trace["static"] = np.zeros(m, dtype=bool)
         return Segmentation(rec, s, [], noise, limits, None, exclusions, trace, 0, evidence)
 
@@ -390,17 +404,16 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     rejected: list[tuple[float, float, str]] = []  # each still stretch rejected: its time span and reason
 
     def reject(a: int, z: int, samples: str, stretches: str) -> None:
-        counts[samples] += z - a
+        counts[samples] += off_rail(a, z)
         counts[stretches] += 1
         rejected.append((float(t[a]), float(t[max(a, z - 1)]), stretches))
 
     candidates: list[tuple[int, int, int, int]] = []  # sample range and block range of each piece long enough
     for k0, k1 in pieces:
         j0, j1 = model.peel(k0, k1)
-        counts[EDGES] += int(b.stop[k1 - 1] - b.start[k0]) - int(b.stop[j1 - 1] - b.start[j0])
         a, z = int(b.start[j0]), int(b.stop[j1 - 1])
         a1, z1 = model.trim_outlying_samples(acc, a, z, j0, j1)
-        counts[EDGES] += (a1 - a) + (z - z1)
+        counts[EDGES] += off_rail(int(b.start[k0]), int(b.stop[k1 - 1])) - off_rail(a1, z1)
         a, z = a1, z1
         duration = t[z - 1] - t[a] + 1.0 / rate
         if duration < s.min_dwell_s or j1 - j0 < MIN_REST_BLOCKS:
@@ -413,8 +426,6 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     if gyro is not None and gyro_scale is not None and candidates:
         wobbling = wobbles(gyro, t, gyro_scale, wobble_window, [(c[0], c[1]) for c in candidates],
                            wobble_limit) > wobble_limit
-    rail = None if rec.gyro_rail is None or rec.gyro_rail_kept else rec.gyro_rail.samples
-    rail = rail if rail is None or use is None else rail[use]  # a rate at the gyro's full scale is no rest's
     for i, (a, z, j0, j1) in enumerate(candidates):
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])
@@ -457,8 +468,8 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
                      for i, group in enumerate(groups)]
     else:
         intervals = [counted_interval(i + 1, rec, use, group_positions(group)) for i, group in enumerate(groups)]
-    in_runs = sum(int(b.stop[k1 - 1] - b.start[k0]) for k0, k1 in pieces)
-    _add(exclusions, MOVING, m - in_runs)  # the rest of the runs' samples are counted by reason below
+    in_runs = sum(off_rail(int(b.start[k0]), int(b.stop[k1 - 1])) for k0, k1 in pieces)
+    _add(exclusions, MOVING, off_rail(0, m) - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
         _add(exclusions, key, value)
     for key in (SPINNING_STRETCHES, SHORT_STRETCHES, FEW_STRETCHES, SWEEPING_STRETCHES, TURNING_STRETCHES, WOBBLE_STRETCHES, LOUD_STRETCHES, ODD_STRETCHES,

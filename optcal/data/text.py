@@ -15,6 +15,7 @@ size chunk by chunk.
 
 from __future__ import annotations
 
+import io
 import re
 import warnings
 from collections.abc import Iterator
@@ -26,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
+from optcal.data.comment_lines import CommentLines, UncommentedStream, find_comment_lines
 from optcal.data.column_block import (  # re-exported: the reader's block and pyarrow's numbers
     ColumnBlock,
     arrow_numbers,
@@ -332,12 +334,21 @@ class ParsedNumbers:
     non_numeric : dict of int to tuple
         Field index → (number of non-numeric cells, first data row (1-based), first value).
     engine : str
-        ``"numpy"`` or ``"pandas"``: which parser read the file.
+        ``"numpy"``, ``"pyarrow"`` or ``"pandas"``: which parser read the file.
+    comments : CommentLines or None
+        The comment lines among the data rows, skipped (``None``: the file was not scanned, its fast parse found
+        none).
     """
 
     columns: list[NDArray[np.float64]]
     non_numeric: dict[int, tuple[int, int, str]]
     engine: str
+    comments: CommentLines | None = None
+
+    @property
+    def comments_note(self) -> str:
+        """``"; N comment line(s) among the data skipped (...)"`` for the layout's description, or ``""``."""
+        return f"; {self.comments.describe()}" if self.comments is not None and self.comments.count else ""
 
     @property
     def n_rows(self) -> int:
@@ -353,7 +364,9 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
     is plain numbers with a one-character delimiter (byte ranges parsed at once, :func:`arrow_ranged_block`, up to
     :data:`THREADED_READ_BYTES`, its streaming reader above), otherwise, and for decimal commas and any file with a non-numeric or missing cell, by
     pandas (in chunks of ``chunk_rows``), which turns such cells into NaN and counts them per
-    column.
+    column.  Comment lines among the data (:mod:`optcal.data.comment_lines`) make the fast parsers fail; the file
+    is then scanned for them once, and pyarrow (large files) or pandas reads it without them, counted in
+    :attr:`ParsedNumbers.comments`.
     """
     p = Path(path)
     size = p.stat().st_size
@@ -362,18 +375,24 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
             data = _numpy_read(p, layout)
             return ParsedNumbers([np.ascontiguousarray(data[:, j]) for j in range(data.shape[1])], {}, "numpy")
         except ValueError:
-            pass  # a ragged, empty or non-numeric cell: pandas reads it cell by cell
+            pass  # a ragged, empty or non-numeric cell, or a comment line: pandas reads it cell by cell
     if size > SMALL_FILE_BYTES:
         block = _arrow_block(p, layout)
         if block is not None:
             return ParsedNumbers(block.columns(), {}, "pyarrow")
+    # only a file the fast parsers refused is scanned (a file of plain numbers is read in one pass)
+    comments = find_comment_lines(p, layout.first_data_line, layout.delimiter)
+    if comments.count and size > SMALL_FILE_BYTES:
+        block = arrow_streamed_block(p, layout, comments)
+        if block is not None:
+            return ParsedNumbers(block.columns(), {}, "pyarrow", comments)
     rows = estimated_rows(p, layout)
     block = ColumnBlock(len(layout.names), rows)
     non_numeric: dict[int, tuple[int, int, str]] = {}
     from optcal.core.progress import progress
 
     # a bar (rows read) when the command line asked for one and the read outlasts a second: large files
-    for cols, bad in progress(_pandas_chunks(p, layout, chunk_rows), total=rows, desc=f"reading {p.name}", unit="rows",
+    for cols, bad in progress(_pandas_chunks(p, layout, chunk_rows, comments), total=rows, desc=f"reading {p.name}", unit="rows",
                               scale=True, size=lambda item: item[0][0].size if item[0] else 0):
         for j, (count, row, value) in bad.items():
             old = non_numeric.get(j)
@@ -381,7 +400,7 @@ def parse_numbers(path: str | Path, layout: TextLayout, chunk_rows: int = CHUNK_
         block.append(cols)
     if block.n == 0:
         raise InputError(f"{p}: no data rows after the header")
-    return ParsedNumbers(block.columns(), non_numeric, "pandas")
+    return ParsedNumbers(block.columns(), non_numeric, "pandas", comments)
 
 
 def estimated_rows(p: Path, layout: TextLayout) -> int:
@@ -576,9 +595,13 @@ def arrow_ranged_block(p: Path, layout: TextLayout, parts: int | None = None) ->
     return block if n else None
 
 
-def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
-    """The file's numbers by pyarrow's streaming reader, one block of text at a time, or ``None`` (see :func:`_arrow_block`)."""
-    options = _arrow_options(p, layout)
+def arrow_streamed_block(p: Path, layout: TextLayout, comments: CommentLines | None = None) -> ColumnBlock | None:
+    """The file's numbers by pyarrow's streaming reader, one block of text at a time, or ``None`` (see :func:`_arrow_block`).
+
+    ``comments``: comment lines among the data, left out (the file is read through :class:`UncommentedStream`).
+    """
+    skip_comments = comments is not None and comments.count > 0
+    options = _arrow_options(p, layout, skip_rows=0 if skip_comments else None)
     if options is None:
         return None
     import pyarrow as pa
@@ -587,7 +610,8 @@ def arrow_streamed_block(p: Path, layout: TextLayout) -> ColumnBlock | None:
     width = len(layout.names)
     blank_delimited = layout.delimiter == " "
     try:
-        reader = pacsv.open_csv(p, **options)
+        source: Any = UncommentedStream(p, comments) if comments is not None and skip_comments else p
+        reader = pacsv.open_csv(source, **options)
         rows = estimated_rows(p, layout)
         block = ColumnBlock(width, rows)
         from optcal.core.progress import progress
@@ -633,7 +657,7 @@ def _numpy_read(p: Path, layout: TextLayout) -> NDArray[np.float64]:
         p,
         delimiter=None if layout.delimiter == " " else layout.delimiter,
         skiprows=layout.first_data_line,
-        comments="#",
+        comments=None,  # a comment line fails: it is counted on the other paths (parse_numbers)
         ndmin=2,
         encoding="utf-8-sig",
     )
@@ -643,20 +667,21 @@ def _numpy_read(p: Path, layout: TextLayout) -> NDArray[np.float64]:
 
 
 def _pandas_chunks(
-    p: Path, layout: TextLayout, chunk_rows: int
+    p: Path, layout: TextLayout, chunk_rows: int, comments: CommentLines | None = None
 ) -> Iterator[tuple[list[NDArray[np.float64]], dict[int, tuple[int, int, str]]]]:
     import pandas as pd
 
     width = len(layout.names)
+    skip = comments is not None and comments.count > 0  # read without the comment lines, from the data's first line
     try:
         reader = pd.read_csv(
-            p,
+            io.BufferedReader(UncommentedStream(p, comments)) if comments is not None and skip else p,
             sep=r"\s+" if layout.delimiter == " " else layout.delimiter,
             header=None,
             names=list(range(width)),
-            skiprows=layout.first_data_line,
+            skiprows=0 if skip else layout.first_data_line,
             decimal="," if layout.decimal_comma else ".",
-            comment="#",
+            comment="#",  # a note after a row's numbers (whole comment lines are left out above)
             skipinitialspace=True,
             encoding="utf-8-sig",
             encoding_errors="replace",

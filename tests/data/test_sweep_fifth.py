@@ -99,3 +99,44 @@ def test_label_columns_of_one_whole_number_are_set_aside(turned, tmp_path, capsy
     path.write_text(_stream_rows(turned, dt_column=True))
     code, out, err = run(["segment", path], capsys)
     assert code == 2 and "e.g. --columns t=1,ax=3,ay=4,az=5" in err and "columns 2, 6, 10 set aside" in err
+
+
+#: NXP's IMU data logger's footer (kalebburnham/IMU-Research, Nudge.dat): a blank line, then ``%`` lines of the
+#: samples' statistics, one of 13 fields (its names' line carries a second ``%``).
+NXP_FOOTER = ("\n% Sample Count Used for mean/std calculations = 316.\n\n"
+              "%                                  MagX     MagY     MagZ     AccX     AccY     AccZ     % GyroR   GyroP"
+              "    GyroY  LButton  RButton\n"
+              "% Means                      :  371.000  -66.000  585.000    1.000    2.000  353.000 -515.000 -534.000"
+              " -526.000    0.000    0.000 \n"
+              "% Maximums                   :      387      -13      589       31      110      359     -514     -533"
+              "     -454        0        0 \n")
+
+
+@pytest.mark.parametrize("engine", ["numpy", "pyarrow", "pandas"])
+def test_comment_lines_among_and_after_the_data_are_skipped_and_counted(turned, tmp_path, monkeypatch, engine):
+    from optcal.data import text
+
+    rows = _nxp_rows(turned).splitlines(keepends=True)
+    if engine == "pyarrow":  # its rows' trailing blank is an empty field to pyarrow, which then leaves them to pandas
+        rows = [r.rstrip(" \n") + "\n" for r in rows]
+    middle = len(rows) // 2  # a pause noted among the rows, in the other loggers' marks, one indented
+    rows[middle:middle] = ["  // paused\n", "; resumed\n", "# still\n"]
+    path = tmp_path / "Nudge.dat"
+    path.write_text("".join(rows) + NXP_FOOTER)
+    if engine != "numpy":  # the large files' paths, on a small file
+        monkeypatch.setattr(text, "SMALL_FILE_BYTES", 0)
+    if engine == "pandas":  # pyarrow's reader declines (e.g. not installed)
+        monkeypatch.setattr(text, "arrow_streamed_block", lambda *args: None)
+    _, parsed = text.read_numbers(path)
+    footer = len(rows) + 2 + np.array([0, 2, 3, 4])  # the file's lines of the footer's % lines (1-based)
+    lines = [middle + 1, middle + 2, middle + 3, *footer.tolist()]
+    assert parsed.engine == ("pyarrow" if engine == "pyarrow" else "pandas")  # numpy declines a comment line
+    assert parsed.comments is not None and list(parsed.comments.lines) == lines
+    assert parsed.comments.marks == ("//", ";", "#", "%")
+    assert parsed.n_rows == len(turned.frame) and not parsed.non_numeric
+    loaded = load_with_segmentation(path, rate=100.0)
+    assert f"7 comment line(s) among the data skipped (lines {lines[0]}-{lines[-1]}" in loaded.decisions.layout
+    assert loaded.poses.n == len(turned.dwells)
+    clean = tmp_path / "clean.dat"
+    clean.write_text(_nxp_rows(turned))
+    assert np.allclose(loaded.recording.acc, load_with_segmentation(clean, rate=100.0).recording.acc)

@@ -17,7 +17,7 @@ import pytest
 import optcal
 from helpers.cli_run import run_args
 from optcal.data.options import Reading, read
-from optcal.data.rails import GYRO_RAIL_MIN_RUN, gyro_bias_bound
+from optcal.data.rails import GYRO_RAIL_MIN_RUN, gyro_bias_bound, gyro_rail
 from optcal.data.recording import GYRO_SATURATED
 from optcal.families.gyro.estimator import calibrate_imu_loaded
 from optcal.families.gyro.moves import RAIL_MOVES, moves_from_segmentation
@@ -158,3 +158,60 @@ def test_a_still_stretch_with_the_gyro_at_its_rail_is_no_rest(tmp_path: Path) ->
     assert reading.decisions.exclusions[GYRO_SATURATED] == 2000
     assert reading.poses.n == 1 and reading.poses.exclusions[RAIL_STRETCHES] == 1
     np.testing.assert_allclose(reading.poses.acc[0], kept.poses.acc[0])  # the true rest is kept
+
+
+@pytest.mark.parametrize("still", [False, True], ids=["rail in moves", "rail in a still stretch"])
+def test_every_sample_is_counted_once_with_the_gyro_at_its_rail(tmp_path: Path, still: bool) -> None:
+    """The samples at the gyro's rail are counted while reading (their cause); the segmentation's counts (moves,
+    edges, stretches rejected) are of the other samples, so the samples excluded and those in poses sum to the
+    rows (they were counted twice: in the reading's count and again as moving or as the rejected stretch's)."""
+    from optcal.data.static import MOVING, RAIL_STRETCHES
+
+    if still:  # a rest, a tilt, then a spin about the vertical held at a ±2000 °/s gyro's rail
+        rng = np.random.default_rng(1)
+        tilt = np.linspace(0.0, np.pi / 2, 200)
+        acc = np.concatenate([np.tile([0.0, 0.0, 9.81], (1000, 1)),
+                              np.column_stack([9.81 * np.sin(tilt), 0 * tilt, 9.81 * np.cos(tilt)]),
+                              np.tile([9.81, 0.0, 0.0], (2000, 1))]) + 0.02 * rng.standard_normal((3200, 3))
+        gyro = 0.005 * rng.standard_normal((3200, 3))
+        gyro[1000:1200, 1] += (np.pi / 2) / 2.0
+        gyro[1200:, 0] = np.radians(2000.0)
+        t, units = np.arange(3200) / 100.0, "rad/s"
+    else:  # brisk moves between rests read by a ±250 °/s gyro
+        rec = simulate_imu(optcal.lu2017_reference_model(), reference_gyro(np.degrees(1.0), rng=7), 12, rng=5,
+                           dwell_s=2.0, move_s=0.8, acc_noise=0.002, gyro_noise=0.05)
+        t, acc, units = rec.t, rec.acc, "deg/s"
+        gyro = np.clip(rec.gyro, -FULL_SCALE_DEG_S, FULL_SCALE_DEG_S)
+    path = tmp_path / "rail.csv"
+    np.savetxt(path, np.column_stack([t, acc, gyro]), delimiter=",", comments="", header="t,ax,ay,az,gx,gy,gz",
+               fmt="%.8g")
+    for keep in (True, False):
+        reading = read(path, use_gyro=not still, gyro_units=units, keep_gyro_rail=keep)
+        seg = reading.segmentation
+        assert seg is not None
+        samples = {k: v for k, v in seg.exclusions.items() if k.startswith("samples")}
+        assert sum(samples.values()) + seg.n_used == len(t), samples
+        assert (GYRO_SATURATED in samples) is not keep
+    if still:  # the stretch is rejected (every sample of it at the rail: none left to count as the stretch's)
+        assert seg.exclusions[RAIL_STRETCHES] == 1 and samples[GYRO_SATURATED] == 2000
+    else:
+        assert samples[MOVING] > 0  # the moves' other samples, still counted
+
+
+def test_a_smooth_peak_of_a_fast_log_is_no_rail_and_a_clipped_one_is() -> None:
+    """A 1 kHz log of a ±2000 °/s 16-bit gyro (a step of 1/16.4 °/s, noise a third of it): a 0.5-s turn peaking at
+    300 °/s holds its top for 4 equal samples (a peak of curvature c stays within one step q for √(8q/c) samples,
+    6.5 here), which the 3-sample rule took for a rail; the same turn clipped at 290 °/s holds it for 83."""
+    rng = np.random.default_rng(3)
+    q = 1.0 / 16.4
+    gyro = 0.3 * q * rng.standard_normal((6000, 3))
+    turn = np.sin(np.pi * np.arange(500) / 500)
+    gyro[2000:2500, 2] += 300.0 * turn
+    gyro[4000:4500, 0] -= 280.0 * turn
+    smooth = np.round(gyro / q) * q
+    assert np.count_nonzero(smooth[:, 2] == smooth[:, 2].max()) >= GYRO_RAIL_MIN_RUN  # what the run rule saw
+    assert not gyro_rail(smooth, np.ones(6000, bool), "deg/s").samples.any()
+    clipped = np.round(np.clip(gyro, -290.0, 290.0) / q) * q
+    rail = gyro_rail(clipped, np.ones(6000, bool), "deg/s")
+    assert np.array_equal(rail.samples, np.abs(clipped[:, 2]) == clipped[:, 2].max())
+    assert rail.levels == (pytest.approx(290.0, abs=q),)

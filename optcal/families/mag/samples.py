@@ -256,7 +256,7 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
             layout = layout.with_comment_header()
     names = list(layout.names)
     col = dict(zip(names, parsed.columns))
-    notes: list[str] = []
+    notes: list[str] = [parsed.comments.describe()] if parsed.comments is not None and parsed.comments.count else []
     if not layout.has_header and layout.comment_names is None and not any(k in MAG for k in mapping):
         mapping, reason = _headerless_mag(path, names, parsed.columns, mapping,
                                           {j: v[2] for j, v in parsed.non_numeric.items()})
