@@ -489,11 +489,14 @@ class RestModel:
         """Per range of blocks and axis, the variance of the samples about their common mean (the blocks' own
         variances and the spread of their means, pooled) (P, 3)."""
         means, var = self._moments(gyro)
-        w = self.b.n[r.rows, None]
+        w = self.b.n[r.rows]
         n = r.sums(w)
-        mean = r.sums(means[r.rows] * w) / n
-        dev = means[r.rows] - mean[r.owner]
-        return np.asarray((r.sums(var[r.rows] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0))
+        out = np.empty((r.count, means.shape[1]))
+        for j in range(means.shape[1]):  # column by column: :func:`~optcal.data.rest_model.pair_ratios`
+            m = means[r.rows, j]
+            dev = m - (r.sums(m * w) / n)[r.owner]
+            out[:, j] = (r.sums(var[r.rows, j] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0)
+        return out
 
     def _independent(self, r: rm.Ranges, gyro: bool, samples: NDArray[np.float64]) -> NDArray[np.float64]:
         """Samples over the noise colour: each stretch's per-sample variance over the variance of its mean.
