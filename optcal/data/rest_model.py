@@ -346,7 +346,10 @@ def _f_ppf(probability: float, d1: float, d2: float) -> float:
 
 def step_statistic(ratios: NDArray[np.float64], kappa2: NDArray[np.float64]) -> NDArray[np.float64]:
     """``Σ_j ratio_j / κ_j²`` of each consecutive pair: ``3 F(3, dof)`` at rest."""
-    return np.asarray((ratios / kappa2).sum(axis=1))
+    out = ratios[:, 0] / kappa2[0]
+    for j in range(1, ratios.shape[1]):  # column by column, added in order (as the row sum of three): the same values
+        out = out + ratios[:, j] / kappa2[j]
+    return np.asarray(out)
 
 
 @lru_cache(maxsize=4096)
