@@ -153,12 +153,23 @@ def median(x: ArrayLike, overwrite_input: bool = False) -> float:
 def column_medians(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """The median of each column of a 2-D array of finite values (``np.median(x, axis=0)``), all columns by one
     partition at the upper middle position (as :func:`median`): the rest model asks for them once per still
-    stretch, where a call per column costs more than the work."""
+    stretch, where a call per column costs more than the work.  From :data:`BRACKET_MIN_VALUES` rows each column's
+    middle values are selected inside a bracket instead (:func:`_middle_in_bracket`; the same values: a 12-hour log's
+    (172800, 3) bias track, 6.5 ms → 1 ms), all columns partitioned where a bracket misses."""
     a = np.asarray(x, dtype=float)
     n = a.shape[0]
     if n == 0:
         return np.full(a.shape[1], np.nan)
     mid = n // 2
+    if n >= BRACKET_MIN_VALUES:  # each column's middle values selected inside a bracket, as :func:`median` does
+        middles = []
+        for j in range(a.shape[1]):  # a contiguous copy of the column: the bracket's passes on it take half the time
+            middle = _middle_in_bracket(np.ascontiguousarray(a[:, j]), mid - 1 + n % 2, mid)
+            if middle is None:  # missed, or a zero (whose sign is the whole partition's): all columns partitioned
+                break
+            middles.append(middle[1] if n % 2 else (middle[0] + middle[1]) / 2)
+        else:
+            return np.array(middles)
     part = np.partition(a, mid, axis=0)
     if n % 2:
         return np.asarray(part[mid]).copy()

@@ -15,10 +15,14 @@ from numpy.typing import NDArray
 STEP_CHUNK: int = 2**18
 
 
-def _abs_step_chunks(col: NDArray[np.float64]) -> Iterator[NDArray[np.float64]]:
-    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps."""
+def _abs_step_chunks(col: NDArray[np.float64], ends: list[float] | None = None) -> Iterator[NDArray[np.float64]]:
+    """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps; ``ends``, if given, gets each
+    chunk's largest and smallest value (read while the chunk is in the processor's cache, not in a pass of its own)."""
     for start in range(0, max(0, col.size - 1), STEP_CHUNK):
-        d = np.diff(col[start:start + STEP_CHUNK + 1])
+        chunk = col[start:start + STEP_CHUNK + 1]
+        d = np.diff(chunk)
+        if ends is not None:
+            ends += (chunk.max(), chunk.min())
         yield np.abs(d, out=d)
 
 
@@ -55,14 +59,16 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     for j in range(k):
         col = columns[:, j]
         column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
-        for d in _abs_step_chunks(col):
+        ends: list[float] = []
+        for d in _abs_step_chunks(col, ends):
             d = d[d > 0]
             if d.size:
                 q = min(q, float(d.min()))
                 sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
             column_steps += d.size
         n_steps += column_steps
-        span = max(span, float(col.max() - col.min()))
+        if col.size > 1:  # the column's largest less its smallest (np.max, as col.max(), keeps a NaN)
+            span = max(span, float(np.max(ends[0::2]) - np.min(ends[1::2])))
     if n_steps < 10:
         return None
     if span > (2**16 + 1) * q:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.core.stats import row_max_abs, row_norms
 from optcal.data.quantiles import np_column_medians
 from optcal.data.rails import gyro_bias_bound
 from optcal.data.recording import Recording
@@ -54,10 +55,10 @@ class RestBounds:
         """Whether each row of ``acc`` (k, 3; less the nominal zero) and ``gyro`` (k, 3) a rest can read."""
         ok = np.ones(acc.shape[0], dtype=bool)
         if self.norm_range is not None:
-            norm = np.linalg.norm(acc, axis=1)
+            norm = row_norms(acc)
             ok &= (norm >= self.norm_range[0]) & (norm <= self.norm_range[1])
         if gyro is not None and self.gyro_zero is not None:
-            ok &= np.max(np.abs(gyro - self.gyro_zero), axis=1) <= self.gyro_limit
+            ok &= row_max_abs(gyro, self.gyro_zero) <= self.gyro_limit
         return ok
 
     def describe(self, units: str) -> str:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.core.stats import column_ptp, row_max_abs, row_norms
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data import bias_model as bm
 from optcal.data import rest_model as rm
@@ -32,7 +33,13 @@ if TYPE_CHECKING:
 
 def unit_rows(f: NDArray[np.float64]) -> NDArray[np.float64]:
     """Each row of ``f`` (k, 3) (or ``f`` itself, (3,)) over its norm: a specific force's direction."""
-    return np.asarray(f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), np.finfo(float).tiny))
+    if f.ndim != 2:
+        return np.asarray(f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), np.finfo(float).tiny))
+    norm = np.maximum(row_norms(f), np.finfo(float).tiny)
+    out = np.empty(f.shape)
+    for j in range(f.shape[1]):  # column by column (core.stats.row_norms): the same values
+        np.divide(f[:, j], norm, out=out[:, j])
+    return out
 
 
 #: Standard errors (rms over the axes) within which the accelerometer's rate of change over a stretch agrees with
@@ -180,10 +187,10 @@ class RestModel:
             # significant, but turning the sensor through less than a pose tolerates over the time a rest is judged
             # on (WOBBLE_DWELLS dwells, as the stretches' own test): a real gyro's bias, not a move (not in the first
             # pass, whose rests measure the bias: a smooth move's slow ends are not rests of the bias)
-            rate = np.linalg.norm(b.gmean - self.track, axis=1) * scale
+            rate = row_norms(b.gmean - self.track) * scale
             # within a real gyro's reach of its bias (g-sensitivity's largest term at 1 g), only the turn across the
             # specific force moves a pose: about it, a(t) stays as it is (a yaw creep, or G f along f)
-            across = np.linalg.norm(np.cross(b.gmean - self.track, unit_rows(b.mean - self.acc_zero)), axis=1) * scale
+            across = row_norms(np.cross(b.gmean - self.track, unit_rows(b.mean - self.acc_zero))) * scale
             rate = np.where(rate <= bm.MAX_G_SENSITIVITY_RAD_S_PER_G, across, rate)
             self.still |= ~rm.turn_is_relevant(rate, WOBBLE_DWELLS * self.s.min_dwell_s, self.s.gyro_threshold)
 
@@ -211,7 +218,7 @@ class RestModel:
             return False
         still = self._acc_still() & self.can_rest
         limit = MAX_GYRO_BIAS_RAD_S / self.gyro_scale
-        base = still & ~self._over_a_dwell(still & (np.max(np.abs(b.gmean - self.bounds.gyro_zero), axis=1) > limit))
+        base = still & ~self._over_a_dwell(still & (row_max_abs(b.gmean, self.bounds.gyro_zero) > limit))
         if base.sum() < 3 or not np.any(still & ~base):
             return False
         self.rest_base, self._spans = self.can_rest & (base | ~still), None
@@ -257,7 +264,7 @@ class RestModel:
         b = self.b
         assert self.bias is not None and b.gmean is not None
         limit = MAX_BIAS_WANDER_RAD_S / self.gyro_scale if self.gyro_scale is not None else np.inf
-        near = (np.linalg.norm(b.gmean - self.bias, axis=1) <= limit) & self.can_rest
+        near = (row_norms(b.gmean - self.bias) <= limit) & self.can_rest
         starts, stops = true_runs(self.quiet & near[1:] & near[:-1])
         return [(int(a), int(z) + 1) for a, z in zip(starts, stops)]
 
@@ -489,11 +496,14 @@ class RestModel:
         """Per range of blocks and axis, the variance of the samples about their common mean (the blocks' own
         variances and the spread of their means, pooled) (P, 3)."""
         means, var = self._moments(gyro)
-        w = self.b.n[r.rows, None]
+        w = self.b.n[r.rows]
         n = r.sums(w)
-        mean = r.sums(means[r.rows] * w) / n
-        dev = means[r.rows] - mean[r.owner]
-        return np.asarray((r.sums(var[r.rows] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0))
+        out = np.empty((r.count, means.shape[1]))
+        for j in range(means.shape[1]):  # column by column: :func:`~optcal.data.rest_model.pair_ratios`
+            m = means[r.rows, j]
+            dev = m - (r.sums(m * w) / n)[r.owner]
+            out[:, j] = (r.sums(var[r.rows, j] * (w - 1.0)) + r.sums(w * dev * dev)) / (n - 1.0)
+        return out
 
     def _independent(self, r: rm.Ranges, gyro: bool, samples: NDArray[np.float64]) -> NDArray[np.float64]:
         """Samples over the noise colour: each stretch's per-sample variance over the variance of its mean.
@@ -738,7 +748,7 @@ class RestModel:
             out.update({f"gyro_colour_{a}": float(v) for a, v in zip("xyz", self.gkappa2)})
             out.update({f"gyro_wander_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.wander2)})
             out.update({f"gyro_rounding_{a}": float(np.sqrt(v)) for a, v in zip("xyz", self.gfloor) if v > 0})
-            drift = np.ptp(self.track, axis=0) if self.track.size else np.zeros(3)
+            drift = column_ptp(self.track) if self.track.size else np.zeros(3)
             out.update({f"gyro_bias_drift_{a}": float(v) for a, v in zip("xyz", drift) if v > 0})
         return out
 

@@ -254,6 +254,14 @@ def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatc
                 assert middle == (ordered[lower], ordered[upper]), name
             else:
                 assert middle is None  # a zero's sign is the whole partition's to pick
+    for name, x in cases.items():  # the columns' medians, selected in brackets: the whole partition's, signs included
+        for values in (x, x[:-1]):
+            stack = np.column_stack([values, values[::-1], -values])
+            mid = stack.shape[0] // 2
+            part = np.partition(stack, mid, axis=0)
+            whole = part[mid] if stack.shape[0] % 2 else (part[:mid].max(axis=0) + part[mid]) / 2
+            got = column_medians(stack)
+            assert _same(got, whole) and np.array_equal(np.signbit(got), np.signbit(whole)), name
     monkeypatch.setattr(quantiles_module, "BRACKET_SIGMAS", 0.0)  # a bracket of no width: it misses, or holds ties
     for name, x in cases.items():
         assert _same(quantiles_module.median(x[:-1]), float(np.median(x[:-1]))), name
@@ -263,3 +271,40 @@ def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatc
     probe = ("import sys, numpy as np; from optcal.data.quantiles import median; median(np.arange(70000.0)); "
              "print('numpy.random' in sys.modules)")  # its subsample is no reason to import numpy.random (7 MB)
     assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"
+
+
+def test_block_moments_by_pieces_are_the_whole_columns(monkeypatch):
+    """The blocks' means and variances summed piece by piece (pieces of whole blocks, the first from sample 0) are
+    the same bit for bit as one pass over each whole column: pieces of a few blocks, cut beside breaks and inside
+    segments, against the unpieced sums; the rounding term's extremes over every sample (a spike in the last piece)."""
+    import optcal.data.rest_model as rm
+
+    rng = np.random.default_rng(11)
+    m = 20_011
+    x = rng.normal(size=(m, 3)) * [1e-3, 2.0, 50.0] + [0.0, -1.0, 1e4]
+    x[:, 0] = 5.0  # a noise-free column: its blocks' variances are the rounding term of its largest deviation,
+    x[-3, 0] += 1.0  # which is in the last piece
+    t = np.arange(m) / 100.0
+    breaks = np.array([37, 5000, 5003, 12_345], dtype=np.int64)
+
+    def whole_columns(x, starts, n, quant_var):  # one pass over each column (the plain formula)
+        mean, var = np.empty((starts.size, 3)), np.empty((starts.size, 3))
+        for j in range(3):
+            col = x[:, j]
+            centre = median(col[:: max(1, col.size // 1000)])
+            dev = col - centre
+            s1 = np.add.reduceat(dev, starts)
+            largest = max(float(dev.max()), -float(dev.min()))
+            s2 = np.add.reduceat(dev * dev, starts)
+            mu = s1 / n
+            mean[:, j] = mu + centre
+            rounding = (rm.ROUNDING_ULPS * np.finfo(float).eps * float(np.max(n)) * largest) ** 2
+            var[:, j] = np.maximum(s2 - n * mu * mu, 0.0) / np.maximum(n - 1.0, 1.0) + quant_var + rounding
+        return mean, var
+
+    for piece in (rm.BLOCK_PIECE, 64, 1000):
+        monkeypatch.setattr(rm, "BLOCK_PIECE", piece)
+        b = rm.make_blocks(t, x, x[::-1] * 3.0, 25, breaks, 0.5, 0.0)
+        mean, var = whole_columns(x, b.start, b.n, 0.5**2 / 12.0)
+        gmean, gvar = whole_columns(x[::-1] * 3.0, b.start, b.n, 0.0)
+        assert _same(b.mean, mean) and _same(b.var, var) and _same(b.gmean, gmean) and _same(b.gvar, gvar), piece
