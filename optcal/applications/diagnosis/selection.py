@@ -18,8 +18,8 @@ candidates within :data:`BIC_TIE` of it the one with the fewest coefficients goe
 (:func:`preference_order`).  A term's polynomial
 order is raised (one coefficient at a time, same tests) where the data support it.  A time term
 that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
-order its higher coefficients do not significantly improve on (F test at the level it entered
-at, the level a later step would need to raise the order again): a linear drift is named as
+order its higher coefficients do not significantly improve on and that passes its own test
+(:mod:`~optcal.applications.diagnosis.drift_order`): a linear drift is named as
 linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers enter as mean-shift terms
@@ -54,6 +54,7 @@ from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.correlation import PoseCorrelation
+from optcal.applications.diagnosis.drift_order import lower_order
 from optcal.applications.diagnosis.noise_model import correlation_with_steps
 from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation
 from optcal.applications.diagnosis.pair_search import pair_adjusted_p, search_pair
@@ -708,27 +709,19 @@ class ForwardSelection:
                 c.p_value = self.fitter.f_test(current, c.fit)
 
     def step_down(self, accepted: Candidate, current: Fit) -> None:
-        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
-
-        Order ``k`` is kept over ``j < k`` only when its coefficients above ``j`` are significant
-        together (F test) at the level the term entered at, the level raising the order from ``j``
-        would need in a later step.
-        """
+        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on and that
+        passes its own test (:func:`~optcal.applications.diagnosis.drift_order.lower_order`, at the level the term
+        entered at, the level raising the order from there would need in a later step); else it keeps its order."""
         if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
             return
         key = (accepted.effect, AXES.index(str(accepted.axis)))
         if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
             return
-        entered = accepted.order
-        for lower_order in range(1, entered):
-            terms = dict(accepted.fit.terms)
-            terms[key] = lower_order
-            lower = self.fitter.fit(terms, accepted.fit.outliers, accepted.fit.x)
-            if self.fitter.f_test(lower, accepted.fit) >= accepted.threshold:
-                accepted.fit, accepted.order = lower, lower_order
-                accepted.stepped_down_from = entered
-                accepted.term = describe_term(accepted.effect, key[1], lower_order)
-                return
+        found = lower_order(self.fitter, current, accepted.fit, key, accepted.order, accepted.threshold)
+        if found is not None:
+            accepted.stepped_down_from = accepted.order
+            accepted.fit, accepted.order = found
+            accepted.term = describe_term(accepted.effect, key[1], accepted.order)
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one (each rival
