@@ -30,8 +30,8 @@ removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~op
 the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
 steps that explain the same rise is dropped, and so are knocks taken before the drift they stood for.  The outlier
 poses set aside are then tested again under the final model with all its effects
-(:meth:`ForwardSelection.recheck_outliers`, without the held-out check): a pose still aside whose departure the
-final model explains is returned to the fit.
+(:meth:`ForwardSelection.recheck_outliers`, the backward check's rule): a pose still aside whose departure the
+final model explains is returned to the fit when the held-out rms does not rise.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_outliers
+from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_notes, recheck_outliers
 from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
@@ -640,14 +640,13 @@ class ForwardSelection:
 
     def recheck_outliers(self, final: Fit) -> Fit:
         """``final`` with its outlier poses tested again under its own terms, each returned whose departure they
-        explain (:func:`~optcal.applications.diagnosis.backward.recheck_outliers`, at the outliers' family-wise
-        level :attr:`alpha_outliers`); the returned poses in a note."""
-        out, returned = recheck_outliers(self.fitter, final, self.alpha_outliers)
-        if returned:
-            rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
-            self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
-                      f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
-            self.returned |= {k for k, _ in returned}
+        explain (:func:`~optcal.applications.diagnosis.backward.recheck_outliers`: the backward check's rule at the
+        outliers' family-wise level :attr:`alpha_outliers`, held-out check included); the returned poses, and a pose
+        not significant that the held-out check kept aside, in a note."""
+        out, returned, kept = recheck_outliers(self.fitter, final, self.alpha_outliers)
+        for text in recheck_notes(self.fitter, returned, kept, self.alpha_outliers):
+            self.note(text)
+        self.returned |= final.outliers - out.outliers
         return out
 
     def prefer_step_to_outliers(self, tried: list[Candidate], current: Fit) -> None:
