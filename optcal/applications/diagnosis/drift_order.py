@@ -18,21 +18,46 @@ passes both tests, the term keeps the order it entered at.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 
-__all__ = ["lower_order"]
+__all__ = ["StepDown", "lower_order"]
+
+
+@dataclass(frozen=True)
+class StepDown:
+    """The step-down of one term (:func:`lower_order`).
+
+    Attributes
+    ----------
+    fit : Fit or None
+        The fit at the lower order; ``None``: the term keeps the order it entered at.
+    order : int or None
+        The lower order.
+    spread : bool
+        Kept because every lower order whose higher coefficients add nothing fails its own test: the evidence is
+        spread over the coefficients, where a polynomial may stand for another shape (a drift and a knock: a cubic
+        in time is their smooth summary), so the step searches terms together too
+        (:mod:`~optcal.applications.diagnosis.term_pair`).
+    """
+
+    fit: Fit | None
+    order: int | None
+    spread: bool = False
 
 
 def lower_order(fitter: Fitter, current: Fit, entered: Fit, key: tuple[str, int], order: int,
-                level: float) -> tuple[Fit, int] | None:
+                level: float) -> StepDown:
     """The lowest order below ``order`` that the term ``key`` of ``entered`` (fitted from ``current``) steps down to,
-    with its fit; ``None``: it keeps ``order`` (module docstring).
+    with its fit; or that it keeps ``order`` (module docstring).
 
     An order ``j`` is taken when the coefficients of ``order`` above ``j`` are not significant together (F test of the
     order-``j`` fit against ``entered``, at ``level``) and order ``j`` passes its own test against ``current`` (F test
     at ``level``, BIC lower than ``current``'s), as the step's candidate of order ``j`` must.
     """
     bic0 = fitter.bic(current)
+    spread = False
     for j in range(1, order):
         terms = dict(entered.terms)
         terms[key] = j
@@ -40,6 +65,6 @@ def lower_order(fitter: Fitter, current: Fit, entered: Fit, key: tuple[str, int]
         if fitter.f_test(lower, entered) < level:
             continue  # the coefficients above j are needed
         if fitter.f_test(current, lower) < level and fitter.bic(lower) < bic0:
-            return lower, j
-        # order j fails its own test: it cannot stand for the term (module docstring); a higher j may
-    return None
+            return StepDown(lower, j)
+        spread = True  # order j fails its own test: it cannot stand for the term (module docstring); a higher j may
+    return StepDown(None, None, spread)

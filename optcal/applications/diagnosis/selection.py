@@ -23,8 +23,8 @@ order its higher coefficients do not significantly improve on and that passes it
 linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
 bias that rises and falls keeps its order 2.  Outliers enter as mean-shift terms
-(:mod:`optcal.applications.diagnosis.outliers`).  When nothing passes, terms (and a term with a knock) are searched
-together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops when
+(:mod:`optcal.applications.diagnosis.outliers`).  When nothing passes (or beside a drift whose evidence is spread over
+its orders), terms (and a term with a knock) are searched together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops when
 that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
 removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~optcal.applications.diagnosis.backward`:
 the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
@@ -397,10 +397,12 @@ class ForwardSelection:
                         tried[-1].significant = False
                         tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
                                                       " were returned to the fit by the backward check")
-            self.step_down_first(tried, current)
+            spread = self.step_down_first(tried, current)
             self.prefer_step_to_outliers(tried, current)
+            if spread and pair_level is not None:  # a drift kept at its order, its evidence spread: sets compete with it
+                tried += self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
             accepted = self.accept(tried, current)
-            if accepted is None and pair_level is not None:  # nothing passed: terms (and a knock) searched together
+            if accepted is None and pair_level is not None and not spread:  # nothing passed: terms searched together
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
                 accepted = self.accept(together, current)
@@ -682,7 +684,7 @@ class ForwardSelection:
                                           f"(none is an outlier under it: p ≥ {min(p_values.values()):.2g})")
                 return
 
-    def step_down_first(self, tried: list[Candidate], current: Fit) -> None:
+    def step_down_first(self, tried: list[Candidate], current: Fit) -> bool:
         """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
 
         A drift of order 2 or 3 wins the BIC on its fit of noise, then steps down to order 1 after it is chosen,
@@ -690,12 +692,15 @@ class ForwardSelection:
         order 2, ΔBIC −62, stepped down to the first-order y drift, ΔBIC −50, was named in place of the planted
         temperature_bias(x), ΔBIC −56).  A term that steps down to an order the step also tried leaves the choice
         to that candidate (its own ΔBIC, p and held-out test); otherwise it competes at the order it stepped to.
+        Returns whether a term kept its order with its evidence spread (:class:`~optcal.applications.diagnosis.
+        drift_order.StepDown`).
         """
+        spread = False
         for c in tried:
             if not c.significant or c.effect not in DIRECT_ORDERS or not c.order or c.order == 1 or c.fit is None:
                 continue
             entered = c.order
-            self.step_down(c, current)
+            spread |= self.step_down(c, current)
             if c.order == entered:
                 continue
             same = [o for o in tried if o is not c and o.effect == c.effect and o.axis == c.axis and o.order == c.order]
@@ -706,21 +711,24 @@ class ForwardSelection:
                 c.significant, c.rejected_because = True, None
                 c.delta_bic = self.fitter.bic(c.fit) - self.fitter.bic(current)
                 c.p_value = self.fitter.f_test(current, c.fit)
+        return spread
 
-    def step_down(self, accepted: Candidate, current: Fit) -> None:
+    def step_down(self, accepted: Candidate, current: Fit) -> bool:
         """Lower a directly entered time term to the lowest order its higher coefficients do not improve on and that
         passes its own test (:func:`~optcal.applications.diagnosis.drift_order.lower_order`, at the level the term
-        entered at, the level raising the order from there would need in a later step); else it keeps its order."""
+        entered at, the level raising the order from there would need in a later step); else it keeps its order.
+        Returns whether it kept its order with its evidence spread (no lower order passing its own test)."""
         if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
-            return
+            return False
         key = (accepted.effect, AXES.index(str(accepted.axis)))
         if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
-            return
+            return False
         found = lower_order(self.fitter, current, accepted.fit, key, accepted.order, accepted.threshold)
-        if found is not None:
+        if found.fit is not None and found.order is not None:
             accepted.stepped_down_from = accepted.order
-            accepted.fit, accepted.order = found
+            accepted.fit, accepted.order = found.fit, found.order
             accepted.term = describe_term(accepted.effect, key[1], accepted.order)
+        return found.spread
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one (each rival
