@@ -13,24 +13,22 @@ A term is added when
 * it lowers the BIC (``n log(RSS/n) + p log n``);
 * it lowers the held-out rms (k-fold).
 
-Among the candidates passing the first two, the best BIC is tried first, except that among term
-candidates within :data:`BIC_TIE` of it the one with the fewest coefficients goes first
-(:func:`preference_order`).  A term's polynomial
-order is raised (one coefficient at a time, same tests) where the data support it.  A time term
-that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
-order its higher coefficients do not significantly improve on and that passes its own test
-(:mod:`~optcal.applications.diagnosis.drift_order`): a linear drift is named as
-linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
-a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
-bias that rises and falls keeps its order 2.  Outliers enter as mean-shift terms
-(:mod:`optcal.applications.diagnosis.outliers`).  When nothing passes (or beside a drift whose evidence is spread over
-its orders), terms (and a term with a knock) are searched together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops when
-that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
-removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~optcal.applications.diagnosis.backward`:
-the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
-steps that explain the same rise is dropped, and so are knocks taken before the drift they stood for.  The outlier
-poses set aside are then tested again under the final model with all its effects
-(:meth:`ForwardSelection.recheck_outliers`, the backward check's rule): a pose still aside whose departure the
+Among the candidates passing the first two, the best BIC is tried first, except that among term candidates within
+:data:`BIC_TIE` of it the one with the fewest coefficients goes first (:func:`preference_order`).  A term's polynomial
+order is raised (one coefficient at a time, same tests) where the data support it.  A time term that entered at a
+higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest order its higher coefficients do not
+significantly improve on and that passes its own test (:mod:`~optcal.applications.diagnosis.drift_order`): a linear
+drift is named as linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
+a recording, so the cubic's first-order coefficient would carry only part of the trend), while a bias that rises and
+falls keeps its order 2.  Outliers enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  When
+nothing passes (or only drifts whose evidence is spread over their orders), terms (and a term with a knock) are
+searched together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops
+when that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is
+tested again for removal given all the others (:meth:`ForwardSelection.backward_check`,
+:mod:`~optcal.applications.diagnosis.backward`: the test it entered by, at the level it entered at, with ΔBIC and the
+held-out check): a drift taken before two bias steps that explain the same rise is dropped, and so are knocks taken
+before the drift they stood for.  The outlier poses set aside are then tested again under the final model with all its
+effects (:meth:`ForwardSelection.recheck_outliers`, the backward check's rule): a pose still aside whose departure the
 final model explains is returned to the fit when the held-out rms does not rise.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
@@ -397,16 +395,18 @@ class ForwardSelection:
                         tried[-1].significant = False
                         tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
                                                       " were returned to the fit by the backward check")
-            spread = self.step_down_first(tried, current)
+            kept = self.step_down_first(tried, current)
             self.prefer_step_to_outliers(tried, current)
-            if spread and pair_level is not None:  # a drift kept at its order, its evidence spread: sets compete with it
+            # only drifts kept at their order, their evidence spread, pass (before: nothing passed): sets compete
+            spread = bool(kept) and all(id(c) in kept for c in tried if c.significant)
+            if spread and pair_level is not None:
                 tried += self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
             accepted = self.accept(tried, current)
             if accepted is None and pair_level is not None and not spread:  # nothing passed: terms searched together
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
                 accepted = self.accept(together, current)
-            if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
+            if accepted is not None:  # a directly entered drift was stepped down before the choice
                 rivalries += self.rivals(accepted, tried)
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
@@ -684,7 +684,7 @@ class ForwardSelection:
                                           f"(none is an outlier under it: p ≥ {min(p_values.values()):.2g})")
                 return
 
-    def step_down_first(self, tried: list[Candidate], current: Fit) -> bool:
+    def step_down_first(self, tried: list[Candidate], current: Fit) -> set[int]:
         """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
 
         A drift of order 2 or 3 wins the BIC on its fit of noise, then steps down to order 1 after it is chosen,
@@ -692,15 +692,14 @@ class ForwardSelection:
         order 2, ΔBIC −62, stepped down to the first-order y drift, ΔBIC −50, was named in place of the planted
         temperature_bias(x), ΔBIC −56).  A term that steps down to an order the step also tried leaves the choice
         to that candidate (its own ΔBIC, p and held-out test); otherwise it competes at the order it stepped to.
-        Returns whether a term kept its order with its evidence spread (:class:`~optcal.applications.diagnosis.
-        drift_order.StepDown`).
-        """
-        spread = False
+        Returns the ids of the terms kept at their order with their evidence spread (:meth:`step_down`)."""
+        spread: set[int] = set()
         for c in tried:
             if not c.significant or c.effect not in DIRECT_ORDERS or not c.order or c.order == 1 or c.fit is None:
                 continue
             entered = c.order
-            spread |= self.step_down(c, current)
+            if self.step_down(c, current):
+                spread.add(id(c))
             if c.order == entered:
                 continue
             same = [o for o in tried if o is not c and o.effect == c.effect and o.axis == c.axis and o.order == c.order]
@@ -717,7 +716,8 @@ class ForwardSelection:
         """Lower a directly entered time term to the lowest order its higher coefficients do not improve on and that
         passes its own test (:func:`~optcal.applications.diagnosis.drift_order.lower_order`, at the level the term
         entered at, the level raising the order from there would need in a later step); else it keeps its order.
-        Returns whether it kept its order with its evidence spread (no lower order passing its own test)."""
+        Returns whether it kept its order with its evidence spread (:class:`~optcal.applications.diagnosis.
+        drift_order.StepDown`: no lower order passes its own test)."""
         if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
             return False
         key = (accepted.effect, AXES.index(str(accepted.axis)))
