@@ -43,7 +43,7 @@ from optcal.applications.diagnosis.outliers import deleted_residual_p
 from optcal.core.model import AXES
 from optcal.core.stats import rms
 
-__all__ = ["Dropped", "Removal", "removals", "backward_check", "recheck_outliers", "step_offsets"]
+__all__ = ["Dropped", "Removal", "removals", "backward_check", "recheck_outliers", "recheck_notes", "step_offsets"]
 
 #: The effect name of an outlier pose returned to the fit (as the selection names the outlier candidate).
 OUTLIERS: str = "outliers"
@@ -249,6 +249,15 @@ def _outlier(fitter: Fitter, current: Fit, level: float, entered: frozenset[int]
                    bic - fitter.bic(back), back, fitter.steps_at, "outlier", pose=k)
 
 
+def _held_out_rms(fitter: Fitter, current: Fit, r: Removal) -> tuple[float, float]:
+    """The held-out rms with and without ``r`` over the poses the model without it keeps (a returned pose's own
+    held-out residual included); the fitter's steps are left as the model without it's."""
+    mask = r.without.kept(fitter.n)
+    with_rms = rms(fitter.heldout(current), mask)
+    fitter.set_steps(r.steps)
+    return with_rms, rms(fitter.heldout(r.without), mask)
+
+
 def _held_out_passes(fitter: Fitter, current: Fit, failing: list[Removal]) -> tuple[Removal, float, float] | None:
     """The removal to make among ``failing``, with the held-out rms with and without it; ``None``: none.
 
@@ -263,10 +272,7 @@ def _held_out_passes(fitter: Fitter, current: Fit, failing: list[Removal]) -> tu
         if not queue:
             continue
         r = max(queue, key=lambda f: (f.p_value, f.term))
-        mask = r.without.kept(fitter.n)
-        with_rms = rms(fitter.heldout(current), mask)
-        fitter.set_steps(r.steps)
-        without_rms = rms(fitter.heldout(r.without), mask)
+        with_rms, without_rms = _held_out_rms(fitter, current, r)
         if without_rms <= with_rms:
             return r, with_rms, without_rms
         fitter.set_steps(placed)
@@ -312,32 +318,48 @@ def backward_check(fitter: Fitter, current: Fit, levels: dict[tuple[str, int], f
         current = r.without
 
 
-def recheck_outliers(fitter: Fitter, final: Fit, level: float) -> tuple[Fit, list[tuple[int, float]]]:
+def recheck_outliers(fitter: Fitter, final: Fit, level: float,
+                     after: str = "the final model") -> tuple[Fit, list[Dropped], tuple[Removal, float, float] | None]:
     """``final`` with its outlier poses tested again under its own terms, each returned whose departure they explain;
-    and the poses returned with their p values.
+    the poses returned, and the pose the held-out check kept aside with the held-out rms with and without it
+    (``None``: none).
 
     An outlier is accepted in the step it passes, against the model of that step; a later effect (a drift,
     a temperature term) can explain its departure: a rest 2.6 σ from a fit without the drift is on the fit
-    with it.  Every pose set aside is tested by its deleted residual under ``final``'s terms with the others
-    aside (the test that set it aside, :func:`~optcal.applications.diagnosis.outliers.deleted_residual_p`,
-    Bonferroni over the poses at the outliers' family-wise level ``level``); the least significant is returned while
-    it is not significant, one at a time (a returned pose changes the others' noise scale).  The backward check
-    (:func:`backward_check`) tests the poses set aside in earlier steps after each accepted term, with ΔBIC and the
-    held-out check; this one tests every pose still aside under the final model (those the last accepted step set
-    aside, which no later term re-tested, and those the backward check's held-out rule kept aside), by the test
-    alone, as before the backward check tested poses.
+    with it.  Every pose still aside under ``final`` (those the last accepted step set aside, which no later term
+    re-tested, and those the backward check kept aside) is tested by the backward check's rule for a pose, written
+    once (:func:`backward_check` with no term to test): its deleted residual with the others aside, Bonferroni over
+    the poses (the test that set it aside, :func:`~optcal.applications.diagnosis.outliers.deleted_residual_p`) at the
+    outliers' family-wise level ``level``, and ΔBIC; the least significant failing pose is returned when the
+    held-out rms over the poses kept without it (its own held-out residual included) is not larger than with it,
+    then the others are tested again (a returned pose changes their noise scale).  One rule for both checks: a
+    pose the backward check kept aside after a term entered is not returned once selection stops by a laxer one.
     """
-    aside = set(final.outliers)
-    returned: list[tuple[int, float]] = []
-    without = replace(final, outliers=frozenset())
-    while aside and fitter.n - (final.n_params - len(final.outliers) + len(aside)) > 0:
-        same = aside == set(final.outliers)  # the refit with every pose aside is final itself
-        p_values = deleted_residual_p(fitter, without, frozenset(aside), final.x, final if same else None)
-        weakest = max(p_values, key=lambda k: (p_values[k], k))
-        if p_values[weakest] < level:
-            break
-        aside.discard(weakest)
-        returned.append((weakest, p_values[weakest]))
-    if not returned:
-        return final, []
-    return fitter.fit(final.terms, frozenset(aside), final.x), returned
+    out, returned = backward_check(fitter, final, {}, {}, None, after, set(), (), level, frozenset())
+    failing = [r for r in removals(fitter, out, {}, {}, None, (), level, frozenset()) if r.kind == "outlier"]
+    if not failing:
+        return out, returned, None
+    placed = fitter.steps_at
+    r = max(failing, key=lambda f: (f.p_value, f.term))
+    with_rms, without_rms = _held_out_rms(fitter, out, r)
+    fitter.set_steps(placed)
+    return out, returned, (r, with_rms, without_rms)
+
+
+def recheck_notes(fitter: Fitter, returned: list[Dropped], kept: tuple[Removal, float, float] | None,
+                  level: float) -> list[str]:
+    """The report's notes on :func:`recheck_outliers`: the poses returned with their p and held-out rms, and the pose
+    whose departure is not significant that the held-out check kept aside."""
+    out = []
+    if returned:
+        rows = ", ".join(f"{d.rows[0]} (p = {d.p_value:.2g}, held-out rms {d.heldout_rms_g_with * 1e3:.4g} → "
+                         f"{d.heldout_rms_g_without * 1e3:.4g} mg)" for d in returned if d.rows)
+        out.append(f"outlier poses returned to the fit: under the final model with its effects their departure is not "
+                   f"significant at the family-wise level {level:g}: pose rows {rows}")
+    if kept is not None:
+        r, with_rms, without_rms = kept
+        out.append(f"outlier pose row {int(fitter.poses.rows[r.pose or 0])} stays aside: under the final model its "
+                   f"departure is not significant (p = {r.p_value:.2g}, level {r.level:g}, ΔBIC {r.delta_bic:+.1f}), but "
+                   f"the held-out rms would rise with it back ({with_rms * 1e3:.4g} → {without_rms * 1e3:.4g} mg), the "
+                   "rule the backward check returns a pose by")
+    return out

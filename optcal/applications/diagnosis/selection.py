@@ -13,25 +13,23 @@ A term is added when
 * it lowers the BIC (``n log(RSS/n) + p log n``);
 * it lowers the held-out rms (k-fold).
 
-Among the candidates passing the first two, the best BIC is tried first, except that among term
-candidates within :data:`BIC_TIE` of it the one with the fewest coefficients goes first
-(:func:`preference_order`).  A term's polynomial
-order is raised (one coefficient at a time, same tests) where the data support it.  A time term
-that entered at a higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest
-order its higher coefficients do not significantly improve on (F test at the level it entered
-at, the level a later step would need to raise the order again): a linear drift is named as
-linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
-a recording, so the cubic's first-order coefficient would carry only part of the trend), while a
-bias that rises and falls keeps its order 2.  Outliers enter as mean-shift terms
-(:mod:`optcal.applications.diagnosis.outliers`).  When nothing passes, terms (and a term with a knock) are searched
-together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops when
-that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is tested again for
-removal given all the others (:meth:`ForwardSelection.backward_check`, :mod:`~optcal.applications.diagnosis.backward`:
-the test it entered by, at the level it entered at, with ΔBIC and the held-out check): a drift taken before two bias
-steps that explain the same rise is dropped, and so are knocks taken before the drift they stood for.  The outlier
-poses set aside are then tested again under the final model with all its effects
-(:meth:`ForwardSelection.recheck_outliers`, without the held-out check): a pose still aside whose departure the
-final model explains is returned to the fit.
+Among the candidates passing the first two, the best BIC is tried first, except that among term candidates within
+:data:`BIC_TIE` of it the one with the fewest coefficients goes first (:func:`preference_order`).  A term's polynomial
+order is raised (one coefficient at a time, same tests) where the data support it.  A time term that entered at a
+higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest order its higher coefficients do not
+significantly improve on and that passes its own test (:mod:`~optcal.applications.diagnosis.drift_order`): a linear
+drift is named as linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
+a recording, so the cubic's first-order coefficient would carry only part of the trend), while a bias that rises and
+falls keeps its order 2.  Outliers enter as mean-shift terms (:mod:`optcal.applications.diagnosis.outliers`).  When
+nothing passes (or only drifts whose evidence is spread over their orders), terms (and a term with a knock) are
+searched together (:mod:`~optcal.applications.diagnosis.term_pair`: two effects that mask each other); selection stops
+when that passes nothing either.  After each accepted term every term, knock and outlier pose accepted before it is
+tested again for removal given all the others (:meth:`ForwardSelection.backward_check`,
+:mod:`~optcal.applications.diagnosis.backward`: the test it entered by, at the level it entered at, with ΔBIC and the
+held-out check): a drift taken before two bias steps that explain the same rise is dropped, and so are knocks taken
+before the drift they stood for.  The outlier poses set aside are then tested again under the final model with all its
+effects (:meth:`ForwardSelection.recheck_outliers`, the backward check's rule): a pose still aside whose departure the
+final model explains is returned to the fit when the held-out rms does not rise.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
@@ -47,13 +45,14 @@ from typing import Any
 
 import numpy as np
 
-from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_outliers
+from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_notes, recheck_outliers
 from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
 from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
 from optcal.applications.diagnosis.correlation import PoseCorrelation
+from optcal.applications.diagnosis.drift_order import lower_order
 from optcal.applications.diagnosis.noise_model import correlation_with_steps
 from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation
 from optcal.applications.diagnosis.pair_search import pair_adjusted_p, search_pair
@@ -396,14 +395,18 @@ class ForwardSelection:
                         tried[-1].significant = False
                         tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
                                                       " were returned to the fit by the backward check")
-            self.step_down_first(tried, current)
+            kept = self.step_down_first(tried, current)
             self.prefer_step_to_outliers(tried, current)
+            # only drifts kept at their order, their evidence spread, pass (before: nothing passed): sets compete
+            spread = bool(kept) and all(id(c) in kept for c in tried if c.significant)
+            if spread and pair_level is not None:
+                tried += self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
             accepted = self.accept(tried, current)
-            if accepted is None and pair_level is not None:  # nothing passed: terms (and a knock) searched together
+            if accepted is None and pair_level is not None and not spread:  # nothing passed: terms searched together
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
                 accepted = self.accept(together, current)
-            if accepted is not None:  # a directly entered drift was stepped down before the choice (step_down_first)
+            if accepted is not None:  # a directly entered drift was stepped down before the choice
                 rivalries += self.rivals(accepted, tried)
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
@@ -639,14 +642,13 @@ class ForwardSelection:
 
     def recheck_outliers(self, final: Fit) -> Fit:
         """``final`` with its outlier poses tested again under its own terms, each returned whose departure they
-        explain (:func:`~optcal.applications.diagnosis.backward.recheck_outliers`, at the outliers' family-wise
-        level :attr:`alpha_outliers`); the returned poses in a note."""
-        out, returned = recheck_outliers(self.fitter, final, self.alpha_outliers)
-        if returned:
-            rows = ", ".join(f"{int(self.fitter.poses.rows[k])} (p = {p:.2g})" for k, p in sorted(returned))
-            self.note(f"outlier poses returned to the fit: under the final model with its effects their departure "
-                      f"is not significant at the family-wise level {self.alpha_outliers:g}: pose rows {rows}")
-            self.returned |= {k for k, _ in returned}
+        explain (:func:`~optcal.applications.diagnosis.backward.recheck_outliers`: the backward check's rule at the
+        outliers' family-wise level :attr:`alpha_outliers`, held-out check included); the returned poses, and a pose
+        not significant that the held-out check kept aside, in a note."""
+        out, returned, kept = recheck_outliers(self.fitter, final, self.alpha_outliers)
+        for text in recheck_notes(self.fitter, returned, kept, self.alpha_outliers):
+            self.note(text)
+        self.returned |= final.outliers - out.outliers
         return out
 
     def prefer_step_to_outliers(self, tried: list[Candidate], current: Fit) -> None:
@@ -682,7 +684,7 @@ class ForwardSelection:
                                           f"(none is an outlier under it: p ≥ {min(p_values.values()):.2g})")
                 return
 
-    def step_down_first(self, tried: list[Candidate], current: Fit) -> None:
+    def step_down_first(self, tried: list[Candidate], current: Fit) -> set[int]:
         """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
 
         A drift of order 2 or 3 wins the BIC on its fit of noise, then steps down to order 1 after it is chosen,
@@ -690,12 +692,14 @@ class ForwardSelection:
         order 2, ΔBIC −62, stepped down to the first-order y drift, ΔBIC −50, was named in place of the planted
         temperature_bias(x), ΔBIC −56).  A term that steps down to an order the step also tried leaves the choice
         to that candidate (its own ΔBIC, p and held-out test); otherwise it competes at the order it stepped to.
-        """
+        Returns the ids of the terms kept at their order with their evidence spread (:meth:`step_down`)."""
+        spread: set[int] = set()
         for c in tried:
             if not c.significant or c.effect not in DIRECT_ORDERS or not c.order or c.order == 1 or c.fit is None:
                 continue
             entered = c.order
-            self.step_down(c, current)
+            if self.step_down(c, current):
+                spread.add(id(c))
             if c.order == entered:
                 continue
             same = [o for o in tried if o is not c and o.effect == c.effect and o.axis == c.axis and o.order == c.order]
@@ -706,29 +710,25 @@ class ForwardSelection:
                 c.significant, c.rejected_because = True, None
                 c.delta_bic = self.fitter.bic(c.fit) - self.fitter.bic(current)
                 c.p_value = self.fitter.f_test(current, c.fit)
+        return spread
 
-    def step_down(self, accepted: Candidate, current: Fit) -> None:
-        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on (module docstring).
-
-        Order ``k`` is kept over ``j < k`` only when its coefficients above ``j`` are significant
-        together (F test) at the level the term entered at, the level raising the order from ``j``
-        would need in a later step.
-        """
+    def step_down(self, accepted: Candidate, current: Fit) -> bool:
+        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on and that
+        passes its own test (:func:`~optcal.applications.diagnosis.drift_order.lower_order`, at the level the term
+        entered at, the level raising the order from there would need in a later step); else it keeps its order.
+        Returns whether it kept its order with its evidence spread (:class:`~optcal.applications.diagnosis.
+        drift_order.StepDown`: no lower order passes its own test)."""
         if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
-            return
+            return False
         key = (accepted.effect, AXES.index(str(accepted.axis)))
         if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
-            return
-        entered = accepted.order
-        for lower_order in range(1, entered):
-            terms = dict(accepted.fit.terms)
-            terms[key] = lower_order
-            lower = self.fitter.fit(terms, accepted.fit.outliers, accepted.fit.x)
-            if self.fitter.f_test(lower, accepted.fit) >= accepted.threshold:
-                accepted.fit, accepted.order = lower, lower_order
-                accepted.stepped_down_from = entered
-                accepted.term = describe_term(accepted.effect, key[1], lower_order)
-                return
+            return False
+        found = lower_order(self.fitter, current, accepted.fit, key, accepted.order, accepted.threshold)
+        if found.fit is not None and found.order is not None:
+            accepted.stepped_down_from = accepted.order
+            accepted.fit, accepted.order = found.fit, found.order
+            accepted.term = describe_term(accepted.effect, key[1], accepted.order)
+        return found.spread
 
     def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
         """Temperature vs time on the same axis: both significant in the step that chose one (each rival
