@@ -11,15 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pytest
 
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.applications.diagnosis.backward import removals
 from optcal.applications.diagnosis.selection import ForwardSelection
 from optcal.core.stats import rms
 
-from tests.applications.test_diagnosis_real import planted_xsens
+from tests.applications.test_diagnosis_outlier_recheck import drift_and_its_outlier
 from tests.applications.test_diagnosis_step import stepped, xsens_full
 
 ASIDE = 35  # a rest whose departure no model explains or needs: its deleted residual's p is 1 under the final model
@@ -46,13 +44,7 @@ def test_a_pose_the_held_out_check_keeps_aside_is_not_returned_at_the_end(shared
 
 
 def test_a_pose_whose_return_lowers_the_held_out_rms_is_returned_at_the_end(shared_data: Path, tmp_path: Path) -> None:
-    path = shared_data / "imutk-xsens" / "xsens_imutk.csv"
-    if not path.exists():
-        pytest.skip("imutk-xsens recording absent")
-    poses = planted_xsens(tmp_path, path, "bias_drift", 0, 1.2e-5, "drift")
-    fitter, _ = Diagnoser(DiagnosisSettings(simulations=0)).prepare(poses)
-    plain = fitter.fit({})
-    k = int(np.argmax(np.sqrt(fitter.w) * np.abs(plain.residuals)))  # the paper's model's outlier (outlier_recheck)
+    poses, fitter, plain, k = drift_and_its_outlier(shared_data, tmp_path)  # the paper's model's outlier
     notes: list[str] = []
     selection = ForwardSelection(fitter, [("bias_drift", a) for a in range(3)], True, 0.02, notes.append,
                                  drop_unneeded=False)  # no backward check: the final recheck alone returns it

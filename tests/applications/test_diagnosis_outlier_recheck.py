@@ -23,14 +23,20 @@ from tests.applications.test_diagnosis_real import planted_xsens
 ALPHA = 0.01  # the outlier test's share of the default family-wise level 0.02
 
 
-def test_a_rest_set_aside_before_the_drift_entered_is_returned(shared_data: Path, tmp_path: Path) -> None:
+def drift_and_its_outlier(shared_data: Path, tmp_path: Path):
+    """The Xsens log with an x drift planted: its poses, fitter, the paper's model's fit and that fit's largest
+    weighted residual (the rest the drift moves most)."""
     path = shared_data / "imutk-xsens" / "xsens_imutk.csv"
     if not path.exists():
         pytest.skip("imutk-xsens recording absent")
     poses = planted_xsens(tmp_path, path, "bias_drift", 0, 1.2e-5, "drift")
     fitter, _ = Diagnoser(DiagnosisSettings(simulations=0)).prepare(poses)
     plain = fitter.fit({})
-    k = int(np.argmax(np.sqrt(fitter.w) * np.abs(plain.residuals)))
+    return poses, fitter, plain, int(np.argmax(np.sqrt(fitter.w) * np.abs(plain.residuals)))
+
+
+def test_a_rest_set_aside_before_the_drift_entered_is_returned(shared_data: Path, tmp_path: Path) -> None:
+    poses, fitter, plain, k = drift_and_its_outlier(shared_data, tmp_path)
     assert deleted_residual_p(fitter, plain, frozenset({k}), plain.x)[k] < ALPHA  # an outlier of the paper's model
     notes: list[str] = []
     start = fitter.fit({}, frozenset({k}), plain.x)
