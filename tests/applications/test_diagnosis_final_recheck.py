@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from optcal.applications.diagnosis import Diagnoser, DiagnosisSettings
 from optcal.applications.diagnosis.backward import removals
 from optcal.applications.diagnosis.selection import ForwardSelection
