@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from optcal.core.units import RAD_PER_UNIT
 from optcal.data.quantiles import np_column_medians
 from optcal.data.quantisation import smallest_step
-from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S, MIN_RAD_S_PER_UNIT
+from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S, gyro_unit_bound
 from optcal.data.units import UNSIGNED_16_MIDSCALE, around_midscale, in_unsigned_16_range
 
 #: An axis's extreme value reached by this many samples marks a saturation rail.
@@ -222,18 +222,16 @@ def gyro_bias_bound(gyro_units: str | None, gyro: NDArray[np.float64],
     zero = np.zeros(3)
     head = gyro[: 4096]
     head = head[np.isfinite(head)]
-    if gyro_units in RAD_PER_UNIT:
-        return zero, MAX_GYRO_BIAS_RAD_S / RAD_PER_UNIT[gyro_units], f"{gyro_units} as stated"
-    if gyro_units == "counts" or (head.size and bool(np.all(head == np.round(head)))):
-        unit = "counts, bounded as a ±125 °/s 16-bit gyro's"
+    counts = gyro_units == "counts" or bool(head.size and np.all(head == np.round(head)))
+    per_unit, unit = gyro_unit_bound(gyro_units, counts)
+    if counts and gyro_units not in RAD_PER_UNIT:
         finite = gyro[np.all(np.isfinite(gyro), axis=1)]
         if finite.size:
             centre = np_column_medians(finite) if medians is None else np.asarray(medians, dtype=float)
             if in_unsigned_16_range(float(finite.min()), float(finite.max())) and around_midscale(centre):
                 zero = np.full(3, UNSIGNED_16_MIDSCALE)
                 unit += ", zero at the unsigned mid-scale"
-        return zero, MAX_GYRO_BIAS_RAD_S / MIN_RAD_S_PER_UNIT["counts"], unit
-    return zero, MAX_GYRO_BIAS_RAD_S / MIN_RAD_S_PER_UNIT["decimal"], "unknown; bounded as °/s, the smaller of rad/s and °/s"
+    return zero, MAX_GYRO_BIAS_RAD_S / per_unit, unit
 
 
 @dataclass(frozen=True)

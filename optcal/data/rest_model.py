@@ -51,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
+from optcal.core.units import RAD_PER_UNIT
 from optcal.data.quantiles import column_quantile, median, np_median
 
 #: Two rests closer than a dwell whose means differ by less than this many per-sample standard deviations are
@@ -82,6 +83,17 @@ MAX_GYRO_BIAS_RAD_S: float = float(np.radians(75.0))
 #: ±125 °/s.  A rate bound divided by it is at least the bound in the gyro's true unit, so a rest is never
 #: taken for a turn for not knowing the unit.
 MIN_RAD_S_PER_UNIT: dict[str, float] = {"decimal": float(np.radians(1.0)), "counts": float(np.radians(125.0) / 32768)}
+
+
+def gyro_unit_bound(gyro_units: str | None, counts: bool) -> tuple[float, str]:
+    """Radians per second of one unit of the gyro's samples: as stated (``rad/s``, ``deg/s``), else the fewest it can
+    be worth (:data:`MIN_RAD_S_PER_UNIT`: whole-number samples, ``counts``, as a ±125 °/s 16-bit gyro's counts; others
+    as °/s), so a rate bound divided by it is at least the bound in the true unit; and how it was taken, in words."""
+    if gyro_units in RAD_PER_UNIT:
+        return RAD_PER_UNIT[gyro_units], f"{gyro_units} as stated"
+    if counts:
+        return MIN_RAD_S_PER_UNIT["counts"], "counts, bounded as a ±125 °/s 16-bit gyro's"
+    return MIN_RAD_S_PER_UNIT["decimal"], "unknown; bounded as °/s, the smaller of rad/s and °/s"
 #: Span, seconds, over which the gyro's bias is taken as constant (:func:`bias_track`): a MEMS gyro's bias follows
 #: its temperature through the package's thermal time constant, minutes, so over a minute it moves by a fraction
 #: of its drift in a session, while a minute of a calibration recording holds several rests, enough for their

@@ -36,7 +36,7 @@ from optcal.data.evidence import (
     quiet_blocks,
 )
 from optcal.data.quantiles import column_medians, median, quantiles
-from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S, MIN_RAD_S_PER_UNIT
+from optcal.data.rest_model import MAX_BIAS_WANDER_RAD_S, gyro_unit_bound
 from optcal.data.readers import Source
 from optcal.data.units import (
     PLAUSIBLE_NORM,
@@ -55,10 +55,6 @@ from optcal.errors import InputError
 #: few stray cells (a rounded export, a logger's averaged row) from making counts look physical, and
 #: a physical reading that is whole only where it crosses an integer from counting as counts.
 NON_INTEGER_FRACTION: float = 0.5
-
-
-#: Radians per second of each unit a file can state for its gyro.
-RAD_S_PER_STATED_UNIT: dict[str, float] = {"rad/s": 1.0, "deg/s": float(np.radians(1.0))}
 
 
 @dataclass(frozen=True)
@@ -102,14 +98,7 @@ def gyro_at_rest(src: Source, ev: Evidence, quiet: NDArray[np.bool_], nb: int) -
     finite = quiet & np.isfinite(std) & np.all(np.isfinite(means), axis=1)
     if np.count_nonzero(finite) < MIN_QUIET_BLOCKS:
         return None
-    stated = RAD_S_PER_STATED_UNIT.get(src.gyro_units or "")
-    if stated is not None:
-        rad_per_unit, unit = stated, f"{src.gyro_units} as stated"
-    else:
-        kind = "counts" if _resolution(cols) > 0 else "decimal"
-        rad_per_unit = MIN_RAD_S_PER_UNIT[kind]
-        unit = ("unknown; bounded as counts of a ±125 °/s 16-bit gyro" if kind == "counts"
-                else "unknown; bounded as °/s, the smaller of rad/s and °/s")
+    rad_per_unit, unit = gyro_unit_bound(src.gyro_units, _resolution(cols) > 0)
     rate = np.linalg.norm(means, axis=1)
     slow = finite & (rate <= quantiles(rate[finite], [NOISE_FLOOR_QUANTILE])[0])
     bias = column_medians(means[slow])
