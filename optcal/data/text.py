@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.errors import InputError
-from optcal.data.comment_lines import CommentLines, UncommentedStream, find_comment_lines
+from optcal.data.comment_lines import COMMENT_MARKS, CommentLines, UncommentedStream, find_comment_lines
 from optcal.data.column_block import (  # re-exported: the reader's block and pyarrow's numbers
     ColumnBlock,
     arrow_numbers,
@@ -44,8 +44,6 @@ CHUNK_ROWS: int = 2**18
 #: Delimiters tried, in order of preference when several fit.
 DELIMITERS: tuple[str, ...] = ("\t", ";", "|", ",", " ")
 _NAMES = {"\t": "tab", ";": "semicolon", "|": "'|'", ",": "comma", " ": "whitespace"}
-#: Lines starting with one of these are comments (``#`` of most loggers and numpy, ``%`` of MATLAB).
-COMMENT_MARKS: tuple[str, ...] = ("#", "%")
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 _COMMA_NUMBER = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
 
