@@ -62,8 +62,6 @@ class StillLog:
     #: The rest model's segmentation of the log (:func:`optcal.data.static.detect_static`, rests counted only),
     #: once :meth:`confirm_still` has waited for it.
     segmentation: Any = None
-    #: The rows of the recording the samples are (``None``: all of them).
-    usable: NDArray[np.bool_] | None = None
     #: The samples kept by :meth:`trim_unsettled` (``None``: all).
     cut: tuple[int, int] | None = None
     #: The sensor analysed: ``"acc"``, ``"gyro"`` (asked for, or a file with gyro columns only) or ``"both"``.
@@ -101,7 +99,7 @@ class StillLog:
         """Which of :attr:`samples` the rest model finds at rest (after :meth:`confirm_still`)."""
         seg = self.confirm_still()
         # the rest model's trace has a value per usable sample (detect_static drops the unusable rows itself), the
-        # rows :attr:`samples` holds: indexing it by :attr:`usable` again failed on a log with unusable rows
+        # rows :attr:`samples` holds: indexing it by the usable rows again failed on a log with unusable rows
         static = np.asarray(seg.trace["static"], dtype=bool)
         return static if self.cut is None else static[self.cut[0]:self.cut[1]]
 
@@ -268,7 +266,6 @@ def read_still_log(data: str, sensor: str | None = "acc", window: tuple[float, f
     else:
         log = StillLog(samples, rec.rate_hz, rec.units, rec.units_reason, exclusions, rec.decisions, gyro,
                        rec.gyro_units, still=still)
-    log.usable = None if every else rec.usable
     log.sensor = sensor
     if not concurrent:
         log.confirm_still()
