@@ -81,10 +81,20 @@ class MagSamples:
         return lines + self.notes
 
 
+#: ``g`` and ``mg`` after a magnetometer's own name (x-io's ``Magnetometer X (G)``): an acceleration's unit cannot
+#: measure a magnetic field, so there they are the gauss's symbols (G, mG); after a short name (``mx_g``, ``b_x_mg``)
+#: they are not read so, as ``m``/``b`` may be another quantity's letter.
+GAUSS_SYMBOLS: dict[str, str] = {"g": "gauss", "mg": "mgauss"}
+
+
 def _strip_mag_unit(norm: str) -> tuple[str, str | None]:
     for word in MAG_UNIT_WORDS:
         if norm.endswith("_" + word) and len(norm) > len(word) + 1:
             return norm[: -len(word) - 1], word
+    stem, _, symbol = norm.rpartition("_")
+    if symbol in GAUSS_SYMBOLS and any(len(a) >= SUFFIX_MIN_CHARS and (stem == a or stem.endswith("_" + a))
+                                       for al in MAG_ALIASES.values() for a in al):
+        return stem, GAUSS_SYMBOLS[symbol]
     return norm, None
 
 
