@@ -228,6 +228,12 @@ class Source:
 
 
 # ----------------------------------------------------------------------------- file types
+
+#: The first bytes of an ArduPilot DataFlash log: its message header (0xA3 0x95) and the id of the FMT message
+#: (0x80) that every log opens with, describing itself (ArduPilot's libraries/AP_Logger/LogStructure.h).
+DATAFLASH_HEAD = b"\xa3\x95\x80"
+
+
 def detect_file_type(path: str | Path) -> str:
     """Recognise the file type from its first bytes (or a directory's ROS 2 metadata)."""
     p = Path(path)
@@ -243,6 +249,10 @@ def detect_file_type(path: str | Path) -> str:
         return "ulog"
     if head.startswith(b"#ROSBAG V2.0"):
         return "ros1 bag"
+    if head[:3] == DATAFLASH_HEAD:
+        raise InputError(f"{p}: an ArduPilot DataFlash log (.bin), which optcal does not read; export its messages "
+                         f"to CSV with pymavlink's mavlogdump.py --format csv --types IMU {p.name} > imu.csv (IMU2, IMU3: "
+                         f"the other IMUs; MAG: the compass), which optcal reads")
     if head.startswith(b"PAR1") or p.suffix.lower() in (".parquet", ".pq"):
         return "parquet"
     if head.startswith(b"SQLite format 3") or head.startswith(b"\x89MCAP"):
