@@ -64,7 +64,7 @@ class ReadOptions:
     units : {"g", "m/s^2", "counts"} or None
         Units of the accelerometer data (``--units``).
     topic : str or None
-        ROS topic, ULog topic (``sensor_accel[:N]``) or MAT/netCDF/HDF5 variable (``--topic``).
+        ROS topic, ULog topic (``sensor_accel[:N]``, ``sensor_combined``) or MAT/netCDF/HDF5 variable (``--topic``).
     rate : float or None
         Sampling rate, Hz, of a recording without a time column (``--rate``); finite, positive,
         at most :data:`MAX_RATE_HZ`.
