@@ -38,7 +38,7 @@ DATA_PATH = click.Path(dir_okay=True, file_okay=True)
 DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
-    "min_independent", "gyro_units", "keep_touches", "keep_spins", "keep_gyro_rail",
+    "min_independent", "gyro_units", "keep_touches", "keep_spins", "keep_gyro_rail", "gyro_range",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -53,7 +53,8 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
     click.option("--units", type=click.Choice(["g", "m/s^2", "counts"]), default=None,
                  help="Units of the accelerometer data (default: from the column names or file format, else from the norm)."),
     click.option("--topic", default=None,
-                 help="ROS bag: the sensor_msgs/Imu topic; ULog: sensor_accel[:INSTANCE] (default sensor_accel:0); "
+                 help="ROS bag: the sensor_msgs/Imu topic; ULog: sensor_accel[:INSTANCE] or sensor_combined (default "
+                      "sensor_accel:0, sensor_combined where that is not logged or logged under 4 Hz; said); "
                       "MAT/netCDF/HDF5: the accelerometer's variable NAME[:rows|:columns] (one sample per row or column)."),
     click.option("--rate", type=_POSITIVE, default=None, metavar="HZ",
                  help="Sampling rate of a recording without a time column (time = row / rate)."),
@@ -68,6 +69,10 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                  help="Keep the gyro's samples at a saturation rail (by default they are counted, enter no rest, and "
                       "the moves holding them are left out of the gyro's fit and diagnosis: a clipped rate misses "
                       "part of the turn)."),
+    click.option("--gyro-range", type=_POSITIVE, default=None, metavar="DPS",
+                 help="The gyro's full scale, ±°/s (e.g. 2000): where its unit is not known (counts), a saturation "
+                      "rail is sought beyond 75/DPS of its largest reading, the most a rest reads (by default beyond "
+                      "75 °/s in counts of the finest 16-bit gyro, ±125 °/s)."),
 )
 _OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     *_READ_OPTIONS,
@@ -112,7 +117,7 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 #: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
 READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file",
-                                      "keep_gyro_rail")
+                                      "keep_gyro_rail", "gyro_range")
 
 
 def read_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -134,7 +139,7 @@ def reading_kwargs(opts: dict[str, Any]) -> dict[str, Any]:
 #: whose keyword differs from it.
 _FLAG_FIELDS: dict[str, str] = {
     "data_format": "kind", "static_window": "window_s", "static_threshold": "threshold", "min_dwell": "min_dwell_s",
-    "trim": "trim_s",
+    "trim": "trim_s", "gyro_range": "gyro_range_dps",
 }
 
 

@@ -18,13 +18,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 #: Lines above the data starting with one of these are comments (``#`` of most loggers and numpy, ``%`` of MATLAB and
-#: NXP's IMU data logger); the one just above the data may name the columns (:mod:`optcal.data.text`).
-COMMENT_MARKS: tuple[str, ...] = ("#", "%")
-#: A line among the data rows starting with one of these (after blanks) is a comment: :data:`COMMENT_MARKS`, ``//``
-#: (C-style firmware prints), ``;`` (INI-style notes).  None can start a number.  A mark equal to the file's
-#: delimiter is not one (``;`` in a semicolon-separated file starts a row whose first field is empty, which the
-#: parser counts as a missing cell).
-COMMENT_LINE_MARKS: tuple[str, ...] = (*COMMENT_MARKS, "//", ";")
+#: NXP's IMU data logger, ``//`` of C-style firmware prints, ``;`` of INI-style notes); the one just above the data
+#: may name the columns (:mod:`optcal.data.text`).  None can start a number.  Widening them from ``#``/``%`` left every
+#: shared recording's sniffed layout as it was (header, first data line, names, metadata: stranger14's run).
+COMMENT_MARKS: tuple[str, ...] = ("#", "%", "//", ";")
+#: A line among the data rows starting with one of these (after blanks) is a comment: the same marks.  A mark equal to
+#: the file's delimiter is not one (``;`` in a semicolon-separated file starts a row whose first field is empty,
+#: which the parser counts as a missing cell).
+COMMENT_LINE_MARKS: tuple[str, ...] = COMMENT_MARKS
 #: Bytes of the file counted for newlines at a time when numbering the comment lines (the count holds no more).
 _COUNT_BYTES: int = 2**24
 

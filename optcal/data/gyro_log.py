@@ -83,7 +83,9 @@ def gyro_recording(src: Source, options: ReadOptions | None = None, *,
         exc.decisions = [f"units: {NO_ACCELEROMETER} ({reason}; {flag})" if line.startswith("units:") else line
                          for line in exc.decisions]
         raise
-    rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail)  # converted in the stand-in's g (a window re-converts it too)
+    # converted in the stand-in's g (a window re-converts it too)
+    rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
+                                gyro_range_dps=options.gyro_range_dps)
     decisions.units = Decision(NO_ACCELEROMETER, reason, flag)  # said: no accelerometer (rec.decisions is this)
     rec.units_reason = reason
     return rec

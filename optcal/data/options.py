@@ -29,6 +29,7 @@ from optcal.data.decisions import KINDS, POSE_TABLE, TIMINGS, TIME_UNITS, DataDe
 from optcal.data.evidence import Evidence, gather_evidence
 from optcal.data.readers import Source, read_source
 from optcal.data.recording import Recording, recording_from_source
+from optcal.data.rest_model import MAX_GYRO_BIAS_RAD_S
 from optcal.data.static import Segmentation, StaticSettings, detect_static
 from optcal.data.units import check_sensitivity
 from optcal.errors import InputError
@@ -63,7 +64,7 @@ class ReadOptions:
     units : {"g", "m/s^2", "counts"} or None
         Units of the accelerometer data (``--units``).
     topic : str or None
-        ROS topic, ULog topic (``sensor_accel[:N]``) or MAT/netCDF/HDF5 variable (``--topic``).
+        ROS topic, ULog topic (``sensor_accel[:N]``, ``sensor_combined``) or MAT/netCDF/HDF5 variable (``--topic``).
     rate : float or None
         Sampling rate, Hz, of a recording without a time column (``--rate``); finite, positive,
         at most :data:`MAX_RATE_HZ`.
@@ -80,6 +81,9 @@ class ReadOptions:
     keep_gyro_rail : bool
         Keep the gyro's samples at a saturation rail (``--keep-gyro-rail``; by default they enter no rest and the
         moves holding them are left out of the gyro's fit: :mod:`optcal.data.rails`).
+    gyro_range_dps : float or None
+        The gyro's full scale, ±°/s (``--gyro-range``): where the gyro's unit is not known, a rail of it is sought
+        beyond a rest's largest reading as that share of the full scale (:func:`optcal.data.rails.gyro_rail`).
     static : StaticSettings
         The rest detector's settings (``--static-window``, ``--static-threshold``,
         ``--gyro-threshold``, ``--drift-threshold``, ``--min-dwell``, ``--trim``,
@@ -101,6 +105,7 @@ class ReadOptions:
     gyro_file: str | Path | None = None
     gyro_units: str | None = None
     keep_gyro_rail: bool = False
+    gyro_range_dps: float | None = None
     static: StaticSettings = field(default_factory=StaticSettings)
 
     def __post_init__(self) -> None:
@@ -109,6 +114,13 @@ class ReadOptions:
             if not 0 < rate <= MAX_RATE_HZ:
                 raise InputError(f"rate must be a positive sampling rate of at most {MAX_RATE_HZ:g} Hz, got {self.rate!r} (--rate)")
             object.__setattr__(self, "rate", rate)
+        if self.gyro_range_dps is not None:
+            full_scale = _number("gyro_range_dps", self.gyro_range_dps)
+            largest_bias_dps = math.degrees(MAX_GYRO_BIAS_RAD_S)  # a full scale a rest can reach is no gyro's
+            if not full_scale > largest_bias_dps:
+                raise InputError(f"gyro_range_dps must be a full scale beyond a MEMS gyro's largest bias, "
+                                 f"{largest_bias_dps:g} °/s, got {self.gyro_range_dps!r} (--gyro-range)")
+            object.__setattr__(self, "gyro_range_dps", full_scale)
         if self.kind not in KINDS:
             raise InputError(f"unknown kind {self.kind!r}; use one of {', '.join(KINDS)} (--format)")
         if self.timing not in TIMINGS:
@@ -180,7 +192,7 @@ READ_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ReadOpti
 FLAGS: dict[str, str] = {
     "rate": "--rate", "window_s": "--static-window", "threshold": "--static-threshold",
     "gyro_threshold": "--gyro-threshold", "drift_threshold": "--drift-threshold", "min_dwell_s": "--min-dwell",
-    "trim_s": "--trim", "min_independent": "--min-independent",
+    "trim_s": "--trim", "min_independent": "--min-independent", "gyro_range_dps": "--gyro-range",
 }
 
 
@@ -289,7 +301,8 @@ def read_recording(path: str | Path, options: ReadOptions | None = None, *, requ
     """
     options = ReadOptions.build(options, **overrides)
     src, decisions = read_decided(path, options, required_by=required_by, kind="raw")
-    return recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail)  # conversion
+    return recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
+                                gyro_range_dps=options.gyro_range_dps)  # conversion
 
 
 def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> Reading:
@@ -328,7 +341,8 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
             poses = pose_table_from_source(src, decisions)  # conversion
             check_sensitivity(poses.acc, poses.units, stated=stated)  # the units and columns decisions, checked on the poses
             return Reading(str(path), options, decisions, poses)
-        rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail)  # conversion
+        rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
+                                gyro_range_dps=options.gyro_range_dps)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
         check_static_settings(options.static, rec)
         seg = detect_static(rec, options.static)  # segmentation

@@ -35,6 +35,11 @@ INTEGER_RAILS: tuple[tuple[float, float], ...] = ((-32768.0, 32767.0), (0.0, 655
 #: there, while a clipped rate holds the full scale as long as the turn exceeds it.  Logs at several hundred Hz or
 #: more can hold a smooth peak longer: a longer run is then judged by its flanks' curvature (:func:`_held_beyond_a_peak`).
 GYRO_RAIL_MIN_RUN: int = 3
+#: Counts from the zero that a converter's full scale reaches at least: a 10-bit converter's half range (an
+#: Arduino's analogRead of an analog gyro, about its mid-scale), the coarsest a gyro is read with; digital MEMS
+#: gyros have 12 to 20 bits.  A stated full scale (``--gyro-range``) is taken to be the largest reading only when
+#: that reading reaches this far (in a still log it is a rest's, a few counts from the bias).
+MIN_FULL_SCALE_CODES: int = 2**9 - 1
 #: Samples, evenly spaced over the recording, whose column medians stand for the gyro's reading (mid-scale or not;
 #: the rest reading a rail lies beyond): a median of 1024 samples lies within about 4 % of the readings' spread of
 #: the whole file's, while a rail lies a MEMS gyro's largest bias (75 °/s) beyond it; a fixed number, so that the
@@ -273,7 +278,8 @@ class GyroRail:
 
 
 def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: str | None,
-              flagged: NDArray[np.bool_] | None = None, acc_units: str | None = None) -> GyroRail:
+              flagged: NDArray[np.bool_] | None = None, acc_units: str | None = None,
+              full_scale_dps: float | None = None) -> GyroRail:
     """The gyro's saturation rails (:func:`rail_samples` with the gyro's bound).
 
     A rail lies beyond any rate a rest reads (:func:`gyro_bias_bound`) from the gyro's zero (and, when the unit is
@@ -292,6 +298,13 @@ def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: 
         The file's own gyro clip flags.
     acc_units : str, optional
         The accelerometer's units as decided (for the convention).
+    full_scale_dps : float, optional
+        The gyro's full scale, ±°/s, as stated (``--gyro-range``).  Where its unit is not known (counts, or decimals
+        not stated), a rail lies at the full scale, so the largest reading (from the zero) of a file holding one is
+        the full scale: a rest, reading at most 75 °/s, lies within 75/``full_scale_dps`` of it, a bound tighter
+        than the finest gyro's (75 °/s in counts of a ±125 °/s 16-bit gyro: 19661) once the full scale passes
+        125 °/s or the converter has fewer bits.  The rail must then lie that far from the gyro's median reading
+        too (in a still log the largest reading is a rest's, and the median lies beside it).
 
     Notes
     -----
@@ -309,8 +322,20 @@ def gyro_rail(gyro: NDArray[np.float64], usable: NDArray[np.bool_], gyro_units: 
     zero, limit, unit = gyro_bias_bound(units, gyro if rows.size == gyro.shape[0] else gyro[rows], np_column_medians(spaced) if spaced.size else None)
     if units != gyro_units:
         unit = "rad/s by the convention beside m/s^2 (--gyro-units to override)"
+    stated_range = False
+    if full_scale_dps is not None and units not in RAD_PER_UNIT and rows.size and bool(np.all(head == np.round(head))):
+        reach = float(np.max(np.abs(gyro[rows] - zero)))
+        stated_range = reach >= MIN_FULL_SCALE_CODES  # else the largest reading is no converter's full scale
+        if stated_range:
+            limit = min(limit, np.degrees(MAX_GYRO_BIAS_RAD_S) / full_scale_dps * reach)
+        unit += (f"; tightened by the full scale stated, ±{full_scale_dps:g} °/s (--gyro-range): a rest reads at most "
+                 f"{np.degrees(MAX_GYRO_BIAS_RAD_S) / full_scale_dps:.3g} of the largest reading, {reach:.6g}"
+                 if stated_range else
+                 f"; the full scale stated (--gyro-range) not used: the largest reading, {reach:.6g} counts, is no "
+                 f"converter's full scale (under {MIN_FULL_SCALE_CODES}, a 10-bit one's)")
     levels: list[float] = []
-    sat = rail_samples(gyro, ok, zero, limit, flagged, about=zero, min_run=GYRO_RAIL_MIN_RUN, levels=levels)
+    sat = rail_samples(gyro, ok, zero, limit, flagged, about=zero, min_run=GYRO_RAIL_MIN_RUN, levels=levels,
+                       centre=np_column_medians(spaced) if stated_range else None)
     if sat.any() and units != gyro_units:  # under the convention (a °/s gyro's bias can pass 1.3 °/s): a level the
         # gyro reads most of the time may be a rest's, and a rail lies beyond it too; in a unit stated or bounded, no
         # rest reads beyond the bound, and a spin held at the rail is no rest

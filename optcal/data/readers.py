@@ -20,7 +20,6 @@ its ROS 2 ``metadata.yaml``; everything else is read as delimited text.  ROS bag
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -54,7 +53,7 @@ from optcal.data.columns import (
     strip_unit,
 )
 from optcal.data.container_kind import container_type
-from optcal.data.rails import clip_flags
+from optcal.data.ulog import TRUNCATED_MESSAGE, import_pyulog, read_ulog_imu, ulog_is_cut
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
@@ -229,6 +228,12 @@ class Source:
 
 
 # ----------------------------------------------------------------------------- file types
+
+#: The first bytes of an ArduPilot DataFlash log: its message header (0xA3 0x95) and the id of the FMT message
+#: (0x80) that every log opens with, describing itself (ArduPilot's libraries/AP_Logger/LogStructure.h).
+DATAFLASH_HEAD = b"\xa3\x95\x80"
+
+
 def detect_file_type(path: str | Path) -> str:
     """Recognise the file type from its first bytes (or a directory's ROS 2 metadata)."""
     p = Path(path)
@@ -244,6 +249,10 @@ def detect_file_type(path: str | Path) -> str:
         return "ulog"
     if head.startswith(b"#ROSBAG V2.0"):
         return "ros1 bag"
+    if head[:3] == DATAFLASH_HEAD:
+        raise InputError(f"{p}: an ArduPilot DataFlash log (.bin), which optcal does not read; export its messages "
+                         f"to CSV with pymavlink's mavlogdump.py --format csv --types IMU {p.name} > imu.csv (IMU2, IMU3: "
+                         f"the other IMUs; MAG: the compass), which optcal reads")
     if head.startswith(b"PAR1") or p.suffix.lower() in (".parquet", ".pq"):
         return "parquet"
     if head.startswith(b"SQLite format 3") or head.startswith(b"\x89MCAP"):
@@ -703,98 +712,16 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
 
 # ----------------------------------------------------------------------------- PX4 ULog
 def _import_pyulog() -> Any:
-    try:
-        from pyulog import ULog
-    except ImportError as exc:
-        raise InputError("reading PX4 ULog files needs pyulog: pip install 'optcal[px4]'") from exc
-    return ULog
+    return import_pyulog()
 
 
 def read_ulog(path: str | Path, topic: str | None) -> Source:
-    """Read PX4 ``sensor_accel`` (m/s², with temperature and clip counters) from a ULog file.
-
-    ``topic`` is ``sensor_accel`` (instance 0) or ``sensor_accel:N``.  The matching
-    ``sensor_gyro`` instance, when logged, is interpolated onto the accelerometer times.
-    Samples whose ``clip_counter`` is non-zero are flagged as saturated (the gyro's: from a ``sensor_gyro`` one).
-    """
-    ULog = _import_pyulog()
-    name, instance = (topic or "sensor_accel"), 0
-    if ":" in name:
-        name, inst = name.split(":", 1)
-        try:
-            instance = int(inst)
-        except ValueError as exc:
-            raise InputError(f"--topic {topic!r}: the instance after ':' must be a number") from exc
-    gyro_name = name.replace("accel", "gyro")
-    try:
-        log = ULog(str(path), message_name_filter_list=[name, gyro_name])
-    except Exception as exc:
-        raise InputError(f"{path}: not a readable ULog file, truncated or corrupt ({exc.__class__.__name__}: {exc})") from exc
-    try:
-        ds = log.get_dataset(name, instance)
-    except (KeyError, IndexError, ValueError) as exc:
-        have = sorted({f"{d.name}:{d.multi_id}" for d in log.data_list}) or ["none"]
-        raise InputError(f"{path}: no ULog topic {name} instance {instance} (logged: {', '.join(have)}); choose one with --topic") from exc
-    d = ds.data
-    missing = [k for k in ("x", "y", "z") if k not in d]
-    if missing:
-        raise InputError(f"{path}: ULog topic {name} has no fields {', '.join(missing)}; use --topic sensor_accel")
-    stamp_key = "timestamp_sample" if "timestamp_sample" in d else "timestamp"
-    t = d[stamp_key].astype(float) * 1e-6
-    frame = {"t": t, "ax": d["x"].astype(float), "ay": d["y"].astype(float), "az": d["z"].astype(float)}
-    if "temperature" in d:
-        frame["temp"] = d["temperature"].astype(float)
-    notes = []
-    gyro_units = gyro_saturated = None
-    try:
-        g = log.get_dataset(gyro_name, instance).data
-        tg = g["timestamp_sample" if "timestamp_sample" in g else "timestamp"].astype(float) * 1e-6
-        order = np.argsort(tg)
-        for axis in "xyz":
-            frame["g" + axis] = np.interp(t, tg[order], g[axis].astype(float)[order])
-        if (gclip := clip_flags(g)) is not None:  # a time between two gyro samples takes both: a clipped one spoils it
-            gyro_saturated = np.interp(t, tg[order], gclip[order] * 1.0) > 0
-        gyro_units = "rad/s"
-        notes.append(f"{gyro_name} instance {instance} interpolated onto the {name} times")
-    except (KeyError, IndexError, ValueError):
-        pass
-    exclusions = {}
-    if log.file_corruption:
-        notes.append("the ULog file is corrupt; the readable part was used")
-    if ulog_is_cut(path):
-        notes.append("the ULog file is truncated (its last message is cut off); the data before it were used")
-        exclusions[TRUNCATED_MESSAGE] = 1
+    """Read a PX4 ULog file's IMU (:func:`optcal.data.ulog.read_ulog_imu`: ``sensor_accel`` with its
+    ``sensor_gyro``, or ``sensor_combined``; m/s², rad/s, with the clip flags) as a :class:`Source`."""
+    imu = read_ulog_imu(path, topic)
     return Source(
-        path=str(path),
-        file_type="ulog",
-        data=frame,
-        column_map={"t": f"{name}.{stamp_key}", "ax": f"{name}.x", "ay": f"{name}.y", "az": f"{name}.z"},
-        units_hint="m/s^2",
-        units_reason="PX4 sensor_accel is in m/s^2",
-        gyro_units=gyro_units,
-        time_unit="s",
-        time_reason=f"{name}.{stamp_key} in µs",
-        saturated=clip_flags(d), gyro_saturated=gyro_saturated,
-        always_raw=True,
-        notes=notes,
-        header={"topic": f"{name}:{instance}"},
-        exclusions=exclusions,
+        path=str(path), file_type="ulog", data=imu.frame, column_map=imu.column_map, units_hint="m/s^2",
+        units_reason=imu.units_reason, gyro_units="rad/s" if imu.has_gyro else None, time_unit="s",
+        time_reason=imu.time_reason, saturated=imu.saturated, gyro_saturated=imu.gyro_saturated, always_raw=True,
+        notes=list(imu.notes), header={"topic": imu.topic}, exclusions=dict(imu.exclusions),
     )
-
-
-TRUNCATED_MESSAGE = "messages cut off at the end of a truncated file"
-
-
-
-def ulog_is_cut(path: str | Path) -> bool:
-    """Whether the last message of a ULog file extends past the end of the file.
-
-    Walks the message chain (16-byte file header, then ``uint16 size, uint8 type, payload``).
-    """
-    data = Path(path).read_bytes()
-    pos, end = 16, len(data)
-    unpack = struct.Struct("<HB").unpack_from
-    while pos + 3 <= end:
-        size, _ = unpack(data, pos)
-        pos += 3 + size
-    return pos != end

@@ -125,6 +125,7 @@ def recording_from_source(
     timing: str = "auto",
     required_by: str = "reading a recording",
     keep_gyro_rail: bool = False,
+    gyro_range_dps: float | None = None,
 ) -> Recording:
     """Build a :class:`Recording` from a reader's :class:`Source` (the conversion step).
 
@@ -145,6 +146,9 @@ def recording_from_source(
     keep_gyro_rail : bool
         Let the gyro's samples at a saturation rail into the rests and the gyro fit (``--keep-gyro-rail``); by default they are
         counted (:data:`GYRO_SATURATED`), kept out of the rests and their moves out of the gyro's fit.
+    gyro_range_dps : float, optional
+        The gyro's full scale, ±°/s, as stated (``--gyro-range``): tightens the bound a rail of a gyro of unknown
+        scale lies beyond (:func:`optcal.data.rails.gyro_rail`).
 
     Raises
     ------
@@ -157,12 +161,13 @@ def recording_from_source(
             src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
         )
     try:
-        return _convert(src, decisions, evidence, keep_gyro_rail)
+        return _convert(src, decisions, evidence, keep_gyro_rail, gyro_range_dps)
     except InputError as exc:
         raise with_decisions(exc, decisions) from exc
 
 
-def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, keep_gyro_rail: bool = False) -> Recording:
+def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, keep_gyro_rail: bool = False,
+             gyro_range_dps: float | None = None) -> Recording:
     """The decisions applied to ``src`` (see :func:`recording_from_source`)."""
     if decisions.evidence is not None:  # the evidence of the columns as decided
         ev = decisions.evidence
@@ -214,7 +219,8 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
     else:
         nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
     sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
-    rail = None if gyro is None else gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units)
+    rail = None if gyro is None else gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units,
+                                             gyro_range_dps)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
@@ -224,6 +230,9 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
         _count(exclusions, GYRO_SATURATED, int(np.count_nonzero(rail.samples & usable)))
     if rail is not None and rail.samples.any():  # said, kept or not
         decisions.warnings.append(rail.describe(src.gyro_units, keep_gyro_rail))
+    elif gyro_range_dps is not None:  # the stated full scale's use said even where it found no rail
+        decisions.warnings.append("--gyro-range: no gyro read" if rail is None else
+                                  f"no gyro rail found beyond {rail.limit:.4g} from its zero ({rail.unit})")
     if n_saturated:  # the conversion of the samples left
         nominal = nominal_conversion(units, acc[usable])
     if not usable.any():

@@ -215,3 +215,37 @@ def test_a_smooth_peak_of_a_fast_log_is_no_rail_and_a_clipped_one_is() -> None:
     rail = gyro_rail(clipped, np.ones(6000, bool), "deg/s")
     assert np.array_equal(rail.samples, np.abs(clipped[:, 2]) == clipped[:, 2].max())
     assert rail.levels == (pytest.approx(290.0, abs=q),)
+
+
+#: A 12-bit converter's codes (a logger keeping the top 12 bits of an int16, ``gx >> 4``).
+CODES_12_BIT: tuple[float, float] = (-2048.0, 2047.0)
+
+
+def test_a_stated_full_scale_finds_a_rail_near_the_zero_of_a_counts_gyro(tmp_path: Path) -> None:
+    """A ±250 °/s gyro read in 12-bit counts (8.19 per °/s): its rail, ±2048 counts, lies within the 19661 counts
+    (75 °/s of the finest 16-bit gyro) that bound a rail of a counts gyro of unknown scale, so it was not found;
+    ``--gyro-range 250`` makes the bound 75/250 of the largest reading (614 counts) and finds exactly the clipped
+    samples.  The control: the same stated range on the log's first rest alone (a still log) finds none."""
+    truth = reference_gyro(np.degrees(1.0), rng=7)
+    rec = simulate_imu(optcal.lu2017_reference_model(), truth, 24, rng=5, dwell_s=2.0, move_s=0.8,
+                       acc_noise=0.002, gyro_noise=0.05)
+    counts = np.clip(np.round(rec.gyro * (2048.0 / FULL_SCALE_DEG_S)), *CODES_12_BIT)
+    n_rail = int(np.count_nonzero(np.any(np.isin(counts, CODES_12_BIT), axis=1)))
+    assert n_rail > 0
+    path = tmp_path / "counts12.csv"
+    np.savetxt(path, np.column_stack([rec.t, rec.acc, counts]), delimiter=",", comments="",
+               header="t,ax,ay,az,gx,gy,gz", fmt="%.10g")
+    unstated = optcal.data.load_recording(path)
+    assert unstated.gyro_rail is None and GYRO_SATURATED not in unstated.exclusions
+    stated = optcal.data.load_recording(path, gyro_range_dps=FULL_SCALE_DEG_S)
+    assert stated.gyro_rail is not None and int(np.count_nonzero(stated.gyro_rail.samples)) == n_rail
+    assert stated.gyro_rail.levels == (2047.0, 2048.0)
+    assert stated.exclusions[GYRO_SATURATED] == n_rail
+    assert any("--gyro-range" in w and "the gyro is at its rail" in w for w in stated.decisions.warnings)
+    a, b = rec.intervals[0]
+    still = tmp_path / "still.csv"
+    np.savetxt(still, np.column_stack([rec.t, rec.acc, counts])[a:b], delimiter=",", comments="",
+               header="t,ax,ay,az,gx,gy,gz", fmt="%.10g")
+    quiet = optcal.data.load_recording(still, gyro_range_dps=FULL_SCALE_DEG_S)
+    assert quiet.gyro_rail is None and GYRO_SATURATED not in quiet.exclusions
+    assert any("no gyro rail found" in w and "not used" in w for w in quiet.decisions.warnings)

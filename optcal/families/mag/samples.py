@@ -81,10 +81,20 @@ class MagSamples:
         return lines + self.notes
 
 
+#: ``g`` and ``mg`` after a magnetometer's own name (x-io's ``Magnetometer X (G)``): an acceleration's unit cannot
+#: measure a magnetic field, so there they are the gauss's symbols (G, mG); after a short name (``mx_g``, ``b_x_mg``)
+#: they are not read so, as ``m``/``b`` may be another quantity's letter.
+GAUSS_SYMBOLS: dict[str, str] = {"g": "gauss", "mg": "mgauss"}
+
+
 def _strip_mag_unit(norm: str) -> tuple[str, str | None]:
     for word in MAG_UNIT_WORDS:
         if norm.endswith("_" + word) and len(norm) > len(word) + 1:
             return norm[: -len(word) - 1], word
+    stem, _, symbol = norm.rpartition("_")
+    if symbol in GAUSS_SYMBOLS and any(len(a) >= SUFFIX_MIN_CHARS and (stem == a or stem.endswith("_" + a))
+                                       for al in MAG_ALIASES.values() for a in al):
+        return stem, GAUSS_SYMBOLS[symbol]
     return norm, None
 
 
@@ -334,38 +344,85 @@ def _read_container(path: str, kind: str, topic: str | None, mag_units: str | No
     return _build(path, m, stated, f"the variable's units attribute {unit_attr!r}", mag_units, columns, others, notes)
 
 
-def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSamples:
-    from optcal.data.readers import _import_pyulog
+#: PX4's magnetometer topics with their calibration (``CAL_MAG*``) applied, read where ``sensor_mag`` (the driver's
+#: samples) is not logged: ``vehicle_magnetometer`` (PX4 v1.10 on) and ``sensor_combined``'s ``magnetometer_ga``
+#: (before), both in gauss.
+PX4_CALIBRATED_MAG: tuple[str, ...] = ("vehicle_magnetometer", "sensor_combined")
+#: ``sensor_combined``'s relative stamp of a row without that sensor's sample (PX4's ``RELATIVE_TIMESTAMP_INVALID``).
+_RELATIVE_INVALID = 2**31 - 1
 
-    ULog = _import_pyulog()
+
+def _ulog_field(d: dict[str, NDArray], stem: str, rel: str | None) -> tuple[NDArray, NDArray] | None:
+    """Times (s) and the 3 axes of a ULog topic's ``stem`` fields (``x``/``y``/``z`` or ``stem[0..2]``), the rows
+    without the sensor's sample (``rel`` invalid) left out."""
+    keys = [f"{stem}[{i}]" for i in range(3)] if stem else list("xyz")
+    if any(k not in d for k in keys):
+        return None
+    t = d["timestamp"].astype(float)
+    ok = np.ones(t.size, dtype=bool)
+    if rel is not None and rel in d:
+        r = d[rel].astype(np.int64)
+        ok = r != _RELATIVE_INVALID
+        t = t + np.where(ok, r, 0)
+    return t[ok] * 1e-6, np.column_stack([d[k].astype(float)[ok] for k in keys])
+
+
+def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSamples:
+    from optcal.data.ulog import import_pyulog
+
+    ULog = import_pyulog()
     name, instance = (topic or "sensor_mag"), 0
     if ":" in name:
         name, inst = name.split(":", 1)
         if not inst.isdigit():
             raise InputError(f"--topic {topic!r}: the instance after ':' must be a number")
         instance = int(inst)
+    names = [name, "sensor_accel", *PX4_CALIBRATED_MAG] if topic is None else [name, "sensor_accel", "sensor_combined"]
     try:
-        log = ULog(str(path), message_name_filter_list=[name, "sensor_accel"])
-        d = log.get_dataset(name, instance).data
-    except (KeyError, IndexError, ValueError) as exc:
-        raise InputError(f"{path}: no ULog topic {name} instance {instance}; choose one with --topic sensor_mag:N") from exc
+        log = ULog(str(path), message_name_filter_list=names)
     except Exception as exc:
         raise InputError(f"{path}: not a readable ULog file ({exc.__class__.__name__}: {exc})") from exc
-    t = d["timestamp"].astype(float) * 1e-6
-    m = np.column_stack([d[k].astype(float) for k in "xyz"])
+
+    def dataset(topic_name: str) -> dict[str, NDArray] | None:
+        try:
+            return dict(log.get_dataset(topic_name, instance).data)
+        except (KeyError, IndexError, ValueError):
+            return None
+
+    notes: list[str] = []
+    d, read = dataset(name), None
+    if d is not None:
+        read = _ulog_field(d, "" if name == "sensor_mag" else "magnetometer_ga", "magnetometer_timestamp_relative")
+    if read is None and topic is None:
+        for other in PX4_CALIBRATED_MAG:
+            if (od := dataset(other)) is not None and (read := _ulog_field(
+                    od, "magnetometer_ga", "magnetometer_timestamp_relative")) is not None:
+                notes.append(f"{name} is not logged; {other}:{instance} read, PX4's magnetometer with its calibration "
+                             f"(CAL_MAG*) applied, so the fit is of what that calibration left")
+                name = other
+                break
+    if read is None:
+        logged = sorted({f"{x.name}:{x.multi_id}" for x in ULog(str(path)).data_list if "mag" in x.name
+                         or x.name == "sensor_combined"})
+        raise InputError(f"{path}: no ULog topic {name} instance {instance} with a magnetometer (logged: "
+                         f"{', '.join(logged) or 'none'}); choose one with --topic (sensor_mag[:N], vehicle_magnetometer or "
+                         f"sensor_combined)")
+    t, m = read
     others: dict[str, NDArray] = {"t": t}
-    if "temperature" in d:
+    if d is not None and "temperature" in d and name == "sensor_mag":
         others["temp"] = d["temperature"].astype(float)
-    try:
-        a = log.get_dataset("sensor_accel", instance).data
-        ta = a["timestamp"].astype(float) * 1e-6
+    acc = dataset("sensor_accel")
+    acc_read = (_ulog_field(acc, "", None) if acc is not None else None) or (
+        _ulog_field(c, "accelerometer_m_s2", "accelerometer_timestamp_relative")
+        if (c := dataset("sensor_combined")) is not None else None)
+    if acc_read is not None and acc_read[0].size > 1:
+        ta, av = acc_read
         order = np.argsort(ta)
-        others["acc"] = np.column_stack([np.interp(t, ta[order], a[k].astype(float)[order]) for k in "xyz"])
-    except (KeyError, IndexError, ValueError):
-        pass
-    columns = {k: f"{name}.{a}" for k, a in zip(MAG, "xyz")}
-    return _build(path, m, "gauss", "PX4's sensor_mag (gauss)", mag_units, columns, others,
-                  [f"ULog topic {name}:{instance}"])
+        others["acc"] = np.column_stack([np.interp(t, ta[order], av[order, k]) for k in range(3)])
+    stem = "" if name == "sensor_mag" else "magnetometer_ga"
+    columns = {k: f"{name}.{a if not stem else f'{stem}[{i}]'}" for i, (k, a) in enumerate(zip(MAG, "xyz"))}
+    return _build(path, m, "gauss", f"PX4's {name} (gauss)", mag_units, columns, others,
+                  [f"ULog topic {name}:{instance}", *notes])
 
 
 #: The ROS message of a magnetometer (``magnetic_field`` in tesla, REP 145) and the IMU's.
