@@ -4,6 +4,8 @@ bit), and the gyro statistics computed in a second thread (the segmentation of t
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -221,6 +223,39 @@ def test_a_blocks_released_rows_are_whole_pages_inside_the_range_and_read_as_zer
         assert gone.size * 8 % mmap.PAGESIZE == 0 and gone.size == gone[-1] - gone[0] + 1
         keep = ~released[:, j]
         assert np.array_equal(block.block[keep, j], kept[keep, j])
+
+
+def _mapping(address: int) -> tuple[str, int]:
+    """The permissions and resident kB of the mapping of this process that holds ``address`` (/proc/self/smaps)."""
+    perms, inside = "", False
+    with open("/proc/self/smaps") as fh:
+        for line in fh:
+            head = line.split()
+            if "-" in head[0] and len(head) > 1 and len(head[1]) == 4:  # a mapping's first line: range, permissions
+                lo, hi = (int(v, 16) for v in head[0].split("-"))
+                inside, perms = lo <= address < hi, head[1]
+            elif inside and head[0] == "Rss:":
+                return perms, int(head[1])
+    raise LookupError(hex(address))
+
+
+@pytest.mark.skipif(not Path("/proc/self/smaps").exists() or column_block.PRIVATE_MAPPING is None,
+                    reason="Linux's smaps and a private mapping")
+def test_a_blocks_pages_are_private_and_released_rows_leave_its_memory():
+    """The block is a private mapping (a private page's first touch costs less than a shared one's), and the rows
+    release_rows hands back leave the process's resident memory (MADV_DONTNEED frees a private page; on a shared one
+    it would only unmap it, the memory kept)."""
+    import mmap
+
+    page = mmap.PAGESIZE
+    rows = 64 * page // 8
+    block = text.ColumnBlock(2, rows)
+    block.append([np.ones(rows), np.ones(rows)])
+    perms, resident = _mapping(block.block.ctypes.data)
+    assert perms.endswith("p") and resident * 1024 >= 2 * rows * 8
+    block.release_rows(8 * page // 8, 40 * page // 8)  # 32 whole pages of each column
+    assert _mapping(block.block.ctypes.data)[1] * 1024 == resident * 1024 - 2 * 32 * page
+    assert not block.block[8 * page // 8:40 * page // 8].any() and block.block[:8 * page // 8].all()
 
 
 def test_median_selected_in_a_bracket_is_numpys_on_adversarial_arrays(monkeypatch):
