@@ -10,7 +10,7 @@ import numpy as np
 
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
 from optcal.applications.diagnosis.result import Diagnosis
-from optcal.applications.diagnosis.selection import BIC_TIE
+from optcal.applications.diagnosis.acceptance import BIC_TIE
 from optcal.applications.diagnosis.sessions import SessionOffsets
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import format_value

@@ -4,7 +4,8 @@ One module per concept: :mod:`~optcal.applications.diagnosis.effects` (the vocab
 :mod:`~optcal.applications.diagnosis.regressors`, :mod:`~optcal.applications.diagnosis.problem` (the extended fit:
 vectorised residuals and Jacobian, least squares), :mod:`~optcal.applications.diagnosis.fitting`,
 :mod:`~optcal.applications.diagnosis.simulation` (the simulation check), :mod:`~optcal.applications.diagnosis.outliers`,
-:mod:`~optcal.applications.diagnosis.selection`, :mod:`~optcal.applications.diagnosis.findings`,
+:mod:`~optcal.applications.diagnosis.selection` (forward selection; the acceptance of a step:
+:mod:`~optcal.applications.diagnosis.acceptance`), :mod:`~optcal.applications.diagnosis.findings`,
 :mod:`~optcal.applications.diagnosis.limits` (detection limits), :mod:`~optcal.applications.diagnosis.noise_model` (the
 noise model as a named explanation), :mod:`~optcal.applications.diagnosis.result`,
 :mod:`~optcal.report.diagnosis_text`, :mod:`~optcal.report.diagnosis_figures`,
@@ -23,7 +24,7 @@ from typing import Any
 _EXPORTS = {
     "Diagnoser": "diagnoser", "DiagnosisSettings": "diagnoser", "diagnose": "diagnoser",
     "Diagnosis": "result", "Finding": "findings", "Evidence": "findings", "Step": "selection",
-    "Candidate": "selection", "TemperatureTimeDecision": "selection", "SimulationCheck": "simulation",
+    "Candidate": "acceptance", "TemperatureTimeDecision": "acceptance", "SimulationCheck": "simulation",
     "StatisticBand": "simulation", "EFFECTS": "effects", "Progress": "progress", "NoiseModelCheck": "noise_model",
     "DetectionLimit": "limits",
     "OutlierLimit": "limits",

@@ -1,6 +1,6 @@
 """The order a directly entered time term is named at: the step-down of forward selection.
 
-A drift may enter at order 2 or 3 directly (:data:`~optcal.applications.diagnosis.selection.DIRECT_ORDERS`). It is
+A drift may enter at order 2 or 3 directly (:data:`~optcal.applications.diagnosis.acceptance.DIRECT_ORDERS`). It is
 stepped down to a lower order ``j`` when its coefficients above ``j`` add nothing significant (F test at the level it
 entered at, the level a later step would need to raise the order again): a linear drift is named as linear, not as
 the cubic that fitted a shade better.

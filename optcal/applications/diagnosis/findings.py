@@ -17,7 +17,8 @@ import numpy as np
 from optcal.applications.diagnosis.effects import BIAS_STEP, CAUSE_STEPS, CAUSES, PARAMETRIC, SESSION_BIAS, UNITS
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.problem import BETA_INDEX, active_mask
-from optcal.applications.diagnosis.selection import BIC_TIE, Step
+from optcal.applications.diagnosis.acceptance import BIC_TIE
+from optcal.applications.diagnosis.selection import Step
 from optcal.core.model import AXES
 from optcal.core.stats import rms
 
@@ -151,7 +152,7 @@ def step_location(fitter: Fitter, k: int) -> dict[str, Any]:
 def alternatives(steps: list[Step], final: Fit, effect: str, axis: str) -> list[dict[str, Any]]:
     """The terms the data cannot tell apart from ``effect`` on ``axis``, in the step that named it.
 
-    A term tried in that step whose BIC is within :data:`~optcal.applications.diagnosis.selection.BIC_TIE` of the
+    A term tried in that step whose BIC is within :data:`~optcal.applications.diagnosis.acceptance.BIC_TIE` of the
     named one's (equal numbers of coefficients: a likelihood ratio under e³ ≈ 20, short of Kass & Raftery's
     "strong" evidence either way) explains the change about as well: a temperature rising through the session
     makes a temperature bias, a temperature scale and a drift on one axis nearly collinear, and a 14-rest session's

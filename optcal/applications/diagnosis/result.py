@@ -17,7 +17,8 @@ from optcal.applications.diagnosis.limits import DetectionLimit, OutlierLimit
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.applications.diagnosis.backward import Dropped
-from optcal.applications.diagnosis.selection import Step, TemperatureTimeDecision
+from optcal.applications.diagnosis.acceptance import TemperatureTimeDecision
+from optcal.applications.diagnosis.selection import Step
 from optcal.applications.diagnosis.sessions import SessionStack
 from optcal.applications.diagnosis.simulation import SimulationCheck
 from optcal.core.extended_model import ExtendedModel

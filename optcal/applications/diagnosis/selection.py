@@ -14,9 +14,11 @@ A term is added when
 * it lowers the held-out rms (k-fold).
 
 Among the candidates passing the first two, the best BIC is tried first, except that among term candidates within
-:data:`BIC_TIE` of it the one with the fewest coefficients goes first (:func:`preference_order`).  A term's polynomial
+:data:`~optcal.applications.diagnosis.acceptance.BIC_TIE` of it the one with the fewest coefficients goes first
+(:func:`~optcal.applications.diagnosis.acceptance.preference_order`; the acceptance of a step is
+:mod:`~optcal.applications.diagnosis.acceptance`).  A term's polynomial
 order is raised (one coefficient at a time, same tests) where the data support it.  A time term that entered at a
-higher order directly (:data:`DIRECT_ORDERS`) is stepped down to the lowest order its higher coefficients do not
+higher order directly (:data:`~optcal.applications.diagnosis.acceptance.DIRECT_ORDERS`) is stepped down to the lowest order its higher coefficients do not
 significantly improve on and that passes its own test (:mod:`~optcal.applications.diagnosis.drift_order`): a linear
 drift is named as linear, not as the cubic that happened to fit a shade better (``s`` and ``s³`` correlate ≈ 0.9 over
 a recording, so the cubic's first-order coefficient would carry only part of the trend), while a bias that rises and
@@ -33,7 +35,7 @@ final model explains is returned to the fit when the held-out rms does not rise.
 
 When temperature and time both explain a bias on the same axis (a sensor warming up), the
 one with the better BIC enters first and the other is then tested *given* it; a
-:class:`TemperatureTimeDecision` says which was chosen, by how much, and whether the other
+:class:`~optcal.applications.diagnosis.acceptance.TemperatureTimeDecision` says which was chosen, by how much, and whether the other
 adds anything (and that the two cannot be told apart when the recording makes them collinear).
 """
 
@@ -45,140 +47,23 @@ from typing import Any
 
 import numpy as np
 
+from optcal.applications.diagnosis.acceptance import (
+    BIC_TIE, DIRECT_ORDERS, Candidate, TemperatureTimeDecision, accept, prefer_step_to_outliers, rivals,
+    step_down_first,
+)
 from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_notes, recheck_outliers
 from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, MAX_ORDER, MAX_STEPS, SESSION_BIAS, describe_term
 from optcal.applications.diagnosis.familywise import NullDraws, minp_level, null_draws, uses_minp
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
-from optcal.applications.diagnosis.outliers import deleted_residual_p, detect_outliers
+from optcal.applications.diagnosis.outliers import detect_outliers
 from optcal.applications.diagnosis.correlation import PoseCorrelation
-from optcal.applications.diagnosis.drift_order import lower_order
 from optcal.applications.diagnosis.noise_model import correlation_with_steps
 from optcal.applications.diagnosis.step_pair import each_knock_needed, pair_correlation
 from optcal.applications.diagnosis.pair_search import pair_adjusted_p, search_pair
 from optcal.applications.diagnosis.term_pair import pair_count, search_term_pair
 from optcal.applications.diagnosis.progress import Loop, plain_loop
 from optcal.core.model import AXES
-from optcal.core.stats import rms
-
-#: ΔBIC difference below which two competing explanations count as indistinguishable (Kass & Raftery).
-BIC_TIE: float = 6.0
-#: Effects whose higher polynomial orders may enter directly (not only after order 1): a bias that
-#: rises and falls again in time (warm-up then cooling, bias instability at the scale of minutes)
-#: has almost no linear part.  Every order counts as a candidate of the step (honest multiplicity).
-DIRECT_ORDERS: frozenset[str] = frozenset({"bias_drift"})
-
-
-def coefficient_count(c: "Candidate") -> int:
-    """Coefficients a term candidate adds (its polynomial order; a session bias, one per session after the
-    first; outliers, one per pose; a bias step searched over its positions, its size and its place: a change
-    point is a fitted unknown)."""
-    if c.together is not None:  # two first-order terms searched together
-        return len(c.together)
-    if c.second_at is not None and c.fit is not None:  # two steps searched together: their offsets and both places
-        return sum(v for (e, _), v in c.fit.terms.items() if e == BIAS_STEP) + 2
-    if c.step_at is not None:
-        return 2
-    if c.order is not None:
-        return int(c.order)
-    return len(c.rows) if c.rows is not None else 1
-
-
-def preference_order(significant: list["Candidate"]) -> list["Candidate"]:
-    """The order in which a step tries its significant candidates: the best BIC first, except that among the
-    term candidates within :data:`BIC_TIE` of the best (evidence the data cannot call strong, Kass &
-    Raftery 1995) the one with the fewest coefficients goes first, as the one-standard-error rule picks the
-    simplest model the data do not reject.  A warm-up seen by a temperature channel is one temperature
-    coefficient; a cubic in time mimics the same rise and fall with three, and wins on BIC only by fitting
-    some noise as well (the Gauss–Markov family of the issue-13 study: 5 of 100 recordings at 3× the
-    detection limit named a cubic drift instead of the planted temperature bias, ΔBIC 2 apart)."""
-    if not significant:
-        return []
-    best = min(c.delta_bic for c in significant)
-    tied = [c for c in significant if c.order is not None and c.delta_bic < best + BIC_TIE]
-    first = sorted(tied, key=lambda c: (coefficient_count(c), c.delta_bic))
-    taken = {id(c) for c in first}
-    return first + sorted((c for c in significant if id(c) not in taken), key=lambda c: c.delta_bic)
-
-
-@dataclass
-class Candidate:
-    """One candidate tried in a selection step.
-
-    Attributes
-    ----------
-    term : str
-        E.g. ``temperature_bias(z, order 2)`` or ``outliers(3 poses)``.
-    effect : str
-    axis : str or None
-    order : int or None
-    delta_bic : float
-        BIC of the model with the candidate minus the current model's.
-    p_value : float
-        Likelihood-ratio (F) test, or the smallest Bonferroni p of the new outlier poses.
-    threshold : float
-        The level the p value is compared with.
-    significant : bool
-        Passed the test and the BIC (and, once tried, the held-out rms).
-    rows : list of int or None
-        For outliers, the poses' rows.
-    stepped_down_from : int or None
-        The order the term entered at, when its top coefficients were not significant and it was
-        stepped down to :attr:`order`.
-    heldout_rms_g_before, heldout_rms_g_after : float or None
-        Held-out rms without and with the candidate (computed for the candidates that passed).
-    rejected_because : str or None
-    step_at : int or None
-        For a bias step searched over its positions: the poses before the step in time order (its p value is
-        then Bonferroni's over the positions searched, :mod:`~optcal.applications.diagnosis.bias_step`).
-    second_at : int or None
-        For two bias steps searched together (:mod:`~optcal.applications.diagnosis.step_pair`): the poses before the
-        second step (:attr:`step_at` is the first's).
-    correlation : str or None
-        For two bias steps tested under correlated pose noise: the correlation re-estimated with them, in words
-        (:func:`~optcal.applications.diagnosis.step_pair.pair_correlation`).
-    together : tuple of (str, int) or None
-        For two first-order terms searched together (:mod:`~optcal.applications.diagnosis.term_pair`): their
-        ``(effect, axis)`` keys (:attr:`effect` and :attr:`axis` are the first's).
-    """
-
-    term: str
-    effect: str
-    axis: str | None
-    order: int | None
-    delta_bic: float
-    p_value: float
-    threshold: float
-    significant: bool
-    rows: list[int] | None = None
-    heldout_rms_g_before: float | None = None
-    heldout_rms_g_after: float | None = None
-    rejected_because: str | None = None
-    stepped_down_from: int | None = None
-    step_at: int | None = None
-    second_at: int | None = None
-    correlation: str | None = None
-    together: tuple[tuple[str, int], ...] | None = None
-    fit: Fit | None = field(default=None, repr=False, compare=False)
-
-    def new_steps(self) -> tuple[int, ...]:
-        """The bias steps the candidate places (poses before each, time order): none, one, or two together."""
-        return tuple(k for k in (self.step_at, self.second_at) if k is not None)
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "term": self.term, "effect": self.effect, "axis": self.axis, "order": self.order,
-            "delta_bic": self.delta_bic, "p_value": self.p_value, "threshold": self.threshold,
-            "significant": self.significant,
-        }
-        for key in ("rows", "heldout_rms_g_before", "heldout_rms_g_after", "rejected_because", "stepped_down_from",
-                    "step_at", "second_at", "correlation"):
-            if getattr(self, key) is not None:
-                out[key] = getattr(self, key)
-        if self.together is not None:
-            out["together"] = [describe_term(e, a, 1) for e, a in self.together]
-        return out
-
 
 @dataclass
 class Step:
@@ -196,29 +81,6 @@ class Step:
         if self.dropped:
             out["dropped"] = [d.to_dict() for d in self.dropped]
         return out
-
-
-@dataclass
-class TemperatureTimeDecision:
-    """Temperature or time: both explained a bias on one axis on their own; which was kept, and why."""
-
-    axis: str
-    chosen: str
-    other: str
-    delta_bic_chosen: float
-    delta_bic_other: float
-    temperature_time_correlation: float | None = None
-    p_other_given_chosen: float | None = None
-    text: str = ""
-    #: Polynomial orders of the chosen term and of its rival (a rise and fall in time enters at order 2-3)
-    chosen_order: int = 1
-    other_order: int = 1
-    #: The level the rivals were tested at in the step that chose (its term candidates' level: minP in a small
-    #: session, Bonferroni otherwise); "adds nothing significant" is judged at it too
-    level: float | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
 
 
 @dataclass
@@ -395,19 +257,19 @@ class ForwardSelection:
                         tried[-1].significant = False
                         tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
                                                       " were returned to the fit by the backward check")
-            kept = self.step_down_first(tried, current)
-            self.prefer_step_to_outliers(tried, current)
+            kept = step_down_first(fitter, tried, current)
+            prefer_step_to_outliers(fitter, tried, current, self.alpha_outliers)
             # only drifts kept at their order, their evidence spread, pass (before: nothing passed): sets compete
             spread = bool(kept) and all(id(c) in kept for c in tried if c.significant)
             if spread and pair_level is not None:
                 tried += self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
-            accepted = self.accept(tried, current)
+            accepted = accept(fitter, tried, current)
             if accepted is None and pair_level is not None and not spread:  # nothing passed: terms searched together
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
-                accepted = self.accept(together, current)
+                accepted = accept(fitter, together, current)
             if accepted is not None:  # a directly entered drift was stepped down before the choice
-                rivalries += self.rivals(accepted, tried)
+                rivalries += rivals(accepted, tried)
             steps.append(Step(tried, accepted))
             if accepted is None or accepted.fit is None:
                 break
@@ -586,26 +448,6 @@ class ForwardSelection:
         level = minp_level(self.fitter, current, term_cands, alpha_terms)
         return bonferroni if level is None else level
 
-    def accept(self, tried: list[Candidate], current: Fit) -> Candidate | None:
-        """The first significant candidate of ``tried`` in :func:`preference_order` whose held-out rms is below the
-        current model's (the fitter's steps left as its); the others tried are marked as rejected by it."""
-        fitter = self.fitter
-        for c in preference_order([c for c in tried if c.significant]):
-            assert c.fit is not None
-            mask = c.fit.kept(fitter.n)
-            c.heldout_rms_g_before = rms(fitter.heldout(current), mask)
-            placed = fitter.steps_at
-            if c.step_at is not None:
-                fitter.set_steps((*placed, *c.new_steps()))  # the held-out fits of the step need its split
-            c.heldout_rms_g_after = rms(fitter.heldout(c.fit), mask)
-            if c.heldout_rms_g_after < c.heldout_rms_g_before:
-                return c
-            if c.step_at is not None:
-                fitter.set_steps(placed)
-            c.significant = False
-            c.rejected_because = "held-out rms did not fall"
-        return None
-
     def sets_searched(self, current: Fit, axes: list[int]) -> bool:
         """Whether a step from ``current`` searches terms together when no candidate passes
         (:mod:`~optcal.applications.diagnosis.term_pair`): with :attr:`term_pairs` on, a knock searched in the step
@@ -650,107 +492,6 @@ class ForwardSelection:
             self.note(text)
         self.returned |= final.outliers - out.outliers
         return out
-
-    def prefer_step_to_outliers(self, tried: list[Candidate], current: Fit) -> None:
-        """Set the step's outlier candidate aside when a significant bias step explains every one of its poses.
-
-        A bias that stepped and stayed moves every later pose by its part along that pose's direction (the norm
-        residual sees ``δ_i ā_i``), so the poses after the step whose direction is near the stepped axis leave the
-        fit most, and the robust fit names them as several outliers; on BIC the mean shifts of those few poses
-        can beat the one step (20 Xsens rests, 1.5 mg step on y after rest 10: four outliers ΔBIC −70, the step
-        −58).  One physical event explains what four unrelated corrupt rests would: when, under the step's fit, no
-        new outlier pose is still an outlier (its deleted residual at the outliers' family-wise level, the test
-        that set it aside, :meth:`recheck_outliers`), the outlier candidate is not tried in this step.  A single
-        knocked rest that did not persist stays an outlier: the step does not explain it.
-        """
-        outliers = [c for c in tried if c.effect == "outliers" and c.significant and c.fit is not None]
-        steps = [c for c in tried if c.step_at is not None and c.significant and c.fit is not None]
-        if not outliers or not steps:
-            return
-        found = outliers[0]
-        assert found.fit is not None
-        new = frozenset(found.fit.outliers - current.outliers)
-        for c in sorted(steps, key=lambda c: c.delta_bic):
-            assert c.fit is not None and c.step_at is not None
-            placed = self.fitter.steps_at
-            self.fitter.set_steps((*placed, *c.new_steps()))
-            try:
-                p_values = deleted_residual_p(self.fitter, c.fit, new, c.fit.x)
-            finally:
-                self.fitter.set_steps(placed)
-            if min(p_values.values()) >= self.alpha_outliers:
-                found.significant = False
-                found.rejected_because = (f"its poses are explained by {c.term} after {c.step_at} poses in time "
-                                          f"(none is an outlier under it: p ≥ {min(p_values.values()):.2g})")
-                return
-
-    def step_down_first(self, tried: list[Candidate], current: Fit) -> set[int]:
-        """Step every significant directly entered time term down (:meth:`step_down`) before the step compares them.
-
-        A drift of order 2 or 3 wins the BIC on its fit of noise, then steps down to order 1 after it is chosen,
-        where another candidate explained more (14 Xsens rests with a temperature bias planted on x: the y drift of
-        order 2, ΔBIC −62, stepped down to the first-order y drift, ΔBIC −50, was named in place of the planted
-        temperature_bias(x), ΔBIC −56).  A term that steps down to an order the step also tried leaves the choice
-        to that candidate (its own ΔBIC, p and held-out test); otherwise it competes at the order it stepped to.
-        Returns the ids of the terms kept at their order with their evidence spread (:meth:`step_down`)."""
-        spread: set[int] = set()
-        for c in tried:
-            if not c.significant or c.effect not in DIRECT_ORDERS or not c.order or c.order == 1 or c.fit is None:
-                continue
-            entered = c.order
-            if self.step_down(c, current):
-                spread.add(id(c))
-            if c.order == entered:
-                continue
-            same = [o for o in tried if o is not c and o.effect == c.effect and o.axis == c.axis and o.order == c.order]
-            c.significant = False
-            c.rejected_because = (f"order {entered} stepped down to order {c.order}, its higher coefficients adding "
-                                  "nothing significant: tried as that order")
-            if not same:  # the lower order was not a candidate of its own (not identifiable, no room): it competes
-                c.significant, c.rejected_because = True, None
-                c.delta_bic = self.fitter.bic(c.fit) - self.fitter.bic(current)
-                c.p_value = self.fitter.f_test(current, c.fit)
-        return spread
-
-    def step_down(self, accepted: Candidate, current: Fit) -> bool:
-        """Lower a directly entered time term to the lowest order its higher coefficients do not improve on and that
-        passes its own test (:func:`~optcal.applications.diagnosis.drift_order.lower_order`, at the level the term
-        entered at, the level raising the order from there would need in a later step); else it keeps its order.
-        Returns whether it kept its order with its evidence spread (:class:`~optcal.applications.diagnosis.
-        drift_order.StepDown`: no lower order passes its own test)."""
-        if accepted.effect not in DIRECT_ORDERS or accepted.order is None or accepted.fit is None:
-            return False
-        key = (accepted.effect, AXES.index(str(accepted.axis)))
-        if key in current.terms or accepted.order == 1:  # a raised order was tested on its own coefficient
-            return False
-        found = lower_order(self.fitter, current, accepted.fit, key, accepted.order, accepted.threshold)
-        if found.fit is not None and found.order is not None:
-            accepted.stepped_down_from = accepted.order
-            accepted.fit, accepted.order = found.fit, found.order
-            accepted.term = describe_term(accepted.effect, key[1], accepted.order)
-        return found.spread
-
-    def rivals(self, accepted: Candidate, tried: list[Candidate]) -> list[TemperatureTimeDecision]:
-        """Temperature vs time on the same axis: both significant in the step that chose one (each rival
-        effect at its best order: a warm-up and cool-down is matched by a time polynomial of order 2-3).
-
-        Significant at the level the step tested its terms at (each candidate's ``threshold``: the minP level in a
-        small session, Bonferroni's ``α/m`` otherwise), not at the step's whole family-wise level; the rival given
-        the chosen term is judged at the same level (:meth:`explain`)."""
-        if accepted.effect not in ("temperature_bias", "temperature_scale", "bias_drift") or accepted.order is None:
-            return []
-        rivals = ("bias_drift",) if accepted.effect != "bias_drift" else ("temperature_bias", "temperature_scale")
-        best: dict[str, Candidate] = {}
-        for c in tried:
-            if (c.effect in rivals and c.axis == accepted.axis and c.order is not None and c.p_value < c.threshold
-                    and (c.effect not in best or c.delta_bic < best[c.effect].delta_bic)):
-                best[c.effect] = c
-        return [
-            TemperatureTimeDecision(str(accepted.axis), accepted.effect, c.effect, accepted.delta_bic, c.delta_bic,
-                                    chosen_order=int(accepted.order), other_order=int(c.order or 1),
-                                    level=c.threshold)
-            for c in best.values()
-        ]
 
     def explain(self, final: Fit, rivalries: list[TemperatureTimeDecision]) -> list[TemperatureTimeDecision]:
         """Test the other explanation given the final model, and say what the data can tell apart."""
