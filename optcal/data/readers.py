@@ -285,6 +285,33 @@ def read_source(
         A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
         files): merged onto the accelerometer's times.
     """
+    return set_aside_empty_temperature(_read_any(path, columns, topic, gyro_file))
+
+
+def set_aside_empty_temperature(src: Source) -> Source:
+    """``src`` without its temperature column when that column holds no number at all, said in a note.
+
+    A temperature is read beside the samples, not as one of them: a sensor with no thermometer (a PX4 driver
+    that publishes NaN, a logger's empty column) must not make every accelerometer sample unusable.  A
+    temperature missing in some rows only keeps those rows out, counted, as before (the temperature-dependent
+    fits need it on every row they use)."""
+    if not src.has("temp") or np.isfinite(src.data["temp"]).any():
+        return src
+    name = src.column_map.pop("temp", "temp")
+    del src.data["temp"]
+    src.ignored_columns.append(name)
+    how = "--columns temp=NAME reads another column" if src.file_type in ("csv", "parquet") else f"a {src.file_type} holds no other"
+    src.notes.append(f"temperature {name} holds no number in any of its {src.n_rows} rows (the sensor logged none): "
+                     f"set aside, the samples read without a temperature ({how})")
+    return src
+
+
+def _read_any(
+    path: str | Path,
+    columns: str | dict[str, str] | None,
+    topic: str | None,
+    gyro_file: str | Path | None,
+) -> Source:
     kind = detect_file_type(path)
     if kind == "csv" and (container := container_type(path)) is not None:  # MATLAB, netCDF-4, HDF5
         from optcal.data.containers import read_container
