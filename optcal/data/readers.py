@@ -250,9 +250,7 @@ def detect_file_type(path: str | Path) -> str:
     if head.startswith(b"#ROSBAG V2.0"):
         return "ros1 bag"
     if head[:3] == DATAFLASH_HEAD:
-        raise InputError(f"{p}: an ArduPilot DataFlash log (.bin), which optcal does not read; export its messages "
-                         f"to CSV with pymavlink's mavlogdump.py --format csv --types IMU {p.name} > imu.csv (IMU2, IMU3: "
-                         f"the other IMUs; MAG: the compass), which optcal reads")
+        return "dataflash"
     if head.startswith(b"PAR1") or p.suffix.lower() in (".parquet", ".pq"):
         return "parquet"
     if head.startswith(b"SQLite format 3") or head.startswith(b"\x89MCAP"):
@@ -334,6 +332,8 @@ def _read_any(
         raise InputError(f"gyro_file applies to text files, not to a {kind} (it holds its own gyro)")
     if kind == "ulog":
         return read_ulog(path, topic)
+    if kind == "dataflash":
+        return read_dataflash(path, topic)
     return read_rosbag(path, topic, kind)
 
 
@@ -740,6 +740,20 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
 # ----------------------------------------------------------------------------- PX4 ULog
 def _import_pyulog() -> Any:
     return import_pyulog()
+
+
+def read_dataflash(path: str | Path, topic: str | None) -> Source:
+    """Read an ArduPilot DataFlash log's IMU (:func:`optcal.data.dataflash.read_dataflash_imu`: ``IMU`` or
+    ``ACC``/``GYR``; m/s², rad/s, with VIBE's clip count as the saturation flags) as a :class:`Source`."""
+    from optcal.data.dataflash import read_dataflash_imu
+
+    imu = read_dataflash_imu(path, topic)
+    return Source(
+        path=str(path), file_type="dataflash", data=imu.frame, column_map=imu.column_map, units_hint="m/s^2",
+        units_reason=imu.units_reason, gyro_units="rad/s" if imu.has_gyro else None, time_unit="s",
+        time_reason=imu.time_reason, saturated=imu.saturated, gyro_saturated=imu.gyro_saturated, always_raw=True,
+        notes=list(imu.notes), header={"topic": imu.topic}, exclusions=dict(imu.exclusions),
+    )
 
 
 def read_ulog(path: str | Path, topic: str | None) -> Source:
