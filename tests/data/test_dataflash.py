@@ -75,3 +75,28 @@ def test_the_compass_is_read_in_milligauss(log):
     assert mag.units.units == "mgauss" and mag.n == -(-len(log[1]) // 10)
     assert np.median(mag.m[:, 2]) == pytest.approx(400, abs=15)
     assert mag.acc is not None and mag.acc.shape == mag.m.shape
+
+
+def test_the_raw_acc_messages_are_read_by_topic_with_their_gyro(tmp_path):
+    """ACC/GYR (the sensor's own samples, here at 400 Hz beside IMU at 50 Hz): --topic ACC reads them, stamped by
+    SampleUS, the GYR samples interpolated onto their times; by default IMU is read and the note names ACC."""
+    w = DataFlashWriter()
+    rng = np.random.default_rng(2)
+    t_sample = 2_000_000 + np.arange(2000) * 2_500  # 400 Hz, logged 300 µs after the sample
+    acc = np.array([0.0, 0.0, 9.80665]) + rng.normal(0, 0.02, (2000, 3))
+    rate = 0.01 * np.sin(np.arange(2000) / 50.0)
+    for k, ts in enumerate(t_sample):
+        w.add("ACC", ts + 300, 0, ts, *acc[k])
+        w.add("GYR", ts + 300, 0, ts + 1_250, rate[k], 0.0, 0.0)  # the gyro sampled between two accelerometer samples
+        if k % 8 == 0:
+            w.add("IMU", ts, 0, rate[k], 0.0, 0.0, *acc[k], 0, 0, 40.0, 1, 1, 50, 50)
+    path = tmp_path / "raw.bin"
+    w.write(path)
+    raw = load_recording(path, topic="ACC")
+    assert raw.acc.shape[0] == 2000 and raw.rate_hz == pytest.approx(400, rel=1e-3)
+    assert raw.t[0] == pytest.approx(2.0) and np.allclose(raw.acc, acc, atol=1e-5)
+    mid = (rate[:-1] + rate[1:]) / 2  # the gyro at the accelerometer's time, halfway between two of its samples
+    assert np.allclose(raw.gyro[1:, 0], mid, atol=2e-6)
+    default = load_recording(path)
+    assert default.acc.shape[0] == 250
+    assert any("ACC:0 (400 Hz)" in n for n in default.meta["notes"])

@@ -15,7 +15,9 @@ STRUCT = {"Q": "Q", "B": "B", "f": "f", "I": "I", "h": "h", "H": "H"}
 IMU = (129, "QBffffffIIfBBHH", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH,GHz,AHz")
 VIBE = (130, "QBfffI", "TimeUS,IMU,VibeX,VibeY,VibeZ,Clip")
 MAG = (131, "QBhhhhhhhhhBI", "TimeUS,I,MagX,MagY,MagZ,OfsX,OfsY,OfsZ,MOX,MOY,MOZ,Health,S")
-MESSAGES = {"IMU": IMU, "VIBE": VIBE, "MAG": MAG}
+ACC = (132, "QBQfff", "TimeUS,I,SampleUS,AccX,AccY,AccZ")
+GYR = (133, "QBQfff", "TimeUS,I,SampleUS,GyrX,GyrY,GyrZ")
+MESSAGES = {"IMU": IMU, "VIBE": VIBE, "MAG": MAG, "ACC": ACC, "GYR": GYR}
 
 
 class DataFlashWriter:
