@@ -88,7 +88,7 @@ class Source:
     ----------
     path : str
     file_type : str
-        ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"`` or ``"ulog"``.
+        ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"``, ``"ulog"`` or ``"dataflash"``.
     data : dict of str to ndarray
         Canonical columns (a subset of :data:`CANONICAL` plus ``index``) as floats; cells
         that were not numbers are NaN and counted in :attr:`non_numeric`.
@@ -271,14 +271,14 @@ def read_source(
     Parameters
     ----------
     path : str or Path
-        CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``), or
-        PX4 ULog file.
+        CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``),
+        PX4 ULog file, or ArduPilot DataFlash log.
     columns : str or dict, optional
         ``"ax=acc1,ay=acc2,az=acc3,t=time"``: the file's names (or 1-based positions,
         ``"t=1,ax=2"``) for canonical columns (tabular files only).
     topic : str, optional
-        ROS topic of ``sensor_msgs/Imu`` messages, or the ULog topic (``sensor_accel`` or
-        ``sensor_accel:1`` for the second instance).
+        ROS topic of ``sensor_msgs/Imu`` messages, the ULog topic (``sensor_accel`` or
+        ``sensor_accel:1`` for the second instance), or the DataFlash messages (``IMU[:N]``, ``ACC[:N]``).
     gyro_file : str or Path, optional
         A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
         files): merged onto the accelerometer's times.
@@ -317,7 +317,7 @@ def _read_any(
         return Source(**read_container(path, container, topic=topic, columns=columns, gyro_file=gyro_file))
     if kind in ("csv", "parquet"):
         if topic is not None:
-            raise InputError(f"topic applies to ROS bags and ULog files, not to a {kind} file")
+            raise InputError(f"topic applies to ROS bags, ULog and DataFlash files, not to a {kind} file")
         mapping = parse_columns_option(columns)
         if kind == "csv":
             src = read_text(path, mapping)
