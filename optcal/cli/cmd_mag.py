@@ -68,7 +68,9 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     if place is not None:  # before the fit: a missing extra or a bad date is said at once
         day, day_reason = parse_date(session_date)
         reference = wmm_reference(place, day)
-    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units)
+    # a sample at the converter's rail lies off the ellipsoid as surely as one the fit rejects: the same flag keeps it
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
+                       keep_rail=accept_mag_fit)
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
     for line in samples.decision_lines():

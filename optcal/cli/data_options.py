@@ -54,7 +54,8 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                  help="Units of the accelerometer data (default: from the column names or file format, else from the norm)."),
     click.option("--topic", default=None,
                  help="ROS bag: the sensor_msgs/Imu topic; ULog: sensor_accel[:INSTANCE] or sensor_combined (default "
-                      "sensor_accel:0, sensor_combined where that is not logged or logged under 4 Hz; said); "
+                      "sensor_accel:0, sensor_combined where that is not logged or logged under 4 Hz; said); ArduPilot DataFlash: "
+                      "IMU[:N] (default IMU:0) or ACC[:N]; "
                       "MAT/netCDF/HDF5: the accelerometer's variable NAME[:rows|:columns] (one sample per row or column)."),
     click.option("--rate", type=_POSITIVE, default=None, metavar="HZ",
                  help="Sampling rate of a recording without a time column (time = row / rate)."),

@@ -72,6 +72,7 @@ def rail_samples(
     min_run: int = 1,
     centre: ArrayLike | None = None,
     levels: list[float] | None = None,
+    outward: bool = False,
 ) -> NDArray[np.bool_]:
     """Samples with an axis at a saturation rail.
 
@@ -104,6 +105,10 @@ def rail_samples(
         mostly reads is a rest's, not a rail).
     levels : list, optional
         Filled with the magnitudes (about ``about``) of the rails found.
+    outward : bool
+        Take only a maximum above ``zero`` or a minimum below it (a converter's full scale lies beyond its zero on
+        the extreme's side): for a sensor whose readings may all lie on one side of its zero (a magnetometer's,
+        offset by hard iron or failed), whose minimum there is no rail.
 
     Returns
     -------
@@ -127,6 +132,8 @@ def rail_samples(
                 sat |= usable & (x[:, axis] == extreme)
                 if levels is not None and float(abs(extreme - about[axis])) not in levels:
                     levels.append(float(abs(extreme - about[axis])))
+            elif outward and (extreme - zero[axis]) * (1.0 if extreme == column.max() else -1.0) <= 0:
+                continue  # on the zero's other side from the converter's full scale at this end
             elif abs(extreme - zero[axis]) >= min_distance and (
                     centre is None or abs(extreme - np.asarray(centre, float)[axis]) >= min_distance):
                 if min_run > 1 and _longest_run(usable & (x[:, axis] == extreme)) < min_run:

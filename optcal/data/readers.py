@@ -88,7 +88,7 @@ class Source:
     ----------
     path : str
     file_type : str
-        ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"`` or ``"ulog"``.
+        ``"csv"``, ``"parquet"``, ``"ros1 bag"``, ``"ros2 bag"``, ``"ulog"`` or ``"dataflash"``.
     data : dict of str to ndarray
         Canonical columns (a subset of :data:`CANONICAL` plus ``index``) as floats; cells
         that were not numbers are NaN and counted in :attr:`non_numeric`.
@@ -250,9 +250,7 @@ def detect_file_type(path: str | Path) -> str:
     if head.startswith(b"#ROSBAG V2.0"):
         return "ros1 bag"
     if head[:3] == DATAFLASH_HEAD:
-        raise InputError(f"{p}: an ArduPilot DataFlash log (.bin), which optcal does not read; export its messages "
-                         f"to CSV with pymavlink's mavlogdump.py --format csv --types IMU {p.name} > imu.csv (IMU2, IMU3: "
-                         f"the other IMUs; MAG: the compass), which optcal reads")
+        return "dataflash"
     if head.startswith(b"PAR1") or p.suffix.lower() in (".parquet", ".pq"):
         return "parquet"
     if head.startswith(b"SQLite format 3") or head.startswith(b"\x89MCAP"):
@@ -273,18 +271,45 @@ def read_source(
     Parameters
     ----------
     path : str or Path
-        CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``), or
-        PX4 ULog file.
+        CSV/text, Parquet, ROS 1 bag file, ROS 2 bag directory (or its ``.db3``/``.mcap``),
+        PX4 ULog file, or ArduPilot DataFlash log.
     columns : str or dict, optional
         ``"ax=acc1,ay=acc2,az=acc3,t=time"``: the file's names (or 1-based positions,
         ``"t=1,ax=2"``) for canonical columns (tabular files only).
     topic : str, optional
-        ROS topic of ``sensor_msgs/Imu`` messages, or the ULog topic (``sensor_accel`` or
-        ``sensor_accel:1`` for the second instance).
+        ROS topic of ``sensor_msgs/Imu`` messages, the ULog topic (``sensor_accel`` or
+        ``sensor_accel:1`` for the second instance), or the DataFlash messages (``IMU[:N]``, ``ACC[:N]``).
     gyro_file : str or Path, optional
         A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
         files): merged onto the accelerometer's times.
     """
+    return set_aside_empty_temperature(_read_any(path, columns, topic, gyro_file))
+
+
+def set_aside_empty_temperature(src: Source) -> Source:
+    """``src`` without its temperature column when that column holds no number at all, said in a note.
+
+    A temperature is read beside the samples, not as one of them: a sensor with no thermometer (a PX4 driver
+    that publishes NaN, a logger's empty column) must not make every accelerometer sample unusable.  A
+    temperature missing in some rows only keeps those rows out, counted, as before (the temperature-dependent
+    fits need it on every row they use)."""
+    if not src.has("temp") or np.isfinite(src.data["temp"]).any():
+        return src
+    name = src.column_map.pop("temp", "temp")
+    del src.data["temp"]
+    src.ignored_columns.append(name)
+    how = "--columns temp=NAME reads another column" if src.file_type in ("csv", "parquet") else f"a {src.file_type} holds no other"
+    src.notes.append(f"temperature {name} holds no number in any of its {src.n_rows} rows (the sensor logged none): "
+                     f"set aside, the samples read without a temperature ({how})")
+    return src
+
+
+def _read_any(
+    path: str | Path,
+    columns: str | dict[str, str] | None,
+    topic: str | None,
+    gyro_file: str | Path | None,
+) -> Source:
     kind = detect_file_type(path)
     if kind == "csv" and (container := container_type(path)) is not None:  # MATLAB, netCDF-4, HDF5
         from optcal.data.containers import read_container
@@ -292,7 +317,7 @@ def read_source(
         return Source(**read_container(path, container, topic=topic, columns=columns, gyro_file=gyro_file))
     if kind in ("csv", "parquet"):
         if topic is not None:
-            raise InputError(f"topic applies to ROS bags and ULog files, not to a {kind} file")
+            raise InputError(f"topic applies to ROS bags, ULog and DataFlash files, not to a {kind} file")
         mapping = parse_columns_option(columns)
         if kind == "csv":
             src = read_text(path, mapping)
@@ -307,6 +332,8 @@ def read_source(
         raise InputError(f"gyro_file applies to text files, not to a {kind} (it holds its own gyro)")
     if kind == "ulog":
         return read_ulog(path, topic)
+    if kind == "dataflash":
+        return read_dataflash(path, topic)
     return read_rosbag(path, topic, kind)
 
 
@@ -713,6 +740,20 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
 # ----------------------------------------------------------------------------- PX4 ULog
 def _import_pyulog() -> Any:
     return import_pyulog()
+
+
+def read_dataflash(path: str | Path, topic: str | None) -> Source:
+    """Read an ArduPilot DataFlash log's IMU (:func:`optcal.data.dataflash.read_dataflash_imu`: ``IMU`` or
+    ``ACC``/``GYR``; m/s², rad/s, with VIBE's clip count as the saturation flags) as a :class:`Source`."""
+    from optcal.data.dataflash import read_dataflash_imu
+
+    imu = read_dataflash_imu(path, topic)
+    return Source(
+        path=str(path), file_type="dataflash", data=imu.frame, column_map=imu.column_map, units_hint="m/s^2",
+        units_reason=imu.units_reason, gyro_units="rad/s" if imu.has_gyro else None, time_unit="s",
+        time_reason=imu.time_reason, saturated=imu.saturated, gyro_saturated=imu.gyro_saturated, always_raw=True,
+        notes=list(imu.notes), header={"topic": imu.topic}, exclusions=dict(imu.exclusions),
+    )
 
 
 def read_ulog(path: str | Path, topic: str | None) -> Source:

@@ -87,15 +87,15 @@ def test_a_raw_topic_at_the_imus_rate_is_still_read(recording, tmp_path):
     assert not any("sensor_combined" in n for n in loaded.meta["notes"])
 
 
-def test_an_ardupilot_dataflash_log_is_refused_naming_the_export(tmp_path, capsys):
-    """ArduPilot's .bin (erlerobot/logs' flights): refused as "not a text file (and not a recognised binary format:
-    ULog, ROS bag, Parquet)" before, which named no way on; now the format and pymavlink's export are named."""
+def test_a_dataflash_log_without_an_imu_is_refused_in_one_line(tmp_path, capsys):
+    """ArduPilot's .bin is read natively now (tests/data/test_dataflash.py); one holding no IMU or compass message
+    (only its FMT messages) is refused with one line that names --topic."""
     from helpers.cli_run import run
 
     path = tmp_path / "00000044.BIN"
     fmt = struct.pack("<BB", 128, 89) + b"FMT\x00" + b"BBnNZ".ljust(16, b"\x00") + b"Type,Length,Name,Format,Columns"
     path.write_bytes(b"\xa3\x95\x80" + fmt.ljust(86, b"\x00") * 3)
-    for args in (["segment", str(path)], ["calibrate", str(path), "--sensor", "mag"]):
+    for args, what in ((["segment", str(path)], "IMU"), (["calibrate", str(path), "--sensor", "mag"], "MAG")):
         code, out, err = run(args, capsys)
         assert code == 2 and err.count("\n") == 1
-        assert "ArduPilot DataFlash log" in err and "mavlogdump.py --format csv --types IMU 00000044.BIN" in err
+        assert f"no DataFlash {what} instance 0" in err and "--topic" in err

@@ -23,7 +23,7 @@ from optcal.data.columns import (
     parse_columns_option, sensor_logger_mapping, sensor_word, split_stamp,
 )
 from optcal.errors import InputError
-from optcal.families.mag.units import MAG_UNIT_WORDS, UnitDecision, decide_mag_units
+from optcal.families.mag.units import EARTH_FIELD_UT, MAG_UNIT_WORDS, UT_PER_UNIT, UnitDecision, decide_mag_units
 
 #: Names of a motor current or throttle column (ArduPilot's COMPASS_MOT takes either).
 CURRENT_ALIASES: tuple[str, ...] = ("current", "curr", "i_batt", "battery_current", "amps", "ibat", "curr_a")
@@ -230,8 +230,52 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
 ZERO_ROWS = "all-zero magnetometer rows (a logger's placeholder: a field never reads 0, 0, 0)"
 
 
+#: The exclusion key of the samples at a rail.
+MAG_RAIL_ROWS = "magnetometer samples with an axis at its converter's rail (the field beyond its full scale)"
+#: A magnetometer's rail lies at least this far from its zero, µT: twice the Earth's strongest field (65 µT,
+#: :data:`~optcal.families.mag.units.EARTH_FIELD_UT`), so that the extreme of a field seen through a hard-iron offset
+#: as large as the field itself, read twice by a coarse converter, is never taken for one.  A converter whose full
+#: scale is nearer (an HMC5883L at its ±0.88 G range) has its rail found only where it is an integer one.
+MAG_RAIL_MIN_UT: float = 2 * EARTH_FIELD_UT[1]
+
+
+def mag_rail(m: NDArray, usable: NDArray[np.bool_], units: str) -> tuple[NDArray[np.bool_], list[float]]:
+    """Samples with an axis at a saturation rail (:func:`optcal.data.rails.rail_samples`, the accelerometer's model:
+    an extreme reached exactly by several samples, the same magnitude on any axis), at least
+    :data:`MAG_RAIL_MIN_UT` from the zero on the extreme's side; in counts only a 16-bit converter's full scale (the
+    unit unknown, no distance can be stated).
+
+    A turning magnetometer's field passes its extreme slowly (a 0.5-G component turning at 1 rad/s, read at 256 Hz
+    in steps of 1/2048 G, stays within one step of its top for about 23 samples), so an extreme read by several
+    equal samples is a rail only where it is held longer than a smooth peak of its flanks' curvature holds: the
+    gyro's test (:data:`~optcal.data.rails.GYRO_RAIL_MIN_RUN`, ``rails._held_beyond_a_peak``)."""
+    from optcal.data.rails import GYRO_RAIL_MIN_RUN, rail_samples
+
+    per_ut = UT_PER_UNIT.get(units)
+    distance = MAG_RAIL_MIN_UT / per_ut if per_ut else float("inf")
+    levels: list[float] = []
+    rail = rail_samples(np.asarray(m, dtype=float), usable, (0.0, 0.0, 0.0), distance, min_run=GYRO_RAIL_MIN_RUN,
+                        levels=levels, outward=True)
+    return rail, sorted(levels)
+
+
+#: A magnetometer's range is chosen so that the field and the board's hard iron fit in it as the sensor turns:
+#: samples left beside a rail whose largest axis reads beyond this share of the rail (median over the samples) sit
+#: nearer the full scale than the zero, so their magnitude says nothing of the unit (the unit's note is left out)
+#: and the rail's line says what such a reading is.
+MAG_NEAR_RAIL_SHARE: float = 0.5
+
+
+def rail_line(levels: list[float], units: str, n_rail: int, n: int) -> str:
+    """The one line that says the rail: its level(s), the samples held there, and the flag that keeps them."""
+    at = ", ".join(f"±{v:.7g}" for v in levels) or "a 16-bit converter's full scale"
+    return (f"magnetometer rail: {n_rail} of {n} samples ({100 * n_rail / max(n, 1):.3g} %) hold an axis at {at} "
+            f"{units}, the converter's full scale (the field beyond it unknown): left out; calibrate --accept-mag-fit "
+            f"keeps them")
+
+
 def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str | None, columns: dict[str, str],
-           others: dict[str, NDArray], notes: list[str]) -> MagSamples:
+           others: dict[str, NDArray], notes: list[str], keep_rail: bool = False) -> MagSamples:
     finite = np.all(np.isfinite(m), axis=1)
     exclusions = {"rows with a non-finite magnetometer value": int(np.count_nonzero(~finite))}
     # a magnetometer in the Earth's field (25-65 µT) never reads exactly 0, 0, 0 (its noise alone moves the last
@@ -244,6 +288,25 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
         exclusions[ZERO_ROWS] = int(zero.sum())
         finite &= ~zero
     units = decide_mag_units(m[finite], stated, where, mag_units)
+    rail, levels = mag_rail(m, finite, units.units)
+    if rail.any() and not keep_rail:
+        n_rail, n = int(rail.sum()), int(finite.sum())
+        if n_rail == n:
+            raise InputError(f"{path}: {rail_line(levels, units.units, n_rail, n).split(': ', 1)[1].split(': left')[0]}; "
+                             f"none is left: the magnetometer measured no field in its range; calibrate --accept-mag-fit "
+                             f"keeps them")
+        exclusions[MAG_RAIL_ROWS] = n_rail
+        finite &= ~rail
+        units = decide_mag_units(m[finite], stated, where, mag_units)  # the field's median, not the rail's
+        line = rail_line(levels, units.units, n_rail, n)
+        near = float(np.median(np.max(np.abs(m[finite]), axis=1))) / max(levels) if levels else 0.0
+        if near >= MAG_NEAR_RAIL_SHARE:  # their magnitude is the rail's neighbourhood, no evidence of a unit
+            line += (f"; the {n - n_rail} left read their largest axis at {100 * near:.3g} % of the rail (median): "
+                     f"a magnet near the sensor, a range too small or a failed sensor")
+            units = UnitDecision(units.units, units.reason.split("; note: ")[0], units.median_field)
+        notes = [*notes, line]
+    elif rail.any():
+        notes = [*notes, f"{int(rail.sum())} magnetometer samples at a rail kept (--accept-mag-fit)"]
     pick = (lambda a: None if a is None else np.asarray(a, dtype=float)[finite])
     acc = pick(others.get("acc"))
     if acc is not None and not np.any(np.all(np.isfinite(acc), axis=1)):
@@ -254,7 +317,8 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
                       throttle=pick(others.get("throttle")), path=path, columns=columns, exclusions=exclusions, notes=notes)
 
 
-def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> MagSamples:
+def _read_text(path: str, mapping: dict[str, str], mag_units: str | None,
+        keep_rail: bool = False) -> MagSamples:
     from optcal.data.text import read_numbers
 
     layout, parsed = read_numbers(Path(path))
@@ -301,12 +365,13 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None) -> Mag
         # a ROS export's columns (rostopic echo -p's field.magnetic_field.x, a ros2 bag export's magnetic_field.x):
         # sensor_msgs/MagneticField is in tesla (REP 145)
         return _build(path, m, "T", "sensor_msgs/MagneticField's field names (tesla, REP 145)", mag_units, columns,
-                      others, notes)
+                      others, notes, keep_rail)
     where = "Sensor Logger's documentation (UNITS.md: µT)" if logger is not None else f"the unit word {word!r} in the column names"
-    return _build(path, m, word, where, mag_units, columns, others, notes)
+    return _build(path, m, word, where, mag_units, columns, others, notes, keep_rail)
 
 
-def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
+def _read_container(path: str, kind: str, topic: str | None, mag_units: str | None,
+        keep_rail: bool = False) -> MagSamples:
     from optcal.data.containers import (ACCELEROMETER, MAGNETOMETER, MAGNETIC_UNIT_SPELLINGS, MAT5, Variable,
                                         orientations, read_hdf5, read_mat5, role_of)
 
@@ -341,7 +406,8 @@ def _read_container(path: str, kind: str, topic: str | None, mag_units: str | No
     if len(accs) == 1:
         others["acc"] = accs[0]
     notes = [f"variable {var.name!r} ({var.shape_text}) read as the magnetometer"]
-    return _build(path, m, stated, f"the variable's units attribute {unit_attr!r}", mag_units, columns, others, notes)
+    return _build(path, m, stated, f"the variable's units attribute {unit_attr!r}", mag_units, columns, others, notes,
+                  keep_rail)
 
 
 #: PX4's magnetometer topics with their calibration (``CAL_MAG*``) applied, read where ``sensor_mag`` (the driver's
@@ -367,7 +433,8 @@ def _ulog_field(d: dict[str, NDArray], stem: str, rel: str | None) -> tuple[NDAr
     return t[ok] * 1e-6, np.column_stack([d[k].astype(float)[ok] for k in keys])
 
 
-def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSamples:
+def _read_ulog(path: str, topic: str | None, mag_units: str | None,
+        keep_rail: bool = False) -> MagSamples:
     from optcal.data.ulog import import_pyulog
 
     ULog = import_pyulog()
@@ -422,7 +489,45 @@ def _read_ulog(path: str, topic: str | None, mag_units: str | None) -> MagSample
     stem = "" if name == "sensor_mag" else "magnetometer_ga"
     columns = {k: f"{name}.{a if not stem else f'{stem}[{i}]'}" for i, (k, a) in enumerate(zip(MAG, "xyz"))}
     return _build(path, m, "gauss", f"PX4's {name} (gauss)", mag_units, columns, others,
-                  [f"ULog topic {name}:{instance}", *notes])
+                  [f"ULog topic {name}:{instance}", *notes], keep_rail)
+
+
+def _read_dataflash(path: str, topic: str | None, mag_units: str | None,
+        keep_rail: bool = False) -> MagSamples:
+    """An ArduPilot DataFlash log's ``MAG`` messages (``MAG[:N]``; ``MAG2``... in older logs): ``MagX..Z`` in
+    milligauss (LogStructure.h: unit G, multiplier C = 1e-3), the rows ArduPilot marked unhealthy left out and
+    counted, the IMU's accelerometer interpolated onto their times for the dip."""
+    from optcal.data.dataflash import dataflash_instances, open_dataflash
+
+    log = open_dataflash(path)
+    name, _, inst = (topic or "MAG").upper().partition(":")
+    digit = name[3:] if name.startswith("MAG") else None
+    if digit is None or (digit and not digit.isdigit()) or (inst and not inst.isdigit()):
+        raise InputError(f"--topic {topic!r}: a DataFlash log's magnetometer is read from MAG[:N] (MAG2... in older logs)")
+    instance = int(inst) if inst else (int(digit) - 1 if digit else 0)
+    mags = dataflash_instances(log, "MAG")
+    d = mags.get(instance)
+    if d is None or any(f"Mag{a}" not in d for a in "XYZ"):
+        raise InputError(f"{path}: no DataFlash MAG instance {instance} (logged: "
+                         f"{', '.join(f'MAG:{i}' for i in sorted(mags)) or 'none'}); choose one with --topic MAG:N")
+    key = "TimeUS" if "TimeUS" in d else "TimeMS"
+    t = d[key] * (1e-6 if key == "TimeUS" else 1e-3)
+    m = np.column_stack([d[f"Mag{a}"] for a in "XYZ"])
+    exclusions: dict[str, int] = {}
+    if "Health" in d and (sick := d["Health"] < 1).any():  # LogStructure.h: Health, true if the compass is considered healthy
+        exclusions["DataFlash MAG rows with Health=0 (ArduPilot judged the compass unhealthy)"] = int(sick.sum())
+        t, m = t[~sick], m[~sick]
+    others: dict[str, NDArray] = {"t": t}
+    imu = dataflash_instances(log, "IMU").get(0)
+    if imu is not None and t.size and all(f"Acc{a}" in imu for a in "XYZ"):
+        ta = imu["TimeUS"] * 1e-6 if "TimeUS" in imu else imu["TimeMS"] * 1e-3
+        order = np.argsort(ta)
+        others["acc"] = np.column_stack([np.interp(t, ta[order], imu[f"Acc{a}"][order]) for a in "XYZ"])
+    samples = _build(path, m, "mgauss", "ArduPilot's MAG (milligauss, LogStructure.h)", mag_units,
+                     {k: f"MAG.Mag{a}" for k, a in zip(MAG, "XYZ")}, others,
+                     [f"DataFlash MAG:{instance} ({', '.join(f'MAG:{i}' for i in sorted(mags))} logged; --topic MAG:N)"], keep_rail)
+    samples.exclusions.update(exclusions)
+    return samples
 
 
 #: The ROS message of a magnetometer (``magnetic_field`` in tesla, REP 145) and the IMU's.
@@ -444,7 +549,8 @@ def _stamps(reader: Any, conns: list, fields: Any) -> NDArray[np.float64]:
     return np.array(rows, dtype=float).reshape(len(rows), -1)
 
 
-def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None) -> MagSamples:
+def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None,
+        keep_rail: bool = False) -> MagSamples:
     """``sensor_msgs/MagneticField`` messages of one topic (tesla) and, where the bag has one ``sensor_msgs/Imu``
     topic, its accelerometer at the nearest stamps (:data:`ROS_JOIN_SHARE`; the samples without one counted)."""
     from optcal.data.readers import bag_topic, open_rosbag
@@ -487,11 +593,11 @@ def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None)
     elif len(imu_topics) > 1:
         notes.append(f"several sensor_msgs/Imu topics ({', '.join(imu_topics)}): no accelerometer joined")
     return _build(path, mag[:, 1:4], "T", "sensor_msgs/MagneticField (tesla, REP 145)", mag_units, columns, others,
-                  notes)
+                  notes, keep_rail)
 
 
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
-             mag_units: str | None = None) -> MagSamples:
+             mag_units: str | None = None, keep_rail: bool = False) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
 
     Parameters
@@ -504,6 +610,8 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
         The magnetometer's variable of a container, the ULog topic (``sensor_mag:1``) or the bag's MagneticField topic.
     mag_units : str, optional
         The units (``--mag-units``), instead of the file's word or the decision from the magnitude.
+    keep_rail : bool
+        Keep the samples with an axis at the converter's rail (:func:`mag_rail`; left out and counted by default).
 
     Raises
     ------
@@ -518,12 +626,15 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
         raise InputError(f"{p}: no such file")
     kind = detect_file_type(p)
     if kind == "csv" and (container := container_type(p)) is not None:
-        return _read_container(p, container, topic, mag_units)
+        return _read_container(p, container, topic, mag_units, keep_rail)
     if kind == "csv":
-        return _read_text(p, parse_columns_option(columns) if isinstance(columns, str) or columns else {}, mag_units)
+        return _read_text(p, parse_columns_option(columns) if isinstance(columns, str) or columns else {}, mag_units,
+                          keep_rail)
     if kind == "ulog":
-        return _read_ulog(p, topic, mag_units)
+        return _read_ulog(p, topic, mag_units, keep_rail)
     if kind in ("ros1 bag", "ros2 bag"):
-        return _read_rosbag(p, kind, topic, mag_units)
+        return _read_rosbag(p, kind, topic, mag_units, keep_rail)
+    if kind == "dataflash":
+        return _read_dataflash(p, topic, mag_units, keep_rail)
     raise InputError(f"{p}: the magnetometer is read from text, MAT/netCDF/HDF5 and ULog files, not a {kind} yet; "
                      f"export its mx, my, mz columns to CSV")
