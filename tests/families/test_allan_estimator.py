@@ -54,3 +54,22 @@ def test_a_cluster_longer_than_half_the_phase_is_refused() -> None:
 
     with pytest.raises(InputError, match="phase points"):
         overlapping_adev(np.zeros(10), 1.0, [5])
+
+
+def test_the_pieces_formed_together_sum_as_one_piece_at_a_time() -> None:
+    """σ(τ) is, to the last bit, the in-order sum of each :data:`ADEV_PIECE`-point piece's ``np.dot`` (the sum the
+    pieces had when formed one at a time), on a series that spans several passes of :data:`ADEV_ROWS` pieces and
+    ends in a partial piece."""
+    from optcal.families.noise.allan import ADEV_PIECE, ADEV_ROWS
+
+    y = _series("random walk", 2 * ADEV_PIECE * ADEV_ROWS + 3 * ADEV_PIECE + 1234, np.random.default_rng(5))
+    phase = phase_from_rate(y, 100.0)
+    ms = np.rint(octave_taus(y.size, 100.0) * 100.0).astype(int)
+    adev, _ = overlapping_adev(phase, 100.0, ms)
+    for k, m in enumerate(ms):
+        n = phase.size - 2 * m
+        second = (phase[m : m + n] * -2.0 + phase[2 * m :]) + phase[:n]  # Riley, NIST SP 1065, eq. 11, optcal's order
+        total = 0.0
+        for a in range(0, n, ADEV_PIECE):
+            total += float(np.dot(second[a : a + ADEV_PIECE], second[a : a + ADEV_PIECE]))
+        assert adev[k] == np.sqrt(total / (2.0 * n)) / m * 100.0, f"m = {m}"

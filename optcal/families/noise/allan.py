@@ -80,11 +80,18 @@ FLICKER_FACTOR: float = math.sqrt(2.0 * math.log(2.0) / math.pi)
 NOISE_DENSITY_TAU_S: float = 1.0
 #: τ at which the rate random walk is read on the +1/2 line (IEEE Std 952).
 RRW_TAU_S: float = 3.0
-#: Phase points per piece of :func:`overlapping_adev`'s sums: its temporary (64 KiB) stays in the
-#: processor's cache, so each τ reads the phase once from memory instead of writing and reading a
-#: temporary of the log's length three times (2× faster on a 12-hour log; the sum is the same to
-#: rounding, about 1e-15 of σ).
+#: Phase points per piece of :func:`overlapping_adev`'s sums, each piece's sum of squares one dot product
+#: (the sum is the same as over the whole log to rounding, about 1e-15 of σ): the temporary of second
+#: differences stays in the processor's cache, so each τ reads the phase once from memory instead of
+#: writing and reading a temporary of the log's length three times (2× faster on a 12-hour log).
 ADEV_PIECE: int = 2**13
+#: Pieces of :data:`ADEV_PIECE` points whose second differences are formed in one pass (a 1 MiB
+#: temporary, within a core's second-level cache), each piece's sum still its own dot product (``np.vecdot``
+#: of the rows, as ``np.dot`` of each), added in order: σ is the same to the last bit as one piece at a time,
+#: with 16× fewer interpreter round trips per τ.  Speed only: on a 12-hour log at 100 Hz the 527 pieces per τ
+#: one at a time cost 0.11 s of CPU per axis, 16 at a time 0.08 s; 64 at a time (4 MiB, out of that cache)
+#: 0.10 s.
+ADEV_ROWS: int = 16
 #: Clusters used for noise identification at each τ: 2048 points give r1 to about ±0.02 (its standard error
 #: ~1/√n), ample to tell the integer α apart (steps of 1 in α are steps of 0.5 in δ).
 _NOISE_ID_MAX_POINTS: int = 2048
@@ -197,7 +204,8 @@ def overlapping_adev(phase: NDArray[np.float64], rate_hz: float, ms: ArrayLike) 
     σ²(mτ_0) = Σ_{i=1}^{N−2m} (x_{i+2m} − 2 x_{i+m} + x_i)² / (2 (N − 2m) (mτ_0)²), with x the
     phase (:func:`phase_from_rate`): the difference of two consecutive cluster means of the
     rate, each a difference of the cumulative sum.  The second differences are summed piece by
-    piece (:data:`ADEV_PIECE` points), in one small temporary.
+    piece (:data:`ADEV_PIECE` points), :data:`ADEV_ROWS` pieces at a time in one small temporary, and the
+    pieces' sums are added in order.
 
     Parameters
     ----------
@@ -218,19 +226,25 @@ def overlapping_adev(phase: NDArray[np.float64], rate_hz: float, ms: ArrayLike) 
     lengths = np.asarray(ms, dtype=int).reshape(-1)
     adev = np.empty(lengths.size)
     n_terms = np.empty(lengths.size, dtype=np.int64)
-    piece = np.empty(min(ADEV_PIECE, max(1, phase.size)))
+    piece = min(ADEV_PIECE, max(1, phase.size))
+    pieces = np.empty(piece * ADEV_ROWS)
     for i, m in enumerate(lengths):
         n = phase.size - 2 * int(m)
         if m < 1 or n < 1:
             raise InputError(f"a cluster of {m} samples needs at least {2 * m + 1} phase points, got {phase.size}")
         total = 0.0
-        for start in range(0, n, piece.size):
-            end = min(n, start + piece.size)
-            second = piece[: end - start]
+        for start in range(0, n, pieces.size):
+            end = min(n, start + pieces.size)
+            second = pieces[: end - start]
             np.multiply(phase[m + start : m + end], -2.0, out=second)  # Riley, NIST SP 1065, eq. 11: x_{i+2m} − 2 x_{i+m} + x_i
             second += phase[2 * m + start : 2 * m + end]
             second += phase[start:end]
-            total += float(np.dot(second, second))
+            whole = second.size - second.size % piece
+            rows = second[:whole].reshape(-1, piece)
+            for row_sum in np.vecdot(rows, rows).tolist():  # each row's dot product, as one piece's np.dot
+                total += row_sum
+            if whole < second.size:
+                total += float(np.dot(second[whole:], second[whole:]))
         adev[i] = np.sqrt(total / (2.0 * n)) / m * rate_hz
         n_terms[i] = n
     return adev, n_terms
