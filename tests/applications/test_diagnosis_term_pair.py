@@ -19,9 +19,10 @@ from tests.applications.test_diagnosis_small import planted_mikoff
 from tests.applications.test_diagnosis_step import MIKOFF_AT, check_step, drifted, stepped
 
 DRIFT_G = 8e-3  # over the log, on each drifted axis: named on any one axis alone (module docstring)
-#: A knock on y after rest 11: 3 mg is named alone; with the drift, 3-4 mg is still missed together (p 0.007 and
-#: 0.0024 against 0.00077, docs/diagnosis.md), 6 mg is named
-KNOCK_G = 6e-3
+#: Knocks on y after rest 11 (3 mg is named alone).  With the drift: 6 mg is named by Bonferroni over the search
+#: (p 0.00016 against 0.001); 4.5 mg only by the search's minP (exact p 2.0e-6, Bonferroni 0.0012, minP 0.00037;
+#: docs/diagnosis.md): 35 kinds of set and a knock's 17 positions share columns.  3.5 mg is still missed (minP 0.0016)
+KNOCK_G = (6e-3, 4.5e-3)
 
 
 @pytest.mark.parametrize("axes", [(0, 1), (0, 1, 2)])
@@ -49,22 +50,24 @@ def test_drifts_on_several_axes_are_named_together(shared_data: Path, tmp_path: 
         assert alone.findings == []
 
 
-def test_a_drift_and_a_knock_are_named_together(shared_data: Path, tmp_path: Path) -> None:
-    """An x drift of 8 mg over the log and a y knock of 6 mg after rest 11, each named alone (the drift at p 5e-6; a
-    knock of 3 mg at 0.0005, 4 mg at 5e-5, against 0.00125): together, the drift's one-term test has p 0.076, the
-    knock's 0.011, and nothing was named.  Searched together (the knock scanned given the drift, its positions paid by minP or
-    Bonferroni, the (term, knock axis) pairs by Bonferroni): both named, at their places, within 30 %."""
+@pytest.mark.parametrize("knock_g", KNOCK_G)
+def test_a_drift_and_a_knock_are_named_together(shared_data: Path, tmp_path: Path, knock_g: float) -> None:
+    """An x drift of 8 mg over the log and a y knock of 6 or 4.5 mg after rest 11, each named alone (the drift at p
+    5e-6; a knock of 3 mg at 0.0005, 4 mg at 5e-5, against 0.00125): together (6 mg), the drift's one-term test has
+    p 0.076, the knock's 0.011, and nothing was named.  Searched together (the knock scanned given the drift; the sets
+    and the knock's positions paid by Bonferroni, else by the search's minP): both named, at their places, within
+    30 % (40 % for the knock, :func:`check_step`).  4.5 mg was missed when the search paid Bonferroni's price."""
     path = shared_data / "mikoff-mpu9150" / "imu0.log"
     if not path.exists():
         pytest.skip("mikoff-mpu9150 recording absent")
     poses = stepped(drifted(planted_mikoff(tmp_path, path, None, 0, 0.0, "unplanted"), 0, DRIFT_G), MIKOFF_AT, 1,
-                    KNOCK_G)
+                    knock_g)
     diag = Diagnoser(DiagnosisSettings(simulations=0, folds=5)).run(poses)
     assert sorted((f.effect, f.axes[0]) for f in diag.findings) == [("bias_drift", "x"), ("bias_step", "y")]
     drift, knock = diag.finding("bias_drift"), diag.finding("bias_step")
     assert drift is not None and knock is not None
     assert drift.estimate["x"] == pytest.approx(DRIFT_G / float(poses.t[-1] - poses.t[0]), rel=0.3)
-    check_step(knock, "y", KNOCK_G, MIKOFF_AT)
+    check_step(knock, "y", knock_g, MIKOFF_AT)
     together = diag.steps[0].accepted
     assert together is not None and together.together == (("bias_drift", 0), ("bias_step", 1))
     assert together.step_at == MIKOFF_AT and together.p_value < together.threshold

@@ -30,7 +30,8 @@ correlation in time whitened (:func:`whitening`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -98,6 +99,13 @@ class NullDraws:
         :attr:`kept`."""
         return (X if self.whiten is None else self.whiten @ X)[self.kept]
 
+    def draw(self, rng: np.random.Generator, count: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``count`` more draws of this null model: standard normal weighted residuals ``z`` (rows of :attr:`model`,
+        ``count``) and their residual sums with :attr:`model` projected out (σ² = 1), as :attr:`z` and :attr:`rss0`
+        are drawn (draws made in blocks, :func:`sequential_p`)."""
+        z = rng.standard_normal((self.model.shape[0], count))
+        return z, np.sum((z - self.model @ (self.model.T @ z)) ** 2, axis=0)
+
     def residuals(self, fitter: Fitter, fit: Fit) -> NDArray[np.float64]:
         """``fit``'s weighted residuals as :attr:`z` stands for them (the observed counterpart of a draw)."""
         if self.whiten is None:
@@ -138,9 +146,9 @@ def null_draws(fitter: Fitter, fit: Fit, draws: int, seed: int = 0) -> NullDraws
         kept = np.ones(fitter.n, dtype=bool)
         G, J = fitter.jacobians(fit, fitter.w)
         model = orthonormal(W @ np.column_stack([G, mean_shift_columns(fitter.n, fit.outliers)]))
-    z = np.random.default_rng(seed).standard_normal((int(kept.sum()), draws))
-    rss0 = np.sum((z - model @ (model.T @ z)) ** 2, axis=0)  # the null model's residual sum, σ² = 1
-    return NullDraws(kept, J, model, z, rss0, W)
+    system = NullDraws(kept, J, model, np.zeros((model.shape[0], 0)), np.zeros(0), W)
+    z, rss0 = system.draw(np.random.default_rng(seed), draws)  # the null model's residual sum, σ² = 1
+    return replace(system, z=z, rss0=rss0)
 
 
 def uses_minp(fitter: Fitter, fit: Fit) -> bool:
@@ -201,3 +209,27 @@ def minp_level(fitter: Fitter, fit: Fit, candidates: list[tuple[str, int, int]],
             p = np.minimum(p, sps.f.sf(largest / q / ((rss0 - largest) / dof), q, dof))
     smallest = np.sort(p)
     return float(smallest[int(np.floor(alpha * DRAWS))])  # P(min p < level) ≤ α
+
+
+def sequential_p(system: NullDraws,
+                 smallest_p: Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]],
+                 observed: list[float], level: float, total: int, block: int, seed: int = 0) -> list[float]:
+    """Monte Carlo p values ``(1 + C)/(1 + L)`` of each of ``observed`` against the smallest p of a search in draws
+    of ``system`` (``smallest_p(z, rss0)``: one value per draw; ``C`` of the ``L`` draws made at most the observed).
+
+    Valid at any ``L`` (Davison & Hinkley 1997, eq. 4.11).  At most ``total`` draws, made in blocks of ``block``
+    (:meth:`NullDraws.draw`), stopped as soon as the smallest of ``observed`` is settled not significant at
+    ``level`` (``1 + C > level (1 + total)``: whatever the remaining draws show; Besag & Clifford 1991's sequential
+    p value, ``(1 + C)/(1 + draws made)``); every larger observed value is then settled too."""
+    rng = np.random.default_rng(seed)
+    least = observed.index(min(observed))
+    exceed = np.zeros(len(observed), dtype=int)
+    made = 0
+    while made < total:
+        z, rss0 = system.draw(rng, min(block, total - made))
+        p = smallest_p(z, rss0)
+        exceed += np.array([int(np.sum(p <= x)) for x in observed])
+        made += z.shape[1]
+        if 1 + int(exceed[least]) > level * (1 + total):
+            break
+    return [float((1 + c) / (1 + made)) for c in exceed]

@@ -20,32 +20,44 @@ test of all their coefficients (its scale the set's own residuals, which the oth
 the two knocks searched together
 (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.single_step_level`), set before the data are
 seen, so the step's false-finding rate stays at most its family-wise level.  The set's p value is Bonferroni's over
-every set searched: the term sets, and the (term, knock axis) pairs, each of the latter's exact p first adjusted for
-the knock's positions (:func:`positions_adjusted`).  **Every term needed given the others**: the set stands for
-several effects only if each term's test given the others passes at the set's level (a knock: its entry test given
-the term), so a strong term with a spare one is not named as two effects.
+everything searched (the term sets, and the (term, knock axis) pairs times the knock's positions); where that does not
+pass in a session of at most :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` kept poses, the search's own
+minP (:func:`search_smallest_p`: the distribution of the smallest p over every set and position in draws of the
+linearised null model at the current fit, :func:`~optcal.applications.diagnosis.familywise.null_draws`), its draws
+stopped once they settle the test at the level (:func:`search_minp`, as the two knocks' restricted search stops).
+Bonferroni pays for every set as if each were as likely as the best to reach the smallest p; the sets share columns (a
+term is in several sets, a knock's neighbouring positions share all but one pose), so the minP p is smaller: mikoff
+imu0, an 8 mg x drift and a 4.5 mg y knock after rest 11, exact p 2.0e-6, Bonferroni (35 kinds of set, a knock's
+share split over its 17 positions) 0.0012, minP 0.00037 against 0.001.
+
+**Every term needed given the others**: the set stands for several effects only if each term's test given the others
+passes at the set's level (a knock: its entry test given the term), so a strong term with a spare one is not named as
+two effects.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import stats as sps
 
 from optcal.applications.diagnosis.bias_step import DRAWS, StepScan, adjusted_p, scan_step, uses_minp_positions
 from optcal.applications.diagnosis.effects import BIAS_STEP, SESSION_BIAS
-from optcal.applications.diagnosis.familywise import NullDraws, null_draws
+from optcal.applications.diagnosis.familywise import NullDraws, null_draws, orthonormal, sequential_p
 from optcal.applications.diagnosis.fitting import MIN_DOF, Fit, Fitter
+from optcal.applications.diagnosis.pair_search import BLOCK_ELEMENTS
 from optcal.applications.diagnosis.problem import BETA_INDEX
 
 __all__ = ["TermPair", "pair_keys", "term_sets", "pair_count", "search_term_pair"]
 
 #: Sets fitted exactly, the best by the linearised test first: the linearisation at a fit without them can rank
 #: sets of nearly equal gain in another order than their exact fits; the Bonferroni p is valid for any set chosen
-#: (it bounds every set's test at once), so trying three costs no level, only three fits of the model.
+#: (it bounds every set's test at once), and so is the search's minP (it is the distribution of the smallest p over
+#: every set), so trying three costs no level, only three fits of the model.
 TRIED: int = 3
 
 
@@ -62,13 +74,16 @@ class TermPair:
     p_exact : float
         The F test of both coefficients against the current model.
     p_value : float
-        :attr:`p_exact` times :attr:`pairs` (Bonferroni over the pairs searched), at most 1.
+        :attr:`p_exact` adjusted for the search (:attr:`adjusted`): times :attr:`pairs` (and a knock's positions),
+        at most 1; or the search's minP p where it is computed (:func:`search_smallest_p`), at most that.
     pairs : int
-        The sets searched (the Bonferroni factor).
+        The kinds of set searched (the Bonferroni factor).
     p_each : float
         The largest of the terms' F tests, each given the others (every one needed: below the level).
     step_at : int or None
         For a term with a knock: the poses before the knock in time order (its axis is the second key's).
+    adjusted : str
+        How :attr:`p_value` was adjusted for the search: ``"Bonferroni"`` or ``"minP"``.
     """
 
     keys: tuple[tuple[str, int], ...]
@@ -78,6 +93,7 @@ class TermPair:
     pairs: int
     p_each: float
     step_at: int | None = None
+    adjusted: str = "Bonferroni"
 
 
 def pair_keys(term_cands: list[tuple[str, int, int]], current: Fit) -> list[tuple[str, int]]:
@@ -114,7 +130,8 @@ def search_term_pair(fitter: Fitter, current: Fit, term_cands: list[tuple[str, i
     """The set of :func:`term_sets`, or a term of :func:`pair_keys` with a knock of ``knock_axes`` at its best
     position given that term, whose columns explain most of ``current``'s residuals (linearised, each set's F p value
     with its own number of coefficients), fitted exactly and tested (module docstring): the first of the :data:`TRIED`
-    best whose Bonferroni p is below ``level`` with each term needed, else the one of the smallest Bonferroni p.
+    best whose p (Bonferroni's, else the search's minP, module docstring) is below ``level`` with each term needed,
+    else the one of the smallest p.
     ``single_fits``: the step's fits of ``current`` with each key alone (a knock is scanned given them,
     :func:`~optcal.applications.diagnosis.bias_step.scan_step`).  ``None`` when nothing can be searched."""
     keys = pair_keys(term_cands, current)
@@ -157,19 +174,42 @@ def search_term_pair(fitter: Fitter, current: Fit, term_cands: list[tuple[str, i
                 scored.append((linear_p(current.rss, gain, 2, dof), (key, (BIAS_STEP, axis)), scan))
     count = len(sets) + combos  # Bonferroni over the term sets and the (term, knock axis) pairs searched
     scored.sort(key=lambda item: item[0])
+    minp: list[Callable[[list[float]], list[float]]] = []  # the search's minP, set up once (only if needed)
     out: TermPair | None = None
-    null: list[NullDraws] = []  # the null model at current, drawn once (only if a knock is fitted exactly)
     for _, terms, scan in scored[:TRIED]:
-        if scan is not None and not null and uses_minp_positions(fitter, current):
-            null.append(null_draws(fitter, current, DRAWS))
         found = (exact(fitter, current, terms, count) if scan is None else
-                 exact_knock(fitter, current, terms[0], scan, (single_fits or {})[terms[0]], count,
-                             null[0] if null else None))
+                 exact_knock(fitter, current, terms[0], scan, (single_fits or {})[terms[0]], count))
+        # Bonferroni passes not: the search's own minP, never above it and never below the exact p, for a set it can
+        # make pass (its exact p and each term given the others below the level)
+        if (found.p_value >= level and max(found.p_exact, found.p_each) < level
+                and uses_minp_positions(fitter, current)):
+            if not minp:
+                minp.append(search_minp(fitter, current, keys, scored, level))
+            found = replace(found, p_value=min(found.p_value, minp[0]([found.p_exact])[0]), adjusted="minP")
         if max(found.p_value, found.p_each) < level:
             return found
         if out is None or found.p_value < out.p_value:
             out = found
     return out
+
+
+def search_minp(fitter: Fitter, current: Fit, keys: list[tuple[str, int]],
+                scored: list[tuple[float, tuple[tuple[str, int], ...], StepScan | None]], level: float
+                ) -> Callable[[list[float]], list[float]]:
+    """The search's minP adjusted p values of exact p values (:func:`search_smallest_p` over every set ``scored``):
+    :data:`~optcal.applications.diagnosis.bias_step.DRAWS` draws, as the one-knock minP takes (a draw costs the sets'
+    columns times the poses, a few hundred by 22 on mikoff: 40,000 draws in well under a second; about 40 of them
+    below a level of 0.001, so an adjusted p there is known to about ±16 %, where the pairs' 11,000 would leave it
+    ±30 % and the decision near the level to the seed), stopped once they settle the test at ``level``
+    (:func:`~optcal.applications.diagnosis.familywise.sequential_p`); blocks of
+    :data:`~optcal.applications.diagnosis.pair_search.BLOCK_ELEMENTS` over the sets' columns."""
+    system = null_draws(fitter, current, 0)
+    smallest = search_smallest_p(fitter, current, keys, [terms for _, terms, scan in scored if scan is None],
+                                 [(terms[0], scan) for _, terms, scan in scored if scan is not None], system)
+    columns = sum(scan.positions + 1 for _, _, scan in scored if scan is not None) + sum(
+        len(terms) for _, terms, scan in scored if scan is None)
+    block = max(1, BLOCK_ELEMENTS // max(columns, 1))
+    return lambda observed: sequential_p(system, smallest, observed, level, DRAWS, block)
 
 
 def linear_p(rss: float, gain: float, q: int, dof: int) -> float:
@@ -195,13 +235,13 @@ def exact(fitter: Fitter, current: Fit, terms: tuple[tuple[str, int], ...], sets
 
 
 def exact_knock(fitter: Fitter, current: Fit, key: tuple[str, int], scan: StepScan, alone: Fit,
-                sets: int, null: NullDraws | None) -> TermPair:
+                sets: int) -> TermPair:
     """The exact fit and tests of the term ``key`` and a knock of ``scan.axis`` at ``scan.at`` added to ``current``
     (the knock's offset as :meth:`~optcal.applications.diagnosis.selection.ForwardSelection.step_candidates` adds it).
 
-    Its p value: the exact F test of both, adjusted for the positions searched (:func:`positions_adjusted`), times
-    ``sets`` (Bonferroni).  The term needed given the knock (its F test), the knock given the term (its entry test:
-    :func:`~optcal.applications.diagnosis.bias_step.adjusted_p` at the term's fit)."""
+    Its p value: the exact F test of both times the positions searched and ``sets`` (Bonferroni; the search's minP,
+    :func:`search_smallest_p`, where that does not pass).  The term needed given the knock (its F test), the knock
+    given the term (its entry test: :func:`~optcal.applications.diagnosis.bias_step.adjusted_p` at the term's fit)."""
     full = dict(current.terms)
     full[key] = 1
     full[(BIAS_STEP, scan.axis)] = len(fitter.steps_at) + 1
@@ -212,40 +252,51 @@ def exact_knock(fitter: Fitter, current: Fit, key: tuple[str, int], scan: StepSc
     del less[key]
     p_term = fitter.f_test(fitter.fit(less, current.outliers, current.x, data), fit)
     p_knock, _ = adjusted_p(fitter, alone, scan, fitter.f_test(alone, fit))
-    p_set = positions_adjusted(fitter, current, key, scan, p_exact, fit.n_params - current.n_params, null)
-    return TermPair((key, (BIAS_STEP, scan.axis)), fit, p_exact, min(1.0, p_set * sets), sets,
+    return TermPair((key, (BIAS_STEP, scan.axis)), fit, p_exact, min(1.0, p_exact * scan.positions * sets), sets,
                     max(p_term, p_knock), scan.at)
 
 
-def positions_adjusted(fitter: Fitter, current: Fit, key: tuple[str, int], scan: StepScan, p_exact: float, q: int,
-                       null: NullDraws | None) -> float:
-    """The p value of a term and a knock at the best of ``scan``'s positions, adjusted for the positions searched.
-
-    Under the null (neither in the model) with :func:`~optcal.applications.diagnosis.familywise.null_draws` at
-    ``current`` (``null``; a session of at most :data:`~optcal.applications.diagnosis.bias_step.MINP_POSES` poses):
-    Westfall & Young's minP, the share of draws whose largest F statistic over the positions (the term's column and
-    the knock's at each position, projected off the fit's, ``q`` coefficients) reaches the one whose p is
-    ``p_exact``, as :func:`~optcal.applications.diagnosis.bias_step.adjusted_p` does for a knock alone.  Without
-    draws (a larger session), or where it is the smaller: Bonferroni over the positions."""
-    if null is None:
-        return min(1.0, p_exact * scan.positions)
-    dof = fitter.n - current.n_params - q
-    if dof <= 0:
-        return 1.0
+def search_smallest_p(fitter: Fitter, current: Fit, keys: list[tuple[str, int]],
+                      sets: list[tuple[tuple[str, int], ...]], knocks: list[tuple[tuple[str, int], StepScan]],
+                      system: NullDraws) -> Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]:
+    """The smallest p value of the whole search in draws of the null model at ``current`` (``system``,
+    :func:`~optcal.applications.diagnosis.familywise.null_draws`: no term of ``keys`` and no knock in the model):
+    over the term ``sets`` scored and, for each ``(term, knock scan)`` of ``knocks``, over the term with a knock at
+    each of the scan's positions.  Westfall & Young's single-step minP of the search (the family of
+    :func:`search_term_pair`), its draws' statistic formed as the search scores a set: the set's columns with the
+    fit's projected out, the fall of the residual sum in them, the F test with the set's own number of coefficients
+    (as :meth:`~optcal.applications.diagnosis.fitting.Fitter.f_test` forms it on the residuals' scale).  A draw's
+    smallest p over sets of ``q`` coefficients is that of their largest fall (one tail probability per ``q``)."""
     n = fitter.n
-    term = null.columns(null.J[:, [9 + BETA_INDEX[(key[0], key[1], 1)]]])
-    term = term - null.model @ (null.model.T @ term)
-    unit = term / max(float(np.linalg.norm(term)), 1e-300)
-    h = null.J[:, 6 + scan.axis]
-    steps = null.columns(np.stack([np.where(np.isin(np.arange(n), fitter.time_order[k:]), h, 0.0)
-                                   for k in scan.splits], axis=1))
-    steps = steps - null.model @ (null.model.T @ steps)
-    steps = steps - unit @ (unit.T @ steps)  # each position's knock column given the term's
-    steps = steps / np.maximum(np.linalg.norm(steps, axis=0), 1e-300)
-    gain = (unit.T @ null.z) ** 2 + (steps.T @ null.z) ** 2  # (positions, draws)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        largest = np.max(gain / q / ((null.rss0[None, :] - gain) / dof), axis=0)
-    critical = float(sps.f.isf(p_exact, q, dof))
-    # the minP p is at most Bonferroni's (the largest of the statistics reaches c at most as often as their sum of
-    # tails says): where the draws run out (their floor 1/(1 + DRAWS)), Bonferroni's bound is the sharper
-    return min(float((1 + np.sum(largest >= critical)) / (1 + DRAWS)), p_exact * scan.positions)
+    dof0 = n - current.n_params
+    cols = system.columns(system.J[:, [9 + BETA_INDEX[(e, a, 1)] for e, a in keys]])
+    cols = cols - system.model @ (system.model.T @ cols)  # Lu 2017, eq. 14's linearisation, as the search's
+    bases = [(len(terms), orthonormal(cols[:, [keys.index(k) for k in terms]])) for terms in sets]
+    knock_bases = []
+    for key, scan in knocks:
+        term = cols[:, [keys.index(key)]]
+        unit = term / max(float(np.linalg.norm(term)), 1e-300)
+        h = system.J[:, 6 + scan.axis]
+        steps = system.columns(np.stack([np.where(np.isin(np.arange(n), fitter.time_order[k:]), h, 0.0)
+                                         for k in scan.splits], axis=1))
+        steps = steps - system.model @ (system.model.T @ steps)
+        steps = steps - unit @ (unit.T @ steps)  # each position's knock column given the term's
+        knock_bases.append((unit, steps / np.maximum(np.linalg.norm(steps, axis=0), 1e-300)))
+
+    def smallest(z: NDArray[np.float64], rss0: NDArray[np.float64]) -> NDArray[np.float64]:
+        largest: dict[int, NDArray[np.float64]] = {}
+        for q, basis in bases:
+            gain = np.sum((basis.T @ z) ** 2, axis=0)
+            largest[q] = np.maximum(largest.get(q, gain), gain)
+        for unit, steps in knock_bases:  # the term's fall and the best position's knock given it
+            gain = (unit.T @ z)[0] ** 2 + np.max((steps.T @ z) ** 2, axis=0)
+            largest[2] = np.maximum(largest.get(2, gain), gain)
+        p = np.ones(z.shape[1])
+        for q, gain in largest.items():
+            if dof0 - q <= 0:
+                continue
+            with np.errstate(divide="ignore", invalid="ignore"):
+                p = np.minimum(p, sps.f.sf(gain / q / ((rss0 - gain) / (dof0 - q)), q, dof0 - q))
+        return p
+
+    return smallest
