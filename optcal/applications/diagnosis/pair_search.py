@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 
 from optcal.applications.diagnosis.bias_step import DRAWS, uses_minp_positions
 from optcal.applications.diagnosis.effects import STEP_MIN_SIDE
-from optcal.applications.diagnosis.familywise import NullDraws, null_draws
+from optcal.applications.diagnosis.familywise import NullDraws, null_draws, sequential_p
 from optcal.applications.diagnosis.fitting import Fit, Fitter
 from optcal.applications.diagnosis.step_pair import PairScan, f_p, scan_pair, valid_splits, with_null
 
@@ -328,21 +328,16 @@ def pair_adjusted_p(fitter: Fitter, fit: Fit, scan: PairScan, axes: list[int], p
     the restricted procedure's is never below it: its exact minP p is at most Bonferroni's)."""
     if uses_minp_positions(fitter, fit):
         return with_null(fitter, fit, scan, axes, null_draws(fitter, fit, DRAWS, seed)).adjusted(p_exact)
-    geo = PairGeometry.at(fitter, fit, axes)
+    system = null_draws(fitter, fit, 0)
+    geo = PairGeometry.at(fitter, fit, axes, system)
     bonferroni = min(1.0, p_exact * geo.family())
     if bonferroni <= level:  # the restricted minP p is never above Bonferroni's over every pair: no draw needed
         return bonferroni
     prepared = geo.diagonal()
     total = min(DRAWS, max(int(math.ceil((EXCEEDANCES + 1) / max(level, 1e-12))), 1))
-    rng = np.random.default_rng(seed)
-    rows = geo.model.shape[0]
-    exceed, made, size = 0, 0, _block(geo, total)
-    while made < total:
-        z = rng.standard_normal((rows, min(size, total - made)))
-        rss = np.sum((z - geo.model @ (geo.model.T @ z)) ** 2, axis=0)
-        p, _ = _restricted(geo, geo.scores(z), prepared, rss)
-        exceed += int(np.sum(p <= p_exact))
-        made += z.shape[1]
-        if 1 + exceed > level * (1 + total):  # not significant whatever the remaining draws show (Besag & Clifford)
-            break
-    return float((1 + exceed) / (1 + made))
+
+    def smallest(z: NDArray[np.float64], rss0: NDArray[np.float64]) -> NDArray[np.float64]:
+        return _restricted(geo, geo.scores(z), prepared, rss0)[0]
+
+    # stopped once not significant whatever the remaining draws show (Besag & Clifford)
+    return sequential_p(system, smallest, [p_exact], level, total, _block(geo, total), seed)[0]
