@@ -71,6 +71,12 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     # a sample at the converter's rail lies off the ellipsoid as surely as one the fit rejects: the same flag keeps it
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
                        keep_rail=accept_mag_fit)
+    if reference is not None:  # a unit decided from the data is checked against the field expected there
+        from dataclasses import replace
+
+        from optcal.families.mag.units import units_at_place
+
+        samples = replace(samples, units=units_at_place(samples.units, samples.m, reference.total_nT / 1000.0))
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
     for line in samples.decision_lines():

@@ -188,8 +188,14 @@ def parse_columns_option(columns: str | dict[str, str] | None) -> dict[str, str]
 
 
 def normalise_name(name: str) -> str:
-    """Lower case, every run of other characters than letters and digits one ``_``, none at the ends."""
-    return re.sub(r"[^0-9a-z]+", "_", str(name).lower()).strip("_")
+    """Lower case, every run of other characters than letters and digits one ``_``, none at the ends.
+
+    The micro sign (U+00B5) and the Greek mu (U+03BC) are written ``u`` first, as in ASCII unit words: phyphox's
+    ``Magnetic field x (µT)`` is ``magnetic_field_x_ut``, a name and its unit (before, ``µ`` was dropped and the
+    ``t`` left matched no unit word, so the column matched no magnetometer alias).
+    """
+    text = str(name).lower().replace("\u00b5", "u").replace("\u03bc", "u")
+    return re.sub(r"[^0-9a-z]+", "_", text).strip("_")
 
 
 def strip_unit(norm: str) -> tuple[str, str | None]:

@@ -128,12 +128,15 @@ def rail_samples(
     for axis in range(3):
         column = usable_column(axis)
         for extreme in (column.min(), column.max()):
+            if outward and (extreme - zero[axis]) * (1.0 if extreme == column.max() else -1.0) <= 0:
+                # on the zero's other side from the converter's full scale at this end, or at the zero itself: an
+                # unsigned converter's 0 (INTEGER_RAILS) read by a signed field's axis is a reading, not a rail
+                # (a 2-axis compass logged with its third axis 0; a hard iron that puts an axis's minimum at 0 counts)
+                continue
             if integer and any(extreme in rail for rail in INTEGER_RAILS):
                 sat |= usable & (x[:, axis] == extreme)
                 if levels is not None and float(abs(extreme - about[axis])) not in levels:
                     levels.append(float(abs(extreme - about[axis])))
-            elif outward and (extreme - zero[axis]) * (1.0 if extreme == column.max() else -1.0) <= 0:
-                continue  # on the zero's other side from the converter's full scale at this end
             elif abs(extreme - zero[axis]) >= min_distance and (
                     centre is None or abs(extreme - np.asarray(centre, float)[axis]) >= min_distance):
                 if min_run > 1 and _longest_run(usable & (x[:, axis] == extreme)) < min_run:

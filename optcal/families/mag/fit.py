@@ -559,6 +559,15 @@ def check_samples(samples: MagSamples, settings: MagSettings) -> None:
         raise InputError(f"the magnetometer samples hold one orientation only (they spread by {spread:.3g}, "
                          f"{100 * spread / max(size, 1e-300):.2g} % of |m| = {size:.4g}; a calibration needs the sensor turned "
                          f"through many orientations: optcal plan --sensor mag); --allow-degenerate fits anyway")
+    # an axis that reads one value in every sample while the others turn never saw the field turn (a 2-axis
+    # compass logged with a third column of zeros, a dead axis): no ellipsoid through such samples is determined
+    # (the sphere's normal equations are singular), whatever --allow-degenerate asks
+    dead = [f"m{a}" for a, c in zip("xyz", samples.m.T) if np.ptp(c) == 0.0]
+    if dead and spread > 0.0:
+        value = ", ".join(f"{k} = {samples.m[0, 'xyz'.index(k[1])]:.6g}" for k in dead)
+        raise InputError(f"the magnetometer's {', '.join(dead)} column reads one value in every sample ({value}) while "
+                         f"the others turn: a 2-axis compass's log or a dead axis, and a field in three axes cannot be "
+                         f"fitted to it; map three axes that measured the field with --columns mx=NAME,my=NAME,mz=NAME")
 
 
 def choose_form(samples: MagSamples, settings: MagSettings) -> MagFit:

@@ -113,6 +113,13 @@ def _match(names: list[str], aliases: dict[str, tuple[str, ...]]) -> tuple[dict[
     return found, words
 
 
+#: Why a file of two columns is refused: a 2-axis compass (jremington/magcal_2D's ``x,y``, a vehicle's flat compass)
+#: measures the field in its plane only; the ellipsoid of a 3-axis calibration needs the third axis.
+TWO_AXES: str = ("a 2-axis compass's log (the field in one plane), one axis short of the three a magnetometer "
+                 "calibration fits (optcal has no 2-D form yet); name a 3-axis log's columns with "
+                 "--columns mx=NAME,my=NAME,mz=NAME")
+
+
 def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], str | None]:
     """The magnetometer's three columns (``--columns`` first) and the unit word their names carry."""
     given = {k: v for k, v in mapping.items() if k in MAG}
@@ -124,6 +131,8 @@ def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, st
                 raise InputError(f"--columns {k}={v}: there is no column {v!r} (the file has: {', '.join(names)})")
     found, words = _match([n for n in names if n not in given.values()], MAG_ALIASES)
     cols = {**found, **given}
+    if set(cols) != set(MAG) and len(names) == 2:
+        raise InputError(f"the file has 2 columns ({', '.join(names)}): {TWO_AXES}")
     if set(cols) != set(MAG):
         raise InputError(f"no magnetometer columns (mx, my, mz or mag_x, magX, ...) among {', '.join(names)}; "
                          f"map them with --columns mx=NAME,my=NAME,mz=NAME")
@@ -193,6 +202,8 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     elif width in (4, 10):
         time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
+    if width == 2:
+        raise InputError(f"{path}: the file has no header row and 2 columns: {TWO_AXES}")
     if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
                          f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")

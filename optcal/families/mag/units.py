@@ -160,3 +160,47 @@ def decide_mag_units(m: NDArray[np.float64], stated: str | None, where: str, ove
                                    f"(within a factor {UNIT_TOLERANCE:g}) only in {guess}", median)
     return UnitDecision("counts", f"from the data: median |m| {median:.4g} is not the Earth's field in µT, nT, T, "
                                   f"gauss or mgauss, so the samples are read as counts (the field strength is then in counts)", median)
+
+
+
+#: Half the width (as a factor) of the band about the World Magnetic Model's field at the session's place in which
+#: the field's magnitude names its unit: √10, half a decade, so that units a decade or more apart (mgauss, µT, gauss)
+#: never share it.  A gain error or a site's steel moves the field by far less than a decade; it is judged afterwards
+#: by the comparison with the model, in the unit named here.
+PLACE_UNIT_BAND: float = float(np.sqrt(10.0))
+
+
+def units_at_place(decision: UnitDecision, m: NDArray[np.float64], field_ut: float) -> UnitDecision:
+    """Check a unit decided from the data against the World Magnetic Model's field at the place (``--location``).
+
+    Without a place the unit is the one in which the samples' magnitude is the Earth's 25-65 µT within a factor
+    :data:`UNIT_TOLERANCE` (:func:`decide_mag_units`), a band centred on 40 µT; with one, the field expected there
+    is known.  The unit in which the field's magnitude (:func:`sphere_radius`) is nearest the model's field (by
+    ratio) replaces the decision where it differs and lies within :data:`PLACE_UNIT_BAND` of it.  A unit given or
+    stated, samples that determine no sphere (a planar turn: their median holds the hard iron), and a magnitude
+    no unit puts within the band keep the decision (the comparison with the model then says how far it is).
+
+    Parameters
+    ----------
+    decision : UnitDecision
+        The decision from the samples (:func:`decide_mag_units`).
+    m : ndarray, shape (n, 3)
+        The raw samples.
+    field_ut : float
+        The model's total intensity at the place and date, µT.
+    """
+    if not decision.reason.startswith("from the data"):
+        return decision
+    radius = sphere_radius(m)
+    if radius is None or not field_ut > 0:
+        return decision
+    ratio = {u: abs(float(np.log(radius * k / field_ut))) for u, k in UT_PER_UNIT.items()}
+    unit = min(ratio, key=ratio.__getitem__)
+    if unit == decision.units or ratio[unit] > np.log(PLACE_UNIT_BAND):
+        return decision
+    k = UT_PER_UNIT.get(decision.units)
+    was = f"; in {decision.units} it would be {radius * k:.4g} µT" if k else ""
+    return UnitDecision(unit, f"from the data and the place: the field's magnitude {radius:.4g} (the radius of the "
+                              f"sphere through the samples) is {radius * UT_PER_UNIT[unit]:.4g} µT in {unit}, nearest "
+                              f"the World Magnetic Model's {field_ut:.4g} µT at --location of the units (within a "
+                              f"factor {PLACE_UNIT_BAND:.3g}){was}", decision.median_field)
