@@ -89,6 +89,14 @@ def _rms_below_band(diag: Diagnosis) -> bool:
     return band is not None and band.measured < band.band[0]
 
 
+def pose_noise_lines(diag: Diagnosis) -> list[str]:
+    """The pose-to-pose noise tested beside the per-pose σ (:mod:`optcal.applications.diagnosis.pose_noise`)."""
+    floor = diag.pose_noise
+    if floor is None or not floor.tested:
+        return []
+    return [f"   the poses' weights: {floor.reason}"]
+
+
 def noise_model_lines(diag: Diagnosis) -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
@@ -165,6 +173,7 @@ def diagnosis_report(diag: Diagnosis) -> str:
         f"   forward selection: F/likelihood-ratio test at family-wise level {settings.alpha:g} (Bonferroni over the "
         "candidates of each step), lower BIC, and lower held-out rms, all three required"
     )
+    lines += pose_noise_lines(diag)
     for k, step in enumerate(diag.steps, 1):
         best = sorted(step.candidates, key=lambda c: c.delta_bic)[:3]
         tried = "; ".join(f"{c.term} ΔBIC {c.delta_bic:+.1f}, p {c.p_value:.2g}" for c in best)
