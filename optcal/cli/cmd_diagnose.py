@@ -48,13 +48,13 @@ def diagnosis_options(func: Any) -> Any:
 
 def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
                   pose_correlation: str = "auto", calibration: dict[str, Any] | None = None,
-                  drop_unneeded: bool = True, term_pairs: bool = True) -> Any:
+                  drop_unneeded: bool = True, term_pairs: bool = True, pose_noise: str = "given") -> Any:
     """The :class:`~optcal.applications.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
     from optcal.applications.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
                              pose_correlation=pose_correlation, calibration=dict(calibration or {}),
-                             drop_unneeded=drop_unneeded, term_pairs=term_pairs)
+                             drop_unneeded=drop_unneeded, term_pairs=term_pairs, pose_noise=pose_noise)
 
 
 def progress_printer() -> Any:
@@ -74,6 +74,10 @@ def progress_printer() -> Any:
                    ".calib is set next to optcal's own fit of DATA (what each misses).")
 @click.option("--pose-correlation", type=click.Choice(["auto", "off", "on"]), default="auto", show_default=True,
               help="Pose noise correlated in time: used on evidence (auto), never (off: poses independent), or always (on).")
+@click.option("--pose-noise", type=click.Choice(["given", "auto", "floor"]), default="given", show_default=True,
+              help="The poses' weights: the per-pose σ as logged (given; a pose-to-pose noise beside it is still "
+                   "tested and reported), σ widened by a fitted pose-to-pose noise when the residuals show one "
+                   "(auto), or always (floor).")
 @click.option("--keep-terms", is_flag=True,
               help="Keep every term the forward selection accepted: no term is dropped when later ones make it "
                    "unneeded (the backward check; each drop is reported under its step).")
@@ -97,8 +101,8 @@ def progress_printer() -> Any:
 @report_options
 @solver_options
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
-             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, keep_terms: bool,
-             no_term_pairs: bool, sensor: str,
+             plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, pose_noise: str,
+             keep_terms: bool, no_term_pairs: bool, sensor: str,
              mag_units: str | None, imu: bool, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
@@ -145,7 +149,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     if imu and (len(data) != 1 or baseline_path):
         raise InputError("--imu diagnoses one raw recording with gyro columns: give one DATA, without --baseline")
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings,
-                             not keep_terms, not no_term_pairs)
+                             not keep_terms, not no_term_pairs, pose_noise)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
     reporter = progress_printer()

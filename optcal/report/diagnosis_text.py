@@ -72,6 +72,31 @@ def random_walk_lines(check: NoiseModelCheck) -> list[str]:
     return [f"      {check.random_walk.text()}"]
 
 
+def _sigma_line(check: NoiseModelCheck) -> str:
+    """What the reduced χ² of the given σ says when the noise model is not named: below 1 the pose means scatter
+    less than σ/√n predicts (said with the lower tail's p, ``1 − p_value``), which no "describes" may hide."""
+    if check.reduced_chi2 < 1.0:
+        return (f"   the noise model: the per-pose σ does not understate the scatter; it overstates it (reduced χ² "
+                f"{check.reduced_chi2:.3g}: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what it predicts, "
+                f"lower-tail p = {1.0 - check.p_value:.2g}); the selection's tests estimate the noise scale from the "
+                f"residuals and keep the σ's ratios as weights")
+    return f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})"
+
+
+def _rms_below_band(diag: Diagnosis) -> bool:
+    """The measured rms of the norm residuals lies below its simulated band (the given σ overstates the noise)."""
+    band = diag.simulation.statistics.get("rms_g")
+    return band is not None and band.measured < band.band[0]
+
+
+def pose_noise_lines(diag: Diagnosis) -> list[str]:
+    """The pose-to-pose noise tested beside the per-pose σ (:mod:`optcal.applications.diagnosis.pose_noise`)."""
+    floor = diag.pose_noise
+    if floor is None or not floor.tested:
+        return []
+    return [f"   the poses' weights: {floor.reason}"]
+
+
 def noise_model_lines(diag: Diagnosis) -> list[str]:
     """The noise-model explanation (never a finding), when the given σ understates the scatter."""
     check = diag.noise_model
@@ -83,8 +108,7 @@ def noise_model_lines(diag: Diagnosis) -> list[str]:
     if not check.named:
         if check.measured_route is None and not extra:
             return []
-        return [f"   the noise model: the per-pose σ describes the scatter (reduced χ² {check.reduced_chi2:.3g})",
-                *correlation_lines(check), *measured_noise_lines(check), *random_walk_lines(check)]
+        return [_sigma_line(check), *correlation_lines(check), *measured_noise_lines(check), *random_walk_lines(check)]
     unit = diag.poses.units
     lines = [
         f"   the noise model: the residuals are {np.sqrt(check.reduced_chi2):.3g}× what the per-pose σ predicts "
@@ -149,6 +173,7 @@ def diagnosis_report(diag: Diagnosis) -> str:
         f"   forward selection: F/likelihood-ratio test at family-wise level {settings.alpha:g} (Bonferroni over the "
         "candidates of each step), lower BIC, and lower held-out rms, all three required"
     )
+    lines += pose_noise_lines(diag)
     for k, step in enumerate(diag.steps, 1):
         best = sorted(step.candidates, key=lambda c: c.delta_bic)[:3]
         tried = "; ".join(f"{c.term} ΔBIC {c.delta_bic:+.1f}, p {c.p_value:.2g}" for c in best)
@@ -164,6 +189,13 @@ def diagnosis_report(diag: Diagnosis) -> str:
         if noise_named:
             lines.append("   none named: no candidate effect passes the tests and the excess scatter is explained by the "
                          "noise model (see 3); an effect below the detection limits (below) is not ruled out")
+        elif "rms_g" in diag.simulation.outside_band and _rms_below_band(diag):
+            # the scatter is smaller than σ/√n says: the given σ overstates the pose noise (a logger's σ taken over a
+            # ringing or vibrating rest); no effect is missing, and the selection's tests estimate the scale anyway
+            lines.append(
+                "   none: the paper's model explains these data (no candidate passes the tests); the residuals are "
+                "smaller than the given per-pose noise predicts (see 2): σ/√n overstates the scatter of the pose means"
+            )
         elif "rms_g" in diag.simulation.outside_band:
             lines.append(
                 "   none: no candidate effect passes the tests, although the residuals are larger than the given "

@@ -27,6 +27,7 @@ from optcal.applications.diagnosis.effects import BIAS_STEP, FITTED, SESSION_BIA
 from optcal.applications.diagnosis.findings import build_findings
 from optcal.applications.diagnosis.fitting import MIN_DOF, MIN_DOF_MEASURED, Fit, Fitter, measured_scale2
 from optcal.applications.diagnosis.noise_model import check_noise_model, pose_correlation
+from optcal.applications.diagnosis.pose_noise import POSE_NOISE_CHOICES, pose_noise_floor, with_floor
 from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.applications.diagnosis.progress import Progress
 from optcal.applications.diagnosis.regressors import Regressors
@@ -107,11 +108,14 @@ class DiagnosisSettings:
     calibration: dict[str, Any] = field(default_factory=dict, hash=False)
     drop_unneeded: bool = True
     term_pairs: bool = True
+    pose_noise: str = "given"
 
     def __post_init__(self) -> None:
         if self.pose_correlation not in POSE_CORRELATION_CHOICES:
             raise InputError(f"pose_correlation must be one of {', '.join(POSE_CORRELATION_CHOICES)}, "
                              f"got {self.pose_correlation!r}")
+        if self.pose_noise not in POSE_NOISE_CHOICES:
+            raise InputError(f"pose_noise must be one of {', '.join(POSE_NOISE_CHOICES)}, got {self.pose_noise!r}")
         if not 0 < self.alpha < 1:
             raise InputError(f"alpha must be between 0 and 1, got {self.alpha}")
         if not 0 < self.band < 1:
@@ -131,7 +135,8 @@ class DiagnosisSettings:
                     self.effects if isinstance(self.effects, str) else ",".join(self.effects)),
                 # said only when the backward check is off (--keep-terms): the default's record is unchanged
                 **({} if self.drop_unneeded else {"drop_unneeded": False}),
-                **({} if self.term_pairs else {"term_pairs": False})}
+                **({} if self.term_pairs else {"term_pairs": False}),
+                **({} if self.pose_noise == "given" else {"pose_noise": self.pose_noise})}
 
 
 #: Why a bias step is not searched when several sessions are diagnosed together.
@@ -284,10 +289,16 @@ class Diagnoser:
         T, o, source = self.start(poses, baseline)
         loop = self.reporter.loop
         fitter = Fitter(poses, reg, T, o, s.folds, loop)
+        base = fitter.fit({}, frozenset(), fitter.x_start)
+        # whether the σ's ratios describe the poses' scatter; when a pose-to-pose noise does, every pose's σ is widened
+        floor = pose_noise_floor(fitter, base, s.alpha, s.pose_noise)
+        if floor.used:
+            poses = with_floor(poses, floor)
+            fitter = Fitter(poses, reg, T, o, s.folds, loop)
+            base = fitter.fit({}, frozenset(), base.x)
         # the noise of the pose means measured in the rests: a small session is tested from 1 residual degree of freedom
         fitter.measured_scale2 = measured_scale2(poses, fitter.w_mean, None if measured is None else measured.sigma)
         given = fitter.evaluate(fitter.x_start)
-        base = fitter.fit({}, frozenset(), fitter.x_start)
         correlation = pose_correlation(fitter, base, s.alpha, measured, s.pose_correlation)
         if correlation.used:  # the tests, standard errors and limits under the correlated pose noise
             fitter.correlation = correlation.operator
@@ -337,7 +348,7 @@ class Diagnoser:
             findings=findings, decisions=selection.decisions, model=model, fitted_directions=d,
             given_rms_g=rms(given.residuals), detection_limits=limits, outlier_limit=pose_limit, noise_model=noise,
             sessions=stack, baseline_model=fitter.model(base).base, step=fitter.data.step,
-            dropped=selection.dropped,
+            dropped=selection.dropped, pose_noise=floor,
         )
         self.progress("testing a bias that wanders in time (a random walk)")
         noise.random_walk = self.random_walk(diagnosis, s.alpha, noise.measured_understated_by, measured)

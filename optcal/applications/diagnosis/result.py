@@ -15,6 +15,7 @@ from optcal.applications.diagnosis.findings import Finding
 from optcal.applications.diagnosis.fitting import BASELINE_MODEL, Fit
 from optcal.applications.diagnosis.limits import DetectionLimit, OutlierLimit
 from optcal.applications.diagnosis.noise_model import NoiseModelCheck
+from optcal.applications.diagnosis.pose_noise import PoseNoiseFloor
 from optcal.applications.diagnosis.regressors import Regressors
 from optcal.applications.diagnosis.backward import Dropped
 from optcal.applications.diagnosis.acceptance import TemperatureTimeDecision
@@ -80,6 +81,9 @@ class Diagnosis:
     dropped : list of Dropped
         Terms accepted by the forward selection and dropped once later terms made them unneeded
         (:meth:`~optcal.applications.diagnosis.selection.ForwardSelection.backward_check`).
+    pose_noise : PoseNoiseFloor or None
+        The pose-to-pose noise tested beside the per-pose σ (:mod:`optcal.applications.diagnosis.pose_noise`);
+        when used, ``poses.sigma`` is the widened σ the diagnosis weighed the poses by.
     """
 
     poses: PoseTable
@@ -109,6 +113,7 @@ class Diagnosis:
     peer: Any = None
     step: NDArray[np.float64] | None = None
     dropped: list[Dropped] = field(default_factory=list)
+    pose_noise: PoseNoiseFloor | None = None
 
     @property
     def n(self) -> int:
@@ -233,6 +238,7 @@ class Diagnosis:
             "detection_limits": [lim.to_dict() for lim in self.detection_limits],
             "outlier_limit": None if self.outlier_limit is None else self.outlier_limit.to_dict(),
             "noise_model": None if self.noise_model is None else self.noise_model.to_dict(),
+            "pose_noise": None if self.pose_noise is None else self.pose_noise.to_dict(),
             "sessions": None if self.sessions is None else {
                 "names": list(self.sessions.names), "poses": self.sessions.counts(),
                 "time_origins_s": list(self.sessions.time_origins),
