@@ -13,7 +13,8 @@ Model: the norm residual of pose ``k`` has variance ``g_k² (λ σ_k² + τ²)``
 (the Fitter's ``w_k`` holds ``1/(g_k σ_k)²``), ``λ`` a common factor on the logger's σ, ``τ`` a pose-to-pose noise
 in raw units.  ``λ`` and ``τ²`` are estimated by maximum likelihood on the baseline's residuals, each residual's
 variance reduced by its leverage ``(1 − h_k)`` (the fit absorbs part of a heavy pose's error; without it the
-heaviest poses' small residuals would vouch for their own weight), refitting with the new weights twice.  ``τ² = 0``
+heaviest poses' small residuals would vouch for their own weight), on the σ-weighted baseline without refitting
+(:data:`REFITS`).  ``τ² = 0``
 (σ alone) is tested by the likelihood ratio, ``τ² ≥ 0`` on its boundary: ``p = ½ P(χ²₁ > LR)`` (Self & Liang
 1987).  Used when ``p < alpha`` (the diagnosis' level) **and** the weights it gives change the fit (relevance):
 the ratio of the largest to the smallest pose weight changes by more than :data:`RELEVANT_RATIO`.  Each pose's
@@ -36,8 +37,8 @@ from optcal.core.poses import PoseTable
 
 #: The choices of ``pose_noise`` (``optcal diagnose --pose-noise``).
 POSE_NOISE_CHOICES: tuple[str, ...] = ("auto", "given", "floor")
-#: Refits of the baseline with the estimated weights (the residuals of the σ-weighted fit lean towards its
-#: heaviest poses; two refits settle ``τ`` to a few per cent on the recordings measured).
+#: Refits of the baseline with the estimated weights before the test: none.  Refitting first made the test
+#: its own evidence (21 of 200 generated sessions with an exact σ rejected at 0.02; 3 of 200 without).
 REFITS: int = 0
 #: Relevance: the floor is used only when it changes the spread of the pose weights (largest over smallest) by
 #: more than this factor; below it the weights, and so every test and estimate, stay within a few per cent of
