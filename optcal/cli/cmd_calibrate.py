@@ -12,6 +12,7 @@ from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 from optcal.cli.quiet import quiet_option
+from optcal.cli.mag_options import accept_mag_fit_option
 
 
 @click.command()
@@ -42,7 +43,7 @@ from optcal.cli.quiet import quiet_option
               help="--sensor mag: the model (hard iron only, with axis scales, or full soft iron); auto by evidence.")
 @click.option("--mag-units", default=None, metavar="UNIT",
               help="--sensor mag: units of the magnetometer (uT, nT, gauss, mgauss, counts); default from the file or the data.")
-@click.option("--accept-mag-fit", is_flag=True, help="--sensor mag: keep samples that do not lie on an ellipsoid (and those at the converter's rail).")
+@accept_mag_fit_option
 @click.option("--location", default=None, metavar="LAT,LON[,ALT]",
               help="--sensor mag: where the session was recorded (degrees, degrees, metres above the WGS-84 ellipsoid): "
                    "the field strength and dip are compared with the World Magnetic Model (extra 'mag', pygeomag).")

@@ -111,17 +111,19 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         click.echo(f"saved to {output}")
 
 
-def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None) -> None:
+def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None,
+              accept_mag_fit: bool = False) -> None:
     """``optcal apply mag.json DATA -o OUT``: the magnetometer's samples calibrated, in the calibration's units.
 
     Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
-    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted.
+    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted, and so are
+    those at the converter's rail (``--accept-mag-fit`` keeps them).
     """
     from optcal.cli.outputs import output_file
     from optcal.errors import InputError
     from optcal.families.mag.samples import read_mag
 
-    samples = read_mag(data, columns=columns, topic=topic)
+    samples = read_mag(data, columns=columns, topic=topic, keep_rail=accept_mag_fit)
     if samples.units.units != cal.units:
         raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
                          f"is in {cal.units}: apply it to samples in {cal.units}")

@@ -281,7 +281,7 @@ def rail_line(levels: list[float], units: str, n_rail: int, n: int) -> str:
     """The one line that says the rail: its level(s), the samples held there, and the flag that keeps them."""
     at = ", ".join(f"±{v:.7g}" for v in levels) or "a 16-bit converter's full scale"
     return (f"magnetometer rail: {n_rail} of {n} samples ({100 * n_rail / max(n, 1):.3g} %) hold an axis at {at} "
-            f"{units}, the converter's full scale (the field beyond it unknown): left out; calibrate --accept-mag-fit "
+            f"{units}, the converter's full scale (the field beyond it unknown): left out; --accept-mag-fit "
             f"keeps them")
 
 
@@ -304,7 +304,7 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
         n_rail, n = int(rail.sum()), int(finite.sum())
         if n_rail == n:
             raise InputError(f"{path}: {rail_line(levels, units.units, n_rail, n).split(': ', 1)[1].split(': left')[0]}; "
-                             f"none is left: the magnetometer measured no field in its range; calibrate --accept-mag-fit "
+                             f"none is left: the magnetometer measured no field in its range; --accept-mag-fit "
                              f"keeps them")
         exclusions[MAG_RAIL_ROWS] = n_rail
         finite &= ~rail
