@@ -607,8 +607,36 @@ def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None,
                   notes, keep_rail)
 
 
+#: Exclusion reason of the rows a logger repeated until the magnetometer's next update (:mod:`optcal.data.held_samples`).
+HELD_ROWS = "magnetometer rows repeating its last update (a slower magnetometer in a faster log)"
+#: Exclusion reason of a held log's rows between two updates that hold axes of both (a torn copy).
+TORN_ROWS = "magnetometer rows holding axes of two updates (a logger's torn copy between them)"
+
+
+def drop_held(samples: MagSamples, keep: bool = False) -> MagSamples:
+    """``samples`` with one row per magnetometer update where the logger repeated each value until the next
+    (:func:`optcal.data.held_samples.held_runs`), the repeats counted and said; with ``keep`` every row, said."""
+    from dataclasses import replace
+
+    from optcal.data.held_samples import held_runs
+
+    held = held_runs(samples.m)
+    if held is None:
+        return samples
+    note = held.describe("magnetometer", "--keep-mag-repeats", kept=keep)
+    if keep:
+        return replace(samples, notes=[*samples.notes, note])
+    rows = held.first
+    torn = {TORN_ROWS: int(held.torn.size)} if held.torn.size else {}
+    pick = (lambda a: None if a is None else a[rows])
+    return replace(samples, m=np.ascontiguousarray(samples.m[rows]), acc=pick(samples.acc), gyro=pick(samples.gyro),
+                   t=pick(samples.t), temp=pick(samples.temp), current=pick(samples.current),
+                   throttle=pick(samples.throttle), exclusions={**samples.exclusions, HELD_ROWS: held.n_repeats, **torn},
+                   notes=[*samples.notes, note])
+
+
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
-             mag_units: str | None = None, keep_rail: bool = False) -> MagSamples:
+             mag_units: str | None = None, keep_rail: bool = False, keep_repeats: bool = False) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
 
     Parameters
@@ -623,16 +651,23 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
         The units (``--mag-units``), instead of the file's word or the decision from the magnitude.
     keep_rail : bool
         Keep the samples with an axis at the converter's rail (:func:`mag_rail`; left out and counted by default).
+    keep_repeats : bool
+        Keep every row where the logger repeats each magnetometer value until its next update (:func:`drop_held`;
+        by default one row per update, the repeats counted).
 
     Raises
     ------
     InputError
         No magnetometer found, or a file optcal cannot read.
     """
+    return drop_held(_read_any_mag(str(path), columns, topic, mag_units, keep_rail), keep_repeats)
+
+
+def _read_any_mag(p: str, columns: str | dict[str, str] | None, topic: str | None, mag_units: str | None,
+                  keep_rail: bool) -> MagSamples:
     from optcal.data.containers import container_type
     from optcal.data.readers import detect_file_type
 
-    p = str(path)
     if not Path(p).exists():
         raise InputError(f"{p}: no such file")
     kind = detect_file_type(p)
