@@ -7,6 +7,7 @@ import click
 from optcal.cli.data_options import DATA_PATH
 from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.quiet import quiet_option
+from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 
 
 @click.command()
@@ -28,11 +29,12 @@ from optcal.cli.quiet import quiet_option
 @click.option("--gyro-file", type=click.Path(dir_okay=False), default=None, metavar="PATH",
               help="The gyroscope's samples in a second text file (t gx gy gz: imu_tk's layout), interpolated onto "
                    "DATA's times; an imu calibration writes them calibrated after DATA's columns.")
+@mag_read_options
 @peer_options
 @quiet_option
 def apply(calibration: str, data: str, output: str, units_out: str, data_units: str | None, columns: str | None,
-          topic: str | None, rate: float | None, data_format: str, gyro_file: str | None, peer_gravity: float | None,
-          gyro_calib: str | None) -> None:
+          topic: str | None, rate: float | None, data_format: str, gyro_file: str | None, accept_mag_fit: bool,
+          keep_mag_repeats: bool, peer_gravity: float | None, gyro_calib: str | None) -> None:
     """Correct every row of DATA with the calibration CAL (any cal_type) and write it to OUT.
 
     Time and every other column pass through unchanged; the accelerations are replaced by the
@@ -54,7 +56,9 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     if cal.cal_type == "magnetometer":  # its samples are mx, my, mz, read by the magnetometer's reader
         from optcal.cli.cmd_mag import apply_mag
 
-        return apply_mag(cal, calibration, data, output, columns, topic)
+        return apply_mag(cal, calibration, data, output, columns, topic, accept_mag_fit, keep_mag_repeats)
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats,
+                       "to a magnetometer calibration (CAL's cal_type is magnetometer)")
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
         applied = apply_to_file(cal, data, options, units_out=units_out)
     from optcal.cli.outputs import output_file

@@ -12,6 +12,7 @@ from optcal.cli.outputs import echo_json
 from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.quiet import quiet_option
+from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 
 
 @click.command()
@@ -21,12 +22,14 @@ from optcal.cli.quiet import quiet_option
 @click.option("--method", type=click.Choice(["default", "mle", "convex", "svd", "exact", "gd"]), default="default",
               show_default=True,
               help="CAL from imucal or imu_tk: optcal's own calibration of DATA, shown next to it, by this method.")
+@mag_read_options
 @peer_options
 @report_options
 @data_options
 @quiet_option
-def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity: float | None, gyro_calib: str | None,
-          report_path: str | None, tolerance: float, **data_opts: Any) -> None:
+def check(calibration: str, data: str, as_json: bool, method: str, accept_mag_fit: bool, keep_mag_repeats: bool,
+          peer_gravity: float | None,
+          gyro_calib: str | None, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.
 
     DATA is a pose table or a raw recording (its static intervals are found as by
@@ -41,7 +44,9 @@ def check(calibration: str, data: str, as_json: bool, method: str, peer_gravity:
 
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
     if cal.cal_type == "magnetometer":
-        return _check_mag(cal, calibration, data, as_json, data_opts)
+        return _check_mag(cal, calibration, data, as_json, data_opts, accept_mag_fit, keep_mag_repeats)
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats,
+                       "to a magnetometer calibration (CAL's cal_type is magnetometer)")
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     # an imu (or a peer's gyro) calibration also needs DATA's segmentation (its moves): the file is read once, with it
     with_gyro = cal.cal_type == "imu" or bool(getattr(cal, "has_gyro", False))
@@ -151,7 +156,8 @@ def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any
                                           "angles_deg_after": np.round(result.angles_after_deg, 6).tolist()}}
 
 
-def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: dict[str, Any]) -> None:
+def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: dict[str, Any],
+               accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
     """A magnetometer calibration on DATA's magnetometer samples: the norm residual ``|T(m − o)| − 1`` (rms, and the
     field's strength the data read through it against the calibration's)."""
     import numpy as np
@@ -159,7 +165,8 @@ def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: 
     from optcal.cli.outputs import echo_json
     from optcal.families.mag.samples import read_mag
 
-    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=cal.units)
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=cal.units,
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
     norm = np.linalg.norm(cal.correct(samples.m), axis=1)
     rms = float(np.sqrt(np.mean((norm - 1.0) ** 2)))
     out = {"sensor": "magnetometer", "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units},

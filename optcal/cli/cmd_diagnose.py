@@ -11,6 +11,7 @@ from optcal.cli.data_options import DATA_PATH, data_options
 from optcal.cli.peer_options import load_calibration, peer_options
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
+from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 from optcal.applications.diagnosis.effects import VOCABULARY
 
 EFFECTS_HELP = (
@@ -89,6 +90,7 @@ def progress_printer() -> Any:
                    "magnetometer (raw samples mx, my, mz: a local disturbance, a temperature or current column).")
 @click.option("--mag-units", type=click.Choice(["uT", "nT", "gauss", "mgauss", "counts"]), default=None,
               help="--sensor mag: units of the magnetometer (default from the file or the data).")
+@mag_read_options
 @click.option("--imu", is_flag=True,
               help="Diagnose the gyroscope too (a raw recording with gyro columns): its gravity prediction across the "
                    "moves against its noise band, g_sensitivity, gyro_scale_nonlinearity, gyro_temperature_bias, "
@@ -103,7 +105,7 @@ def progress_printer() -> Any:
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, pose_noise: str,
              keep_terms: bool, no_term_pairs: bool, sensor: str,
-             mag_units: str | None, imu: bool, as_json: bool,
+             mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, imu: bool, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
@@ -139,9 +141,11 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     if sensor == "mag":
         if imu or baseline_path or len(data) != 1:
             raise InputError("--sensor mag diagnoses one magnetometer recording: one DATA, without --imu or --baseline")
-        return _diagnose_mag(data[0], alpha, as_json, output, data_opts, mag_units)
+        return _diagnose_mag(data[0], alpha, as_json, output, data_opts, mag_units, accept_mag_fit,
+                             keep_mag_repeats)
     if mag_units is not None:
         raise InputError("--mag-units applies with --sensor mag")
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, "with --sensor mag")
     fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
     if fit_settings and baseline_path:
         raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
@@ -251,7 +255,7 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
 
 
 def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, data_opts: dict[str, Any],
-                  mag_units: str | None) -> None:
+                  mag_units: str | None, accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
     """``optcal diagnose DATA --sensor mag`` (:mod:`optcal.applications.magnetic.diagnosis`): the plain calibration,
     then its diagnosis; ``-o`` saves the extended calibration (the disturbed stretches left out)."""
     import numpy as np
@@ -261,12 +265,15 @@ def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, da
     from optcal.families.mag.calibration import MagCalibration, calibrate_mag
     from optcal.families.mag.samples import read_mag
 
-    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units)
+    from optcal.families.mag.fit import MagSettings
+
+    samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
     for line in samples.decision_lines():
         say(line)
-    plain = calibrate_mag(samples)
+    plain = calibrate_mag(samples, MagSettings(accept_fit=accept_mag_fit))
     diag = diagnose_mag(samples, plain, alpha=alpha, gyro_units=data_opts.get("gyro_units"))
     ext = diag.extended
     T = np.asarray(ext["T"], dtype=float)

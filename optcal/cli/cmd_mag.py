@@ -13,13 +13,14 @@ import click
 import numpy as np
 
 
-def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool) -> bool:
+def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool = False) -> bool:
     """Whether a magnetometer option was given (refused without ``--sensor mag``)."""
-    return mag_form != "auto" or mag_units is not None or accept_mag_fit
+    return mag_form != "auto" or mag_units is not None or accept_mag_fit or keep_mag_repeats
 
 
 def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
                           loss: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
+                          keep_mag_repeats: bool,
                           solver_opts: dict[str, Any], data_opts: dict[str, Any], location: str | None = None,
                           session_date: str | None = None, report_path: str | None = None) -> None:
     """Read, fit and report (module docstring).
@@ -37,7 +38,9 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     mag_units : str, optional
         ``--mag-units``.
     accept_mag_fit : bool
-        Keep samples that do not lie on an ellipsoid.
+        Keep samples that do not lie on an ellipsoid (and those at the converter's rail).
+    keep_mag_repeats : bool
+        Keep every row where the logger repeats each magnetometer value until its next update.
     solver_opts, data_opts : dict
         The solver options and the DATA options (``--columns``, ``--topic``; the rest detection's do not apply).
     location, session_date : str, optional
@@ -70,7 +73,7 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         reference = wmm_reference(place, day)
     # a sample at the converter's rail lies off the ellipsoid as surely as one the fit rejects: the same flag keeps it
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
-                       keep_rail=accept_mag_fit)
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
     if reference is not None:  # a unit decided from the data is checked against the field expected there
         from dataclasses import replace
 
@@ -111,17 +114,19 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         click.echo(f"saved to {output}")
 
 
-def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None) -> None:
+def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None,
+              accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
     """``optcal apply mag.json DATA -o OUT``: the magnetometer's samples calibrated, in the calibration's units.
 
     Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
-    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted.
+    the calibration's field) for every finite row of DATA; rows with a non-finite value are counted, and so are
+    those at the converter's rail (``--accept-mag-fit`` keeps them).
     """
     from optcal.cli.outputs import output_file
     from optcal.errors import InputError
     from optcal.families.mag.samples import read_mag
 
-    samples = read_mag(data, columns=columns, topic=topic)
+    samples = read_mag(data, columns=columns, topic=topic, keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
     if samples.units.units != cal.units:
         raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
                          f"is in {cal.units}: apply it to samples in {cal.units}")

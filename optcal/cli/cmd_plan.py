@@ -10,6 +10,7 @@ from optcal.cli.data_options import DATA_PATH, data_line, data_options, data_sum
 from optcal.cli.outputs import echo_json
 from optcal.cli.report_option import check_report_path, command_line, write_report
 from optcal.cli.quiet import quiet_option
+from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 
 
 
@@ -59,13 +60,14 @@ MAX_SIGMA = 1e150
               callback=check_report_path,
               help="Write the plan as a self-contained HTML page: the poses as a sphere map and a table to follow, "
                    "the criterion, the expected standard errors.")
+@mag_read_options
 @data_options
 @quiet_option
 def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str, prior: str | None, sigma: float | None,
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
          given_data: str | None, target_stderr: float | None, grid: int, seed: int, solver: str | None,
          solver_option: tuple[str, ...], as_json: bool, plot: str | None, report_path: str | None,
-         **data_opts: Any) -> None:
+         accept_mag_fit: bool, keep_mag_repeats: bool, **data_opts: Any) -> None:
     """Plan calibration poses before taking them (optimal experiment design for the lumped model).
 
     --poses K: the K orientations that determine the nine parameters best (convex relaxation
@@ -87,8 +89,9 @@ def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str
         if used:
             raise InputError(f"{', '.join(used)} plan the accelerometer's poses; --sensor mag plans the field directions "
                              "a magnetometer session still needs: drop them")
-        _plan_mag(n_poses, next_data, as_json, data_opts)
+        _plan_mag(n_poses, next_data, as_json, data_opts, accept_mag_fit, keep_mag_repeats)
         return
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, "with --sensor mag")
     if next_data is not None and given_data is not None:
         raise InputError("--next DATA already gives the poses taken; drop --given")
     if turntable and candidates_file:
@@ -158,7 +161,8 @@ def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str
         click.echo(f"figure: {plot}")
 
 
-def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_opts: dict[str, Any]) -> None:
+def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_opts: dict[str, Any],
+              accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
     """``plan --sensor mag``: the missing field directions of DATA's calibrated samples, or the first K of the 26."""
     from optcal.errors import InputError
     from optcal.families.mag.calibration import calibrate_mag
@@ -168,14 +172,16 @@ def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_op
 
     cov = None
     if next_data is not None:
-        samples = read_mag(next_data, columns=data_opts.get("columns"), topic=data_opts.get("topic"))
+        samples = read_mag(next_data, columns=data_opts.get("columns"), topic=data_opts.get("topic"),
+                           keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
         if not as_json:
             click.echo(f"data: {next_data}: {samples.n} magnetometer samples")
             for line in samples.decision_lines():
                 click.echo(line)
         # the hard iron only: a session that misses part of the sphere (what is planned for) does not determine the
         # soft iron, and the directions from the field's centre are what coverage asks
-        cal = calibrate_mag(samples, MagSettings(form="offsets", allow_degenerate=True)).calibration
+        cal = calibrate_mag(samples, MagSettings(form="offsets", allow_degenerate=True,
+                                                 accept_fit=accept_mag_fit)).calibration
         cov = coverage(cal.correct(samples.m))
         planned = plan_coverage(cov)
     else:

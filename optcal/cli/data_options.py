@@ -39,6 +39,7 @@ DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
     "min_independent", "gyro_units", "keep_touches", "keep_spins", "keep_gyro_rail", "gyro_range",
+    "keep_unhealthy", "keep_clipped",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -70,6 +71,13 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                  help="Keep the gyro's samples at a saturation rail (by default they are counted, enter no rest, and "
                       "the moves holding them are left out of the gyro's fit and diagnosis: a clipped rate misses "
                       "part of the turn)."),
+    click.option("--keep-unhealthy", is_flag=True, default=None,
+                 help="Keep the rows an ArduPilot log flags unhealthy (AH=0: the accelerometer, GH=0: the gyro; by "
+                      "default they are left out and counted, as ArduPilot left them out of its own use)."),
+    click.option("--keep-clipped", is_flag=True, default=None,
+                 help="Keep the samples a log's own clip flags mark (ArduPilot's VIBE.Clip rises, PX4's clip "
+                      "counters; by default they are counted as saturated and enter no rest); rails in the values "
+                      "are still sought."),
     click.option("--gyro-range", type=_POSITIVE, default=None, metavar="DPS",
                  help="The gyro's full scale, ±°/s (e.g. 2000): where its unit is not known (counts), a saturation "
                       "rail is sought beyond 75/DPS of its largest reading, the most a rest reads (by default beyond "
@@ -118,7 +126,7 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 #: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
 READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file",
-                                      "keep_gyro_rail", "gyro_range")
+                                      "keep_gyro_rail", "gyro_range", "keep_unhealthy", "keep_clipped")
 
 
 def read_options(func: Callable[..., Any]) -> Callable[..., Any]:

@@ -17,10 +17,13 @@ that calibration left, as PX4's ``sensor_combined``.  ``IMU`` instance 0 is read
 ``IMU2`` / ``ACC[:N]`` another; the read line says which and what else is logged.
 
 What the log's own flags mean, from LogStructure.h's field descriptions: ``AH`` is the accelerometer's health as
-ArduPilot judged it (0: its samples are not used by the vehicle), so such rows are left out and counted; ``EA``/``EG``
+ArduPilot judged it (0: its samples are not used by the vehicle), so such rows are left out and counted; ``GH`` is
+the gyro's (0: its rates are not used), and as a rest is judged still by its gyro and a move's turn is its gyro's
+integral, such rows are left out too and counted apart (``--keep-unhealthy`` keeps both); ``EA``/``EG``
 count the bus's read errors (a sample that failed to read is not logged, so no logged sample is wrong by it: the
 count is said, nothing is excluded); a rise of ``VIBE.Clip`` between two VIBE messages means a sample in between
-reached the clip limit, so every IMU sample in that interval is flagged saturated (which one is not logged).
+reached the clip limit, so every IMU sample in that interval is flagged saturated (which one is not logged;
+``--keep-clipped`` keeps them).
 """
 
 from __future__ import annotations
@@ -129,7 +132,8 @@ def _rate(t: NDArray[np.float64]) -> float:
     return (t.size - 1) / float(t[-1] - t[0]) if t.size > 1 and t[-1] > t[0] else 0.0
 
 
-def read_dataflash_imu(path: str | Path, topic: str | None) -> UlogImu:
+def read_dataflash_imu(path: str | Path, topic: str | None, *, keep_unhealthy: bool = False,
+                       keep_clipped: bool = False) -> UlogImu:
     """Read the accelerometer (and gyro) of an ArduPilot DataFlash log (module docstring).
 
     Parameters
@@ -139,6 +143,11 @@ def read_dataflash_imu(path: str | Path, topic: str | None) -> UlogImu:
     topic : str or None
         ``IMU[:N]`` (``IMU2``...), ``ACC[:N]`` (``ACC1``...; the matching ``GYR`` interpolated onto its times), or
         ``None``: ``IMU`` instance 0.
+    keep_unhealthy : bool
+        Keep the rows whose ``AH``/``GH`` say ArduPilot judged the accelerometer or the gyro unhealthy
+        (``--keep-unhealthy``); by default they are left out and counted.
+    keep_clipped : bool
+        Do not flag the samples in an interval over which ``VIBE.Clip`` rose (``--keep-clipped``).
 
     Returns
     -------
@@ -179,19 +188,33 @@ def read_dataflash_imu(path: str | Path, topic: str | None) -> UlogImu:
         frame["temp"] = chosen[tk]
     exclusions: dict[str, int] = {}
     keep = np.ones(t.size, dtype=bool)
-    if (ah := _first(chosen, "AH", "AcHlt")) is not None:
-        keep = chosen[ah] >= _HEALTHY
-        if not keep.all():
-            exclusions[f"DataFlash {base} rows with {ah}=0 (ArduPilot judged the accelerometer unhealthy)"] = int(
-                (~keep).sum())
+    unhealthy: list[str] = []
+    for flag, what in (((_first(chosen, "AH", "AcHlt")), "accelerometer"), ((_first(chosen, "GH", "GyHlt")), "gyro")):
+        if flag is None or (bad := (chosen[flag] < _HEALTHY) & keep).sum() == 0:
+            continue  # a row both flags mark is counted once, under the accelerometer's
+        reason = f"DataFlash {base} rows with {flag}=0 (ArduPilot judged the {what} unhealthy)"
+        unhealthy.append(f"{int(bad.sum())} {base} rows with {flag}=0 (the {what} unhealthy)")
+        if not keep_unhealthy:
+            exclusions[reason] = int(bad.sum())
+            keep &= ~bad
+    if unhealthy:
+        notes.append(f"{' and '.join(unhealthy)}: " + (
+            "kept (--keep-unhealthy): ArduPilot did not use them" if keep_unhealthy else
+            "left out of the fit and the rests, as ArduPilot left them out of its own use (the gyro's rate gates a "
+            "rest and integrates a move's turn, so a row without it goes whole); --keep-unhealthy keeps them"))
     for err, what in (("EA", "accelerometer"), ("ErrA", "accelerometer"), ("EG", "gyro"), ("ErrG", "gyro")):
         if err in chosen and chosen[err].size and (rise := float(chosen[err][-1] - chosen[err][0])) > 0:
             notes.append(f"the {what}'s bus read errors ({base}.{err}) rose by {rise:.0f} over the log; a failed read "
                          f"logs no sample, so none is excluded")
     saturated = _clipped(log, instance, t) if base in ("IMU", "ACC") else None
     if saturated is not None and saturated.any():
-        notes.append(f"VIBE's clip count rose around {int(saturated.sum())} {name} samples: flagged saturated "
-                     f"(the accelerometer reached its clip limit in those intervals)")
+        if keep_clipped:
+            notes.append(f"VIBE's clip count rose around {int(saturated.sum())} {name} samples: kept (--keep-clipped; "
+                         f"the accelerometer reached its clip limit somewhere in those intervals)")
+            saturated = None
+        else:
+            notes.append(f"VIBE's clip count rose around {int(saturated.sum())} {name} samples: flagged saturated "
+                         f"(the accelerometer reached its clip limit in those intervals; --keep-clipped keeps them)")
     if not keep.all():
         frame = {k: v[keep] for k, v in frame.items()}
         saturated = None if saturated is None else saturated[keep]

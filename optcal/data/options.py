@@ -81,6 +81,12 @@ class ReadOptions:
     keep_gyro_rail : bool
         Keep the gyro's samples at a saturation rail (``--keep-gyro-rail``; by default they enter no rest and the
         moves holding them are left out of the gyro's fit: :mod:`optcal.data.rails`).
+    keep_unhealthy : bool
+        Keep the rows a log flags unhealthy (ArduPilot's ``AH``/``GH`` = 0; ``--keep-unhealthy``; by default left
+        out and counted: :mod:`optcal.data.dataflash`).
+    keep_clipped : bool
+        Keep the samples a log's own clip flags mark (ArduPilot's ``VIBE.Clip`` rises, PX4's ``clip_counter``;
+        ``--keep-clipped``; by default they are saturated samples, counted); rails in the values are still sought.
     gyro_range_dps : float or None
         The gyro's full scale, ±°/s (``--gyro-range``): where the gyro's unit is not known, a rail of it is sought
         beyond a rest's largest reading as that share of the full scale (:func:`optcal.data.rails.gyro_rail`).
@@ -105,6 +111,8 @@ class ReadOptions:
     gyro_file: str | Path | None = None
     gyro_units: str | None = None
     keep_gyro_rail: bool = False
+    keep_unhealthy: bool = False
+    keep_clipped: bool = False
     gyro_range_dps: float | None = None
     static: StaticSettings = field(default_factory=StaticSettings)
 
@@ -276,7 +284,8 @@ def read_decided(path: str | Path, options: ReadOptions, *, required_by: str | N
     kind : {"auto", "poses", "raw"}, optional
         Overrides ``options.kind`` (a command that takes only one kind).
     """
-    src = read_source(path, columns=options.columns, topic=options.topic, gyro_file=options.gyro_file)  # read
+    src = read_source(path, columns=options.columns, topic=options.topic, gyro_file=options.gyro_file,
+                      keep_unhealthy=options.keep_unhealthy, keep_clipped=options.keep_clipped)  # read
     if options.gyro_units is not None:  # the user's unit wins over the file's words and the data (the rest
         src.gyro_units = options.gyro_units  # model's tolerances, the segment report and the gyro fit read it)
     decisions = decide(  # evidence, then decisions

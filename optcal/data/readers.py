@@ -265,6 +265,9 @@ def read_source(
     columns: str | dict[str, str] | None = None,
     topic: str | None = None,
     gyro_file: str | Path | None = None,
+    *,
+    keep_unhealthy: bool = False,
+    keep_clipped: bool = False,
 ) -> Source:
     """Read any supported file into a :class:`Source`.
 
@@ -282,8 +285,22 @@ def read_source(
     gyro_file : str or Path, optional
         A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
         files): merged onto the accelerometer's times.
+    keep_unhealthy : bool
+        Keep the rows a log flags unhealthy (DataFlash ``AH``/``GH`` = 0; ``--keep-unhealthy``).
+    keep_clipped : bool
+        Do not take a log's own clip flags as saturation (DataFlash ``VIBE.Clip`` rises, PX4 ``clip_counter``;
+        ``--keep-clipped``); the rails found in the values are still sought.
     """
-    return set_aside_empty_temperature(_read_any(path, columns, topic, gyro_file))
+    src = _read_any(path, columns, topic, gyro_file, keep_unhealthy, keep_clipped)
+    if (keep_unhealthy or keep_clipped) and src.file_type not in ("ulog", "dataflash"):
+        flag = "--keep-unhealthy" if keep_unhealthy else "--keep-clipped"
+        src.notes.append(f"{flag}: a {src.file_type} file holds no health or clip flags of its own; nothing to keep")
+    if keep_clipped and src.file_type == "ulog" and src.saturated is not None:  # DataFlash's said by its reader
+        if src.saturated.any():
+            src.notes.append(f"the topic's clip counters flag {int(np.count_nonzero(src.saturated))} samples: kept "
+                             f"(--keep-clipped)")
+        src.saturated = None
+    return set_aside_empty_temperature(src)
 
 
 def set_aside_empty_temperature(src: Source) -> Source:
@@ -309,6 +326,8 @@ def _read_any(
     columns: str | dict[str, str] | None,
     topic: str | None,
     gyro_file: str | Path | None,
+    keep_unhealthy: bool = False,
+    keep_clipped: bool = False,
 ) -> Source:
     kind = detect_file_type(path)
     if kind == "csv" and (container := container_type(path)) is not None:  # MATLAB, netCDF-4, HDF5
@@ -333,7 +352,7 @@ def _read_any(
     if kind == "ulog":
         return read_ulog(path, topic)
     if kind == "dataflash":
-        return read_dataflash(path, topic)
+        return read_dataflash(path, topic, keep_unhealthy=keep_unhealthy, keep_clipped=keep_clipped)
     return read_rosbag(path, topic, kind)
 
 
@@ -742,12 +761,13 @@ def _import_pyulog() -> Any:
     return import_pyulog()
 
 
-def read_dataflash(path: str | Path, topic: str | None) -> Source:
+def read_dataflash(path: str | Path, topic: str | None, *, keep_unhealthy: bool = False,
+                   keep_clipped: bool = False) -> Source:
     """Read an ArduPilot DataFlash log's IMU (:func:`optcal.data.dataflash.read_dataflash_imu`: ``IMU`` or
     ``ACC``/``GYR``; m/s², rad/s, with VIBE's clip count as the saturation flags) as a :class:`Source`."""
     from optcal.data.dataflash import read_dataflash_imu
 
-    imu = read_dataflash_imu(path, topic)
+    imu = read_dataflash_imu(path, topic, keep_unhealthy=keep_unhealthy, keep_clipped=keep_clipped)
     return Source(
         path=str(path), file_type="dataflash", data=imu.frame, column_map=imu.column_map, units_hint="m/s^2",
         units_reason=imu.units_reason, gyro_units="rad/s" if imu.has_gyro else None, time_unit="s",

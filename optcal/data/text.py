@@ -198,11 +198,39 @@ def sniff_layout(path: str | Path, by_position: bool = False) -> TextLayout:
             raise InputError(f"{p}: {mismatch}")
         if best is not None:
             return best[2]
+        if (wrapped := _bracketed_rows(p, lines, content)) is not None:
+            raise InputError(f"{p}: no data rows found: {wrapped}")
         raise InputError(
             f"{p}: no data rows found (expected rows of numbers, comma-, semicolon-, tab-, '|'- or "
             "whitespace-separated, optionally below a header row such as t,ax,ay,az)"
         )
     return best[2]
+
+
+#: The brackets a program's printed tuples and lists wrap numbers in (MicroPython's ``print((acc, mag))`` writes
+#: ``((ax, ay, az), (mx, my, mz))``).  The parsers read delimited numbers straight from the file (numpy's, pyarrow's
+#: and pandas' C readers), so such rows are not rewritten on the way: they are named, with the conversion.
+_BRACKETS = "()[]{}"
+
+
+def _bracketed_rows(p: Path, lines: list[str], content: list[tuple[int, str]]) -> str | None:
+    """What the rows look like and how to convert them, when they are delimited numbers once their brackets are
+    removed (a program's printed tuples or lists), else ``None``."""
+    table = str.maketrans("", "", _BRACKETS)
+    wrapped = [(i, s) for i, s in content if any(c in s for c in _BRACKETS)]
+    if not wrapped or 2 * len(wrapped) < len(content):  # most rows wrapped: else brackets are not the layout
+        return None
+    bare = [(i, s.translate(table).strip()) for i, s in content]
+    bare_lines = [ln.translate(table) for ln in lines]
+    for delim in DELIMITERS:
+        layout, _ = _layout_for(p, bare_lines, bare, delim)
+        if layout is not None and len(layout.names) >= 2:
+            line, text = wrapped[0]
+            return (f"the rows are numbers wrapped in brackets (line {line + 1}: {text[:80]}: a program's printed "
+                    f"tuples or lists, as MicroPython's print((acc, mag)) writes them), and optcal reads delimited "
+                    f"numbers; remove the brackets first (e.g. tr -d '{_BRACKETS}' < {p.name} > plain.csv), which "
+                    f"leaves {len(layout.names)} {_NAMES[delim]}-separated columns to name with --columns")
+    return None
 
 
 def _layout_for(

@@ -100,3 +100,32 @@ def test_the_raw_acc_messages_are_read_by_topic_with_their_gyro(tmp_path):
     default = load_recording(path)
     assert default.acc.shape[0] == 250
     assert any("ACC:0 (400 Hz)" in n for n in default.meta["notes"])
+
+
+def test_unhealthy_gyro_rows_and_every_flag_decision_have_an_override(tmp_path):
+    """GH=0 rows (ArduPilot judged the gyro unhealthy) are counted and left out as AH=0 rows are (a row both mark is
+    counted once); --keep-unhealthy keeps both and --keep-clipped keeps the samples VIBE's clip rise flags, each
+    said in the read line."""
+    w = DataFlashWriter()
+    rng = np.random.default_rng(3)
+    n, gyro_sick, acc_sick = 600, set(range(100, 107)), set(range(105, 110))  # rows 105, 106: both flags
+    for j in range(n):
+        t = 1_000_000 + j * 10_000
+        gh, ah = int(j not in gyro_sick), int(j not in acc_sick)
+        w.add("IMU", t, 0, *rng.normal(0, 0.002, 3), *(np.array([0, 0, 9.80665]) + rng.normal(0, 0.02, 3)),
+              0, 0, 35.0, gh, ah, 100, 100)
+        if j % 10 == 0:
+            w.add("VIBE", t, 0, 0.1, 0.1, 0.1, 0 if t < 3_000_000 else 1)
+    path = tmp_path / "sick.bin"
+    w.write(path)
+    rec = load_recording(path)
+    gyro_key = "DataFlash IMU rows with GH=0 (ArduPilot judged the gyro unhealthy)"
+    acc_key = "DataFlash IMU rows with AH=0 (ArduPilot judged the accelerometer unhealthy)"
+    assert rec.exclusions[acc_key] == 5 and rec.exclusions[gyro_key] == 5
+    assert rec.acc.shape[0] == n - 10 and rec.exclusions[SATURATED] == 10
+    assert any("IMU rows with GH=0" in note and "--keep-unhealthy" in note for note in rec.meta["notes"])
+    kept = load_recording(path, keep_unhealthy=True, keep_clipped=True)
+    assert kept.acc.shape[0] == n and acc_key not in kept.exclusions and gyro_key not in kept.exclusions
+    assert SATURATED not in kept.exclusions
+    assert any("kept (--keep-unhealthy)" in note for note in kept.meta["notes"])
+    assert any("kept (--keep-clipped" in note for note in kept.meta["notes"])

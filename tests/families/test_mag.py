@@ -163,7 +163,7 @@ def test_a_headerless_file_is_read_by_the_layout_of_its_width(tmp_path, width):
     path = tmp_path / "mag.txt"
     np.savetxt(path, np.hstack(cols), delimiter="\t", fmt="%.7f")
     if width == 5:
-        with pytest.raises(InputError, match="--columns mx=1,my=2,mz=3"):
+        with pytest.raises(InputError, match=r"--columns mx=2,my=3,mz=4 \(column 1 increasing \(a time\); column 5 one value"):
             read_mag(str(path))
         return
     samples = read_mag(str(path))

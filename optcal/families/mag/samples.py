@@ -154,6 +154,70 @@ def _relative_spread(v: NDArray[np.float64]) -> float:
     return float(np.median(np.abs(n - med)) / med) if med > 0 else np.inf
 
 
+#: How far from 1 the norm of four columns may lie in every row for them to be a unit quaternion (an orientation a
+#: logger prints beside its sensors, with 4-7 significant digits: its norm is 1 within 1e-3); a sensor's triple and
+#: any fourth column do not keep a norm of 1 to that in every row.
+QUATERNION_NORM_TOL = 1e-3
+
+
+def _minutes_unwrapped(col: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A clock's seconds of the minute (whole, 0-59, going back only from 59 to 0) counted on across the minutes;
+    any other column as it is."""
+    v = col[np.isfinite(col)]
+    if not v.size or np.any(v != np.round(v)) or v.min() < 0 or v.max() > 59:
+        return col
+    back = np.flatnonzero(np.diff(v) < 0)
+    if not back.size or np.any(v[back] != 59) or np.any(v[back + 1] != 0):
+        return col
+    out = col.copy()
+    rows = np.flatnonzero(np.isfinite(col))
+    out[rows] = v + 60.0 * np.concatenate(([0], np.cumsum(np.diff(v) < 0)))
+    return out
+
+
+def _example_columns(columns: list[NDArray[np.float64]], lead: int) -> str:
+    """The ``--columns`` example of a headerless file of no common layout: the last three of the columns left once
+    the time stamps (an increasing column, or whole seconds and their fraction), unit quaternions and columns of one
+    value are set aside
+    (a logger's common order puts the magnetometer last), with what was set aside; none when the rest is no set of
+    triples."""
+    skip: dict[int, str] = {}
+    j = 0
+    while j < len(columns):
+        if j + 1 < len(columns) and split_stamp([_minutes_unwrapped(columns[j]), *columns[j + 1:]]) is not None:
+            skip.update({j: "a split time stamp", j + 1: "a split time stamp"})
+            j += 2
+            continue
+        if j + 3 < len(columns):
+            q = np.column_stack(columns[j:j + 4])
+            q = q[np.all(np.isfinite(q), axis=1)]
+            if q.size and bool(np.all(np.abs(np.linalg.norm(q, axis=1) - 1.0) <= QUATERNION_NORM_TOL)):
+                skip.update({k: "a unit quaternion" for k in range(j, j + 4)})
+                j += 4
+                continue
+        finite = columns[j][np.isfinite(columns[j])]
+        if increasing_column(columns[j]):
+            skip[j] = "increasing (a time)"
+        elif finite.size and bool(np.all(finite == finite[0])):  # a field's axis moves as the sensor turns
+            skip[j] = "one value in every row"
+        j += 1
+    rest = [j for j in range(len(columns)) if j not in skip]
+    runs: list[list[Any]] = []  # consecutive columns set aside for one reason, said once
+    for j, what in sorted(skip.items()):
+        if runs and runs[-1][1] == j - 1 and runs[-1][2] == what and what in ("a split time stamp", "a unit quaternion"):
+            runs[-1][1] = j
+        else:
+            runs.append([j, j, what])
+    said = "; ".join(f"column {a + 1 + lead} {what}" if a == b else f"columns {a + 1 + lead}-{b + 1 + lead} {what}"
+                     for a, b, what in runs)
+    if len(rest) < 3 or len(rest) % 3:
+        return ("--columns mx=N,my=N,mz=N (" + (f"{said}; " if said else "") +
+                f"the {len(rest)} other columns are no set of triples)")
+    mx, my, mz = (str(j + 1 + lead) for j in rest[-3:])
+    return (f"--columns mx={mx},my={my},mz={mz} (" + (f"{said}; " if said else "") +
+            "the magnetometer the last triple of the others, a logger's common order)")
+
+
 def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float64]],
                     mapping: dict[str, str], words: dict[int, str] | None = None) -> tuple[dict[str, str], str]:
     """The magnetometer's columns of a file with no header, by the common layout of its width.
@@ -206,7 +270,7 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
         raise InputError(f"{path}: the file has no header row and 2 columns: {TWO_AXES}")
     if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
-                         f"a magnetometer; name them by 1-based position, e.g. --columns mx=1,my=2,mz=3")
+                         f"a magnetometer; name them by 1-based position, e.g. {_example_columns(columns, lead)}")
     canon = {k: str(j + 1 + lead) for k, j in zip(MAG, rest[-3:])}
     if time_at is not None:
         canon["t"] = str(time_at + 1 + lead)
@@ -281,7 +345,7 @@ def rail_line(levels: list[float], units: str, n_rail: int, n: int) -> str:
     """The one line that says the rail: its level(s), the samples held there, and the flag that keeps them."""
     at = ", ".join(f"±{v:.7g}" for v in levels) or "a 16-bit converter's full scale"
     return (f"magnetometer rail: {n_rail} of {n} samples ({100 * n_rail / max(n, 1):.3g} %) hold an axis at {at} "
-            f"{units}, the converter's full scale (the field beyond it unknown): left out; calibrate --accept-mag-fit "
+            f"{units}, the converter's full scale (the field beyond it unknown): left out; --accept-mag-fit "
             f"keeps them")
 
 
@@ -304,7 +368,7 @@ def _build(path: str, m: NDArray, stated: str | None, where: str, mag_units: str
         n_rail, n = int(rail.sum()), int(finite.sum())
         if n_rail == n:
             raise InputError(f"{path}: {rail_line(levels, units.units, n_rail, n).split(': ', 1)[1].split(': left')[0]}; "
-                             f"none is left: the magnetometer measured no field in its range; calibrate --accept-mag-fit "
+                             f"none is left: the magnetometer measured no field in its range; --accept-mag-fit "
                              f"keeps them")
         exclusions[MAG_RAIL_ROWS] = n_rail
         finite &= ~rail
@@ -607,8 +671,36 @@ def _read_rosbag(path: str, kind: str, topic: str | None, mag_units: str | None,
                   notes, keep_rail)
 
 
+#: Exclusion reason of the rows a logger repeated until the magnetometer's next update (:mod:`optcal.data.held_samples`).
+HELD_ROWS = "magnetometer rows repeating its last update (a slower magnetometer in a faster log)"
+#: Exclusion reason of a held log's rows between two updates that hold axes of both (a torn copy).
+TORN_ROWS = "magnetometer rows holding axes of two updates (a logger's torn copy between them)"
+
+
+def drop_held(samples: MagSamples, keep: bool = False) -> MagSamples:
+    """``samples`` with one row per magnetometer update where the logger repeated each value until the next
+    (:func:`optcal.data.held_samples.held_runs`), the repeats counted and said; with ``keep`` every row, said."""
+    from dataclasses import replace
+
+    from optcal.data.held_samples import held_runs
+
+    held = held_runs(samples.m)
+    if held is None:
+        return samples
+    note = held.describe("magnetometer", "--keep-mag-repeats", kept=keep)
+    if keep:
+        return replace(samples, notes=[*samples.notes, note])
+    rows = held.first
+    torn = {TORN_ROWS: int(held.torn.size)} if held.torn.size else {}
+    pick = (lambda a: None if a is None else a[rows])
+    return replace(samples, m=np.ascontiguousarray(samples.m[rows]), acc=pick(samples.acc), gyro=pick(samples.gyro),
+                   t=pick(samples.t), temp=pick(samples.temp), current=pick(samples.current),
+                   throttle=pick(samples.throttle), exclusions={**samples.exclusions, HELD_ROWS: held.n_repeats, **torn},
+                   notes=[*samples.notes, note])
+
+
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
-             mag_units: str | None = None, keep_rail: bool = False) -> MagSamples:
+             mag_units: str | None = None, keep_rail: bool = False, keep_repeats: bool = False) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
 
     Parameters
@@ -623,16 +715,23 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
         The units (``--mag-units``), instead of the file's word or the decision from the magnitude.
     keep_rail : bool
         Keep the samples with an axis at the converter's rail (:func:`mag_rail`; left out and counted by default).
+    keep_repeats : bool
+        Keep every row where the logger repeats each magnetometer value until its next update (:func:`drop_held`;
+        by default one row per update, the repeats counted).
 
     Raises
     ------
     InputError
         No magnetometer found, or a file optcal cannot read.
     """
+    return drop_held(_read_any_mag(str(path), columns, topic, mag_units, keep_rail), keep_repeats)
+
+
+def _read_any_mag(p: str, columns: str | dict[str, str] | None, topic: str | None, mag_units: str | None,
+                  keep_rail: bool) -> MagSamples:
     from optcal.data.containers import container_type
     from optcal.data.readers import detect_file_type
 
-    p = str(path)
     if not Path(p).exists():
         raise InputError(f"{p}: no such file")
     kind = detect_file_type(p)

@@ -1,0 +1,52 @@
+"""``--accept-mag-fit`` and ``--keep-mag-repeats``: one definition for every command that reads a magnetometer.
+
+``calibrate --sensor mag``, ``diagnose --sensor mag``, ``plan --sensor mag --next DATA``, and ``check`` and
+``apply`` with a magnetometer calibration read DATA's magnetometer through
+:func:`optcal.families.mag.samples.read_mag`, which leaves out the samples at the converter's rail and the rows a
+logger repeated until the magnetometer's next update, and says so in lines that name these flags; each of them
+takes them (:func:`mag_read_options`, as :mod:`optcal.cli.data_options` adds the DATA flags), and a command that
+reads no magnetometer refuses them in one line (:func:`refuse_mag_options`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+__all__ = ["mag_read_options", "refuse_mag_options"]
+
+_ACCEPT_MAG_FIT = click.option(
+    "--accept-mag-fit", is_flag=True, default=False,
+    help="Reading a magnetometer (--sensor mag, or a magnetometer calibration): keep its samples at the converter's "
+         "rail (left out and counted by default: the field beyond the full scale is unknown); where a fit is made, "
+         "also keep samples that do not lie on an ellipsoid and a fit that cannot be right, with a warning.")
+_KEEP_MAG_REPEATS = click.option(
+    "--keep-mag-repeats", is_flag=True, default=False,
+    help="Reading a magnetometer: keep every row where the logger repeats each magnetometer value until its next "
+         "update (a slower magnetometer in a faster log; by default one row per update is kept and the repeats are "
+         "counted: each would weigh its sample several times).")
+
+
+def mag_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Click decorator adding ``--accept-mag-fit`` and ``--keep-mag-repeats`` (keywords ``accept_mag_fit``,
+    ``keep_mag_repeats``; see the module docstring)."""
+    return _ACCEPT_MAG_FIT(_KEEP_MAG_REPEATS(func))
+
+
+def refuse_mag_options(accept_mag_fit: bool, keep_mag_repeats: bool, what: str) -> None:
+    """Refuse the magnetometer's reading flags where the command reads no magnetometer (``what`` says when they
+    apply).
+
+    Raises
+    ------
+    InputError
+        ``accept_mag_fit`` or ``keep_mag_repeats`` given.
+    """
+    used = [flag for flag, value in (("--accept-mag-fit", accept_mag_fit), ("--keep-mag-repeats", keep_mag_repeats))
+            if value]
+    if used:
+        from optcal.errors import InputError
+
+        raise InputError(f"{' and '.join(used)} {'applies' if len(used) == 1 else 'apply'} {what}")

@@ -1,0 +1,131 @@
+"""Samples a logger repeats until the sensor's next update: a slower sensor in a faster log.
+
+A logger that writes a row at its fastest sensor's rate repeats a slower sensor's last value until that sensor
+updates (AlexMinhao/MagnetometerCali's ``M1.csv``: an AK8963 at about 22 Hz in a 111-Hz log, each magnetometer
+triple written on 5 rows, 4 or 6 where the two clocks slip).  Its triples then stay identical over runs whose
+lengths follow the rate ratio.  A sensor read afresh on every row repeats its whole triple only where the quantised
+noise of all three axes lands on the same codes again; whether a row repeats the last is then independent of how
+long the last value has lasted, so the runs' lengths fall off geometrically, ``P(L) = (1 − p) p^(L−1)`` with ``p``
+the chance of a repeat, and runs of one row are at least as many as runs of any other length, however coarse the
+converter or still the sensor (a still sensor's slow wander only lengthens the runs, it does not make a length
+between favoured).  A logger's hold is the opposite: most runs at the ratio, few of one row.  The rule
+(:func:`held_runs`) takes the most common run length ``L* ≥ 2`` and asks whether its runs outnumber those of one row
+by more than :data:`HOLD_Z` binomial standard deviations (under the geometric model, a run of length 1 or ``L*`` is
+of length ``L*`` with a chance of at most one half).
+
+A logger that copies the axes of a new update one at a time can write a row between two updates that holds some
+axes of the one and some of the other (``M1.csv``'s 16 runs of one row among 1625 of five: ``(31.8, -18.6, 24.0)``,
+``(31.8, -20.4, 24.0)``, ``(28.2, -20.4, 25.2)``, y already new, x and z still old).  Such a torn triple is no
+sample of the field: a run much shorter than an update (at most half the modal length, where the clocks' slip gives
+the modal length ±1) whose every axis reads the previous run's or the next run's value is left out and counted
+apart (:attr:`HeldRuns.torn`); a short run with an axis of its own is a sample and is kept.
+
+Counting every row of a held sample weighs it ``L*`` times: a fit's standard errors are then too small by about
+``√L*`` (41 % at ``L* = 2``) and its noise model sees steps of zero between rows the sensor never sampled, so a hold
+once found is always relevant; the readers keep the first row of each update (the row nearest the time it was
+measured) and count the rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["HOLD_Z", "HeldRuns", "held_runs"]
+
+#: The modal run's excess over the runs of one row, in binomial standard deviations, beyond which the runs are a
+#: logger's hold and not a sensor's repeated codes: a one-sided false alarm of about 1e-3 for a sensor read afresh
+#: every row (the excess of the most common length among several is taken, so the alarm is somewhat larger; a still,
+#: coarse sensor's runs stay geometric and far from it).
+HOLD_Z: float = 3.0
+
+
+@dataclass(frozen=True)
+class HeldRuns:
+    """A sensor's values held over several rows of a faster log.
+
+    Attributes
+    ----------
+    first : ndarray of int
+        The first row of each update (indices into the rows given to :func:`held_runs`), torn rows not among them.
+    torn : ndarray of int
+        The rows of the torn triples (module docstring).
+    n_rows : int
+        The rows given.
+    modal_length : int
+        The most common run length (the rate ratio, rounded).
+    z : float
+        The modal runs' excess over the runs of one row, in binomial standard deviations.
+    """
+
+    first: NDArray[np.intp]
+    torn: NDArray[np.intp]
+    n_rows: int
+    modal_length: int
+    z: float
+
+    @property
+    def n_repeats(self) -> int:
+        """Rows that repeat their update's first row."""
+        return self.n_rows - int(self.first.size) - int(self.torn.size)
+
+    @property
+    def mean_length(self) -> float:
+        """Rows per update on average (the log's rate over the sensor's)."""
+        return (self.n_rows - int(self.torn.size)) / max(1, int(self.first.size))
+
+    def describe(self, what: str, flag: str, kept: bool = False) -> str:
+        """The hold in words: the runs, the rate ratio and what was done (a note of the reading)."""
+        head = (f"the {what} repeats each value until its next update (runs of identical triples, most of "
+                f"{self.modal_length} rows, {self.mean_length:.3g} on average: a slower sensor in a faster log; a "
+                f"sensor read every row would give more runs of one row, {self.z:.1f} binomial SD fewer here)")
+        if kept:
+            return f"{head}: every row kept ({flag}), so each update weighs about {self.mean_length:.2g} samples"
+        torn = (f", and {self.torn.size} rows between two updates holding axes of both (a torn copy, no sample of "
+                f"the field)" if self.torn.size else "")
+        return (f"{head}: the first row of each update kept, {self.n_repeats} repeated rows left out{torn} "
+                f"({flag} keeps them)")
+
+
+def held_runs(x: NDArray[np.float64]) -> HeldRuns | None:
+    """The runs of identical rows of ``x`` when they are a logger's hold (module docstring), else ``None``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, k)
+        A sensor's samples, one row each, in the log's order (finite rows only).
+
+    Returns
+    -------
+    HeldRuns or None
+    """
+    n = int(x.shape[0])
+    if n < 3:
+        return None
+    change = np.any(x[1:] != x[:-1], axis=1)
+    first = np.concatenate(([0], np.flatnonzero(change) + 1))
+    lengths = np.diff(np.append(first, n))
+    inner = lengths[1:-1]  # the first and last runs may be cut by the log's start and end
+    if inner.size == 0:
+        return None
+    counts = np.bincount(inner)
+    mode = int(np.argmax(counts[1:])) + 1
+    if mode < 2:
+        return None
+    n_one, n_mode = int(counts[1]), int(counts[mode])
+    z = (n_mode - n_one) / math.sqrt(n_mode + n_one)
+    if z <= HOLD_Z:
+        return None
+    # torn copies: short inner runs each of whose axes reads the previous run's or the next run's value
+    short = np.flatnonzero(lengths <= mode // 2)
+    short = short[(short > 0) & (short < lengths.size - 1)]
+    torn_runs = np.zeros(lengths.size, dtype=bool)
+    if short.size:
+        here, before, after = x[first[short]], x[first[short - 1]], x[first[short + 1]]
+        torn_runs[short] = np.all((here == before) | (here == after), axis=1)
+    torn = np.concatenate([np.arange(first[k], first[k] + lengths[k]) for k in np.flatnonzero(torn_runs)]
+                          or [np.empty(0, dtype=np.intp)])
+    return HeldRuns(first[~torn_runs].astype(np.intp), torn.astype(np.intp), n, mode, float(z))
