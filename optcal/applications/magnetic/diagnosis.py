@@ -72,9 +72,8 @@ HELD_OUT_BLOCKS: int = 4
 #: many of their standard errors (:func:`calibration_change`): a change within the calibration's own uncertainty
 #: is one a user cannot tell from the calibration's error.
 RELEVANT_SE: float = 1.0
-#: ... and lowers the held-out mean square residual by more than this many of that gain's standard errors (batch
-#: means, :func:`heldout_gain`): a misfit that depends on which turns the fit sees lowers it by a little for any
-#: stretch left out.
+#: ... and lowers the held-out mean square residual by more than this many of that gain's standard errors
+#: (:func:`heldout_gain`): a misfit that depends on which turns the fit sees lowers it a little for any stretch.
 HELDOUT_SE: float = 1.0
 #: Most disturbed stretches looked for.
 MAX_DISTURBANCES: int = 3
@@ -120,7 +119,8 @@ class MagFinding:
                         f"unchanged ({left} samples left out; χ² dip {self.evidence['statistic_dip']:.1f}, strength "
                         f"{self.evidence['statistic_strength']:.1f}; the dip moved {self.evidence['moved_dip_se']:.1f} SE)")
             shift = s.get("dip_shift_deg")
-            dip = (f", dip {shift:+.2f}°" if shift is not None and math.isfinite(shift) else "")
+            dip = (f", dip {shift:+.2f}° (the dip moved {self.evidence['moved_dip_se']:.1f} SE, held-out gain "
+                   f"{self.evidence['heldout_dip_gain_se']:.1f} SE)" if shift is not None and math.isfinite(shift) else "")
             return (f"local_disturbance {when}: a field of {values} {units} added{dip} ({left} "
                     f"samples left out; χ² {self.evidence['statistic']:.1f}; leaving it out turns the heading "
                     f"{self.evidence['heading_deg']:.3g}° ({self.evidence['moved_heading_se']:.1f} SE), the field "
