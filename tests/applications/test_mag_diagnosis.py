@@ -2,13 +2,14 @@
 planted effects: a local disturbance (a field of 4 % of the Earth's added for 15 % of the session, or the field
 bent by 3° of dip at constant strength), a motor's current and a temperature through added columns.  The unplanted
 session's own departures (two stretches of about 2.5 s whose norm residual leaves the rest's; leaving them out moves
-the offsets by under one standard error by batch means, so they are not named) are part of the expectation, not
+the heading and the field by under one standard error, so they are not named) are part of the expectation, not
 asserted away.
 """
 
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pandas as pd
@@ -55,6 +56,31 @@ def test_a_planted_disturbance_is_found_where_it_was(frame, tmp_path):
     assert covered >= 0.7 * (b - a) and f.stretch["stop_sample"] - f.stretch["start_sample"] <= 2.0 * (b - a)
     assert diag.gain > 1.0 and diag.excluded >= covered
     assert f.to_dict()["sensor"] == "magnetometer" and "disturb" in f.to_dict()["effect"]
+    # relevant in what a user reads: leaving it out turns the heading 0.29° (0.9 SE) and changes the field by 1.2 SE
+    # of the calibration's own uncertainty, and the held-out residual gains 1.4 SE of that gain's uncertainty
+    e = f.evidence
+    assert max(e["moved_heading_se"], e["moved_field_se"]) > 1.0 and e["heldout_gain_se"] > 1.0
+    assert e["heading_deg"] == pytest.approx(e["moved_heading_se"] * e["heading_se_deg"])
+
+
+def test_a_coloured_noise_is_not_a_disturbance(frame, tmp_path):
+    # ckexplorer's magnetometer every fourth sample (3000, the size of a short hand-turned session) with a coloured
+    # noise added to each axis: a first-order autoregression of 300 samples' correlation and 0.01 gauss (3 % of the
+    # field), nothing planted.  The search finds samples 1575-2525 (χ² 25.3 > 22.0; the noise colour 240); leaving
+    # them out turns the heading 0.86° (0.95 SE) and the field +0.0025 gauss (1.4 SE), but the held-out residual gains
+    # only 0.8 SE of that gain's uncertainty (0.0298 -> 0.0281): not named.  Before the held-out gain was weighed
+    # against its own uncertainty (any gain counted) it was named, with the offsets moved 1.8 SE by batch means.
+    from scipy.signal import lfilter
+
+    fr = frame[MAG].iloc[::4].reset_index(drop=True)
+    rho = math.exp(-1.0 / 300.0)
+    noise = np.random.default_rng(1).standard_normal((len(fr), 3)) * 0.01 * math.sqrt(1.0 - rho**2)
+    fr[MAG] += lfilter([1.0], [1.0, -rho], noise, axis=0)
+    diag = _diagnose(fr, tmp_path / "coloured.csv")
+    assert diag.colour > 100.0
+    assert not diag.findings, [f.to_dict() for f in diag.findings]
+    assert _departed(diag) == ["1575-2525"], diag.notes
+    assert "SE of its gain" in next(n for n in diag.notes if n.startswith("samples 1575-2525"))
 
 
 @pytest.mark.parametrize("column", ["current", "temp"])
@@ -154,7 +180,8 @@ def _departed(diag) -> list[str]:
 
 def test_the_recording_as_it_is_has_no_bend_of_the_dip(frame, tmp_path):
     # the search finds the same two strength stretches as before the dip channel (4225-4500, 5575-5825); leaving
-    # them out moves the offsets by under one standard error by batch means (0.5 and 0.7), so neither is named
+    # them out turns the heading by under one standard error (0.35 and 0.48; the field 0.45 and 0.35), so neither is
+    # named (before the heading and field: the offsets by batch means, 0.5 and 0.7)
     # (with the AR(1) inflation's smaller standard errors they were, at 3.3 and 3.8); the dip's slow drift over the
     # session (about 1° from the first half to the second) is a majority, said in a note, not a disturbance
     diag = _diagnose(frame.copy(), tmp_path / "as_is.csv")

@@ -12,8 +12,10 @@ The model (:mod:`optcal.families.mag.fit`): ``|T (m − o)| = 1`` for every samp
    for a contiguous stretch: the epidemic change-point model on the blocks' means (a stretch ``[a, b)`` whose mean
    differs from the rest's), its statistic ``n_in n_out / N · (r̄_in − r̄_out)² / σ²_block`` maximised over the
    stretches, against χ²₁ at the Bonferroni share of α over the ``B(B+1)/2`` stretches.  A significant stretch is
-   named when it is **relevant**: the calibration fitted without it moves ``o`` or the field strength by more than
-   :data:`RELEVANT_SE` of their standard errors.  Its field is estimated as an offset ``δ`` added inside the stretch
+   named when it is **relevant**: the calibration fitted without it turns the heading or changes the field strength
+   by more than :data:`RELEVANT_SE` of their standard errors (:func:`calibration_change`, from the coloured noise:
+   :func:`calibration_covariance`), and lowers the held-out residual by more than :data:`HELDOUT_SE` of that gain's
+   own standard error (:func:`heldout_gain`).  Its field is estimated as an offset ``δ`` added inside the stretch
    (least squares on the stretch's samples with the undisturbed ``T``, ``o``); the extended model leaves the stretch
    out (counted).  Up to :data:`MAX_DISTURBANCES` stretches, each on what the previous left.
 
@@ -28,11 +30,11 @@ The model (:mod:`optcal.families.mag.fit`): ``|T (m − o)| = 1`` for every samp
    is taken out (the raw accelerometer's own errors tilt the measured vertical by an amount that depends on where it
    points: :func:`dip_block_means`).  Each channel is searched by the same change-point statistic at its Bonferroni
    share of α (half each): a stretch is found whether its strength, its dip or both depart.  A majority stretch in
-   one channel (the dip's slow drift over a session, say) ends that channel's search, not the other's.  It is relevant when leaving it out moves the offsets **or the dip** by more than
-   :data:`RELEVANT_SE` standard errors
-   and improves that channel's held-out residual (the dip's: ``R`` and ``δ`` fitted on one half's still samples,
-   its rms on the other's).  The dip's standard error is by batch means (:func:`batch_means_se`): a dip that drifts
-   slowly over the session is not a disturbance however many samples measure it.
+   one channel (the dip's slow drift over a session, say) ends that channel's search, not the other's.  It is
+   relevant when leaving it out moves the heading, the field **or the dip** by more than :data:`RELEVANT_SE` standard
+   errors and improves that channel's held-out residual by more than :data:`HELDOUT_SE` of the gain's standard error
+   (the dip's: ``R`` and ``δ`` fitted on one half's still samples, its errors on the other's).  The dip's standard
+   error is by batch means (:func:`batch_means_se`): a dip drifting over the session is no disturbance.
 3. **Temperature and current** (a column of the recording: ``temp``; ``current``, else ``throttle``): the offsets
    linear in it, ``o + k (x − x̄)`` (ArduPilot's ``COMPASS_MOT`` idea for the current), fitted by Gauss–Newton with
    ``T`` held; named when the likelihood ratio, scaled to the residuals' effective sample size (the batch-means
@@ -56,7 +58,8 @@ from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
 from optcal.data.rest_tests import unit_rows
 from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, rest_gate
-from optcal.families.mag.fit import MagSettings, batch_means_stderr, fit_form
+from optcal.families.mag.fit import (SYMMETRIC_ENTRIES, MagSettings, batch_means_stderr, fit_form,
+                                     norm_residual_jacobian)
 from optcal.families.mag.samples import MagSamples
 
 #: Samples per block of the band and the change-point search: long enough for a block mean to average the white
@@ -65,9 +68,13 @@ BLOCK: int = 25
 #: Blocks per held-out half: alternate stretches of this many blocks fit and test each other (a disturbance and a
 #: slow turn span several blocks, so both halves see each).
 HELD_OUT_BLOCKS: int = 4
-#: A disturbance is relevant when leaving it out moves the offsets or the field strength by more than this many
-#: of their standard errors: a shift within one standard error changes no calibration.
+#: A disturbance is relevant when leaving it out turns the heading or changes the field strength by more than this
+#: many of their standard errors (:func:`calibration_change`): a change within the calibration's own uncertainty
+#: is one a user cannot tell from the calibration's error.
 RELEVANT_SE: float = 1.0
+#: ... and lowers the held-out mean square residual by more than this many of that gain's standard errors
+#: (:func:`heldout_gain`): a misfit that depends on which turns the fit sees lowers it a little for any stretch.
+HELDOUT_SE: float = 1.0
 #: Most disturbed stretches looked for.
 MAX_DISTURBANCES: int = 3
 #: Fewest blocks in a stretch (shorter: a twitch of a hand, not a field).
@@ -112,9 +119,13 @@ class MagFinding:
                         f"unchanged ({left} samples left out; χ² dip {self.evidence['statistic_dip']:.1f}, strength "
                         f"{self.evidence['statistic_strength']:.1f}; the dip moved {self.evidence['moved_dip_se']:.1f} SE)")
             shift = s.get("dip_shift_deg")
-            dip = (f", dip {shift:+.2f}°" if shift is not None and math.isfinite(shift) else "")
+            dip = (f", dip {shift:+.2f}° (the dip moved {self.evidence['moved_dip_se']:.1f} SE, held-out gain "
+                   f"{self.evidence['heldout_dip_gain_se']:.1f} SE)" if shift is not None and math.isfinite(shift) else "")
             return (f"local_disturbance {when}: a field of {values} {units} added{dip} ({left} "
-                    f"samples left out; χ² {self.evidence['statistic']:.1f}, offsets moved {self.evidence['moved_se']:.1f} SE)")
+                    f"samples left out; χ² {self.evidence['statistic']:.1f}; leaving it out turns the heading "
+                    f"{self.evidence['heading_deg']:.3g}° ({self.evidence['moved_heading_se']:.1f} SE), the field "
+                    f"{self.evidence['field']:+.3g} {units} ({self.evidence['moved_field_se']:.1f} SE), held-out "
+                    f"gain {self.evidence['heldout_gain_se']:.1f} SE)")
         per = {"temperature_offset": f"{units} per °C", "current_interference": f"{units} per unit of the column"}
         return f"{self.effect}: {values} {per.get(self.effect, units)} (likelihood ratio {self.evidence['lr']:.1f}, held-out {self.evidence['heldout_ratio']:.3f}×)"
 
@@ -279,17 +290,31 @@ def batch_means_se(v: NDArray[np.float64]) -> float:
 
 def _heldout_dip(a: NDArray[np.float64], still: NDArray[np.bool_], m: NDArray[np.float64], T: NDArray[np.float64],
                  o: NDArray[np.float64], keep: NDArray[np.bool_], halves: NDArray[np.bool_],
-                 test_keep: NDArray[np.bool_]) -> float:
-    """The rms dip residual (degrees) of each half's still samples in ``test_keep`` under ``R``, ``δ`` fitted on the
-    other half's still samples in ``keep`` (the field calibrated by ``T``, ``o``)."""
-    errors = []
+                 test_keep: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The dip residual (degrees) of each half's still samples in ``test_keep`` under ``R``, ``δ`` fitted on the
+    other half's still samples in ``keep`` (the field calibrated by ``T``, ``o``), in sample order; NaN elsewhere."""
+    out = np.full(m.shape[0], np.nan)
     for train in (halves, ~halves):
         rows, test = still & keep & train, still & test_keep & ~train
         if np.count_nonzero(rows) < MIN_STILL or not test.any():
             continue
         R, sin_dip = _dip_fit(a, rows, m, T, o)
-        errors.append(_dip_residuals(a, test, m, T, o, R, sin_dip)[test])
-    return float(np.sqrt(np.mean(np.concatenate(errors) ** 2))) if errors else float("nan")
+        out[test] = _dip_residuals(a, test, m, T, o, R, sin_dip)[test]
+    return out
+
+
+def _rms(e: NDArray[np.float64]) -> float:
+    """The rms of the finite held-out errors ``e`` (NaN: none)."""
+    return float(np.sqrt(np.nanmean(e**2))) if np.isfinite(e).any() else float("nan")
+
+
+def heldout_gain(before: NDArray[np.float64], after: NDArray[np.float64]) -> tuple[float, float]:
+    """The held-out mean square error's decrease from ``before`` to ``after`` (the same samples in order, NaN: not
+    held out) and its standard error by batch means of the paired differences (:func:`batch_means_se`): coloured
+    errors, a slow turn through a misfit, count once per correlation length, not once per sample."""
+    d = before**2 - after**2
+    d = d[np.isfinite(d)]
+    return (float(np.mean(d)), batch_means_se(d)) if d.size else (0.0, float("inf"))
 
 
 def _blocks(r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -442,20 +467,16 @@ def _offset_in(m: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.flo
     return delta, np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
 
-#: The six entries of a symmetric ``T`` (upper triangle).
-_SYM = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-
-
 def _column_fit(m: NDArray[np.float64], x: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """``T`` (symmetric), ``o`` and ``k`` of ``|T (m − o − k (x − x̄))| = 1`` by Gauss–Newton from ``T``, ``o``
     (all refitted: a column that changed with the session's turns pulled the plain fit's ``T`` and ``o`` too)."""
     xc = x - x.mean()
-    p = np.r_[[T[i, j] for i, j in _SYM], o, np.zeros(3)]
+    p = np.r_[[T[i, j] for i, j in SYMMETRIC_ENTRIES], o, np.zeros(3)]
 
     def unpack(q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         S = np.zeros((3, 3))
-        for (i, j), v in zip(_SYM, q[:6]):
+        for (i, j), v in zip(SYMMETRIC_ENTRIES, q[:6]):
             S[i, j] = S[j, i] = v
         return S, q[6:9], q[9:12]
 
@@ -466,7 +487,7 @@ def _column_fit(m: NDArray[np.float64], x: NDArray[np.float64], T: NDArray[np.fl
         n = np.linalg.norm(v, axis=1)
         r = n - 1.0
         e = v / n[:, None]
-        cols = [e[:, i] * d[:, j] + (e[:, j] * d[:, i] if i != j else 0.0) for i, j in _SYM]
+        cols = [e[:, i] * d[:, j] + (e[:, j] * d[:, i] if i != j else 0.0) for i, j in SYMMETRIC_ENTRIES]
         g = -e @ S
         J = np.column_stack(cols + [g, g * xc[:, None]])
         step = np.linalg.lstsq(J, -r, rcond=None)[0]
@@ -507,16 +528,56 @@ def _column_test(samples: MagSamples, x: NDArray[np.float64], keep: NDArray[np.b
 
 
 def _heldout(samples: MagSamples, keep: NDArray[np.bool_], form: str, s: MagSettings, halves: NDArray[np.bool_],
-             test_keep: NDArray[np.bool_], shift: Any = None) -> float:
-    """The rms norm residual of each half's samples in ``test_keep`` under the model fitted to the other half's
-    samples in ``keep`` (``shift(m, rows)``: the column terms' offsets removed first)."""
+             test_keep: NDArray[np.bool_], shift: Any = None) -> NDArray[np.float64]:
+    """The norm residual of each half's samples in ``test_keep`` under the model fitted to the other half's samples
+    in ``keep`` (``shift(m)``: the column terms' offsets removed first), in sample order; NaN elsewhere."""
     m = samples.m if shift is None else shift(samples.m)
     sub = MagSamples(m, samples.units, path=samples.path)
-    errors = []
+    out = np.full(samples.n, np.nan)
     for train in (halves, ~halves):
         fit = _fit(sub, train & keep, form, s)
-        errors.append(norm_residuals(fit.T, fit.o, m[~train & test_keep]))
-    return float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+        out[~train & test_keep] = norm_residuals(fit.T, fit.o, m[~train & test_keep])
+    return out
+
+
+def calibration_covariance(m: NDArray[np.float64], fit: Any, white: float, colour: float) -> NDArray[np.float64]:
+    """The covariance of the symmetric ``T``'s six entries and ``o`` (:func:`norm_residual_jacobian`'s order) from
+    the coloured noise: a block mean's variance is ``colour · σ²_white / BLOCK``, so ``n`` samples carry the
+    information of ``n / colour`` white ones (``σ²_white (JᵀJ)⁻¹ · colour``, in the fitted form's parameters),
+    scaled up to meet the fit's batch-means standard errors of ``o`` where larger (batches up to a tenth of the
+    session see a correlation longer than a block)."""
+    J = norm_residual_jacobian(m, fit.T, fit.o)
+    P = np.eye(9)
+    if fit.form == "diagonal":
+        P = P[:, [0, 3, 5, 6, 7, 8]]
+    elif fit.form == "offsets":
+        P = np.column_stack([P[:, 0] + P[:, 3] + P[:, 5], P[:, 6:]])
+    C = P @ np.linalg.pinv((J @ P).T @ (J @ P)) @ P.T * white**2 * max(colour, 1.0)
+    se_bm = np.array([fit.stderr.get(f"o_{a}", 0.0) for a in AXES])
+    ratio = np.max(se_bm / np.sqrt(np.maximum(np.diag(C)[6:], 1e-300)))
+    return np.asarray(C * max(float(ratio), 1.0) ** 2)
+
+
+def calibration_change(T: NDArray[np.float64], o: NDArray[np.float64], T1: NDArray[np.float64],
+                       o1: NDArray[np.float64], C: NDArray[np.float64]) -> dict[str, float]:
+    """How far the calibration ``T1``, ``o1`` is from ``T``, ``o`` in what a user reads, each over its standard
+    error from ``C`` (:func:`calibration_covariance`).
+
+    * **The heading**: an offset error ``Δo`` turns the calibrated field by ``|T Δo|`` radians at most (its part
+      across the unit field; the horizontal heading's error is that over cos(dip), as is its standard error, so the
+      ratio holds at any dip); the standard error ``√tr(T C_o Tᵀ)``.
+    * **The field strength** ``F = det(T)^(−1/3)``: ``∂F/∂T_ij = −F/3 · (T⁻¹)_ij`` (twice off the diagonal, both
+      entries of the symmetric ``T``), its standard error ``√(gᵀ C g)``.
+    """
+    F, F1 = float(np.linalg.det(T) ** (-1.0 / 3.0)), float(np.linalg.det(T1) ** (-1.0 / 3.0))
+    Ti = np.linalg.inv(T)
+    g = np.zeros(9)
+    g[:6] = [-F / 3.0 * Ti[i, j] * (1.0 if i == j else 2.0) for i, j in SYMMETRIC_ENTRIES]
+    se_heading = math.degrees(math.sqrt(max(float(np.trace(T @ C[6:, 6:] @ T.T)), 0.0)))
+    heading = math.degrees(float(np.linalg.norm(T @ (o1 - o))))
+    se_field = math.sqrt(max(float(g @ C @ g), 0.0))
+    return {"heading_deg": heading, "heading_se_deg": se_heading, "moved_heading_se": heading / max(se_heading, 1e-300),
+            "field": F1 - F, "field_se": se_field, "moved_field_se": abs(F1 - F) / max(se_field, 1e-300)}
 
 
 def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | None = None,
@@ -591,7 +652,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     base = MagSamples(m_used, samples.units, path=samples.path)
     current = _fit(base, keep, form, s) if terms else fit
     current_T, current_o = current.T, current.o
-    se_o = np.array([fit.stderr.get(f"o_{a}", np.nan) for a in AXES])
+    cov = calibration_covariance(m, fit, white, colour)
     t_axis = samples.t if samples.t is not None and samples.t.size == samples.n else None
     # ------------------------------------------------------------------ the dip channel (with an accelerometer)
     dip_channel: DipChannel | None = None
@@ -663,10 +724,13 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
         trial_keep = keep.copy()
         trial_keep[lo:hi] = False
         refit = _fit(base, trial_keep, form, s)
-        moved = float(np.max(np.abs(refit.o - current_o) / np.where(se_o > 0, se_o, np.inf)))
-        before_h = _heldout(base, keep, form, s, halves, trial_keep)
-        after_h = _heldout(base, trial_keep, form, s, halves, trial_keep)
-        strength_relevant = moved > RELEVANT_SE and after_h < before_h
+        change = calibration_change(current_T, current_o, refit.T, refit.o, cov)
+        moved = max(change["moved_heading_se"], change["moved_field_se"])
+        before_e = _heldout(base, keep, form, s, halves, trial_keep)
+        after_e = _heldout(base, trial_keep, form, s, halves, trial_keep)
+        before_h, after_h = _rms(before_e), _rms(after_e)
+        gain, gain_se = heldout_gain(before_e, after_e)
+        strength_relevant = moved > RELEVANT_SE and gain > HELDOUT_SE * gain_se
         dip_info: dict[str, float] = {}
         dip_relevant = False
         R_new, sin_new = R_cur, sin_cur
@@ -676,22 +740,29 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
             # own departure would otherwise widen the scatter it is measured against)
             se_dip = batch_means_se(_dip_residuals(a_unit, still & trial_keep, m_used, refit.T, refit.o, R_new, sin_new))
             moved_dip = abs(math.degrees(math.asin(sin_new)) - math.degrees(math.asin(sin_cur))) / se_dip
-            before_d = _heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, trial_keep)
-            after_d = _heldout_dip(a_unit, still, m_used, refit.T, refit.o, trial_keep, halves, trial_keep)
-            dip_relevant = moved_dip > RELEVANT_SE and after_d < before_d
+            before_de = _heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, trial_keep)
+            after_de = _heldout_dip(a_unit, still, m_used, refit.T, refit.o, trial_keep, halves, trial_keep)
+            before_d, after_d = _rms(before_de), _rms(after_de)
+            gain_d, gain_d_se = heldout_gain(before_de, after_de)
+            dip_relevant = moved_dip > RELEVANT_SE and gain_d > HELDOUT_SE * gain_d_se
             # the bend: the stretch's mean dip residual under the dip fitted without it (the search's block means
             # are under the fit with it, which the bend pulls)
             inside = _dip_residuals(a_unit, still, m_used, refit.T, refit.o, R_new, sin_new)[lo:hi]
             if np.isfinite(inside).any():
                 dip_shift = float(np.nanmean(inside))
             dip_info = {"statistic_dip": stat_d, "statistic_strength": stat_n, "moved_dip_se": moved_dip,
-                        "heldout_dip_ratio": before_d / after_d if after_d > 0 else 1.0, "dip_shift_deg": dip_shift}
+                        "heldout_dip_ratio": before_d / after_d if after_d > 0 else 1.0, "dip_shift_deg": dip_shift,
+                        "heldout_dip_gain_se": gain_d / gain_d_se if gain_d_se > 0 else 0.0}
         if not (strength_relevant or dip_relevant):
-            dip_text = (f", the dip by {dip_info['moved_dip_se']:.2f} SE and its held-out residual "
-                        f"×{1.0 / dip_info['heldout_dip_ratio']:.3f}" if dip_info else "")
+            dip_text = (f"; the dip by {dip_info['moved_dip_se']:.2f} SE, its held-out residual "
+                        f"×{1.0 / dip_info['heldout_dip_ratio']:.3f} ({dip_info['heldout_dip_gain_se']:.2f} SE)"
+                        if dip_info else "")
             notes.append(f"samples {lo}-{hi}: the field departs (χ² {stat:.1f} > {critical:.1f}) but leaving "
-                         f"them out moves the offsets by {moved:.2f} standard errors and the held-out residual "
-                         f"{before_h:.4g} → {after_h:.4g}{dip_text}: not named")
+                         f"them out turns the heading by {change['heading_deg']:.3g}° ({change['moved_heading_se']:.2f}"
+                         f" SE), the field by {change['field']:+.3g} {samples.units.units} ({change['moved_field_se']:.2f}"
+                         f" SE), the held-out residual {before_h:.4g} → {after_h:.4g} ({gain / gain_se:.2f} SE of its "
+                         f"gain){dip_text}: not named (relevant: more than {RELEVANT_SE:g} SE and a held-out gain "
+                         f"of more than {HELDOUT_SE:g} SE)")
             continue
         delta, delta_se = _offset_in(m_used[lo:hi], current_T, current_o)
         axes = [AXES[j] for j in range(3) if abs(delta[j]) > 2.0 * delta_se[j]]
@@ -705,17 +776,18 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
             stretch.update(channel="both" if both else channel, dip_shift_deg=dip_info["dip_shift_deg"])
         findings.append(MagFinding("local_disturbance", axes or list(AXES), {a: float(v) for a, v in zip(AXES, delta)},
                                    {"statistic": stat, "critical": critical, "moved_se": moved,
-                                    "heldout_ratio": before_h / after_h, **dip_info}, stretch))
+                                    "heldout_ratio": before_h / after_h, "heldout_gain_se": gain / gain_se,
+                                    **change, **dip_info}, stretch))
         keep = trial_keep
         current_T, current_o = refit.T, refit.o
         R_cur, sin_cur = R_new, sin_new
     # ------------------------------------------------------------------ the gain on held-out samples
-    heldout_plain = _heldout(samples, np.ones(samples.n, dtype=bool), form, s, halves, keep)
-    heldout_ext = _heldout(samples, keep, form, s, halves, keep, shifted if terms else None)
+    heldout_plain = _rms(_heldout(samples, np.ones(samples.n, dtype=bool), form, s, halves, keep))
+    heldout_ext = _rms(_heldout(samples, keep, form, s, halves, keep, shifted if terms else None))
     dip_plain = dip_ext = None
     if dip_channel is not None and a_unit is not None and still is not None:
-        dip_plain = _heldout_dip(a_unit, still, m, T, o, np.ones(samples.n, dtype=bool), halves, keep)
-        dip_ext = _heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, keep)
+        dip_plain = _rms(_heldout_dip(a_unit, still, m, T, o, np.ones(samples.n, dtype=bool), halves, keep))
+        dip_ext = _rms(_heldout_dip(a_unit, still, m_used, current_T, current_o, keep, halves, keep))
     extended = {"T": current_T.tolist(), "o": list(map(float, current_o)),
                 "field_strength": float(np.linalg.det(current_T) ** (-1.0 / 3.0)),
                 "rms_norm_residual": float(np.sqrt(np.mean(norm_residuals(current_T, current_o, m_used[keep]) ** 2))),
