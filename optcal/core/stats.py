@@ -110,3 +110,35 @@ def column_ptp(x: ArrayLike) -> NDArray[np.float64]:
     column: numpy's reduction along the rows of a C-ordered (n, 3) array takes about 30 times as long."""
     a = np.asarray(x, dtype=float)
     return np.array([a[:, j].max() - a[:, j].min() for j in range(a.shape[1])])
+
+
+def mean_and_se(values: ArrayLike, weights: ArrayLike | None = None) -> tuple[float, float]:
+    """Weighted mean of independent ``values`` and its standard error measured by their own scatter.
+
+    The standard error of a paired held-out difference (one value per held-out unit, the units independent),
+    and of a mean of per-unit estimates whose noise is of unknown size: ``se² = k/(k − 1) Σ wᵢ² (dᵢ − d̄)²``
+    with the weights normalised to sum to one (equal weights: ``sd/√k``, Student's one-sample form).
+
+    Parameters
+    ----------
+    values : array_like, shape (k,)
+        One value per independent unit.
+    weights : array_like, shape (k,), optional
+        Non-negative weights (equal by default).
+
+    Returns
+    -------
+    mean, se : float
+        ``Σ wᵢ dᵢ / Σ wᵢ`` and its standard error; the standard error is 0 for fewer than two units and NaN
+        (both) for none.
+    """
+    d = np.asarray(values, dtype=float).ravel()
+    w = np.ones(d.size) if weights is None else np.asarray(weights, dtype=float).ravel()
+    total = float(np.sum(w))
+    if d.size == 0 or total <= 0:
+        return float("nan"), float("nan")
+    w = w / total
+    mean = float(np.sum(w * d))
+    k = d.size
+    se = float(np.sqrt(k / (k - 1) * np.sum(w * w * (d - mean) ** 2))) if k > 1 else 0.0
+    return mean, se

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from optcal.core.stats import sorted_unique
 
@@ -47,3 +48,21 @@ def test_row_reductions_column_by_column_are_numpys_bit_for_bit():
         finite = x[np.isfinite(x).all(axis=1)]
         assert np.array_equal(column_ptp(finite), np.ptp(finite, axis=0)), m
         assert np.array_equal(column_ptp(x), np.ptp(x, axis=0), equal_nan=True), m
+
+
+def test_mean_and_se_is_students_and_the_weighted_form():
+    """Equal weights: the mean and sd/√k (Student's one-sample form); weights: Σwd/Σw and the scatter-measured
+    error of a weighted mean, k/(k−1) Σ w²(d − d̄)² over (Σw)² (the time offset's per-move combination); one value
+    has no scatter, none gives NaN."""
+    from optcal.core.stats import mean_and_se
+
+    rng = np.random.default_rng(4)
+    d = rng.normal(0.3, 1.0, 17)
+    mean, se = mean_and_se(d)
+    assert mean == pytest.approx(np.mean(d)) and se == pytest.approx(np.std(d, ddof=1) / np.sqrt(d.size))
+    w = rng.uniform(0.1, 3.0, d.size)
+    mean, se = mean_and_se(d, w)
+    centre = np.sum(w * d) / np.sum(w)
+    assert mean == pytest.approx(centre)
+    assert se == pytest.approx(np.sqrt(np.sum(w**2 * (d - centre) ** 2) / np.sum(w) ** 2 * d.size / (d.size - 1)))
+    assert mean_and_se([2.0]) == (2.0, 0.0) and all(np.isnan(mean_and_se([])))
