@@ -229,8 +229,8 @@ def _calibrate_planar(samples: MagSamples, settings: MagSettings, decision: str 
     if settings.form not in ("auto", *PLANAR_CHOICES):
         raise InputError(f"unknown --mag-form {settings.form!r}")
     pf = fit_planar(samples.m, PLANAR_CHOICES.get(settings.form, "auto"), dict(settings.estimator), settings.method,
-                    settings.accept_fit)
-    why = decision or f"given with --mag-form {settings.form}"
+                    settings.accept_fit, settings.allow_degenerate)
+    why = decision or f"--mag-form {settings.form}: " + planar_decision(pf.tilt_share, pf.normal)
     reason = (f"{why}; {pf.form} in the plane: {pf.reason} (override with --mag-form planar-circle|planar-ellipse; "
               "--mag-form offsets|diagonal|full fits a 3-D form, refused on planar samples unless --allow-degenerate)")
     H = pf.horizontal_field

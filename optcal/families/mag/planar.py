@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.errors import InputError, SolverError
+from optcal.errors import IdentifiabilityError, InputError, SolverError
 from optcal.families.mag.fit import (MIN_HELDOUT_CELLS, NOT_A_FIELD_RMS, ONE_ORIENTATION_SHARE, PLANAR_SPREAD,
                                      RELEVANT_SHARE, USABLE_SHARE, HeldOut, _sphere_fit, batch_means_stderr,
                                      planar_tilt)
@@ -350,16 +350,19 @@ def _form_fit(p: NDArray[np.float64], form: str, est: dict[str, Any], method: st
 
 
 def fit_planar(m: NDArray[np.float64], form: str = "auto", est: dict[str, Any] | None = None, method: str = "default",
-               accept_fit: bool = False) -> PlanarFit:
+               accept_fit: bool = False, allow_degenerate: bool = False) -> PlanarFit:
     """The planar calibration of raw samples ``m`` (n, 3) (module docstring); ``form`` ``auto`` (held out),
     ``circle`` or ``ellipse``.
 
     Raises
     ------
     InputError
-        Too few samples, one heading only, or samples that are no field in the plane (``accept_fit`` keeps them).
+        A method other than default, mle or convex, too few samples, one heading only, or samples that are no field in the plane (``accept_fit`` keeps them).
     """
     est = dict(est or {})
+    if method not in ("default", "mle", "convex"):
+        raise InputError(f"--method {method} fits a 3-D ellipsoid; a planar calibration takes --method default, mle "
+                         f"(the convex ellipse refined by maximum likelihood) or convex")
     need = PLANAR_FORMS["ellipse"] + 1
     if len(m) < need:
         raise InputError(f"{len(m)} magnetometer samples: the planar form needs at least {need}; record the sensor "
@@ -398,8 +401,14 @@ def fit_planar(m: NDArray[np.float64], form: str = "auto", est: dict[str, Any] |
         reason = (f"too few heading sectors to compare held out (at least {MIN_HELDOUT_CELLS}); parameters determined "
                   f"to " + ", ".join(f"{f} {100 * fits[f][3]:.2g} %" for f in fits) + " of H")
     T2, c, stderr, worst, fitted, solver, note = fits[chosen]
-    if worst >= USABLE_SHARE and form == "auto":
-        reason += f" (determined only to {100 * worst:.2g} % of H)"
+    if worst >= USABLE_SHARE:
+        if not allow_degenerate:
+            # the 3-D forms' rule (fit.USABLE_SHARE): a parameter uncertain by a tenth of the field is about 6° of heading
+            raise IdentifiabilityError(
+                f"the samples determine the planar {chosen}'s parameters only to {100 * worst:.2g} % of the field in the "
+                f"plane (a form is usable below {100 * USABLE_SHARE:g} %, about 6° of heading); turn the sensor through a "
+                f"full circle in one plane; --allow-degenerate keeps the fit")
+        reason += f" (determined only to {100 * worst:.2g} % of H, kept with --allow-degenerate)"
     r = _residuals(p, np.concatenate([_lower(T2), c]))[0]
     rms = float(np.sqrt(np.mean(r ** 2)))
     if rms > NOT_A_FIELD_RMS and not accept_fit:
@@ -413,6 +422,11 @@ def fit_planar(m: NDArray[np.float64], form: str = "auto", est: dict[str, Any] |
 
 def planar_decision(tilt: float, normal: NDArray[np.float64]) -> str:
     """The line that says why a recording gets the planar form (its evidence and the override)."""
+    if tilt >= PLANAR_SPREAD:
+        return (f"given with --mag-form although the samples tilt out of their plane (along "
+                f"[{', '.join(f'{v:+.2f}' for v in normal)}]) by {100 * tilt:.2g} % of their spread, "
+                f"{np.degrees(np.sqrt(2 * tilt)):.2g}° rms (a planar turn: below {100 * PLANAR_SPREAD:g} %): the heading "
+                f"calibration holds in that plane only")
     return (f"the samples turn in one plane (their tilt out of it, along [{', '.join(f'{v:+.2f}' for v in normal)}], less "
             f"the noise, is {100 * tilt:.2g} % of their spread, a tilt of {np.degrees(np.sqrt(2 * tilt)):.2g}° rms; below "
             f"{100 * PLANAR_SPREAD:g} %, a 3-D form's field and normal hard iron are not determined): a heading calibration "
