@@ -59,7 +59,8 @@ def _heading_error_deg(m: np.ndarray, fit, yaw: np.ndarray) -> float:
 
 
 def test_a_planar_turn_is_recovered_within_its_stated_error():
-    """The ellipse's centre within 3 standard errors of the truth's (the hard iron along the normal is the ellipse kept held out, and a heading error near the noise's (0.24 µT across a 24 µT field in the plane:
+    """The ellipse's centre within 3 standard errors of the truth's (the hard iron along the normal is undetermined),
+    the ellipse kept held out, and a heading error near the noise's (0.24 µT across a 24 µT field in the plane:
     0.57° rms; 1.25 times that allowed) where the circle leaves the soft iron's (3.6°)."""
     m, yaw, centre = _turned_board()
     fit = fit_planar(m)
