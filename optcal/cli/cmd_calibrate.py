@@ -39,8 +39,10 @@ from optcal.cli.mag_options import mag_read_options
               help="--method ferraris: the angle of each turn (default: the whole turns the gyro reads; 360 for counts).")
 @click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
               help="The sensor to calibrate: the accelerometer (static poses) or the magnetometer (raw samples, mx, my, mz).")
-@click.option("--mag-form", type=click.Choice(["auto", "offsets", "diagonal", "full"]), default="auto", show_default=True,
-              help="--sensor mag: the model (hard iron only, with axis scales, or full soft iron); auto by evidence.")
+@click.option("--mag-form", type=click.Choice(["auto", "offsets", "diagonal", "full", "planar", "planar-circle", "planar-ellipse"]),
+              default="auto", show_default=True,
+              help="--sensor mag: the model (hard iron only, with axis scales, or full soft iron; planar: a heading "
+                   "calibration of a turn in one plane, circle or ellipse held out, or forced); auto by evidence.")
 @click.option("--mag-units", default=None, metavar="UNIT",
               help="--sensor mag: units of the magnetometer (uT, nT, gauss, mgauss, counts); default from the file or the data.")
 @mag_read_options

@@ -167,7 +167,7 @@ def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: 
 
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=cal.units,
                        keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
-    norm = np.linalg.norm(cal.correct(samples.m), axis=1)
+    norm = cal.norm(samples.m)  # a planar calibration's: the in-plane part's
     rms = float(np.sqrt(np.mean((norm - 1.0) ** 2)))
     out = {"sensor": "magnetometer", "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units},
            "data": {"path": data, "n_samples": samples.n, "decisions": samples.decision_lines()},

@@ -66,13 +66,16 @@ from optcal.cli.quiet import quiet_option
 @click.option("--inflate", default="1,1", show_default=True, metavar="WHITE,WALK",
               help="vins/orbslam3/okvis/kalibr-imu/openvins/basalt: multiply the white-noise densities by WHITE and the "
                    "random walks by WALK (written into the file's comments).")
+@click.option("--accept-planar", is_flag=True,
+              help="ardupilot/px4/px4-shell: write a planar (heading) magnetometer calibration, its hard iron along the "
+                   "plane's normal undetermined (taken as 0), instead of refusing it.")
 @quiet_option
 def export(calibration: str, fmt: str, output: str | None, counts_per_g: float | None, counts_zero: float | None,
            max_loss: float, poses: str | None, allan: str | None, gyro_allan: str | None, random_walk_bound: bool,
            rate: float | None, rostopic: str, device_id: int | None, gyro_device_id: int | None, instance: int,
            counts_per_dps: float | None, gyro_rate: float, vehicle_id: int, poses_rate: float | None,
            gyro_counts_per_rad_s: float | None, gyro_counts_zero: float | None, gravity: float | None,
-           inflate: str) -> None:
+           inflate: str, accept_planar: bool) -> None:
     """Write the calibration CAL (any cal_type) in the format another tool reads.
 
     ArduPilot and PX4 keep per-axis offsets and scales only (and a thermal offset polynomial):
@@ -122,6 +125,7 @@ def export(calibration: str, fmt: str, output: str | None, counts_per_g: float |
         gyro_counts_zero=gyro_counts_zero,
         **({"gravity_m_s2": gravity} if gravity is not None else {}),
         inflate=parse_inflate(inflate),
+        accept_planar=accept_planar,
     )
     result = run_export(cal, fmt, options)
     report = [f"calibration: {calibration}: {cal.describe()}"]

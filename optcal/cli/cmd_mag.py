@@ -34,7 +34,7 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
     as_json, output, allow_degenerate, loss
         As for the accelerometer.
     mag_form : str
-        ``--mag-form``: auto, offsets, diagonal or full.
+        ``--mag-form``: auto, offsets, diagonal, full, planar, planar-circle or planar-ellipse.
     mag_units : str, optional
         ``--mag-units``.
     accept_mag_fit : bool
@@ -94,7 +94,10 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         write_report(mag_document(result, data, command_line()), report_path)
     cal = result.calibration
     comparison = None
-    if reference is not None:
+    if reference is not None and cal.plane_normal is not None:
+        say("--location: the World Magnetic Model's field is not compared with a planar calibration's (its field in "
+            "the plane depends on the plane's unknown tilt to the horizontal)")
+    elif reference is not None:
         say(f"date: {day_reason}")
         comparison = compare_with_wmm(reference, cal.field_strength, cal.units, cal.info.get("dip_deg"),
                                       cal.info.get("dip_se_deg"))
@@ -120,7 +123,8 @@ def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str |
 
     Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
     the calibration's field) for every finite row of DATA; rows with a non-finite value are counted, and so are
-    those at the converter's rail (``--accept-mag-fit`` keeps them).
+    those at the converter's rail (``--accept-mag-fit`` keeps them).  A planar calibration corrects the in-plane
+    components and passes the normal one through (its ``norm`` the in-plane part's).
     """
     from optcal.cli.outputs import output_file
     from optcal.errors import InputError
@@ -131,10 +135,14 @@ def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str |
         raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
                          f"is in {cal.units}: apply it to samples in {cal.units}")
     field = cal.field(samples.m)
-    table = np.column_stack([field, np.linalg.norm(field, axis=1) / cal.field_strength])
+    table = np.column_stack([field, cal.norm(samples.m)])
     path = output_file(output)
     np.savetxt(path, table, delimiter=",", header="mx,my,mz,norm", comments="", fmt="%.9g")
     click.echo(f"calibration: {calibration}: {cal.describe()}")
     for line in samples.decision_lines():
         click.echo(line)
+    if cal.plane_normal is not None:
+        click.echo(f"planar calibration: mx, my, mz hold the field in the plane calibrated plus the raw component along the "
+                   f"normal [{', '.join(f'{v:+.3f}' for v in cal.plane_normal)}] unchanged (its hard iron undetermined); "
+                   f"norm = the in-plane part's |T(m - o)|")
     click.echo(f"wrote {samples.n} rows to {output} (csv), the field in {cal.units}; norm = |T(m - o)|")

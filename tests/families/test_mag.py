@@ -133,13 +133,14 @@ def test_refusals_one_line_exit_2(tmp_path, capsys, case, message):
 def test_a_planar_turn_is_refused_as_a_planar_turn(tmp_path, capsys):
     """A field turned about one axis only (a soft iron, 1 % noise): the sphere through the circle is of any size
     (fitted 3259 µT for 48), which the not-a-field check read as 'not a magnetic field'; it is named a planar turn,
-    with the orientations that fix it and the flag that keeps the fit."""
+    with the orientations that fix it and the flag that keeps the fit, when a 3-D form is asked for (by default the
+    planar form calibrates it, tests/families/test_mag_planar.py)."""
     rng = np.random.default_rng(0)
     u = _sphere(60000, 0)
     u = u[np.abs(u[:, 2]) < 0.05][:1500]
     m = u @ (48.0 * SOFT).T + [10.0, -20.0, 5.0] + rng.normal(scale=0.48, size=u.shape)
     path = _write(tmp_path / "planar.csv", ["mx", "my", "mz"], [m[:, 0], m[:, 1], m[:, 2]])
-    code, out, err = run_args(capsys, "calibrate", path, "--sensor", "mag")
+    code, out, err = run_args(capsys, "calibrate", path, "--sensor", "mag", "--mag-form", "offsets")
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert code == 2 and len(errors) == 1 and "Traceback" not in err
     assert "one plane" in errors[0] and "not a magnetic field" not in errors[0] and "--accept-mag-fit" in errors[0]
@@ -415,10 +416,11 @@ def test_a_field_turned_in_one_plane_is_refused_naming_a_second_axis(tmp_path, c
     the fitted sphere to dwarf the samples.  Now the samples' tilt out of their plane (the smallest eigenvalue of their
     covariance less the noise along it, over their spread) is below what shows the axis (PLANAR_SPREAD): refused,
     naming a second axis and the flag that fits the hard iron in the plane anyway (that path, and its notes saying what
-    is not determined: test_planted_planar_turn_is_named)."""
+    is not determined: test_planted_planar_turn_is_named), when a 3-D form is asked for; by default the planar (heading)
+    form calibrates it (tests/families/test_mag_planar.py)."""
     m, _ = _turned_in_one_plane()
     path = _write(tmp_path / "planar.csv", ["mx", "my", "mz"], [m[:, 0], m[:, 1], m[:, 2]])
-    code, out, err = run_args(capsys, "calibrate", path, "--sensor", "mag")
+    code, out, err = run_args(capsys, "calibrate", path, "--sensor", "mag", "--mag-form", "full")
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert code == 2 and len(errors) == 1 and "Traceback" not in err, err
     assert "one plane" in errors[0] and "second axis" in errors[0] and "--allow-degenerate" in errors[0]

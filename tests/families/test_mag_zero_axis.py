@@ -26,12 +26,13 @@ def _turned(n: int, seed: int) -> np.ndarray:
 
 
 def test_a_two_axis_log_with_a_zero_column_is_refused_without_a_traceback(tmp_path, capsys):
-    """A compass turned in its plane, ``mz`` written 0: one line naming the column and ``--columns``, exit 2."""
+    """A compass turned in its plane, ``mz`` written 0, a 3-D form asked for: one line naming the column and
+    ``--columns``, exit 2 (by default the planar form calibrates it: tests/families/test_mag_planar.py)."""
     t = np.linspace(0.0, 4 * np.pi, 400)
     xy = np.c_[-110 + 104 * np.cos(t), 64 + 91 * np.sin(t)]
     path = tmp_path / "mag2d.csv"
     path.write_text("mx,my,mz\n" + "\n".join(f"{x:.0f},{y:.0f},0" for x, y in xy) + "\n")
-    for extra in ([], ["--allow-degenerate"]):
+    for extra in (["--mag-form", "full"], ["--mag-form", "offsets", "--allow-degenerate"]):
         code, out, err = run(["calibrate", str(path), "--sensor", "mag", *extra], capsys)
         assert code == 2, err
         last = err.strip().splitlines()[-1]

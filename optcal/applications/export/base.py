@@ -89,6 +89,9 @@ class ExportOptions:
         Factors applied to the noise densities (white) and the random walks (walk) of the noise
         keys (``vins``, ``orbslam3``, ``okvis``, ``kalibr-imu``, ``openvins``, ``basalt``), written
         into the file's comments.
+    accept_planar : bool
+        ``ardupilot``/``px4``/``px4-shell``: write a planar (heading) magnetometer calibration, whose hard iron along
+        the plane's normal is undetermined (taken as 0), instead of refusing it (``--accept-planar``).
     """
 
     counts_per_g: float | None = None
@@ -112,6 +115,7 @@ class ExportOptions:
     gyro_counts_zero: float | None = None
     gravity_m_s2: float = STANDARD_GRAVITY
     inflate: tuple[float, float] = (1.0, 1.0)
+    accept_planar: bool = False
 
     def __post_init__(self) -> None:
         # every number written into a firmware or estimator file finite and in its range (an inf scale would be

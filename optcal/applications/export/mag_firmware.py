@@ -55,6 +55,7 @@ def c_header(cal: Calibration, options: ExportOptions) -> str:
         f"#define OPTCAL_MAG_FIELD_STRENGTH {c_number(cal.field_strength)}  /* {cal.units} */",  # type: ignore[attr-defined]
         f"static const double OPTCAL_MAG_T[3][3] = {c_array(T)};  /* per {cal.units} */",
         f"static const double OPTCAL_MAG_O[3] = {c_array(o)};  /* {cal.units} (hard iron) */",
+        *_c_planar_lines(cal),
         "",
         "static inline void optcal_apply_mag(const double raw[3], double out[3])",
         "{",
@@ -78,6 +79,19 @@ def c_header(cal: Calibration, options: ExportOptions) -> str:
         f"#endif /* {guard} */",
     ]
     return "\n".join(lines) + "\n"
+def _c_planar_lines(cal: Calibration) -> list[str]:
+    """A planar calibration's plane normal and what the header's ``T`` does along it (C lines; none for a 3-D one)."""
+    from optcal.applications.export.c_header import c_array
+
+    n = getattr(cal, "plane_normal", None)
+    if n is None:
+        return []
+    return [f"/* planar (heading) calibration: in the plane normal to OPTCAL_MAG_PLANE_NORMAL the field is calibrated; "
+            f"along it T holds 1/field_strength, so the field's normal component passes through uncalibrated (its hard "
+            f"iron undetermined, 0 in O) */",
+            f"static const double OPTCAL_MAG_PLANE_NORMAL[3] = {c_array(np.asarray(n, dtype=float))};"]
+
+
 #: ArduPilot's largest accepted offset (COMPASS_OFFS_MAX's default, milligauss): beyond it the
 #: firmware's pre-arm check fails ("Compass offsets too high").
 ARDUPILOT_OFFS_MAX_MG: float = 1800.0
@@ -111,22 +125,39 @@ def _rotation_note(cal: Calibration) -> list[str]:
             f"(R_mag_to_acc in the calibration): the firmware's orientation parameter takes 90 deg steps only"]
 
 
+def _planar_note(cal: Calibration) -> str | None:
+    """What a planar (heading) calibration leaves out of a 3-D one (:mod:`optcal.families.mag.planar`), or None."""
+    if getattr(cal, "plane_normal", None) is None:
+        return None
+    p = getattr(cal, "info", {}).get("planar", {})
+    n = ", ".join(f"{v:+.3f}" for v in getattr(cal, "plane_normal"))
+    return (f"the hard iron along the plane's normal [{n}] is undetermined (written as 0) and the field strength is the "
+            f"field in the plane; {p.get('tilt_heading_error', 'a hard iron ε along the normal moves the heading by about ε sin θ / H at a tilt θ')}")
+
+
 def export(cal: Calibration, fmt: str, options: ExportOptions) -> ExportResult:
     """The compass parameters of a ``magnetometer`` calibration in ``fmt`` (module docstring).
 
     Raises
     ------
     InputError
-        A format that holds no magnetometer calibration, or a calibration in counts.
+        A format that holds no magnetometer calibration, a calibration in counts, or a planar (heading) calibration
+        for a 3-D firmware without ``options.accept_planar``.
     """
     if fmt not in MAG_FORMATS:
         raise InputError(f"--format {fmt} holds no magnetometer calibration; export a magnetometer with "
                          f"--format {', '.join(MAG_FORMATS)}")
     comments = [f"magnetometer calibration exported by optcal from {options.source}"]
     notes = _rotation_note(cal)
+    planar = _planar_note(cal)
     if fmt == "c":
         return ExportResult(format=fmt, text=c_header(cal, options), mapped=["T", "o", "field_strength"], dropped=[],
-                            notes=notes)
+                            notes=notes + ([planar] if planar else []))
+    if planar and not options.accept_planar:
+        raise InputError(f"--format {fmt} needs a 3-D magnetometer calibration and this one is planar: {planar}; "
+                         f"--accept-planar writes it anyway (--format c holds it exactly)")
+    if planar:
+        notes.append(planar)
     if fmt == "ardupilot":
         M, ko, _ = _scaled(cal, 0.1)  # milligauss
         ofs, dia, odi, dev = ardupilot_names(options.instance)

@@ -283,18 +283,18 @@ def norm_residual_jacobian(m: NDArray[np.float64], T: NDArray[np.float64], o: ND
 
 
 def _sphere_fit(m: NDArray) -> tuple[NDArray, float, NDArray]:
-    """Offsets-only fit: ``‖m − o‖ = r`` by linear least squares, refined by Gauss–Newton; returns o, r, covariance of (o, r)."""
+    """Offsets-only fit: ``‖m − o‖ = r`` (m in any dimension: a circle in a plane) by linear least squares, refined by Gauss–Newton; o, r, cov of (o, r)."""
     J = np.column_stack([2 * m, np.ones(len(m))])
     sol = np.linalg.lstsq(J, np.sum(m * m, axis=1), rcond=None)[0]
-    o = sol[:3]
-    r = float(np.sqrt(max(sol[3] + o @ o, 1e-300)))
+    o = sol[:-1]
+    r = float(np.sqrt(max(sol[-1] + o @ o, 1e-300)))
     for _ in range(20):  # Gauss-Newton on the geometric residuals ‖m − o‖ − r
         d = m - o
         n = np.linalg.norm(d, axis=1)
         res = n - r
         G = np.column_stack([-d / n[:, None], -np.ones(len(m))])
         step = np.linalg.solve(G.T @ G, -(G.T @ res))  # normal equations: 4×4, linear in the samples
-        o, r = o + step[:3], r + float(step[3])
+        o, r = o + step[:-1], r + float(step[-1])
         if np.linalg.norm(step) < 1e-10 * r:  # far below any standard error of a field's offset
             break
     d = m - o
@@ -772,8 +772,8 @@ def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64])
             f"the magnetometer samples turn in one plane (their tilt out of it, along [{', '.join(f'{c:+.2f}' for c in axis)}], "
             f"less the noise, is {100 * tilt:.2g} % of their spread, a tilt of {np.degrees(np.sqrt(2 * tilt)):.2g}° rms): "
             f"the field strength (fitted {fit.field_strength:.4g}, the circle's) and the hard iron along that axis are not "
-            f"determined; turn the sensor about a second axis (roll it 90° and turn it again: optcal plan --sensor mag); "
-            f"--allow-degenerate fits the hard iron in the plane anyway, --accept-mag-fit keeps the fit")
+            f"determined; turn the sensor about a second axis (roll it 90° and turn it again: optcal plan --sensor mag); --mag-form "
+            f"planar calibrates the heading; --allow-degenerate fits the hard iron in the plane anyway, --accept-mag-fit keeps the fit")
     if dwarfed:
         raise cloud
 
