@@ -105,13 +105,25 @@ def test_rests_counted_without_pose_statistics_are_the_same_rests(shared_data):
     from optcal.data import load_recording
     from optcal.data.static import detect_static
 
+    import dataclasses
+
     rec = load_recording(str(shared_data / "imutk-xsens" / "xsens_imutk.csv"))
     full, counted = detect_static(rec), detect_static(rec, pose_statistics=False)
-    assert [(iv.start, iv.stop, iv.n_samples) for iv in counted.intervals] == \
-        [(iv.start, iv.stop, iv.n_samples) for iv in full.intervals]
-    assert counted.n_used == full.n_used and len(full.intervals) == 38
+
+    def places(seg):  # where each pose is, in samples, rows and time, and its samples
+        return [(iv.start, iv.stop, iv.first_row, iv.last_row, iv.t_start, iv.t_end, iv.n_samples)
+                for iv in seg.intervals]
+
+    assert places(counted) == places(full)
+    assert counted.n_used == full.n_used and len(full.intervals) == 38 and full.joined == 4  # poses of joined rests
     with pytest.raises(ValueError, match="counted its rests only"):
         counted.pose_table()
+    # unusable samples inside the rests (every 97th): positions among the usable samples mapped to the recording's
+    usable = rec.usable.copy()
+    usable[::97] = False
+    holed = dataclasses.replace(rec, usable=usable)
+    full, counted = detect_static(holed), detect_static(holed, pose_statistics=False)
+    assert places(counted) == places(full) and full.joined > 0 and len(full.intervals) > 30
 
 
 def expression_wobbles(gyro, t, rad_per_unit, window, spans):
