@@ -17,10 +17,13 @@ STEP_CHUNK: int = 2**18
 
 def _abs_step_chunks(col: NDArray[np.float64], ends: list[float] | None = None) -> Iterator[NDArray[np.float64]]:
     """``|diff(col)|`` in consecutive chunks of at most :data:`STEP_CHUNK` steps; ``ends``, if given, gets each
-    chunk's largest and smallest value (read while the chunk is in the processor's cache, not in a pass of its own)."""
+    chunk's largest and smallest value (read while the chunk is in the processor's cache, not in a pass of its own).
+    Each chunk is written into one buffer, which the next chunk overwrites: a caller keeps copies, not the chunks."""
+    buffer = np.empty(min(STEP_CHUNK, max(0, col.size - 1)))
     for start in range(0, max(0, col.size - 1), STEP_CHUNK):
         chunk = col[start:start + STEP_CHUNK + 1]
-        d = np.diff(chunk)
+        d = buffer[: chunk.size - 1]
+        np.subtract(chunk[1:], chunk[:-1], out=d)  # np.diff's subtraction, without a fresh array per chunk
         if ends is not None:
             ends += (chunk.max(), chunk.min())
         yield np.abs(d, out=d)
@@ -61,14 +64,16 @@ def quantum(x: NDArray[np.float64]) -> float | None:
         column_steps = 0  # every stride-th non-zero step of the column, counted across its chunks
         ends: list[float] = []
         for d in _abs_step_chunks(col, ends):
-            d = d[d > 0]
-            if d.size:
-                q = min(q, float(d.min()))
-                sample.append(d[(-column_steps) % stride::stride].copy())  # a view would keep the chunk
-            column_steps += d.size
+            steps, chunk_q, chunk_sample = _non_zero_steps(d, (-column_steps) % stride, stride)
+            if steps:
+                q = min(q, chunk_q)
+                sample.append(chunk_sample)
+            column_steps += steps
         n_steps += column_steps
         if col.size > 1:  # the column's largest less its smallest (np.max, as col.max(), keeps a NaN)
             span = max(span, float(np.max(ends[0::2]) - np.min(ends[1::2])))
+        if span > (2**16 + 1) * q:
+            return None  # as below, decided early: over the columns left q can only fall and the span only grow
     if n_steps < 10:
         return None
     if span > (2**16 + 1) * q:
@@ -81,3 +86,26 @@ def quantum(x: NDArray[np.float64]) -> float | None:
     np.subtract(ratio, off, out=off)
     np.abs(off, out=off)
     return q if np.count_nonzero(off < 1e-3) / off.size >= 0.99 else None
+
+
+def _non_zero_steps(d: NDArray[np.float64], first: int, stride: int) -> tuple[int, float, NDArray[np.float64]]:
+    """Of the steps ``d`` (``|diff|``, a buffer it may overwrite), those above zero (a NaN is not): their count, the
+    smallest (``inf`` when none) and a copy of every ``stride``-th from the ``first``, as ``d[d > 0]`` gives them.
+
+    A signal that steps at nearly every sample (a noisy one) has few zero steps: they are set to ``inf`` in place and
+    the sample taken by position, the non-zero step of rank ``r`` sitting after the ``r`` + (zero steps before it)
+    others, instead of a copy of the whole chunk's non-zero steps (a quarter of :func:`quantum`'s time).
+    """
+    above = d > 0
+    steps = int(np.count_nonzero(above))
+    if steps == d.size:
+        return steps, float(d.min()) if steps else np.inf, d[first::stride].copy()
+    if 2 * steps < d.size:  # mostly zero steps (a quantised signal): the non-zero ones, copied
+        kept = d[above]
+        return steps, float(kept.min()) if steps else np.inf, kept[first::stride].copy()
+    gaps = np.flatnonzero(~above)  # the zero (or NaN) steps, fewer than half
+    d[gaps] = np.inf
+    rank = np.arange(first, steps, stride)
+    # gap i has gaps[i] − i non-zero steps before it: it lies before the non-zero step of rank r when that is ≤ r
+    at = rank + np.searchsorted(gaps - np.arange(gaps.size), rank, side="right")
+    return steps, float(d.min()), d[at]

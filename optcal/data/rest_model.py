@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from optcal.core import quantiles  # the distributions' quantiles without scipy (see its docstring)
@@ -234,8 +235,7 @@ def _block_moments(x: NDArray[np.float64], starts: NDArray[np.int64], n: NDArray
                 highs[j].append(d.max())
                 lows[j].append(d.min())
             s2[i0:i1, j] = np.add.reduceat(np.multiply(d, d, out=d), at)
-    mean = np.empty((starts.size, k))
-    var = np.empty((starts.size, k))
+    mean, var = s1, s2  # each column's sums replaced by its moments in place (no two more arrays to fault in)
     for j in range(k):
         # the rounding of these sums: a noise-free rest shows this much spread, no less (else its blocks' log
         # variances, at the mercy of rounding, would differ by orders of magnitude)
@@ -425,24 +425,38 @@ def windowed_half_sample_modes(x: NDArray[np.float64], lo: NDArray[np.intp], hi:
     if width == 0:
         return np.full((w, m), np.nan)
     at = np.arange(width)
-    inside = at[None, :] < counts[:, None]
-    y = x[np.minimum(lo[:, None] + at[None, :], x.shape[0] - 1)]  # (w, width, m)
-    y = np.sort(np.where(inside[:, :, None], y, np.inf), axis=1)
-    y = np.ascontiguousarray(y.transpose(0, 2, 1)).reshape(w * m, width)  # one row per window and column
+    # one row per window and column: each column's values from the window's first, +inf past its count (and past the
+    # data: the columns padded with +inf, so that every window is a view of them), sorted along the row
+    padded = np.full((m, x.shape[0] + width), np.inf)
+    padded[:, : x.shape[0]] = x.T
+    y = np.ascontiguousarray(sliding_window_view(padded, width, axis=1)[:, lo].transpose(1, 0, 2))  # (w, m, width)
+    np.copyto(y, np.inf, where=(at[None, :] >= counts[:, None])[:, None, :])
+    y.sort(axis=2)
+    y = y.reshape(w * m, width)
     n = np.repeat(counts, m)
+    rows = np.arange(w * m)
+
+    def runs_from(y: NDArray[np.float64], first: NDArray[np.intp], length: int) -> NDArray[np.float64]:
+        """``y[i, first[i] + k]`` for ``k < length`` (+inf past the row's end), by rows of windows of ``y``: no index
+        array of ``y``'s size.  What lies past a window's count is masked by the caller, as it was when clipped."""
+        over = int((first + length).max()) - y.shape[1]
+        if over > 0:  # only about windows of three values or fewer, which are not halved
+            y = np.concatenate([y, np.full((y.shape[0], over), np.inf)], axis=1)
+        return np.asarray(sliding_window_view(y, length, axis=1)[rows, first])
+
     while bool((n > 3).any()):
         halve = n > 3
         h = np.where(halve, (n + 1) // 2, n)
         span = int((n - h + 1)[halve].max())  # the densest half's possible starts
         j = np.arange(span)
-        upper = np.take_along_axis(y, np.minimum(j[None, :] + h[:, None] - 1, y.shape[1] - 1), axis=1)
+        upper = runs_from(y, np.where(halve, h - 1, 0), span)  # y[i, j + h_i − 1] (a window not halved: unused)
         with np.errstate(invalid="ignore"):  # inf − inf beyond a window's values: masked below
             widths = np.where(j[None, :] <= (n - h)[:, None], upper - y[:, :span], np.inf)
         start = np.where(halve, np.argmin(widths, axis=1), 0)
         keep = int(h.max())
         k = np.arange(keep)
-        y = np.take_along_axis(y, np.minimum(start[:, None] + k[None, :], y.shape[1] - 1), axis=1)
-        y = np.where(k[None, :] < h[:, None], y, np.inf)
+        y = runs_from(y, start, keep)
+        np.copyto(y, np.inf, where=k[None, :] >= h[:, None])
         n = h
     out = np.full(n.size, np.nan)
     one, two, three = n == 1, n == 2, n == 3

@@ -356,7 +356,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     rate = rec.rate_hz if np.isfinite(rec.rate_hz) else 1.0
     block = max(MIN_BLOCK_SAMPLES, int(round(s.window_s * rate)))
     max_gap = s.max_gap_s if s.max_gap_s is not None else 5.0 / rate
-    breaks = np.flatnonzero(np.diff(t) > max_gap) + 1 if m > 1 else np.zeros(0, dtype=np.int64)
+    breaks = _gaps(t, max_gap)
     nominal = rec.nominal if rec.nominal is not None else nominal_conversion(rec.units, acc)
     exclusions = dict(rec.exclusions)
     noise: dict[str, float] = {}
@@ -467,7 +467,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
         intervals = [reduce_interval(i + 1, rec, use, group_positions(group), gyro_rows, s.sigma_blocks)
                      for i, group in enumerate(groups)]
     else:
-        intervals = [counted_interval(i + 1, rec, use, group_positions(group)) for i, group in enumerate(groups)]
+        intervals = [counted_interval(i + 1, rec, use, group) for i, group in enumerate(groups)]
     in_runs = sum(off_rail(int(b.start[k0]), int(b.stop[k1 - 1])) for k0, k1 in pieces)
     _add(exclusions, MOVING, off_rail(0, m) - in_runs)  # the rest of the runs' samples are counted by reason below
     for key, value in counts.items():
@@ -490,6 +490,29 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     return Segmentation(rec, s, intervals, noise, limits, model.bias, exclusions, trace,
                         len(kept) - len(touched) - len(groups), evidence, model.gyro_unit_reason, pose_statistics,
                         model.set_aside())
+
+
+#: Time steps compared at a time by :func:`_gaps`: their differences (512 KiB) stay in the processor's cache, where a
+#: 12-hour log's whole ``np.diff(t)`` was 35 MB faulted in and read twice.  Speed only.
+GAP_PIECE: int = 1 << 16
+
+
+def _gaps(t: NDArray[np.float64], max_gap: float) -> NDArray[np.int64]:
+    """The positions after a time step longer than ``max_gap`` (``np.flatnonzero(np.diff(t) > max_gap) + 1``), piece by
+    piece through one buffer."""
+    steps = max(t.size - 1, 0)
+    if steps == 0:
+        return np.zeros(0, dtype=np.int64)
+    d = np.empty(min(GAP_PIECE, steps))
+    found = []
+    for a in range(0, steps, GAP_PIECE):
+        z = min(a + GAP_PIECE, steps)
+        piece = d[: z - a]
+        np.subtract(t[a + 1:z + 1], t[a:z], out=piece)
+        hits = np.flatnonzero(piece > max_gap)
+        if hits.size:
+            found.append(hits + (a + 1))
+    return np.concatenate(found).astype(np.int64, copy=False) if found else np.zeros(0, dtype=np.int64)
 
 
 def _distance(acc: NDArray[np.float64], offset: NDArray[np.float64]) -> NDArray[np.float64]:

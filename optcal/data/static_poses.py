@@ -9,6 +9,7 @@ sample count, the times, the mean temperature and the mean gyro reading.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -127,16 +128,17 @@ def _mean_var(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
     return mean, var
 
 
-def counted_interval(number: int, rec: Recording, use: NDArray[np.int64] | None, pos: slice | NDArray[np.int64]
-                     ) -> StaticInterval:
-    """The interval of samples ``pos`` (as :func:`reduce_interval`) counted only: its place and samples, its mean,
-    spread and standard error not computed (NaN)."""
-    if use is None:
-        first, last = (pos.start, pos.stop - 1) if isinstance(pos, slice) else (int(pos[0]), int(pos[-1]))
-        n = (pos.stop - pos.start) if isinstance(pos, slice) else int(np.size(pos))
-    else:
-        idx = use[pos]
-        first, last, n = int(idx[0]), int(idx[-1]), int(np.size(idx))
+def counted_interval(number: int, rec: Recording, use: NDArray[np.int64] | None,
+                     stretches: Sequence[tuple[int, int]]) -> StaticInterval:
+    """The interval of the samples of ``stretches`` (positions ``[a, b)``, in the order
+    :func:`~optcal.data.static_stretches.group_positions` concatenates them), as :func:`reduce_interval` gives it,
+    counted only: its place and samples from the stretches' ends (no array of its positions: a 12-hour log's one
+    pose held 35 MB of them), its mean, spread and standard error not computed (NaN)."""
+    held = [(int(a), int(b)) for a, b in stretches if b > a]
+    first, last = held[0][0], held[-1][1] - 1
+    n = sum(b - a for a, b in held)
+    if use is not None:
+        first, last = int(use[first]), int(use[last])
     nan = np.full(3, np.nan)
     return StaticInterval(number=number, start=first, stop=last + 1, first_row=int(rec.row[first]),
                           last_row=int(rec.row[last]), t_start=float(rec.t[first]), t_end=float(rec.t[last]),

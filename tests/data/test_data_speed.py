@@ -343,3 +343,85 @@ def test_block_moments_by_pieces_are_the_whole_columns(monkeypatch):
         mean, var = whole_columns(x, b.start, b.n, 0.5**2 / 12.0)
         gmean, gvar = whole_columns(x[::-1] * 3.0, b.start, b.n, 0.0)
         assert _same(b.mean, mean) and _same(b.var, var) and _same(b.gmean, gmean) and _same(b.gvar, gvar), piece
+
+
+def test_quantum_and_gap_search_chunk_by_chunk_are_the_whole_columns(monkeypatch):
+    """:func:`quantum` (its steps through one buffer, the non-zero ones taken by position where zeros are few, the
+    columns left unread once the span decides) and the rest model's search for time gaps (piece by piece) give what
+    whole-column passes give: the non-zero steps, their smallest and every stride-th of them as ``d[d > 0]`` (few
+    zeros, most zeros, none, NaN); the converter's step or None on counts, counts with 2 % odd steps, printed
+    decimals, a NaN, a wide first column whose span decides before the last is read; the gaps at every place, the pieces' edges included."""
+    import optcal.data.quantisation as qz
+    from optcal.data.quantisation import _non_zero_steps, quantum
+
+    rng = np.random.default_rng(14)
+    for zeros in (0.0, 1e-3, 0.3, 0.7, 1.0):
+        d = np.abs(np.round(rng.normal(size=5003) * 4.0)) + 1.0
+        d[rng.random(d.size) < zeros] = 0.0
+        d[rng.integers(0, d.size, 3)] = np.nan if zeros == 0.3 else d[0]
+        for first, stride in ((0, 1), (5, 7), (40, 129), (6000, 3)):
+            kept = d[d > 0]
+            steps, q, sample = _non_zero_steps(d.copy(), first, stride)
+            assert steps == kept.size and q == (kept.min() if kept.size else np.inf), (zeros, first, stride)
+            assert np.array_equal(sample, kept[first::stride]), (zeros, first, stride)
+
+    def whole_columns(x):  # the plain definition: every column's non-zero |diff| at once
+        q, span, n_steps, sample = np.inf, 0.0, 0, []
+        stride = max(1, (x.shape[0] - 1) * x.shape[1] // qz.QUANTUM_CHECK_STEPS)
+        for col in x.T:
+            d = np.abs(np.diff(col))
+            d = d[d > 0]
+            if d.size:
+                q = min(q, float(d.min()))
+                sample.append(d[::stride])
+            n_steps += d.size
+            span = max(span, float(np.max(col) - np.min(col)))
+        if n_steps < 10 or span > (2**16 + 1) * q or (q < 1.0 and abs(np.log10(q) - round(np.log10(q))) < 1e-6):
+            return None
+        off = np.abs(np.concatenate(sample) / q - np.round(np.concatenate(sample) / q))
+        return q if np.count_nonzero(off < 1e-3) / off.size >= 0.99 else None
+
+    counts = np.round(rng.normal(size=(6000, 3)) * [3.0, 0.2, 40.0] + 100.0) * 0.0625  # many zero steps on one axis
+    odd = counts.copy()
+    odd[rng.random(odd.shape) < 0.02] += 0.01
+    nan = counts.copy()
+    nan[100, 1] = np.nan
+    wide = counts.copy()
+    wide[:, 0] *= 2.0**15  # spans more than 2¹⁶ of the other columns' step: decided on the first column
+    cases = {"counts": counts, "odd steps": odd, "printed": np.round(rng.normal(size=(6000, 3)), 6),
+             "a NaN": nan, "wide first": wide, "constant": np.ones((50, 2))}
+    expected = {"counts": 0.0625, "odd steps": None, "printed": None, "a NaN": 0.0625, "wide first": None,
+                "constant": None}
+    for chunk, steps in ((qz.STEP_CHUNK, qz.QUANTUM_CHECK_STEPS), (97, 1000)):
+        monkeypatch.setattr(qz, "STEP_CHUNK", chunk)
+        monkeypatch.setattr(qz, "QUANTUM_CHECK_STEPS", steps)
+        for name, x in cases.items():
+            assert quantum(x) == whole_columns(x) == expected[name], (name, chunk)
+
+    t = np.cumsum(rng.choice([0.01, 0.01, 0.01, 0.2], size=3000))
+    for piece in (static.GAP_PIECE, 64, 1, 2999, 3000):
+        monkeypatch.setattr(static, "GAP_PIECE", piece)
+        for times in (t, t[:1], t[:2], np.r_[0.0, 1.0], np.r_[t[:700], np.nan, t[700:]]):
+            got = static._gaps(times, 0.05)
+            assert got.dtype == np.int64 and np.array_equal(got, np.flatnonzero(np.diff(times) > 0.05) + 1), piece
+
+
+def test_one_quantile_of_many_values_selected_in_a_bracket_is_numpys():
+    """A single quantile of at least BRACKET_MIN_VALUES values (the noise colour's), its two order statistics selected
+    inside a bracket, is np.quantile's value bit for bit: at 0, ¼, ½, ⅓ and 1, on noise, counts (ties), a tie across
+    the quantile, ratios with zeros at the quartile (refused by the bracket: the whole partitioned)."""
+    from optcal.data.quantiles import BRACKET_MIN_VALUES, _quantile_in_bracket, column_quantile
+
+    rng = np.random.default_rng(41)
+    n = BRACKET_MIN_VALUES + 7
+    cases = {"chi2": rng.chisquare(3, size=n), "counts": np.round(rng.normal(size=n) * 2.0) + 300.0,
+             "tie": np.r_[np.full(n // 4 - 2, 1.0), np.full(9, 2.0), np.full(n - n // 4 - 7, 3.0)],
+             "zeros": np.where(rng.random(n) < 0.3, 0.0, rng.exponential(size=n))}
+    for name, x in cases.items():
+        for p in (0.0, 0.25, 0.5, 1.0 / 3.0, 1.0):
+            assert quantiles(x, [p]) == [float(np.quantile(x, p))], (name, p)
+            assert quantiles(x, [p, p]) == [float(np.quantile(x, p))] * 2, (name, p)
+        stack = np.column_stack([x, x[::-1] * 2.0])
+        assert np.array_equal(column_quantile(stack, 0.25), np.quantile(stack, 0.25, axis=0)), name
+    assert _quantile_in_bracket(cases["chi2"], 0.25) == float(np.quantile(cases["chi2"], 0.25))
+    assert _quantile_in_bracket(cases["zeros"], 0.25) is None  # the quartile is a zero: the bracket refuses it
