@@ -12,7 +12,7 @@ from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 from optcal.cli.quiet import quiet_option
-from optcal.cli.mag_options import mag_read_options
+from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 
 
 @click.command()
@@ -82,6 +82,7 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
         return
     if mag_options_used(mag_form, mag_units, accept_mag_fit, keep_mag_repeats) or location is not None or session_date is not None:
         raise InputError("--mag-form, --mag-units, --accept-mag-fit, --keep-mag-repeats, --location and --date apply with --sensor mag")
+    refuse_mag_options(False, False, "with --sensor mag")
     if method == "ferraris" or sections or turn_angle is not None:
         if method != "ferraris" or imu or report_path or joint or g_sensitivity or accept_gyro_fit:
             raise InputError("--sections and --turn-angle apply with --method ferraris, which calibrates both sensors "

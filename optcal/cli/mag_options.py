@@ -1,15 +1,20 @@
-"""``--accept-mag-fit`` and ``--keep-mag-repeats``: one definition for every command that reads a magnetometer.
+"""``--accept-mag-fit``, ``--keep-mag-repeats`` and ``--keep-mag-spikes``: one definition for every command that
+reads a magnetometer.
 
 ``calibrate --sensor mag``, ``diagnose --sensor mag``, ``plan --sensor mag --next DATA``, and ``check`` and
 ``apply`` with a magnetometer calibration read DATA's magnetometer through
 :func:`optcal.families.mag.samples.read_mag`, which leaves out the samples at the converter's rail and the rows a
-logger repeated until the magnetometer's next update, and says so in lines that name these flags; each of them
+logger repeated until the magnetometer's next update and its spikes (samples that leave both neighbours by more than
+a turning field moves), and says so in lines that name these flags; each of them
 takes them (:func:`mag_read_options`, as :mod:`optcal.cli.data_options` adds the DATA flags), and a command that
-reads no magnetometer refuses them in one line (:func:`refuse_mag_options`).
+reads no magnetometer refuses them in one line (:func:`refuse_mag_options`).  ``--keep-mag-spikes`` reaches
+:func:`~optcal.families.mag.samples.read_mag` through :func:`optcal.families.mag.spikes.keep_spikes_by_default`, set
+around the command by :func:`mag_read_options`, so that no command's signature carries it.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -28,11 +33,26 @@ _KEEP_MAG_REPEATS = click.option(
          "update (a slower magnetometer in a faster log; by default one row per update is kept and the repeats are "
          "counted: each would weigh its sample several times).")
 
+_KEEP_MAG_SPIKES = click.option(
+    "--keep-mag-spikes", is_flag=True, default=False,
+    help="Reading a magnetometer: keep the samples (runs of 1-3 rows) that leave both neighbours by more than a field "
+         "turning at 10 rad/s can move between them and whose second difference is an outlier over the log (a bus "
+         "glitch, a torn register read, a motor's pulse; left out and counted by default).")
+
 
 def mag_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """Click decorator adding ``--accept-mag-fit`` and ``--keep-mag-repeats`` (keywords ``accept_mag_fit``,
-    ``keep_mag_repeats``; see the module docstring)."""
-    return _ACCEPT_MAG_FIT(_KEEP_MAG_REPEATS(func))
+    ``keep_mag_repeats``) and ``--keep-mag-spikes`` (taken here: the command runs with
+    :func:`optcal.families.mag.spikes.keep_spikes_by_default` set to it; see the module docstring)."""
+
+    @functools.wraps(func)
+    def run(*args: Any, keep_mag_spikes: bool = False, **kwargs: Any) -> Any:
+        from optcal.families.mag.spikes import keep_spikes_by_default
+
+        with keep_spikes_by_default(keep_mag_spikes):
+            return func(*args, **kwargs)
+
+    return _ACCEPT_MAG_FIT(_KEEP_MAG_REPEATS(_KEEP_MAG_SPIKES(run)))
 
 
 def refuse_mag_options(accept_mag_fit: bool, keep_mag_repeats: bool, what: str) -> None:
@@ -42,10 +62,12 @@ def refuse_mag_options(accept_mag_fit: bool, keep_mag_repeats: bool, what: str) 
     Raises
     ------
     InputError
-        ``accept_mag_fit`` or ``keep_mag_repeats`` given.
+        ``accept_mag_fit``, ``keep_mag_repeats`` or ``--keep-mag-spikes`` given.
     """
-    used = [flag for flag, value in (("--accept-mag-fit", accept_mag_fit), ("--keep-mag-repeats", keep_mag_repeats))
-            if value]
+    from optcal.families.mag.spikes import keep_spikes_default
+
+    used = [flag for flag, value in (("--accept-mag-fit", accept_mag_fit), ("--keep-mag-repeats", keep_mag_repeats),
+                                     ("--keep-mag-spikes", keep_spikes_default())) if value]
     if used:
         from optcal.errors import InputError
 

@@ -700,7 +700,8 @@ def drop_held(samples: MagSamples, keep: bool = False) -> MagSamples:
 
 
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
-             mag_units: str | None = None, keep_rail: bool = False, keep_repeats: bool = False) -> MagSamples:
+             mag_units: str | None = None, keep_rail: bool = False, keep_repeats: bool = False,
+             keep_spikes: bool | None = None) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
 
     Parameters
@@ -718,13 +719,20 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
     keep_repeats : bool
         Keep every row where the logger repeats each magnetometer value until its next update (:func:`drop_held`;
         by default one row per update, the repeats counted).
+    keep_spikes : bool, optional
+        Keep the samples that leave both neighbours by more than a turning field moves
+        (:func:`optcal.families.mag.spikes.drop_spikes`; left out and counted by default; ``None``: as the command
+        line's ``--keep-mag-spikes`` says).
 
     Raises
     ------
     InputError
         No magnetometer found, or a file optcal cannot read.
     """
-    return drop_held(_read_any_mag(str(path), columns, topic, mag_units, keep_rail), keep_repeats)
+    from optcal.families.mag.spikes import drop_spikes
+
+    held = drop_held(_read_any_mag(str(path), columns, topic, mag_units, keep_rail), keep_repeats)
+    return drop_spikes(held, keep_spikes)
 
 
 def _read_any_mag(p: str, columns: str | dict[str, str] | None, topic: str | None, mag_units: str | None,
