@@ -48,8 +48,8 @@ from typing import Any
 import numpy as np
 
 from optcal.applications.diagnosis.acceptance import (
-    BIC_TIE, DIRECT_ORDERS, Candidate, TemperatureTimeDecision, accept, prefer_step_to_outliers, rivals,
-    step_down_first,
+    BIC_TIE, DIRECT_ORDERS, Candidate, TemperatureTimeDecision, accept, outlier_candidate, prefer_terms_to_outliers,
+    preference_order, restore_outliers, rivals, step_down_first,
 )
 from optcal.applications.diagnosis.backward import Dropped, backward_check, recheck_notes, recheck_outliers
 from optcal.applications.diagnosis.bias_step import DRAWS as STEP_DRAWS, adjusted_p, scan_step, uses_minp_positions
@@ -258,7 +258,7 @@ class ForwardSelection:
                         tried[-1].rejected_because = ("pose rows " + ", ".join(map(str, again)) +
                                                       " were returned to the fit by the backward check")
             kept = step_down_first(fitter, tried, current)
-            prefer_step_to_outliers(fitter, tried, current, self.alpha_outliers)
+            set_aside = self.prefer_terms_to_outliers(current, tried, term_cands, pair_level, bic0, steps_axes)
             # only drifts kept at their order, their evidence spread, pass (before: nothing passed): sets compete
             spread = bool(kept) and all(id(c) in kept for c in tried if c.significant)
             if spread and pair_level is not None:
@@ -268,6 +268,9 @@ class ForwardSelection:
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
                 accepted = accept(fitter, together, current)
+            if accepted is None and set_aside is not None:  # what explained the outliers did not enter: they compete
+                restore_outliers(set_aside)
+                accepted = accept(fitter, [set_aside], current)
             if accepted is not None:  # a directly entered drift was stepped down before the choice
                 rivalries += rivals(accepted, tried)
             steps.append(Step(tried, accepted))
@@ -302,6 +305,37 @@ class ForwardSelection:
         rivalries = [r for r in rivalries if (r.chosen, r.axis) not in gone or
                      (r.chosen, AXES.index(r.axis)) in current.terms]
         return SelectionResult(current, steps, self.explain(current, rivalries), level, dropped, self.correlation)
+
+    def prefer_terms_to_outliers(self, current: Fit, tried: list[Candidate], term_cands: list[tuple[str, int, int]],
+                                 pair_level: float | None, bic0: float, knock_axes: list[int]) -> Candidate | None:
+        """The step's outlier candidate set aside when a candidate of the step explains its poses
+        (:func:`~optcal.applications.diagnosis.acceptance.prefer_terms_to_outliers`), and returned (``None``: none).
+
+        When no one term or knock does and the outlier candidate would be chosen (the first of the step's
+        :func:`~optcal.applications.diagnosis.acceptance.preference_order`), the best set of terms searched together
+        (:meth:`term_pair_candidate`, at the sets' own share ``pair_level`` of the step's departures level, every term
+        needed given the others) is tried as the explanation: a nonlinearity on two axes moves the rests along both
+        and neither term alone passes while the outlier poses carry their evidence.  The set enters the step's
+        candidates when it explains the poses; otherwise it is listed as not significant, with why.
+        """
+        found = prefer_terms_to_outliers(self.fitter, tried, current, self.alpha_outliers)
+        if found is not None or pair_level is None:
+            return found
+        outliers = outlier_candidate(tried)
+        if outliers is None or preference_order([c for c in tried if c.significant])[0] is not outliers:
+            return None
+        together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, knock_axes)
+        if not together:
+            return None
+        found = prefer_terms_to_outliers(self.fitter, [outliers, *together], current, self.alpha_outliers)
+        if found is None and together[0].significant:
+            together[0].significant = False
+            together[0].rejected_because = "searched as the outlier poses' explanation: some are still outliers under it"
+        elif found is None:
+            together[0].rejected_because = (together[0].rejected_because or "not significant at its level") + \
+                "; searched as the outlier poses' explanation"
+        tried += together
+        return found
 
     def backward_check(self, current: Fit, levels: dict[tuple[str, int], float], entered: tuple[str, int] | None,
                        after: str, step_levels: dict[int, float] | None = None, entered_steps: tuple[int, ...] = (),
