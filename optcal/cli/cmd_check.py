@@ -173,11 +173,31 @@ def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: 
            "data": {"path": data, "n_samples": samples.n, "decisions": samples.decision_lines()},
            "rms_norm_residual": rms, "median_norm": float(np.median(norm)),
            "field_strength": cal.field_strength, "field_strength_in_data": float(np.median(norm)) * cal.field_strength}
+    plane_line = None
+    if cal.plane_normal is not None:  # a planar calibration holds in its plane only: is DATA turned in it?
+        from optcal.families.mag.fit import PLANAR_SPREAD
+        from optcal.families.mag.planar import plane_departure
+
+        share, deg = plane_departure(samples.m, cal.plane_normal)
+        inside = share < PLANAR_SPREAD  # the planar test's bound (a tilt of 8° rms): the calibration's own decision
+        out["plane"] = {"normal": [float(v) for v in cal.plane_normal], "tilt_share": share, "tilt_deg": deg,
+                        "in_plane": inside}
+        n = ", ".join(f"{v:+.3f}" for v in cal.plane_normal)
+        plane_line = (f"plane: DATA turns in the calibration's plane (normal [{n}]): its spread along the normal, less "
+                      f"the noise, is {100 * share:.2g} % of the whole, a tilt of {deg:.2g}° (below "
+                      f"{100 * PLANAR_SPREAD:g} %)" if inside else
+                      f"plane: DATA is not turned in the calibration's plane (normal [{n}]): {100 * share:.2g} % of its "
+                      f"spread lies along the normal, as in a plane at {deg:.2g}° to it (a turn in the plane: below "
+                      f"{100 * PLANAR_SPREAD:g} %), so the in-plane norm holds part of the field's normal component and "
+                      f"the residual below measures the plane, not the calibration; check it on a recording turned in "
+                      f"that plane")
     if as_json:
         echo_json(out)
         return
     for line in samples.decision_lines():
         click.echo(line)
+    if plane_line is not None:
+        click.echo(plane_line)
     click.echo(f"{calibration} on {data}: {samples.n} magnetometer samples; rms of |T(m − o)| − 1 {rms:.4%} of the field; "
                f"the field read {out['field_strength_in_data']:.6g} {cal.units} (the calibration's "
                f"{cal.field_strength:.6g}: {out['median_norm'] - 1.0:+.2%})")

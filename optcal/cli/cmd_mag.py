@@ -92,11 +92,17 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         from optcal.report.mag_document import mag_document
 
         write_report(mag_document(result, data, command_line()), report_path)
+    if result.samples.units != samples.units:  # a planar fit's field in the plane decided the unit
+        say(result.samples.units.line().replace("magnetometer units:", "magnetometer units, after the planar fit:", 1))
     cal = result.calibration
     comparison = None
     if reference is not None and cal.plane_normal is not None:
+        from optcal.families.mag.calibration import state_vertical_field
+
+        state_vertical_field(result, reference.inclination_deg)
         say("--location: the World Magnetic Model's field is not compared with a planar calibration's (its field in "
-            "the plane depends on the plane's unknown tilt to the horizontal)")
+            "the plane depends on the plane's unknown tilt to the horizontal); its dip "
+            f"{reference.inclination_deg:.2f}° gives the vertical field's share of the heading error")
     elif reference is not None:
         say(f"date: {day_reason}")
         comparison = compare_with_wmm(reference, cal.field_strength, cal.units, cal.info.get("dip_deg"),
@@ -131,6 +137,13 @@ def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str |
     from optcal.families.mag.samples import read_mag
 
     samples = read_mag(data, columns=columns, topic=topic, keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+    if cal.plane_normal is not None:  # a planar recording's unit from its field in the plane, as calibrate decides it
+        from dataclasses import replace
+
+        from optcal.families.mag.units import units_from_plane_field
+
+        in_plane = float(np.median(cal.norm(samples.m))) * cal.field_strength  # data units, whatever their name
+        samples = replace(samples, units=units_from_plane_field(samples.units, in_plane))
     if samples.units.units != cal.units:
         raise InputError(f"DATA's magnetometer is read as {samples.units.units} ({samples.units.reason}), the calibration "
                          f"is in {cal.units}: apply it to samples in {cal.units}")

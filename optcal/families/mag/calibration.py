@@ -14,7 +14,7 @@ iron, ``normal_offset``, undetermined and taken as 0); its norm residual is the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -27,9 +27,10 @@ from optcal.families.caltypes.base import Calibration, FitPoses, as_samples, rea
 from optcal.families.mag.dip import DipResult, estimate_dip
 from optcal.families.mag.fit import PLANAR_SPREAD, FormFit, MagFit, MagSettings, choose_form, coverage
 from optcal.families.mag.planar import HEADING_SECTORS as HEADING_SECTORS_N
-from optcal.families.mag.planar import PlanarFit, fit_planar, planar_decision, planar_evidence
+from optcal.families.mag.planar import (PlanarFit, fit_planar, planar_decision, planar_evidence,
+                                        vertical_field_heading_error)
 from optcal.families.mag.samples import MagSamples
-from optcal.families.mag.units import MAG_UNITS
+from optcal.families.mag.units import MAG_UNITS, units_from_plane_field
 
 
 @dataclass(eq=False)
@@ -234,9 +235,11 @@ def _calibrate_planar(samples: MagSamples, settings: MagSettings, decision: str 
     reason = (f"{why}; {pf.form} in the plane: {pf.reason} (override with --mag-form planar-circle|planar-ellipse; "
               "--mag-form offsets|diagonal|full fits a 3-D form, refused on planar samples unless --allow-degenerate)")
     H = pf.horizontal_field
+    # the unit from the fit's evidence: the field in the plane, its hard iron removed (not the median |m|)
+    samples = replace(samples, units=units_from_plane_field(samples.units, H))
     undetermined = ("undetermined by a turn in one plane: the hard iron along the normal (taken as 0: the normal "
                     "component passes through uncalibrated), the field's normal component and so the dip")
-    notes = [undetermined, pf.tilt_heading_error()] + ([pf.note] if pf.note else [])
+    notes = [undetermined, pf.tilt_heading_error(), vertical_field_heading_error()] + ([pf.note] if pf.note else [])
     missing = HEADING_SECTORS_N - len(pf.sectors)
     if missing:
         notes.append(f"headings covered {len(pf.sectors)} of {HEADING_SECTORS_N} sectors of {360 // HEADING_SECTORS_N}°: "
@@ -255,6 +258,7 @@ def _calibrate_planar(samples: MagSamples, settings: MagSettings, decision: str 
             "normal_row": "T's row along the normal is n/H: H T (m - o) passes n.m through unchanged, in data units",
             "tilt_share": pf.tilt_share, "tilt_deg_rms": pf.tilt_deg,
             "tilt_heading_error": pf.tilt_heading_error(),
+            "vertical_field_heading_error": vertical_field_heading_error(),
             "headings_covered": {"sectors": list(pf.sectors), "of": HEADING_SECTORS_N},
             "dip": "undetermined",
         },
@@ -266,3 +270,16 @@ def _calibrate_planar(samples: MagSamples, settings: MagSettings, decision: str 
                                      "gain_over_circle": dict(zip(("gain", "se"), h.gain("circle", "ellipse")))}
     cal = MagCalibration(pf.T, pf.o, samples.units.units, H, None, None, info, pf.normal)
     return MagCalibrationResult(cal, fit, None, samples, pf)
+
+
+def state_vertical_field(result: MagCalibrationResult, dip_deg: float) -> None:
+    """A planar calibration's vertical-field heading error stated at the place's dip (``--location``): its note and
+    ``planar.vertical_field_heading_error`` in the JSON (:func:`optcal.families.mag.planar.vertical_field_heading_error`)."""
+    info = result.calibration.info
+    if "planar" not in info:
+        return
+    old, new = info["planar"]["vertical_field_heading_error"], vertical_field_heading_error(dip_deg)
+    info["planar"]["vertical_field_heading_error"] = new
+    for notes in (info["notes"], result.fit.notes):  # the JSON's and the report's (the same list where they are one)
+        if old in notes:
+            notes[notes.index(old)] = new

@@ -181,7 +181,7 @@ def _ellipse_lm(p: NDArray[np.float64], x: NDArray[np.float64], iterations: int 
     return x
 
 
-def _headings(p: NDArray[np.float64], c: NDArray[np.float64]) -> NDArray[np.int64]:
+def heading_sectors(p: NDArray[np.float64], c: NDArray[np.float64]) -> NDArray[np.int64]:
     """Each sample's heading sector (0 … :data:`HEADING_SECTORS` − 1) about ``c``."""
     ang = np.arctan2(p[:, 1] - c[1], p[:, 0] - c[0]) % (2 * np.pi)
     return np.minimum((ang / (2 * np.pi / HEADING_SECTORS)).astype(np.int64), HEADING_SECTORS - 1)
@@ -193,7 +193,7 @@ def heldout_planar(p: NDArray[np.float64], max_samples: int = 5000) -> HeldOut:
     :data:`optcal.families.mag.fit.HELDOUT_SAMPLES`); ``cells`` are the sector indices."""
     stride = max(1, -(-len(p) // max_samples))
     pp = np.ascontiguousarray(p[::stride])
-    sector = _headings(pp, _sphere_fit(pp)[0])
+    sector = heading_sectors(pp, _sphere_fit(pp)[0])
     cells, counts = np.unique(sector, return_counts=True)
     mse = {f: np.full(len(cells), np.inf) for f in PLANAR_FORMS}
     for i, cell in enumerate(cells):
@@ -295,6 +295,35 @@ class PlanarFit:
                 f"({100 * eps_1deg / self.horizontal_field:.3g} % of H)")
 
 
+#: Dips at which :func:`vertical_field_heading_error` states the vertical field's share without ``--location``: from a
+#: low latitude's to a high one's (the WMM's dip is within ±80° wherever people live but near the dip poles).
+STATED_DIPS_DEG: tuple[float, ...] = (30.0, 60.0, 70.0, 80.0)
+
+
+def vertical_field_heading_error(dip_deg: float | None = None, where: str = "at --location") -> str:
+    """The heading error the vertical field ``Z`` brings in when the turn's plane tilts by θ from the horizontal, in
+    words: about ``(Z/H) θ`` at most (``Z/H = tan I``, the dip ``I``), degrees of heading per degree of tilt.
+
+    A level sensor reads the horizontal field ``H`` in its plane; tilted by a small θ about an axis in the plane, one
+    in-plane axis also reads ``Z sin θ``, which turns the heading by up to ``(Z/H) sin θ`` radians (nothing when the
+    tilt axis points along the field).  It is larger than the hard-iron leak (:meth:`PlanarFit.tilt_heading_error`)
+    wherever ``Z`` exceeds the normal hard iron; the calibration does not see it (the dip is undetermined).
+
+    Parameters
+    ----------
+    dip_deg : float, optional
+        The dip at the place (the World Magnetic Model's at ``--location``); None states it for :data:`STATED_DIPS_DEG`.
+    where : str
+        Where the dip comes from (for the sentence).
+    """
+    head = ("a tilt θ of the turn's plane from the horizontal brings the vertical field Z in: the heading moves by up "
+            "to (Z/H)·θ, tan(dip) degrees per degree of tilt")
+    if dip_deg is None:
+        per = ", ".join(f"{np.tan(np.radians(d)):.2g} at a dip of {d:g}°" for d in STATED_DIPS_DEG)
+        return f"{head}: {per} (--location gives the place's)"
+    return f"{head}: {abs(np.tan(np.radians(dip_deg))):.3g}° per degree {where} (dip {dip_deg:.2f}°)"
+
+
 def planar_evidence(m: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
     """The planar test of :func:`optcal.families.mag.fit.planar_tilt` with the misfit of the circle fitted to the
     samples projected on their thinnest axis's plane (the noise bound the 3-D test takes from its sphere): the tilt's
@@ -307,6 +336,21 @@ def planar_evidence(m: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]
     except np.linalg.LinAlgError:
         misfit = np.inf
     return planar_tilt(m, misfit)
+
+
+def plane_departure(m: NDArray[np.float64], normal: NDArray[np.float64]) -> tuple[float, float]:
+    """How far samples ``m`` (n, 3) leave the plane normal to ``normal`` (a planar calibration's): their spread along
+    it less the sensor's noise there, as a share of their whole spread, and as the angle ``asin √(2 share)`` of a plane
+    they would turn in.  The planar test's (:func:`optcal.families.mag.fit.planar_tilt`) along a given axis instead of
+    the samples' thinnest, the noise taken from consecutive samples' differences along it: a turn in the plane gives 0,
+    one in a plane at α to it ``sin²α / 2`` (so the angle is α; a small wobble's, ``√(2 share)``, is the planar test's
+    rms tilt), a full sphere 1/3 (55°)."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    C = np.cov(m.T)
+    d = np.diff(m, axis=0) @ n
+    noise2 = (1.4826 * float(np.median(np.abs(d - np.median(d))))) ** 2 / 2.0 if d.size else 0.0
+    share = max(float(n @ C @ n) - noise2, 0.0) / max(float(np.trace(C)), 1e-300)
+    return share, float(np.degrees(np.arcsin(min(np.sqrt(2 * share), 1.0))))
 
 
 def _form_fit(p: NDArray[np.float64], form: str, est: dict[str, Any], method: str
@@ -415,7 +459,7 @@ def fit_planar(m: NDArray[np.float64], form: str = "auto", est: dict[str, Any] |
         raise InputError(f"the samples are not a magnetic field in their plane: they leave the fitted {chosen} by "
                          f"{100 * rms:.3g} % rms (a field with hard and soft iron: a few %); check that --columns maps "
                          f"mx, my, mz to the magnetometer; --accept-mag-fit keeps it")
-    sectors = tuple(int(s) for s in np.unique(_headings(p, c)))
+    sectors = tuple(int(s) for s in np.unique(heading_sectors(p, c)))
     tilt_deg = float(np.degrees(np.sqrt(2 * tilt)))  # a tilt θ rms about the plane leaves θ²/2 of the spread
     return PlanarFit(n, P, chosen, T2, c, r, stderr, worst, tilt, tilt_deg, sectors, fitted, solver, reason, heldout, note)
 

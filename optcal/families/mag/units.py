@@ -204,3 +204,43 @@ def units_at_place(decision: UnitDecision, m: NDArray[np.float64], field_ut: flo
                               f"sphere through the samples) is {radius * UT_PER_UNIT[unit]:.4g} µT in {unit}, nearest "
                               f"the World Magnetic Model's {field_ut:.4g} µT at --location of the units (within a "
                               f"factor {PLACE_UNIT_BAND:.3g}){was}", decision.median_field)
+
+
+#: The field in a planar turn's plane, µT, whose magnitude names the unit of a planar recording (the planar fit's
+#: ``H``, its hard iron removed).  It is a lower bound on the total field, the dip being unseen: at most the total
+#: field (65 µT, :data:`EARTH_FIELD_UT`'s upper end: a plane that holds the field's direction), at least the
+#: horizontal field of a level turn, the total times the cosine of the dip, 25-65 µT × cos 85° ≈ 5 µT for a dip up to
+#: 85° (everywhere but a few hundred km about the dip poles).  Not widened by :data:`UNIT_TOLERANCE`: the band already
+#: spans a factor 13, so µT and mgauss share 50-65 (there the magnitude |m| decides, as without a fit).
+PLANE_FIELD_UT: tuple[float, float] = (5.0, 65.0)
+
+
+def units_from_plane_field(decision: UnitDecision, field: float) -> UnitDecision:
+    """The unit of a planar recording decided from the field in its plane (:data:`PLANE_FIELD_UT`).
+
+    A unit given with ``--mag-units`` or stated by the file is kept.  Decided from the data, the unit is the only one
+    in which ``field`` (the planar fit's horizontal field ``H``, data units) lies in :data:`PLANE_FIELD_UT`; where no
+    unit or two do, the decision from the magnitude is kept and the reason says so.
+
+    Parameters
+    ----------
+    decision : UnitDecision
+        The decision from the samples (:func:`decide_mag_units`).
+    field : float
+        The planar fit's field in the plane, in the samples' units.
+    """
+    if not decision.reason.startswith("from the data"):
+        return decision
+    low, high = PLANE_FIELD_UT
+    fits = [u for u, k in UT_PER_UNIT.items() if low <= field * k <= high]
+    band = (f"{low:g}-{high:g} µT (the Earth's {EARTH_FIELD_UT[0]:g}-{EARTH_FIELD_UT[1]:g} µT total, times the cosine "
+            f"of a dip up to 85°: the dip is not seen in one plane)")
+    if len(fits) != 1:
+        which = "no unit" if not fits else " and ".join(fits)
+        return UnitDecision(decision.units, f"{decision.reason}; the planar fit's field in the plane {field:.4g} is "
+                                            f"{which} in {band}, so the magnitude decides", decision.median_field)
+    unit = fits[0]
+    was = "" if unit == decision.units else f", which read {decision.units}"
+    return UnitDecision(unit, f"from the data: the planar fit's field in the plane {field:.4g} (the hard iron removed) is "
+                              f"{field * UT_PER_UNIT[unit]:.3g} µT in {unit}, the only unit in {band}; the median "
+                              f"|m| {decision.median_field:.4g} holds the hard iron{was}", decision.median_field)
