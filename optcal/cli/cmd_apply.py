@@ -34,7 +34,7 @@ from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 @quiet_option
 def apply(calibration: str, data: str, output: str, units_out: str, data_units: str | None, columns: str | None,
           topic: str | None, rate: float | None, data_format: str, gyro_file: str | None, accept_mag_fit: bool,
-          keep_mag_repeats: bool, peer_gravity: float | None, gyro_calib: str | None) -> None:
+          keep_mag_repeats: bool, keep_mag_spikes: bool, peer_gravity: float | None, gyro_calib: str | None) -> None:
     """Correct every row of DATA with the calibration CAL (any cal_type) and write it to OUT.
 
     Time and every other column pass through unchanged; the accelerations are replaced by the
@@ -56,8 +56,8 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     if cal.cal_type == "magnetometer":  # its samples are mx, my, mz, read by the magnetometer's reader
         from optcal.cli.cmd_mag import apply_mag
 
-        return apply_mag(cal, calibration, data, output, columns, topic, accept_mag_fit, keep_mag_repeats)
-    refuse_mag_options(accept_mag_fit, keep_mag_repeats,
+        return apply_mag(cal, calibration, data, output, columns, topic, accept_mag_fit, keep_mag_repeats, keep_mag_spikes)
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, keep_mag_spikes,
                        "to a magnetometer calibration (CAL's cal_type is magnetometer)")
     with decisions_on_error(data):  # the decisions made before a refusal are printed with it
         applied = apply_to_file(cal, data, options, units_out=units_out)

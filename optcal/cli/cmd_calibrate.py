@@ -12,7 +12,7 @@ from optcal.cli.outputs import echo_json, output_file
 from optcal.cli.report_option import command_line, report_options, write_report
 from optcal.cli.solver_options import estimator_settings, pop_solver_options, solver_options
 from optcal.cli.quiet import quiet_option
-from optcal.cli.mag_options import mag_read_options, refuse_mag_options
+from optcal.cli.mag_options import mag_read_options
 
 
 @click.command()
@@ -58,7 +58,7 @@ from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
               loss: str, scale_range: tuple[float, float] | None, imu: bool,
               joint: bool, g_sensitivity: bool, accept_gyro_fit: bool, sections: str | None, turn_angle: float | None,
-              sensor: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool,
+              sensor: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool,
               location: str | None,
               session_date: str | None,
               report_path: str | None, tolerance: float, **data_opts: Any) -> None:
@@ -78,11 +78,11 @@ def calibrate(data: str, method: str, as_json: bool, output: str | None, allow_d
             raise InputError("--imu, --scale-range, --sections and --turn-angle apply to the accelerometer, "
                              "not to --sensor mag")
         calibrate_mag_command(data, method, as_json, output, allow_degenerate, loss, mag_form, mag_units,
-                              accept_mag_fit, keep_mag_repeats, solver_opts, data_opts, location, session_date, report_path)
+                              accept_mag_fit, keep_mag_repeats, keep_mag_spikes, solver_opts, data_opts, location, session_date, report_path)
         return
-    if mag_options_used(mag_form, mag_units, accept_mag_fit, keep_mag_repeats) or location is not None or session_date is not None:
-        raise InputError("--mag-form, --mag-units, --accept-mag-fit, --keep-mag-repeats, --location and --date apply with --sensor mag")
-    refuse_mag_options(False, False, "with --sensor mag")
+    if mag_options_used(mag_form, mag_units, accept_mag_fit, keep_mag_repeats, keep_mag_spikes) or location is not None or session_date is not None:
+        raise InputError("--mag-form, --mag-units, --accept-mag-fit, --keep-mag-repeats, --keep-mag-spikes, --location and --date apply "
+                         "with --sensor mag")
     if method == "ferraris" or sections or turn_angle is not None:
         if method != "ferraris" or imu or report_path or joint or g_sensitivity or accept_gyro_fit:
             raise InputError("--sections and --turn-angle apply with --method ferraris, which calibrates both sensors "

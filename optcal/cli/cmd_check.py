@@ -27,7 +27,7 @@ from optcal.cli.mag_options import mag_read_options, refuse_mag_options
 @report_options
 @data_options
 @quiet_option
-def check(calibration: str, data: str, as_json: bool, method: str, accept_mag_fit: bool, keep_mag_repeats: bool,
+def check(calibration: str, data: str, as_json: bool, method: str, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool,
           peer_gravity: float | None,
           gyro_calib: str | None, report_path: str | None, tolerance: float, **data_opts: Any) -> None:
     """Apply the calibration in CAL.json (any cal_type) to the static poses of DATA; report |a|−1 before and after.
@@ -44,8 +44,8 @@ def check(calibration: str, data: str, as_json: bool, method: str, accept_mag_fi
 
     cal = load_calibration(calibration, peer_gravity, gyro_calib)
     if cal.cal_type == "magnetometer":
-        return _check_mag(cal, calibration, data, as_json, data_opts, accept_mag_fit, keep_mag_repeats)
-    refuse_mag_options(accept_mag_fit, keep_mag_repeats,
+        return _check_mag(cal, calibration, data, as_json, data_opts, accept_mag_fit, keep_mag_repeats, keep_mag_spikes)
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, keep_mag_spikes,
                        "to a magnetometer calibration (CAL's cal_type is magnetometer)")
     fitted = cal.fitted_on.n if cal.fitted_on is not None else None
     # an imu (or a peer's gyro) calibration also needs DATA's segmentation (its moves): the file is read once, with it
@@ -157,7 +157,7 @@ def gravity_check_lines(cal: Any, loaded: Any) -> tuple[list[str], dict[str, Any
 
 
 def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: dict[str, Any],
-               accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
+               accept_mag_fit: bool = False, keep_mag_repeats: bool = False, keep_mag_spikes: bool = False) -> None:
     """A magnetometer calibration on DATA's magnetometer samples: the norm residual ``|T(m − o)| − 1`` (rms, and the
     field's strength the data read through it against the calibration's)."""
     import numpy as np
@@ -166,7 +166,7 @@ def _check_mag(cal: Any, calibration: str, data: str, as_json: bool, data_opts: 
     from optcal.families.mag.samples import read_mag
 
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=cal.units,
-                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats, keep_spikes=keep_mag_spikes)
     norm = cal.norm(samples.m)  # a planar calibration's: the in-plane part's
     rms = float(np.sqrt(np.mean((norm - 1.0) ** 2)))
     out = {"sensor": "magnetometer", "calibration": {"path": calibration, "cal_type": cal.cal_type, "units": cal.units},

@@ -109,7 +109,7 @@ def progress_printer() -> Any:
 def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, pose_noise: str,
              keep_terms: bool, no_term_pairs: bool, sensor: str,
-             mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, imu: bool,
+             mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, imu: bool,
              gyro_heldout_se: float | None, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
@@ -147,10 +147,10 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         if imu or baseline_path or len(data) != 1:
             raise InputError("--sensor mag diagnoses one magnetometer recording: one DATA, without --imu or --baseline")
         return _diagnose_mag(data[0], alpha, as_json, output, data_opts, mag_units, accept_mag_fit,
-                             keep_mag_repeats)
+                             keep_mag_repeats, keep_mag_spikes)
     if mag_units is not None:
         raise InputError("--mag-units applies with --sensor mag")
-    refuse_mag_options(accept_mag_fit, keep_mag_repeats, "with --sensor mag")
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, keep_mag_spikes, "with --sensor mag")
     if gyro_heldout_se is not None and not imu:
         raise InputError("--gyro-heldout-se applies with --imu (the gyroscope's diagnosis)")
     fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
@@ -263,7 +263,7 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
 
 
 def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, data_opts: dict[str, Any],
-                  mag_units: str | None, accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
+                  mag_units: str | None, accept_mag_fit: bool = False, keep_mag_repeats: bool = False, keep_mag_spikes: bool = False) -> None:
     """``optcal diagnose DATA --sensor mag`` (:mod:`optcal.applications.magnetic.diagnosis`): the plain calibration,
     then its diagnosis; ``-o`` saves the extended calibration (the disturbed stretches left out)."""
     import numpy as np
@@ -276,7 +276,7 @@ def _diagnose_mag(data: str, alpha: float, as_json: bool, output: str | None, da
     from optcal.families.mag.fit import MagSettings
 
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
-                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats, keep_spikes=keep_mag_spikes)
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     say(f"data: {data}: {samples.n} magnetometer samples" + (", with an accelerometer" if samples.acc is not None else ""))
     for line in samples.decision_lines():

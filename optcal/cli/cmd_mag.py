@@ -13,14 +13,14 @@ import click
 import numpy as np
 
 
-def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool = False) -> bool:
+def mag_options_used(mag_form: str, mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool = False, keep_mag_spikes: bool = False) -> bool:
     """Whether a magnetometer option was given (refused without ``--sensor mag``)."""
-    return mag_form != "auto" or mag_units is not None or accept_mag_fit or keep_mag_repeats
+    return mag_form != "auto" or mag_units is not None or accept_mag_fit or keep_mag_repeats or keep_mag_spikes
 
 
 def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | None, allow_degenerate: bool,
                           loss: str, mag_form: str, mag_units: str | None, accept_mag_fit: bool,
-                          keep_mag_repeats: bool,
+                          keep_mag_repeats: bool, keep_mag_spikes: bool,
                           solver_opts: dict[str, Any], data_opts: dict[str, Any], location: str | None = None,
                           session_date: str | None = None, report_path: str | None = None) -> None:
     """Read, fit and report (module docstring).
@@ -73,7 +73,7 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
         reference = wmm_reference(place, day)
     # a sample at the converter's rail lies off the ellipsoid as surely as one the fit rejects: the same flag keeps it
     samples = read_mag(data, columns=data_opts.get("columns"), topic=data_opts.get("topic"), mag_units=mag_units,
-                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+                       keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats, keep_spikes=keep_mag_spikes)
     if reference is not None:  # a unit decided from the data is checked against the field expected there
         from dataclasses import replace
 
@@ -124,7 +124,7 @@ def calibrate_mag_command(data: str, method: str, as_json: bool, output: str | N
 
 
 def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str | None, topic: str | None,
-              accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
+              accept_mag_fit: bool = False, keep_mag_repeats: bool = False, keep_mag_spikes: bool = False) -> None:
     """``optcal apply mag.json DATA -o OUT``: the magnetometer's samples calibrated, in the calibration's units.
 
     Writes ``mx, my, mz`` (the field ``field_strength · T (m − o)``) and ``norm`` (``|T(m − o)|``, 1 in
@@ -136,7 +136,7 @@ def apply_mag(cal: Any, calibration: str, data: str, output: str, columns: str |
     from optcal.errors import InputError
     from optcal.families.mag.samples import read_mag
 
-    samples = read_mag(data, columns=columns, topic=topic, keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+    samples = read_mag(data, columns=columns, topic=topic, keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats, keep_spikes=keep_mag_spikes)
     if cal.plane_normal is not None:  # a planar recording's unit from its field in the plane, as calibrate decides it
         from dataclasses import replace
 

@@ -67,7 +67,7 @@ def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str
          turntable: bool, turntable_step: float, within: float | None, axis: str, candidates_file: str | None,
          given_data: str | None, target_stderr: float | None, grid: int, seed: int, solver: str | None,
          solver_option: tuple[str, ...], as_json: bool, plot: str | None, report_path: str | None,
-         accept_mag_fit: bool, keep_mag_repeats: bool, **data_opts: Any) -> None:
+         accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, **data_opts: Any) -> None:
     """Plan calibration poses before taking them (optimal experiment design for the lumped model).
 
     --poses K: the K orientations that determine the nine parameters best (convex relaxation
@@ -89,9 +89,9 @@ def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str
         if used:
             raise InputError(f"{', '.join(used)} plan the accelerometer's poses; --sensor mag plans the field directions "
                              "a magnetometer session still needs: drop them")
-        _plan_mag(n_poses, next_data, as_json, data_opts, accept_mag_fit, keep_mag_repeats)
+        _plan_mag(n_poses, next_data, as_json, data_opts, accept_mag_fit, keep_mag_repeats, keep_mag_spikes)
         return
-    refuse_mag_options(accept_mag_fit, keep_mag_repeats, "with --sensor mag")
+    refuse_mag_options(accept_mag_fit, keep_mag_repeats, keep_mag_spikes, "with --sensor mag")
     if next_data is not None and given_data is not None:
         raise InputError("--next DATA already gives the poses taken; drop --given")
     if turntable and candidates_file:
@@ -162,7 +162,7 @@ def plan(sensor: str, n_poses: int | None, next_data: str | None, criterion: str
 
 
 def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_opts: dict[str, Any],
-              accept_mag_fit: bool = False, keep_mag_repeats: bool = False) -> None:
+              accept_mag_fit: bool = False, keep_mag_repeats: bool = False, keep_mag_spikes: bool = False) -> None:
     """``plan --sensor mag``: the missing field directions of DATA's calibrated samples, or the first K of the 26."""
     from optcal.errors import InputError
     from optcal.families.mag.calibration import calibrate_mag
@@ -173,7 +173,7 @@ def _plan_mag(n_poses: int | None, next_data: str | None, as_json: bool, data_op
     cov = None
     if next_data is not None:
         samples = read_mag(next_data, columns=data_opts.get("columns"), topic=data_opts.get("topic"),
-                           keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats)
+                           keep_rail=accept_mag_fit, keep_repeats=keep_mag_repeats, keep_spikes=keep_mag_spikes)
         if not as_json:
             click.echo(f"data: {next_data}: {samples.n} magnetometer samples")
             for line in samples.decision_lines():

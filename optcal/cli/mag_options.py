@@ -7,14 +7,11 @@ reads a magnetometer.
 logger repeated until the magnetometer's next update and its spikes (samples that leave both neighbours by more than
 a turning field moves), and says so in lines that name these flags; each of them
 takes them (:func:`mag_read_options`, as :mod:`optcal.cli.data_options` adds the DATA flags), and a command that
-reads no magnetometer refuses them in one line (:func:`refuse_mag_options`).  ``--keep-mag-spikes`` reaches
-:func:`~optcal.families.mag.samples.read_mag` through :func:`optcal.families.mag.spikes.keep_spikes_by_default`, set
-around the command by :func:`mag_read_options`, so that no command's signature carries it.
+reads no magnetometer refuses them in one line (:func:`refuse_mag_options`).
 """
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -41,33 +38,22 @@ _KEEP_MAG_SPIKES = click.option(
 
 
 def mag_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Click decorator adding ``--accept-mag-fit`` and ``--keep-mag-repeats`` (keywords ``accept_mag_fit``,
-    ``keep_mag_repeats``) and ``--keep-mag-spikes`` (taken here: the command runs with
-    :func:`optcal.families.mag.spikes.keep_spikes_by_default` set to it; see the module docstring)."""
-
-    @functools.wraps(func)
-    def run(*args: Any, keep_mag_spikes: bool = False, **kwargs: Any) -> Any:
-        from optcal.families.mag.spikes import keep_spikes_by_default
-
-        with keep_spikes_by_default(keep_mag_spikes):
-            return func(*args, **kwargs)
-
-    return _ACCEPT_MAG_FIT(_KEEP_MAG_REPEATS(_KEEP_MAG_SPIKES(run)))
+    """Click decorator adding ``--accept-mag-fit``, ``--keep-mag-repeats`` and ``--keep-mag-spikes`` (keywords
+    ``accept_mag_fit``, ``keep_mag_repeats``, ``keep_mag_spikes``; see the module docstring)."""
+    return _ACCEPT_MAG_FIT(_KEEP_MAG_REPEATS(_KEEP_MAG_SPIKES(func)))
 
 
-def refuse_mag_options(accept_mag_fit: bool, keep_mag_repeats: bool, what: str) -> None:
+def refuse_mag_options(accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, what: str) -> None:
     """Refuse the magnetometer's reading flags where the command reads no magnetometer (``what`` says when they
     apply).
 
     Raises
     ------
     InputError
-        ``accept_mag_fit``, ``keep_mag_repeats`` or ``--keep-mag-spikes`` given.
+        ``accept_mag_fit``, ``keep_mag_repeats`` or ``keep_mag_spikes`` given.
     """
-    from optcal.families.mag.spikes import keep_spikes_default
-
     used = [flag for flag, value in (("--accept-mag-fit", accept_mag_fit), ("--keep-mag-repeats", keep_mag_repeats),
-                                     ("--keep-mag-spikes", keep_spikes_default())) if value]
+                                     ("--keep-mag-spikes", keep_mag_spikes)) if value]
     if used:
         from optcal.errors import InputError
 

@@ -701,7 +701,7 @@ def drop_held(samples: MagSamples, keep: bool = False) -> MagSamples:
 
 def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, topic: str | None = None,
              mag_units: str | None = None, keep_rail: bool = False, keep_repeats: bool = False,
-             keep_spikes: bool | None = None) -> MagSamples:
+             keep_spikes: bool = False) -> MagSamples:
     """Read a magnetometer's samples (module docstring).
 
     Parameters
@@ -719,10 +719,9 @@ def read_mag(path: str | Path, *, columns: str | dict[str, str] | None = None, t
     keep_repeats : bool
         Keep every row where the logger repeats each magnetometer value until its next update (:func:`drop_held`;
         by default one row per update, the repeats counted).
-    keep_spikes : bool, optional
+    keep_spikes : bool
         Keep the samples that leave both neighbours by more than a turning field moves
-        (:func:`optcal.families.mag.spikes.drop_spikes`; left out and counted by default; ``None``: as the command
-        line's ``--keep-mag-spikes`` says).
+        (:func:`optcal.families.mag.spikes.drop_spikes`; left out and counted by default).
 
     Raises
     ------

@@ -30,16 +30,12 @@ neighbour, are not judged.
 
 :func:`find_spikes` returns the rows; :func:`drop_spikes` (called by
 :func:`optcal.families.mag.samples.read_mag`) leaves them out of every
-command's samples and says so, and ``--keep-mag-spikes`` (:func:`keep_spikes_by_default`, set by the shared
-magnetometer options of the command line) keeps them.
+command's samples and says so, and ``--keep-mag-spikes`` (``keep_spikes``) keeps them.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -54,7 +50,7 @@ if TYPE_CHECKING:
     from optcal.families.mag.samples import MagSamples
 
 __all__ = ["HAND_TURN_RATE", "MAX_SPIKE_ROWS", "SPIKE_ALPHA", "SPIKE_ROWS", "MagSpikes", "drop_spikes", "find_spikes",
-           "keep_spikes_by_default", "keep_spikes_default", "turn_reach"]
+           "turn_reach"]
 
 #: The largest rate at which a hand turns a logger, rad/s (a wrist's fastest flick is about 2 turns a second, 12 rad/s;
 #: a calibration's figure-eight stays under 5): the chord a field can sweep between two samples is bounded by this
@@ -70,25 +66,6 @@ MAX_SPIKE_ROWS: int = 3
 #: The central share of the samples whose per-axis range bounds the field's ellipsoid (its soft-iron extent): 99 %
 #: leaves out a half-percent tail each side, where up to a few spikes per thousand samples would otherwise sit.
 CENTRAL_SHARE: float = 0.99
-
-_KEEP: ContextVar[bool] = ContextVar("keep_mag_spikes", default=False)
-
-
-@contextmanager
-def keep_spikes_by_default(keep: bool) -> Iterator[None]:
-    """Within the block, :func:`optcal.families.mag.samples.read_mag` keeps the spikes unless told otherwise (the
-    command line's ``--keep-mag-spikes``: every command that reads a magnetometer gets it from one place)."""
-    token = _KEEP.set(keep)
-    try:
-        yield
-    finally:
-        _KEEP.reset(token)
-
-
-def keep_spikes_default() -> bool:
-    """Whether spikes are kept when a reader is not told (:func:`keep_spikes_by_default`)."""
-    return _KEEP.get()
-
 
 def turn_reach(diameter: float, dt: NDArray[np.float64] | float | None,
                rate: float = HAND_TURN_RATE) -> NDArray[np.float64] | float:
@@ -221,13 +198,12 @@ def find_spikes(m: NDArray[np.float64], t: NDArray[np.float64] | None = None) ->
 SPIKE_ROWS = "magnetometer samples that are spikes (leave both neighbours by more than a turning field moves)"
 
 
-def drop_spikes(samples: MagSamples, keep: bool | None = None) -> MagSamples:
-    """``samples`` without its spikes (:func:`find_spikes`), counted and said; with ``keep`` (by default the command
-    line's ``--keep-mag-spikes``, :func:`keep_spikes_default`) every sample, said."""
+def drop_spikes(samples: MagSamples, keep: bool = False) -> MagSamples:
+    """``samples`` without its spikes (:func:`find_spikes`), counted and said; with ``keep`` (``--keep-mag-spikes``)
+    every sample, said."""
     spikes = find_spikes(samples.m, samples.t)
     if not spikes.n:
         return samples
-    keep = keep_spikes_default() if keep is None else keep
     note = spikes.describe(samples.units.units, "--keep-mag-spikes", kept=keep)
     if keep:
         return replace(samples, notes=[*samples.notes, note])
