@@ -166,6 +166,18 @@ def test_the_phases_running_sum_at_a_few_points_equals_the_whole_column_sums_to_
     points = np.unique(np.concatenate([[0, 1, 2, 999, 1000, 1001, 1002, 5000, 5001, 5002],
                                        rng.integers(0, x.size + 2, 300)]))
     assert np.array_equal(disturbance.phase_prefix_at(x, RATE, points), whole[points])
+    # the carries worked out ahead (none, some, all of them): the pieces without points skipped, the same bits; a few
+    # points far apart, so that most pieces are skipped
+    sparse = np.array([0, 3, 1001, 4998, 5002])
+    pieces = -(-x.size // disturbance.PREFIX_PIECE)
+    for ahead in sorted({0, 1, pieces // 2, pieces}):
+        carries = disturbance.PhaseCarries(x, RATE)
+        assert carries.advance(ahead) == (ahead == pieces) == carries.done
+        for at in (points, sparse):
+            assert np.array_equal(disturbance.phase_prefix_at(x, RATE, at, carries), whole[at])
+    # carries of another array (a cut of the log, a copy of it elsewhere in memory) are not taken for its own
+    assert carries.of(x, RATE) and not carries.of(x[1:], RATE) and not carries.of(x.copy(), RATE)
+    assert not carries.of(x, 2 * RATE)
 
 
 def test_a_still_log_with_unusable_rows_is_analysed_and_they_are_counted(tmp_path, capsys) -> None:
