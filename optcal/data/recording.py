@@ -10,7 +10,6 @@ sorting it would silently interleave them.
 
 from __future__ import annotations
 
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,7 +18,7 @@ from numpy.typing import NDArray
 
 from optcal.data.columns import ACC, GYRO
 from optcal.data.decisions import DataDecisions, Decision, decide, with_decisions
-from optcal.data.evidence import NON_FINITE, PARALLEL_ROWS, Evidence, gather_evidence
+from optcal.data.evidence import NON_FINITE, Evidence, gather_evidence
 from optcal.data.quantiles import median
 from optcal.data.rails import GyroRail, gyro_rail, rail_samples
 from optcal.data.readers import Source
@@ -219,23 +218,9 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
             midscale_norm=ev.midscale_norm)
     else:
         nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
-    rail_check: Future[GyroRail] | None = None
-    if gyro is not None and n >= PARALLEL_ROWS:  # beside the accelerometer's: both read `usable`, neither writes it,
-        # and numpy's passes release the interpreter, so the second core no longer waits through the rail checks
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="optcal-rail")
-        rail_check = pool.submit(gyro_rail, gyro, usable, src.gyro_units, src.gyro_saturated, units, gyro_range_dps)
-        pool.shutdown(wait=False)
-    try:
-        sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
-    except BaseException:  # the accelerometer's error comes first, as when the checks ran one after the other
-        if rail_check is not None:
-            rail_check.exception()  # waited for before `usable` is let go
-        raise
-    rail = None
-    if rail_check is not None:
-        rail = rail_check.result()
-    elif gyro is not None:
-        rail = gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units, gyro_range_dps)
+    sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
+    rail = None if gyro is None else gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units,
+                                             gyro_range_dps)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat

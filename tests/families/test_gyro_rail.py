@@ -249,35 +249,3 @@ def test_a_stated_full_scale_finds_a_rail_near_the_zero_of_a_counts_gyro(tmp_pat
     quiet = optcal.data.load_recording(still, gyro_range_dps=FULL_SCALE_DEG_S)
     assert quiet.gyro_rail is None and GYRO_SATURATED not in quiet.exclusions
     assert any("no gyro rail found" in w and "not used" in w for w in quiet.decisions.warnings)
-
-
-def test_the_rail_check_on_its_own_thread_finds_the_same_rail_as_on_the_readers(monkeypatch) -> None:
-    """A long log's gyro rail check runs beside the accelerometer's (``optcal.data.recording``); the shared MPU-6050
-    example, whose gyro holds its int16 rail, read with the thread from its first row and without one: the same rail
-    samples, levels and exclusions, and the thread's check is the one taken."""
-    import threading
-
-    import optcal.data.recording as recording
-    from helpers.common import SHARED
-    from optcal.data import load_recording
-
-    src = SHARED / "data" / "mpu6050-imucalibration" / "example_data_calibration.csv"
-    if not src.exists():
-        pytest.skip("the shared recordings are not here")
-    threads: list[str] = []
-
-    def named(*args, **kwargs):
-        threads.append(threading.current_thread().name)
-        return gyro_rail(*args, **kwargs)
-
-    monkeypatch.setattr(recording, "gyro_rail", named)
-    monkeypatch.setattr(recording, "PARALLEL_ROWS", 2**62)
-    alone = load_recording(str(src))
-    monkeypatch.setattr(recording, "PARALLEL_ROWS", 0)
-    beside = load_recording(str(src))
-    assert threads[0] == threading.current_thread().name and threads[1].startswith("optcal-rail")
-    assert alone.gyro_rail is not None and beside.gyro_rail is not None
-    np.testing.assert_array_equal(alone.gyro_rail.samples, beside.gyro_rail.samples)
-    assert alone.gyro_rail.levels == beside.gyro_rail.levels and alone.gyro_rail.samples.any()
-    assert alone.exclusions == beside.exclusions and alone.exclusions[GYRO_SATURATED] > 0
-    np.testing.assert_array_equal(alone.usable, beside.usable)
