@@ -265,7 +265,8 @@ def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray
 
     Piece by piece (:data:`PREFIX_PIECE` samples), each running sum carried from the piece before as its first term:
     the same additions in the same order as the two whole-column sums, so the same numbers to the bit.  Where
-    ``carries`` (of this ``column``) already holds the sums carried into a piece, a piece without points is skipped.
+    ``carries`` (of this ``column``) already holds the sums carried into a piece and out of it, the piece is summed only
+    up to its last point, and a piece without points is skipped.
 
     Parameters
     ----------
@@ -292,11 +293,13 @@ def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray
     w = np.empty(min(PREFIX_PIECE, max(n, 1)))
     for k, a in enumerate(range(0, n, PREFIX_PIECE)):
         i, j = rows[k], rows[k + 1]
+        b = min(n, a + PREFIX_PIECE)
         if k < len(known_body):
             body_carry, prefix_carry = known_body[k], known_prefix[k]
-            if i == j and k + 1 < len(known_body):  # no point here, and the next piece's carries known
-                continue
-        b = min(n, a + PREFIX_PIECE)
+            if k + 1 < len(known_body):  # the next piece's carries known: summed only up to this piece's last point
+                if i == j:
+                    continue
+                b = int(points[j - 1]) - 1  # S[points[j - 1]] is v[points[j - 1] - a - 2], the last value summed
         v = w[: b - a]
         body_carry, prefix_carry = _prefix_piece(column, a, b, mean, scale, body_carry, prefix_carry, v)
         out[i:j] = v[points[i:j] - a - 2]
