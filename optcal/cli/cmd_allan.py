@@ -284,7 +284,39 @@ def _longest_rest(seg: Any) -> str:
     return f"--window {t[a[k]]:.6g}:{t[b[k] - 1]:.6g} analyses its longest still stretch"
 
 
-def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_moves: bool) -> list[str]:
+#: Pieces of the running sums (:class:`~optcal.families.noise.disturbance.PhaseCarries`, 2¹⁵ samples each, about
+#: 0.3 ms) worked out between two looks at the stillness check: its end, the longer branch's, waits at most this long.
+CARRY_STEP: int = 4
+
+
+def carry_ahead(log: StillLog, analyses: dict[str, Any]) -> dict[str, list[Any]]:
+    """The running sums of the disturbance check (:func:`check_disturbances`), worked out on the caller's thread
+    while the stillness check still runs beside it (its core otherwise waits), until that check ends.
+
+    Only for columns that are contiguous (summed where they lie, no copy of the log's length held); after the check,
+    a log cut by :meth:`StillLog.trim_unsettled` no longer matches them and they go unused.  The disturbance check's
+    numbers are the same with or without them (:func:`~optcal.families.noise.disturbance.phase_prefix_at`).
+    """
+    from optcal.families.noise.disturbance import PhaseCarries
+
+    still = log.still
+    if still is None or still.done():
+        return {}
+    out: dict[str, list[Any]] = {}
+    for name, analysis in analyses.items():
+        x = log.gyro if name == "gyro" and log.gyro is not None else log.samples
+        if x.ndim != 2 or x.shape[1] != len(analysis.curves):
+            continue
+        out[name] = [PhaseCarries(x[:, j], log.rate_hz) if x[:, j].flags.c_contiguous else None
+                     for j in range(x.shape[1])]
+    todo = [c for columns in out.values() for c in columns if c is not None]
+    while todo and not still.done():
+        todo = [c for c in todo if not c.advance(CARRY_STEP)]
+    return out
+
+
+def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_moves: bool,
+                       carries: dict[str, list[Any]] | None = None) -> list[str]:
     """Refuse a still log whose moves are relevant to its Allan deviation; the lines that say what was found.
 
     Two things a still log's rests can hide: a turn between two rests (gravity's direction in the sensor differs by
@@ -292,7 +324,8 @@ def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_
     orientations, and its Allan deviation the step between them), and the samples between or inside the rests that
     are not at rest (a knock, a turn and back), which enter the series and are bounded by
     :func:`optcal.families.noise.disturbance.disturbance_change` against each curve's own uncertainty.  ``keep_moves``
-    (``--keep-moves``) analyses the log anyway, said so.
+    (``--keep-moves``) analyses the log anyway, said so.  ``carries``: :func:`carry_ahead`'s running sums, per
+    sensor.
     """
     from optcal.data.static_stretches import MIN_MOVE_TURN_RAD
     from optcal.errors import InputError
@@ -328,7 +361,7 @@ def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_
     for name, analysis in analyses.items():
         x = log.gyro if name == "gyro" and log.gyro is not None else log.samples
         axes = list(analysis.curves)
-        b = disturbance_change(x, at_rest, log.rate_hz, [analysis.curves[a] for a in axes])
+        b = disturbance_change(x, at_rest, log.rate_hz, [analysis.curves[a] for a in axes], (carries or {}).get(name, ()))
         if (b.relevant, b.ratio) > worst[:2]:
             what = "gyro" if name == "gyro" else "acc"
             worst = (b.relevant, b.ratio, f"{what} {axes[b.axis]} at τ = {b.tau:.3g} s by {b.change:.3g} "
@@ -453,10 +486,11 @@ def allan(
     except Exception:  # the log's refusal comes first, as when the check ran before the analysis
         log.confirm_still()
         raise
+    carries = carry_ahead(log, analyses)  # the disturbance check's running sums, while the stillness check runs on
     log.confirm_still()
     if not keep_moves and log.trim_unsettled():  # a start-up transient or a last touch: the series without it
         analyses = analyse()
-    disturbances = check_disturbances(log, analyses, data, keep_moves)
+    disturbances = check_disturbances(log, analyses, data, keep_moves, carries)
     figures = []
     if plot_path is not None:
         for name, analysis in analyses.items():

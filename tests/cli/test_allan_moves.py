@@ -166,6 +166,18 @@ def test_the_phases_running_sum_at_a_few_points_equals_the_whole_column_sums_to_
     points = np.unique(np.concatenate([[0, 1, 2, 999, 1000, 1001, 1002, 5000, 5001, 5002],
                                        rng.integers(0, x.size + 2, 300)]))
     assert np.array_equal(disturbance.phase_prefix_at(x, RATE, points), whole[points])
+    # the carries worked out ahead (none, some, all of them): the pieces without points skipped, the same bits; a few
+    # points far apart, so that most pieces are skipped
+    sparse = np.array([0, 3, 1001, 4998, 5002])
+    pieces = -(-x.size // disturbance.PREFIX_PIECE)
+    for ahead in sorted({0, 1, pieces // 2, pieces}):
+        carries = disturbance.PhaseCarries(x, RATE)
+        assert carries.advance(ahead) == (ahead == pieces) == carries.done
+        for at in (points, sparse):
+            assert np.array_equal(disturbance.phase_prefix_at(x, RATE, at, carries), whole[at])
+    # carries of another array (a cut of the log, a copy of it elsewhere in memory) are not taken for its own
+    assert carries.of(x, RATE) and not carries.of(x[1:], RATE) and not carries.of(x.copy(), RATE)
+    assert not carries.of(x, 2 * RATE)
 
 
 def test_a_still_log_with_unusable_rows_is_analysed_and_they_are_counted(tmp_path, capsys) -> None:
@@ -183,3 +195,31 @@ def test_a_still_log_with_unusable_rows_is_analysed_and_they_are_counted(tmp_pat
     assert [v for k, v in exclusions.items() if "all-zero rows" in k] == [300]
     cut = [v for k, v in exclusions.items() if "start-up transient" in k]
     assert cut and 30 <= cut[0] <= 100
+
+
+def test_the_running_sums_carried_ahead_give_the_disturbance_checks_own_lines(logs, monkeypatch) -> None:
+    """``carry_ahead`` works out the disturbance check's running sums while the stillness check runs (here one that
+    never ends, so every sum is worked out); given them, the check's lines (the ratio to its last printed digit, the
+    placebos drawn) are the ones it finds alone; a log cut by ``trim_unsettled`` does not take them.  Pieces of 1000
+    samples, so that the 5-minute log has 30 and most are skipped."""
+    from concurrent.futures import Future
+
+    import optcal.families.noise.disturbance as disturbance
+
+    from optcal.cli.cmd_allan import carry_ahead, check_disturbances, read_still_log
+    from optcal.families.noise.analysis import analyse_static_log
+
+    monkeypatch.setattr(disturbance, "PREFIX_PIECE", 1000)
+    for kind, cut in (("turnback", False), ("transient", True)):
+        log = read_still_log(str(logs[kind]), sensor="both", units="g")
+        analyses = {"acc": analyse_static_log(log.samples, log.rate_hz, log.units, None, None)}
+        pending: Future[None] = Future()
+        segmentation, log.still = log.segmentation, pending
+        carries = carry_ahead(log, analyses)
+        log.still = None
+        assert not pending.done() and [c.done for c in carries["acc"]] == [True] * 3
+        assert bool(log.trim_unsettled()) == cut
+        alone = check_disturbances(log, analyses, "log", True)
+        assert check_disturbances(log, analyses, "log", True, carries) == alone and bool(alone) != cut
+        assert all(c.of(log.samples[:, j], log.rate_hz) != cut for j, c in enumerate(carries["acc"]))
+        assert segmentation is log.segmentation

@@ -16,8 +16,10 @@ or it is the noise's own and the stretch is kept.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -194,12 +196,77 @@ def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
 PREFIX_PIECE: int = 2**15
 
 
-def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray[np.intp]) -> NDArray[np.float64]:
+def _prefix_piece(column: NDArray[np.float64], a: int, b: int, mean: float | np.floating[Any], scale: float,
+                  body_carry: float, prefix_carry: float, v: NDArray[np.float64]) -> tuple[float, float]:
+    """``S[a + 2 … b + 1]`` into ``v`` (``b − a`` values) from the running sums carried into piece ``[a, b)``; the
+    sums carried out of it.  The one formula of :func:`phase_prefix_at` and :class:`PhaseCarries`."""
+    np.subtract(column[a:b], mean, out=v)  # phase[a + 1 … b] = (Σ_{i ≤ ·} (y_i − ȳ)) / f_s
+    v[0] += body_carry
+    np.cumsum(v, out=v)
+    body_carry = float(v[-1])
+    v *= scale
+    v[0] += prefix_carry  # S[a + 2 … b + 1] = S[a + 1] + Σ phase
+    np.cumsum(v, out=v)
+    return body_carry, float(v[-1])
+
+
+class PhaseCarries:
+    """The running sums :func:`phase_prefix_at` carries into each of its pieces, worked out ahead (a few pieces at a
+    time, while a core would otherwise wait): given them, :func:`phase_prefix_at` sums only the pieces that hold
+    its points, from the same carries, so the same numbers to the bit.
+
+    Parameters
+    ----------
+    column : ndarray, shape (n,)
+        The rate samples of one axis, contiguous (the array :func:`disturbance_change` sums: none is copied here).
+    rate_hz : float
+    """
+
+    def __init__(self, column: NDArray[np.float64], rate_hz: float) -> None:
+        self.column = column
+        self.rate_hz = float(rate_hz)
+        self.scale = 1.0 / float(rate_hz)  # phase_from_rate's scaling of the summed samples
+        self.mean = np.mean(column)
+        #: The sums carried into piece k (k = 0 … the pieces worked out so far).
+        self.body: list[float] = [0.0]
+        self.prefix: list[float] = [0.0]
+        self._w = np.empty(min(PREFIX_PIECE, max(column.size, 1)))
+
+    def of(self, column: NDArray[np.float64], rate_hz: float) -> bool:
+        """Whether these are the carries of ``column`` (the same memory, not a copy or a cut of it) at ``rate_hz``."""
+        return (column.shape == self.column.shape and column.strides == self.column.strides
+                and column.__array_interface__["data"][0] == self.column.__array_interface__["data"][0]
+                and float(rate_hz) == self.rate_hz)
+
+    @property
+    def done(self) -> bool:
+        """Whether the carries into every piece are known."""
+        return (len(self.body) - 1) * PREFIX_PIECE >= self.column.size
+
+    def advance(self, pieces: int) -> bool:
+        """Work out the carries of up to ``pieces`` more pieces; whether all are known."""
+        n = self.column.size
+        for _ in range(pieces):
+            a = (len(self.body) - 1) * PREFIX_PIECE
+            if a >= n:
+                break
+            b = min(n, a + PREFIX_PIECE)
+            body, prefix = _prefix_piece(self.column, a, b, self.mean, self.scale, self.body[-1], self.prefix[-1],
+                                         self._w[: b - a])
+            self.body.append(body)
+            self.prefix.append(prefix)
+        return self.done
+
+
+def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray[np.intp],
+                    carries: PhaseCarries | None = None) -> NDArray[np.float64]:
     """``S[points]`` for ``S = [0, cumsum(phase)]``, ``phase = phase_from_rate(column, rate_hz)`` (NIST SP 1065's
     phase, :func:`~optcal.families.noise.allan.phase_from_rate`), without an array of the log's length.
 
     Piece by piece (:data:`PREFIX_PIECE` samples), each running sum carried from the piece before as its first term:
-    the same additions in the same order as the two whole-column sums, so the same numbers to the bit.
+    the same additions in the same order as the two whole-column sums, so the same numbers to the bit.  Where
+    ``carries`` (of this ``column``) already holds the sums carried into a piece and out of it, the piece is summed only
+    up to its last point, and a piece without points is skipped.
 
     Parameters
     ----------
@@ -208,6 +275,8 @@ def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray
     rate_hz : float
     points : ndarray of int
         Sorted indices into ``S`` (``0 … n + 1``).
+    carries : PhaseCarries, optional
+        The carries of ``column`` worked out ahead (:class:`PhaseCarries`), all or some of them.
 
     Returns
     -------
@@ -216,29 +285,29 @@ def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray
     """
     n = column.size
     out = np.zeros(points.size)  # S[0] = S[1] = 0 (phase[0] = 0)
-    mean = np.mean(column)
+    mean = np.mean(column) if carries is None else carries.mean
     scale = 1.0 / float(rate_hz)  # phase_from_rate's scaling of the summed samples
+    known_body, known_prefix = ([0.0], [0.0]) if carries is None else (carries.body, carries.prefix)
     body_carry = prefix_carry = 0.0
     rows = np.searchsorted(points, np.arange(0, n + PREFIX_PIECE, PREFIX_PIECE) + 2)
     w = np.empty(min(PREFIX_PIECE, max(n, 1)))
     for k, a in enumerate(range(0, n, PREFIX_PIECE)):
-        b = min(n, a + PREFIX_PIECE)
-        v = w[: b - a]
-        np.subtract(column[a:b], mean, out=v)  # phase[a + 1 … b] = (Σ_{i ≤ ·} (y_i − ȳ)) / f_s
-        v[0] += body_carry
-        np.cumsum(v, out=v)
-        body_carry = float(v[-1])
-        v *= scale
-        v[0] += prefix_carry  # S[a + 2 … b + 1] = S[a + 1] + Σ phase
-        np.cumsum(v, out=v)
-        prefix_carry = float(v[-1])
         i, j = rows[k], rows[k + 1]
+        b = min(n, a + PREFIX_PIECE)
+        if k < len(known_body):
+            body_carry, prefix_carry = known_body[k], known_prefix[k]
+            if k + 1 < len(known_body):  # the next piece's carries known: summed only up to this piece's last point
+                if i == j:
+                    continue
+                b = int(points[j - 1]) - 1  # S[points[j - 1]] is v[points[j - 1] - a - 2], the last value summed
+        v = w[: b - a]
+        body_carry, prefix_carry = _prefix_piece(column, a, b, mean, scale, body_carry, prefix_carry, v)
         out[i:j] = v[points[i:j] - a - 2]
     return out
 
 
 def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
-                       curves: list[AllanCurve]) -> DisturbanceChange:
+                       curves: list[AllanCurve], carries: Sequence[PhaseCarries | None] = ()) -> DisturbanceChange:
     """How far the stretches not at rest move ``curves``, the Allan deviations of the columns of ``x``.
 
     Parameters
@@ -250,6 +319,9 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
     rate_hz : float
     curves : list of AllanCurve
         :func:`optcal.families.noise.allan.allan_deviation` of each column.
+    carries : sequence of PhaseCarries or None, optional
+        Per column, the running sums of its phase worked out ahead (:class:`PhaseCarries`); used only where they are
+        of that very column.
     """
     x = np.asarray(x, dtype=float).reshape(at_rest.size, -1)
     ms = [np.rint(c.taus * rate_hz).astype(np.intp) for c in curves]
@@ -260,10 +332,13 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
     def ratios(j: int, spans_list: list[tuple[NDArray[np.intp], NDArray[np.intp]]]) -> list[NDArray[np.float64]]:
         """The ratios on axis j of each set of spans patched (one pass over the axis for all of them)."""
         column = np.ascontiguousarray(x[:, j])
+        carried = carries[j] if j < len(carries) else None
+        if carried is not None and not carried.of(column, rate_hz):
+            carried = None
         pieces = [_pieces(patch_values(column, at_rest, rate_hz, spans), rate_hz, ms[j], n_phase)
                   for spans in spans_list]
         points = sorted_unique(np.concatenate([_points(p, ms[j]) for p in pieces]))
-        prefix = (points, phase_prefix_at(column, rate_hz, points))
+        prefix = (points, phase_prefix_at(column, rate_hz, points, carried))
         return [_ratios(p, prefix, rate_hz, n_phase, ms[j], curves[j].adev, half[j]) for p in pieces]
 
     # one thread per axis: each pass is a running sum (numpy, the interpreter released), so the axes share the cores
