@@ -49,13 +49,15 @@ def diagnosis_options(func: Any) -> Any:
 
 def settings_from(effects: str | None, folds: int, simulations: int, alpha: float, seed: int, method: str,
                   pose_correlation: str = "auto", calibration: dict[str, Any] | None = None,
-                  drop_unneeded: bool = True, term_pairs: bool = True, pose_noise: str = "given") -> Any:
+                  drop_unneeded: bool = True, term_pairs: bool = True, pose_noise: str = "given",
+                  heldout_se: float | None = None) -> Any:
     """The :class:`~optcal.applications.diagnosis.diagnoser.DiagnosisSettings` of the command's options."""
     from optcal.applications.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(effects=effects, folds=folds, simulations=simulations, alpha=alpha, seed=seed, method=method,
                              pose_correlation=pose_correlation, calibration=dict(calibration or {}),
-                             drop_unneeded=drop_unneeded, term_pairs=term_pairs, pose_noise=pose_noise)
+                             drop_unneeded=drop_unneeded, term_pairs=term_pairs, pose_noise=pose_noise,
+                             heldout_se=heldout_se)
 
 
 def progress_printer() -> Any:
@@ -85,6 +87,10 @@ def progress_printer() -> Any:
 @click.option("--no-term-pairs", is_flag=True,
               help="Test one term at a time only: no pair of terms (or one effect on every axis) searched together "
                    "when no single term passes (two effects that mask each other are then missed).")
+@click.option("--heldout-se", type=click.FloatRange(0, 100), default=None, metavar="K",
+              help="Enter an accelerometer term only when its paired gain on the held-out poses exceeds K of its "
+                   "standard errors (default 0: any fall of the held-out rms); the gain, its SE and t are printed "
+                   "for every candidate judged.")
 @click.option("--sensor", type=click.Choice(["acc", "mag"]), default="acc", show_default=True,
               help="The sensor to diagnose: the accelerometer (static poses; --imu adds the gyroscope) or the "
                    "magnetometer (raw samples mx, my, mz: a local disturbance, a temperature or current column).")
@@ -110,7 +116,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, pose_noise: str,
              keep_terms: bool, no_term_pairs: bool, sensor: str,
              mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, imu: bool,
-             gyro_heldout_se: float | None, as_json: bool,
+             gyro_heldout_se: float | None, heldout_se: float | None, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
@@ -144,6 +150,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     from optcal.errors import InputError
 
     if sensor == "mag":
+        if heldout_se is not None:
+            raise InputError("--heldout-se applies to the accelerometer's diagnosis (--sensor acc)")
         if imu or baseline_path or len(data) != 1:
             raise InputError("--sensor mag diagnoses one magnetometer recording: one DATA, without --imu or --baseline")
         return _diagnose_mag(data[0], alpha, as_json, output, data_opts, mag_units, accept_mag_fit,
@@ -160,7 +168,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     if imu and (len(data) != 1 or baseline_path):
         raise InputError("--imu diagnoses one raw recording with gyro columns: give one DATA, without --baseline")
     settings = settings_from(effects, folds, simulations, alpha, seed, method, pose_correlation, fit_settings,
-                             not keep_terms, not no_term_pairs, pose_noise)
+                             not keep_terms, not no_term_pairs, pose_noise, heldout_se)
     figures_into = plot_folder(plot_dir) if plot_dir else None
     baseline = load_calibration(baseline_path, peer_gravity, gyro_calib) if baseline_path else None
     reporter = progress_printer()

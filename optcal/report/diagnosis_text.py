@@ -171,7 +171,8 @@ def diagnosis_report(diag: Diagnosis) -> str:
         lines.append(f"   not tested: {effect} ({why})")
     lines.append(
         f"   forward selection: F/likelihood-ratio test at family-wise level {settings.alpha:g} (Bonferroni over the "
-        "candidates of each step), lower BIC, and lower held-out rms, all three required"
+        "candidates of each step), lower BIC, and a paired held-out gain beyond "
+        f"{settings.to_dict()['heldout_se']:g} of its standard errors, all three required"
     )
     lines += pose_noise_lines(diag)
     for k, step in enumerate(diag.steps, 1):
@@ -179,6 +180,12 @@ def diagnosis_report(diag: Diagnosis) -> str:
         tried = "; ".join(f"{c.term} ΔBIC {c.delta_bic:+.1f}, p {c.p_value:.2g}" for c in best)
         verdict = f"added {step.accepted.term}" if step.accepted else "nothing passes: stop"
         lines.append(f"   step {k}: {verdict}  [best candidates: {tried or 'none'}]")
+        for c in step.candidates:  # every candidate the held-out check judged: its paired gain and SE
+            if c.heldout_t is not None and c.heldout_gain_g2 is not None and c.heldout_se_g2 is not None:
+                judged = "entered" if c is step.accepted else "not entered"
+                lines.append(f"      {c.term}: held-out gain {c.heldout_gain_g2 * MG**2:+.3g} ± {c.heldout_se_g2 * MG**2:.2g} "
+                             f"mg² per pose, t {c.heldout_t:.2f} against {c.heldout_critical_t:g} "
+                             f"({c.heldout_units} units): {judged}")
         for d in step.dropped:  # a term accepted earlier that this step's term made unneeded (backward check)
             lines.append(f"      dropped {d.term}: {d.reason}")
     for decision in diag.decisions:

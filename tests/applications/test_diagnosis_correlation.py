@@ -305,3 +305,32 @@ def test_outlier_limit_under_the_correlation_equals_the_dense_mean_shift_varianc
         assert limit == pytest.approx(t_aside * np.sqrt(s2 * full[column, column] / fitter.w[k]), rel=1e-6)
     plain_limits = pose_outlier_limits(plain, plain.fit({}, fit.outliers, base.x), 0.01, rows)
     assert np.max(np.abs(np.log(limits / plain_limits))) > 0.02  # the correlation changes them
+
+
+def test_the_held_out_gain_under_correlated_poses_is_measured_over_blocks_of_two_correlation_times() -> None:
+    """Under correlated pose noise the held-out gain's units are runs of poses spanning 2τ (a new run at each
+    session), in time order whatever the poses' order; the gain is the poses' mean and its SE the blocks' scatter."""
+    from types import SimpleNamespace
+
+    from optcal.applications.diagnosis.acceptance import BLOCK_TAU, heldout_blocks, heldout_gain
+    from optcal.core.stats import mean_and_se
+
+    t = np.array([5.0, 0.0, 1.0, 2.0, 3.0, 4.0, 0.0, 1.0, 2.0])  # 6 poses of session 0 (first listed last), 3 of 1
+    session = np.array([0, 0, 0, 0, 0, 0, 1, 1, 1])
+    rng = np.random.default_rng(3)
+    directions = rng.standard_normal((t.size, 3))
+    op = CorrelationOperator.build(0.5, 1.0, t, session, directions / np.linalg.norm(directions, axis=1, keepdims=True))
+    fitter = SimpleNamespace(n=t.size, correlation=op)
+    block = heldout_blocks(fitter)  # type: ignore[arg-type]
+    # 1 s between poses, τ 1 s: a run closes after BLOCK_TAU = 2 gaps; session 1 starts its own
+    assert BLOCK_TAU == 2.0
+    assert [set(np.flatnonzero(block == b)) for b in np.unique(block)] == [{1, 2}, {3, 4}, {5, 0}, {6, 7}, {8}]
+    before, after = rng.uniform(1.0, 2.0, t.size), rng.uniform(0.5, 1.0, t.size)
+    gain, se, units = heldout_gain(fitter, before, after, np.ones(t.size, dtype=bool))  # type: ignore[arg-type]
+    d = before**2 - after**2
+    assert units == 5 and gain == pytest.approx(d.mean())
+    means = [d[block == b].mean() for b in np.unique(block)]
+    assert se == pytest.approx(mean_and_se(means, [np.sum(block == b) for b in np.unique(block)])[1])
+    alone = SimpleNamespace(n=t.size, correlation=None)
+    assert heldout_gain(alone, before, after, np.ones(t.size, dtype=bool))[1:] == pytest.approx(  # type: ignore[arg-type]
+        (mean_and_se(d)[1], t.size))

@@ -106,6 +106,32 @@ def test_an_effect_planted_in_14_real_rests_is_named(shared_data: Path, tmp_path
     assert diag.findings[0].estimate[letter] == pytest.approx(value, rel=0.4)
 
 
+
+def test_the_held_out_gain_is_stated_and_its_rule_overridden(shared_data: Path, tmp_path: Path) -> None:
+    """A scale nonlinearity on z planted at the issue's 10 SE in 14 real rests enters with its paired held-out gain
+    stated (gain, SE, t against the default multiple); asked for one standard error (``heldout_se=1``), the same
+    gain (t 0.83 measured: 14 rests held out 5-fold) keeps it out, and the step says why."""
+    path = xsens(shared_data)
+    full = planted_xsens(tmp_path, path, None, 0, 0.0, "unplanted")
+    value = 10.0 * standard_error(full, cut(full), "scale_nonlinearity", 2)
+    poses = cut(planted_xsens(tmp_path, path, "scale_nonlinearity", 2, value, "planted"))
+    named = Diagnoser(DiagnosisSettings(simulations=0)).run(poses)
+    entered = named.steps[0].accepted
+    assert entered is not None and entered.term == "scale_nonlinearity(z)"
+    assert entered.heldout_gain_g2 is not None and entered.heldout_se_g2 is not None and entered.heldout_t is not None
+    assert entered.heldout_gain_g2 > 0 and entered.heldout_se_g2 > 0 and entered.heldout_units == poses.n
+    assert entered.heldout_t == pytest.approx(entered.heldout_gain_g2 / entered.heldout_se_g2)
+    assert entered.heldout_critical_t == named.settings.to_dict()["heldout_se"]
+    step = named.to_dict()["selection"][0]
+    held = [c for c in step["candidates"] if c["term"] == "scale_nonlinearity(z)"][0]
+    assert held["heldout_t"] == pytest.approx(entered.heldout_t)
+    assert "scale_nonlinearity(z): held-out gain +" in diagnosis_report(named)
+    strict = Diagnoser(DiagnosisSettings(simulations=0, heldout_se=entered.heldout_t + 0.01)).run(poses)
+    assert ("scale_nonlinearity", ["z"]) not in [(f.effect, f.axes) for f in strict.findings]
+    judged = [c for c in strict.steps[0].candidates if c.term == "scale_nonlinearity(z)"][0]
+    assert judged.heldout_t == pytest.approx(entered.heldout_t) and not judged.significant
+    assert judged.rejected_because is not None and "not beyond" in judged.rejected_because
+
 def planted_mikoff(tmp_path: Path, path: Path, effect: str | None, axis: int, value: float, name: str,
                    temperature: bool = False) -> PoseTable:
     """mikoff's MPU-9150 log 0 (m/s², 100 Hz, no time column, no temperature) with ``effect`` planted through its

@@ -45,13 +45,14 @@ def test_text_report(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     [
         (["--effects", "temperature_bias"], "temperature_bias: no temperature column"),
         (["--effects", "wind"], "unknown effect"),
+        (["--sensor", "mag", "--heldout-se", "1"], "--heldout-se applies to the accelerometer's diagnosis"),
     ],
 )
 def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], message: str) -> None:
     path = write_table(make_case(None, 23), tmp_path / "poses.csv", temp=False)
     assert main(["diagnose", str(path), *args]) == 2
     err = capsys.readouterr().err
-    assert "error: " in err and message in err and "Traceback" not in err
+    assert "error: " in err and message in err and "Traceback" not in err and err.count("\n") == 1
 
 
 def test_constant_temperature_and_too_few_poses(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

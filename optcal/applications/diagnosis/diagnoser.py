@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from optcal.applications.diagnosis.acceptance import HELDOUT_SE
 from optcal.applications.diagnosis.effects import BIAS_STEP, FITTED, SESSION_BIAS, VOCABULARY, parse_effects
 from optcal.applications.diagnosis.findings import build_findings
 from optcal.applications.diagnosis.fitting import MIN_DOF, MIN_DOF_MEASURED, Fit, Fitter, measured_scale2
@@ -95,6 +97,11 @@ class DiagnosisSettings:
         When no one-term candidate of a step passes, search the best pair of first-order terms (or one effect on
         every axis) together, with a share of the step's level (:mod:`~optcal.applications.diagnosis.term_pair`);
         ``False`` (``optcal diagnose --no-term-pairs``): one term at a time, each at the whole terms' share.
+    heldout_se : float, optional
+        Standard errors of its paired held-out gain a term must show to enter the model
+        (:func:`~optcal.applications.diagnosis.acceptance.accept`); ``None``:
+        :data:`~optcal.applications.diagnosis.acceptance.HELDOUT_SE`; 0: any fall of the held-out rms
+        (``optcal diagnose --heldout-se K``).
     """
 
     effects: str | tuple[str, ...] | None = None
@@ -109,8 +116,12 @@ class DiagnosisSettings:
     drop_unneeded: bool = True
     term_pairs: bool = True
     pose_noise: str = "given"
+    heldout_se: float | None = None
 
     def __post_init__(self) -> None:
+        if self.heldout_se is not None and not 0.0 <= self.heldout_se < math.inf:
+            raise InputError(f"the held-out standard errors must be finite and at least 0, got {self.heldout_se} "
+                             "(--heldout-se)")
         if self.pose_correlation not in POSE_CORRELATION_CHOICES:
             raise InputError(f"pose_correlation must be one of {', '.join(POSE_CORRELATION_CHOICES)}, "
                              f"got {self.pose_correlation!r}")
@@ -136,7 +147,8 @@ class DiagnosisSettings:
                 # said only when the backward check is off (--keep-terms): the default's record is unchanged
                 **({} if self.drop_unneeded else {"drop_unneeded": False}),
                 **({} if self.term_pairs else {"term_pairs": False}),
-                **({} if self.pose_noise == "given" else {"pose_noise": self.pose_noise})}
+                **({} if self.pose_noise == "given" else {"pose_noise": self.pose_noise}),
+                "heldout_se": HELDOUT_SE if self.heldout_se is None else self.heldout_se}
 
 
 #: Why a bias step is not searched when several sessions are diagnosed together.
@@ -313,6 +325,8 @@ class Diagnoser:
         selector = ForwardSelection(fitter, candidates, "outliers" in effects, s.alpha, note, loop, s.drop_unneeded,
                                     s.term_pairs)
         selector.correlation = correlation if correlation.used else None
+        if s.heldout_se is not None:
+            selector.heldout_se = s.heldout_se
         selection = selector.run(base)
         final = selection.final
         self.progress("measuring the findings (held-out error without each effect)")

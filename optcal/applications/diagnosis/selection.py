@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from optcal.applications.diagnosis.acceptance import (
+    HELDOUT_SE,
     BIC_TIE, DIRECT_ORDERS, Candidate, TemperatureTimeDecision, accept, outlier_candidate, prefer_terms_to_outliers,
     preference_order, restore_outliers, rivals, step_down_first,
 )
@@ -146,6 +147,8 @@ class ForwardSelection:
         self.returned: set[int] = set()
         #: The pose-noise correlation the fitter uses (set by the caller), re-estimated after each accepted bias step
         self.correlation: PoseCorrelation | None = None
+        #: Standard errors of its paired held-out gain a candidate must show to enter (:func:`accept`; set by the caller)
+        self.heldout_se: float = HELDOUT_SE
 
     def room(self, fit: Fit) -> bool:
         """Whether one more parameter leaves the fitter's :attr:`~Fitter.min_dof` residual degrees of freedom
@@ -263,14 +266,14 @@ class ForwardSelection:
             spread = bool(kept) and all(id(c) in kept for c in tried if c.significant)
             if spread and pair_level is not None:
                 tried += self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
-            accepted = accept(fitter, tried, current)
+            accepted = accept(fitter, tried, current, self.heldout_se)
             if accepted is None and pair_level is not None and not spread:  # nothing passed: terms searched together
                 together = self.term_pair_candidate(current, term_cands, pair_level, bic0, tried, steps_axes)
                 tried += together
-                accepted = accept(fitter, together, current)
+                accepted = accept(fitter, together, current, self.heldout_se)
             if accepted is None and set_aside is not None:  # what explained the outliers did not enter: they compete
                 restore_outliers(set_aside)
-                accepted = accept(fitter, [set_aside], current)
+                accepted = accept(fitter, [set_aside], current, self.heldout_se)
             if accepted is not None:  # a directly entered drift was stepped down before the choice
                 rivalries += rivals(accepted, tried)
             steps.append(Step(tried, accepted))
