@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
+from optcal.core.stats import mean_and_se
 from optcal.errors import IdentifiabilityError, InputError, SolverError
 from optcal.families.mag.refine import ML_METHODS, START_SOLVER, SensorUnitsFit, refine_ml, solver_name
 from optcal.families.mag.samples import MagSamples
@@ -362,12 +363,7 @@ class HeldOut:
         """The paired difference of the held-out mean squares, ``simpler`` less ``richer``, and its standard
         error with the cells as the independent units (their samples correlated within, the weights the
         cells' shares of the samples)."""
-        w = self.counts / np.sum(self.counts)
-        d = self.mse[simpler] - self.mse[richer]
-        mean = float(np.sum(w * d))
-        k = len(d)
-        se = float(np.sqrt(k / max(k - 1, 1) * np.sum(w * w * (d - mean) ** 2)))
-        return mean, se
+        return mean_and_se(self.mse[simpler] - self.mse[richer], self.counts)
 
 
 def _fit_symmetric(m: NDArray[np.float64], basis: NDArray[np.float64], sphere: tuple[NDArray[np.float64], float],
