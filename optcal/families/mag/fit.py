@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from optcal.core.poses import PoseTable
 from optcal.core.stats import mean_and_se
 from optcal.errors import IdentifiabilityError, InputError, SolverError
+from optcal.families.mag.heldout_rule import richest_within_se
 from optcal.families.mag.refine import ML_METHODS, START_SOLVER, SensorUnitsFit, refine_ml, solver_name
 from optcal.families.mag.samples import MagSamples
 
@@ -682,7 +683,7 @@ def _choose_heldout(heldout: HeldOut, fit: Callable[[str], FormFit | None]) -> t
     """The richest usable form whose held-out error is within its paired standard error of the best usable form's
     (:func:`choose_form`), with the evidence in words; ``None`` when no form is usable (``fit`` fits a form once,
     ``None`` where its fit failed)."""
-    forms = list(heldout.mse)
+    forms = list(heldout.mse)  # simplest first (FORMS' order)
 
     def usable(form: str) -> FormFit | None:
         f = fit(form)
@@ -695,25 +696,15 @@ def _choose_heldout(heldout: HeldOut, fit: Callable[[str], FormFit | None]) -> t
     gain = ", ".join(f"{f} {g:.2g} ± {se:.2g}" for f, (g, se) in ((f, heldout.gain(forms[0], f)) for f in forms[1:]))
     evidence = (f"held out by direction ({len(heldout.cells)} of {len(COVERAGE_NAMES)} cells left out of the fit in turn, "
                 f"{heldout.n_samples} samples): rms {rms}; mean-square gain over {forms[0]}: {gain}; ")
-    best = next((f for f in sorted(forms, key=heldout.rms) if usable(f) is not None), None)
-    if best is None:
+    form, best, excess = richest_within_se(heldout, forms, lambda f: usable(f) is not None)
+    if form is None:
         return None, evidence
-    # The physical model: a magnetometer always has some soft iron and scale mismatch, so the sphere is an
-    # approximation and the full ellipsoid the model (the peers' default: Magneto, MATLAB magcal, MotionCal at ten
-    # parameters' samples, ArduPilot's ellipsoid step). The comparison protects the user from a richer form that
-    # predicts unseen directions WORSE: a richer form is kept unless its held-out mean square exceeds the best's by
-    # more than the paired difference's standard error (the cells' own scatter; generated true spheres: the full
-    # form then costs under 0.15 % of the field against the truth; divemove's richer forms are 2.1-3.7 SE worse).
-    for form in reversed(forms):
-        if FORMS[form] <= FORMS[best]:
-            break
-        worse, se = heldout.gain(form, best)
-        if worse <= se and (kept := usable(form)) is not None:
-            return kept, (evidence + f"{form}: the richest usable form within its standard error of the best held out "
-                                  f"({best}; {100 * heldout.rms(form):.3g} % against {100 * heldout.rms(best):.3g} %, "
-                                  f"a mean-square excess {worse:.2g} ± {se:.2g})")
-    return usable(best), evidence + (f"{best}: the smallest held-out error of the usable forms; no richer usable form "
-                                      "within its standard error of it")
+    if excess is None:
+        return usable(form), evidence + (f"{form}: the smallest held-out error of the usable forms; no richer usable "
+                                         "form within its standard error of it")
+    return usable(form), (evidence + f"{form}: the richest usable form within its standard error of the best held out "
+                                     f"({best}; {100 * heldout.rms(form):.3g} % against {100 * heldout.rms(str(best)):.3g} "
+                                     f"%, a mean-square excess {excess[0]:.2g} ± {excess[1]:.2g})")
 
 
 def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None:

@@ -36,6 +36,7 @@ from optcal.errors import IdentifiabilityError, InputError, SolverError
 from optcal.families.mag.fit import (MIN_HELDOUT_CELLS, NOT_A_FIELD_RMS, ONE_ORIENTATION_SHARE, PLANAR_SPREAD,
                                      RELEVANT_SHARE, USABLE_SHARE, HeldOut, _sphere_fit, batch_means_stderr,
                                      planar_tilt)
+from optcal.families.mag.heldout_rule import richest_within_se
 from optcal.families.mag.refine import AXIS_STRETCH, FIELD_FACTOR
 
 #: The planar forms, richest last, with their parameter counts.
@@ -429,12 +430,11 @@ def fit_planar(m: NDArray[np.float64], form: str = "auto", est: dict[str, Any] |
     if form != "auto":
         chosen, reason = form, f"given with --mag-form planar-{form}"
     elif heldout is not None and usable:
-        best = min(usable, key=heldout.rms)
         # the richer form is kept unless it predicts the left-out headings worse by more than the paired difference's
-        # standard error (the 3-D forms' rule, fit.choose_form: a soft iron is always present)
+        # standard error (the 3-D forms' rule, heldout_rule.richest_within_se: a soft iron is always present)
+        chosen = str(richest_within_se(heldout, list(PLANAR_FORMS), lambda f: f in usable)[0])
         gain, se = heldout.gain("circle", "ellipse")
         worse = -gain
-        chosen = "ellipse" if "ellipse" in usable and worse <= se else best
         reason = (f"held out by heading ({len(heldout.cells)} of {HEADING_SECTORS} {360 // HEADING_SECTORS}° sectors left "
                   f"out in turn, {heldout.n_samples} samples): rms circle {100 * heldout.rms('circle'):.3g} %, ellipse "
                   f"{100 * heldout.rms('ellipse'):.3g} %; the ellipse's mean-square excess over the circle {worse:.2g} ± {se:.2g}: "
