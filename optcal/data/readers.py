@@ -53,7 +53,7 @@ from optcal.data.columns import (
     strip_unit,
 )
 from optcal.data.container_kind import container_type
-from optcal.data.ulog import TRUNCATED_MESSAGE, import_pyulog, read_ulog_imu, ulog_is_cut
+from optcal.data.ulog import TRUNCATED_MESSAGE, read_ulog_imu, ulog_is_cut
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
 
@@ -756,11 +756,7 @@ def read_rosbag(path: str | Path, topic: str | None, kind: str) -> Source:
     )
 
 
-# ----------------------------------------------------------------------------- PX4 ULog
-def _import_pyulog() -> Any:
-    return import_pyulog()
-
-
+# ----------------------------------------------------------------------------- ArduPilot DataFlash, PX4 ULog
 def read_dataflash(path: str | Path, topic: str | None, *, keep_unhealthy: bool = False,
                    keep_clipped: bool = False) -> Source:
     """Read an ArduPilot DataFlash log's IMU (:func:`optcal.data.dataflash.read_dataflash_imu`: ``IMU`` or
