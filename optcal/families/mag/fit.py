@@ -38,14 +38,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from optcal.core.poses import PoseTable
-from optcal.core.stats import mean_and_se
 from optcal.errors import IdentifiabilityError, InputError, SolverError
+# the names below moved to their own modules (one concept each) and stay importable from here, where the callers
+# (calibration, planar, dip, the diagnosis, the command line, the tests, the benchmarks) import them
+from optcal.families.mag.batch_means import BATCH_START, MIN_BATCHES, batch_means_stderr, correlation_inflation
+from optcal.families.mag.coverage import (COVERAGE_CAP_DEG, COVERAGE_DIRECTIONS, COVERAGE_NAMES, COVERAGE_SAMPLES,
+                                          PLANAR_SPREAD, Coverage, coverage, coverage_notes, planar_tilt)
+from optcal.families.mag.ellipsoid import (FORM_BASIS, FORMS, SYMMETRIC_ENTRIES, SYMMETRIC_NAMES, fit_symmetric,
+                                           norm_residual_jacobian, sphere_fit, symmetric_T)
+from optcal.families.mag.heldout import HELDOUT_SAMPLES, MIN_HELDOUT_CELLS, HeldOut, heldout_forms
 from optcal.families.mag.heldout_rule import richest_within_se
 from optcal.families.mag.refine import ML_METHODS, START_SOLVER, SensorUnitsFit, refine_ml, solver_name
 from optcal.families.mag.samples import MagSamples
 
-#: The reduced forms, richest last, with their parameter counts.
-FORMS: dict[str, int] = {"offsets": 4, "diagonal": 6, "full": 9}
+#: The sphere's fit under its former private name (:mod:`optcal.families.mag.planar` and the benchmarks import it).
+_sphere_fit = sphere_fit
+
 #: A form is kept when the standard error of each of its parameters (by batch means of correlated
 #: samples, :func:`batch_means_stderr`) is below this share of the field: an error of 1 % of the
 #: field in a calibrated component is about 0.6° of heading at the equator (1/cos(dip) more
@@ -71,27 +79,6 @@ NOT_A_FIELD_RMS: float = 0.2
 #: ellipsoid passes through, not a field seen from many sides (a gyro's or accelerometer's
 #: columns mapped as mx, my, mz).
 NOT_A_FIELD_SPAN: float = 0.1
-#: Coverage directions (the cube's 6 faces, 12 edges and 8 corners) and the angular radius within
-#: which a calibrated sample covers one: 30° leaves no point of the sphere farther than 30° from
-#: a covered direction when all are covered (the largest gap between the 26 directions is 35°).
-COVERAGE_CAP_DEG: float = 30.0
-#: Coverage is judged on at most this many samples, evenly spaced in time: a turn through a
-#: 30° cap at any hand speed leaves hundreds of samples in it at 10⁵ of a session.
-COVERAGE_SAMPLES: int = 100_000
-
-
-def _directions() -> tuple[NDArray[np.float64], list[str]]:
-    dirs, names = [], []
-    for v in np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T:
-        if not v.any():
-            continue
-        dirs.append(v / np.linalg.norm(v))
-        names.append("".join(f"{'+' if c > 0 else '-'}{a}" for c, a in zip(v, "xyz") if c))
-    return np.array(dirs), names
-
-
-COVERAGE_DIRECTIONS, COVERAGE_NAMES = _directions()
-
 
 #: The accelerometer's methods that need known orientations or rests (:mod:`optcal.families.accel.nominal`,
 #: Ferraris' faces): a magnetometer turned freely has neither, and self-calibrates.
@@ -165,303 +152,13 @@ class FormFit:
         return float(np.sqrt(np.mean(self.residuals ** 2)))
 
 
-@dataclass(frozen=True)
-class Coverage:
-    """Which directions of the sphere the calibrated samples reach.
-
-    Attributes
-    ----------
-    covered, missing : tuple of str
-        Direction names (``+z``, ``-x+y``, ...) with a sample within :data:`COVERAGE_CAP_DEG`, and without.
-    spread : ndarray, shape (3,)
-        Eigenvalues of the covariance of the unit directions, ascending (0 along the axis of a planar turn).
-    thinnest_axis : ndarray, shape (3,)
-        The eigenvector of the smallest eigenvalue.
-    nearest_cos : ndarray, shape (26,)
-        Per coverage direction, the cosine of the angle to its nearest sample.
-    """
-
-    covered: tuple[str, ...]
-    missing: tuple[str, ...]
-    spread: NDArray[np.float64]
-    thinnest_axis: NDArray[np.float64]
-    nearest_cos: NDArray[np.float64]
-
-    @property
-    def share(self) -> float:
-        """Share of the 26 directions covered."""
-        return len(self.covered) / len(COVERAGE_NAMES)
-
-
-def coverage(unit: NDArray[np.float64]) -> Coverage:
-    """The :class:`Coverage` of calibrated samples ``unit`` (n, 3), any norm (they are normalised)."""
-    stride = max(1, len(unit) // COVERAGE_SAMPLES)
-    u = unit[::stride] / np.linalg.norm(unit[::stride], axis=1, keepdims=True)
-    cos_cap = np.cos(np.radians(COVERAGE_CAP_DEG))
-    best = np.max(u @ COVERAGE_DIRECTIONS.T, axis=0)
-    hit = best >= cos_cap
-    values, vectors = np.linalg.eigh(np.cov(u.T))
-    return Coverage(tuple(n for n, h in zip(COVERAGE_NAMES, hit) if h), tuple(n for n, h in zip(COVERAGE_NAMES, hit) if not h),
-                    values, vectors[:, 0], best)
-
-
-def symmetric_T(T: NDArray) -> NDArray[np.float64]:
-    """The symmetric positive definite ``(TᵀT)^½``: the same ‖T u‖ for every u, no rotation."""
-    w, V = np.linalg.eigh(T.T @ T)
-    S: NDArray[np.float64] = (V * np.sqrt(w)) @ V.T
-    return 0.5 * (S + S.T)
-
-
-def correlation_inflation(residuals: NDArray) -> float:
-    """``√((1 + ρ)/(1 − ρ))``, ρ the lag-1 autocorrelation of the residuals in sample order.
-
-    Samples of a turned sensor are not independent (filters, slow turns, a model error that
-    changes smoothly with orientation): the variance of a mean of AR(1) samples is that of
-    independent ones times ``(1 + ρ)/(1 − ρ)``, so the standard errors are inflated by its root.
-    Kept for the fits the user constrains (``--fix``/``--bound``); the forms' own standard errors
-    are by batch means (:func:`batch_means_stderr`).
-    """
-    r = residuals - residuals.mean()
-    den = float(r @ r)
-    rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
-    rho = min(max(rho, 0.0), 0.999)  # 0.999: at most a 45-fold inflation (an effective sample every 2000)
-    return float(np.sqrt((1 + rho) / (1 - rho)))
-
-
-#: The shortest batch of :func:`batch_means_stderr`, samples (a magnetometer's filter and a hand's
-#: slow turn correlate at least this many samples of a 10-100 Hz sensor).
-BATCH_START: int = 25
-#: Fewest batches of :func:`batch_means_stderr`: a variance from k batch scores is itself
-#: uncertain by about √(2/(k − 1)), a standard error by half that, 24 % at 10.
-MIN_BATCHES: int = 10
-
-
-def batch_means_stderr(J: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Standard errors of least-squares parameters with Jacobian ``J`` (n, p) and residuals ``r`` (n,)
-    in sample order, by batch means: the sandwich ``(JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹`` with the
-    score ``g_b = J_bᵀ r_b`` of each batch of consecutive samples (correlation within a batch
-    counted, none assumed between batches), for batch lengths :data:`BATCH_START` · 2^j with at
-    least :data:`MIN_BATCHES` batches, each parameter's largest (a standard error grows with the
-    batches' length until they are longer than the residuals' correlation: a filter, a slow turn
-    through a misfit, a drift; the largest is the conservative choice), and never below the white
-    one ``√(diag (JᵀJ)⁻¹ · rᵀr/(n − p))``.
-    """
-    n, k = J.shape
-    # columns scaled to unit norm first: in counts T's entries are ~1e-4 and o's ~1e3, so JᵀJ's condition number
-    # (~1e15) put o's directions below pinv's cut-off and their standard errors at ~1e-14 (ybabs's counts)
-    col = np.sqrt(np.einsum("ij,ij->j", J, J))
-    col = np.where(col > 0, col, 1.0)
-    J = J / col
-    H = np.linalg.pinv(J.T @ J)
-    se2 = np.diag(H) * float(r @ r) / max(n - k, 1)
-    b = n // BATCH_START
-    g = np.einsum("bli,bl->bi", J[: b * BATCH_START].reshape(b, BATCH_START, k), r[: b * BATCH_START].reshape(b, BATCH_START))
-    while g.shape[0] >= MIN_BATCHES:
-        se2 = np.maximum(se2, np.einsum("ij,jk,ki->i", H, g.T @ g, H))
-        half = g.shape[0] // 2
-        g = g[0 : 2 * half : 2] + g[1 : 2 * half : 2]  # the scores of batches twice as long (n // 2L of them)
-    return np.asarray(np.sqrt(np.clip(se2, 0.0, None)) / col)
-
-
-#: The six entries of a symmetric ``T`` (upper triangle) and their names.
-SYMMETRIC_ENTRIES: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-SYMMETRIC_NAMES: tuple[str, ...] = ("T_xx", "T_xy", "T_xz", "T_yy", "T_yz", "T_zz")
-
-
-def norm_residual_jacobian(m: NDArray[np.float64], T: NDArray[np.float64], o: NDArray[np.float64]
-                           ) -> NDArray[np.float64]:
-    """Jacobian of ``|T(m − o)| − 1`` with respect to the symmetric ``T``'s six entries
-    (:data:`SYMMETRIC_ENTRIES`) and ``o`` (Lu 2017, eq. 13 differentiated)."""
-    d = m - o
-    v = np.einsum("kj,ij->ki", d, T)  # T d per row (numpy's matmul of (n, 3) by (3, 3) is several times slower)
-    e = v / np.sqrt(np.einsum("ki,ki->k", v, v))[:, None]
-    J = np.empty((m.shape[0], 9))
-    for c, (i, j) in enumerate(SYMMETRIC_ENTRIES):  # ∂|T d|/∂T_ij = e_i d_j + e_j d_i (i ≠ j), e_i d_i
-        np.multiply(e[:, i], d[:, j], out=J[:, c])
-        if i != j:
-            J[:, c] += e[:, j] * d[:, i]
-    J[:, 6:] = -np.einsum("kj,ji->ki", e, T)
-    return J
-
-
-def _sphere_fit(m: NDArray) -> tuple[NDArray, float, NDArray]:
-    """Offsets-only fit: ``‖m − o‖ = r`` (m in any dimension: a circle in a plane) by linear least squares, refined by Gauss–Newton; o, r, cov of (o, r)."""
-    J = np.column_stack([2 * m, np.ones(len(m))])
-    sol = np.linalg.lstsq(J, np.sum(m * m, axis=1), rcond=None)[0]
-    o = sol[:-1]
-    r = float(np.sqrt(max(sol[-1] + o @ o, 1e-300)))
-    for _ in range(20):  # Gauss-Newton on the geometric residuals ‖m − o‖ − r
-        d = m - o
-        n = np.linalg.norm(d, axis=1)
-        res = n - r
-        G = np.column_stack([-d / n[:, None], -np.ones(len(m))])
-        step = np.linalg.solve(G.T @ G, -(G.T @ res))  # normal equations: 4×4, linear in the samples
-        o, r = o + step[:-1], r + float(step[-1])
-        if np.linalg.norm(step) < 1e-10 * r:  # far below any standard error of a field's offset
-            break
-    d = m - o
-    n = np.linalg.norm(d, axis=1)
-    G = np.column_stack([-d / n[:, None], -np.ones(len(m))])
-    res = n - r
-    dof = max(len(m) - 4, 1)
-    cov = np.linalg.pinv(G.T @ G) * float(res @ res) / dof
-    return o, r, cov
-
-
-#: The held-out comparison of the forms (:func:`heldout_forms`) is made on at most this many samples, evenly
-#: spaced in time: a cell of the 26 then keeps about 200 samples (its mean square known to about a tenth of
-#: itself under white noise, far less than the cells differ), and the 26 × 3 refits stay under a second.
-#: Measured on the peers' files: 5,000 against 20,000 samples moved the held-out rms by at most 2 % of itself
-#: and no form's paired gain by more than 0.1 of its standard error.
-HELDOUT_SAMPLES: int = 5_000
-#: Fewest direction cells the held-out comparison needs: the standard error of a paired difference from k
-#: cells is itself uncertain by about 1/√(2(k − 1)), 41 % at 4; with fewer, the forms are chosen by how well
-#: their parameters are determined alone (:data:`RELEVANT_SHARE`).
-MIN_HELDOUT_CELLS: int = 4
-#: Each form's free parameters mapped onto the symmetric ``T``'s six entries (:data:`SYMMETRIC_ENTRIES`).
-FORM_BASIS: dict[str, NDArray[np.float64]] = {
-    "offsets": np.array([[1.0], [0.0], [0.0], [1.0], [0.0], [1.0]]),  # T = s I: a sphere
-    "diagonal": np.eye(6)[:, [0, 3, 5]],
-    "full": np.eye(6),
-}
-
-
-@dataclass(frozen=True)
-class HeldOut:
-    """The forms' errors on direction cells left out of their fit (:func:`heldout_forms`).
-
-    Attributes
-    ----------
-    cells : ndarray of int, shape (C,)
-        The coverage directions (indices into :data:`COVERAGE_NAMES`) holding samples: each a fold.
-    counts : ndarray of int, shape (C,)
-        Samples per cell.
-    mse : dict of str to ndarray, shape (C,)
-        Per form, the mean square of ``‖T(m − o)‖ − 1`` over each cell's samples, ``T`` and ``o`` fitted
-        without that cell.
-    n_samples : int
-        Samples compared (at most :data:`HELDOUT_SAMPLES`).
-    """
-
-    cells: NDArray[np.int64]
-    counts: NDArray[np.int64]
-    mse: dict[str, NDArray[np.float64]]
-    n_samples: int
-
-    def rms(self, form: str) -> float:
-        """The held-out rms of ``‖T(m − o)‖ − 1`` of ``form`` over all the cells' samples."""
-        return float(np.sqrt(np.sum(self.counts * self.mse[form]) / np.sum(self.counts)))
-
-    def summary(self) -> dict[str, Any]:
-        """The evidence for the JSON: the cells left out, the samples, each form's held-out rms and each richer
-        form's mean-square gain over the simplest with its standard error."""
-        forms = list(self.mse)
-        return {"cells": [COVERAGE_NAMES[c] for c in self.cells], "n_samples": self.n_samples,
-                "rms": {f: self.rms(f) for f in forms}, "fit": "maximum likelihood, squared loss",
-                "gain_over_" + forms[0]: {f: dict(zip(("gain", "se"), self.gain(forms[0], f))) for f in forms[1:]}}
-
-    def gain(self, simpler: str, richer: str) -> tuple[float, float]:
-        """The paired difference of the held-out mean squares, ``simpler`` less ``richer``, and its standard
-        error with the cells as the independent units (their samples correlated within, the weights the
-        cells' shares of the samples)."""
-        return mean_and_se(self.mse[simpler] - self.mse[richer], self.counts)
-
-
-def _fit_symmetric(m: NDArray[np.float64], basis: NDArray[np.float64], sphere: tuple[NDArray[np.float64], float],
-                   iterations: int = 30) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``T`` (symmetric, its entries ``basis @ θ``) and ``o`` minimising Σ (‖T(m − o)‖ − 1)², by
-    Levenberg–Marquardt from ``sphere`` (o, r), the sphere's fit of the same samples (Lu 2017, eq. 13; the Jacobian of
-    :func:`norm_residual_jacobian`).  Starting from the samples' own sphere, a direction the samples do not
-    determine stays at the sphere's value instead of at a fit that saw other samples."""
-    o, r = sphere
-    theta = np.linalg.lstsq(basis, np.array([1 / r, 0, 0, 1 / r, 0, 1 / r]), rcond=None)[0]
-
-    def unpack(th: NDArray[np.float64]) -> NDArray[np.float64]:
-        e = basis @ th
-        return np.array([[e[0], e[1], e[2]], [e[1], e[3], e[4]], [e[2], e[4], e[5]]])
-
-    def residual(T: NDArray[np.float64], oo: NDArray[np.float64]) -> NDArray[np.float64]:
-        v = np.einsum("kj,ij->ki", m - oo, T)
-        return np.asarray(np.sqrt(np.einsum("ki,ki->k", v, v)) - 1.0)
-
-    T = unpack(theta)
-    res = residual(T, o)
-    cost = float(res @ res)
-    lam = 1e-6  # Marquardt's damping, relative to JᵀJ's diagonal; grown tenfold on a step that does not descend
-    for _ in range(iterations):
-        J = norm_residual_jacobian(m, T, o)
-        J = np.column_stack([J[:, :6] @ basis, J[:, 6:]])
-        A, g = J.T @ J, J.T @ res
-        improved = False
-        while lam < 1e6:
-            try:
-                step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-300), -g)
-            except np.linalg.LinAlgError:  # a direction the samples do not see at all: damp it more
-                lam *= 10.0
-                continue
-            T_new, o_new = unpack(theta + step[:-3]), o + step[-3:]
-            res_new = residual(T_new, o_new)
-            cost_new = float(res_new @ res_new)
-            if cost_new <= cost:
-                improved = True
-                break
-            lam *= 10.0
-        if not improved:
-            break
-        done = cost - cost_new <= 1e-7 * cost  # settled: far below the forms' held-out differences (1e-3 of the cost and more)
-        theta, T, o, res, cost, lam = theta + step[:-3], T_new, o_new, res_new, cost_new, max(lam / 10.0, 1e-9)
-        if done:
-            break
-    return T, o
-
-
-def heldout_forms(m: NDArray[np.float64], forms: tuple[str, ...]) -> HeldOut:
-    """Each form's error on the directions it did not see: cross-validation over direction cells.
-
-    The model: a calibration is used in the directions the sensor will see, so a form is worth its
-    parameters when it predicts ``‖T(m − o)‖ = 1`` in a direction left out of its fit, not only in the
-    samples it fitted.  The samples (at most :data:`HELDOUT_SAMPLES`, evenly spaced in time) are put in
-    the cell of their nearest coverage direction (:data:`COVERAGE_DIRECTIONS`, caps of about 35°), their
-    direction taken from the sphere fitted to them all (determined whenever any form is);
-    each cell in turn is left out, every form fitted on the rest (:func:`_fit_symmetric`: maximum
-    likelihood under white norm noise, the estimator's model) and its mean square residual measured
-    on the cell.  A form that extrapolates badly into directions the others do not determine loses
-    there, which is what the parameters' standard errors alone stand for.
-    """
-    stride = max(1, -(-len(m) // HELDOUT_SAMPLES))
-    mm = np.ascontiguousarray(m[::stride])
-    try:
-        u = mm - _sphere_fit(mm)[0]
-    except np.linalg.LinAlgError:  # no sphere through them all (not a field): the cells about their mean
-        u = mm - mm.mean(axis=0)
-    cell = np.argmax(u @ COVERAGE_DIRECTIONS.T / np.linalg.norm(u, axis=1, keepdims=True), axis=1)
-    cells, counts = np.unique(cell, return_counts=True)
-    mse: dict[str, NDArray[np.float64]] = {f: np.empty(len(cells)) for f in forms}
-    for i, c in enumerate(cells):
-        out = cell == c
-        try:
-            o_s, r_s, _ = _sphere_fit(mm[~out])
-        except np.linalg.LinAlgError:  # the rest hold no sphere (not a field): no form predicts the cell
-            for f in forms:
-                mse[f][i] = np.inf
-            continue
-        for f in forms:
-            if (~out).sum() <= FORMS[f]:
-                mse[f][i] = np.inf
-                continue
-            T, o = _fit_symmetric(mm[~out], FORM_BASIS[f], (o_s, r_s))
-            v = (mm[out] - o) @ T.T
-            mse[f][i] = float(np.mean((np.linalg.norm(v, axis=1) - 1.0) ** 2))
-    return HeldOut(cells.astype(np.int64), counts.astype(np.int64), mse, len(mm))
-
-
 def fit_form(samples: MagSamples, form: str, settings: MagSettings) -> FormFit:
     """Fit one form (module docstring) to the samples."""
     from optcal.families.accel.calibration import calibrate
 
     m = samples.m
     if form == "offsets":
-        o, r, _ = _sphere_fit(m)
+        o, r, _ = sphere_fit(m)
         T = np.eye(3) / r
         resid = np.linalg.norm((m - o) @ T.T, axis=1) - 1.0
         d = m - o
@@ -717,21 +414,6 @@ def _refuse_undetermined(samples: MagSamples, tried: dict[str, FormFit]) -> None
     )
 
 
-def planar_tilt(m: NDArray[np.float64], misfit: float = np.inf) -> tuple[float, NDArray[np.float64]]:
-    """The share of the samples' spread that tilts out of their plane, and that plane's axis (the thinnest).
-
-    A field turned about one axis traces a circle; along the axis the samples hold the field's component and the hard
-    iron, which no turn about it tells apart (the sphere fit finds them only from the noise and the misfit).  The
-    raw samples' covariance's smallest eigenvalue, less the sensor's noise along that axis, over the whole spread, is
-    the tilt's share: a full sphere gives 1/3, a turn tilted by θ rms about the plane θ²/2.  The noise is the smaller
-    of two bounds: half the variance of consecutive samples' differences along the axis (by their MAD: a turn about
-    the axis moves the samples in the plane), and ``misfit``, a fit's rms distance from its surface (sensor units).
-    """
-    eig, axes = np.linalg.eigh(np.cov(m.T))
-    d = np.diff(m, axis=0) @ axes[:, 0]
-    noise2 = (1.4826 * float(np.median(np.abs(d - np.median(d))))) ** 2 / 2.0 if d.size else 0.0
-    return max(float(eig[0]) - min(noise2, misfit**2), 0.0) / max(float(np.sum(eig)), 1e-300), axes[:, 0]
-
 
 def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64]) -> None:
     if settings.accept_fit:
@@ -763,24 +445,3 @@ def _check_is_field(fit: FormFit, settings: MagSettings, m: NDArray[np.float64])
             f"planar calibrates the heading; --allow-degenerate fits the hard iron in the plane anyway, --accept-mag-fit keeps the fit")
     if dwarfed:
         raise cloud
-
-
-#: A planar turn leaves the direction covariance this small along its axis (a full sphere gives
-#: 1/3 on every axis, a turn about one axis with the field at 30° from it 0 along the axis, 0.125
-#: and 0.125 across): below 0.01 (a tilt of 8° rms about the plane) the axis is not seen; the raw
-#: samples' tilt share (:func:`planar_tilt`) is held to the same.
-PLANAR_SPREAD: float = 0.01
-
-
-def coverage_notes(cov: Coverage) -> list[str]:
-    """What the coverage leaves undetermined and the orientations that would fix it."""
-    notes = []
-    if cov.spread[0] < PLANAR_SPREAD:
-        axis = ", ".join(f"{c:+.2f}" for c in cov.thinnest_axis)
-        notes.append(f"the samples turn in one plane (direction spread {cov.spread[0]:.2g} along [{axis}]): the "
-                     f"ellipsoid's extent along that axis, the field strength and the hard iron along it are not determined; add orientations that tilt that axis "
-                     f"towards and away from the field (e.g. roll the sensor 90° and turn it again)")
-    if cov.missing:
-        notes.append(f"coverage {len(cov.covered)}/{len(COVERAGE_NAMES)} directions; missing: {', '.join(cov.missing)} "
-                     f"(point those sensor directions along the field to fill them)")
-    return notes

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from optcal.families.mag.fit import HeldOut
+    from optcal.families.mag.heldout import HeldOut
 
 __all__ = ["richest_within_se"]
 
