@@ -219,14 +219,17 @@ def read_still_log(data: str, sensor: str | None = "acc", window: tuple[float, f
         outside = int(np.count_nonzero(~keep))
         rec = replace(rec, t=rec.t[keep], acc=rec.acc[keep], gyro=None if rec.gyro is None else rec.gyro[keep],
                       temp=None if rec.temp is None else rec.temp[keep], row=rec.row[keep], usable=rec.usable[keep],
+                      gyro_unhealthy=None if rec.gyro_unhealthy is None else rec.gyro_unhealthy[keep],
                       nominal=None)
         if outside:
             exclusions[f"samples outside --window {window[0]:g}:{window[1]:g} s"] = outside
-    # a log with every sample usable (the common case) is used as read: boolean indexing would copy it
-    every = bool(np.all(rec.usable))
-    t = rec.t if every else rec.t[rec.usable]
-    samples = rec.acc if every else rec.acc[rec.usable]
-    gyro = None if rec.gyro is None else rec.gyro if every else rec.gyro[rec.usable]
+    # the gyro's noise leaves out the samples the log marks unhealthy (Recording.gyro_usable), the accelerometer's
+    # alone keeps them; a log with every sample usable (the common case) is used as read: indexing would copy it
+    usable = rec.gyro_usable if sensor in ("gyro", "both") else rec.usable
+    every = bool(np.all(usable))
+    t = rec.t if every else rec.t[usable]
+    samples = rec.acc if every else rec.acc[usable]
+    gyro = None if rec.gyro is None else rec.gyro if every else rec.gyro[usable]
     if sensor in ("gyro", "both") and gyro is None:
         raise InputError(f"{data}: no gyro columns (gx, gy, gz); map them with --columns gx=...,gy=...,gz=...")
     if sensor == "gyro" and gyro is not None:

@@ -72,8 +72,9 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                       "the moves holding them are left out of the gyro's fit and diagnosis: a clipped rate misses "
                       "part of the turn)."),
     click.option("--keep-unhealthy", is_flag=True, default=None,
-                 help="Keep the rows an ArduPilot log flags unhealthy (AH=0: the accelerometer, GH=0: the gyro; by "
-                      "default they are left out and counted, as ArduPilot left them out of its own use)."),
+                 help="Keep the samples an ArduPilot log flags unhealthy (by default, as ArduPilot left them out of "
+                      "its own use, counted and left out: an AH=0 row whole, a GH=0 row's gyro sample, its "
+                      "accelerometer sample kept)."),
     click.option("--keep-clipped", is_flag=True, default=None,
                  help="Keep the samples a log's own clip flags mark (ArduPilot's VIBE.Clip rises, PX4's clip "
                       "counters; by default they are counted as saturated and enter no rest); rails in the values "

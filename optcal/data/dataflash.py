@@ -18,8 +18,10 @@ that calibration left, as PX4's ``sensor_combined``.  ``IMU`` instance 0 is read
 
 What the log's own flags mean, from LogStructure.h's field descriptions: ``AH`` is the accelerometer's health as
 ArduPilot judged it (0: its samples are not used by the vehicle), so such rows are left out and counted; ``GH`` is
-the gyro's (0: its rates are not used), and as a rest is judged still by its gyro and a move's turn is its gyro's
-integral, such rows are left out too and counted apart (``--keep-unhealthy`` keeps both); ``EA``/``EG``
+the gyro's (0: its rates are not used), and the two sensors are judged apart: such a row keeps its accelerometer
+sample (``AH`` decides it) and its gyro sample is left out of every use of the gyro (the rests it gates, the moves
+it integrates, its noise: :attr:`optcal.data.recording.Recording.gyro_usable`), counted apart
+(``--keep-unhealthy`` keeps both); ``EA``/``EG``
 count the bus's read errors (a sample that failed to read is not logged, so no logged sample is wrong by it: the
 count is said, nothing is excluded); a rise of ``VIBE.Clip`` between two VIBE messages means a sample in between
 reached the clip limit, so every IMU sample in that interval is flagged saturated (which one is not logged;
@@ -145,7 +147,8 @@ def read_dataflash_imu(path: str | Path, topic: str | None, *, keep_unhealthy: b
         ``None``: ``IMU`` instance 0.
     keep_unhealthy : bool
         Keep the rows whose ``AH``/``GH`` say ArduPilot judged the accelerometer or the gyro unhealthy
-        (``--keep-unhealthy``); by default they are left out and counted.
+        (``--keep-unhealthy``); by default they are counted and left out: an ``AH`` = 0 row whole, a ``GH`` = 0
+        row's gyro sample (``UlogImu.gyro_unhealthy``), its accelerometer sample kept.
     keep_clipped : bool
         Do not flag the samples in an interval over which ``VIBE.Clip`` rose (``--keep-clipped``).
 
@@ -188,20 +191,26 @@ def read_dataflash_imu(path: str | Path, topic: str | None, *, keep_unhealthy: b
         frame["temp"] = chosen[tk]
     exclusions: dict[str, int] = {}
     keep = np.ones(t.size, dtype=bool)
+    gyro_sick: NDArray[np.bool_] | None = None  # rows kept for the accelerometer, their gyro sample not used
     unhealthy: list[str] = []
     for flag, what in (((_first(chosen, "AH", "AcHlt")), "accelerometer"), ((_first(chosen, "GH", "GyHlt")), "gyro")):
         if flag is None or (bad := (chosen[flag] < _HEALTHY) & keep).sum() == 0:
             continue  # a row both flags mark is counted once, under the accelerometer's
         reason = f"DataFlash {base} rows with {flag}=0 (ArduPilot judged the {what} unhealthy)"
         unhealthy.append(f"{int(bad.sum())} {base} rows with {flag}=0 (the {what} unhealthy)")
-        if not keep_unhealthy:
-            exclusions[reason] = int(bad.sum())
+        if keep_unhealthy:
+            continue
+        exclusions[reason] = int(bad.sum())
+        if what == "accelerometer":
             keep &= ~bad
+        elif has_gyro:  # the row's accelerometer sample is sound (its AH says so): only the gyro's sample goes
+            gyro_sick = bad
     if unhealthy:
         notes.append(f"{' and '.join(unhealthy)}: " + (
             "kept (--keep-unhealthy): ArduPilot did not use them" if keep_unhealthy else
-            "left out of the fit and the rests, as ArduPilot left them out of its own use (the gyro's rate gates a "
-            "rest and integrates a move's turn, so a row without it goes whole); --keep-unhealthy keeps them"))
+            "left out, as ArduPilot left them out of its own use: an unhealthy accelerometer's row whole, an "
+            "unhealthy gyro's sample alone (no rest it gates, no move it integrates, not its noise; the row's "
+            "accelerometer sample is used); --keep-unhealthy keeps them"))
     for err, what in (("EA", "accelerometer"), ("ErrA", "accelerometer"), ("EG", "gyro"), ("ErrG", "gyro")):
         if err in chosen and chosen[err].size and (rise := float(chosen[err][-1] - chosen[err][0])) > 0:
             notes.append(f"the {what}'s bus read errors ({base}.{err}) rose by {rise:.0f} over the log; a failed read "
@@ -218,10 +227,11 @@ def read_dataflash_imu(path: str | Path, topic: str | None, *, keep_unhealthy: b
     if not keep.all():
         frame = {k: v[keep] for k, v in frame.items()}
         saturated = None if saturated is None else saturated[keep]
+        gyro_sick = None if gyro_sick is None else gyro_sick[keep]
     return UlogImu(name, frame, {"t": time_reason.split(" in ")[0],
                                  **{c: f"{base}.{k}" for c, k in zip(("ax", "ay", "az"), acc_keys)}},
                    time_reason, f"ArduPilot's {base}.AccX..Z is in m/s^2 (LogStructure.h: o, m/s/s)", has_gyro,
-                   saturated, None, tuple(notes), exclusions)
+                   saturated, None, tuple(notes), exclusions, gyro_sick)
 
 
 def _clipped(log: Any, instance: int, t: NDArray[np.float64]) -> NDArray[np.bool_] | None:

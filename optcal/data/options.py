@@ -82,8 +82,8 @@ class ReadOptions:
         Keep the gyro's samples at a saturation rail (``--keep-gyro-rail``; by default they enter no rest and the
         moves holding them are left out of the gyro's fit: :mod:`optcal.data.rails`).
     keep_unhealthy : bool
-        Keep the rows a log flags unhealthy (ArduPilot's ``AH``/``GH`` = 0; ``--keep-unhealthy``; by default left
-        out and counted: :mod:`optcal.data.dataflash`).
+        Keep the samples a log flags unhealthy (ArduPilot's ``AH``/``GH`` = 0; ``--keep-unhealthy``; by default
+        counted and left out, an ``AH`` = 0 row whole, a ``GH`` = 0 row's gyro sample: :mod:`optcal.data.dataflash`).
     keep_clipped : bool
         Keep the samples a log's own clip flags mark (ArduPilot's ``VIBE.Clip`` rises, PX4's ``clip_counter``;
         ``--keep-clipped``; by default they are saturated samples, counted); rails in the values are still sought.

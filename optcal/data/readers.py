@@ -128,6 +128,9 @@ class Source:
     roles : ColumnRoles or None
         Columns whose names do not settle their roles (a file without a header, ``tx, ty,
         tz``), read in the common layout; the decisions read them as the evidence says.
+    gyro_unhealthy : ndarray of bool or None
+        Rows whose gyro sample the file marks unusable while their accelerometer sample is sound (a DataFlash
+        ``GH`` = 0): the row is kept, its gyro sample left out of the gyro's use (counted by the reader).
     """
 
     path: str
@@ -154,6 +157,7 @@ class Source:
     notes: list[str] = field(default_factory=list)
     exclusions: dict[str, int] = field(default_factory=dict)
     roles: ColumnRoles | None = None
+    gyro_unhealthy: NDArray[np.bool_] | None = None
 
     @property
     def n_rows(self) -> int:
@@ -286,7 +290,7 @@ def read_source(
         A second text file ``t gx gy gz`` (imu_tk writes accelerometer and gyroscope in two
         files): merged onto the accelerometer's times.
     keep_unhealthy : bool
-        Keep the rows a log flags unhealthy (DataFlash ``AH``/``GH`` = 0; ``--keep-unhealthy``).
+        Keep the samples a log flags unhealthy (DataFlash ``AH``/``GH`` = 0; ``--keep-unhealthy``).
     keep_clipped : bool
         Do not take a log's own clip flags as saturation (DataFlash ``VIBE.Clip`` rises, PX4 ``clip_counter``;
         ``--keep-clipped``); the rails found in the values are still sought.
@@ -769,6 +773,7 @@ def read_dataflash(path: str | Path, topic: str | None, *, keep_unhealthy: bool 
         units_reason=imu.units_reason, gyro_units="rad/s" if imu.has_gyro else None, time_unit="s",
         time_reason=imu.time_reason, saturated=imu.saturated, gyro_saturated=imu.gyro_saturated, always_raw=True,
         notes=list(imu.notes), header={"topic": imu.topic}, exclusions=dict(imu.exclusions),
+        gyro_unhealthy=imu.gyro_unhealthy,
     )
 
 

@@ -76,6 +76,9 @@ class Recording:
         accelerometer's reading is sound).
     gyro_rail_kept : bool
         ``--keep-gyro-rail``: the gyro's rails were found and kept.
+    gyro_unhealthy : ndarray of bool or None
+        Usable samples whose gyro reading the file marks unusable (a DataFlash ``GH`` = 0, counted while reading):
+        their accelerometer sample is used, their gyro sample is not (:attr:`gyro_usable`).
     """
 
     t: NDArray[np.float64]
@@ -97,10 +100,21 @@ class Recording:
     nominal: NominalConversion | None = None
     gyro_rail: GyroRail | None = None
     gyro_rail_kept: bool = False
+    gyro_unhealthy: NDArray[np.bool_] | None = None
 
     @property
     def n(self) -> int:
         return int(self.t.size)
+
+    @property
+    def gyro_usable(self) -> NDArray[np.bool_]:
+        """The usable samples whose gyro reading may be used too: ``usable`` less :attr:`gyro_unhealthy`.
+
+        Whatever reads the gyro (the rests, which it gates and whose bias it gives; the moves it integrates; its
+        noise; the Ferraris turns) reads these rows; a row marked unhealthy is a hole in the gyro's record, its
+        accelerometer sample still read where the accelerometer is used alone.
+        """
+        return self.usable if self.gyro_unhealthy is None else self.usable & ~self.gyro_unhealthy
 
     @property
     def n_usable(self) -> int:
@@ -219,8 +233,9 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
     else:
         nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
     sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
-    rail = None if gyro is None else gyro_rail(gyro, usable, src.gyro_units, src.gyro_saturated, units,
-                                             gyro_range_dps)
+    unhealthy = src.gyro_unhealthy if gyro is not None and src.gyro_unhealthy is not None else None
+    rail = None if gyro is None else gyro_rail(gyro, usable if unhealthy is None else usable & ~unhealthy,
+                                             src.gyro_units, src.gyro_saturated, units, gyro_range_dps)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
@@ -272,6 +287,7 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
         nominal=nominal,
         gyro_rail=rail if rail is not None and rail.samples.any() else None,
         gyro_rail_kept=keep_gyro_rail,
+        gyro_unhealthy=unhealthy if unhealthy is not None and unhealthy.any() else None,
     )
 
 

@@ -94,6 +94,9 @@ def gyro_at_rest(src: Source, ev: Evidence, quiet: NDArray[np.bool_], nb: int) -
     if not src.has(*GYRO):
         return None
     cols = tuple(src.column(c) if bool(ev.usable.all()) else src.column(c)[ev.usable] for c in GYRO)
+    if src.gyro_unhealthy is not None:  # the samples the log marks unhealthy hold no evidence: their blocks go
+        sick = src.gyro_unhealthy if bool(ev.usable.all()) else src.gyro_unhealthy[ev.usable]
+        cols = tuple(np.where(sick, np.nan, c) for c in cols)
     means, std = _block_statistics(cols, nb)
     finite = quiet & np.isfinite(std) & np.all(np.isfinite(means), axis=1)
     if np.count_nonzero(finite) < MIN_QUIET_BLOCKS:

@@ -346,8 +346,9 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
         critical values and every exclusion counted.
     """
     s = settings or StaticSettings()
-    every = bool(rec.usable.all())
-    use = None if every else np.flatnonzero(rec.usable)
+    usable = rec.gyro_usable  # a rest's gyro gates it and gives its bias: a sample the log marks unhealthy is a hole
+    every = bool(usable.all())
+    use = None if every else np.flatnonzero(usable)
     t = rec.t if use is None else rec.t[use]
     acc = rec.acc if use is None else _usable_rows(rec.acc, use)
     gyro_rows = None if rec.gyro is None else (rec.gyro if use is None else _usable_rows(rec.gyro, use))

@@ -74,6 +74,9 @@ class UlogImu:
         What the reading decided (the topic chosen and why, interpolation, corruption, truncation).
     exclusions : dict of str to int
         Rows or messages left out, by reason.
+    gyro_unhealthy : ndarray of bool or None
+        Rows kept for their accelerometer sample whose gyro sample the log marks unusable (a DataFlash ``GH`` = 0):
+        left out of every use of the gyro (:attr:`optcal.data.recording.Recording.gyro_usable`).
     """
 
     topic: str
@@ -86,6 +89,7 @@ class UlogImu:
     gyro_saturated: NDArray[np.bool_] | None = None
     notes: tuple[str, ...] = ()
     exclusions: dict[str, int] = field(default_factory=dict)
+    gyro_unhealthy: NDArray[np.bool_] | None = None
 
 
 def _split_topic(topic: str | None) -> tuple[str | None, int]:

@@ -102,18 +102,25 @@ def test_the_raw_acc_messages_are_read_by_topic_with_their_gyro(tmp_path):
     assert any("ACC:0 (400 Hz)" in n for n in default.meta["notes"])
 
 
-def test_unhealthy_gyro_rows_and_every_flag_decision_have_an_override(tmp_path):
-    """GH=0 rows (ArduPilot judged the gyro unhealthy) are counted and left out as AH=0 rows are (a row both mark is
-    counted once); --keep-unhealthy keeps both and --keep-clipped keeps the samples VIBE's clip rise flags, each
-    said in the read line."""
+def test_unhealthy_gyro_rows_keep_their_accelerometer_sample_and_every_flag_decision_has_an_override(tmp_path):
+    """GH=0 rows (ArduPilot judged the gyro unhealthy) keep their accelerometer sample (AH=1 says it is sound) and their
+    gyro sample is left out of the gyro's use: a failing gyro's 3 rad/s on those rows reaches neither the rests nor
+    their gyro means.  AH=0 rows are left out whole; both are counted (a row both mark once, under AH);
+    --keep-unhealthy keeps both and --keep-clipped keeps the samples VIBE's clip rise flags, each said in the read
+    line."""
+    from optcal.data.static import MOVING, detect_static
+
     w = DataFlashWriter()
     rng = np.random.default_rng(3)
-    n, gyro_sick, acc_sick = 600, set(range(100, 107)), set(range(105, 110))  # rows 105, 106: both flags
+    # rows 100-102 the gyro alone (a 4-period hole in its record, inside the first rest); 400, 401 both flags
+    n, gyro_sick, acc_sick = 600, {100, 101, 102, 400, 401}, set(range(400, 405))
+    acc_of = {}
     for j in range(n):
         t = 1_000_000 + j * 10_000
         gh, ah = int(j not in gyro_sick), int(j not in acc_sick)
-        w.add("IMU", t, 0, *rng.normal(0, 0.002, 3), *(np.array([0, 0, 9.80665]) + rng.normal(0, 0.02, 3)),
-              0, 0, 35.0, gh, ah, 100, 100)
+        gyro = np.full(3, 3.0) if not gh else rng.normal(0, 0.002, 3)  # what a failing gyro may log
+        acc_of[j] = np.array([0, 0, 9.80665]) + rng.normal(0, 0.02, 3)
+        w.add("IMU", t, 0, *gyro, *acc_of[j], 0, 0, 35.0, gh, ah, 100, 100)
         if j % 10 == 0:
             w.add("VIBE", t, 0, 0.1, 0.1, 0.1, 0 if t < 3_000_000 else 1)
     path = tmp_path / "sick.bin"
@@ -121,11 +128,22 @@ def test_unhealthy_gyro_rows_and_every_flag_decision_have_an_override(tmp_path):
     rec = load_recording(path)
     gyro_key = "DataFlash IMU rows with GH=0 (ArduPilot judged the gyro unhealthy)"
     acc_key = "DataFlash IMU rows with AH=0 (ArduPilot judged the accelerometer unhealthy)"
-    assert rec.exclusions[acc_key] == 5 and rec.exclusions[gyro_key] == 5
-    assert rec.acc.shape[0] == n - 10 and rec.exclusions[SATURATED] == 10
-    assert any("IMU rows with GH=0" in note and "--keep-unhealthy" in note for note in rec.meta["notes"])
+    assert rec.exclusions[acc_key] == 5 and rec.exclusions[gyro_key] == 3
+    assert rec.acc.shape[0] == n - 5 and rec.exclusions[SATURATED] == 10  # the AH=0 rows alone are gone
+    gyro_only = [int(np.flatnonzero(np.isclose(rec.t, 1.0 + 0.01 * j))[0]) for j in (100, 101, 102)]
+    assert np.allclose(rec.acc[gyro_only], [acc_of[j] for j in (100, 101, 102)])  # their accelerometer samples
+    assert rec.usable[gyro_only].all() and not rec.gyro_usable[gyro_only].any()
+    assert rec.gyro_unhealthy is not None and int(rec.gyro_unhealthy.sum()) == 3
+    # the log is still: no block moves (the failing gyro's 3 rad/s would move the blocks holding it), and the rest
+    # around those rows is found as around any short hole, its gyro mean at the bias
+    seg = detect_static(rec)
+    assert MOVING not in seg.exclusions
+    around = [iv for iv in seg.intervals if iv.start < gyro_only[0] and iv.stop > gyro_only[-1]]
+    assert len(around) == 1 and float(np.max(np.abs(around[0].gyro_mean))) < 0.01
+    assert any("IMU rows with GH=0" in note and "--keep-unhealthy" in note and "accelerometer sample is used" in note
+               for note in rec.meta["notes"])
     kept = load_recording(path, keep_unhealthy=True, keep_clipped=True)
     assert kept.acc.shape[0] == n and acc_key not in kept.exclusions and gyro_key not in kept.exclusions
-    assert SATURATED not in kept.exclusions
+    assert kept.gyro_unhealthy is None and SATURATED not in kept.exclusions
     assert any("kept (--keep-unhealthy)" in note for note in kept.meta["notes"])
     assert any("kept (--keep-clipped" in note for note in kept.meta["notes"])

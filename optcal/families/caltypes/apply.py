@@ -226,8 +226,9 @@ def apply_to_file(
 
         if src.gyro_units is not None and normalise_units(src.gyro_units, "gyro") != cal.gyro_units:
             raise InputError(f"{path}: its gyro columns are in {src.gyro_units}, the calibration's in {cal.gyro_units}")
-        gyro = np.full(raw.shape, np.nan)
-        gyro[finite] = cal.correct_gyro(np.column_stack([src.column(c) for c in GYRO])[finite], raw[finite])
+        gyro = np.full(raw.shape, np.nan)  # NaN where the log marks the gyro sample unhealthy (Source.gyro_unhealthy)
+        g_ok = finite if src.gyro_unhealthy is None else finite & ~src.gyro_unhealthy
+        gyro[g_ok] = cal.correct_gyro(np.column_stack([src.column(c) for c in GYRO])[g_ok], raw[g_ok])
         gnames = [frame_column(c) for c in GYRO]
         if all(n in frame.columns for n in gnames):  # replaced in place
             gpos = min(list(frame.columns).index(n) for n in gnames)

@@ -320,7 +320,7 @@ def _turn_angles(rec: Recording, x: FerrarisInputs, turn_angle_deg: float | None
     """The signed angle of each turn (degrees), with the gyro units decision and why."""
     assert rec.gyro is not None
     bias = np.mean(np.column_stack([x.gyr_p, x.gyr_n]), axis=1)
-    decision = decide_gyro_units(rec.gyro[rec.usable], bias, gyro_units, rec.gyro_units)
+    decision = decide_gyro_units(rec.gyro[rec.gyro_usable], bias, gyro_units, rec.gyro_units)
     raw = np.array([x.turn_gyro_dt[i, i] - bias[i] * x.turn_time[i] for i in range(3)])
     if np.any(raw == 0):
         raise InputError("a Ferraris turn integrates to exactly zero about its axis: no turn in that stretch")

@@ -99,7 +99,7 @@ class FerrarisRegions:
 
 
 def _usable(rec: Recording, idx: NDArray[np.int64], name: str, where: str) -> NDArray[np.int64]:
-    use = idx[rec.usable[idx]]
+    use = idx[rec.gyro_usable[idx]]  # a section's means and turns read both sensors
     if use.size < 2:
         raise InputError(f"section {name} ({where}) has {use.size} usable sample(s)")
     return use
@@ -221,7 +221,7 @@ def _find_turn(seg: Segmentation, faces: list[str], bias: NDArray[np.float64], a
             if faces[j] != faces[i]:
                 break  # a turn about the vertical keeps the face
             lo, hi = ivs[i].stop, ivs[j].start
-            use = np.arange(lo, hi)[rec.usable[lo:hi]]
+            use = np.arange(lo, hi)[rec.gyro_usable[lo:hi]]
             if use.size < 2:
                 continue
             angle = ((gyro[use] - bias) * dt[use, None]).sum(axis=0)  # raw units × s

@@ -569,5 +569,5 @@ def calibrate_imu_loaded(
     rec = seg.recording
     if rec.gyro is None:  # impossible: moves_from_segmentation refuses a recording without gyro columns
         raise AssertionError(f"{rec.path}: no gyro columns")
-    decision = decide_gyro_units(rec.gyro[rec.usable], moves.gyro_means.mean(axis=0), gyro_units, rec.gyro_units)
+    decision = decide_gyro_units(rec.gyro[rec.gyro_usable], moves.gyro_means.mean(axis=0), gyro_units, rec.gyro_units)
     return calibrate_gyro(moves, acc, decision, settings)

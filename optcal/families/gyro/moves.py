@@ -387,5 +387,5 @@ def moves_from_segmentation(seg: "Segmentation") -> MoveSet:
     ivs = [(iv.start, iv.stop) for iv in seg.intervals]
     sigma = np.array([iv.sigma for iv in seg.intervals])
     rail = None if rec.gyro_rail is None or rec.gyro_rail_kept else rec.gyro_rail.samples
-    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.usable, sigma, rec.temp, rail)
+    moves = moves_from_arrays(rec.t, rec.acc, rec.gyro, ivs, rec.gyro_usable, sigma, rec.temp, rail)
     return moves
