@@ -77,5 +77,9 @@ def apply(calibration: str, data: str, output: str, units_out: str, data_units: 
     click.echo("rows: " + ", ".join(f"{word} {n}" for word, n in applied.status_counts.items()))
     if applied.exclusions:
         click.echo("excluded (marked, not dropped): " + "; ".join(f"{k}: {v}" for k, v in applied.exclusions.items()))
+    if applied.read_exclusions:
+        click.echo("counted while reading (rows the log's reader left out are not in the output; an unhealthy gyro's "
+                   "row is, its gyro columns empty): "
+                   + "; ".join(f"{k}: {v}" for k, v in applied.read_exclusions.items()))
     for note in applied.range_notes:
         click.echo(f"warning: {note}")

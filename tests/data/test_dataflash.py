@@ -147,3 +147,28 @@ def test_unhealthy_gyro_rows_keep_their_accelerometer_sample_and_every_flag_deci
     assert kept.gyro_unhealthy is None and SATURATED not in kept.exclusions
     assert any("kept (--keep-unhealthy)" in note for note in kept.meta["notes"])
     assert any("kept (--keep-clipped" in note for note in kept.meta["notes"])
+
+
+def test_apply_corrects_a_dataflash_log(log, tmp_path, capsys):
+    """``optcal apply`` on a DataFlash log: its frame is built from the samples under their roles (``ax``), not the
+    log's field names (``IMU.AccX``), which it once looked for and ended in a traceback."""
+    import pandas as pd
+
+    import optcal
+    from optcal.families.simulate.poses import simulate_poses, uniform_directions
+    from tests.helpers.cli_run import run
+
+    path, acc, sick = log
+    cal = optcal.calibrate(simulate_poses(optcal.lu2017_reference_model(), uniform_directions(30, 4), 0.001, rng=5))
+    cal.save(tmp_path / "c.json")
+    code, out, err = run(["apply", tmp_path / "c.json", path, "-o", tmp_path / "a.csv"], capsys)
+    assert code == 0, err
+    frame = pd.read_csv(tmp_path / "a.csv")
+    assert len(frame) == len(acc) - sick  # the AH=0 rows were left out by the reader: said so, not "marked"
+    counted = next(line for line in out.splitlines() if line.startswith("counted while reading"))
+    assert f"AH=0 (ArduPilot judged the accelerometer unhealthy): {sick}" in counted and "not in the output" in counted
+    marked = next(line for line in out.splitlines() if line.startswith("excluded (marked, not dropped)"))
+    assert "AH=0" not in marked and frame["optcal_status"].tolist().count("excluded") == 10  # the clipped samples
+    ok = (frame["optcal_status"] == "ok").to_numpy()
+    expected = cal.correct(np.delete(acc, range(50, 50 + sick), axis=0) / 9.80665)  # m/s² in, g calibration and out
+    assert np.allclose(frame[["ax_g", "ay_g", "az_g"]].to_numpy()[ok], expected[ok], atol=1e-6)  # the log stores float32

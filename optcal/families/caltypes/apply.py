@@ -66,7 +66,12 @@ class AppliedFile:
     status_counts : dict of str to int
         Rows per status word.
     exclusions : dict of str to int
-        Why rows were excluded (recordings: duplicated, repeated timestamp, saturated, non-finite).
+        Why rows were excluded and marked in the status column (recordings: duplicated, repeated timestamp,
+        saturated, non-finite).
+    read_exclusions : dict of str to int
+        What the file's own reader counted while reading a log container (a DataFlash log's unhealthy rows, a
+        ULog's truncated message): rows it left out are not in the output (a ``GH`` = 0 row is, its gyro columns
+        empty).
     range_notes : list of str
         What lies outside the validity range, and by how much.
     header : dict of str to str
@@ -90,6 +95,7 @@ class AppliedFile:
     header: dict[str, str] = field(default_factory=dict)
     time_reason: str = ""
     gravity_m_s2: float = STANDARD_GRAVITY
+    read_exclusions: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -210,10 +216,14 @@ def apply_to_file(
     if len(frame) != len(raw):
         raise InputError(f"{path}: read {len(frame)} rows but {len(raw)} samples; cannot pass the columns through")
     def frame_column(role: str) -> Any:
-        """The frame's column holding ``role`` (a headerless file's columns are named by position: '#2' is '2')."""
+        """The frame's column holding ``role`` (a headerless file's columns are named by position: '#2' is '2'; a
+        container's frame, built from the source's samples, by the role itself: a DataFlash log's ``IMU.AccX``
+        is its ``ax``)."""
         name = src.column_map.get(role, role)
         if name not in frame.columns and name.startswith("#") and name[1:] in frame.columns:
             return name[1:]
+        if name not in frame.columns and role in frame.columns:
+            return role
         return name
 
     names = [frame_column(c) for c in ACC]
@@ -239,9 +249,11 @@ def apply_to_file(
             frame.insert(gpos + k, f"g{axis}_rad_s", gyro[:, k])
     frame[STATUS_COLUMN] = status
     counts = {w: int(np.sum(status == w)) for w in STATUS_WORDS if np.any(status == w)}
+    read_exclusions = {k: v for k, v in src.exclusions.items() if k in exclusions}  # counted by a container's reader
+    marked = {k: v for k, v in exclusions.items() if k not in read_exclusions}
     return AppliedFile(
-        frame, decision.value, decision.reason, units_in, units_reason, units_out, counts, exclusions, range_notes, header,
-        time_reason if t is not None else "", gravity,
+        frame, decision.value, decision.reason, units_in, units_reason, units_out, counts, marked, range_notes, header,
+        time_reason if t is not None else "", gravity, read_exclusions,
     )
 
 
