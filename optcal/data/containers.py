@@ -18,8 +18,9 @@ of :mod:`optcal.data.decisions` to weigh against the data, as any other reader d
   name says nothing, by their attributes
   (``units``, ``standard_name``, ``long_name``, ``description``).  A magnetometer is not an
   accelerometer: it is skipped and said so.
-* **A matrix** with 3, 4, 6 or 7 axes (:data:`MATRIX_LAYOUTS`: ``ax ay az``, ``t ax ay az``,
-  ``ax ay az gx gy gz``, ``t ax ... gz``) is read in either orientation: a 3 × 24 matrix is 24
+* **A matrix** with 3, 4, 6, 7, 9 or 10 axes (:data:`MATRIX_LAYOUTS`: ``ax ay az``, ``t ax ay az``,
+  ``ax ay az gx gy gz``, ``t ax ... gz``, and those with a 9-axis logger's magnetometer last, not read) is read
+  in either orientation: a 3 × 24 matrix is 24
   samples of 3 axes.  When both orientations are possible (a 3 × 3, a 4 × 6, ...) and no other
   variable tells the sample count, the file is refused with the flag that chooses:
   ``--topic NAME:rows`` (one sample per row) or ``--topic NAME:columns``.
@@ -89,14 +90,20 @@ TEXT_ROLES: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 DESCRIPTIVE_ATTRIBUTES: tuple[str, ...] = ("standard_name", "long_name", "description", "units_name")
 
-#: Canonical columns of a matrix by its number of axes (the layouts of optcal's headerless text files).
-#: Layouts that begin with ``t`` apply only when that axis increases.
+#: Canonical columns of a matrix by its number of axes (the layouts of optcal's headerless text files,
+#: :data:`optcal.data.columns.HEADERLESS_TRIPLES`: an accelerometer, a gyroscope, then a 9-axis logger's
+#: magnetometer, whose axes ``mx, my, mz`` are not read and are said so).  Layouts that begin with ``t`` apply
+#: only when that axis increases.
 MATRIX_LAYOUTS: dict[int, tuple[str, ...]] = {
     3: ("ax", "ay", "az"),
     4: ("t", "ax", "ay", "az"),
     6: ("ax", "ay", "az", "gx", "gy", "gz"),
     7: ("t", "ax", "ay", "az", "gx", "gy", "gz"),
+    9: ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
+    10: ("t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
 }
+#: The axis counts of :data:`MATRIX_LAYOUTS` in words, for the refusals.
+_AXIS_COUNTS: str = ", ".join(str(k) for k in list(MATRIX_LAYOUTS)[:-1]) + f" or {list(MATRIX_LAYOUTS)[-1]}"
 #: ``--topic NAME:ORIENTATION``: one sample per row, or one sample per column.
 ORIENTATIONS: tuple[str, ...] = ("rows", "columns")
 #: Canonical names ``--columns`` may give positions for, along the axes of the chosen matrix.
@@ -427,12 +434,12 @@ def choose_matrix(path: str, contents: Contents, topic: str | None) -> tuple[Cho
         why = "its name or attributes say acceleration"
         if not candidates:
             candidates = [v for v in contents.variables if roles[id(v)] is None and orientations(v.values.shape)]
-            why = "the one matrix of 3, 4, 6 or 7 axes"
+            why = f"the one matrix of {_AXIS_COUNTS} axes"
         if not candidates:
             have = ", ".join(f"{v.name} ({v.shape_text}{', ' + str(roles[id(v)]) if roles[id(v)] else ''})"
                              for v in contents.variables) or "none"
-            raise InputError(f"{path}: no accelerometer matrix (a numeric matrix of 3, 4, 6 or 7 columns or rows) among "
-                             f"the file's numeric variables: {have}")
+            raise InputError(f"{path}: no accelerometer matrix (a numeric matrix of {_AXIS_COUNTS} columns or rows) "
+                             f"among the file's numeric variables: {have}{_mapping_hint(contents.variables, roles)}")
         if len(candidates) > 1:
             listed = ", ".join(f"{v.name} ({v.shape_text})" for v in candidates)
             raise InputError(f"{path}: {len(candidates)} matrices could be the accelerometer's: {listed}; "
@@ -446,6 +453,19 @@ def choose_matrix(path: str, contents: Contents, topic: str | None) -> tuple[Cho
     return chosen, others
 
 
+def _mapping_hint(variables: list[Variable], roles: dict[int, str | None]) -> str:
+    """The flags that read a matrix of another axis count: ``--topic NAME:rows`` (or ``:columns``, its samples
+    along its longer side) and ``--columns`` giving the accelerometer's positions; empty when no 2-D matrix of
+    unknown role is there to map."""
+    matrices = [v for v in variables if v.values.ndim == 2 and min(v.values.shape) >= 3 and roles.get(id(v)) is None]
+    if not matrices:
+        return ""
+    var = max(matrices, key=lambda v: v.values.size)
+    side = "rows" if var.values.shape[0] >= var.values.shape[1] else "columns"
+    return (f"; read one by giving its orientation and the accelerometer's positions along its axes: "
+            f"--topic {var.name}:{side} --columns ax=N,ay=N,az=N (and t=N, gx=N,gy=N,gz=N)")
+
+
 def _orientation(path: str, var: Variable, others: list[Variable]) -> tuple[str, str]:
     """The orientation of ``var`` and why: the only one its shape allows, else the one whose sample count another
     variable has."""
@@ -454,7 +474,7 @@ def _orientation(path: str, var: Variable, others: list[Variable]) -> tuple[str,
         return found[0], ""
     if not found:
         raise InputError(f"{path}: variable {var.name!r} ({var.shape_text}) has no axis count optcal reads "
-                         f"({', '.join(str(k) for k in MATRIX_LAYOUTS)} columns or rows)")
+                         f"({_AXIS_COUNTS} columns or rows){_mapping_hint([var], {id(var): None})}")
     lengths = {v.values.size for v in others if v.values.ndim == 1 or (v.values.ndim == 2 and min(v.values.shape) == 1)}
     lengths |= {s for v in others if v.values.ndim == 2 and min(v.values.shape) > 1 for s in v.values.shape
                 if s not in MATRIX_LAYOUTS}
@@ -517,13 +537,18 @@ def read_container(
         layout = MATRIX_LAYOUTS.get(n_axes)
         if layout is None:
             raise InputError(f"{path}: variable {chosen.var.name!r} has {n_axes} axes; map them with --columns ax=1,ay=2,az=3")
-        positions = {name: j for j, name in enumerate(layout)}
+        positions = {name: j for j, name in enumerate(layout) if name in MAPPABLE}
         if layout[0] == "t":
             t = samples[:, 0][np.isfinite(samples[:, 0])]
             if t.size < 2 or np.any(np.diff(t) < 0):
                 raise InputError(f"{path}: variable {chosen.var.name!r} has {n_axes} axes, and its first does not increase "
                                  f"as a time does; map the axes with --columns (e.g. ax=1,ay=2,az=3)")
-        columns_reason = f"{chosen.reason}: {n_axes} axes read as {', '.join(layout)}"
+        unread = [j for j, name in enumerate(layout) if name not in MAPPABLE]
+        read_as = ", ".join(name for name in layout if name in MAPPABLE)
+        columns_reason = f"{chosen.reason}: {n_axes} axes read as {read_as}"
+        if unread:
+            columns_reason += (f"; axes {unread[0] + 1}-{unread[-1] + 1} not read: a 9-axis logger's magnetometer "
+                               "(--columns gives other positions)")
     else:
         columns_reason = f"{chosen.reason}: positions given with --columns"
     missing = [c for c in ("ax", "ay", "az") if c not in positions]
