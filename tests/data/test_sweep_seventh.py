@@ -6,6 +6,11 @@ wrote that optcal misread, each reproduced on a GENERATED file (no recording is 
   accelerometer matrix (a numeric matrix of 3, 4, 6 or 7 columns or rows)", naming no flag; now read in the layout
   a headerless text file of 10 columns has (the magnetometer's axes said not read), and a matrix of an axis count
   no layout has is refused naming the ``--topic NAME:rows --columns ...`` that reads it.
+* MicroStrain's MSCL channel names with a prefix joined by case (NCSU-High-Powered-Rocketry-Club/AirbrakesV2's
+  3DM-CX5 logs: ``state,extension,timestamp,invalid_fields,scaledAccelX,...,scaledGyroZ,...,estCompensatedAccelX,...``,
+  the IMU's packets and the filter's interleaved, each row leaving the other's fields empty): refused before as "no
+  accelerometer column(s)"; now ``scaledAccelX`` is read as ``ax`` by its end, its case boundaries as separators, and
+  the filter's rows counted as excluded.
 
 Each test fails on the code before this sweep.
 """
@@ -65,3 +70,25 @@ def test_a_matrix_of_another_axis_count_is_refused_naming_the_flags_that_read_it
     assert "cal_data (" in lines[0] and "--topic cal_data:rows --columns ax=N,ay=N,az=N" in lines[0]
     loaded = load_with_segmentation(path, topic="cal_data:rows", columns="t=1,ax=2,ay=3,az=4,gx=5,gy=6,gz=7")
     assert loaded.poses.n == len(turned.dwells)
+
+
+def test_mscl_channel_names_with_a_prefix_joined_by_case_are_read_by_their_end(turned, tmp_path):
+    f = turned.frame
+    stamps = 1730147660435860599 + np.round(f["t"].to_numpy() * 1e9).astype(np.int64)
+    header = ("state,extension,timestamp,invalid_fields,scaledAccelX,scaledAccelY,scaledAccelZ,scaledGyroX,scaledGyroY,"
+              "scaledGyroZ,deltaVelX,deltaVelY,deltaVelZ,estCompensatedAccelX,estCompensatedAccelY,"
+              "estCompensatedAccelZ,estAngularRateX,estAngularRateY,estAngularRateZ\n")
+    rows = []
+    for k, (s, a, w) in enumerate(zip(stamps, f[["ax", "ay", "az"]].to_numpy(), f[["gx", "gy", "gz"]].to_numpy())):
+        rows.append(f"S,-0.5,{s},," + ",".join(f"{v:.8f}" for v in (*a, *w, *(a / 1000.0))) + ",,,,,,\n")
+        if k % 2 == 0:  # the estimation filter's packet between the IMU's: its own fields, the IMU's empty
+            rows.append(f"S,-0.5,{s + 500},,,,,,,,,,," + ",".join(f"{v:.8f}" for v in (*(9.80665 * a), *w)) + "\n")
+    path = tmp_path / "xplus.csv"
+    path.write_text(header + "".join(rows))
+    loaded = load_with_segmentation(path)
+    columns = loaded.decisions.columns.value
+    assert "ax←scaledAccelX" in columns and "gz←scaledGyroZ" in columns and "estCompensated" not in columns
+    assert loaded.poses.n == len(turned.dwells)
+    assert loaded.recording.units == "g"
+    assert loaded.recording.n_usable == len(f)  # the IMU's rows all read
+    assert sum(loaded.recording.exclusions.values()) == len(rows) - len(f)  # the filter's excluded and counted
