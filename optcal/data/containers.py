@@ -434,7 +434,9 @@ def choose_matrix(path: str, contents: Contents, topic: str | None) -> tuple[Cho
         why = "its name or attributes say acceleration"
         if not candidates:
             candidates = [v for v in contents.variables if roles[id(v)] is None and orientations(v.values.shape)]
-            why = f"the one matrix of {_AXIS_COUNTS} axes"
+            why = ("the one matrix of a 9-axis logger's 9 or 10 axes"
+                   if len(candidates) == 1 and not set(candidates[0].values.shape) & {3, 4, 6, 7}
+                   else "the one matrix of 3, 4, 6 or 7 axes")
         if not candidates:
             have = ", ".join(f"{v.name} ({v.shape_text}{', ' + str(roles[id(v)]) if roles[id(v)] else ''})"
                              for v in contents.variables) or "none"
