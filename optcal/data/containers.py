@@ -79,6 +79,7 @@ WORD_ROLES: tuple[tuple[str, re.Pattern[str]], ...] = (
     (GYROSCOPE, re.compile(r"^(gyr|gyro|gyros|gyroscope|angvel|omega)$")),
     (ACCELEROMETER, re.compile(r"^(acc|accs|accel|accelerometer|acceleration|accelerations)$")),
     (TEMPERATURE, re.compile(r"^(temp|temperature)$")),
+    (TIME, re.compile(r"^(time|times|timestamp|timestamps)$")),  # a trial's time (all_time beside all_accel_1_x)
 )
 #: Roles by words of a variable's descriptive attributes, tried in this order.
 TEXT_ROLES: tuple[tuple[str, tuple[str, ...]], ...] = (
@@ -160,6 +161,8 @@ class Variable:
     name: str
     values: NDArray[np.float64]
     attrs: dict[str, str | float] = field(default_factory=dict)
+    #: The variables a matrix was joined from, one per axis (:func:`join_axis_vectors`); empty for a stored one.
+    parts: tuple[str, ...] = ()
 
     @property
     def short(self) -> str:
@@ -378,7 +381,9 @@ class Choice:
         return self.var.values if self.orientation == "rows" else self.var.values.T
 
     def label(self, j: int) -> str:
-        """MATLAB's notation of axis ``j`` (0-based): ``X(:,2)`` or ``X(2,:)``."""
+        """MATLAB's notation of axis ``j`` (0-based): ``X(:,2)`` or ``X(2,:)``; a joined matrix's own variable."""
+        if self.var.parts:
+            return self.var.parts[j]
         return f"{self.var.name}(:,{j + 1})" if self.orientation == "rows" else f"{self.var.name}({j + 1},:)"
 
 
@@ -531,6 +536,7 @@ def read_container(
     if gyro_file is not None:
         raise InputError(f"gyro_file applies to text files, not to a {kind} (it holds its own variables)")
     contents = read_mat5(path) if kind == MAT5 else read_hdf5(path, kind)
+    joined = join_axis_vectors(contents)
     chosen, others = choose_matrix(str(path), contents, topic)
     samples = chosen.samples
     n, n_axes = samples.shape
@@ -566,6 +572,8 @@ def read_container(
         "header": {"variable": chosen.var.name},
     }
     used, notes = _companions(chosen, others, n, fields)
+    notes[:0] = [f"{len(joined)} variable(s) stored one vector per axis joined as matrices: "
+                 + ", ".join(f"{v.name} ← {', '.join(v.parts)}" for v in joined)] if joined else []
     _units_and_rate(chosen, contents, fields, notes)
     skipped = [v for v in others if id(v) not in used]
     fields["ignored_columns"] = [v.name for v in skipped] + contents.other
@@ -590,15 +598,23 @@ def _companions(chosen: Choice, others: list[Variable], n: int, fields: dict[str
             elif len(canon) == 3 and values.ndim == 2 and (values.shape == (n, 3) or values.shape == (3, n)):
                 found.append((var, values if values.shape == (n, 3) else values.T))
         if len(found) > 1:
-            notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): none used")
-            continue
+            # two sensors' (all_accel_1, all_gyro_1, all_accel_2, ...): the one named as the accelerometer is,
+            # but for the sensor's word, is the same sensor's
+            same = [(v, x) for v, x in found if _other_words(v.short) == _other_words(chosen.var.short)]
+            if len(same) != 1:
+                notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): none used")
+                continue
+            notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): "
+                         f"{same[0][0].name} used, named as the accelerometer's {chosen.var.name} is")
+            found = same
         if not found:
             continue
         var, values = found[0]
         used.add(id(var))
         for j, name in enumerate(canon):
             data[name] = np.ascontiguousarray(values[:, j] if values.ndim == 2 else values, dtype=float)
-            column_map[name] = var.name if len(canon) == 1 else f"{var.name}[{'xyz'[j]}]"
+            column_map[name] = (var.name if len(canon) == 1 else var.parts[j] if var.parts
+                                else f"{var.name}[{'xyz'[j]}]")
         if role == TIME:
             unit, why = time_unit_of(var)
             if unit is not None:
@@ -612,6 +628,47 @@ def _companions(chosen: Choice, others: list[Variable], n: int, fields: dict[str
             if spelled is not None:
                 fields["gyro_units"] = spelled
     return used, notes
+
+
+#: A vector of one axis: a name ending in a separator and the axis (``all_accel_1_x``, ``acc.x``).
+AXIS_VECTOR = re.compile(r"^(.+)[_.]([xyzXYZ])$")
+
+
+def join_axis_vectors(contents: Contents) -> list[Variable]:
+    """Join the vectors stored one per axis (``all_accel_1_x``, ``_y``, ``_z``) into one matrix each, in place.
+
+    A group is joined when its x, y and z are vectors (or n × 1) of the same length and their common name says
+    a sensor (:func:`role_of`: ``all_accel_1`` an accelerometer, ``all_gyro_1`` a gyroscope): MATLAB scripts
+    save a logger's columns so, and none of them alone is a sample.  Returns the joined variables (their
+    ``parts`` name the vectors), which replace their vectors in ``contents.variables``.
+    """
+    groups: dict[tuple[str, int], dict[str, Variable]] = {}
+    for var in contents.variables:
+        m = AXIS_VECTOR.match(var.name)
+        if m is None or var.values.ndim not in (1, 2) or (var.values.ndim == 2 and min(var.values.shape) != 1):
+            continue
+        groups.setdefault((m.group(1), var.values.size), {})[m.group(2).lower()] = var
+    joined: list[Variable] = []
+    for (stem, size), axes in groups.items():
+        if set(axes) != {"x", "y", "z"} or size < 2:
+            continue
+        var = Variable(stem, np.column_stack([axes[a].values.reshape(-1) for a in "xyz"]).astype(float),
+                       dict(axes["x"].attrs), tuple(axes[a].name for a in "xyz"))
+        if role_of(var) not in (ACCELEROMETER, GYROSCOPE):
+            continue
+        parts = {id(axes[a]) for a in "xyz"}
+        at = min(i for i, v in enumerate(contents.variables) if id(v) in parts)
+        contents.variables[:] = [v for v in contents.variables if id(v) not in parts]
+        contents.variables.insert(at, var)
+        joined.append(var)
+    return joined
+
+
+def _other_words(short: str) -> tuple[str, ...]:
+    """A variable name's words but those that say a sensor (``all_gyro_1`` → ``all, 1``): what tells one sensor's
+    variables from another's."""
+    words = re.split(r"[_\-\s]+", short)
+    return tuple(w for w in words if not any(p.match(w) for _, p in WORD_ROLES))
 
 
 def _units_and_rate(chosen: Choice, contents: Contents, fields: dict[str, Any], notes: list[str]) -> None:
