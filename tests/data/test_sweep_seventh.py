@@ -11,6 +11,14 @@ wrote that optcal misread, each reproduced on a GENERATED file (no recording is 
   the IMU's packets and the filter's interleaved, each row leaving the other's fields empty): refused before as "no
   accelerometer column(s)"; now ``scaledAccelX`` is read as ``ax`` by its end, its case boundaries as separators, and
   the filter's rows counted as excluded.
+* A MATLAB file of two IMUs stored one vector per axis (ssong47/compute_relative_angle_between_two_IMUs's
+  ``raw_pitch_slow.mat``: ``all_time``, ``all_accel_1_x``, ..., ``all_gyro_2_z``, quaternions, an encoder, each
+  149829 × 1): refused before as "no accelerometer matrix", naming no flag; now each sensor's three vectors are
+  joined as one matrix (said), the two accelerometers refused naming ``--topic``, and with ``--topic all_accel_1``
+  the gyro named as it is (``all_gyro_1``) and the time (``all_time``) read beside it.
+* Rests of one orientation between turns about gravity (the same file's yaw trial, its turning IMU: 187 rests, |a|
+  1.000 g): refused as "pose means do not look like an accelerometer's", which they are; now refused as of one
+  orientation, an accelerometer never turned, naming the turn first.
 
 Each test fails on the code before this sweep.
 """
@@ -92,3 +100,47 @@ def test_mscl_channel_names_with_a_prefix_joined_by_case_are_read_by_their_end(t
     assert loaded.recording.units == "g"
     assert loaded.recording.n_usable == len(f)  # the IMU's rows all read
     assert sum(loaded.recording.exclusions.values()) == len(rows) - len(f)  # the filter's excluded and counted
+
+
+def test_two_imus_stored_one_vector_per_axis_are_joined_and_chosen_by_topic(turned, tmp_path, capsys):
+    f = turned.frame
+    acc, gyro = f[["ax", "ay", "az"]].to_numpy(), np.degrees(f[["gx", "gy", "gz"]].to_numpy())
+    still = np.tile([1.0, 0.0, 0.0], (len(f), 1))  # the second IMU: one orientation throughout
+    variables = {"data_line": 510.0, "all_time": 60.0 + f["t"].to_numpy()[:, None],
+                 "all_encoder": np.zeros((len(f), 1))}
+    for k, (a, w) in {"1": (acc, gyro), "2": (still, np.zeros_like(gyro))}.items():
+        for j, axis in enumerate("xyz"):
+            variables[f"all_gyro_{k}_{axis}"] = w[:, j:j + 1]
+            variables[f"all_accel_{k}_{axis}"] = a[:, j:j + 1]
+    path = tmp_path / "raw_pitch_slow.mat"
+    savemat(path, variables)
+    code, out, err = run(capsys, "segment", str(path))
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1, err
+    assert "all_accel_1 (3450 × 3)" in lines[0] and "all_accel_2 (3450 × 3)" in lines[0] and "--topic NAME" in lines[0]
+    loaded = load_with_segmentation(path, topic="all_accel_1")
+    assert loaded.poses.n == len(turned.dwells)
+    assert abs(loaded.recording.rate_hz - 100.0) < 0.5
+    columns = loaded.decisions.columns.value
+    assert "ax←all_accel_1_x" in columns and "gz←all_gyro_1_z" in columns and "t←all_time" in columns
+    np.testing.assert_allclose(loaded.recording.gyro[:, 1], gyro[:, 1])
+
+
+def test_rests_of_one_orientation_in_g_are_refused_as_one_orientation_not_as_no_accelerometer(tmp_path, capsys):
+    noise = np.random.default_rng(5)
+    rate, rows, t = 100.0, [], 0.0
+    for _ in range(14):  # 3-s rests, gravity on z, between 1-s turns about gravity (the accelerometer sees none)
+        for k in range(int(4 * rate)):
+            turning = k >= 3 * rate
+            a = np.array([0.01, -0.02, 1.0]) + noise.normal(scale=0.002, size=3)
+            w = noise.normal(scale=0.01, size=3) + (np.array([0.0, 0.0, 1.5]) if turning else 0.0)
+            rows.append(",".join(f"{v:.6f}" for v in (t, *a, *w)))
+            t += 1 / rate
+    path = tmp_path / "yaw.csv"
+    path.write_text("t,ax,ay,az,gx,gy,gz\n" + "\n".join(rows) + "\n")
+    code, out, err = run(capsys, "calibrate", str(path))
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1, err
+    assert "14 pose means are of one orientation" in lines[0] and "median |a| is 1 g" in lines[0]
+    assert "do not look like an accelerometer" not in lines[0]
+    assert "turn the sensor through several orientations" in lines[0]
