@@ -19,6 +19,10 @@ wrote that optcal misread, each reproduced on a GENERATED file (no recording is 
 * Rests of one orientation between turns about gravity (the same file's yaw trial, its turning IMU: 187 rests, |a|
   1.000 g): refused as "pose means do not look like an accelerometer's", which they are; now refused as of one
   orientation, an accelerometer never turned, naming the turn first.
+* An iOS app's CoreMotion dump, one record over four lines (fffire-oss/imu_processing's ``dataset/circle.txt``: a
+  date-time line, then ``Acceleration: x, y, z``, ``Rotation Rate: ...``, ``Magnetic Field: ...``): refused before as
+  "no usable sample (of 2936 rows: non-finite ...)", naming no flag; now read (:mod:`optcal.data.line_records`), the
+  clock from the date-time lines, the magnetometer's lines and any other line said not read.
 
 Each test fails on the code before this sweep.
 """
@@ -144,3 +148,24 @@ def test_rests_of_one_orientation_in_g_are_refused_as_one_orientation_not_as_no_
     assert "14 pose means are of one orientation" in lines[0] and "median |a| is 1 g" in lines[0]
     assert "do not look like an accelerometer" not in lines[0]
     assert "turn the sensor through several orientations" in lines[0]
+
+
+def test_records_over_several_lines_with_a_label_before_each_sensor_are_read(turned, tmp_path):
+    f = turned.frame
+    lines = []
+    for t, a, w in zip(f["t"].to_numpy(), f[["ax", "ay", "az"]].to_numpy(), f[["gx", "gy", "gz"]].to_numpy()):
+        whole, frac = divmod(t, 1.0)
+        minute, second = divmod(int(whole), 60)
+        lines += [f"    2023-04-17 15:{24 + minute:02d}:{second:02d}.{round(frac * 1e4):04d}",
+                  "    Acceleration: " + ", ".join(repr(float(v)) for v in a),
+                  "    Rotation Rate: " + ", ".join(repr(float(v)) for v in w),
+                  "    Magnetic Field: 456.39, -227.53, -400.04"]
+    path = tmp_path / "circle.txt"
+    path.write_text("\n".join(lines) + "\nSent from my iPhone\n")
+    loaded = load_with_segmentation(path)
+    assert loaded.poses.n == len(turned.dwells)
+    assert abs(loaded.recording.rate_hz - 100.0) < 0.5
+    assert loaded.recording.units == "g"
+    np.testing.assert_allclose(loaded.recording.gyro[:, 2], f["gz"].to_numpy())
+    assert "magnetometer line(s) not read" in loaded.decisions.layout
+    assert "1 line(s) of another shape not read" in loaded.decisions.layout
