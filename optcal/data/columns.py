@@ -198,6 +198,20 @@ def normalise_name(name: str) -> str:
     return re.sub(r"[^0-9a-z]+", "_", text).strip("_")
 
 
+#: A word boundary written by case alone (``scaledAccelX``: MicroStrain's MSCL channel names, a prefix joined to
+#: ``Accel`` and the axis ``X`` without a separator): a lower-case letter or a digit followed by a capital.
+CAMEL_BOUNDARY = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
+
+
+def camel_words(name: str) -> str:
+    """``name`` normalised with its case boundaries as separators (``scaledAccelX`` → ``scaled_accel_x``).
+
+    Used only to match the end of a longer name (:data:`SUFFIX_MIN_CHARS`), after the whole name matched nothing:
+    a prefix joined by case (``scaled``, ``est``) is a prefix as ``imu_`` is.
+    """
+    return normalise_name(CAMEL_BOUNDARY.sub("_", str(name)))
+
+
 def strip_unit(norm: str) -> tuple[str, str | None]:
     """A normalised name without its trailing unit word, and that word (or ``None``)."""
     for word in _UNIT_WORDS:
@@ -315,7 +329,10 @@ def resolve_columns(names: list[str], mapping: dict[str, str]) -> ResolvedColumn
             norm = normalise_name(col)
             found: str | None = None
             unit: str | None = None
-            for candidate, unit in ((norm, None), strip_unit(norm)):
+            forms = [norm]
+            if suffix and (camel := camel_words(col)) != norm:
+                forms.append(camel)  # a prefix joined by case (scaledAccelX): matched by its end, after the name
+            for candidate, unit in ((c, u) for form in forms for c, u in ((form, None), strip_unit(form))):
                 found = _canonical_of(candidate, suffix)
                 if found is not None:
                     break

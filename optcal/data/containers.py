@@ -18,8 +18,9 @@ of :mod:`optcal.data.decisions` to weigh against the data, as any other reader d
   name says nothing, by their attributes
   (``units``, ``standard_name``, ``long_name``, ``description``).  A magnetometer is not an
   accelerometer: it is skipped and said so.
-* **A matrix** with 3, 4, 6 or 7 axes (:data:`MATRIX_LAYOUTS`: ``ax ay az``, ``t ax ay az``,
-  ``ax ay az gx gy gz``, ``t ax ... gz``) is read in either orientation: a 3 × 24 matrix is 24
+* **A matrix** with 3, 4, 6, 7, 9 or 10 axes (:data:`MATRIX_LAYOUTS`: ``ax ay az``, ``t ax ay az``,
+  ``ax ay az gx gy gz``, ``t ax ... gz``, and those with a 9-axis logger's magnetometer last, not read) is read
+  in either orientation: a 3 × 24 matrix is 24
   samples of 3 axes.  When both orientations are possible (a 3 × 3, a 4 × 6, ...) and no other
   variable tells the sample count, the file is refused with the flag that chooses:
   ``--topic NAME:rows`` (one sample per row) or ``--topic NAME:columns``.
@@ -78,6 +79,7 @@ WORD_ROLES: tuple[tuple[str, re.Pattern[str]], ...] = (
     (GYROSCOPE, re.compile(r"^(gyr|gyro|gyros|gyroscope|angvel|omega)$")),
     (ACCELEROMETER, re.compile(r"^(acc|accs|accel|accelerometer|acceleration|accelerations)$")),
     (TEMPERATURE, re.compile(r"^(temp|temperature)$")),
+    (TIME, re.compile(r"^(time|times|timestamp|timestamps)$")),  # a trial's time (all_time beside all_accel_1_x)
 )
 #: Roles by words of a variable's descriptive attributes, tried in this order.
 TEXT_ROLES: tuple[tuple[str, tuple[str, ...]], ...] = (
@@ -89,14 +91,20 @@ TEXT_ROLES: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 DESCRIPTIVE_ATTRIBUTES: tuple[str, ...] = ("standard_name", "long_name", "description", "units_name")
 
-#: Canonical columns of a matrix by its number of axes (the layouts of optcal's headerless text files).
-#: Layouts that begin with ``t`` apply only when that axis increases.
+#: Canonical columns of a matrix by its number of axes (the layouts of optcal's headerless text files,
+#: :data:`optcal.data.columns.HEADERLESS_TRIPLES`: an accelerometer, a gyroscope, then a 9-axis logger's
+#: magnetometer, whose axes ``mx, my, mz`` are not read and are said so).  Layouts that begin with ``t`` apply
+#: only when that axis increases.
 MATRIX_LAYOUTS: dict[int, tuple[str, ...]] = {
     3: ("ax", "ay", "az"),
     4: ("t", "ax", "ay", "az"),
     6: ("ax", "ay", "az", "gx", "gy", "gz"),
     7: ("t", "ax", "ay", "az", "gx", "gy", "gz"),
+    9: ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
+    10: ("t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
 }
+#: The axis counts of :data:`MATRIX_LAYOUTS` in words, for the refusals.
+_AXIS_COUNTS: str = ", ".join(str(k) for k in list(MATRIX_LAYOUTS)[:-1]) + f" or {list(MATRIX_LAYOUTS)[-1]}"
 #: ``--topic NAME:ORIENTATION``: one sample per row, or one sample per column.
 ORIENTATIONS: tuple[str, ...] = ("rows", "columns")
 #: Canonical names ``--columns`` may give positions for, along the axes of the chosen matrix.
@@ -153,6 +161,8 @@ class Variable:
     name: str
     values: NDArray[np.float64]
     attrs: dict[str, str | float] = field(default_factory=dict)
+    #: The variables a matrix was joined from, one per axis (:func:`join_axis_vectors`); empty for a stored one.
+    parts: tuple[str, ...] = ()
 
     @property
     def short(self) -> str:
@@ -371,7 +381,9 @@ class Choice:
         return self.var.values if self.orientation == "rows" else self.var.values.T
 
     def label(self, j: int) -> str:
-        """MATLAB's notation of axis ``j`` (0-based): ``X(:,2)`` or ``X(2,:)``."""
+        """MATLAB's notation of axis ``j`` (0-based): ``X(:,2)`` or ``X(2,:)``; a joined matrix's own variable."""
+        if self.var.parts:
+            return self.var.parts[j]
         return f"{self.var.name}(:,{j + 1})" if self.orientation == "rows" else f"{self.var.name}({j + 1},:)"
 
 
@@ -427,12 +439,14 @@ def choose_matrix(path: str, contents: Contents, topic: str | None) -> tuple[Cho
         why = "its name or attributes say acceleration"
         if not candidates:
             candidates = [v for v in contents.variables if roles[id(v)] is None and orientations(v.values.shape)]
-            why = "the one matrix of 3, 4, 6 or 7 axes"
+            why = ("the one matrix of a 9-axis logger's 9 or 10 axes"
+                   if len(candidates) == 1 and not set(candidates[0].values.shape) & {3, 4, 6, 7}
+                   else "the one matrix of 3, 4, 6 or 7 axes")
         if not candidates:
             have = ", ".join(f"{v.name} ({v.shape_text}{', ' + str(roles[id(v)]) if roles[id(v)] else ''})"
                              for v in contents.variables) or "none"
-            raise InputError(f"{path}: no accelerometer matrix (a numeric matrix of 3, 4, 6 or 7 columns or rows) among "
-                             f"the file's numeric variables: {have}")
+            raise InputError(f"{path}: no accelerometer matrix (a numeric matrix of {_AXIS_COUNTS} columns or rows) "
+                             f"among the file's numeric variables: {have}{_mapping_hint(contents.variables, roles)}")
         if len(candidates) > 1:
             listed = ", ".join(f"{v.name} ({v.shape_text})" for v in candidates)
             raise InputError(f"{path}: {len(candidates)} matrices could be the accelerometer's: {listed}; "
@@ -446,6 +460,19 @@ def choose_matrix(path: str, contents: Contents, topic: str | None) -> tuple[Cho
     return chosen, others
 
 
+def _mapping_hint(variables: list[Variable], roles: dict[int, str | None]) -> str:
+    """The flags that read a matrix of another axis count: ``--topic NAME:rows`` (or ``:columns``, its samples
+    along its longer side) and ``--columns`` giving the accelerometer's positions; empty when no 2-D matrix of
+    unknown role is there to map."""
+    matrices = [v for v in variables if v.values.ndim == 2 and min(v.values.shape) >= 3 and roles.get(id(v)) is None]
+    if not matrices:
+        return ""
+    var = max(matrices, key=lambda v: v.values.size)
+    side = "rows" if var.values.shape[0] >= var.values.shape[1] else "columns"
+    return (f"; read one by giving its orientation and the accelerometer's positions along its axes: "
+            f"--topic {var.name}:{side} --columns ax=N,ay=N,az=N (and t=N, gx=N,gy=N,gz=N)")
+
+
 def _orientation(path: str, var: Variable, others: list[Variable]) -> tuple[str, str]:
     """The orientation of ``var`` and why: the only one its shape allows, else the one whose sample count another
     variable has."""
@@ -454,7 +481,7 @@ def _orientation(path: str, var: Variable, others: list[Variable]) -> tuple[str,
         return found[0], ""
     if not found:
         raise InputError(f"{path}: variable {var.name!r} ({var.shape_text}) has no axis count optcal reads "
-                         f"({', '.join(str(k) for k in MATRIX_LAYOUTS)} columns or rows)")
+                         f"({_AXIS_COUNTS} columns or rows){_mapping_hint([var], {id(var): None})}")
     lengths = {v.values.size for v in others if v.values.ndim == 1 or (v.values.ndim == 2 and min(v.values.shape) == 1)}
     lengths |= {s for v in others if v.values.ndim == 2 and min(v.values.shape) > 1 for s in v.values.shape
                 if s not in MATRIX_LAYOUTS}
@@ -509,6 +536,7 @@ def read_container(
     if gyro_file is not None:
         raise InputError(f"gyro_file applies to text files, not to a {kind} (it holds its own variables)")
     contents = read_mat5(path) if kind == MAT5 else read_hdf5(path, kind)
+    joined = join_axis_vectors(contents)
     chosen, others = choose_matrix(str(path), contents, topic)
     samples = chosen.samples
     n, n_axes = samples.shape
@@ -517,13 +545,18 @@ def read_container(
         layout = MATRIX_LAYOUTS.get(n_axes)
         if layout is None:
             raise InputError(f"{path}: variable {chosen.var.name!r} has {n_axes} axes; map them with --columns ax=1,ay=2,az=3")
-        positions = {name: j for j, name in enumerate(layout)}
+        positions = {name: j for j, name in enumerate(layout) if name in MAPPABLE}
         if layout[0] == "t":
             t = samples[:, 0][np.isfinite(samples[:, 0])]
             if t.size < 2 or np.any(np.diff(t) < 0):
                 raise InputError(f"{path}: variable {chosen.var.name!r} has {n_axes} axes, and its first does not increase "
                                  f"as a time does; map the axes with --columns (e.g. ax=1,ay=2,az=3)")
-        columns_reason = f"{chosen.reason}: {n_axes} axes read as {', '.join(layout)}"
+        unread = [j for j, name in enumerate(layout) if name not in MAPPABLE]
+        read_as = ", ".join(name for name in layout if name in MAPPABLE)
+        columns_reason = f"{chosen.reason}: {n_axes} axes read as {read_as}"
+        if unread:
+            columns_reason += (f"; axes {unread[0] + 1}-{unread[-1] + 1} not read: a 9-axis logger's magnetometer "
+                               "(--columns gives other positions)")
     else:
         columns_reason = f"{chosen.reason}: positions given with --columns"
     missing = [c for c in ("ax", "ay", "az") if c not in positions]
@@ -539,6 +572,8 @@ def read_container(
         "header": {"variable": chosen.var.name},
     }
     used, notes = _companions(chosen, others, n, fields)
+    notes[:0] = [f"{len(joined)} variable(s) stored one vector per axis joined as matrices: "
+                 + ", ".join(f"{v.name} ← {', '.join(v.parts)}" for v in joined)] if joined else []
     _units_and_rate(chosen, contents, fields, notes)
     skipped = [v for v in others if id(v) not in used]
     fields["ignored_columns"] = [v.name for v in skipped] + contents.other
@@ -563,15 +598,23 @@ def _companions(chosen: Choice, others: list[Variable], n: int, fields: dict[str
             elif len(canon) == 3 and values.ndim == 2 and (values.shape == (n, 3) or values.shape == (3, n)):
                 found.append((var, values if values.shape == (n, 3) else values.T))
         if len(found) > 1:
-            notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): none used")
-            continue
+            # two sensors' (all_accel_1, all_gyro_1, all_accel_2, ...): the one named as the accelerometer is,
+            # but for the sensor's word, is the same sensor's
+            same = [(v, x) for v, x in found if _other_words(v.short) == _other_words(chosen.var.short)]
+            if len(same) != 1:
+                notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): none used")
+                continue
+            notes.append(f"{len(found)} {role} variables ({', '.join(v.name for v, _ in found)}): "
+                         f"{same[0][0].name} used, named as the accelerometer's {chosen.var.name} is")
+            found = same
         if not found:
             continue
         var, values = found[0]
         used.add(id(var))
         for j, name in enumerate(canon):
             data[name] = np.ascontiguousarray(values[:, j] if values.ndim == 2 else values, dtype=float)
-            column_map[name] = var.name if len(canon) == 1 else f"{var.name}[{'xyz'[j]}]"
+            column_map[name] = (var.name if len(canon) == 1 else var.parts[j] if var.parts
+                                else f"{var.name}[{'xyz'[j]}]")
         if role == TIME:
             unit, why = time_unit_of(var)
             if unit is not None:
@@ -585,6 +628,47 @@ def _companions(chosen: Choice, others: list[Variable], n: int, fields: dict[str
             if spelled is not None:
                 fields["gyro_units"] = spelled
     return used, notes
+
+
+#: A vector of one axis: a name ending in a separator and the axis (``all_accel_1_x``, ``acc.x``).
+AXIS_VECTOR = re.compile(r"^(.+)[_.]([xyzXYZ])$")
+
+
+def join_axis_vectors(contents: Contents) -> list[Variable]:
+    """Join the vectors stored one per axis (``all_accel_1_x``, ``_y``, ``_z``) into one matrix each, in place.
+
+    A group is joined when its x, y and z are vectors (or n × 1) of the same length and their common name says
+    a sensor (:func:`role_of`: ``all_accel_1`` an accelerometer, ``all_gyro_1`` a gyroscope): MATLAB scripts
+    save a logger's columns so, and none of them alone is a sample.  Returns the joined variables (their
+    ``parts`` name the vectors), which replace their vectors in ``contents.variables``.
+    """
+    groups: dict[tuple[str, int], dict[str, Variable]] = {}
+    for var in contents.variables:
+        m = AXIS_VECTOR.match(var.name)
+        if m is None or var.values.ndim not in (1, 2) or (var.values.ndim == 2 and min(var.values.shape) != 1):
+            continue
+        groups.setdefault((m.group(1), var.values.size), {})[m.group(2).lower()] = var
+    joined: list[Variable] = []
+    for (stem, size), axes in groups.items():
+        if set(axes) != {"x", "y", "z"} or size < 2:
+            continue
+        var = Variable(stem, np.column_stack([axes[a].values.reshape(-1) for a in "xyz"]).astype(float),
+                       dict(axes["x"].attrs), tuple(axes[a].name for a in "xyz"))
+        if role_of(var) not in (ACCELEROMETER, GYROSCOPE):
+            continue
+        parts = {id(axes[a]) for a in "xyz"}
+        at = min(i for i, v in enumerate(contents.variables) if id(v) in parts)
+        contents.variables[:] = [v for v in contents.variables if id(v) not in parts]
+        contents.variables.insert(at, var)
+        joined.append(var)
+    return joined
+
+
+def _other_words(short: str) -> tuple[str, ...]:
+    """A variable name's words but those that say a sensor (``all_gyro_1`` → ``all, 1``): what tells one sensor's
+    variables from another's."""
+    words = re.split(r"[_\-\s]+", short)
+    return tuple(w for w in words if not any(p.match(w) for _, p in WORD_ROLES))
 
 
 def _units_and_rate(chosen: Choice, contents: Contents, fields: dict[str, Any], notes: list[str]) -> None:

@@ -342,7 +342,9 @@ def _read_any(
         if topic is not None:
             raise InputError(f"topic applies to ROS bags, ULog and DataFlash files, not to a {kind} file")
         mapping = parse_columns_option(columns)
-        if kind == "csv":
+        if kind == "csv" and not mapping and (records := _line_records(path)) is not None:
+            src = records  # one record over several lines, a label before each sensor's values
+        elif kind == "csv":
             src = read_text(path, mapping)
         else:
             src = source_from_frame(read_parquet(path), str(path), kind, mapping)
@@ -358,6 +360,12 @@ def _read_any(
     if kind == "dataflash":
         return read_dataflash(path, topic, keep_unhealthy=keep_unhealthy, keep_clipped=keep_clipped)
     return read_rosbag(path, topic, kind)
+
+
+def _line_records(path: str | Path) -> Source | None:
+    from optcal.data.line_records import is_line_records, read_line_records
+
+    return Source(**read_line_records(path)) if is_line_records(path) else None
 
 
 # ----------------------------------------------------------------------------- tabular

@@ -252,6 +252,18 @@ def check_sensitivity(means: ArrayLike, units: str, noise: ArrayLike | None = No
         norm = median_norm(a)
         radius = implied_sensitivity(a)
         if np.isfinite(norm) and norm > 0 and not np.isnan(radius) and radius < MIN_SENSITIVITY_TO_NORM * norm:
+            factor = to_g_factor(units)
+            if factor is not None and abs(norm * factor - 1.0) <= ONE_G_TOLERANCE:
+                # |a| of 1 g in g or m/s²: what an accelerometer never turned reads (ssong47's yaw trial: 187 rests
+                # of one tilt), which the lead below would call no accelerometer's; a gyroscope's offset of 1 in
+                # these units is the other reading, and the fix names both
+                raise InputError(
+                    f"the {a.shape[0]} pose means are of one orientation: they lie within a sphere of radius "
+                    f"{radius:.4g} {units} around their centre (the implied 1 g) while their median |a| is {norm:.4g} "
+                    f"{units}{'' if units == 'g' else ' (1 g)'}, as an accelerometer never turned reads; turn the sensor through several "
+                    f"orientations (if these are gyroscope columns, map the accelerometer's with columns= "
+                    f"(ax=NAME,ay=NAME,az=NAME))"
+                )
             raise InputError(
                 f"the {a.shape[0]} pose means do not look like an accelerometer's: they lie within a sphere of radius "
                 f"{radius:.4g} {units} around their centre (the implied 1 g), while their median |a| is {norm:.4g} "
