@@ -94,7 +94,22 @@ def pose_noise_lines(diag: Diagnosis) -> list[str]:
     floor = diag.pose_noise
     if floor is None or not floor.tested:
         return []
-    return [f"   the poses' weights: {floor.reason}"]
+    lines = [f"   the poses' weights: {floor.reason}"]
+    if floor.effects:
+        lines.append("   the findings again with each pose's σ widened by the pose-to-pose noise estimated without "
+                     "each (as --pose-noise auto weighs the poses):")
+    for e in floor.effects:
+        verdict = "it stands" if e.stands else "it rests on the σ's ratios"
+        it = "it" if e.outliers_again is None else "them"
+        taus = f"τ {e.tau_without_g * 1e3:.3g} mg without {it}, {e.tau_with_g * 1e3:.2g} mg with {it}"
+        if e.outliers_again is None:
+            lines.append(f"     {e.term}: p {e.p_value:.2g} against the {e.threshold:.2g} it entered at ({e.p_given:.2g} "
+                         f"with σ as logged; {taus}): {verdict}")
+        else:
+            verdict = "they stand" if e.stands else "they rest on the σ's ratios"
+            lines.append(f"     {e.term}: {e.outliers_again} of them set aside again at {e.threshold:.2g} ({taus}): "
+                         f"{verdict}")
+    return lines
 
 
 def noise_model_lines(diag: Diagnosis) -> list[str]:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -29,7 +29,10 @@ from optcal.applications.diagnosis.effects import BIAS_STEP, FITTED, SESSION_BIA
 from optcal.applications.diagnosis.findings import build_findings
 from optcal.applications.diagnosis.fitting import MIN_DOF, MIN_DOF_MEASURED, Fit, Fitter, measured_scale2
 from optcal.applications.diagnosis.noise_model import check_noise_model, pose_correlation
-from optcal.applications.diagnosis.pose_noise import POSE_NOISE_CHOICES, pose_noise_floor, with_floor
+from optcal.applications.diagnosis.pose_noise import (
+    POSE_NOISE_CHOICES, effects_under_pose_noise, misweighs, pose_noise_floor, with_floor,
+)
+from optcal.applications.diagnosis.selection import SelectionResult
 from optcal.applications.diagnosis.random_walk import RandomWalkCheck, check_random_walk
 from optcal.applications.diagnosis.progress import Progress
 from optcal.applications.diagnosis.regressors import Regressors
@@ -40,7 +43,7 @@ from optcal.applications.diagnosis.sessions import SessionStack, stack_sessions
 from optcal.applications.diagnosis.still_noise import MeasuredPoseNoise, pose_noise_from_still_parts, stack_measured
 from optcal.applications.diagnosis.simulation import simulation_check
 from optcal.errors import InputError
-from optcal.core.model import canonicalise
+from optcal.core.model import AXES, canonicalise
 from optcal.core.poses import PoseTable
 from optcal.core.stats import rms
 
@@ -182,6 +185,19 @@ def choose_effects(asked_text: str | Iterable[str] | None, reg: Regressors) -> t
         raise InputError("cannot test " + "; ".join(bad) + f". {fix.capitalize()}, "
                          "or leave those effects out of the candidate effects")
     return asked, skipped
+
+
+def entry_levels(selection: SelectionResult) -> dict[tuple[str, int], float]:
+    """The level each term of the selection entered at (two entered together: each at the pair's)."""
+    levels: dict[tuple[str, int], float] = {}
+    for step in selection.steps:
+        c = step.accepted
+        if c is None:
+            continue
+        keys = c.together or (((c.effect, AXES.index(c.axis)),) if c.axis in AXES else ())
+        for key in keys:
+            levels.setdefault(key, c.threshold)
+    return levels
 
 
 def check_size(n: int) -> None:
@@ -340,11 +356,22 @@ class Diagnoser:
             limits += step_limits(fitter, final, step_axes, selector.single_step_level(final, step_axes))
         pose_limit = outlier_limit(fitter, final, selector.alpha_outliers) if "outliers" in effects else None
 
-        def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
-            other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation)
+        def widened_fitter(widened: PoseTable, measured: bool = False) -> Fitter:
+            other = Fitter(widened, reg, T, o, s.folds, loop, fitter.correlation,
+                           fitter.measured_scale2 if measured else None)
             other.set_steps(fitter.steps_at)
+            return other
+
+        def refit(widened: PoseTable) -> tuple[Fitter, Fit]:
+            other = widened_fitter(widened)
             return other, other.fit(final.terms, final.outliers, final.x)
 
+        if not floor.used and misweighs(floor, s.alpha) and (final.terms or final.outliers):
+            # the σ's ratios misweigh the poses but are kept: each finding tested again with σ widened
+            self.progress("testing the findings again under the pose-to-pose noise")
+            floor = replace(floor, effects=effects_under_pose_noise(
+                fitter, final, entry_levels(selection), selector.alpha_outliers, s.alpha,
+                lambda p: widened_fitter(p, measured=True)))
         self.progress("checking the noise model")
         noise = check_noise_model(fitter, final, s.alpha, min(s.simulations, NOISE_SIMULATIONS), s.seed, refit, loop,
                                   measured)
