@@ -105,6 +105,10 @@ def progress_printer() -> Any:
               help="--imu: name a gyro finding only when its paired gain on the held-out moves exceeds K of its "
                    "standard errors (default: Student's one-sided 5 % quantile, about 1.7, for the terms; 1 for the "
                    "time offset, whose own t test is on the moves); 0 names one on any positive held-out gain.")
+@click.option("--gyro-g-evidence", type=click.Choice(["response", "angles"]), default=None,
+              help="--imu: what the held-out moves must show to confirm a g-sensitivity: response (the default), "
+                   "their angle's paired gain or their response to it (1 when they carried what it removes, 0 when "
+                   "none of it) beyond Student's 5 %% quantile; angles, the angle's gain alone, as every other term.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
@@ -116,7 +120,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
              plot_dir: str | None, quiet: bool, baseline_path: str | None, pose_correlation: str, pose_noise: str,
              keep_terms: bool, no_term_pairs: bool, sensor: str,
              mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, imu: bool,
-             gyro_heldout_se: float | None, heldout_se: float | None, as_json: bool,
+             gyro_heldout_se: float | None, gyro_g_evidence: str | None, heldout_se: float | None, as_json: bool,
              output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
@@ -161,6 +165,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
     refuse_mag_options(accept_mag_fit, keep_mag_repeats, keep_mag_spikes, "with --sensor mag")
     if gyro_heldout_se is not None and not imu:
         raise InputError("--gyro-heldout-se applies with --imu (the gyroscope's diagnosis)")
+    if gyro_g_evidence is not None and not imu:
+        raise InputError("--gyro-g-evidence applies with --imu (the gyroscope's diagnosis)")
     fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
     if fit_settings and baseline_path:
         raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
@@ -192,7 +198,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         diag.peer = compare_with_peer(baseline, convert_to_units(diag.poses, baseline.units), None,
                                       own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
                                       f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
-    gyro = (_diagnose_gyro(loaded[0], method, alpha, folds, fit_settings, simulations, seed, gyro_heldout_se)
+    gyro = (_diagnose_gyro(loaded[0], method, alpha, folds, fit_settings, simulations, seed, gyro_heldout_se,
+                           gyro_g_evidence or "response")
             if imu else None)
     paths = save_figures(diag, figures_into, gyro[0] if gyro is not None else None) if figures_into else []
     calibration = diag.calibration() if output and gyro is None else (gyro[1] if gyro is not None and output else None)
@@ -229,7 +236,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
 
 
 def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_settings: dict[str, Any],
-                   simulations: int = 200, seed: int = 0, heldout_se: float | None = None) -> Any:
+                   simulations: int = 200, seed: int = 0, heldout_se: float | None = None,
+                   g_evidence: str = "response") -> Any:
     """The gyroscope's diagnosis of one recording: (diagnosis, the IMU calibration with its g-sensitivity, what the
     calibration cannot hold).  The gyro fit is kept whatever its fit check says (``accept_gyro_fit``): a fit the
     check refuses is what the diagnosis explains."""
@@ -247,7 +255,8 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
     moves = moves_from_segmentation(reading.segmentation)
     result = diagnose_gyro(moves, imu.accelerometer, imu.gyro,
                            GyroDiagnosisSettings(alpha=alpha, folds=min(folds, 5), solver=solver,
-                                                 simulations=simulations, seed=seed, heldout_se=heldout_se))
+                                                 simulations=simulations, seed=seed, heldout_se=heldout_se,
+                                                 g_evidence=g_evidence))
     final = result.final
     rows = np.zeros((3, 3))
     losses = []

@@ -145,3 +145,34 @@ def test_the_held_out_rule_is_stated_and_overridden(mikoff_raw, capsys):
     code = main(["diagnose", str(MIKOFF), "--rate", "100", "--gyro-heldout-se", "1"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and err.startswith("error: --gyro-heldout-se applies with --imu"), err
+
+
+def test_a_datasheet_g_sensitivity_is_confirmed_by_the_moves_response(mikoff_raw, tmp_path, capsys):
+    """0.1 °/s per g (a MEMS gyro's datasheet g-sensitivity) written into imu0's file: z's rate error follows the
+    specific force along x.  The rests measure it; the moves see it only integrated over each move, and the paired
+    gain of their angles, second order in so small a change, is noise (t about −0.4 against 1.72): missed before.
+    Their response to it, linear in their noise, is about 0.6 ± 0.14 (t about 4): named, its row's x term within
+    20 %, beside the log's own time offset.  With ``--gyro-g-evidence angles`` (the rule before) it is measured, not
+    named; the flag without ``--imu`` is one error line, exit 2.  (A bias that follows the pose in the rests alone
+    responds about 0.2 ± 0.3 and stays unnamed: ``test_gyro_diagnosis_sizes.py``.)"""
+    from optcal.cli.main import main
+
+    k = np.radians(0.1) / 9.80665  # rad/s per m/s²: 0.1 °/s per g
+    raw = mikoff_raw.copy()
+    raw["gz"] += k * raw["ax"]  # imu0's accelerometer in m/s², its gyro in rad/s (scales 1 within 2 %)
+    path = tmp_path / "imu0_gsens.csv"
+    raw.to_csv(path, index=False, float_format="%.5f")
+    result = run_diagnose(path, "--rate", "100", capsys=capsys)
+    assert result["n_poses"] == 22
+    assert set(gyro_findings(result)) == {("g_sensitivity", "z"), ("time_offset", "-")}, result["gyroscope"]["steps"]
+    finding = next(f for f in result["findings"] if f["effect"] == "g_sensitivity")
+    assert finding["row_rad_s_per_m_s2"]["z"][0] == pytest.approx(k, rel=0.2)
+    ev = finding["evidence"]
+    assert ev["heldout_moves_t"] <= ev["heldout_moves_critical_t"] < ev["moves_response_t"]
+    moves_only = run_diagnose(path, "--rate", "100", "--gyro-g-evidence", "angles", capsys=capsys)
+    assert set(gyro_findings(moves_only)) == {("time_offset", "-")}
+    tried = next(s for s in moves_only["gyroscope"]["steps"] if s["term"] == "g_sensitivity(z)")
+    assert not tried["accepted"] and tried["moves_response_t"] == pytest.approx(ev["moves_response_t"])
+    code = main(["diagnose", str(path), "--rate", "100", "--gyro-g-evidence", "angles"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: --gyro-g-evidence applies with --imu"), err

@@ -21,7 +21,11 @@ the cause named by forward selection, the extended model fitted in CasADi, the g
    as the independent units) by Student's one-sided quantile at :data:`HELDOUT_LEVEL` (about 1.7 of them: the
    likelihood ratio draws on the rests too, so the moves' held-out t is the terms' one test on the moves alone), and
    the report states the gain, its standard error and t (``optcal diagnose --gyro-heldout-se K``: K standard errors
-   instead, for every gyro finding).  The chosen model is refitted by IPOPT in CasADi.
+   instead, for every gyro finding).  A g-sensitivity, which the rests measure and a move sees only integrated
+   over it, may be confirmed instead by the held-out moves' response to it (:func:`moves_response`: linear in their
+   noise, where the angles' gain is second order) beyond the same quantile (:data:`G_EVIDENCE`,
+   ``--gyro-g-evidence``).  The chosen model is
+   refitted by IPOPT in CasADi.
 3. **The time offset** shows inside the moves, not at their ends (a move's whole turn is the same whichever way
    its samples are shifted): along each move the gravity direction the gyro predicts, ``û(t)``, against the
    accelerometer's, ``â(t)``; a gyro whose samples are late by ``δ`` predicts ``û(t) = u(t − δ)``, so
@@ -97,6 +101,16 @@ HELDOUT_LEVEL: float = 0.05
 #: Xsens log, imu0 and mgiurato's log), so a real offset that passes its t passes this; a lever arm's unfollowed
 #: motion, which scatters the moves, does not (0.3 m planted in imu0: t 3.8 past 3.25, held-out 0.77 SE).
 OFFSET_HELDOUT_SE: float = 1.0
+#: What the held-out moves must show to confirm a g-sensitivity (``--gyro-g-evidence``): ``angles``, their paired
+#: gain of the gravity-prediction angle beyond :data:`HELDOUT_LEVEL`, as every term; ``response`` (the default), that
+#: or their response to it (:func:`moves_response`) beyond the same level.  The rests measure a g-sensitivity to their
+#: noise (each rest's bias turns with the pose, ``G f``); a move sees it only integrated over its second or two, a
+#: small change ``Δ`` to its prediction, and the paired gain of its angle is second order in a small ``Δ`` (the
+#: moves' noise decides its sign), where the response is linear in it.  0.1 °/s per g (a MEMS gyro's datasheet value)
+#: written into imu0's file and imu_tk's data1 and data4: held-out moves' angle t −0.42, 1.67 and 1.19 against 1.7
+#: (missed), response 0.58 ± 0.14, 1.38 ± 0.36, 1.42 ± 0.45 (t 3.2-4.1); the g-sensitivities the moves' angles confirm
+#: respond 0.87-1.31 (the Xsens log, data3); a bias that follows the pose in the rests alone responds 0.19 ± 0.28.
+G_EVIDENCE: tuple[str, ...] = ("response", "angles")
 
 
 @dataclass(frozen=True)
@@ -124,6 +138,9 @@ class GyroDiagnosisSettings:
         Standard errors by which every finding's paired gain on the held-out moves must exceed zero (0: any
         positive gain); ``None``: Student's one-sided quantile at :data:`HELDOUT_LEVEL` for the terms (their units'
         held-out t at it too) and :data:`OFFSET_HELDOUT_SE` for the time offset.
+    g_evidence : str
+        One of :data:`G_EVIDENCE`: whether the held-out moves' response to a g-sensitivity (:func:`moves_response`)
+        may confirm it where their paired angle gain does not.
     """
 
     alpha: float = 0.02
@@ -134,8 +151,12 @@ class GyroDiagnosisSettings:
     simulations: int = 200
     seed: int = 0
     heldout_se: float | None = None
+    g_evidence: str = "response"
 
     def __post_init__(self) -> None:
+        if self.g_evidence not in G_EVIDENCE:
+            raise InputError(f"unknown g-sensitivity evidence {self.g_evidence!r}; valid: {', '.join(G_EVIDENCE)} "
+                             "(--gyro-g-evidence)")
         if not 0.0 < self.alpha < 1.0:
             raise InputError(f"alpha must be in (0, 1), got {self.alpha}")
         if self.heldout_se is not None and not 0.0 <= self.heldout_se < math.inf:
@@ -194,6 +215,10 @@ class GyroFinding:
         unit = {"g_sensitivity": "rad/s per m/s²", "gyro_scale_nonlinearity": "(rad/s)⁻¹",
                 "gyro_temperature_bias": "rad/s per °C", "gyro_bias_drift": "rad/s per s"}[self.effect]
         values = ", ".join(f"{a} {float(v):.3g}" for a, v in self.estimate.items())
+        rows = self.extra.get("row_rad_s_per_m_s2")
+        if rows:  # the whole row: an axis' rate error may follow another axis' specific force (off-diagonal)
+            values = "; ".join(f"{a} row (per x, y, z) " + ", ".join(f"{float(v):.3g}" for v in row)
+                               for a, row in rows.items())
         return (f"{self.effect}({','.join(self.axes)}): {values} {unit} (likelihood ratio {self.evidence['lr']:.1f}, "
                 f"p {self.evidence['p']:.2g}, ΔBIC {self.evidence['delta_bic']:.1f}, held-out {self.evidence['heldout_ratio']:.2f}×"
                 f"{_heldout_words(self.evidence, 'angle')})")
@@ -201,12 +226,19 @@ class GyroFinding:
 
 def _heldout_words(evidence: dict[str, Any], what: str) -> str:
     """The held-out moves' paired gain in words (``""`` when ``evidence`` has none): the mean improvement per
-    held-out move of its ``what``, its standard error and t against the t it had to exceed."""
+    held-out move of its ``what``, its standard error and t against the t it had to exceed; and their response to
+    the term (:func:`moves_response`)."""
     if "heldout_gain_deg" not in evidence:
         return ""
-    return (f"; held-out moves' {what} {float(evidence['heldout_gain_deg']):+.2g} ± "
-            f"{float(evidence['heldout_se_deg']):.2g}° better per move, t {float(evidence['heldout_moves_t']):.2f} "
-            f"against {float(evidence['heldout_moves_critical_t']):.2f}")
+    words = (f"; held-out moves' {what} {float(evidence['heldout_gain_deg']):+.2g} ± "
+             f"{float(evidence['heldout_se_deg']):.2g}° better per move, t {float(evidence['heldout_moves_t']):.2f} "
+             f"against {float(evidence['heldout_moves_critical_t']):.2f}")
+    response = evidence.get("moves_response_t")
+    if isinstance(response, float) and math.isfinite(response):
+        words += (f"; their response to it {float(evidence['moves_response']):.2f} ± "
+                  f"{float(evidence['moves_response_se']):.2f} (1: they carried what it removes, 0: none of it), "
+                  f"t {response:.2f}")
+    return words
 
 
 @dataclass
@@ -301,7 +333,10 @@ class GyroDiagnosis:
                               f"{step.get('heldout_moves_critical_t', step['heldout_critical_t']):.2f}"
                               + (f" (their angle {step['heldout_gain_deg']:+.2g} ± {step['heldout_se_deg']:.2g}° better "
                                  "per move)" if "heldout_gain_deg" in step else "")
-                              if isinstance(moves_t, float) and math.isfinite(moves_t) else "") + ")")
+                              if isinstance(moves_t, float) and math.isfinite(moves_t) else "")
+                           + (f", their response {step['moves_response']:.2f} ± {step['moves_response_se']:.2f}"
+                              if isinstance(step.get("moves_response_t"), float)
+                              and math.isfinite(step["moves_response_t"]) else "") + ")")
         else:
             out.append("  none named (an effect below the tests' power is not ruled out)")
         if "dt_s" in self.time_offset and not self.time_offset.get("significant"):
@@ -346,6 +381,8 @@ class HeldOut:
     angles2: NDArray[np.float64]
     moves: NDArray[np.float64]
     rests: NDArray[np.float64]
+    #: Each move's residual (m, 3) over its noise, under the model refitted without its fold.
+    move_residuals: NDArray[np.float64] | None = None
 
     @property
     def rms_deg(self) -> float:
@@ -358,14 +395,34 @@ def heldout(data: GyroData, noise: Noise, p: GyroParams, folds: list[NDArray[np.
     others, one Gauss–Newton step from ``p``)."""
     angles2 = np.zeros(data.n_moves)
     moves = np.zeros(data.n_moves)
+    residuals = np.zeros((data.n_moves, 3))
     rests = np.zeros(data.rest_raw.shape[0])
     for test, test_rests in zip(folds, rest_folds):
         refit = gauss_newton(data, noise, p, iterations=1, train=~test, train_rests=~test_rests)
         e = evaluate(data, noise, refit, jac=False)
         angles2[test] = move_angles(data, refit, test) ** 2
         moves[test] = np.sum(e.moves[test] ** 2, axis=1)
+        residuals[test] = e.moves[test]
         rests[test_rests] = np.sum(e.rests[test_rests] ** 2, axis=1)
-    return HeldOut(angles2, moves, rests)
+    return HeldOut(angles2, moves, rests, residuals)
+
+
+def moves_response(before: HeldOut, after: HeldOut) -> tuple[float, float]:
+    """How much of the change a term makes to the held-out moves' gravity prediction their misfit without it held:
+    ``β = −Σ r·Δ / Σ |Δ|²`` (``r`` a held-out move's residual without the term, ``Δ`` the change the term makes to
+    it), 1 when the moves carried the effect the term removes, 0 when they carried none of it (the term then adds
+    ``Δ`` as an error), and its standard error (:func:`~optcal.core.stats.mean_and_se` of the moves' own ratios,
+    weighted by ``|Δ|²``).  Linear in the moves' noise, where the paired gain of their angles is second order in a
+    small ``Δ``: a term the rests fix well and the moves see faintly is judged by it."""
+    assert before.move_residuals is not None and after.move_residuals is not None
+    delta = after.move_residuals - before.move_residuals
+    x = np.sum(delta * delta, axis=1)
+    keep = x > 0
+    if np.count_nonzero(keep) < 2:
+        return float("nan"), float("nan")
+    y = -np.sum(before.move_residuals * delta, axis=1)
+    beta, se = mean_and_se(y[keep] / x[keep], x[keep])
+    return float(beta), float(se)
 
 
 def heldout_gain_t(before: HeldOut, after: HeldOut) -> float:
@@ -660,16 +717,23 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
             # moves 0.241° -> 0.169°, t 1.58 on squares, 2.01 on angles)
             gain_moves, se_moves, t_moves = (paired_gain(np.sqrt(current_out.angles2) - np.sqrt(out.angles2))
                                              if out is not None else (float("nan"),) * 3)
-            accepted = passes and t_heldout > heldout_critical and t_moves > moves_critical
+            response = moves_response(current_out, out) if out is not None else (float("nan"),) * 2
+            response_t = response[0] / response[1] if response[1] > 0 else float("nan")
+            # a g-sensitivity the moves' angles cannot resolve is confirmed by their response to it (G_EVIDENCE)
+            by_response = (s.g_evidence == "response" and term.effect == "g_sensitivity"
+                           and response_t > moves_critical)
+            accepted = passes and t_heldout > heldout_critical and (t_moves > moves_critical or by_response)
             steps.append({"term": term.label, "lr": lr, "p": p, "level": level, "delta_bic": delta_bic,
                           "heldout_rms_deg": held, "heldout_before_deg": current_heldout, "heldout_t": t_heldout,
                           "heldout_critical_t": heldout_critical, "heldout_moves_t": t_moves,
                           "heldout_moves_critical_t": moves_critical, "heldout_gain_deg": gain_moves,
-                          "heldout_se_deg": se_moves, "accepted": accepted})
+                          "heldout_se_deg": se_moves, "moves_response": response[0], "moves_response_se": response[1],
+                          "moves_response_t": response_t, "accepted": accepted})
             if accepted and out is not None:
                 named = (term, trial, rss, out, lr, p, delta_bic, {
                     "heldout_t": t_heldout, "heldout_critical_t": heldout_critical, "heldout_gain_deg": gain_moves,
-                    "heldout_se_deg": se_moves, "heldout_moves_t": t_moves, "heldout_moves_critical_t": moves_critical})
+                    "heldout_se_deg": se_moves, "heldout_moves_t": t_moves, "heldout_moves_critical_t": moves_critical,
+                    "moves_response": response[0], "moves_response_se": response[1], "moves_response_t": response_t})
                 break
             if not passes:
                 break  # the screen's order: the later terms explain less
