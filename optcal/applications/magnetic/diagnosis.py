@@ -57,6 +57,10 @@ from optcal.core.model import AXES
 from optcal.core.norm_residual import norm_residuals
 from optcal.errors import InputError
 from optcal.data.rest_tests import unit_rows
+from optcal.applications.magnetic.orientation import (
+    BLOCKS_PER_TERM, DIP_ORIENTATION_DEGREE, ORIENTATION_DEGREE, biweight_fit, direction_basis, misfit_degree,
+    orientation_misfit,
+)
 from optcal.families.mag.dip import MAX_DIP_SAMPLES, MIN_STILL, fit_dip, per_sample_dip, rest_gate
 from optcal.families.mag.fit import (SYMMETRIC_ENTRIES, MagSettings, batch_means_stderr, fit_form,
                                      norm_residual_jacobian)
@@ -322,49 +326,6 @@ def _blocks(r: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.asarray(r[: k * BLOCK].reshape(k, BLOCK).mean(axis=1))
 
 
-#: Degree of the polynomial in the calibrated field's direction that carries the model's misfit with orientation (the
-#: ellipsoid's own terms are degree 2; what is left of a real sensor's misfit, a nonlinearity or a field not quite
-#: uniform over the turns, repeats wherever the sensor points the same way, and a disturbance does not).
-ORIENTATION_DEGREE: int = 4
-
-
-#: Degree of the polynomial in the gravity direction that carries the dip's misfit with orientation: a raw
-#: accelerometer's linear errors (``â ↦ K â + b``: scale, misalignment, bias) tilt the measured vertical by terms of
-#: degree up to 2 in ``â``; a higher degree would absorb a disturbance's bend over the few blocks that are still.
-DIP_ORIENTATION_DEGREE: int = 2
-
-
-def _direction_basis(u: NDArray[np.float64], degree: int = ORIENTATION_DEGREE) -> NDArray[np.float64]:
-    """Monomials ``x^a y^b z^c`` (``a + b + c ≤ degree``) of unit vectors ``u`` (n, 3)."""
-    cols = [u[:, 0] ** a * u[:, 1] ** b * u[:, 2] ** c
-            for a in range(degree + 1) for b in range(degree + 1 - a) for c in range(degree + 1 - a - b)]
-    return np.column_stack(cols)
-
-
-def _biweight_fit(X: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Coefficients of ``y ≈ X c`` by Tukey's biweight (4.685 robust σ, six reweightings)."""
-    w = np.ones(y.size)
-    coef: NDArray[np.float64] = np.zeros(X.shape[1])
-    for _ in range(6):
-        sw = np.sqrt(w)
-        coef = np.asarray(np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)[0], dtype=np.float64)
-        e = y - X @ coef
-        scale = max(1.4826 * float(np.median(np.abs(e))), 1e-300)
-        z = e / (4.685 * scale)
-        w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
-    return np.asarray(coef)
-
-
-def orientation_misfit(r: NDArray[np.float64], u: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The part of the norm residuals ``r`` that depends on the direction ``u`` alone (module docstring, 2): a
-    polynomial in ``u`` fitted by Tukey's biweight on the blocks' means, so that a disturbance over a minority of
-    the session, which does not repeat at the same orientation, is not absorbed."""
-    X = _direction_basis(u)
-    k = r.size // BLOCK
-    Xb = X[: k * BLOCK].reshape(k, BLOCK, -1).mean(axis=1)
-    return np.asarray(X @ _biweight_fit(Xb, _blocks(r)))
-
-
 def dip_block_means(d: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
     """The blocks' mean dip residuals (:func:`_masked_blocks` of ``d``, NaN where not usable) less their misfit with
     the gravity direction ``a`` (unit rows): the raw accelerometer's own scale, bias and misalignment tilt the
@@ -373,14 +334,14 @@ def dip_block_means(d: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[n
     b = _masked_blocks(d)
     ok = np.isfinite(b)
     still = np.isfinite(d)
-    X = np.where(still[:, None], _direction_basis(np.where(still[:, None], a, 0.0), DIP_ORIENTATION_DEGREE), 0.0)
-    if np.count_nonzero(ok) <= 2 * X.shape[1]:
+    X = np.where(still[:, None], direction_basis(np.where(still[:, None], a, 0.0), DIP_ORIENTATION_DEGREE), 0.0)
+    if np.count_nonzero(ok) <= BLOCKS_PER_TERM * X.shape[1]:
         return b  # under two usable blocks per term of the polynomial: the misfit is not determined
     k = b.size
     counts = np.maximum(still[: k * BLOCK].reshape(k, BLOCK).sum(axis=1), 1)
     Xb = X[: k * BLOCK].reshape(k, BLOCK, -1).sum(axis=1) / counts[:, None]
     out = np.full(k, np.nan)
-    out[ok] = b[ok] - Xb[ok] @ _biweight_fit(Xb[ok], b[ok])
+    out[ok] = b[ok] - Xb[ok] @ biweight_fit(Xb[ok], b[ok])
     return out
 
 
@@ -606,13 +567,16 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     T, o = fit.T, fit.o
     r = norm_residuals(T, o, m)
     u = ((m - o) @ T.T) / (r + 1.0)[:, None]
-    misfit_free = r - orientation_misfit(r, u)
+    misfit_free = r - orientation_misfit(r, u, BLOCK)
     white, sigma_b, colour = _noise(misfit_free)
     b = _blocks(misfit_free)
     b = b - np.median(b)  # the band is about the blocks' median: the misfit's own offset is not a departure
     B = b.size
     band = sigma_b * quantiles.norm_isf(0.5 * alpha / B)
     notes: list[str] = []
+    if (degree := misfit_degree(r.size // BLOCK)) < ORIENTATION_DEGREE:
+        notes.append(f"the misfit with the direction taken out to degree {degree}, not {ORIENTATION_DEGREE}: "
+                     f"{r.size // BLOCK} blocks determine no more terms (more than 2 blocks a term)")
     findings: list[MagFinding] = []
     keep = np.ones(samples.n, dtype=bool)
     halves = _halves(samples.n)
@@ -686,7 +650,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     while tried < MAX_DISTURBANCES and channels:
         rr = norm_residuals(current_T, current_o, m_used)
         uu = ((m_used - current_o) @ current_T.T) / (rr + 1.0)[:, None]
-        rb = _blocks(rr - orientation_misfit(rr, uu))
+        rb = _blocks(rr - orientation_misfit(rr, uu, BLOCK))
         live = np.flatnonzero(searched)
         if live.size < 2 * MIN_STRETCH_BLOCKS + 1:
             break
