@@ -58,16 +58,19 @@ def test_an_axis_whose_minimum_is_zero_counts_is_not_a_rail(tmp_path, capsys):
     assert abs(cal["field_strength"] - FIELD_COUNTS) < 0.01 * FIELD_COUNTS
 
 
-def test_a_two_column_compass_log_is_refused_as_two_axes(tmp_path, capsys):
-    """jremington/magcal_2D's layout (``x,y``, and its copy without a header): refused as a 2-axis compass's log, not
-    as columns to map (before: "no magnetometer columns … map them with --columns", and "2 unnamed columns fit no
-    common layout", whose example ``--columns mx=1,my=2,mz=3`` names a third column the file does not have)."""
+def test_a_two_column_compass_log_is_read_as_two_axes(tmp_path, capsys):
+    """jremington/magcal_2D's layout (``x,y``, and its copy without a header): read as a 2-axis compass's log, ``mz``
+    0, and calibrated by the planar form (before stranger16: "no magnetometer columns … map them with --columns", and
+    "2 unnamed columns fit no common layout", whose example ``--columns mx=1,my=2,mz=3`` names a third column the file
+    does not have; until the second sweep, refused as having "no 2-D form yet")."""
     t = np.linspace(0.0, 4 * np.pi, 140)
     rows = [f"{-110 + 104 * np.cos(a):.0f},{64 + 91 * np.sin(a):.0f}" for a in t]
     for name, head in (("mag2d_raw_header.csv", "x,y\n"), ("mag2d_raw_noheader.csv", "")):
         path = tmp_path / name
         path.write_text(head + "\r\n".join(rows) + "\r\n")
-        code, _, err = run(["calibrate", str(path), "--sensor", "mag"], capsys)
-        assert code == 2, err
-        last = err.strip().splitlines()[-1]
-        assert last.startswith("error:") and "2-axis compass" in last and "Traceback" not in err
+        code, out, err = run(["calibrate", str(path), "--sensor", "mag", "--json"], capsys)
+        assert code == 0, err
+        assert "2-axis compass" in err and "Traceback" not in err
+        cal = json.loads(out)
+        assert cal["form"] == "planar"
+        assert abs(cal["field_strength"] - np.sqrt(104 * 91)) < 0.02 * 97.3  # jremington's ellipse: 97.46

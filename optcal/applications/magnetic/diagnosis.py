@@ -58,8 +58,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 # the diagnosis's concepts, one module each (and importable from here, as before)
-from optcal.applications.magnetic.band import (BLOCK, ORIENTATION_DEGREE, _blocks, _noise, batch_means_se,
-                                               orientation_misfit)
+from optcal.applications.magnetic.band import BLOCK, _blocks, _noise, batch_means_se
+from optcal.applications.magnetic.orientation import ORIENTATION_DEGREE, misfit_degree, orientation_misfit
 from optcal.applications.magnetic.columns import _column_test
 from optcal.applications.magnetic.dip_channel import (DIP_BLOCK_SHARE, DIP_ORIENTATION_DEGREE, DipChannel, _dip_fit,
                                                       _dip_noise, _dip_residuals, dip_block_means)
@@ -119,13 +119,16 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     T, o = fit.T, fit.o
     r = norm_residuals(T, o, m)
     u = ((m - o) @ T.T) / (r + 1.0)[:, None]
-    misfit_free = r - orientation_misfit(r, u)
+    misfit_free = r - orientation_misfit(r, u, BLOCK)
     white, sigma_b, colour = _noise(misfit_free)
     b = _blocks(misfit_free)
     b = b - np.median(b)  # the band is about the blocks' median: the misfit's own offset is not a departure
     B = b.size
     band = sigma_b * quantiles.norm_isf(0.5 * alpha / B)
     notes: list[str] = []
+    if (degree := misfit_degree(r.size // BLOCK)) < ORIENTATION_DEGREE:
+        notes.append(f"the misfit with the direction taken out to degree {degree}, not {ORIENTATION_DEGREE}: "
+                     f"{r.size // BLOCK} blocks determine no more terms (more than 2 blocks a term)")
     findings: list[MagFinding] = []
     keep = np.ones(samples.n, dtype=bool)
     halves = _halves(samples.n)
@@ -199,7 +202,7 @@ def diagnose_mag(samples: MagSamples, calibration: Any, settings: MagSettings | 
     while tried < MAX_DISTURBANCES and channels:
         rr = norm_residuals(current_T, current_o, m_used)
         uu = ((m_used - current_o) @ current_T.T) / (rr + 1.0)[:, None]
-        rb = _blocks(rr - orientation_misfit(rr, uu))
+        rb = _blocks(rr - orientation_misfit(rr, uu, BLOCK))
         live = np.flatnonzero(searched)
         if live.size < 2 * MIN_STRETCH_BLOCKS + 1:
             break

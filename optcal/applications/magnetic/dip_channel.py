@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.applications.magnetic.band import BLOCK, _biweight_fit, _direction_basis
+from optcal.applications.magnetic.band import BLOCK
+from optcal.applications.magnetic.orientation import BLOCKS_PER_TERM, DIP_ORIENTATION_DEGREE, biweight_fit, direction_basis
 from optcal.data.rest_tests import unit_rows
 from optcal.families.mag.dip import MAX_DIP_SAMPLES, fit_dip, per_sample_dip
 
@@ -20,10 +21,6 @@ from optcal.families.mag.dip import MAX_DIP_SAMPLES, fit_dip, per_sample_dip
 #: √2 times a full block's, so one scatter describes every block used (fewer still samples: a block of motion, whose
 #: measured vertical is tilted by the hand's acceleration, is left out of the dip channel, and counted).
 DIP_BLOCK_SHARE: float = 0.5
-#: Degree of the polynomial in the gravity direction that carries the dip's misfit with orientation: a raw
-#: accelerometer's linear errors (``â ↦ K â + b``: scale, misalignment, bias) tilt the measured vertical by terms of
-#: degree up to 2 in ``â``; a higher degree would absorb a disturbance's bend over the few blocks that are still.
-DIP_ORIENTATION_DEGREE: int = 2
 
 
 @dataclass(frozen=True)
@@ -115,12 +112,12 @@ def dip_block_means(d: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[n
     b = _masked_blocks(d)
     ok = np.isfinite(b)
     still = np.isfinite(d)
-    X = np.where(still[:, None], _direction_basis(np.where(still[:, None], a, 0.0), DIP_ORIENTATION_DEGREE), 0.0)
-    if np.count_nonzero(ok) <= 2 * X.shape[1]:
+    X = np.where(still[:, None], direction_basis(np.where(still[:, None], a, 0.0), DIP_ORIENTATION_DEGREE), 0.0)
+    if np.count_nonzero(ok) <= BLOCKS_PER_TERM * X.shape[1]:
         return b  # under two usable blocks per term of the polynomial: the misfit is not determined
     k = b.size
     counts = np.maximum(still[: k * BLOCK].reshape(k, BLOCK).sum(axis=1), 1)
     Xb = X[: k * BLOCK].reshape(k, BLOCK, -1).sum(axis=1) / counts[:, None]
     out = np.full(k, np.nan)
-    out[ok] = b[ok] - Xb[ok] @ _biweight_fit(Xb[ok], b[ok])
+    out[ok] = b[ok] - Xb[ok] @ biweight_fit(Xb[ok], b[ok])
     return out

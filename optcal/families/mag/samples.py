@@ -113,26 +113,29 @@ def _match(names: list[str], aliases: dict[str, tuple[str, ...]]) -> tuple[dict[
     return found, words
 
 
-#: Why a file of two columns is refused: a 2-axis compass (jremington/magcal_2D's ``x,y``, a vehicle's flat compass)
-#: measures the field in its plane only; the ellipsoid of a 3-axis calibration needs the third axis.
-TWO_AXES: str = ("a 2-axis compass's log (the field in one plane), one axis short of the three a magnetometer "
-                 "calibration fits (optcal has no 2-D form yet); name a 3-axis log's columns with "
-                 "--columns mx=NAME,my=NAME,mz=NAME")
+#: How a log of two field columns is read: a 2-axis compass (jremington/magcal_2D's ``x,y``, a vehicle's flat compass,
+#: sebkm/sensor_fusion's ``index, time, x, y``) measures the field in its plane only, so its third axis (the plane's
+#: normal) is read as 0 in every sample (:data:`NORMAL_ZERO`) and the planar (heading) form fits the two
+#: (:mod:`optcal.families.mag.planar`), as it fits a 2-axis logger's ``mx,my`` with a written zero ``mz``.
+TWO_AXES: str = ("a 2-axis compass's log (the field in its plane): read as mx, my with mz = 0 (the plane's normal, "
+                 "unmeasured: the planar form fits it); name a 3-axis log's columns with --columns mx=NAME,my=NAME,mz=NAME")
+#: The column name (no file's) of that zero third axis.
+NORMAL_ZERO: str = "(mz not logged: 0)"
 
 
 def _mag_triple(names: list[str], mapping: dict[str, str]) -> tuple[dict[str, str], str | None]:
     """The magnetometer's three columns (``--columns`` first) and the unit word their names carry."""
     given = {k: v for k, v in mapping.items() if k in MAG}
     for k, v in given.items():
-        if v not in names:
+        if v not in names and v != NORMAL_ZERO:
             if v.isdigit() and 1 <= int(v) <= len(names):
                 given[k] = names[int(v) - 1]
             else:
                 raise InputError(f"--columns {k}={v}: there is no column {v!r} (the file has: {', '.join(names)})")
     found, words = _match([n for n in names if n not in given.values()], MAG_ALIASES)
     cols = {**found, **given}
-    if set(cols) != set(MAG) and len(names) == 2:
-        raise InputError(f"the file has 2 columns ({', '.join(names)}): {TWO_AXES}")
+    if set(cols) != set(MAG) and len(names) == 2 and not given:
+        return {"mx": names[0], "my": names[1], "mz": NORMAL_ZERO}, None  # a 2-axis compass's log (TWO_AXES)
     if set(cols) != set(MAG):
         raise InputError(f"no magnetometer columns (mx, my, mz or mag_x, magX, ...) among {', '.join(names)}; "
                          f"map them with --columns mx=NAME,my=NAME,mz=NAME")
@@ -263,11 +266,26 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
     if joined is not None:
         columns[0] = given[lead] = joined[0]
         time_at = 0
-    elif width in (4, 10):
+    elif width in (3, 4, 10):
         time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
-    rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
-    if width == 2:
-        raise InputError(f"{path}: the file has no header row and 2 columns: {TWO_AXES}")
+    # a field's axis turns back as the sensor turns (a full turn in any plane passes each axis's extremes), so a
+    # second column increasing in every row beside the time is an index or a second clock, not a field's axis: of
+    # 3 or 4 columns, 2 are then left for the field, a 2-axis compass's log (TWO_AXES)
+    index_at = None
+    if width == 4 and time_at is not None and increasing_column(columns[1 if time_at == 0 else 2]):
+        index_at = 1 if time_at == 0 else 2
+        steps = np.diff(columns[0][np.isfinite(columns[0])])
+        if time_at == 0 and bool(np.all(steps == np.round(steps))) and float(np.median(steps)) == 1.0:
+            time_at, index_at = 1, 0  # the first counts rows (whole steps, mostly 1): the index; the second the clock
+    rest = [j for j in range(width) if j not in (time_at, index_at) and not (joined is not None and j == 1)]
+    if len(rest) == 2:
+        canon2 = {"mx": str(rest[0] + 1 + lead), "my": str(rest[1] + 1 + lead), "mz": NORMAL_ZERO}
+        clocks = [f"column {j + 1 + lead} increases ({'the time' if j == time_at else 'an index or a second clock'})"
+                  for j in sorted(k for k in (index_at, time_at) if k is not None)]
+        if time_at is not None:
+            canon2["t"] = str(time_at + 1 + lead)
+        return {**mapping, **canon2}, (f"no header; {width} columns: " + "".join(f"{x}; " for x in clocks) +
+                                       f"columns {canon2['mx']} and {canon2['my']}: {TWO_AXES}")
     if len(rest) not in (3, 9):
         raise InputError(f"{path}: the file has no header row, and its {width} unnamed columns fit no common layout of "
                          f"a magnetometer; name them by 1-based position, e.g. {_example_columns(columns, lead)}")
@@ -420,6 +438,10 @@ def _read_text(path: str, mapping: dict[str, str], mag_units: str | None,
         mapping = attribute[0]  # VMU931's bare x, y, z: a column of words in every row says the quantity
         notes.append(attribute[1])
     mag_cols, word = _mag_triple(names, mapping)
+    if mag_cols["mz"] == NORMAL_ZERO:  # a 2-axis compass's log: its plane's normal, unmeasured, read as 0 (TWO_AXES)
+        col[NORMAL_ZERO] = np.zeros(len(col[mag_cols["mx"]]))
+        if layout.has_header:
+            notes.append(f"2 columns ({mag_cols['mx']}, {mag_cols['my']}): {TWO_AXES}")
     if logger is not None:
         word = "ut"
     taken = set(mag_cols.values())
@@ -452,11 +474,22 @@ def _read_container(path: str, kind: str, topic: str | None, mag_units: str | No
 
     contents = read_mat5(path) if kind == MAT5 else read_hdf5(path, kind)
 
+    clocks: dict[str, tuple[NDArray, int]] = {}  # a variable's time column and its axes' first 1-based column
+
     def as_samples(var: Variable) -> NDArray | None:
         values = np.asarray(var.values, dtype=np.float64)
         shape = tuple(values.shape)
         if len(shape) == 2 and 3 in shape:
             return values if shape[1] == 3 and "rows" in orientations(shape) else values.T
+        if len(shape) == 2 and 4 in shape and 3 not in shape and min(shape) == 4:
+            # a buffer of a time and the three axes (sunsided/sensor-fusion's compassBuffer, 4 × n: t, x, y, z), as
+            # a headerless text file of 4 columns is read: the time the first (or else the last) when it increases
+            v = values if shape[1] == 4 else values.T
+            at = 0 if increasing_column(v[:, 0]) else (3 if increasing_column(v[:, 3]) else None)
+            if at is None:
+                return None
+            clocks[var.name] = (v[:, at], 2 if at == 0 else 1)
+            return np.delete(v, at, axis=1)
         return None
 
     by_role: dict[str, list] = {}
@@ -477,10 +510,14 @@ def _read_container(path: str, kind: str, topic: str | None, mag_units: str | No
     stated = unit_attr if unit_attr and re.sub(r"[\s_.·*]+", "", unit_attr.lower()) in MAGNETIC_UNIT_SPELLINGS else None
     others: dict[str, NDArray] = {}
     accs = [a for v in by_role.get(ACCELEROMETER, []) if (a := as_samples(v)) is not None and a.shape[0] == m.shape[0]]
-    columns = {k: f"{var.name}(:,{j + 1})" for j, k in enumerate(MAG)}
+    first = clocks[var.name][1] if var.name in clocks else 1  # the axes' 1-based columns: 2-4 after a leading time
+    columns = {k: f"{var.name}(:,{j + first})" for j, k in enumerate(MAG)}
     if len(accs) == 1:
         others["acc"] = accs[0]
     notes = [f"variable {var.name!r} ({var.shape_text}) read as the magnetometer"]
+    if var.name in clocks:  # its time and three axes (as_samples); the time's unit is not stated: seconds assumed
+        others["t"] = clocks[var.name][0]
+        notes[0] += " (its 4 columns a time, increasing, and x, y, z; --topic names another variable)"
     return _build(path, m, stated, f"the variable's units attribute {unit_attr!r}", mag_units, columns, others, notes,
                   keep_rail)
 
