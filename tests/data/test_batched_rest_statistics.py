@@ -232,8 +232,9 @@ def test_the_wobble_bound_summed_by_blocks_clears_the_stretches_the_samples_clea
     blocks' moments, as :func:`~optcal.data.static.detect_static` does, against the samples' own sums: on the xsens
     recording's candidate rests, and with a 1 Hz sway of growing size planted in every other one, the same verdict
     for every stretch; the blocks' spread² with its rounding margin never below the samples', and above them by at most
-    the ``q²/12`` per axis its blocks' variances carry (this gyro counts in whole units, its planted sway does not); stretches decided by the
-    bound, window by window, and wobbling, all present."""
+    the ``q²/12`` per axis its blocks' variances carry (this gyro counts in whole units, its planted sway does not);
+    stretches decided by the bound, window by window, and wobbling, all present; spans given out of order (their
+    blocks gathered) the same sums to the bit."""
     import dataclasses
 
     import optcal.data.static as st
@@ -283,6 +284,8 @@ def test_the_wobble_bound_summed_by_blocks_clears_the_stretches_the_samples_clea
             spreads.append(np.maximum(s2 / m - (s1 / m) ** 2, 0.0).sum(axis=1))
         samples, summed = spreads
         margin = _spread_margin(_block_span_sums(gyro, blocks, a, z, centre)[1] / m, z - a)
+        back = _block_span_sums(gyro, blocks, a[::-1], z[::-1], centre)  # spans out of order: their blocks gathered
+        assert all(np.array_equal(x[::-1], y) for x, y in zip(back, _block_span_sums(gyro, blocks, a, z, centre)))
         q = quantum(gyro) or 0.0
         assert np.all(summed + margin >= samples)
         assert np.all(summed - samples <= 3.0 * q * q / 12.0 + 1e-12 * samples)
