@@ -426,7 +426,7 @@ def detect_static(rec: Recording, settings: StaticSettings | None = None, pose_s
     wobbling = np.zeros(len(candidates), dtype=bool)
     if gyro is not None and gyro_scale is not None and candidates:
         wobbling = wobbles(gyro, t, gyro_scale, wobble_window, [(c[0], c[1]) for c in candidates],
-                           wobble_limit) > wobble_limit
+                           wobble_limit, b) > wobble_limit
     for i, (a, z, j0, j1) in enumerate(candidates):
         assert verdicts is not None
         per_sample = float(verdicts.per_sample[i])

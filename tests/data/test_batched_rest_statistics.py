@@ -225,3 +225,68 @@ def test_wobbles_bit_for_bit_as_the_plain_expressions(seed, monkeypatch):
         if all(z - a < 3 for a, z in spans):
             continue
         assert np.array_equal(wobbles(gyro, t, 1e-3, window, spans), expression_wobbles(gyro, t, 1e-3, window, spans))
+
+
+def test_the_wobble_bound_summed_by_blocks_clears_the_stretches_the_samples_clear(shared_data):
+    """The rest model's wobble bound (:func:`~optcal.data.static_stretches.wobbles` with ``tolerance``) summed from its
+    blocks' moments, as :func:`~optcal.data.static.detect_static` does, against the samples' own sums: on the xsens
+    recording's candidate rests, and with a 1 Hz sway of growing size planted in every other one, the same verdict
+    for every stretch; the blocks' spread² with its rounding margin never below the samples', and above them by at most
+    the ``q²/12`` per axis its blocks' variances carry (this gyro counts in whole units, its planted sway does not);
+    stretches decided by the bound, window by window, and wobbling, all present; spans given out of order (their
+    blocks gathered) the same sums to the bit."""
+    import dataclasses
+
+    import optcal.data.static as st
+    from optcal.data import load_recording
+    from optcal.data.static_stretches import _block_span_sums, _span_sums, _spread_margin
+    from optcal.data.quantiles import np_column_medians
+    from optcal.data.quantisation import quantum
+
+    rec = load_recording(str(shared_data / "imutk-xsens" / "xsens_imutk.csv"))
+    calls = []
+
+    def spy(*args):
+        calls.append(args)
+        return wobbles(*args)
+
+    def candidates(recording):
+        calls.clear()
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(st, "wobbles", spy)
+            st.detect_static(recording, pose_statistics=False)
+        return calls[0]
+
+    still = candidates(rec)
+    gyro, t, scale, window, spans, tolerance, blocks = still
+    planted = rec.gyro.copy()
+    for k, (a, z) in enumerate(spans[1::2]):  # a hand's 1 Hz sway, its rms angle from 1 % of the tolerance to 10 times
+        rate = tolerance / scale * 10.0 ** (-1.0 + 3.0 * k / max(1, len(spans) // 2 - 1))
+        planted[a:z] += rate * np.sin(2 * np.pi * t[a:z])[:, None] * np.array([1.0, -0.5, 0.3])
+    decided = {"bound": 0, "windows": 0, "wobbling": 0}
+    sway = candidates(dataclasses.replace(rec, gyro=planted))
+    # the candidates of the recording, without and with the sway (the blocks of the swaying gyro: a stretch that sways
+    # hard has blocks off the bias and is no candidate of its own), and the swaying recording's own candidates
+    for gyro, spans, blocks in ((still[0], spans, blocks), (sway[0], spans, sway[6]), (sway[0], sway[4], sway[6])):
+        by_blocks = wobbles(gyro, t, scale, window, spans, tolerance, blocks)
+        by_samples = wobbles(gyro, t, scale, window, spans, tolerance)
+        assert np.array_equal(by_blocks > tolerance, by_samples > tolerance)
+        bound = by_samples != wobbles(gyro, t, scale, window, spans)  # the bound's value, not the windows' wobble
+        decided["bound"] += int(np.count_nonzero(bound))
+        decided["windows"] += int(np.count_nonzero(~bound & (by_samples <= tolerance)))
+        decided["wobbling"] += int(np.count_nonzero(by_samples > tolerance))
+        a = np.array([s[0] for s in spans])
+        z = np.array([s[1] for s in spans])
+        centre = np_column_medians(gyro[a])
+        m = (z - a)[:, None]
+        spreads = []
+        for s1, s2 in (_span_sums(gyro, a, z, centre), _block_span_sums(gyro, blocks, a, z, centre)):
+            spreads.append(np.maximum(s2 / m - (s1 / m) ** 2, 0.0).sum(axis=1))
+        samples, summed = spreads
+        margin = _spread_margin(_block_span_sums(gyro, blocks, a, z, centre)[1] / m, z - a)
+        back = _block_span_sums(gyro, blocks, a[::-1], z[::-1], centre)  # spans out of order: their blocks gathered
+        assert all(np.array_equal(x[::-1], y) for x, y in zip(back, _block_span_sums(gyro, blocks, a, z, centre)))
+        q = quantum(gyro) or 0.0
+        assert np.all(summed + margin >= samples)
+        assert np.all(summed - samples <= 3.0 * q * q / 12.0 + 1e-12 * samples)
+    assert min(decided.values()) > 0, decided
