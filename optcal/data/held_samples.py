@@ -139,7 +139,7 @@ MIN_HELD_RUNS: int = 10
 
 #: The share of the runs a hold puts within one row of its modal length, at or below which the runs are a sensor's
 #: own repeated codes and not a hold.  A logger writing a sensor that updates at a fixed ratio of its rate repeats
-#: each value the ratio's floor or ceiling rows (``circle.txt``: 147 of 148 runs at 5 ± 1); a sensor read afresh on
+#: each value the ratio's floor or ceiling rows (``circle.txt``: all 148 runs at 5 ± 1); a sensor read afresh on
 #: every row spreads its runs over many lengths: geometrically (:func:`held_runs`), or, an accelerometer whose
 #: filter's band is a hundredth of the log's rate and whose noise is under one code, so widely that :data:`HOLD_Z`
 #: alone is exceeded in about 4 % of simulated still logs, their runs within one row of the mode 8 %.  Half keeps
