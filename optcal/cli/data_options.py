@@ -39,7 +39,7 @@ DATA_OPTION_NAMES: tuple[str, ...] = (
     "columns", "units", "topic", "rate", "data_format", "time_unit", "timing", "gyro_file",
     "static_window", "static_threshold", "gyro_threshold", "drift_threshold", "min_dwell", "trim", "no_gyro_gate",
     "min_independent", "gyro_units", "keep_touches", "keep_spins", "keep_gyro_rail", "gyro_range",
-    "keep_unhealthy", "keep_clipped",
+    "keep_unhealthy", "keep_clipped", "keep_held",
 )
 
 _POSITIVE = click.FloatRange(min=0, min_open=True)
@@ -79,6 +79,11 @@ _READ_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = 
                  help="Keep the samples a log's own clip flags mark (ArduPilot's VIBE.Clip rises, PX4's clip "
                       "counters; by default they are counted as saturated and enter no rest); rails in the values "
                       "are still sought."),
+    click.option("--keep-held", is_flag=True, default=None,
+                 help="Keep every row where the accelerometer's value is held over several rows (a logger writing "
+                      "faster than its accelerometer updates; by default found from the runs of identical triples, "
+                      "the first row of each update kept and the repeats counted, so no value weighs several "
+                      "samples)."),
     click.option("--gyro-range", type=_POSITIVE, default=None, metavar="DPS",
                  help="The gyro's full scale, ±°/s (e.g. 2000): where its unit is not known (counts), a saturation "
                       "rail is sought beyond 75/DPS of its largest reading, the most a rest reads (by default beyond "
@@ -127,7 +132,8 @@ def data_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 #: Keyword names that :func:`read_options` adds (reading a recording, no kind, no static detection).
 READ_OPTION_NAMES: tuple[str, ...] = ("columns", "units", "topic", "rate", "time_unit", "timing", "gyro_file",
-                                      "keep_gyro_rail", "gyro_range", "keep_unhealthy", "keep_clipped")
+                                      "keep_gyro_rail", "gyro_range", "keep_unhealthy", "keep_clipped",
+                                      "keep_held")
 
 
 def read_options(func: Callable[..., Any]) -> Callable[..., Any]:

@@ -84,8 +84,8 @@ def gyro_recording(src: Source, options: ReadOptions | None = None, *,
                          for line in exc.decisions]
         raise
     # converted in the stand-in's g (a window re-converts it too)
-    rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
-                                gyro_range_dps=options.gyro_range_dps)
+    rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,  # the stand-in is no
+                                gyro_range_dps=options.gyro_range_dps, keep_held=True)  # sensor: no hold sought
     decisions.units = Decision(NO_ACCELEROMETER, reason, flag)  # said: no accelerometer (rec.decisions is this)
     rec.units_reason = reason
     return rec

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["HOLD_Z", "HeldRuns", "held_runs"]
+__all__ = ["HOLD_Z", "MIN_HELD_RUNS", "RATIO_SHARE", "HeldRuns", "held_rows", "held_runs"]
 
 #: The modal run's excess over the runs of one row, in binomial standard deviations, beyond which the runs are a
 #: logger's hold and not a sensor's repeated codes: a one-sided false alarm of about 1e-3 for a sensor read afresh
@@ -129,3 +129,51 @@ def held_runs(x: NDArray[np.float64]) -> HeldRuns | None:
     torn = np.concatenate([np.arange(first[k], first[k] + lengths[k]) for k in np.flatnonzero(torn_runs)]
                           or [np.empty(0, dtype=np.intp)])
     return HeldRuns(first[~torn_runs].astype(np.intp), torn.astype(np.intp), n, mode, float(z))
+
+
+#: The fewest runs of the modal length :data:`HOLD_Z` can call a hold (no run of one row: ``n / √n > 3`` needs
+#: ``n ≥ 10``); a recording whose first axis repeats its last value on fewer rows holds no sensor's value, and is
+#: not searched further (one pass over one axis instead of the triples' runs).
+MIN_HELD_RUNS: int = 10
+
+
+#: The share of the runs a hold puts within one row of its modal length, at or below which the runs are a sensor's
+#: own repeated codes and not a hold.  A logger writing a sensor that updates at a fixed ratio of its rate repeats
+#: each value the ratio's floor or ceiling rows (``circle.txt``: all 148 runs at 5 ± 1); a sensor read afresh on
+#: every row spreads its runs over many lengths: geometrically (:func:`held_runs`), or, an accelerometer whose
+#: filter's band is a hundredth of the log's rate and whose noise is under one code, so widely that :data:`HOLD_Z`
+#: alone is exceeded in about 4 % of simulated still logs, their runs within one row of the mode 8 %.  Half keeps
+#: a hold whose clocks slip often and refuses those.  Checked for the accelerometer, whose repeats are dropped from
+#: every command's samples (an Allan analysis of a still log included).
+RATIO_SHARE: float = 0.5
+
+
+def held_rows(x: NDArray[np.float64], usable: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], HeldRuns] | None:
+    """The rows of a recording to keep where its sensor ``x`` is held (:func:`held_runs` over its usable rows).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, 3)
+        A recording's accelerometer (or gyro) samples, one row each, in the log's order.
+    usable : ndarray of bool, shape (n,)
+        The rows read as samples (finite, ...); the others are kept as they are (counted by the reading).
+
+    Returns
+    -------
+    (ndarray of bool, HeldRuns) or None
+        The rows kept (every unusable row and the first usable row of each update) and the runs; ``None`` when
+        the sensor is read afresh on every row.
+    """
+    idx = np.flatnonzero(usable)
+    first_axis = x[idx, 0] if idx.size < usable.size else x[:, 0]
+    if int(np.count_nonzero(first_axis[1:] == first_axis[:-1])) < MIN_HELD_RUNS:
+        return None
+    held = held_runs(x[idx] if idx.size < usable.size else x)
+    if held is None:
+        return None
+    lengths = np.diff(held.first)[1:]  # the runs between updates (a torn copy's rows in the run before it)
+    if lengths.size == 0 or np.mean(np.abs(lengths - held.modal_length) <= 1) <= RATIO_SHARE:
+        return None
+    keep = ~usable
+    keep[idx[held.first]] = True
+    return keep, held

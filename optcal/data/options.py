@@ -87,6 +87,9 @@ class ReadOptions:
     keep_clipped : bool
         Keep the samples a log's own clip flags mark (ArduPilot's ``VIBE.Clip`` rises, PX4's ``clip_counter``;
         ``--keep-clipped``; by default they are saturated samples, counted); rails in the values are still sought.
+    keep_held : bool
+        Keep every row where the accelerometer's value is held over several rows of a faster log (``--keep-held``;
+        by default the first row of each update is kept and the repeats counted: :mod:`optcal.data.held_samples`).
     gyro_range_dps : float or None
         The gyro's full scale, ±°/s (``--gyro-range``): where the gyro's unit is not known, a rail of it is sought
         beyond a rest's largest reading as that share of the full scale (:func:`optcal.data.rails.gyro_rail`).
@@ -113,6 +116,7 @@ class ReadOptions:
     keep_gyro_rail: bool = False
     keep_unhealthy: bool = False
     keep_clipped: bool = False
+    keep_held: bool = False
     gyro_range_dps: float | None = None
     static: StaticSettings = field(default_factory=StaticSettings)
 
@@ -311,7 +315,7 @@ def read_recording(path: str | Path, options: ReadOptions | None = None, *, requ
     options = ReadOptions.build(options, **overrides)
     src, decisions = read_decided(path, options, required_by=required_by, kind="raw")
     return recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
-                                gyro_range_dps=options.gyro_range_dps)  # conversion
+                                gyro_range_dps=options.gyro_range_dps, keep_held=options.keep_held)  # conversion
 
 
 def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any) -> Reading:
@@ -351,7 +355,7 @@ def read(path: str | Path, options: ReadOptions | None = None, **overrides: Any)
             check_sensitivity(poses.acc, poses.units, stated=stated)  # the units and columns decisions, checked on the poses
             return Reading(str(path), options, decisions, poses)
         rec = recording_from_source(src, decisions, keep_gyro_rail=options.keep_gyro_rail,
-                                gyro_range_dps=options.gyro_range_dps)  # conversion
+                                gyro_range_dps=options.gyro_range_dps, keep_held=options.keep_held)  # conversion
         del src  # the recording holds its own arrays: free the file's columns before segmenting
         check_static_settings(options.static, rec)
         seg = detect_static(rec, options.static)  # segmentation

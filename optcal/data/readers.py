@@ -553,15 +553,10 @@ def source_from_columns(
         if gyro_word is not None and gyro_word in GYRO_UNIT_WORDS:
             src.gyro_units = GYRO_UNIT_WORDS[gyro_word]
     if "t" in data and "t" in non_numeric and not np.isfinite(data["t"]).any():
-        # a time column holding no number in any row (a date written as text, 'Wed Dec 22 21:09:46 2021') is no
-        # time base: set aside and said (the rate is then needed: --rate), instead of every row dropped as non-finite
-        count, row, value = non_numeric.pop("t")
-        name = column_map.pop("t")
-        data.pop("t")
-        src.ignored_columns.append(name)
-        src.time_reason = (f"column {name!r} holds no number in any row (text such as {value!r} on data row "
-                           f"{row}): not read as the time")
-    if "t" in data:
+        from optcal.data.date_times import text_time_column  # ISO 8601 text read as the clock, else set aside (said)
+
+        text_time_column(src, file_type)
+    if "t" in data and src.time_unit is None:  # not read from date-times
         word = unit_words.get("t")
         name = column_map["t"]
         if word in TIME_UNITS:

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from optcal.data.columns import ACC, GYRO
 from optcal.data.decisions import DataDecisions, Decision, decide, with_decisions
 from optcal.data.evidence import NON_FINITE, Evidence, gather_evidence
+from optcal.data.held_samples import held_rows
 from optcal.data.quantiles import median
 from optcal.data.rails import GyroRail, gyro_rail, rail_samples
 from optcal.data.readers import Source
@@ -33,6 +34,8 @@ SATURATED = "saturated samples"
 GYRO_SATURATED = "samples with the gyro at its rail (in no rest, their moves out of the gyro fit; --keep-gyro-rail keeps them)"
 #: A rail lies at least this far (in g, by the nominal conversion) from the axis's zero.
 SATURATION_MIN_G: float = 1.5
+HELD = "accelerometer rows repeating its last update (a slower sensor in a faster log; --keep-held keeps them)"
+HELD_TORN = "accelerometer rows holding axes of two updates (a logger's torn copy between them)"
 
 
 @dataclass
@@ -140,6 +143,7 @@ def recording_from_source(
     required_by: str = "reading a recording",
     keep_gyro_rail: bool = False,
     gyro_range_dps: float | None = None,
+    keep_held: bool = False,
 ) -> Recording:
     """Build a :class:`Recording` from a reader's :class:`Source` (the conversion step).
 
@@ -163,6 +167,9 @@ def recording_from_source(
     gyro_range_dps : float, optional
         The gyro's full scale, ±°/s, as stated (``--gyro-range``): tightens the bound a rail of a gyro of unknown
         scale lies beyond (:func:`optcal.data.rails.gyro_rail`).
+    keep_held : bool
+        Keep every row where the accelerometer's value is held over several rows of a faster log (``--keep-held``;
+        by default the first row of each update is kept and the repeats counted: :mod:`optcal.data.held_samples`).
 
     Raises
     ------
@@ -175,13 +182,13 @@ def recording_from_source(
             src, ev, kind="raw", units=units, rate=rate, time_unit=time_unit, timing=timing, required_by=required_by
         )
     try:
-        return _convert(src, decisions, evidence, keep_gyro_rail, gyro_range_dps)
+        return _convert(src, decisions, evidence, keep_gyro_rail, gyro_range_dps, keep_held)
     except InputError as exc:
         raise with_decisions(exc, decisions) from exc
 
 
 def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, keep_gyro_rail: bool = False,
-             gyro_range_dps: float | None = None) -> Recording:
+             gyro_range_dps: float | None = None, keep_held: bool = False) -> Recording:
     """The decisions applied to ``src`` (see :func:`recording_from_source`)."""
     if decisions.evidence is not None:  # the evidence of the columns as decided
         ev = decisions.evidence
@@ -208,6 +215,17 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
     usable = ev.usable.copy()
     if decisions.time_base.value == "rate":
         usable &= np.isfinite(t)
+    held = None if keep_held else held_rows(acc, usable)  # a slower accelerometer in a faster log (held_samples)
+    if held is not None:  # one row per update: the repeats weigh no value several times, and are counted
+        keep, runs = held
+        t, acc, row, usable = t[keep], acc[keep], row[keep], usable[keep]
+        gyro, temp = (None if gyro is None else gyro[keep]), (None if temp is None else temp[keep])
+        _count(exclusions, HELD, runs.n_repeats)
+        _count(exclusions, HELD_TORN, int(runs.torn.size))
+    if keep_held and (found := held_rows(acc, usable)) is not None:
+        decisions.warnings.append(found[1].describe("accelerometer", "--keep-held", kept=True))
+    elif held is not None:
+        decisions.warnings.append(held[1].describe("accelerometer", "--keep-held"))
     # row numbers over a rate, and samples spread evenly, never repeat a time: no search for duplicates
     retimed = decisions.time_base.value == "uniform" or (decisions.time_base.value == "rate" and not src.has("index"))
     same = np.empty(0, dtype=np.intp)
@@ -232,10 +250,13 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
             midscale_norm=ev.midscale_norm)
     else:
         nominal = nominal_conversion(units, acc if usable.all() else acc[usable])
-    sat = saturated_samples(acc, usable, units, src.saturated, nominal=nominal)
-    unhealthy = src.gyro_unhealthy if gyro is not None and src.gyro_unhealthy is not None else None
+    def rows(flags: NDArray[np.bool_] | None) -> NDArray[np.bool_] | None:  # a reader's per-row flags, on the rows kept
+        return flags if flags is None or held is None else flags[held[0]]
+
+    sat = saturated_samples(acc, usable, units, rows(src.saturated), nominal=nominal)
+    unhealthy = rows(src.gyro_unhealthy) if gyro is not None and src.gyro_unhealthy is not None else None
     rail = None if gyro is None else gyro_rail(gyro, usable if unhealthy is None else usable & ~unhealthy,
-                                             src.gyro_units, src.gyro_saturated, units, gyro_range_dps)
+                                             src.gyro_units, rows(src.gyro_saturated), units, gyro_range_dps)
     n_saturated = int(np.count_nonzero(sat & usable))
     _count(exclusions, SATURATED, n_saturated)
     usable &= ~sat
@@ -253,7 +274,7 @@ def _convert(src: Source, decisions: DataDecisions, evidence: Evidence | None, k
     if not usable.any():
         raise InputError(f"{src.path}: no usable sample (all are non-finite, duplicated or saturated)")
     same_rows = int(np.count_nonzero(usable)) == int(np.count_nonzero(ev.usable))
-    if decisions.time_base.value == "stamps" and not same_rows:  # the median step of the samples left
+    if (decisions.time_base.value == "stamps" and not same_rows) or held is not None:  # the median step of the samples left
         steps = np.diff(t[usable])
         step = median(steps) if steps.size else 0.0
         rate_hz = float(1.0 / step) if step > 0 else float("nan")

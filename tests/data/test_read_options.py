@@ -86,7 +86,7 @@ def test_cli_flags_mapped_to_fields():
 
 def test_every_field_is_a_flag_or_a_static_setting():
     assert set(READ_FIELDS) == {"columns", "units", "topic", "rate", "kind", "time_unit", "timing", "gyro_file",
-                                "gyro_units", "keep_gyro_rail", "keep_unhealthy", "keep_clipped", "gyro_range_dps",
+                                "gyro_units", "keep_gyro_rail", "keep_unhealthy", "keep_clipped", "keep_held", "gyro_range_dps",
                                 "static"}
     assert "min_dwell_s" in STATIC_FIELDS
 

@@ -166,7 +166,8 @@ def apply_to_file(
         exclusions = dict(decisions.exclusions) if not usable.all() else {}
         units_in, units_reason = str(decisions.units.value), decisions.units.reason
     else:
-        rec = recording_from_source(src, decisions, keep_gyro_rail=True)  # the accelerometer's samples are corrected
+        # every row is corrected, a held value's repeats too (they are rows of the output)
+        rec = recording_from_source(src, decisions, keep_gyro_rail=True, keep_held=True)
         t, usable, units_in, units_reason = rec.t, rec.usable, rec.units, rec.units_reason
         time_reason = rec.time_reason
         exclusions = dict(rec.exclusions)
