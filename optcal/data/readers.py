@@ -53,6 +53,7 @@ from optcal.data.columns import (
     strip_unit,
 )
 from optcal.data.container_kind import container_type
+from optcal.data.gyro_merge import gyro_onto_times
 from optcal.data.ulog import TRUNCATED_MESSAGE, read_ulog_imu, ulog_is_cut
 from optcal.data.quantiles import median
 from optcal.core.units import UNIT_ALIASES, normalise_units
@@ -595,12 +596,13 @@ def source_from_columns(
 
 
 def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
-    """Add ``gx, gy, gz`` from a second text file ``t gx gy gz``, interpolated onto ``src``'s times.
+    """Add ``gx, gy, gz`` from a second text file ``t gx gy gz``, placed on ``src``'s times.
 
     imu_tk writes the accelerometer and the gyroscope of one recording in two files with
     their own time columns; samples of the gyro file are matched to the accelerometer's by
-    time (linear interpolation; accelerometer samples outside the gyro file's time span
-    get NaN and are counted as non-finite).
+    time (:func:`optcal.data.gyro_merge.gyro_onto_times`: linear interpolation, or row for row when the
+    two files share a time column that repeats stamps; accelerometer samples outside the gyro file's
+    time span get NaN and are counted as non-finite).
     """
     if not src.has("t"):
         raise InputError(f"{src.path}: merging a gyro file needs a time column in both files")
@@ -616,11 +618,10 @@ def merge_gyro_file(src: Source, gyro_file: str | Path) -> None:
         raise InputError(f"{gyro_file}: its time unit ({g.time_unit}) differs from {src.path}'s ({src.time_unit})")
     t = src.column("t")
     cols = ("ax", "ay", "az") if not g.has(*GYRO) else GYRO
-    for name, c in zip(GYRO, cols):
-        v = np.interp(t, tg[ok], g.column(c)[ok], left=np.nan, right=np.nan)
-        src.data[name] = v
+    placed, how = gyro_onto_times(t, tg, [g.column(c) for c in cols])
+    src.data.update(zip(GYRO, placed))
     src.column_map.update({name: f"{Path(gyro_file).name}:{g.column_map[c]}" for name, c in zip(GYRO, cols)})
-    src.notes.append(f"gyro from {gyro_file}, interpolated onto the accelerometer times")
+    src.notes.append(f"gyro from {gyro_file}, {how}")
     if src.gyro_units is None and g.column_map.get("ax") is not None:  # a gyro read in the accelerometer's place
         word = strip_unit(normalise_name(g.column_map["ax"]))[1]
         src.gyro_units = GYRO_UNIT_WORDS.get(word) if word is not None else unit
