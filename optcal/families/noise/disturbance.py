@@ -452,9 +452,23 @@ PIECE_POINT_COST: float = 8.0
 
 
 def dense_route(changes: Sequence[tuple[NDArray[np.intp], NDArray[np.float64]]], n_taus: int, n_phase: int) -> bool:
-    """Whether :func:`_dense_ratios` is the cheaper route for these patches (:func:`patch_values`) at ``n_taus``
-    cluster lengths of a phase of ``n_phase`` values: :func:`_ratios` reads six points of each of up to three pieces
-    per changed sample and cluster length, :func:`_dense_ratios` passes over the log once per patch."""
+    """Whether :func:`_dense_ratios` is the cheaper route for these patches: :func:`_ratios` reads six points of each
+    of up to three pieces per changed sample and cluster length, :func:`_dense_ratios` passes over the log once per
+    patch (:data:`PIECE_POINT_COST`).
+
+    Parameters
+    ----------
+    changes : sequence of (positions, added)
+        The patches (:func:`patch_values`), the real one and the placebos'.
+    n_taus : int
+        The cluster lengths the ratios are wanted at.
+    n_phase : int
+        The phase's length (the log's samples plus one).
+
+    Returns
+    -------
+    bool
+    """
     points = 18.0 * n_taus * sum(change[0].size for change in changes)
     return points * PIECE_POINT_COST > len(changes) * n_phase
 
