@@ -47,7 +47,7 @@ HOURS = float(os.environ.get("OPTCAL_BENCH_ALLAN_HOURS", "0.34" if QUICK else "1
 MAX_TIME_RATIO = 2.0
 MAX_COPIES = 3.0
 #: ``--keep-moves`` on the log with moves (a twelfth not at rest, 20 patches of its three axes checked) within this many
-#: times the still log's CPU: a bound that grows with the log, not with its moves' square (measured 2.9x at 12 h).
+#: times the still log's CPU: a cost that grows with the log, not with its moves' square (measured 2.4-3.1x at 12 h).
 MAX_KEEP_MOVES_CPU_RATIO = 4.0
 
 #: A fresh interpreter: imports (timed: they are part of what a user waits for), then the timed
