@@ -575,4 +575,4 @@ def _room(starts: NDArray[np.intp], ends: NDArray[np.intp], length: int) -> NDAr
     counts = np.maximum(ends - starts - length + 1, 0)
     total = int(counts.sum())
     first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    return np.arange(total, dtype=np.intp) + np.repeat(starts - first, counts).astype(np.intp)
+    return np.arange(total, dtype=np.intp) + np.repeat(starts - first, counts).astype(np.intp, copy=False)
