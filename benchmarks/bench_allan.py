@@ -46,6 +46,9 @@ HOURS = float(os.environ.get("OPTCAL_BENCH_ALLAN_HOURS", "0.34" if QUICK else "1
 #: its peak memory above the imports within this many copies of the file's numbers.
 MAX_TIME_RATIO = 2.0
 MAX_COPIES = 3.0
+#: ``--keep-moves`` on the log with moves (a twelfth not at rest, 20 patches of its three axes checked) within this many
+#: times the still log's CPU: a cost that grows with the log, not with its moves' square (measured 2.4-3.1x at 12 h).
+MAX_KEEP_MOVES_CPU_RATIO = 4.0
 
 #: A fresh interpreter: imports (timed: they are part of what a user waits for), then the timed
 #: work; prints the wall and CPU time (every thread) and the peak resident memory before and after
@@ -80,7 +83,7 @@ else:
     from optcal.cli.main import main  # what the console script imports; the command imports the rest
     base = high_water()
     with contextlib.redirect_stdout(io.StringIO()):
-        code = main(["allan", path, "--json"])
+        code = main(["allan", path, "--json"] + (["--keep-moves"] if mode == "optcal-keep-moves" else []))
 wall, cpu = time.perf_counter() - start, time.process_time() - cpu
 peak = high_water()
 print(json.dumps({"code": code, "wall_s": wall, "cpu_s": cpu, "base": base, "peak": peak}))
@@ -110,6 +113,41 @@ def _still_log_csv(path: Path, hours: float) -> tuple[int, int]:
             block = np.column_stack([np.arange(start, start + k) / RATE,
                                      rng.normal(0.0, 2e-3, (k, 3)) + [0.0, 0.0, 1.0], rng.normal(0.0, 0.05, (k, 3))])
             np.savetxt(fh, block, delimiter=",", fmt="%.6f")
+    return n, 7
+
+
+def _moving_log_csv(path: Path, hours: float) -> tuple[int, int]:
+    """:func:`_still_log_csv`'s log with moves planted: four turns of 45° about x and back (3 s each way, 10 min
+    apart; at 2, 4, 7 and 10 twelfths of the log) and a slow tilt about y over an eighth of it (from 5 twelfths) at
+    15° in 1.5 h (a shorter log tilts less, at the same rate), the accelerometer rotated and the gyro given the turn
+    rate (deg/s); at 12 h, the planted log of the command's unbounded run; (rows, columns)."""
+    n = int(hours * 3600 * RATE)
+    span = n / RATE
+    rng = np.random.default_rng(1)
+
+    def ramp(t: np.ndarray, t0: float, duration: float, deg: float) -> np.ndarray:
+        return deg * 0.5 * (1.0 - np.cos(np.pi * np.clip((t - t0) / duration, 0.0, 1.0)))
+
+    with path.open("w") as fh:
+        fh.write("time,ax,ay,az,gx,gy,gz\n")
+        for start in range(0, n, 500_000):
+            k = min(500_000, n - start)
+            t = np.arange(start, start + k) / RATE
+            about_x, rate_x = np.zeros(k), np.zeros(k)
+            for t0 in (f * span / 12.0 for f in (2, 4, 7, 10)):
+                hold = min(600.0, span / 24.0)
+                about_x += ramp(t, t0, 3.0, 45.0) - ramp(t, t0 + hold, 3.0, 45.0)
+                rate_x += (ramp(t + 0.005, t0, 3.0, 45.0) - ramp(t - 0.005, t0, 3.0, 45.0)
+                           - ramp(t + 0.005, t0 + hold, 3.0, 45.0) + ramp(t - 0.005, t0 + hold, 3.0, 45.0)) / 0.01
+            tilt = (5.0 * span / 12.0, span / 8.0, 15.0 * span / 8.0 / 5400.0)
+            about_y = ramp(t, *tilt)
+            rate_y = (ramp(t + 0.005, *tilt) - ramp(t - 0.005, *tilt)) / 0.01
+            a, b = np.radians(about_x), np.radians(about_y)
+            x, y, z = (rng.normal(0.0, 2e-3, (k, 3)) + [0.0, 0.0, 1.0]).T
+            y1, z1 = np.cos(a) * y - np.sin(a) * z, np.sin(a) * y + np.cos(a) * z
+            acc = np.column_stack([np.cos(b) * x + np.sin(b) * z1, y1, -np.sin(b) * x + np.cos(b) * z1])
+            gyro = rng.normal(0.0, 0.05, (k, 3)) + np.column_stack([rate_x, rate_y, np.zeros(k)])
+            np.savetxt(fh, np.column_stack([t, acc, gyro]), delimiter=",", fmt="%.6f")
     return n, 7
 
 
@@ -161,3 +199,24 @@ def test_optcal_allan_against_pandas_parse_of_the_same_file(tmp_path: Path) -> N
     if STRICT:
         assert optcal_run["ratio"] <= MAX_TIME_RATIO
         assert optcal_run["copies"] <= MAX_COPIES
+
+
+def test_optcal_allan_keep_moves_on_a_log_with_moves_beside_the_still_log(tmp_path: Path) -> None:
+    """``optcal allan --keep-moves`` on the still log with moves planted (:func:`_moving_log_csv`: a twelfth of it
+    not at rest, the disturbance check's 19 placebo replacements drawn) beside ``optcal allan`` on the still log, in
+    the same run: the moves' check costs about what the command does (it ran unbounded on a 12-hour log before)."""
+    still, moving = tmp_path / "still.csv", tmp_path / "moving.csv"
+    _still_log_csv(still, HOURS)
+    rows, _ = _moving_log_csv(moving, HOURS)
+    source = Path(__file__).resolve().parents[1]
+    _child("optcal", still, source, writes_bytecode=True)
+    runs = {}
+    for name, mode, path in (("still", "optcal", still), ("moves", "optcal-keep-moves", moving)):
+        runs[name] = min((_child(mode, path, source) for _ in range(2)), key=lambda r: r["cpu_s"])
+        assert runs[name]["code"] == 0
+    print(f"\nallan on {HOURS:g} h at {RATE:g} Hz ({rows} rows), best of 2 by CPU: still log {runs['still']['wall_s']:.2f} s "
+          f"(CPU {runs['still']['cpu_s']:.2f} s); --keep-moves on the log with moves {runs['moves']['wall_s']:.2f} s "
+          f"(CPU {runs['moves']['cpu_s']:.2f} s), {runs['moves']['cpu_s'] / runs['still']['cpu_s']:.2f}x the still "
+          f"log's CPU")
+    if STRICT:
+        assert runs["moves"]["cpu_s"] <= MAX_KEEP_MOVES_CPU_RATIO * runs["still"]["cpu_s"]

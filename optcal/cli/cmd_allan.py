@@ -330,6 +330,7 @@ def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_
     (``--keep-moves``) analyses the log anyway, said so.  ``carries``: :func:`carry_ahead`'s running sums, per
     sensor.
     """
+    from optcal.core.progress import stage
     from optcal.data.static_stretches import MIN_MOVE_TURN_RAD
     from optcal.errors import InputError
     from optcal.families.noise.disturbance import PLACEBOS, RELEVANT_SHARE, disturbance_change
@@ -364,7 +365,9 @@ def check_disturbances(log: StillLog, analyses: dict[str, Any], data: str, keep_
     for name, analysis in analyses.items():
         x = log.gyro if name == "gyro" and log.gyro is not None else log.samples
         axes = list(analysis.curves)
-        b = disturbance_change(x, at_rest, log.rate_hz, [analysis.curves[a] for a in axes], (carries or {}).get(name, ()))
+        with stage(f"replacing the {moving} samples not at rest ({name}, {PLACEBOS} placebos)"):  # seconds on a long log
+            b = disturbance_change(x, at_rest, log.rate_hz, [analysis.curves[a] for a in axes],
+                                   (carries or {}).get(name, ()))
         if (b.relevant, b.ratio) > worst[:2]:
             what = "gyro" if name == "gyro" else "acc"
             worst = (b.relevant, b.ratio, f"{what} {axes[b.axis]} at τ = {b.tau:.3g} s by {b.change:.3g} "
