@@ -78,10 +78,11 @@ def test_many_samples_not_at_rest_take_the_dense_route_and_give_the_full_recompu
     assert pieces[0] == 2 * (1 + disturbance.PLACEBOS) and dense[0] == 2 * (1 + disturbance.PLACEBOS)
     assert (slow.axis, slow.tau) == (found.axis, found.tau)
     assert slow.ratio == pytest.approx(found.ratio, rel=1e-9)
-    # the piece route reads a patch's changed samples as sorted and distinct: a draw whose stretches overlap is not
+    # the piece route reads a patch's changed samples as sorted and distinct, which patch_values now gives for a
+    # draw whose stretches overlap too (it read 844 where the full recomputation gives 1.6): every draw agrees
     disjoint = np.array([_disjoint(spans) for spans in draws])
     assert 5 <= disjoint.sum() < disjoint.size
-    np.testing.assert_allclose(slow.placebo_ratios[disjoint], found.placebo_ratios[disjoint], rtol=1e-6)
+    np.testing.assert_allclose(slow.placebo_ratios, found.placebo_ratios, rtol=1e-6)
 
 
 def _disjoint(spans) -> bool:

@@ -81,7 +81,9 @@ class DisturbanceChange:
 def patch_values(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
                  spans: tuple[NDArray[np.intp], NDArray[np.intp]]) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """The samples of ``x`` (n,) that the replacement of the module docstring changes and what it adds to each:
-    ``(positions, d)`` sorted, ``x[positions] + d`` the replaced values.
+    ``(positions, d)`` sorted and distinct, ``x[positions] + d`` the replaced values (where a placebo's stretches
+    overlap, the later stretch's value, as :func:`patched` writes it; the piece route's running sums need distinct
+    steps: with repeated ones a placebo's ratio read 844 where the full recomputation gives 1.6).
 
     Parameters
     ----------
@@ -120,7 +122,13 @@ def patch_values(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: fl
                 break
         positions.append(np.arange(i, j))
         added.append(new - x[i:j])
-    return np.concatenate(positions), np.concatenate(added)
+    pos, add = np.concatenate(positions), np.concatenate(added)
+    if pos.size > 1 and not bool(np.all(pos[1:] > pos[:-1])):  # a placebo's stretches, placed apart, may overlap
+        order = np.argsort(pos, kind="stable")
+        pos, add = pos[order], add[order]
+        last = np.concatenate([pos[1:] != pos[:-1], [True]])  # patched()'s meaning: the last value written
+        pos, add = pos[last], add[last]
+    return pos, add
 
 
 def patched(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_hz: float,
@@ -275,12 +283,7 @@ def _dense_cuts(x: NDArray[np.float64], change: tuple[NDArray[np.intp], NDArray[
     of the added values (to rounding), as an array of the phase's length; ``ΔD(u) = R(u+2m) − 2R(u+m) + R(u)``
     changes from ``u`` to ``u + 1`` only where ``u + km`` (``k = 0, 1, 2``) is a changed sample."""
     n_phase = x.size
-    positions, added = change
-    if positions.size > 1 and not bool(np.all(positions[1:] > positions[:-1])):  # a placebo's overlapping spans
-        order = np.argsort(positions, kind="stable")
-        positions, added = positions[order], added[order]
-        last = np.concatenate([positions[1:] != positions[:-1], [True]])  # patched()'s: the last value written
-        positions, added = positions[last], added[last]
+    positions, added = change  # sorted and distinct (patch_values)
     starts, ends = _runs(positions)
     r = _step_function(starts, ends, np.cumsum(added) / rate_hz, n_phase)
     d_buffer, dd_buffer = np.empty(DENSE_PIECE), np.empty(DENSE_PIECE)
