@@ -151,15 +151,10 @@ def test_rests_of_one_orientation_in_g_are_refused_as_one_orientation_not_as_no_
 
 
 def test_records_over_several_lines_with_a_label_before_each_sensor_are_read(turned, tmp_path):
+    from helpers.ios_dump import ios_dump_lines
+
     f = turned.frame
-    lines = []
-    for t, a, w in zip(f["t"].to_numpy(), f[["ax", "ay", "az"]].to_numpy(), f[["gx", "gy", "gz"]].to_numpy()):
-        whole, frac = divmod(t, 1.0)
-        minute, second = divmod(int(whole), 60)
-        lines += [f"    2023-04-17 15:{24 + minute:02d}:{second:02d}.{round(frac * 1e4):04d}",
-                  "    Acceleration: " + ", ".join(repr(float(v)) for v in a),
-                  "    Rotation Rate: " + ", ".join(repr(float(v)) for v in w),
-                  "    Magnetic Field: 456.39, -227.53, -400.04"]
+    lines = ios_dump_lines(f["t"].to_numpy(), f[["ax", "ay", "az"]].to_numpy(), f[["gx", "gy", "gz"]].to_numpy())
     path = tmp_path / "circle.txt"
     path.write_text("\n".join(lines) + "\nSent from my iPhone\n")
     loaded = load_with_segmentation(path)

@@ -69,14 +69,9 @@ def _held_records(turned, ratio: int) -> tuple[str, int]:
     n = len(f)
     update = (np.arange(n) // ratio) * ratio  # the row of the update each record repeats
     acc, gyro = f[["ax", "ay", "az"]].to_numpy()[update], f[["gx", "gy", "gz"]].to_numpy()[update]
-    lines = []
-    for t, a, w in zip(f["t"].to_numpy(), acc, gyro):
-        whole, frac = divmod(t, 1.0)
-        minute, second = divmod(int(whole), 60)
-        lines += [f"    2023-04-17 15:{24 + minute:02d}:{second:02d}.{round(frac * 1e4):04d}",
-                  "    Acceleration: " + ", ".join(repr(float(v)) for v in a),
-                  "    Rotation Rate: " + ", ".join(repr(float(v)) for v in w),
-                  "    Magnetic Field: 456.39, -227.53, -400.04"]
+    from helpers.ios_dump import ios_dump_lines
+
+    lines = ios_dump_lines(f["t"].to_numpy(), acc, gyro)
     return "\n".join(lines) + "\n", int(np.unique(update).size)
 
 
