@@ -107,6 +107,9 @@ class GyroDiagnosis:
     linearised_band_deg: NDArray[np.float64] | None = None
     #: The moves left out before the diagnosis, by reason (:attr:`optcal.families.gyro.moves.MoveSet.exclusions`).
     moves_excluded: dict[str, int] = field(default_factory=dict)
+    #: The accelerometer frame check (:class:`~optcal.applications.diagnosis.gyro_frame_check.FrameCheck`), None
+    #: when skipped.
+    accelerometer_frame: Any = None
 
     @property
     def gain(self) -> float:
@@ -139,6 +142,7 @@ class GyroDiagnosis:
                             "terms": {t.label: v.tolist() for t, v in zip(self.final.terms, self.final.values)}},
             "solver": self.solver,
             "notes": self.notes,
+            "accelerometer_frame": None if self.accelerometer_frame is None else self.accelerometer_frame.to_dict(),
         }
 
     def report_lines(self) -> list[str]:
@@ -189,6 +193,8 @@ class GyroDiagnosis:
             out.append(f"  time offset between the streams: {o['dt_s'] * 1e3:+.2f} ± {o['se_s'] * 1e3:.2f} ms (gyro "
                        f"late when positive; t {o['t']:.1f} against {o['critical_t']:.1f}, held-out "
                        f"{o['heldout_ratio']:.3f}×{_heldout_words(o, 'rms inside-move misfit')}): not named")
+        if self.accelerometer_frame is not None and self.accelerometer_frame.run:
+            out.append(self.accelerometer_frame.line())
         out.append(f"  held-out gravity prediction: {self.heldout_baseline_deg:.3f}° → {self.heldout_final_deg:.3f}° rms "
                    f"(gain {self.gain:.2f})")
         for name, why in self.skipped.items():
