@@ -168,10 +168,12 @@ class GyroDiagnosis:
             # the band's excess left unexplained: said, not "nothing" (the effect is outside the five candidates, or
             # the noise model understates the moves' noise)
             effects = list(dict.fromkeys(label.split("(")[0] for label in self.tested))
+            frame = bool(getattr(self.accelerometer_frame, "relevant", False))
             out.append(f"  none named: the {int(np.sum(self.outside))} move(s) beyond the band are explained by none of "
-                       f"the candidates tested ({', '.join(effects)}); the cause is outside them (motion during the "
-                       "rests, a time base that is not the samples', a filter) or the noise model understates the "
-                       "moves' noise")
+                       f"the candidates tested ({', '.join(effects)}); "
+                       + ("the accelerometer's frame explains them (below)" if frame else
+                          "the cause is outside them (motion during the rests, a time base that is not the samples', "
+                          "a filter, the accelerometer's frame) or the noise model understates the moves' noise"))
             tried = [s for s in self.steps if not s.get("removed")][:1]
             for step in tried:
                 moves_t = step.get("heldout_moves_t")
