@@ -109,6 +109,9 @@ def progress_printer() -> Any:
               help="--imu: what the held-out moves must show to confirm a g-sensitivity: response (the default), "
                    "their angle's paired gain or their response to it (1 when they carried what it removes, 0 when "
                    "none of it) beyond Student's 5 %% quantile; angles, the angle's gain alone, as every other term.")
+@click.option("--no-gyro-frame-check", "no_frame_check", is_flag=True,
+              help="--imu: skip refitting the accelerometer's frame jointly with the moves when they leave the band "
+                   "unexplained (2k + 1 IMU fits, k the folds).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the text report.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, metavar="CAL",
               help="Save the final model as a calibration file (extended when effects were found, else lumped), "
@@ -121,7 +124,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
              keep_terms: bool, no_term_pairs: bool, sensor: str,
              mag_units: str | None, accept_mag_fit: bool, keep_mag_repeats: bool, keep_mag_spikes: bool, imu: bool,
              gyro_heldout_se: float | None, gyro_g_evidence: str | None, heldout_se: float | None, as_json: bool,
-             output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
+             no_frame_check: bool, output: str | None, peer_gravity: float | None, gyro_calib: str | None, report_path: str | None,
              tolerance: float, **data_opts: Any) -> None:
     """Show where the calibrated model's simulation disagrees with DATA, name the cause, extend the model, measure the gain.
 
@@ -167,6 +170,8 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
         raise InputError("--gyro-heldout-se applies with --imu (the gyroscope's diagnosis)")
     if gyro_g_evidence is not None and not imu:
         raise InputError("--gyro-g-evidence applies with --imu (the gyroscope's diagnosis)")
+    if no_frame_check and not imu:
+        raise InputError("--no-gyro-frame-check applies with --imu (the gyroscope's diagnosis)")
     fit_settings = estimator_settings(method, **pop_solver_options(data_opts))
     if fit_settings and baseline_path:
         raise InputError("--solver, --conic-solver, --fix and --bound set how the baseline is calibrated; "
@@ -199,7 +204,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
                                       own=diag.baseline_model, own_label=f"the diagnosis's baseline: {diag.baseline_source} "
                                       f"refitted on these {diag.n} poses", own_heldout=diag.baseline_heldout, folds=folds)
     gyro = (_diagnose_gyro(loaded[0], method, alpha, folds, fit_settings, simulations, seed, gyro_heldout_se,
-                           gyro_g_evidence or "response")
+                           gyro_g_evidence or "response", not no_frame_check)
             if imu else None)
     paths = save_figures(diag, figures_into, gyro[0] if gyro is not None else None) if figures_into else []
     calibration = diag.calibration() if output and gyro is None else (gyro[1] if gyro is not None and output else None)
@@ -237,7 +242,7 @@ def diagnose(data: tuple[str, ...], effects: str | None, folds: int, simulations
 
 def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_settings: dict[str, Any],
                    simulations: int = 200, seed: int = 0, heldout_se: float | None = None,
-                   g_evidence: str = "response") -> Any:
+                   g_evidence: str = "response", check_frame: bool = True) -> Any:
     """The gyroscope's diagnosis of one recording: (diagnosis, the IMU calibration with its g-sensitivity, what the
     calibration cannot hold).  The gyro fit is kept whatever its fit check says (``accept_gyro_fit``): a fit the
     check refuses is what the diagnosis explains."""
@@ -256,7 +261,7 @@ def _diagnose_gyro(reading: Any, method: str, alpha: float, folds: int, fit_sett
     result = diagnose_gyro(moves, imu.accelerometer, imu.gyro,
                            GyroDiagnosisSettings(alpha=alpha, folds=min(folds, 5), solver=solver,
                                                  simulations=simulations, seed=seed, heldout_se=heldout_se,
-                                                 g_evidence=g_evidence))
+                                                 g_evidence=g_evidence, frame_check=check_frame))
     final = result.final
     rows = np.zeros((3, 3))
     losses = []

@@ -306,7 +306,8 @@ def diagnosis_document(diag: Any, poses: PoseTable, data_path: str, command: str
         peer.append(Section(
             "Gyroscope",
             [gyro.report_lines()[1], f"Held-out gravity prediction {gyro.heldout_baseline_deg:.3f}° with the paper's "
-             f"model, {gyro.heldout_final_deg:.3f}° with the final model (gain {gyro.gain:.3g}×)."],
+             f"model, {gyro.heldout_final_deg:.3f}° with the final model (gain {gyro.gain:.3g}×)."]
+            + ([gyro.accelerometer_frame.line().strip()] if getattr(gyro.accelerometer_frame, "relevant", False) else []),
             [Table(["effect", "axes", "estimate (SI)"], rows, "Gyroscope findings")] if rows else [],
             [embed(gyro_figure(gyro), "Each move's gravity prediction against its noise band, before and after")],
             "\n".join(gyro.report_lines())))

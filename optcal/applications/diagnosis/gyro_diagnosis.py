@@ -51,6 +51,7 @@ from numpy.typing import NDArray
 
 # the diagnosis's concepts, one module each (and importable from here, as before): the band, the held-out units,
 # the time offset's test, the findings and their text
+from optcal.applications.diagnosis.gyro_frame_check import frame_check
 from optcal.applications.diagnosis.gyro_band import SIMULATION_CHUNK, band, simulated_move_rad2
 from optcal.applications.diagnosis.gyro_heldout import (MIN_DIAGNOSIS_MOVES, HeldOut, _folds, heldout,
                                                         heldout_gain_t, moves_response, paired_gain)
@@ -121,6 +122,9 @@ class GyroDiagnosisSettings:
     g_evidence : str
         One of :data:`G_EVIDENCE`: whether the held-out moves' response to a g-sensitivity (:func:`moves_response`)
         may confirm it where their paired angle gain does not.
+    frame_check : bool
+        Refit the accelerometer's frame jointly with the moves when they leave the band unexplained
+        (:mod:`~optcal.applications.diagnosis.gyro_frame_check`; ``--no-gyro-frame-check`` skips it).
     """
 
     alpha: float = 0.02
@@ -132,6 +136,7 @@ class GyroDiagnosisSettings:
     seed: int = 0
     heldout_se: float | None = None
     g_evidence: str = "response"
+    frame_check: bool = True
 
     def __post_init__(self) -> None:
         if self.g_evidence not in G_EVIDENCE:
@@ -369,7 +374,11 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
         # 10·m/α runs)
         simulated = Noise(simulated_move_rad2(data, base, s.simulations, s.seed), noise.rest_var)
         moves_band = band(angles, simulated, s.alpha)
-    return GyroDiagnosis(findings, steps, angles, moves_band, move_angles(data, final),
+    final_angles = move_angles(data, final)
+    # the moves the selection leaves outside the band: does the accelerometer's frame explain them?
+    frame = (frame_check(moves, accelerometer, bool(np.any(final_angles > moves_band)), s.alpha, s.folds,
+                         moves_critical, s.solver) if s.frame_check else None)
+    return GyroDiagnosis(findings, steps, angles, moves_band, final_angles,
                          baseline_heldout, current_heldout, offset, [t.label for t in candidates] + (
                              ["time_offset"] if "time_offset" in effects else []), skipped, final, notes, solver,
-                         s.simulations, linearised, dict(moves.exclusions))
+                         s.simulations, linearised, dict(moves.exclusions), frame)

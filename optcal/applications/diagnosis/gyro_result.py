@@ -107,6 +107,9 @@ class GyroDiagnosis:
     linearised_band_deg: NDArray[np.float64] | None = None
     #: The moves left out before the diagnosis, by reason (:attr:`optcal.families.gyro.moves.MoveSet.exclusions`).
     moves_excluded: dict[str, int] = field(default_factory=dict)
+    #: The accelerometer frame check (:class:`~optcal.applications.diagnosis.gyro_frame_check.FrameCheck`), None
+    #: when skipped.
+    accelerometer_frame: Any = None
 
     @property
     def gain(self) -> float:
@@ -139,6 +142,7 @@ class GyroDiagnosis:
                             "terms": {t.label: v.tolist() for t, v in zip(self.final.terms, self.final.values)}},
             "solver": self.solver,
             "notes": self.notes,
+            "accelerometer_frame": None if self.accelerometer_frame is None else self.accelerometer_frame.to_dict(),
         }
 
     def report_lines(self) -> list[str]:
@@ -164,10 +168,12 @@ class GyroDiagnosis:
             # the band's excess left unexplained: said, not "nothing" (the effect is outside the five candidates, or
             # the noise model understates the moves' noise)
             effects = list(dict.fromkeys(label.split("(")[0] for label in self.tested))
+            frame = bool(getattr(self.accelerometer_frame, "relevant", False))
             out.append(f"  none named: the {int(np.sum(self.outside))} move(s) beyond the band are explained by none of "
-                       f"the candidates tested ({', '.join(effects)}); the cause is outside them (motion during the "
-                       "rests, a time base that is not the samples', a filter) or the noise model understates the "
-                       "moves' noise")
+                       f"the candidates tested ({', '.join(effects)}); "
+                       + ("the accelerometer's frame explains them (below)" if frame else
+                          "the cause is outside them (motion during the rests, a time base that is not the samples', "
+                          "a filter, the accelerometer's frame) or the noise model understates the moves' noise"))
             tried = [s for s in self.steps if not s.get("removed")][:1]
             for step in tried:
                 moves_t = step.get("heldout_moves_t")
@@ -189,6 +195,8 @@ class GyroDiagnosis:
             out.append(f"  time offset between the streams: {o['dt_s'] * 1e3:+.2f} ± {o['se_s'] * 1e3:.2f} ms (gyro "
                        f"late when positive; t {o['t']:.1f} against {o['critical_t']:.1f}, held-out "
                        f"{o['heldout_ratio']:.3f}×{_heldout_words(o, 'rms inside-move misfit')}): not named")
+        if self.accelerometer_frame is not None and self.accelerometer_frame.run:
+            out.append(self.accelerometer_frame.line())
         out.append(f"  held-out gravity prediction: {self.heldout_baseline_deg:.3f}° → {self.heldout_final_deg:.3f}° rms "
                    f"(gain {self.gain:.2f})")
         for name, why in self.skipped.items():
