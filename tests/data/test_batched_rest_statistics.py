@@ -208,7 +208,7 @@ def expression_wobbles(gyro, t, rad_per_unit, window, spans):
 def test_wobbles_bit_for_bit_as_the_plain_expressions(seed, monkeypatch):
     """The windows' sums add the samples in the same order as the plain expressions (so the same numbers to the last
     bit, which decide the same rests): one window or many, windows cut short, C or Fortran order, several chunks."""
-    import optcal.data.static_stretches as ss
+    import optcal.data.wobble as ss  # the module whose wobbles reads the chunk size
 
     rng = np.random.default_rng(100 + seed)
     if seed % 2:
