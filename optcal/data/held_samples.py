@@ -11,7 +11,9 @@ converter or still the sensor (a still sensor's slow wander only lengthens the r
 between favoured).  A logger's hold is the opposite: most runs at the ratio, few of one row.  The rule
 (:func:`held_runs`) takes the most common run length ``L* ≥ 2`` and asks whether its runs outnumber those of one row
 by more than :data:`HOLD_Z` binomial standard deviations (under the geometric model, a run of length 1 or ``L*`` is
-of length ``L*`` with a chance of at most one half).
+of length ``L*`` with a chance of at most one half), and whether more than :data:`RATIO_SHARE` of the runs lie
+within one row of ``L*`` (a filtered, oversampled sensor with noise under one code repeats its codes in runs that
+are not geometric, but spread over many lengths; a hold's sit at the rate ratio).
 
 A logger that copies the axes of a new update one at a time can write a row between two updates that holds some
 axes of the one and some of the other (``M1.csv``'s 16 runs of one row among 1625 of five: ``(31.8, -18.6, 24.0)``,
@@ -41,6 +43,19 @@ __all__ = ["HOLD_Z", "MIN_HELD_RUNS", "RATIO_SHARE", "HeldRuns", "held_rows", "h
 #: every row (the excess of the most common length among several is taken, so the alarm is somewhat larger; a still,
 #: coarse sensor's runs stay geometric and far from it).
 HOLD_Z: float = 3.0
+
+#: The share of the runs a hold puts within one row of its modal length, at or below which the runs are a sensor's
+#: own repeated codes and not a hold.  A logger writing a sensor that updates at a fixed ratio of its rate repeats
+#: each value the ratio's floor or ceiling rows (``circle.txt``: all 148 runs at 5 ± 1); a sensor read afresh on
+#: every row spreads its runs over many lengths: geometrically (:func:`held_runs`), or, an accelerometer whose
+#: filter's band is a hundredth of the log's rate and whose noise is under one code, so widely that :data:`HOLD_Z`
+#: alone is exceeded in about 4 % of simulated still logs, their runs within one row of the mode 8 %.  Half keeps
+#: a hold whose clocks slip often and refuses those.  Part of :func:`held_runs`, so the accelerometer's rule
+#: (:func:`held_rows`, whose repeats are dropped from every command's samples, an Allan analysis of a still log
+#: included) and the magnetometer's (``optcal.families.mag.held.drop_held``) both have it: a still magnetometer
+#: so filtered (cut-off 0.005-0.02 of the rate, noise 0.2-0.5 of a 0.15- or 0.3-µT step) passed :data:`HOLD_Z` in
+#: 31 of 2400 simulated logs (12 of 200 at worst), within one row of the mode in none.
+RATIO_SHARE: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -126,9 +141,13 @@ def held_runs(x: NDArray[np.float64]) -> HeldRuns | None:
     if short.size:
         here, before, after = x[first[short]], x[first[short - 1]], x[first[short + 1]]
         torn_runs[short] = np.all((here == before) | (here == after), axis=1)
+    kept = first[~torn_runs]
+    between = np.diff(kept)[1:]  # the runs between updates (a torn copy's rows in the run before it)
+    if between.size == 0 or np.mean(np.abs(between - mode) <= 1) <= RATIO_SHARE:
+        return None  # the runs spread over many lengths: a sensor's own codes, not a fixed rate ratio (RATIO_SHARE)
     torn = np.concatenate([np.arange(first[k], first[k] + lengths[k]) for k in np.flatnonzero(torn_runs)]
                           or [np.empty(0, dtype=np.intp)])
-    return HeldRuns(first[~torn_runs].astype(np.intp), torn.astype(np.intp), n, mode, float(z))
+    return HeldRuns(kept.astype(np.intp), torn.astype(np.intp), n, mode, float(z))
 
 
 #: The fewest runs of the modal length :data:`HOLD_Z` can call a hold (no run of one row: ``n / √n > 3`` needs
@@ -137,17 +156,6 @@ def held_runs(x: NDArray[np.float64]) -> HeldRuns | None:
 #: over one axis and a look at the few rows it flags, instead of the triples' runs: a still log of 4.3 M rows written
 #: to 1e-6 g repeats its first axis on about a thousand rows by chance, and the runs cost 0.05 s).
 MIN_HELD_RUNS: int = 10
-
-
-#: The share of the runs a hold puts within one row of its modal length, at or below which the runs are a sensor's
-#: own repeated codes and not a hold.  A logger writing a sensor that updates at a fixed ratio of its rate repeats
-#: each value the ratio's floor or ceiling rows (``circle.txt``: all 148 runs at 5 ± 1); a sensor read afresh on
-#: every row spreads its runs over many lengths: geometrically (:func:`held_runs`), or, an accelerometer whose
-#: filter's band is a hundredth of the log's rate and whose noise is under one code, so widely that :data:`HOLD_Z`
-#: alone is exceeded in about 4 % of simulated still logs, their runs within one row of the mode 8 %.  Half keeps
-#: a hold whose clocks slip often and refuses those.  Checked for the accelerometer, whose repeats are dropped from
-#: every command's samples (an Allan analysis of a still log included).
-RATIO_SHARE: float = 0.5
 
 
 def held_rows(x: NDArray[np.float64], usable: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], HeldRuns] | None:
@@ -177,9 +185,6 @@ def held_rows(x: NDArray[np.float64], usable: NDArray[np.bool_]) -> tuple[NDArra
         return None  # whole triples repeated on too few rows for a hold (MIN_HELD_RUNS)
     held = held_runs(x if idx is None else x[idx])
     if held is None:
-        return None
-    lengths = np.diff(held.first)[1:]  # the runs between updates (a torn copy's rows in the run before it)
-    if lengths.size == 0 or np.mean(np.abs(lengths - held.modal_length) <= 1) <= RATIO_SHARE:
         return None
     keep = ~usable
     keep[held.first if idx is None else idx[held.first]] = True

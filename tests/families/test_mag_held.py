@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.signal import butter, lfilter
 
 from optcal.data.held_samples import held_runs
 from optcal.families.mag.samples import HELD_ROWS, TORN_ROWS, read_mag
@@ -56,3 +57,22 @@ def test_a_still_coarse_magnetometer_read_every_row_is_no_hold(noise_steps):
     m = np.round(([20.0, -3.0, 40.0] + rng.normal(0, noise_steps * STEP_UT, (20000, 3))) / STEP_UT) * STEP_UT
     repeats = np.count_nonzero(np.all(m[1:] == m[:-1], axis=1))
     assert repeats > 0 and held_runs(m) is None
+
+
+def test_a_filtered_oversampled_magnetometer_read_every_row_keeps_its_rows(tmp_path):
+    """A still magnetometer read afresh every row behind a low-pass of a twenty-fifth of the log's rate, its noise a
+    fifth of its 0.3-µT step: its codes repeat in runs too long to be geometric, so the runs test alone (HOLD_Z)
+    called them a hold of two rows (z = 4.0 for this log) and kept 1,086 of its 20,000 rows; their lengths spread
+    far from two rows (RATIO_SHARE), so every row is a sample (the rule the accelerometer's reader has)."""
+    step = 0.3
+    b, a = butter(2, 0.04)  # cut-off at 0.02 of the log's rate
+    noise = lfilter(b, a, np.random.default_rng(20).standard_normal((22000, 3)), axis=0)[2000:]
+    noise /= noise.std(axis=0)
+    m = np.round(([21.3, -8.2, 44.6] + 0.2 * step * noise) / step) * step
+    assert np.count_nonzero(np.all(m[1:] == m[:-1], axis=1)) > 10000  # a still, coarse sensor repeats its codes
+    path = tmp_path / "filtered.csv"
+    np.savetxt(path, np.column_stack([np.arange(m.shape[0]) / 100.0, m]), delimiter=",",
+               header="t,mag_x_uT,mag_y_uT,mag_z_uT", comments="", fmt="%.6f")
+    samples = read_mag(path)
+    assert samples.n == m.shape[0] and HELD_ROWS not in samples.exclusions and TORN_ROWS not in samples.exclusions
+    assert not any("repeats each value" in n for n in samples.notes)
