@@ -172,7 +172,8 @@ def _points(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
 
 def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]],
             prefix: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float, n_phase: int, ms: NDArray[np.intp],
-            adev: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
+            adev: NDArray[np.float64], half: NDArray[np.float64],
+            varying: list[float] | None = None) -> NDArray[np.float64]:
     """``|σ_patched(τ) − adev| / half`` at the cluster lengths ``ms``, the series patched as ``pieces`` say
     (:func:`_pieces`), without a copy of the log.
 
@@ -182,7 +183,8 @@ def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
     constant between the changed samples' places shifted by 0, m and 2m and zero away from them.  On each such piece
     ``Σ (D + ΔD)² − Σ D² = 2 ΔD Σ D + ΔD² · length``, and ``Σ D`` over a piece is three differences of the running
     sum of the phase, ``prefix`` (its indices and values there: :func:`phase_prefix_at`): the cost is the changed
-    samples', not the log's."""
+    samples', not the log's.  ``varying``: per cluster length, ``Σ (2 D + ΔD) ΔD`` already summed where ``ΔD`` is
+    not constant between the pieces (the dense route, :func:`_dense_pieces`); none for :func:`_pieces`' pieces."""
     points, values = prefix
 
     def at(t: NDArray[np.intp]) -> NDArray[np.float64]:
@@ -192,6 +194,8 @@ def _ratios(pieces: list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.fl
     for k, (m, (p, q, delta)) in enumerate(zip(ms.tolist(), pieces)):
         n = n_phase - 2 * m
         total = _log_sum(float(adev[k]), m, n, rate_hz)
+        if varying is not None:
+            total += varying[k]
         span = (at(q + 2 * m) - at(p + 2 * m)) - 2.0 * (at(q + m) - at(p + m)) + (at(q) - at(p))  # Σ D on [p, q)
         total += float(np.sum(2.0 * delta * span + delta * delta * (q - p)))
         out[k] = _ratio(total, n, m, rate_hz, adev[k], half[k])
@@ -233,7 +237,7 @@ def _merged(starts: NDArray[np.intp], ends: NDArray[np.intp], n: int) -> tuple[N
 
 @dataclass(frozen=True)
 class _DenseCut:
-    """One patch at one cluster length for :func:`_dense_ratios`: the gaps ``[p, q)`` between the ``u`` where ``ΔD``
+    """One patch at one cluster length for :func:`_dense_pieces`: the gaps ``[p, q)`` between the ``u`` where ``ΔD``
     varies, ``ΔD`` on each (``delta``, constant there), and ``Σ (2 D + ΔD) ΔD`` over those ``u`` (``varying``)."""
 
     p: NDArray[np.intp]
@@ -277,7 +281,7 @@ def _step_function(starts: NDArray[np.intp], ends: NDArray[np.intp], running: ND
 
 def _dense_cuts(x: NDArray[np.float64], change: tuple[NDArray[np.intp], NDArray[np.float64]], rate_hz: float,
                 ms: NDArray[np.intp]) -> list[_DenseCut]:
-    """Per cluster length of ``ms``, the patch ``change`` (:func:`patch_values`) split as :func:`_dense_ratios` says.
+    """Per cluster length of ``ms``, the patch ``change`` (:func:`patch_values`) split as :func:`_dense_pieces` says.
 
     ``x`` is the phase (:func:`~optcal.families.noise.allan.phase_from_rate`).  ``R`` is :func:`_pieces`' running sum
     of the added values (to rounding), as an array of the phase's length; ``ΔD(u) = R(u+2m) − 2R(u+m) + R(u)``
@@ -310,43 +314,25 @@ def _dense_cuts(x: NDArray[np.float64], change: tuple[NDArray[np.intp], NDArray[
     return out
 
 
-def _dense_ratios(column: NDArray[np.float64], changes: list[tuple[NDArray[np.intp], NDArray[np.float64]]],
-                  rate_hz: float, ms: NDArray[np.intp], adev: NDArray[np.float64], half: NDArray[np.float64],
-                  carries: PhaseCarries | None) -> list[NDArray[np.float64]]:
-    """:func:`_ratios` of each patch of ``changes`` (:func:`patch_values`), for patches of many samples.
+def _dense_pieces(column: NDArray[np.float64], changes: list[tuple[NDArray[np.intp], NDArray[np.float64]]],
+                  rate_hz: float, ms: NDArray[np.intp]
+                  ) -> tuple[list[list[tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]]], list[list[float]]]:
+    """:func:`_pieces` of each patch of ``changes`` (:func:`patch_values`) for patches of many samples, with the part
+    of the sum :func:`_ratios` takes from them already summed.
 
     The same sum ``Σ (D + ΔD)² − Σ D²`` as :func:`_ratios`, split differently.  Where ``ΔD`` changes from one ``u`` to
     the next (``u + km`` a changed sample: every ``u`` of a long stretch not at rest is a piece of its own there) it is
-    summed ``u`` by ``u`` from slices of the phase and of ``R``.  On the gaps between, ``ΔD`` is constant and ``Σ D``
-    three differences of the phase's running sum (:func:`phase_prefix_at`), as in :func:`_ratios`.  The cost is a pass
-    of the log's length per patch plus the changed samples' neighbourhoods, against :func:`_ratios`' sort and search
-    of six points per piece; the sums agree to rounding (the additions are grouped differently).
+    summed ``u`` by ``u`` from slices of the phase and of ``R`` (the second list, per patch and cluster length).  On
+    the gaps between, ``ΔD`` is constant: those are the pieces, whose ``Σ D`` :func:`_ratios` takes from three
+    differences of the phase's running sum (:func:`phase_prefix_at`).  The cost is a pass of the log's length per patch
+    plus the changed samples' neighbourhoods, against :func:`_pieces`' sort and search of six points per piece; the
+    sums agree to rounding (the additions are grouped differently).
     """
     from optcal.families.noise.allan import phase_from_rate
 
-    x = phase_from_rate(column, rate_hz)
-    n_phase = x.size
+    x = phase_from_rate(column, rate_hz)  # the phase (the log's length: freed on return, before the running sums)
     cuts = [_dense_cuts(x, change, rate_hz, ms) for change in changes]
-    del x
-    points = sorted_unique(np.concatenate([np.empty(0, dtype=np.intp)] + [
-        np.concatenate([c.p, c.q]) + shift * m for per in cuts for c, m in zip(per, ms.tolist()) for shift in (0, 1, 2)]))
-    values = phase_prefix_at(column, rate_hz, points, carries)
-
-    def at(t: NDArray[np.intp]) -> NDArray[np.float64]:
-        return values[np.searchsorted(points, t)]
-
-    out = []
-    for per in cuts:
-        ratios = np.empty(ms.size)
-        for k, (m, c) in enumerate(zip(ms.tolist(), per)):
-            n = n_phase - 2 * m
-            p, q, delta = c.p, c.q, c.delta
-            span = (at(q + 2 * m) - at(p + 2 * m)) - 2.0 * (at(q + m) - at(p + m)) + (at(q) - at(p))  # Σ D on [p, q)
-            total = _log_sum(float(adev[k]), m, n, rate_hz) + c.varying
-            total += float(np.sum(2.0 * delta * span + delta * delta * (q - p)))
-            ratios[k] = _ratio(total, n, m, rate_hz, float(adev[k]), float(half[k]))
-        out.append(ratios)
-    return out
+    return [[(c.p, c.q, c.delta) for c in per] for per in cuts], [[c.varying for c in per] for per in cuts]
 
 
 #: Samples per piece of :func:`phase_prefix_at`'s running sums: its one temporary (256 KiB) stays in the
@@ -466,7 +452,7 @@ def phase_prefix_at(column: NDArray[np.float64], rate_hz: float, points: NDArray
 
 
 #: What :func:`_ratios` spends on one point of its pieces (its place in the sort of all of them, six searches in it),
-#: in :func:`_dense_ratios`' cost of one sample of the log per patch: 62-73 ns against 5-7 ns (9-15 times), measured
+#: in :func:`_dense_pieces`' cost of one sample of the log per patch: 62-73 ns against 5-7 ns (9-15 times), measured
 #: on 1.5 and 4 hours of a 100 Hz log with moves (600 and 1275 samples not at rest).  It picks the cheaper of two
 #: routes that agree to rounding, so it sets only the time; the low end of the measured range leans to
 #: :func:`_ratios`, the route a still log's few samples not at rest keep (151 in 12 hours: 9 times below the crossing).
@@ -474,8 +460,8 @@ PIECE_POINT_COST: float = 8.0
 
 
 def dense_route(changes: Sequence[tuple[NDArray[np.intp], NDArray[np.float64]]], n_taus: int, n_phase: int) -> bool:
-    """Whether :func:`_dense_ratios` is the cheaper route for these patches: :func:`_ratios` reads six points of each
-    of up to three pieces per changed sample and cluster length, :func:`_dense_ratios` passes over the log once per
+    """Whether :func:`_dense_pieces` is the cheaper route for these patches: :func:`_ratios` reads six points of each
+    of up to three pieces per changed sample and cluster length, :func:`_dense_pieces` passes over the log once per
     patch (:data:`PIECE_POINT_COST`).
 
     Parameters
@@ -525,12 +511,16 @@ def disturbance_change(x: NDArray[np.float64], at_rest: NDArray[np.bool_], rate_
         if carried is not None and not carried.of(column, rate_hz):
             carried = None
         changes = [patch_values(column, at_rest, rate_hz, spans) for spans in spans_list]
+        varying: list[list[float] | None]
         if dense_route(changes, ms[j].size, n_phase):
-            return _dense_ratios(column, changes, rate_hz, ms[j], curves[j].adev, half[j], carried)
-        pieces = [_pieces(change, rate_hz, ms[j], n_phase) for change in changes]
+            pieces, dense_sums = _dense_pieces(column, changes, rate_hz, ms[j])
+            varying = list(dense_sums)
+        else:
+            pieces = [_pieces(change, rate_hz, ms[j], n_phase) for change in changes]
+            varying = [None] * len(pieces)
         points = sorted_unique(np.concatenate([_points(p, ms[j]) for p in pieces]))
         prefix = (points, phase_prefix_at(column, rate_hz, points, carried))
-        return [_ratios(p, prefix, rate_hz, n_phase, ms[j], curves[j].adev, half[j]) for p in pieces]
+        return [_ratios(p, prefix, rate_hz, n_phase, ms[j], curves[j].adev, half[j], v) for p, v in zip(pieces, varying)]
 
     # one thread per axis: each pass is a running sum (numpy, the interpreter released), so the axes share the cores
     with ThreadPoolExecutor(max_workers=len(curves), thread_name_prefix="optcal-moves") as pool:
