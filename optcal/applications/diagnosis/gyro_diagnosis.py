@@ -53,8 +53,8 @@ from numpy.typing import NDArray
 # the time offset's test, the findings and their text
 from optcal.applications.diagnosis.gyro_frame_check import frame_check
 from optcal.applications.diagnosis.gyro_band import SIMULATION_CHUNK, band, simulated_move_rad2
-from optcal.applications.diagnosis.gyro_heldout import (MIN_DIAGNOSIS_MOVES, HeldOut, _folds, heldout,
-                                                        heldout_gain_t, moves_response, paired_gain)
+from optcal.applications.diagnosis.gyro_heldout import (MIN_DIAGNOSIS_MOVES, HeldOut, heldout, heldout_gain_t,
+                                                        interleaved_folds, moves_response, paired_gain)
 from optcal.applications.diagnosis.gyro_problem import (
     GYRO_EFFECTS,
     GyroData,
@@ -259,13 +259,13 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
     base = GyroParams(np.asarray(gyro.T, float), np.asarray(gyro.bias, float), (), ())
     noise = measured_noise(data, base)
     base = gauss_newton(data, noise, base, iterations=4)  # the paper's model, its bias with the rests' noise
-    folds = _folds(data.n_moves, min(s.folds, data.n_moves // 2))
+    folds = interleaved_folds(data.n_moves, min(s.folds, data.n_moves // 2))
     counts = (2 * data.n_moves, 3 * data.rest_raw.shape[0])  # two directions across gravity per move
     n_obs = sum(counts)
     candidates, skipped = _candidates(data, effects)
     current = base
     current_rss = evaluate(data, noise, current, jac=False).rss()
-    rest_folds = _folds(data.rest_raw.shape[0], len(folds))
+    rest_folds = interleaved_folds(data.rest_raw.shape[0], len(folds))
     current_out = heldout(data, noise, current, folds, rest_folds)
     current_heldout = baseline_heldout = current_out.rms_deg
     heldout_critical = (quantiles.t_isf(HELDOUT_LEVEL, data.n_moves + data.rest_raw.shape[0] - 1)
@@ -376,7 +376,7 @@ def diagnose_gyro(moves: MoveSet, accelerometer: Any, gyro: Any, settings: GyroD
         moves_band = band(angles, simulated, s.alpha)
     final_angles = move_angles(data, final)
     # the moves the selection leaves outside the band: does the accelerometer's frame explain them?
-    frame = (frame_check(moves, accelerometer, bool(np.any(final_angles > moves_band)), s.alpha, s.folds,
+    frame = (frame_check(moves, accelerometer, bool(np.any(final_angles > moves_band)), s.alpha, folds,
                          moves_critical, s.solver) if s.frame_check else None)
     return GyroDiagnosis(findings, steps, angles, moves_band, final_angles,
                          baseline_heldout, current_heldout, offset, [t.label for t in candidates] + (

@@ -35,8 +35,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.applications.diagnosis.gyro_heldout import _folds, paired_gain
+from optcal.applications.diagnosis.gyro_heldout import paired_gain
 from optcal.core import quantiles
+from optcal.core.stats import rms
 from optcal.data.units import GyroUnitsDecision
 from optcal.errors import IdentifiabilityError, InputError
 from optcal.families.gyro.estimator import GyroSettings, calibrate_gyro
@@ -83,7 +84,7 @@ def _frame_deg(acc: Any) -> dict[str, float]:
 
 
 def _rests_mg(acc: Any) -> float:
-    return float(np.sqrt(np.mean(np.asarray(acc.residuals) ** 2)) * 1e3)  # |a| − 1 in g: milligravity
+    return rms(acc.residuals) * 1e3  # |a| − 1 in g: milligravity
 
 
 @dataclass(frozen=True)
@@ -115,8 +116,8 @@ class FrameCheck:
                 f"against {d['rests_critical_f']:.2f})" + (f"; remedy: {REMEDY}" if self.relevant else ""))
 
 
-def frame_check(moves: MoveSet, accelerometer: Any, outside: bool, alpha: float, folds: int, critical_t: float,
-                solver: str | None = None) -> FrameCheck:
+def frame_check(moves: MoveSet, accelerometer: Any, outside: bool, alpha: float, folds: list[NDArray[np.bool_]],
+                critical_t: float, solver: str | None = None) -> FrameCheck:
     """Refit the accelerometer's frame jointly with the moves and judge it (module docstring).
 
     Parameters
@@ -129,8 +130,9 @@ def frame_check(moves: MoveSet, accelerometer: Any, outside: bool, alpha: float,
         Moves are outside the band under the diagnosis's final model (the check runs only then).
     alpha : float
         Level of the rests' F.
-    folds : int
-        Folds of the held-out moves.
+    folds : list of ndarray of bool
+        The held-out moves of each fold: the gyro candidates' folds
+        (:func:`~optcal.applications.diagnosis.gyro_heldout.interleaved_folds`).
     critical_t : float
         The held-out moves' paired t the gain must exceed (the gyro candidates').
     solver : str, optional
@@ -150,7 +152,7 @@ def frame_check(moves: MoveSet, accelerometer: Any, outside: bool, alpha: float,
         full_joint = calibrate_gyro(moves, accelerometer, units, joint)
         angle_fixed = np.zeros(moves.n_moves)
         angle_joint = np.zeros(moves.n_moves)
-        for test in _folds(moves.n_moves, min(folds, moves.n_moves // 2)):
+        for test in folds:
             train = moves_subset(moves, ~test)
             held = moves_subset(moves, test)
             angle_fixed[test] = prediction_angles(held, calibrate_gyro(train, accelerometer, units, fixed))
@@ -170,10 +172,8 @@ def frame_check(moves: MoveSet, accelerometer: Any, outside: bool, alpha: float,
     relevant = bool(t > critical_t and f < f_critical)
     details = {
         "frame_fixed_deg": _frame_deg(acc0), "frame_joint_deg": _frame_deg(acc1),
-        "moves_rms_deg": {"fixed": float(np.sqrt(np.mean(full_fixed.angles_after_deg ** 2))),
-                          "joint": float(np.sqrt(np.mean(full_joint.angles_after_deg ** 2)))},
-        "heldout_rms_deg": {"fixed": float(np.sqrt(np.mean(angle_fixed ** 2))),
-                            "joint": float(np.sqrt(np.mean(angle_joint ** 2)))},
+        "moves_rms_deg": {"fixed": rms(full_fixed.angles_after_deg), "joint": rms(full_joint.angles_after_deg)},
+        "heldout_rms_deg": {"fixed": rms(angle_fixed), "joint": rms(angle_joint)},
         "heldout_gain_deg": gain, "heldout_se_deg": se, "heldout_t": t, "heldout_critical_t": critical_t,
         "rests_rms_mg": {"fixed": _rests_mg(acc0), "joint": _rests_mg(acc1)},
         "rests_rss": {"fixed": rss0, "joint": rss1}, "rests_dof": nu, "rests_f": f, "rests_critical_f": f_critical,

@@ -17,7 +17,7 @@ from optcal.core.stats import mean_and_se
 MIN_DIAGNOSIS_MOVES: int = 8
 
 
-def _folds(m: int, k: int) -> list[NDArray[np.bool_]]:
+def interleaved_folds(m: int, k: int) -> list[NDArray[np.bool_]]:
     """Held-out moves of each fold (interleaved: every ``k``-th move, so each fold spans the session)."""
     return [np.arange(m) % k == j for j in range(k)]
 
