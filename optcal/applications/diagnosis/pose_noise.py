@@ -244,6 +244,7 @@ def effects_under_pose_noise(fitter: Fitter, final: Fit, levels: Mapping[tuple[s
     Bias steps (their position was searched under the σ as logged) and ``levels`` missing a term are not tested.
     """
     out: list[UnderPoseNoise] = []
+    tau_with = pose_noise_floor(fitter, final, alpha, "floor").tau_g  # the pose noise the effects leave: once
 
     def again(small: Fit) -> tuple[PoseNoiseFloor, Fitter, Fit]:
         floor = pose_noise_floor(fitter, small, alpha, "floor")
@@ -257,16 +258,14 @@ def effects_under_pose_noise(fitter: Fitter, final: Fit, levels: Mapping[tuple[s
         floor, wide, small_w = again(small)
         p = wide.f_test(small_w, wide.fit(final.terms, final.outliers, final.x))
         level = levels[key]
-        out.append(UnderPoseNoise(describe_term(key[0], key[1], order), floor.tau_g,
-                                  pose_noise_floor(fitter, final, alpha, "floor").tau_g, fitter.f_test(small, final),
-                                  p, level, p < level))
+        out.append(UnderPoseNoise(describe_term(key[0], key[1], order), floor.tau_g, tau_with,
+                                  fitter.f_test(small, final), p, level, p < level))
     if final.outliers and outlier_level is not None:
         small = fitter.fit(final.terms, frozenset(), final.x)
         floor, wide, small_w = again(small)
         found = detect_outliers(wide, small_w, outlier_level)
         kept = 0 if found is None else len(found.poses & final.outliers)
         n_out = len(final.outliers)
-        out.append(UnderPoseNoise(f"outliers({n_out} poses)", floor.tau_g,
-                                  pose_noise_floor(fitter, final, alpha, "floor").tau_g,
+        out.append(UnderPoseNoise(f"outliers({n_out} poses)", floor.tau_g, tau_with,
                                   None, 1.0 if found is None else found.p_value, outlier_level, kept == n_out, kept))
     return tuple(out)
