@@ -28,10 +28,14 @@ class HeldOut:
     noise, every one under the model refitted without its fold."""
 
     angles2: NDArray[np.float64]
-    moves: NDArray[np.float64]
-    rests: NDArray[np.float64]
     #: Each move's residual (m, 3) over its noise, under the model refitted without its fold.
-    move_residuals: NDArray[np.float64] | None = None
+    move_residuals: NDArray[np.float64]
+    rests: NDArray[np.float64]
+
+    @property
+    def moves(self) -> NDArray[np.float64]:
+        """Each move's squared residual over its noise."""
+        return np.asarray(np.sum(self.move_residuals ** 2, axis=1))
 
     @property
     def rms_deg(self) -> float:
@@ -43,17 +47,15 @@ def heldout(data: GyroData, noise: Noise, p: GyroParams, folds: list[NDArray[np.
     """:class:`HeldOut` of ``p`` (k-fold: the moves and rests of each fold predicted by the model fitted to the
     others, one Gauss–Newton step from ``p``)."""
     angles2 = np.zeros(data.n_moves)
-    moves = np.zeros(data.n_moves)
     residuals = np.zeros((data.n_moves, 3))
     rests = np.zeros(data.rest_raw.shape[0])
     for test, test_rests in zip(folds, rest_folds):
         refit = gauss_newton(data, noise, p, iterations=1, train=~test, train_rests=~test_rests)
         e = evaluate(data, noise, refit, jac=False)
         angles2[test] = move_angles(data, refit, test) ** 2
-        moves[test] = np.sum(e.moves[test] ** 2, axis=1)
         residuals[test] = e.moves[test]
         rests[test_rests] = np.sum(e.rests[test_rests] ** 2, axis=1)
-    return HeldOut(angles2, moves, rests, residuals)
+    return HeldOut(angles2, residuals, rests)
 
 
 def moves_response(before: HeldOut, after: HeldOut) -> tuple[float, float]:
@@ -63,7 +65,6 @@ def moves_response(before: HeldOut, after: HeldOut) -> tuple[float, float]:
     ``Δ`` as an error), and its standard error (:func:`~optcal.core.stats.mean_and_se` of the moves' own ratios,
     weighted by ``|Δ|²``).  Linear in the moves' noise, where the paired gain of their angles is second order in a
     small ``Δ``: a term the rests fix well and the moves see faintly is judged by it."""
-    assert before.move_residuals is not None and after.move_residuals is not None
     delta = after.move_residuals - before.move_residuals
     x = np.sum(delta * delta, axis=1)
     keep = x > 0
