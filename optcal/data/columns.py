@@ -19,6 +19,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -416,6 +417,16 @@ def increasing_column(col: NDArray[np.float64]) -> bool:
     return v.size >= 2 and bool(np.all(np.diff(v) >= 0)) and bool(v[-1] > v[0])
 
 
+def time_column_at(columns: Sequence[NDArray[np.float64]]) -> int | None:
+    """The place of a headerless layout's time column: the first field when it increases (:func:`increasing_column`),
+    or else the last; ``None`` when neither does."""
+    if increasing_column(columns[0]):
+        return 0
+    if increasing_column(columns[-1]):
+        return len(columns) - 1
+    return None
+
+
 def _first_decrease(col: NDArray[np.float64]) -> str:
     """`` (column 1 goes back at data row 6: 59022 after 59231)``, or ``""`` when its finite values never decrease."""
     rows = np.flatnonzero(np.isfinite(col))
@@ -560,10 +571,7 @@ def headerless_mapping(
         columns[0] = given[0] = joined[0]
         time_at = 0
     elif width - 1 in HEADERLESS_TRIPLES:
-        if increasing_column(columns[0]):
-            time_at = 0
-        elif increasing_column(columns[-1]):
-            time_at = width - 1
+        time_at = time_column_at(columns)
     rest = [j for j in range(width) if j != time_at and not (joined is not None and j == 1)]
     pos = list(range(lead, lead + width))  # each field's 0-based place in the file
     tags: list[int] = []
@@ -576,7 +584,7 @@ def headerless_mapping(
         columns, pos, width = [columns[j] for j in keep], [pos[j] for j in keep], len(keep)
         time_at = None
         if width - 1 in HEADERLESS_TRIPLES:
-            time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[-1]) else None)
+            time_at = time_column_at(columns)
         rest = [j for j in range(width) if j != time_at]
     at = [p + 1 for p in pos] + list(range(pos[-1] + 2 if pos else lead + 1, lead + 5))  # 1-based, for the example
     example = (f"--columns t={at[0]},ax={at[1]},ay={at[2]},az={at[3]}" if width >= 4

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import MAG, increasing_column, joined_stamp_note, sensor_word, split_stamp
+from optcal.data.columns import MAG, increasing_column, joined_stamp_note, sensor_word, split_stamp, time_column_at
 from optcal.errors import InputError
 from optcal.families.mag.columns import NORMAL_ZERO, TWO_AXES
 
@@ -137,7 +137,7 @@ def _headerless_mag(path: str, names: list[str], columns: list[NDArray[np.float6
         columns[0] = given[lead] = joined[0]
         time_at = 0
     elif width in (3, 4, 10):
-        time_at = 0 if increasing_column(columns[0]) else (width - 1 if increasing_column(columns[width - 1]) else None)
+        time_at = time_column_at(columns[:width])
     # a field's axis turns back as the sensor turns (a full turn in any plane passes each axis's extremes), so a
     # second column increasing in every row beside the time is an index or a second clock, not a field's axis: of
     # 3 or 4 columns, 2 are then left for the field, a 2-axis compass's log (TWO_AXES)

@@ -8,7 +8,7 @@ import re
 import numpy as np
 from numpy.typing import NDArray
 
-from optcal.data.columns import MAG, increasing_column
+from optcal.data.columns import MAG, time_column_at
 from optcal.errors import InputError
 from optcal.families.mag.sample_set import MagSamples, _build
 
@@ -31,7 +31,7 @@ def _read_container(path: str, kind: str, topic: str | None, mag_units: str | No
             # a buffer of a time and the three axes (sunsided/sensor-fusion's compassBuffer, 4 × n: t, x, y, z), as
             # a headerless text file of 4 columns is read: the time the first (or else the last) when it increases
             v = values if shape[1] == 4 else values.T
-            at = 0 if increasing_column(v[:, 0]) else (3 if increasing_column(v[:, 3]) else None)
+            at = time_column_at(list(v.T))
             if at is None:
                 return None
             clocks[var.name] = (v[:, at], 2 if at == 0 else 1)
